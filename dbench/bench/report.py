@@ -1,0 +1,113 @@
+"""Result tables and pictures: pandas → CSV / Markdown, matplotlib → PNG comparison grids.
+
+The report reads results; it never renders or denoises. Every file is written atomically.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+import pandas as pd
+
+from .. import io, metrics
+
+RUN_COLUMNS = ["scene", "method", "spp", "res", "rmse", "relmse", "smape", "psnr", "ssim", "flip",
+               "time_s"]
+
+
+def write_csv(path: str | Path, table: pd.DataFrame) -> None:
+    with io.atomic_path(path, suffix=".tmp.csv") as tmp:
+        table.to_csv(tmp, index=False, float_format="%.6g")
+
+
+def markdown_table(table: pd.DataFrame, floatfmt: str = ".4g") -> str:
+    """A GitHub Markdown table (pandas' to_markdown needs tabulate; this does not)."""
+    def fmt(v: Any) -> str:
+        if isinstance(v, (float, np.floating)):
+            return "nan" if not np.isfinite(v) else format(float(v), floatfmt)
+        return str(v)
+
+    cols = [str(c) for c in table.columns]
+    lines = ["| " + " | ".join(cols) + " |", "|" + "|".join("---" for _ in cols) + "|"]
+    for row in table.itertuples(index=False):
+        lines.append("| " + " | ".join(fmt(v) for v in row) + " |")
+    return "\n".join(lines)
+
+
+def metric_definitions_md() -> str:
+    lines = [f"- **{name}**: {text}" for name, text in metrics.DEFINITIONS.items()]
+    lines.append(f"- Tone map: {metrics.TONEMAP_DEFINITION}")
+    return "\n".join(lines)
+
+
+def machine_md(info: dict[str, Any]) -> str:
+    pk = ", ".join(f"{k} {v}" for k, v in info["packages"].items())
+    return (f"- CPU: {info['cpu']} ({info['cores']} cores); GPU: {info['gpu']}\n"
+            f"- Python {info['python']} on {info['platform']}\n- Packages: {pk}")
+
+
+def error_map(output: np.ndarray, reference: np.ndarray) -> np.ndarray:
+    """Per-pixel relative error |x − r| / (|r| + 0.01), channel mean, (H, W)."""
+    err = np.abs(np.nan_to_num(output, nan=1e6) - reference) / (np.abs(reference) + 1e-2)
+    return err.mean(axis=-1)
+
+
+def comparison_grid(path: str | Path, images: Sequence[tuple[str, np.ndarray]],
+                    reference: np.ndarray | None, ev: float = 0.0,
+                    title: str = "") -> None:
+    """PNG grid: top row the tone-mapped images, bottom row their relative error maps."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    cols = list(images) + ([("reference", reference)] if reference is not None else [])
+    rows = 2 if reference is not None else 1
+    size = 2.6
+    fig, axes = plt.subplots(rows, len(cols), figsize=(size * len(cols), size * rows + 0.4),
+                             squeeze=False)
+    vmax = 1.0
+    for j, (label, img) in enumerate(cols):
+        ax = axes[0, j]
+        ax.imshow(metrics.tonemap(np.nan_to_num(img), ev=ev), interpolation="nearest")
+        ax.set_title(label, fontsize=9)
+        ax.set_axis_off()
+        if rows == 2:
+            ax = axes[1, j]
+            if label == "reference":
+                ax.set_axis_off()
+                continue
+            emap = error_map(img, reference)
+            im = ax.imshow(emap, cmap="magma", vmin=0.0, vmax=vmax, interpolation="nearest")
+            rmse = metrics.compute("rmse", img, reference) if np.all(np.isfinite(img)) else np.nan
+            ax.set_title(f"rel. error (RMSE {rmse:.3g})", fontsize=8)
+            ax.set_axis_off()
+    if rows == 2:
+        fig.colorbar(im, ax=axes[1, :].tolist(), shrink=0.8, label="|x−r|/(|r|+0.01)")
+    if title:
+        fig.suptitle(title, fontsize=10)
+    with io.atomic_path(path, suffix=".tmp.png") as tmp:
+        fig.savefig(tmp, dpi=110, format="png")
+    plt.close(fig)
+
+
+def run_report_md(table: pd.DataFrame, settings: dict[str, Any], info: dict[str, Any],
+                  skipped: dict[str, str], notes: Sequence[str] = ()) -> str:
+    """The Markdown report of one ``dbench run``."""
+    shown = table[[c for c in RUN_COLUMNS if c in table.columns]]
+    parts = [f"# dbench run: {settings['scene']} at {settings['spp']} spp, "
+             f"{settings['res']}×{settings['res']} px", "",
+             markdown_table(shown), "",
+             "Lower is better except PSNR and SSIM. `time_s` is the median denoise time "
+             f"of {settings['repeats']} calls after one warm-up (rendering excluded).", ""]
+    if skipped:
+        parts += ["## Skipped", ""] + [f"- {m}: {why}" for m, why in skipped.items()] + [""]
+    parts += ["## Settings", ""]
+    parts += [f"- {k}: {v}" for k, v in settings.items()]
+    parts += ["", "## Metric definitions", "", metric_definitions_md(), "",
+              "## Machine", "", machine_md(info), ""]
+    if notes:
+        parts += ["## Notes", ""] + [f"- {n}" for n in notes] + [""]
+    parts += ["Files: `metrics.csv`, `comparison.png`, one EXR per output in `images/`.", ""]
+    return "\n".join(parts)

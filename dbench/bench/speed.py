@@ -1,0 +1,122 @@
+"""Speed benchmarks that print ratios measured in the same run.
+
+* ``bench_render``: statistics collection (1-spp samples + float64 power sums) against one plain
+  render of the same spp, and the sample passes without statistics.
+* ``bench_method``: a method on a synthetic frame of a given size, against OIDN in the same run;
+  a method package with a ``bench.benchmark()`` adds its fast-path-versus-reference figures.
+"""
+from __future__ import annotations
+
+import importlib
+import json
+import statistics
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .harness import machine_info
+
+
+def _median_time(fn, repeats: int) -> float:
+    fn()  # warm-up: JIT compilation and scene loading are not part of the figure
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times)
+
+
+def bench_render(scene: str = "cornell", res: int = 256, spp: int = 64, repeats: int = 3,
+                 transform: str = "box-cox", lam: float = 0.5) -> dict[str, Any]:
+    from ..datasets import render, scenes
+
+    sc = scenes.get(scene)
+    plain = _median_time(lambda: render.render_plain(sc, res, spp), repeats)
+    passes = _median_time(lambda: render.render_passes(sc, res, spp, progress=False), repeats)
+    with_stats = _median_time(lambda: render.render_passes(sc, res, spp, stats=(transform, lam),
+                                                           progress=False), repeats)
+    return {"benchmark": "render", "scene": scene, "res": res, "spp": spp,
+            "copies_per_call": render.batch_size(res, spp), "transform": transform,
+            "plain_s": plain, "samples_s": passes, "samples_stats_s": with_stats,
+            "ratio_stats_vs_plain": with_stats / plain, "ratio_samples_vs_plain": passes / plain,
+            "machine": machine_info()["cpu"], "when": time.strftime("%Y-%m-%d %H:%M:%S")}
+
+
+def synthetic_frame(height: int, width: int, spp: int = 64, seed: int = 0):
+    """A frame with plausible content at any size: smooth shading, hard edges, albedo texture,
+    per-pixel noise and matching sample statistics (identity transform, Gaussian samples)."""
+    from ..data import Frame, SampleStats
+
+    rng = np.random.default_rng(seed)
+    y, x = np.mgrid[0:height, 0:width].astype(np.float32)
+    clean = 0.5 + 0.4 * np.sin(x / 37.0)[..., None] * np.cos(y / 23.0)[..., None]
+    clean = np.repeat(clean, 3, axis=2) * np.array([1.0, 0.8, 0.6], np.float32)
+    clean[:, width // 2:] *= 0.3
+    albedo = np.where(((x // 16 + y // 16) % 2)[..., None] > 0, 0.8, 0.3) * np.ones(3)
+    normal = np.zeros((height, width, 3), np.float32)
+    normal[..., 2] = 1.0
+    normal[height // 2:, :, :] = (0.0, 1.0, 0.0)
+    sigma = 0.3 * np.sqrt(clean)
+    color = clean + sigma / np.sqrt(spp) * rng.standard_normal(clean.shape).astype(np.float32)
+    var_mean = (sigma ** 2 / spp).astype(np.float64)
+    stats = SampleStats(n=np.full(clean.shape, float(spp)), mean=color.astype(np.float64),
+                        var_mean=var_mean, m3=np.zeros(clean.shape), transform="identity",
+                        lam=0.5)
+    depth = np.ones((height, width, 1), np.float32)
+    return Frame(color=color.astype(np.float32), albedo=albedo.astype(np.float32),
+                 normal=normal, depth=depth, position=np.dstack([x, y, np.zeros_like(x)]) / 100,
+                 stats=stats, reference=clean.astype(np.float32))
+
+
+def bench_method(name: str, height: int = 720, width: int = 1280, repeats: int = 3
+                 ) -> dict[str, Any]:
+    from .. import methods
+
+    frame = synthetic_frame(height, width)
+    method = methods.get(name)
+    t_method = _median_time(lambda: method.denoise(frame), repeats)
+    oidn = methods.get("oidn")
+    t_oidn = _median_time(lambda: oidn.denoise(frame), repeats)
+    result: dict[str, Any] = {"benchmark": "method", "method": name, "height": height,
+                              "width": width, "params": method.params, "time_s": t_method,
+                              "oidn_time_s": t_oidn, "ratio_vs_oidn": t_method / t_oidn,
+                              "mpix_per_s": height * width / t_method / 1e6,
+                              "machine": machine_info()["cpu"],
+                              "when": time.strftime("%Y-%m-%d %H:%M:%S")}
+    try:
+        extra = importlib.import_module(f"dbench.methods.{name}.bench")
+    except ModuleNotFoundError:
+        extra = None
+    if extra is not None and hasattr(extra, "benchmark"):
+        result["fast_vs_reference"] = extra.benchmark(height=height, width=width,
+                                                      repeats=repeats)
+    return result
+
+
+def format_result(result: dict[str, Any]) -> str:
+    if result["benchmark"] == "render":
+        return (f"render benchmark: {result['scene']} {result['res']}² at {result['spp']} spp "
+                f"({result['copies_per_call']} samples per pixel per call)\n"
+                f"  plain render           {result['plain_s']:.3f} s\n"
+                f"  samples, no statistics {result['samples_s']:.3f} s "
+                f"({result['ratio_samples_vs_plain']:.2f}x plain)\n"
+                f"  samples + statistics   {result['samples_stats_s']:.3f} s "
+                f"({result['ratio_stats_vs_plain']:.2f}x plain)")
+    lines = [f"{result['method']} at {result['width']}x{result['height']}: "
+             f"{result['time_s'] * 1e3:.1f} ms ({result['mpix_per_s']:.2f} Mpix/s); "
+             f"oidn {result['oidn_time_s'] * 1e3:.1f} ms; ratio {result['ratio_vs_oidn']:.2f}x oidn"]
+    if "fast_vs_reference" in result:
+        lines.append(f"  fast path vs reference: {json.dumps(result['fast_vs_reference'], default=str)}")
+    return "\n".join(lines)
+
+
+def append_result(path: str | Path, result: dict[str, Any]) -> None:
+    """Append one JSON line to ``path`` (rewritten atomically so a crash never truncates it)."""
+    from ..io import write_text
+
+    path = Path(path)
+    old = path.read_text() if path.exists() else ""
+    write_text(path, old + json.dumps(result, default=str) + "\n")

@@ -1,0 +1,247 @@
+"""Command line: ``dbench run | list | render | bench``.
+
+Exit codes: 0 success, 2 unknown names or bad arguments (the valid names are listed),
+3 renderer unavailable.
+"""
+from __future__ import annotations
+
+import argparse
+import ast
+import datetime as _dt
+import json
+import sys
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+
+from .errors import DbenchInputError, RendererUnavailableError, UnknownNameError
+
+
+def _parse_value(text: str) -> Any:
+    try:
+        return ast.literal_eval(text)
+    except (ValueError, SyntaxError):
+        return text
+
+
+def parse_params(items: Sequence[str], method_names: Sequence[str]) -> dict[str, dict[str, Any]]:
+    """``key=value`` (every method that has ``key``) or ``method.key=value`` (one method)."""
+    from . import methods
+
+    out: dict[str, dict[str, Any]] = {m: {} for m in method_names}
+    for item in items:
+        if "=" not in item:
+            raise DbenchInputError(f"--param: expected key=value or method.key=value, got {item!r}")
+        key, value = item.split("=", 1)
+        target, _, name = key.rpartition(".")
+        value = _parse_value(value)
+        if target:
+            if target not in out:
+                raise DbenchInputError(f"--param {item}: method {target!r} is not in this run "
+                                       f"({', '.join(method_names)})")
+            if name not in methods.method_class(target).defaults:
+                raise DbenchInputError(f"--param {item}: {target} has no parameter {name!r}; "
+                                       f"valid: {sorted(methods.method_class(target).defaults)}")
+            out[target][name] = value
+        else:
+            takers = [m for m in method_names if name in methods.method_class(m).defaults]
+            if not takers:
+                raise DbenchInputError(f"--param {item}: no method of this run has a parameter "
+                                       f"{name!r}")
+            for m in takers:
+                out[m][name] = value
+    return out
+
+
+def _split(text: str) -> list[str]:
+    return [t.strip() for t in text.split(",") if t.strip()]
+
+
+def cmd_list(args: argparse.Namespace) -> int:
+    from . import methods
+    from .datasets import scenes
+
+    if args.methods_only:
+        print("\n".join(methods.available()))
+        return 0
+    print("Scenes:")
+    for name in scenes.available():
+        sc = scenes.get(name)
+        print(f"  {name:<12} {sc.kind:<10} {sc.description}")
+    print("\nMethods:")
+    for name in methods.available():
+        cls = methods.method_class(name)
+        print(f"  {name:<12} kinds={','.join(sorted(cls.kinds)):<26} "
+              f"needs={','.join(sorted(cls.needs))}")
+    return 0
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    from . import datasets, methods
+    from .bench import harness, report
+    from .datasets import scenes
+    from .io import write_exr, write_json, write_text
+
+    import pandas as pd
+
+    names = _split(args.method)
+    for n in names:
+        methods.method_class(n)  # raises UnknownNameError listing valid names
+    scene = scenes.get(args.scene)
+    if "noisy" not in names:
+        names = ["noisy"] + names
+    params = parse_params(args.param or [], names)
+    instances = {n: methods.get(n, **params[n]) for n in names}
+
+    skipped: dict[str, str] = {}
+    runnable = []
+    for n, m in instances.items():
+        ok, why = m.applies_to(scene.kind, set(scene.provides))
+        if ok:
+            runnable.append(n)
+        else:
+            skipped[n] = why
+            print(f"skipping {n}: {why}")
+    needs = set().union(*(instances[n].needs for n in runnable)) | {"reference"}
+    cache = datasets.Cache(args.cache, enabled=not args.no_cache)
+    frame = datasets.load(scene, spp=args.spp, res=args.res, needs=needs, seed=args.seed,
+                          transform=args.transform, lam=args.lam, ref_spp=args.ref_spp,
+                          cache=cache, progress=not args.quiet)
+    out = Path(args.out) if args.out else Path("results/runs") / (
+        f"{scene.name}_{args.spp}spp_{args.res}px_"
+        f"{_dt.datetime.now().strftime('%Y%m%d-%H%M%S')}")
+    out.mkdir(parents=True, exist_ok=True)
+
+    rows, outputs = [], []
+    for n in runnable:
+        if not args.quiet:
+            print(f"running {n} ...", flush=True)
+        res = harness.run_cell(instances[n], frame, repeats=args.repeats)
+        if res.skipped:
+            skipped[n] = res.skipped
+            continue
+        rows.append({"scene": scene.name, "method": n, "spp": args.spp, "res": args.res,
+                     **res.metrics, "time_s": res.time_s, "n_nonfinite": res.n_nonfinite,
+                     "params": json.dumps(res.params, sort_keys=True, default=str)})
+        outputs.append((n, res.output))
+        write_exr(out / "images" / f"{n}.exr", {"color": res.output})
+    write_exr(out / "images" / "reference.exr", {"color": frame.reference})
+
+    table = pd.DataFrame(rows)
+    report.write_csv(out / "metrics.csv", table)
+    report.comparison_grid(out / "comparison.png", outputs, frame.reference, ev=scene.ev,
+                           title=f"{scene.name}, {args.spp} spp, {args.res} px")
+    info = harness.machine_info()
+    settings = {"scene": scene.name, "spp": args.spp, "res": args.res, "seed": args.seed,
+                "ref_spp": frame.meta.get("ref_spp"), "repeats": args.repeats,
+                "transform": f"{args.transform} (λ = {args.lam})" if "stats" in needs else "n/a",
+                "variant": frame.meta["versions"]["variant"],
+                "render_s": frame.meta.get("render_s"),
+                "cache hits": ", ".join(frame.meta["cache_hits"]) or "none",
+                "rendered": ", ".join(frame.meta["rendered"]) or "nothing",
+                "method parameters": "; ".join(f"{r['method']}: {r['params']}" for r in rows)}
+    write_text(out / "report.md", report.run_report_md(table, settings, info, skipped))
+    write_json(out / "run.json", {"settings": settings, "machine": info, "skipped": skipped})
+    print()
+    print(report.markdown_table(table[[c for c in report.RUN_COLUMNS if c in table.columns]]))
+    print(f"\nreport: {out / 'report.md'}")
+    return 0
+
+
+def cmd_render(args: argparse.Namespace) -> int:
+    """Render (or find cached) every buffer of the given scenes, e.g. to warm the cache."""
+    from . import datasets
+
+    cache = datasets.Cache(args.cache, enabled=not args.no_cache)
+    for name in _split(args.scene) if args.scene != "all" else datasets.available_scenes():
+        frame = datasets.load(name, spp=args.spp, res=args.res, seed=args.seed,
+                              ref_spp=args.ref_spp, cache=cache)
+        print(f"{name}: rendered {frame.meta['rendered'] or 'nothing'}, "
+              f"cached {frame.meta['cache_hits'] or 'nothing'}")
+    return 0
+
+
+def cmd_bench(args: argparse.Namespace) -> int:
+    from .bench import speed
+
+    if args.what == "render":
+        result = speed.bench_render(scene=args.scene, res=args.res, spp=args.spp,
+                                    repeats=args.repeats)
+    else:
+        result = speed.bench_method(args.what, height=args.height, width=args.width,
+                                    repeats=args.repeats)
+    print(speed.format_result(result))
+    if args.out:
+        speed.append_result(args.out, result)
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="dbench", description=__doc__.splitlines()[0])
+    sub = p.add_subparsers(dest="command", required=True)
+
+    def common(sp: argparse.ArgumentParser) -> None:
+        sp.add_argument("--cache", default=None, help="cache folder (default $DBENCH_CACHE or "
+                        "~/.cache/dbench)")
+        sp.add_argument("--no-cache", action="store_true", help="render everything afresh")
+        sp.add_argument("--seed", type=int, default=0)
+        sp.add_argument("--ref-spp", type=int, default=None,
+                        help="reference spp (default $DBENCH_REF_SPP or 4096)")
+
+    r = sub.add_parser("run", help="run methods on one scene and write a report")
+    r.add_argument("--method", required=True, help="NAME[,NAME...]")
+    r.add_argument("--scene", required=True)
+    r.add_argument("--spp", type=int, default=16)
+    r.add_argument("--res", type=int, default=128)
+    r.add_argument("--out", default=None, help="output folder (default results/runs/<new>)")
+    r.add_argument("--param", action="append", metavar="[METHOD.]KEY=VALUE")
+    r.add_argument("--repeats", type=int, default=5, help="timed calls after one warm-up")
+    r.add_argument("--transform", default="box-cox", help="sample transform of the statistics")
+    r.add_argument("--lam", type=float, default=0.5)
+    r.add_argument("--quiet", action="store_true")
+    common(r)
+    r.set_defaults(func=cmd_run)
+
+    lp = sub.add_parser("list", help="list scenes and methods")
+    lp.add_argument("--methods-only", action="store_true", help="method names, one a line")
+    lp.set_defaults(func=cmd_list)
+
+    rp = sub.add_parser("render", help="render or find cached buffers of scenes")
+    rp.add_argument("--scene", default="all")
+    rp.add_argument("--spp", type=int, default=16)
+    rp.add_argument("--res", type=int, default=128)
+    common(rp)
+    rp.set_defaults(func=cmd_render)
+
+    bp = sub.add_parser("bench", help="speed benchmarks with ratios measured in the same run")
+    bp.add_argument("what", help="'render' (statistics cost) or a method name")
+    bp.add_argument("--scene", default="cornell")
+    bp.add_argument("--res", type=int, default=256)
+    bp.add_argument("--spp", type=int, default=64)
+    bp.add_argument("--height", type=int, default=720)
+    bp.add_argument("--width", type=int, default=1280)
+    bp.add_argument("--repeats", type=int, default=3)
+    bp.add_argument("--out", default=None, help="append the result to this JSON-lines file")
+    bp.set_defaults(func=cmd_bench)
+    return p
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return args.func(args)
+    except UnknownNameError as exc:
+        print(f"dbench: {exc}", file=sys.stderr)
+        return 2
+    except DbenchInputError as exc:
+        print(f"dbench: {exc}", file=sys.stderr)
+        return 2
+    except RendererUnavailableError as exc:
+        print(f"dbench: {exc}", file=sys.stderr)
+        return 3
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,148 @@
+"""Datasets: ``load(scene, spp, res, needs)`` renders what is missing and reuses the cache.
+
+Example:
+    >>> from dbench import datasets
+    >>> frame = datasets.load("cornell", spp=4, res=16, needs={"color", "albedo"})  # doctest: +SKIP
+    >>> frame.color.shape, frame.stats is None
+    ((16, 16, 3), True)
+"""
+from __future__ import annotations
+
+import os
+from typing import Iterable
+
+import numpy as np
+
+from ..data import Frame, SampleStats
+from ..errors import DbenchInputError
+from . import render as _render
+from . import scenes as _scenes
+from .cache import Cache
+from .mitsuba_env import mitsuba, versions
+from .scenes import Scene
+from .stats import check_transform
+
+DEFAULT_REFERENCE_SPP = 4096
+FEATURES = ("albedo", "normal", "depth", "position")
+
+available_scenes = _scenes.available
+get_scene = _scenes.get
+
+
+def reference_spp() -> int:
+    return int(os.environ.get("DBENCH_REF_SPP", DEFAULT_REFERENCE_SPP))
+
+
+def _base_description(scene: Scene, res: int) -> dict:
+    mi = mitsuba()
+    return {"scene": scene.name, "res": res, "dict": scene.scene_dict(mi, res),
+            "params": scene.params, "versions": versions()}
+
+
+def load(scene: str | Scene, spp: int, res: int, needs: Iterable[str] | None = None,
+         transform: str = "box-cox", lam: float = 0.5, seed: int = 0,
+         ref_spp: int | None = None, cache: Cache | None = None, progress: bool = True) -> Frame:
+    """Return a :class:`~dbench.data.Frame` of ``scene`` with exactly the buffers in ``needs``.
+
+    Args:
+        scene: catalogue name or Scene.
+        spp: samples per pixel of the noisy color (and its statistics).
+        res: image side in pixels (square images).
+        needs: buffer names (``color`` always comes); None means every buffer the scene provides.
+        transform, lam: sample transform of the statistics (spec/statistical.md §3).
+        seed: base seed; the noisy passes, features and reference use disjoint seed streams.
+        ref_spp: reference spp (default ``DBENCH_REF_SPP`` or 4096).
+        cache: a :class:`Cache` (default location when None).
+    Returns:
+        Frame whose ``meta`` holds the settings, render timings and cache hits.
+    """
+    sc = scene if isinstance(scene, Scene) else _scenes.get(scene)
+    if not isinstance(spp, (int, np.integer)) or spp < 1:
+        raise DbenchInputError(f"spp: expected an integer >= 1, got {spp!r}")
+    if not isinstance(res, (int, np.integer)) or res < 1:
+        raise DbenchInputError(f"res: expected an integer >= 1, got {res!r}")
+    wanted = set(sc.provides if needs is None else needs) | {"color"}
+    unknown = wanted - set(sc.provides)
+    if unknown:
+        raise DbenchInputError(f"needs: scene {sc.name} cannot provide {sorted(unknown)}; "
+                               f"it provides {sorted(sc.provides)}")
+    if "stats" in wanted:
+        check_transform(transform, lam)
+    cache = cache or Cache()
+    ref_spp = ref_spp or reference_spp()
+    base = _base_description(sc, res)
+    meta: dict = {"scene": sc.name, "kind": sc.kind, "spp": int(spp), "res": int(res),
+                  "seed": int(seed), "ev": sc.ev, "versions": base["versions"], "cache_hits": [],
+                  "rendered": []}
+
+    noisy_desc = {**base, "what": "noisy", "spp": int(spp), "seed": int(seed),
+                  "copies": _render.batch_size(res, spp)}
+    stats_desc = {**noisy_desc, "what": "stats", "transform": transform, "lam": float(lam)}
+    color_entry = cache.get("noisy", noisy_desc)
+    stats_entry = cache.get("stats", stats_desc) if "stats" in wanted else None
+    stats: SampleStats | None = None
+    if color_entry is not None and ("stats" not in wanted or stats_entry is not None):
+        color = color_entry.images()["color"]
+        meta.update(render_s=color_entry.meta.get("render_s"))
+        meta["cache_hits"].append("color")
+        if stats_entry is not None:
+            stats = _stats_from_arrays(stats_entry.arrays(), transform, lam)
+            meta.update(stats_s=stats_entry.meta.get("stats_s"))
+            meta["cache_hits"].append("stats")
+    else:
+        want_stats = (transform, lam) if "stats" in wanted else None
+        color, stats, timing = _render.render_passes(sc, res, spp, seed, want_stats, progress)
+        meta.update(render_s=timing["render_s"])
+        meta["rendered"].append("color")
+        if color_entry is None:
+            cache.put("noisy", noisy_desc, images={"color": color},
+                      meta={"render_s": timing["render_s"], "copies": timing["copies"]})
+        if stats is not None:
+            meta.update(stats_s=timing["stats_s"])
+            meta["rendered"].append("stats")
+            cache.put("stats", stats_desc, arrays=_stats_to_arrays(stats),
+                      meta={"stats_s": timing["stats_s"], "render_s": timing["render_s"],
+                            "diagnostics": stats.diagnostics})
+
+    buffers: dict[str, np.ndarray] = {}
+    if wanted & set(FEATURES):
+        feat_desc = {**base, "what": "features", "spp": _render.DEFAULT_FEATURE_SPP,
+                     "seed": int(seed), "aovs": _render.AOV_STRING}
+        entry = cache.get("features", feat_desc)
+        if entry is not None:
+            feats = entry.images()
+            meta["cache_hits"].append("features")
+        else:
+            feats, seconds = _render.render_features(sc, res, seed=seed)
+            cache.put("features", feat_desc, images=feats, meta={"render_s": seconds})
+            meta["rendered"].append("features")
+        buffers.update({k: feats[k] for k in FEATURES if k in wanted})
+
+    if "reference" in wanted:
+        ref_desc = {**base, "what": "reference", "spp": int(ref_spp), "seed": int(seed),
+                    "chunk": _render.DEFAULT_REFERENCE_CHUNK}
+        entry = cache.get("reference", ref_desc)
+        if entry is not None:
+            buffers["reference"] = entry.images()["reference"]
+            meta["cache_hits"].append("reference")
+        else:
+            ref, seconds = _render.render_reference(sc, res, ref_spp, seed, progress=progress)
+            cache.put("reference", ref_desc, images={"reference": ref},
+                      meta={"render_s": seconds})
+            buffers["reference"] = ref
+            meta["rendered"].append("reference")
+        meta["ref_spp"] = int(ref_spp)
+
+    return Frame(color=color, stats=stats, meta=meta, **buffers)
+
+
+def _stats_to_arrays(stats: SampleStats) -> dict[str, np.ndarray]:
+    return {"n": stats.n, "mean": stats.mean, "var_mean": stats.var_mean, "m3": stats.m3}
+
+
+def _stats_from_arrays(arrays: dict[str, np.ndarray], transform: str, lam: float) -> SampleStats:
+    return SampleStats(n=arrays["n"], mean=arrays["mean"], var_mean=arrays["var_mean"],
+                       m3=arrays["m3"], transform=transform, lam=lam)
+
+
+__all__ = ["load", "available_scenes", "get_scene", "Cache", "Scene", "FEATURES"]

@@ -1,0 +1,177 @@
+"""Steady renders: noisy color with exact per-pixel sample statistics, AOV features, reference.
+
+The noisy color at n spp is always the mean of n passes of 1 spp with a box filter and distinct
+seeds (spec/mitsuba.md §4): every pass puts exactly one sample in every pixel, so the passes are
+the individual samples. Statistics, when asked for, are accumulated from those same passes
+(float64 power sums, :mod:`dbench.datasets.stats`), which makes the color identical whether or
+not statistics were collected, and runs of different methods see the same input.
+
+Features come from a separate pass of Mitsuba's ``aov`` integrator (no nested integrator:
+cheaper, spec/mitsuba.md §3). References are rendered in chunks of spp so memory stays bounded.
+"""
+from __future__ import annotations
+
+import hashlib
+import time
+from functools import lru_cache
+
+import numpy as np
+
+from .mitsuba_env import mitsuba
+from .scenes import Scene
+from .stats import PowerSums
+from ..data import SampleStats
+
+AOV_STRING = "albedo:albedo,nn:sh_normal,dd:depth,pp:position"
+#: (buffer, first channel, channel count) in the aov integrator's output.
+AOV_LAYOUT = (("albedo", 0, 3), ("normal", 3, 3), ("depth", 6, 1), ("position", 7, 3))
+DEFAULT_FEATURE_SPP = 64
+DEFAULT_REFERENCE_CHUNK = 256
+
+
+def pass_seed(stream: str, seed: int, index: int) -> int:
+    """A 31-bit seed for pass ``index`` of a render ``stream`` (``noisy``, ``aov``, ``reference``).
+
+    Hashing keeps the streams of every (stream, seed) pair disjoint, so a reference never reuses
+    the random numbers of the noisy image it is compared with.
+    """
+    digest = hashlib.sha256(f"{stream}:{seed}:{index}".encode()).digest()
+    return int.from_bytes(digest[:4], "little") & 0x7FFFFFFF
+
+
+@lru_cache(maxsize=16)
+def loaded_scene(scene: Scene, res: int):
+    mi = mitsuba()
+    return mi.load_dict(scene.scene_dict(mi, res))
+
+
+def _progress(total: int, desc: str, enabled: bool):
+    from tqdm.auto import tqdm
+
+    return tqdm(total=total, desc=desc, unit="pass", leave=False,
+                disable=(not enabled) or total < 8, mininterval=0.5)
+
+
+#: Upper bound on the pixels of one batched film (copies × res²), which bounds memory.
+MAX_BATCH_PIXELS = 1 << 22
+
+
+def batch_size(res: int, spp: int) -> int:
+    """Camera copies per call: the largest divisor of ``spp`` whose film fits MAX_BATCH_PIXELS."""
+    cap = max(1, MAX_BATCH_PIXELS // (res * res))
+    return max(d for d in range(1, min(spp, cap) + 1) if spp % d == 0)
+
+
+@lru_cache(maxsize=16)
+def loaded_batch_scene(scene: Scene, res: int, copies: int):
+    """The scene seen through a ``batch`` sensor of ``copies`` identical cameras.
+
+    One 1-spp render of it gives ``copies`` independent samples in every pixel, side by side in
+    a (res, copies·res) film; with the box filter each sample stays in its own pixel, so this is
+    the 1-spp pass method with the per-call overhead divided by ``copies``.
+    """
+    mi = mitsuba()
+    d = scene.scene_dict(mi, res)
+    camera = dict(d["sensor"])
+    camera.pop("sampler", None)
+    batch = {"type": "batch", "sampler": {"type": "independent"},
+             "film": {**camera["film"], "width": res * copies, "height": res}}
+    for i in range(copies):
+        batch[f"camera{i:03d}"] = dict(camera)
+    d["sensor"] = batch
+    return mi.load_dict(d)
+
+
+def sample_batches(scene: Scene, res: int, spp: int, seed: int = 0):
+    """Yield the individual samples: arrays (res, copies, res, 3), ``copies`` samples per pixel
+    each, ``spp`` in all. The only place the noisy samples are drawn."""
+    mi = mitsuba()
+    copies = batch_size(res, spp)
+    sc = loaded_batch_scene(scene, res, copies)
+    for k in range(spp // copies):
+        film = np.array(mi.render(sc, spp=1, seed=pass_seed("noisy", seed, k)))
+        yield film.reshape(res, copies, res, 3)
+
+
+def render_passes(scene: Scene, res: int, spp: int, seed: int = 0,
+                  stats: tuple[str, float] | None = None, progress: bool = True
+                  ) -> tuple[np.ndarray, SampleStats | None, dict]:
+    """Render ``spp`` independent samples per pixel; return the mean color, optional statistics
+    of the individual samples, and timings.
+
+    Args:
+        stats: ``(transform, lam)`` to accumulate sample statistics, or None.
+    Returns:
+        color (res, res, 3) float32, SampleStats of shape (res, res, 3) or None, and a dict with
+        ``render_s`` (rendering only), ``stats_s`` (host-side accumulation) and ``copies``.
+    """
+    if spp < 1:
+        raise ValueError(f"spp must be >= 1, got {spp}")
+    copies = batch_size(res, spp)
+    total = np.zeros((res, res, 3), np.float64)
+    acc = PowerSums((res, res, 3), *stats) if stats else None
+    render_s = stats_s = 0.0
+    batches = sample_batches(scene, res, spp, seed)
+    with _progress(spp, f"{scene.name} {spp} spp", progress) as bar:
+        while True:
+            t0 = time.perf_counter()
+            samples = next(batches, None)
+            if samples is None:
+                break
+            t1 = time.perf_counter()
+            if acc is not None:
+                total += acc.add_batch(samples, axis=1)
+            else:
+                total += samples.sum(axis=1, dtype=np.float64)
+            render_s += t1 - t0
+            stats_s += time.perf_counter() - t1
+            bar.update(copies)
+    color = (total / spp).astype(np.float32)
+    return color, (acc.finalize() if acc else None), {"render_s": render_s, "stats_s": stats_s,
+                                                      "copies": copies}
+
+
+def render_plain(scene: Scene, res: int, spp: int, seed: int = 0) -> tuple[np.ndarray, float]:
+    """One ordinary ``spp``-spp render (the baseline the statistics cost is measured against)."""
+    mi = mitsuba()
+    sc = loaded_scene(scene, res)
+    t0 = time.perf_counter()
+    img = np.array(mi.render(sc, spp=spp, seed=pass_seed("plain", seed, 0)))
+    return img.astype(np.float32), time.perf_counter() - t0
+
+
+def render_features(scene: Scene, res: int, spp: int = DEFAULT_FEATURE_SPP, seed: int = 0
+                    ) -> tuple[dict[str, np.ndarray], float]:
+    """Albedo, shading normal, depth and position from the ``aov`` integrator (box filter).
+
+    Returns ({buffer: (res, res, C) float32}, seconds). Depth is 0 where nothing is hit.
+    """
+    mi = mitsuba()
+    sc = loaded_scene(scene, res)
+    integrator = mi.load_dict({"type": "aov", "aovs": AOV_STRING})
+    t0 = time.perf_counter()
+    out = np.array(mi.render(sc, integrator=integrator, spp=spp,
+                             seed=pass_seed("aov", seed, 0)))
+    seconds = time.perf_counter() - t0
+    return {name: np.ascontiguousarray(out[..., c0:c0 + nc], dtype=np.float32)
+            for name, c0, nc in AOV_LAYOUT}, seconds
+
+
+def render_reference(scene: Scene, res: int, spp: int, seed: int = 0,
+                     chunk: int = DEFAULT_REFERENCE_CHUNK, progress: bool = True
+                     ) -> tuple[np.ndarray, float]:
+    """A high-spp reference, rendered as chunks of ``chunk`` spp with independent seeds."""
+    mi = mitsuba()
+    sc = loaded_scene(scene, res)
+    chunks = [chunk] * (spp // chunk) + ([spp % chunk] if spp % chunk else [])
+    total = np.zeros((res, res, 3), np.float64)
+    t0 = time.perf_counter()
+    from tqdm.auto import tqdm
+
+    with tqdm(total=spp, desc=f"{scene.name} reference {spp} spp", unit="spp", leave=False,
+              disable=not progress, mininterval=0.5) as bar:
+        for i, n in enumerate(chunks):
+            total += np.array(mi.render(sc, spp=n, seed=pass_seed("reference", seed, i)),
+                              dtype=np.float64) * n
+            bar.update(n)
+    return (total / spp).astype(np.float32), time.perf_counter() - t0

@@ -1,0 +1,259 @@
+"""Procedural scene catalogue: one function a scene, each returning a ``mi.load_dict`` dictionary.
+
+No asset is downloaded: every shape, material and texture is built here. Every film uses a box
+reconstruction filter, so each 1-spp pass puts exactly one sample in every pixel
+(spec/mitsuba.md §4) and the AOVs are plain pixel-footprint averages.
+
+A :class:`Scene` declares its kind (``steady`` here) and the buffers it can provide; the
+harness uses that to skip methods that cannot run and to render only what is needed.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import lru_cache
+from typing import Any, Callable
+
+import numpy as np
+
+from ..errors import UnknownNameError
+
+STEADY_BUFFERS = frozenset({"color", "albedo", "normal", "depth", "position", "stats",
+                            "reference"})
+
+
+@dataclass(frozen=True, eq=False)
+class Scene:
+    """A catalogue entry.
+
+    Attributes:
+        name: catalogue name, used on the command line and in cache keys.
+        kind: ``steady`` (``sequence`` and ``transient`` come with their datasets).
+        description: one line for ``dbench list`` and reports.
+        build: ``build(mi, res) -> dict`` for ``mi.load_dict``; ``res`` is the image side in px.
+        max_depth: path length of the integrator (part of the cache key through the dict).
+        provides: buffers this scene can render.
+        params: anything else that changes the pixels (goes into the cache key).
+        ev: exposure (stops) of the tone map used by LDR metrics and PNGs.
+    """
+
+    name: str
+    kind: str
+    description: str
+    build: Callable[[Any, int], dict]
+    max_depth: int = 8
+    provides: frozenset = STEADY_BUFFERS
+    params: dict = field(default_factory=dict)
+    ev: float = 0.0
+
+    def scene_dict(self, mi, res: int) -> dict:
+        d = self.build(mi, res)
+        d["integrator"] = {"type": "path", "max_depth": self.max_depth}
+        return d
+
+
+_CATALOGUE: dict[str, Scene] = {}
+
+
+def _scene(name: str, description: str, **kw: Any):
+    def wrap(build: Callable[[Any, int], dict]) -> Callable[[Any, int], dict]:
+        _CATALOGUE[name] = Scene(name=name, kind="steady", description=description, build=build,
+                                 **kw)
+        return build
+    return wrap
+
+
+def available() -> list[str]:
+    return sorted(_CATALOGUE)
+
+
+def get(name: str) -> Scene:
+    try:
+        return _CATALOGUE[name]
+    except KeyError:
+        raise UnknownNameError(
+            f"unknown scene {name!r}; available scenes: {', '.join(available())}") from None
+
+
+# ---------------------------------------------------------------------------------------------
+# building blocks
+
+
+def _film(res: int) -> dict:
+    return {"type": "hdrfilm", "width": res, "height": res, "rfilter": {"type": "box"},
+            "pixel_format": "rgb", "component_format": "float32"}
+
+
+def _camera(mi, res: int, origin, target, fov: float = 39.3, up=(0, 1, 0)) -> dict:
+    return {"type": "perspective", "fov": fov, "fov_axis": "x",
+            "to_world": mi.ScalarTransform4f().look_at(origin=origin, target=target, up=up),
+            "film": _film(res), "sampler": {"type": "independent"}}
+
+
+def _diffuse(rgb) -> dict:
+    return {"type": "diffuse", "reflectance": {"type": "rgb", "value": list(rgb)}}
+
+
+def _rect(mi, to_world, bsdf: dict, emitter: dict | None = None) -> dict:
+    d = {"type": "rectangle", "to_world": to_world, "bsdf": bsdf}
+    if emitter:
+        d["emitter"] = emitter
+    return d
+
+
+def _room(mi, back_bsdf=None, left_bsdf=None, right_bsdf=None, floor_bsdf=None) -> dict:
+    """An open Cornell-style room spanning [-1, 1]³, open towards +z where the camera sits."""
+    T = mi.ScalarTransform4f
+    white = _diffuse((0.75, 0.75, 0.75))
+    return {
+        "floor": _rect(mi, T().translate([0, -1, 0]).rotate([1, 0, 0], -90), floor_bsdf or white),
+        "ceiling": _rect(mi, T().translate([0, 1, 0]).rotate([1, 0, 0], 90), white),
+        "back": _rect(mi, T().translate([0, 0, -1]), back_bsdf or white),
+        "left": _rect(mi, T().translate([-1, 0, 0]).rotate([0, 1, 0], 90),
+                      left_bsdf or _diffuse((0.63, 0.065, 0.05))),
+        "right": _rect(mi, T().translate([1, 0, 0]).rotate([0, 1, 0], -90),
+                       right_bsdf or _diffuse((0.14, 0.45, 0.091))),
+    }
+
+
+def _ceiling_light(mi, size: float = 0.25, radiance=(17.0, 12.0, 4.0)) -> dict:
+    T = mi.ScalarTransform4f
+    return _rect(mi, T().translate([0, 0.99, 0]).rotate([1, 0, 0], 90).scale(size),
+                 _diffuse((0, 0, 0)), {"type": "area", "radiance": {"type": "rgb",
+                                                                   "value": list(radiance)}})
+
+
+# ---------------------------------------------------------------------------------------------
+# the catalogue
+
+
+@_scene("cornell", "diffuse Cornell box lit by a ceiling area light (Mitsuba's built-in)")
+def cornell(mi, res: int) -> dict:
+    d = mi.cornell_box()
+    d["sensor"]["film"] = _film(res)
+    d["sensor"]["sampler"] = {"type": "independent"}
+    return d
+
+
+@_scene("mirrors", "spheres and a box in front of a mirror back wall and a glossy side wall")
+def mirrors(mi, res: int) -> dict:
+    T = mi.ScalarTransform4f
+    d = {"type": "scene",
+         "sensor": _camera(mi, res, origin=[0, 0, 3.9], target=[0, 0, 0])}
+    d.update(_room(mi,
+                   back_bsdf={"type": "conductor", "material": "Ag"},
+                   right_bsdf={"type": "roughconductor", "material": "Cu", "alpha": 0.08}))
+    d["light"] = _ceiling_light(mi, 0.3)
+    d["ball"] = {"type": "sphere", "center": [-0.45, -0.6, 0.2], "radius": 0.4,
+                 "bsdf": {"type": "plastic", "diffuse_reflectance":
+                          {"type": "rgb", "value": [0.1, 0.25, 0.7]}, "int_ior": 1.5}}
+    d["chrome"] = {"type": "sphere", "center": [0.5, -0.7, 0.45], "radius": 0.3,
+                   "bsdf": {"type": "conductor", "material": "Cr"}}
+    d["block"] = {"type": "cube",
+                  "to_world": T().translate([0.35, -0.75, -0.45]).rotate([0, 1, 0], 25)
+                  .scale(0.25),
+                  "bsdf": _diffuse((0.8, 0.6, 0.2))}
+    return d
+
+
+@_scene("caustic", "a glass sphere casting a caustic on a diffuse floor under a small light",
+        max_depth=12)
+def caustic(mi, res: int) -> dict:
+    T = mi.ScalarTransform4f
+    d = {"type": "scene",
+         "sensor": _camera(mi, res, origin=[0, 0.9, 3.6], target=[0, -0.55, 0])}
+    d.update(_room(mi))
+    d["light"] = _rect(mi, T().translate([-0.45, 0.99, 0.1]).rotate([1, 0, 0], 90).scale(0.12),
+                       _diffuse((0, 0, 0)),
+                       {"type": "area", "radiance": {"type": "rgb", "value": [80.0, 72.0, 60.0]}})
+    d["glass"] = {"type": "sphere", "center": [0.05, -0.6, 0.1], "radius": 0.4,
+                  "bsdf": {"type": "dielectric", "int_ior": 1.5, "ext_ior": 1.0}}
+    d["pedestal"] = {"type": "cube",
+                     "to_world": T().translate([-0.6, -0.8, -0.5]).scale(0.2),
+                     "bsdf": _diffuse((0.3, 0.5, 0.8))}
+    return d
+
+
+@lru_cache(maxsize=4)
+def texture_pattern(size: int = 512) -> np.ndarray:
+    """A high-frequency albedo texture: checkers of three sizes, stripes and text, (size, size, 3).
+
+    Deterministic (pure NumPy plus matplotlib's Agg rasteriser for the letters).
+    """
+    y, x = np.mgrid[0:size, 0:size]
+    img = np.empty((size, size, 3), np.float32)
+    q = size // 2
+    checker_fine = ((x // 8 + y // 8) % 2).astype(np.float32)
+    checker_coarse = ((x // 32 + y // 32) % 2).astype(np.float32)
+    stripes = (np.sin(2 * np.pi * x / 12.0) > 0).astype(np.float32)
+    base = np.where((x < q) & (y < q), checker_fine,
+                    np.where((x >= q) & (y < q), stripes, checker_coarse))
+    colors_a = np.array([0.85, 0.80, 0.70], np.float32)
+    colors_b = np.array([0.08, 0.12, 0.35], np.float32)
+    img[:] = colors_b + base[..., None] * (colors_a - colors_b)
+    img[q:, q:] = _text_tile(q)
+    return img
+
+
+def _text_tile(size: int) -> np.ndarray:
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(1, 1), dpi=size)
+    canvas = FigureCanvasAgg(fig)
+    ax = fig.add_axes([0, 0, 1, 1])
+    ax.set_axis_off()
+    ax.set_facecolor("white")
+    for row, text in enumerate(("dbench", "ABC 123", "denoise", "MC path")):
+        ax.text(0.05, 0.85 - row * 0.24, text, fontsize=size / 9, family="DejaVu Sans",
+                weight="bold", transform=ax.transAxes)
+    canvas.draw()
+    rgba = np.asarray(canvas.buffer_rgba(), dtype=np.float32)[..., :3] / 255.0
+    ink = 1.0 - rgba.mean(axis=-1, keepdims=True)
+    paper = np.array([0.9, 0.85, 0.6], np.float32)
+    red = np.array([0.6, 0.05, 0.05], np.float32)
+    return paper + ink * (red - paper)
+
+
+@_scene("textured", "a high-frequency albedo texture (checkers, stripes, letters) under soft "
+        "light", max_depth=6)
+def textured(mi, res: int) -> dict:
+    T = mi.ScalarTransform4f
+    tex = {"type": "bitmap", "bitmap": mi.Bitmap(texture_pattern()), "filter_type": "nearest",
+           "raw": True}
+    d = {"type": "scene",
+         "sensor": _camera(mi, res, origin=[0, 1.6, 2.4], target=[0, -0.6, 0], fov=45)}
+    d["floor"] = _rect(mi, T().translate([0, -1, 0]).rotate([1, 0, 0], -90).scale(1.6),
+                       {"type": "diffuse", "reflectance": tex})
+    d["wall"] = _rect(mi, T().translate([0, 0.6, -1.6]).scale([1.6, 1.6, 1]),
+                      {"type": "diffuse", "reflectance": tex})
+    d["ball"] = {"type": "sphere", "center": [0.5, -0.6, 0.2], "radius": 0.4,
+                 "bsdf": _diffuse((0.7, 0.7, 0.7))}
+    d["sky"] = {"type": "constant", "radiance": {"type": "rgb", "value": [0.25, 0.27, 0.3]}}
+    d["light"] = _rect(mi, T().translate([-0.5, 1.4, 0.6]).rotate([1, 0, 0], 70).scale(0.8),
+                       _diffuse((0, 0, 0)),
+                       {"type": "area", "radiance": {"type": "rgb", "value": [3.0, 2.9, 2.7]}})
+    return d
+
+
+@_scene("fireflies", "a room lit only indirectly by a tiny, very bright emitter hidden behind "
+        "a baffle: heavy-tailed noise", max_depth=8)
+def fireflies(mi, res: int) -> dict:
+    T = mi.ScalarTransform4f
+    d = {"type": "scene",
+         "sensor": _camera(mi, res, origin=[0, 0, 3.9], target=[0, -0.1, 0])}
+    d.update(_room(mi))
+    # A tiny sphere light in a cup under the ceiling: it can only reach the room after a bounce
+    # on the ceiling, so most paths miss it and the few that find it carry huge radiance.
+    d["lamp"] = {"type": "sphere", "center": [0, 0.8, -0.4], "radius": 0.02,
+                 "emitter": {"type": "area", "radiance": {"type": "rgb",
+                                                          "value": [1500.0, 1300.0, 1000.0]}}}
+    d["baffle"] = {"type": "cube",
+                   "to_world": T().translate([0, 0.72, -0.4]).scale([0.4, 0.02, 0.4]),
+                   "bsdf": _diffuse((0.6, 0.6, 0.6))}
+    d["ball"] = {"type": "sphere", "center": [-0.4, -0.65, 0.1], "radius": 0.35,
+                 "bsdf": _diffuse((0.8, 0.8, 0.8))}
+    d["block"] = {"type": "cube",
+                  "to_world": T().translate([0.45, -0.7, -0.3]).rotate([0, 1, 0], -20)
+                  .scale([0.25, 0.3, 0.25]),
+                  "bsdf": _diffuse((0.7, 0.7, 0.75))}
+    return d

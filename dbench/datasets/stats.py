@@ -1,0 +1,226 @@
+"""Sample transforms and moment accumulation (spec/statistical.md §3-4).
+
+Shared by steady and transient renders: every 1-spp pass yields the exact per-pixel (or
+per-pixel-bin) sample values, which are transformed and added to float64 power sums of the
+shifted value u = g(x) − K with K = g(0), so zero samples add exactly nothing.
+
+Example:
+    >>> import numpy as np
+    >>> acc = PowerSums((1, 1, 1), "identity")
+    >>> for v in (0.0, 0.0, 1.0, 4.0):
+    ...     acc.add(np.full((1, 1, 1), v))
+    >>> s = acc.finalize()
+    >>> round(float(s.mean[0, 0, 0]), 6), round(float(s.var_mean[0, 0, 0]), 7)
+    (1.25, 0.8958333)
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..data import SampleStats
+from ..errors import DbenchInputError
+
+TRANSFORMS = ("identity", "box-cox", "yeo-johnson")
+
+#: σ² is taken as exactly 0 when the biased variance is below this fraction of S2/n (§4.1).
+ZERO_VARIANCE_RTOL = 1e-10
+
+
+def check_transform(transform: str, lam: float) -> None:
+    if transform not in TRANSFORMS:
+        raise DbenchInputError(f"transform: unknown {transform!r}; expected one of {TRANSFORMS}")
+    if not np.isfinite(lam):
+        raise DbenchInputError(f"lam: expected a finite number, got {lam!r}")
+    if transform == "box-cox" and lam <= 0:
+        # Rendered samples are often exactly 0, where Box-Cox with λ ≤ 0 is undefined (§3).
+        raise DbenchInputError(f"lam: Box-Cox needs λ > 0 on rendered samples (zeros occur), "
+                               f"got {lam}")
+
+
+def transform_samples(x: np.ndarray, transform: str, lam: float = 0.5) -> np.ndarray:
+    """g(x) elementwise in float64 (spec §3). Box-Cox clamps negative x to 0 before
+    transforming; non-finite x are the caller's business (see :class:`PowerSums`)."""
+    check_transform(transform, lam)
+    x = np.asarray(x, dtype=np.float64)
+    if transform == "identity":
+        return x.copy()
+    if transform == "box-cox":
+        return (np.power(np.maximum(x, 0.0), lam) - 1.0) / lam
+    pos = x >= 0
+    out = np.empty_like(x)
+    xp, xn = x[pos], x[~pos]
+    out[pos] = np.log1p(xp) if lam == 0 else (np.power(xp + 1.0, lam) - 1.0) / lam
+    out[~pos] = (-np.log1p(-xn) if lam == 2
+                 else -(np.power(1.0 - xn, 2.0 - lam) - 1.0) / (2.0 - lam))
+    return out
+
+
+def transform_of_zero(transform: str, lam: float = 0.5) -> float:
+    """K = g(0): −1/λ for Box-Cox, 0 otherwise."""
+    return float(transform_samples(np.zeros(1), transform, lam)[0])
+
+
+class PowerSums:
+    """Float64 power sums S1, S2, S3 of u = g(x) − g(0) and the count n, per element.
+
+    ``add(x)`` takes one sample per element (one 1-spp pass); the sums merge by addition, so
+    partial accumulators of several processes combine with :meth:`merge`.
+    Non-finite samples are replaced by 0 and counted in ``n_nonfinite``; negative samples under
+    Box-Cox are clamped to 0 and counted in ``n_clamped`` (spec §3 edge cases).
+    """
+
+    def __init__(self, shape: tuple[int, ...], transform: str = "box-cox", lam: float = 0.5):
+        check_transform(transform, lam)
+        self.shape = tuple(shape)
+        self.transform, self.lam = transform, float(lam)
+        self.k = transform_of_zero(transform, lam)
+        self.n = 0
+        self.s1 = np.zeros(self.shape, np.float64)
+        self.s2 = np.zeros(self.shape, np.float64)
+        self.s3 = np.zeros(self.shape, np.float64)
+        self.n_nonfinite = 0
+        self.n_clamped = 0
+
+    def add(self, x: np.ndarray) -> None:
+        x = np.asarray(x)
+        if x.shape != self.shape:
+            raise DbenchInputError(f"samples: expected shape {self.shape}, got {x.shape}")
+        x = x.astype(np.float64, copy=True)
+        bad = ~np.isfinite(x)
+        if bad.any():
+            self.n_nonfinite += int(bad.sum())
+            x[bad] = 0.0
+        if self.transform == "box-cox":
+            neg = x < 0
+            if neg.any():
+                self.n_clamped += int(neg.sum())
+        u = transform_samples(x, self.transform, self.lam)
+        u -= self.k
+        u2 = u * u
+        self.s1 += u
+        self.s2 += u2
+        u2 *= u
+        self.s3 += u2
+        self.n += 1
+
+    def add_batch(self, samples: np.ndarray, axis: int) -> np.ndarray:
+        """Add several samples per element at once; ``samples`` has them along ``axis``.
+
+        Compiled fast path of :meth:`add` (one fused pass: transform, three power sums and the
+        plain sum); tests prove it equal to calling :meth:`add` per sample. Returns the plain
+        (untransformed) sum over the sample axis, float64, which the caller uses for the mean.
+        """
+        x = np.asarray(samples, np.float32)
+        axis = axis % x.ndim
+        if x.shape[:axis] + x.shape[axis + 1:] != self.shape:
+            raise DbenchInputError(f"samples: expected shape {self.shape} with a sample axis "
+                                   f"inserted at {axis}, got {x.shape}")
+        outer = int(np.prod(x.shape[:axis]))
+        m = x.shape[axis]
+        x3 = np.ascontiguousarray(x).reshape(outer, m, -1)
+        plain = np.zeros((outer, x3.shape[2]), np.float64)
+        n_nonfinite, n_clamped = _accumulate(
+            x3, TRANSFORMS.index(self.transform), float(self.lam), float(self.k),
+            self.s1.reshape(outer, -1), self.s2.reshape(outer, -1), self.s3.reshape(outer, -1),
+            plain)
+        self.n += m
+        self.n_nonfinite += int(n_nonfinite)
+        self.n_clamped += int(n_clamped)
+        return plain.reshape(self.shape)
+
+    def merge(self, other: "PowerSums") -> None:
+        if (other.shape, other.transform, other.lam) != (self.shape, self.transform, self.lam):
+            raise DbenchInputError("PowerSums.merge: accumulators differ in shape or transform")
+        self.s1 += other.s1
+        self.s2 += other.s2
+        self.s3 += other.s3
+        self.n += other.n
+        self.n_nonfinite += other.n_nonfinite
+        self.n_clamped += other.n_clamped
+
+    def finalize(self) -> SampleStats:
+        return stats_from_power_sums(self.n, self.s1, self.s2, self.s3, self.k, self.transform,
+                                     self.lam, diagnostics={"n_nonfinite": self.n_nonfinite,
+                                                            "n_clamped": self.n_clamped})
+
+
+def stats_from_power_sums(n: int | np.ndarray, s1: np.ndarray, s2: np.ndarray, s3: np.ndarray,
+                          k: float, transform: str, lam: float,
+                          diagnostics: dict | None = None) -> SampleStats:
+    """Moments from shifted power sums (spec §4.1).
+
+    a = S1/n, m2b = S2/n − a², σ² = m2b·n/(n−1), M3 = S3/n − 3a·m2b − a³ (biased m2b inside M3),
+    σ² := 0 when m2b ≤ 1e-10·S2/n; n < 2 gives σ² = 0 and Var = 0 (spec §4.1 rules).
+    """
+    n_arr = np.broadcast_to(np.asarray(n, dtype=np.float64), np.shape(s1))
+    safe_n = np.maximum(n_arr, 1.0)
+    a = s1 / safe_n
+    s2n = s2 / safe_n
+    m2b = s2n - a * a
+    zero = (m2b <= ZERO_VARIANCE_RTOL * s2n) | (n_arr < 2)
+    m2b = np.where(zero, 0.0, m2b)
+    m3 = s3 / safe_n - 3.0 * a * m2b - a ** 3
+    # Constant samples leave float64 residue in S3; their third moment is 0 by definition.
+    m3 = np.where(zero, 0.0, m3)
+    sigma2 = np.where(n_arr >= 2, m2b * n_arr / np.maximum(n_arr - 1.0, 1.0), 0.0)
+    var_mean = sigma2 / safe_n
+    mean = np.where(n_arr > 0, a + k, 0.0)
+    return SampleStats(n=np.array(n_arr), mean=mean, var_mean=var_mean, m3=m3,
+                       transform=transform, lam=float(lam), diagnostics=dict(diagnostics or {}))
+
+
+def stats_from_samples(samples: np.ndarray, transform: str = "box-cox", lam: float = 0.5,
+                       axis: int = 0) -> SampleStats:
+    """Two-pass statistics from stacked samples (the slow, obvious definition, spec §4).
+
+    ``samples`` has the sample axis at ``axis``; used by tests and small synthetic data.
+    """
+    y = transform_samples(np.moveaxis(np.asarray(samples, np.float64), axis, 0), transform, lam)
+    n = y.shape[0]
+    mu = y.mean(axis=0)
+    dev = y - mu
+    sigma2 = (dev ** 2).sum(axis=0) / (n - 1) if n > 1 else np.zeros_like(mu)
+    m3 = (dev ** 3).mean(axis=0)
+    return SampleStats(n=np.full(mu.shape, float(n)), mean=mu, var_mean=sigma2 / n, m3=m3,
+                       transform=transform, lam=lam)
+
+
+def _accumulate_py(x, code, lam, k, s1, s2, s3, plain):  # pragma: no cover - jitted
+    """x: (A, m, B) float32 samples; s1, s2, s3, plain: (A, B) float64 running sums."""
+    n_nonfinite = 0
+    n_clamped = 0
+    for a in prange(x.shape[0]):
+        for j in range(x.shape[1]):
+            for b in range(x.shape[2]):
+                v = np.float64(x[a, j, b])
+                if not np.isfinite(v):
+                    n_nonfinite += 1
+                    v = 0.0
+                plain[a, b] += v
+                if code == 0:
+                    y = v
+                elif code == 1:
+                    if v < 0.0:
+                        n_clamped += 1
+                        v = 0.0
+                    y = (np.sqrt(v) - 1.0) / lam if lam == 0.5 else (v ** lam - 1.0) / lam
+                elif v >= 0.0:
+                    y = np.log1p(v) if lam == 0.0 else ((v + 1.0) ** lam - 1.0) / lam
+                else:
+                    y = (-np.log1p(-v) if lam == 2.0
+                         else -((1.0 - v) ** (2.0 - lam) - 1.0) / (2.0 - lam))
+                u = y - k
+                u2 = u * u
+                s1[a, b] += u
+                s2[a, b] += u2
+                s3[a, b] += u2 * u
+    return n_nonfinite, n_clamped
+
+
+try:
+    from numba import njit, prange
+
+    _accumulate = njit(parallel=True, cache=True)(_accumulate_py)
+except ImportError:  # pragma: no cover - numba is a dependency; keep a slow but exact path
+    prange = range
+    _accumulate = _accumulate_py

@@ -1,0 +1,149 @@
+"""EXR, PNG and JSON reading and writing; every write is atomic (temporary name, then rename).
+
+EXR files hold named buffers as channel groups: a buffer ``albedo`` of shape (H, W, 3) becomes
+channels ``albedo.R``, ``albedo.G``, ``albedo.B``; a one-channel buffer ``depth`` becomes
+``depth.Z``; transient (H, W, T, C) buffers are stored per bin as ``color.t0042.R`` and so on.
+"""
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any, Iterator
+
+import numpy as np
+
+from .errors import DbenchInputError
+
+_RGB = ("R", "G", "B")
+
+
+@contextmanager
+def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[Path]:
+    """Yield a temporary path beside ``path``; rename it onto ``path`` only if the block succeeds.
+
+    A killed process leaves at most a ``.tmp`` file that no reader mistakes for the real one.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix or f".tmp{path.suffix}",
+                               dir=path.parent)
+    os.close(fd)
+    tmp_path = Path(tmp)
+    try:
+        yield tmp_path
+        os.replace(tmp_path, path)
+    finally:
+        if tmp_path.exists():
+            tmp_path.unlink()
+
+
+def write_text(path: str | os.PathLike, text: str) -> None:
+    with atomic_path(path) as tmp:
+        tmp.write_text(text)
+
+
+def write_json(path: str | os.PathLike, obj: Any) -> None:
+    write_text(path, json.dumps(obj, indent=2, sort_keys=True, default=_json_default) + "\n")
+
+
+def read_json(path: str | os.PathLike) -> Any:
+    return json.loads(Path(path).read_text())
+
+
+def _json_default(obj: Any) -> Any:
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, (set, frozenset)):
+        return sorted(obj)
+    if isinstance(obj, Path):
+        return str(obj)
+    raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
+
+
+def _channel_names(name: str, array: np.ndarray) -> list[tuple[str, tuple]]:
+    """(channel name, index into the array) for every 2D slice of a buffer."""
+    if array.ndim == 2:
+        return [(f"{name}.Z", (slice(None), slice(None)))]
+    if array.ndim == 3:
+        c = array.shape[2]
+        labels = ("Z",) if c == 1 else _RGB if c == 3 else tuple(f"c{i}" for i in range(c))
+        return [(f"{name}.{lab}", (slice(None), slice(None), i)) for i, lab in enumerate(labels)]
+    if array.ndim == 4:
+        out = []
+        for t in range(array.shape[2]):
+            for ch, idx in _channel_names(f"{name}.t{t:04d}", array[:, :, t]):
+                out.append((ch, (slice(None), slice(None), t) + idx[2:]))
+        return out
+    raise DbenchInputError(f"{name}: expected (H, W), (H, W, C) or (H, W, T, C), "
+                           f"got {array.shape}")
+
+
+def write_exr(path: str | os.PathLike, buffers: dict[str, np.ndarray]) -> None:
+    """Write named float buffers (same H, W) into one ZIP-compressed float32 EXR, atomically."""
+    import OpenEXR
+
+    channels: dict[str, np.ndarray] = {}
+    hw = None
+    for name, array in buffers.items():
+        array = np.asarray(array, dtype=np.float32)
+        if hw is None:
+            hw = array.shape[:2]
+        elif array.shape[:2] != hw:
+            raise DbenchInputError(f"{name}: expected height and width {hw}, got {array.shape[:2]}")
+        for ch, idx in _channel_names(name, array):
+            channels[ch] = np.ascontiguousarray(array[idx])
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    with atomic_path(path, suffix=".tmp.exr") as tmp:
+        with OpenEXR.File(header, channels) as f:
+            f.write(str(tmp))
+
+
+def read_exr(path: str | os.PathLike) -> dict[str, np.ndarray]:
+    """Read an EXR written by :func:`write_exr` back into named (H, W, C) / (H, W, T, C) buffers."""
+    import OpenEXR
+
+    with OpenEXR.File(str(path)) as f:
+        raw = {k: np.array(v.pixels, dtype=np.float32) for k, v in f.channels().items()}
+    groups: dict[str, dict[str, np.ndarray]] = {}
+    for ch, pix in raw.items():
+        if pix.ndim == 3:
+            # OpenEXR's Python binding already merges "name.R/G/B" into one (H, W, 3) channel.
+            groups.setdefault(ch, {}).update({c: pix[..., i] for i, c in enumerate(_RGB)})
+            continue
+        buf, _, label = ch.rpartition(".")
+        groups.setdefault(buf or ch, {})[label] = pix
+    out: dict[str, np.ndarray] = {}
+    timed: dict[str, dict[int, np.ndarray]] = {}
+    for buf, chans in groups.items():
+        stacked = _stack_channels(chans)
+        head, _, tail = buf.rpartition(".")
+        if head and tail.startswith("t") and tail[1:].isdigit():
+            timed.setdefault(head, {})[int(tail[1:])] = stacked
+        else:
+            out[buf] = stacked
+    for buf, bins in timed.items():
+        out[buf] = np.stack([bins[t] for t in sorted(bins)], axis=2)
+    return out
+
+
+def _stack_channels(chans: dict[str, np.ndarray]) -> np.ndarray:
+    if set(chans) == {"Z"}:
+        return chans["Z"][..., None]
+    if set(chans) == set(_RGB):
+        return np.stack([chans[c] for c in _RGB], axis=-1)
+    keys = sorted(chans, key=lambda k: int(k[1:]) if k[1:].isdigit() else k)
+    return np.stack([chans[k] for k in keys], axis=-1)
+
+
+def write_png(path: str | os.PathLike, image: np.ndarray) -> None:
+    """Write an (H, W, 3) or (H, W) image in [0, 1] (clipped) as an 8-bit PNG, atomically."""
+    import matplotlib.image as mpimg
+
+    img = np.clip(np.nan_to_num(np.asarray(image, np.float32)), 0.0, 1.0)
+    with atomic_path(path, suffix=".tmp.png") as tmp:
+        mpimg.imsave(str(tmp), img, format="png")

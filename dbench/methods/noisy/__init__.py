@@ -1,0 +1,19 @@
+"""``noisy``: the identity, the row every report compares against."""
+from __future__ import annotations
+
+import numpy as np
+
+from ...registry import Denoiser, register
+
+
+@register("noisy")
+class Noisy(Denoiser):
+    """Returns the noisy input unchanged (float32 copy); non-finite pixels stay as they are,
+    since the point of this row is to show the input exactly as the renderer produced it."""
+
+    kinds = {"steady", "sequence", "transient"}
+    needs = {"color"}
+    defaults: dict = {}
+
+    def denoise(self, data) -> np.ndarray:
+        return np.array(data.color, dtype=np.float32, copy=True)

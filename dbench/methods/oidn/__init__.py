@@ -1,0 +1,84 @@
+"""``oidn``: Intel Open Image Denoise (RT filter, HDR) through the pyoidn binding.
+
+The professional baseline every other method is measured against (spec/autoencoder.md, the
+OIDN section; anchors.md §2.5 for CPU timings). Inputs: color + albedo + normal by default.
+
+Input policy (documented finite result): OIDN needs non-negative finite HDR color, albedo in
+[0, 1] and normals in [-1, 1]. Non-finite color pixels are replaced by 0 and negative values by
+0 before the call; albedo and normal are clipped to their ranges and their non-finite values
+set to 0. The output is therefore finite everywhere, and a NaN never reaches OIDN.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ...data import check_buffer
+from ...errors import DbenchInputError
+from ...registry import Denoiser, register
+
+QUALITIES = ("high", "balanced", "fast")
+FEATURE_SETS = ("albedo+normal", "albedo", "none")
+
+
+def oidn_denoise(color: np.ndarray, albedo: np.ndarray | None = None,
+                 normal: np.ndarray | None = None, quality: str = "high",
+                 clean_aux: bool = True) -> np.ndarray:
+    """Denoise an (H, W, 3) linear HDR image with OIDN; albedo/normal (H, W, 3) optional.
+
+    Returns float32 (H, W, 3). ``clean_aux`` tells OIDN the features are noise-free (dbench's
+    AOVs are rendered at 64 spp with a box filter); normals need albedo (an OIDN rule).
+    """
+    import pyoidn
+
+    if quality not in QUALITIES:
+        raise DbenchInputError(f"quality: expected one of {QUALITIES}, got {quality!r}")
+    color = check_buffer("color", color, (None, None, 3))
+    h, w = color.shape[:2]
+    color = np.where(np.isfinite(color), np.maximum(color, 0.0), 0.0).astype(np.float32)
+    aux = {}
+    if albedo is not None:
+        aux["albedo"] = np.clip(np.nan_to_num(check_buffer("albedo", albedo, (h, w, 3)),
+                                              nan=0.0, posinf=1.0, neginf=0.0), 0.0, 1.0)
+        if normal is not None:
+            aux["normal"] = np.clip(np.nan_to_num(check_buffer("normal", normal, (h, w, 3)),
+                                                  nan=0.0, posinf=0.0, neginf=0.0), -1.0, 1.0)
+    elif normal is not None:
+        raise DbenchInputError("normal: OIDN uses normals only together with albedo")
+    out = pyoidn.denoise(color, aux.get("albedo"), aux.get("normal"), hdr=True,
+                         clean_aux=bool(clean_aux and aux), quality=quality)
+    return np.ascontiguousarray(out, dtype=np.float32)
+
+
+@register("oidn")
+class OIDN(Denoiser):
+    """Intel Open Image Denoise, RT filter in HDR mode.
+
+    Parameters: ``quality`` (high | balanced | fast), ``features`` (albedo+normal | albedo |
+    none), ``clean_aux`` (features are noise-free).
+    """
+
+    kinds = {"steady"}
+    needs = {"color", "albedo", "normal"}
+    defaults = dict(quality="high", features="albedo+normal", clean_aux=True)
+
+    def __init__(self, **params):
+        super().__init__(**params)
+        if self.params["features"] not in FEATURE_SETS:
+            raise DbenchInputError(f"features: expected one of {FEATURE_SETS}, "
+                                   f"got {self.params['features']!r}")
+        if self.params["quality"] not in QUALITIES:
+            raise DbenchInputError(f"quality: expected one of {QUALITIES}, "
+                                   f"got {self.params['quality']!r}")
+
+    def denoise(self, data) -> np.ndarray:
+        features = self.params["features"]
+        albedo = data.albedo if features != "none" else None
+        normal = data.normal if features == "albedo+normal" else None
+        if features != "none" and albedo is None:
+            raise DbenchInputError("albedo: missing; oidn with features="
+                                   f"{features!r} needs an (H, W, 3) albedo buffer")
+        if features == "albedo+normal" and normal is None:
+            raise DbenchInputError("normal: missing; oidn with features='albedo+normal' "
+                                   "needs an (H, W, 3) normal buffer")
+        return oidn_denoise(data.color, albedo, normal, quality=self.params["quality"],
+                            clean_aux=self.params["clean_aux"])

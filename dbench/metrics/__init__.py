@@ -1,0 +1,63 @@
+"""Image metrics for denoiser outputs (spec anchors.md §1, §5, §6).
+
+Plain functions on NumPy arrays. ``output`` and ``reference`` are (H, W, C) images or
+(H, W, T, C) transient videos of the same shape, any real dtype, computed in float64.
+
+* ``mse``, ``rmse``, ``relmse`` (ε = 1e-2), ``smape`` (ε = 1e-2), ``rmae``: linear HDR values,
+  over every pixel, bin and channel; :func:`per_bin` gives the (T,) curve of transient data.
+* ``psnr`` (capped at 100 dB), ``ssim``, ``flip`` (LDR-FLIP): on the tone-mapped sRGB image
+  :func:`tonemap` (``clip(x·2^EV, 0, 1)`` then the sRGB transfer function).
+* ``hdrflip``: HDR-FLIP on linear values clipped to >= 0, exposures fixed once per reference.
+* Transient inputs: psnr, ssim, flip and hdrflip run on the time-integrated image (sum over T).
+* Non-finite policy: a NaN/Inf anywhere in ``output`` makes the metric NaN (never an exception,
+  never silently dropped); ``reference`` must be finite (DbenchInputError otherwise).
+
+:data:`DEFINITIONS` states each metric with its constants in one line, for reports.
+
+Example:
+    >>> import numpy as np
+    >>> from dbench import metrics
+    >>> r = np.ones((8, 8, 3)); x = np.full((8, 8, 3), 1.1)
+    >>> round(metrics.compute("relmse", x, r), 8)
+    0.00990099
+    >>> sorted(metrics.compute_all(x, r, names=["rmse", "psnr"]))
+    ['psnr', 'rmse']
+"""
+from __future__ import annotations
+
+from .image import (
+    DEFINITIONS,
+    HIGHER_IS_BETTER,
+    PER_BIN_METRICS,
+    TONEMAP_DEFINITION,
+    available,
+    check_pair,
+    clear_exposure_cache,
+    compute,
+    compute_all,
+    flip,
+    flip_ldr,
+    hdrflip,
+    hdrflip_exposures,
+    mse,
+    per_bin,
+    psnr,
+    psnr_ldr,
+    relmse,
+    rmae,
+    rmse,
+    smape,
+    srgb_decode,
+    srgb_encode,
+    ssim,
+    ssim_ldr,
+    tonemap,
+)
+
+__all__ = [
+    "DEFINITIONS", "HIGHER_IS_BETTER", "PER_BIN_METRICS", "TONEMAP_DEFINITION",
+    "available", "compute", "compute_all", "per_bin",
+    "tonemap", "srgb_encode", "srgb_decode",
+    "mse", "rmse", "relmse", "smape", "rmae", "psnr", "ssim", "flip", "hdrflip",
+    "psnr_ldr", "ssim_ldr", "flip_ldr", "hdrflip_exposures", "clear_exposure_cache", "check_pair",
+]

@@ -1,0 +1,103 @@
+"""The denoiser registry: a dictionary and a decorator, as timm registers models.
+
+Example:
+    >>> from dbench.registry import register, Denoiser
+    >>> @register("identity-example")
+    ... class IdentityExample(Denoiser):
+    ...     kinds = {"steady"}
+    ...     needs = {"color"}
+    ...     def denoise(self, data):
+    ...         return data.color.copy()
+"""
+from __future__ import annotations
+
+from typing import Any, Callable
+
+import numpy as np
+
+from .data import BUFFER_NAMES
+from .errors import DbenchInputError, UnknownNameError
+
+_REGISTRY: dict[str, type["Denoiser"]] = {}
+
+
+class Denoiser:
+    """Base class of every method.
+
+    Class attributes a method sets:
+        kinds: the Dataset kinds it accepts (``steady``, ``sequence``, ``transient``).
+        needs: the buffers it reads (names from :data:`dbench.data.BUFFER_NAMES`).
+        defaults: parameter defaults; ``get(name, **params)`` overrides them.
+
+    Sequence methods keep state: call ``reset()`` and then ``denoise(frame)`` per frame in order.
+    ``denoise`` returns float32 with the shape of ``data.color``, finite wherever it is finite.
+    """
+
+    name: str = ""
+    kinds: set[str] = {"steady"}
+    needs: set[str] = {"color"}
+    defaults: dict[str, Any] = {}
+
+    def __init__(self, **params: Any) -> None:
+        unknown = set(params) - set(self.defaults)
+        if unknown:
+            raise DbenchInputError(
+                f"{self.name}: unknown parameter(s) {sorted(unknown)}; "
+                f"valid: {sorted(self.defaults) or 'none'}")
+        self.params: dict[str, Any] = {**self.defaults, **params}
+
+    def reset(self) -> None:
+        """Forget any state kept across frames (no-op for single-frame methods)."""
+
+    def denoise(self, data: Any) -> np.ndarray:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def applies_to(self, kind: str, available: set[str] | None = None) -> tuple[bool, str]:
+        """Whether the method can run on a dataset of ``kind`` offering ``available`` buffers.
+
+        Returns (ok, reason); the reason explains a skip in reports.
+        """
+        if kind not in self.kinds:
+            return False, f"{self.name} works on {sorted(self.kinds)}, not on {kind} data"
+        if available is not None:
+            missing = set(self.needs) - set(available)
+            if missing:
+                return False, f"{self.name} needs {sorted(missing)}, which the scene cannot provide"
+        return True, ""
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}({self.params})"
+
+
+def register(name: str) -> Callable[[type[Denoiser]], type[Denoiser]]:
+    """Class decorator adding a Denoiser subclass to the registry under ``name``."""
+
+    def wrap(cls: type[Denoiser]) -> type[Denoiser]:
+        if name in _REGISTRY and _REGISTRY[name] is not cls:
+            raise ValueError(f"method {name!r} registered twice")
+        bad = set(cls.needs) - set(BUFFER_NAMES)
+        if bad:
+            raise ValueError(f"method {name!r} needs unknown buffers {sorted(bad)}")
+        cls.name = name
+        _REGISTRY[name] = cls
+        return cls
+
+    return wrap
+
+
+def available() -> list[str]:
+    """Names of every registered method, sorted."""
+    return sorted(_REGISTRY)
+
+
+def method_class(name: str) -> type[Denoiser]:
+    try:
+        return _REGISTRY[name]
+    except KeyError:
+        raise UnknownNameError(
+            f"unknown method {name!r}; available methods: {', '.join(available())}") from None
+
+
+def get(name: str, **params: Any) -> Denoiser:
+    """Build the method ``name`` with ``params`` overriding its defaults."""
+    return method_class(name)(**params)

@@ -1,0 +1,49 @@
+#!/usr/bin/env bash
+# Sets up dbench on a fresh Debian/Ubuntu machine: system LLVM for Mitsuba's llvm_ad_rgb variant,
+# a Python 3.11 virtual environment in .venv, and every Python package (CPU build of torch).
+# Idempotent: a second run only checks and returns.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+VENV=${DBENCH_VENV:-.venv}
+PY=${PYTHON:-python3.11}
+
+# 1. System packages. Mitsuba's llvm_ad_rgb aborts with libLLVM 15 ("Cannot select ... fminimum");
+#    Dr.Jit finds libllvm19 by itself once it is installed.
+if ! ldconfig -p 2>/dev/null | grep -q "libLLVM-19\|libLLVM.so.19"; then
+  SUDO=""; [ "$(id -u)" -ne 0 ] && command -v sudo >/dev/null && SUDO="sudo"
+  if [ "$(id -u)" -eq 0 ] || [ -n "$SUDO" ]; then
+    echo "setup: installing libllvm19 (apt)"
+    $SUDO apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq libllvm19 >/dev/null
+  else
+    echo "setup: WARNING: cannot install libllvm19 (not root, no sudo); dbench will fall back" \
+         "to Mitsuba's scalar_rgb variant and transient rendering will be unavailable" >&2
+  fi
+fi
+if ! command -v "$PY" >/dev/null; then
+  if command -v apt-get >/dev/null && [ "$(id -u)" -eq 0 ]; then
+    apt-get install -y -qq python3.11 python3.11-venv >/dev/null
+  else
+    echo "setup: $PY not found; install Python 3.11" >&2; exit 1
+  fi
+fi
+
+# 2. Python environment. The stamp records the pyproject it was built from.
+stamp="$VENV/.dbench-setup"
+want=$(sha1sum pyproject.toml | cut -d' ' -f1)
+if [ -f "$stamp" ] && [ "$(cat "$stamp")" = "$want" ] && "$VENV/bin/python" -c "import dbench, mitsuba, torch" 2>/dev/null; then
+  exit 0
+fi
+[ -x "$VENV/bin/python" ] || "$PY" -m venv "$VENV"
+PIP=("$VENV/bin/pip" install -q --disable-pip-version-check)
+"${PIP[@]}" --upgrade pip >/dev/null
+# torch 2.13.0, CPU build: a local "+cpu" wheel (find-links) or PyTorch's CPU index wins over the
+# several-GB CUDA wheel because its local version label sorts higher.
+"${PIP[@]}" --retries 1 --timeout 30 --extra-index-url https://download.pytorch.org/whl/cpu \
+  "torch==2.13.0" 2>&1 | grep -v "^WARNING" || true
+"$VENV/bin/python" -c "import torch" 2>/dev/null || "${PIP[@]}" "torch==2.13.0"
+"${PIP[@]}" -e ".[test]" 2>&1 | grep -v "^WARNING" || true
+"$VENV/bin/python" -c "import dbench, mitsuba, mitransient, torch, pyoidn, flip_evaluator, numba, OpenEXR, kornia, onnxruntime, skimage, pandas, matplotlib" \
+  || { echo "setup: package installation failed" >&2; exit 1; }
+echo "$want" > "$stamp"
+echo "setup: done ($("$VENV/bin/python" -c 'import torch, mitsuba; print("torch", torch.__version__, "| mitsuba", mitsuba.__version__)'))"

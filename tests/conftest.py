@@ -1,0 +1,32 @@
+"""Shared fixtures. Rendering tests use tiny images and a small reference spp."""
+from __future__ import annotations
+
+import os
+
+import pytest
+
+os.environ.setdefault("DBENCH_REF_SPP", "256")
+
+
+def _renderer_ok() -> tuple[bool, str]:
+    try:
+        from dbench.datasets.mitsuba_env import mitsuba
+        mitsuba()
+        return True, ""
+    except Exception as exc:  # noqa: BLE001
+        return False, str(exc)
+
+
+@pytest.fixture(scope="session")
+def renderer():
+    ok, why = _renderer_ok()
+    if not ok:
+        pytest.skip(f"Mitsuba unavailable: {why}")
+    from dbench.datasets.mitsuba_env import mitsuba
+    return mitsuba()
+
+
+@pytest.fixture()
+def tmp_cache(tmp_path):
+    from dbench.datasets import Cache
+    return Cache(tmp_path / "cache")

@@ -1,0 +1,82 @@
+"""Dataset loading and the content-addressed cache."""
+import os
+
+import numpy as np
+import pytest
+
+from dbench import datasets
+from dbench.data import Frame
+from dbench.datasets.cache import Cache, make_key
+from dbench.errors import DbenchInputError, UnknownNameError
+
+
+def test_key_changes_with_anything_that_changes_pixels():
+    base = {"scene": "a", "res": 8, "spp": 4, "dict": {"x": [1.0, 2.0]}}
+    assert make_key(base) == make_key(dict(base))
+    for change in ({"res": 9}, {"spp": 8}, {"dict": {"x": [1.0, 2.5]}}):
+        assert make_key({**base, **change}) != make_key(base)
+
+
+def test_put_get_roundtrip_and_interrupted_write(tmp_path):
+    cache = Cache(tmp_path)
+    desc = {"what": "x"}
+    img = np.random.default_rng(0).random((4, 5, 3)).astype(np.float32)
+    cache.put("noisy", desc, images={"color": img}, arrays={"m": np.arange(3.0)},
+              meta={"a": 1})
+    entry = cache.get("noisy", desc)
+    np.testing.assert_array_equal(entry.images()["color"], img)
+    np.testing.assert_array_equal(entry.arrays()["m"], np.arange(3.0))
+    # A write killed half-way leaves a .tmp folder, which never looks like an entry.
+    key = make_key({"what": "y"})
+    half = tmp_path / "noisy" / f".tmp-{key}-dead"
+    half.mkdir(parents=True)
+    (half / "buffers.exr").write_bytes(b"partial")
+    assert cache.get("noisy", {"what": "y"}) is None
+    assert cache.clean() == 1 and not half.exists()
+
+
+def test_disabled_cache_stores_nothing(tmp_path):
+    cache = Cache(tmp_path, enabled=False)
+    cache.put("noisy", {"a": 1}, images={"color": np.zeros((2, 2, 3))})
+    assert cache.get("noisy", {"a": 1}) is None and not any(tmp_path.iterdir())
+
+
+@pytest.mark.mitsuba
+def test_second_load_renders_nothing(renderer, tmp_cache):
+    needs = {"color", "albedo", "normal", "depth", "stats", "reference"}
+    first = datasets.load("cornell", spp=4, res=12, needs=needs, ref_spp=16, cache=tmp_cache,
+                          progress=False)
+    assert set(first.meta["rendered"]) == {"color", "stats", "features", "reference"}
+    second = datasets.load("cornell", spp=4, res=12, needs=needs, ref_spp=16, cache=tmp_cache,
+                           progress=False)
+    assert second.meta["rendered"] == []
+    for name in ("color", "albedo", "normal", "depth", "reference"):
+        np.testing.assert_array_equal(getattr(first, name), getattr(second, name))
+    np.testing.assert_array_equal(first.stats.var_mean, second.stats.var_mean)
+    # Only what is asked for is rendered or returned.
+    third = datasets.load("cornell", spp=4, res=12, needs={"color"}, cache=tmp_cache,
+                          progress=False)
+    assert third.stats is None and third.albedo is None and third.reference is None
+    # Stats in another transform reuse the cached color (same samples) but add a stats entry.
+    fourth = datasets.load("cornell", spp=4, res=12, needs={"stats"}, transform="identity",
+                           cache=tmp_cache, progress=False)
+    assert fourth.meta["rendered"] == ["color", "stats"] or "stats" in fourth.meta["rendered"]
+    np.testing.assert_array_equal(fourth.color, first.color)
+
+
+def test_load_rejects_bad_arguments():
+    with pytest.raises(UnknownNameError, match="available scenes"):
+        datasets.load("nope", spp=4, res=8)
+    with pytest.raises(DbenchInputError, match="spp"):
+        datasets.load("cornell", spp=0, res=8)
+    with pytest.raises(DbenchInputError, match="needs"):
+        datasets.load("cornell", spp=4, res=8, needs={"motion"})
+
+
+def test_frame_checks_shapes_and_names_the_buffer():
+    with pytest.raises(DbenchInputError, match=r"albedo: expected shape \(4, 5, 3\)"):
+        Frame(color=np.zeros((4, 5, 3)), albedo=np.zeros((4, 5)))
+    with pytest.raises(DbenchInputError, match="color"):
+        Frame(color=np.zeros((4, 5)))
+    f = Frame(color=np.zeros((4, 5, 3), np.float64), depth=np.ones((4, 5)))
+    assert f.color.dtype == np.float32 and f.depth.shape == (4, 5, 1)

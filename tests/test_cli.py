@@ -1,0 +1,46 @@
+"""The command line: run, list, unknown names, parameters."""
+import pandas as pd
+import pytest
+
+from dbench.cli import main, parse_params
+from dbench.errors import DbenchInputError
+
+
+def test_unknown_method_and_scene_exit_2_and_list_names(capsys):
+    assert main(["run", "--method", "nope", "--scene", "cornell"]) == 2
+    assert "available methods" in capsys.readouterr().err
+    assert main(["run", "--method", "noisy", "--scene", "nope"]) == 2
+    assert "cornell" in capsys.readouterr().err
+
+
+def test_list_prints_scenes_and_methods(capsys):
+    assert main(["list"]) == 0
+    out = capsys.readouterr().out
+    assert "cornell" in out and "oidn" in out and "needs=" in out
+
+
+def test_params_route_to_methods():
+    p = parse_params(["quality=fast", "oidn.features=albedo"], ["noisy", "oidn"])
+    assert p["oidn"] == {"quality": "fast", "features": "albedo"} and p["noisy"] == {}
+    with pytest.raises(DbenchInputError, match="no method"):
+        parse_params(["radiusx=3"], ["noisy"])
+    with pytest.raises(DbenchInputError, match="has no parameter"):
+        parse_params(["oidn.bogus=1"], ["oidn"])
+
+
+@pytest.mark.mitsuba
+def test_run_writes_metrics_report_images(renderer, tmp_path, capsys):
+    out = tmp_path / "run"
+    code = main(["run", "--method", "oidn", "--scene", "cornell", "--spp", "4", "--res", "16",
+                 "--ref-spp", "32", "--repeats", "1", "--out", str(out), "--quiet",
+                 "--cache", str(tmp_path / "cache")])
+    assert code == 0
+    table = pd.read_csv(out / "metrics.csv")
+    for col in ("scene", "method", "spp", "res", "rmse", "relmse", "smape", "psnr", "ssim",
+                "flip", "time_s"):
+        assert col in table.columns
+    assert list(table.method) == ["noisy", "oidn"]
+    assert (out / "report.md").read_text().startswith("# dbench run")
+    assert (out / "comparison.png").stat().st_size > 1000
+    assert (out / "images" / "oidn.exr").exists() and (out / "images" / "reference.exr").exists()
+    assert not list(out.rglob(".*tmp*"))

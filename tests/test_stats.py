@@ -1,0 +1,122 @@
+"""Sample transforms and moments: spec/statistical.md §3, §4 and §13 checks 1-4."""
+import numpy as np
+import pytest
+from scipy import stats as sps
+
+from dbench.datasets.stats import (PowerSums, stats_from_power_sums, stats_from_samples,
+                                   transform_of_zero, transform_samples)
+from dbench.errors import DbenchInputError
+
+
+def test_transform_reference_values():
+    assert transform_samples(np.array([0.0]), "box-cox", 0.5)[0] == pytest.approx(-2, abs=1e-12)
+    assert transform_samples(np.array([1.0]), "box-cox", 0.5)[0] == pytest.approx(0, abs=1e-12)
+    assert transform_samples(np.array([4.0]), "box-cox", 0.5)[0] == pytest.approx(2, abs=1e-12)
+    assert transform_samples(np.array([0.0]), "yeo-johnson", 0.7)[0] == 0
+    assert transform_samples(np.array([1.0]), "yeo-johnson", 0.5)[0] == pytest.approx(
+        0.8284271, abs=1e-7)
+    assert transform_of_zero("box-cox", 0.5) == -2.0
+    assert transform_of_zero("identity", 0.5) == 0.0
+
+
+def test_yeo_johnson_matches_scipy_both_branches():
+    x = np.linspace(-3, 3, 61)
+    for lam in (0.0, 0.5, 1.5, 2.0):
+        np.testing.assert_allclose(transform_samples(x, "yeo-johnson", lam),
+                                   sps.yeojohnson(x, lmbda=lam), rtol=1e-12, atol=1e-12)
+
+
+def test_bad_transform_arguments():
+    with pytest.raises(DbenchInputError, match="transform"):
+        transform_samples(np.zeros(2), "log", 0.5)
+    with pytest.raises(DbenchInputError, match="lam"):
+        PowerSums((2,), "box-cox", 0.0)
+
+
+EXPECTED = {  # spec §13 check 2, samples [0, 0, 1, 4]
+    "identity": (1.25, 3.5833333, 4.21875, 1.2990552, 0.8958333),
+    "box-cox": (-0.5, 3.6666667, 2.25, -0.4744318, 0.9166667),
+    "yeo-johnson": (0.8251408, 1.3581062, 0.8360054, 0.8507894, 0.3395265),
+}
+
+
+@pytest.mark.parametrize("transform", sorted(EXPECTED))
+def test_moments_of_known_samples(transform):
+    mu, s2, m3, theta, var = EXPECTED[transform]
+    acc = PowerSums((1,), transform, 0.5)
+    for v in (0.0, 0.0, 1.0, 4.0):
+        acc.add(np.array([v]))
+    for st in (acc.finalize(), stats_from_samples(np.array([[0.0], [0.0], [1.0], [4.0]]),
+                                                  transform, 0.5)):
+        assert st.mean[0] == pytest.approx(mu, abs=5e-8)
+        assert st.var_mean[0] * 4 == pytest.approx(s2, abs=5e-8)
+        assert st.m3[0] == pytest.approx(m3, abs=5e-8)
+        assert st.theta[0] == pytest.approx(theta, abs=5e-8)
+        assert st.var_mean[0] == pytest.approx(var, abs=5e-8)
+
+
+@pytest.mark.parametrize("transform", ["identity", "box-cox", "yeo-johnson"])
+def test_power_sums_match_two_pass_on_rendering_like_data(transform):
+    rng = np.random.default_rng(1)
+    x = rng.lognormal(0, 1.5, (1024, 200)) * (rng.random((1024, 200)) < 0.2)
+    acc = PowerSums((200,), transform, 0.5)
+    acc.add_batch(x.astype(np.float32), axis=0)
+    fast = acc.finalize()
+    ref = stats_from_samples(x.astype(np.float32), transform, 0.5)
+    np.testing.assert_allclose(fast.var_mean, ref.var_mean, rtol=1e-9)
+    np.testing.assert_allclose(fast.m3, ref.m3, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(fast.mean, ref.mean, rtol=1e-12, atol=1e-12)
+
+
+def test_batches_merge_by_addition():
+    rng = np.random.default_rng(2)
+    x = rng.random((64, 5, 3)).astype(np.float32)
+    one = PowerSums((5, 3), "box-cox", 0.5)
+    one.add_batch(x, axis=0)
+    many = PowerSums((5, 3), "box-cox", 0.5)
+    for k in range(64):
+        part = PowerSums((5, 3), "box-cox", 0.5)
+        part.add(x[k])
+        many.merge(part)
+    for name in ("s1", "s2", "s3"):
+        np.testing.assert_allclose(getattr(one, name), getattr(many, name), rtol=1e-12)
+
+
+@pytest.mark.parametrize("transform", ["identity", "box-cox", "yeo-johnson"])
+def test_compiled_batch_equals_per_sample_reference(transform):
+    rng = np.random.default_rng(3)
+    x = (rng.lognormal(0, 1, (7, 16, 9, 3)) * (rng.random((7, 16, 9, 3)) < 0.5)).astype(
+        np.float32)
+    x[0, 0, 0, 0] = np.nan
+    x[1, 2, 3, 1] = -0.25
+    ref, fast = PowerSums((7, 9, 3), transform, 0.5), PowerSums((7, 9, 3), transform, 0.5)
+    for k in range(16):
+        ref.add(x[:, k])
+    plain = fast.add_batch(x, axis=1)
+    for name in ("s1", "s2", "s3"):
+        np.testing.assert_allclose(getattr(fast, name), getattr(ref, name), rtol=1e-12,
+                                   atol=1e-12)
+    assert (fast.n_nonfinite, fast.n_clamped) == (ref.n_nonfinite, ref.n_clamped)
+    assert fast.n_nonfinite == 1
+    np.testing.assert_allclose(plain, np.nan_to_num(x.astype(np.float64)).sum(axis=1))
+
+
+def test_constant_samples_have_exactly_zero_variance():
+    acc = PowerSums((4,), "box-cox", 0.5)
+    acc.add_batch(np.full((256, 4), 0.3, np.float32), axis=0)
+    st = acc.finalize()
+    assert np.all(st.var_mean == 0) and np.all(st.m3 == 0)
+    np.testing.assert_allclose(st.mean, transform_samples(np.float32(0.3), "box-cox", 0.5))
+    assert np.all(np.isfinite(st.theta))
+
+
+def test_single_sample_is_deterministic_not_nan():
+    st = stats_from_power_sums(1, np.array([1.0]), np.array([1.0]), np.array([1.0]), 0.0,
+                               "identity", 0.5)
+    assert st.var_mean[0] == 0 and np.isfinite(st.theta[0])
+
+
+def test_shape_mismatch_names_the_buffer():
+    acc = PowerSums((2, 3), "identity")
+    with pytest.raises(DbenchInputError, match="samples: expected shape"):
+        acc.add(np.zeros((3, 2)))
