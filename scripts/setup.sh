@@ -43,7 +43,7 @@ PIP=("$VENV/bin/pip" install -q --disable-pip-version-check)
   "torch==2.13.0" 2>&1 | grep -v "^WARNING" || true
 "$VENV/bin/python" -c "import torch" 2>/dev/null || "${PIP[@]}" "torch==2.13.0"
 "${PIP[@]}" -e ".[test]" 2>&1 | grep -v "^WARNING" || true
-"$VENV/bin/python" -c "import dbench, mitsuba, mitransient, torch, pyoidn, flip_evaluator, numba, OpenEXR, kornia, onnxruntime, skimage, pandas, matplotlib" \
+"$VENV/bin/python" -c "import importlib.util as u, dbench, mitsuba, torch, pyoidn, flip_evaluator, numba, OpenEXR, kornia, onnxruntime, skimage, pandas, matplotlib; assert u.find_spec('mitransient')" \
   || { echo "setup: package installation failed" >&2; exit 1; }
 echo "$want" > "$stamp"
 echo "setup: done ($("$VENV/bin/python" -c 'import torch, mitsuba; print("torch", torch.__version__, "| mitsuba", mitsuba.__version__)'))"
