@@ -133,6 +133,8 @@ def require_llvm(what: str) -> None:
     """Raise a clear error when ``what`` (e.g. transient rendering) needs LLVM but it is absent."""
     if not mitsuba().variant().startswith(("llvm", "cuda")):
         ok, reason = llvm_usable()
+        if ok:
+            reason = f"DBENCH_VARIANT forces {mitsuba().variant()}"
         raise RendererUnavailableError(
             f"{what} needs Mitsuba's llvm_ad_rgb variant, which cannot run here: {reason}")
 
