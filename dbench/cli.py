@@ -1,4 +1,4 @@
-"""Command line: ``dbench run | list | render | bench``.
+"""Command line: ``dbench run | sweep | stress | report | list | render | bench``.
 
 Exit codes: 0 success, 2 unknown names or bad arguments (the valid names are listed),
 3 renderer unavailable.
@@ -177,6 +177,45 @@ def cmd_bench(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_sweep(args: argparse.Namespace) -> int:
+    from .bench import sweep
+
+    methods_, scenes_ = sweep.resolve_names(args.methods, args.scenes)
+    params = parse_params(args.param or [], methods_)
+    config = sweep.SweepConfig(methods=methods_, scenes=scenes_,
+                               spp=[int(s) for s in _split(args.spp)], res=args.res,
+                               ref_spp=args.ref_spp, seed=args.seed, repeats=args.repeats,
+                               transform=args.transform, lam=args.lam,
+                               params={k: v for k, v in params.items() if v}, cache=args.cache)
+    counts = sweep.run_sweep(config, args.out, executor=args.executor, workers=args.workers,
+                             progress=not args.quiet)
+    print(f"sweep {args.out}: {counts['computed']} cells computed, "
+          f"{counts['finished_before']} already finished, {counts['errors']} errors")
+    return 0 if counts["errors"] == 0 else 1
+
+
+def cmd_stress(args: argparse.Namespace) -> int:
+    from .bench import stress
+    from .io import write_text
+
+    names = _split(args.methods) if args.methods != "all" else None
+    results = stress.run_all(names, progress=not args.quiet)
+    text = stress.stress_markdown(results)
+    write_text(args.out, text)
+    print("\n".join(text.splitlines()[:3 + len(results) + 4]))
+    print(f"written: {args.out}")
+    failed = sum(o.status == "fail" for r in results.values() for o in r.values())
+    return 0 if failed == 0 else 1
+
+
+def cmd_report(args: argparse.Namespace) -> int:
+    from .bench import publish
+
+    out = publish.publish(args.results, args.sweep)
+    print(f"written: {out}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="dbench", description=__doc__.splitlines()[0])
     sub = p.add_subparsers(dest="command", required=True)
@@ -213,6 +252,33 @@ def build_parser() -> argparse.ArgumentParser:
     rp.add_argument("--res", type=int, default=128)
     common(rp)
     rp.set_defaults(func=cmd_render)
+
+    sw = sub.add_parser("sweep", help="the benchmark grid, resumable")
+    sw.add_argument("--methods", default="all", help="all or NAME[,NAME...]")
+    sw.add_argument("--scenes", default="all", help="all or NAME[,NAME...]")
+    sw.add_argument("--spp", default="4,16,64,256,1024")
+    sw.add_argument("--res", type=int, default=128)
+    sw.add_argument("--out", default="results/sweep")
+    sw.add_argument("--executor", choices=("local", "ray"), default="local")
+    sw.add_argument("--workers", type=int, default=1, help="local process-pool size")
+    sw.add_argument("--repeats", type=int, default=5)
+    sw.add_argument("--param", action="append", metavar="[METHOD.]KEY=VALUE")
+    sw.add_argument("--transform", default="box-cox")
+    sw.add_argument("--lam", type=float, default=0.5)
+    sw.add_argument("--quiet", action="store_true")
+    common(sw)
+    sw.set_defaults(func=cmd_sweep)
+
+    st = sub.add_parser("stress", help="every method against adversarial inputs")
+    st.add_argument("--methods", default="all")
+    st.add_argument("--out", default="results/stress.md")
+    st.add_argument("--quiet", action="store_true")
+    st.set_defaults(func=cmd_stress)
+
+    rp2 = sub.add_parser("report", help="rebuild results/README.md from result files")
+    rp2.add_argument("--results", default="results")
+    rp2.add_argument("--sweep", default=None, help="sweep folder (default results/sweep)")
+    rp2.set_defaults(func=cmd_report)
 
     bp = sub.add_parser("bench", help="speed benchmarks with ratios measured in the same run")
     bp.add_argument("what", help="'render' (statistics cost) or a method name")

@@ -74,11 +74,10 @@ class OIDN(Denoiser):
         features = self.params["features"]
         albedo = data.albedo if features != "none" else None
         normal = data.normal if features == "albedo+normal" else None
-        if features != "none" and albedo is None:
-            raise DbenchInputError("albedo: missing; oidn with features="
-                                   f"{features!r} needs an (H, W, 3) albedo buffer")
-        if features == "albedo+normal" and normal is None:
-            raise DbenchInputError("normal: missing; oidn with features='albedo+normal' "
-                                   "needs an (H, W, 3) normal buffer")
+        h, w = data.color.shape[:2]
+        if features != "none":
+            check_buffer("albedo", albedo, (h, w, 3))  # a missing buffer raises, naming it
+        if features == "albedo+normal":
+            check_buffer("normal", normal, (h, w, 3))
         return oidn_denoise(data.color, albedo, normal, quality=self.params["quality"],
                             clean_aux=self.params["clean_aux"])

@@ -1,0 +1,281 @@
+"""Numerical stress test: every registered method against adversarial inputs.
+
+A case passes when the method shows the documented behaviour:
+
+* finite output of the input's shape wherever the input is finite — a non-finite input pixel may
+  stay non-finite in its own output pixel only (it is "missing"), never spread to another pixel;
+* or a :class:`~dbench.errors.DbenchInputError` whose message names the offending buffer and the
+  expected shape (the only acceptable error, and only for cases where input is invalid).
+
+Anything else fails: another exception, a wrong shape or dtype, NaN spread, or more than
+``TIME_LIMIT_S`` seconds on a tiny image. ``dbench stress`` writes ``results/stress.md``; the same
+cases run in pytest (tests/test_stress.py).
+"""
+from __future__ import annotations
+
+import time
+import traceback
+from dataclasses import dataclass
+from typing import Any, Callable
+
+import numpy as np
+
+from ..data import Frame, SampleStats
+from ..errors import DbenchInputError
+
+TIME_LIMIT_S = 60.0
+BASE_SIZE = (24, 24)
+
+
+@dataclass(frozen=True)
+class Case:
+    name: str
+    description: str
+    build: Callable[[], Frame]
+    error_ok: tuple[str, ...] = ()   # buffers an error may name (invalid input)
+    needs_buffer: str | None = None  # case applies only to methods needing this buffer
+
+
+def base_frame(h: int = BASE_SIZE[0], w: int = BASE_SIZE[1], seed: int = 0, spp: int = 16,
+               dtype=np.float32) -> Frame:
+    """A small frame with every buffer: smooth light, an edge, two materials, stats of spp
+    Gaussian samples (identity transform)."""
+    rng = np.random.default_rng(seed)
+    y, x = np.mgrid[0:h, 0:w].astype(np.float64)
+    clean = 0.4 + 0.3 * np.sin(x / 5.0 + y / 7.0)
+    clean = np.stack([clean, 0.8 * clean, 0.6 * clean], -1)
+    clean[:, w // 2:] *= 0.25
+    albedo = np.where(((x // 4 + y // 4) % 2)[..., None] > 0, 0.8, 0.2) * np.ones(3)
+    normal = np.zeros((h, w, 3))
+    normal[..., 2] = 1.0
+    normal[h // 2:] = (0.0, 1.0, 0.0)
+    sigma = 0.3 * np.sqrt(clean + 1e-3)
+    color = clean + sigma / np.sqrt(spp) * rng.standard_normal(clean.shape)
+    stats = SampleStats(n=np.full(clean.shape, float(spp)), mean=color,
+                        var_mean=sigma ** 2 / spp, m3=np.zeros_like(clean),
+                        transform="identity", lam=1.0)
+    position = np.dstack([x / w, y / h, np.zeros_like(x)])
+    return Frame(color=color.astype(dtype), albedo=albedo.astype(dtype), normal=normal,
+                 depth=np.ones((h, w, 1)), position=position, stats=stats,
+                 reference=clean.astype(np.float32))
+
+
+def _with_color(frame: Frame, color: np.ndarray, stats_mean: np.ndarray | None = None) -> Frame:
+    st = frame.stats
+    stats = SampleStats(n=st.n, mean=color if stats_mean is None else stats_mean,
+                        var_mean=st.var_mean, m3=st.m3, transform=st.transform, lam=st.lam)
+    return frame.with_buffers(color=color, stats=stats)
+
+
+def _nan_pixels(value: float) -> Callable[[], Frame]:
+    def build() -> Frame:
+        f = base_frame()
+        c = f.color.copy()
+        c[5, 7] = value
+        c[12, 12, 1] = value
+        mean = f.stats.mean.copy()
+        mean[5, 7] = value
+        mean[12, 12, 1] = value
+        return _with_color(f, c, mean)
+    return build
+
+
+def _firefly() -> Frame:
+    f = base_frame()
+    c = f.color.copy()
+    c[10, 10] = 1e6
+    return _with_color(f, c)
+
+
+def _negative() -> Frame:
+    f = base_frame()
+    c = f.color.copy()
+    c[::3, ::4] = -0.5
+    return _with_color(f, c)
+
+
+def _constant(value: float) -> Callable[[], Frame]:
+    def build() -> Frame:
+        f = base_frame()
+        c = np.full_like(f.color, value)
+        st = SampleStats(n=f.stats.n, mean=c, var_mean=np.zeros_like(c, np.float64),
+                         m3=np.zeros_like(c, np.float64), transform="identity", lam=1.0)
+        return f.with_buffers(color=c, stats=st)
+    return build
+
+
+def _zero_variance() -> Frame:
+    f = base_frame()
+    st = SampleStats(n=f.stats.n, mean=f.stats.mean, var_mean=np.zeros_like(f.stats.var_mean),
+                     m3=np.zeros_like(f.stats.m3), transform="identity", lam=1.0)
+    return f.with_buffers(stats=st)
+
+
+def _size(h: int, w: int) -> Callable[[], Frame]:
+    return lambda: base_frame(h, w)
+
+
+def _dtype(dtype) -> Callable[[], Frame]:
+    def build() -> Frame:
+        f = base_frame()
+        return Frame(color=f.color.astype(dtype), albedo=f.albedo.astype(dtype),
+                     normal=f.normal.astype(dtype), depth=f.depth.astype(dtype),
+                     position=f.position.astype(dtype), stats=f.stats, reference=f.reference)
+    return build
+
+
+def _non_contiguous() -> Frame:
+    big = base_frame(48, 48)
+    views = {k: getattr(big, k)[::2, ::2] for k in ("color", "albedo", "normal", "depth",
+                                                    "position", "reference")}
+    st = big.stats
+    stats = SampleStats(n=st.n[::2, ::2], mean=st.mean[::2, ::2], var_mean=st.var_mean[::2, ::2],
+                        m3=st.m3[::2, ::2], transform=st.transform, lam=st.lam)
+    return Frame(stats=stats, **views)
+
+
+def _flat_wall() -> Frame:
+    f = base_frame()
+    h, w = f.shape
+    normal = np.zeros((h, w, 3))
+    normal[..., 2] = 1
+    position = np.zeros((h, w, 3))
+    position[..., 0] = 0.3
+    return f.with_buffers(albedo=np.full((h, w, 3), 0.5), normal=normal, position=position,
+                          depth=np.full((h, w, 1), 2.0))
+
+
+def _missing(buffer: str) -> Callable[[], Frame]:
+    return lambda: base_frame().with_buffers(**{buffer: None})
+
+
+CASES: tuple[Case, ...] = (
+    Case("nan", "NaN pixels in color and stats", _nan_pixels(np.nan)),
+    Case("inf", "+Inf pixels in color and stats", _nan_pixels(np.inf)),
+    Case("neg_inf", "-Inf pixels in color and stats", _nan_pixels(-np.inf)),
+    Case("negative", "negative radiance values", _negative),
+    Case("firefly", "one pixel at 1e6", _firefly),
+    Case("zeros", "all-zero image, zero variance", _constant(0.0)),
+    Case("constant", "constant image 0.5, zero variance", _constant(0.5)),
+    Case("zero_variance", "noisy color with zero-variance statistics", _zero_variance),
+    Case("size_1x1", "1×1 image", _size(1, 1)),
+    Case("size_1xN", "1×17 image", _size(1, 17)),
+    Case("size_Nx1", "17×1 image", _size(17, 1)),
+    Case("size_prime", "13×29 image", _size(13, 29)),
+    Case("float16", "float16 buffers", _dtype(np.float16)),
+    Case("float64", "float64 buffers", _dtype(np.float64)),
+    Case("non_contiguous", "strided (non-contiguous) views", _non_contiguous),
+    Case("flat_wall", "rank-deficient features: constant normal, albedo and position",
+         _flat_wall),
+    Case("missing_albedo", "albedo buffer absent", _missing("albedo"), ("albedo",), "albedo"),
+    Case("missing_normal", "normal buffer absent", _missing("normal"), ("normal",), "normal"),
+    Case("missing_stats", "statistics absent", _missing("stats"), ("stats",), "stats"),
+    Case("missing_position", "position buffer absent", _missing("position"), ("position",),
+         "position"),
+)
+
+
+@dataclass
+class Outcome:
+    status: str  # "pass", "fail" or "n/a"
+    why: str
+    seconds: float = 0.0
+
+
+def run_case(method_name: str, case: Case) -> Outcome:
+    from .. import methods
+
+    method = methods.get(method_name)
+    if case.needs_buffer is not None and case.needs_buffer not in method.needs:
+        return Outcome("n/a", f"{method_name} does not use {case.needs_buffer}")
+    if not (method.kinds & {"steady", "sequence"}):
+        return Outcome("n/a", f"{method_name} runs on {sorted(method.kinds)} data only")
+    try:
+        frame = case.build()
+    except DbenchInputError as exc:  # the data type itself refused the input: documented
+        return Outcome("pass", f"rejected on construction: {exc}")
+    t0 = time.perf_counter()
+    try:
+        method.reset()
+        out = method.denoise(frame)
+        if "sequence" in method.kinds:
+            out = method.denoise(frame)  # a second frame exercises the history path
+    except DbenchInputError as exc:
+        seconds = time.perf_counter() - t0
+        msg = str(exc)
+        if case.error_ok and any(b in msg for b in case.error_ok) and "expected" in msg:
+            return Outcome("pass", f"DbenchInputError: {msg}", seconds)
+        return Outcome("fail", f"unexpected DbenchInputError: {msg}", seconds)
+    except Exception as exc:  # noqa: BLE001
+        return Outcome("fail", f"{type(exc).__name__}: {exc} "
+                       f"[{traceback.format_exc(limit=2).splitlines()[-1]}]",
+                       time.perf_counter() - t0)
+    seconds = time.perf_counter() - t0
+    if case.error_ok and case.needs_buffer in method.needs:
+        return Outcome("fail", f"missing {case.needs_buffer} accepted silently", seconds)
+    return _judge(frame, np.asarray(out), seconds)
+
+
+def _judge(frame: Frame, out: np.ndarray, seconds: float) -> Outcome:
+    if out.shape != frame.color.shape:
+        return Outcome("fail", f"output shape {out.shape}, expected {frame.color.shape}", seconds)
+    if out.dtype != np.float32:
+        return Outcome("fail", f"output dtype {out.dtype}, expected float32", seconds)
+    if seconds > TIME_LIMIT_S:
+        return Outcome("fail", f"took {seconds:.1f} s on a tiny image", seconds)
+    bad_in = ~np.isfinite(frame.color).all(axis=-1)
+    if frame.stats is not None:
+        bad_in |= ~np.isfinite(frame.stats.mean).all(axis=-1)
+    bad_out = ~np.isfinite(out).all(axis=-1)
+    spread = bad_out & ~bad_in
+    if spread.any():
+        return Outcome("fail", f"non-finite output at {int(spread.sum())} pixel(s) whose input "
+                       "is finite", seconds)
+    if bad_out.any():
+        return Outcome("pass", f"non-finite kept at {int(bad_out.sum())} missing input pixel(s) "
+                       "only", seconds)
+    return Outcome("pass", "finite output", seconds)
+
+
+def run_all(method_names: list[str] | None = None, progress: bool = True
+            ) -> dict[str, dict[str, Outcome]]:
+    from tqdm.auto import tqdm
+
+    from .. import methods
+
+    names = method_names or methods.available()
+    results: dict[str, dict[str, Outcome]] = {}
+    with tqdm(total=len(names) * len(CASES), desc="stress", disable=not progress) as bar:
+        for m in names:
+            results[m] = {}
+            for case in CASES:
+                results[m][case.name] = run_case(m, case)
+                bar.update()
+    return results
+
+
+def stress_markdown(results: dict[str, dict[str, Outcome]]) -> str:
+    from .report import markdown_table
+    import pandas as pd
+
+    symbol = {"pass": "pass", "fail": "**FAIL**", "n/a": "n/a"}
+    rows = [{"method": m, **{c.name: symbol[r[c.name].status] for c in CASES}}
+            for m, r in results.items()]
+    n_fail = sum(o.status == "fail" for r in results.values() for o in r.values())
+    n_pass = sum(o.status == "pass" for r in results.values() for o in r.values())
+    lines = ["# dbench stress test", "",
+             f"{n_pass} passed, {n_fail} failed "
+             f"({len(results)} methods × {len(CASES)} cases; n/a where a case does not apply).",
+             "", markdown_table(pd.DataFrame(rows)), "", "## Cases", ""]
+    lines += [f"- `{c.name}`: {c.description}" for c in CASES]
+    lines += ["", "## Policy", "",
+              "Pass means: finite float32 output of the input's shape wherever the input is "
+              "finite (a non-finite input pixel is missing data; it may stay non-finite in its "
+              "own output pixel but must never spread), or a `DbenchInputError` that names the "
+              "missing or malformed buffer and the expected shape.", "", "## Details", ""]
+    for m, r in results.items():
+        for c in CASES:
+            o = r[c.name]
+            if o.status != "n/a":
+                lines.append(f"- {m} / {c.name}: {o.status}: {o.why[:200]}")
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,214 @@
+"""The benchmark grid: methods × scenes × spp, resumable, on a local process pool or Ray.
+
+Each cell's result is its own JSON file, written atomically:
+``<out>/cells/<scene>/<spp:05d>spp/<method>.json`` with ``status`` ``ok``, ``skipped`` (with the
+reason) or ``error`` (with the message). A sweep run again reads the finished cells and computes
+only the missing ones, so a killed sweep loses at most the cells in flight.
+
+Work is grouped by (scene, spp): one group loads the frame once (renders are cached and shared)
+and runs every method on it. References are rendered once per scene before the groups are
+dispatched, so parallel workers never render the same reference twice.
+"""
+from __future__ import annotations
+
+import json
+import traceback
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Iterable, Sequence
+
+from .. import io
+
+DEFAULT_SPP = (4, 16, 64, 256, 1024)
+
+
+@dataclass
+class SweepConfig:
+    """Everything that defines a sweep (stored as ``<out>/sweep.json``)."""
+
+    methods: list[str]
+    scenes: list[str]
+    spp: list[int]
+    res: int = 128
+    ref_spp: int | None = None
+    seed: int = 0
+    repeats: int = 5
+    transform: str = "box-cox"
+    lam: float = 0.5
+    params: dict[str, dict[str, Any]] = field(default_factory=dict)
+    cache: str | None = None
+    metrics: list[str] = field(default_factory=lambda: ["rmse", "relmse", "smape", "psnr",
+                                                        "ssim", "flip"])
+
+
+def cell_path(out: Path, scene: str, spp: int, method: str) -> Path:
+    return out / "cells" / scene / f"{spp:05d}spp" / f"{method}.json"
+
+
+def read_cell(path: Path) -> dict | None:
+    try:
+        return io.read_json(path)
+    except (OSError, ValueError):
+        return None
+
+
+def resolve_names(methods: str | Sequence[str], scenes: str | Sequence[str]
+                  ) -> tuple[list[str], list[str]]:
+    """``all`` or comma lists → validated names (UnknownNameError lists the valid ones)."""
+    from .. import methods as registry
+    from ..datasets import scenes as catalogue
+
+    def split(v):
+        return [s.strip() for s in v.split(",") if s.strip()] if isinstance(v, str) else list(v)
+
+    m = registry.available() if methods == "all" else split(methods)
+    s = catalogue.available() if scenes == "all" else split(scenes)
+    for name in m:
+        registry.method_class(name)
+    for name in s:
+        catalogue.get(name)
+    if "noisy" not in m:
+        m = ["noisy"] + m
+    return m, s
+
+
+def plan(config: SweepConfig, out: Path) -> tuple[list[tuple[str, int, list[str]]], int]:
+    """Groups still to compute: (scene, spp, [methods]); skipped cells are written here.
+
+    Returns the groups and the number of cells already finished.
+    """
+    from .. import methods as registry
+    from ..datasets import scenes as catalogue
+
+    groups, done = [], 0
+    for scene_name in config.scenes:
+        scene = catalogue.get(scene_name)
+        for spp in config.spp:
+            todo = []
+            for m in config.methods:
+                path = cell_path(out, scene_name, spp, m)
+                cell = read_cell(path)
+                if cell is not None and cell.get("status") in ("ok", "skipped"):
+                    done += 1
+                    continue
+                method = registry.get(m, **config.params.get(m, {}))
+                ok, why = method.applies_to(scene.kind, set(scene.provides))
+                if not ok:
+                    io.write_json(path, {"status": "skipped", "reason": why, "scene": scene_name,
+                                         "method": m, "spp": spp, "res": config.res})
+                    done += 1
+                    continue
+                todo.append(m)
+            if todo:
+                groups.append((scene_name, spp, todo))
+    return groups, done
+
+
+def run_group(config: SweepConfig, out: str, scene_name: str, spp: int,
+              method_names: list[str]) -> list[str]:
+    """Load one frame and run the given methods on it, writing one cell file each."""
+    from .. import datasets, methods as registry
+    from .harness import run_cell
+
+    out_path = Path(out)
+    cache = datasets.Cache(config.cache)
+    needs = {"reference"}
+    instances = {m: registry.get(m, **config.params.get(m, {})) for m in method_names}
+    for inst in instances.values():
+        needs |= set(inst.needs)
+    frame = datasets.load(scene_name, spp=spp, res=config.res, needs=needs, seed=config.seed,
+                          transform=config.transform, lam=config.lam, ref_spp=config.ref_spp,
+                          cache=cache, progress=False)
+    render_s = frame.meta.get("render_s")
+    if render_s is None:
+        render_s = float("nan")
+    written = []
+    for m, inst in instances.items():
+        base = {"scene": scene_name, "method": m, "spp": spp, "res": config.res,
+                "params": inst.params, "render_s": render_s,
+                "stats_s": frame.meta.get("stats_s") if "stats" in inst.needs else 0.0,
+                "ref_spp": frame.meta.get("ref_spp")}
+        try:
+            res = run_cell(inst, frame, metric_names=config.metrics, repeats=config.repeats)
+            if res.skipped:
+                cell = {**base, "status": "skipped", "reason": res.skipped}
+            else:
+                cell = {**base, "status": "ok", **res.metrics, "time_s": res.time_s,
+                        "times_s": res.times_s, "n_nonfinite": res.n_nonfinite}
+        except Exception as exc:  # noqa: BLE001 - one failing method must not stop the sweep
+            cell = {**base, "status": "error", "error": f"{type(exc).__name__}: {exc}",
+                    "traceback": traceback.format_exc(limit=5)}
+        io.write_json(cell_path(out_path, scene_name, spp, m), cell)
+        written.append(m)
+    return written
+
+
+def _prerender_references(config: SweepConfig, scenes: Iterable[str]) -> None:
+    from .. import datasets
+
+    cache = datasets.Cache(config.cache)
+    for s in scenes:
+        datasets.load(s, spp=1, res=config.res, needs={"reference", "albedo"}, seed=config.seed,
+                      ref_spp=config.ref_spp, cache=cache)
+
+
+def run_sweep(config: SweepConfig, out: str | Path, executor: str = "local", workers: int = 1,
+              progress: bool = True) -> dict[str, int]:
+    """Run (or resume) a sweep; returns counts of computed, already finished and failed cells."""
+    from tqdm.auto import tqdm
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    config_file = out / "sweep.json"
+    stored = read_cell(config_file)
+    if stored is not None and stored.get("config") != _config_dict(config):
+        raise ValueError(f"{out} holds a sweep with other settings; use another --out or the "
+                         "same settings to resume")
+    from .harness import machine_info
+    if stored is None:
+        io.write_json(config_file, {"config": _config_dict(config), "machine": machine_info()})
+
+    groups, done = plan(config, out)
+    if not groups:
+        return {"computed": 0, "finished_before": done, "errors": _count_errors(out)}
+    _prerender_references(config, sorted({g[0] for g in groups}))
+    n_cells = sum(len(g[2]) for g in groups)
+    bar = tqdm(total=n_cells, desc="sweep", unit="cell", disable=not progress)
+    if executor == "ray":
+        import ray
+
+        if not ray.is_initialized():
+            ray.init(ignore_reinit_error=True, include_dashboard=False, log_to_driver=False)
+        remote = ray.remote(run_group)
+        pending = [remote.remote(config, str(out), *g) for g in groups]
+        while pending:
+            ready, pending = ray.wait(pending, num_returns=1)
+            bar.update(len(ray.get(ready[0])))
+    elif workers > 1:
+        with ProcessPoolExecutor(max_workers=workers) as pool:
+            futures = [pool.submit(run_group, config, str(out), *g) for g in groups]
+            for f in as_completed(futures):
+                bar.update(len(f.result()))
+    else:
+        for g in groups:
+            bar.update(len(run_group(config, str(out), *g)))
+    bar.close()
+    return {"computed": n_cells, "finished_before": done, "errors": _count_errors(out)}
+
+
+def _count_errors(out: Path) -> int:
+    return sum(1 for p in (out / "cells").rglob("*.json")
+               if (read_cell(p) or {}).get("status") == "error")
+
+
+def _config_dict(config: SweepConfig) -> dict:
+    d = dict(config.__dict__)
+    d.pop("cache", None)  # where renders are cached does not change results
+    return json.loads(json.dumps(d, default=str))
+
+
+def load_cells(out: str | Path) -> list[dict]:
+    """Every cell file of a sweep folder, sorted by scene, spp, method."""
+    cells = [c for p in sorted(Path(out).glob("cells/*/*/*.json")) if (c := read_cell(p))]
+    return sorted(cells, key=lambda c: (c["scene"], c["spp"], c["method"]))

@@ -1,0 +1,112 @@
+"""Sweeps: one file per cell, skips recorded, resume after a kill, Ray executor, report."""
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from dbench.bench import publish, sweep
+
+pytestmark = pytest.mark.mitsuba
+
+
+def _config(tmp_path, **kw):
+    base = dict(methods=["noisy", "oidn"], scenes=["cornell", "textured"], spp=[2, 4], res=12,
+                ref_spp=16, repeats=1, cache=str(tmp_path / "cache"))
+    base.update(kw)
+    return sweep.SweepConfig(**base)
+
+
+def _mtimes(out):
+    return {p: p.stat().st_mtime_ns for p in Path(out).glob("cells/*/*/*.json")}
+
+
+def test_sweep_writes_one_cell_per_file_and_resumes(renderer, tmp_path):
+    out = tmp_path / "sweep"
+    cfg = _config(tmp_path)
+    counts = sweep.run_sweep(cfg, out, progress=False)
+    assert counts == {"computed": 8, "finished_before": 0, "errors": 0}
+    cells = sweep.load_cells(out)
+    assert len(cells) == 8 and all(c["status"] == "ok" for c in cells)
+    before = _mtimes(out)
+    again = sweep.run_sweep(cfg, out, progress=False)
+    assert again["computed"] == 0 and again["finished_before"] == 8
+    assert _mtimes(out) == before
+    with pytest.raises(ValueError, match="other settings"):
+        sweep.run_sweep(_config(tmp_path, res=16), out, progress=False)
+
+
+def test_killed_sweep_completes_with_exactly_one_result_per_cell(renderer, tmp_path):
+    out = tmp_path / "killed"
+    env = {**os.environ, "DBENCH_CACHE": str(tmp_path / "cache")}
+    cmd = [sys.executable, "-m", "dbench.cli", "sweep", "--methods", "noisy,oidn",
+           "--scenes", "cornell,textured,mirrors", "--spp", "2,4,8", "--res", "12",
+           "--ref-spp", "16", "--repeats", "1", "--out", str(out), "--quiet"]
+    proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.time() + 120
+    while time.time() < deadline and len(list(out.glob("cells/*/*/*.json"))) < 3:
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    finished = _mtimes(out)
+    assert 0 < len(finished) < 18
+    rc = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=600)
+    assert rc.returncode == 0, rc.stderr[-2000:]
+    files = list(out.glob("cells/*/*/*.json"))
+    assert len(files) == 18 and len({f for f in files}) == 18
+    for p, t in finished.items():
+        assert p.stat().st_mtime_ns == t  # finished cells were not recomputed
+    assert not list(out.rglob(".*.tmp*"))
+
+
+def test_skipped_pairs_are_recorded(renderer, tmp_path):
+    from dbench.registry import Denoiser, register, _REGISTRY
+
+    @register("needs-motion-test")
+    class NeedsMotion(Denoiser):
+        kinds = {"sequence"}
+        needs = {"color"}
+        defaults = {}
+
+        def denoise(self, data):
+            return data.color
+
+    try:
+        out = tmp_path / "skip"
+        sweep.run_sweep(_config(tmp_path, methods=["noisy", "needs-motion-test"],
+                                scenes=["cornell"], spp=[2]), out, progress=False)
+        cell = sweep.read_cell(sweep.cell_path(out, "cornell", 2, "needs-motion-test"))
+        assert cell["status"] == "skipped" and "sequence" in cell["reason"]
+    finally:
+        _REGISTRY.pop("needs-motion-test")
+
+
+def test_ray_executor_on_a_local_instance(renderer, tmp_path):
+    ray = pytest.importorskip("ray")
+    out = tmp_path / "ray"
+    try:
+        ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False,
+                 runtime_env={"env_vars": {"DBENCH_CACHE": str(tmp_path / "cache")}})
+        counts = sweep.run_sweep(_config(tmp_path, scenes=["cornell"]), out, executor="ray",
+                                 progress=False)
+    finally:
+        ray.shutdown()
+    assert counts["computed"] == 4 and counts["errors"] == 0
+    assert len(sweep.load_cells(out)) == 4
+
+
+def test_report_is_reproducible_byte_for_byte(renderer, tmp_path):
+    results = tmp_path / "results"
+    sweep.run_sweep(_config(tmp_path, spp=[2, 4, 8]), results / "sweep", progress=False)
+    (results / "stress.md").write_text("# dbench stress test\n\n1 passed, 0 failed\n")
+    first = publish.publish(results).read_bytes()
+    second = publish.publish(results).read_bytes()
+    assert first == second
+    text = first.decode()
+    for needle in ("## Headline", "## Convergence", "## Error against time", "pareto.png",
+                   "## Stress test", "## Environment", "relMSE"):
+        assert needle in text or needle.lower() in text.lower()
+    assert (results / "sweep" / "tables" / "convergence_rmse.csv").exists()
