@@ -1,0 +1,55 @@
+"""Timing harness and convergence sanity (anchors.md §6 checks 7 and 8)."""
+import time
+
+import numpy as np
+import pytest
+
+from dbench.bench import harness, tables
+from dbench.data import Frame
+from dbench.registry import Denoiser
+
+
+class _Sleepy(Denoiser):
+    name = "sleepy"
+    kinds = {"steady"}
+    needs = {"color"}
+    defaults = {}
+
+    def __init__(self):
+        super().__init__()
+        self.calls = 0
+
+    def denoise(self, data):
+        self.calls += 1
+        if self.calls == 1:
+            time.sleep(0.2)  # a slow first call (compilation) must not be reported
+        return data.color.copy()
+
+
+def test_noop_is_under_a_millisecond_and_median_of_five_is_reported():
+    f = Frame(color=np.zeros((8, 8, 3)), reference=np.zeros((8, 8, 3)))
+    m = _Sleepy()
+    res = harness.run_cell(m, f, metric_names=["rmse"], repeats=5)
+    assert m.calls == 6 and len(res.times_s) == 5
+    assert res.time_s < 1e-3 and res.time_s == np.median(res.times_s)
+    assert res.metrics == {"rmse": 0.0}
+
+
+def test_cell_is_skipped_with_reason_when_buffers_are_missing():
+    from dbench import methods
+    res = harness.run_cell(methods.get("oidn"), Frame(color=np.zeros((4, 4, 3))))
+    assert res.output is None and "albedo" in res.skipped
+
+
+@pytest.mark.mitsuba
+def test_noisy_rmse_converges_like_inverse_sqrt_spp(renderer, tmp_cache):
+    from dbench import datasets
+    rows = []
+    for spp in (4, 16, 64, 256):
+        f = datasets.load("cornell", spp=spp, res=24, needs={"reference"}, ref_spp=4096,
+                          cache=tmp_cache, progress=False)
+        rmse = float(np.sqrt(((f.color - f.reference) ** 2).mean()))
+        rows.append({"scene": "cornell", "method": "noisy", "spp": spp, "rmse": rmse})
+    import pandas as pd
+    a, b = tables.noisy_fit(pd.DataFrame(rows), "cornell")
+    assert -0.65 < b < -0.35
