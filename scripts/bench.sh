@@ -1,15 +1,19 @@
 #!/usr/bin/env bash
 # The main job: set everything up, then run a small benchmark that ends in a report.
-# Output: results/demo/<scene>/report.md (+ metrics.csv, comparison.png, EXRs); table on screen.
+#   results/demo/run-cornell/report.md   one `dbench run` (table printed, comparison.png, EXRs)
+#   results/demo/README.md               a small sweep + stress test, published by `dbench report`
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
 export PATH="$PWD/.venv/bin:$PATH"
-RES=${DBENCH_DEMO_RES:-128}
-SPP=${DBENCH_DEMO_SPP:-16}
-METHODS=${DBENCH_DEMO_METHODS:-$(dbench list --methods-only | paste -sd, -)}
-for scene in ${DBENCH_DEMO_SCENES:-cornell caustic textured}; do
-  dbench run --method "$METHODS" --scene "$scene" --spp "$SPP" --res "$RES" \
-    --out "results/demo/$scene" --quiet
-done
+RES=${DBENCH_DEMO_RES:-96}
+SCENES=${DBENCH_DEMO_SCENES:-cornell,caustic,textured}
+ALL=$(dbench list --methods-only | paste -sd, -)
+dbench run --method "$ALL" --scene cornell --spp 16 --res "$RES" --out results/demo/run-cornell --quiet
+dbench sweep --methods all --scenes "$SCENES" --spp 4,16,64 --res "$RES" --repeats 3 \
+  --out results/demo/sweep --quiet
+dbench stress --out results/demo/stress.md --quiet > /dev/null || true
+dbench report --results results/demo --sweep results/demo/sweep
 dbench bench render --res 256 --spp 64
+echo
+echo "demo report: results/demo/README.md (run: results/demo/run-cornell/report.md)"
