@@ -4,6 +4,10 @@ No asset is downloaded: every shape, material and texture is built here. Every f
 reconstruction filter, so each 1-spp pass puts exactly one sample in every pixel
 (spec/mitsuba.md §4) and the AOVs are plain pixel-footprint averages.
 
+Emitters get a black BSDF everywhere (the built-in Cornell light included), so the albedo buffer
+is 0 on light sources and separates them from the surfaces around them; without that, feature-
+guided filters cannot tell a ceiling light from the white ceiling it sits on.
+
 A :class:`Scene` declares its kind (``steady`` here) and the buffers it can provide; the
 harness uses that to skip methods that cannot run and to render only what is needed.
 """
@@ -60,6 +64,14 @@ def _scene(name: str, description: str, **kw: Any):
                                  **kw)
         return build
     return wrap
+
+
+def register_scene(scene: Scene) -> Scene:
+    """Add a Scene built elsewhere (e.g. the sequence scenes of datasets/sequence.py)."""
+    if scene.name in _CATALOGUE and _CATALOGUE[scene.name] is not scene:
+        raise ValueError(f"scene {scene.name!r} registered twice")
+    _CATALOGUE[scene.name] = scene
+    return scene
 
 
 def available() -> list[str]:
@@ -129,6 +141,7 @@ def _ceiling_light(mi, size: float = 0.25, radiance=(17.0, 12.0, 4.0)) -> dict:
 @_scene("cornell", "diffuse Cornell box lit by a ceiling area light (Mitsuba's built-in)")
 def cornell(mi, res: int) -> dict:
     d = mi.cornell_box()
+    d["light"]["bsdf"] = _diffuse((0.0, 0.0, 0.0))
     d["sensor"]["film"] = _film(res)
     d["sensor"]["sampler"] = {"type": "independent"}
     return d

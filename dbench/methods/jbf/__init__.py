@@ -1,0 +1,124 @@
+"""``jbf``: joint (cross) bilateral filter on noise-free G-buffers (spec/jbf.md).
+
+Two modes of one method:
+
+* ``mode="jbf"`` (default): ρ_ij = exp(−½ Σ_k (p_j,k − p_i,k)² Σ⁻¹_kk) over pixel position,
+  albedo and normal (optionally position/depth), hit mask, no colour term, normalised per pixel
+  (spec/jbf.md §1). It is also the base filter of ``statistical``.
+* ``mode="illumination"``: the seed-002 "effective illumination" filter as a post-process
+  (spec/jbf.md §2.2, simplified): demodulate by albedo, filter with C·exp(−α|o|²)·exp(−β(1−n·n'))
+  ·H(n·n') so that the self-weight stays ≥ ``self_weight_min``, remodulate. There is no
+  direct/indirect split (the whole colour is filtered); the BDF-lobe factor and ``lobe_key``
+  are not implemented.
+
+Non-finite colour pixels are missing (no weight as neighbours; their own output is the filtered
+value of valid neighbours, or 0); pixels with non-finite G-buffers are isolated (see core).
+
+Parameters (``get("jbf", **params)``; every value is checked, a bad one raises
+DbenchInputError naming it):
+    radius (20), sigma ((10, 10, 0.02 ×3, 0.1 ×3)), sigma_convention ("variance" | "sd"),
+    window ("square" | "disk"), features (("xy", "albedo", "normal"), optional "position",
+    "depth"), sigma_position (0.01), sigma_depth (0.01), hit_mask (True),
+    preset (None | "seed" | "statmc": fills sigma_convention/window/radius unless given),
+    mode ("jbf" | "illumination"), alpha (0.005 px⁻²), beta (10), self_weight_min (0.5),
+    eps_albedo (1e-3), use_position (False), sigma_P (0.05), backend ("numba" | "torch" |
+    "auto" | "reference").
+
+Example:
+    >>> import numpy as np
+    >>> from dbench.data import Frame
+    >>> from dbench.registry import get
+    >>> f = Frame(color=np.ones((8, 8, 3), np.float32), albedo=np.ones((8, 8, 3), np.float32),
+    ...           normal=np.ones((8, 8, 3), np.float32), depth=np.ones((8, 8, 1), np.float32))
+    >>> out = get("jbf", radius=2).denoise(f)
+    >>> bool(np.allclose(out, 1.0))
+    True
+"""
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ...errors import DbenchInputError
+from ...registry import Denoiser, register
+from .core import (BACKENDS, FEATURES, PRESETS, SEED_SIGMA, SIGMA_CONVENTIONS, WINDOWS, Guide,
+                   IlluminationSetup, accumulate, accumulate_torch, check_choice, check_positive,
+                   check_radius, check_sigma, illumination_fast, illumination_filter,
+                   illumination_reference, jbf_fast, jbf_reference, joint_bilateral_filter,
+                   make_guide, make_illumination_setup, reference_weights, window_offsets)
+
+MODES = ("jbf", "illumination")
+
+__all__ = ["JBF", "Guide", "IlluminationSetup", "SEED_SIGMA", "PRESETS", "accumulate",
+           "accumulate_torch", "illumination_fast", "illumination_filter",
+           "illumination_reference", "jbf_fast", "jbf_reference", "joint_bilateral_filter",
+           "make_guide", "make_illumination_setup", "reference_weights", "window_offsets"]
+
+
+@register("jbf")
+class JBF(Denoiser):
+    """Joint bilateral filter (spec/jbf.md §1) and the seed-002 illumination filter (§2.2)."""
+
+    kinds = {"steady"}
+    needs = {"color", "albedo", "normal", "depth"}
+    defaults: dict[str, Any] = dict(
+        radius=20, sigma=SEED_SIGMA, sigma_convention="variance", window="square",
+        features=("xy", "albedo", "normal"), sigma_position=0.01, sigma_depth=0.01,
+        hit_mask=True, preset=None, mode="jbf", alpha=0.005, beta=10.0, self_weight_min=0.5,
+        eps_albedo=1e-3, use_position=False, sigma_P=0.05, backend="numba")
+
+    def __init__(self, **params: Any) -> None:
+        super().__init__(**params)
+        preset = self.params["preset"]
+        if preset is not None:
+            check_choice("preset", preset, tuple(PRESETS))
+            for key, value in PRESETS[preset].items():
+                if key not in params:
+                    self.params[key] = value
+        p = self.params
+        check_choice("mode", p["mode"], MODES)
+        check_choice("backend", p["backend"], BACKENDS)
+        check_radius(p["radius"])
+        check_sigma(p["sigma"])
+        check_choice("sigma_convention", p["sigma_convention"], SIGMA_CONVENTIONS)
+        check_choice("window", p["window"], WINDOWS)
+        for f in (p["features"],) if isinstance(p["features"], str) else p["features"]:
+            check_choice("features", f, FEATURES)
+        for name in ("sigma_position", "sigma_depth", "sigma_P"):
+            check_positive(name, p[name], allow_inf=True)
+        for name in ("alpha", "beta", "eps_albedo"):
+            check_positive(name, p[name], allow_zero=True)
+        swm = check_positive("self_weight_min", p["self_weight_min"], allow_zero=True)
+        if swm > 1:
+            raise DbenchInputError(f"self_weight_min: expected a number in [0, 1], got {swm!r}")
+        #: Resolved settings of the last call (e.g. the illumination constant C), for reports.
+        self.last_settings: dict[str, Any] = {}
+
+    def denoise(self, data: Any) -> np.ndarray:
+        if getattr(data, "kind", None) != "steady":
+            raise DbenchInputError(f"jbf: expected a steady Frame, got "
+                                   f"{getattr(data, 'kind', type(data).__name__)} data")
+        p = self.params
+        if p["mode"] == "illumination":
+            opts = {k: p[k] for k in ("radius", "window", "alpha", "beta", "self_weight_min",
+                                      "eps_albedo", "use_position", "sigma_P", "hit_mask")}
+            setup = make_illumination_setup(data.albedo, data.normal, data.depth, data.position,
+                                            shape=data.shape, **opts)
+            self.last_settings = dict(mode="illumination", **setup.settings)
+            if p["backend"] == "reference":
+                return illumination_reference(data.color, setup).astype(np.float32)
+            return illumination_fast(data.color, setup)
+        opts = {k: p[k] for k in ("radius", "sigma", "sigma_convention", "window", "features",
+                                  "sigma_position", "sigma_depth", "hit_mask")}
+        guide = make_guide(data.albedo, data.normal, data.depth, data.position,
+                           shape=data.shape, **opts)
+        self.last_settings = dict(mode="jbf", **guide.settings)
+        backend = p["backend"]
+        if backend == "auto":
+            from .core import resolve_backend
+            backend = resolve_backend("auto")
+        self.last_settings["backend"] = backend
+        if backend == "reference":
+            return jbf_reference(data.color, guide).astype(np.float32)
+        return jbf_fast(data.color, guide, backend=backend)

@@ -1,0 +1,87 @@
+"""Speed of the JBF fast path against the reference (prints; not a test).
+
+    python -m dbench.methods.jbf.bench            # 1280×720, radius 20
+
+Times are medians of ``repeats`` runs after one warm-up call (which also compiles Numba).
+The reference is timed on a crop when the full frame would take too long and scaled per pixel
+(its cost is linear in the pixel count).
+"""
+from __future__ import annotations
+
+import argparse
+import statistics
+import time
+from typing import Any, Callable
+
+import numpy as np
+
+from .core import illumination_fast, jbf_fast, jbf_reference, make_guide, make_illumination_setup
+
+
+def synthetic_frame(height: int, width: int, seed: int = 0) -> dict[str, np.ndarray]:
+    """Piecewise-constant G-buffers with a background band and noisy colour."""
+    rng = np.random.default_rng(seed)
+    yy, xx = np.mgrid[0:height, 0:width]
+    block = (yy // 37) * 101 + (xx // 53)
+    albedo = rng.random((int(block.max()) + 1, 3))[block].astype(np.float32)
+    normal = rng.normal(size=(int(block.max()) + 1, 3))
+    normal /= np.linalg.norm(normal, axis=-1, keepdims=True)
+    normal = normal[block].astype(np.float32)
+    depth = np.where(yy < height // 8, 0.0, 1.0 + xx / width)[..., None].astype(np.float32)
+    color = (albedo * rng.gamma(2.0, 0.5, size=(height, width, 3))).astype(np.float32)
+    return dict(color=color, albedo=albedo, normal=normal, depth=depth)
+
+
+def _median_time(fn: Callable[[], Any], repeats: int) -> float:
+    fn()  # warm-up / compile
+    times = []
+    for _ in range(repeats):
+        t = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t)
+    return statistics.median(times)
+
+
+def benchmark(height: int = 720, width: int = 1280, radius: int = 20, repeats: int = 3,
+              reference_max_pixels: int = 160 * 90) -> dict[str, Any]:
+    """Median seconds per frame of the Numba JBF, the illumination mode and the reference.
+
+    Returns:
+        dict with ``fast_s``, ``illumination_s``, ``reference_s`` (per frame, scaled from a crop
+        of at most ``reference_max_pixels`` pixels when smaller than the frame),
+        ``reference_crop``, ``speedup`` and the sizes.
+    """
+    f = synthetic_frame(height, width)
+    guide = make_guide(f["albedo"], f["normal"], f["depth"], radius=radius)
+    fast_s = _median_time(lambda: jbf_fast(f["color"], guide), repeats)
+    setup = make_illumination_setup(f["albedo"], f["normal"], f["depth"], radius=radius)
+    illum_s = _median_time(lambda: illumination_fast(f["color"], setup), repeats)
+
+    ch, cw = height, width
+    while ch * cw > reference_max_pixels:
+        ch, cw = max(1, ch // 2), max(1, cw // 2)
+    crop = {k: v[:ch, :cw] for k, v in f.items()}
+    cguide = make_guide(crop["albedo"], crop["normal"], crop["depth"], radius=radius)
+    ref_crop_s = _median_time(lambda: jbf_reference(crop["color"], cguide), max(1, repeats // 3))
+    ref_s = ref_crop_s * (height * width) / (ch * cw)
+    return dict(height=height, width=width, radius=radius, fast_s=fast_s,
+                illumination_s=illum_s, reference_s=ref_s, reference_crop=(ch, cw),
+                speedup=ref_s / fast_s)
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--height", type=int, default=720)
+    ap.add_argument("--width", type=int, default=1280)
+    ap.add_argument("--radius", type=int, default=20)
+    ap.add_argument("--repeats", type=int, default=3)
+    a = ap.parse_args(argv)
+    r = benchmark(a.height, a.width, a.radius, a.repeats)
+    print(f"jbf {r['width']}x{r['height']} r={r['radius']}: fast {r['fast_s']:.3f} s, "
+          f"illumination {r['illumination_s']:.3f} s, reference {r['reference_s']:.1f} s "
+          f"(crop {r['reference_crop'][1]}x{r['reference_crop'][0]}, scaled), "
+          f"speedup {r['speedup']:.0f}x")
+
+
+if __name__ == "__main__":
+    main()
