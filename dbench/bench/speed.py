@@ -45,37 +45,12 @@ def bench_render(scene: str = "cornell", res: int = 256, spp: int = 64, repeats:
             "machine": machine_info()["cpu"], "when": time.strftime("%Y-%m-%d %H:%M:%S")}
 
 
-def synthetic_frame(height: int, width: int, spp: int = 64, seed: int = 0):
-    """A frame with plausible content at any size: smooth shading, hard edges, albedo texture,
-    per-pixel noise and matching sample statistics (identity transform, Gaussian samples)."""
-    from ..data import Frame, SampleStats
-
-    rng = np.random.default_rng(seed)
-    y, x = np.mgrid[0:height, 0:width].astype(np.float32)
-    clean = 0.5 + 0.4 * np.sin(x / 37.0)[..., None] * np.cos(y / 23.0)[..., None]
-    clean = np.repeat(clean, 3, axis=2) * np.array([1.0, 0.8, 0.6], np.float32)
-    clean[:, width // 2:] *= 0.3
-    albedo = np.where(((x // 16 + y // 16) % 2)[..., None] > 0, 0.8, 0.3) * np.ones(3)
-    normal = np.zeros((height, width, 3), np.float32)
-    normal[..., 2] = 1.0
-    normal[height // 2:, :, :] = (0.0, 1.0, 0.0)
-    sigma = 0.3 * np.sqrt(clean)
-    color = clean + sigma / np.sqrt(spp) * rng.standard_normal(clean.shape).astype(np.float32)
-    var_mean = (sigma ** 2 / spp).astype(np.float64)
-    stats = SampleStats(n=np.full(clean.shape, float(spp)), mean=color.astype(np.float64),
-                        var_mean=var_mean, m3=np.zeros(clean.shape), transform="identity",
-                        lam=0.5)
-    depth = np.ones((height, width, 1), np.float32)
-    return Frame(color=color.astype(np.float32), albedo=albedo.astype(np.float32),
-                 normal=normal, depth=depth, position=np.dstack([x, y, np.zeros_like(x)]) / 100,
-                 stats=stats, reference=clean.astype(np.float32))
-
-
 def bench_method(name: str, height: int = 720, width: int = 1280, repeats: int = 3
                  ) -> dict[str, Any]:
     from .. import methods
+    from .stress import base_frame
 
-    frame = synthetic_frame(height, width)
+    frame = base_frame(height, width)
     method = methods.get(name)
     t_method = _median_time(lambda: method.denoise(frame), repeats)
     oidn = methods.get("oidn")
