@@ -19,6 +19,14 @@ Layout (kornia style: one functional core, thin wrappers):
 Shapes: images are (H, W, 3), ``depth`` is (H, W, 1) or (H, W); all outputs are (H, W, 3) float32
 from the fast paths and float64 from the references.
 
+Precision and speed of the Numba path: features, weights and per-band sums are float32 (a
+vectorisable Cephes-style exp, since Numba has no vector exp without SVML); the final sums and
+the division are float64; the statistical Welch test is float64. Measured max relative
+difference to the float64 reference ≈ 1e-6 (tests assert 1e-5). Loop order: parallel over row
+bands, then rows, then window offsets, innermost the pixels of a row (vectorised); the weight of
+a pair is symmetric, so only half of the window is evaluated. 1280×720, r = 20 on 2 cores:
+≈ 1-2 s (reference ≈ 40-60 s), see :mod:`dbench.methods.jbf.bench`.
+
 Non-finite input policy (both filters): a colour pixel with a NaN/Inf channel is *missing*: it
 gets no weight as a neighbour, and its own output is the filtered value of its valid neighbours
 (0 if it has none), so NaN never spreads. A pixel whose G-buffers (albedo, normal, position, depth)
@@ -431,6 +439,13 @@ def _row_weights(fsq, fdot, beta, horizon, y, yy, x0, x1, dx, e, w):
     The exponent is e + Σ_g Σ_q (F_i − F_j)² (pre-scaled features, groups of 4 planes) and, for
     the illumination filter, + β(1 − n_i·n_j) with the horizon step [n_i·n_j > 0].
     """
+    _row_exponent(fsq, y, yy, x0, x1, dx, e, w)
+    _row_exp(fdot, beta, horizon, y, yy, x0, x1, dx, w)
+
+
+@njit(inline="always", cache=True)
+def _row_exponent(fsq, y, yy, x0, x1, dx, e, w):
+    """w[0:n] = e + Σ_g Σ_q (F_i − F_j)², the feature part of the exponent."""
     n = x1 - x0
     for i in range(n):
         w[i] = e
@@ -449,6 +464,12 @@ def _row_weights(fsq, fdot, beta, horizon, y, yy, x0, x1, dx, e, w):
             t2 = a2[i] - b2[i]
             t3 = a3[i] - b3[i]
             w[i] += (t0 * t0 + t1 * t1) + (t2 * t2 + t3 * t3)
+
+
+@njit(inline="always", cache=True)
+def _row_exp(fdot, beta, horizon, y, yy, x0, x1, dx, w):
+    """w ← exp(−w), with the illumination filter's normal term when ``fdot`` has planes."""
+    n = x1 - x0
     if fdot.shape[0] > 0:
         a0 = fdot[0, y, x0:x1]
         b0 = fdot[0, yy, x0 + dx:x1 + dx]
@@ -547,7 +568,8 @@ def _accumulate_kernel(fsq, fdot, beta, horizon, planes, dys, dxs, es,
                 n = x1 - x0
                 if n <= 0 or es[o] >= _F_CUT:
                     continue  # no pair in the image / weight underflows to exactly 0
-                _row_weights(fsq, fdot, beta, horizon, y, yy, x0, x1, dx, es[o], w)
+                _row_exponent(fsq, y, yy, x0, x1, dx, es[o], w)
+                _row_exp(fdot, beta, horizon, y, yy, x0, x1, dx, w)
                 if test_mode == 1:
                     _row_welch(theta, var, g2, y, yy, x0, x1, dx, w)
                 elif test_mode == 2:
