@@ -37,6 +37,12 @@ def test_sweep_writes_one_cell_per_file_and_resumes(renderer, tmp_path):
     assert _mtimes(out) == before
     with pytest.raises(ValueError, match="other settings"):
         sweep.run_sweep(_config(tmp_path, res=16), out, progress=False)
+    # Extending with another spp computes only the new cells and keeps the old ones.
+    more = sweep.run_sweep(_config(tmp_path, spp=[8]), out, progress=False)
+    assert more["computed"] == 4 and more["finished_before"] == 0
+    assert len(sweep.load_cells(out)) == 12 and _mtimes(out).items() >= before.items()
+    stored = sweep.read_cell(out / "sweep.json")["config"]
+    assert stored["spp"] == [2, 4, 8]
 
 
 def test_killed_sweep_completes_with_exactly_one_result_per_cell(renderer, tmp_path):

@@ -21,6 +21,8 @@ from typing import Any, Iterable, Sequence
 from .. import io
 
 DEFAULT_SPP = (4, 16, 64, 256, 1024)
+#: Settings every cell of one sweep folder shares; methods, scenes and spp may be extended.
+SETTINGS = ("res", "ref_spp", "seed", "repeats", "transform", "lam", "metrics")
 
 
 @dataclass
@@ -162,12 +164,22 @@ def run_sweep(config: SweepConfig, out: str | Path, executor: str = "local", wor
     out.mkdir(parents=True, exist_ok=True)
     config_file = out / "sweep.json"
     stored = read_cell(config_file)
-    if stored is not None and stored.get("config") != _config_dict(config):
-        raise ValueError(f"{out} holds a sweep with other settings; use another --out or the "
-                         "same settings to resume")
+    new = _config_dict(config)
     from .harness import machine_info
-    if stored is None:
-        io.write_json(config_file, {"config": _config_dict(config), "machine": machine_info()})
+    if stored is not None:
+        old = stored.get("config", {})
+        differ = [k for k in SETTINGS if old.get(k) != new.get(k)]
+        if differ:
+            raise ValueError(f"{out} holds a sweep with other settings ({', '.join(differ)}); "
+                             "use another --out or the same settings to resume or extend it")
+        # Extending a sweep with more methods, scenes or spp keeps every finished cell.
+        for key in ("methods", "scenes", "spp"):
+            new[key] = old.get(key, []) + [v for v in new[key] if v not in old.get(key, [])]
+        new["params"] = {**old.get("params", {}), **new["params"]}
+        if new != old:
+            io.write_json(config_file, {**stored, "config": new})
+    else:
+        io.write_json(config_file, {"config": new, "machine": machine_info()})
 
     groups, done = plan(config, out)
     if not groups:
