@@ -4,7 +4,8 @@ Plain dataclasses around NumPy arrays, constructible directly so that methods an
 run on synthetic data. Shapes use (H, W, C) with row 0 at the top; C = 3 for colour buffers.
 
 Buffer names (used in code, files and reports): ``color``, ``albedo``, ``normal``, ``depth``,
-``position``, ``stats``, ``reference``.
+``position``, ``motion``, ``gradient``, ``emission``, ``stats``, ``reference``. A
+:class:`Sequence` is a list of Frames of one animated scene (spec/temporal.md §1).
 
 Example:
     >>> import numpy as np
@@ -29,6 +30,9 @@ FRAME_BUFFERS: dict[str, int] = {
     "depth": 1,
     "position": 3,
     "reference": 3,
+    "motion": 2,
+    "gradient": 3,
+    "emission": 3,
 }
 #: Every name a method may list in ``needs``.
 BUFFER_NAMES = tuple(FRAME_BUFFERS) + ("stats",)
@@ -123,7 +127,18 @@ class Frame:
         position: (H, W, 3) float32 world position or None.
         stats: SampleStats of the same samples as ``color`` or None.
         reference: (H, W, 3) float32 high-spp image or None.
-        meta: scene, spp, seed, render timings and other settings.
+        meta: scene, spp, seed, render timings and other settings; sequence frames add
+            ``frame`` (index) and ``camera`` (``to_world`` 4×4 camera→world, ``origin``, ``fov``,
+            ``fov_axis``, ``width``, ``height``; spec/temporal.md §1).
+        motion: (H, W, 2) float32 sequence frames only: offset in pixels (x right, y down) from
+            each pixel to where its surface point was in the previous frame (spec/temporal.md
+            §3.1); NaN where there is no previous position (no hit, behind the previous camera).
+        gradient: (H, W, 3) float32 sequence frames only (A-SVGF): the scene state of this frame
+            rendered from the previous camera with the previous frame's random numbers
+            (spec/svgf.md §6.4); equal to ``color`` on the first frame.
+        emission: (H, W, 3) float32 sequence frames only: radiance emitted by the surfaces the
+            colour samples' primary rays hit (0 off lights), so filters can keep lights out of
+            the demodulated illumination.
     """
 
     color: np.ndarray
@@ -134,6 +149,9 @@ class Frame:
     stats: SampleStats | None = None
     reference: np.ndarray | None = None
     meta: dict[str, Any] = field(default_factory=dict)
+    motion: np.ndarray | None = None
+    gradient: np.ndarray | None = None
+    emission: np.ndarray | None = None
 
     kind = "steady"
 
@@ -163,5 +181,183 @@ class Frame:
         return getattr(self, buffer, None) is not None
 
     def with_buffers(self, **buffers: Any) -> "Frame":
+        """A copy with some buffers replaced (validated again)."""
+        return replace(self, **buffers)
+
+
+@dataclass
+class Sequence:
+    """Frames of one animated scene, in order (spec/temporal.md §1).
+
+    Every frame is a :class:`Frame` of the same (H, W) carrying the same buffers; sequence
+    buffers (``motion``, ``gradient``, ``emission``) and the camera (``meta["camera"]``) live on
+    the frames.
+    Sequence methods are run with ``reset()`` and then ``denoise(frame)`` for each frame in order.
+
+    Attributes:
+        frames: the frames, index 0 first.
+        meta: scene, spp, seed, resolution, frame count and render timings.
+
+    Example:
+        >>> import numpy as np
+        >>> s = Sequence([Frame(color=np.zeros((4, 5, 3))) for _ in range(3)])
+        >>> len(s), s.shape, s.kind
+        (3, (4, 5), 'sequence')
+    """
+
+    frames: list[Frame]
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    kind = "sequence"
+
+    def __post_init__(self) -> None:
+        self.frames = list(self.frames)
+        if not self.frames:
+            raise DbenchInputError("frames: expected a non-empty list of Frame objects")
+        for i, f in enumerate(self.frames):
+            if not isinstance(f, Frame):
+                raise DbenchInputError(f"frames[{i}]: expected a Frame, got {type(f).__name__}")
+            if f.shape != self.frames[0].shape:
+                raise DbenchInputError(f"frames[{i}].color: expected shape (H, W, 3) = "
+                                       f"{self.frames[0].shape + (3,)}, got {f.color.shape}")
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self.frames[0].shape
+
+    def __len__(self) -> int:
+        return len(self.frames)
+
+    def __iter__(self):
+        return iter(self.frames)
+
+    def __getitem__(self, index: int) -> Frame:
+        return self.frames[index]
+
+    def has(self, buffer: str) -> bool:
+        """Whether every frame carries ``buffer``."""
+        return all(f.has(buffer) for f in self.frames)
+
+
+#: Per-pixel buffers of a TransientFrame (constant along time), with their channel count.
+TRANSIENT_PIXEL_BUFFERS: dict[str, int] = {"albedo": 3, "normal": 3, "depth": 1, "position": 3,
+                                           "steady": 3}
+#: Per-pixel, per-bin buffers of a TransientFrame, (H, W, T, 3).
+TRANSIENT_VIDEO_BUFFERS = ("color", "reference")
+
+
+@dataclass
+class TransientFrame:
+    """One time-resolved render: a video of T time bins (spec/transient.md §6).
+
+    The time axis is optical path length (OPL, scene units, metres): bin t covers
+    ``[start_opl + t·bin_width_opl, start_opl + (t+1)·bin_width_opl)``; time = OPL / c.
+
+    Attributes:
+        color: (H, W, T, 3) float32 linear noisy radiance per bin (mean of the samples; no
+            division by the bin width, so summing over T gives the steady image of the paths
+            inside the window).
+        stats: SampleStats of shape (H, W, T, 3): per-bin statistics, each path's summed
+            contribution to a bin being one sample (bins a path never reaches are samples of
+            g(0)); spec/statistical.md §11.1. Or None.
+        albedo, normal: (H, W, 3) float32 from a steady AOV render of the same camera, or None.
+        depth: (H, W, 1) float32 camera distance (0 where nothing is hit) or None.
+        position: (H, W, 3) float32 world position or None.
+        reference: (H, W, T, 3) float32 high-spp video with the same window, or None.
+        steady: (H, W, 3) float32 steady image of the same samples (all path lengths, also those
+            outside the window), or None.
+        non_zero: (H, W, T, 3) int32 number of samples (paths) with a non-zero value in the bin,
+            0 ≤ non_zero ≤ n, or None.
+        meta: ``start_opl``, ``bin_width_opl``, ``bins`` (= T), ``units`` and whatever the renderer
+            adds (scene, spp, ``energy_fraction``, ...). Missing time-axis entries default to
+            start 0, width 1, units "bins".
+
+    Example:
+        >>> import numpy as np
+        >>> v = TransientFrame(color=np.zeros((4, 5, 6, 3), np.float32),
+        ...                    meta={"start_opl": 3.5, "bin_width_opl": 0.02})
+        >>> v.shape, v.bins, v.kind, round(v.end_opl, 2)
+        ((4, 5), 6, 'transient', 3.62)
+    """
+
+    color: np.ndarray
+    stats: SampleStats | None = None
+    albedo: np.ndarray | None = None
+    normal: np.ndarray | None = None
+    depth: np.ndarray | None = None
+    position: np.ndarray | None = None
+    reference: np.ndarray | None = None
+    steady: np.ndarray | None = None
+    non_zero: np.ndarray | None = None
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    kind = "transient"
+
+    def __post_init__(self) -> None:
+        color = np.asarray(self.color) if self.color is not None else None
+        if color is None or color.ndim != 4:
+            raise DbenchInputError("color: expected shape (H, W, T, 3), got "
+                                   f"{None if color is None else tuple(color.shape)}")
+        self.color = check_buffer("color", color, (None, None, None, 3))
+        h, w, t = self.color.shape[:3]
+        if self.reference is not None:
+            self.reference = check_buffer("reference", self.reference, (h, w, t, 3))
+        for name, channels in TRANSIENT_PIXEL_BUFFERS.items():
+            value = getattr(self, name)
+            if value is None:
+                continue
+            value = np.asarray(value)
+            if name == "depth" and value.ndim == 2:
+                value = value[..., None]
+            setattr(self, name, check_buffer(name, value, (h, w, channels)))
+        if self.non_zero is not None:
+            self.non_zero = check_buffer("non_zero", self.non_zero, (h, w, t, 3), dtype=np.int32)
+        if self.stats is not None and self.stats.shape != (h, w, t, 3):
+            raise DbenchInputError(f"stats: expected shape (H, W, T, 3) = ({h}, {w}, {t}, 3), "
+                                   f"got {self.stats.shape}")
+        meta = dict(self.meta)
+        bins = meta.setdefault("bins", t)
+        if bins != t:
+            raise DbenchInputError(f"meta.bins: expected T = {t} (color has shape "
+                                   f"{tuple(self.color.shape)}), got {bins!r}")
+        meta.setdefault("start_opl", 0.0)
+        meta.setdefault("bin_width_opl", 1.0)
+        meta.setdefault("units", "bins")
+        width = meta["bin_width_opl"]
+        if not (isinstance(width, (int, float, np.floating, np.integer)) and np.isfinite(width)
+                and width > 0):
+            raise DbenchInputError(f"meta.bin_width_opl: expected a finite number > 0, got "
+                                   f"{width!r}")
+        self.meta = meta
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return tuple(self.color.shape[:2])
+
+    @property
+    def bins(self) -> int:
+        return int(self.color.shape[2])
+
+    @property
+    def start_opl(self) -> float:
+        return float(self.meta["start_opl"])
+
+    @property
+    def bin_width_opl(self) -> float:
+        return float(self.meta["bin_width_opl"])
+
+    @property
+    def end_opl(self) -> float:
+        return self.start_opl + self.bins * self.bin_width_opl
+
+    @property
+    def time_axis(self) -> np.ndarray:
+        """(T,) optical path length at the centre of each bin."""
+        return self.start_opl + (np.arange(self.bins) + 0.5) * self.bin_width_opl
+
+    def has(self, buffer: str) -> bool:
+        return getattr(self, buffer, None) is not None
+
+    def with_buffers(self, **buffers: Any) -> "TransientFrame":
         """A copy with some buffers replaced (validated again)."""
         return replace(self, **buffers)

@@ -13,7 +13,7 @@ from typing import Iterable
 
 import numpy as np
 
-from ..data import Frame, SampleStats
+from ..data import Frame, SampleStats, Sequence, TransientFrame
 from ..errors import DbenchInputError
 from . import render as _render
 from . import scenes as _scenes
@@ -40,16 +40,25 @@ def _base_description(scene: Scene, res: int) -> dict:
 
 
 def load(scene: str | Scene, spp: int, res: int, needs: Iterable[str] | None = None,
-         transform: str = "box-cox", lam: float = 0.5, seed: int = 0,
-         ref_spp: int | None = None, cache: Cache | None = None, progress: bool = True) -> Frame:
+         transform: str | None = None, lam: float = 0.5, seed: int = 0,
+         ref_spp: int | None = None, cache: Cache | None = None, progress: bool = True,
+         frames: int | None = None, bins: int | None = None,
+         collector: str = "auto") -> Frame | Sequence | TransientFrame:
     """Return a :class:`~dbench.data.Frame` of ``scene`` with exactly the buffers in ``needs``.
+
+    Sequence scenes (kind ``sequence``) return a :class:`~dbench.data.Sequence` instead, built by
+    :func:`dbench.datasets.sequence.load_sequence` (``frames`` limits the frame count).
+    Transient scenes (kind ``transient``) return a :class:`~dbench.data.TransientFrame` built by
+    :func:`dbench.datasets.transient.load_transient` (``bins``: time bins T; ``collector``:
+    ``"a"``, ``"b"`` or ``"auto"``, see that module); both options apply to them only.
 
     Args:
         scene: catalogue name or Scene.
         spp: samples per pixel of the noisy color (and its statistics).
         res: image side in pixels (square images).
         needs: buffer names (``color`` always comes); None means every buffer the scene provides.
-        transform, lam: sample transform of the statistics (spec/statistical.md §3).
+        transform, lam: sample transform of the statistics (spec/statistical.md §3); None
+            means the kind's default: Box-Cox for steady scenes, identity for transient ones.
         seed: base seed; the noisy passes, features and reference use disjoint seed streams.
         ref_spp: reference spp (default ``DBENCH_REF_SPP`` or 4096).
         cache: a :class:`Cache` (default location when None).
@@ -57,6 +66,16 @@ def load(scene: str | Scene, spp: int, res: int, needs: Iterable[str] | None = N
         Frame whose ``meta`` holds the settings, render timings and cache hits.
     """
     sc = scene if isinstance(scene, Scene) else _scenes.get(scene)
+    if sc.kind == "sequence":
+        return _sequence.load_sequence(sc, spp=spp, res=res, needs=needs, seed=seed,
+                                       ref_spp=ref_spp, cache=cache, progress=progress,
+                                       frames=frames)
+    if sc.kind == "transient":
+        return _transient.load_transient(sc, spp=spp, res=res, needs=needs,
+                                         transform=transform or _transient.DEFAULT_TRANSFORM,
+                                         lam=lam, seed=seed, ref_spp=ref_spp, cache=cache,
+                                         progress=progress, bins=bins, collector=collector)
+    transform = "box-cox" if transform is None else transform
     if not isinstance(spp, (int, np.integer)) or spp < 1:
         raise DbenchInputError(f"spp: expected an integer >= 1, got {spp!r}")
     if not isinstance(res, (int, np.integer)) or res < 1:
@@ -144,5 +163,8 @@ def _stats_from_arrays(arrays: dict[str, np.ndarray], transform: str, lam: float
     return SampleStats(n=arrays["n"], mean=arrays["mean"], var_mean=arrays["var_mean"],
                        m3=arrays["m3"], transform=transform, lam=lam)
 
+
+from . import sequence as _sequence  # noqa: E402  (registers the sequence scenes)
+from . import transient as _transient  # noqa: E402  (registers the transient scenes)
 
 __all__ = ["load", "available_scenes", "get_scene", "Cache", "Scene", "FEATURES"]

@@ -1,0 +1,498 @@
+"""Animated sequence datasets: moving cameras, switching lights, motion vectors, gradient frames.
+
+Sequence scenes (kind ``sequence``) are static geometry seen by an animated camera and/or lit by
+animated lights (spec/temporal.md §1: object motion is out of scope). Frame ``i`` of a scene is a
+Mitsuba dictionary built from the camera state of one frame and the light state of another
+(:meth:`SequenceScene.frame_dict`), which is what the A-SVGF gradient frame needs.
+
+Per frame (float32, row 0 = top), rendered and cached one frame at a time through
+:class:`~dbench.datasets.cache.Cache`:
+
+===========  ==========  ====================================================================
+buffer       shape       source
+===========  ==========  ====================================================================
+color        (H, W, 3)   ``spp`` samples, seed ``pass_seed("seq-noisy", seed, i)``, box filter
+albedo …     (H, W, C)   albedo, sh_normal, depth, position of the *same* samples (one render of
+                         the ``aov`` integrator with a nested ``path``; :func:`render_frame`)
+emission     (H, W, 3)   radiance emitted at those primary hits (nested ``path``, max_depth 1)
+motion       (H, W, 2)   :func:`motion_vectors` from the world position and the previous camera
+gradient     (H, W, 3)   lights of frame i, camera of frame i−1, seed of frame i−1 (spec/svgf.md
+                         §6.4): every pixel re-traces the path of frame i−1 under the new
+                         lighting. Frame 0: equal to ``color``.
+reference    (H, W, 3)   ``ref_spp`` samples per frame in chunks of 256, disjoint seed stream
+camera       meta        ``frame.meta["camera"]``: ``to_world`` (4×4 camera→world), ``origin``,
+                         ``fov``, ``fov_axis``, ``width``, ``height``
+===========  ==========  ====================================================================
+
+The gradient frame is the spec's emulation of A-SVGF's seed reuse (spec/svgf.md §6.4): with a
+static camera it is exactly "the current frame shaded with the previous frame's random numbers";
+with a moving camera the re-traced paths start at the previous camera, so view-dependent changes
+caused by the camera motion are not seen (stated limitation). The mapping of the chosen samples
+into the current frame is done by the method (dbench/methods/svgf: gathered through the motion
+vectors, identical to the forward projection for a static camera).
+
+Deviation from spec/temporal.md §1 (G-buffer at ≥ 16 spp): by default the G-buffer is *matched*
+to the colour samples (``gbuffer="matched"``: the albedo, normal, depth and position of the very
+primary hits the colour samples started from, as a rasteriser feeding a real-time path tracer
+gives them). A supersampled G-buffer mixes surfaces at silhouettes while a 1-spp colour sample
+sees only one of them, and demodulating such a sample by the mixed albedo (a light's edge, a black
+conductor) amplified it by orders of magnitude in our first renders (outputs near 1000 where
+the reference was 3). ``gbuffer="supersampled"`` gives the
+spec's 64-spp footprint averages (emission included) for comparison; the colour is identical.
+
+Determinism: scenes are loaded with ``mi.load_dict(..., optimize=False)``. With the default
+Mitsuba 3.9.1 reorders the emitters from one load to the next, which changes which light a given
+random number picks: the same seed then renders different images in scenes with several lights,
+and a gradient frame would not re-trace the previous frame's paths.
+
+Lights are placed out of the cameras' direct view (they appear in reflections): a visible emitter
+aliases at 1 spp (a jittered sample sees the light or the ceiling, the reference their average),
+an error no denoiser removes and which dominated every RMSE in our first renders.
+
+Scenes: ``orbit`` (camera arc through a room with diffuse and glossy objects; disocclusion behind
+a tall box and at the image borders), ``flicker`` (static camera; the warm left ceiling light goes
+off and a cool right one comes on at frame 16), ``mirror-pan`` (lateral camera pan in front of a
+mirror wall, a chrome ball and a glossy brown wall: reflections move unlike their surfaces).
+
+Example:
+    >>> from dbench import datasets
+    >>> seq = datasets.load("flicker", spp=1, res=16, frames=4)  # doctest: +SKIP
+    >>> len(seq), seq[1].motion.shape, seq[1].meta["camera"]["fov"]  # doctest: +SKIP
+    (4, (16, 16, 2), 39.3)
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Any, Callable, Iterable
+
+import numpy as np
+
+from ..data import Frame, Sequence
+from ..errors import DbenchInputError
+from . import render as _render
+from . import scenes as _scenes
+from .cache import Cache
+from .mitsuba_env import mitsuba, versions
+from .scenes import Scene
+
+SEQUENCE_BUFFERS = frozenset({"color", "albedo", "normal", "depth", "position", "motion",
+                              "gradient", "emission", "reference"})
+FEATURES = ("albedo", "normal", "depth", "position")
+FOV = 39.3
+REFERENCE_CHUNK = _render.DEFAULT_REFERENCE_CHUNK
+GBUFFER_SPP = _render.DEFAULT_FEATURE_SPP
+GBUFFERS = ("matched", "supersampled")
+
+
+@dataclass(frozen=True, eq=False)
+class SequenceScene(Scene):
+    """A catalogue entry whose camera and lights change per frame (geometry is static).
+
+    Attributes (beyond :class:`~dbench.datasets.scenes.Scene`):
+        n_frames: length of the sequence.
+        geometry: ``geometry(mi) -> dict`` of the static shapes (emitters included, with their
+            radiance set per frame by ``lights``).
+        camera: ``camera(i) -> (origin, target)`` of frame i (up is +y).
+        lights: ``lights(i) -> {shape key: (r, g, b) radiance}`` of frame i.
+        events: frame indices of notable changes, e.g. ``{"light_change": 16}``.
+    """
+
+    n_frames: int = 48
+    geometry: Callable[[Any], dict] | None = None
+    camera: Callable[[int], tuple] | None = None
+    lights: Callable[[int], dict] | None = None
+    events: dict = field(default_factory=dict)
+    fov: float = FOV
+
+    def frame_dict(self, mi, res: int, camera_frame: int, light_frame: int | None = None) -> dict:
+        """The Mitsuba dictionary with the camera of ``camera_frame`` and the lights of
+        ``light_frame`` (default: the same frame)."""
+        light_frame = camera_frame if light_frame is None else light_frame
+        origin, target = self.camera(camera_frame)
+        d = {"type": "scene",
+             "sensor": _scenes._camera(mi, res, origin=list(origin), target=list(target),
+                                       fov=self.fov),
+             "integrator": {"type": "path", "max_depth": self.max_depth}}
+        d.update(self.geometry(mi))
+        for key, radiance in self.lights(light_frame).items():
+            d[key]["emitter"] = {"type": "area",
+                                 "radiance": {"type": "rgb", "value": [float(v) for v in radiance]}}
+        return d
+
+    def scene_dict(self, mi, res: int) -> dict:  # frame 0, for code written for steady scenes
+        return self.frame_dict(mi, res, 0)
+
+
+def _sequence_scene(name: str, description: str, **kw: Any):
+    def wrap(geometry: Callable[[Any], dict]) -> Callable[[Any], dict]:
+        sc = SequenceScene(name=name, kind="sequence", description=description,
+                           build=lambda mi, res, _n=name: _scenes.get(_n).frame_dict(mi, res, 0),
+                           provides=SEQUENCE_BUFFERS, geometry=geometry, **kw)
+        _scenes.register_scene(sc)
+        return geometry
+    return wrap
+
+
+# ---------------------------------------------------------------------------------------------
+# camera geometry (spec/mitsuba.md §9, spec/temporal.md §3.1)
+
+
+def look_at_matrix(origin, target, up=(0.0, 1.0, 0.0)) -> np.ndarray:
+    """Camera→world 4×4 matrix of Mitsuba's ``look_at`` (camera looks along its local +z,
+    local x = up × dir): float64 (4, 4)."""
+    o = np.asarray(origin, np.float64)
+    d = np.asarray(target, np.float64) - o
+    d /= np.linalg.norm(d)
+    left = np.cross(np.asarray(up, np.float64), d)
+    left /= np.linalg.norm(left)
+    new_up = np.cross(d, left)
+    m = np.eye(4)
+    m[:3, 0], m[:3, 1], m[:3, 2], m[:3, 3] = left, new_up, d, o
+    return m
+
+
+def camera_info(scene: SequenceScene, res: int, i: int) -> dict:
+    """The camera of frame ``i``: ``to_world`` (4×4 list), ``origin``, ``fov`` (degrees),
+    ``fov_axis``, ``width``, ``height`` (JSON-able)."""
+    origin, target = scene.camera(i)
+    m = look_at_matrix(origin, target)
+    return {"to_world": m.tolist(), "origin": m[:3, 3].tolist(), "fov": float(scene.fov),
+            "fov_axis": "x", "width": int(res), "height": int(res)}
+
+
+def project(points: np.ndarray, camera: dict) -> tuple[np.ndarray, np.ndarray]:
+    """Continuous pixel coordinates of world ``points`` (…, 3) seen by ``camera`` (spec §3.1).
+
+    Returns ``(p, c_z)``: p (…, 2) with (x, y), integer values at pixel centres (pixel (i, j)
+    spans [i − 0.5, i + 0.5)); c_z (…) the camera-space depth, the point being in front of the
+    camera only where c_z > 0.
+    """
+    pts = np.asarray(points, np.float64)
+    inv = np.linalg.inv(np.asarray(camera["to_world"], np.float64))
+    c = pts @ inv[:3, :3].T + inv[:3, 3]
+    w, h = float(camera["width"]), float(camera["height"])
+    t = math.tan(math.radians(camera["fov"]) / 2.0)
+    sx, sy = (t, t * h / w) if camera.get("fov_axis", "x") == "x" else (t * w / h, t)
+    cz = c[..., 2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u = 0.5 - 0.5 * c[..., 0] / (cz * sx)
+        v = 0.5 - 0.5 * c[..., 1] / (cz * sy)
+    return np.stack([u * w - 0.5, v * h - 0.5], axis=-1), cz
+
+
+def motion_vectors(position: np.ndarray, depth: np.ndarray, prev_camera: dict) -> np.ndarray:
+    """Offsets (H, W, 2) float32 from every pixel to its surface point's position in the frame
+    seen by ``prev_camera`` (spec/temporal.md §3.1), exact for static geometry.
+
+    ``motion[y, x] = p← − (x, y)`` in pixels (x right, y down); NaN where nothing is hit
+    (depth 0 or non-finite) or the point is behind the previous camera (c_z ≤ 0).
+    """
+    h, w = depth.shape[:2]
+    position = np.asarray(position, np.float64).reshape(h, w, 3)
+    depth = np.asarray(depth, np.float64).reshape(h, w)
+    p, cz = project(position, prev_camera)
+    yy, xx = np.mgrid[0:h, 0:w]
+    motion = np.stack([p[..., 0] - xx, p[..., 1] - yy], axis=-1)
+    bad = ~(np.isfinite(depth) & (depth > 0) & (cz > 0) & np.isfinite(position).all(-1))
+    motion[bad] = np.nan
+    return motion.astype(np.float32)
+
+
+# ---------------------------------------------------------------------------------------------
+# the sequence catalogue
+
+def _objects(mi) -> dict:
+    """A tall diffuse box (occluder), a glossy (rough plastic) sphere and a small blue diffuse
+    ball. Glossy surfaces are rough plastic, not rough conductors: Mitsuba's ``albedo`` AOV of a
+    rough conductor is a view-dependent BSDF evaluation (measured values from 1e-18 to 15 on one
+    sphere), which no albedo demodulation survives; rough plastic reports its diffuse albedo."""
+    T = mi.ScalarTransform4f
+    return {
+        "tall_box": {"type": "cube",
+                     "to_world": T().translate([-0.38, -0.45, -0.3]).rotate([0, 1, 0], 20)
+                     .scale([0.25, 0.55, 0.25]),
+                     "bsdf": _scenes._diffuse((0.75, 0.75, 0.72))},
+        "glossy_ball": {"type": "sphere", "center": [0.42, -0.65, 0.2], "radius": 0.35,
+                        "bsdf": {"type": "roughplastic", "distribution": "ggx", "alpha": 0.08,
+                                 "diffuse_reflectance": {"type": "rgb",
+                                                         "value": [0.55, 0.5, 0.45]}}},
+        "blue_ball": {"type": "sphere", "center": [-0.05, -0.82, 0.55], "radius": 0.18,
+                      "bsdf": _scenes._diffuse((0.1, 0.2, 0.65))},
+    }
+
+
+def _light_shape(mi, x: float, size: float = 0.2, z: float = 0.74) -> dict:
+    """A ceiling light near the open front of the room, outside the cameras' view: visible
+    emitters alias at 1 spp (a jittered sample sees the light or the ceiling, the reference
+    their average), an error no denoiser can remove and which would dominate every RMSE.
+    The lights still appear in reflections."""
+    T = mi.ScalarTransform4f
+    return _scenes._rect(mi, T().translate([x, 0.99, z]).rotate([1, 0, 0], 90).scale(size),
+                         _scenes._diffuse((0, 0, 0)))
+
+
+def _orbit_camera(i: int) -> tuple:
+    theta = math.radians(-14.0 + 0.6 * i)
+    r = 3.7
+    return ((r * math.sin(theta), 0.1, r * math.cos(theta)), (0.0, -0.2, 0.0))
+
+
+@_sequence_scene("orbit", "camera arc around a room with a tall box, a glossy sphere and a "
+                 "ball: moving camera, disocclusion, static light", n_frames=48,
+                 camera=_orbit_camera, lights=lambda i: {"light": (50.0, 36.0, 12.0)},
+                 max_depth=6)
+def orbit(mi) -> dict:
+    d = _scenes._room(mi)
+    d.update(_objects(mi))
+    d["light"] = _light_shape(mi, 0.0, 0.25, z=0.74)
+    return d
+
+
+FLICKER_SWITCH = 16
+
+
+def _flicker_lights(i: int) -> dict:
+    on_left = i < FLICKER_SWITCH
+    return {"light_left": (72.0, 48.0, 18.0) if on_left else (0.0, 0.0, 0.0),
+            "light_right": (0.0, 0.0, 0.0) if on_left else (24.0, 42.0, 78.0)}
+
+
+@_sequence_scene("flicker", f"static camera; the warm left ceiling light goes off and a cool "
+                 f"right one comes on at frame {FLICKER_SWITCH}", n_frames=48,
+                 camera=lambda i: ((0.0, -0.1, 3.9), (0.0, -0.3, 0.0)), lights=_flicker_lights,
+                 events={"light_change": FLICKER_SWITCH}, max_depth=6)
+def flicker(mi) -> dict:
+    d = _scenes._room(mi)
+    d.update(_objects(mi))
+    d["light_left"] = _light_shape(mi, -0.5)
+    d["light_right"] = _light_shape(mi, 0.5)
+    return d
+
+
+def _pan_camera(i: int) -> tuple:
+    x = -0.6 + 1.2 * i / 47.0
+    return ((x, -0.1, 3.9), (0.35 * x, -0.3, 0.0))
+
+
+@_sequence_scene("mirror-pan", "lateral camera pan in front of a mirror back wall, a chrome "
+                 "ball and a glossy wall: reflections move unlike their surfaces",
+                 n_frames=48, camera=_pan_camera,
+                 lights=lambda i: {"light": (50.0, 36.0, 12.0)}, max_depth=8)
+def mirror_pan(mi) -> dict:
+    T = mi.ScalarTransform4f
+    d = _scenes._room(mi, back_bsdf={"type": "conductor", "material": "Ag"},
+                      right_bsdf={"type": "roughplastic", "distribution": "ggx", "alpha": 0.05,
+                                  "diffuse_reflectance": {"type": "rgb",
+                                                          "value": [0.45, 0.25, 0.12]}})
+    d["light"] = _light_shape(mi, 0.0, 0.3)
+    d["ball"] = {"type": "sphere", "center": [-0.45, -0.6, 0.2], "radius": 0.4,
+                 "bsdf": {"type": "plastic", "diffuse_reflectance":
+                          {"type": "rgb", "value": [0.1, 0.25, 0.7]}, "int_ior": 1.5}}
+    d["chrome"] = {"type": "sphere", "center": [0.5, -0.7, 0.45], "radius": 0.3,
+                   "bsdf": {"type": "conductor", "material": "Cr"}}
+    d["block"] = {"type": "cube",
+                  "to_world": T().translate([0.35, -0.75, -0.45]).rotate([0, 1, 0], 25)
+                  .scale(0.25),
+                  "bsdf": _scenes._diffuse((0.8, 0.6, 0.2))}
+    return d
+
+
+# ---------------------------------------------------------------------------------------------
+# rendering
+
+
+def frame_seed(seed: int, i: int) -> int:
+    """Seed of the noisy render of frame ``i`` (the gradient frame of i+1 reuses it)."""
+    return _render.pass_seed("seq-noisy", seed, i)
+
+
+#: The noisy colour and its G-buffer come from one render of Mitsuba's ``aov`` integrator with a
+#: nested ``path`` integrator: the nested RGB equals a plain path render with the same seed bit
+#: for bit (spec/mitsuba.md §5) and the AOVs describe exactly the primary hits of those samples.
+#: A second nested ``path`` with max_depth 1 gives the emission of the same primary hits.
+#: Nested integrators come out in the order given (keys also sorted alike: color < emission).
+def _matched_integrator(path: dict) -> dict:
+    return {"type": "aov", "aovs": _render.AOV_STRING, "color": dict(path),
+            "emission": {"type": "path", "max_depth": 1}}
+
+
+#: (buffer, first channel, channel count) of the matched render: colour, emission, the AOVs.
+MATCHED_LAYOUT = (("color", 0, 3), ("emission", 3, 3)) + tuple(
+    (n, c0 + 6, nc) for n, c0, nc in _render.AOV_LAYOUT)
+
+
+def _render_dict(d: dict, spp: int, seed: int, integrator=None) -> np.ndarray:
+    mi = mitsuba()
+    # optimize=False keeps the shapes and emitters in dictionary order. With the default, the
+    # order of emitters changes from one load to the next (measured with Mitsuba 3.9.1), which
+    # changes which light a random number selects: two renders with the same seed would then
+    # differ in scenes with several emitters, and the gradient frames would be wrong.
+    scene = mi.load_dict(d, optimize=False)
+    kw = {"integrator": integrator} if integrator is not None else {}
+    return np.array(mi.render(scene, spp=spp, seed=seed, **kw), dtype=np.float32)
+
+
+def render_frame(scene: SequenceScene, res: int, spp: int, seed: int, camera_frame: int,
+                 light_frame: int, seed_frame: int) -> dict[str, np.ndarray]:
+    """Noisy colour and matched G-buffer: ``color``, ``emission``, ``albedo``, ``normal``,
+    ``depth``, ``position`` (res, res, C) from one render of ``spp`` samples per pixel with the camera of
+    ``camera_frame``, the lights of ``light_frame`` and the seed of ``seed_frame``.
+
+    The G-buffer is the box-filtered mean over the same samples as the colour: at 1 spp it is
+    the G-buffer of the very primary hit each colour sample started from, as a rasteriser
+    feeding a real-time path tracer provides it. (A G-buffer supersampled independently mixes
+    surfaces at silhouettes while the 1-spp colour sample sees only one of them; dividing such
+    a sample by the mixed albedo, e.g. a light's edge or a black conductor's silhouette,
+    amplifies it by orders of magnitude — so sequence datasets use the matched G-buffer.)
+    """
+    mi = mitsuba()
+    d = scene.frame_dict(mi, res, camera_frame, light_frame)
+    integ = mi.load_dict(_matched_integrator(d["integrator"]), optimize=False)
+    out = _render_dict(d, spp, frame_seed(seed, seed_frame), integrator=integ)
+    return {name: np.ascontiguousarray(out[..., c0:c0 + nc]) for name, c0, nc in MATCHED_LAYOUT}
+
+
+def render_gbuffer(scene: SequenceScene, res: int, i: int, seed: int,
+                   spp: int = GBUFFER_SPP) -> dict[str, np.ndarray]:
+    """Supersampled G-buffer of frame ``i``: ``emission``, ``albedo``, ``normal``, ``depth``,
+    ``position`` as box-filtered means of ``spp`` samples (noise-free inside surfaces,
+    footprint averages at silhouettes; spec/temporal.md §1), independent of the colour samples."""
+    mi = mitsuba()
+    d = scene.frame_dict(mi, res, i)
+    integ = mi.load_dict({"type": "aov", "aovs": _render.AOV_STRING,
+                          "emission": {"type": "path", "max_depth": 1}}, optimize=False)
+    out = _render_dict(d, spp, _render.pass_seed("seq-aov", seed, i), integrator=integ)
+    return {name: np.ascontiguousarray(out[..., c0 - 3:c0 - 3 + nc])
+            for name, c0, nc in MATCHED_LAYOUT[1:]}
+
+
+def render_reference(scene: SequenceScene, res: int, i: int, seed: int, spp: int,
+                     chunk: int = REFERENCE_CHUNK) -> np.ndarray:
+    """The reference of frame ``i``: ``spp`` samples in chunks, a seed stream disjoint from the
+    noisy frames'."""
+    d = scene.frame_dict(mitsuba(), res, i)
+    chunks = [chunk] * (spp // chunk) + ([spp % chunk] if spp % chunk else [])
+    total = np.zeros((res, res, 3), np.float64)
+    for c, n in enumerate(chunks):
+        total += _render_dict(d, n, _render.pass_seed(f"seq-reference-{i}", seed, c)) * n
+    return (total / spp).astype(np.float32)
+
+
+def _cached(cache: Cache, kind: str, desc: dict, render: Callable[[], dict[str, np.ndarray]],
+            meta: dict, name: str) -> dict[str, np.ndarray]:
+    entry = cache.get(kind, desc)
+    if entry is not None:
+        meta["cache_hits"].append(name)
+        return entry.images()
+    t0 = time.perf_counter()
+    images = render()
+    seconds = time.perf_counter() - t0
+    cache.put(kind, desc, images=images, meta={"render_s": seconds})
+    meta["rendered"].append(name)
+    meta["render_s"] = meta.get("render_s", 0.0) + seconds
+    return images
+
+
+def load_sequence(scene: str | SequenceScene, spp: int = 1, res: int = 64,
+                  needs: Iterable[str] | None = None, seed: int = 0, ref_spp: int | None = None,
+                  cache: Cache | None = None, progress: bool = True,
+                  frames: int | None = None, gbuffer: str = "matched") -> Sequence:
+    """Render (or read from the cache) the first ``frames`` frames of a sequence scene.
+
+    Args:
+        scene: name or :class:`SequenceScene`.
+        spp: samples per pixel of the noisy color (1 for real-time denoisers).
+        res: image side in pixels (square frames).
+        needs: buffers wanted (``color`` always comes); None = all of SEQUENCE_BUFFERS.
+        seed: base seed; noisy frames, features and references use disjoint seed streams.
+        ref_spp: reference spp per frame (default ``DBENCH_REF_SPP`` or 4096).
+        frames: how many frames from the start (default: the whole sequence).
+        gbuffer: ``"matched"`` (default): the G-buffer and emission of the colour samples
+            themselves (:func:`render_frame`); ``"supersampled"``: independent 64-spp
+            footprint averages (:func:`render_gbuffer`). The colour is the same in both.
+    Returns:
+        :class:`~dbench.data.Sequence`; each frame's ``meta`` holds ``frame`` and ``camera``;
+        the sequence's ``meta`` holds the settings, ``events`` and cache hits.
+    """
+    from . import reference_spp
+
+    sc = scene if isinstance(scene, Scene) else _scenes.get(scene)
+    if not isinstance(sc, SequenceScene):
+        raise DbenchInputError(f"scene: {sc.name} is a {sc.kind} scene, not a sequence")
+    for name, value in (("spp", spp), ("res", res)):
+        if not isinstance(value, (int, np.integer)) or value < 1:
+            raise DbenchInputError(f"{name}: expected an integer >= 1, got {value!r}")
+    n = sc.n_frames if frames is None else frames
+    if not isinstance(n, (int, np.integer)) or not 1 <= n <= sc.n_frames:
+        raise DbenchInputError(f"frames: expected an integer in [1, {sc.n_frames}], got {frames!r}")
+    if gbuffer not in GBUFFERS:
+        raise DbenchInputError(f"gbuffer: expected one of {GBUFFERS}, got {gbuffer!r}")
+    wanted = set(SEQUENCE_BUFFERS if needs is None else needs) | {"color"}
+    unknown = wanted - SEQUENCE_BUFFERS
+    if unknown:
+        raise DbenchInputError(f"needs: scene {sc.name} cannot provide {sorted(unknown)}; "
+                               f"it provides {sorted(SEQUENCE_BUFFERS)}")
+    cache = cache or Cache()
+    ref_spp = int(ref_spp or reference_spp())
+    mi = mitsuba()
+    vers = versions()
+    meta: dict = {"scene": sc.name, "kind": "sequence", "spp": int(spp), "res": int(res),
+                  "seed": int(seed), "frames": int(n), "gbuffer": gbuffer, "ev": sc.ev, "events": dict(sc.events),
+                  "versions": vers, "cache_hits": [], "rendered": [], "render_s": 0.0}
+    if "reference" in wanted:
+        meta["ref_spp"] = ref_spp
+
+    def base(i: int, what: str, **extra) -> dict:
+        return {"scene": sc.name, "res": int(res), "frame": i, "what": what,
+                "dict": sc.frame_dict(mi, res, i), "params": sc.params, "versions": vers, **extra}
+
+    out: list[Frame] = []
+    prev_camera = None
+    from tqdm.auto import tqdm
+
+    for i in tqdm(range(n), desc=f"{sc.name} frames", leave=False,
+                  disable=not progress or n < 4, mininterval=0.5):
+        camera = camera_info(sc, res, i)
+        noisy = _cached(cache, "seq-frame",
+                        base(i, "noisy+gbuffer+emission", spp=int(spp), seed=int(seed),
+                             aovs=_render.AOV_STRING),
+                        lambda: render_frame(sc, res, spp, seed, i, i, i), meta, f"frame{i}")
+        gbuf = noisy
+        if gbuffer == "supersampled" and wanted & (set(FEATURES) | {"emission", "motion"}):
+            gbuf = _cached(cache, "seq-gbuffer",
+                           base(i, "gbuffer+emission", spp=GBUFFER_SPP, seed=int(seed),
+                                aovs=_render.AOV_STRING),
+                           lambda: render_gbuffer(sc, res, i, seed), meta, f"gbuffer{i}")
+        buffers = {"color": noisy["color"]}
+        buffers.update({k: gbuf[k] for k in ("emission",) + FEATURES if k in wanted})
+        if "motion" in wanted:
+            buffers["motion"] = motion_vectors(gbuf["position"], gbuf["depth"],
+                                               prev_camera or camera)
+        if "gradient" in wanted:
+            if i == 0:
+                buffers["gradient"] = noisy["color"]
+            else:
+                desc = base(i, "gradient", spp=int(spp), seed=int(seed), aovs=_render.AOV_STRING,
+                            gdict=sc.frame_dict(mi, res, i - 1, i))
+                buffers["gradient"] = _cached(
+                    cache, "seq-gradient", desc,
+                    lambda: {"gradient": render_frame(sc, res, spp, seed, i - 1, i, i - 1)["color"]},
+                    meta, f"gradient{i}")["gradient"]
+        if "reference" in wanted:
+            buffers["reference"] = _cached(
+                cache, "seq-reference",
+                base(i, "reference", spp=ref_spp, seed=int(seed), chunk=REFERENCE_CHUNK),
+                lambda: {"reference": render_reference(sc, res, i, seed, ref_spp)},
+                meta, f"reference{i}")["reference"]
+        fmeta = {"scene": sc.name, "kind": "sequence", "frame": i, "spp": int(spp), "gbuffer": gbuffer,
+                 "res": int(res), "seed": int(seed), "ev": sc.ev, "camera": camera}
+        out.append(Frame(meta=fmeta, **buffers))
+        prev_camera = camera
+    return Sequence(out, meta=meta)
+
+
+__all__ = ["SequenceScene", "SEQUENCE_BUFFERS", "FLICKER_SWITCH", "camera_info", "frame_seed",
+           "load_sequence", "look_at_matrix", "motion_vectors", "project", "render_frame",
+           "render_reference"]

@@ -1,0 +1,834 @@
+"""Transient (time-resolved) datasets through mitransient (spec/transient.md, spec/mitsuba.md).
+
+Scenes of kind ``transient``: ``cornell-transient`` and ``caustic-transient`` (``transient_path``)
+and ``fog-transient`` (a homogeneous participating medium, ``transient_prbvolpath``; the setting of
+seed 004). The time axis is optical path length (OPL) in metres, warped (the camera segment is
+included, as a real ultrafast sensor records it); each scene carries a window
+[``start_opl``, ``end_opl``) chosen with :func:`size_window` from the scene geometry (earliest
+direct arrival) and a pilot render (the OPL below which ``coverage`` of the steady energy
+arrives). ``bins`` splits the window; ``bin_width_opl = (end − start)/bins``.
+
+Collectors of the per-bin statistics (spec/statistical.md §11):
+
+* (a) :func:`collect_passes`: 1-spp passes with a box filter; the film histogram of a pass holds,
+  per pixel and bin, exactly the sum of that pixel's one path contributions in the bin, which is
+  one sample; it is transformed and added to float64 power sums on the host
+  (:class:`~dbench.datasets.stats.PowerSums`, bins a path never reaches add g(0) − K = 0).
+  Several samples per call come from a Mitsuba ``batch`` sensor holding copies of the camera
+  (the transient film works as the batch film; each copy is an independent sample).
+* (b) :func:`collect_in_integrator`: the in-integrator collector of
+  :mod:`dbench.datasets.transient_collector` (running sums per path, flushed with atomics),
+  whose memory does not depend on spp. ``transient_path`` scenes only.
+
+Buffers of a :class:`~dbench.data.TransientFrame` from :func:`load_transient`: ``color``
+(H, W, T, 3), ``stats`` and ``non_zero`` (H, W, T, 3), ``steady`` (H, W, 3; the same samples,
+whole path length), ``albedo``, ``normal``, ``depth``, ``position`` (H, W, ·; steady AOV render of
+the same camera; for the fog scene, of the surfaces behind the fog), ``reference`` (H, W, T, 3,
+plain transient render at ref_spp ≥ 16·spp, same window). ``meta`` holds the window
+(``start_opl``, ``bin_width_opl``, ``bins``, ``end_opl``, ``units``), ``energy_fraction``
+(Σ color / Σ steady: the share of the steady energy inside the window), integrator settings and
+timings.
+
+Example:
+    >>> from dbench import datasets
+    >>> v = datasets.load("cornell-transient", spp=8, res=16, bins=40)   # doctest: +SKIP
+    >>> v.color.shape, v.meta["energy_fraction"] > 0.9                   # doctest: +SKIP
+    ((16, 16, 40, 3), True)
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from functools import lru_cache
+from typing import Any, Callable, Iterable
+
+import numpy as np
+
+from ..data import SampleStats, TransientFrame
+from ..errors import DbenchInputError
+from . import render as _render
+from . import scenes as _scenes
+from .cache import Cache
+from .mitsuba_env import mitsuba, require_llvm, versions
+from .scenes import Scene
+from .stats import ZERO_VARIANCE_RTOL, PowerSums, check_transform, transform_of_zero
+
+#: Speed of light in m/s (time = OPL / c).
+SPEED_OF_LIGHT = 299792458.0
+TRANSIENT_BUFFERS = frozenset({"color", "albedo", "normal", "depth", "position", "stats",
+                               "reference"})
+COLLECTORS = ("auto", "a", "b")
+DEFAULT_TRANSFORM = "identity"   # spec/statistical.md §3: transient default
+#: float32 voxels of one batched pass (copies × H × W × T × 3): bounds the pass memory (64 MB).
+MAX_BATCH_VOXELS = 1 << 24
+DEFAULT_REFERENCE_CHUNK = 64
+#: Σ color ≥ this share of Σ steady counts as a window covering all contributions (spec §6).
+COVERS_ALL = 0.999
+
+
+@dataclass(frozen=True)
+class Window:
+    """The time axis of a transient film, in optical path length (scene units)."""
+
+    start_opl: float
+    bin_width_opl: float
+    bins: int
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.bins, (int, np.integer)) and self.bins >= 1):
+            raise DbenchInputError(f"bins: expected an integer >= 1, got {self.bins!r}")
+        if not (math.isfinite(self.bin_width_opl) and self.bin_width_opl > 0):
+            raise DbenchInputError(f"bin_width_opl: expected a number > 0, got "
+                                   f"{self.bin_width_opl!r}")
+
+    @property
+    def end_opl(self) -> float:
+        return self.start_opl + self.bins * self.bin_width_opl
+
+    def bin_of(self, opl: float) -> int:
+        """Bin index of an OPL, ``floor((opl − start)/width)`` (may fall outside [0, T))."""
+        return int(math.floor((opl - self.start_opl) / self.bin_width_opl))
+
+    def centers(self) -> np.ndarray:
+        return self.start_opl + (np.arange(self.bins) + 0.5) * self.bin_width_opl
+
+    def meta(self) -> dict:
+        return {"start_opl": float(self.start_opl), "bin_width_opl": float(self.bin_width_opl),
+                "bins": int(self.bins), "end_opl": float(self.end_opl),
+                "units": "m (optical path length; time = OPL / c)"}
+
+
+@dataclass(frozen=True, eq=False)
+class TransientScene(Scene):
+    """A catalogue entry of kind ``transient``.
+
+    ``build(mi, res)`` returns the steady scene dictionary (hdrfilm, box filter);
+    :meth:`transient_dict` swaps in the transient film and integrator.
+
+    Attributes (beyond :class:`~dbench.datasets.scenes.Scene`):
+        window_start, window_end: the OPL window (metres), from :func:`size_window`.
+        default_bins: T when ``bins`` is not given.
+        integrator: ``transient_path`` or ``transient_prbvolpath``.
+        steady_integrator: the steady counterpart (``path`` / ``volpath``).
+        rr_depth, camera_unwarp: integrator settings.
+        feature_build: ``(mi, res) -> dict`` for the AOV render (default ``build``); the fog
+            scene drops the medium so the G-buffers describe the surfaces behind it.
+        medium: description of the participating medium (metadata), or None.
+    """
+
+    window_start: float = 0.0
+    window_end: float = 1.0
+    default_bins: int = 200
+    integrator: str = "transient_path"
+    steady_integrator: str = "path"
+    rr_depth: int = 5
+    camera_unwarp: bool = False
+    feature_build: Callable[[Any, int], dict] | None = None
+    medium: dict | None = None
+
+    def window(self, bins: int | None = None) -> Window:
+        t = self.default_bins if bins is None else bins
+        if not isinstance(t, (int, np.integer)) or t < 1:
+            raise DbenchInputError(f"bins: expected an integer >= 1, got {bins!r}")
+        return Window(float(self.window_start),
+                      (float(self.window_end) - float(self.window_start)) / int(t), int(t))
+
+    def scene_dict(self, mi, res: int) -> dict:
+        """The steady scene (hdrfilm) with the steady integrator."""
+        d = self.build(mi, res)
+        d["integrator"] = {"type": self.steady_integrator, "max_depth": self.max_depth}
+        return d
+
+    def transient_dict(self, mi, res: int, window: Window) -> dict:
+        d = self.build(mi, res)
+        d["sensor"]["film"] = transient_film(res, res, window)
+        d["integrator"] = {"type": self.integrator, "max_depth": self.max_depth,
+                           "rr_depth": self.rr_depth, "camera_unwarp": self.camera_unwarp}
+        return d
+
+    @property
+    def feature_scene(self) -> Scene:
+        """A steady Scene for the AOV render (shared by every call, so loads are cached)."""
+        return _feature_scene(self)
+
+
+@lru_cache(maxsize=None)
+def _feature_scene(sc: TransientScene) -> Scene:
+    return Scene(name=f"{sc.name}:features", kind="steady", description="AOVs",
+                 build=sc.feature_build or sc.build, max_depth=sc.max_depth)
+
+
+def transient_film(width: int, height: int, window: Window) -> dict:
+    return {"type": "transient_hdr_film", "width": int(width), "height": int(height),
+            "rfilter": {"type": "box"}, "temporal_bins": int(window.bins),
+            "start_opl": float(window.start_opl), "bin_width_opl": float(window.bin_width_opl)}
+
+
+def _mitransient():
+    """Mitsuba with the variant set, then mitransient (import order: spec/transient.md §4)."""
+    require_llvm("transient rendering (mitransient)")
+    mi = mitsuba()
+    import mitransient  # noqa: F401
+
+    return mi
+
+
+# ---------------------------------------------------------------------------------------------
+# the catalogue
+
+
+def _register(name: str, description: str, **kw: Any):
+    def wrap(build: Callable[[Any, int], dict]) -> Callable[[Any, int], dict]:
+        _scenes.register_scene(TransientScene(name=name, kind="transient",
+                                              description=description, build=build,
+                                              provides=TRANSIENT_BUFFERS, **kw))
+        return build
+    return wrap
+
+
+# Windows from size_window(scene, coverage=0.99, res=24, spp=256): start = first direct arrival
+# rounded down (no energy before it in the pilot), end = 99 % of the steady energy, rounded up
+# to 0.5 m (results/transient.md lists the measured fractions).
+@_register("cornell-transient", "Cornell box, time-resolved (transient_path, warped OPL)",
+           max_depth=8, window_start=3.8, window_end=11.5, default_bins=200)
+def cornell_transient(mi, res: int) -> dict:
+    return _scenes.cornell(mi, res)
+
+
+@_register("caustic-transient", "glass sphere caustic, time-resolved: the caustic arrives late "
+           "(glass OPL)", max_depth=12, window_start=3.7, window_end=14.0, default_bins=200)
+def caustic_transient(mi, res: int) -> dict:
+    return _scenes.caustic(mi, res)
+
+
+FOG = {"type": "homogeneous", "sigma_s": 0.6, "sigma_a": 0.1, "g": 0.3, "units": "1/m"}
+
+
+def _fog_room(mi, res: int, with_fog: bool) -> dict:
+    T = mi.ScalarTransform4f
+    d = {"type": "scene",
+         "sensor": _scenes._camera(mi, res, origin=[0, 0, 3.9], target=[0, 0, 0])}
+    d.update(_scenes._room(mi))
+    d["light"] = _scenes._ceiling_light(mi, 0.15, radiance=(60.0, 50.0, 36.0))
+    d["ball"] = {"type": "sphere", "center": [0.3, -0.55, -0.1], "radius": 0.35,
+                 "bsdf": _scenes._diffuse((0.7, 0.7, 0.7))}
+    if with_fog:
+        d["fog"] = {"type": "cube", "to_world": T().scale(0.98),
+                    "bsdf": {"type": "null"},
+                    "interior": {"type": "homogeneous", "albedo": FOG["sigma_s"] /
+                                 (FOG["sigma_s"] + FOG["sigma_a"]),
+                                 "sigma_t": FOG["sigma_s"] + FOG["sigma_a"],
+                                 "phase": {"type": "hg", "g": FOG["g"]}}}
+    return d
+
+
+@_register("fog-transient", "Cornell-style room filled with homogeneous fog (σs 0.6, σa 0.1 /m, "
+           "HG g 0.3): transient_prbvolpath", max_depth=8, window_start=3.8, window_end=10.0,
+           default_bins=200, integrator="transient_prbvolpath", steady_integrator="volpath",
+           feature_build=lambda mi, res: _fog_room(mi, res, with_fog=False), medium=FOG)
+def fog_transient(mi, res: int) -> dict:
+    return _fog_room(mi, res, with_fog=True)
+
+
+#: Near clip of the direct-arrival test camera (Mitsuba's default is 0.01 m).
+DIRECT_NEAR_CLIP = 1e-4
+
+
+def direct_arrival_dict(mi, res: int = 33, window: Window | None = None, unwarp: bool = False,
+                        plane_z: float = 2.0, fov: float = 20.0,
+                        near_clip: float = DIRECT_NEAR_CLIP) -> dict:
+    """spec/transient.md §7 check 2: camera and point light at the origin looking down +z, a
+    diffuse plane facing the camera at ``plane_z``, ``transient_path`` max_depth 2.
+
+    **Note (measured):** Mitsuba's perspective sensor starts camera rays on the near-clip
+    plane, so a warped OPL misses ``near_clip/cos θ`` of the camera segment (0.01 m with the
+    default near clip: the centre pixel's OPL is 3.99, not 4.0, right at a bin edge of the
+    spec's window). This scene uses ``near_clip`` = 1e-4 and :func:`expected_direct_bins`
+    accounts for it."""
+    window = window or Window(1.49, 0.02, 200)
+    T = mi.ScalarTransform4f
+    return {
+        "type": "scene",
+        "integrator": {"type": "transient_path", "max_depth": 2, "camera_unwarp": bool(unwarp)},
+        "sensor": {"type": "perspective", "fov": fov, "fov_axis": "x", "near_clip": near_clip,
+                   "to_world": T().look_at(origin=[0, 0, 0], target=[0, 0, 1], up=[0, 1, 0]),
+                   "film": transient_film(res, res, window),
+                   "sampler": {"type": "independent"}},
+        "light": {"type": "point", "position": [0.0, 0.0, 0.0],
+                  "intensity": {"type": "rgb", "value": [1.0, 1.0, 1.0]}},
+        "plane": {"type": "rectangle",
+                  "to_world": T().translate([0, 0, plane_z]).rotate([0, 1, 0], 180).scale(5.0),
+                  "bsdf": _scenes._diffuse((0.5, 0.5, 0.5))},
+    }
+
+
+def direct_opl(ex, ey, unwarp: bool, plane_z: float = 2.0,
+               near_clip: float = DIRECT_NEAR_CLIP):
+    """OPL of the direct path through tan-plane coordinates (ex, ey) in
+    :func:`direct_arrival_dict`: a plane point at distance d = z·sqrt(1 + ex² + ey²) from the
+    camera (and the light) gives 2d − near_clip·sqrt(1 + ex² + ey²) warped, d unwarped."""
+    r = np.sqrt(1.0 + np.square(ex) + np.square(ey))
+    d = plane_z * r
+    return d if unwarp else 2.0 * d - near_clip * r
+
+
+def expected_direct_bins(res: int, window: Window, unwarp: bool, plane_z: float = 2.0,
+                         fov: float = 20.0, near_clip: float = DIRECT_NEAR_CLIP
+                         ) -> tuple[np.ndarray, np.ndarray]:
+    """(lowest, highest) direct-arrival bin per pixel of :func:`direct_arrival_dict`
+    (spec/transient.md §7 checks 2-3), from the OPL range over each pixel's footprint."""
+    t = math.tan(math.radians(fov) / 2.0)
+    edges = (1.0 - 2.0 * np.arange(res + 1) / res) * t      # tan-plane coordinate of pixel edges
+    ex, ey = np.meshgrid(edges, edges)                        # (res+1, res+1)
+    opl = direct_opl(ex, ey, unwarp, plane_z, near_clip)
+    corners = np.stack([opl[:-1, :-1], opl[:-1, 1:], opl[1:, :-1], opl[1:, 1:]])
+    lo_opl, hi_opl = corners.min(0), corners.max(0)
+    # footprints that contain an axis (ex = 0 or ey = 0) reach lower OPLs than their corners
+    cols = (edges[:-1] >= 0) & (edges[1:] <= 0)               # pixel spans ex = 0 / ey = 0
+    axis_x = direct_opl(0.0, np.minimum(np.abs(ey[:-1, :-1]), np.abs(ey[1:, :-1])), unwarp,
+                        plane_z, near_clip)
+    axis_y = direct_opl(np.minimum(np.abs(ex[:-1, :-1]), np.abs(ex[:-1, 1:])), 0.0, unwarp,
+                        plane_z, near_clip)
+    lo_opl = np.where(cols[None, :], np.minimum(lo_opl, axis_x), lo_opl)
+    lo_opl = np.where(cols[:, None], np.minimum(lo_opl, axis_y), lo_opl)
+    lo_opl = np.where(cols[:, None] & cols[None, :],
+                      direct_opl(0.0, 0.0, unwarp, plane_z, near_clip), lo_opl)
+    lo = np.floor((lo_opl - window.start_opl) / window.bin_width_opl).astype(int)
+    hi = np.floor((hi_opl - window.start_opl) / window.bin_width_opl).astype(int)
+    return lo, hi
+
+
+# ---------------------------------------------------------------------------------------------
+# loading scenes
+
+
+@lru_cache(maxsize=16)
+def loaded_transient(scene: TransientScene, res: int, window: Window, copies: int = 1):
+    """The transient scene; with ``copies`` > 1 seen through a ``batch`` sensor of that many
+    identical cameras (film (res, copies·res, T, 3)), as in :func:`render.loaded_batch_scene`."""
+    mi = _mitransient()
+    d = scene.transient_dict(mi, res, window)
+    if copies > 1:
+        camera = dict(d["sensor"])
+        camera.pop("sampler", None)
+        # every camera keeps its own res × res film: it sets the camera's aspect ratio (without
+        # one a camera falls back to a 768 × 576 film and sees a different view)
+        film = dict(camera["film"])
+        film["width"] = res * copies
+        batch = {"type": "batch", "sampler": {"type": "independent"}, "film": film}
+        for i in range(copies):
+            batch[f"camera{i:03d}"] = dict(camera)
+        d["sensor"] = batch
+    return mi.load_dict(d)
+
+
+def batch_copies(res: int, bins: int, spp: int) -> int:
+    """Camera copies per 1-spp call: the largest divisor of spp whose pass fits the budgets."""
+    cap = max(1, min(_render.MAX_BATCH_PIXELS // (res * res),
+                     MAX_BATCH_VOXELS // (res * res * bins * 3)))
+    return max(d for d in range(1, min(spp, cap) + 1) if spp % d == 0)
+
+
+# ---------------------------------------------------------------------------------------------
+# moments from power sums (both collectors)
+
+
+def _moments_py(n, s1, s2, s3, k, rtol, mean, var_mean, m3):  # pragma: no cover - jitted
+    """Fused, parallel form of :func:`dbench.datasets.stats.stats_from_power_sums` for one
+    sample count ``n`` (every voxel of a transient render has n = spp samples)."""
+    safe_n = max(n, 1.0)
+    denom = max(n - 1.0, 1.0)
+    for i in prange(s1.size):
+        a = s1[i] / safe_n
+        s2n = s2[i] / safe_n
+        m2b = s2n - a * a
+        zero = (m2b <= rtol * s2n) or (n < 2.0)
+        if zero:
+            m2b = 0.0
+            m3[i] = 0.0
+        else:
+            m3[i] = s3[i] / safe_n - 3.0 * a * m2b - a * a * a
+        sigma2 = m2b * n / denom if n >= 2.0 else 0.0
+        var_mean[i] = sigma2 / safe_n
+        mean[i] = a + k if n > 0 else 0.0
+
+
+try:
+    from numba import njit, prange
+
+    _moments = njit(parallel=True, cache=True)(_moments_py)
+except ImportError:  # pragma: no cover - numba is a dependency
+    prange = range
+    _moments = _moments_py
+
+
+def stats_from_sums(n: int, s1: np.ndarray, s2: np.ndarray, s3: np.ndarray, transform: str,
+                    lam: float, diagnostics: dict | None = None,
+                    shape: tuple[int, ...] | None = None) -> SampleStats:
+    """SampleStats from float64 power sums of u = g(x) − g(0) with one count ``n`` for every
+    voxel: the formulas of spec/statistical.md §4.1 exactly as
+    :func:`~dbench.datasets.stats.stats_from_power_sums` (tests compare them), fused into one
+    parallel pass (the numpy version costs about as much as the render at 64²×200 voxels).
+    1-D inputs (strided views allowed) are read in place; ``shape`` is then the output shape."""
+    shape = np.shape(s1) if shape is None else tuple(shape)
+    flat = [a if np.ndim(a) == 1 and np.asarray(a).dtype == np.float64
+            else np.ascontiguousarray(a, np.float64).reshape(-1) for a in (s1, s2, s3)]
+    out = [np.empty(flat[0].size) for _ in range(3)]
+    _moments(float(n), *flat, float(transform_of_zero(transform, lam)),
+             float(ZERO_VARIANCE_RTOL), *out)
+    mean, var_mean, m3 = (a.reshape(shape) for a in out)
+    return SampleStats(n=float(n), mean=mean, var_mean=var_mean, m3=m3, transform=transform,
+                       lam=float(lam), diagnostics=dict(diagnostics or {}))
+
+
+# ---------------------------------------------------------------------------------------------
+# collector (a): 1-spp passes, host-side float64 power sums
+
+
+@dataclass
+class TransientRender:
+    """The noisy video and what was collected with it."""
+
+    color: np.ndarray                   # (H, W, T, 3) float32, mean of the samples
+    steady: np.ndarray                  # (H, W, 3) float32, same samples, all path lengths
+    stats: SampleStats | None = None    # (H, W, T, 3)
+    non_zero: np.ndarray | None = None  # (H, W, T, 3) int32
+    timing: dict = field(default_factory=dict)
+    #: float64 power sums of u = g(x) − g(0): ``s1``, ``s2``, ``s3`` (H, W, T, 3), and ``n``
+    sums: dict | None = None
+
+    @property
+    def energy_fraction(self) -> float:
+        return energy_fraction(self.color, self.steady)
+
+
+def energy_fraction(video: np.ndarray, steady: np.ndarray) -> float:
+    """Share of the steady energy inside the window: Σ video / Σ steady (all pixels, channels)."""
+    total = float(np.sum(steady, dtype=np.float64))
+    return float(np.sum(video, dtype=np.float64)) / total if total > 0 else float("nan")
+
+
+def pass_samples(scene: TransientScene, res: int, spp: int, seed: int = 0,
+                 bins: int | None = None, copies: int | None = None):
+    """Yield the individual samples of collector (a): (transient (res, copies, res, T, 3),
+    steady (res, copies, res, 3)) float32 per 1-spp call, ``spp`` samples per pixel in all.
+
+    Call k uses seed :func:`render.pass_seed` ("transient", seed, k); the same seeds drive
+    collector (b) in its 1-spp-pass mode (tests compare the two bit for bit)."""
+    mi = _mitransient()
+    window = scene.window(bins)
+    copies = copies or batch_copies(res, window.bins, spp)
+    if spp % copies:
+        raise DbenchInputError(f"copies: expected a divisor of spp = {spp}, got {copies}")
+    sc = loaded_transient(scene, res, window, copies)
+    for k in range(spp // copies):
+        steady, video = mi.render(sc, spp=1, seed=_render.pass_seed("transient", seed, k))
+        video = np.array(video, dtype=np.float32)
+        steady = np.array(steady, dtype=np.float32)
+        yield (video.reshape(res, copies, res, window.bins, 3),
+               steady.reshape(res, copies, res, 3))
+
+
+def collect_passes(scene: TransientScene, res: int, spp: int, seed: int = 0,
+                   bins: int | None = None, stats: tuple[str, float] | None = None,
+                   copies: int | None = None, progress: bool = False) -> TransientRender:
+    """Collector (a): ``spp`` 1-spp samples per pixel, statistics on the host.
+
+    Args:
+        stats: ``(transform, lam)`` to accumulate per-bin statistics and ``non_zero``; None
+            gives the color and steady image only (same samples, so the same color).
+        copies: camera copies per call (default :func:`batch_copies`); 1 = plain passes.
+    Returns:
+        :class:`TransientRender` with timings ``render_s`` (rendering) and ``stats_s``
+        (host-side accumulation).
+    """
+    if not isinstance(spp, (int, np.integer)) or spp < 1:
+        raise DbenchInputError(f"spp: expected an integer >= 1, got {spp!r}")
+    window = scene.window(bins)
+    shape = (res, res, window.bins, 3)
+    acc = PowerSums(shape, *stats) if stats else None
+    total = np.zeros(shape, np.float64)
+    steady = np.zeros((res, res, 3), np.float64)
+    non_zero = np.zeros(shape, np.int32) if stats else None
+    clamp = stats is not None and stats[0] == "box-cox"
+    render_s = stats_s = 0.0
+    copies = copies or batch_copies(res, window.bins, spp)
+    samples = pass_samples(scene, res, spp, seed, bins, copies)
+    with _render._progress(spp, f"{scene.name} {spp} spp (a)", progress) as bar:
+        while True:
+            t0 = time.perf_counter()
+            item = next(samples, None)
+            if item is None:
+                break
+            video, st = item
+            t1 = time.perf_counter()
+            steady += st.sum(axis=1, dtype=np.float64)
+            if acc is not None:
+                total += acc.add_batch(video, axis=1)
+                nz = (video > 0) if clamp else (video != 0)
+                if acc.n_nonfinite:
+                    nz &= np.isfinite(video)
+                non_zero += nz.sum(axis=1, dtype=np.int32)
+            else:
+                total += video.sum(axis=1, dtype=np.float64)
+            render_s += t1 - t0
+            stats_s += time.perf_counter() - t1
+            bar.update(copies)
+    out = TransientRender(color=(total / spp).astype(np.float32),
+                          steady=(steady / spp).astype(np.float32),
+                          stats=(stats_from_sums(acc.n, acc.s1, acc.s2, acc.s3, acc.transform,
+                                                 acc.lam, {"n_nonfinite": acc.n_nonfinite,
+                                                           "n_clamped": acc.n_clamped})
+                                 if acc else None), non_zero=non_zero,
+                          timing={"render_s": render_s, "stats_s": stats_s, "copies": copies,
+                                  "collector": "a"},
+                          sums=({"s1": acc.s1, "s2": acc.s2, "s3": acc.s3, "n": acc.n}
+                                if acc else None))
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+# collector (b): in the integrator
+
+
+def collect_in_integrator(scene: TransientScene, res: int, spp: int, seed: int = 0,
+                          bins: int | None = None, transform: str = DEFAULT_TRANSFORM,
+                          lam: float = 0.5, per_pass: bool = False, slots: int = 0
+                          ) -> TransientRender:
+    """Collector (b) (:mod:`dbench.datasets.transient_collector`): running per-path sums inside
+    ``transient_path``, flushed into float64 power sums with atomics.
+
+    Args:
+        per_pass: render ``spp`` 1-spp passes with collector (a)'s seeds (bit-identical to (a)
+            with ``copies=1``); default: one call of ``spp`` samples (seed
+            ``pass_seed("transient-b", seed, 0)``).
+        slots: per-path slots (0 = 2·max_depth, exact).
+    """
+    from .transient_collector import StatsCollector
+
+    if scene.integrator != "transient_path":
+        raise DbenchInputError(f"collector: (b) runs inside transient_path; scene {scene.name} "
+                               f"uses {scene.integrator}, use collector 'a'")
+    if not isinstance(spp, (int, np.integer)) or spp < 1:
+        raise DbenchInputError(f"spp: expected an integer >= 1, got {spp!r}")
+    check_transform(transform, lam)
+    _mitransient()
+    window = scene.window(bins)
+    sc = loaded_transient(scene, res, window, 1)
+    col = _collector(sc, transform, float(lam), scene.max_depth, scene.rr_depth,
+                     scene.camera_unwarp, int(slots))
+    col.reset()
+    if per_pass:
+        for k in range(spp):
+            col.render(1, _render.pass_seed("transient", seed, k))
+    else:
+        col.render(spp, _render.pass_seed("transient-b", seed, 0))
+    t0 = time.perf_counter()
+    sums = col.power_sums()
+    inter = sums["interleaved"]
+    stats = stats_from_sums(col.n, inter[:, 0], inter[:, 1], inter[:, 2], transform, lam,
+                            col.diagnostics(), shape=sums["s1"].shape)
+    color = (sums["plain"] / col.n).astype(np.float32)
+    non_zero = sums["non_zero"]
+    steady = (col.steady / col.n).astype(np.float32)
+    state_bytes, diagnostics = col.nbytes(), col.diagnostics()
+    col.release()  # the cached collector keeps its integrator, not the sums
+    return TransientRender(color=color, steady=steady, stats=stats,
+                           non_zero=non_zero,
+                           sums={"s1": sums["s1"], "s2": sums["s2"], "s3": sums["s3"],
+                                 "n": col.n},
+                           timing={"render_s": col.render_s,
+                                   "stats_s": time.perf_counter() - t0,
+                                   "collector": "b", "state_bytes": state_bytes,
+                                   "slots": col.slots, **diagnostics})
+
+
+@lru_cache(maxsize=4)
+def _collector(sc, transform, lam, max_depth, rr_depth, unwarp, slots):
+    from .transient_collector import StatsCollector
+
+    return StatsCollector(sc, transform=transform, lam=lam, max_depth=max_depth,
+                          rr_depth=rr_depth, camera_unwarp=unwarp, slots=slots)
+
+
+# ---------------------------------------------------------------------------------------------
+# plain renders: timing baseline and reference
+
+
+def render_plain(scene: TransientScene, res: int, spp: int, seed: int = 0,
+                 bins: int | None = None) -> tuple[np.ndarray, np.ndarray, float]:
+    """One ordinary transient render of ``spp`` (the baseline of the collector benchmark).
+
+    Returns (video (H, W, T, 3), steady (H, W, 3), seconds)."""
+    import drjit as dr
+
+    mi = _mitransient()
+    sc = loaded_transient(scene, res, scene.window(bins), 1)
+    t0 = time.perf_counter()
+    steady, video = mi.render(sc, spp=int(spp), seed=_render.pass_seed("plain", seed, 0))
+    dr.eval(steady, video)
+    video, steady = np.array(video, dtype=np.float32), np.array(steady, dtype=np.float32)
+    return video, steady, time.perf_counter() - t0
+
+
+def render_reference(scene: TransientScene, res: int, spp: int, seed: int = 0,
+                     bins: int | None = None, chunk: int = DEFAULT_REFERENCE_CHUNK,
+                     progress: bool = False) -> tuple[np.ndarray, np.ndarray, float]:
+    """High-spp video in chunks of ``chunk`` spp with independent seeds (same window).
+
+    Returns (video (H, W, T, 3), steady (H, W, 3), seconds)."""
+    mi = _mitransient()
+    window = scene.window(bins)
+    sc = loaded_transient(scene, res, window, 1)
+    chunks = [chunk] * (spp // chunk) + ([spp % chunk] if spp % chunk else [])
+    video = np.zeros((res, res, window.bins, 3), np.float64)
+    steady = np.zeros((res, res, 3), np.float64)
+    t0 = time.perf_counter()
+    with _render._progress(len(chunks), f"{scene.name} reference {spp} spp",
+                           progress and len(chunks) >= 8) as bar:
+        for i, n in enumerate(chunks):
+            st, tr = mi.render(sc, spp=n, seed=_render.pass_seed("reference", seed, i))
+            video += np.array(tr, dtype=np.float64) * n
+            steady += np.array(st, dtype=np.float64) * n
+            bar.update(1)
+    return ((video / spp).astype(np.float32), (steady / spp).astype(np.float32),
+            time.perf_counter() - t0)
+
+
+# ---------------------------------------------------------------------------------------------
+# window sizing
+
+
+def _emitter_boxes(mi, sc) -> list[tuple[np.ndarray, np.ndarray]]:
+    boxes = []
+    for em in sc.emitters():
+        shape = em.get_shape()
+        if shape is not None:
+            bb = shape.bbox()
+            boxes.append((np.array(bb.min, np.float64).ravel(),
+                          np.array(bb.max, np.float64).ravel()))
+        else:
+            p = np.array(em.world_transform().translation(), np.float64).ravel()
+            boxes.append((p, p))
+    return boxes
+
+
+def direct_arrivals(scene: TransientScene, res: int = 32, seed: int = 0) -> np.ndarray:
+    """(res, res) warped OPL of the earliest direct arrival per pixel from the geometry:
+    camera → first hit (depth AOV) + first hit → nearest point of an emitter's bounding box;
+    NaN where nothing is hit. A lower bound on every path's OPL in the pixel (up to the pixel
+    footprint), used to place ``window_start``."""
+    mi = mitsuba()
+    # one sample per pixel: with the box filter the AOVs are then single hits, not averages
+    # of a hit and the background at silhouettes
+    feats, _ = _render.render_features(scene.feature_scene, res, spp=1, seed=seed)
+    sc = mi.load_dict(scene.build(mi, res))
+    depth = feats["depth"][..., 0].astype(np.float64)
+    pos = feats["position"].astype(np.float64)
+    best = np.full(depth.shape, np.inf)
+    for lo, hi in _emitter_boxes(mi, sc):
+        gap = np.maximum(np.maximum(lo - pos, pos - hi), 0.0)
+        best = np.minimum(best, np.sqrt((gap ** 2).sum(-1)))
+    out = depth + best
+    out[depth <= 0] = np.nan
+    return out
+
+
+def size_window(scene: TransientScene, coverage: float = 0.99, res: int = 24, spp: int = 256,
+                horizon: float = 40.0, bins: int = 4000, seed: int = 0) -> dict:
+    """Choose a window for ``scene``: start at the earliest direct arrival (geometry, rounded
+    down to 0.1 m) and end where ``coverage`` of the steady energy has arrived (pilot transient
+    render of ``res``² px at ``spp`` over [start, start + ``horizon``), rounded up to 0.5 m).
+
+    Returns start, end, the first direct arrival, the fraction of the pilot's steady energy
+    inside [start, end) and before start (which must be 0)."""
+    arrivals = direct_arrivals(scene, res=max(res, 64), seed=seed)
+    first = float(np.nanmin(arrivals))
+    start = math.floor(first * 10.0) / 10.0
+    pilot = TransientScene(name=f"{scene.name}:pilot", kind="transient", description="",
+                           build=scene.build, max_depth=scene.max_depth,
+                           window_start=0.0, window_end=start + horizon, default_bins=bins,
+                           integrator=scene.integrator, rr_depth=scene.rr_depth,
+                           camera_unwarp=scene.camera_unwarp)
+    video, steady, _ = render_reference(pilot, res, spp, seed=seed, chunk=64)
+    window = pilot.window()
+    per_bin = video.astype(np.float64).sum(axis=(0, 1, 3))
+    total = float(steady.astype(np.float64).sum())
+    cum = np.cumsum(per_bin) / total
+    first_bin = window.bin_of(start)
+    before = float(cum[first_bin - 1]) if first_bin > 0 else 0.0
+    inside = cum - before
+    idx = int(np.searchsorted(inside, coverage))
+    end = window.start_opl + (min(idx, window.bins - 1) + 1) * window.bin_width_opl
+    end = math.ceil(end * 2.0) / 2.0
+    last = window.bin_of(end)
+    frac = float(cum[min(last, window.bins) - 1] - before)
+    return {"scene": scene.name, "first_arrival": first, "start_opl": start, "end_opl": end,
+            "fraction_inside": frac, "fraction_before_start": before,
+            "fraction_in_pilot_window": float(cum[-1])}
+
+
+# ---------------------------------------------------------------------------------------------
+# the loader
+
+
+def _resolve_collector(scene: TransientScene, collector: str) -> str:
+    if collector not in COLLECTORS:
+        raise DbenchInputError(f"collector: expected one of {COLLECTORS}, got {collector!r}")
+    if collector == "auto":
+        return "b" if scene.integrator == "transient_path" else "a"
+    if collector == "b" and scene.integrator != "transient_path":
+        raise DbenchInputError(f"collector: 'b' needs transient_path; {scene.name} uses "
+                               f"{scene.integrator}; use 'a' or 'auto'")
+    return collector
+
+
+def reference_spp(spp: int, ref_spp: int | None) -> int:
+    from . import reference_spp as default_ref
+
+    return int(ref_spp) if ref_spp else max(default_ref(), 16 * int(spp))
+
+
+def load_transient(scene: str | TransientScene, spp: int, res: int,
+                   needs: Iterable[str] | None = None, transform: str = DEFAULT_TRANSFORM,
+                   lam: float = 0.5, seed: int = 0, ref_spp: int | None = None,
+                   cache: Cache | None = None, progress: bool = True, bins: int | None = None,
+                   collector: str = "auto") -> TransientFrame:
+    """A :class:`~dbench.data.TransientFrame` of a transient scene, rendering what is missing.
+
+    Args:
+        scene: catalogue name or TransientScene.
+        spp: samples per pixel (paths per pixel; each is one sample of every bin).
+        res: image side in pixels.
+        needs: buffers (``color`` always comes; ``stats`` adds ``non_zero``); None = all.
+        transform, lam: sample transform of the statistics (default identity, spec §3).
+        seed: base seed of the noisy samples, features and reference (disjoint streams).
+        ref_spp: reference spp (default max(DBENCH_REF_SPP or 4096, 16·spp)).
+        bins: T (default the scene's); the window [start, end) stays the scene's.
+        collector: ``"a"`` (1-spp passes, host sums), ``"b"`` (in-integrator) or ``"auto"``
+            (b for transient_path scenes, a for media). The color comes from the same samples
+            as the statistics, so it does not depend on whether ``stats`` was asked for.
+    """
+    sc = scene if isinstance(scene, Scene) else _scenes.get(scene)
+    if not isinstance(sc, TransientScene):
+        raise DbenchInputError(f"scene: {sc.name} is a {sc.kind} scene, not a transient one")
+    if not isinstance(spp, (int, np.integer)) or spp < 1:
+        raise DbenchInputError(f"spp: expected an integer >= 1, got {spp!r}")
+    if not isinstance(res, (int, np.integer)) or res < 1:
+        raise DbenchInputError(f"res: expected an integer >= 1, got {res!r}")
+    wanted = set(sc.provides if needs is None else needs) | {"color"}
+    unknown = wanted - set(sc.provides)
+    if unknown:
+        raise DbenchInputError(f"needs: scene {sc.name} cannot provide {sorted(unknown)}; "
+                               f"it provides {sorted(sc.provides)}")
+    check_transform(transform, lam)
+    _mitransient()
+    mi = mitsuba()
+    window = sc.window(bins)
+    which = _resolve_collector(sc, collector)
+    cache = cache or Cache()
+    base = {"scene": sc.name, "res": int(res), "dict": sc.transient_dict(mi, res, window),
+            "params": sc.params, "versions": versions(), "window": window.meta()}
+    meta: dict = {"scene": sc.name, "kind": "transient", "spp": int(spp), "res": int(res),
+                  "seed": int(seed), "ev": sc.ev, "versions": base["versions"],
+                  **window.meta(), "camera_unwarp": sc.camera_unwarp, "max_depth": sc.max_depth,
+                  "integrator": sc.integrator, "emitter": "delta pulse at OPL 0",
+                  "medium": sc.medium, "collector": which, "cache_hits": [], "rendered": []}
+
+    want_stats = "stats" in wanted or which == "b"
+    copies = batch_copies(res, window.bins, spp) if which == "a" else 1
+    noisy_desc = {**base, "what": "transient-noisy", "spp": int(spp), "seed": int(seed),
+                  "collector": which, "copies": copies}
+    stats_desc = {**noisy_desc, "what": "transient-stats", "transform": transform,
+                  "lam": float(lam)}
+    noisy = cache.get("transient-noisy", noisy_desc)
+    st_entry = cache.get("transient-stats", stats_desc) if "stats" in wanted else None
+    stats = non_zero = None
+    if noisy is not None and ("stats" not in wanted or st_entry is not None):
+        arrays = noisy.arrays()
+        color, steady = arrays["color"], arrays["steady"]
+        meta.update(render_s=noisy.meta.get("render_s"))
+        meta["cache_hits"].append("color")
+        if st_entry is not None:
+            sa = st_entry.arrays()
+            stats = SampleStats(n=float(spp), mean=sa["mean"], var_mean=sa["var_mean"],
+                                m3=sa["m3"], transform=transform, lam=float(lam),
+                                diagnostics=st_entry.meta.get("diagnostics", {}))
+            non_zero = sa["non_zero"]
+            meta.update(stats_s=st_entry.meta.get("stats_s"))
+            meta["cache_hits"].append("stats")
+    else:
+        if which == "b":
+            out = collect_in_integrator(sc, res, spp, seed, bins, transform, lam)
+        else:
+            out = collect_passes(sc, res, spp, seed, bins,
+                                 (transform, lam) if "stats" in wanted else None,
+                                 copies=copies, progress=progress)
+        color, steady = out.color, out.steady
+        meta.update(render_s=out.timing["render_s"])
+        meta["rendered"].append("color")
+        if noisy is None:
+            cache.put("transient-noisy", noisy_desc, arrays={"color": color, "steady": steady},
+                      meta={"render_s": out.timing["render_s"],
+                            "timing": {k: v for k, v in out.timing.items()}})
+        if out.stats is not None and "stats" in wanted:
+            stats, non_zero = out.stats, out.non_zero
+            meta.update(stats_s=out.timing["stats_s"])
+            meta["rendered"].append("stats")
+            cache.put("transient-stats", stats_desc,
+                      arrays={"mean": stats.mean, "var_mean": stats.var_mean, "m3": stats.m3,
+                              "non_zero": non_zero},
+                      meta={"stats_s": out.timing["stats_s"],
+                            "diagnostics": stats.diagnostics})
+    if stats is not None:
+        meta["stats_diagnostics"] = dict(stats.diagnostics)
+    meta["energy_fraction"] = energy_fraction(color, steady)
+    meta["window_covers_all"] = bool(meta["energy_fraction"] >= COVERS_ALL)
+
+    buffers: dict[str, np.ndarray] = {}
+    feats_wanted = wanted & {"albedo", "normal", "depth", "position"}
+    if feats_wanted:
+        fsc = sc.feature_scene
+        feat_desc = {"scene": sc.name, "res": int(res), "dict": fsc.scene_dict(mi, res),
+                     "versions": base["versions"], "what": "transient-features",
+                     "spp": _render.DEFAULT_FEATURE_SPP, "seed": int(seed),
+                     "aovs": _render.AOV_STRING}
+        entry = cache.get("features", feat_desc)
+        if entry is not None:
+            feats = entry.images()
+            meta["cache_hits"].append("features")
+        else:
+            feats, seconds = _render.render_features(fsc, res, seed=seed)
+            cache.put("features", feat_desc, images=feats, meta={"render_s": seconds})
+            meta["rendered"].append("features")
+        buffers.update({k: feats[k] for k in feats_wanted})
+
+    if "reference" in wanted:
+        rspp = reference_spp(spp, ref_spp)
+        ref_desc = {**base, "what": "transient-reference", "spp": rspp, "seed": int(seed),
+                    "chunk": DEFAULT_REFERENCE_CHUNK}
+        entry = cache.get("transient-reference", ref_desc)
+        if entry is not None:
+            arrays = entry.arrays()
+            ref, ref_steady = arrays["reference"], arrays["steady"]
+            meta["cache_hits"].append("reference")
+        else:
+            ref, ref_steady, seconds = render_reference(sc, res, rspp, seed, bins,
+                                                        progress=progress)
+            cache.put("transient-reference", ref_desc,
+                      arrays={"reference": ref, "steady": ref_steady},
+                      meta={"render_s": seconds})
+            meta["rendered"].append("reference")
+        buffers["reference"] = ref
+        meta["ref_spp"] = rspp
+        meta["reference_energy_fraction"] = energy_fraction(ref, ref_steady)
+
+    return TransientFrame(color=color, stats=stats, steady=steady,
+                          non_zero=None if non_zero is None else non_zero, meta=meta, **buffers)
+
+
+__all__ = ["TransientScene", "Window", "TransientRender", "load_transient", "collect_passes",
+           "collect_in_integrator", "pass_samples", "render_plain", "render_reference",
+           "size_window", "direct_arrivals", "direct_arrival_dict", "expected_direct_bins",
+           "energy_fraction", "transient_film", "SPEED_OF_LIGHT"]

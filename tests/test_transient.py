@@ -1,0 +1,369 @@
+"""Transient datasets: TransientFrame, scenes, windows, energy, direct arrival, and the two
+collectors of per-bin statistics (spec/transient.md §7, spec/statistical.md §11, §13.14)."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from dbench.data import SampleStats, TransientFrame
+from dbench.errors import DbenchInputError
+
+SPP = 8
+
+
+# ---------------------------------------------------------------------------------------------
+# TransientFrame (no rendering)
+
+
+def test_transient_frame_shapes_and_time_axis():
+    v = TransientFrame(color=np.zeros((4, 5, 6, 3)), albedo=np.ones((4, 5, 3)),
+                       normal=np.ones((4, 5, 3)), depth=np.ones((4, 5)),
+                       reference=np.zeros((4, 5, 6, 3)),
+                       meta={"start_opl": 3.5, "bin_width_opl": 0.5})
+    assert v.kind == "transient" and v.shape == (4, 5) and v.bins == 6
+    assert v.color.dtype == np.float32 and v.depth.shape == (4, 5, 1)
+    assert v.end_opl == pytest.approx(6.5)
+    np.testing.assert_allclose(v.time_axis, 3.5 + 0.5 * (np.arange(6) + 0.5))
+    assert v.has("albedo") and not v.has("stats")
+
+
+@pytest.mark.parametrize("kwargs, name", [
+    (dict(color=np.zeros((4, 5, 3))), "color"),
+    (dict(color=np.zeros((4, 5, 6, 3)), albedo=np.zeros((4, 4, 3))), "albedo"),
+    (dict(color=np.zeros((4, 5, 6, 3)), reference=np.zeros((4, 5, 5, 3))), "reference"),
+    (dict(color=np.zeros((4, 5, 6, 3)), non_zero=np.zeros((4, 5, 6))), "non_zero"),
+    (dict(color=np.zeros((4, 5, 6, 3)), meta={"bins": 7}), "meta.bins"),
+    (dict(color=np.zeros((4, 5, 6, 3)), meta={"bin_width_opl": 0.0}), "meta.bin_width_opl"),
+    (dict(color=np.zeros((4, 5, 6, 3)),
+          stats=SampleStats(n=4, mean=np.zeros((4, 5, 3)), var_mean=np.zeros((4, 5, 3)),
+                            m3=np.zeros((4, 5, 3)))), "stats"),
+])
+def test_transient_frame_validation_names_the_buffer(kwargs, name):
+    with pytest.raises(DbenchInputError, match=name.replace(".", r"\.")):
+        TransientFrame(**kwargs)
+
+
+# ---------------------------------------------------------------------------------------------
+# rendering fixtures
+
+
+@pytest.fixture(scope="module")
+def tr(renderer):
+    from dbench.datasets import mitsuba_env
+    if not mitsuba_env.mitsuba().variant().startswith(("llvm", "cuda")):
+        pytest.skip("transient rendering needs the llvm_ad_rgb variant")
+    from dbench.datasets import transient
+    transient._mitransient()
+    return transient
+
+
+def _corridor(mi, res):
+    """A narrow corridor lit by its far end: along the corridor OPL + distance to the light is
+    nearly constant, so next-event estimates of later vertices fall back into earlier bins."""
+    from dbench.datasets.scenes import _camera, _diffuse, _rect
+    T = mi.ScalarTransform4f
+    white = _diffuse((0.8, 0.8, 0.8))
+    length, hw = 4.0, 0.4
+    d = {"type": "scene",
+         "sensor": _camera(mi, res, origin=[0, 0, 0.3], target=[0, 0, -length], fov=50)}
+    half = [hw, length / 2, 1]
+    d["floor"] = _rect(mi, T().translate([0, -hw, -length / 2]).rotate([1, 0, 0], -90)
+                       .scale(half), white)
+    d["ceiling"] = _rect(mi, T().translate([0, hw, -length / 2]).rotate([1, 0, 0], 90)
+                         .scale(half), white)
+    d["left"] = _rect(mi, T().translate([-hw, 0, -length / 2]).rotate([0, 1, 0], 90)
+                      .scale([length / 2, hw, 1]), white)
+    d["right"] = _rect(mi, T().translate([hw, 0, -length / 2]).rotate([0, 1, 0], -90)
+                       .scale([length / 2, hw, 1]), white)
+    d["light"] = _rect(mi, T().translate([0, 0, -length]).scale(hw), _diffuse((0, 0, 0)),
+                       {"type": "area", "radiance": {"type": "rgb", "value": [5.0, 4.0, 3.0]}})
+    return d
+
+
+@pytest.fixture(scope="module")
+def corridor(tr):
+    return tr.TransientScene(name="test-corridor", kind="transient", description="test",
+                             build=_corridor, max_depth=8, window_start=3.5, window_end=9.5,
+                             default_bins=20)
+
+
+# ---------------------------------------------------------------------------------------------
+# catalogue, loader, cache
+
+
+def test_transient_scenes_are_listed(tr):
+    from dbench import datasets
+    names = datasets.available_scenes()
+    for name in ("cornell-transient", "caustic-transient", "fog-transient"):
+        assert name in names
+        sc = datasets.get_scene(name)
+        assert sc.kind == "transient" and {"color", "stats", "reference"} <= set(sc.provides)
+        w = sc.window()
+        assert w.start_opl > 0 and w.end_opl > w.start_opl and w.bins >= 20
+    assert datasets.get_scene("fog-transient").integrator == "transient_prbvolpath"
+
+
+def test_load_returns_transient_frame_and_caches(tr, tmp_cache):
+    from dbench import datasets
+    kw = dict(spp=4, res=8, bins=24, ref_spp=64, cache=tmp_cache, progress=False)
+    v = datasets.load("cornell-transient", **kw)
+    assert isinstance(v, TransientFrame)
+    assert v.color.shape == (8, 8, 24, 3) and v.reference.shape == (8, 8, 24, 3)
+    assert v.stats.shape == (8, 8, 24, 3) and v.non_zero.shape == (8, 8, 24, 3)
+    assert v.albedo.shape == (8, 8, 3) and v.normal.shape == (8, 8, 3)
+    assert v.depth.shape == (8, 8, 1) and v.steady.shape == (8, 8, 3)
+    m = v.meta
+    assert m["bins"] == 24 and m["start_opl"] == pytest.approx(3.8)
+    assert m["bin_width_opl"] == pytest.approx((11.5 - 3.8) / 24)
+    assert m["collector"] == "b" and m["stats_diagnostics"]["n_overflow"] == 0
+    assert 0.9 < m["energy_fraction"] <= 1.0 + 1e-6
+    assert 0.9 < m["reference_energy_fraction"] <= 1.0 + 1e-6
+    assert np.all(v.non_zero >= 0) and np.all(v.non_zero <= 4)
+    # identity statistics: the mean of the samples is the color
+    np.testing.assert_allclose(v.stats.mean, v.color, rtol=1e-6, atol=1e-7)
+    again = datasets.load("cornell-transient", **kw)
+    assert {"color", "stats", "features", "reference"} <= set(again.meta["cache_hits"])
+    assert not again.meta["rendered"]
+    np.testing.assert_array_equal(again.color, v.color)
+    np.testing.assert_array_equal(again.stats.var_mean, v.stats.var_mean)
+    np.testing.assert_array_equal(again.non_zero, v.non_zero)
+
+
+def test_load_errors(tr, tmp_cache):
+    from dbench import datasets
+    with pytest.raises(DbenchInputError, match="collector"):
+        datasets.load("fog-transient", spp=2, res=8, bins=20, collector="b", cache=tmp_cache)
+    with pytest.raises(DbenchInputError, match="bins"):
+        datasets.load("cornell-transient", spp=2, res=8, bins=0, cache=tmp_cache)
+    with pytest.raises(DbenchInputError, match="needs"):
+        datasets.load("cornell-transient", spp=2, res=8, needs={"motion"}, cache=tmp_cache)
+
+
+# ---------------------------------------------------------------------------------------------
+# spec/transient.md §7: energy and direct arrival
+
+
+def test_energy_sum_over_bins_equals_steady_with_a_covering_window(tr):
+    """Check 1: Σ_t transient = steady per pixel (1e-5 rel) when the window covers all."""
+    from dbench.datasets import scenes
+    base = scenes.get("cornell-transient")
+    wide = tr.TransientScene(name="cornell-wide", kind="transient", description="",
+                             build=base.build, max_depth=8, window_start=0.0,
+                             window_end=40.0, default_bins=2000)
+    out = tr.collect_passes(wide, 12, SPP, seed=3, stats=None)
+    total = out.color.astype(np.float64).sum(axis=2)
+    steady = out.steady.astype(np.float64)
+    assert steady.max() > 0
+    np.testing.assert_allclose(total, steady, rtol=1e-5, atol=1e-5 * steady.max())
+    assert out.energy_fraction == pytest.approx(1.0, abs=1e-5)
+    # the catalogue window truncates the tail: reported, below 1 but holding ≥ 98 %
+    cat = tr.collect_passes(base, 12, SPP, seed=3, bins=40, stats=None)
+    assert 0.98 < cat.energy_fraction < 1.0
+
+
+@pytest.mark.parametrize("unwarp, centre, corner", [(False, {125}, {130, 131}),
+                                                    (True, {25}, {28})])
+def test_direct_arrival_bin(tr, unwarp, centre, corner):
+    """Check 2-3: camera and point light at the origin, plane at z = 2, start 1.49, width 0.02:
+    the centre pixel in bin 125 (warped, OPL 4.0) / 25 (unwarped, OPL 2.0), the corner in
+    130-131 / 28, every pixel within its footprint's bin range, bins summing to steady."""
+    mi = tr.mitsuba()
+    window = tr.Window(1.49, 0.02, 200)
+    scene = mi.load_dict(tr.direct_arrival_dict(mi, 33, window, unwarp=unwarp))
+    steady, video = mi.render(scene, spp=16, seed=1)
+    video, steady = np.array(video, np.float64), np.array(steady, np.float64)
+    lit = video.sum(-1) > 0
+    assert set(np.flatnonzero(lit[16, 16])) == centre
+    assert set(np.flatnonzero(lit[0, 0])) <= corner and lit[0, 0].any()
+    lo, hi = tr.expected_direct_bins(33, window, unwarp)
+    t = np.arange(200)
+    assert not np.any(lit & ((t < lo[..., None]) | (t > hi[..., None])))
+    np.testing.assert_allclose(video.sum(axis=2), steady, rtol=1e-5, atol=1e-7)
+    assert window.bin_of(2.0 if unwarp else 4.0) == min(centre)
+
+
+def test_window_starts_at_the_first_direct_arrival(tr):
+    """size_window: no energy before the chosen start; the catalogue start is not later."""
+    from dbench.datasets import scenes
+    sc = scenes.get("cornell-transient")
+    r = tr.size_window(sc, coverage=0.99, res=12, spp=32, horizon=20.0, bins=1000)
+    assert r["fraction_before_start"] == 0.0
+    assert r["start_opl"] <= r["first_arrival"]
+    assert sc.window_start <= r["first_arrival"] + 0.05
+    assert 0.98 <= r["fraction_inside"] <= 1.0
+
+
+# ---------------------------------------------------------------------------------------------
+# collector (a) against numpy
+
+
+@pytest.mark.parametrize("transform", ["identity", "box-cox"])
+def test_collector_a_equals_numpy_on_stacked_passes(tr, transform):
+    from dbench.datasets import scenes
+    from dbench.datasets.stats import stats_from_samples, transform_of_zero, transform_samples
+    sc = scenes.get("cornell-transient")
+    res, bins = 8, 30
+    samples = [v for v, _ in tr.pass_samples(sc, res, SPP, seed=5, bins=bins, copies=2)]
+    stack = np.concatenate([np.moveaxis(v, 1, 0) for v in samples], axis=0)  # (spp, H, W, T, 3)
+    assert stack.shape == (SPP, res, res, bins, 3)
+    out = tr.collect_passes(sc, res, SPP, seed=5, bins=bins, stats=(transform, 0.5), copies=2)
+    u = transform_samples(stack, transform, 0.5) - transform_of_zero(transform, 0.5)
+    for k, p in (("s1", 1), ("s2", 2), ("s3", 3)):
+        np.testing.assert_allclose(out.sums[k], (u ** p).sum(axis=0), rtol=1e-12, atol=1e-12)
+    ref = stats_from_samples(stack, transform, 0.5, axis=0)
+    scale = np.abs(ref.mean).max()
+    np.testing.assert_allclose(out.stats.mean, ref.mean, rtol=1e-6, atol=1e-9 * scale)
+    np.testing.assert_allclose(out.stats.var_mean, ref.var_mean, rtol=1e-6,
+                               atol=1e-9 * ref.var_mean.max())
+    np.testing.assert_allclose(out.stats.m3, ref.m3, rtol=1e-6, atol=1e-9 * np.abs(ref.m3).max())
+    np.testing.assert_allclose(out.color, stack.mean(axis=0), rtol=1e-6, atol=1e-8)
+    nz = (stack > 0 if transform == "box-cox" else stack != 0).sum(axis=0)
+    np.testing.assert_array_equal(out.non_zero, nz)
+    assert out.non_zero.max() <= SPP and out.non_zero.min() >= 0
+    # bins no path reached: θ̂ = g(0), Var = 0 (spec/statistical.md §13.14)
+    empty = nz == 0
+    assert empty.any()
+    np.testing.assert_array_equal(out.stats.theta[empty], transform_of_zero(transform, 0.5))
+    np.testing.assert_array_equal(out.stats.var_mean[empty], 0.0)
+
+
+# ---------------------------------------------------------------------------------------------
+# collector (b) against collector (a)
+
+
+def _assert_same(a, b):
+    for k in ("s1", "s2", "s3"):
+        np.testing.assert_array_equal(a.sums[k], b.sums[k], err_msg=k)
+    np.testing.assert_array_equal(a.non_zero, b.non_zero)
+    np.testing.assert_array_equal(a.color, b.color)
+    np.testing.assert_array_equal(a.stats.mean, b.stats.mean)
+    np.testing.assert_array_equal(a.stats.var_mean, b.stats.var_mean)
+    np.testing.assert_array_equal(a.stats.m3, b.stats.m3)
+    np.testing.assert_allclose(a.steady, b.steady, rtol=1e-6)
+
+
+@pytest.mark.parametrize("transform", ["identity", "box-cox"])
+def test_collector_b_equals_a_exactly(tr, transform):
+    """Same seeds and paths (1-spp passes): bit-identical power sums, counts and moments."""
+    from dbench.datasets import scenes
+    sc = scenes.get("cornell-transient")
+    a = tr.collect_passes(sc, 10, SPP, seed=2, bins=40, stats=(transform, 0.5), copies=1)
+    b = tr.collect_in_integrator(sc, 10, SPP, seed=2, bins=40, transform=transform,
+                                 per_pass=True)
+    _assert_same(a, b)
+    assert b.timing["n_overflow"] == 0 and b.timing["n_nonfinite"] == 0
+
+
+def test_collector_b_exact_when_nee_reenters_bins(tr, corridor):
+    """NEE makes the bin order non-monotone: paths leave a bin and come back. The slots merge
+    the re-entries, so (b) still equals (a); flushing on every bin change (the seed's Alg. 4 as
+    printed, slots = 1) double-counts those paths and differs."""
+    spp = 16
+    a = tr.collect_passes(corridor, 8, spp, seed=0, stats=("identity", 0.5), copies=1)
+    b = tr.collect_in_integrator(corridor, 8, spp, seed=0, per_pass=True)
+    assert b.timing["n_reentry"] > 0
+    _assert_same(a, b)
+    assert 0 <= b.non_zero.min() and b.non_zero.max() <= spp
+    naive = tr.collect_in_integrator(corridor, 8, spp, seed=0, per_pass=True, slots=1)
+    assert naive.timing["n_overflow"] > 0
+    assert not np.array_equal(naive.sums["s2"], a.sums["s2"])
+    # first moments agree (the same contributions are summed), second moments do not
+    np.testing.assert_allclose(naive.sums["s1"], a.sums["s1"], rtol=1e-5, atol=1e-6)
+
+
+def test_collector_b_single_call_and_memory_independent_of_spp(tr):
+    """All spp in one render: consistent statistics, 0 ≤ non_zero ≤ spp, and a state whose size
+    depends on the film only: (H·W·T·3) × 3 float64 sums + (H·W·T) packed uint64 counts + 4
+    uint32 counters."""
+    from dbench.datasets import scenes
+    sc = scenes.get("cornell-transient")
+    res, bins = 8, 30
+    sizes = {}
+    for spp in (1, 4, 64):
+        out = tr.collect_in_integrator(sc, res, spp, seed=1, bins=bins)
+        sizes[spp] = out.timing["state_bytes"]
+        assert out.non_zero.min() >= 0 and out.non_zero.max() <= spp
+        assert out.timing["n_overflow"] == 0
+        # identity transform: S1 / n is the color, S2 ≥ S1² / n (Cauchy-Schwarz)
+        np.testing.assert_allclose(out.sums["s1"] / spp, out.color, rtol=1e-6, atol=1e-9)
+        assert np.all(out.sums["s2"] * spp >= out.sums["s1"] ** 2 * (1 - 1e-9) - 1e-12)
+        assert 0.95 < out.energy_fraction <= 1.0 + 1e-6
+    voxels = res * res * bins * 3
+    assert sizes[1] == sizes[4] == sizes[64] == voxels * 3 * 8 + voxels // 3 * 8 + 4 * 4
+
+
+def test_collector_b_matches_the_plain_render_in_expectation(tr):
+    """(b), (a) through a batch sensor and a plain transient_path render estimate the same
+    video: the image-summed energy of every bin and channel agrees within the Monte Carlo
+    noise, measured by the collectors' own variance estimates (pixels are independent: the
+    variances add). Pixels that see the light are left out: their rare, huge samples make
+    the variance estimate itself unreliable at 64 spp."""
+    from dbench.datasets import scenes
+    sc = scenes.get("cornell-transient")
+    plain, steady, _ = tr.render_plain(sc, 12, 64, seed=9, bins=20)
+    keep = steady.max(axis=-1) < 1.0                              # not the light's pixels
+    ep = plain.astype(np.float64)[keep].sum(axis=0)              # (T, 3)
+    b = tr.collect_in_integrator(sc, 12, 64, seed=4, bins=20)
+    # collector (a) through a batch sensor of 4 cameras: the same view as the single camera
+    a = tr.collect_passes(sc, 12, 64, seed=4, bins=20, stats=("identity", 0.5), copies=4)
+    for out in (a, b):
+        e = out.color.astype(np.float64)[keep].sum(axis=0)
+        var = out.stats.var_mean[keep].sum(axis=0)                # Var of e
+        ok = var > 0
+        z = (e - ep)[ok] / np.sqrt(2.0 * var[ok])
+        assert ok.sum() > 30 and np.abs(z).max() < 6.0, (out.timing["collector"], z)
+
+
+def test_fog_scene_uses_collector_a(tr):
+    from dbench.datasets import scenes
+    sc = scenes.get("fog-transient")
+    out = tr.collect_passes(sc, 8, 4, seed=0, bins=20, stats=("identity", 0.5))
+    assert out.color.shape == (8, 8, 20, 3) and np.isfinite(out.color).all()
+    assert out.non_zero.max() <= 4 and out.energy_fraction > 0.9
+    with pytest.raises(DbenchInputError, match="transient_path"):
+        tr.collect_in_integrator(sc, 8, 4, bins=20)
+
+
+@pytest.mark.parametrize("transform", ["identity", "box-cox", "yeo-johnson"])
+def test_fused_moments_equal_stats_from_power_sums(transform):
+    """The fused moment kernel of both collectors = the library's stats_from_power_sums."""
+    from dbench.datasets.stats import PowerSums, stats_from_power_sums
+    from dbench.datasets.transient import stats_from_sums
+    rng = np.random.default_rng(0)
+    x = np.where(rng.random((16, 5, 4, 7, 3)) < 0.7, 0.0,
+                 rng.lognormal(0.0, 1.5, (16, 5, 4, 7, 3))).astype(np.float32)
+    x[:, 0, 0, 0] = 0.3                                 # constant voxels: zero variance
+    acc = PowerSums((5, 4, 7, 3), transform, 0.5)
+    acc.add_batch(x, axis=0)
+    ref = stats_from_power_sums(acc.n, acc.s1, acc.s2, acc.s3, acc.k, transform, 0.5)
+    got = stats_from_sums(acc.n, acc.s1, acc.s2, acc.s3, transform, 0.5)
+    for name in ("mean", "var_mean", "m3"):
+        np.testing.assert_allclose(getattr(got, name), getattr(ref, name), rtol=1e-13,
+                                   atol=1e-15, err_msg=name)
+    assert np.all(got.var_mean[0, 0, 0] == 0) and np.all(got.m3[0, 0, 0] == 0)
+    one = stats_from_sums(1, acc.s1, acc.s2, acc.s3, transform, 0.5)
+    assert np.all(one.var_mean == 0) and np.all(one.m3 == 0)
+
+
+def test_bench_metrics_and_figures(tmp_path):
+    """Per-bin curves, whole-video figures and the three plots on a synthetic video."""
+    from dbench.bench import transient as bt
+    rng = np.random.default_rng(1)
+    ref = rng.random((6, 7, 9, 3)).astype(np.float32)
+    noisy = ref + 0.1 * rng.standard_normal(ref.shape).astype(np.float32)
+    frame = TransientFrame(color=noisy, reference=ref,
+                           meta={"start_opl": 3.0, "bin_width_opl": 0.1, "scene": "synthetic"})
+    table = bt.per_bin_table({"noisy": noisy}, ref, frame.time_axis)
+    assert list(table.columns) == ["bin", "opl", "noisy"] and len(table) == 9
+    expect = np.sqrt(((noisy.astype(np.float64) - ref) ** 2).mean(axis=(0, 1, 3)))
+    np.testing.assert_allclose(table["noisy"], expect, rtol=1e-6)
+    m = bt.video_metrics(noisy, ref)
+    assert m["rmse"] == pytest.approx(float(np.sqrt(((noisy.astype(np.float64) - ref) ** 2)
+                                                    .mean())), rel=1e-6)
+    assert 0 < m["ssim_integrated"] <= 1
+    assert bt.streak(noisy, 2).shape == (9, 7, 3)
+    np.testing.assert_array_equal(bt.streak(noisy, 2)[:, 4], noisy[2, 4])
+    shown = bt.write_figures(tmp_path, frame, {"noisy": noisy}, prefix="s_")
+    assert all(0 <= t < 9 for t in shown)
+    for name in ("s_rmse_per_bin.png", "s_bins.png", "s_streak.png", "s_rmse_per_bin.csv"):
+        assert (tmp_path / name).stat().st_size > 0
