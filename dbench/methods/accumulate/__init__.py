@@ -1,0 +1,91 @@
+"""``accumulate``: temporal accumulation alone (spec/temporal.md §2-§3), the baseline every
+sequence denoiser must beat.
+
+Per frame: reproject the previous accumulated colour, luminance moments and history length
+(2×2 bilinear with validity, normalised 3×3 fallback, reset on disocclusion), then
+``C' = α C + (1 − α) C'←`` with ``α = max(alpha_min, 1/N)``, ``N = min(N← + 1, n_max)``.
+With the defaults (``alpha_min = 0``, ``n_max = 256``) this is the running mean of every frame
+that saw the same surface point, capped at 256 frames. ``last`` holds the diagnostics of the
+latest frame: ``variance`` (H, W) of luminance (spec §2), ``n`` (H, W) and ``status`` (H, W)
+(0 reset, 1 bilinear, 2 fallback).
+
+Non-finite policy: a non-finite colour pixel keeps its reprojected history; without history its
+output stays non-finite (it is missing) and its history is empty, so nothing spreads.
+Without motion vectors (a single image) every frame is treated as the first.
+
+Example:
+    >>> import numpy as np
+    >>> from dbench.data import Frame
+    >>> from dbench.registry import get
+    >>> m = get("accumulate")
+    >>> rng = np.random.default_rng(0)
+    >>> g = dict(depth=np.ones((4, 4, 1)), normal=np.tile([0, 0, 1.0], (4, 4, 1)),
+    ...          position=np.zeros((4, 4, 3)), motion=np.zeros((4, 4, 2)))
+    >>> frames = [Frame(color=rng.random((4, 4, 3)), **g) for _ in range(5)]
+    >>> m.reset(); out = [m.denoise(f) for f in frames][-1]
+    >>> bool(np.allclose(out, np.mean([f.color for f in frames], 0), atol=1e-6))
+    True
+"""
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ...data import check_buffer
+from ...errors import DbenchInputError
+from ...registry import Denoiser, register
+from .. import temporal as T
+
+
+def _check_params(p: dict[str, Any]) -> None:
+    if not 0.0 <= float(p["alpha_min"]) <= 1.0:
+        raise DbenchInputError(f"alpha_min: expected a number in [0, 1], got {p['alpha_min']!r}")
+    if not float(p["n_max"]) >= 1:
+        raise DbenchInputError(f"n_max: expected a number >= 1, got {p['n_max']!r}")
+    if p["backend"] not in T.BACKENDS:
+        raise DbenchInputError(f"backend: expected one of {T.BACKENDS}, got {p['backend']!r}")
+
+
+@register("accumulate")
+class Accumulate(Denoiser):
+    """Reprojected temporal accumulation with luminance moments (spec/temporal.md)."""
+
+    kinds = {"sequence"}
+    needs = {"color", "normal", "depth", "position", "motion"}
+    defaults: dict[str, Any] = dict(alpha_min=0.0, n_max=T.N_MAX, tau_d=T.TAU_D, tau_n=T.TAU_N,
+                                    backend="numba")
+
+    def __init__(self, **params: Any) -> None:
+        super().__init__(**params)
+        _check_params(self.params)
+        p = self.params
+        self.history = T.History(p["tau_d"], p["tau_n"], T.EPS_F, p["backend"])
+        self.last: dict[str, np.ndarray] = {}
+
+    def reset(self) -> None:
+        self.history.reset()
+        self.last = {}
+
+    def denoise(self, data) -> np.ndarray:
+        color = check_buffer("color", getattr(data, "color", None), (None, None, 3))
+        with T.kernel_threads(color.shape[0] * color.shape[1]):
+            return self._denoise(data, color)
+
+    def _denoise(self, data, color: np.ndarray) -> np.ndarray:
+        geo = T.frame_geometry(data)
+        c = T.to_planar(color)
+        ok_s = T.sample_mask(c)
+        c = np.where(ok_s, c, 0.0).astype(np.float32)
+        hist, status = self.history.fetch(geo, 6)
+        ok = status > 0
+        sample = np.concatenate([c, T.moments(c)])
+        acc, n, _ = T.accumulate(sample, hist[:5], hist[5], ok, self.params["alpha_min"],
+                                 self.params["n_max"], sample_ok=ok_s)
+        self.history.store(geo, np.concatenate([acc, n[None]]), valid=n > 0)
+        self.last = {"variance": T.variance_from_moments(acc[3:5]), "n": n, "status": status}
+        out = T.to_interleaved(acc[:3])
+        empty = n <= 0
+        if empty.any():
+            out[empty] = color[empty]
+        return out

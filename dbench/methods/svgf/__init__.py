@@ -1,0 +1,233 @@
+"""``svgf`` and ``asvgf``: spatiotemporal variance-guided filtering (spec/svgf.md).
+
+Per frame (spec §1): subtract the emission of the primary hits (``emission`` buffer, as Falcor's
+SVGFPass does; 0 when absent), demodulate by albedo (§2), reproject and accumulate the illumination and
+its luminance moments (spec/temporal.md), estimate the variance (temporal where the history has
+≥ 4 frames, else a 7×7 spatial estimate, §4), run K à-trous iterations with normal, depth and
+luminance edge-stopping weights and variance propagation (§3, §5), keep the output of iteration
+``feedback_tap`` as next frame's colour history, remodulate.
+
+``svgf`` blends with α = max(α_min, 1/N) (paper: α_min = 0.2 for colour and moments).
+``asvgf`` replaces α by the temporal-gradient rule of the seed (§6.1): per 3×3 stratum of the
+previous frame, the brightest pixel is re-shaded with the previous frame's random numbers under
+the current lights (the frame's ``gradient`` buffer, spec §6.4),
+``G = (|L_new − L_prev| / max(L_new, L_prev))²``; G is filtered by 3 à-trous iterations without
+the luminance weight, fetched at full resolution through the motion vectors (the gather form of
+the spec's forward projection — identical for a static camera), and
+``N' = min(N(1 − G)^10 + 1, 256)``, ``α = mix(1/N', 1, G)``. ``gradient_mode="paper"`` uses
+the original paper's λ = min(1, |δ̂|/Δ̂) with δ and Δ filtered separately, α = mix(0.2, 1, λ)
+floored at 1/N' (N' from λ as above) — an option, not the default.
+
+Parameters (``get("svgf", **params)``; presets ``paper`` (default) and ``falcor`` fill in the
+values not given): sigma_z (1), sigma_n (128), sigma_l (4), iterations (5), feedback_tap (0),
+alpha_min (0.2), alpha_min_moments (0.2), eps_var (1e-4), variance_boost (False), tau_d (0.05),
+tau_n (0.9), backend ("numba" | "reference"); asvgf adds gradient_iterations (3),
+gradient_mode ("seed" | "paper"), n_max (256).
+
+``emission`` is optional (not in ``needs``: synthetic sequences have none); the sequence
+datasets always provide it. Pixels on emitters (emission > 0) are neither taps nor filtered: their output is their own
+accumulated value plus their emission. Without that, a visible light is blurred into the surface
+around it, which no edge-stopping weight prevents under 1-spp variance.
+
+Non-finite policy: non-finite colour pixels are missing (history kept or empty; empty pixels are
+no tap for their neighbours and are filled from them); non-finite albedo demodulates by 1;
+non-finite G-buffers make a pixel "no hit" (it is only its own tap). The output is finite
+wherever the input colour is finite.
+
+``last`` holds diagnostics of the latest frame: ``n``, ``alpha``, ``variance``, ``status``
+(reprojection), and for asvgf ``gradient`` (H, W).
+
+Example:
+    >>> import numpy as np
+    >>> from dbench.data import Frame
+    >>> from dbench.registry import get
+    >>> g = dict(albedo=np.ones((8, 8, 3)), depth=np.ones((8, 8, 1)),
+    ...          normal=np.tile([0, 0, 1.0], (8, 8, 1)), position=np.zeros((8, 8, 3)),
+    ...          motion=np.zeros((8, 8, 2)))
+    >>> m = get("svgf"); m.reset()
+    >>> out = m.denoise(Frame(color=np.full((8, 8, 3), 0.5), **g))
+    >>> bool(np.allclose(out, 0.5))
+    True
+"""
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ...data import check_buffer
+from ...errors import DbenchInputError
+from ...registry import Denoiser, register
+from .. import temporal as T
+from . import core as C
+
+PRESETS = {
+    "paper": dict(sigma_z=1.0, sigma_n=128.0, sigma_l=4.0, iterations=5, feedback_tap=0,
+                  alpha_min=0.2, alpha_min_moments=0.2),
+    "falcor": dict(sigma_z=1.0, sigma_n=128.0, sigma_l=10.0, iterations=4, feedback_tap=1,
+                   alpha_min=0.05, alpha_min_moments=0.2),
+}
+GRADIENT_MODES = ("seed", "paper")
+ALPHA0_PAPER = 0.2
+
+
+def _positive(name: str, value: Any, allow_zero: bool = False) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise DbenchInputError(f"{name}: expected a positive number, got {value!r}") from None
+    if not np.isfinite(v) or v < 0 or (v == 0 and not allow_zero):
+        raise DbenchInputError(f"{name}: expected a positive number, got {value!r}")
+    return v
+
+
+class _SVGFBase(Denoiser):
+    kinds = {"sequence"}
+    needs = {"color", "albedo", "normal", "depth", "position", "motion"}
+    defaults: dict[str, Any] = dict(preset="paper", **PRESETS["paper"], eps_var=C.EPS_VAR,
+                                    variance_boost=False, tau_d=T.TAU_D, tau_n=T.TAU_N,
+                                    backend="numba")
+
+    def __init__(self, **params: Any) -> None:
+        super().__init__(**params)
+        preset = self.params["preset"]
+        if preset not in PRESETS:
+            raise DbenchInputError(f"preset: expected one of {tuple(PRESETS)}, got {preset!r}")
+        for key, value in PRESETS[preset].items():
+            if key not in params:
+                self.params[key] = value
+        p = self.params
+        for key in ("sigma_z", "sigma_n", "sigma_l", "eps_var"):
+            _positive(key, p[key])
+        for key in ("alpha_min", "alpha_min_moments"):
+            if not 0.0 <= float(p[key]) <= 1.0:
+                raise DbenchInputError(f"{key}: expected a number in [0, 1], got {p[key]!r}")
+        if int(p["iterations"]) != p["iterations"] or not 0 <= p["iterations"] <= 12:
+            raise DbenchInputError(f"iterations: expected an integer in [0, 12], "
+                                   f"got {p['iterations']!r}")
+        if int(p["feedback_tap"]) != p["feedback_tap"] or p["feedback_tap"] < 0:
+            raise DbenchInputError(f"feedback_tap: expected an integer >= 0, "
+                                   f"got {p['feedback_tap']!r}")
+        if p["backend"] not in T.BACKENDS:
+            raise DbenchInputError(f"backend: expected one of {T.BACKENDS}, got {p['backend']!r}")
+        self.history = T.History(p["tau_d"], p["tau_n"], T.EPS_F, p["backend"])
+        self.last: dict[str, np.ndarray] = {}
+
+    def reset(self) -> None:
+        self.history.reset()
+        self.last = {}
+
+    # hook for A-SVGF: (n_hist_for_accumulate, alpha or None, extras)
+    def _adaptive(self, data, geo, hist_n, ok, prep):
+        return hist_n, None, {}
+
+    def _after(self, geo, prep) -> None:
+        pass
+
+    def denoise(self, data) -> np.ndarray:
+        color = check_buffer("color", getattr(data, "color", None), (None, None, 3))
+        with T.kernel_threads(color.shape[0] * color.shape[1]):
+            return self._denoise(data, color)
+
+    def _denoise(self, data, color: np.ndarray) -> np.ndarray:
+        p = self.params
+        fast = p["backend"] == "numba"
+        h, w = color.shape[:2]
+        albedo = check_buffer("albedo", getattr(data, "albedo", None), (h, w, 3))
+        geo = T.frame_geometry(data, backend=p["backend"])
+        emission = getattr(data, "emission", None)
+        prep = (C.prepare_fast if fast else C.prepare_reference)(color, albedo, emission, geo.hit)
+        present, emitter = prep["present"], prep["emitter"]
+
+        hist, status = self.history.fetch(geo, 6)
+        ok = status > 0
+        hist_n, alpha, extras = self._adaptive(data, geo, hist[5], ok, prep)
+        acc = T.accumulate_fast if fast else T.accumulate
+        n_max = getattr(self, "n_max", T.N_MAX)
+        acc_c, n, a_used = acc(prep["illum"], hist[:3], hist_n, ok, p["alpha_min"], n_max,
+                               alpha, present)
+        acc_m, _, _ = acc(prep["moments"], hist[3:5], hist_n, ok, p["alpha_min_moments"], n_max,
+                          alpha, present)
+        filled = n > 0
+
+        gx, gy = C.depth_gradient(geo.depth, geo.hit, backend=p["backend"])
+        gather = geo.hit & ~emitter
+        tap = gather & filled
+        var = T.variance_from_moments(acc_m)
+        spatial = filled & (n < C.N_SPATIAL)
+        if spatial.any():
+            sv = C.spatial_variance(p["backend"], acc_m, geo.depth, gx, gy, geo.normal, tap,
+                                    gather, spatial, sigma_z=p["sigma_z"], sigma_n=p["sigma_n"])
+            if p["variance_boost"]:
+                sv = sv * 4.0 / np.maximum(n, 1.0)
+            var = np.where(spatial, sv, var).astype(np.float32)
+
+        cur, feedback = acc_c, acc_c
+        for i in range(int(p["iterations"])):
+            cur, var = C.atrous(p["backend"], cur, var, geo.depth, gx, gy, geo.normal, tap,
+                                filled, gather, 2 ** i, sigma_z=p["sigma_z"],
+                                sigma_n=p["sigma_n"], sigma_l=p["sigma_l"], eps_var=p["eps_var"])
+            if i == p["feedback_tap"]:
+                feedback = cur
+        self.history.store(geo, np.concatenate([feedback, acc_m, n[None]]), valid=filled,
+                           finite=True)
+        self._after(geo, prep)
+        self.last = {"n": n, "alpha": a_used, "variance": var, "status": status, **extras}
+        return C.remodulate(cur, prep["a_eff"], prep["emission"], p["backend"])
+
+
+@register("svgf")
+class SVGF(_SVGFBase):
+    """Spatiotemporal variance-guided filtering (Schied et al. 2017; spec/svgf.md)."""
+
+
+@register("asvgf")
+class ASVGF(_SVGFBase):
+    """A-SVGF: SVGF with temporal-gradient-driven history (spec/svgf.md §6)."""
+
+    needs = _SVGFBase.needs | {"gradient"}
+    defaults: dict[str, Any] = dict(_SVGFBase.defaults, gradient_iterations=3,
+                                    gradient_mode="seed", n_max=T.N_MAX)
+
+    def __init__(self, **params: Any) -> None:
+        super().__init__(**params)
+        if self.params["gradient_mode"] not in GRADIENT_MODES:
+            raise DbenchInputError(f"gradient_mode: expected one of {GRADIENT_MODES}, "
+                                   f"got {self.params['gradient_mode']!r}")
+        self.n_max = _positive("n_max", self.params["n_max"])
+        self._prev_lum: np.ndarray | None = None
+
+    def reset(self) -> None:
+        super().reset()
+        self._prev_lum = None
+
+    def _adaptive(self, data, geo, hist_n, ok, prep):
+        p = self.params
+        h, w = geo.shape
+        prev = self.history.prev
+        low = np.zeros((-(-h // 3), -(-w // 3)), np.float32)  # no gradient without history
+        motion = geo.motion if geo.motion is not None else np.full((2, h, w), np.nan, np.float32)
+        if (self._prev_lum is not None and prev is not None and prev.shape == geo.shape
+                and geo.motion is not None):
+            grad = check_buffer("gradient", getattr(data, "gradient", None), (h, w, 3))
+            l_grad = grad @ T.LUMA  # (H, W) luminance of the re-shaded previous samples
+            strata = C.stratum_gradients(self._prev_lum, l_grad, prev.hit, prev.depth,
+                                         prev.normal, backend=p["backend"])
+            filt = C.filter_gradients(strata, int(p["gradient_iterations"]), p["sigma_z"],
+                                      p["sigma_n"], p["backend"])
+            if p["gradient_mode"] == "seed":
+                low = filt["g"]
+            else:
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    low = np.where(filt["norm"] > 0,
+                                   np.minimum(1.0, np.abs(filt["delta"]) / filt["norm"]), 0.0)
+        g_img, n_new, alpha = C.adaptive_history(low, motion, geo.hit, hist_n, self.n_max,
+                                                 p["gradient_mode"], ALPHA0_PAPER, p["backend"])
+        # accumulate() computes N = min(N_hist + 1, n_max): hand it N' − 1.
+        return n_new - np.float32(1.0), alpha, {"gradient": g_img}
+
+    def _after(self, geo, prep) -> None:
+        self._prev_lum = prep["lum_raw"]
+
+
+__all__ = ["SVGF", "ASVGF", "PRESETS"]

@@ -1,0 +1,152 @@
+"""asvgf: temporal gradients and adaptive history (spec/svgf.md §6, §9 checks 6-8)."""
+import numpy as np
+import pytest
+
+from dbench import methods
+from dbench.bench.sequence import synthetic_sequence
+from dbench.data import Frame, Sequence
+from dbench.errors import DbenchInputError
+from dbench.methods.svgf import core as C
+
+
+@pytest.mark.parametrize("n,g,n_new,alpha", [(45, 0.01, 41.697, 0.03374),
+                                            (45, 0.001, 45.552, 0.02293),
+                                            (45, 0.95, 1.0000, 1.0000)])
+def test_worked_numbers(n, g, n_new, alpha):
+    got_n, got_a = C.asvgf_history(n, g)
+    assert abs(got_n - n_new) < 1e-3 and abs(got_a - alpha) < 1e-4
+
+
+def test_gradient_value_range_and_zero_case():
+    assert C.gradient_value(0.0, 0.0) == 0.0
+    rng = np.random.default_rng(0)
+    a, b = rng.exponential(1, 1000), rng.exponential(1, 1000)
+    g = C.gradient_value(a, b)
+    assert (g >= 0).all() and (g <= 1).all()
+    assert C.gradient_value(2.0, 0.0) == 1.0 and C.gradient_value(1.0, 1.0) == 0.0
+    assert abs(C.gradient_value(1.0, 0.5) - 0.25) < 1e-12
+
+
+def test_stratum_samples_pick_the_brightest_usable_pixel():
+    lum = np.arange(49, dtype=float).reshape(7, 7)
+    usable = np.ones((7, 7), bool)
+    usable[2, 2] = False
+    qy, qx, has = C.stratum_samples(lum, usable)
+    assert qy.shape == (3, 3) and has.all()
+    assert (qy[0, 0], qx[0, 0]) == (2, 1)  # (2, 2) is not usable
+    assert (qy[2, 2], qx[2, 2]) == (6, 6)  # partial stratum at the border
+    qy, qx, has = C.stratum_samples(lum, np.zeros((7, 7), bool))
+    assert not has.any()
+
+
+def test_gradient_gather_with_zero_motion_is_nearest_upsampling():
+    low = np.arange(12, dtype=np.float32).reshape(3, 4)
+    hit = np.ones((8, 11), bool)
+    full = C.gradient_at_pixels(low, np.zeros((2, 8, 11), np.float32), hit)
+    yy, xx = np.mgrid[0:8, 0:11]
+    np.testing.assert_array_equal(full, low[yy // 3, xx // 3])
+    mot = np.full((2, 8, 11), np.nan, np.float32)
+    assert (C.gradient_at_pixels(low, mot, hit) == 0).all()
+
+
+def _static(h, w, frames, off_at=None, seed=0):
+    """Static camera and light; the light goes off (radiance × 0) at ``off_at``."""
+    rng = np.random.default_rng(seed)
+    clean = np.full((h, w, 3), 0.8, np.float32)
+    g = dict(albedo=np.full((h, w, 3), 0.5, np.float32), depth=np.ones((h, w, 1)),
+             normal=np.tile([0, 0, 1.0], (h, w, 1)), position=np.zeros((h, w, 3)),
+             motion=np.zeros((h, w, 2)))
+    noise = rng.exponential(1.0, (frames, h, w, 1)).astype(np.float32)
+    out = []
+    for i in range(frames):
+        on = 0.0 if off_at is not None and i >= off_at else 1.0
+        color = clean * noise[i] * on
+        grad = clean * noise[max(i - 1, 0)] * on  # previous random numbers, current light
+        out.append(Frame(color=color, gradient=grad, reference=clean * on, meta={"frame": i}, **g))
+    return Sequence(out)
+
+
+def test_static_scene_has_no_gradient_and_history_grows():
+    seq = _static(12, 12, 10)
+    m = methods.get("asvgf")
+    m.reset()
+    for i, f in enumerate(seq):
+        m.denoise(f)
+        if i >= 1:
+            assert m.last["gradient"].mean() < 0.05
+    assert np.allclose(m.last["n"], 10) and np.allclose(m.last["alpha"], 0.1)
+
+
+def test_light_off_drops_quickly_for_asvgf_and_slowly_for_svgf():
+    seq = _static(15, 15, 26, off_at=12)
+    drops = {}
+    for name in ("asvgf", "svgf"):
+        m = methods.get(name)
+        m.reset()
+        means = []
+        for i, f in enumerate(seq):
+            out = m.denoise(f)
+            means.append(out.mean())
+            if name == "asvgf" and i == 12:
+                assert np.allclose(m.last["gradient"], 1.0) and (m.last["alpha"] >= 0.99).all()
+        before = np.mean(means[6:12])
+        drops[name] = next(k for k in range(12, 26) if means[k] <= 0.1 * before) - 12
+    assert drops["asvgf"] <= 1  # within 2 frames
+    assert drops["svgf"] >= 9   # 0.8^k <= 0.1 needs k >= 10.3 (k counts from the change)
+
+
+def test_asvgf_beats_svgf_after_a_light_change():
+    seq = _static(16, 16, 20, off_at=10)
+    err = {}
+    for name in ("asvgf", "svgf"):
+        m = methods.get(name)
+        m.reset()
+        errs = [np.sqrt(((m.denoise(f) - f.reference) ** 2).mean()) for f in seq]
+        err[name] = np.mean(errs[10:15])
+    assert err["asvgf"] < err["svgf"]
+
+
+def test_paper_gradient_mode_runs_and_reacts():
+    seq = _static(12, 12, 8, off_at=5)
+    m = methods.get("asvgf", gradient_mode="paper")
+    m.reset()
+    for f in seq:
+        m.denoise(f)
+    assert m.last["alpha"].min() >= 0.2
+
+
+def test_missing_gradient_is_named_once_there_is_history():
+    seq = synthetic_sequence(6, 6, frames=2)
+    m = methods.get("asvgf")
+    m.reset()
+    m.denoise(seq[0].with_buffers(gradient=None))  # first frame: no gradient needed
+    with pytest.raises(DbenchInputError, match="gradient"):
+        m.denoise(seq[1].with_buffers(gradient=None))
+    with pytest.raises(DbenchInputError, match="gradient_mode"):
+        methods.get("asvgf", gradient_mode="magic")
+
+
+def test_fast_equals_reference_backend():
+    seq = _static(14, 17, 6, off_at=3)
+    a, b = methods.get("asvgf"), methods.get("asvgf", backend="reference")
+    a.reset()
+    b.reset()
+    for f in seq:
+        np.testing.assert_allclose(a.denoise(f), b.denoise(f), rtol=2e-3, atol=2e-4)
+
+
+def test_strata_fast_equals_reference():
+    rng = np.random.default_rng(3)
+    h, w = 20, 25
+    lp = rng.exponential(1, (h, w)).astype(np.float32)
+    lg = (lp * rng.uniform(0.5, 1.5, (h, w))).astype(np.float32)
+    lp[4, 4] = np.nan
+    hit = rng.random((h, w)) > 0.2
+    hit[:3, :3] = False
+    depth = rng.random((h, w)).astype(np.float32)
+    normal = rng.random((3, h, w)).astype(np.float32)
+    r = C.stratum_gradients(lp, lg, hit, depth, normal)
+    f = C.stratum_gradients(lp, lg, hit, depth, normal, backend="numba")
+    for key in r:
+        np.testing.assert_allclose(np.asarray(f[key], float), np.asarray(r[key], float),
+                                   rtol=1e-6, atol=1e-7, err_msg=key)
