@@ -6,16 +6,29 @@ transformed samples (Frame.stats); the normalised weights are applied to the lin
 colour (Frame.color). See :mod:`dbench.methods.statistical.core` for the maths and the policies
 (non-finite pixels, zero variance, out-of-image neighbours).
 
+Transient videos (spec/statistical.md §11.3): given a :class:`~dbench.data.TransientFrame`, the
+same method runs the spatio-temporal denoiser of :mod:`dbench.methods.statistical.transient`: a
+(2r_s+1)² × (2r_t+1) voxel window, the JBF replicated along time (or a plain 3D Gaussian for
+participating media) as base filter, the Welch test per voxel pair on the per-bin statistics, and
+empty bins skipped (they cost nothing and return 0).
+
 Parameters (``get("statistical", **params)``; every value is checked, a bad one raises
 DbenchInputError naming it; the resolved values land in ``last_settings`` after each call):
-    radius (20), alpha (0.005: γ_t = t_{1−α/2, n_i+n_j−2}), gamma (None; wins over alpha:
-    γ_t² = 1/(2γ) − 1), sigma ((10, 10, 0.02 ×3, 0.1 ×3)), sigma_convention ("variance" | "sd"),
-    window ("square" | "disk"), backend ("auto": PyTorch on CUDA, else Numba | "numba" |
-    "torch" | "reference"), hit_mask (True), membership (True; False = plain JBF, the
-    ablation), gate (False; True applies the ProDen t-test gate of spec §12 on top),
-    gate_alpha (1.0).
+    radius (None: 20 for images [spec §7], 5 for videos [spec §7, §11.3]; an integer applies to
+    both), alpha / gamma (both None: α = 0.005 for images [spec §5.1 steady default], γ = 0.05
+    for videos [spec §5.1 transient default, §11.3]; γ_t = t_{1−α/2, n_i+n_j−2} from alpha,
+    γ_t² = 1/(2γ) − 1 from gamma, which wins when both are given), sigma ((10, 10, 0.02 ×3,
+    0.1 ×3)), sigma_convention ("variance" | "sd"), window ("square" | "disk"), backend ("auto":
+    PyTorch on CUDA for images, Numba otherwise | "numba" | "torch" (images only) |
+    "reference"), hit_mask (True), membership (True; False = plain base filter, the ablation),
+    gate (False; True applies the ProDen gate of spec §12 on top; images only), gate_alpha (1.0).
+    Videos only (spec §11.3, spec/jbf.md §1.4): radius_t (1), base ("auto": "gauss3d" when the
+    frame's meta names a medium or a volumetric integrator or it has no albedo/normal, else
+    "jbf" | "jbf" | "gauss3d"), temporal_profile (None: "box" for the jbf base, "gaussian" for
+    gauss3d | "box" | "gaussian"), sigma_t (1.0 bin), skip_empty (True).
 The sample transform (identity / Box-Cox / Yeo-Johnson and λ) is a property of the statistics
-(SampleStats.transform, .lam) and is recorded, not chosen here.
+(SampleStats.transform, .lam) and is recorded, not chosen here; transient datasets default to
+identity (spec §3, §11.3: identity or Yeo-Johnson; Box-Cox distorts near-zero bins).
 
 Example:
     >>> import numpy as np
@@ -38,17 +51,20 @@ import numpy as np
 
 from ...errors import DbenchInputError
 from ...registry import Denoiser, register
-from ..jbf.core import (SEED_SIGMA, SIGMA_CONVENTIONS, WINDOWS, check_choice, check_radius,
-                        check_sigma, make_guide)
+from ..jbf.core import (SEED_SIGMA, SIGMA_CONVENTIONS, TEMPORAL_PROFILES, WINDOWS, check_choice,
+                        check_positive, check_radius, check_sigma, make_guide)
 from .core import (BACKENDS, DEFAULT_ALPHA, StatPlanes, Threshold, _check_alpha, _g2_from_gamma,
                    gamma_from_gamma_t, gamma_t_from_gamma, membership, proden_gate,
                    proden_gate_factor, resolve_backend, resolve_threshold, stat_planes,
                    statistical_fast, statistical_filter, statistical_reference, student_gamma_t,
                    welch_pass, welch_t, welch_t_from_weight, welch_weight)
+from .transient import (BASES, VIDEO_RADIUS, statistical_filter_video, statistical_video_fast,
+                        statistical_video_reference)
 
 __all__ = ["Statistical", "StatPlanes", "Threshold", "gamma_from_gamma_t", "gamma_t_from_gamma",
            "linear_variance", "membership", "proden_gate", "proden_gate_factor",
            "resolve_threshold", "stat_planes", "statistical_fast", "statistical_filter",
+           "statistical_filter_video", "statistical_video_fast", "statistical_video_reference",
            "statistical_reference", "student_gamma_t", "welch_pass", "welch_t",
            "welch_t_from_weight", "welch_weight"]
 
@@ -72,30 +88,42 @@ def linear_variance(stats: Any, color: np.ndarray) -> np.ndarray:
     return np.where(np.isfinite(out), out, 0.0)
 
 
+#: Steady spatial radius (spec §7).
+STEADY_RADIUS = 20
+
+
 @register("statistical")
 class Statistical(Denoiser):
-    """Welch-test statistical denoiser with the JBF as base filter (spec/statistical.md)."""
+    """Welch-test statistical denoiser with the JBF as base filter (spec/statistical.md), on
+    images (§1-§8) and on transient videos (§11.3)."""
 
-    kinds = {"steady"}
+    kinds = {"steady", "transient"}
     needs = {"color", "albedo", "normal", "depth", "stats"}
     defaults: dict[str, Any] = dict(
-        radius=20, alpha=DEFAULT_ALPHA, gamma=None, sigma=SEED_SIGMA,
+        radius=None, alpha=None, gamma=None, sigma=SEED_SIGMA,
         sigma_convention="variance", window="square", backend="auto", hit_mask=True,
-        membership=True, gate=False, gate_alpha=1.0)
+        membership=True, gate=False, gate_alpha=1.0, radius_t=1, base="auto",
+        temporal_profile=None, sigma_t=1.0, skip_empty=True)
 
     def __init__(self, **params: Any) -> None:
         super().__init__(**params)
         p = self.params
-        check_radius(p["radius"])
-        if p["gamma"] is None:
+        if p["radius"] is not None:
+            check_radius(p["radius"])
+        check_radius(p["radius_t"], "radius_t")
+        if p["alpha"] is not None:
             _check_alpha(p["alpha"])
-        else:
+        if p["gamma"] is not None:
             _g2_from_gamma(p["gamma"])
         check_sigma(p["sigma"])
         check_choice("sigma_convention", p["sigma_convention"], SIGMA_CONVENTIONS)
         check_choice("window", p["window"], WINDOWS)
         check_choice("backend", p["backend"], BACKENDS)
-        for name in ("hit_mask", "membership", "gate"):
+        check_choice("base", p["base"], ("auto",) + BASES)
+        if p["temporal_profile"] is not None:
+            check_choice("temporal_profile", p["temporal_profile"], TEMPORAL_PROFILES)
+        check_positive("sigma_t", p["sigma_t"], allow_inf=True)
+        for name in ("hit_mask", "membership", "gate", "skip_empty"):
             if not isinstance(p[name], (bool, np.bool_)):
                 raise DbenchInputError(f"{name}: expected True or False, got {p[name]!r}")
         try:
@@ -108,13 +136,18 @@ class Statistical(Denoiser):
         self.last_settings: dict[str, Any] = {}
 
     def denoise(self, data: Any) -> np.ndarray:
-        if getattr(data, "kind", None) != "steady":
-            raise DbenchInputError(f"statistical: expected a steady Frame, got "
-                                   f"{getattr(data, 'kind', type(data).__name__)} data")
+        kind = getattr(data, "kind", None)
+        if kind == "transient":
+            return self._denoise_video(data)
+        if kind != "steady":
+            raise DbenchInputError(f"statistical: expected a steady Frame or a TransientFrame, "
+                                   f"got {getattr(data, 'kind', type(data).__name__)} data")
         p = self.params
+        alpha = p["alpha"] if (p["alpha"] is not None or p["gamma"] is not None) else DEFAULT_ALPHA
+        radius = STEADY_RADIUS if p["radius"] is None else p["radius"]
         out, info = statistical_filter(
             data.color, data.stats, data.albedo, data.normal, data.depth,
-            radius=p["radius"], alpha=p["alpha"], gamma=p["gamma"], sigma=p["sigma"],
+            radius=radius, alpha=alpha, gamma=p["gamma"], sigma=p["sigma"],
             sigma_convention=p["sigma_convention"], window=p["window"], hit_mask=p["hit_mask"],
             membership_on=p["membership"], backend=p["backend"], return_info=True)
         if p["gate"]:
@@ -122,5 +155,27 @@ class Statistical(Denoiser):
             hdr = np.where(np.isfinite(data.color), data.color, out)
             out = proden_gate(hdr, out, var, alpha=float(p["gate_alpha"])).astype(np.float32)
         info.update(gate=bool(p["gate"]), gate_alpha=float(p["gate_alpha"]))
+        self.last_settings = info
+        return out
+
+    def _denoise_video(self, data: Any) -> np.ndarray:
+        """Spatio-temporal denoiser on a TransientFrame (spec §11.3)."""
+        p = self.params
+        if p["gate"]:
+            raise DbenchInputError("gate: the ProDen gate (spec §12) is for images only; "
+                                   "use gate=False on transient data")
+        if p["backend"] == "torch":
+            raise DbenchInputError("backend: 'torch' is not available for transient videos; "
+                                   "use 'auto', 'numba' or 'reference'")
+        radius = VIDEO_RADIUS if p["radius"] is None else p["radius"]
+        backend = "reference" if p["backend"] == "reference" else "numba"
+        out, info = statistical_filter_video(
+            data.color, data.stats, data.albedo, data.normal, getattr(data, "depth", None),
+            radius=radius, radius_t=p["radius_t"], alpha=p["alpha"], gamma=p["gamma"],
+            base=p["base"], temporal_profile=p["temporal_profile"], sigma_t=p["sigma_t"],
+            sigma=p["sigma"], sigma_convention=p["sigma_convention"], window=p["window"],
+            hit_mask=p["hit_mask"], membership_on=p["membership"], skip_empty=p["skip_empty"],
+            backend=backend, meta=getattr(data, "meta", None), return_info=True)
+        info.update(gate=False, kind="transient")
         self.last_settings = info
         return out

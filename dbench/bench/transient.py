@@ -1,0 +1,438 @@
+"""Transient benchmarks and reports: collector timings, per-bin error curves, streak images.
+
+* :func:`bench_collectors`: collector (a) (1-spp passes + host power sums) and collector (b)
+  (in-integrator running sums) as ratios to one plain ``transient_path`` render of the same spp,
+  all measured in the same run, interleaved (median of ``repeats`` after a warm-up).
+* :func:`state_bytes_vs_spp`: the statistics state of collector (b) for several spp (constant).
+* :func:`video_metrics` / :func:`per_bin_table`: whole-video RMSE and relMSE (linear, every
+  voxel), SSIM and PSNR of the time-integrated image (sum over T), and per-bin RMSE curves.
+* :func:`plot_error_per_bin`, :func:`plot_bins`, :func:`plot_streak`: the figures (matplotlib,
+  PNG): error per bin, a few bins side by side, and an x–t streak image (one image row over time)
+  for noisy, denoised and reference.
+* :func:`write_figures`: those three figures for one run (usable by ``dbench run`` on transient
+  scenes, whose steady comparison grid cannot show a video).
+* :func:`run_report`: all of it for the transient scenes, written to ``results/transient.md``
+  (``python -m dbench.bench.transient``).
+
+The machine these run on may be shared; every ratio is measured within one run, interleaved.
+"""
+from __future__ import annotations
+
+import argparse
+import statistics
+import time
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+import pandas as pd
+
+from .. import io, metrics
+from ..data import TransientFrame
+
+DEFAULT_METHODS = ("noisy", "statistical", "jbf-bins", "oidn-bins", "gauss3d")
+
+NOTES = [
+    "- Exactness: with the same seeds (1-spp passes, one camera per call) collector (b) gives "
+    "bit-identical float64 power sums, `non_zero` counts, colour and moments to collector (a), "
+    "for the identity and Box-Cox transforms, also on a corridor scene where next-event "
+    "estimation makes paths leave a bin and come back (tests/test_transient.py). The seed's "
+    "Alg. 4 as printed (flush on every bin change, `slots=1`) double-counts those paths there "
+    "(`non_zero` can exceed spp).",
+    "- Collector (b) keeps 2·max_depth slots per path (an emitter hit and a next-event estimate "
+    "per vertex), so it can never run out; `slots < 2·max_depth` frees slots of bins the path "
+    "has passed and counts forced early flushes in `n_overflow` (exact iff 0).",
+    "- Rendering all spp in one call (the default of `load(..., collector='b')`) gives the same "
+    "statistics up to the order of the float64 atomic additions; its paths differ from (a)'s "
+    "(different sample streams), which is why the cache key holds the collector.",
+    "- The transient film works as the film of a Mitsuba `batch` sensor (several cameras per "
+    "call), provided each camera keeps its own res×res film (it sets the camera's aspect "
+    "ratio; without it a camera silently gets a 768×576 film and another view).",
+    "- Measured: Mitsuba's perspective sensor starts camera rays on the near-clip plane, so a "
+    "warped OPL misses near_clip/cos θ of the camera segment (0.01 m with the default near "
+    "clip). The direct-arrival test scene uses near_clip = 1e-4.",
+    "- fog-transient uses `transient_prbvolpath`; collector (b) is implemented for "
+    "`transient_path` only, so media use collector (a). Its G-buffers come from the same "
+    "camera with the fog removed (surfaces behind the medium).",
+    "- Whole-video RMSE weights every voxel equally: on cornell-transient it is dominated by "
+    "the directly visible light in the first bins, which every spatial filter spreads into "
+    "its neighbours, and filtering a bin spatially also blurs the wavefront across pixels "
+    "(G-buffers say nothing about arrival time); the seed reports the JBF worse than its "
+    "input on transient data too (spec/jbf.md §1.5). The per-bin curves and streak images "
+    "show where each baseline gains or loses.",
+]
+
+
+# ---------------------------------------------------------------------------------------------
+# collector timings
+
+
+def bench_collectors(scene: str = "cornell-transient", res: int = 64, spp: int = 64,
+                     bins: int = 200, repeats: int = 3, transform: str = "identity",
+                     lam: float = 0.5, seed: int = 0) -> dict[str, Any]:
+    """Time a plain transient render, collector (a) and collector (b) at the same spp.
+
+    Returns seconds (medians) and ratios to the plain render: ``a_s`` (passes through a batch
+    sensor + host sums), ``b_s`` (one in-integrator render incl. reading the sums back and the
+    moments), ``b_render_s`` (the render alone), plus (b)'s state size and diagnostics.
+    """
+    import drjit as dr
+
+    from ..datasets import scenes
+    from ..datasets import transient as tr
+
+    sc = scenes.get(scene)
+    stats = (transform, lam)
+    timings: dict[str, list[float]] = {"plain": [], "a": [], "a_render": [], "b": [],
+                                       "b_render": []}
+    last_b = None
+
+    def run_b():
+        out = tr.collect_in_integrator(sc, res, spp, seed, bins, transform, lam)
+        dr.sync_thread()
+        return out
+
+    # warm-up (kernel compilation, scene loading)
+    tr.render_plain(sc, res, spp, seed, bins)
+    tr.collect_passes(sc, res, spp, seed, bins, stats)
+    run_b()
+    for _ in range(max(1, repeats)):
+        t0 = time.perf_counter()
+        tr.render_plain(sc, res, spp, seed, bins)
+        timings["plain"].append(time.perf_counter() - t0)
+        t0 = time.perf_counter()
+        out_a = tr.collect_passes(sc, res, spp, seed, bins, stats)
+        timings["a"].append(time.perf_counter() - t0)
+        timings["a_render"].append(out_a.timing["render_s"])
+        t0 = time.perf_counter()
+        last_b = run_b()
+        timings["b"].append(time.perf_counter() - t0)
+        timings["b_render"].append(last_b.timing["render_s"])
+    med = {k: statistics.median(v) for k, v in timings.items()}
+    window = sc.window(bins)
+    return {"benchmark": "transient-collectors", "scene": scene, "res": res, "spp": spp,
+            "bins": window.bins, "transform": transform, "copies_a": out_a.timing["copies"],
+            "plain_s": med["plain"], "a_s": med["a"], "a_render_s": med["a_render"],
+            "b_s": med["b"], "b_render_s": med["b_render"], "ratio_a": med["a"] / med["plain"],
+            "ratio_b": med["b"] / med["plain"], "ratio_b_render": med["b_render"] / med["plain"],
+            "b_state_mb": last_b.timing["state_bytes"] / 2 ** 20,
+            "b_slots": last_b.timing["slots"], "b_reentries": last_b.timing["n_reentry"],
+            "b_overflow": last_b.timing["n_overflow"],
+            "when": time.strftime("%Y-%m-%d %H:%M:%S")}
+
+
+def state_bytes_vs_spp(scene: str = "cornell-transient", res: int = 32, bins: int = 100,
+                       spp_list: Sequence[int] = (1, 16, 256), transform: str = "identity"
+                       ) -> list[dict[str, Any]]:
+    """Collector (b)'s statistics state (bytes) after rendering each spp: independent of spp."""
+    from ..datasets import scenes
+    from ..datasets import transient as tr
+
+    sc = scenes.get(scene)
+    rows = []
+    for spp in spp_list:
+        out = tr.collect_in_integrator(sc, res, int(spp), 0, bins, transform)
+        rows.append({"spp": int(spp), "state_bytes": int(out.timing["state_bytes"]),
+                     "voxels": res * res * sc.window(bins).bins * 3,
+                     "max_non_zero": int(out.non_zero.max()),
+                     "n_overflow": int(out.timing["n_overflow"])})
+    return rows
+
+
+# ---------------------------------------------------------------------------------------------
+# metrics
+
+
+def video_metrics(output: np.ndarray, reference: np.ndarray, ev: float = 0.0) -> dict[str, float]:
+    """Whole-video RMSE and relMSE (every voxel), SSIM and PSNR of the time-integrated image."""
+    return {"rmse": metrics.rmse(output, reference), "relmse": metrics.relmse(output, reference),
+            "ssim_integrated": metrics.ssim(output, reference, ev=ev),
+            "psnr_integrated": metrics.psnr(output, reference, ev=ev)}
+
+
+def per_bin_table(outputs: dict[str, np.ndarray], reference: np.ndarray,
+                  time_axis: np.ndarray, metric: str = "rmse") -> pd.DataFrame:
+    """(T rows) bin, OPL at its centre and the per-bin ``metric`` of every output."""
+    table = pd.DataFrame({"bin": np.arange(reference.shape[2]), "opl": time_axis})
+    for name, out in outputs.items():
+        table[name] = metrics.per_bin(metric, out, reference)
+    return table
+
+
+# ---------------------------------------------------------------------------------------------
+# figures
+
+
+def _exposure(reference: np.ndarray, percentile: float = 99.5) -> float:
+    """EV mapping the reference's ``percentile`` value to 1 (0 if the reference is black)."""
+    v = np.percentile(np.asarray(reference, np.float64).mean(axis=-1), percentile)
+    return float(-np.log2(v)) if v > 0 else 0.0
+
+
+def plot_error_per_bin(path: str | Path, table: pd.DataFrame, title: str = "",
+                       metric: str = "RMSE") -> None:
+    """Per-bin error curves (log scale) against OPL."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7, 3.6), dpi=110)
+    for name in table.columns[2:]:
+        ax.plot(table["opl"], table[name], label=name, lw=1.2)
+    ax.set_yscale("log")
+    ax.set_xlabel("optical path length (m)")
+    ax.set_ylabel(f"{metric} per bin")
+    ax.set_title(title)
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    with io.atomic_path(path, suffix=".tmp.png") as tmp:
+        fig.savefig(tmp, format="png")
+    plt.close(fig)
+
+
+def plot_bins(path: str | Path, videos: Sequence[tuple[str, np.ndarray]], bins: Sequence[int],
+              reference: np.ndarray, time_axis: np.ndarray | None = None,
+              title: str = "") -> None:
+    """A grid: one row per video, one column per bin, tone-mapped with one exposure per bin
+    (from the reference's bin)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rows, cols = len(videos), len(bins)
+    fig, axes = plt.subplots(rows, cols, figsize=(1.9 * cols, 1.9 * rows + 0.4), dpi=110,
+                             squeeze=False)
+    for j, t in enumerate(bins):
+        ev = _exposure(reference[:, :, t])
+        for i, (name, video) in enumerate(videos):
+            ax = axes[i, j]
+            ax.imshow(metrics.tonemap(np.nan_to_num(video[:, :, t]), ev), interpolation="nearest")
+            ax.set_xticks([])
+            ax.set_yticks([])
+            if i == 0:
+                label = f"bin {t}" if time_axis is None else f"bin {t} ({time_axis[t]:.2f} m)"
+                ax.set_title(label, fontsize=8)
+            if j == 0:
+                ax.set_ylabel(name, fontsize=8)
+    fig.suptitle(title, fontsize=9)
+    fig.tight_layout()
+    with io.atomic_path(path, suffix=".tmp.png") as tmp:
+        fig.savefig(tmp, format="png")
+    plt.close(fig)
+
+
+def streak(video: np.ndarray, row: int) -> np.ndarray:
+    """The x–t slice of one image row: (T, W, 3), time going down."""
+    return np.transpose(np.asarray(video)[row], (1, 0, 2))
+
+
+def plot_streak(path: str | Path, videos: Sequence[tuple[str, np.ndarray]], row: int,
+                reference: np.ndarray, time_axis: np.ndarray | None = None,
+                title: str = "") -> None:
+    """Streak images (x horizontal, OPL down) of one row for each video, side by side."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    ev = _exposure(streak(reference, row))
+    fig, axes = plt.subplots(1, len(videos), figsize=(2.4 * len(videos), 4.2), dpi=110,
+                             squeeze=False)
+    for ax, (name, video) in zip(axes[0], videos):
+        img = metrics.tonemap(np.nan_to_num(streak(video, row)), ev)
+        extent = None
+        if time_axis is not None:
+            half = 0.5 * (time_axis[1] - time_axis[0]) if len(time_axis) > 1 else 0.5
+            extent = (0, video.shape[1], time_axis[-1] + half, time_axis[0] - half)
+        ax.imshow(img, aspect="auto", interpolation="nearest", extent=extent)
+        ax.set_title(name, fontsize=8)
+        ax.set_xlabel("x (px)", fontsize=8)
+    axes[0, 0].set_ylabel("optical path length (m)" if time_axis is not None else "bin",
+                          fontsize=8)
+    fig.suptitle(title, fontsize=9)
+    fig.tight_layout()
+    with io.atomic_path(path, suffix=".tmp.png") as tmp:
+        fig.savefig(tmp, format="png")
+    plt.close(fig)
+
+
+# ---------------------------------------------------------------------------------------------
+# the report
+
+
+def run_methods(frame: TransientFrame, names: Sequence[str] = DEFAULT_METHODS,
+                repeats: int = 1) -> tuple[list[dict[str, Any]], dict[str, np.ndarray]]:
+    """Run each method on ``frame``: rows of metrics + time, and the outputs."""
+    from .. import methods
+    from .harness import time_call
+
+    rows, outputs = [], {}
+    for name in names:
+        m = methods.get(name)
+        ok, why = m.applies_to(frame.kind, {b for b in ("color", "albedo", "normal", "depth",
+                                                         "stats") if frame.has(b)})
+        if not ok:
+            rows.append({"method": name, "skipped": why})
+            continue
+        out, times = time_call(lambda: m.denoise(frame), repeats=repeats, warmup=0)
+        out = np.asarray(out, np.float32)
+        outputs[name] = out
+        rows.append({"method": name, **video_metrics(out, frame.reference, frame.meta.get("ev", 0)),
+                     "time_s": statistics.median(times), "skipped": ""})
+    return rows, outputs
+
+
+def _pick_bins(reference: np.ndarray, k: int = 4) -> list[int]:
+    """Bins at 5 %, 25 %, 50 % and 80 % of the cumulative energy (distinct, sorted)."""
+    e = np.asarray(reference, np.float64).sum(axis=(0, 1, 3))
+    c = np.cumsum(e) / max(e.sum(), 1e-30)
+    qs = (0.05, 0.25, 0.5, 0.8)[:k]
+    return sorted({int(np.searchsorted(c, q)) for q in qs})
+
+
+def write_figures(out_dir: str | Path, frame: TransientFrame, outputs: dict[str, np.ndarray],
+                  prefix: str = "", title: str = "") -> list[int]:
+    """The three transient figures of a run, written under ``out_dir``:
+    ``<prefix>rmse_per_bin.png`` (error per bin), ``<prefix>bins.png`` (four bins side by side,
+    at 5/25/50/80 % of the reference's cumulative energy) and ``<prefix>streak.png`` (x–t slice
+    of the middle row), each for the outputs (noisy included when given) and the reference.
+    Also ``<prefix>rmse_per_bin.csv``. Returns the bins shown."""
+    from .report import write_csv
+
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    title = title or str(frame.meta.get("scene", ""))
+    ta = frame.time_axis
+    table = per_bin_table(outputs, frame.reference, ta)
+    write_csv(out_dir / f"{prefix}rmse_per_bin.csv", table)
+    plot_error_per_bin(out_dir / f"{prefix}rmse_per_bin.png", table,
+                       title=f"{title}: RMSE per bin")
+    shown = [(n, outputs[n]) for n in outputs] + [("reference", frame.reference)]
+    pick = _pick_bins(frame.reference)
+    plot_bins(out_dir / f"{prefix}bins.png", shown, pick, frame.reference, ta, title=title)
+    row = frame.shape[0] // 2
+    plot_streak(out_dir / f"{prefix}streak.png", shown, row, frame.reference, ta,
+                title=f"{title}: streak image of row {row}")
+    return pick
+
+
+def run_report(out_dir: str | Path = "results", scenes: Sequence[str] = (
+        "cornell-transient", "caustic-transient", "fog-transient"), res: int = 64,
+               spp: int = 32, bins: int = 200, ref_spp: int = 2048,
+               methods_: Sequence[str] = DEFAULT_METHODS, bench_res: int = 64,
+               bench_spp: int = 64, bench_repeats: int = 5, progress: bool = True) -> str:
+    """Benchmark collectors and baselines on the transient scenes; write
+    ``<out_dir>/transient.md`` and figures under ``<out_dir>/transient/``. Returns the text."""
+    from .. import datasets
+    from ..datasets import scenes as catalogue
+    from ..datasets import transient as tr
+    from .harness import machine_info
+    from .report import markdown_table
+
+    out_dir = Path(out_dir)
+    fig_dir = out_dir / "transient"
+    fig_dir.mkdir(parents=True, exist_ok=True)
+    info = machine_info()
+    lines = ["# Transient datasets, per-bin statistics and baselines", "",
+             f"Generated by `python -m dbench.bench.transient` on {time.strftime('%Y-%m-%d')}. "
+             f"Machine: {info['cpu']}, {info['cores']} cores, no GPU; **the machine was shared "
+             "with other jobs**, so absolute times are noisy; every ratio below is measured in "
+             "one run with the compared renders interleaved (median of the repeats).", ""]
+
+    # -- windows and energy ---------------------------------------------------------------------
+    lines += ["## Scenes and time windows", "",
+              "Time axis: optical path length (OPL, metres, warped: the camera segment counts; "
+              "time = OPL / c). Each window starts at the scene's earliest direct arrival "
+              "(geometry, rounded down) and ends where 99 % of the steady energy has arrived "
+              "in a pilot render (`size_window`); *energy inside* is Σ video / Σ steady of the "
+              "same paths, measured here on the reference renders.", ""]
+    frames: dict[str, TransientFrame] = {}
+    rows = []
+    for name in scenes:
+        sc = catalogue.get(name)
+        t0 = time.perf_counter()
+        frame = datasets.load(name, spp=spp, res=res, bins=bins, ref_spp=ref_spp,
+                              progress=progress)
+        frames[name] = frame
+        m = frame.meta
+        rows.append({"scene": name, "integrator": sc.integrator, "max_depth": sc.max_depth,
+                     "start_opl": m["start_opl"], "end_opl": m["end_opl"], "bins": m["bins"],
+                     "bin_width_opl": m["bin_width_opl"],
+                     "bin_width_ps": m["bin_width_opl"] / tr.SPEED_OF_LIGHT * 1e12,
+                     "energy_inside_noisy": m["energy_fraction"],
+                     "energy_inside_reference": m.get("reference_energy_fraction"),
+                     "collector": m["collector"], "load_s": time.perf_counter() - t0})
+    lines += [markdown_table(pd.DataFrame(rows)), ""]
+    sized = [tr.size_window(catalogue.get(name)) for name in scenes]
+    lines += ["Window sizing (`size_window(scene, coverage=0.99, res=24, spp=256)`, pilot window "
+              "[0, start + 40 m) with 4000 bins): first direct arrival from the geometry, the "
+              "chosen [start, end), the share of the pilot's steady energy inside it and "
+              "before it.", "",
+              markdown_table(pd.DataFrame(sized)), ""]
+
+    # -- collectors -----------------------------------------------------------------------------
+    lines += ["## Per-bin statistics: collectors", "",
+              "Both collectors compute, per pixel, bin and channel, float64 power sums of the "
+              "transformed per-path bin sums (spec/statistical.md §11). (a): 1-spp passes "
+              "(several camera copies per call through a `batch` sensor) with host-side sums; "
+              "(b): the `transient_path_stats` integrator, per-path slots of running sums "
+              "flushed with atomics, state independent of spp. Ratios are to one plain "
+              "`transient_path` render of the same spp (film histogram only, read back to NumPy). "
+              "`a render` is the rendering part of (a) (1-spp calls, each developing a whole "
+              "film); `b render` is (b)'s render call alone; `b` adds reading the sums back and "
+              "computing the moments (fused Numba pass).", ""]
+    brow = []
+    for name in [s for s in scenes if catalogue.get(s).integrator == "transient_path"]:
+        r = bench_collectors(name, bench_res, bench_spp, bins, repeats=bench_repeats)
+        brow.append({k: r[k] for k in ("scene", "res", "spp", "bins", "copies_a", "plain_s",
+                                       "a_s", "a_render_s", "b_s", "b_render_s", "ratio_a",
+                                       "ratio_b", "ratio_b_render", "b_state_mb",
+                                       "b_reentries")})
+    lines += [markdown_table(pd.DataFrame(brow)), ""]
+    mem = state_bytes_vs_spp()
+    lines += ["Collector (b) state vs spp (cornell-transient, 32×32 px, 100 bins): " +
+              ", ".join(f"{r['spp']} spp → {r['state_bytes']:,} B" for r in mem) +
+              " (constant by construction; it holds 3 float64 sums per voxel and channel and "
+              "one uint64 per voxel packing the three `non_zero` counts).", ""]
+
+    # -- baselines ------------------------------------------------------------------------------
+    lines += ["## Baselines", "",
+              f"{res}×{res} px, {bins} bins, {spp} spp noisy input, {ref_spp} spp reference. "
+              "RMSE and relMSE (ε = 1e-2) over every voxel of the video; SSIM and PSNR of the "
+              "time-integrated image (sum over bins). Methods skip bins without energy. "
+              "`jbf-bins` uses the JBF defaults (radius 20, seed Σ) on each bin; `gauss3d` "
+              "σ_s² = 10 px², σ_t = 1 bin, r_s = 5, r_t = 1.", ""]
+    for name, frame in frames.items():
+        rows, outputs = run_methods(frame, methods_)
+        lines += [f"### {name}", "", markdown_table(pd.DataFrame(rows)), ""]
+        pick = write_figures(fig_dir, frame, outputs, prefix=f"{name}_", title=name)
+        lines += [f"![RMSE per bin](transient/{name}_rmse_per_bin.png)",
+                  f"![bins {pick}](transient/{name}_bins.png)",
+                  f"![streak](transient/{name}_streak.png)", ""]
+    lines += ["## Notes", "", *NOTES, ""]
+    text = "\n".join(lines) + "\n"
+    io.write_text(out_dir / "transient.md", text)
+    return text
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--out", default="results")
+    ap.add_argument("--res", type=int, default=64)
+    ap.add_argument("--spp", type=int, default=32)
+    ap.add_argument("--bins", type=int, default=200)
+    ap.add_argument("--ref-spp", type=int, default=2048)
+    ap.add_argument("--bench-res", type=int, default=64)
+    ap.add_argument("--bench-spp", type=int, default=64)
+    ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--scenes", default="cornell-transient,caustic-transient,fog-transient")
+    ap.add_argument("--methods", default=",".join(DEFAULT_METHODS))
+    a = ap.parse_args(argv)
+    print(run_report(a.out, [s for s in a.scenes.split(",") if s], a.res, a.spp, a.bins,
+                     a.ref_spp, [m for m in a.methods.split(",") if m], a.bench_res,
+                     a.bench_spp, a.repeats))
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    raise SystemExit(main())

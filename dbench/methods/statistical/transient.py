@@ -1,0 +1,541 @@
+"""Spatio-temporal statistical denoiser for transient videos (spec/statistical.md §11.3).
+
+θ~_i = Σ_j w_ij L_j,  w_ij = ρ_ij m_ij v_j / Σ_k ρ_ik m_ik v_k,   i, j voxels (y, x, t)
+
+* Window: the full non-separable box of (2r_s+1)² × (2r_t+1) voxels (r_s = 5, r_t = 1 → 363),
+  square or disk in space (spec §11.3; :func:`window_size`). The centre voxel (same pixel, same
+  bin) always counts; the other bins of the same pixel are ordinary neighbours that must pass
+  the test. Bins outside [0, T) are not neighbours (masked like padded pixels), as are pixels
+  outside the image.
+* Base filter ρ (spec §11.3, spec/jbf.md §1.4), two choices:
+  ``"jbf"``: the joint bilateral filter of the ``jbf`` method with its G-buffers replicated along
+  time (they are per pixel), times a temporal factor (``temporal_profile`` ``"box"``, the default:
+  1 for |τ| ≤ r_t; or ``"gaussian"``: exp(−½τ²/σ_t²));
+  ``"gauss3d"``: the plain 3D Gaussian for participating media, ρ = exp(−½(Δx² + Δy²)/σ_s²
+  − ½τ²/σ_t²) without G-buffer terms or hit mask, σ_s² from the spatial Σ entries of ``sigma``
+  (10 px² by default, the JBF's spatial term) and σ_t = 1 bin (default profile ``"gaussian"``).
+* m_ij: the per-channel Welch test of spec §5 on the per-bin statistics, AND over channels (§6).
+  Default threshold for videos: γ = 0.05 given directly (γ_t = 3, spec §5.1 / §11.3); ``alpha``
+  gives γ_t = t_{1−α/2, ν}, ν = n_i + n_j − 2 (= 2·spp − 2 for rendered videos).
+* v_j = 1 where the colour is finite. A voxel whose θ̂, Var(θ̂) or n is not finite has no
+  neighbours and is nobody's neighbour (its output is its own colour, as in the steady method).
+  A pixel isolated by non-finite G-buffers (jbf base) still mixes with its own other bins:
+  the G-buffer terms of a pixel with itself are 0 [dbench].
+* The sample transform (identity by default for transient data, Yeo-Johnson the alternative;
+  spec §3, §11.3) is a property of the statistics, recorded in the info, not chosen here.
+
+Skipping empty bins (``skip_empty=True``, the default) [dbench]: a bin whose colour is exactly
+0 at every pixel and channel (no path reached it; NaN counts as energy) comes back as 0 and costs
+nothing: only the non-empty bins and their r_t neighbours enter the kernel, and a pair between
+two empty bins is never evaluated. Empty bins still serve as neighbours of the non-empty ones
+(their voxels are samples of g(0) with variance 0), so the non-empty bins get exactly the values
+of the full filter; only the empty bins differ (the full filter could leak energy into them from
+the neighbouring bins; 0 is what the data says). ``skip_empty=False`` filters every bin.
+
+Implementations: :func:`statistical_video_reference` (readable NumPy float64, loop over the 3D
+offsets on whole shifted videos) and :func:`statistical_video_fast` (the shared Numba kernel
+:func:`dbench.methods.jbf.core.accumulate3d`: float32 weights, float64 Welch test identical to
+the reference's, symmetric pairs, spatial weights computed once per row and reused by every
+bin). They agree to 1e-5 relative (tests). There is no PyTorch/CUDA path for videos.
+
+Shapes: colour and statistics (H, W, T, 3); G-buffers (H, W, ·); outputs (H, W, T, 3) float32.
+
+Example:
+    >>> import numpy as np
+    >>> from dbench.data import SampleStats
+    >>> rng = np.random.default_rng(0)
+    >>> y = rng.normal(1.0, 1.0, size=(8, 8, 6, 3, 32))
+    >>> st = SampleStats(n=32.0, mean=y.mean(-1), var_mean=y.var(-1, ddof=1) / 32,
+    ...                  m3=((y - y.mean(-1, keepdims=True)) ** 3).mean(-1), transform="identity")
+    >>> out, info = statistical_filter_video(y.mean(-1), st, base="gauss3d", radius=2,
+    ...                                      return_info=True)
+    >>> out.shape, info["gamma_t"], info["window_voxels"]
+    ((8, 8, 6, 3), 3.0, 75)
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Sequence
+
+import numpy as np
+from numba import njit, prange
+
+from ...data import check_buffer
+from ...errors import DbenchInputError
+from ..jbf.core import (SEED_SIGMA, TEMPORAL_PROFILES, Guide, accumulate3d, check_choice,
+                        check_positive, check_radius, make_guide, reference_weights,
+                        shift_slices, temporal_factors, window_offsets)
+from .core import Threshold, resolve_threshold, welch_pass
+
+#: Defaults for videos (spec §7 "Radius defaults", §5.1 "Transient default", §11.3).
+VIDEO_RADIUS = 5
+VIDEO_RADIUS_T = 1
+VIDEO_GAMMA = 0.05
+BASES = ("jbf", "gauss3d")
+VIDEO_BACKENDS = ("auto", "numba", "reference")
+
+__all__ = ["VideoStats", "video_stats", "nonempty_bins", "bins_in_play", "window_size",
+           "make_video_guide", "resolve_base", "prepare_video", "statistical_video_reference",
+           "statistical_video_fast", "statistical_filter_video", "BASES", "VIDEO_RADIUS",
+           "VIDEO_RADIUS_T", "VIDEO_GAMMA"]
+
+
+# ---------------------------------------------------------------------------------------------
+# Inputs
+# ---------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class VideoStats:
+    """Per-voxel statistics of some bins (spec §11.1).
+
+    theta, var: θ̂ and Var(θ̂), float64; nint: int32 n (None when not needed); bad: voxels with
+    non-finite statistics; bins: (K,) time indices; transform, lam: as recorded in the
+    SampleStats. Layouts: (K, 3, H, W) / bad (K, H, W) for the kernel (:func:`prepare_video`,
+    θ̂ NaN and Var 0 at bad voxels, so that every test with them fails), or (H, W, K, 3) / bad
+    (H, W, K) for the reference (``video_stats(..., channel_first=False)``, θ̂ = Var = n = 0 at
+    bad voxels).
+    """
+
+    theta: np.ndarray
+    var: np.ndarray
+    nint: np.ndarray
+    bad: np.ndarray
+    bins: np.ndarray
+    transform: str
+    lam: float
+
+
+def _video_shape(color: Any) -> tuple[int, int, int]:
+    arr = np.asarray(color) if color is not None else None
+    if arr is None or arr.ndim != 4 or arr.shape[3] != 3 or 0 in arr.shape:
+        raise DbenchInputError(f"color: expected shape (H, W, T, 3), got "
+                               f"{None if arr is None else tuple(arr.shape)}")
+    return arr.shape[0], arr.shape[1], arr.shape[2]
+
+
+def video_stats(stats: Any, shape: tuple[int, int, int], bins: Sequence[int] | None = None,
+                channel_first: bool = True) -> VideoStats:
+    """Check (H, W, T, 3) SampleStats and return θ̂, Var(θ̂), n of the chosen ``bins``.
+
+    θ̂ = μ + M3/(6σ²n) (spec §4, correction 0 where σ² = 0), computed for those bins only.
+    With ``channel_first`` the arrays are (K, 3, H, W) (the kernel's layout), else (H, W, K, 3).
+
+    Raises:
+        DbenchInputError: missing statistics, wrong shape, negative variance or count.
+    """
+    h, w, t = shape
+    if stats is None:
+        raise DbenchInputError(f"stats: missing; expected SampleStats with arrays of shape "
+                               f"({h}, {w}, {t}, 3)")
+    full = (h, w, t, 3)
+    idx = np.arange(t) if bins is None else np.asarray(bins, np.int64)
+    everything = idx.size == t
+
+    def pick(name, arr):
+        a = check_buffer(name, np.broadcast_to(arr, full) if np.ndim(arr) == 0 else arr, full,
+                         dtype=np.float64)
+        return a if everything else a[:, :, idx]
+
+    mean = pick("stats.mean", stats.mean)
+    var = pick("stats.var_mean", stats.var_mean)
+    n = pick("stats.n", stats.n)
+    m3 = pick("stats.m3", stats.m3)
+    with np.errstate(invalid="ignore"):
+        if np.any(var < 0):
+            raise DbenchInputError("stats.var_mean: negative values; expected Var(θ̂) ≥ 0")
+        if np.any(n < 0):
+            raise DbenchInputError("stats.n: negative sample counts")
+    with np.errstate(invalid="ignore", over="ignore"):
+        denom = 6.0 * var * n * n
+        theta = mean + np.divide(m3, denom, out=np.zeros_like(m3), where=denom > 0)
+    bad = ~(np.all(np.isfinite(theta), -1) & np.all(np.isfinite(var), -1)
+            & np.all(np.isfinite(n), -1))
+    if bad.any():
+        theta = np.where(bad[..., None], 0.0, theta)
+        var = np.where(bad[..., None], 0.0, var)
+        n = np.where(bad[..., None], 0.0, n)
+    nint = np.minimum(np.rint(n), 2 ** 30).astype(np.int32)
+    if channel_first:
+        def cf(a):
+            return np.ascontiguousarray(np.transpose(a, (2, 3, 0, 1)))
+        theta, var, nint, bad = cf(theta), cf(var), cf(nint), np.ascontiguousarray(
+            np.transpose(bad, (2, 0, 1)))
+    return VideoStats(theta, var, nint, bad, idx, str(getattr(stats, "transform", "unknown")),
+                      float(getattr(stats, "lam", float("nan"))))
+
+
+def nonempty_bins(color: Any) -> np.ndarray:
+    """(T,) bool: bins of an (H, W, T, 3) video holding any value other than exactly 0
+    (NaN counts as non-empty)."""
+    return np.asarray(np.any(np.asarray(color) != 0, axis=(0, 1, 3)))
+
+
+@njit(parallel=True, cache=True)
+def _prepare_video(color, mean, var, n, m3, idx, want_stats, want_nint, planes, theta, vout,
+                   nint, bad, flags):
+    """One parallel pass over the (H, W, T, 3) inputs for the bins ``idx`` (kernel layout).
+
+    planes[k] = (colour·v, v) with v = colour finite; with ``want_stats`` θ̂ = μ + M3/(6σ²n)
+    (the same float64 expression as :func:`video_stats`), NaN at voxels with non-finite
+    statistics (``bad``), and Var(θ̂) (0 there); with ``want_nint`` the rounded counts.
+    flags[y] = (negative variance seen, negative n seen, min n, max n over good voxels).
+    """
+    H = color.shape[0]
+    W = color.shape[1]
+    K = idx.shape[0]
+    for y in prange(H):
+        neg_v = 0
+        neg_n = 0
+        lo = 1 << 30
+        hi = -1
+        for x in range(W):
+            for k in range(K):
+                t = idx[k]
+                ok = True
+                for c in range(3):
+                    if not np.isfinite(color[y, x, t, c]):
+                        ok = False
+                for c in range(3):
+                    planes[k, c, y, x] = color[y, x, t, c] if ok else np.float32(0.0)
+                planes[k, 3, y, x] = np.float32(1.0) if ok else np.float32(0.0)
+                if not want_stats:
+                    continue
+                good = True
+                for c in range(3):
+                    v = var[y, x, t, c]
+                    nn = n[y, x, t, c]
+                    if v < 0:
+                        neg_v = 1
+                    if nn < 0:
+                        neg_n = 1
+                    denom = 6.0 * v * nn * nn
+                    th = mean[y, x, t, c]
+                    if denom > 0:
+                        th = th + m3[y, x, t, c] / denom
+                    theta[k, c, y, x] = th
+                    vout[k, c, y, x] = v
+                    if not (np.isfinite(th) and np.isfinite(v) and np.isfinite(nn)):
+                        good = False
+                bad[k, y, x] = not good
+                if not good:
+                    for c in range(3):
+                        theta[k, c, y, x] = np.nan
+                        vout[k, c, y, x] = 0.0
+                for c in range(3):
+                    ni = 0
+                    if good:
+                        ni = np.int32(np.rint(min(n[y, x, t, c], 1073741824.0)))
+                        lo = min(lo, ni)
+                        hi = max(hi, ni)
+                    if want_nint:
+                        nint[k, c, y, x] = ni
+        flags[y, 0] = neg_v
+        flags[y, 1] = neg_n
+        flags[y, 2] = lo
+        flags[y, 3] = hi
+
+
+def prepare_video(color: Any, stats: Any, bins: np.ndarray, *, want_stats: bool = True,
+                  want_nint: bool = False):
+    """Kernel inputs for the ``bins`` of a video in one parallel pass (:func:`_prepare_video`).
+
+    Returns:
+        planes (K, 4, H, W) float32 (colour·v, v) and, with ``want_stats``, a
+        :class:`VideoStats` whose θ̂ is NaN at bad voxels (its ``nint`` None unless
+        ``want_nint``), plus (min n, max n) over the good voxels ((−1, −1) if none).
+    """
+    h, w, t = _video_shape(color)
+    col = check_buffer("color", color, (h, w, t, 3), dtype=np.float32)
+    idx = np.ascontiguousarray(bins, dtype=np.int64)
+    k = idx.size
+    full = (h, w, t, 3)
+    planes = np.empty((k, 4, h, w), np.float32)
+    flags = np.zeros((h, 4), np.int64)
+    if want_stats:
+        if stats is None:
+            raise DbenchInputError(f"stats: missing; expected SampleStats with arrays of shape "
+                                   f"{full}")
+        arrs = [check_buffer(name, np.broadcast_to(a, full) if np.ndim(a) == 0 else a, full,
+                             dtype=np.float64)
+                for name, a in (("stats.mean", stats.mean), ("stats.var_mean", stats.var_mean),
+                                ("stats.n", stats.n), ("stats.m3", stats.m3))]
+        theta = np.empty((k, 3, h, w), np.float64)
+        vout = np.empty((k, 3, h, w), np.float64)
+        bad = np.empty((k, h, w), np.bool_)
+        nint = np.empty((k, 3, h, w) if want_nint else (1, 3, 1, 1), np.int32)
+    else:
+        arrs = [np.zeros((1, 1, 1, 3))] * 4
+        theta = vout = np.zeros((1, 3, 1, 1))
+        bad = np.zeros((1, 1, 1), np.bool_)
+        nint = np.zeros((1, 3, 1, 1), np.int32)
+    _prepare_video(col, *arrs, idx, bool(want_stats), bool(want_nint), planes, theta, vout,
+                   nint, bad, flags)
+    if not want_stats:
+        return planes, None, (-1, -1)
+    if flags[:, 0].any():
+        raise DbenchInputError("stats.var_mean: negative values; expected Var(θ̂) ≥ 0")
+    if flags[:, 1].any():
+        raise DbenchInputError("stats.n: negative sample counts")
+    lo, hi = int(flags[:, 2].min()), int(flags[:, 3].max())
+    vs = VideoStats(theta, vout, nint if want_nint else None, bad, idx,
+                    str(getattr(stats, "transform", "unknown")),
+                    float(getattr(stats, "lam", float("nan"))))
+    return planes, vs, ((lo, hi) if hi >= 0 else (-1, -1))
+
+
+def bins_in_play(keep: np.ndarray, radius_t: int) -> np.ndarray:
+    """(T,) bool: the kept bins dilated by r_t (the bins the kept ones see as neighbours)."""
+    keep = np.asarray(keep, bool)
+    out = keep.copy()
+    for k in range(1, min(int(radius_t), len(keep)) + 1):
+        out[k:] |= keep[:-k]
+        out[:-k] |= keep[k:]
+    return out
+
+
+def window_size(radius: int, radius_t: int, window: str = "square") -> int:
+    """Voxels in the 3D window, centre included: (2r_s+1)²(2r_t+1) for the square window
+    (spec §11.3 / §13 check 15: r_s = 5, r_t = 1 → 363; r_s = 20, r_t = 1 → 5043)."""
+    dy, _ = window_offsets(radius, window)
+    return int(dy.size) * (2 * check_radius(radius_t, "radius_t") + 1)
+
+
+def resolve_base(base: str, meta: dict | None = None, normal: Any = None,
+                 albedo: Any = None) -> str:
+    """``"auto"`` → ``"gauss3d"`` when the data is a participating medium (meta ``medium`` set,
+    or a ``transient_prbvolpath`` integrator) or lacks albedo/normal, else ``"jbf"``."""
+    check_choice("base", base, ("auto",) + BASES)
+    if base != "auto":
+        return base
+    meta = meta or {}
+    media = bool(meta.get("medium")) or "volpath" in str(meta.get("integrator", ""))
+    return "gauss3d" if (media or normal is None or albedo is None) else "jbf"
+
+
+def make_video_guide(base: str, shape: tuple[int, int], albedo: Any = None, normal: Any = None,
+                     depth: Any = None, position: Any = None, *, radius: int = VIDEO_RADIUS,
+                     sigma: Sequence[float] = SEED_SIGMA, sigma_convention: str = "variance",
+                     window: str = "square", hit_mask: bool = True,
+                     features: Sequence[str] = ("xy", "albedo", "normal")) -> Guide:
+    """The spatial part of the base filter: the JBF guide (``"jbf"``) or, for ``"gauss3d"``,
+    a guide with the ``"xy"`` feature only (σ_s² = sigma[0], sigma[1] in ``sigma_convention``)
+    and no hit mask (spec/jbf.md §1.4)."""
+    check_choice("base", base, BASES)
+    if base == "gauss3d":
+        return make_guide(None, None, None, radius=radius, sigma=sigma,
+                          sigma_convention=sigma_convention, window=window, features=("xy",),
+                          hit_mask=False, shape=shape)
+    return make_guide(albedo, normal, depth, position, radius=radius, sigma=sigma,
+                      sigma_convention=sigma_convention, window=window, hit_mask=hit_mask,
+                      features=features, shape=shape)
+
+
+# ---------------------------------------------------------------------------------------------
+# Reference (dense NumPy, float64)
+# ---------------------------------------------------------------------------------------------
+
+def statistical_video_reference(color: Any, vs: VideoStats, guide: Guide, tfac: np.ndarray,
+                                threshold: Threshold, *, membership_on: bool = True,
+                                keep: np.ndarray | None = None,
+                                return_weights: bool = False):
+    """Readable spatio-temporal statistical denoiser (spec §11.3), float64.
+
+    Loops over the (spatial offset o, temporal offset τ) of the window and accumulates whole
+    shifted videos: ρ from :func:`~dbench.methods.jbf.core.reference_weights` (the JBF's own
+    code) times tfac[τ], m from the per-channel Welch predicate (centre voxel: m = 1), v from the
+    colour's finiteness; voxels with bad statistics only keep their centre.
+
+    Args:
+        color: (H, W, T, 3) linear noisy video.
+        vs: :class:`VideoStats` of all T bins, channel-last (``video_stats(..., channel_first=False)``).
+        guide: spatial base filter; tfac: (2r_t+1,) temporal factors.
+        keep: (T,) bool bins whose output is wanted (the others come back as 0), or None (all).
+        return_weights: also return the (O, H, W, T) normalised weights of every 3D offset (the
+            offsets in the order spatial offset × τ) and the memberships.
+
+    Returns:
+        (H, W, T, 3) float64 (and the weights, memberships).
+    """
+    h, w, t = _video_shape(color)
+    col = check_buffer("color", color, (h, w, t, 3), dtype=np.float64)
+    valid = np.all(np.isfinite(col), axis=-1)
+    col = np.where(valid[..., None], col, 0.0)
+    theta, var, nint, good = vs.theta, vs.var, vs.nint.astype(np.int64), ~vs.bad
+    tfac = np.asarray(tfac, np.float64)
+    r_t = (len(tfac) - 1) // 2
+    num = np.zeros((h, w, t, 3))
+    den = np.zeros((h, w, t))
+    stack, members = [], []
+    for k in range(len(guide.dy)):
+        dy, dx = int(guide.dy[k]), int(guide.dx[k])
+        (ys, xs), (yn, xn) = shift_slices(dy, dx, h, w)
+        rho_s = reference_weights(guide, k)
+        for tau in range(-r_t, r_t + 1):
+            ts = slice(max(0, -tau), max(0, min(t, t - tau)))
+            tn = slice(ts.start + tau, ts.stop + tau)
+            m = np.zeros((h, w, t), bool)
+            inside = ys.start < ys.stop and xs.start < xs.stop and ts.start < ts.stop
+            if dy == 0 and dx == 0 and tau == 0:
+                m[:] = True                                    # the centre always counts
+            elif inside:
+                ok = good[ys, xs, ts] & good[yn, xn, tn]
+                if membership_on:
+                    d = theta[ys, xs, ts] - theta[yn, xn, tn]
+                    s = var[ys, xs, ts] + var[yn, xn, tn]
+                    g2 = threshold.g2_for(nint[ys, xs, ts] + nint[yn, xn, tn] - 2)
+                    ok &= np.all(welch_pass(d, s, g2), axis=-1)
+                m[ys, xs, ts] = ok
+            wk = rho_s[..., None] * tfac[tau + r_t] * m
+            if inside:
+                wk[ys, xs, ts] *= valid[yn, xn, tn]
+                num[ys, xs, ts] += wk[ys, xs, ts, None] * col[yn, xn, tn]
+            den += wk
+            if return_weights:
+                stack.append(wk)
+                members.append(m)
+    out = np.divide(num, den[..., None], out=np.zeros_like(num), where=den[..., None] > 0)
+    if keep is not None:
+        out[:, :, ~np.asarray(keep, bool)] = 0.0
+    if return_weights:
+        ws = np.stack(stack)
+        return out, np.divide(ws, den, out=np.zeros_like(ws), where=den > 0), np.stack(members)
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+# Fast path (Numba, the shared 3D kernel)
+# ---------------------------------------------------------------------------------------------
+
+def _threshold_for(alpha: float | None, gamma: float | None, n_range: tuple[int, int],
+                   vs: VideoStats | None) -> Threshold:
+    """γ_t from γ (wins; both None → γ = 0.05) or from α and ν = n_i + n_j − 2 (spec §5.1)."""
+    if alpha is None and gamma is None:
+        gamma = VIDEO_GAMMA
+    if gamma is not None:
+        return resolve_threshold(np.zeros(1, np.int32), alpha, gamma)
+    lo, hi = n_range
+    if lo == hi or vs is None or vs.nint is None:
+        return resolve_threshold(np.full(1, max(lo, 0), np.int32), alpha)
+    return resolve_threshold(vs.nint, alpha, valid=np.broadcast_to(~vs.bad[:, None],
+                                                                    vs.nint.shape))
+
+
+def statistical_video_fast(color: Any, stats: Any, guide: Guide, tfac: np.ndarray, *,
+                           alpha: float | None = None, gamma: float | None = None,
+                           membership_on: bool = True, keep: np.ndarray | None = None,
+                           return_info: bool = False):
+    """Numba spatio-temporal statistical denoiser: (H, W, T, 3) float32.
+
+    Only the ``keep`` bins (default all) and their r_t neighbours are prepared and enter the
+    kernel (:func:`prepare_video`, :func:`dbench.methods.jbf.core.accumulate3d`); the other
+    bins come back as 0. Threshold as :func:`statistical_filter_video`. With ``return_info``
+    also (threshold, VideoStats, bins in play).
+    """
+    h, w, t = _video_shape(color)
+    tfac = np.asarray(tfac, np.float64)
+    r_t = (len(tfac) - 1) // 2
+    keep = np.ones(t, bool) if keep is None else np.asarray(keep, bool)
+    idx = np.flatnonzero(bins_in_play(keep, r_t))
+    out = np.zeros((h, w, t, 3), np.float32)
+    want_nint = membership_on and gamma is None and alpha is not None
+    planes, vs, n_range = prepare_video(color, stats, idx, want_stats=True, want_nint=want_nint)
+    thr = _threshold_for(alpha, gamma, n_range, vs)
+    if idx.size:
+        test: dict[str, Any] = {}
+        any_bad = bool(vs.bad.any())
+        if membership_on:
+            test = dict(theta=vs.theta, var=vs.var)           # θ̂ is NaN at bad voxels
+            if thr.table is None:
+                test["g2"] = thr.g2
+            else:
+                test.update(nint=vs.nint, g2_table=thr.table)
+        elif any_bad:
+            # plain base filter, bad voxels still isolated: θ = NaN there, 0 elsewhere, γ_t = 0
+            theta = vs.theta * 0.0
+            test = dict(theta=theta, var=np.zeros_like(theta), g2=0.0)
+        accumulate3d(guide, planes, tfac, idx, keep[idx], n_bins=t, normalise_into=out, **test)
+    if return_info:
+        return out, (thr, vs, idx)
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+# Public entry point
+# ---------------------------------------------------------------------------------------------
+
+def statistical_filter_video(color: Any, stats: Any, albedo: Any = None, normal: Any = None,
+                             depth: Any = None, position: Any = None, *,
+                             radius: int = VIDEO_RADIUS, radius_t: int = VIDEO_RADIUS_T,
+                             alpha: float | None = None, gamma: float | None = None,
+                             base: str = "jbf", temporal_profile: str | None = None,
+                             sigma_t: float = 1.0, sigma: Sequence[float] = SEED_SIGMA,
+                             sigma_convention: str = "variance", window: str = "square",
+                             hit_mask: bool = True,
+                             features: Sequence[str] = ("xy", "albedo", "normal"),
+                             membership_on: bool = True, skip_empty: bool = True,
+                             backend: str = "auto", meta: dict | None = None,
+                             return_info: bool = False):
+    """Statistical denoiser of spec/statistical.md §11.3 on an (H, W, T, 3) video.
+
+    Args:
+        color: (H, W, T, 3) linear noisy video (the values that are filtered).
+        stats: SampleStats of shape (H, W, T, 3): per-bin statistics of the transformed per-path
+            bin sums (spec §11.1).
+        albedo, normal, depth, position: (H, W, ·) G-buffers of the ``"jbf"`` base (ignored by
+            ``"gauss3d"``).
+        radius, radius_t: r_s (default 5) and r_t (default 1) of the (2r_s+1)²(2r_t+1) window.
+        alpha, gamma: test level (γ_t = t_{1−α/2, n_i+n_j−2}) or threshold given directly
+            (``gamma`` wins when both are given; both None: γ = 0.05, γ_t = 3; spec §5.1).
+        base: ``"jbf"`` (G-buffers replicated along time), ``"gauss3d"`` (plain 3D Gaussian,
+            media) or ``"auto"`` (:func:`resolve_base` from ``meta`` and the G-buffers).
+        temporal_profile: ``"box"`` or ``"gaussian"`` (σ_t = ``sigma_t`` bins); None = box for
+            the jbf base, gaussian for gauss3d (spec/jbf.md §1.4).
+        sigma, sigma_convention, window, hit_mask, features: the spatial base filter as in
+            spec/jbf.md (gauss3d uses the spatial Σ entries only).
+        membership_on: False gives the plain 3D base filter (ablation).
+        skip_empty: bins without energy cost nothing and return 0 (module docstring).
+        backend: ``"auto"``/``"numba"`` (fast path) or ``"reference"`` (float64 NumPy).
+        return_info: also return the resolved settings (γ_t, ν, window, bins filtered, ...).
+
+    Returns:
+        (H, W, T, 3) float32 (and the info dict).
+    """
+    h, w, t = _video_shape(color)
+    check_choice("backend", backend, VIDEO_BACKENDS)
+    radius_t = check_radius(radius_t, "radius_t")
+    base = resolve_base(base, meta, normal, albedo)
+    profile = temporal_profile or ("box" if base == "jbf" else "gaussian")
+    check_choice("temporal_profile", profile, TEMPORAL_PROFILES)
+    sigma_t = check_positive("sigma_t", sigma_t, allow_inf=True)
+    tfac = temporal_factors(radius_t, profile, sigma_t)
+    guide = make_video_guide(base, (h, w), albedo, normal, depth, position, radius=radius,
+                             sigma=sigma, sigma_convention=sigma_convention, window=window,
+                             hit_mask=hit_mask, features=features)
+    keep = nonempty_bins(color) if skip_empty else np.ones(t, bool)
+    if backend == "reference":
+        vs = video_stats(stats, (h, w, t), channel_first=False)
+        if alpha is None and gamma is None:
+            gamma = VIDEO_GAMMA
+        thr = resolve_threshold(vs.nint, alpha, gamma,
+                                valid=np.broadcast_to(~vs.bad[..., None], vs.nint.shape))
+        out = statistical_video_reference(color, vs, guide, tfac, thr, membership_on=membership_on,
+                                          keep=keep).astype(np.float32)
+        idx = np.flatnonzero(bins_in_play(keep, radius_t))
+    else:
+        out, (thr, vs, idx) = statistical_video_fast(color, stats, guide, tfac, alpha=alpha,
+                                                     gamma=gamma, membership_on=membership_on,
+                                                     keep=keep, return_info=True)
+    if not return_info:
+        return out
+    info = dict(guide.settings, base=base, radius_t=radius_t, temporal_profile=profile,
+                sigma_t=sigma_t, window_voxels=window_size(guide.radius, radius_t, guide.window),
+                alpha=thr.alpha, gamma=thr.gamma, gamma_t=thr.gamma_t, nu=thr.nu,
+                threshold_source=thr.source, uniform_n=thr.table is None,
+                transform=vs.transform, lam=vs.lam, membership=bool(membership_on),
+                backend="reference" if backend == "reference" else "numba",
+                skip_empty=bool(skip_empty), bins=t, nonempty_bins=int(keep.sum()),
+                bins_in_play=int(idx.size), n_bad_stats=int(vs.bad.sum()))
+    if base == "gauss3d":
+        info["features"] = ("xy",)
+        info["hit_mask"] = False
+    return out, info
