@@ -1,0 +1,1 @@
+"""Training of the learned denoisers (``nca``, ``autoencoder``) on scenes rendered here."""

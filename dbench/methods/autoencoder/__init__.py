@@ -1,0 +1,210 @@
+"""``autoencoder``: the recurrent denoising autoencoder of Chaitanya et al. 2017
+(spec/autoencoder.md), served with ONNX Runtime from the shipped ``autoencoder.onnx`` (trained by
+``dbench train autoencoder``; ``autoencoder.json`` beside it holds the training configuration,
+data hash, losses and widths).
+
+Pipeline (shapes for an H x W frame; C = 3 + feature channels, 10 for the shipped model):
+
+    color, normal, albedo, depth --encode--> x (C, H, W), a_eff (H, W, 3)
+      --replicate-pad to multiples of 32--> (1, C, H', W')
+      --ONNX Runtime: U-Net with a recurrent block per level; hidden states h1..h5 in and out-->
+    y (1, 3, H', W') --crop, max(expm1(y), 0) * a_eff--> (H, W, 3)
+
+The shipped model is residual (metadata ``residual``): the graph adds the input's colour channels
+x[:, 0:3] to y, so the network predicts a correction of the noisy colour (see
+``model.RecurrentAE``). Its widths (``width_scale`` 0.5) and inputs are in its metadata and in
+``autoencoder.json``.
+
+Recurrence: ``reset()`` forgets the hidden states; each ``denoise(frame)`` then uses and
+updates them (``recurrent=True``). A frame with no state (the first after ``reset()``, and every
+frame when ``recurrent=False``) runs the stateless graph, which equals the stateful graph with
+zero hidden states. The harness resets before every call, so single frames are state-reset.
+
+Inputs (documented choice): albedo-demodulated colour ``log1p(color / a_eff)``, world-space
+normal, albedo and depth divided by the frame's largest depth (spec §1, the ``seed`` variant plus
+depth).
+
+Input policy (documented finite result): non-finite or negative colour values are treated as
+missing and replaced by 0 before encoding; non-finite normal/albedo/depth by 0; normals clipped
+to [-1, 1], albedo to [0, 1]. The output is finite everywhere. Missing or mis-shaped buffers
+raise DbenchInputError naming the buffer.
+
+Parameters: ``recurrent`` (carry state across frames), ``weights`` (path of another
+``autoencoder.onnx``; None: the shipped file), ``threads`` (ONNX Runtime intra-op threads).
+
+Example:
+    >>> import numpy as np
+    >>> from dbench.data import Frame
+    >>> from dbench.registry import get
+    >>> f = Frame(color=np.full((5, 7, 3), 0.5), albedo=np.full((5, 7, 3), 0.5),
+    ...           normal=np.dstack([np.zeros((5, 7, 2)), np.ones((5, 7))]),
+    ...           depth=np.ones((5, 7, 1)))
+    >>> get("autoencoder").denoise(f).shape
+    (5, 7, 3)
+"""
+from __future__ import annotations
+
+import json
+from functools import lru_cache
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ...data import check_buffer
+from ...errors import DbenchInputError
+from ...registry import Denoiser, register
+from .codec import FEATURE_CHANNELS, decode, encode, pad_to_multiple
+
+SHIPPED_ONNX = Path(__file__).resolve().parent / "autoencoder.onnx"
+SHIPPED_JSON = Path(__file__).resolve().parent / "autoencoder.json"
+
+
+@lru_cache(maxsize=8)
+def _load(path: str):
+    import onnx
+
+    p = Path(path)
+    if not p.exists():
+        raise DbenchInputError(f"weights: {p} does not exist; run `dbench train autoencoder` "
+                               "or pass the path of an autoencoder.onnx")
+    model = onnx.load(str(p))
+    meta = {e.key: e.value for e in model.metadata_props}
+    info = {"features": tuple(f for f in meta["features"].split(",") if f),
+            "enc_widths": tuple(int(w) for w in meta["enc_widths"].split(",")),
+            "in_channels": int(meta["in_channels"]),
+            "width_scale": float(meta.get("width_scale", 1.0)),
+            "residual": meta.get("residual") == "True"}
+    return model, info
+
+
+def model_info(weights: str | Path | None = None) -> dict[str, Any]:
+    """features, enc_widths and in_channels of a (default: the shipped) model."""
+    return dict(_load(str(weights or SHIPPED_ONNX))[1])
+
+
+@lru_cache(maxsize=8)
+def _session(path: str, stateful: bool, threads: int | None):
+    import onnxruntime as ort
+
+    from .export import stateless_from_stateful
+
+    model, info = _load(path)
+    if not stateful:
+        model = stateless_from_stateful(model, info["in_channels"], info["enc_widths"])
+    so = ort.SessionOptions()
+    so.log_severity_level = 3
+    so.add_session_config_entry("session.set_denormal_as_zero", "1")
+    # no busy-waiting between ops: on a shared machine spinning threads starve the others
+    so.add_session_config_entry("session.intra_op.allow_spinning", "0")
+    if threads:
+        so.intra_op_num_threads = int(threads)
+    return ort.InferenceSession(model.SerializeToString(), so,
+                                providers=["CPUExecutionProvider"])
+
+
+def _buffers(color, albedo, normal, depth, features) -> tuple[np.ndarray, dict]:
+    color = check_buffer("color", color, (None, None, 3))
+    h, w = color.shape[:2]
+    given = {"albedo": albedo, "normal": normal, "depth": depth}
+    out = {"albedo": check_buffer("albedo", albedo, (h, w, 3))}
+    for f in features:
+        if f != "albedo":
+            if given[f] is None:
+                raise DbenchInputError(f"{f}: missing; the autoencoder needs an "
+                                       f"(H, W, {FEATURE_CHANNELS[f]}) {f} buffer")
+            arr = np.asarray(given[f])
+            if f == "depth" and arr.ndim == 2:
+                arr = arr[..., None]
+            out[f] = check_buffer(f, arr, (h, w, FEATURE_CHANNELS[f]))
+    return color, out
+
+
+def autoencoder_denoise(color: np.ndarray, albedo: np.ndarray, normal: np.ndarray | None = None,
+                        depth: np.ndarray | None = None, hidden: list[np.ndarray] | None = None,
+                        weights: str | Path | None = None, threads: int | None = None
+                        ) -> tuple[np.ndarray, list[np.ndarray]]:
+    """Denoise one (H, W, 3) frame; returns ((H, W, 3) float32, new hidden states).
+
+    ``hidden``: the states returned for the previous frame of the same size, or None (frame 0).
+    """
+    path = str(weights or SHIPPED_ONNX)
+    _, info = _load(path)
+    color, bufs = _buffers(color, albedo, normal, depth, info["features"])
+    h, w = color.shape[:2]
+    x, a_eff = encode(color, bufs, info["features"])
+    xp, _, _ = pad_to_multiple(x)
+    feeds = {"x": xp[None]}
+    if hidden is not None:
+        expect = [(1, e, xp.shape[1] >> l, xp.shape[2] >> l)
+                  for l, e in enumerate(info["enc_widths"])]
+        if len(hidden) != len(expect) or any(t.shape != s for t, s in zip(hidden, expect)):
+            raise DbenchInputError(
+                f"hidden: state of shapes {[t.shape for t in hidden]} does not fit a {h}x{w} "
+                f"frame (expected {expect}); call reset() between sequences")
+        feeds.update({f"h{l + 1}": t for l, t in enumerate(hidden)})
+    outs = _session(path, hidden is not None, threads).run(None, feeds)
+    y, new_hidden = outs[0][0, :, :h, :w], list(outs[1:])
+    return decode(y, a_eff), new_hidden
+
+
+def reference_denoise(color, albedo, normal=None, depth=None, hidden=None, weights=None):
+    """The same through the PyTorch model (tests: ONNX Runtime equals PyTorch)."""
+    import torch
+
+    from .export import state_from_onnx
+    from .model import RecurrentAE, widths
+
+    path = str(weights or SHIPPED_ONNX)
+    model, info = _load(path)
+    state = state_from_onnx(model)
+    scale = info["width_scale"]
+    net = RecurrentAE(info["in_channels"], scale, residual=info["residual"])
+    if widths(scale)[0] != info["enc_widths"]:
+        raise ValueError(f"cannot rebuild widths {info['enc_widths']}")
+    net.load_state_dict({k: torch.from_numpy(np.array(v)) for k, v in state.items()})
+    color, bufs = _buffers(color, albedo, normal, depth, info["features"])
+    h, w = color.shape[:2]
+    x, a_eff = encode(color, bufs, info["features"])
+    xp, _, _ = pad_to_multiple(x)
+    with torch.no_grad():
+        hid = None if hidden is None else [torch.from_numpy(t) for t in hidden]
+        y, new_hidden = net(torch.from_numpy(xp)[None], hid)
+    return decode(y[0, :, :h, :w].numpy(), a_eff), [t.numpy() for t in new_hidden]
+
+
+def training_info(path: str | Path = SHIPPED_JSON) -> dict[str, Any]:
+    """The JSON written beside the shipped weights (training configuration, losses, ...)."""
+    return json.loads(Path(path).read_text())
+
+
+@register("autoencoder")
+class Autoencoder(Denoiser):
+    """Recurrent denoising autoencoder (spec/autoencoder.md); ``reset()`` between sequences."""
+
+    kinds = {"steady", "sequence"}
+    needs = {"color", "albedo", "normal", "depth"}
+    defaults = dict(recurrent=True, weights=None, threads=None)
+
+    def __init__(self, **params):
+        super().__init__(**params)
+        self._hidden: list[np.ndarray] | None = None
+
+    def reset(self) -> None:
+        self._hidden = None
+
+    def denoise(self, data) -> np.ndarray:
+        if getattr(data, "albedo", None) is None:
+            raise DbenchInputError("albedo: missing; the autoencoder needs an (H, W, 3) albedo "
+                                   "buffer")
+        hidden = self._hidden if self.params["recurrent"] else None
+        out, new_hidden = autoencoder_denoise(
+            data.color, data.albedo, getattr(data, "normal", None), getattr(data, "depth", None),
+            hidden=hidden, weights=self.params["weights"], threads=self.params["threads"])
+        if self.params["recurrent"]:
+            self._hidden = new_hidden
+        return out
+
+
+__all__ = ["Autoencoder", "autoencoder_denoise", "reference_denoise", "model_info",
+           "training_info", "SHIPPED_ONNX", "SHIPPED_JSON"]

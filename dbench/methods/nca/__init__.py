@@ -1,0 +1,160 @@
+"""``nca``: TNND, the tiny neural cellular automaton denoiser (spec/nca.md), served with ONNX
+Runtime from the shipped ``nca.onnx`` (trained by ``dbench train nca``; ``nca.json`` beside it
+holds the training configuration, data hash, losses, W and b).
+
+Pipeline (shapes for an H x W frame):
+
+    color, normal, albedo (H, W, 3) --encode--> state (1, 9, H, W)
+      --ONNX Runtime, `iterations` steps of Pad(edge) -> Conv 9->9 3x3 -> sigmoid -> + b -> + s-->
+    RGB state (1, 3, H, W) --decode: max(expm1(.), 0) [· a_eff]--> (H, W, 3)
+
+The colour encoding is stored in the model (``codec.py``): ``log1p`` or ``log1p_demodulated``
+(colour divided by the effective albedo before ``log1p``, multiplied back after ``expm1``).
+
+The automaton is size-agnostic: any H, W >= 1 works without padding.
+
+Input policy (documented finite result): non-finite or negative colour values are treated as
+missing and replaced by 0 before encoding; non-finite normal/albedo values by 0; normals are
+clipped to [-1, 1] and albedo to [0, 1]. A NaN is therefore never spread: the output is finite
+everywhere. Missing or mis-shaped buffers raise DbenchInputError naming the buffer.
+
+Parameters: ``iterations`` (None: the trained default stored in the model), ``weights`` (path of
+another ``nca.onnx``; None: the shipped file), ``threads`` (ONNX Runtime intra-op threads; None:
+its default, all physical cores).
+
+Example:
+    >>> import numpy as np
+    >>> from dbench.data import Frame
+    >>> from dbench.registry import get
+    >>> f = Frame(color=np.full((5, 7, 3), 0.5), albedo=np.full((5, 7, 3), 0.5),
+    ...           normal=np.dstack([np.zeros((5, 7, 2)), np.ones((5, 7))]))
+    >>> get("nca").denoise(f).shape
+    (5, 7, 3)
+"""
+from __future__ import annotations
+
+import json
+from functools import lru_cache
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ...data import check_buffer
+from ...errors import DbenchInputError
+from ...registry import Denoiser, register
+from .codec import decode, encode
+
+SHIPPED_ONNX = Path(__file__).resolve().parent / "nca.onnx"
+SHIPPED_JSON = Path(__file__).resolve().parent / "nca.json"
+
+
+@lru_cache(maxsize=8)
+def _model_info(path: str) -> dict[str, Any]:
+    import onnx
+
+    from .export import metadata, weights_from_onnx
+
+    p = Path(path)
+    if not p.exists():
+        raise DbenchInputError(f"weights: {p} does not exist; run `dbench train nca` or pass "
+                               "the path of an nca.onnx")
+    model = onnx.load(str(p))
+    W, b = weights_from_onnx(model)
+    meta = metadata(model)
+    return {"W": W, "b": b, "update_channels": meta.get("update_channels", "all"),
+            "activation": meta.get("activation", "sigmoid"),
+            "encoding": meta.get("color_encoding", "log1p"),
+            "iterations": int(meta.get("iterations", 16))}
+
+
+@lru_cache(maxsize=8)
+def _session(path: str, iterations: int, threads: int | None):
+    """An ONNX Runtime session of the unrolled automaton (built in memory from the weights)."""
+    import onnxruntime as ort
+
+    from .export import build_onnx
+
+    info = _model_info(path)
+    model = build_onnx(info["W"], info["b"], info["update_channels"], info["activation"],
+                       iterations=iterations)
+    so = ort.SessionOptions()
+    so.log_severity_level = 3
+    so.add_session_config_entry("session.set_denormal_as_zero", "1")
+    # no busy-waiting between ops: on a shared machine spinning threads starve the others
+    so.add_session_config_entry("session.intra_op.allow_spinning", "0")
+    if threads:
+        so.intra_op_num_threads = int(threads)
+    return ort.InferenceSession(model.SerializeToString(), so,
+                                providers=["CPUExecutionProvider"])
+
+
+def default_iterations(weights: str | Path | None = None) -> int:
+    return _model_info(str(weights or SHIPPED_ONNX))["iterations"]
+
+
+def nca_denoise(color: np.ndarray, normal: np.ndarray, albedo: np.ndarray,
+                iterations: int | None = None, weights: str | Path | None = None,
+                threads: int | None = None) -> np.ndarray:
+    """Denoise (H, W, 3) linear colour with (H, W, 3) normal and albedo; returns (H, W, 3)
+    float32 (spec/nca.md; input policy in the module docstring)."""
+    color = check_buffer("color", color, (None, None, 3))
+    h, w = color.shape[:2]
+    normal = check_buffer("normal", normal, (h, w, 3))
+    albedo = check_buffer("albedo", albedo, (h, w, 3))
+    path = str(weights or SHIPPED_ONNX)
+    k = _model_info(path)["iterations"] if iterations is None else iterations
+    if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 0:
+        raise DbenchInputError(f"iterations: expected an integer >= 0, got {k!r}")
+    enc = _model_info(path)["encoding"]
+    state = encode(color, normal, albedo, enc)[None]
+    rgb = _session(path, int(k), threads).run(None, {"state": state})[0][0]
+    return decode(rgb, albedo, enc)
+
+
+def reference_denoise(color: np.ndarray, normal: np.ndarray, albedo: np.ndarray,
+                      iterations: int | None = None, weights: str | Path | None = None
+                      ) -> np.ndarray:
+    """The same result through the readable PyTorch model (perception + 39x9 product)."""
+    import torch
+
+    from .model import NCA
+
+    info = _model_info(str(weights or SHIPPED_ONNX))
+    k = info["iterations"] if iterations is None else iterations
+    nca = NCA(info["update_channels"], info["activation"])
+    with torch.no_grad():
+        nca.W.copy_(torch.from_numpy(info["W"]))
+        nca.b.copy_(torch.from_numpy(info["b"]))
+        color = check_buffer("color", color, (None, None, 3))
+        h, w = color.shape[:2]
+        albedo = check_buffer("albedo", albedo, (h, w, 3))
+        s = torch.from_numpy(encode(color, check_buffer("normal", normal, (h, w, 3)), albedo,
+                                    info["encoding"]))[None]
+        rgb = nca(s, int(k))[0, :3].numpy()
+    return decode(rgb, albedo, info["encoding"])
+
+
+def training_info(path: str | Path = SHIPPED_JSON) -> dict[str, Any]:
+    """The JSON written beside the shipped weights (training configuration, losses, ...)."""
+    return json.loads(Path(path).read_text())
+
+
+@register("nca")
+class NCADenoiser(Denoiser):
+    """TNND (spec/nca.md): 360 trained numbers, ``iterations`` automaton steps."""
+
+    kinds = {"steady"}
+    needs = {"color", "normal", "albedo"}
+    defaults = dict(iterations=None, weights=None, threads=None)
+
+    def denoise(self, data) -> np.ndarray:
+        for name in ("normal", "albedo"):
+            if getattr(data, name, None) is None:
+                raise DbenchInputError(f"{name}: missing; nca needs an (H, W, 3) {name} buffer")
+        return nca_denoise(data.color, data.normal, data.albedo, self.params["iterations"],
+                           self.params["weights"], self.params["threads"])
+
+
+__all__ = ["NCADenoiser", "nca_denoise", "reference_denoise", "default_iterations",
+           "training_info", "SHIPPED_ONNX", "SHIPPED_JSON"]

@@ -1,0 +1,146 @@
+"""TNND, the tiny neural cellular automaton denoiser, in PyTorch: the readable reference
+(spec/nca.md).
+
+State (spec §1): per pixel s = [R, G, B, N_x, N_y, N_z, A_x, A_y, A_z], shape (N, 9, H, W), with
+RGB as ``log1p`` of linear radiance, normals in [-1, 1], albedo in [0, 1] (spec §3, colour
+scaling).
+
+Perception (spec §2): 39 channels, in this order: identity (9), Gaussian K_g on RGB (3),
+Laplacian K_l (9), Sobel-x K_sx (9), Sobel-y K_sy (9); fixed 3x3 kernels applied with kornia's
+``filter2d`` (cross-correlation) and replicate padding.
+
+Update (spec §3): s <- s + sigmoid(p · W) + b, W (39, 9), b (9,): 351 + 9 = 360 trainable
+parameters. ``update_channels="rgb"`` masks the update to RGB (normal and albedo stay the input
+bit for bit); ``activation="tanh"`` replaces the sigmoid.
+
+The fast path (:func:`folded_kernel`): perception followed by the 1x1 product with W is one
+linear map, a 3x3 convolution 9 -> 9 whose weights are the filters scaled by the rows of W. The
+ONNX model (``export.py``) runs that convolution; tests prove it equal to this module.
+
+Example:
+    >>> import torch
+    >>> nca = NCA()
+    >>> count_parameters(nca)
+    360
+    >>> s = torch.rand(1, 9, 8, 8)
+    >>> with torch.no_grad():  # W = 0, b = -0.5 (the initial values): the identity
+    ...     bool(torch.equal(nca(s, 16), s))
+    True
+"""
+from __future__ import annotations
+
+import numpy as np
+import torch
+from kornia.filters import filter2d
+from torch import nn
+
+from .codec import decode, encode, sanitize  # noqa: F401  (re-exported)
+
+STATE_CHANNELS = 9
+RGB = 3
+PERCEPTION_CHANNELS = 39
+UPDATE_CHANNELS = ("all", "rgb")
+ACTIVATIONS = ("sigmoid", "tanh")
+
+#: The fixed filters of spec §2 (cross-correlation kernels; +x right, +y down).
+K_GAUSS = np.outer([1, 2, 1], [1, 2, 1]).astype(np.float32) / 16.0
+K_SOBEL_X = np.array([[-1, 0, 1], [-2, 0, 2], [-1, 0, 1]], np.float32) / 8.0
+K_SOBEL_Y = K_SOBEL_X.T.copy()
+K_LAPLACE = np.array([[1, 2, 1], [2, -12, 2], [1, 2, 1]], np.float32) / 16.0
+K_IDENTITY = np.zeros((3, 3), np.float32)
+K_IDENTITY[1, 1] = 1.0
+
+#: Perception blocks in order: (name, kernel, channels it applies to).
+BLOCKS = (
+    ("identity", K_IDENTITY, tuple(range(9))),
+    ("gaussian", K_GAUSS, (0, 1, 2)),
+    ("laplacian", K_LAPLACE, tuple(range(9))),
+    ("sobel_x", K_SOBEL_X, tuple(range(9))),
+    ("sobel_y", K_SOBEL_Y, tuple(range(9))),
+)
+
+
+def perception_map() -> list[tuple[np.ndarray, int]]:
+    """For each of the 39 perception channels: (3x3 kernel, state channel it reads)."""
+    return [(k, c) for _, k, chans in BLOCKS for c in chans]
+
+
+def perceive(s: torch.Tensor) -> torch.Tensor:
+    """(N, 9, H, W) state -> (N, 39, H, W) perception vector (spec §2), kornia filters,
+    replicate padding."""
+    if s.ndim != 4 or s.shape[1] != STATE_CHANNELS:
+        raise ValueError(f"state: expected (N, 9, H, W), got {tuple(s.shape)}")
+
+    def filt(x: torch.Tensor, k: np.ndarray) -> torch.Tensor:
+        kern = torch.as_tensor(k, dtype=x.dtype, device=x.device)[None]
+        return filter2d(x, kern, border_type="replicate")
+
+    return torch.cat([s, filt(s[:, :RGB], K_GAUSS), filt(s, K_LAPLACE), filt(s, K_SOBEL_X),
+                      filt(s, K_SOBEL_Y)], dim=1)
+
+
+class NCA(nn.Module):
+    """The automaton: ``forward(s, iterations)`` applies the update ``iterations`` times.
+
+    Args:
+        update_channels: ``"all"`` (seed: every channel evolves) or ``"rgb"``.
+        activation: ``"sigmoid"`` (seed) or ``"tanh"``.
+        bias_init: initial value of every entry of b (-0.5 with W = 0 is the identity).
+        w_init_std: standard deviation of W's initial Gaussian values.
+    """
+
+    def __init__(self, update_channels: str = "all", activation: str = "sigmoid",
+                 bias_init: float = -0.5, w_init_std: float = 0.0, generator=None):
+        super().__init__()
+        if update_channels not in UPDATE_CHANNELS:
+            raise ValueError(f"update_channels: expected one of {UPDATE_CHANNELS}")
+        if activation not in ACTIVATIONS:
+            raise ValueError(f"activation: expected one of {ACTIVATIONS}")
+        self.update_channels = update_channels
+        self.activation = activation
+        w = torch.zeros(PERCEPTION_CHANNELS, STATE_CHANNELS)
+        if w_init_std > 0:
+            w.normal_(0.0, w_init_std, generator=generator)
+        self.W = nn.Parameter(w)
+        self.b = nn.Parameter(torch.full((STATE_CHANNELS,), float(bias_init)))
+        mask = torch.ones(STATE_CHANNELS)
+        if update_channels == "rgb":
+            mask[RGB:] = 0
+        self.register_buffer("mask", mask, persistent=False)
+
+    def act(self, z: torch.Tensor) -> torch.Tensor:
+        return torch.sigmoid(z) if self.activation == "sigmoid" else torch.tanh(z)
+
+    def step(self, s: torch.Tensor) -> torch.Tensor:
+        """One update: s + sigmoid(p · W) + b (masked to RGB when update_channels="rgb")."""
+        p = perceive(s)
+        z = torch.einsum("nphw,pc->nchw", p, self.W)
+        ds = self.act(z) + self.b[None, :, None, None]
+        if self.update_channels == "rgb":
+            return torch.cat([s[:, :RGB] + ds[:, :RGB], s[:, RGB:]], dim=1)
+        return s + ds
+
+    def forward(self, s: torch.Tensor, iterations: int) -> torch.Tensor:
+        for _ in range(int(iterations)):
+            s = self.step(s)
+        return s
+
+
+def count_parameters(module: nn.Module) -> int:
+    return sum(p.numel() for p in module.parameters() if p.requires_grad)
+
+
+def folded_kernel(W: np.ndarray) -> np.ndarray:
+    """The (9, 9, 3, 3) convolution (out, in, ky, kx) equal to ``perceive`` followed by · W.
+
+    Output channel o reads input channel c through sum_j W[j, o] K_j over the perception
+    channels j that read c.
+    """
+    W = np.asarray(W, np.float64)
+    if W.shape != (PERCEPTION_CHANNELS, STATE_CHANNELS):
+        raise ValueError(f"W: expected shape (39, 9), got {W.shape}")
+    K = np.zeros((STATE_CHANNELS, STATE_CHANNELS, 3, 3), np.float64)
+    for j, (kern, c) in enumerate(perception_map()):
+        K[:, c] += W[j][:, None, None] * kern[None].astype(np.float64)
+    return K.astype(np.float32)
+

@@ -1,0 +1,176 @@
+"""autoencoder (spec/autoencoder.md): parameter count, shapes and padding, recurrence, ONNX
+Runtime = PyTorch, shipped weights, input policy, sizes."""
+import json
+import subprocess
+import sys
+
+import numpy as np
+import onnxruntime as ort
+import pytest
+import torch
+
+from dbench import methods
+from dbench.data import Frame
+from dbench.errors import DbenchInputError
+from dbench.methods.autoencoder import (SHIPPED_JSON, autoencoder_denoise, model_info,
+                                        reference_denoise)
+from dbench.methods.autoencoder.export import build_onnx
+from dbench.methods.autoencoder.model import RecurrentAE, count_parameters, pad_to_multiple
+
+torch.set_num_threads(1)
+
+
+def _frame(h=40, w=36, seed=0):
+    rng = np.random.default_rng(seed)
+    y, x = np.mgrid[0:h, 0:w]
+    clean = np.repeat((0.4 + 0.3 * np.sin(x / 5.0) * np.cos(y / 7.0))[..., None], 3, 2)
+    normal = np.zeros((h, w, 3))
+    normal[..., 2] = 1
+    albedo = np.where(((x // 4 + y // 4) % 2)[..., None] == 0, 0.8, 0.3) * np.ones(3)
+    color = clean * albedo * (1 + 0.5 * rng.standard_normal((h, w, 3)))
+    return Frame(color=np.maximum(color, 0), albedo=albedo, normal=normal,
+                 depth=np.full((h, w, 1), 2.0), reference=clean * albedo)
+
+
+def _session(model):
+    so = ort.SessionOptions()
+    so.log_severity_level = 3
+    return ort.InferenceSession(model.SerializeToString(), so)
+
+
+def test_parameter_counts():
+    assert count_parameters(RecurrentAE(9)) == 1_454_924
+    assert count_parameters(RecurrentAE(7)) == 1_454_348
+    assert RecurrentAE(9).enc_widths == (32, 43, 57, 76, 101)
+
+
+def test_shapes_and_padding():
+    net = RecurrentAE(9, width_scale=0.25)
+    with torch.no_grad():
+        y, h = net(torch.zeros(1, 9, 128, 128))
+    assert tuple(y.shape) == (1, 3, 128, 128)
+    assert [tuple(t.shape[2:]) for t in h] == [(128, 128), (64, 64), (32, 32), (16, 16), (8, 8)]
+    xp, hh, ww = pad_to_multiple(np.zeros((9, 100, 75), np.float32))
+    assert xp.shape == (9, 128, 96) and (hh, ww) == (100, 75)
+    f = _frame(100, 75)
+    assert methods.get("autoencoder").denoise(f).shape == (100, 75, 3)
+
+
+def test_recurrence_torch():
+    torch.manual_seed(0)
+    x = torch.rand(1, 9, 32, 32)
+    with torch.no_grad():
+        net = RecurrentAE(9, 0.25)
+        y0, h = net(x)
+        y1, _ = net(x, h)
+        assert not torch.equal(y0, y1)  # recurrent weights are not zero
+        y0b, _ = net(x)
+        assert torch.equal(y0, y0b)  # reset reproduces frame 0 bit for bit
+        flat = RecurrentAE(9, 0.25, recurrent=False)
+        flat.load_state_dict(net.state_dict())
+        z0, hz = flat(x)
+        assert torch.equal(z0, flat(x, hz)[0])
+
+
+@pytest.mark.parametrize("stateful,residual", [(True, False), (False, False), (True, True),
+                                               (False, True)])
+def test_onnx_runtime_equals_pytorch(stateful, residual):
+    torch.manual_seed(1)
+    net = RecurrentAE(10, 0.25, residual=residual).eval()
+    state = {k: v.numpy() for k, v in net.state_dict().items()}
+    sess = _session(build_onnx(state, 10, net.enc_widths, stateful=stateful, residual=residual))
+    x = torch.rand(1, 10, 64, 64)
+    with torch.no_grad():
+        y0, h0 = net(x)
+        y1, h1 = net(x * 0.5, h0)
+    if stateful:
+        feeds = {"x": (x * 0.5).numpy(), **{f"h{i + 1}": t.numpy() for i, t in enumerate(h0)}}
+        out = sess.run(None, feeds)
+        assert np.abs(out[0] - y1.numpy()).max() <= 1e-4
+        for a, b in zip(out[1:], h1):
+            assert np.abs(a - b.numpy()).max() <= 1e-4
+    else:
+        out = sess.run(None, {"x": x.numpy()})
+        assert np.abs(out[0] - y0.numpy()).max() <= 1e-4
+        for a, b in zip(out[1:], h0):
+            assert np.abs(a - b.numpy()).max() <= 1e-4
+
+
+def test_shipped_weights_onnx_equals_pytorch_over_two_frames():
+    f = _frame(37, 45)
+    out0, h0 = autoencoder_denoise(f.color, f.albedo, f.normal, f.depth)
+    ref0, r0 = reference_denoise(f.color, f.albedo, f.normal, f.depth)
+    assert np.abs(out0 - ref0).max() <= 1e-4
+    out1, _ = autoencoder_denoise(f.color * 0.9, f.albedo, f.normal, f.depth, hidden=h0)
+    ref1, _ = reference_denoise(f.color * 0.9, f.albedo, f.normal, f.depth, hidden=r0)
+    assert np.abs(out1 - ref1).max() <= 1e-4
+
+
+def test_method_state_and_reset():
+    f = _frame(32, 32)
+    m = methods.get("autoencoder")
+    m.reset()
+    a = m.denoise(f)
+    m.denoise(f)
+    m.reset()
+    assert np.array_equal(m.denoise(f), a)
+    flat = methods.get("autoencoder", recurrent=False)
+    assert np.array_equal(flat.denoise(f), flat.denoise(f))
+    with pytest.raises(DbenchInputError, match="reset"):
+        m.denoise(_frame(64, 64))  # state of a 32x32 frame
+
+
+def test_shipped_files_load_in_a_fresh_process():
+    info = json.loads(SHIPPED_JSON.read_text())
+    assert "hash" in info["data"] and "final_train_loss" in info["losses"]
+    assert info["enc_widths"] == list(model_info()["enc_widths"])
+    code = ("import numpy as np; from dbench import methods; from dbench.data import Frame; "
+            "f = Frame(color=np.ones((6, 9, 3)), albedo=np.full((6, 9, 3), .5), "
+            "normal=np.ones((6, 9, 3)), depth=np.ones((6, 9, 1))); "
+            "o = methods.get('autoencoder').denoise(f); print(o.shape, bool(np.isfinite(o).all()))")
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=120)
+    assert res.returncode == 0, res.stderr
+    assert "(6, 9, 3) True" in res.stdout
+
+
+def test_denoises_a_noisy_image():
+    f = _frame(64, 64)
+    out = methods.get("autoencoder").denoise(f)
+    err = lambda a: np.sqrt(((a - f.reference) ** 2).mean())
+    assert err(out) < err(f.color)
+
+
+@pytest.mark.parametrize("shape", [(1, 1), (1, 17), (13, 7), (33, 2)])
+def test_tiny_and_odd_sizes(shape):
+    f = _frame(*shape)
+    out = methods.get("autoencoder").denoise(f)
+    assert out.shape == (*shape, 3) and out.dtype == np.float32 and np.all(np.isfinite(out))
+
+
+def test_non_finite_inputs_give_finite_output():
+    f = _frame()
+    color, normal, albedo, depth = (f.color.copy(), f.normal.copy(), f.albedo.copy(),
+                                    f.depth.copy())
+    color[5, 5] = np.nan
+    color[6, 6] = np.inf
+    color[7, 7] = -np.inf
+    normal[3, 3] = np.nan
+    albedo[9, 9] = np.inf
+    depth[2, 2] = np.nan
+    out = methods.get("autoencoder").denoise(f.with_buffers(color=color, normal=normal,
+                                                            albedo=albedo, depth=depth))
+    assert np.all(np.isfinite(out))
+
+
+def test_bad_shapes_and_missing_buffers_name_the_buffer():
+    f = _frame(8, 8)
+    with pytest.raises(DbenchInputError, match="depth"):
+        methods.get("autoencoder").denoise(Frame(color=f.color, albedo=f.albedo,
+                                                 normal=f.normal))
+    with pytest.raises(DbenchInputError, match="albedo"):
+        methods.get("autoencoder").denoise(Frame(color=f.color))
+    with pytest.raises(DbenchInputError, match="normal"):
+        autoencoder_denoise(f.color, f.albedo, f.normal[:4], f.depth)
+    with pytest.raises(DbenchInputError, match="color"):
+        autoencoder_denoise(f.color[0], f.albedo, f.normal, f.depth)
