@@ -1,4 +1,4 @@
-"""Command line: ``dbench run | sweep | stress | report | list | render | bench``.
+"""Command line: ``dbench run | sweep | stress | report | list | render | bench | train``.
 
 Exit codes: 0 success, 2 unknown names or bad arguments (the valid names are listed),
 3 renderer unavailable.
@@ -77,10 +77,22 @@ def cmd_list(args: argparse.Namespace) -> int:
     return 0
 
 
+def _summarise_parts(parts: Sequence[str]) -> str:
+    """``frame0, frame1, reference0`` → ``frame ×2, reference ×1`` (sequence renders are cached
+    per frame); names without a frame number are listed as they are."""
+    import re
+    from collections import Counter
+
+    counts = Counter(re.sub(r"\d+$", "", p) if re.search(r"\d+$", p) else p for p in parts)
+    numbered = {re.sub(r"\d+$", "", p) for p in parts if re.search(r"\d+$", p)}
+    return ", ".join(f"{k} ×{v}" if k in numbered else k for k, v in counts.items())
+
+
 def cmd_run(args: argparse.Namespace) -> int:
     from . import datasets, methods
     from .bench import harness, report
     from .datasets import scenes
+    from .bench.sequence import WARMUP
     from .io import write_exr, write_json, write_text
 
     import pandas as pd
@@ -107,7 +119,9 @@ def cmd_run(args: argparse.Namespace) -> int:
     cache = datasets.Cache(args.cache, enabled=not args.no_cache)
     frame = datasets.load(scene, spp=args.spp, res=args.res, needs=needs, seed=args.seed,
                           transform=args.transform, lam=args.lam, ref_spp=args.ref_spp,
-                          cache=cache, progress=not args.quiet)
+                          cache=cache, progress=not args.quiet, frames=args.frames,
+                          bins=args.bins)
+    is_sequence = frame.kind == "sequence"
     out = Path(args.out) if args.out else Path("results/runs") / (
         f"{scene.name}_{args.spp}spp_{args.res}px_"
         f"{_dt.datetime.now().strftime('%Y%m%d-%H%M%S')}")
@@ -117,29 +131,50 @@ def cmd_run(args: argparse.Namespace) -> int:
     for n in runnable:
         if not args.quiet:
             print(f"running {n} ...", flush=True)
-        res = harness.run_cell(instances[n], frame, repeats=args.repeats)
+        if is_sequence:
+            res = harness.run_sequence_cell(instances[n], frame)
+        else:
+            res = harness.run_cell(instances[n], frame, repeats=args.repeats)
         if res.skipped:
             skipped[n] = res.skipped
             continue
         rows.append({"scene": scene.name, "method": n, "spp": args.spp, "res": args.res,
                      **res.metrics, "time_s": res.time_s, "n_nonfinite": res.n_nonfinite,
                      "params": json.dumps(res.params, sort_keys=True, default=str)})
-        outputs.append((n, res.output))
+        outputs.append((n, res.sequence if is_sequence else res.output))
         write_exr(out / "images" / f"{n}.exr", {"color": res.output})
-    write_exr(out / "images" / "reference.exr", {"color": frame.reference})
+    last = frame[len(frame) - 1] if is_sequence else frame
+    write_exr(out / "images" / "reference.exr", {"color": last.reference})
 
     table = pd.DataFrame(rows)
     report.write_csv(out / "metrics.csv", table)
-    report.comparison_grid(out / "comparison.png", outputs, frame.reference, ev=scene.ev,
-                           title=f"{scene.name}, {args.spp} spp, {args.res} px")
+    if is_sequence:
+        from .bench.sequence import plot_errors, strip
+        runs = dict(outputs)
+        title = f"{scene.name}, {args.spp} spp, {args.res} px, {len(frame)} frames"
+        plot_errors(runs, out / "error_per_frame.png", title=title,
+                    events=frame.meta.get("events"))
+        strip(frame, runs, out / "comparison.png", title=title)
+        for n, run in runs.items():
+            report.write_csv(out / f"per_frame_{n}.csv", pd.DataFrame(run.per_frame))
+    elif frame.kind == "transient":
+        from .bench.transient import write_figures
+        write_figures(out, frame, dict(outputs), title=f"{scene.name}, {args.spp} spp")
+    else:
+        report.comparison_grid(out / "comparison.png", outputs, frame.reference, ev=scene.ev,
+                               title=f"{scene.name}, {args.spp} spp, {args.res} px")
     info = harness.machine_info()
-    settings = {"scene": scene.name, "spp": args.spp, "res": args.res, "seed": args.seed,
-                "ref_spp": frame.meta.get("ref_spp"), "repeats": args.repeats,
-                "transform": f"{args.transform} (λ = {args.lam})" if "stats" in needs else "n/a",
+    settings = {"scene": scene.name, "kind": scene.kind, "spp": args.spp, "res": args.res,
+                "seed": args.seed,
+                "ref_spp": frame.meta.get("ref_spp"),
+                "repeats": (f"1 per frame; metrics and time over frames ≥ {WARMUP} of "
+                            f"{len(frame)}" if is_sequence else args.repeats),
+                "transform": (f"{frame.stats.transform} (λ = {frame.stats.lam})"
+                              if getattr(frame, "stats", None) is not None else "n/a"),
                 "variant": frame.meta["versions"]["variant"],
                 "render_s": frame.meta.get("render_s"),
-                "cache hits": ", ".join(frame.meta["cache_hits"]) or "none",
-                "rendered": ", ".join(frame.meta["rendered"]) or "nothing",
+                "cache hits": _summarise_parts(frame.meta["cache_hits"]) or "none",
+                "rendered": _summarise_parts(frame.meta["rendered"]) or "nothing",
                 "method parameters": "; ".join(f"{r['method']}: {r['params']}" for r in rows)}
     write_text(out / "report.md", report.run_report_md(table, settings, info, skipped))
     write_json(out / "run.json", {"settings": settings, "machine": info, "skipped": skipped})
@@ -185,7 +220,8 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     config = sweep.SweepConfig(methods=methods_, scenes=scenes_,
                                spp=[int(s) for s in _split(args.spp)], res=args.res,
                                ref_spp=args.ref_spp, seed=args.seed, repeats=args.repeats,
-                               transform=args.transform, lam=args.lam,
+                               transform=args.transform, lam=args.lam, frames=args.frames,
+                               bins=args.bins,
                                params={k: v for k, v in params.items() if v}, cache=args.cache)
     counts = sweep.run_sweep(config, args.out, executor=args.executor, workers=args.workers,
                              progress=not args.quiet)
@@ -216,6 +252,26 @@ def cmd_report(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_train(args: argparse.Namespace) -> int:
+    """Render (or read cached) procedural training scenes, train, write the ONNX + JSON."""
+    from . import datasets
+    from .learn.train import run_training
+
+    overrides = {"seed": args.seed}
+    if args.steps is not None:
+        overrides["steps"] = args.steps
+    if args.minutes is not None:
+        overrides["max_minutes"] = args.minutes
+    if args.width_scale is not None:
+        if args.method != "autoencoder":
+            raise DbenchInputError("--width-scale: only the autoencoder has widths")
+        overrides["width_scale"] = args.width_scale
+    run_training(args.method, n_scenes=args.scenes, res=args.res,
+                 ref_spp=args.ref_spp or 1024, out_dir=args.out,
+                 cache=datasets.Cache(args.cache, enabled=not args.no_cache), **overrides)
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="dbench", description=__doc__.splitlines()[0])
     sub = p.add_subparsers(dest="command", required=True)
@@ -236,8 +292,13 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--out", default=None, help="output folder (default results/runs/<new>)")
     r.add_argument("--param", action="append", metavar="[METHOD.]KEY=VALUE")
     r.add_argument("--repeats", type=int, default=5, help="timed calls after one warm-up")
-    r.add_argument("--transform", default="box-cox", help="sample transform of the statistics")
+    r.add_argument("--transform", default=None, help="sample transform of the statistics "
+                   "(default: box-cox for steady scenes, identity for transient ones)")
     r.add_argument("--lam", type=float, default=0.5)
+    r.add_argument("--frames", type=int, default=None, help="sequence scenes: frames from the "
+                   "start (default all)")
+    r.add_argument("--bins", type=int, default=None, help="transient scenes: time bins "
+                   "(default the scene's)")
     r.add_argument("--quiet", action="store_true")
     common(r)
     r.set_defaults(func=cmd_run)
@@ -263,8 +324,13 @@ def build_parser() -> argparse.ArgumentParser:
     sw.add_argument("--workers", type=int, default=1, help="local process-pool size")
     sw.add_argument("--repeats", type=int, default=5)
     sw.add_argument("--param", action="append", metavar="[METHOD.]KEY=VALUE")
-    sw.add_argument("--transform", default="box-cox")
+    sw.add_argument("--transform", default=None, help="sample transform of the statistics "
+                    "(default: box-cox for steady scenes, identity for transient ones)")
     sw.add_argument("--lam", type=float, default=0.5)
+    sw.add_argument("--frames", type=int, default=None, help="sequence scenes: frames from the "
+                    "start (default all)")
+    sw.add_argument("--bins", type=int, default=None, help="transient scenes: time bins "
+                    "(default the scene's)")
     sw.add_argument("--quiet", action="store_true")
     common(sw)
     sw.set_defaults(func=cmd_sweep)
@@ -290,6 +356,20 @@ def build_parser() -> argparse.ArgumentParser:
     bp.add_argument("--repeats", type=int, default=3)
     bp.add_argument("--out", default=None, help="append the result to this JSON-lines file")
     bp.set_defaults(func=cmd_bench)
+
+    tp = sub.add_parser("train", help="train nca or autoencoder on procedural training scenes "
+                        "rendered here; writes <name>.onnx and <name>.json")
+    tp.add_argument("method", choices=["nca", "autoencoder"])
+    tp.add_argument("--steps", type=int, default=None, help="optimiser steps (default: config)")
+    tp.add_argument("--minutes", type=float, default=None, help="stop after this wall time")
+    tp.add_argument("--scenes", type=int, default=24,
+                    help="training scenes (nca holds 4 out, autoencoder 2)")
+    tp.add_argument("--res", type=int, default=128)
+    tp.add_argument("--width-scale", type=float, default=None, help="autoencoder widths factor")
+    tp.add_argument("--out", default=None, help="output folder (default: the method's package "
+                    "folder, replacing the shipped weights)")
+    common(tp)
+    tp.set_defaults(func=cmd_train)
     return p
 
 

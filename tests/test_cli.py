@@ -44,3 +44,23 @@ def test_run_writes_metrics_report_images(renderer, tmp_path, capsys):
     assert (out / "comparison.png").stat().st_size > 1000
     assert (out / "images" / "oidn.exr").exists() and (out / "images" / "reference.exr").exists()
     assert not list(out.rglob(".*tmp*"))
+
+
+@pytest.mark.mitsuba
+def test_run_on_a_sequence_scene_writes_per_frame_results(renderer, tmp_path):
+    out = tmp_path / "seq"
+    code = main(["run", "--method", "svgf,accumulate", "--scene", "orbit", "--spp", "1",
+                 "--res", "12", "--frames", "10", "--ref-spp", "8", "--out", str(out),
+                 "--quiet", "--cache", str(tmp_path / "cache")])
+    assert code == 0
+    table = pd.read_csv(out / "metrics.csv")
+    assert list(table.method) == ["noisy", "svgf", "accumulate"]
+    assert {"t_rmse", "tpsnr"} <= set(table.columns)
+    per_frame = pd.read_csv(out / "per_frame_svgf.csv")
+    assert len(per_frame) == 10 and per_frame.frame.tolist() == list(range(10))
+    report = (out / "report.md").read_text()
+    assert "Sequence: every frame is denoised once" in report
+    assert "frame ×10" in report  # cache parts summarised, not listed 10 times
+    for name in ("comparison.png", "error_per_frame.png", "images/svgf.exr",
+                 "images/reference.exr"):
+        assert (out / name).stat().st_size > 500

@@ -116,3 +116,34 @@ def test_report_is_reproducible_byte_for_byte(renderer, tmp_path):
                    "## Stress test", "## Environment", "relMSE"):
         assert needle in text or needle.lower() in text.lower()
     assert (results / "sweep" / "tables" / "convergence_rmse.csv").exists()
+
+
+def test_sequence_and_transient_scenes_in_one_sweep(renderer, tmp_path):
+    """A sequence cell runs the method once over the frames (means after the warm-up, plus the
+    temporal stability); a transient cell scores the whole video; inapplicable pairs skip."""
+    out = tmp_path / "kinds"
+    cfg = _config(tmp_path, methods=["noisy", "accumulate", "gauss3d"],
+                  scenes=["flicker", "cornell-transient"], spp=[1], res=12, ref_spp=8,
+                  frames=10, bins=12)
+    counts = sweep.run_sweep(cfg, out, progress=False)
+    assert counts["errors"] == 0
+    seq = {m: sweep.read_cell(sweep.cell_path(out, "flicker", 1, m))
+           for m in ("noisy", "accumulate", "gauss3d")}
+    assert seq["gauss3d"]["status"] == "skipped" and "sequence" in seq["gauss3d"]["reason"]
+    for m in ("noisy", "accumulate"):
+        c = seq[m]
+        assert c["status"] == "ok" and c["frames"] == 10 and c["warmup"] == 8
+        assert len(c["times_s"]) == 2  # frames 8 and 9
+        for k in ("rmse", "ssim", "flip", "t_rmse", "tpsnr"):
+            assert k in c and c[k] == c[k]  # present and not NaN
+    # Accumulating 1-spp frames of a static camera must beat the single frame it starts from.
+    assert seq["accumulate"]["rmse"] < seq["noisy"]["rmse"]
+    tr = {m: sweep.read_cell(sweep.cell_path(out, "cornell-transient", 1, m))
+          for m in ("noisy", "accumulate", "gauss3d")}
+    assert tr["accumulate"]["status"] == "skipped"
+    assert tr["gauss3d"]["status"] == "ok" and tr["noisy"]["status"] == "ok"
+    stored = sweep.read_cell(out / "sweep.json")["config"]
+    assert stored["frames"] == 10 and stored["bins"] == 12
+    with pytest.raises(ValueError, match="frames"):
+        sweep.run_sweep(_config(tmp_path, methods=["noisy"], scenes=["flicker"], spp=[1],
+                                res=12, ref_spp=8, frames=6, bins=12), out, progress=False)

@@ -32,6 +32,7 @@ class CellResult:
     times_s: list[float] = field(default_factory=list)
     skipped: str = ""
     n_nonfinite: int = 0
+    sequence: Any = None  # the SequenceResult of a sequence cell (per-frame rows, outputs)
 
     @property
     def time_s(self) -> float:
@@ -75,6 +76,35 @@ def run_cell(method: Denoiser, frame, metric_names=DEFAULT_METRICS, repeats: int
         result.metrics = metrics.compute_all(output, frame.reference, names=list(metric_names),
                                              ev=frame.meta.get("ev", 0.0))
     return result
+
+
+def run_sequence_cell(method: Denoiser, seq, metric_names=DEFAULT_METRICS,
+                      warmup: int | None = None) -> CellResult:
+    """Run a temporal ``method`` over a :class:`~dbench.data.Sequence` (``reset()`` once, then
+    every frame in order) and summarise it as one cell.
+
+    A recurrent method cannot be re-run on a frame, so each frame is timed once:
+    ``times_s`` are the per-frame times after the warm-up (``time_s`` is their median) and the
+    metrics are means over those frames (dbench.bench.sequence, spec/temporal.md §8), plus the
+    temporal stability ``t_rmse`` and ``tpsnr``. ``output`` is the last frame's output.
+    """
+    from ..data import FRAME_BUFFERS
+    from .sequence import WARMUP, run_sequence
+
+    warmup = WARMUP if warmup is None else int(warmup)
+    available = {b for b in FRAME_BUFFERS if seq.has(b)}
+    ok, reason = method.applies_to("sequence", available)
+    if not ok:
+        return CellResult(method.name, dict(method.params), None, skipped=reason)
+    names = list(metric_names)
+    run = run_sequence(method, seq, metric_names=names, warmup=warmup, keep_outputs=True)
+    after = run.per_frame[warmup:] if len(run.per_frame) > warmup else run.per_frame
+    scores = {n: run.summary[f"mean_{n}"] for n in names}
+    scores.update({k: run.summary[k] for k in ("t_rmse", "tpsnr") if k in run.summary})
+    return CellResult(method.name, dict(method.params), run.outputs[-1], metrics=scores,
+                      times_s=[r["time_s"] for r in after],
+                      n_nonfinite=int(sum((~np.isfinite(o)).sum() for o in run.outputs)),
+                      sequence=run)
 
 
 def machine_info() -> dict[str, Any]:

@@ -35,7 +35,10 @@ def build_readme(results: Path, sweep_dir: Path, headline_spp: int = 64) -> str:
                   f"{config.get('res')}×{config.get('res')} px, reference "
                   f"{config.get('ref_spp') or 4096} spp, seed {config.get('seed')}, "
                   f"denoise time = median of {config.get('repeats')} calls after a warm-up "
-                  "(rendering excluded).", ""]
+                  "(rendering excluded)." + (
+                      " Sequence scenes: each frame denoised once, in order; metrics are means "
+                      "and time the median per frame over the frames after the warm-up."
+                      if any(c.get("frames") for c in cells) else ""), ""]
     head = tables.headline_table(df, headline_spp)
     parts += [f"## Headline: every method × every scene at {headline_spp} spp", ""]
     parts += [markdown_table(head) if len(head) else "(no cells at this spp)", ""]

@@ -13,7 +13,7 @@ import pandas as pd
 from .. import io, metrics
 
 RUN_COLUMNS = ["scene", "method", "spp", "res", "rmse", "relmse", "smape", "psnr", "ssim", "flip",
-               "time_s"]
+               "t_rmse", "tpsnr", "time_s"]
 
 
 def write_csv(path: str | Path, table: pd.DataFrame) -> None:
@@ -99,8 +99,14 @@ def run_report_md(table: pd.DataFrame, settings: dict[str, Any], info: dict[str,
     parts = [f"# dbench run: {settings['scene']} at {settings['spp']} spp, "
              f"{settings['res']}×{settings['res']} px", "",
              markdown_table(shown), "",
-             "Lower is better except PSNR and SSIM. `time_s` is the median denoise time "
-             f"of {settings['repeats']} calls after one warm-up (rendering excluded).", ""]
+             "Lower is better except PSNR, tPSNR and SSIM. " + (
+                 "Sequence: every frame is denoised once, in order; metrics are means and "
+                 "`time_s` the median per-frame time over the frames after the warm-up "
+                 f"({settings['repeats']}); `t_rmse`/`tpsnr` score the frame-to-frame "
+                 "differences against the reference's (rendering excluded)."
+                 if settings.get("kind") == "sequence" else
+                 "`time_s` is the median denoise time "
+                 f"of {settings['repeats']} calls after one warm-up (rendering excluded)."), ""]
     if skipped:
         parts += ["## Skipped", ""] + [f"- {m}: {why}" for m, why in skipped.items()] + [""]
     parts += ["## Settings", ""]
@@ -109,5 +115,11 @@ def run_report_md(table: pd.DataFrame, settings: dict[str, Any], info: dict[str,
               "## Machine", "", machine_md(info), ""]
     if notes:
         parts += ["## Notes", ""] + [f"- {n}" for n in notes] + [""]
-    parts += ["Files: `metrics.csv`, `comparison.png`, one EXR per output in `images/`.", ""]
+    if settings.get("kind") == "sequence":
+        parts += ["Files: `metrics.csv`, `per_frame_<method>.csv`, `error_per_frame.png`, "
+                  "`comparison.png` (frames × methods), the last frame's outputs as EXR in "
+                  "`images/`.", ""]
+    else:
+        parts += ["Files: `metrics.csv`, `comparison.png`, one EXR per output in `images/`.",
+                  ""]
     return "\n".join(parts)

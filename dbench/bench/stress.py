@@ -7,6 +7,10 @@ A case passes when the method shows the documented behaviour:
 * or a :class:`~dbench.errors.DbenchInputError` whose message names the offending buffer and the
   expected shape (the only acceptable error, and only for cases where input is invalid).
 
+Transient cases (``tr_*``) build (H, W, T, 3) :class:`~dbench.data.TransientFrame` videos; a
+method without ``transient`` among its kinds reports n/a for them (and a transient-only method
+for the steady cases).
+
 Anything else fails: another exception, a wrong shape or dtype, NaN spread, or more than
 ``TIME_LIMIT_S`` seconds on a tiny image. ``dbench stress`` writes ``results/stress.md``; the same
 cases run in pytest (tests/test_stress.py).
@@ -20,7 +24,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from ..data import Frame, SampleStats
+from ..data import Frame, SampleStats, TransientFrame
 from ..errors import DbenchInputError
 
 TIME_LIMIT_S = 60.0
@@ -34,6 +38,8 @@ class Case:
     build: Callable[[], Frame]
     error_ok: tuple[str, ...] = ()   # buffers an error may name (invalid input)
     needs_buffer: str | None = None  # case applies only to methods needing this buffer
+    kind: str = "steady"             # "transient" cases build a TransientFrame
+    strict: bool = True              # False: accepting the missing buffer is also documented
 
 
 def base_frame(h: int = BASE_SIZE[0], w: int = BASE_SIZE[1], seed: int = 0, spp: int = 16,
@@ -175,6 +181,91 @@ CASES: tuple[Case, ...] = (
 )
 
 
+# ---------------------------------------------------------------------------------------------
+# transient cases: (H, W, T, 3) videos; methods without "transient" in their kinds are n/a
+
+
+def base_video(h: int = 12, w: int = 12, t: int = 10, seed: int = 0, spp: int = 16
+               ) -> TransientFrame:
+    """A small video with every buffer: a pulse travelling across the image over the bins
+    (empty first and last bins), shared G-buffers, identity statistics of spp samples."""
+    rng = np.random.default_rng(seed)
+    y, x = np.mgrid[0:h, 0:w].astype(np.float64)
+    bins = np.arange(t, dtype=np.float64)[None, None, :]
+    front = 1.0 + (x + y)[..., None] * (t - 3) / max(h + w - 2, 1)
+    clean = np.exp(-0.5 * (bins - front) ** 2)[..., None] * np.array([0.5, 0.4, 0.3])
+    clean[:, :, 0] = 0.0
+    clean[:, :, -1] = 0.0
+    sigma = 0.3 * np.sqrt(clean + 1e-3)
+    color = np.where(clean > 0, clean + sigma / np.sqrt(spp) * rng.standard_normal(clean.shape),
+                     0.0)
+    stats = SampleStats(n=np.full(clean.shape, float(spp)), mean=color,
+                        var_mean=np.where(clean > 0, sigma ** 2 / spp, 0.0),
+                        m3=np.zeros_like(clean), transform="identity", lam=1.0)
+    albedo = np.where(((x // 3 + y // 3) % 2)[..., None] > 0, 0.8, 0.2) * np.ones(3)
+    normal = np.zeros((h, w, 3))
+    normal[..., 2] = 1.0
+    return TransientFrame(color=color.astype(np.float32), stats=stats, albedo=albedo,
+                          normal=normal, depth=np.ones((h, w, 1)),
+                          reference=clean.astype(np.float32),
+                          meta={"start_opl": 3.0, "bin_width_opl": 0.05, "units": "m"})
+
+
+def _video_with(frame: TransientFrame, color: np.ndarray) -> TransientFrame:
+    st = frame.stats
+    stats = SampleStats(n=st.n, mean=color, var_mean=st.var_mean, m3=st.m3,
+                        transform=st.transform, lam=st.lam)
+    return frame.with_buffers(color=color, stats=stats)
+
+
+def _video_values(value: float) -> Callable[[], TransientFrame]:
+    def build() -> TransientFrame:
+        f = base_video()
+        c = f.color.copy()
+        c[4, 5, 3] = value
+        c[7, 2, 6, 1] = value
+        return _video_with(f, c)
+    return build
+
+
+def _video_all_empty() -> TransientFrame:
+    f = base_video()
+    z = np.zeros_like(f.color)
+    st = SampleStats(n=f.stats.n, mean=z, var_mean=np.zeros_like(z, np.float64),
+                     m3=np.zeros_like(z, np.float64), transform="identity", lam=1.0)
+    return f.with_buffers(color=z, stats=st, reference=z)
+
+
+def _video_size(h: int, w: int, t: int) -> Callable[[], TransientFrame]:
+    return lambda: base_video(h, w, t)
+
+
+def _video_missing(buffer: str) -> Callable[[], TransientFrame]:
+    return lambda: base_video().with_buffers(**{buffer: None})
+
+
+TRANSIENT_CASES: tuple[Case, ...] = (
+    Case("tr_all_empty", "transient: every bin empty (all zeros)", _video_all_empty,
+         kind="transient"),
+    Case("tr_nan_voxel", "transient: NaN voxels in color and stats", _video_values(np.nan),
+         kind="transient"),
+    Case("tr_inf_voxel", "transient: +Inf voxels in color and stats", _video_values(np.inf),
+         kind="transient"),
+    Case("tr_firefly", "transient: one voxel at 1e6", _video_values(1e6), kind="transient"),
+    Case("tr_negative", "transient: negative values", _video_values(-0.5), kind="transient"),
+    Case("tr_one_bin", "transient: a single time bin (T = 1)", _video_size(12, 12, 1),
+         kind="transient"),
+    Case("tr_size_1x1", "transient: 1×1 pixel, 6 bins", _video_size(1, 1, 6), kind="transient"),
+    # G-buffers are optional for transient methods (media videos have none, spec/statistical.md
+    # §11.3): an error naming albedo or a finite output both pass
+    Case("tr_missing_albedo", "transient: albedo absent (error or G-buffer-free fallback)",
+         _video_missing("albedo"), ("albedo",), "albedo", kind="transient", strict=False),
+    Case("tr_missing_stats", "transient: statistics absent", _video_missing("stats"),
+         ("stats",), "stats", kind="transient"),
+)
+CASES = CASES + TRANSIENT_CASES
+
+
 @dataclass
 class Outcome:
     status: str  # "pass", "fail" or "n/a"
@@ -188,7 +279,10 @@ def run_case(method_name: str, case: Case) -> Outcome:
     method = methods.get(method_name)
     if case.needs_buffer is not None and case.needs_buffer not in method.needs:
         return Outcome("n/a", f"{method_name} does not use {case.needs_buffer}")
-    if not (method.kinds & {"steady", "sequence"}):
+    if case.kind == "transient":
+        if "transient" not in method.kinds:
+            return Outcome("n/a", f"{method_name} does not run on transient data")
+    elif not (method.kinds & {"steady", "sequence"}):
         return Outcome("n/a", f"{method_name} runs on {sorted(method.kinds)} data only")
     try:
         frame = case.build()
@@ -198,12 +292,13 @@ def run_case(method_name: str, case: Case) -> Outcome:
     try:
         method.reset()
         out = method.denoise(frame)
-        if "sequence" in method.kinds:
+        if "sequence" in method.kinds and case.kind != "transient":
             out = method.denoise(frame)  # a second frame exercises the history path
     except DbenchInputError as exc:
         seconds = time.perf_counter() - t0
         msg = str(exc)
-        if case.error_ok and any(b in msg for b in case.error_ok) and "expected" in msg:
+        names_shape = "expected" in msg or "(H, W" in msg
+        if case.error_ok and any(b in msg for b in case.error_ok) and names_shape:
             return Outcome("pass", f"DbenchInputError: {msg}", seconds)
         return Outcome("fail", f"unexpected DbenchInputError: {msg}", seconds)
     except Exception as exc:  # noqa: BLE001
@@ -211,7 +306,7 @@ def run_case(method_name: str, case: Case) -> Outcome:
                        f"[{traceback.format_exc(limit=2).splitlines()[-1]}]",
                        time.perf_counter() - t0)
     seconds = time.perf_counter() - t0
-    if case.error_ok and case.needs_buffer in method.needs:
+    if case.error_ok and case.needs_buffer in method.needs and case.strict:
         return Outcome("fail", f"missing {case.needs_buffer} accepted silently", seconds)
     return _judge(frame, np.asarray(out), seconds)
 

@@ -5,6 +5,10 @@ Each cell's result is its own JSON file, written atomically:
 reason) or ``error`` (with the message). A sweep run again reads the finished cells and computes
 only the missing ones, so a killed sweep loses at most the cells in flight.
 
+Steady and transient cells time ``repeats`` calls after a warm-up; a sequence cell runs the
+method once over the frames in order and reports the means after the warm-up frames
+(:func:`dbench.bench.harness.run_sequence_cell`).
+
 Work is grouped by (scene, spp): one group loads the frame once (renders are cached and shared)
 and runs every method on it. References are rendered once per scene before the groups are
 dispatched, so parallel workers never render the same reference twice.
@@ -22,7 +26,7 @@ from .. import io
 
 DEFAULT_SPP = (4, 16, 64, 256, 1024)
 #: Settings every cell of one sweep folder shares; methods, scenes and spp may be extended.
-SETTINGS = ("res", "ref_spp", "seed", "repeats", "transform", "lam", "metrics")
+SETTINGS = ("res", "ref_spp", "seed", "repeats", "transform", "lam", "metrics", "frames", "bins")
 
 
 @dataclass
@@ -36,8 +40,13 @@ class SweepConfig:
     ref_spp: int | None = None
     seed: int = 0
     repeats: int = 5
-    transform: str = "box-cox"
+    #: None: each kind's default (Box-Cox for steady scenes, identity for transient ones).
+    transform: str | None = None
     lam: float = 0.5
+    #: sequence scenes: frames from the start (None: all); transient scenes: time bins (None:
+    #: the scene's default).
+    frames: int | None = None
+    bins: int | None = None
     params: dict[str, dict[str, Any]] = field(default_factory=dict)
     cache: str | None = None
     metrics: list[str] = field(default_factory=lambda: ["rmse", "relmse", "smape", "psnr",
@@ -111,7 +120,7 @@ def run_group(config: SweepConfig, out: str, scene_name: str, spp: int,
               method_names: list[str]) -> list[str]:
     """Load one frame and run the given methods on it, writing one cell file each."""
     from .. import datasets, methods as registry
-    from .harness import run_cell
+    from .harness import run_cell, run_sequence_cell
 
     out_path = Path(out)
     cache = datasets.Cache(config.cache)
@@ -121,7 +130,8 @@ def run_group(config: SweepConfig, out: str, scene_name: str, spp: int,
         needs |= set(inst.needs)
     frame = datasets.load(scene_name, spp=spp, res=config.res, needs=needs, seed=config.seed,
                           transform=config.transform, lam=config.lam, ref_spp=config.ref_spp,
-                          cache=cache, progress=False)
+                          cache=cache, progress=False, frames=config.frames, bins=config.bins)
+    is_sequence = frame.kind == "sequence"
     render_s = frame.meta.get("render_s")
     if render_s is None:
         render_s = float("nan")
@@ -132,12 +142,17 @@ def run_group(config: SweepConfig, out: str, scene_name: str, spp: int,
                 "stats_s": frame.meta.get("stats_s") if "stats" in inst.needs else 0.0,
                 "ref_spp": frame.meta.get("ref_spp")}
         try:
-            res = run_cell(inst, frame, metric_names=config.metrics, repeats=config.repeats)
+            if is_sequence:
+                res = run_sequence_cell(inst, frame, metric_names=config.metrics)
+            else:
+                res = run_cell(inst, frame, metric_names=config.metrics, repeats=config.repeats)
             if res.skipped:
                 cell = {**base, "status": "skipped", "reason": res.skipped}
             else:
                 cell = {**base, "status": "ok", **res.metrics, "time_s": res.time_s,
                         "times_s": res.times_s, "n_nonfinite": res.n_nonfinite}
+                if is_sequence:
+                    cell.update(frames=len(frame), warmup=res.sequence.summary["warmup"])
         except Exception as exc:  # noqa: BLE001 - one failing method must not stop the sweep
             cell = {**base, "status": "error", "error": f"{type(exc).__name__}: {exc}",
                     "traceback": traceback.format_exc(limit=5)}
@@ -152,7 +167,8 @@ def _prerender_references(config: SweepConfig, scenes: Iterable[str]) -> None:
     cache = datasets.Cache(config.cache)
     for s in scenes:
         datasets.load(s, spp=1, res=config.res, needs={"reference", "albedo"}, seed=config.seed,
-                      ref_spp=config.ref_spp, cache=cache)
+                      ref_spp=config.ref_spp, cache=cache, frames=config.frames,
+                      bins=config.bins)
 
 
 def run_sweep(config: SweepConfig, out: str | Path, executor: str = "local", workers: int = 1,
