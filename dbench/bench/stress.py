@@ -178,7 +178,25 @@ CASES: tuple[Case, ...] = (
     Case("missing_stats", "statistics absent", _missing("stats"), ("stats",), "stats"),
     Case("missing_position", "position buffer absent", _missing("position"), ("position",),
          "position"),
+    Case("missing_motion", "motion vectors absent (error, or no reprojection: history reset "
+         "every frame)", _missing("motion"), ("motion",), "motion", strict=False),
+    Case("missing_gradient", "A-SVGF gradient frame absent", _missing("gradient"),
+         ("gradient",), "gradient"),
 )
+
+
+def _as_sequence_frame(frame: Frame, case: Case) -> Frame:
+    """Give a steady stress frame what a sequence method needs to use its history: zero motion
+    (a static camera) and a gradient frame equal to the color (unchanged lights), so the second
+    call reprojects and blends the first frame's outputs. The buffer a ``missing_*`` case
+    removes stays absent."""
+    h, w = frame.shape
+    extra = {}
+    if case.needs_buffer != "motion" and not frame.has("motion"):
+        extra["motion"] = np.zeros((h, w, 2), np.float32)
+    if case.needs_buffer != "gradient" and not frame.has("gradient"):
+        extra["gradient"] = np.array(frame.color, copy=True)
+    return frame.with_buffers(**extra) if extra else frame
 
 
 # ---------------------------------------------------------------------------------------------
@@ -288,11 +306,17 @@ def run_case(method_name: str, case: Case) -> Outcome:
         frame = case.build()
     except DbenchInputError as exc:  # the data type itself refused the input: documented
         return Outcome("pass", f"rejected on construction: {exc}")
+    as_sequence = "sequence" in method.kinds and case.kind != "transient"
+    if as_sequence:
+        try:
+            frame = _as_sequence_frame(frame, case)
+        except DbenchInputError as exc:
+            return Outcome("pass", f"rejected on construction: {exc}")
     t0 = time.perf_counter()
     try:
         method.reset()
         out = method.denoise(frame)
-        if "sequence" in method.kinds and case.kind != "transient":
+        if as_sequence:
             out = method.denoise(frame)  # a second frame exercises the history path
     except DbenchInputError as exc:
         seconds = time.perf_counter() - t0
