@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
 # The main job: set everything up, then run a small benchmark that ends in a report.
 #   results/demo/run-cornell/report.md   one `dbench run` (table printed, comparison.png, EXRs)
+#   results/demo/run-flicker/report.md   the temporal methods on an animated sequence
+#   results/demo/run-cornell-transient/  the transient methods on a time-resolved video
 #   results/demo/README.md               a small sweep + stress test, published by `dbench report`
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -10,10 +12,14 @@ RES=${DBENCH_DEMO_RES:-96}
 SCENES=${DBENCH_DEMO_SCENES:-cornell,caustic,textured}
 ALL=$(dbench list --methods-only | paste -sd, -)
 dbench run --method "$ALL" --scene cornell --spp 16 --res "$RES" --out results/demo/run-cornell --quiet
+dbench run --method "$ALL" --scene flicker --spp 1 --res 64 --frames 24 --ref-spp 256 \
+  --out results/demo/run-flicker --quiet
+dbench run --method "$ALL" --scene cornell-transient --spp 64 --res 32 --bins 100 --ref-spp 1024 \
+  --repeats 3 --out results/demo/run-cornell-transient --quiet
 dbench sweep --methods all --scenes "$SCENES" --spp 4,16,64 --res "$RES" --repeats 3 \
   --out results/demo/sweep --quiet
 dbench stress --out results/demo/stress.md --quiet > /dev/null || true
 dbench report --results results/demo --sweep results/demo/sweep
 dbench bench render --res 256 --spp 64
 echo
-echo "demo report: results/demo/README.md (run: results/demo/run-cornell/report.md)"
+echo "demo report: results/demo/README.md (runs: results/demo/run-*/report.md)"

@@ -52,6 +52,17 @@ def bench_method(name: str, height: int = 720, width: int = 1280, repeats: int =
 
     frame = base_frame(height, width)
     method = methods.get(name)
+    if "steady" not in method.kinds and "sequence" in method.kinds:
+        # A temporal method is timed per frame in steady state: zero motion (static camera) and
+        # an unchanged-light gradient frame, so every call reprojects history, after the
+        # warm-up frames (SVGF estimates variance spatially, 2x slower, while history < 4).
+        from .sequence import WARMUP
+
+        frame = frame.with_buffers(motion=np.zeros((height, width, 2), np.float32),
+                                   gradient=np.array(frame.color, copy=True))
+        method.reset()
+        for _ in range(WARMUP):
+            method.denoise(frame)
     t_method = _median_time(lambda: method.denoise(frame), repeats)
     oidn = methods.get("oidn")
     t_oidn = _median_time(lambda: oidn.denoise(frame), repeats)

@@ -255,13 +255,16 @@ def fireflies(mi, res: int) -> dict:
     d = {"type": "scene",
          "sensor": _camera(mi, res, origin=[0, 0, 3.9], target=[0, -0.1, 0])}
     d.update(_room(mi))
-    # A tiny sphere light in a cup under the ceiling: it can only reach the room after a bounce
-    # on the ceiling, so most paths miss it and the few that find it carry huge radiance.
-    d["lamp"] = {"type": "sphere", "center": [0, 0.8, -0.4], "radius": 0.02,
+    # A tiny sphere light above a baffle: it can only reach the room after a bounce on the
+    # ceiling, so most paths miss it and the few that find it carry huge radiance. The lamp hangs
+    # 0.4 below the ceiling: closer (0.2), the ceiling above it formed a 2-pixel hotspot (100×
+    # the image mean) that held 99.9 % of every denoiser's squared error, so RMSE on this scene
+    # measured that hotspot instead of the heavy-tailed noise.
+    d["lamp"] = {"type": "sphere", "center": [0, 0.6, -0.4], "radius": 0.02,
                  "emitter": {"type": "area", "radiance": {"type": "rgb",
                                                           "value": [1500.0, 1300.0, 1000.0]}}}
     d["baffle"] = {"type": "cube",
-                   "to_world": T().translate([0, 0.72, -0.4]).scale([0.4, 0.02, 0.4]),
+                   "to_world": T().translate([0, 0.53, -0.4]).scale([0.5, 0.03, 0.5]),
                    "bsdf": _diffuse((0.6, 0.6, 0.6))}
     d["ball"] = {"type": "sphere", "center": [-0.4, -0.65, 0.1], "radius": 0.35,
                  "bsdf": _diffuse((0.8, 0.8, 0.8))}
