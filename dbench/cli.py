@@ -13,7 +13,6 @@ import sys
 from pathlib import Path
 from typing import Any, Sequence
 
-import numpy as np
 
 from .errors import DbenchInputError, RendererUnavailableError, UnknownNameError
 

@@ -38,6 +38,15 @@ FRAME_BUFFERS: dict[str, int] = {
 BUFFER_NAMES = tuple(FRAME_BUFFERS) + ("stats",)
 
 
+def check_count(name: str, value: Any) -> int:
+    """``value`` as an int when it is an integer >= 1 (spp, res, bins, frames), else a
+    DbenchInputError naming ``name``."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) \
+            or value < 1:
+        raise DbenchInputError(f"{name}: expected an integer >= 1, got {value!r}")
+    return int(value)
+
+
 def check_buffer(name: str, array: Any, shape: tuple[int | None, ...], *, dtype=np.float32,
                  finite: bool = False) -> np.ndarray:
     """Validate one buffer and return it as a C-contiguous array of ``dtype``.

@@ -121,7 +121,7 @@ def test_report_is_reproducible_byte_for_byte(renderer, tmp_path):
 def test_sequence_and_transient_scenes_in_one_sweep(renderer, tmp_path):
     """A sequence cell runs the method once over the frames (means after the warm-up, plus the
     temporal stability); a transient cell scores the whole video; inapplicable pairs skip."""
-    out = tmp_path / "kinds"
+    out = tmp_path / "results" / "sweep-kinds"
     cfg = _config(tmp_path, methods=["noisy", "accumulate", "gauss3d"],
                   scenes=["flicker", "cornell-transient"], spp=[1], res=12, ref_spp=8,
                   frames=10, bins=12)
@@ -147,3 +147,10 @@ def test_sequence_and_transient_scenes_in_one_sweep(renderer, tmp_path):
     with pytest.raises(ValueError, match="frames"):
         sweep.run_sweep(_config(tmp_path, methods=["noisy"], scenes=["flicker"], spp=[1],
                                 res=12, ref_spp=8, frames=6, bins=12), out, progress=False)
+    # The report shows a sweep beside the main one as its own section.
+    sweep.run_sweep(_config(tmp_path, methods=["noisy"], scenes=["cornell"], spp=[2]),
+                    tmp_path / "results" / "sweep", progress=False)
+    text = publish.publish(tmp_path / "results").read_text()
+    assert "## Sweep `sweep-kinds`" in text and "first 10 frames" in text
+    assert "### TPSNR (rows scene/method, columns spp)" in text
+    assert "| flicker | accumulate |" in text and "| cornell-transient | gauss3d |" in text

@@ -74,12 +74,15 @@ def build_readme(results: Path, sweep_dir: Path, headline_spp: int = 64) -> str:
         parts += [markdown_table(eq[eq.spp == headline_spp].reset_index(drop=True)), "",
                   f"All spp: [{rel(paths['equal_time'])}]({rel(paths['equal_time'])})", ""]
 
+    for other in extra_sweeps(results, sweep_dir):
+        parts += other_sweep_md(results, other)
+
     stress = results / "stress.md"
     if stress.exists():
         text = stress.read_text().splitlines()
         body = [ln for ln in text[2:] if not ln.startswith("## Details")]
         cut = body.index("## Details") if "## Details" in body else len(body)
-        parts += ["## Stress test", ""] + body[:cut] + [f"Details: [stress.md](stress.md)", ""]
+        parts += ["## Stress test", ""] + body[:cut] + ["Details: [stress.md](stress.md)", ""]
 
     bench = speed_md(results)
     if bench:
@@ -96,6 +99,55 @@ def build_readme(results: Path, sweep_dir: Path, headline_spp: int = 64) -> str:
     if "machine" in sweep:
         parts += ["## Environment", "", machine_md(sweep["machine"]), ""]
     return "\n".join(parts)
+
+
+def extra_sweeps(results: Path, main: Path) -> list[Path]:
+    """Sweep folders beside the main one (``results/sweep-*`` holding a ``sweep.json``): sweeps
+    whose settings differ, such as sequence scenes at 1 spp or transient videos."""
+    return sorted(p.parent for p in results.glob("sweep-*/sweep.json")
+                  if p.parent.resolve() != main.resolve())
+
+
+def other_sweep_md(results: Path, sweep_dir: Path) -> list[str]:
+    """A section for one extra sweep: its settings, skipped pairs, and convergence tables."""
+    from ..datasets import scenes as catalogue
+
+    config = (read_cell(sweep_dir / "sweep.json") or {}).get("config", {})
+    cells = load_cells(sweep_dir)
+    df = tables.cells_frame(cells)
+    rel = Path(sweep_dir).relative_to(results).as_posix()
+    sequence = any(c.get("frames") for c in cells)
+    transient = any(catalogue.get(c["scene"]).kind == "transient" for c in cells)
+    extras = []
+    if config.get("frames"):
+        extras.append(f"first {config['frames']} frames")
+    if config.get("bins"):
+        extras.append(f"{config['bins']} time bins")
+    parts = [f"## Sweep `{rel}`", "",
+             f"{len(config.get('scenes', []))} scenes ({', '.join(config.get('scenes', []))}) × "
+             f"{len(config.get('methods', []))} methods × spp "
+             f"{', '.join(map(str, config.get('spp', [])))}, {config.get('res')}×"
+             f"{config.get('res')} px, reference {config.get('ref_spp') or 4096} spp"
+             + (f", {', '.join(extras)}" if extras else "") + "." +
+             (" Sequences: each frame denoised once, in order; metrics are means over the frames "
+              "after the 8-frame warm-up; `t_rmse` / `tPSNR` score frame-to-frame differences."
+              if sequence else "") +
+             (" Transient videos: RMSE and relMSE over every voxel; SSIM and FLIP on the "
+              "time-integrated image." if transient else ""), ""]
+    skipped = sorted({(c["method"], c.get("reason", "")) for c in cells
+                      if c.get("status") == "skipped"})
+    if skipped:
+        parts += ["Not applicable: " + ", ".join(sorted({m for m, _ in skipped})) + ".", ""]
+    errors = [c for c in cells if c.get("status") == "error"]
+    parts += [f"- error {c['method']} on {c['scene']} at {c['spp']} spp: {c['error']}"
+              for c in errors] + ([""] if errors else [])
+    shown = ("rmse", "ssim", "t_rmse", "tpsnr", "time_s") if sequence else (
+        "rmse", "relmse", "ssim", "time_s")
+    for metric in shown:
+        if metric in df.columns and df[metric].notna().any():
+            parts += [f"### {metric.upper()} (rows scene/method, columns spp)", "",
+                      markdown_table(tables.convergence_table(df, metric)), ""]
+    return parts
 
 
 def speed_md(results: Path, method: str | None = None) -> str:

@@ -24,7 +24,6 @@ Example:
 """
 from __future__ import annotations
 
-import json
 import statistics
 import time
 from dataclasses import dataclass, field

@@ -12,14 +12,15 @@ import json
 import statistics
 import time
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
 from .harness import machine_info
 
 
-def _median_time(fn, repeats: int) -> float:
+def median_time(fn: Callable[[], Any], repeats: int) -> float:
+    """Median wall seconds of ``repeats`` calls of ``fn()`` after one warm-up call."""
     fn()  # warm-up: JIT compilation and scene loading are not part of the figure
     times = []
     for _ in range(repeats):
@@ -34,9 +35,9 @@ def bench_render(scene: str = "cornell", res: int = 256, spp: int = 64, repeats:
     from ..datasets import render, scenes
 
     sc = scenes.get(scene)
-    plain = _median_time(lambda: render.render_plain(sc, res, spp), repeats)
-    passes = _median_time(lambda: render.render_passes(sc, res, spp, progress=False), repeats)
-    with_stats = _median_time(lambda: render.render_passes(sc, res, spp, stats=(transform, lam),
+    plain = median_time(lambda: render.render_plain(sc, res, spp), repeats)
+    passes = median_time(lambda: render.render_passes(sc, res, spp, progress=False), repeats)
+    with_stats = median_time(lambda: render.render_passes(sc, res, spp, stats=(transform, lam),
                                                            progress=False), repeats)
     return {"benchmark": "render", "scene": scene, "res": res, "spp": spp,
             "copies_per_call": render.batch_size(res, spp), "transform": transform,
@@ -63,9 +64,9 @@ def bench_method(name: str, height: int = 720, width: int = 1280, repeats: int =
         method.reset()
         for _ in range(WARMUP):
             method.denoise(frame)
-    t_method = _median_time(lambda: method.denoise(frame), repeats)
+    t_method = median_time(lambda: method.denoise(frame), repeats)
     oidn = methods.get("oidn")
-    t_oidn = _median_time(lambda: oidn.denoise(frame), repeats)
+    t_oidn = median_time(lambda: oidn.denoise(frame), repeats)
     result: dict[str, Any] = {"benchmark": "method", "method": name, "height": height,
                               "width": width, "params": method.params, "time_s": t_method,
                               "oidn_time_s": t_oidn, "ratio_vs_oidn": t_method / t_oidn,

@@ -20,11 +20,12 @@ from .report import markdown_table
 def cells_frame(cells: list[dict]) -> pd.DataFrame:
     ok = [c for c in cells if c.get("status") == "ok"]
     cols = ["scene", "method", "spp", "res", "rmse", "relmse", "smape", "psnr", "ssim", "flip",
-            "time_s", "render_s", "stats_s"]
+            "t_rmse", "tpsnr", "time_s", "render_s", "stats_s"]
     df = pd.DataFrame([{k: c.get(k, np.nan) for k in cols} for c in ok], columns=cols)
     df["render_s"] = df["render_s"].astype(float) + df["stats_s"].fillna(0).astype(float)
     df["total_s"] = df["render_s"] + df["time_s"]
-    return df.drop(columns=["stats_s"])
+    temporal = [c for c in ("t_rmse", "tpsnr") if df[c].isna().all()]  # sequence cells only
+    return df.drop(columns=["stats_s"] + temporal)
 
 
 def convergence_table(df: pd.DataFrame, metric: str) -> pd.DataFrame:

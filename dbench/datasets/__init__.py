@@ -13,7 +13,7 @@ from typing import Iterable
 
 import numpy as np
 
-from ..data import Frame, SampleStats, Sequence, TransientFrame
+from ..data import Frame, SampleStats, Sequence, TransientFrame, check_count
 from ..errors import DbenchInputError
 from . import render as _render
 from . import scenes as _scenes
@@ -76,10 +76,8 @@ def load(scene: str | Scene, spp: int, res: int, needs: Iterable[str] | None = N
                                          lam=lam, seed=seed, ref_spp=ref_spp, cache=cache,
                                          progress=progress, bins=bins, collector=collector)
     transform = "box-cox" if transform is None else transform
-    if not isinstance(spp, (int, np.integer)) or spp < 1:
-        raise DbenchInputError(f"spp: expected an integer >= 1, got {spp!r}")
-    if not isinstance(res, (int, np.integer)) or res < 1:
-        raise DbenchInputError(f"res: expected an integer >= 1, got {res!r}")
+    check_count("spp", spp)
+    check_count("res", res)
     wanted = set(sc.provides if needs is None else needs) | {"color"}
     unknown = wanted - set(sc.provides)
     if unknown:

@@ -69,7 +69,7 @@ from typing import Any, Callable, Iterable
 
 import numpy as np
 
-from ..data import Frame, Sequence
+from ..data import Frame, Sequence, check_count
 from ..errors import DbenchInputError
 from . import render as _render
 from . import scenes as _scenes
@@ -421,9 +421,8 @@ def load_sequence(scene: str | SequenceScene, spp: int = 1, res: int = 64,
     sc = scene if isinstance(scene, Scene) else _scenes.get(scene)
     if not isinstance(sc, SequenceScene):
         raise DbenchInputError(f"scene: {sc.name} is a {sc.kind} scene, not a sequence")
-    for name, value in (("spp", spp), ("res", res)):
-        if not isinstance(value, (int, np.integer)) or value < 1:
-            raise DbenchInputError(f"{name}: expected an integer >= 1, got {value!r}")
+    check_count("spp", spp)
+    check_count("res", res)
     n = sc.n_frames if frames is None else frames
     if not isinstance(n, (int, np.integer)) or not 1 <= n <= sc.n_frames:
         raise DbenchInputError(f"frames: expected an integer in [1, {sc.n_frames}], got {frames!r}")

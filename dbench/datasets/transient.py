@@ -45,7 +45,7 @@ from typing import Any, Callable, Iterable
 
 import numpy as np
 
-from ..data import SampleStats, TransientFrame
+from ..data import SampleStats, TransientFrame, check_count
 from ..errors import DbenchInputError
 from . import render as _render
 from . import scenes as _scenes
@@ -76,8 +76,7 @@ class Window:
     bins: int
 
     def __post_init__(self) -> None:
-        if not (isinstance(self.bins, (int, np.integer)) and self.bins >= 1):
-            raise DbenchInputError(f"bins: expected an integer >= 1, got {self.bins!r}")
+        check_count("bins", self.bins)
         if not (math.isfinite(self.bin_width_opl) and self.bin_width_opl > 0):
             raise DbenchInputError(f"bin_width_opl: expected a number > 0, got "
                                    f"{self.bin_width_opl!r}")
@@ -129,8 +128,7 @@ class TransientScene(Scene):
 
     def window(self, bins: int | None = None) -> Window:
         t = self.default_bins if bins is None else bins
-        if not isinstance(t, (int, np.integer)) or t < 1:
-            raise DbenchInputError(f"bins: expected an integer >= 1, got {bins!r}")
+        check_count("bins", t)
         return Window(float(self.window_start),
                       (float(self.window_end) - float(self.window_start)) / int(t), int(t))
 
@@ -443,8 +441,7 @@ def collect_passes(scene: TransientScene, res: int, spp: int, seed: int = 0,
         :class:`TransientRender` with timings ``render_s`` (rendering) and ``stats_s``
         (host-side accumulation).
     """
-    if not isinstance(spp, (int, np.integer)) or spp < 1:
-        raise DbenchInputError(f"spp: expected an integer >= 1, got {spp!r}")
+    check_count("spp", spp)
     window = scene.window(bins)
     shape = (res, res, window.bins, 3)
     acc = PowerSums(shape, *stats) if stats else None
@@ -505,13 +502,10 @@ def collect_in_integrator(scene: TransientScene, res: int, spp: int, seed: int =
             ``pass_seed("transient-b", seed, 0)``).
         slots: per-path slots (0 = 2·max_depth, exact).
     """
-    from .transient_collector import StatsCollector
-
     if scene.integrator != "transient_path":
         raise DbenchInputError(f"collector: (b) runs inside transient_path; scene {scene.name} "
                                f"uses {scene.integrator}, use collector 'a'")
-    if not isinstance(spp, (int, np.integer)) or spp < 1:
-        raise DbenchInputError(f"spp: expected an integer >= 1, got {spp!r}")
+    check_count("spp", spp)
     check_transform(transform, lam)
     _mitransient()
     window = scene.window(bins)
@@ -713,10 +707,8 @@ def load_transient(scene: str | TransientScene, spp: int, res: int,
     sc = scene if isinstance(scene, Scene) else _scenes.get(scene)
     if not isinstance(sc, TransientScene):
         raise DbenchInputError(f"scene: {sc.name} is a {sc.kind} scene, not a transient one")
-    if not isinstance(spp, (int, np.integer)) or spp < 1:
-        raise DbenchInputError(f"spp: expected an integer >= 1, got {spp!r}")
-    if not isinstance(res, (int, np.integer)) or res < 1:
-        raise DbenchInputError(f"res: expected an integer >= 1, got {res!r}")
+    check_count("spp", spp)
+    check_count("res", res)
     wanted = set(sc.provides if needs is None else needs) | {"color"}
     unknown = wanted - set(sc.provides)
     if unknown:
@@ -736,7 +728,6 @@ def load_transient(scene: str | TransientScene, spp: int, res: int,
                   "integrator": sc.integrator, "emitter": "delta pulse at OPL 0",
                   "medium": sc.medium, "collector": which, "cache_hits": [], "rendered": []}
 
-    want_stats = "stats" in wanted or which == "b"
     copies = batch_copies(res, window.bins, spp) if which == "a" else 1
     noisy_desc = {**base, "what": "transient-noisy", "spp": int(spp), "seed": int(seed),
                   "collector": which, "copies": copies}

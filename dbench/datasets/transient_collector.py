@@ -358,7 +358,7 @@ class StatsCollector:
 
     def _transform(self, x):
         """u = g(x) − g(0) in float64, with the host collector's exact operations."""
-        dr, mi = self.dr, self.mi
+        dr = self.dr
         if self.code == 0:
             return x
         if self.code == 1:

@@ -54,6 +54,7 @@ import numpy as np
 from ...data import check_buffer
 from ...errors import DbenchInputError
 from ...registry import Denoiser, register
+from ..ort_session import cpu_session
 from .codec import FEATURE_CHANNELS, decode, encode, pad_to_multiple
 
 SHIPPED_ONNX = Path(__file__).resolve().parent / "autoencoder.onnx"
@@ -85,22 +86,13 @@ def model_info(weights: str | Path | None = None) -> dict[str, Any]:
 
 @lru_cache(maxsize=8)
 def _session(path: str, stateful: bool, threads: int | None):
-    import onnxruntime as ort
-
+    """An ONNX Runtime session of the shipped model, with or without the hidden-state I/O."""
     from .export import stateless_from_stateful
 
     model, info = _load(path)
     if not stateful:
         model = stateless_from_stateful(model, info["in_channels"], info["enc_widths"])
-    so = ort.SessionOptions()
-    so.log_severity_level = 3
-    so.add_session_config_entry("session.set_denormal_as_zero", "1")
-    # no busy-waiting between ops: on a shared machine spinning threads starve the others
-    so.add_session_config_entry("session.intra_op.allow_spinning", "0")
-    if threads:
-        so.intra_op_num_threads = int(threads)
-    return ort.InferenceSession(model.SerializeToString(), so,
-                                providers=["CPUExecutionProvider"])
+    return cpu_session(model.SerializeToString(), threads)
 
 
 def _buffers(color, albedo, normal, depth, features) -> tuple[np.ndarray, dict]:

@@ -348,7 +348,6 @@ if HAVE_NUMBA:
             x0 = origins[b, 1]
             ya, yb = max(y0, 0), min(y0 + block, h)
             xa, xb = max(x0, 0), min(x0 + block, w)
-            npx = (yb - ya) * (xb - xa)
             lo = np.full(m_, np.inf)
             hi = np.full(m_, -np.inf)
             rows = 0

@@ -9,11 +9,11 @@ The reference is timed on a crop when the full frame would take too long and sca
 from __future__ import annotations
 
 import argparse
-import statistics
-import time
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
+
+from ...bench.speed import median_time
 
 from .core import illumination_fast, jbf_fast, jbf_reference, make_guide, make_illumination_setup
 
@@ -32,16 +32,6 @@ def synthetic_frame(height: int, width: int, seed: int = 0) -> dict[str, np.ndar
     return dict(color=color, albedo=albedo, normal=normal, depth=depth)
 
 
-def _median_time(fn: Callable[[], Any], repeats: int) -> float:
-    fn()  # warm-up / compile
-    times = []
-    for _ in range(repeats):
-        t = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t)
-    return statistics.median(times)
-
-
 def benchmark(height: int = 720, width: int = 1280, radius: int = 20, repeats: int = 3,
               reference_max_pixels: int = 160 * 90) -> dict[str, Any]:
     """Median seconds per frame of the Numba JBF, the illumination mode and the reference.
@@ -53,16 +43,16 @@ def benchmark(height: int = 720, width: int = 1280, radius: int = 20, repeats: i
     """
     f = synthetic_frame(height, width)
     guide = make_guide(f["albedo"], f["normal"], f["depth"], radius=radius)
-    fast_s = _median_time(lambda: jbf_fast(f["color"], guide), repeats)
+    fast_s = median_time(lambda: jbf_fast(f["color"], guide), repeats)
     setup = make_illumination_setup(f["albedo"], f["normal"], f["depth"], radius=radius)
-    illum_s = _median_time(lambda: illumination_fast(f["color"], setup), repeats)
+    illum_s = median_time(lambda: illumination_fast(f["color"], setup), repeats)
 
     ch, cw = height, width
     while ch * cw > reference_max_pixels:
         ch, cw = max(1, ch // 2), max(1, cw // 2)
     crop = {k: v[:ch, :cw] for k, v in f.items()}
     cguide = make_guide(crop["albedo"], crop["normal"], crop["depth"], radius=radius)
-    ref_crop_s = _median_time(lambda: jbf_reference(crop["color"], cguide), max(1, repeats // 3))
+    ref_crop_s = median_time(lambda: jbf_reference(crop["color"], cguide), max(1, repeats // 3))
     ref_s = ref_crop_s * (height * width) / (ch * cw)
     return dict(height=height, width=width, radius=radius, fast_s=fast_s,
                 illumination_s=illum_s, reference_s=ref_s, reference_crop=(ch, cw),

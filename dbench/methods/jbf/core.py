@@ -554,7 +554,6 @@ def _accumulate_kernel(fsq, fdot, beta, horizon, planes, dys, dxs, es,
     float32 accumulator of its rows plus ``halo`` (= r) rows below, summed at the end in float64.
     Memory: P·(H + nbands·r)·W floats; no unfolded tensor.
     """
-    G = fsq.shape[0]
     H = fsq.shape[2]
     W = fsq.shape[3]
     P = planes.shape[0]

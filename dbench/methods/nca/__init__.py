@@ -43,6 +43,7 @@ import numpy as np
 from ...data import check_buffer
 from ...errors import DbenchInputError
 from ...registry import Denoiser, register
+from ..ort_session import cpu_session
 from .codec import decode, encode
 
 SHIPPED_ONNX = Path(__file__).resolve().parent / "nca.onnx"
@@ -71,22 +72,12 @@ def _model_info(path: str) -> dict[str, Any]:
 @lru_cache(maxsize=8)
 def _session(path: str, iterations: int, threads: int | None):
     """An ONNX Runtime session of the unrolled automaton (built in memory from the weights)."""
-    import onnxruntime as ort
-
     from .export import build_onnx
 
     info = _model_info(path)
     model = build_onnx(info["W"], info["b"], info["update_channels"], info["activation"],
                        iterations=iterations)
-    so = ort.SessionOptions()
-    so.log_severity_level = 3
-    so.add_session_config_entry("session.set_denormal_as_zero", "1")
-    # no busy-waiting between ops: on a shared machine spinning threads starve the others
-    so.add_session_config_entry("session.intra_op.allow_spinning", "0")
-    if threads:
-        so.intra_op_num_threads = int(threads)
-    return ort.InferenceSession(model.SerializeToString(), so,
-                                providers=["CPUExecutionProvider"])
+    return cpu_session(model.SerializeToString(), threads)
 
 
 def default_iterations(weights: str | Path | None = None) -> int:

@@ -20,6 +20,7 @@ from typing import Any, Callable
 
 import numpy as np
 
+from ...bench.speed import median_time
 from ...data import SampleStats
 from ..jbf.bench import synthetic_frame
 from ..jbf.core import make_guide
@@ -40,16 +41,6 @@ def synthetic_stats(height: int, width: int, spp: int = 64, seed: int = 1,
     stats = SampleStats(n=np.full(truth.shape, float(spp)), mean=mean, var_mean=var,
                         m3=np.zeros(truth.shape), transform="identity")
     return mean.astype(np.float32), stats
-
-
-def _median_time(fn: Callable[[], Any], repeats: int) -> float:
-    fn()
-    times = []
-    for _ in range(repeats):
-        t = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t)
-    return statistics.median(times)
 
 
 def _median_wall_cpu(fn: Callable[[], Any], repeats: int, warmup: bool = True):
@@ -136,7 +127,7 @@ def benchmark_transient(height: int = 256, width: int = 256, bins: int = 100, ra
         csub = SampleStats(n=stats.n[:ch, :cw], mean=stats.mean[:ch, :cw],
                            var_mean=stats.var_mean[:ch, :cw], m3=stats.m3[:ch, :cw],
                            transform=stats.transform)
-        ref_crop_s = _median_time(lambda: statistical_filter_video(
+        ref_crop_s = median_time(lambda: statistical_filter_video(
             color[:ch, :cw], csub, f["albedo"][:ch, :cw], f["normal"][:ch, :cw],
             f["depth"][:ch, :cw], backend="reference", **kw), 1)
         ref_s = ref_crop_s * (height * width) / (ch * cw)
@@ -174,10 +165,10 @@ def benchmark(height: int = 720, width: int = 1280, radius: int = 20, repeats: i
     guide = make_guide(f["albedo"], f["normal"], f["depth"], radius=radius)
     sp = stat_planes(stats, (height, width))
     thr = resolve_threshold(sp.nint)
-    fast_s = _median_time(lambda: statistical_fast(color, sp, guide, thr), repeats)
+    fast_s = median_time(lambda: statistical_fast(color, sp, guide, thr), repeats)
     result: dict[str, Any] = dict(height=height, width=width, radius=radius, fast_s=fast_s)
     if torch:
-        result["torch_s"] = _median_time(
+        result["torch_s"] = median_time(
             lambda: statistical_fast(color, sp, guide, thr, backend="torch"), repeats)
 
     ch, cw = height, width
@@ -188,7 +179,7 @@ def benchmark(height: int = 720, width: int = 1280, radius: int = 20, repeats: i
     csp = stat_planes(SampleStats(n=stats.n[:ch, :cw], mean=stats.mean[:ch, :cw],
                                   var_mean=stats.var_mean[:ch, :cw], m3=stats.m3[:ch, :cw],
                                   transform=stats.transform), (ch, cw))
-    ref_crop_s = _median_time(lambda: statistical_reference(color[:ch, :cw], csp, cguide, thr),
+    ref_crop_s = median_time(lambda: statistical_reference(color[:ch, :cw], csp, cguide, thr),
                               max(1, repeats // 3))
     ref_s = ref_crop_s * (height * width) / (ch * cw)
     result.update(reference_s=ref_s, reference_crop=(ch, cw), speedup=ref_s / fast_s)
