@@ -186,12 +186,40 @@ def speed_md(results: Path, method: str | None = None) -> str:
     return "\n".join(out)
 
 
+def _statistical_checks(t, name: str) -> list[str]:
+    """The issue's quality checks for one method column of the scene × spp RMSE table."""
+    import numpy as np
+
+    checks = []
+    never_worse = (t[name] <= t["noisy"]).all()
+    worse = t[t[name] > t["noisy"]]
+    checks.append(f"- RMSE never above the noisy input's: {'yes' if never_worse else 'no'}"
+                  + ("" if never_worse else " (" + ", ".join(
+                      f"{r.scene} {r.spp} spp" for r in worse.itertuples()) + ")"))
+    mono = []
+    for scene, g in t.groupby("scene"):
+        r = g.sort_values("spp")[name].to_numpy()
+        if not np.all(np.diff(r) < 0):
+            mono.append(scene)
+    checks.append("- RMSE decreasing as spp grows on every scene: "
+                  + ("yes" if not mono else "no (" + ", ".join(mono) + ")"))
+    if "jbf" in t.columns:
+        sub = t[t.scene.isin(["caustic", "mirrors"]) & (t.spp >= 64)]
+        ok = (sub[name] < sub["jbf"]).all() if len(sub) else False
+        checks.append("- Lower RMSE than jbf on caustic and mirrors at ≥ 64 spp: "
+                      + ("yes" if ok else "no"))
+    if "oidn" in t.columns:
+        wins = int((t[name] < t["oidn"]).sum())
+        checks.append(f"- Against oidn: lower RMSE in {wins} of {len(t)} (scene, spp) cells; "
+                      "the table above shows which.")
+    return checks
+
+
 def statistical_md(df, sweep_dir: Path) -> str:
     """results/statistical.md: statistical vs noisy, jbf and oidn on every steady scene and spp,
     with the issue's quality checks evaluated on the table (not asserted: reported)."""
-    import numpy as np
-
-    names = [m for m in ("noisy", "jbf", "oidn", "statistical") if m in set(df.method)]
+    names = [m for m in ("noisy", "jbf", "oidn", "statistical", "statistical-gate")
+             if m in set(df.method)]
     d = df[df.method.isin(names)]
     t = d.pivot_table(index=["scene", "spp"], columns="method", values="rmse", aggfunc="first")
     t = t[[m for m in names if m in t.columns]].reset_index()
@@ -202,28 +230,9 @@ def statistical_md(df, sweep_dir: Path) -> str:
     if "statistical" not in t.columns:
         return "\n".join(parts + ["(no statistical cells in this sweep)", ""])
     checks = []
-    never_worse = (t["statistical"] <= t["noisy"]).all()
-    worse = t[t["statistical"] > t["noisy"]]
-    checks.append(f"- RMSE never above the noisy input's: {'yes' if never_worse else 'no'}"
-                  + ("" if never_worse else " (" + ", ".join(
-                      f"{r.scene} {r.spp} spp" for r in worse.itertuples()) + ")"))
-    mono = []
-    for scene, g in t.groupby("scene"):
-        r = g.sort_values("spp")["statistical"].to_numpy()
-        if not np.all(np.diff(r) < 0):
-            mono.append(scene)
-    checks.append("- RMSE decreasing as spp grows on every scene: "
-                  + ("yes" if not mono else "no (" + ", ".join(mono) + ")"))
-    if "jbf" in t.columns:
-        sub = t[t.scene.isin(["caustic", "mirrors"]) & (t.spp >= 64)]
-        ok = (sub["statistical"] < sub["jbf"]).all() if len(sub) else False
-        checks.append("- Lower RMSE than jbf on caustic and mirrors at ≥ 64 spp: "
-                      + ("yes" if ok else "no"))
-    if "oidn" in t.columns:
-        wins = int((t["statistical"] < t["oidn"]).sum())
-        checks.append(f"- Against oidn: statistical has the lower RMSE in {wins} of {len(t)} "
-                      "(scene, spp) cells; the table above shows which.")
-    parts += ["## Checks (issue 3)", ""] + checks + [""]
+    for name in [m for m in ("statistical", "statistical-gate") if m in t.columns]:
+        checks += [f"`{name}`:", ""] + _statistical_checks(t, name) + [""]
+    parts += ["## Checks (issue 3)", ""] + checks
     timing = d.pivot_table(index="scene", columns="method", values="time_s", aggfunc="median")
     parts += ["## Denoise time (median over spp, seconds, at the sweep resolution)", "",
               markdown_table(timing.reset_index(), ".3g"), ""]

@@ -179,3 +179,19 @@ class Statistical(Denoiser):
         info.update(gate=False, kind="transient")
         self.last_settings = info
         return out
+
+
+@register("statistical-gate")
+class StatisticalGated(Statistical):
+    """``statistical`` followed by ProDen's t-test gate (spec/statistical.md §12), images only.
+
+    Each pixel is mixed back towards its noisy value where the filtered value differs from it by
+    many standard errors of the noisy mean (gate Φ(−2(t − 4.2))), so the output converges to the
+    noisy input's limit as the variance vanishes. The Welch test keeps unlike neighbours out of
+    the average; the gate catches what gets through anyway (heavy-tailed caustic samples, the
+    biased average of a mirror's reflection), which the plain method leaves in. Same parameters
+    as ``statistical`` with ``gate=True``.
+    """
+
+    kinds = {"steady"}
+    defaults: dict[str, Any] = dict(Statistical.defaults, gate=True)
