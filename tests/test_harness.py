@@ -53,3 +53,20 @@ def test_noisy_rmse_converges_like_inverse_sqrt_spp(renderer, tmp_cache):
     import pandas as pd
     a, b = tables.noisy_fit(pd.DataFrame(rows), "cornell")
     assert -0.65 < b < -0.35
+
+
+def test_zoom_window_finds_where_outputs_go_wrong():
+    from dbench.bench.report import zoom_window
+
+    ref = np.full((40, 60, 3), 0.3, np.float32)
+    out = ref.copy()
+    out[30:34, 8:12] = 0.9                     # the only error: a 4×4 patch
+    y0, x0, size = zoom_window(ref, [out])
+    assert size == 10
+    assert y0 <= 30 and y0 + size >= 34 and x0 <= 8 and x0 + size >= 12
+    assert 0 <= y0 <= 40 - size and 0 <= x0 <= 60 - size
+    # without outputs: the window with the most detail in the reference
+    ref2 = ref.copy()
+    ref2[2:8, 45:55] = np.random.default_rng(0).random((6, 10, 3))
+    y0, x0, size = zoom_window(ref2)
+    assert y0 <= 2 + 3 and x0 + size >= 48 and x0 <= 52

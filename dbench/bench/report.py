@@ -53,38 +53,74 @@ def error_map(output: np.ndarray, reference: np.ndarray) -> np.ndarray:
     return err.mean(axis=-1)
 
 
+def zoom_window(reference: np.ndarray, outputs: Sequence[np.ndarray] = (), ev: float = 0.0,
+                frac: float = 0.25) -> tuple[int, int, int]:
+    """(y0, x0, size) of the square inset shown zoomed in comparison grids, of side ``frac`` ×
+    the shorter image side: where the outputs' tone-mapped errors against the reference sum
+    highest (where the methods go wrong), or, without outputs, where the reference varies most."""
+    from scipy.ndimage import uniform_filter
+
+    ref = metrics.tonemap(np.nan_to_num(reference), ev=ev).astype(np.float64)
+    h, w = ref.shape[:2]
+    size = max(2, min(h, w, int(round(min(h, w) * frac))))
+    if len(outputs):
+        score = sum(np.abs(metrics.tonemap(np.nan_to_num(o), ev=ev) - ref).mean(-1)
+                    for o in outputs)
+        score = uniform_filter(score, size, mode="nearest")
+    else:
+        lum = ref.mean(-1)
+        mean = uniform_filter(lum, size, mode="nearest")
+        score = uniform_filter(lum * lum, size, mode="nearest") - mean * mean
+    lo, hi_y, hi_x = size // 2, h - (size - size // 2), w - (size - size // 2)
+    inner = score[lo:hi_y + 1, lo:hi_x + 1]
+    cy, cx = np.unravel_index(int(np.argmax(inner)), inner.shape)
+    return int(cy), int(cx), size
+
+
 def comparison_grid(path: str | Path, images: Sequence[tuple[str, np.ndarray]],
                     reference: np.ndarray | None, ev: float = 0.0,
                     title: str = "") -> None:
-    """PNG grid: top row the tone-mapped images, bottom row their relative error maps."""
+    """PNG grid: the tone-mapped images (the zoomed window outlined), the zoomed inset of each
+    (:func:`zoom_window`), and their relative error maps."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.patches import Rectangle
 
     cols = list(images) + ([("reference", reference)] if reference is not None else [])
-    rows = 2 if reference is not None else 1
+    rows = 3 if reference is not None else 1
     size = 2.6
     fig, axes = plt.subplots(rows, len(cols), figsize=(size * len(cols), size * rows + 0.4),
                              squeeze=False)
     vmax = 1.0
+    denoised = [img for label, img in images if label != "noisy"] or [img for _, img in images]
+    zoom = zoom_window(reference, denoised, ev) if reference is not None else None
     for j, (label, img) in enumerate(cols):
+        shown = metrics.tonemap(np.nan_to_num(img), ev=ev)
         ax = axes[0, j]
-        ax.imshow(metrics.tonemap(np.nan_to_num(img), ev=ev), interpolation="nearest")
+        ax.imshow(shown, interpolation="nearest")
         ax.set_title(label, fontsize=9)
         ax.set_axis_off()
-        if rows == 2:
-            ax = axes[1, j]
-            if label == "reference":
-                ax.set_axis_off()
-                continue
-            emap = error_map(img, reference)
-            im = ax.imshow(emap, cmap="magma", vmin=0.0, vmax=vmax, interpolation="nearest")
-            rmse = metrics.compute("rmse", img, reference) if np.all(np.isfinite(img)) else np.nan
-            ax.set_title(f"rel. error (RMSE {rmse:.3g})", fontsize=8)
+        if zoom is None:
+            continue
+        y0, x0, side = zoom
+        ax.add_patch(Rectangle((x0 - 0.5, y0 - 0.5), side, side, fill=False, ec="cyan", lw=1))
+        ax = axes[1, j]
+        ax.imshow(shown[y0:y0 + side, x0:x0 + side], interpolation="nearest")
+        ax.set_title("zoom", fontsize=8)
+        ax.set_axis_off()
+        ax = axes[2, j]
+        if label == "reference":
             ax.set_axis_off()
-    if rows == 2:
-        fig.colorbar(im, ax=axes[1, :].tolist(), shrink=0.8, label="|x−r|/(|r|+0.01)")
+            continue
+        emap = error_map(img, reference)
+        im = ax.imshow(emap, cmap="magma", vmin=0.0, vmax=vmax, interpolation="nearest")
+        rmse = metrics.compute("rmse", img, reference) if np.all(np.isfinite(img)) else np.nan
+        ax.set_title(f"rel. error (RMSE {rmse:.3g})", fontsize=8)
+        ax.set_axis_off()
+    if rows == 3:
+        fig.colorbar(im, ax=axes[2, :].tolist(), shrink=0.8, label="|x−r|/(|r|+0.01)")
     if title:
         fig.suptitle(title, fontsize=10)
     with io.atomic_path(path, suffix=".tmp.png") as tmp:
