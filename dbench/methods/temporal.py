@@ -20,6 +20,14 @@ Validity of a previous-frame tap q for pixel p (spec §3.2)::
 distance from the previous camera origin to this pixel's world position (:func:`expected_distance`);
 without camera metadata it falls back to this frame's depth (exact for a static camera).
 
+Backends (``backend=``): ``"numba"`` (compiled, parallel over rows), ``"reference"`` (readable
+per-pixel NumPy, float64), ``"torch"`` (vectorised PyTorch: index-tensor gathers and masks, on
+the device of the inputs or CUDA when available, :func:`reproject_torch`,
+:func:`accumulate_torch`) and ``"auto"`` (torch on CUDA when ``torch.cuda.is_available()``, else
+numba; :func:`resolve_backend`). The torch functions take and return tensors; the
+NumPy-facing dispatchers (:func:`reproject`, :func:`accumulate_any`) convert at their boundary, and
+:class:`History` keeps its state as NumPy arrays for every backend.
+
 Non-finite policy: a pixel whose colour sample is non-finite is *missing*: it keeps its
 reprojected history (the history length is not incremented), or becomes an empty history
 (value 0, N = 0) that later frames and spatial filters ignore. Non-finite depth, normal or
@@ -63,7 +71,8 @@ FALLBACK_KERNEL = np.array([[0.0778, 0.1233, 0.0778],
                             [0.0778, 0.1233, 0.0778]])
 #: reprojection status codes
 RESET, BILINEAR, FALLBACK = 0, 1, 2
-BACKENDS = ("numba", "reference")
+#: "auto" resolves to "torch" when CUDA is available, else "numba" (:func:`resolve_backend`).
+BACKENDS = ("auto", "numba", "torch", "reference")
 
 
 #: Below this many pixels the compiled kernels run on one thread: a parallel region costs
@@ -407,6 +416,9 @@ def reproject(history: np.ndarray, cur: Geometry, prev: Geometry, prev_ok: np.nd
               backend: str = "numba") -> tuple[np.ndarray, np.ndarray]:
     """Reproject the previous frame's ``history`` (C, H, W) into the current frame.
 
+    ``backend``: one of :data:`BACKENDS` ("torch" runs :func:`reproject_torch` on CUDA when
+    available, else on CPU, and converts back to NumPy).
+
     Args:
         history: (C, H, W) buffers of frame i−1 (colour, moments, history length, …).
         cur, prev: geometry of frames i and i−1; ``cur.motion`` gives p← (spec §3.1).
@@ -422,11 +434,13 @@ def reproject(history: np.ndarray, cur: Geometry, prev: Geometry, prev_ok: np.nd
     d_exp = expected_distance(cur, prev.origin)
     args = (history, cur.motion, cur.hit, cur.normal, d_exp, prev_ok & prev.hit, prev.depth,
             prev.normal, tau_d, tau_n, eps_f)
+    backend = resolve_backend(backend)
+    if backend == "torch":
+        out, status = reproject_torch(*args)
+        return to_numpy(out), to_numpy(status)
     if backend == "reference" or numba is None:
         out, status = reproject_reference(*args)
         return out.astype(np.float32), status
-    if backend != "numba":
-        raise DbenchInputError(f"backend: expected one of {BACKENDS}, got {backend!r}")
     return reproject_fast(*args)
 
 
@@ -523,6 +537,171 @@ def sample_mask(color: np.ndarray) -> np.ndarray:
 
 
 # ---------------------------------------------------------------------------------------------
+# PyTorch backend (CUDA when available, CPU tensors otherwise): same maths, vectorised
+
+
+def torch_cuda_available() -> bool:
+    """True when PyTorch is importable and sees a CUDA device."""
+    from .jbf.core import torch_cuda_available as available
+    return available()
+
+
+def resolve_backend(backend: str) -> str:
+    """``"auto"`` → ``"torch"`` when CUDA is available, else ``"numba"``; other names pass
+    through after validation (DbenchInputError naming ``backend``)."""
+    if backend not in BACKENDS:
+        raise DbenchInputError(f"backend: expected one of {BACKENDS}, got {backend!r}")
+    if backend == "auto":
+        return "torch" if torch_cuda_available() else "numba"
+    return backend
+
+
+def torch_device(like: Any = None):
+    """The device of tensor ``like``; else CUDA when available, else CPU."""
+    import torch
+    if isinstance(like, torch.Tensor):
+        return like.device
+    return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+
+
+def as_tensor(a: Any, device: Any = None, dtype: Any = None):
+    """``a`` (ndarray or tensor) as a tensor on ``device`` (default: :func:`torch_device`);
+    ``dtype`` None keeps float32/bool/integer types as they are (float64 arrays stay float64)."""
+    import torch
+    device = torch_device(a) if device is None else device
+    if isinstance(a, torch.Tensor):
+        return a.to(device=device, dtype=dtype or a.dtype)
+    return torch.as_tensor(np.ascontiguousarray(a), device=device, dtype=dtype)
+
+
+def to_numpy(t: Any) -> np.ndarray:
+    """Tensor (any device) or array → NumPy array (no copy for CPU tensors)."""
+    if isinstance(t, np.ndarray):
+        return t
+    return t.detach().cpu().numpy()
+
+
+def reproject_torch(history, motion, cur_hit, cur_normal, d_exp, prev_ok, prev_depth,
+                    prev_normal, tau_d=TAU_D, tau_n=TAU_N, eps_f=EPS_F, device=None):
+    """Vectorised PyTorch :func:`reproject_reference` (spec §3.3-3.5): the four bilinear taps
+    and the nine fallback taps of every pixel are gathers with (H, W) index tensors and masks.
+
+    Same arguments and shapes as :func:`reproject_reference` (arrays or tensors); the device is
+    ``device``, else that of ``history`` if it is a tensor, else CUDA when available, else CPU.
+    Positions, weights and the validity tests are float64 — as in the reference, so that
+    ``floor`` and the ``τ`` comparisons decide identically — the blend is float32.
+
+    Returns:
+        (reprojected (C, H, W) float32 tensor, status (H, W) uint8 tensor), on that device.
+    """
+    import torch
+    dev = torch_device(history) if device is None else device
+    f64 = torch.float64
+    hist = as_tensor(history, dev, torch.float32)
+    c, h, w = hist.shape
+    mot = as_tensor(motion, dev, f64)
+    hit = as_tensor(cur_hit, dev, torch.bool)
+    n_p = as_tensor(cur_normal, dev, f64)
+    de = as_tensor(d_exp, dev, f64)
+    p_ok = as_tensor(prev_ok, dev, torch.bool).reshape(-1)
+    p_dep = as_tensor(prev_depth, dev, f64).reshape(-1)
+    p_nrm = as_tensor(prev_normal, dev, f64).reshape(3, -1)
+    hist_f = hist.reshape(c, -1)
+
+    active = hit & torch.isfinite(mot).all(0)
+    yy = torch.arange(h, device=dev, dtype=f64)[:, None]
+    xx = torch.arange(w, device=dev, dtype=f64)[None, :]
+    # inactive pixels get p← = p so that no NaN reaches floor/long()
+    px = xx + torch.where(active, mot[0], 0.0)
+    py = yy + torch.where(active, mot[1], 0.0)
+
+    def tap(qx, qy):
+        """(valid (H, W) bool, flat index (H, W) int64) of previous-frame taps (qx, qy)."""
+        inside = (qx >= 0) & (qy >= 0) & (qx < w) & (qy < h) & active
+        idx = torch.where(inside, qy * w + qx, 0)
+        ok = inside & p_ok[idx]
+        ok &= (p_dep[idx] - de).abs() <= tau_d * de
+        ok &= (p_nrm[:, idx] * n_p).sum(0) >= tau_n
+        return ok, idx
+
+    x0f, y0f = torch.floor(px), torch.floor(py)
+    wx, wy = px - x0f, py - y0f
+    x0, y0 = x0f.long(), y0f.long()
+    f = torch.zeros((h, w), dtype=f64, device=dev)
+    acc = torch.zeros((c, h, w), dtype=torch.float32, device=dev)
+    for t in range(4):  # the 2×2 bilinear footprint (§3.3)
+        bx = wx if t & 1 else 1.0 - wx
+        by = wy if t >> 1 else 1.0 - wy
+        b = bx * by
+        ok, idx = tap(x0 + (t & 1), y0 + (t >> 1))
+        b = torch.where(ok & (b > 0), b, 0.0)
+        f += b
+        acc += b.float() * hist_f[:, idx]
+    bil = f > eps_f
+    out = torch.where(bil, acc / torch.where(bil, f, 1.0).float(), 0.0)
+
+    # the normalised 3×3 fallback (§3.4), evaluated where the bilinear test failed
+    need = active & ~bil
+    cx, cy = torch.floor(px + 0.5).long(), torch.floor(py + 0.5).long()
+    g = torch.zeros((h, w), dtype=f64, device=dev)
+    acc = torch.zeros_like(acc)
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            ok, idx = tap(cx + dx, cy + dy)
+            k = torch.where(ok & need, float(FALLBACK_KERNEL[dy + 1, dx + 1]), 0.0)
+            g += k
+            acc += k.float() * hist_f[:, idx]
+    fb = need & (g > 0)
+    out = torch.where(fb, acc / torch.where(fb, g, 1.0).float(), out)
+    status = torch.where(bil, BILINEAR, torch.where(fb, FALLBACK, RESET)).to(torch.uint8)
+    return out, status
+
+
+def accumulate_torch(sample, history, n_hist, ok, alpha_min: float = 0.0, n_max: float = N_MAX,
+                     alpha=None, sample_ok=None, device=None):
+    """PyTorch :func:`accumulate` (same arguments, arrays or tensors; same float32 arithmetic).
+
+    Returns:
+        (accumulated (C, H, W), N (H, W), α (H, W)) float32 tensors on the device of
+        ``sample`` (a tensor) or ``device``, else CUDA when available, else CPU.
+    """
+    import torch
+    dev = torch_device(sample) if device is None else device
+    f32 = torch.float32
+    s = as_tensor(sample, dev, f32)
+    hst = as_tensor(history, dev, f32)
+    nh = as_tensor(n_hist, dev, f32)
+    ok = as_tensor(ok, dev, torch.bool)
+    n = torch.where(ok, torch.clamp(nh + 1.0, max=float(n_max)), 1.0)
+    if alpha is None:
+        a = torch.clamp(1.0 / n, min=float(np.float32(alpha_min)))
+    else:
+        a = as_tensor(alpha, dev, f32)
+    a = torch.where(ok, a, 1.0)
+    if sample_ok is None:
+        return a * s + (1.0 - a) * hst, n, a
+    sok = as_tensor(sample_ok, dev, torch.bool)
+    s = torch.where(sok, s, 0.0)
+    out = torch.where(sok, a * s + (1.0 - a) * hst, torch.where(ok, hst, 0.0))
+    n = torch.where(sok, n, torch.where(ok, nh, 0.0))
+    a = torch.where(sok, a, 0.0)
+    return out, n, a
+
+
+def accumulate_any(backend: str, sample, history, n_hist, ok, alpha_min=0.0, n_max=N_MAX,
+                   alpha=None, sample_ok=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`accumulate` on the resolved ``backend`` ("numba": :func:`accumulate_fast`,
+    "torch": :func:`accumulate_torch`, "reference": :func:`accumulate`), NumPy float32 out."""
+    backend = resolve_backend(backend)
+    args = (sample, history, n_hist, ok, alpha_min, n_max, alpha, sample_ok)
+    if backend == "torch":
+        return tuple(to_numpy(t) for t in accumulate_torch(*args))
+    if backend == "numba" and numba is not None:
+        return accumulate_fast(*args)
+    return accumulate(*args)
+
+
+# ---------------------------------------------------------------------------------------------
 # the stateful wrapper
 
 
@@ -532,12 +711,13 @@ class History:
     ``fetch(cur, c)`` reprojects the stored (C, H, W) buffers into the current frame (all
     reset when there is no previous frame, the size changed, or the frame has no motion);
     ``store(cur, buffers, valid)`` keeps this frame's buffers for the next call.
+    The state is NumPy (float32 buffers, bool masks) for every backend; ``backend`` ("auto" is
+    resolved here) selects the reprojection kernel.
     """
 
     def __init__(self, tau_d: float = TAU_D, tau_n: float = TAU_N, eps_f: float = EPS_F,
                  backend: str = "numba") -> None:
-        if backend not in BACKENDS:
-            raise DbenchInputError(f"backend: expected one of {BACKENDS}, got {backend!r}")
+        backend = resolve_backend(backend)
         self.tau_d, self.tau_n, self.eps_f, self.backend = tau_d, tau_n, eps_f, backend
         self.reset()
 
@@ -570,7 +750,9 @@ class History:
 
 
 __all__ = ["BACKENDS", "EPS_F", "FALLBACK_KERNEL", "Geometry", "History", "LUMA", "N_MAX",
-           "TAU_D", "TAU_N", "accumulate", "expected_distance", "frame_geometry", "luminance",
+           "TAU_D", "TAU_N", "accumulate", "accumulate_any", "accumulate_torch", "as_tensor",
+           "expected_distance", "reproject_torch", "resolve_backend", "to_numpy",
+           "torch_cuda_available", "torch_device", "frame_geometry", "luminance",
            "moments", "reproject", "reproject_fast", "reproject_reference", "sample_mask",
            "accumulate_fast",
            "to_interleaved", "to_planar", "variance_from_moments"]

@@ -271,3 +271,87 @@ def test_bad_parameters():
         methods.get("accumulate", alpha_min=2)
     with pytest.raises(DbenchInputError, match="backend"):
         methods.get("accumulate", backend="cuda-please")
+
+
+# -- the PyTorch backend (CPU tensors here; CUDA when present) ---------------------------------
+
+def hard_sequence(h=20, w=26, frames=5, seed=0, fractional=True):
+    """synthetic_sequence made hostile for history (shared by the svgf/asvgf/bmfr torch tests):
+    random motion — fractional (bilinear blends) or, with ``fractional=False``, whole pixels
+    (history lengths stay integers, so thresholds on N such as SVGF's N < 4 cannot flip on
+    float rounding) —, a block without hit in frame 1 and a 30 % depth jump in frame 3
+    (disocclusion: resets and 3×3 fallbacks), NaN/Inf colour pixels and NaN motion."""
+    from dbench.bench.sequence import synthetic_sequence
+
+    rng = np.random.default_rng(seed)
+    out = []
+    for i, f in enumerate(synthetic_sequence(h, w, frames=frames, seed=seed)):
+        color, depth, motion = f.color.copy(), f.depth.copy(), f.motion.copy()
+        if i:
+            dx, dy = 0.35 * rng.standard_normal(), 0.3 * rng.standard_normal((h, w))
+            if not fractional:
+                dx, dy = np.round(3 * dx), np.round(3 * dy)
+            motion[..., 0] += dx
+            motion[..., 1] += dy
+            motion[rng.random((h, w)) < 0.03] = np.nan
+        if i == 1:
+            depth[2:8, 3:10] = 0.0
+        if i == 3:
+            depth[h // 2:, w // 3:2 * w // 3] *= 1.3
+        color[rng.random((h, w)) < 0.02] = np.nan
+        color[rng.integers(0, h), rng.integers(0, w), 1] = np.inf
+        out.append(f.with_buffers(color=color, depth=depth, motion=motion))
+    return out
+
+
+def test_torch_reproject_and_accumulate_equal_reference():
+    rng = np.random.default_rng(4)
+    h, w = 23, 31
+    cur, prev = _random_geometry(rng, h, w), _random_geometry(rng, h, w)
+    prev.depth[prev.hit] = cur.depth[prev.hit] * (1 + 0.08 * rng.normal(size=prev.hit.sum()))
+    hist = rng.random((6, h, w)).astype(np.float32)
+    prev_ok = rng.random((h, w)) > 0.1
+    r, sr = T.reproject(hist, cur, prev, prev_ok, backend="reference")
+    t, st = T.reproject(hist, cur, prev, prev_ok, backend="torch")
+    assert t.dtype == np.float32 and st.dtype == np.uint8
+    np.testing.assert_array_equal(st, sr)
+    np.testing.assert_allclose(t, r, rtol=1e-6, atol=1e-6)
+    assert {0, 1, 2} <= set(np.unique(st).tolist())
+    s, hst = rng.random((5, 9, 11)).astype(np.float32), rng.random((5, 9, 11)).astype(np.float32)
+    n_hist = rng.integers(0, 300, (9, 11)).astype(np.float32)
+    ok, sok = rng.random((9, 11)) > 0.3, rng.random((9, 11)) > 0.2
+    alpha = rng.random((9, 11)).astype(np.float32)
+    for kw in (dict(alpha_min=0.2), dict(alpha=alpha), dict(alpha_min=0.0, sample_ok=sok)):
+        for a, b in zip(T.accumulate(s, hst, n_hist, ok, **kw),
+                        T.accumulate_any("torch", s, hst, n_hist, ok, **kw)):
+            np.testing.assert_allclose(b, a, rtol=1e-6, atol=1e-7)
+
+
+def test_torch_backend_equals_reference_over_a_hard_sequence():
+    a = methods.get("accumulate", backend="torch")
+    b = methods.get("accumulate", backend="reference")
+    a.reset()
+    b.reset()
+    seen = set()
+    for f in hard_sequence():
+        oa, ob = a.denoise(f), b.denoise(f)
+        np.testing.assert_allclose(oa, ob, rtol=1e-5, atol=1e-5)  # NaN where both are missing
+        np.testing.assert_array_equal(a.last["status"], b.last["status"])
+        np.testing.assert_allclose(a.last["n"], b.last["n"], rtol=1e-6)  # N is blended too
+        seen |= set(np.unique(a.last["status"]).tolist())
+    assert seen == {0, 1, 2}
+
+
+def test_auto_backend_is_numba_without_cuda(monkeypatch):
+    import torch
+
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: False)
+    assert T.resolve_backend("auto") == "numba"
+    assert methods.get("accumulate").backend == "numba"
+    assert methods.get("accumulate", backend="auto").params["backend"] == "numba"
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: True)
+    assert T.resolve_backend("auto") == "torch"
+    with pytest.raises(DbenchInputError, match="backend"):
+        T.resolve_backend("cuda")
+    with pytest.raises(DbenchInputError, match="backend"):
+        methods.get("accumulate", backend="torch-cuda")

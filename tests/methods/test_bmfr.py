@@ -12,7 +12,7 @@ WORKED = np.array([[1, 5.5, 6.5, 1.2, 0.5], [1, 5.6, 6.5, 1.4, 0.4], [1, 5.7, 6.
                    [1, 5.4, 6.3, 1.3, 0.8], [1, 5.7, 6.2, 1.4, 0.62], [1, 5.4, 6.3, 1.3, 0.55]])
 
 
-@pytest.mark.parametrize("backend", ["numba", "reference"])
+@pytest.mark.parametrize("backend", ["numba", "reference", "torch"])
 def test_equals_numpy_lstsq_on_random_full_rank_batches(backend):
     rng = np.random.default_rng(0)
     for m, n, c in ((1024, 10, 3), (40, 7, 1), (13, 13, 2)):
@@ -25,7 +25,7 @@ def test_equals_numpy_lstsq_on_random_full_rank_batches(backend):
 
 def test_worked_example_and_residual():
     T, z = WORKED[:, :4], WORKED[:, 4:]
-    for backend in ("numba", "reference"):
+    for backend in ("numba", "reference", "torch"):
         X = householder_lstsq(T, z, backend=backend)
         np.testing.assert_allclose(X[:, 0], [7.9178571, -0.0994286, -0.9105714, -0.7554286],
                                    atol=1e-7)
@@ -223,3 +223,76 @@ def test_fit_reading_normals_and_positions_directly_equals_the_stack():
         b, _ = B.bmfr_fit_fast(z, None, scaled, mask, mask, 32, (3, -5), 0.01, 2,
                                source=(n, pos, preset))
         np.testing.assert_allclose(a, b, rtol=1e-6, atol=1e-7)
+
+
+# -- the PyTorch backend (CPU tensors here; CUDA when present) ---------------------------------
+
+def test_torch_lstsq_safeguard_and_fit_equal_reference():
+    from dbench.methods.bmfr import torch_core as BT
+
+    A = np.ones((1, 36, 7))
+    A[0, :, 1:] = 0.5
+    z = np.full((1, 36, 3), 0.7)
+    X, dropped = householder_lstsq(A, z, backend="torch", return_dropped=True)
+    Xr, dropped_r = householder_lstsq(A, z, backend="reference", return_dropped=True)
+    assert dropped[0] == dropped_r[0] > 0
+    np.testing.assert_allclose(X, Xr, atol=1e-9)
+    rng = np.random.default_rng(4)
+    idx = rng.integers(0, 1 << 40, 500)
+    import torch
+    for seed, col in ((0, 1), (7, 6), (2 ** 62 + 5, 9)):  # same noise stream bit for bit
+        np.testing.assert_array_equal(BT.uniform_hash_torch(seed, torch.as_tensor(idx), col),
+                                      B.uniform_hash(seed, idx, col))
+    h, w = 45, 70
+    zz = rng.random((3, h, w)).astype(np.float32)
+    n = rng.normal(size=(3, h, w)).astype(np.float32)
+    n /= np.linalg.norm(n, axis=0)
+    pos = (rng.random((3, h, w)) * 5).astype(np.float32)
+    fit, recon = rng.random((h, w)) > 0.1, rng.random((h, w)) > 0.05
+    for preset in ("paper", "seed", "normals"):
+        feats, scaled = B.feature_stack(n, pos, preset)
+        np.testing.assert_array_equal(BT.feature_stack_torch(n, pos, preset).numpy(), feats)
+        for off in ((0, 0), (-14, -14), (4, -6)):
+            r, dr = B.bmfr_fit_reference(zz, feats, scaled, fit, recon, 32, off, 0.01, 7)
+            t, dt = B.bmfr_fit("torch", zz, feats, scaled, fit, recon, 32, off, 0.01, 7)
+            assert t.dtype == np.float32 and dt == dr
+            np.testing.assert_allclose(t, r, rtol=1e-5, atol=1e-6)
+    feats, scaled, _ = _flat_wall()  # rank deficient without noise: same columns dropped
+    zw = rng.random((3, 32, 32)).astype(np.float32)
+    mask = np.ones((32, 32), bool)
+    r, dr = B.bmfr_fit_reference(zw, feats, scaled, mask, mask, 32, (0, 0), 0.0, 3)
+    t, dt = B.bmfr_fit("torch", zw, feats, scaled, mask, mask, 32, (0, 0), 0.0, 3)
+    assert dt == dr > 0 and np.isfinite(t).all()
+    # rank-deficient: the solution is not unique (Numba differs from the reference as much);
+    # the fit residual is what the backends share
+    rmse = [np.sqrt(((o - zw) ** 2).mean()) for o in (t, r)]
+    assert rmse[0] <= rmse[1] * (1 + 1e-4)
+
+
+def test_whole_method_torch_equals_reference_over_a_hard_sequence():
+    from test_accumulate import hard_sequence
+
+    a, b = methods.get("bmfr", backend="torch"), methods.get("bmfr", backend="reference")
+    a.reset()
+    b.reset()
+    seen = set()
+    for f in hard_sequence(24, 40, frames=5):  # disocclusion, NaN/Inf colour and motion
+        oa, ob = a.denoise(f), b.denoise(f)
+        assert oa.dtype == np.float32 and np.isfinite(oa).all() and (oa >= 0).all()
+        np.testing.assert_allclose(oa, ob, rtol=1e-4, atol=1e-5)
+        assert a.last["dropped"] == b.last["dropped"]
+        seen |= set(np.unique(a.last["status"]).tolist())
+    assert seen == {0, 1, 2}
+
+
+def test_torch_backend_validation_and_auto(monkeypatch):
+    import torch
+
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: False)
+    assert methods.get("bmfr").backend == "numba"
+    assert methods.get("bmfr").params["backend"] == "numba"  # recorded resolved
+    assert methods.get("bmfr", backend="torch").backend == "torch"
+    with pytest.raises(DbenchInputError, match="backend"):
+        methods.get("bmfr", backend="cuda")
+    with pytest.raises(DbenchInputError, match="backend"):
+        householder_lstsq(np.ones((1, 5, 2)), np.ones((1, 5, 1)), backend="cuda")

@@ -230,3 +230,67 @@ def test_single_image_runs_without_motion():
         out = m.denoise(f)
     assert out.dtype == np.float32 and out.shape == f.color.shape and np.isfinite(out).all()
     assert (m.last["n"] == 1).all()
+
+
+# -- the PyTorch backend (CPU tensors here; CUDA when present) ---------------------------------
+# Kernel tolerances as for the Numba path: rtol 1e-4, atol 1e-5 (colour) / 1e-6 (variance).
+
+def test_torch_kernels_equal_references():
+    rng = np.random.default_rng(2)
+    args = _rand_inputs(rng, 29, 41)
+    for step in (1, 2, 8):
+        for use_lum in (True, False):
+            r = C.atrous_reference(*args, step, use_lum=use_lum)
+            t = C.atrous("torch", *args, step, use_lum=use_lum)
+            assert t[0].dtype == np.float32 and t[1].dtype == np.float32
+            np.testing.assert_allclose(t[0], r[0], rtol=1e-4, atol=1e-5)
+            np.testing.assert_allclose(t[1], r[1], rtol=1e-4, atol=1e-6)
+    c, _, z, gx, gy, n, tap, _, hit = args
+    mom = np.stack([c[0], c[0] ** 2])
+    sel = rng.random(hit.shape) > 0.5
+    np.testing.assert_allclose(C.spatial_variance("torch", mom, z, gx, gy, n, tap, hit, sel),
+                               np.where(sel, C.spatial_variance_reference(mom, z, gx, gy, n, tap,
+                                                                          hit), 0.0),
+                               rtol=1e-4, atol=1e-6)
+    np.testing.assert_allclose(C.depth_gradient(z, hit, backend="torch"), C.depth_gradient(z, hit),
+                               atol=1e-6)
+    col = rng.random((29, 41, 3)).astype(np.float32) * 2
+    col[3, 4] = np.nan
+    alb = rng.random((29, 41, 3)).astype(np.float32)
+    alb[0, 0] = (0, 5e-4, 3.0)
+    emi = np.where(rng.random((29, 41, 1)) > 0.9, 4.0, 0.0) * np.ones(3, np.float32)
+    pr, pt = C.prepare_reference(col, alb, emi, hit), C.prepare("torch", col, alb, emi, hit)
+    for key in pr:
+        np.testing.assert_allclose(pt[key], pr[key], rtol=1e-6, atol=1e-6, err_msg=key)
+    np.testing.assert_allclose(C.remodulate(pr["illum"], pr["a_eff"], pr["emission"], "torch"),
+                               C.remodulate(pr["illum"], pr["a_eff"], pr["emission"], "reference"),
+                               rtol=1e-6)
+
+
+def test_whole_method_torch_equals_reference_over_a_hard_sequence():
+    from test_accumulate import hard_sequence
+
+    a, b = methods.get("svgf", backend="torch"), methods.get("svgf", backend="reference")
+    a.reset()
+    b.reset()
+    seen = set()
+    for f in hard_sequence(frames=6, fractional=False):  # disocclusion, NaN/Inf colour and motion
+        oa, ob = a.denoise(f), b.denoise(f)
+        assert oa.dtype == np.float32 and np.isfinite(oa).all()
+        np.testing.assert_allclose(oa, ob, rtol=1e-4, atol=1e-5)
+        np.testing.assert_allclose(a.last["variance"], b.last["variance"], rtol=1e-4, atol=1e-6)
+        np.testing.assert_array_equal(a.last["status"], b.last["status"])
+        seen |= set(np.unique(a.last["status"]).tolist())
+    assert seen == {0, 1, 2}
+
+
+def test_torch_backend_validation_and_auto(monkeypatch):
+    import torch
+
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: False)
+    assert methods.get("svgf").backend == "numba"
+    assert methods.get("svgf").params["backend"] == "numba"  # recorded resolved
+    assert methods.get("svgf", backend="auto").backend == "numba"
+    assert methods.get("svgf", backend="torch").backend == "torch"
+    with pytest.raises(DbenchInputError, match="backend"):
+        methods.get("svgf", backend="cuda")

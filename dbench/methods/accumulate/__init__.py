@@ -13,6 +13,14 @@ Non-finite policy: a non-finite colour pixel keeps its reprojected history; with
 output stays non-finite (it is missing) and its history is empty, so nothing spreads.
 Without motion vectors (a single image) every frame is treated as the first.
 
+Parameters: alpha_min (0), n_max (256), tau_d (0.05), tau_n (0.9), backend ("auto" (default):
+PyTorch on CUDA when ``torch.cuda.is_available()``, else Numba; "numba"; "torch": vectorised
+PyTorch reprojection and accumulation (:func:`~dbench.methods.temporal.reproject_torch`,
+:func:`~dbench.methods.temporal.accumulate_torch`) on CUDA when available, else on CPU;
+"reference": readable NumPy). Every backend takes and returns NumPy at the method boundary and
+keeps its history as NumPy (:class:`~dbench.methods.temporal.History`). ``params["backend"]``
+holds the resolved name after construction ("auto" becomes "torch" or "numba").
+
 Example:
     >>> import numpy as np
     >>> from dbench.data import Frame
@@ -43,8 +51,7 @@ def _check_params(p: dict[str, Any]) -> None:
         raise DbenchInputError(f"alpha_min: expected a number in [0, 1], got {p['alpha_min']!r}")
     if not float(p["n_max"]) >= 1:
         raise DbenchInputError(f"n_max: expected a number >= 1, got {p['n_max']!r}")
-    if p["backend"] not in T.BACKENDS:
-        raise DbenchInputError(f"backend: expected one of {T.BACKENDS}, got {p['backend']!r}")
+    T.resolve_backend(p["backend"])  # validates: DbenchInputError naming ``backend``
 
 
 @register("accumulate")
@@ -54,13 +61,16 @@ class Accumulate(Denoiser):
     kinds = {"sequence"}
     needs = {"color", "normal", "depth", "position", "motion"}
     defaults: dict[str, Any] = dict(alpha_min=0.0, n_max=T.N_MAX, tau_d=T.TAU_D, tau_n=T.TAU_N,
-                                    backend="numba")
+                                    backend="auto")
 
     def __init__(self, **params: Any) -> None:
         super().__init__(**params)
         _check_params(self.params)
         p = self.params
-        self.history = T.History(p["tau_d"], p["tau_n"], T.EPS_F, p["backend"])
+        # "auto" is decided once, here; params keep the resolved name so that result files
+        # record the kernels that ran
+        self.backend = p["backend"] = T.resolve_backend(p["backend"])
+        self.history = T.History(p["tau_d"], p["tau_n"], T.EPS_F, self.backend)
         self.last: dict[str, np.ndarray] = {}
 
     def reset(self) -> None:
@@ -80,8 +90,11 @@ class Accumulate(Denoiser):
         hist, status = self.history.fetch(geo, 6)
         ok = status > 0
         sample = np.concatenate([c, T.moments(c)])
-        acc, n, _ = T.accumulate(sample, hist[:5], hist[5], ok, self.params["alpha_min"],
-                                 self.params["n_max"], sample_ok=ok_s)
+        # numba and reference share the NumPy accumulation here (one cheap fused expression)
+        acc_backend = "torch" if self.backend == "torch" else "reference"
+        acc, n, _ = T.accumulate_any(acc_backend, sample, hist[:5], hist[5], ok,
+                                     self.params["alpha_min"], self.params["n_max"],
+                                     sample_ok=ok_s)
         self.history.store(geo, np.concatenate([acc, n[None]]), valid=n > 0)
         self.last = {"variance": T.variance_from_moments(acc[3:5]), "n": n, "status": status}
         out = T.to_interleaved(acc[:3])

@@ -14,7 +14,12 @@ Public: :func:`householder_lstsq` (A (K, m, n), B (K, m, c)) -> X (K, n, c).
 
 Parameters: features ("paper" | "seed" | "normals" | "positions"), block_size (32),
 noise_amount (0.01), offsets (16), alpha1 (0.2), alpha2 (0.1), clamp_negative (True),
-rcond (1e-10), seed (0: noise and offsets), tau_d, tau_n, backend ("numba" | "reference"),
+rcond (1e-10), seed (0: noise and offsets), tau_d, tau_n, backend ("auto" | "numba" | "torch" |
+"reference"; "auto", the default, is "torch" when ``torch.cuda.is_available()``, else "numba";
+"torch" runs reprojection, accumulation, demodulation, feature construction, the batched
+Householder fit of all blocks and the reconstruction as PyTorch kernels
+(:mod:`dbench.methods.bmfr.torch_core`) on CUDA when available, else on CPU, NumPy in and out
+of each kernel, history kept as NumPy; ``params["backend"]`` holds the resolved name),
 preset (None | "seed": block 64, features "seed"; the seed's 36 random samples per block are not
 implemented — every pixel of a block is used).
 
@@ -40,6 +45,7 @@ Example:
 """
 from __future__ import annotations
 
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -52,12 +58,14 @@ from ..svgf import core as SC
 from .core import (FEATURE_PRESETS, N_OFFSETS, RCOND, block_origins, bmfr_fit,
                    bmfr_fit_fast, bmfr_fit_reference, feature_stack, grid_offsets,
                    householder_lstsq, householder_lstsq_reference, uniform_hash)
+from .torch_core import bmfr_fit_torch, feature_stack_torch, householder_lstsq_torch
 
 PRESETS = {"seed": dict(block_size=64, features="seed")}
 
 __all__ = ["BMFR", "householder_lstsq", "householder_lstsq_reference", "bmfr_fit",
            "bmfr_fit_fast", "bmfr_fit_reference", "feature_stack", "grid_offsets",
-           "block_origins", "uniform_hash", "FEATURE_PRESETS"]
+           "block_origins", "uniform_hash", "FEATURE_PRESETS", "bmfr_fit_torch",
+           "feature_stack_torch", "householder_lstsq_torch"]
 
 
 @register("bmfr")
@@ -69,7 +77,7 @@ class BMFR(Denoiser):
     defaults: dict[str, Any] = dict(features="paper", block_size=32, noise_amount=0.01,
                                     offsets=N_OFFSETS, alpha1=0.2, alpha2=0.1,
                                     clamp_negative=True, rcond=RCOND, seed=0, tau_d=T.TAU_D,
-                                    tau_n=T.TAU_N, backend="numba", preset=None)
+                                    tau_n=T.TAU_N, backend="auto", preset=None)
 
     def __init__(self, **params: Any) -> None:
         super().__init__(**params)
@@ -95,11 +103,12 @@ class BMFR(Denoiser):
         if not 0.0 <= float(p["noise_amount"]) < 1.0:
             raise DbenchInputError(f"noise_amount: expected a number in [0, 1), "
                                    f"got {p['noise_amount']!r}")
-        if p["backend"] not in T.BACKENDS:
-            raise DbenchInputError(f"backend: expected one of {T.BACKENDS}, got {p['backend']!r}")
+        # "auto" is decided once, here; params keep the resolved name so that result files
+        # record the kernels that ran
+        self.backend = p["backend"] = T.resolve_backend(p["backend"])
         self.grid = grid_offsets(int(p["block_size"]), int(p["offsets"]), int(p["seed"]))
         self.scaled = np.array([c[0] == "p" for c in FEATURE_PRESETS[p["features"]]], bool)
-        self.history = T.History(p["tau_d"], p["tau_n"], T.EPS_F, p["backend"])
+        self.history = T.History(p["tau_d"], p["tau_n"], T.EPS_F, self.backend)
         self.frame_index = 0
         self.last: dict[str, Any] = {}
 
@@ -114,18 +123,17 @@ class BMFR(Denoiser):
             return self._denoise(data, color)
 
     def _denoise(self, data, color: np.ndarray) -> np.ndarray:
-        p = self.params
-        fast = p["backend"] == "numba"
+        p, be = self.params, self.backend
+        fast = be == "numba"
         h, w = color.shape[:2]
         albedo = check_buffer("albedo", getattr(data, "albedo", None), (h, w, 3))
-        geo = T.frame_geometry(data, backend=p["backend"])
-        prep = (SC.prepare_fast if fast else SC.prepare_reference)(
-            color, albedo, getattr(data, "emission", None), geo.hit)
+        geo = T.frame_geometry(data, backend=be)
+        prep = SC.prepare(be, color, albedo, getattr(data, "emission", None), geo.hit)
         present = prep["present"]
 
         hist, status = self.history.fetch(geo, 7)
         ok = status > 0
-        acc = T.accumulate_fast if fast else T.accumulate
+        acc = partial(T.accumulate_any, be)
         z_acc, n1, _ = acc(prep["illum"], hist[0:3], hist[3], ok, p["alpha1"], T.N_MAX, None,
                            present)
         filled = n1 > 0
@@ -137,7 +145,10 @@ class BMFR(Denoiser):
         fit_args = (int(p["block_size"]), offset, float(p["noise_amount"]), noise_seed,
                     float(p["rcond"]), bool(p["clamp_negative"]))
         scaled = self.scaled
-        if fast:
+        if be == "torch":
+            feats = feature_stack_torch(geo.normal, geo.position, p["features"])
+            y_fit, dropped = bmfr_fit("torch", z_acc, feats, scaled, fit, recon, *fit_args)
+        elif fast:
             y_fit, dropped = bmfr_fit_fast(z_acc, None, scaled, fit, recon, *fit_args,
                                            source=(geo.normal, geo.position, p["features"]))
         else:
@@ -151,4 +162,4 @@ class BMFR(Denoiser):
         self.frame_index += 1
         self.last = {"dropped": dropped, "offset": tuple(int(v) for v in offset), "n1": n1,
                      "n2": n2, "status": status}
-        return SC.remodulate(y_acc, prep["a_eff"], prep["emission"], p["backend"])
+        return SC.remodulate(y_acc, prep["a_eff"], prep["emission"], be)

@@ -6,7 +6,10 @@ Two implementations of everything, proven equal by tests/methods/test_bmfr.py:
 * reference — NumPy, batched over blocks where that keeps it readable (``*_reference``);
 * fast — Numba, one parallel loop over blocks, each block's augmented matrix held column-major
   in a (M + 3, W) float64 scratch array so that every reflection is a run of contiguous dot
-  products (``*_fast``).
+  products (``*_fast``);
+* torch — :mod:`dbench.methods.bmfr.torch_core`: every block of a grid in one (K, B², ·)
+  batch, QR by ``torch.linalg.qr(mode="r")`` on [A | B] (CUDA when available, else CPU),
+  reached through :func:`householder_lstsq` / :func:`bmfr_fit` with ``backend="torch"``.
 
 Shapes: planar images (C, H, W); features (M, H, W) raw (unscaled, noise-free); least-squares
 batches A (K, m, n), B (K, m, c).
@@ -154,7 +157,8 @@ if HAVE_NUMBA:
 def householder_lstsq(A: np.ndarray, B: np.ndarray, rcond: float = RCOND,
                       backend: str = "numba", return_dropped: bool = False):
     """Solve min ‖A X − B‖ for batches A (K, m, n), B (K, m, c) by Householder QR without
-    forming Q, R shared by the c right-hand sides (spec/bmfr.md §5). Returns X (K, n, c)
+    forming Q, R shared by the c right-hand sides (spec/bmfr.md §5) on ``backend`` ("numba",
+    "torch" or "reference"). Returns X (K, n, c)
     float64 (and the per-batch count of columns zeroed by the rank safeguard when
     ``return_dropped``). 2-D inputs (m, n), (m, c) are treated as one batch.
 
@@ -171,7 +175,11 @@ def householder_lstsq(A: np.ndarray, B: np.ndarray, rcond: float = RCOND,
     if A.ndim != 3 or B.ndim != 3 or B.shape[:2] != A.shape[:2]:
         raise DbenchInputError(f"A, B: expected shapes (K, m, n) and (K, m, c) with the same K "
                                f"and m, got {A.shape} and {B.shape}")
-    if backend == "reference" or not HAVE_NUMBA:
+    if backend == "torch":
+        from ..temporal import to_numpy
+        from .torch_core import householder_lstsq_torch
+        X, dropped = (to_numpy(t) for t in householder_lstsq_torch(A, B, rcond))
+    elif backend == "reference" or not HAVE_NUMBA:
         X, dropped = householder_lstsq_reference(A, B, rcond)
     elif backend == "numba":
         X = np.zeros((A.shape[0], A.shape[2], B.shape[2]), np.float64)
@@ -179,7 +187,8 @@ def householder_lstsq(A: np.ndarray, B: np.ndarray, rcond: float = RCOND,
         _lstsq_batch_nb(np.ascontiguousarray(A, np.float64), np.ascontiguousarray(B, np.float64),
                         float(rcond), X, dropped)
     else:
-        raise DbenchInputError(f"backend: expected 'numba' or 'reference', got {backend!r}")
+        raise DbenchInputError(f"backend: expected 'numba', 'torch' or 'reference', "
+                               f"got {backend!r}")
     if single:
         X, dropped = X[0], dropped[0]
     return (X, dropped) if return_dropped else X
@@ -475,6 +484,13 @@ def feature_layout(preset: str) -> tuple[np.ndarray, np.ndarray]:
 
 
 def bmfr_fit(backend: str, *args, **kw):
+    """Arguments of :func:`bmfr_fit_reference` on ``backend``; (y (3, H, W) float32 NumPy,
+    dropped)."""
+    if backend == "torch":
+        from ..temporal import to_numpy
+        from .torch_core import bmfr_fit_torch
+        y, dropped = bmfr_fit_torch(*args, **kw)
+        return to_numpy(y), dropped
     if backend == "reference" or not HAVE_NUMBA:
         return bmfr_fit_reference(*args, **kw)
     return bmfr_fit_fast(*args, **kw)

@@ -21,8 +21,16 @@ floored at 1/N' (N' from λ as above) — an option, not the default.
 Parameters (``get("svgf", **params)``; presets ``paper`` (default) and ``falcor`` fill in the
 values not given): sigma_z (1), sigma_n (128), sigma_l (4), iterations (5), feedback_tap (0),
 alpha_min (0.2), alpha_min_moments (0.2), eps_var (1e-4), variance_boost (False), tau_d (0.05),
-tau_n (0.9), backend ("numba" | "reference"); asvgf adds gradient_iterations (3),
-gradient_mode ("seed" | "paper"), n_max (256).
+tau_n (0.9), backend ("auto" | "numba" | "torch" | "reference"); asvgf adds
+gradient_iterations (3), gradient_mode ("seed" | "paper"), n_max (256).
+
+Backends: "auto" (default) is "torch" when ``torch.cuda.is_available()``, else "numba";
+"numba" compiled kernels; "torch" the vectorised PyTorch kernels of
+:mod:`dbench.methods.svgf.torch_core` and :mod:`dbench.methods.temporal` (reprojection,
+accumulation, demodulation, variance, à-trous, A-SVGF strata/gradient filter/adaptive history) on
+CUDA when available, else on CPU — each kernel takes and returns NumPy, the history stays NumPy;
+"reference" readable NumPy (float64). All agree within the tolerances of
+tests/methods/test_svgf.py and test_asvgf.py. ``params["backend"]`` holds the resolved name.
 
 ``emission`` is optional (not in ``needs``: synthetic sequences have none); the sequence
 datasets always provide it. Pixels on emitters (emission > 0) are neither taps nor filtered: their output is their own
@@ -86,7 +94,7 @@ class _SVGFBase(Denoiser):
     needs = {"color", "albedo", "normal", "depth", "position", "motion"}
     defaults: dict[str, Any] = dict(preset="paper", **PRESETS["paper"], eps_var=C.EPS_VAR,
                                     variance_boost=False, tau_d=T.TAU_D, tau_n=T.TAU_N,
-                                    backend="numba")
+                                    backend="auto")
 
     def __init__(self, **params: Any) -> None:
         super().__init__(**params)
@@ -108,9 +116,10 @@ class _SVGFBase(Denoiser):
         if int(p["feedback_tap"]) != p["feedback_tap"] or p["feedback_tap"] < 0:
             raise DbenchInputError(f"feedback_tap: expected an integer >= 0, "
                                    f"got {p['feedback_tap']!r}")
-        if p["backend"] not in T.BACKENDS:
-            raise DbenchInputError(f"backend: expected one of {T.BACKENDS}, got {p['backend']!r}")
-        self.history = T.History(p["tau_d"], p["tau_n"], T.EPS_F, p["backend"])
+        # "auto" is decided once, here; params keep the resolved name so that result files
+        # record the kernels that ran
+        self.backend = p["backend"] = T.resolve_backend(p["backend"])
+        self.history = T.History(p["tau_d"], p["tau_n"], T.EPS_F, self.backend)
         self.last: dict[str, np.ndarray] = {}
 
     def reset(self) -> None:
@@ -130,33 +139,31 @@ class _SVGFBase(Denoiser):
             return self._denoise(data, color)
 
     def _denoise(self, data, color: np.ndarray) -> np.ndarray:
-        p = self.params
-        fast = p["backend"] == "numba"
+        p, be = self.params, self.backend
         h, w = color.shape[:2]
         albedo = check_buffer("albedo", getattr(data, "albedo", None), (h, w, 3))
-        geo = T.frame_geometry(data, backend=p["backend"])
+        geo = T.frame_geometry(data, backend=be)
         emission = getattr(data, "emission", None)
-        prep = (C.prepare_fast if fast else C.prepare_reference)(color, albedo, emission, geo.hit)
+        prep = C.prepare(be, color, albedo, emission, geo.hit)
         present, emitter = prep["present"], prep["emitter"]
 
         hist, status = self.history.fetch(geo, 6)
         ok = status > 0
         hist_n, alpha, extras = self._adaptive(data, geo, hist[5], ok, prep)
-        acc = T.accumulate_fast if fast else T.accumulate
         n_max = getattr(self, "n_max", T.N_MAX)
-        acc_c, n, a_used = acc(prep["illum"], hist[:3], hist_n, ok, p["alpha_min"], n_max,
-                               alpha, present)
-        acc_m, _, _ = acc(prep["moments"], hist[3:5], hist_n, ok, p["alpha_min_moments"], n_max,
-                          alpha, present)
+        acc_c, n, a_used = T.accumulate_any(be, prep["illum"], hist[:3], hist_n, ok,
+                                            p["alpha_min"], n_max, alpha, present)
+        acc_m, _, _ = T.accumulate_any(be, prep["moments"], hist[3:5], hist_n, ok,
+                                       p["alpha_min_moments"], n_max, alpha, present)
         filled = n > 0
 
-        gx, gy = C.depth_gradient(geo.depth, geo.hit, backend=p["backend"])
+        gx, gy = C.depth_gradient(geo.depth, geo.hit, backend=be)
         gather = geo.hit & ~emitter
         tap = gather & filled
         var = T.variance_from_moments(acc_m)
         spatial = filled & (n < C.N_SPATIAL)
         if spatial.any():
-            sv = C.spatial_variance(p["backend"], acc_m, geo.depth, gx, gy, geo.normal, tap,
+            sv = C.spatial_variance(be, acc_m, geo.depth, gx, gy, geo.normal, tap,
                                     gather, spatial, sigma_z=p["sigma_z"], sigma_n=p["sigma_n"])
             if p["variance_boost"]:
                 sv = sv * 4.0 / np.maximum(n, 1.0)
@@ -164,7 +171,7 @@ class _SVGFBase(Denoiser):
 
         cur, feedback = acc_c, acc_c
         for i in range(int(p["iterations"])):
-            cur, var = C.atrous(p["backend"], cur, var, geo.depth, gx, gy, geo.normal, tap,
+            cur, var = C.atrous(be, cur, var, geo.depth, gx, gy, geo.normal, tap,
                                 filled, gather, 2 ** i, sigma_z=p["sigma_z"],
                                 sigma_n=p["sigma_n"], sigma_l=p["sigma_l"], eps_var=p["eps_var"])
             if i == p["feedback_tap"]:
@@ -173,7 +180,7 @@ class _SVGFBase(Denoiser):
                            finite=True)
         self._after(geo, prep)
         self.last = {"n": n, "alpha": a_used, "variance": var, "status": status, **extras}
-        return C.remodulate(cur, prep["a_eff"], prep["emission"], p["backend"])
+        return C.remodulate(cur, prep["a_eff"], prep["emission"], be)
 
 
 @register("svgf")
@@ -212,9 +219,9 @@ class ASVGF(_SVGFBase):
             grad = check_buffer("gradient", getattr(data, "gradient", None), (h, w, 3))
             l_grad = grad @ T.LUMA  # (H, W) luminance of the re-shaded previous samples
             strata = C.stratum_gradients(self._prev_lum, l_grad, prev.hit, prev.depth,
-                                         prev.normal, backend=p["backend"])
+                                         prev.normal, backend=self.backend)
             filt = C.filter_gradients(strata, int(p["gradient_iterations"]), p["sigma_z"],
-                                      p["sigma_n"], p["backend"])
+                                      p["sigma_n"], self.backend)
             if p["gradient_mode"] == "seed":
                 low = filt["g"]
             else:
@@ -222,7 +229,7 @@ class ASVGF(_SVGFBase):
                     low = np.where(filt["norm"] > 0,
                                    np.minimum(1.0, np.abs(filt["delta"]) / filt["norm"]), 0.0)
         g_img, n_new, alpha = C.adaptive_history(low, motion, geo.hit, hist_n, self.n_max,
-                                                 p["gradient_mode"], ALPHA0_PAPER, p["backend"])
+                                                 p["gradient_mode"], ALPHA0_PAPER, self.backend)
         # accumulate() computes N = min(N_hist + 1, n_max): hand it N' − 1.
         return n_new - np.float32(1.0), alpha, {"gradient": g_img}
 

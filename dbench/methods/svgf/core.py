@@ -6,7 +6,11 @@ Layout: planar float32 images, colour (3, H, W), scalars (H, W), normals (3, H, 
 Every filter has a readable NumPy reference (float64, exact ``exp``) and a compiled Numba fast
 path (float32, parallel over rows, inner loops over x written so that LLVM vectorises them, and a
 polynomial ``exp``: relative error ≤ 2e-5 on the weights). Tests prove them equal within 1e-4
-(relative to the image scale) — see tests/methods/test_svgf.py.
+(relative to the image scale) — see tests/methods/test_svgf.py. The ``"torch"`` backend
+(:mod:`dbench.methods.svgf.torch_core`: vectorised PyTorch, CUDA when available, else CPU) is
+reached through the same dispatchers (:func:`prepare`, :func:`depth_gradient`, :func:`atrous`,
+:func:`spatial_variance`, :func:`remodulate`, :func:`stratum_gradients`,
+:func:`adaptive_history`), which take and return NumPy.
 
 À-trous iteration with step s (spec §3, §5), for centre p and tap q = p + s·o, o ∈ {−2..2}²::
 
@@ -27,7 +31,7 @@ import math
 import numpy as np
 
 from ...errors import DbenchInputError
-from ..temporal import LUMA, luminance
+from ..temporal import LUMA, luminance, to_numpy
 
 try:
     from numba import njit, prange
@@ -89,6 +93,17 @@ def prepare_reference(color: np.ndarray, albedo: np.ndarray, emission: np.ndarra
             "lum_raw": lum_raw}
 
 
+def prepare(backend: str, color, albedo, emission, hit) -> dict[str, np.ndarray]:
+    """:func:`prepare_reference` on ``backend`` ("numba": :func:`prepare_fast`, "torch":
+    :func:`~dbench.methods.svgf.torch_core.prepare_torch`); NumPy out."""
+    if backend == "torch":
+        from .torch_core import prepare_torch
+        return {k: to_numpy(v) for k, v in prepare_torch(color, albedo, emission, hit).items()}
+    if backend == "numba" and HAVE_NUMBA:
+        return prepare_fast(color, albedo, emission, hit)
+    return prepare_reference(color, albedo, emission, hit)
+
+
 def prepare_fast(color, albedo, emission, hit) -> dict[str, np.ndarray]:
     """Compiled :func:`prepare_reference` (one parallel pass)."""
     from ...data import check_buffer
@@ -108,6 +123,9 @@ def prepare_fast(color, albedo, emission, hit) -> dict[str, np.ndarray]:
 def remodulate(illum: np.ndarray, a_eff: np.ndarray, emission: np.ndarray,
                backend: str = "numba") -> np.ndarray:
     """(H, W, 3) float32 output = a_eff · I + E from planar (3, H, W) buffers."""
+    if backend == "torch":
+        from .torch_core import remodulate_torch
+        return np.ascontiguousarray(to_numpy(remodulate_torch(illum, a_eff, emission)))
     if backend == "reference" or not HAVE_NUMBA:
         return np.ascontiguousarray(np.transpose(illum * a_eff + emission, (1, 2, 0)), np.float32)
     out = np.empty(illum.shape[1:] + (3,), np.float32)
@@ -126,6 +144,9 @@ def depth_gradient(z: np.ndarray, hit: np.ndarray, backend: str = "reference"
     spec/svgf.md §9 check 5). One-sided next to borders and pixels without hit, 0 where
     neither neighbour is usable or the pixel itself has no hit.
     """
+    if backend == "torch":
+        from .torch_core import depth_gradient_torch
+        return tuple(to_numpy(g) for g in depth_gradient_torch(z, hit))
     if backend == "numba" and HAVE_NUMBA:
         gx = np.empty(z.shape, np.float32)
         gy = np.empty(z.shape, np.float32)
@@ -577,6 +598,12 @@ def spatial_variance_fast(mom, z, gx, gy, normal, tap, hit, select=None, sigma_z
 
 
 def atrous(backend: str, *args, **kw):
+    """One à-trous iteration on ``backend`` (arguments of :func:`atrous_reference`), float32
+    NumPy (colour (3, H, W), variance (H, W))."""
+    if backend == "torch":
+        from .torch_core import atrous_torch
+        c, v = atrous_torch(*args, **kw)
+        return to_numpy(c), to_numpy(v)
     if backend == "reference" or not HAVE_NUMBA:
         c, v = atrous_reference(*args, **kw)
         return c.astype(np.float32), v.astype(np.float32)
@@ -584,6 +611,10 @@ def atrous(backend: str, *args, **kw):
 
 
 def spatial_variance(backend: str, mom, z, gx, gy, normal, tap, hit, select, **kw):
+    """Spatial variance (spec §4) on ``backend`` where ``select``, 0 elsewhere: (H, W) float32."""
+    if backend == "torch":
+        from .torch_core import spatial_variance_torch
+        return to_numpy(spatial_variance_torch(mom, z, gx, gy, normal, tap, hit, select, **kw))
     if backend == "reference" or not HAVE_NUMBA:
         v = spatial_variance_reference(mom, z, gx, gy, normal, tap, hit, **kw)
         return np.where(select, v, 0.0).astype(np.float32)
@@ -625,6 +656,10 @@ def stratum_gradients(l_prev, l_grad, prev_hit, prev_depth, prev_normal, size=3,
         dict with ``delta``, ``norm`` (Δ), ``g`` (G), ``has`` (stratum usable), ``depth``,
         ``normal`` (3, hs, ws) of the chosen samples.
     """
+    if backend == "torch":
+        from .torch_core import stratum_gradients_torch
+        out = stratum_gradients_torch(l_prev, l_grad, prev_hit, prev_depth, prev_normal, size)
+        return {k: to_numpy(v) for k, v in out.items()}
     if backend == "numba" and HAVE_NUMBA:
         h, w = l_prev.shape
         hs, ws = -(-h // size), -(-w // size)
@@ -749,6 +784,10 @@ def adaptive_history(low: np.ndarray, motion: np.ndarray, hit: np.ndarray, n_his
                      backend: str = "numba", size: int = 3):
     """Full-resolution G (:func:`gradient_at_pixels`), N' and α (:func:`asvgf_history`;
     ``mode="paper"``: α = max(mix(α0, 1, λ), 1/N')) in one pass. Returns three (H, W) float32."""
+    if backend == "torch":
+        from .torch_core import adaptive_history_torch
+        return tuple(to_numpy(t) for t in adaptive_history_torch(
+            low, motion, hit, n_hist, n_max, mode, alpha0, size))
     if backend == "reference" or not HAVE_NUMBA:
         g = gradient_at_pixels(np.clip(np.nan_to_num(low), 0, 1), motion, hit, size)
         n_new, a = asvgf_history(n_hist, g, n_max)
