@@ -96,7 +96,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 
     import pandas as pd
 
-    names = _split(args.method)
+    names = methods.available() if args.method == "all" else _split(args.method)
     for n in names:
         methods.method_class(n)  # raises UnknownNameError listing valid names
     scene = scenes.get(args.scene)
@@ -284,7 +284,8 @@ def build_parser() -> argparse.ArgumentParser:
                         help="reference spp (default $DBENCH_REF_SPP or 4096)")
 
     r = sub.add_parser("run", help="run methods on one scene and write a report")
-    r.add_argument("--method", required=True, help="NAME[,NAME...]")
+    r.add_argument("--method", required=True, help="NAME[,NAME...] or all (those that do not "
+                   "apply to the scene are skipped with the reason)")
     r.add_argument("--scene", required=True)
     r.add_argument("--spp", type=int, default=16)
     r.add_argument("--res", type=int, default=128)

@@ -10,11 +10,10 @@ bash scripts/setup.sh
 export PATH="$PWD/.venv/bin:$PATH"
 RES=${DBENCH_DEMO_RES:-96}
 SCENES=${DBENCH_DEMO_SCENES:-cornell,caustic,textured}
-ALL=$(dbench list --methods-only | paste -sd, -)
-dbench run --method "$ALL" --scene cornell --spp 16 --res "$RES" --out results/demo/run-cornell --quiet
-dbench run --method "$ALL" --scene flicker --spp 1 --res 64 --frames 24 --ref-spp 256 \
+dbench run --method all --scene cornell --spp 16 --res "$RES" --out results/demo/run-cornell --quiet
+dbench run --method all --scene flicker --spp 1 --res 64 --frames 24 --ref-spp 256 \
   --out results/demo/run-flicker --quiet
-dbench run --method "$ALL" --scene cornell-transient --spp 64 --res 32 --bins 100 --ref-spp 1024 \
+dbench run --method all --scene cornell-transient --spp 64 --res 32 --bins 100 --ref-spp 1024 \
   --repeats 3 --out results/demo/run-cornell-transient --quiet
 dbench sweep --methods all --scenes "$SCENES" --spp 4,16,64 --res "$RES" --repeats 3 \
   --out results/demo/sweep --quiet

@@ -64,3 +64,20 @@ def test_run_on_a_sequence_scene_writes_per_frame_results(renderer, tmp_path):
     for name in ("comparison.png", "error_per_frame.png", "images/svgf.exr",
                  "images/reference.exr"):
         assert (out / name).stat().st_size > 500
+
+
+@pytest.mark.mitsuba
+def test_run_all_methods_skips_those_that_do_not_apply(renderer, tmp_path, capsys):
+    from dbench import methods
+
+    out = tmp_path / "all"
+    code = main(["run", "--method", "all", "--scene", "textured", "--spp", "2", "--res", "12",
+                 "--ref-spp", "8", "--repeats", "1", "--out", str(out), "--quiet",
+                 "--cache", str(tmp_path / "cache")])
+    assert code == 0
+    table = pd.read_csv(out / "metrics.csv")
+    steady = {m for m in methods.available() if "steady" in methods.method_class(m).kinds}
+    assert set(table.method) == steady
+    printed = capsys.readouterr().out
+    assert "skipping svgf: svgf works on ['sequence'], not on steady data" in printed
+    assert "## Skipped" in (out / "report.md").read_text()
