@@ -225,6 +225,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     counts = sweep.run_sweep(config, args.out, executor=args.executor, workers=args.workers,
                              progress=not args.quiet)
     print(f"sweep {args.out}: {counts['computed']} cells computed, "
+          f"{counts['skipped']} not applicable (skipped with the reason), "
           f"{counts['finished_before']} already finished, {counts['errors']} errors")
     return 0 if counts["errors"] == 0 else 1
 

@@ -28,7 +28,7 @@ def test_sweep_writes_one_cell_per_file_and_resumes(renderer, tmp_path):
     out = tmp_path / "sweep"
     cfg = _config(tmp_path)
     counts = sweep.run_sweep(cfg, out, progress=False)
-    assert counts == {"computed": 8, "finished_before": 0, "errors": 0}
+    assert counts == {"computed": 8, "skipped": 0, "finished_before": 0, "errors": 0}
     cells = sweep.load_cells(out)
     assert len(cells) == 8 and all(c["status"] == "ok" for c in cells)
     before = _mtimes(out)
@@ -126,7 +126,8 @@ def test_sequence_and_transient_scenes_in_one_sweep(renderer, tmp_path):
                   scenes=["flicker", "cornell-transient"], spp=[1], res=12, ref_spp=8,
                   frames=10, bins=12)
     counts = sweep.run_sweep(cfg, out, progress=False)
-    assert counts["errors"] == 0
+    assert counts["errors"] == 0 and counts["finished_before"] == 0
+    assert counts["computed"] == 4 and counts["skipped"] == 2  # gauss3d, accumulate
     seq = {m: sweep.read_cell(sweep.cell_path(out, "flicker", 1, m))
            for m in ("noisy", "accumulate", "gauss3d")}
     assert seq["gauss3d"]["status"] == "skipped" and "sequence" in seq["gauss3d"]["reason"]

@@ -84,15 +84,17 @@ def resolve_names(methods: str | Sequence[str], scenes: str | Sequence[str]
     return m, s
 
 
-def plan(config: SweepConfig, out: Path) -> tuple[list[tuple[str, int, list[str]]], int]:
-    """Groups still to compute: (scene, spp, [methods]); skipped cells are written here.
+def plan(config: SweepConfig, out: Path
+         ) -> tuple[list[tuple[str, int, list[str]]], int, int]:
+    """Groups still to compute: (scene, spp, [methods]); newly skipped cells are written here.
 
-    Returns the groups and the number of cells already finished.
+    Returns the groups, the number of cells finished (or skipped) by an earlier run, and the
+    number of cells skipped now because the method does not apply to the scene.
     """
     from .. import methods as registry
     from ..datasets import scenes as catalogue
 
-    groups, done = [], 0
+    groups, done, skipped = [], 0, 0
     for scene_name in config.scenes:
         scene = catalogue.get(scene_name)
         for spp in config.spp:
@@ -108,12 +110,12 @@ def plan(config: SweepConfig, out: Path) -> tuple[list[tuple[str, int, list[str]
                 if not ok:
                     io.write_json(path, {"status": "skipped", "reason": why, "scene": scene_name,
                                          "method": m, "spp": spp, "res": config.res})
-                    done += 1
+                    skipped += 1
                     continue
                 todo.append(m)
             if todo:
                 groups.append((scene_name, spp, todo))
-    return groups, done
+    return groups, done, skipped
 
 
 def run_group(config: SweepConfig, out: str, scene_name: str, spp: int,
@@ -197,9 +199,10 @@ def run_sweep(config: SweepConfig, out: str | Path, executor: str = "local", wor
     else:
         io.write_json(config_file, {"config": new, "machine": machine_info()})
 
-    groups, done = plan(config, out)
+    groups, done, skipped = plan(config, out)
     if not groups:
-        return {"computed": 0, "finished_before": done, "errors": _count_errors(out)}
+        return {"computed": 0, "skipped": skipped, "finished_before": done,
+                "errors": _count_errors(out)}
     _prerender_references(config, sorted({g[0] for g in groups}))
     n_cells = sum(len(g[2]) for g in groups)
     bar = tqdm(total=n_cells, desc="sweep", unit="cell", disable=not progress)
@@ -222,7 +225,8 @@ def run_sweep(config: SweepConfig, out: str | Path, executor: str = "local", wor
         for g in groups:
             bar.update(len(run_group(config, str(out), *g)))
     bar.close()
-    return {"computed": n_cells, "finished_before": done, "errors": _count_errors(out)}
+    return {"computed": n_cells, "skipped": skipped, "finished_before": done,
+            "errors": _count_errors(out)}
 
 
 def _count_errors(out: Path) -> int:
