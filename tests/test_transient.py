@@ -367,3 +367,22 @@ def test_bench_metrics_and_figures(tmp_path):
     assert all(0 <= t < 9 for t in shown)
     for name in ("s_rmse_per_bin.png", "s_bins.png", "s_streak.png", "s_rmse_per_bin.csv"):
         assert (tmp_path / name).stat().st_size > 0
+
+
+@pytest.mark.parametrize("transform", ["identity", "box-cox"])
+def test_device_moments_equal_host_formulas_bit_for_bit(tr, transform):
+    """Collector (b) computes the moments, colour and counts on the device; with a sample
+    count that is not a power of two (a division by a constant would be rounded differently if
+    it became a multiplication by the reciprocal) they equal the host formulas exactly."""
+    from dbench.datasets import scenes
+    sc = scenes.get("cornell-transient")
+    spp = 7
+    b = tr.collect_in_integrator(sc, 8, spp, seed=4, bins=30, transform=transform, lam=0.5)
+    host = tr.stats_from_sums(spp, b.sums["s1"], b.sums["s2"], b.sums["s3"], transform, 0.5)
+    np.testing.assert_array_equal(b.stats.mean, host.mean)
+    np.testing.assert_array_equal(b.stats.var_mean, host.var_mean)
+    np.testing.assert_array_equal(b.stats.m3, host.m3)
+    assert np.all(b.stats.n == spp) and b.non_zero.dtype == np.int32
+    assert b.non_zero.min() >= 0 and b.non_zero.max() <= spp
+    if transform == "identity":  # the colour is the plain mean, here the first power sum / n
+        np.testing.assert_array_equal(b.color, (b.sums["s1"] / spp).astype(np.float32))

@@ -383,7 +383,8 @@ def run_report(out_dir: str | Path = "results", scenes: Sequence[str] = (
               "`transient_path` render of the same spp (film histogram only, read back to NumPy). "
               "`a render` is the rendering part of (a) (1-spp calls, each developing a whole "
               "film); `b render` is (b)'s render call alone; `b` adds reading the sums back and "
-              "computing the moments (fused Numba pass).", ""]
+              "computing the moments, colour and counts on the device (bit-identical to the "
+              "host formulas).", ""]
     brow = []
     for name in [s for s in scenes if catalogue.get(s).integrator == "transient_path"]:
         r = bench_collectors(name, bench_res, bench_spp, bins, repeats=bench_repeats)

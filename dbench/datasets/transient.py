@@ -519,12 +519,12 @@ def collect_in_integrator(scene: TransientScene, res: int, spp: int, seed: int =
     else:
         col.render(spp, _render.pass_seed("transient-b", seed, 0))
     t0 = time.perf_counter()
-    sums = col.power_sums()
-    inter = sums["interleaved"]
-    stats = stats_from_sums(col.n, inter[:, 0], inter[:, 1], inter[:, 2], transform, lam,
-                            col.diagnostics(), shape=sums["s1"].shape)
-    color = (sums["plain"] / col.n).astype(np.float32)
-    non_zero = sums["non_zero"]
+    sums = col.power_sums(unpack=False)
+    mom = col.moments(ZERO_VARIANCE_RTOL)
+    stats = SampleStats(n=float(col.n), mean=mom["mean"], var_mean=mom["var_mean"],
+                        m3=mom["m3"], transform=transform, lam=float(lam),
+                        diagnostics=col.diagnostics())
+    color, non_zero = mom["color"], mom["non_zero"]
     steady = (col.steady / col.n).astype(np.float32)
     state_bytes, diagnostics = col.nbytes(), col.diagnostics()
     col.release()  # the cached collector keeps its integrator, not the sums
