@@ -501,46 +501,14 @@ def _row_welch(theta, var, g2, y, yy, x0, x1, dx, w):
     pass_c = (d² < γ_t² S) or (d == 0), computed in float64 exactly as the reference does
     (spec/statistical.md §5.2), so decisions are identical to it.
     """
-    n = x1 - x0
-    ta0 = theta[0, y, x0:x1]
-    tb0 = theta[0, yy, x0 + dx:x1 + dx]
-    ta1 = theta[1, y, x0:x1]
-    tb1 = theta[1, yy, x0 + dx:x1 + dx]
-    ta2 = theta[2, y, x0:x1]
-    tb2 = theta[2, yy, x0 + dx:x1 + dx]
-    va0 = var[0, y, x0:x1]
-    vb0 = var[0, yy, x0 + dx:x1 + dx]
-    va1 = var[1, y, x0:x1]
-    vb1 = var[1, yy, x0 + dx:x1 + dx]
-    va2 = var[2, y, x0:x1]
-    vb2 = var[2, yy, x0 + dx:x1 + dx]
-    for i in range(n):
-        d0 = ta0[i] - tb0[i]
-        d1 = ta1[i] - tb1[i]
-        d2 = ta2[i] - tb2[i]
-        ok = (((d0 * d0 < g2 * (va0[i] + vb0[i])) | (d0 == 0.0))
-              & ((d1 * d1 < g2 * (va1[i] + vb1[i])) | (d1 == 0.0))
-              & ((d2 * d2 < g2 * (va2[i] + vb2[i])) | (d2 == 0.0)))
-        w[i] = w[i] if ok else _F0
+    # the 3D kernel's pair form with both ends in the same planes; w·1.0 == w exactly
+    _row_welch_pair(theta, var, theta, var, g2, y, yy, x0, x1, dx, w, 1.0, w)
 
 
 @njit(inline="always", cache=True)
 def _row_welch_table(theta, var, nint, table, y, yy, x0, x1, dx, w):
     """As _row_welch with γ_t² looked up per channel from ν = n_i + n_j − 2 (non-uniform n)."""
-    n = x1 - x0
-    last = table.shape[0] - 1
-    for c in range(3):
-        ta = theta[c, y, x0:x1]
-        tb = theta[c, yy, x0 + dx:x1 + dx]
-        va = var[c, y, x0:x1]
-        vb = var[c, yy, x0 + dx:x1 + dx]
-        na = nint[c, y, x0:x1]
-        nb = nint[c, yy, x0 + dx:x1 + dx]
-        for i in range(n):
-            nu = min(max(na[i] + nb[i] - 2, 0), last)
-            d = ta[i] - tb[i]
-            ok = (d * d < table[nu] * (va[i] + vb[i])) | (d == 0.0)
-            w[i] = w[i] if ok else _F0
+    _row_welch_pair_table(theta, var, nint, theta, var, nint, table, y, yy, x0, x1, dx, w)
 
 
 @njit(parallel=True, cache=True)
