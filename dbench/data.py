@@ -47,6 +47,20 @@ def check_count(name: str, value: Any) -> int:
     return int(value)
 
 
+def _check_pixel_buffers(data: Any, channels_of: dict[str, int], h: int, w: int) -> None:
+    """Validate and convert, in place, every per-pixel buffer of ``data`` named in
+    ``channels_of`` ({name: C}) to (h, w, C) float32; absent buffers stay None and a 2-D depth
+    gains its channel axis."""
+    for name, channels in channels_of.items():
+        value = getattr(data, name)
+        if value is None:
+            continue
+        value = np.asarray(value)
+        if name == "depth" and value.ndim == 2:
+            value = value[..., None]
+        setattr(data, name, check_buffer(name, value, (h, w, channels)))
+
+
 def check_buffer(name: str, array: Any, shape: tuple[int | None, ...], *, dtype=np.float32,
                  finite: bool = False) -> np.ndarray:
     """Validate one buffer and return it as a C-contiguous array of ``dtype``.
@@ -170,14 +184,7 @@ class Frame:
             raise DbenchInputError("color: expected shape (H, W, 3), got "
                                    f"{None if color is None else tuple(color.shape)}")
         h, w = color.shape[:2]
-        for name, channels in FRAME_BUFFERS.items():
-            value = getattr(self, name)
-            if value is None:
-                continue
-            value = np.asarray(value)
-            if name == "depth" and value.ndim == 2:
-                value = value[..., None]
-            setattr(self, name, check_buffer(name, value, (h, w, channels)))
+        _check_pixel_buffers(self, FRAME_BUFFERS, h, w)
         if self.stats is not None and self.stats.shape != (h, w, 3):
             raise DbenchInputError(f"stats: expected shape (H, W, 3) = ({h}, {w}, 3), "
                                    f"got {self.stats.shape}")
@@ -311,14 +318,7 @@ class TransientFrame:
         h, w, t = self.color.shape[:3]
         if self.reference is not None:
             self.reference = check_buffer("reference", self.reference, (h, w, t, 3))
-        for name, channels in TRANSIENT_PIXEL_BUFFERS.items():
-            value = getattr(self, name)
-            if value is None:
-                continue
-            value = np.asarray(value)
-            if name == "depth" and value.ndim == 2:
-                value = value[..., None]
-            setattr(self, name, check_buffer(name, value, (h, w, channels)))
+        _check_pixel_buffers(self, TRANSIENT_PIXEL_BUFFERS, h, w)
         if self.non_zero is not None:
             self.non_zero = check_buffer("non_zero", self.non_zero, (h, w, t, 3), dtype=np.int32)
         if self.stats is not None and self.stats.shape != (h, w, t, 3):

@@ -125,14 +125,7 @@ def load(scene: str | Scene, spp: int, res: int, needs: Iterable[str] | None = N
     if wanted & set(FEATURES):
         feat_desc = {**base, "what": "features", "spp": _render.DEFAULT_FEATURE_SPP,
                      "seed": int(seed), "aovs": _render.AOV_STRING}
-        entry = cache.get("features", feat_desc)
-        if entry is not None:
-            feats = entry.images()
-            meta["cache_hits"].append("features")
-        else:
-            feats, seconds = _render.render_features(sc, res, seed=seed)
-            cache.put("features", feat_desc, images=feats, meta={"render_s": seconds})
-            meta["rendered"].append("features")
+        feats = _render.cached_features(cache, feat_desc, sc, res, seed, meta)
         buffers.update({k: feats[k] for k in FEATURES if k in wanted})
 
     if "reference" in wanted:

@@ -157,6 +157,21 @@ def render_features(scene: Scene, res: int, spp: int = DEFAULT_FEATURE_SPP, seed
             for name, c0, nc in AOV_LAYOUT}, seconds
 
 
+def cached_features(cache, description: dict, scene: Scene, res: int, seed: int,
+                    meta: dict) -> dict[str, np.ndarray]:
+    """:func:`render_features` of ``scene`` through ``cache`` (kind ``features``), recording
+    ``features`` in ``meta["cache_hits"]`` or ``meta["rendered"]``. ``description`` is the
+    cache key (the caller's scene description, spp, seed and AOV string)."""
+    entry = cache.get("features", description)
+    if entry is not None:
+        meta["cache_hits"].append("features")
+        return entry.images()
+    feats, seconds = render_features(scene, res, seed=seed)
+    cache.put("features", description, images=feats, meta={"render_s": seconds})
+    meta["rendered"].append("features")
+    return feats
+
+
 def render_reference(scene: Scene, res: int, spp: int, seed: int = 0,
                      chunk: int = DEFAULT_REFERENCE_CHUNK, progress: bool = True
                      ) -> tuple[np.ndarray, float]:

@@ -785,14 +785,7 @@ def load_transient(scene: str | TransientScene, spp: int, res: int,
                      "versions": base["versions"], "what": "transient-features",
                      "spp": _render.DEFAULT_FEATURE_SPP, "seed": int(seed),
                      "aovs": _render.AOV_STRING}
-        entry = cache.get("features", feat_desc)
-        if entry is not None:
-            feats = entry.images()
-            meta["cache_hits"].append("features")
-        else:
-            feats, seconds = _render.render_features(fsc, res, seed=seed)
-            cache.put("features", feat_desc, images=feats, meta={"render_s": seconds})
-            meta["rendered"].append("features")
+        feats = _render.cached_features(cache, feat_desc, fsc, res, seed, meta)
         buffers.update({k: feats[k] for k in feats_wanted})
 
     if "reference" in wanted:
