@@ -53,6 +53,7 @@ import numpy as np
 
 from ..data import check_buffer
 from ..errors import DbenchInputError
+from ..registry import Denoiser
 
 try:  # Numba is a dependency; the NumPy/Python reference still works without it
     import numba
@@ -749,7 +750,37 @@ class History:
         self.frames += 1
 
 
-__all__ = ["BACKENDS", "EPS_F", "FALLBACK_KERNEL", "Geometry", "History", "LUMA", "N_MAX",
+class HistoryDenoiser(Denoiser):
+    """Base of the reprojecting sequence methods (``accumulate``, ``svgf``/``asvgf``, ``bmfr``).
+
+    A subclass validates its parameters in ``__init__`` and then calls :meth:`_start`, and
+    implements ``_denoise(data, color)`` with ``color`` the checked (H, W, 3) input; ``denoise``
+    runs it with the kernel thread count of the frame size. ``last`` holds the diagnostics of
+    the latest frame; ``reset`` empties the history.
+    """
+
+    def _start(self) -> None:
+        p = self.params
+        # "auto" is decided once, here; params keep the resolved name so that result files
+        # record the kernels that ran
+        self.backend = p["backend"] = resolve_backend(p["backend"])
+        self.history = History(p["tau_d"], p["tau_n"], EPS_F, self.backend)
+        self.last: dict[str, Any] = {}
+
+    def reset(self) -> None:
+        self.history.reset()
+        self.last = {}
+
+    def denoise(self, data) -> np.ndarray:
+        color = check_buffer("color", getattr(data, "color", None), (None, None, 3))
+        with kernel_threads(color.shape[0] * color.shape[1]):
+            return self._denoise(data, color)
+
+    def _denoise(self, data, color: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+
+__all__ = ["BACKENDS", "EPS_F", "FALLBACK_KERNEL", "Geometry", "History", "HistoryDenoiser", "LUMA", "N_MAX",
            "TAU_D", "TAU_N", "accumulate", "accumulate_any", "accumulate_torch", "as_tensor",
            "expected_distance", "reproject_torch", "resolve_backend", "to_numpy",
            "torch_cuda_available", "torch_device", "frame_geometry", "luminance",

@@ -40,9 +40,8 @@ from typing import Any
 
 import numpy as np
 
-from ...data import check_buffer
 from ...errors import DbenchInputError
-from ...registry import Denoiser, register
+from ...registry import register
 from .. import temporal as T
 
 
@@ -55,7 +54,7 @@ def _check_params(p: dict[str, Any]) -> None:
 
 
 @register("accumulate")
-class Accumulate(Denoiser):
+class Accumulate(T.HistoryDenoiser):
     """Reprojected temporal accumulation with luminance moments (spec/temporal.md)."""
 
     kinds = {"sequence"}
@@ -66,21 +65,7 @@ class Accumulate(Denoiser):
     def __init__(self, **params: Any) -> None:
         super().__init__(**params)
         _check_params(self.params)
-        p = self.params
-        # "auto" is decided once, here; params keep the resolved name so that result files
-        # record the kernels that ran
-        self.backend = p["backend"] = T.resolve_backend(p["backend"])
-        self.history = T.History(p["tau_d"], p["tau_n"], T.EPS_F, self.backend)
-        self.last: dict[str, np.ndarray] = {}
-
-    def reset(self) -> None:
-        self.history.reset()
-        self.last = {}
-
-    def denoise(self, data) -> np.ndarray:
-        color = check_buffer("color", getattr(data, "color", None), (None, None, 3))
-        with T.kernel_threads(color.shape[0] * color.shape[1]):
-            return self._denoise(data, color)
+        self._start()
 
     def _denoise(self, data, color: np.ndarray) -> np.ndarray:
         geo = T.frame_geometry(data)

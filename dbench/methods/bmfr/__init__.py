@@ -52,7 +52,7 @@ import numpy as np
 
 from ...data import check_buffer
 from ...errors import DbenchInputError
-from ...registry import Denoiser, register
+from ...registry import register
 from .. import temporal as T
 from ..svgf import core as SC
 from .core import (FEATURE_PRESETS, N_OFFSETS, RCOND, block_origins, bmfr_fit,
@@ -69,7 +69,7 @@ __all__ = ["BMFR", "householder_lstsq", "householder_lstsq_reference", "bmfr_fit
 
 
 @register("bmfr")
-class BMFR(Denoiser):
+class BMFR(T.HistoryDenoiser):
     """Blockwise multi-order feature regression with two temporal accumulations."""
 
     kinds = {"sequence"}
@@ -103,24 +103,14 @@ class BMFR(Denoiser):
         if not 0.0 <= float(p["noise_amount"]) < 1.0:
             raise DbenchInputError(f"noise_amount: expected a number in [0, 1), "
                                    f"got {p['noise_amount']!r}")
-        # "auto" is decided once, here; params keep the resolved name so that result files
-        # record the kernels that ran
-        self.backend = p["backend"] = T.resolve_backend(p["backend"])
+        self._start()
         self.grid = grid_offsets(int(p["block_size"]), int(p["offsets"]), int(p["seed"]))
         self.scaled = np.array([c[0] == "p" for c in FEATURE_PRESETS[p["features"]]], bool)
-        self.history = T.History(p["tau_d"], p["tau_n"], T.EPS_F, self.backend)
         self.frame_index = 0
-        self.last: dict[str, Any] = {}
 
     def reset(self) -> None:
-        self.history.reset()
+        super().reset()
         self.frame_index = 0
-        self.last = {}
-
-    def denoise(self, data) -> np.ndarray:
-        color = check_buffer("color", getattr(data, "color", None), (None, None, 3))
-        with T.kernel_threads(color.shape[0] * color.shape[1]):
-            return self._denoise(data, color)
 
     def _denoise(self, data, color: np.ndarray) -> np.ndarray:
         p, be = self.params, self.backend

@@ -65,7 +65,7 @@ import numpy as np
 
 from ...data import check_buffer
 from ...errors import DbenchInputError
-from ...registry import Denoiser, register
+from ...registry import register
 from .. import temporal as T
 from . import core as C
 
@@ -89,7 +89,7 @@ def _positive(name: str, value: Any, allow_zero: bool = False) -> float:
     return v
 
 
-class _SVGFBase(Denoiser):
+class _SVGFBase(T.HistoryDenoiser):
     kinds = {"sequence"}
     needs = {"color", "albedo", "normal", "depth", "position", "motion"}
     defaults: dict[str, Any] = dict(preset="paper", **PRESETS["paper"], eps_var=C.EPS_VAR,
@@ -116,15 +116,7 @@ class _SVGFBase(Denoiser):
         if int(p["feedback_tap"]) != p["feedback_tap"] or p["feedback_tap"] < 0:
             raise DbenchInputError(f"feedback_tap: expected an integer >= 0, "
                                    f"got {p['feedback_tap']!r}")
-        # "auto" is decided once, here; params keep the resolved name so that result files
-        # record the kernels that ran
-        self.backend = p["backend"] = T.resolve_backend(p["backend"])
-        self.history = T.History(p["tau_d"], p["tau_n"], T.EPS_F, self.backend)
-        self.last: dict[str, np.ndarray] = {}
-
-    def reset(self) -> None:
-        self.history.reset()
-        self.last = {}
+        self._start()
 
     # hook for A-SVGF: (n_hist_for_accumulate, alpha or None, extras)
     def _adaptive(self, data, geo, hist_n, ok, prep):
@@ -132,11 +124,6 @@ class _SVGFBase(Denoiser):
 
     def _after(self, geo, prep) -> None:
         pass
-
-    def denoise(self, data) -> np.ndarray:
-        color = check_buffer("color", getattr(data, "color", None), (None, None, 3))
-        with T.kernel_threads(color.shape[0] * color.shape[1]):
-            return self._denoise(data, color)
 
     def _denoise(self, data, color: np.ndarray) -> np.ndarray:
         p, be = self.params, self.backend
