@@ -147,24 +147,32 @@ def cornell(mi, res: int) -> dict:
     return d
 
 
+def _mirror_objects(mi) -> dict:
+    """The objects in front of the mirror wall (``mirrors``, and ``mirror-pan`` in
+    dbench/datasets/sequence.py): a blue plastic ball, a chrome ball and a rotated box."""
+    T = mi.ScalarTransform4f
+    return {
+        "ball": {"type": "sphere", "center": [-0.45, -0.6, 0.2], "radius": 0.4,
+                 "bsdf": {"type": "plastic", "diffuse_reflectance":
+                          {"type": "rgb", "value": [0.1, 0.25, 0.7]}, "int_ior": 1.5}},
+        "chrome": {"type": "sphere", "center": [0.5, -0.7, 0.45], "radius": 0.3,
+                   "bsdf": {"type": "conductor", "material": "Cr"}},
+        "block": {"type": "cube",
+                  "to_world": T().translate([0.35, -0.75, -0.45]).rotate([0, 1, 0], 25)
+                  .scale(0.25),
+                  "bsdf": _diffuse((0.8, 0.6, 0.2))},
+    }
+
+
 @_scene("mirrors", "spheres and a box in front of a mirror back wall and a glossy side wall")
 def mirrors(mi, res: int) -> dict:
-    T = mi.ScalarTransform4f
     d = {"type": "scene",
          "sensor": _camera(mi, res, origin=[0, 0, 3.9], target=[0, 0, 0])}
     d.update(_room(mi,
                    back_bsdf={"type": "conductor", "material": "Ag"},
                    right_bsdf={"type": "roughconductor", "material": "Cu", "alpha": 0.08}))
     d["light"] = _ceiling_light(mi, 0.3)
-    d["ball"] = {"type": "sphere", "center": [-0.45, -0.6, 0.2], "radius": 0.4,
-                 "bsdf": {"type": "plastic", "diffuse_reflectance":
-                          {"type": "rgb", "value": [0.1, 0.25, 0.7]}, "int_ior": 1.5}}
-    d["chrome"] = {"type": "sphere", "center": [0.5, -0.7, 0.45], "radius": 0.3,
-                   "bsdf": {"type": "conductor", "material": "Cr"}}
-    d["block"] = {"type": "cube",
-                  "to_world": T().translate([0.35, -0.75, -0.45]).rotate([0, 1, 0], 25)
-                  .scale(0.25),
-                  "bsdf": _diffuse((0.8, 0.6, 0.2))}
+    d.update(_mirror_objects(mi))
     return d
 
 

@@ -281,21 +281,12 @@ def _pan_camera(i: int) -> tuple:
                  n_frames=48, camera=_pan_camera,
                  lights=lambda i: {"light": (50.0, 36.0, 12.0)}, max_depth=8)
 def mirror_pan(mi) -> dict:
-    T = mi.ScalarTransform4f
     d = _scenes._room(mi, back_bsdf={"type": "conductor", "material": "Ag"},
                       right_bsdf={"type": "roughplastic", "distribution": "ggx", "alpha": 0.05,
                                   "diffuse_reflectance": {"type": "rgb",
                                                           "value": [0.45, 0.25, 0.12]}})
     d["light"] = _light_shape(mi, 0.0, 0.3)
-    d["ball"] = {"type": "sphere", "center": [-0.45, -0.6, 0.2], "radius": 0.4,
-                 "bsdf": {"type": "plastic", "diffuse_reflectance":
-                          {"type": "rgb", "value": [0.1, 0.25, 0.7]}, "int_ior": 1.5}}
-    d["chrome"] = {"type": "sphere", "center": [0.5, -0.7, 0.45], "radius": 0.3,
-                   "bsdf": {"type": "conductor", "material": "Cr"}}
-    d["block"] = {"type": "cube",
-                  "to_world": T().translate([0.35, -0.75, -0.45]).rotate([0, 1, 0], 25)
-                  .scale(0.25),
-                  "bsdf": _scenes._diffuse((0.8, 0.6, 0.2))}
+    d.update(_scenes._mirror_objects(mi))
     return d
 
 
