@@ -266,8 +266,12 @@ def cmd_train(args: argparse.Namespace) -> int:
         if args.method != "autoencoder":
             raise DbenchInputError("--width-scale: only the autoencoder has widths")
         overrides["width_scale"] = args.width_scale
+    if args.sequences and args.method != "autoencoder":
+        raise DbenchInputError("--sequences: only the autoencoder is recurrent")
+    if args.sequences is None:
+        args.sequences = 16 if args.method == "autoencoder" else 0
     run_training(args.method, n_scenes=args.scenes, res=args.res,
-                 ref_spp=args.ref_spp or 1024, out_dir=args.out,
+                 ref_spp=args.ref_spp or 1024, out_dir=args.out, sequences=args.sequences,
                  cache=datasets.Cache(args.cache, enabled=not args.no_cache), **overrides)
     return 0
 
@@ -363,10 +367,13 @@ def build_parser() -> argparse.ArgumentParser:
     tp.add_argument("method", choices=["nca", "autoencoder"])
     tp.add_argument("--steps", type=int, default=None, help="optimiser steps (default: config)")
     tp.add_argument("--minutes", type=float, default=None, help="stop after this wall time")
-    tp.add_argument("--scenes", type=int, default=24,
+    tp.add_argument("--scenes", type=int, default=48,
                     help="training scenes (nca holds 4 out, autoencoder 2)")
     tp.add_argument("--res", type=int, default=128)
     tp.add_argument("--width-scale", type=float, default=None, help="autoencoder widths factor")
+    tp.add_argument("--sequences", type=int, default=None,
+                    help="autoencoder: training sequences for the recurrent stage (default 16; "
+                    "0: single frames only)")
     tp.add_argument("--out", default=None, help="output folder (default: the method's package "
                     "folder, replacing the shipped weights)")
     common(tp)

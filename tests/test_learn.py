@@ -127,30 +127,6 @@ def test_autoencoder_training_reduces_the_loss():
     assert np.mean(r.losses[-4:]) <= 0.8 * np.mean(r.losses[:4])
 
 
-def test_sequence_training_path_trains_the_recurrent_weights():
-    from dbench.methods.autoencoder.model import RecurrentAE
-
-    ts = synthetic_training_set(2, 32, (1, 4))
-    torch.manual_seed(0)
-    net = RecurrentAE(10, 0.25)
-    with torch.no_grad():
-        for lvl, conv in enumerate(net.rec_b):
-            conv.weight[:, net.enc_widths[lvl]:] = 0.0
-    before = net.rec_b[0].weight.detach().clone()
-
-    def seq_batch(rng):
-        b = sample_batch(ts, rng, 2, 32)
-        # a 3-frame static sequence: the same crop with fresh noise per frame
-        frames = [dict(b, noisy=np.maximum(b["reference"] * (1 + 0.5 * rng.standard_normal(
-            b["reference"].shape)), 0).astype(np.float32)) for _ in range(3)]
-        return {k: np.stack([f[k] for f in frames], 1) for k in b if k != "spp"}
-
-    curve = T.train_autoencoder_sequences(net, seq_batch, _ae_cfg(steps=2))
-    assert len(curve) == 2 and all(np.isfinite(curve))
-    e = net.enc_widths[0]
-    assert not torch.equal(net.rec_b[0].weight[:, e:], before[:, e:])
-
-
 def test_ship_and_load_trained_weights(tmp_path):
     from dbench import methods
     from dbench.data import Frame
@@ -187,3 +163,225 @@ def test_cli_train_parser():
         main(["train", "unet"])
     assert exc.value.code == 2
     assert main(["train", "nca", "--width-scale", "0.5"]) == 2  # widths: autoencoder only
+    assert main(["train", "nca", "--sequences", "3"]) == 2  # the NCA is not recurrent
+    assert build_parser().parse_args(["train", "autoencoder"]).sequences is None  # -> 16
+
+
+# ---------------------------------------------------------------------------------------------
+# crops around visible lights, the blend output, training sequences
+
+
+def _with_light(ts: TrainingSet, scene: int = 1) -> TrainingSet:
+    """``ts`` with a 3x3 visible light (black albedo, radiance 20) at row 25, column 5 of one
+    scene."""
+    ref, alb, noisy = ts.reference.copy(), ts.albedo.copy(), ts.noisy.copy()
+    ref[scene, 24:27, 4:7] = 20.0
+    noisy[scene, :, 24:27, 4:7] = 20.0
+    alb[scene, 24:27, 4:7] = 0.0
+    return TrainingSet(noisy=noisy, spp=ts.spp, reference=ref, albedo=alb, normal=ts.normal,
+                       depth=ts.depth, scenes=ts.scenes)
+
+
+def test_light_crops_hold_a_visible_light():
+    ts = _with_light(synthetic_training_set(3, 32, (1, 4)))
+    px = ts.emitter_pixels()
+    assert [len(p) for p in px] == [0, 9, 0]
+    b = sample_batch(ts, np.random.default_rng(0), 40, 8, light_fraction=1.0)
+    dark = (b["albedo"].max(-1) < 0.02) & (b["reference"].max(-1) > 1.0)
+    assert dark.reshape(40, -1).any(1).all()  # every crop shows the light
+    uniform = sample_batch(ts, np.random.default_rng(0), 40, 8)
+    hits = ((uniform["albedo"].max(-1) < 0.02) & (uniform["reference"].max(-1) > 1.0))
+    assert hits.reshape(40, -1).any(1).mean() < 0.3
+    # light_fraction = 0 draws exactly what the sampler drew before the option existed
+    again = sample_batch(ts, np.random.default_rng(0), 40, 8, light_fraction=0.0)
+    for k in uniform:
+        assert np.array_equal(uniform[k], again[k])
+    from dbench.errors import DbenchInputError
+    with pytest.raises(DbenchInputError, match="light_fraction"):
+        sample_batch(ts, np.random.default_rng(0), 2, 8, light_fraction=1.5)
+
+
+def test_light_fraction_without_lights_falls_back_to_uniform_crops():
+    ts = synthetic_training_set(2, 32, (1,))
+    a = sample_batch(ts, np.random.default_rng(3), 6, 16, light_fraction=0.5)
+    b = sample_batch(ts, np.random.default_rng(3), 6, 16)
+    for k in a:
+        assert np.array_equal(a[k], b[k])
+
+
+def test_blend_output_onnx_equals_pytorch_and_keeps_the_input_where_gated():
+    import onnxruntime as ort
+
+    from dbench.methods.autoencoder.export import build_onnx, stateless_from_stateful
+    from dbench.methods.autoencoder.model import RecurrentAE
+
+    torch.manual_seed(0)
+    net = RecurrentAE(10, 0.25, blend=True)
+    assert net.out.out_channels == 4
+    state = {k: v.detach().numpy() for k, v in net.state_dict().items()}
+    meta = {"features": "normal,albedo,depth", "in_channels": "10",
+            "enc_widths": ",".join(map(str, net.enc_widths))}
+    model = build_onnx(state, 10, net.enc_widths, metadata=meta, blend=True)
+    assert {p.key: p.value for p in model.metadata_props}["blend"] == "True"
+    x = torch.randn(1, 10, 64, 32)
+    hidden = [torch.randn(s) for s in net.hidden_shapes(1, 64, 32)]
+    with torch.no_grad():
+        y, _ = net(x, hidden)
+        y0, _ = net(x)
+    feeds = {"x": x.numpy(), **{f"h{i + 1}": h.numpy() for i, h in enumerate(hidden)}}
+    got = ort.InferenceSession(model.SerializeToString()).run(None, feeds)[0]
+    assert np.abs(got - y.numpy()).max() <= 1e-4
+    stateless = stateless_from_stateful(model, 10, net.enc_widths)
+    got0 = ort.InferenceSession(stateless.SerializeToString()).run(None, {"x": x.numpy()})[0]
+    assert np.abs(got0 - y0.numpy()).max() <= 1e-4
+    with torch.no_grad():  # a gate saturated at "keep" returns the input colour
+        net.out.weight[3].zero_()
+        net.out.bias[3] = 60.0
+        y, _ = net(x)
+    assert torch.allclose(y, x[:, :3], atol=1e-6)
+    with pytest.raises(ValueError, match="exclude"):
+        RecurrentAE(10, 0.25, residual=True, blend=True)
+
+
+def test_blend_training_ships_a_blend_model(tmp_path):
+    from dbench.methods.autoencoder import autoencoder_denoise, reference_denoise
+
+    ts = synthetic_training_set(3, 32, (1, 4))
+    r = T.train_autoencoder(ts, _ae_cfg(blend=True, light_fraction=0.5))
+    onnx_path, json_path = T.ship_autoencoder(r, tmp_path)
+    info = __import__("json").loads(json_path.read_text())
+    assert info["blend"] is True and info["residual"] is False
+    c, a, n, d = ts.noisy[0, 0, :20, :13], ts.albedo[0, :20, :13], ts.normal[0, :20, :13], \
+        ts.depth[0, :20, :13]
+    got, _ = autoencoder_denoise(c, a, n, d, weights=onnx_path)
+    ref, _ = reference_denoise(c, a, n, d, weights=onnx_path)
+    assert np.abs(got - ref).max() <= 1e-4
+
+
+def test_training_sequence_is_the_training_scene_with_a_moving_camera():
+    from dbench.datasets.mitsuba_env import mitsuba
+    from dbench.learn.scenes import build_training_dict, training_sequence
+
+    mi = mitsuba()
+    seq = training_sequence(4)
+    assert seq.name == "train-seq-004" and seq.n_frames == 8
+    d0 = seq.frame_dict(mi, 16, 0)
+    steady = build_training_dict(mi, 16, 4)
+    assert set(d0) - {"integrator"} == set(steady)
+    m0 = np.array(d0["sensor"]["to_world"].matrix)
+    assert np.allclose(m0, np.array(steady["sensor"]["to_world"].matrix), atol=1e-5)
+    origins = np.array([seq.camera(i)[0] for i in range(8)])
+    step = np.linalg.norm(np.diff(origins, axis=0), axis=1)
+    assert (step > 1e-3).all() and (step < 0.2).all()  # moves every frame, a little
+    assert seq.camera(3) == training_sequence(4).camera(3)
+
+
+def _tiny_sequence_set(s=2, p=2, f=8, res=32):
+    from dbench.learn.dataset import SequenceSet
+
+    rng = np.random.default_rng(0)
+    ref = rng.uniform(0.1, 1.0, (s, f, res, res, 3)).astype(np.float32)
+    noisy = np.maximum(ref[:, None] * (1 + 0.5 * rng.standard_normal((s, p, f, res, res, 3))),
+                       0).astype(np.float32)
+    alb = np.full((s, p, f, res, res, 3), 0.5, np.float32)
+    nrm = np.zeros((s, p, f, res, res, 3), np.float32)
+    nrm[..., 2] = 1
+    dep = np.ones((s, p, f, res, res, 1), np.float32)
+    return SequenceSet(noisy=noisy, spp=(1, 4)[:p], reference=ref, albedo=alb, normal=nrm,
+                       depth=dep, scenes=[f"seq{i}" for i in range(s)])
+
+
+def test_sequence_set_checks_and_batches():
+    from dbench.errors import DbenchInputError
+    from dbench.learn.dataset import SequenceSet, sample_sequence_batch
+
+    ss = _tiny_sequence_set()
+    b = sample_sequence_batch(ss, np.random.default_rng(0), 3, 16, 7)
+    assert b["noisy"].shape == (3, 7, 16, 16, 3) and b["depth"].shape == (3, 7, 16, 16, 1)
+    b2 = sample_sequence_batch(ss, np.random.default_rng(0), 3, 16, 7)
+    assert all(np.array_equal(b[k], b2[k]) for k in b)
+    with pytest.raises(DbenchInputError, match="frames"):
+        sample_sequence_batch(ss, np.random.default_rng(0), 1, 16, 9)
+    with pytest.raises(DbenchInputError, match="albedo"):
+        SequenceSet(noisy=ss.noisy, spp=ss.spp, reference=ss.reference, albedo=ss.albedo[:, :1],
+                    normal=ss.normal, depth=ss.depth, scenes=ss.scenes)
+    assert ss.hash == _tiny_sequence_set().hash
+
+
+def test_sequence_finetuning_is_reproducible_and_uses_the_state():
+    from dbench.methods.autoencoder.model import RecurrentAE
+
+    ss = _tiny_sequence_set()
+    steady = synthetic_training_set(2, 32, (1, 4))
+    cfg = T.AESequenceConfig(steps=4, batch=1, crop=32, frames=3, steady_batch=2,
+                             steady_crop=32)
+
+    def run():
+        torch.manual_seed(0)
+        net = RecurrentAE(10, 0.25)
+        with torch.no_grad():
+            for lvl, conv in enumerate(net.rec_b):
+                conv.weight[:, net.enc_widths[lvl]:] = 0.0
+        summary = T.finetune_autoencoder_sequences(net, ss, cfg, ("normal", "albedo", "depth"),
+                                                   steady=steady)
+        return net, summary
+
+    net, a = run()
+    _, b = run()
+    assert a["loss_curve"] == b["loss_curve"] and a["steps_done"] == 4
+    assert "seq_temporal" in a["final_parts"] and "steady_l1" in a["final_parts"]
+    e = net.enc_widths[0]
+    assert net.rec_b[0].weight[:, e:].abs().sum() > 0  # the recurrent half learned
+    v = T.validate_autoencoder_sequences(net, ss, ("normal", "albedo", "depth"), frames=3)
+    assert v["loss_state_carried"] != v["loss_state_reset"]
+
+
+def test_step_count_selection_worst_case_first():
+    ts = synthetic_training_set(3, 32, (1, 4))
+    tr, va = T.split(ts, 1)
+    r = T.train_nca(tr, _nca_cfg(steps=4, relative_weight=1.0, light_fraction=0.25))
+    k, table = T.select_iterations(r.model, va, (1, 2, 3), by="worst")
+    assert set(table) == {"1", "2", "3"} and all(set(v) == {"mean", "worst"}
+                                                 for v in table.values())
+    assert table[str(k)]["worst"] == min(v["worst"] for v in table.values())
+    assert all(v["worst"] >= v["mean"] for v in table.values())
+    k_mean, _ = T.select_iterations(r.model, va, (1, 2, 3), by="mean")
+    assert table[str(k_mean)]["mean"] == min(v["mean"] for v in table.values())
+    with pytest.raises(ValueError, match="worst"):
+        T.select_iterations(r.model, va, (1,), by="median")
+
+
+def test_relative_linear_mse():
+    t = torch.log1p(torch.full((2, 3, 4, 4), 1.0))
+    noisy = torch.full((2, 3, 4, 4), 2.0)  # input error 1 per pixel
+    assert float(L.relative_linear_mse(t, t, noisy)) == 0.0
+    p = torch.log1p(torch.full((2, 3, 4, 4), 1.5))  # output error 0.5: a quarter of the input's
+    assert abs(float(L.relative_linear_mse(p, t, noisy, eps=0.0)) - 0.25) < 1e-6
+    # each crop counts relative to its own input: halving the error on a crop whose input was
+    # 10x worse weighs the same as halving it on the other
+    noisy2 = noisy.clone()
+    noisy2[1] = 1.0 + 10.0
+    p2 = p.clone()
+    p2[1] = torch.log1p(torch.tensor(1.0 + 5.0))
+    assert abs(float(L.relative_linear_mse(p2, t, noisy2, eps=0.0)) - 0.25) < 1e-6
+
+
+def test_sequence_set_renders_matched_frames(renderer, tmp_path):
+    """Two tiny training sequences through the real renderer and cache: shapes, finite values,
+    a G-buffer per spp (matched to that spp's samples), references shared, a cached rebuild."""
+    from dbench.datasets.cache import Cache
+    from dbench.learn.dataset import build_sequence_set, split_sequences
+
+    cache = Cache(tmp_path)
+    kw = dict(n_sequences=2, n_frames=2, res=32, spp=(1, 2), ref_spp=16, cache=cache,
+              progress=False)
+    ss = build_sequence_set(**kw)
+    assert ss.noisy.shape == (2, 2, 2, 32, 32, 3) and ss.reference.shape == (2, 2, 32, 32, 3)
+    assert ss.depth.shape == (2, 2, 2, 32, 32, 1)
+    for a in (ss.noisy, ss.reference, ss.albedo, ss.normal, ss.depth):
+        assert np.isfinite(a).all()
+    assert ss.depth.max() <= 1.0 and ss.scenes[0].startswith("train-seq-")
+    assert not np.array_equal(ss.noisy[:, 0, 1], ss.noisy[:, 0, 0])  # the camera moved
+    assert ss.hash == build_sequence_set(**kw).hash  # read back from the cache
+    train, held = split_sequences(ss, 1)
+    assert train.scenes == ss.scenes[:1] and held.scenes == ss.scenes[1:]

@@ -13,6 +13,8 @@ RGB (spec: "losses are computed on the log1p-encoded, remodulated RGB").
 * ``FRAME_WEIGHTS``: the RAE's per-frame weights inside a 7-frame sequence.
 * ``clamped_linear_mse``: an optional [dbench] term on linear radiance clamped at 64, for the
   configurations that add one (``linear_weight`` in :mod:`dbench.learn.train`).
+* ``relative_linear_mse``: an optional [dbench] term, the output's linear MSE relative to the
+  noisy input's, per crop (``relative_weight``).
 
 Example:
     >>> import torch
@@ -98,6 +100,21 @@ def clamped_linear_mse(p_log: torch.Tensor, t_log: torch.Tensor, clamp: float = 
     pl = torch.expm1(p_log.clamp(max=20.0)).clamp(max=clamp)
     tl = torch.expm1(t_log.clamp(max=20.0)).clamp(max=clamp)
     return ((pl - tl) ** 2).mean()
+
+
+def relative_linear_mse(p_log: torch.Tensor, t_log: torch.Tensor, noisy: torch.Tensor,
+                        clamp: float = 64.0, eps: float = 1e-3) -> torch.Tensor:
+    """Mean over the batch of (linear MSE of the output) / (linear MSE of the noisy input + eps),
+    per (N, 3, H, W) crop, on radiance clamped at ``clamp``: the training form of "beat the
+    input on every image". A crop whose input is already nearly right (flat texture, converged
+    pixels) weighs as much as one full of fireflies, and blurring a visible light, which costs
+    far more than the light edge's own sample noise, is punished in proportion."""
+    pl = torch.expm1(p_log.clamp(max=20.0)).clamp(max=clamp)
+    tl = torch.expm1(t_log.clamp(max=20.0)).clamp(max=clamp)
+    nl = noisy.clamp(min=0.0, max=clamp)
+    out = ((pl - tl) ** 2).mean(dim=(1, 2, 3))
+    base = ((nl - tl) ** 2).mean(dim=(1, 2, 3))
+    return (out / (base + eps)).mean()
 
 
 def frame_weights(n_frames: int) -> torch.Tensor:

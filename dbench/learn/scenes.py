@@ -173,13 +173,10 @@ def _light(mi, rng, enclosed: bool) -> dict:
             "intensity": {"type": "rgb", "value": list(color * float(rng.uniform(3, 15)))}}
 
 
-def build_training_dict(mi, res: int, index: int, family_seed: int = 0) -> dict:
-    """The ``mi.load_dict`` dictionary of training scene ``index`` at ``res`` px."""
-    rng = np.random.default_rng([family_seed, index, 1234])
-    T = mi.ScalarTransform4f
+def _layout(rng) -> tuple[str, list[float], list[float], float]:
+    """Enclosure kind, camera origin, target and field of view (the first draws of a training
+    scene's generator, shared by :func:`build_training_dict` and :func:`training_sequence`)."""
     kind = str(rng.choice(["closed", "open", "ground"], p=[0.35, 0.35, 0.3]))
-    enclosed = kind != "ground"
-    d: dict[str, Any] = {"type": "scene"}
     if kind == "closed":  # camera inside a closed room: every pixel sees a surface
         origin = [float(rng.uniform(-0.5, 0.5)), float(rng.uniform(-0.4, 0.6)),
                   float(rng.uniform(0.6, 0.95))]
@@ -196,6 +193,16 @@ def build_training_dict(mi, res: int, index: int, family_seed: int = 0) -> dict:
         fov = float(rng.uniform(35, 60))
     target = [float(rng.uniform(-0.3, 0.3)), float(rng.uniform(-0.6, 0.0)),
               float(rng.uniform(-0.5, 0.0))]
+    return kind, origin, target, fov
+
+
+def build_training_dict(mi, res: int, index: int, family_seed: int = 0) -> dict:
+    """The ``mi.load_dict`` dictionary of training scene ``index`` at ``res`` px."""
+    rng = np.random.default_rng([family_seed, index, 1234])
+    T = mi.ScalarTransform4f
+    kind, origin, target, fov = _layout(rng)
+    enclosed = kind != "ground"
+    d: dict[str, Any] = {"type": "scene"}
     d["sensor"] = _camera(mi, res, origin=origin, target=target, fov=fov)
     if enclosed:
         walls = {"floor": T().translate([0, -1, 0]).rotate([1, 0, 0], -90),
@@ -239,3 +246,53 @@ def training_scene(index: int, family_seed: int = 0) -> Scene:
                  description=f"procedural training scene {index} (family {family_seed})",
                  build=build, max_depth=max_depth,
                  params={"training_index": index, "family_seed": family_seed})
+
+
+def training_sequence(index: int, n_frames: int = 8, family_seed: int = 0):
+    """Training scene ``index`` as a camera animation (a :class:`~dbench.datasets.sequence.
+    SequenceScene` named ``train-seq-NNN``, not registered): the geometry and lights of
+    :func:`training_scene`, the camera turning about its target by a random 0.5-1.5 degrees per
+    frame (either way) and drifting up or down a little, so the recurrent autoencoder sees
+    moving content, disocclusions and the matched 1-spp G-buffer of the temporal datasets.
+
+    Example:
+        >>> seq = training_sequence(3)
+        >>> seq.name, seq.kind, seq.n_frames
+        ('train-seq-003', 'sequence', 8)
+    """
+    from ..datasets.sequence import SEQUENCE_BUFFERS, SequenceScene
+
+    kind, origin, target, fov = _layout(np.random.default_rng([family_seed, index, 1234]))
+    motion = np.random.default_rng([family_seed, index, 777])
+    step = np.radians(float(motion.uniform(0.5, 1.5)) * float(motion.choice([-1.0, 1.0])))
+    rise = float(motion.uniform(-0.01, 0.01))
+    max_depth = training_scene(index, family_seed).max_depth
+    o, t = np.asarray(origin, float), np.asarray(target, float)
+    limit = 0.95 if kind == "closed" else np.inf  # stay inside a closed room
+
+    def camera(i: int) -> tuple:
+        a = step * i
+        dx, dz = o[0] - t[0], o[2] - t[2]
+        x = t[0] + dx * np.cos(a) + dz * np.sin(a)
+        z = t[2] - dx * np.sin(a) + dz * np.cos(a)
+        pos = np.clip([x, o[1] + rise * i, z], -limit, limit)
+        return tuple(float(v) for v in pos), tuple(float(v) for v in t)
+
+    def geometry(mi) -> dict:
+        d = build_training_dict(mi, 16, index, family_seed)
+        d.pop("sensor")
+        d.pop("type")
+        return d
+
+    def build(mi, res: int) -> dict:
+        return seq.frame_dict(mi, res, 0)
+
+    seq = SequenceScene(name=f"train-seq-{index:03d}", kind="sequence",
+                        description=f"procedural training sequence {index} "
+                                    f"(family {family_seed})",
+                        build=build, provides=SEQUENCE_BUFFERS, max_depth=max_depth,
+                        params={"training_index": index, "family_seed": family_seed,
+                                "sequence": True},
+                        n_frames=n_frames, geometry=geometry, camera=camera,
+                        lights=lambda i: {}, fov=fov)
+    return seq

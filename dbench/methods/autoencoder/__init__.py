@@ -19,6 +19,9 @@ Recurrence: ``reset()`` forgets the hidden states; each ``denoise(frame)`` then 
 updates them (``recurrent=True``). A frame with no state (the first after ``reset()``, and every
 frame when ``recurrent=False``) runs the stateless graph, which equals the stateful graph with
 zero hidden states. The harness resets before every call, so single frames are state-reset.
+The shipped recurrent weights were trained on camera-animated training sequences
+(``dbench train autoencoder``, stage 2); ``results/learned.md`` measures what carrying the state
+adds on the catalogue's sequences.
 
 Inputs (documented choice): albedo-demodulated colour ``log1p(color / a_eff)``, world-space
 normal, albedo and depth divided by the frame's largest depth (spec §1, the ``seed`` variant plus
@@ -75,7 +78,7 @@ def _load(path: str):
             "enc_widths": tuple(int(w) for w in meta["enc_widths"].split(",")),
             "in_channels": int(meta["in_channels"]),
             "width_scale": float(meta.get("width_scale", 1.0)),
-            "residual": meta.get("residual") == "True"}
+            "residual": meta.get("residual") == "True", "blend": meta.get("blend") == "True"}
     return model, info
 
 
@@ -151,7 +154,7 @@ def reference_denoise(color, albedo, normal=None, depth=None, hidden=None, weigh
     model, info = _load(path)
     state = state_from_onnx(model)
     scale = info["width_scale"]
-    net = RecurrentAE(info["in_channels"], scale, residual=info["residual"])
+    net = RecurrentAE(info["in_channels"], scale, residual=info["residual"], blend=info["blend"])
     if widths(scale)[0] != info["enc_widths"]:
         raise ValueError(f"cannot rebuild widths {info['enc_widths']}")
     net.load_state_dict({k: torch.from_numpy(np.array(v)) for k, v in state.items()})

@@ -10,7 +10,8 @@ Graph (opset 17), H and W dynamic (multiples of 32):
 * inputs ``x`` (N, C, H, W) and, when ``stateful``, ``h1``..``h5`` (N, e_l, H/2^(l-1), W/2^(l-1));
 * outputs ``y`` (N, 3, H, W) and ``h1_out``..``h5_out`` (the next frame's hidden states);
   with ``residual`` the input's colour channels x[:, 0:3] are added to y (metadata
-  ``residual``).
+  ``residual``); with ``blend`` the last convolution's 4 channels (f, g) give
+  y = f + sigmoid(g) (x[:, 0:3] - f) (metadata ``blend``).
 
 The stateless variant (frame 0 of a sequence, or single frames with the state reset) drops the
 hidden inputs: the recurrent convolution conv3(concat(a, 0)) equals conv3(a) with the first half
@@ -67,7 +68,7 @@ class _Graph:
 
 def build_onnx(state: Mapping[str, np.ndarray], in_channels: int, enc_widths: tuple[int, ...],
                stateful: bool = True, metadata: Mapping[str, str] | None = None,
-               residual: bool = False) -> onnx.ModelProto:
+               residual: bool = False, blend: bool = False) -> onnx.ModelProto:
     """The autoencoder as an ONNX model from a state dict (NumPy arrays, PyTorch key names)."""
     g = _Graph(state)
     inputs = [helper.make_tensor_value_info("x", TensorProto.FLOAT, ["N", in_channels, "H", "W"])]
@@ -103,18 +104,24 @@ def build_onnx(state: Mapping[str, np.ndarray], in_channels: int, enc_widths: tu
         x = g.conv(x, f"dec_a.{i}")
         x = g.conv(x, f"dec_b.{i}")
     y = g.conv(x, "out", act=False)
+    if residual or blend:
+        c0, c3, c4 = (g.const(f"chan{i}", np.array([i], np.int64)) for i in (0, 3, 4))
+        axes = g.const("chan_axis", np.array([1], np.int64))
+        rgb = g.op("Slice", ["x", c0, c3, axes], "x_rgb")
     if residual:  # y += x[:, 0:3]
-        starts, ends = g.const("rgb_start", np.array([0], np.int64)), g.const(
-            "rgb_end", np.array([3], np.int64))
-        axes = g.const("rgb_axis", np.array([1], np.int64))
-        rgb = g.op("Slice", ["x", starts, ends, axes], "x_rgb")
         y = g.op("Add", [y, rgb], "residual")
+    elif blend:  # y = f + sigmoid(g) (x_rgb - f)
+        f = g.op("Slice", [y, c0, c3, axes], "blend_f")
+        keep = g.op("Sigmoid", [g.op("Slice", [y, c3, c4, axes], "blend_g")], "blend_keep")
+        y = g.op("Add", [f, g.op("Mul", [keep, g.op("Sub", [rgb, f], "blend_diff")],
+                                 "blend_mul")], "blend")
     g.nodes.append(helper.make_node("Identity", [y], ["y"]))
     graph = helper.make_graph(g.nodes, "recurrent_autoencoder", inputs, outputs, g.inits)
     model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", OPSET)],
                               producer_name="dbench")
     model.ir_version = 8
-    for k, v in {"residual": str(bool(residual)), **(metadata or {})}.items():
+    for k, v in {"residual": str(bool(residual)), "blend": str(bool(blend)),
+                 **(metadata or {})}.items():
         entry = model.metadata_props.add()
         entry.key, entry.value = str(k), str(v)
     onnx.checker.check_model(model)
@@ -132,4 +139,4 @@ def stateless_from_stateful(model: onnx.ModelProto, in_channels: int,
     """The single-frame variant (no hidden inputs) built from a shipped stateful model."""
     meta = {p.key: p.value for p in model.metadata_props}
     return build_onnx(state_from_onnx(model), in_channels, enc_widths, stateful=False,
-                      residual=meta.get("residual") == "True")
+                      residual=meta.get("residual") == "True", blend=meta.get("blend") == "True")

@@ -68,6 +68,11 @@ class RecurrentAE(nn.Module):
         residual: [dbench option, not in the paper] add the input's 3 colour channels to the
             output, so the network predicts a correction of the noisy (demodulated, log1p)
             colour; noise-free pixels such as visible lights then pass through easily.
+        blend: [dbench option, not in the paper; excludes ``residual``] the last convolution
+            gives 4 channels, a prediction f (3) and a gate logit g (1), and the output is
+            ``sigmoid(g) * x_rgb + (1 - sigmoid(g)) * f``: per pixel, the network chooses
+            between keeping the input colour (visible lights, converged pixels) and replacing
+            it (noise), instead of only correcting it.
 
     ``forward(x, hidden=None)``: x (N, C, H, W) with H, W multiples of 32; hidden a list of
     ``LEVELS`` tensors (N, e_l, H / 2^(l-1), W / 2^(l-1)) or None (zeros, i.e. frame 0).
@@ -75,8 +80,11 @@ class RecurrentAE(nn.Module):
     """
 
     def __init__(self, in_channels: int = 9, width_scale: float = 1.0, recurrent: bool = True,
-                 residual: bool = False):
+                 residual: bool = False, blend: bool = False):
         super().__init__()
+        if residual and blend:
+            raise ValueError("residual and blend exclude each other")
+        self.blend = blend
         self.in_channels = in_channels
         self.width_scale = width_scale
         self.recurrent = recurrent
@@ -103,7 +111,7 @@ class RecurrentAE(nn.Module):
             self.dec_a.append(_conv(c + enc[level], d))
             self.dec_b.append(_conv(d, d))
             c = d
-        self.out = _conv(c, 3)
+        self.out = _conv(c, 4 if blend else 3)
 
     def hidden_shapes(self, n: int, h: int, w: int) -> list[tuple[int, int, int, int]]:
         """Shapes of the hidden states for an (n, C, h, w) input."""
@@ -140,6 +148,9 @@ class RecurrentAE(nn.Module):
         y = self.out(x)
         if self.residual:
             y = y + x_in[:, :3]
+        elif self.blend:
+            keep = torch.sigmoid(y[:, 3:4])
+            y = y[:, :3] + keep * (x_in[:, :3] - y[:, :3])
         return y, new_hidden
 
 
