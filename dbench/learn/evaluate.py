@@ -75,9 +75,7 @@ def sequence_quality(scenes: Sequence[str] = SEQ_SCENES, spps: Sequence[int] = (
     from .. import datasets
     from .. import methods as registry
     from ..methods.autoencoder import autoencoder_denoise
-
-    def rmse(a, b) -> float:
-        return float(np.sqrt(np.mean((np.asarray(a, np.float64) - b) ** 2)))
+    from ..metrics import rmse
 
     rows = []
     for scene in scenes:

@@ -156,6 +156,23 @@ def _t(x: np.ndarray) -> torch.Tensor:
     return torch.from_numpy(np.ascontiguousarray(x.transpose(0, 3, 1, 2)))
 
 
+def _add_linear_terms(loss: torch.Tensor, part: dict[str, float], pred: torch.Tensor,
+                      target: torch.Tensor, noisy: np.ndarray, cfg) -> torch.Tensor:
+    """``loss`` plus the [dbench] linear-radiance terms a config asks for
+    (``linear_weight`` x :func:`losses.clamped_linear_mse`, ``relative_weight`` x
+    :func:`losses.relative_linear_mse`), their values recorded in ``part``. ``pred`` and
+    ``target`` (N, 3, h, w) are log1p-encoded; ``noisy`` (N, h, w, 3) is the linear input."""
+    if cfg.linear_weight:
+        lin = L.clamped_linear_mse(pred, target, cfg.linear_clamp)
+        loss = loss + cfg.linear_weight * lin
+        part["linear"] = lin.item()
+    if cfg.relative_weight:
+        rel = L.relative_linear_mse(pred, target, _t(noisy), cfg.linear_clamp)
+        loss = loss + cfg.relative_weight * rel
+        part["relative"] = rel.item()
+    return loss
+
+
 # ---------------------------------------------------------------------------------------------
 # NCA
 
@@ -222,14 +239,7 @@ def train_nca(ts: TrainingSet, cfg: NCAConfig | None = None, progress: bool = Fa
         pred = nca_prediction(out, batch, cfg.color_encoding)
         target = torch.log1p(_t(batch["reference"]))
         loss, part = L.nca_loss(pred, target, cfg.loss_weights)
-        if cfg.linear_weight:
-            lin = L.clamped_linear_mse(pred, target, cfg.linear_clamp)
-            loss = loss + cfg.linear_weight * lin
-            part["linear"] = lin.item()
-        if cfg.relative_weight:
-            rel = L.relative_linear_mse(pred, target, _t(batch["noisy"]), cfg.linear_clamp)
-            loss = loss + cfg.relative_weight * rel
-            part["relative"] = rel.item()
+        loss = _add_linear_terms(loss, part, pred, target, batch["noisy"], cfg)
         opt.zero_grad(set_to_none=True)
         loss.backward()
         if cfg.grad_norm:
@@ -348,15 +358,7 @@ def train_autoencoder(ts: TrainingSet, cfg: AEConfig | None = None, progress: bo
         pred = ae_prediction(y, a_eff)[:, None]
         target = torch.log1p(_t(batch["reference"]))[:, None]
         loss, part = L.autoencoder_loss(pred, target, cfg.loss_weights)
-        if cfg.linear_weight:
-            lin = L.clamped_linear_mse(pred, target, cfg.linear_clamp)
-            loss = loss + cfg.linear_weight * lin
-            part["linear"] = lin.item()
-        if cfg.relative_weight:
-            rel = L.relative_linear_mse(pred[:, 0], target[:, 0], _t(batch["noisy"]),
-                                        cfg.linear_clamp)
-            loss = loss + cfg.relative_weight * rel
-            part["relative"] = rel.item()
+        loss = _add_linear_terms(loss, part, pred[:, 0], target[:, 0], batch["noisy"], cfg)
         opt.zero_grad(set_to_none=True)
         loss.backward()
         opt.step()
@@ -400,8 +402,8 @@ def finetune_autoencoder_sequences(model, ss, cfg: AESequenceConfig, features,
     ``ss``: the hidden state is carried through ``cfg.frames`` frames and the loss is
     :func:`losses.autoencoder_loss` over the sequence (per-frame weights, L_t). Every
     ``steady_every``-th step uses a single-frame batch of ``steady`` instead (state reset,
-    L_t = 0). ``steady_cfg.relative_weight`` adds the stage-1 relative linear term on every
-    frame. Returns a summary for the shipped JSON: steps, wall time, loss curve and parts."""
+    L_t = 0). ``steady_cfg``'s linear terms (:func:`_add_linear_terms`) are added on every
+    frame, as in stage 1. Returns a summary for the shipped JSON: steps, wall time, loss curve and parts."""
     from .dataset import sample_sequence_batch
 
     rng = _seed_everything(cfg.seed, cfg.threads)
@@ -428,12 +430,10 @@ def finetune_autoencoder_sequences(model, ss, cfg: AESequenceConfig, features,
             targets.append(torch.log1p(_t(frame["reference"])))
         pred, target = torch.stack(preds, 1), torch.stack(targets, 1)
         loss, part = L.autoencoder_loss(pred, target, cfg.loss_weights)
-        if steady_cfg.relative_weight:  # the stage-1 objective's extra term, every frame
-            rel = L.relative_linear_mse(pred.flatten(0, 1), target.flatten(0, 1),
-                                        _t(batch["noisy"].reshape(-1, *batch["noisy"].shape[2:])),
-                                        steady_cfg.linear_clamp)
-            loss = loss + steady_cfg.relative_weight * rel
-            part["relative"] = rel.item()
+        # the stage-1 objective's extra terms, on every frame
+        noisy = batch["noisy"].reshape(-1, *batch["noisy"].shape[2:])
+        loss = _add_linear_terms(loss, part, pred.flatten(0, 1), target.flatten(0, 1), noisy,
+                                 steady_cfg)
         part = {f"{'steady' if use_steady else 'seq'}_{k}": v for k, v in part.items()}
         opt.zero_grad(set_to_none=True)
         loss.backward()
