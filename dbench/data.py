@@ -4,8 +4,10 @@ Plain dataclasses around NumPy arrays, constructible directly so that methods an
 run on synthetic data. Shapes use (H, W, C) with row 0 at the top; C = 3 for colour buffers.
 
 Buffer names (used in code, files and reports): ``color``, ``albedo``, ``normal``, ``depth``,
-``position``, ``motion``, ``gradient``, ``emission``, ``stats``, ``reference``. A
-:class:`Sequence` is a list of Frames of one animated scene (spec/temporal.md §1).
+``position``, ``emitter``, ``motion``, ``gradient``, ``emission``, ``stats``, ``reference``.
+``reference_var`` (the variance of the reference mean) rides along with ``reference`` for the
+judge; methods never ask for it. A :class:`Sequence` is a list of Frames of one animated scene
+(spec/temporal.md §1).
 
 Example:
     >>> import numpy as np
@@ -33,6 +35,7 @@ FRAME_BUFFERS: dict[str, int] = {
     "motion": 2,
     "gradient": 3,
     "emission": 3,
+    "emitter": 1,
 }
 #: Every name a method may list in ``needs``.
 BUFFER_NAMES = tuple(FRAME_BUFFERS) + ("stats",)
@@ -112,6 +115,9 @@ class SampleStats:
     diagnostics: dict[str, int] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
+        from .datasets.stats import check_transform  # the one list of transforms and λ range
+
+        check_transform(self.transform, self.lam)
         mean = np.asarray(self.mean)
         if mean.ndim < 1:
             raise DbenchInputError("stats.mean: expected an array, (H, W, C) for images or "
@@ -162,6 +168,14 @@ class Frame:
         emission: (H, W, 3) float32 sequence frames only: radiance emitted by the surfaces the
             colour samples' primary rays hit (0 off lights), so filters can keep lights out of
             the demodulated illumination.
+        emitter: (H, W, 1) float32 in [0, 1]: the fraction of the pixel's footprint (box
+            filter, 64 spp) whose primary ray sees an emitter sending radiance > 0 toward the
+            camera (an area light's front, or the environment where the ray escapes); 0 on
+            surfaces, fractional on a light's edge (dbench.datasets.emitter). Or None.
+        reference_var: (H, W, 3) float32 ≥ 0, the variance of ``reference`` (the mean) per pixel
+            and channel, estimated from K independent chunks of the reference render
+            (spec/verdicts.md §2), or None. Comes with ``reference``; ``meta["ref_rmse"]`` =
+            sqrt(mean(reference_var)).
     """
 
     color: np.ndarray
@@ -175,6 +189,8 @@ class Frame:
     motion: np.ndarray | None = None
     gradient: np.ndarray | None = None
     emission: np.ndarray | None = None
+    emitter: np.ndarray | None = None
+    reference_var: np.ndarray | None = None
 
     kind = "steady"
 
@@ -185,6 +201,8 @@ class Frame:
                                    f"{None if color is None else tuple(color.shape)}")
         h, w = color.shape[:2]
         _check_pixel_buffers(self, FRAME_BUFFERS, h, w)
+        if self.reference_var is not None:
+            self.reference_var = check_buffer("reference_var", self.reference_var, (h, w, 3))
         if self.stats is not None and self.stats.shape != (h, w, 3):
             raise DbenchInputError(f"stats: expected shape (H, W, 3) = ({h}, {w}, 3), "
                                    f"got {self.stats.shape}")
@@ -257,9 +275,9 @@ class Sequence:
 
 #: Per-pixel buffers of a TransientFrame (constant along time), with their channel count.
 TRANSIENT_PIXEL_BUFFERS: dict[str, int] = {"albedo": 3, "normal": 3, "depth": 1, "position": 3,
-                                           "steady": 3}
+                                           "steady": 3, "emitter": 1}
 #: Per-pixel, per-bin buffers of a TransientFrame, (H, W, T, 3).
-TRANSIENT_VIDEO_BUFFERS = ("color", "reference")
+TRANSIENT_VIDEO_BUFFERS = ("color", "reference", "reference_var")
 
 
 @dataclass
@@ -287,6 +305,11 @@ class TransientFrame:
         meta: ``start_opl``, ``bin_width_opl``, ``bins`` (= T), ``units`` and whatever the renderer
             adds (scene, spp, ``energy_fraction``, ...). Missing time-axis entries default to
             start 0, width 1, units "bins".
+        emitter: (H, W, 1) float32 in [0, 1]: fraction of the pixel footprint whose primary ray
+            sees an emitter with radiance > 0 toward the camera (steady render of the same
+            camera, as for the features; :class:`Frame`), or None.
+        reference_var: (H, W, T, 3) float32 ≥ 0, the variance of ``reference`` (the mean) per
+            pixel, bin and channel from K independent chunks (spec/verdicts.md §2), or None.
 
     Example:
         >>> import numpy as np
@@ -306,6 +329,8 @@ class TransientFrame:
     steady: np.ndarray | None = None
     non_zero: np.ndarray | None = None
     meta: dict[str, Any] = field(default_factory=dict)
+    emitter: np.ndarray | None = None
+    reference_var: np.ndarray | None = None
 
     kind = "transient"
 
@@ -318,6 +343,8 @@ class TransientFrame:
         h, w, t = self.color.shape[:3]
         if self.reference is not None:
             self.reference = check_buffer("reference", self.reference, (h, w, t, 3))
+        if self.reference_var is not None:
+            self.reference_var = check_buffer("reference_var", self.reference_var, (h, w, t, 3))
         _check_pixel_buffers(self, TRANSIENT_PIXEL_BUFFERS, h, w)
         if self.non_zero is not None:
             self.non_zero = check_buffer("non_zero", self.non_zero, (h, w, t, 3), dtype=np.int32)

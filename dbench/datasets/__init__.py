@@ -1,9 +1,16 @@
 """Datasets: ``load(scene, spp, res, needs)`` renders what is missing and reuses the cache.
 
+Steady buffers: ``color`` and ``stats`` (the noisy samples, seed ``seed``), ``albedo``,
+``normal``, ``depth``, ``position`` and ``emitter`` (one cached feature render at 64 spp, box
+filter), ``reference`` with ``reference_var`` (the variance of the reference mean from K ≥ 16
+independent chunks; seed ``ref_seed``, independent of ``seed`` so that N noisy seeds share one
+reference). Whenever ``reference`` is loaded, ``emitter`` comes with it (the judge separates
+directly visible lights from surfaces). :func:`scene_fingerprint` names a scene's content.
+
 Example:
     >>> from dbench import datasets
     >>> frame = datasets.load("cornell", spp=4, res=16, needs={"color", "albedo"})  # doctest: +SKIP
-    >>> frame.color.shape, frame.stats is None
+    >>> frame.color.shape, frame.stats is None  # doctest: +SKIP
     ((16, 16, 3), True)
 """
 from __future__ import annotations
@@ -17,13 +24,15 @@ from ..data import Frame, SampleStats, Sequence, TransientFrame, check_count
 from ..errors import DbenchInputError
 from . import render as _render
 from . import scenes as _scenes
-from .cache import Cache
+from .cache import Cache, make_key
 from .mitsuba_env import mitsuba, versions
 from .scenes import Scene
 from .stats import check_transform
 
 DEFAULT_REFERENCE_SPP = 4096
 FEATURES = ("albedo", "normal", "depth", "position")
+#: Buffers of the cached feature render (FEATURES plus the emitter coverage).
+FEATURE_BUFFERS = FEATURES + ("emitter",)
 
 available_scenes = _scenes.available
 get_scene = _scenes.get
@@ -39,11 +48,35 @@ def _base_description(scene: Scene, res: int) -> dict:
             "params": scene.params, "versions": versions()}
 
 
+def scene_fingerprint(scene: str | Scene, res: int) -> str:
+    """A short content hash (16 hex chars of sha256) of ``scene`` at ``res``: the canonical
+    scene description (the Mitsuba dictionary through :func:`~dbench.datasets.cache.canonical`,
+    ``params``, renderer :func:`versions`); every frame's dictionary for sequence scenes, the
+    transient dictionary with the default window for transient scenes. Renders nothing.
+    Two results with the same fingerprint were rendered from the same scene content."""
+    sc = scene if isinstance(scene, Scene) else _scenes.get(scene)
+    res = check_count("res", res)
+    mi = mitsuba()
+    if sc.kind == "sequence":
+        desc = {"scene": sc.name, "kind": sc.kind, "res": res, "n_frames": int(sc.n_frames),
+                "frames": [sc.frame_dict(mi, res, i) for i in range(sc.n_frames)],
+                "params": sc.params, "versions": versions()}
+    elif sc.kind == "transient":
+        window = sc.window()
+        desc = {"scene": sc.name, "kind": sc.kind, "res": res,
+                "dict": sc.transient_dict(mi, res, window), "window": window.meta(),
+                "params": sc.params, "versions": versions()}
+    else:
+        desc = {**_base_description(sc, res), "kind": sc.kind}
+    return make_key(desc)[:16]
+
+
 def load(scene: str | Scene, spp: int, res: int, needs: Iterable[str] | None = None,
          transform: str | None = None, lam: float = 0.5, seed: int = 0,
          ref_spp: int | None = None, cache: Cache | None = None, progress: bool = True,
          frames: int | None = None, bins: int | None = None,
-         collector: str = "auto") -> Frame | Sequence | TransientFrame:
+         collector: str = "auto", ref_seed: int | None = None
+         ) -> Frame | Sequence | TransientFrame:
     """Return a :class:`~dbench.data.Frame` of ``scene`` with exactly the buffers in ``needs``.
 
     Sequence scenes (kind ``sequence``) return a :class:`~dbench.data.Sequence` instead, built by
@@ -59,22 +92,27 @@ def load(scene: str | Scene, spp: int, res: int, needs: Iterable[str] | None = N
         needs: buffer names (``color`` always comes); None means every buffer the scene provides.
         transform, lam: sample transform of the statistics (spec/statistical.md §3); None
             means the kind's default: Box-Cox for steady scenes, identity for transient ones.
-        seed: base seed; the noisy passes, features and reference use disjoint seed streams.
+        seed: base seed of the noisy passes and the features (disjoint seed streams).
         ref_spp: reference spp (default ``DBENCH_REF_SPP`` or 4096).
         cache: a :class:`Cache` (default location when None).
+        ref_seed: seed of the reference and its variance (None means 0), independent of
+            ``seed``: noisy renders with seeds s … s+N−1 share one cached reference.
     Returns:
-        Frame whose ``meta`` holds the settings, render timings and cache hits.
+        Frame whose ``meta`` holds the settings, render timings and cache hits; with a
+        reference also ``ref_spp``, ``ref_seed``, ``ref_render_s`` (seconds the reference took,
+        from the cache entry when cached) and ``ref_rmse`` = sqrt(mean(reference_var)).
     """
     sc = scene if isinstance(scene, Scene) else _scenes.get(scene)
     if sc.kind == "sequence":
         return _sequence.load_sequence(sc, spp=spp, res=res, needs=needs, seed=seed,
                                        ref_spp=ref_spp, cache=cache, progress=progress,
-                                       frames=frames)
+                                       frames=frames, ref_seed=ref_seed)
     if sc.kind == "transient":
         return _transient.load_transient(sc, spp=spp, res=res, needs=needs,
                                          transform=transform or _transient.DEFAULT_TRANSFORM,
                                          lam=lam, seed=seed, ref_spp=ref_spp, cache=cache,
-                                         progress=progress, bins=bins, collector=collector)
+                                         progress=progress, bins=bins, collector=collector,
+                                         ref_seed=ref_seed)
     transform = "box-cox" if transform is None else transform
     check_count("spp", spp)
     check_count("res", res)
@@ -85,6 +123,9 @@ def load(scene: str | Scene, spp: int, res: int, needs: Iterable[str] | None = N
                                f"it provides {sorted(sc.provides)}")
     if "stats" in wanted:
         check_transform(transform, lam)
+    if "reference" in wanted:
+        wanted.add("emitter")
+    ref_seed = check_ref_seed(ref_seed)
     cache = cache or Cache()
     ref_spp = ref_spp or reference_spp()
     base = _base_description(sc, res)
@@ -122,28 +163,57 @@ def load(scene: str | Scene, spp: int, res: int, needs: Iterable[str] | None = N
                             "diagnostics": stats.diagnostics})
 
     buffers: dict[str, np.ndarray] = {}
-    if wanted & set(FEATURES):
+    if wanted & set(FEATURE_BUFFERS):
         feat_desc = {**base, "what": "features", "spp": _render.DEFAULT_FEATURE_SPP,
                      "seed": int(seed), "aovs": _render.AOV_STRING}
         feats = _render.cached_features(cache, feat_desc, sc, res, seed, meta)
-        buffers.update({k: feats[k] for k in FEATURES if k in wanted})
+        buffers.update({k: feats[k] for k in FEATURE_BUFFERS if k in wanted})
 
     if "reference" in wanted:
-        ref_desc = {**base, "what": "reference", "spp": int(ref_spp), "seed": int(seed),
-                    "chunk": _render.DEFAULT_REFERENCE_CHUNK}
+        ref_desc = {**base, "what": "reference", "spp": int(ref_spp), "seed": ref_seed,
+                    "chunk": _render.DEFAULT_REFERENCE_CHUNK,
+                    "var": _render.REFERENCE_VAR_VERSION}
         entry = cache.get("reference", ref_desc)
-        if entry is not None:
-            buffers["reference"] = entry.images()["reference"]
+        images = entry.images() if entry is not None else {}
+        if "reference" in images and "reference_var" in images:
+            buffers["reference"] = images["reference"]
+            buffers["reference_var"] = images["reference_var"]
+            meta["ref_render_s"] = entry.meta.get("render_s")
             meta["cache_hits"].append("reference")
         else:
-            ref, seconds = _render.render_reference(sc, res, ref_spp, seed, progress=progress)
-            cache.put("reference", ref_desc, images={"reference": ref},
-                      meta={"render_s": seconds})
-            buffers["reference"] = ref
+            ref, ref_var, seconds = _render.render_reference(sc, res, ref_spp, ref_seed,
+                                                             progress=progress)
+            cache.put("reference", ref_desc, images={"reference": ref, "reference_var": ref_var},
+                      meta={"render_s": seconds, "chunks": len(_render.reference_chunks(ref_spp))})
+            buffers["reference"], buffers["reference_var"] = ref, ref_var
+            meta["ref_render_s"] = seconds
             meta["rendered"].append("reference")
-        meta["ref_spp"] = int(ref_spp)
+        meta.update(reference_meta(ref_spp, ref_seed, buffers["reference_var"]))
 
     return Frame(color=color, stats=stats, meta=meta, **buffers)
+
+
+def check_ref_seed(ref_seed: int | None) -> int:
+    """The reference seed: 0 for None, else a non-negative integer (DbenchInputError)."""
+    if ref_seed is None:
+        return 0
+    if isinstance(ref_seed, (bool, np.bool_)) or not isinstance(ref_seed, (int, np.integer)) \
+            or ref_seed < 0:
+        raise DbenchInputError(f"ref_seed: expected an integer >= 0 or None, got {ref_seed!r}")
+    return int(ref_seed)
+
+
+def reference_meta(ref_spp: int, ref_seed: int, reference_var) -> dict:
+    """``ref_spp``, ``ref_seed`` and ``ref_rmse`` = sqrt(mean(reference_var)) for ``meta``
+    (``reference_var`` one array or a list of them, e.g. a sequence's frames)."""
+    if isinstance(reference_var, (list, tuple)):
+        total = sum(float(np.asarray(v, np.float64).sum()) for v in reference_var)
+        count = sum(int(np.asarray(v).size) for v in reference_var)
+        mean_var = total / max(count, 1)
+    else:
+        mean_var = float(np.mean(np.asarray(reference_var, np.float64)))
+    return {"ref_spp": int(ref_spp), "ref_seed": int(ref_seed),
+            "ref_rmse": float(np.sqrt(max(mean_var, 0.0)))}
 
 
 def _stats_to_arrays(stats: SampleStats) -> dict[str, np.ndarray]:
@@ -158,4 +228,5 @@ def _stats_from_arrays(arrays: dict[str, np.ndarray], transform: str, lam: float
 from . import sequence as _sequence  # noqa: E402  (registers the sequence scenes)
 from . import transient as _transient  # noqa: E402  (registers the transient scenes)
 
-__all__ = ["load", "available_scenes", "get_scene", "Cache", "Scene", "FEATURES"]
+__all__ = ["load", "available_scenes", "get_scene", "Cache", "Scene", "FEATURES",
+           "FEATURE_BUFFERS", "scene_fingerprint"]

@@ -3,12 +3,25 @@
 An entry is a folder ``<root>/<kind>/<key>/`` holding ``buffers.exr`` (float32 images with
 named channels), optionally ``arrays.npz`` (float64 statistics, which EXR cannot hold), and
 ``meta.json``. The key is a hash of everything that changes the pixels: the scene dictionary
-itself (canonicalised, so editing a scene invalidates its entries), resolution, spp, seed,
-integrator settings, transform and the Mitsuba / Dr.Jit / mitransient versions and variant.
+itself (canonicalised, so editing a scene invalidates its entries), resolution, spp, seed (for
+references: the reference seed ``ref_seed``, not the noisy seed, so noisy renders of several
+seeds share one reference entry), integrator settings, transform, the Mitsuba / Dr.Jit /
+mitransient versions and variant, and version markers of what an entry holds (``emitter`` in
+feature entries, which hold albedo, normal, depth, position and emitter; ``var`` in reference
+entries, which hold ``reference`` and ``reference_var``), so entries written before a buffer
+existed are not reused.
 
 An entry is built in a temporary folder and renamed into place when complete; ``meta.json`` is
 written last. A killed render leaves only a ``.tmp-*`` folder, which readers ignore and
-:func:`Cache.clean` removes.
+:func:`Cache.clean` removes (a cache removes such folders older than a day by itself).
+
+Integrity: ``meta.json`` records the canonical description the entry was built from and the
+size and sha256 of each of its files. :meth:`Cache.get` checks both (a cheap read of files that
+are about to be read anyway); an entry whose description differs (a folder copied under another
+key), whose files are missing, truncated or replaced, or whose ``meta.json`` is unreadable is a
+miss: one warning line names it, the caller renders again, and :meth:`Cache.put` replaces the
+damaged folder atomically. Entries written before checksums existed are read in full once;
+when every file loads they are adopted (checksums added), otherwise they are a miss.
 
 Location: ``--cache DIR`` or ``DBENCH_CACHE``, default ``~/.cache/dbench``.
 """
@@ -18,6 +31,7 @@ import hashlib
 import json
 import os
 import shutil
+import sys
 import time
 import uuid
 from dataclasses import dataclass
@@ -78,29 +92,91 @@ class Entry:
             return {k: z[k] for k in z.files}
 
 
+#: Files an entry may hold besides meta.json.
+DATA_FILES = ("buffers.exr", "arrays.npz")
+#: Leftover temporary folders older than this are removed (seconds).
+STALE_TMP_S = 24 * 3600
+
+
+def file_record(path: Path) -> dict[str, Any]:
+    """{"size", "sha256"} of one file."""
+    data = path.read_bytes()
+    return {"size": len(data), "sha256": hashlib.sha256(data).hexdigest()}
+
+
+def _loads(path: Path) -> str:
+    """'' when every data file of the entry at ``path`` reads completely, else why not."""
+    entry = Entry(path, {})
+    try:
+        entry.images()
+        entry.arrays()
+    except Exception as exc:  # noqa: BLE001 - any failure to read means a damaged entry
+        return f"unreadable ({type(exc).__name__})"
+    return ""
+
+
+def verify(path: Path, meta: dict, description: dict) -> str:
+    """'' when the entry at ``path`` is intact and was built from ``description``, else why."""
+    if meta.get("description") != json.loads(json.dumps(canonical(description))):
+        return "built from another description"
+    files = meta.get("files")
+    if files is None:
+        return _loads(path)
+    for name, record in files.items():
+        f = path / name
+        if not f.is_file():
+            return f"{name} missing"
+        if f.stat().st_size != record.get("size"):
+            return f"{name} has {f.stat().st_size} bytes, expected {record.get('size')}"
+        if file_record(f)["sha256"] != record.get("sha256"):
+            return f"{name} checksum differs"
+    return ""
+
+
 class Cache:
     """Get and put rendered buffers by content key."""
 
     def __init__(self, root: str | os.PathLike | None = None, enabled: bool = True):
         self.root = Path(root) if root is not None else default_root()
         self.enabled = enabled
+        self._cleaned = False
 
     def _dir(self, kind: str, key: str) -> Path:
         return self.root / kind / key
 
+    def _warn(self, kind: str, key: str, why: str) -> None:
+        print(f"dbench: cache entry {kind}/{key} is damaged ({why}); rendering it again",
+              file=sys.stderr)
+
     def get(self, kind: str, description: dict) -> Entry | None:
+        """The intact entry for ``description``, or None (a miss; damaged entries warn)."""
         if not self.enabled:
             return None
-        path = self._dir(kind, make_key(description))
-        meta_file = path / "meta.json"
-        if not meta_file.exists():
+        key = make_key(description)
+        path = self._dir(kind, key)
+        if not path.exists():
             return None
+        meta_file = path / "meta.json"
         try:
             meta = io.read_json(meta_file)
-        except (OSError, ValueError):
+            if not isinstance(meta, dict):
+                raise ValueError("meta.json is not an object")
+        except (OSError, ValueError) as exc:
+            self._warn(kind, key, f"meta.json unreadable: {type(exc).__name__}")
             return None
         if meta.get("cache_format") != CACHE_FORMAT:
             return None
+        why = verify(path, meta, description)
+        if why:
+            self._warn(kind, key, why)
+            return None
+        if "files" not in meta:  # adopt an entry written before checksums existed
+            meta["files"] = {n: file_record(path / n) for n in DATA_FILES
+                             if (path / n).is_file()}
+            try:
+                io.write_json(meta_file, meta)
+            except OSError:
+                pass
         return Entry(path, meta)
 
     def put(self, kind: str, description: dict, images: dict[str, np.ndarray] | None = None,
@@ -112,6 +188,9 @@ class Cache:
         if not self.enabled:
             return Entry(final, meta)
         final.parent.mkdir(parents=True, exist_ok=True)
+        if not self._cleaned:
+            self._cleaned = True
+            self.clean(older_than_s=STALE_TMP_S)
         tmp = final.parent / f".tmp-{key}-{uuid.uuid4().hex[:8]}"
         tmp.mkdir()
         try:
@@ -121,24 +200,45 @@ class Cache:
                 with io.atomic_path(tmp / "arrays.npz", suffix=".tmp.npz") as t:
                     with open(t, "wb") as fh:
                         np.savez_compressed(fh, **arrays)
+            meta["files"] = {n: file_record(tmp / n) for n in DATA_FILES if (tmp / n).is_file()}
             io.write_json(tmp / "meta.json", meta)
             try:
                 os.rename(tmp, final)
             except OSError:
-                # Another process finished the same entry first; identical content by key.
-                if not (final / "meta.json").exists():
-                    raise
+                if self._intact(final, description):
+                    pass  # another process finished the same entry first (same content)
+                else:  # a damaged entry: move it aside, then put the new one in its place
+                    trash = final.parent / f".tmp-{key}-old-{uuid.uuid4().hex[:8]}"
+                    os.rename(final, trash)
+                    os.rename(tmp, final)
+                    shutil.rmtree(trash, ignore_errors=True)
         finally:
             if tmp.exists():
                 shutil.rmtree(tmp, ignore_errors=True)
         return Entry(final, meta)
 
-    def clean(self) -> int:
-        """Remove leftovers of interrupted writes; return how many were removed."""
+    @staticmethod
+    def _intact(path: Path, description: dict) -> bool:
+        try:
+            meta = io.read_json(path / "meta.json")
+        except (OSError, ValueError):
+            return False
+        return isinstance(meta, dict) and meta.get("cache_format") == CACHE_FORMAT and \
+            "files" in meta and not verify(path, meta, description)
+
+    def clean(self, older_than_s: float = 0.0) -> int:
+        """Remove leftovers of interrupted writes (only those older than ``older_than_s``
+        seconds, so a write in progress elsewhere is left alone); return how many."""
         removed = 0
         if not self.root.exists():
             return 0
+        now = time.time()
         for leftover in self.root.glob("*/.tmp-*"):
+            try:
+                if older_than_s and now - leftover.stat().st_mtime < older_than_s:
+                    continue
+            except OSError:
+                continue
             shutil.rmtree(leftover, ignore_errors=True)
             removed += 1
         return removed

@@ -7,7 +7,14 @@ the individual samples. Statistics, when asked for, are accumulated from those s
 not statistics were collected, and runs of different methods see the same input.
 
 Features come from a separate pass of Mitsuba's ``aov`` integrator (no nested integrator:
-cheaper, spec/mitsuba.md §3). References are rendered in chunks of spp so memory stays bounded.
+cheaper, spec/mitsuba.md §3); the ``emitter`` buffer (:mod:`dbench.datasets.emitter`) from
+another pass at the same spp, stored in the same cache entry.
+
+References are rendered in K independent chunks (:func:`reference_chunks`: K ≥ 16 whenever
+spp ≥ 16), which bounds memory and gives the variance of the reference mean from the spread of
+the chunk means (:class:`ChunkMoments`, spec/verdicts.md §2): with chunk means m_i of n_i spp,
+N = Σ n_i, m = Σ n_i m_i / N, the per-sample variance is σ² ≈ Σ n_i (m_i − m)² / (K − 1) and
+the variance of the mean v_r = σ² / N (0 where K < 2).
 """
 from __future__ import annotations
 
@@ -27,6 +34,10 @@ AOV_STRING = "albedo:albedo,nn:sh_normal,dd:depth,pp:position"
 AOV_LAYOUT = (("albedo", 0, 3), ("normal", 3, 3), ("depth", 6, 1), ("position", 7, 3))
 DEFAULT_FEATURE_SPP = 64
 DEFAULT_REFERENCE_CHUNK = 256
+#: References are split into at least this many chunks (when spp allows) for their variance.
+MIN_REFERENCE_CHUNKS = 16
+#: Marker in the cache key of reference entries that hold ``reference_var`` (chunk variance).
+REFERENCE_VAR_VERSION = "chunk-var-1"
 
 
 def pass_seed(stream: str, seed: int, index: int) -> int:
@@ -157,36 +168,100 @@ def render_features(scene: Scene, res: int, spp: int = DEFAULT_FEATURE_SPP, seed
             for name, c0, nc in AOV_LAYOUT}, seconds
 
 
+def feature_description(description: dict) -> dict:
+    """The cache key of a feature entry: the caller's ``description`` plus the marker of the
+    ``emitter`` buffer it holds (entries written before it existed are not reused)."""
+    from .emitter import EMITTER_VERSION
+
+    return {**description, "emitter": EMITTER_VERSION}
+
+
 def cached_features(cache, description: dict, scene: Scene, res: int, seed: int,
                     meta: dict) -> dict[str, np.ndarray]:
-    """:func:`render_features` of ``scene`` through ``cache`` (kind ``features``), recording
-    ``features`` in ``meta["cache_hits"]`` or ``meta["rendered"]``. ``description`` is the
-    cache key (the caller's scene description, spp, seed and AOV string)."""
+    """:func:`render_features` and the ``emitter`` buffer of ``scene`` (both at
+    DEFAULT_FEATURE_SPP, box filter) through ``cache`` (kind ``features``, one entry holding
+    albedo, normal, depth, position and emitter), recording ``features`` in
+    ``meta["cache_hits"]`` or ``meta["rendered"]``. ``description`` is the caller's part of the
+    cache key (scene description, spp, seed and AOV string); the emitter marker is added here."""
+    from .emitter import render_emitter
+
+    description = feature_description(description)
     entry = cache.get("features", description)
     if entry is not None:
-        meta["cache_hits"].append("features")
-        return entry.images()
+        images = entry.images()
+        if "emitter" in images:
+            meta["cache_hits"].append("features")
+            return images
     feats, seconds = render_features(scene, res, seed=seed)
-    cache.put("features", description, images=feats, meta={"render_s": seconds})
+    feats["emitter"], emitter_s = render_emitter(scene, res, DEFAULT_FEATURE_SPP, seed=seed)
+    cache.put("features", description, images=feats,
+              meta={"render_s": seconds + emitter_s, "aov_s": seconds, "emitter_s": emitter_s})
     meta["rendered"].append("features")
     return feats
 
 
+def reference_chunks(spp: int, chunk: int = DEFAULT_REFERENCE_CHUNK) -> list[int]:
+    """The spp of each reference chunk: ``c = max(1, min(chunk, spp // 16))`` repeated, plus the
+    remainder; K ≥ 16 chunks whenever spp ≥ 16 (4096 spp with chunk 256: 16 × 256)."""
+    spp = int(spp)
+    c = max(1, min(int(chunk), spp // MIN_REFERENCE_CHUNKS))
+    return [c] * (spp // c) + ([spp % c] if spp % c else [])
+
+
+class ChunkMoments:
+    """Weighted mean and spread of chunk means (float64), for ``reference_var``
+    (spec/verdicts.md §2).
+
+    ``add(m_i, n_i)`` takes a chunk mean of n_i samples; :meth:`mean` is Σ n_i m_i / N (the same
+    sum as a plain chunked render, so the pixels do not depend on the variance being computed)
+    and :meth:`var_mean` is Σ n_i (m_i − m)² / ((K − 1) N), 0 when K < 2, accumulated with
+    West's weighted update (no cancellation).
+    """
+
+    def __init__(self, shape: tuple[int, ...]):
+        self.k = 0
+        self.n = 0.0
+        self._total = np.zeros(shape, np.float64)
+        self._running = np.zeros(shape, np.float64)
+        self._m2 = np.zeros(shape, np.float64)
+
+    def add(self, chunk_mean: np.ndarray, n: int) -> None:
+        x = np.asarray(chunk_mean, np.float64)
+        self.k += 1
+        self.n += float(n)
+        self._total += x * n
+        delta = x - self._running
+        self._running += delta * (float(n) / self.n)
+        self._m2 += float(n) * delta * (x - self._running)
+
+    def mean(self) -> np.ndarray:
+        return self._total / max(self.n, 1.0)
+
+    def var_mean(self) -> np.ndarray:
+        if self.k < 2:
+            return np.zeros_like(self._m2)
+        return np.maximum(self._m2, 0.0) / ((self.k - 1) * self.n)
+
+
 def render_reference(scene: Scene, res: int, spp: int, seed: int = 0,
                      chunk: int = DEFAULT_REFERENCE_CHUNK, progress: bool = True
-                     ) -> tuple[np.ndarray, float]:
-    """A high-spp reference, rendered as chunks of ``chunk`` spp with independent seeds."""
+                     ) -> tuple[np.ndarray, np.ndarray, float]:
+    """A high-spp reference, rendered as :func:`reference_chunks` with independent seeds
+    (stream ``reference``, ``seed`` = the reference seed).
+
+    Returns (reference (res, res, 3) float32, reference_var (res, res, 3) float32: variance of
+    the reference mean from the chunk spread, seconds)."""
     mi = mitsuba()
     sc = loaded_scene(scene, res)
-    chunks = [chunk] * (spp // chunk) + ([spp % chunk] if spp % chunk else [])
-    total = np.zeros((res, res, 3), np.float64)
+    acc = ChunkMoments((res, res, 3))
     t0 = time.perf_counter()
     from tqdm.auto import tqdm
 
     with tqdm(total=spp, desc=f"{scene.name} reference {spp} spp", unit="spp", leave=False,
               disable=not progress, mininterval=0.5) as bar:
-        for i, n in enumerate(chunks):
-            total += np.array(mi.render(sc, spp=n, seed=pass_seed("reference", seed, i)),
-                              dtype=np.float64) * n
+        for i, n in enumerate(reference_chunks(spp, chunk)):
+            acc.add(np.array(mi.render(sc, spp=n, seed=pass_seed("reference", seed, i)),
+                             dtype=np.float64), n)
             bar.update(n)
-    return (total / spp).astype(np.float32), time.perf_counter() - t0
+    return (acc.mean().astype(np.float32), acc.var_mean().astype(np.float32),
+            time.perf_counter() - t0)

@@ -6,7 +6,9 @@ reconstruction filter, so each 1-spp pass puts exactly one sample in every pixel
 
 Emitters get a black BSDF everywhere (the built-in Cornell light included), so the albedo buffer
 is 0 on light sources and separates them from the surfaces around them; without that, feature-
-guided filters cannot tell a ceiling light from the white ceiling it sits on.
+guided filters cannot tell a ceiling light from the white ceiling it sits on. The ``emitter``
+buffer (dbench/datasets/emitter.py) does not rely on this convention: it tests the emitter
+itself.
 
 A :class:`Scene` declares its kind (``steady`` here) and the buffers it can provide; the
 harness uses that to skip methods that cannot run and to render only what is needed.
@@ -21,8 +23,8 @@ import numpy as np
 
 from ..errors import UnknownNameError
 
-STEADY_BUFFERS = frozenset({"color", "albedo", "normal", "depth", "position", "stats",
-                            "reference"})
+STEADY_BUFFERS = frozenset({"color", "albedo", "normal", "depth", "position", "emitter",
+                            "stats", "reference"})
 
 
 @dataclass(frozen=True, eq=False)

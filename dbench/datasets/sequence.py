@@ -15,11 +15,17 @@ color        (H, W, 3)   ``spp`` samples, seed ``pass_seed("seq-noisy", seed, i)
 albedo …     (H, W, C)   albedo, sh_normal, depth, position of the *same* samples (one render of
                          the ``aov`` integrator with a nested ``path``; :func:`render_frame`)
 emission     (H, W, 3)   radiance emitted at those primary hits (nested ``path``, max_depth 1)
+emitter      (H, W, 1)   fraction of the footprint whose primary ray sees an emitter with
+                         radiance > 0 (64 spp, box filter, dbench/datasets/emitter.py; cached
+                         per frame, kind ``seq-emitter``); comes with ``reference``
 motion       (H, W, 2)   :func:`motion_vectors` from the world position and the previous camera
 gradient     (H, W, 3)   lights of frame i, camera of frame i−1, seed of frame i−1 (spec/svgf.md
                          §6.4): every pixel re-traces the path of frame i−1 under the new
                          lighting. Frame 0: equal to ``color``.
-reference    (H, W, 3)   ``ref_spp`` samples per frame in chunks of 256, disjoint seed stream
+reference    (H, W, 3)   ``ref_spp`` samples per frame in K ≥ 16 chunks (at most 256 spp each),
+                         seed ``ref_seed`` (not ``seed``: noisy seeds share one reference)
+reference_   (H, W, 3)   variance of the reference mean from the chunk spread
+var                      (spec/verdicts.md §2), in the reference's cache entry
 camera       meta        ``frame.meta["camera"]``: ``to_world`` (4×4 camera→world), ``origin``,
                          ``fov``, ``fov_axis``, ``width``, ``height``
 ===========  ==========  ====================================================================
@@ -71,6 +77,7 @@ import numpy as np
 
 from ..data import Frame, Sequence, check_count
 from ..errors import DbenchInputError
+from . import emitter as _emitter
 from . import render as _render
 from . import scenes as _scenes
 from .cache import Cache
@@ -78,7 +85,7 @@ from .mitsuba_env import mitsuba, versions
 from .scenes import Scene
 
 SEQUENCE_BUFFERS = frozenset({"color", "albedo", "normal", "depth", "position", "motion",
-                              "gradient", "emission", "reference"})
+                              "gradient", "emission", "emitter", "reference"})
 FEATURES = ("albedo", "normal", "depth", "position")
 FOV = 39.3
 REFERENCE_CHUNK = _render.DEFAULT_REFERENCE_CHUNK
@@ -360,36 +367,58 @@ def render_gbuffer(scene: SequenceScene, res: int, i: int, seed: int,
 
 
 def render_reference(scene: SequenceScene, res: int, i: int, seed: int, spp: int,
-                     chunk: int = REFERENCE_CHUNK) -> np.ndarray:
-    """The reference of frame ``i``: ``spp`` samples in chunks, a seed stream disjoint from the
-    noisy frames'."""
+                     chunk: int = REFERENCE_CHUNK) -> tuple[np.ndarray, np.ndarray]:
+    """The reference of frame ``i``: ``spp`` samples in :func:`~dbench.datasets.render.
+    reference_chunks` (K ≥ 16 when spp ≥ 16), a seed stream disjoint from the noisy frames'
+    (``seed`` is the reference seed).
+
+    Returns (reference (res, res, 3) float32, reference_var (res, res, 3) float32: variance of
+    the mean from the chunk spread)."""
     d = scene.frame_dict(mitsuba(), res, i)
-    chunks = [chunk] * (spp // chunk) + ([spp % chunk] if spp % chunk else [])
-    total = np.zeros((res, res, 3), np.float64)
-    for c, n in enumerate(chunks):
-        total += _render_dict(d, n, _render.pass_seed(f"seq-reference-{i}", seed, c)) * n
-    return (total / spp).astype(np.float32)
+    acc = _render.ChunkMoments((res, res, 3))
+    for c, n in enumerate(_render.reference_chunks(spp, chunk)):
+        acc.add(_render_dict(d, n, _render.pass_seed(f"seq-reference-{i}", seed, c)), n)
+    return acc.mean().astype(np.float32), acc.var_mean().astype(np.float32)
 
 
-def _cached(cache: Cache, kind: str, desc: dict, render: Callable[[], dict[str, np.ndarray]],
-            meta: dict, name: str) -> dict[str, np.ndarray]:
+def render_emitter(scene: SequenceScene, res: int, i: int, seed: int,
+                   spp: int = GBUFFER_SPP) -> np.ndarray:
+    """The ``emitter`` buffer of frame ``i`` (res, res, 1) float32 (its lights: a light switched
+    off does not count), seed stream ``seq-emitter``."""
+    from .emitter import render_emitter_dict
+
+    d = scene.frame_dict(mitsuba(), res, i)
+    return render_emitter_dict(d, spp, _render.pass_seed("seq-emitter", seed, i), optimize=False)
+
+
+def _cached_entry(cache: Cache, kind: str, desc: dict, render: Callable[[], dict[str, np.ndarray]],
+                  meta: dict, name: str, time_key: str = "render_s"
+                  ) -> tuple[dict[str, np.ndarray], float | None]:
+    """``render()`` through ``cache``; returns (images, seconds the render took, from the entry's
+    meta on a hit). The seconds of a new render are added to ``meta[time_key]``."""
     entry = cache.get(kind, desc)
     if entry is not None:
         meta["cache_hits"].append(name)
-        return entry.images()
+        return entry.images(), entry.meta.get("render_s")
     t0 = time.perf_counter()
     images = render()
     seconds = time.perf_counter() - t0
     cache.put(kind, desc, images=images, meta={"render_s": seconds})
     meta["rendered"].append(name)
-    meta["render_s"] = meta.get("render_s", 0.0) + seconds
-    return images
+    meta[time_key] = meta.get(time_key, 0.0) + seconds
+    return images, seconds
+
+
+def _cached(cache: Cache, kind: str, desc: dict, render: Callable[[], dict[str, np.ndarray]],
+            meta: dict, name: str) -> dict[str, np.ndarray]:
+    return _cached_entry(cache, kind, desc, render, meta, name)[0]
 
 
 def load_sequence(scene: str | SequenceScene, spp: int = 1, res: int = 64,
                   needs: Iterable[str] | None = None, seed: int = 0, ref_spp: int | None = None,
                   cache: Cache | None = None, progress: bool = True,
-                  frames: int | None = None, gbuffer: str = "matched") -> Sequence:
+                  frames: int | None = None, gbuffer: str = "matched",
+                  ref_seed: int | None = None) -> Sequence:
     """Render (or read from the cache) the first ``frames`` frames of a sequence scene.
 
     Args:
@@ -405,9 +434,13 @@ def load_sequence(scene: str | SequenceScene, spp: int = 1, res: int = 64,
             footprint averages (:func:`render_gbuffer`). The colour is the same in both.
     Returns:
         :class:`~dbench.data.Sequence`; each frame's ``meta`` holds ``frame`` and ``camera``;
-        the sequence's ``meta`` holds the settings, ``events`` and cache hits.
+        the sequence's ``meta`` holds the settings, ``events`` and cache hits. With
+        ``reference`` (which brings ``reference_var`` and ``emitter``), the sequence's and each
+        frame's ``meta`` add ``ref_spp``, ``ref_seed``, ``ref_render_s`` (seconds of the
+        reference renders, from the cache entries when cached; not in ``render_s``) and
+        ``ref_rmse`` = sqrt(mean(reference_var)) (over all frames for the sequence).
     """
-    from . import reference_spp
+    from . import check_ref_seed, reference_meta, reference_spp
 
     sc = scene if isinstance(scene, Scene) else _scenes.get(scene)
     if not isinstance(sc, SequenceScene):
@@ -424,6 +457,9 @@ def load_sequence(scene: str | SequenceScene, spp: int = 1, res: int = 64,
     if unknown:
         raise DbenchInputError(f"needs: scene {sc.name} cannot provide {sorted(unknown)}; "
                                f"it provides {sorted(SEQUENCE_BUFFERS)}")
+    if "reference" in wanted:
+        wanted.add("emitter")
+    ref_seed = check_ref_seed(ref_seed)
     cache = cache or Cache()
     ref_spp = int(ref_spp or reference_spp())
     mi = mitsuba()
@@ -432,7 +468,8 @@ def load_sequence(scene: str | SequenceScene, spp: int = 1, res: int = 64,
                   "seed": int(seed), "frames": int(n), "gbuffer": gbuffer, "ev": sc.ev, "events": dict(sc.events),
                   "versions": vers, "cache_hits": [], "rendered": [], "render_s": 0.0}
     if "reference" in wanted:
-        meta["ref_spp"] = ref_spp
+        meta.update(ref_spp=ref_spp, ref_seed=ref_seed, ref_render_s=0.0)
+    ref_vars: list[np.ndarray] = []
 
     def base(i: int, what: str, **extra) -> dict:
         return {"scene": sc.name, "res": int(res), "frame": i, "what": what,
@@ -470,19 +507,36 @@ def load_sequence(scene: str | SequenceScene, spp: int = 1, res: int = 64,
                     cache, "seq-gradient", desc,
                     lambda: {"gradient": render_frame(sc, res, spp, seed, i - 1, i, i - 1)["color"]},
                     meta, f"gradient{i}")["gradient"]
-        if "reference" in wanted:
-            buffers["reference"] = _cached(
-                cache, "seq-reference",
-                base(i, "reference", spp=ref_spp, seed=int(seed), chunk=REFERENCE_CHUNK),
-                lambda: {"reference": render_reference(sc, res, i, seed, ref_spp)},
-                meta, f"reference{i}")["reference"]
+        if "emitter" in wanted:
+            buffers["emitter"] = _cached_entry(
+                cache, "seq-emitter",
+                base(i, "emitter", spp=GBUFFER_SPP, seed=int(seed),
+                     emitter=_emitter.EMITTER_VERSION),
+                lambda: {"emitter": render_emitter(sc, res, i, seed)},
+                meta, f"emitter{i}", time_key="emitter_s")[0]["emitter"]
         fmeta = {"scene": sc.name, "kind": "sequence", "frame": i, "spp": int(spp), "gbuffer": gbuffer,
                  "res": int(res), "seed": int(seed), "ev": sc.ev, "camera": camera}
+        if "reference" in wanted:
+            ref, ref_s = _cached_entry(
+                cache, "seq-reference",
+                base(i, "reference", spp=ref_spp, seed=ref_seed, chunk=REFERENCE_CHUNK,
+                     var=_render.REFERENCE_VAR_VERSION),
+                lambda: dict(zip(("reference", "reference_var"),
+                                 render_reference(sc, res, i, ref_seed, ref_spp))),
+                meta, f"reference{i}", time_key="_ref_rendered_s")
+            buffers["reference"], buffers["reference_var"] = ref["reference"], ref["reference_var"]
+            ref_vars.append(ref["reference_var"])
+            meta["ref_render_s"] += float(ref_s or 0.0)
+            fmeta.update(reference_meta(ref_spp, ref_seed, ref["reference_var"]),
+                         ref_render_s=ref_s)
         out.append(Frame(meta=fmeta, **buffers))
         prev_camera = camera
+    meta.pop("_ref_rendered_s", None)
+    if ref_vars:
+        meta.update(reference_meta(ref_spp, ref_seed, ref_vars))
     return Sequence(out, meta=meta)
 
 
 __all__ = ["SequenceScene", "SEQUENCE_BUFFERS", "FLICKER_SWITCH", "camera_info", "frame_seed",
-           "load_sequence", "look_at_matrix", "motion_vectors", "project", "render_frame",
-           "render_reference"]
+           "load_sequence", "look_at_matrix", "motion_vectors", "project", "render_emitter",
+           "render_frame", "render_reference"]

@@ -26,11 +26,20 @@ TRANSFORMS = ("identity", "box-cox", "yeo-johnson")
 ZERO_VARIANCE_RTOL = 1e-10
 
 
+#: λ accepted by the transforms. The spec's sweep range is [0.25, 1.5]; beyond |λ| = 3 the cubes
+#: of transformed radiance overflow float64 for bright pixels (λ = 300 gave Inf moments).
+LAM_RANGE = (-3.0, 3.0)
+
+
 def check_transform(transform: str, lam: float) -> None:
     if transform not in TRANSFORMS:
         raise DbenchInputError(f"transform: unknown {transform!r}; expected one of {TRANSFORMS}")
-    if not np.isfinite(lam):
+    if isinstance(lam, bool) or not isinstance(lam, (int, float, np.integer, np.floating)) \
+            or not np.isfinite(lam):
         raise DbenchInputError(f"lam: expected a finite number, got {lam!r}")
+    if transform != "identity" and not LAM_RANGE[0] <= lam <= LAM_RANGE[1]:
+        raise DbenchInputError(f"lam: {lam} is outside [{LAM_RANGE[0]}, {LAM_RANGE[1]}] "
+                               "(larger |λ| overflows the moments of bright samples)")
     if transform == "box-cox" and lam <= 0:
         # Rendered samples are often exactly 0, where Box-Cox with λ ≤ 0 is undefined (§3).
         raise DbenchInputError(f"lam: Box-Cox needs λ > 0 on rendered samples (zeros occur), "
@@ -165,8 +174,12 @@ def stats_from_power_sums(n: int | np.ndarray, s1: np.ndarray, s2: np.ndarray, s
     sigma2 = np.where(n_arr >= 2, m2b * n_arr / np.maximum(n_arr - 1.0, 1.0), 0.0)
     var_mean = sigma2 / safe_n
     mean = np.where(n_arr > 0, a + k, 0.0)
+    diagnostics = dict(diagnostics or {})
+    # Moments that overflowed are counted, never passed on silently as "0 non-finite".
+    diagnostics["n_nonfinite_moments"] = int(sum((~np.isfinite(x)).sum()
+                                                 for x in (mean, var_mean, m3)))
     return SampleStats(n=np.array(n_arr), mean=mean, var_mean=var_mean, m3=m3,
-                       transform=transform, lam=float(lam), diagnostics=dict(diagnostics or {}))
+                       transform=transform, lam=float(lam), diagnostics=diagnostics)
 
 
 def stats_from_samples(samples: np.ndarray, transform: str = "box-cox", lam: float = 0.5,

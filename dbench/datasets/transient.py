@@ -23,8 +23,11 @@ Collectors of the per-bin statistics (spec/statistical.md §11):
 Buffers of a :class:`~dbench.data.TransientFrame` from :func:`load_transient`: ``color``
 (H, W, T, 3), ``stats`` and ``non_zero`` (H, W, T, 3), ``steady`` (H, W, 3; the same samples,
 whole path length), ``albedo``, ``normal``, ``depth``, ``position`` (H, W, ·; steady AOV render of
-the same camera; for the fog scene, of the surfaces behind the fog), ``reference`` (H, W, T, 3,
-plain transient render at ref_spp ≥ 16·spp, same window). ``meta`` holds the window
+the same camera; for the fog scene, of the surfaces behind the fog), ``emitter`` (H, W, 1; the
+fraction of the footprint whose primary ray sees a light, from the same feature render, fog
+ignored), ``reference`` (H, W, T, 3, plain transient render at ref_spp ≥ 16·spp, same window,
+seed ``ref_seed``, in K ≥ 16 chunks) and ``reference_var`` (H, W, T, 3, the variance of the
+reference mean per bin from the chunk spread, spec/verdicts.md §2). ``meta`` holds the window
 (``start_opl``, ``bin_width_opl``, ``bins``, ``end_opl``, ``units``), ``energy_fraction``
 (Σ color / Σ steady: the share of the steady energy inside the window), integrator settings and
 timings.
@@ -56,8 +59,8 @@ from .stats import ZERO_VARIANCE_RTOL, PowerSums, check_transform, transform_of_
 
 #: Speed of light in m/s (time = OPL / c).
 SPEED_OF_LIGHT = 299792458.0
-TRANSIENT_BUFFERS = frozenset({"color", "albedo", "normal", "depth", "position", "stats",
-                               "reference"})
+TRANSIENT_BUFFERS = frozenset({"color", "albedo", "normal", "depth", "position", "emitter",
+                               "stats", "reference"})
 COLLECTORS = ("auto", "a", "b")
 DEFAULT_TRANSFORM = "identity"   # spec/statistical.md §3: transient default
 #: float32 voxels of one batched pass (copies × H × W × T × 3): bounds the pass memory (64 MB).
@@ -568,26 +571,29 @@ def render_plain(scene: TransientScene, res: int, spp: int, seed: int = 0,
 
 def render_reference(scene: TransientScene, res: int, spp: int, seed: int = 0,
                      bins: int | None = None, chunk: int = DEFAULT_REFERENCE_CHUNK,
-                     progress: bool = False) -> tuple[np.ndarray, np.ndarray, float]:
-    """High-spp video in chunks of ``chunk`` spp with independent seeds (same window).
+                     progress: bool = False
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """High-spp video in :func:`~dbench.datasets.render.reference_chunks` (K ≥ 16 chunks of at
+    most ``chunk`` spp when spp ≥ 16) with independent seeds (same window).
 
-    Returns (video (H, W, T, 3), steady (H, W, 3), seconds)."""
+    Returns (video (H, W, T, 3), video_var (H, W, T, 3): variance of the video mean per bin from
+    the chunk spread, steady (H, W, 3), seconds), float32 arrays."""
     mi = _mitransient()
     window = scene.window(bins)
     sc = loaded_transient(scene, res, window, 1)
-    chunks = [chunk] * (spp // chunk) + ([spp % chunk] if spp % chunk else [])
-    video = np.zeros((res, res, window.bins, 3), np.float64)
+    chunks = _render.reference_chunks(spp, chunk)
+    video = _render.ChunkMoments((res, res, window.bins, 3))
     steady = np.zeros((res, res, 3), np.float64)
     t0 = time.perf_counter()
     with _render._progress(len(chunks), f"{scene.name} reference {spp} spp",
                            progress and len(chunks) >= 8) as bar:
         for i, n in enumerate(chunks):
             st, tr = mi.render(sc, spp=n, seed=_render.pass_seed("reference", seed, i))
-            video += np.array(tr, dtype=np.float64) * n
+            video.add(np.array(tr, dtype=np.float64), n)
             steady += np.array(st, dtype=np.float64) * n
             bar.update(1)
-    return ((video / spp).astype(np.float32), (steady / spp).astype(np.float32),
-            time.perf_counter() - t0)
+    return (video.mean().astype(np.float32), video.var_mean().astype(np.float32),
+            (steady / spp).astype(np.float32), time.perf_counter() - t0)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -645,7 +651,7 @@ def size_window(scene: TransientScene, coverage: float = 0.99, res: int = 24, sp
                            window_start=0.0, window_end=start + horizon, default_bins=bins,
                            integrator=scene.integrator, rr_depth=scene.rr_depth,
                            camera_unwarp=scene.camera_unwarp)
-    video, steady, _ = render_reference(pilot, res, spp, seed=seed, chunk=64)
+    video, _, steady, _ = render_reference(pilot, res, spp, seed=seed, chunk=64)
     window = pilot.window()
     per_bin = video.astype(np.float64).sum(axis=(0, 1, 3))
     total = float(steady.astype(np.float64).sum())
@@ -688,7 +694,7 @@ def load_transient(scene: str | TransientScene, spp: int, res: int,
                    needs: Iterable[str] | None = None, transform: str = DEFAULT_TRANSFORM,
                    lam: float = 0.5, seed: int = 0, ref_spp: int | None = None,
                    cache: Cache | None = None, progress: bool = True, bins: int | None = None,
-                   collector: str = "auto") -> TransientFrame:
+                   collector: str = "auto", ref_seed: int | None = None) -> TransientFrame:
     """A :class:`~dbench.data.TransientFrame` of a transient scene, rendering what is missing.
 
     Args:
@@ -697,8 +703,12 @@ def load_transient(scene: str | TransientScene, spp: int, res: int,
         res: image side in pixels.
         needs: buffers (``color`` always comes; ``stats`` adds ``non_zero``); None = all.
         transform, lam: sample transform of the statistics (default identity, spec §3).
-        seed: base seed of the noisy samples, features and reference (disjoint streams).
+        seed: base seed of the noisy samples and features (disjoint streams).
         ref_spp: reference spp (default max(DBENCH_REF_SPP or 4096, 16·spp)).
+        ref_seed: seed of the reference and ``reference_var`` (None means 0), independent of
+            ``seed`` so that noisy renders of several seeds share one reference. ``reference``
+            brings ``reference_var`` and ``emitter``; ``meta`` then adds ``ref_spp``,
+            ``ref_seed``, ``ref_render_s`` and ``ref_rmse`` = sqrt(mean(reference_var)).
         bins: T (default the scene's); the window [start, end) stays the scene's.
         collector: ``"a"`` (1-spp passes, host sums), ``"b"`` (in-integrator) or ``"auto"``
             (b for transient_path scenes, a for media). The color comes from the same samples
@@ -715,6 +725,11 @@ def load_transient(scene: str | TransientScene, spp: int, res: int,
         raise DbenchInputError(f"needs: scene {sc.name} cannot provide {sorted(unknown)}; "
                                f"it provides {sorted(sc.provides)}")
     check_transform(transform, lam)
+    from . import check_ref_seed, reference_meta
+
+    if "reference" in wanted:
+        wanted.add("emitter")
+    ref_seed = check_ref_seed(ref_seed)
     _mitransient()
     mi = mitsuba()
     window = sc.window(bins)
@@ -778,7 +793,7 @@ def load_transient(scene: str | TransientScene, spp: int, res: int,
     meta["window_covers_all"] = bool(meta["energy_fraction"] >= COVERS_ALL)
 
     buffers: dict[str, np.ndarray] = {}
-    feats_wanted = wanted & {"albedo", "normal", "depth", "position"}
+    feats_wanted = wanted & {"albedo", "normal", "depth", "position", "emitter"}
     if feats_wanted:
         fsc = sc.feature_scene
         feat_desc = {"scene": sc.name, "res": int(res), "dict": fsc.scene_dict(mi, res),
@@ -790,22 +805,26 @@ def load_transient(scene: str | TransientScene, spp: int, res: int,
 
     if "reference" in wanted:
         rspp = reference_spp(spp, ref_spp)
-        ref_desc = {**base, "what": "transient-reference", "spp": rspp, "seed": int(seed),
-                    "chunk": DEFAULT_REFERENCE_CHUNK}
+        ref_desc = {**base, "what": "transient-reference", "spp": rspp, "seed": ref_seed,
+                    "chunk": DEFAULT_REFERENCE_CHUNK, "var": _render.REFERENCE_VAR_VERSION}
         entry = cache.get("transient-reference", ref_desc)
-        if entry is not None:
-            arrays = entry.arrays()
-            ref, ref_steady = arrays["reference"], arrays["steady"]
+        arrays = entry.arrays() if entry is not None else {}
+        if {"reference", "reference_var", "steady"} <= set(arrays):
+            ref, ref_var, ref_steady = arrays["reference"], arrays["reference_var"], arrays["steady"]
+            meta["ref_render_s"] = entry.meta.get("render_s")
             meta["cache_hits"].append("reference")
         else:
-            ref, ref_steady, seconds = render_reference(sc, res, rspp, seed, bins,
-                                                        progress=progress)
+            ref, ref_var, ref_steady, seconds = render_reference(sc, res, rspp, ref_seed, bins,
+                                                                 progress=progress)
             cache.put("transient-reference", ref_desc,
-                      arrays={"reference": ref, "steady": ref_steady},
-                      meta={"render_s": seconds})
+                      arrays={"reference": ref, "reference_var": ref_var, "steady": ref_steady},
+                      meta={"render_s": seconds,
+                            "chunks": len(_render.reference_chunks(rspp,
+                                                                   DEFAULT_REFERENCE_CHUNK))})
+            meta["ref_render_s"] = seconds
             meta["rendered"].append("reference")
-        buffers["reference"] = ref
-        meta["ref_spp"] = rspp
+        buffers["reference"], buffers["reference_var"] = ref, ref_var
+        meta.update(reference_meta(rspp, ref_seed, ref_var))
         meta["reference_energy_fraction"] = energy_fraction(ref, ref_steady)
 
     return TransientFrame(color=color, stats=stats, steady=steady,

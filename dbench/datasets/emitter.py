@@ -1,0 +1,112 @@
+"""The ``emitter`` buffer: per pixel, the fraction of its footprint whose primary ray sees a light.
+
+A sample counts as 1 when its primary ray hits a surface whose emitter sends radiance > 0 back
+along the ray (``si.emitter(scene).eval(si)`` non-zero: an area light seen from its emitting
+side), or misses every shape while the scene has an environment emitter with radiance > 0 in
+that direction; otherwise 0. Rendered with a box filter, the pixel value is the share of the
+pixel's footprint covered by emitters, in [0, 1] (multiples of 1/spp). Unlike an albedo test
+it does not rely on the catalogue's "lights have a black BSDF" convention, and a light that is
+switched off (radiance 0) does not count.
+
+The test is a small Mitsuba ``SamplingIntegrator`` written in Python (Dr.Jit code, one ray per
+sample, no shading), registered once per variant as ``dbench_emitter_hit``; it runs in
+``llvm_ad_rgb`` (vectorised) and ``scalar_rgb`` (slow but correct; Mitsuba warns about Python
+integrators in scalar mode).
+
+Example:
+    >>> from dbench.datasets import emitter, scenes
+    >>> m, seconds = emitter.render_emitter(scenes.get("cornell"), 32)   # doctest: +SKIP
+    >>> m.shape, float(m.max())                                          # doctest: +SKIP
+    ((32, 32, 1), 1.0)
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from .mitsuba_env import mitsuba
+
+INTEGRATOR_NAME = "dbench_emitter_hit"
+#: Version marker of the buffer; part of every cache key of an entry that holds it.
+EMITTER_VERSION = "emitter-hit-1"
+
+_registered: set[str] = set()
+
+
+def register() -> str:
+    """Register the ``dbench_emitter_hit`` integrator for the current variant (once); return
+    its plugin name."""
+    mi = mitsuba()
+    variant = mi.variant()
+    if variant in _registered:
+        return INTEGRATOR_NAME
+    import drjit as dr
+
+    jit = dr.is_jit_v(mi.Float)
+
+    class EmitterHitIntegrator(mi.SamplingIntegrator):
+        """1 where the primary ray sees an emitter with radiance > 0 toward the camera, else 0."""
+
+        def __init__(self, props):
+            super().__init__(props)
+
+        def sample(self, scene, sampler, ray, medium=None, active=True):
+            si = scene.ray_intersect(mi.Ray3f(ray), active)
+            # si.emitter(): the hit shape's area emitter, or the environment where the ray
+            # escapes (None/null where there is neither); eval() is 0 on an emitter's back side.
+            em = si.emitter(scene, active)
+            if jit:
+                radiance = em.eval(si, active)
+            else:
+                radiance = em.eval(si, active) if em is not None else mi.Spectrum(0.0)
+            seen = active & (dr.max(radiance) > 0.0)
+            return mi.Spectrum(dr.select(seen, 1.0, 0.0)), active, []
+
+        def aov_names(self):
+            return []
+
+        def to_string(self):
+            return "EmitterHitIntegrator[]"
+
+    mi.register_integrator(INTEGRATOR_NAME, lambda props: EmitterHitIntegrator(props))
+    _registered.add(variant)
+    return INTEGRATOR_NAME
+
+
+def integrator():
+    """A fresh instance of the emitter-hit integrator (registered on first use)."""
+    mi = mitsuba()
+    return mi.load_dict({"type": register()})
+
+
+def render_emitter_scene(scene, spp: int, seed: int) -> np.ndarray:
+    """The emitter buffer of a loaded Mitsuba scene (its film must use a box filter):
+    (H, W, 1) float32 in [0, 1]."""
+    mi = mitsuba()
+    out = np.array(mi.render(scene, integrator=integrator(), spp=int(spp), seed=int(seed)),
+                   dtype=np.float32)
+    return np.ascontiguousarray(np.clip(out[..., :1], 0.0, 1.0))
+
+
+def render_emitter_dict(d: dict, spp: int, seed: int, optimize: bool = True) -> np.ndarray:
+    """:func:`render_emitter_scene` of a scene dictionary (``optimize`` as in ``mi.load_dict``)."""
+    mi = mitsuba()
+    return render_emitter_scene(mi.load_dict(d, optimize=optimize), spp, seed)
+
+
+def render_emitter(scene, res: int, spp: int | None = None, seed: int = 0
+                   ) -> tuple[np.ndarray, float]:
+    """The emitter buffer of catalogue ``scene`` at ``res`` (default spp: the features'),
+    seed stream ``emitter``. Returns ((res, res, 1) float32, seconds)."""
+    from . import render as _render
+
+    spp = _render.DEFAULT_FEATURE_SPP if spp is None else int(spp)
+    sc = _render.loaded_scene(scene, res)
+    t0 = time.perf_counter()
+    out = render_emitter_scene(sc, spp, _render.pass_seed("emitter", seed, 0))
+    return out, time.perf_counter() - t0
+
+
+__all__ = ["EMITTER_VERSION", "INTEGRATOR_NAME", "integrator", "register", "render_emitter",
+           "render_emitter_dict", "render_emitter_scene"]

@@ -1,0 +1,87 @@
+"""Cache integrity (reliability audit, item 3): a swapped, truncated or deleted file, a broken
+meta.json or a folder copied under another key is a miss with one warning, and the entry is
+rendered again and replaced; stale temporary folders are removed."""
+import os
+import shutil
+import time
+
+import numpy as np
+import pytest
+
+from dbench import datasets, io
+from dbench.datasets.cache import Cache, make_key
+
+
+def _put(cache, what, value):
+    img = np.full((4, 5, 3), value, np.float32)
+    cache.put("noisy", {"what": what}, images={"color": img}, arrays={"m": np.arange(3.0)})
+    return cache._dir("noisy", make_key({"what": what}))
+
+
+@pytest.mark.parametrize("damage", ["swap", "truncate", "delete", "meta", "copy"])
+def test_damaged_entries_are_misses_and_get_replaced(tmp_path, capsys, damage):
+    cache = Cache(tmp_path)
+    a = _put(cache, "a", 1.0)
+    b = _put(cache, "b", 2.0)
+    if damage == "swap":
+        shutil.copy(b / "buffers.exr", a / "buffers.exr")
+    elif damage == "truncate":
+        data = (a / "arrays.npz").read_bytes()
+        (a / "arrays.npz").write_bytes(data[: len(data) // 2])
+    elif damage == "delete":
+        (a / "buffers.exr").unlink()
+    elif damage == "meta":
+        (a / "meta.json").write_text("{broken")
+    elif damage == "copy":  # another entry's folder under this key
+        shutil.rmtree(a)
+        shutil.copytree(b, a)
+    assert cache.get("noisy", {"what": "a"}) is None
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "damaged" in err and make_key({"what": "a"}) in err
+    _put(cache, "a", 1.0)  # the caller renders again: the damaged folder is replaced
+    entry = cache.get("noisy", {"what": "a"})
+    assert entry is not None and entry.images()["color"].mean() == 1.0
+    assert capsys.readouterr().err == ""
+    assert cache.get("noisy", {"what": "b"}).images()["color"].mean() == 2.0
+
+
+def test_entries_without_checksums_are_adopted_when_they_read(tmp_path):
+    cache = Cache(tmp_path)
+    a = _put(cache, "a", 1.0)
+    meta = io.read_json(a / "meta.json")
+    del meta["files"]
+    io.write_json(a / "meta.json", meta)
+    assert cache.get("noisy", {"what": "a"}) is not None
+    assert "files" in io.read_json(a / "meta.json")
+
+
+def test_stale_temporary_folders_are_removed_but_fresh_ones_kept(tmp_path):
+    cache = Cache(tmp_path)
+    old = tmp_path / "noisy" / ".tmp-old"
+    new = tmp_path / "noisy" / ".tmp-new"
+    for d in (old, new):
+        d.mkdir(parents=True)
+    past = time.time() - 2 * 86400
+    os.utime(old, (past, past))
+    _put(cache, "a", 1.0)
+    assert not old.exists() and new.exists()
+
+
+@pytest.mark.mitsuba
+def test_a_damaged_render_is_rendered_again_with_the_same_numbers(renderer, tmp_path):
+    cache = Cache(tmp_path / "cache")
+    kw = dict(spp=4, res=12, needs={"reference", "albedo"}, ref_spp=16, cache=cache,
+              progress=False)
+    clean = datasets.load("cornell", **kw)
+    other = datasets.load("textured", **kw)
+    entry = next(p.parent for p in (tmp_path / "cache" / "noisy").glob("*/meta.json")
+                 if io.read_json(p)["description"]["scene"] == "cornell")
+    donor = next(p.parent for p in (tmp_path / "cache" / "noisy").glob("*/meta.json")
+                 if io.read_json(p)["description"]["scene"] == "textured")
+    shutil.copy(donor / "buffers.exr", entry / "buffers.exr")
+    again = datasets.load("cornell", **kw)
+    assert "color" in again.meta["rendered"]
+    np.testing.assert_array_equal(again.color, clean.color)
+    assert not np.array_equal(again.color, other.color)
+    third = datasets.load("cornell", **kw)
+    assert "color" in third.meta["cache_hits"]
