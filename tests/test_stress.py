@@ -27,3 +27,72 @@ def test_markdown_matrix_lists_every_method_and_case():
     res = stress.run_all(["noisy"], progress=False)
     text = stress.stress_markdown(res)
     assert "| noisy |" in text and all(c.name in text for c in stress.CASES)
+    assert all(c.expect in text for c in stress.CASES)
+
+
+# --- reliability audit: one huge finite pixel, missing depth (tiny 16×16 frames) -------------
+
+def _bright_frame(value, sequence):
+    import numpy as np
+    f = stress.base_frame(16, 16)
+    c = f.color.copy()
+    c[5, 7] = value
+    f = stress._with_color(f, c)
+    if sequence:
+        f = f.with_buffers(motion=np.zeros((16, 16, 2), np.float32), gradient=f.color.copy())
+    return f
+
+
+_IMAGE_METHODS = [m for m in methods.available()
+                  if methods.get(m).kinds & {"steady", "sequence"}]
+
+
+@pytest.mark.parametrize("value", [5e18, 1e30, 3e38])
+@pytest.mark.parametrize("method", _IMAGE_METHODS)
+def test_one_huge_finite_pixel_stays_finite(method, value):
+    """One pixel at 5e18 / 1e30 / 3e38 used to turn whole frames NaN (svgf/asvgf: float32
+    moments l² overflowed in the first frame's spatial variance; bmfr and the autoencoder at
+    3e38: demodulation / log1p(color / a) overflowed). First AND second frame after reset()."""
+    import numpy as np
+    m = methods.get(method)
+    seq = "sequence" in m.kinds
+    frame = _bright_frame(value, seq)
+    m.reset()
+    outs = [m.denoise(frame)]
+    if seq:
+        outs.append(m.denoise(frame))
+    for i, out in enumerate(outs):
+        assert out.shape == frame.color.shape and out.dtype == np.float32
+        bad = int((~np.isfinite(out)).any(-1).sum())
+        assert bad == 0, f"{method}: {bad} non-finite pixels on frame {i + 1} at {value:g}"
+
+
+@pytest.mark.parametrize("method", ["jbf", "statistical", "statistical-gate"])
+def test_missing_depth_is_refused(method):
+    from dbench.errors import DbenchInputError
+    frame = stress.base_frame(16, 16).with_buffers(depth=None)
+    with pytest.raises(DbenchInputError, match="depth"):
+        methods.get(method).denoise(frame)
+
+
+def test_jbf_illumination_huge_pixel_matches_reference():
+    """The power-of-two plane scaling keeps the fast illumination filter finite and equal to
+    the float64 reference for colours whose demodulated value overflows float32."""
+    import numpy as np
+    f = _bright_frame(3e38, False)
+    fast = methods.get("jbf", mode="illumination", radius=3).denoise(f)
+    ref = methods.get("jbf", mode="illumination", radius=3, backend="reference").denoise(f)
+    assert np.isfinite(fast).all()
+    np.testing.assert_allclose(fast, ref, rtol=1e-4, atol=1e-6)
+
+
+def test_clamp_magnitude_keeps_ordinary_and_missing_values():
+    import numpy as np
+    from dbench.methods.guards import RADIANCE_MAX, clamp_magnitude
+    x = np.array([0.5, -2.0, 1e16, -3e38, np.nan, np.inf, -np.inf], np.float32)
+    y = clamp_magnitude(x)
+    assert y[0] == 0.5 and y[1] == -2.0 and y[2] == np.float32(RADIANCE_MAX)
+    assert y[3] == -np.float32(RADIANCE_MAX) and np.isnan(y[4]) and y[5] == np.inf
+    assert y[6] == -np.inf
+    ordinary = np.linspace(-10, 10, 7, dtype=np.float32)
+    assert clamp_magnitude(ordinary) is ordinary

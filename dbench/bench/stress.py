@@ -11,6 +11,11 @@ Transient cases (``tr_*``) build (H, W, T, 3) :class:`~dbench.data.TransientFram
 method without ``transient`` among its kinds reports n/a for them (and a transient-only method
 for the steady cases).
 
+Every case states its expected behaviour next to it (``Case.expect``; rendered in stress.md).
+Sequence methods run ``reset()`` and then the same frame twice: the first frame after
+``reset()`` (no history: spatial variance, first-frame paths) and the second (reprojected
+history) are judged separately and must both pass.
+
 Anything else fails: another exception, a wrong shape or dtype, NaN spread, or more than
 ``TIME_LIMIT_S`` seconds on a tiny image. ``dbench stress`` writes ``results/stress.md``; the same
 cases run in pytest (tests/test_stress.py).
@@ -40,6 +45,9 @@ class Case:
     needs_buffer: str | None = None  # case applies only to methods needing this buffer
     kind: str = "steady"             # "transient" cases build a TransientFrame
     strict: bool = True              # False: accepting the missing buffer is also documented
+    expect: str = "finite output"    # the documented behaviour, rendered in stress.md
+    all_methods: bool = False        # run for every method, not only those needing needs_buffer
+                                     # (then only a method needing it may refuse)
 
 
 def base_frame(h: int = BASE_SIZE[0], w: int = BASE_SIZE[1], seed: int = 0, spp: int = 16,
@@ -61,9 +69,13 @@ def base_frame(h: int = BASE_SIZE[0], w: int = BASE_SIZE[1], seed: int = 0, spp:
                         var_mean=sigma ** 2 / spp, m3=np.zeros_like(clean),
                         transform="identity", lam=1.0)
     position = np.dstack([x / w, y / h, np.zeros_like(x)])
+    # a small light in the top-left corner: fully covered pixels 1, its edge 0.5
+    emitter = np.zeros((h, w, 1))
+    emitter[:max(h // 6, 1), :max(w // 6, 1)] = 0.5
+    emitter[:max(h // 6 - 1, 0), :max(w // 6 - 1, 0)] = 1.0
     return Frame(color=color.astype(dtype), albedo=albedo.astype(dtype), normal=normal,
                  depth=np.ones((h, w, 1)), position=position, stats=stats,
-                 reference=clean.astype(np.float32))
+                 reference=clean.astype(np.float32), emitter=emitter)
 
 
 def _with_color(frame: Frame, color: np.ndarray, stats_mean: np.ndarray | None = None) -> Frame:
@@ -155,33 +167,140 @@ def _missing(buffer: str) -> Callable[[], Frame]:
     return lambda: base_frame().with_buffers(**{buffer: None})
 
 
+def _bright(value: float) -> Callable[[], Frame]:
+    """One pixel (every channel, colour and statistics) at a huge but finite ``value``."""
+    def build() -> Frame:
+        f = base_frame()
+        c = f.color.copy()
+        c[10, 10] = value
+        mean = f.stats.mean.copy()
+        mean[10, 10] = value
+        return _with_color(f, c, mean)
+    return build
+
+
+def _nan_albedo() -> Frame:
+    f = base_frame()
+    return f.with_buffers(albedo=np.full(f.color.shape, np.nan, np.float32))
+
+
+def _zero_normals() -> Frame:
+    f = base_frame()
+    return f.with_buffers(normal=np.zeros(f.color.shape, np.float32))
+
+
+def _stats_n1() -> Frame:
+    """One sample per pixel: n = 1, σ² undefined so var_mean = 0 (SampleStats convention), a
+    Welch test with ν = n_i + n_j − 2 = 0 degrees of freedom."""
+    f = base_frame()
+    mean = f.stats.mean
+    st = SampleStats(n=np.ones_like(mean), mean=mean, var_mean=np.zeros_like(mean),
+                     m3=np.zeros_like(mean), transform="identity", lam=1.0)
+    return f.with_buffers(stats=st)
+
+
+def _stats_huge_var() -> Frame:
+    """n = 1 in the left half with an (inconsistent) huge variance 1e30 and third moment 1e45
+    everywhere: the skew correction, the Welch t and the ProDen gate must stay finite."""
+    f = base_frame()
+    mean = f.stats.mean
+    n = np.full(mean.shape, 16.0)
+    n[:, : mean.shape[1] // 2] = 1.0
+    st = SampleStats(n=n, mean=mean, var_mean=np.full(mean.shape, 1e30),
+                     m3=np.full(mean.shape, 1e45), transform="identity", lam=1.0)
+    return f.with_buffers(stats=st)
+
+
+def _transformed(transform: str, lam: float, negative: bool = False) -> Callable[[], Frame]:
+    """Statistics of 8 samples per pixel under ``transform`` with λ = ``lam`` (computed by
+    dbench.datasets.stats.stats_from_samples); ``negative``: a third of the samples below 0."""
+    def build() -> Frame:
+        from ..datasets.stats import stats_from_samples
+        f = base_frame()
+        rng = np.random.default_rng(1)
+        ref = f.reference.astype(np.float64)
+        samples = ref[None] * rng.exponential(1.0, (8,) + ref.shape)
+        if negative:
+            samples -= rng.uniform(0.0, 1.0, samples.shape) * (rng.random(samples.shape) < 0.33)
+        st = stats_from_samples(samples, transform, lam)
+        return f.with_buffers(color=samples.mean(0).astype(np.float32), stats=st)
+    return build
+
+
+FINITE = "finite output"
+FINITE_BOTH = "finite output on the first and the second frame after reset()"
+
+
+def _refuse(buffer: str) -> str:
+    return f"DbenchInputError naming `{buffer}` from methods that list it in `needs`"
+
+
 CASES: tuple[Case, ...] = (
-    Case("nan", "NaN pixels in color and stats", _nan_pixels(np.nan)),
-    Case("inf", "+Inf pixels in color and stats", _nan_pixels(np.inf)),
-    Case("neg_inf", "-Inf pixels in color and stats", _nan_pixels(-np.inf)),
-    Case("negative", "negative radiance values", _negative),
-    Case("firefly", "one pixel at 1e6", _firefly),
-    Case("zeros", "all-zero image, zero variance", _constant(0.0)),
-    Case("constant", "constant image 0.5, zero variance", _constant(0.5)),
-    Case("zero_variance", "noisy color with zero-variance statistics", _zero_variance),
-    Case("size_1x1", "1×1 image", _size(1, 1)),
-    Case("size_1xN", "1×17 image", _size(1, 17)),
-    Case("size_Nx1", "17×1 image", _size(17, 1)),
-    Case("size_prime", "13×29 image", _size(13, 29)),
-    Case("float16", "float16 buffers", _dtype(np.float16)),
-    Case("float64", "float64 buffers", _dtype(np.float64)),
-    Case("non_contiguous", "strided (non-contiguous) views", _non_contiguous),
+    # expected: finite output except at the missing pixel itself (it may stay non-finite)
+    Case("nan", "NaN pixels in color and stats", _nan_pixels(np.nan),
+         expect="finite output; the NaN pixels may stay non-finite in their own output pixel"),
+    Case("inf", "+Inf pixels in color and stats", _nan_pixels(np.inf),
+         expect="finite output; the Inf pixels may stay non-finite in their own output pixel"),
+    Case("neg_inf", "-Inf pixels in color and stats", _nan_pixels(-np.inf),
+         expect="finite output; the -Inf pixels may stay non-finite in their own output pixel"),
+    Case("negative", "negative radiance values", _negative, expect=FINITE),
+    Case("firefly", "one pixel at 1e6", _firefly, expect=FINITE),
+    # bright but finite: overflow of squares (moments, variances), log transforms, QR norms
+    Case("bright_1e10", "one pixel at 1e10 (colour and stats)", _bright(1e10),
+         expect=FINITE_BOTH),
+    Case("bright_1e20", "one pixel at 1e20 (colour and stats; its square overflows float32)",
+         _bright(1e20), expect=FINITE_BOTH),
+    Case("bright_3e38", "one pixel at 3e38, near the float32 maximum (colour and stats)",
+         _bright(3e38), expect=FINITE_BOTH),
+    Case("zeros", "all-zero image, zero variance", _constant(0.0), expect=FINITE),
+    Case("constant", "constant image 0.5, zero variance", _constant(0.5), expect=FINITE),
+    Case("zero_variance", "noisy color with zero-variance statistics", _zero_variance,
+         expect=FINITE),
+    Case("stats_n1", "one sample per pixel (n = 1, var_mean = 0, ν = 0 in the Welch test)",
+         _stats_n1, expect=FINITE),
+    Case("stats_huge_var", "n = 1 on half the image, var_mean 1e30 and m3 1e45 everywhere",
+         _stats_huge_var, expect=FINITE),
+    Case("boxcox_lam0", "Box-Cox statistics with λ = 1e-6 (≈ log)",
+         _transformed("box-cox", 1e-6), expect=FINITE),
+    Case("boxcox_lam1", "Box-Cox statistics with λ = 0.999999 (≈ shifted identity)",
+         _transformed("box-cox", 0.999999), expect=FINITE),
+    Case("yeojohnson_negative", "Yeo-Johnson statistics (λ = 0.5) of samples a third of which "
+         "are negative", _transformed("yeo-johnson", 0.5, negative=True), expect=FINITE),
+    Case("yeojohnson_lam2", "Yeo-Johnson statistics with λ = 2 (log branch for negatives) of "
+         "partly negative samples", _transformed("yeo-johnson", 2.0, negative=True),
+         expect=FINITE),
+    Case("size_1x1", "1×1 image", _size(1, 1), expect=FINITE),
+    Case("size_1xN", "1×17 image", _size(1, 17), expect=FINITE),
+    Case("size_Nx1", "17×1 image", _size(17, 1), expect=FINITE),
+    Case("size_prime", "13×29 image", _size(13, 29), expect=FINITE),
+    Case("float16", "float16 buffers", _dtype(np.float16), expect=FINITE),
+    Case("float64", "float64 buffers", _dtype(np.float64), expect=FINITE),
+    Case("non_contiguous", "strided (non-contiguous) views", _non_contiguous, expect=FINITE),
     Case("flat_wall", "rank-deficient features: constant normal, albedo and position",
-         _flat_wall),
-    Case("missing_albedo", "albedo buffer absent", _missing("albedo"), ("albedo",), "albedo"),
-    Case("missing_normal", "normal buffer absent", _missing("normal"), ("normal",), "normal"),
-    Case("missing_stats", "statistics absent", _missing("stats"), ("stats",), "stats"),
+         _flat_wall, expect=FINITE),
+    Case("nan_albedo", "albedo all NaN (every pixel: demodulate by 1 / isolated feature)",
+         _nan_albedo, ("albedo",), "albedo", strict=False,
+         expect="finite output everywhere, or DbenchInputError naming `albedo`"),
+    Case("zero_normals", "zero-length normals everywhere", _zero_normals, expect=FINITE),
+    Case("missing_albedo", "albedo buffer absent", _missing("albedo"), ("albedo",), "albedo",
+         expect=_refuse("albedo")),
+    Case("missing_normal", "normal buffer absent", _missing("normal"), ("normal",), "normal",
+         expect=_refuse("normal")),
+    Case("missing_depth", "depth buffer absent", _missing("depth"), ("depth",), "depth",
+         expect=_refuse("depth")),
+    Case("missing_stats", "statistics absent", _missing("stats"), ("stats",), "stats",
+         expect=_refuse("stats")),
     Case("missing_position", "position buffer absent", _missing("position"), ("position",),
-         "position"),
+         "position", expect=_refuse("position")),
+    # emitter is optional (no built-in method lists it): every method must run without it
+    Case("missing_emitter", "emitter buffer absent (optional per-pixel light coverage)",
+         _missing("emitter"), ("emitter",), "emitter", all_methods=True,
+         expect="finite output; " + _refuse("emitter")),
     Case("missing_motion", "motion vectors absent (error, or no reprojection: history reset "
-         "every frame)", _missing("motion"), ("motion",), "motion", strict=False),
+         "every frame)", _missing("motion"), ("motion",), "motion", strict=False,
+         expect="DbenchInputError naming `motion`, or finite output without reprojection"),
     Case("missing_gradient", "A-SVGF gradient frame absent", _missing("gradient"),
-         ("gradient",), "gradient"),
+         ("gradient",), "gradient", expect=_refuse("gradient")),
 )
 
 
@@ -246,6 +365,16 @@ def _video_values(value: float) -> Callable[[], TransientFrame]:
     return build
 
 
+def _video_bright(value: float) -> Callable[[], TransientFrame]:
+    """One voxel (one pixel, one bin, every channel, colour and statistics) at ``value``."""
+    def build() -> TransientFrame:
+        f = base_video()
+        c = f.color.copy()
+        c[4, 5, 3] = value
+        return _video_with(f, c)
+    return build
+
+
 def _video_all_empty() -> TransientFrame:
     f = base_video()
     z = np.zeros_like(f.color)
@@ -264,22 +393,32 @@ def _video_missing(buffer: str) -> Callable[[], TransientFrame]:
 
 TRANSIENT_CASES: tuple[Case, ...] = (
     Case("tr_all_empty", "transient: every bin empty (all zeros)", _video_all_empty,
-         kind="transient"),
+         kind="transient", expect=FINITE),
     Case("tr_nan_voxel", "transient: NaN voxels in color and stats", _video_values(np.nan),
-         kind="transient"),
+         kind="transient", expect="finite output; the NaN voxels may stay non-finite"),
     Case("tr_inf_voxel", "transient: +Inf voxels in color and stats", _video_values(np.inf),
-         kind="transient"),
-    Case("tr_firefly", "transient: one voxel at 1e6", _video_values(1e6), kind="transient"),
-    Case("tr_negative", "transient: negative values", _video_values(-0.5), kind="transient"),
+         kind="transient", expect="finite output; the Inf voxels may stay non-finite"),
+    Case("tr_firefly", "transient: one voxel at 1e6", _video_values(1e6), kind="transient",
+         expect=FINITE),
+    Case("tr_bright_1e10", "transient: one voxel (one bin) at 1e10", _video_bright(1e10),
+         kind="transient", expect=FINITE),
+    Case("tr_bright_1e20", "transient: one voxel (one bin) at 1e20", _video_bright(1e20),
+         kind="transient", expect=FINITE),
+    Case("tr_bright_3e38", "transient: one voxel (one bin) at 3e38", _video_bright(3e38),
+         kind="transient", expect=FINITE),
+    Case("tr_negative", "transient: negative values", _video_values(-0.5), kind="transient",
+         expect=FINITE),
     Case("tr_one_bin", "transient: a single time bin (T = 1)", _video_size(12, 12, 1),
-         kind="transient"),
-    Case("tr_size_1x1", "transient: 1×1 pixel, 6 bins", _video_size(1, 1, 6), kind="transient"),
+         kind="transient", expect=FINITE),
+    Case("tr_size_1x1", "transient: 1×1 pixel, 6 bins", _video_size(1, 1, 6), kind="transient",
+         expect=FINITE),
     # G-buffers are optional for transient methods (media videos have none, spec/statistical.md
     # §11.3): an error naming albedo or a finite output both pass
     Case("tr_missing_albedo", "transient: albedo absent (error or G-buffer-free fallback)",
-         _video_missing("albedo"), ("albedo",), "albedo", kind="transient", strict=False),
+         _video_missing("albedo"), ("albedo",), "albedo", kind="transient", strict=False,
+         expect="DbenchInputError naming `albedo`, or finite output (G-buffer-free fallback)"),
     Case("tr_missing_stats", "transient: statistics absent", _video_missing("stats"),
-         ("stats",), "stats", kind="transient"),
+         ("stats",), "stats", kind="transient", expect=_refuse("stats")),
 )
 CASES = CASES + TRANSIENT_CASES
 
@@ -292,10 +431,14 @@ class Outcome:
 
 
 def run_case(method_name: str, case: Case) -> Outcome:
+    """Run ``case`` on a fresh ``method_name``. Sequence methods get ``reset()`` and then the
+    frame twice: the first call (empty history: spatial estimates, first-frame paths) and the
+    second (reprojected history) are judged separately; both must pass."""
     from .. import methods
 
     method = methods.get(method_name)
-    if case.needs_buffer is not None and case.needs_buffer not in method.needs:
+    if case.needs_buffer is not None and case.needs_buffer not in method.needs \
+            and not case.all_methods:
         return Outcome("n/a", f"{method_name} does not use {case.needs_buffer}")
     if case.kind == "transient":
         if "transient" not in method.kinds:
@@ -312,27 +455,36 @@ def run_case(method_name: str, case: Case) -> Outcome:
             frame = _as_sequence_frame(frame, case)
         except DbenchInputError as exc:
             return Outcome("pass", f"rejected on construction: {exc}")
+    needed = case.needs_buffer is not None and case.needs_buffer in method.needs
     t0 = time.perf_counter()
+    outs = []
     try:
         method.reset()
-        out = method.denoise(frame)
+        outs.append(method.denoise(frame))  # first frame after reset(): no history
         if as_sequence:
-            out = method.denoise(frame)  # a second frame exercises the history path
+            outs.append(method.denoise(frame))  # second frame: the history path
     except DbenchInputError as exc:
         seconds = time.perf_counter() - t0
         msg = str(exc)
         names_shape = "expected" in msg or "(H, W" in msg
-        if case.error_ok and any(b in msg for b in case.error_ok) and names_shape:
+        may_refuse = case.error_ok and (needed or not case.all_methods)
+        if may_refuse and any(b in msg for b in case.error_ok) and names_shape:
             return Outcome("pass", f"DbenchInputError: {msg}", seconds)
-        return Outcome("fail", f"unexpected DbenchInputError: {msg}", seconds)
+        return Outcome("fail", f"unexpected DbenchInputError on frame {len(outs) + 1}: {msg}",
+                       seconds)
     except Exception as exc:  # noqa: BLE001
-        return Outcome("fail", f"{type(exc).__name__}: {exc} "
+        return Outcome("fail", f"{type(exc).__name__} on frame {len(outs) + 1}: {exc} "
                        f"[{traceback.format_exc(limit=2).splitlines()[-1]}]",
                        time.perf_counter() - t0)
     seconds = time.perf_counter() - t0
-    if case.error_ok and case.needs_buffer in method.needs and case.strict:
+    if case.error_ok and needed and case.strict:
         return Outcome("fail", f"missing {case.needs_buffer} accepted silently", seconds)
-    return _judge(frame, np.asarray(out), seconds)
+    verdicts = [_judge(frame, np.asarray(o), seconds) for o in outs]
+    if len(verdicts) == 1:
+        return verdicts[0]
+    status = "fail" if any(v.status == "fail" for v in verdicts) else "pass"
+    why = "; ".join(f"frame {i + 1}: {v.why}" for i, v in enumerate(verdicts))
+    return Outcome(status, why, seconds)
 
 
 def _judge(frame: Frame, out: np.ndarray, seconds: float) -> Outcome:
@@ -386,7 +538,10 @@ def stress_markdown(results: dict[str, dict[str, Outcome]]) -> str:
              f"{n_pass} passed, {n_fail} failed "
              f"({len(results)} methods × {len(CASES)} cases; n/a where a case does not apply).",
              "", markdown_table(pd.DataFrame(rows)), "", "## Cases", ""]
-    lines += [f"- `{c.name}`: {c.description}" for c in CASES]
+    lines += ["Sequence methods run `reset()` and then the same frame twice; the first frame "
+              "(no history) and the second (reprojected history) must both pass.", ""]
+    lines += ["| case | input | expected |", "|---|---|---|"]
+    lines += [f"| `{c.name}` | {c.description} | {c.expect} |" for c in CASES]
     lines += ["", "## Policy", "",
               "Pass means: finite float32 output of the input's shape wherever the input is "
               "finite (a non-finite input pixel is missing data; it may stay non-finite in its "

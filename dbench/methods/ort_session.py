@@ -1,6 +1,30 @@
 """ONNX Runtime sessions for the shipped learned models (``nca``, ``autoencoder``)."""
 from __future__ import annotations
 
+from pathlib import Path
+from typing import Any
+
+from ..errors import DbenchInputError
+
+
+def check_weights(weights: Any, method: str) -> None:
+    """Refuse, when the method is built (before anything renders), a ``weights`` parameter that
+    is not a readable ONNX file: one line naming it instead of a traceback later."""
+    if weights is None:
+        return
+    p = Path(str(weights))
+    if not p.is_file():
+        what = "a folder" if p.is_dir() else "missing"
+        raise DbenchInputError(f"{method}.weights: {p} is {what}; expected the path of a "
+                               f"{method}.onnx file (or leave it unset for the shipped model)")
+    import onnx
+
+    try:
+        onnx.load(str(p), load_external_data=False)
+    except Exception as exc:  # noqa: BLE001 - any parse failure means "not an ONNX model"
+        raise DbenchInputError(f"{method}.weights: {p} is not an ONNX model "
+                               f"({type(exc).__name__}); expected a {method}.onnx file") from None
+
 
 def cpu_session(model_bytes: bytes, threads: int | None = None):
     """An ``onnxruntime.InferenceSession`` on the CPU provider for a serialised ONNX model.

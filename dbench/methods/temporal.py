@@ -54,6 +54,7 @@ import numpy as np
 from ..data import check_buffer
 from ..errors import DbenchInputError
 from ..registry import Denoiser
+from .guards import RADIANCE_MAX, clamp_magnitude
 
 try:  # Numba is a dependency; the NumPy/Python reference still works without it
     import numba
@@ -753,6 +754,10 @@ class History:
 class HistoryDenoiser(Denoiser):
     """Base of the reprojecting sequence methods (``accumulate``, ``svgf``/``asvgf``, ``bmfr``).
 
+    Input range: finite colour values beyond ±:data:`~dbench.methods.guards.RADIANCE_MAX`
+    (1e15) are clamped to it before anything else (NaN/±Inf stay missing samples), so that the
+    float32 luminance moments l² — after albedo demodulation, (C / 1e-3)² — cannot overflow.
+
     A subclass validates its parameters in ``__init__`` and then calls :meth:`_start`, and
     implements ``_denoise(data, color)`` with ``color`` the checked (H, W, 3) input; ``denoise``
     runs it with the kernel thread count of the frame size. ``last`` holds the diagnostics of
@@ -773,6 +778,9 @@ class HistoryDenoiser(Denoiser):
 
     def denoise(self, data) -> np.ndarray:
         color = check_buffer("color", getattr(data, "color", None), (None, None, 3))
+        # the moments l² (and SVGF/BMFR's demodulated l² ≤ (C / 1e-3)²) are float32 history:
+        # finite colours beyond RADIANCE_MAX would overflow them to Inf, then NaN (Inf − Inf)
+        color = clamp_magnitude(color, RADIANCE_MAX)
         with kernel_threads(color.shape[0] * color.shape[1]):
             return self._denoise(data, color)
 

@@ -318,10 +318,12 @@ def test_registered_method_on_frame():
     ref = get("jbf", radius=3, backend="reference").denoise(frame)
     assert rel_err(out, ref) < FAST_RTOL
     assert m.last_settings["radius"] == 3 and m.last_settings["sigma_convention"] == "variance"
-    # no depth: every pixel is a hit
+    # no depth: the method refuses (depth is in its needs); the function API still takes None
     nodepth = Frame(color=frame.color, albedo=frame.albedo, normal=frame.normal)
+    with pytest.raises(DbenchInputError, match="depth"):
+        m.denoise(nodepth)
     g = core.make_guide(frame.albedo, frame.normal, None, radius=3)
-    assert rel_err(m.denoise(nodepth), core.jbf_reference(frame.color, g)) < FAST_RTOL
+    assert rel_err(core.jbf_fast(frame.color, g), core.jbf_reference(frame.color, g)) < FAST_RTOL
     # presets fill what is not given
     statmc = get("jbf", preset="statmc", radius=4)
     assert statmc.params["sigma_convention"] == "sd" and statmc.params["window"] == "disk"

@@ -13,6 +13,11 @@ Non-finite policy: a non-finite colour pixel keeps its reprojected history; with
 output stays non-finite (it is missing) and its history is empty, so nothing spreads.
 Without motion vectors (a single image) every frame is treated as the first.
 
+Input range: finite colour values beyond ±1e15 (:data:`dbench.methods.guards.RADIANCE_MAX`)
+are clamped to ±1e15 (NaN/±Inf stay missing), so the float32 luminance moment l² stays finite
+(before, a pixel above ~1.8e19 made l² Inf: the pixel lost its history and ``last["variance"]``
+was Inf).
+
 Parameters: alpha_min (0), n_max (256), tau_d (0.05), tau_n (0.9), backend ("auto" (default):
 PyTorch on CUDA when ``torch.cuda.is_available()``, else Numba; "numba"; "torch": vectorised
 PyTorch reprojection and accumulation (:func:`~dbench.methods.temporal.reproject_torch`,

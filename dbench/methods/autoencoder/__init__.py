@@ -29,7 +29,9 @@ depth).
 
 Input policy (documented finite result): non-finite or negative colour values are treated as
 missing and replaced by 0 before encoding; non-finite normal/albedo/depth by 0; normals clipped
-to [-1, 1], albedo to [0, 1]. The output is finite everywhere. Missing or mis-shaped buffers
+to [-1, 1], albedo to [0, 1]. Huge finite colour (up to the float32 maximum) is encoded
+without overflow (``log1p`` of the float64 quotient where the float32 one is Inf, at most ≈ 95)
+and the decoder caps the network output at expm1(80). The output is finite everywhere. Missing or mis-shaped buffers
 raise DbenchInputError naming the buffer.
 
 Parameters: ``recurrent`` (carry state across frames), ``weights`` (path of another
@@ -183,6 +185,8 @@ class Autoencoder(Denoiser):
 
     def __init__(self, **params):
         super().__init__(**params)
+        from ..ort_session import check_weights
+        check_weights(self.params["weights"], "autoencoder")
         self._hidden: list[np.ndarray] | None = None
 
     def reset(self) -> None:

@@ -32,16 +32,36 @@ def sanitize(name: str, x: np.ndarray, lo: float, hi: float) -> np.ndarray:
     return np.clip(x, lo, hi).astype(np.float32)
 
 
+def log_demodulated(color: np.ndarray, a_eff: np.ndarray) -> np.ndarray:
+    """log1p(color / a_eff) as float32 for finite colour ≥ 0 and a_eff in (1e-3, 1].
+
+    The float32 quotient overflows to Inf for colour near the float32 maximum (3e38 / 0.2);
+    there the value is recomputed in float64 (log1p(3.4e38 / 1e-3) ≈ 95, finite), elsewhere it
+    is the plain float32 expression, bit for bit.
+    """
+    color = np.asarray(color, np.float32)
+    a_eff = np.broadcast_to(np.asarray(a_eff, np.float32), color.shape)
+    with np.errstate(over="ignore"):
+        q = color / a_eff
+    out = np.log1p(q)
+    big = np.isinf(q)
+    if big.any():
+        out[big] = np.log1p(color[big].astype(np.float64) / a_eff[big].astype(np.float64))
+    return out.astype(np.float32, copy=False)
+
+
 def encode(color: np.ndarray, buffers: dict[str, np.ndarray],
            features: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
     """Network input (C, H, W) and a_eff (H, W, 3) from (H, W, 3) colour and feature buffers.
 
     Non-finite or negative colour is treated as missing (0); non-finite features are 0.
+    Huge finite colour (up to the float32 maximum) encodes to a finite log value (at most ≈ 95,
+    see :func:`log_demodulated`); the decoder caps the network output at expm1(80).
     """
     color = sanitize("color", color, 0.0, np.inf)
     albedo = sanitize("albedo", buffers["albedo"], 0.0, 1.0)
     a_eff = effective_albedo(albedo)
-    chans = [np.log1p(color / a_eff)]
+    chans = [log_demodulated(color, a_eff)]
     for f in features:
         if f == "normal":
             chans.append(sanitize("normal", buffers["normal"], -1.0, 1.0))

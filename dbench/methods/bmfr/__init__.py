@@ -31,6 +31,12 @@ Pixels without hit and emitters keep their accumulated value. ``last`` holds ``d
 Non-finite policy: non-finite colour is missing (accumulation keeps history, the pixel is left
 out of the fit and reconstructed from its features); non-finite features make a pixel "no hit".
 
+Input range: finite ``color`` and ``emission`` values beyond ±1e15
+(:data:`dbench.methods.guards.RADIANCE_MAX`) are clamped to ±1e15 (NaN/±Inf stay missing), so
+the demodulated illumination (÷ albedo ≥ 1e-3) stays ≤ 1e18 in float32 and the Householder
+norms of the float64 fit stay finite (before the clamp, one pixel at 3e38 demodulated to Inf and
+the block fits, then every pixel, became NaN).
+
 Example:
     >>> import numpy as np
     >>> from dbench.data import Frame
@@ -54,6 +60,7 @@ from ...data import check_buffer
 from ...errors import DbenchInputError
 from ...registry import register
 from .. import temporal as T
+from ..svgf import _emission
 from ..svgf import core as SC
 from .core import (FEATURE_PRESETS, N_OFFSETS, RCOND, block_origins, bmfr_fit,
                    bmfr_fit_fast, bmfr_fit_reference, feature_stack, grid_offsets,
@@ -118,7 +125,7 @@ class BMFR(T.HistoryDenoiser):
         h, w = color.shape[:2]
         albedo = check_buffer("albedo", getattr(data, "albedo", None), (h, w, 3))
         geo = T.frame_geometry(data, backend=be)
-        prep = SC.prepare(be, color, albedo, getattr(data, "emission", None), geo.hit)
+        prep = SC.prepare(be, color, albedo, _emission(data, h, w), geo.hit)
         present = prep["present"]
 
         hist, status = self.history.fetch(geo, 7)

@@ -11,6 +11,14 @@ Two modes of one method:
   direct/indirect split (the whole colour is filtered); the BDF-lobe factor and ``lobe_key``
   are not implemented.
 
+Every buffer of ``needs`` (color, albedo, normal, depth) must be present: a missing one raises
+DbenchInputError naming it (the filter does not silently drop a feature).
+
+Huge finite colour (up to the float32 maximum, or its demodulated value in illumination mode)
+stays finite: a plane above 1e30 is divided by an exact power of two before the float32 window
+sums and multiplied back in float64 (:func:`~dbench.methods.jbf.core.accumulate`); ordinary
+inputs are untouched.
+
 Non-finite colour pixels are missing (no weight as neighbours; their own output is the filtered
 value of valid neighbours, or 0); pixels with non-finite G-buffers are isolated (see core).
 
@@ -42,6 +50,7 @@ import numpy as np
 
 from ...errors import DbenchInputError
 from ...registry import Denoiser, register
+from ..guards import require_buffers
 from .core import (BACKENDS, FEATURES, PRESETS, SEED_SIGMA, SIGMA_CONVENTIONS, WINDOWS, Guide,
                    IlluminationSetup, accumulate, accumulate_torch, check_choice, check_positive,
                    check_radius, check_sigma, illumination_fast, illumination_filter,
@@ -99,6 +108,7 @@ class JBF(Denoiser):
         if getattr(data, "kind", None) != "steady":
             raise DbenchInputError(f"jbf: expected a steady Frame, got "
                                    f"{getattr(data, 'kind', type(data).__name__)} data")
+        require_buffers(self, data)  # every buffer of ``needs``, depth included
         p = self.params
         if p["mode"] == "illumination":
             opts = {k: p[k] for k in ("radius", "window", "alpha", "beta", "self_weight_min",

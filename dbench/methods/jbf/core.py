@@ -641,7 +641,7 @@ def accumulate(guide: Guide, planes: np.ndarray, *, dot_normal: np.ndarray | Non
     bit-identical to the reference; band sums are float32, the final sum float64.
     """
     h, w = guide.shape
-    planes = np.ascontiguousarray(planes, dtype=np.float32)
+    planes, scale = _scaled_planes(planes)
     fsq = _scaled_feature_groups(guide)
     fdot = (np.zeros((0, 1, 1), np.float32) if dot_normal is None
             else np.ascontiguousarray(dot_normal, dtype=np.float32))
@@ -658,9 +658,35 @@ def accumulate(guide: Guide, planes: np.ndarray, *, dot_normal: np.ndarray | Non
             ni = np.ascontiguousarray(nint, dtype=np.int32)
             table = np.ascontiguousarray(g2_table, dtype=np.float64)
     nbands = _num_bands(h)
-    return _accumulate_kernel(fsq, fdot, np.float32(beta), bool(horizon), planes, dys, dxs, es,
+    sums = _accumulate_kernel(fsq, fdot, np.float32(beta), bool(horizon), planes, dys, dxs, es,
                               th, va, ni, np.float64(gg), table, int(test_mode), nbands,
                               int(guide.radius))
+    if scale is not None:
+        sums *= scale[:, None, None]
+    return sums
+
+
+#: Largest |value| a plane may hold in the float32 band sums of :func:`accumulate`: a window of
+#: (2·20 + 1)² = 1681 taps of weight ≤ 1 then sums to ≤ 1.7e33, far below the float32 maximum.
+PLANE_MAX = 1e30
+
+
+def _scaled_planes(planes: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+    """(P, H, W) planes as float32 for the kernel, and the per-plane factors to multiply the
+    (float64) sums by, or None. A plane whose largest finite |value| exceeds :data:`PLANE_MAX`
+    (a demodulated colour near the float32 maximum: 3e38 / 1e-3 is Inf in float32) is divided
+    by a power of two (exact) first, so its float32 sums stay finite; other planes, i.e. every
+    ordinary input, are passed unchanged bit for bit."""
+    p64 = np.asarray(planes, np.float64)
+    with np.errstate(invalid="ignore"):
+        peak = np.max(np.where(np.isfinite(p64), np.abs(p64), 0.0),
+                      axis=tuple(range(1, p64.ndim))) if p64.size else np.zeros(len(p64))
+    if not np.any(peak > PLANE_MAX):
+        return np.ascontiguousarray(planes, dtype=np.float32), None
+    exps = np.where(peak > PLANE_MAX, np.ceil(np.log2(peak / PLANE_MAX)), 0.0)
+    scale = np.exp2(exps)
+    scaled = p64 / scale.reshape((-1,) + (1,) * (p64.ndim - 1))
+    return np.ascontiguousarray(scaled, dtype=np.float32), scale
 
 
 # ---------------------------------------------------------------------------------------------

@@ -139,6 +139,11 @@ class NCADenoiser(Denoiser):
     needs = {"color", "normal", "albedo"}
     defaults = dict(iterations=None, weights=None, threads=None)
 
+    def __init__(self, **params):
+        super().__init__(**params)
+        from ..ort_session import check_weights
+        check_weights(self.params["weights"], "nca")
+
     def denoise(self, data) -> np.ndarray:
         for name in ("normal", "albedo"):
             if getattr(data, name, None) is None:

@@ -13,6 +13,21 @@ from __future__ import annotations
 import numpy as np
 
 ENCODINGS = ("log1p", "log1p_demodulated")
+
+
+def log_demodulated(color: np.ndarray, a_eff: np.ndarray) -> np.ndarray:
+    """log1p(color / a_eff) float32, recomputed in float64 where the float32 quotient overflows
+    (colour near the float32 maximum, a_eff < 1): finite for every finite colour ≥ 0; bit for
+    bit the float32 expression elsewhere."""
+    color = np.asarray(color, np.float32)
+    a_eff = np.broadcast_to(np.asarray(a_eff, np.float32), color.shape)
+    with np.errstate(over="ignore"):
+        q = color / a_eff
+    out = np.log1p(q)
+    big = np.isinf(q)
+    if big.any():
+        out[big] = np.log1p(color[big].astype(np.float64) / a_eff[big].astype(np.float64))
+    return out.astype(np.float32, copy=False)
 ALBEDO_EPS = 1e-3
 
 
@@ -32,14 +47,16 @@ def encode(color: np.ndarray, normal: np.ndarray, albedo: np.ndarray,
     """(H, W, 3) buffers -> (9, H, W) initial state: encoded colour, normal, albedo.
 
     Non-finite or negative colour is 0; non-finite normal/albedo are 0; normal clipped to
-    [-1, 1] and albedo to [0, 1].
+    [-1, 1] and albedo to [0, 1]. Huge finite colour stays finite: the demodulated quotient is
+    recomputed in float64 where float32 overflows (:func:`log_demodulated`, log1p ≤ ≈ 95).
     """
     if encoding not in ENCODINGS:
         raise ValueError(f"encoding: expected one of {ENCODINGS}, got {encoding!r}")
     c = sanitize(color, 0.0, np.inf)
     if encoding == "log1p_demodulated":
-        c = c / effective_albedo(albedo)
-    rgb = np.log1p(c)
+        rgb = log_demodulated(c, effective_albedo(albedo))
+    else:
+        rgb = np.log1p(c)
     s = np.concatenate([rgb, sanitize(normal, -1.0, 1.0), sanitize(albedo, 0.0, 1.0)], axis=-1)
     return np.ascontiguousarray(s.transpose(2, 0, 1), dtype=np.float32)
 

@@ -26,6 +26,9 @@ DbenchInputError naming it; the resolved values land in ``last_settings`` after 
     frame's meta names a medium or a volumetric integrator or it has no albedo/normal, else
     "jbf" | "jbf" | "gauss3d"), temporal_profile (None: "box" for the jbf base, "gaussian" for
     gauss3d | "box" | "gaussian"), sigma_t (1.0 bin), skip_empty (True).
+On images every buffer of ``needs`` (color, albedo, normal, depth, stats) must be present: a
+missing one raises DbenchInputError naming it. Videos keep their documented G-buffer-free
+fallback (media have no albedo/normal/depth).
 The sample transform (identity / Box-Cox / Yeo-Johnson and λ) is a property of the statistics
 (SampleStats.transform, .lam) and is recorded, not chosen here; transient datasets default to
 identity (spec §3, §11.3: identity or Yeo-Johnson; Box-Cox distorts near-zero bins).
@@ -51,6 +54,7 @@ import numpy as np
 
 from ...errors import DbenchInputError
 from ...registry import Denoiser, register
+from ..guards import require_buffers
 from ..jbf.core import (SEED_SIGMA, SIGMA_CONVENTIONS, TEMPORAL_PROFILES, WINDOWS, check_choice,
                         check_positive, check_radius, check_sigma, make_guide)
 from .core import (BACKENDS, DEFAULT_ALPHA, StatPlanes, Threshold, _check_alpha, _g2_from_gamma,
@@ -142,6 +146,7 @@ class Statistical(Denoiser):
         if kind != "steady":
             raise DbenchInputError(f"statistical: expected a steady Frame or a TransientFrame, "
                                    f"got {getattr(data, 'kind', type(data).__name__)} data")
+        require_buffers(self, data)  # images: every buffer of ``needs``, depth included
         p = self.params
         alpha = p["alpha"] if (p["alpha"] is not None or p["gamma"] is not None) else DEFAULT_ALPHA
         radius = STEADY_RADIUS if p["radius"] is None else p["radius"]

@@ -42,6 +42,12 @@ no tap for their neighbours and are filled from them); non-finite albedo demodul
 non-finite G-buffers make a pixel "no hit" (it is only its own tap). The output is finite
 wherever the input colour is finite.
 
+Input range: finite ``color``, ``emission`` and ``gradient`` values beyond ±1e15
+(:data:`dbench.methods.guards.RADIANCE_MAX`) are clamped to ±1e15 (NaN/±Inf stay missing).
+The demodulated illumination is then ≤ 1e18 and its luminance moment l² ≤ 1e36 stays finite in
+the float32 history, the spatial variance m₂ − m₁² and the à-trous variance propagation (before
+the clamp, one pixel at 5e18 made l² Inf and every pixel of the first frame NaN).
+
 ``last`` holds diagnostics of the latest frame: ``n``, ``alpha``, ``variance``, ``status``
 (reprojection), and for asvgf ``gradient`` (H, W).
 
@@ -67,6 +73,7 @@ from ...data import check_buffer
 from ...errors import DbenchInputError
 from ...registry import register
 from .. import temporal as T
+from ..guards import RADIANCE_MAX, clamp_magnitude
 from . import core as C
 
 PRESETS = {
@@ -87,6 +94,14 @@ def _positive(name: str, value: Any, allow_zero: bool = False) -> float:
     if not np.isfinite(v) or v < 0 or (v == 0 and not allow_zero):
         raise DbenchInputError(f"{name}: expected a positive number, got {value!r}")
     return v
+
+
+def _emission(data, h: int, w: int) -> np.ndarray | None:
+    """The optional ``emission`` buffer, checked and clamped to ±RADIANCE_MAX like the colour."""
+    emission = getattr(data, "emission", None)
+    if emission is None:
+        return None
+    return clamp_magnitude(check_buffer("emission", emission, (h, w, 3)), RADIANCE_MAX)
 
 
 class _SVGFBase(T.HistoryDenoiser):
@@ -130,7 +145,7 @@ class _SVGFBase(T.HistoryDenoiser):
         h, w = color.shape[:2]
         albedo = check_buffer("albedo", getattr(data, "albedo", None), (h, w, 3))
         geo = T.frame_geometry(data, backend=be)
-        emission = getattr(data, "emission", None)
+        emission = _emission(data, h, w)
         prep = C.prepare(be, color, albedo, emission, geo.hit)
         present, emitter = prep["present"], prep["emitter"]
 
@@ -203,7 +218,8 @@ class ASVGF(_SVGFBase):
         motion = geo.motion if geo.motion is not None else np.full((2, h, w), np.nan, np.float32)
         if (self._prev_lum is not None and prev is not None and prev.shape == geo.shape
                 and geo.motion is not None):
-            grad = check_buffer("gradient", getattr(data, "gradient", None), (h, w, 3))
+            grad = clamp_magnitude(check_buffer("gradient", getattr(data, "gradient", None),
+                                                (h, w, 3)), RADIANCE_MAX)
             l_grad = grad @ T.LUMA  # (H, W) luminance of the re-shaded previous samples
             strata = C.stratum_gradients(self._prev_lum, l_grad, prev.hit, prev.depth,
                                          prev.normal, backend=self.backend)
