@@ -16,6 +16,11 @@ from typing import Any, Sequence
 
 from .errors import DbenchInputError, RendererUnavailableError, UnknownNameError
 
+#: Columns ``--rank-by`` accepts.
+RANKABLE = ("relmse", "rmse", "rmse_surface", "relmse_surface", "smape", "smape_surface",
+            "psnr", "psnr_surface", "ssim", "ssim_surface", "flip", "flip_surface",
+            "rmse_unbiased", "relmse_unbiased")
+
 
 def _parse_value(text: str) -> Any:
     try:
@@ -87,12 +92,73 @@ def _summarise_parts(parts: Sequence[str]) -> str:
     return ", ".join(f"{k} ×{v}" if k in numbered else k for k, v in counts.items())
 
 
+MAX_PARAM_CHARS = 1000
+
+
+def _ints(text: str, name: str) -> list[int]:
+    """``"4,16"`` → [4, 16]; a DbenchInputError naming ``name`` for anything else."""
+    out = []
+    for t in _split(text):
+        try:
+            out.append(int(t))
+        except ValueError:
+            raise DbenchInputError(f"{name}: expected a comma list of integers >= 1, got "
+                                   f"{t!r} in {text!r}") from None
+    return out
+
+
+def _check_common(args: argparse.Namespace) -> None:
+    """Checks shared by ``run`` and ``sweep``, done before anything renders."""
+    from .bench.sweep import MAX_RES
+    from .data import check_count
+
+    for item in args.param or []:
+        if len(item) > MAX_PARAM_CHARS:
+            raise DbenchInputError(f"--param: {len(item)} characters; at most {MAX_PARAM_CHARS}")
+    for name in ("res", "repeats", "seeds"):
+        check_count(f"--{name}", getattr(args, name))
+    if args.res > MAX_RES:
+        raise DbenchInputError(f"--res: {args.res} is above the largest supported image side "
+                               f"{MAX_RES}")
+    if args.ref_spp is not None:
+        check_count("--ref-spp", args.ref_spp)
+    if args.rank_by not in RANKABLE:
+        raise DbenchInputError(f"--rank-by: {args.rank_by!r}; valid: {', '.join(RANKABLE)}")
+    from .datasets.stats import check_transform
+
+    try:
+        check_transform(args.transform or "box-cox", args.lam)
+    except DbenchInputError as exc:
+        raise DbenchInputError(f"--transform/--lam: {exc}") from None
+
+
+def _sequence_window(n_frames: int) -> str:
+    from .bench.sequence import WARMUP
+
+    if n_frames > WARMUP:
+        return f"1 per frame; metrics and time over frames {WARMUP}-{n_frames - 1} of {n_frames}"
+    return (f"1 per frame; metrics and time over all {n_frames} frame(s) (no more frames than "
+            f"the {WARMUP}-frame warm-up)")
+
+
+def _writable_cache(args: argparse.Namespace):
+    """The run's cache, checked for writing before anything renders."""
+    from . import datasets
+    from .io import ensure_writable_dir
+
+    cache = datasets.Cache(args.cache, enabled=not args.no_cache)
+    if cache.enabled:
+        ensure_writable_dir(cache.root, "--cache")
+    return cache
+
+
 def cmd_run(args: argparse.Namespace) -> int:
     from . import datasets, methods
-    from .bench import harness, report
+    from .bench import harness, identity, report
+    from .bench.sweep import cell_record
     from .datasets import scenes
-    from .bench.sequence import WARMUP
-    from .io import write_exr, write_json, write_text
+    from .data import check_count
+    from .io import ensure_writable_dir, write_exr, write_json, write_text
 
     import pandas as pd
 
@@ -100,10 +166,13 @@ def cmd_run(args: argparse.Namespace) -> int:
     for n in names:
         methods.method_class(n)  # raises UnknownNameError listing valid names
     scene = scenes.get(args.scene)
+    check_count("--spp", args.spp)
+    _check_common(args)
     if "noisy" not in names:
         names = ["noisy"] + names
     params = parse_params(args.param or [], names)
     instances = {n: methods.get(n, **params[n]) for n in names}
+    labels = {n: identity.label(n, params[n]) for n in names}
 
     skipped: dict[str, str] = {}
     runnable = []
@@ -114,39 +183,47 @@ def cmd_run(args: argparse.Namespace) -> int:
         else:
             skipped[n] = why
             print(f"skipping {n}: {why}")
-    needs = set().union(*(instances[n].needs for n in runnable)) | {"reference"}
-    cache = datasets.Cache(args.cache, enabled=not args.no_cache)
-    frame = datasets.load(scene, spp=args.spp, res=args.res, needs=needs, seed=args.seed,
-                          transform=args.transform, lam=args.lam, ref_spp=args.ref_spp,
-                          cache=cache, progress=not args.quiet, frames=args.frames,
-                          bins=args.bins)
-    is_sequence = frame.kind == "sequence"
     out = Path(args.out) if args.out else Path("results/runs") / (
         f"{scene.name}_{args.spp}spp_{args.res}px_"
         f"{_dt.datetime.now().strftime('%Y%m%d-%H%M%S')}")
-    out.mkdir(parents=True, exist_ok=True)
+    cache = _writable_cache(args)
+    ensure_writable_dir(out, "--out")
+    needs = set().union(*(instances[n].needs for n in runnable)) | {"reference", "emitter"}
+    frames = [datasets.load(scene, spp=args.spp, res=args.res, needs=needs, seed=args.seed + k,
+                            ref_seed=args.seed, transform=args.transform, lam=args.lam,
+                            ref_spp=args.ref_spp, cache=cache, progress=not args.quiet,
+                            frames=args.frames, bins=args.bins)
+              for k in range(args.seeds)]
+    frame = frames[0]
+    is_sequence = frame.kind == "sequence"
 
-    rows, outputs = [], []
+    rows, per_seed, outputs = [], [], []
     for n in runnable:
         if not args.quiet:
-            print(f"running {n} ...", flush=True)
+            print(f"running {labels[n]} ...", flush=True)
         if is_sequence:
-            res = harness.run_sequence_cell(instances[n], frame)
+            res = harness.run_sequence_cell(instances[n], frames)
         else:
-            res = harness.run_cell(instances[n], frame, repeats=args.repeats)
+            res = harness.run_cell(instances[n], frames, repeats=args.repeats)
         if res.skipped:
             skipped[n] = res.skipped
             continue
-        rows.append({"scene": scene.name, "method": n, "spp": args.spp, "res": args.res,
-                     **res.metrics, "time_s": res.time_s, "n_nonfinite": res.n_nonfinite,
+        record = cell_record(res, frames, set(instances[n].needs))
+        rows.append({"scene": scene.name, "method": labels[n], "base_method": n,
+                     "spp": args.spp, "res": args.res, **record,
                      "params": json.dumps(res.params, sort_keys=True, default=str)})
-        outputs.append((n, res.sequence if is_sequence else res.output))
-        write_exr(out / "images" / f"{n}.exr", {"color": res.output})
+        per_seed += [{"scene": scene.name, "method": labels[n], "spp": args.spp, **r}
+                     for r in res.per_seed]
+        outputs.append((labels[n], res.sequence if is_sequence else res.output))
+        write_exr(out / "images" / f"{identity.file_stem(labels[n])}.exr", {"color": res.output})
     last = frame[len(frame) - 1] if is_sequence else frame
     write_exr(out / "images" / "reference.exr", {"color": last.reference})
 
     table = pd.DataFrame(rows)
-    report.write_csv(out / "metrics.csv", table)
+    csv_table = table.drop(columns=[c for c in ("seeds", "times_s", "per_seed")
+                                    if c in table.columns])
+    report.write_csv(out / "metrics.csv", csv_table)
+    report.write_csv(out / "metrics_per_seed.csv", pd.DataFrame(per_seed))
     if is_sequence:
         from .bench.sequence import plot_errors, strip
         runs = dict(outputs)
@@ -155,7 +232,8 @@ def cmd_run(args: argparse.Namespace) -> int:
                     events=frame.meta.get("events"))
         strip(frame, runs, out / "comparison.png", title=title)
         for n, run in runs.items():
-            report.write_csv(out / f"per_frame_{n}.csv", pd.DataFrame(run.per_frame))
+            report.write_csv(out / f"per_frame_{identity.file_stem(n)}.csv",
+                             pd.DataFrame(run.per_frame))
     elif frame.kind == "transient":
         from .bench.transient import write_figures
         write_figures(out, frame, dict(outputs), title=f"{scene.name}, {args.spp} spp")
@@ -163,11 +241,13 @@ def cmd_run(args: argparse.Namespace) -> int:
         report.comparison_grid(out / "comparison.png", outputs, frame.reference, ev=scene.ev,
                                title=f"{scene.name}, {args.spp} spp, {args.res} px")
     info = harness.machine_info()
+    seeds = [args.seed + k for k in range(args.seeds)]
     settings = {"scene": scene.name, "kind": scene.kind, "spp": args.spp, "res": args.res,
-                "seed": args.seed,
+                "seeds": ", ".join(map(str, seeds)),
                 "ref_spp": frame.meta.get("ref_spp"),
-                "repeats": (f"1 per frame; metrics and time over frames ≥ {WARMUP} of "
-                            f"{len(frame)}" if is_sequence else args.repeats),
+                "reference seed": frame.meta.get("ref_seed"),
+                "reference RMSE (estimated)": frame.meta.get("ref_rmse"),
+                "repeats": (_sequence_window(len(frame)) if is_sequence else args.repeats),
                 "transform": (f"{frame.stats.transform} (λ = {frame.stats.lam})"
                               if getattr(frame, "stats", None) is not None else "n/a"),
                 "variant": frame.meta["versions"]["variant"],
@@ -175,10 +255,12 @@ def cmd_run(args: argparse.Namespace) -> int:
                 "cache hits": _summarise_parts(frame.meta["cache_hits"]) or "none",
                 "rendered": _summarise_parts(frame.meta["rendered"]) or "nothing",
                 "method parameters": "; ".join(f"{r['method']}: {r['params']}" for r in rows)}
-    write_text(out / "report.md", report.run_report_md(table, settings, info, skipped))
+    write_text(out / "report.md", report.run_report_md(table, settings, info, skipped,
+                                                       rank_by=args.rank_by))
     write_json(out / "run.json", {"settings": settings, "machine": info, "skipped": skipped})
     print()
-    print(report.markdown_table(table[[c for c in report.RUN_COLUMNS if c in table.columns]]))
+    shown = [c for c in report.RUN_COLUMNS if c in table.columns]
+    print(report.markdown_table(table[shown]))
     print(f"\nreport: {out / 'report.md'}")
     return 0
 
@@ -202,6 +284,9 @@ def cmd_bench(args: argparse.Namespace) -> int:
     if args.what == "render":
         result = speed.bench_render(scene=args.scene, res=args.res, spp=args.spp,
                                     repeats=args.repeats)
+    elif args.what == "metrics":
+        result = speed.bench_metrics(height=args.height, width=args.width,
+                                     repeats=args.repeats)
     else:
         result = speed.bench_method(args.what, height=args.height, width=args.width,
                                     repeats=args.repeats)
@@ -215,13 +300,16 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     from .bench import sweep
 
     methods_, scenes_ = sweep.resolve_names(args.methods, args.scenes)
+    _check_common(args)
     params = parse_params(args.param or [], methods_)
     config = sweep.SweepConfig(methods=methods_, scenes=scenes_,
-                               spp=[int(s) for s in _split(args.spp)], res=args.res,
-                               ref_spp=args.ref_spp, seed=args.seed, repeats=args.repeats,
+                               spp=_ints(args.spp, "--spp"), res=args.res,
+                               ref_spp=args.ref_spp, seed=args.seed, seeds=args.seeds,
+                               repeats=args.repeats, rerun=args.rerun,
                                transform=args.transform, lam=args.lam, frames=args.frames,
                                bins=args.bins,
                                params={k: v for k, v in params.items() if v}, cache=args.cache)
+    _writable_cache(args)
     counts = sweep.run_sweep(config, args.out, executor=args.executor, workers=args.workers,
                              progress=not args.quiet)
     print(f"sweep {args.out}: {counts['computed']} cells computed, "
@@ -234,12 +322,21 @@ def cmd_stress(args: argparse.Namespace) -> int:
     from .bench import stress
     from .io import write_text
 
+    from . import methods
+    from .io import ensure_writable_dir
+
     names = _split(args.methods) if args.methods != "all" else None
+    for n in names or []:
+        methods.method_class(n)
+    out = Path(args.out)
+    if out.is_dir() or args.out.endswith("/"):
+        out = out / "stress.md"  # a folder: the matrix goes into it
+    ensure_writable_dir(out.parent, "--out")
     results = stress.run_all(names, progress=not args.quiet)
     text = stress.stress_markdown(results)
-    write_text(args.out, text)
+    write_text(out, text)
     print("\n".join(text.splitlines()[:3 + len(results) + 4]))
-    print(f"written: {args.out}")
+    print(f"written: {out}")
     failed = sum(o.status == "fail" for r in results.values() for o in r.values())
     return 0 if failed == 0 else 1
 
@@ -247,7 +344,20 @@ def cmd_stress(args: argparse.Namespace) -> int:
 def cmd_report(args: argparse.Namespace) -> int:
     from .bench import publish
 
-    out = publish.publish(args.results, args.sweep)
+    if args.rank_by not in RANKABLE:
+        raise DbenchInputError(f"--rank-by: {args.rank_by!r}; valid: {', '.join(RANKABLE)}")
+    results = Path(args.results)
+    if not results.is_dir():
+        raise DbenchInputError(f"--results {results}: no such folder")
+    sweep_dir = Path(args.sweep) if args.sweep else results / "sweep"
+    if not (sweep_dir / "sweep.json").is_file():
+        raise DbenchInputError(f"--sweep {sweep_dir}: not a sweep folder (no sweep.json)")
+    try:
+        sweep_dir.resolve().relative_to(results.resolve())
+    except ValueError:
+        raise DbenchInputError(f"--sweep {sweep_dir}: must lie inside --results {results} "
+                               "(the report links to it)") from None
+    out = publish.publish(results, sweep_dir, rank_by=args.rank_by)
     print(f"written: {out}")
     return 0
 
@@ -288,6 +398,14 @@ def build_parser() -> argparse.ArgumentParser:
         sp.add_argument("--ref-spp", type=int, default=None,
                         help="reference spp (default $DBENCH_REF_SPP or 4096)")
 
+    def judged(sp: argparse.ArgumentParser) -> None:
+        sp.add_argument("--seeds", type=int, default=1, help="independent noisy renders "
+                        "(seeds --seed ... --seed+N-1) scored against one reference; metrics "
+                        "are their mean with a 95 %% Student-t interval (one seed: a block "
+                        "bootstrap interval)")
+        sp.add_argument("--rank-by", default="relmse", help="metric that ranks the methods "
+                        "(default relmse, the convention for HDR renders)")
+
     r = sub.add_parser("run", help="run methods on one scene and write a report")
     r.add_argument("--method", required=True, help="NAME[,NAME...] or all (those that do not "
                    "apply to the scene are skipped with the reason)")
@@ -306,6 +424,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "(default the scene's)")
     r.add_argument("--quiet", action="store_true")
     common(r)
+    judged(r)
     r.set_defaults(func=cmd_run)
 
     lp = sub.add_parser("list", help="list scenes and methods")
@@ -337,7 +456,11 @@ def build_parser() -> argparse.ArgumentParser:
     sw.add_argument("--bins", type=int, default=None, help="transient scenes: time bins "
                     "(default the scene's)")
     sw.add_argument("--quiet", action="store_true")
+    sw.add_argument("--rerun", action="store_true", help="recompute finished cells whose "
+                    "identity (settings, parameters, code, reference) changed instead of "
+                    "refusing the sweep")
     common(sw)
+    judged(sw)
     sw.set_defaults(func=cmd_sweep)
 
     st = sub.add_parser("stress", help="every method against adversarial inputs")
@@ -349,10 +472,12 @@ def build_parser() -> argparse.ArgumentParser:
     rp2 = sub.add_parser("report", help="rebuild results/README.md from result files")
     rp2.add_argument("--results", default="results")
     rp2.add_argument("--sweep", default=None, help="sweep folder (default results/sweep)")
+    rp2.add_argument("--rank-by", default="relmse", help="metric that ranks the methods")
     rp2.set_defaults(func=cmd_report)
 
     bp = sub.add_parser("bench", help="speed benchmarks with ratios measured in the same run")
-    bp.add_argument("what", help="'render' (statistics cost) or a method name")
+    bp.add_argument("what", help="'render' (statistics cost), 'metrics' (the judge against "
+                    "the plain metrics) or a method name")
     bp.add_argument("--scene", default="cornell")
     bp.add_argument("--res", type=int, default=256)
     bp.add_argument("--spp", type=int, default=64)
@@ -383,6 +508,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
+    parser.add_argument("--debug", action="store_true", help="show tracebacks (for bug reports)")
+    argv = list(sys.argv[1:] if argv is None else argv)
+    debug = "--debug" in argv
+    argv = [a for a in argv if a != "--debug"]
     args = parser.parse_args(argv)
     try:
         return args.func(args)
@@ -395,6 +524,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     except RendererUnavailableError as exc:
         print(f"dbench: {exc}", file=sys.stderr)
         return 3
+    except KeyboardInterrupt:
+        print("dbench: interrupted", file=sys.stderr)
+        return 130
+    except Exception as exc:  # noqa: BLE001 - one line, not a traceback (--debug shows it)
+        if debug:
+            raise
+        print(f"dbench: internal error: {type(exc).__name__}: {exc} (run again with --debug "
+              "for the traceback)", file=sys.stderr)
+        return 1
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -34,10 +34,35 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
     tmp_path = Path(tmp)
     try:
         yield tmp_path
+        # mkstemp creates 0600; a result file gets the mode the umask gives any new file.
+        os.chmod(tmp_path, 0o666 & ~_umask())
         os.replace(tmp_path, path)
     finally:
         if tmp_path.exists():
             tmp_path.unlink()
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+def ensure_writable_dir(path: str | os.PathLike, what: str) -> Path:
+    """Create folder ``path`` (and parents) and check that files can be written in it; a
+    DbenchInputError naming ``what`` otherwise (before any work is done)."""
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise DbenchInputError(f"{what} {path}: exists and is not a folder")
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+        fd, probe = tempfile.mkstemp(prefix=".write-probe-", dir=path)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        raise DbenchInputError(f"{what} {path}: cannot write there ({exc.strerror or exc})") \
+            from None
+    return path
 
 
 def write_text(path: str | os.PathLike, text: str) -> None:

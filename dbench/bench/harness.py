@@ -10,11 +10,11 @@ import platform
 import statistics
 import time
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Sequence
 
 import numpy as np
 
-from .. import metrics
+from ..metrics import judge
 from ..errors import DbenchInputError
 from ..registry import Denoiser
 
@@ -23,7 +23,13 @@ DEFAULT_METRICS = ("rmse", "relmse", "smape", "psnr", "ssim", "flip")
 
 @dataclass
 class CellResult:
-    """Outcome of one (method, dataset) cell."""
+    """Outcome of one (method, dataset) cell, over one or several seeds.
+
+    ``metrics`` holds, for every judged column (:func:`dbench.metrics.judge.metric_names`), the
+    mean over seeds and ``<column>_ci``, the half-width of its 95 % interval (Student t over
+    seeds, or a block bootstrap with one seed: ``ci_kind`` says which), plus ``ref_rmse``.
+    ``per_seed`` holds one row of values per seed; ``output`` is the first seed's output.
+    """
 
     method: str
     params: dict[str, Any]
@@ -32,11 +38,25 @@ class CellResult:
     times_s: list[float] = field(default_factory=list)
     skipped: str = ""
     n_nonfinite: int = 0
-    sequence: Any = None  # the SequenceResult of a sequence cell (per-frame rows, outputs)
+    sequence: Any = None  # the SequenceResult of a sequence cell (first seed)
+    per_seed: list[dict[str, Any]] = field(default_factory=list)
+    ci_kind: str = ""
 
     @property
     def time_s(self) -> float:
         return statistics.median(self.times_s) if self.times_s else float("nan")
+
+    @property
+    def time_s_iqr(self) -> float:
+        """Interquartile range of the timed calls (0 with one call)."""
+        if not self.times_s:
+            return float("nan")
+        q1, q3 = np.percentile(self.times_s, [25, 75])
+        return float(q3 - q1)
+
+    @property
+    def n_seeds(self) -> int:
+        return max(1, len(self.per_seed))
 
 
 def time_call(fn, repeats: int = 5, warmup: int = 1) -> tuple[Any, list[float]]:
@@ -52,59 +72,113 @@ def time_call(fn, repeats: int = 5, warmup: int = 1) -> tuple[Any, list[float]]:
     return result, times
 
 
+def judge_frame(output: np.ndarray, frame, names: Sequence[str] = DEFAULT_METRICS):
+    """:func:`dbench.metrics.judge.judge` of ``output`` against ``frame``'s reference, surface
+    (emitter fraction 0) and reference variance, when the frame carries them."""
+    return judge.judge(output, frame.reference, emitter=getattr(frame, "emitter", None),
+                       reference_var=getattr(frame, "reference_var", None),
+                       ev=frame.meta.get("ev", 0.0),
+                       names=[n for n in names if n in judge.JUDGED])
+
+
+def summarise_seeds(per_seed: list[dict[str, Any]], judgements: list[list],
+                    columns: Sequence[str]) -> tuple[dict[str, float], str]:
+    """(metrics with ``_ci``, ci_kind): Student t over seeds, or with one seed the block
+    bootstrap of its judgements (a list of per-frame Judgements for that seed)."""
+    if len(per_seed) >= 2:
+        out = judge.interval_over_seeds(per_seed, columns)
+    else:
+        out = {c: per_seed[0].get(c, float("nan")) for c in columns}
+        out.update(judge.bootstrap_interval(judgements[0], columns))
+    out["ref_rmse"] = per_seed[0].get("ref_rmse", float("nan"))
+    return out, judge.ci_kind(len(per_seed))
+
+
+def _as_list(frames) -> list:
+    return list(frames) if isinstance(frames, (list, tuple)) else [frames]
+
+
 def run_cell(method: Denoiser, frame, metric_names=DEFAULT_METRICS, repeats: int = 5,
              warmup: int = 1) -> CellResult:
-    """Run ``method`` on ``frame``; skip with a reason when it does not apply."""
+    """Run ``method`` on ``frame`` (or a list of frames, one per seed, sharing one reference);
+    skip with a reason when it does not apply.
+
+    Each seed is timed alone (``warmup`` calls, then ``repeats``); ``times_s`` pools the timed
+    calls of every seed. Metrics: see :class:`CellResult`.
+    """
+    frames = _as_list(frame)
+    first = frames[0]
     available = {b for b in ("color", "albedo", "normal", "depth", "position", "stats",
-                             "reference") if getattr(frame, b, None) is not None}
-    ok, reason = method.applies_to(getattr(frame, "kind", "steady"), available)
+                             "reference", "emitter") if getattr(first, b, None) is not None}
+    ok, reason = method.applies_to(getattr(first, "kind", "steady"), available)
     if not ok:
         return CellResult(method.name, dict(method.params), None, skipped=reason)
+    columns = judge.metric_names([n for n in metric_names if n in judge.JUDGED])
+    result = CellResult(method.name, dict(method.params), None)
+    judgements = []
+    for i, f in enumerate(frames):
+        def call(f=f):
+            method.reset()
+            return method.denoise(f)
 
-    def call():
-        method.reset()
-        return method.denoise(frame)
-
-    output, times = time_call(call, repeats=repeats, warmup=warmup)
-    output = np.asarray(output)
-    if output.shape != frame.color.shape:
-        raise DbenchInputError(f"{method.name} output: expected shape {frame.color.shape}, "
-                               f"got {output.shape}")
-    result = CellResult(method.name, dict(method.params), output.astype(np.float32),
-                        times_s=times, n_nonfinite=int((~np.isfinite(output)).sum()))
-    if frame.reference is not None:
-        result.metrics = metrics.compute_all(output, frame.reference, names=list(metric_names),
-                                             ev=frame.meta.get("ev", 0.0))
+        output, times = time_call(call, repeats=repeats, warmup=warmup)
+        output = np.asarray(output)
+        if output.shape != f.color.shape:
+            raise DbenchInputError(f"{method.name} output: expected shape {f.color.shape}, "
+                                   f"got {output.shape}")
+        result.times_s += times
+        result.n_nonfinite += int((~np.isfinite(output)).sum())
+        if result.output is None:
+            result.output = output.astype(np.float32)
+        if f.reference is not None:
+            j = judge_frame(output, f, metric_names)
+            judgements.append([j])
+            result.per_seed.append({"seed": f.meta.get("seed", i), **j.values})
+    if result.per_seed:
+        result.metrics, result.ci_kind = summarise_seeds(result.per_seed, judgements, columns)
     return result
 
 
 def run_sequence_cell(method: Denoiser, seq, metric_names=DEFAULT_METRICS,
                       warmup: int | None = None) -> CellResult:
-    """Run a temporal ``method`` over a :class:`~dbench.data.Sequence` (``reset()`` once, then
-    every frame in order) and summarise it as one cell.
+    """Run a temporal ``method`` over a :class:`~dbench.data.Sequence` (or a list of them, one
+    per seed): ``reset()`` once, then every frame in order, and summarise it as one cell.
 
     A recurrent method cannot be re-run on a frame, so each frame is timed once:
     ``times_s`` are the per-frame times after the warm-up (``time_s`` is their median) and the
     metrics are means over those frames (dbench.bench.sequence, spec/temporal.md §8), plus the
-    temporal stability ``t_rmse`` and ``tpsnr``. ``output`` is the last frame's output.
+    temporal stability ``t_rmse`` and ``tpsnr``; intervals as in :func:`run_cell` (the
+    bootstrap resamples the same pixel blocks in every frame). ``output`` is the last frame's
+    output of the first seed.
     """
     from ..data import FRAME_BUFFERS
     from .sequence import WARMUP, run_sequence
 
     warmup = WARMUP if warmup is None else int(warmup)
-    available = {b for b in FRAME_BUFFERS if seq.has(b)}
+    seqs = _as_list(seq)
+    available = {b for b in FRAME_BUFFERS if seqs[0].has(b)}
     ok, reason = method.applies_to("sequence", available)
     if not ok:
         return CellResult(method.name, dict(method.params), None, skipped=reason)
-    names = list(metric_names)
-    run = run_sequence(method, seq, metric_names=names, warmup=warmup, keep_outputs=True)
-    after = run.per_frame[warmup:] if len(run.per_frame) > warmup else run.per_frame
-    scores = {n: run.summary[f"mean_{n}"] for n in names}
-    scores.update({k: run.summary[k] for k in ("t_rmse", "tpsnr") if k in run.summary})
-    return CellResult(method.name, dict(method.params), run.outputs[-1], metrics=scores,
-                      times_s=[r["time_s"] for r in after],
-                      n_nonfinite=int(sum((~np.isfinite(o)).sum() for o in run.outputs)),
-                      sequence=run)
+    names = [n for n in metric_names if n in judge.JUDGED]
+    columns = judge.metric_names(names) + ["t_rmse", "tpsnr"]
+    result = CellResult(method.name, dict(method.params), None)
+    judgements = []
+    for i, s in enumerate(seqs):
+        run = run_sequence(method, s, metric_names=names, warmup=warmup, keep_outputs=True)
+        after = run.per_frame[warmup:] if len(run.per_frame) > warmup else run.per_frame
+        result.times_s += [r["time_s"] for r in after]
+        result.n_nonfinite += int(sum((~np.isfinite(o)).sum() for o in run.outputs))
+        if result.sequence is None:
+            result.sequence, result.output = run, run.outputs[-1]
+        row = {"seed": s.meta.get("seed", i)}
+        row.update({c: run.summary.get(f"mean_{c}", run.summary.get(c, float("nan")))
+                    for c in columns + ["ref_rmse"]})
+        result.per_seed.append(row)
+        judgements.append(run.judgements)
+    if any(result.per_seed[0].get(c) == result.per_seed[0].get(c) for c in names):
+        result.metrics, result.ci_kind = summarise_seeds(result.per_seed, judgements, columns)
+    return result
 
 
 def machine_info() -> dict[str, Any]:

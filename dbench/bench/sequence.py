@@ -19,8 +19,8 @@ Example:
     >>> from dbench.bench.sequence import synthetic_sequence, run_sequence
     >>> seq = synthetic_sequence(16, 24, frames=10)
     >>> res = run_sequence("accumulate", seq)
-    >>> sorted(k for k in res.summary if k.startswith("mean_")), len(res.per_frame)
-    (['mean_rmse', 'mean_ssim'], 10)
+    >>> {"mean_rmse", "mean_ssim", "mean_rmse_surface"} <= set(res.summary), len(res.per_frame)
+    (True, 10)
 """
 from __future__ import annotations
 
@@ -58,6 +58,8 @@ class SequenceResult:
     per_frame: list[dict[str, float]]
     summary: dict[str, float] = field(default_factory=dict)
     outputs: list[np.ndarray] | None = None
+    #: the judgements of the frames after the warm-up (intervals resample their pixel blocks)
+    judgements: list[Any] = field(default_factory=list)
 
     def series(self, metric: str) -> np.ndarray:
         return np.array([r.get(metric, np.nan) for r in self.per_frame], np.float64)
@@ -114,8 +116,10 @@ def run_sequence(method, seq: Sequence, metric_names: Iterable[str] = SEQUENCE_M
         raise DbenchInputError(f"{m.name}: cannot run on this sequence: {why}")
     names = list(metric_names)
     ev = seq.meta.get("ev", seq[0].meta.get("ev", 0.0))
+    from .harness import judge_frame
+
     m.reset()
-    rows, outs = [], []
+    rows, outs, judgements = [], [], []
     for i, frame in enumerate(seq):
         t0 = time.perf_counter()
         out = m.denoise(frame)
@@ -126,13 +130,18 @@ def run_sequence(method, seq: Sequence, metric_names: Iterable[str] = SEQUENCE_M
                                    f"got {out.shape}")
         row: dict[str, float] = {"frame": i, "time_s": dt}
         if frame.reference is not None:
-            row.update(metrics.compute_all(out, frame.reference, names=names, ev=ev))
+            j = judge_frame(out, frame, names)
+            row.update(j.values)
+            judgements.append(j)
         rows.append(row)
         outs.append(out.astype(np.float32))
-    res = SequenceResult(m.name, dict(m.params), rows, outputs=outs if keep_outputs else None)
+    res = SequenceResult(m.name, dict(m.params), rows, outputs=outs if keep_outputs else None,
+                         judgements=judgements[warmup:] if len(judgements) > warmup
+                         else judgements)
     after = rows[warmup:] if len(rows) > warmup else rows
     summary: dict[str, float] = {"warmup": int(warmup), "frames": len(rows)}
-    for name in names:
+    scored = [k for k in (rows[0] if rows else {}) if k not in ("frame", "time_s")]
+    for name in dict.fromkeys(list(names) + scored):
         vals = [r[name] for r in after if name in r]
         summary[f"mean_{name}"] = float(np.mean(vals)) if vals else float("nan")
     summary["median_time_s"] = float(statistics.median(r["time_s"] for r in after))

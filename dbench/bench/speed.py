@@ -4,6 +4,9 @@
   render of the same spp, and the sample passes without statistics.
 * ``bench_method``: a method on a synthetic frame of a given size, against OIDN in the same run;
   a method package with a ``bench.benchmark()`` adds its fast-path-versus-reference figures.
+* ``bench_metrics``: the judge (whole-image and surface metrics, top1_share, unbiased figures,
+  and with one seed the block bootstrap) against the plain metrics it replaces
+  (``metrics.compute_all`` of rmse, relmse, smape, psnr, ssim, flip) on the same image.
 """
 from __future__ import annotations
 
@@ -83,7 +86,38 @@ def bench_method(name: str, height: int = 720, width: int = 1280, repeats: int =
     return result
 
 
+def bench_metrics(height: int = 256, width: int = 256, repeats: int = 5) -> dict[str, Any]:
+    """Metric time of one output, old (plain metrics) against new (the judge), same run."""
+    from .. import metrics
+    from ..metrics import judge
+
+    rng = np.random.default_rng(0)
+    ref = rng.gamma(2.0, 0.3, (height, width, 3))
+    out = ref + rng.normal(0.0, 0.05, ref.shape)
+    emitter = np.zeros((height, width, 1))
+    emitter[: height // 8, : width // 8] = 1.0
+    var = np.full(ref.shape, 1e-4)
+    names = list(judge.JUDGED)
+    plain = median_time(lambda: metrics.compute_all(out, ref, names=names), repeats)
+    judged = median_time(lambda: judge.judge(out, ref, emitter=emitter, reference_var=var),
+                         repeats)
+    j = judge.judge(out, ref, emitter=emitter, reference_var=var)
+    boot = median_time(lambda: judge.bootstrap_interval([j], judge.metric_names()), repeats)
+    return {"benchmark": "metrics", "height": height, "width": width, "plain_s": plain,
+            "judge_s": judged, "bootstrap_s": boot,
+            "ratio_judge_vs_plain": judged / plain,
+            "ratio_judge_bootstrap_vs_plain": (judged + boot) / plain,
+            "machine": machine_info()["cpu"], "when": time.strftime("%Y-%m-%d %H:%M:%S")}
+
+
 def format_result(result: dict[str, Any]) -> str:
+    if result["benchmark"] == "metrics":
+        return (f"metric benchmark at {result['width']}x{result['height']}:\n"
+                f"  plain metrics (6)            {result['plain_s'] * 1e3:.1f} ms\n"
+                f"  judge (+ surface, top1, unbiased) {result['judge_s'] * 1e3:.1f} ms "
+                f"({result['ratio_judge_vs_plain']:.2f}x plain)\n"
+                f"  judge + one-seed bootstrap   {(result['judge_s'] + result['bootstrap_s']) * 1e3:.1f} ms "
+                f"({result['ratio_judge_bootstrap_vs_plain']:.2f}x plain)")
     if result["benchmark"] == "render":
         return (f"render benchmark: {result['scene']} {result['res']}² at {result['spp']} spp "
                 f"({result['copies_per_call']} samples per pixel per call)\n"

@@ -16,6 +16,7 @@ dispatched, so parallel workers never render the same reference twice.
 from __future__ import annotations
 
 import json
+import time
 import traceback
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field
@@ -23,10 +24,16 @@ from pathlib import Path
 from typing import Any, Iterable, Sequence
 
 from .. import io
+from ..data import check_count
+from ..errors import DbenchInputError
+from . import identity
 
 DEFAULT_SPP = (4, 16, 64, 256, 1024)
 #: Settings every cell of one sweep folder shares; methods, scenes and spp may be extended.
-SETTINGS = ("res", "ref_spp", "seed", "repeats", "transform", "lam", "metrics", "frames", "bins")
+SETTINGS = ("res", "ref_spp", "seed", "seeds", "repeats", "transform", "lam", "metrics",
+            "frames", "bins")
+#: Numbers an "ok" cell must carry as numbers (or null) to be read.
+NUMERIC_KEYS = ("spp", "rmse", "relmse", "time_s")
 
 
 @dataclass
@@ -39,6 +46,9 @@ class SweepConfig:
     res: int = 128
     ref_spp: int | None = None
     seed: int = 0
+    #: independent noisy renders per cell (seeds ``seed`` … ``seed + seeds − 1``), all scored
+    #: against one reference rendered with ``seed``.
+    seeds: int = 1
     repeats: int = 5
     #: None: each kind's default (Box-Cox for steady scenes, identity for transient ones).
     transform: str | None = None
@@ -51,17 +61,97 @@ class SweepConfig:
     cache: str | None = None
     metrics: list[str] = field(default_factory=lambda: ["rmse", "relmse", "smape", "psnr",
                                                         "ssim", "flip"])
+    #: recompute cells whose identity changed (otherwise such a sweep is refused)
+    rerun: bool = False
+
+    def validate(self) -> None:
+        """Every setting checked before anything is written or rendered (DbenchInputError)."""
+        for name, value in (("--res", self.res), ("--seeds", self.seeds),
+                            ("--repeats", self.repeats)):
+            check_count(name, value)
+        for value in self.spp:
+            check_count("--spp", value)
+        if not self.spp:
+            raise DbenchInputError("--spp: expected a comma list of integers >= 1, got none")
+        if self.ref_spp is not None:
+            check_count("--ref-spp", self.ref_spp)
+        for name, value in (("--frames", self.frames), ("--bins", self.bins)):
+            if value is not None:
+                check_count(name, value)
+        if self.res > MAX_RES:
+            raise DbenchInputError(f"--res: {self.res} is above the largest supported image "
+                                   f"side {MAX_RES}")
+
+    @property
+    def seed_list(self) -> list[int]:
+        return [self.seed + k for k in range(self.seeds)]
+
+    def labels(self) -> dict[str, str]:
+        """{method name: label} (``jbf`` or ``jbf[radius=3]``)."""
+        return {m: identity.label(m, self.params.get(m)) for m in self.methods}
 
 
-def cell_path(out: Path, scene: str, spp: int, method: str) -> Path:
-    return out / "cells" / scene / f"{spp:05d}spp" / f"{method}.json"
+#: Largest image side a sweep or run accepts (a 4096² float64 statistics buffer is ~1.2 GB).
+MAX_RES = 4096
+
+
+def cell_path(out: Path, scene: str, spp: int, label: str) -> Path:
+    return out / "cells" / scene / f"{spp:05d}spp" / f"{identity.file_stem(label)}.json"
 
 
 def read_cell(path: Path) -> dict | None:
     try:
-        return io.read_json(path)
+        value = io.read_json(path)
     except (OSError, ValueError):
         return None
+    return value if isinstance(value, dict) else None
+
+
+def cell_problem(cell: Any) -> str:
+    """Why a cell file cannot be used ('' when it can)."""
+    if not isinstance(cell, dict):
+        return f"not a JSON object ({type(cell).__name__})"
+    if cell.get("status") not in ("ok", "skipped", "error"):
+        return f"status {cell.get('status')!r} is not ok, skipped or error"
+    for key in ("scene", "method"):
+        if not isinstance(cell.get(key), str):
+            return f"{key} missing or not a string"
+    if cell["status"] == "ok":
+        for key in NUMERIC_KEYS:
+            v = cell.get(key)
+            if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float))):
+                return f"{key} is {v!r}, not a number"
+        if not isinstance(cell.get("spp"), int):
+            return "spp missing or not an integer"
+    return ""
+
+
+def load_cells_checked(out: str | Path) -> tuple[list[dict], list[str]]:
+    """(cells, problems): every readable cell file of a sweep folder, sorted by scene, spp,
+    method, and one line per file that could not be used. Temporary files of an interrupted
+    write (names starting with a dot) are not cells."""
+    cells, problems = [], []
+    root = Path(out)
+    for p in sorted(root.glob("cells/*/*/*.json")):
+        if p.name.startswith("."):
+            continue
+        try:
+            cell = io.read_json(p)
+        except (OSError, ValueError) as exc:
+            problems.append(f"{p.relative_to(root).as_posix()}: unreadable ({type(exc).__name__})")
+            continue
+        why = cell_problem(cell)
+        if why:
+            problems.append(f"{p.relative_to(root).as_posix()}: {why}")
+            continue
+        cells.append(cell)
+    cells.sort(key=lambda c: (c["scene"], c.get("spp") or 0, c["method"]))
+    return cells, problems
+
+
+def load_cells(out: str | Path) -> list[dict]:
+    """Every usable cell file of a sweep folder, sorted by scene, spp, method."""
+    return load_cells_checked(out)[0]
 
 
 def resolve_names(methods: str | Sequence[str], scenes: str | Sequence[str]
@@ -84,81 +174,162 @@ def resolve_names(methods: str | Sequence[str], scenes: str | Sequence[str]
     return m, s
 
 
+def resolved_ref_spp(config: SweepConfig, scene, spp: int) -> int:
+    """The reference spp a cell will use (the kind's rule for a missing --ref-spp)."""
+    from .. import datasets
+
+    if scene.kind == "transient":
+        from ..datasets import transient
+        return transient.reference_spp(spp, config.ref_spp)
+    return int(config.ref_spp or datasets.reference_spp())
+
+
+def cell_identity(config: SweepConfig, scene, spp: int, method: str, fingerprint: str
+                  ) -> dict[str, Any]:
+    """Everything that changes a cell's numbers (module docstring of bench/identity.py)."""
+    from .. import methods as registry
+
+    transform = config.transform or ("identity" if scene.kind == "transient" else "box-cox")
+    return {"scene": scene.name, "scene_fingerprint": fingerprint, "kind": scene.kind,
+            "res": config.res, "spp": int(spp), "seeds": config.seed_list,
+            "ref_spp": resolved_ref_spp(config, scene, spp), "ref_seed": config.seed,
+            "transform": transform, "lam": float(config.lam), "frames": config.frames,
+            "bins": config.bins, "metrics": list(config.metrics), "method": method,
+            "params": identity.resolved_params(method, config.params.get(method)),
+            "method_version": identity.method_version(registry.method_class(method)),
+            "judge_version": identity.judge_version()}
+
+
 def plan(config: SweepConfig, out: Path
          ) -> tuple[list[tuple[str, int, list[str]]], int, int]:
     """Groups still to compute: (scene, spp, [methods]); newly skipped cells are written here.
 
-    Returns the groups, the number of cells finished (or skipped) by an earlier run, and the
-    number of cells skipped now because the method does not apply to the scene.
+    Returns the groups, the number of cells finished (or skipped) by an earlier run with the
+    same identity, and the number of cells skipped now because the method does not apply.
+    Raises DbenchInputError, before anything is rendered, when a finished cell under the same
+    label was computed with another identity (changed defaults, code, reference spp...) and
+    ``config.rerun`` is false.
     """
-    from .. import methods as registry
+    from .. import datasets, methods as registry
     from ..datasets import scenes as catalogue
 
-    groups, done, skipped = [], 0, 0
+    labels = config.labels()
+    groups, done, skipped, conflicts = [], 0, 0, []
+    pending_skips = []
     for scene_name in config.scenes:
         scene = catalogue.get(scene_name)
+        fingerprint = datasets.scene_fingerprint(scene, config.res)
         for spp in config.spp:
             todo = []
             for m in config.methods:
-                path = cell_path(out, scene_name, spp, m)
+                path = cell_path(out, scene_name, spp, labels[m])
+                ident = cell_identity(config, scene, spp, m, fingerprint)
+                key = identity.digest(ident)
                 cell = read_cell(path)
-                if cell is not None and cell.get("status") in ("ok", "skipped"):
-                    done += 1
-                    continue
+                if cell is not None and not cell_problem(cell) and \
+                        cell.get("status") in ("ok", "skipped"):
+                    if cell.get("identity_hash") == key:
+                        done += 1
+                        continue
+                    if not config.rerun:
+                        diff = identity.differences(cell.get("identity") or {}, ident)
+                        conflicts.append(f"{path.relative_to(out).as_posix()} "
+                                         f"(differs in {', '.join(diff[:6]) or 'identity'})")
+                        continue
                 method = registry.get(m, **config.params.get(m, {}))
                 ok, why = method.applies_to(scene.kind, set(scene.provides))
                 if not ok:
-                    io.write_json(path, {"status": "skipped", "reason": why, "scene": scene_name,
-                                         "method": m, "spp": spp, "res": config.res})
+                    pending_skips.append((path, {
+                        "status": "skipped", "reason": why, "scene": scene_name,
+                        "method": labels[m], "base_method": m, "spp": spp, "res": config.res,
+                        "identity": ident, "identity_hash": key}))
                     skipped += 1
                     continue
                 todo.append(m)
             if todo:
                 groups.append((scene_name, spp, todo))
+    if conflicts:
+        raise DbenchInputError(
+            f"{len(conflicts)} finished cell(s) under the same label were computed with other "
+            f"settings or code: {'; '.join(conflicts[:3])}"
+            + (f" and {len(conflicts) - 3} more" if len(conflicts) > 3 else "")
+            + "; use --rerun to recompute them, or another --out")
+    for path, cell in pending_skips:
+        io.write_json(path, cell)
     return groups, done, skipped
+
+
+def _load_seeds(config: SweepConfig, scene_name: str, spp: int, needs: set[str], cache) -> list:
+    """One frame (or sequence) per seed; every seed shares the reference of ``config.seed``."""
+    from .. import datasets
+
+    return [datasets.load(scene_name, spp=spp, res=config.res, needs=needs, seed=s,
+                          ref_seed=config.seed, transform=config.transform, lam=config.lam,
+                          ref_spp=config.ref_spp, cache=cache, progress=False,
+                          frames=config.frames, bins=config.bins)
+            for s in config.seed_list]
+
+
+def cell_record(res, frames: list, needs: set[str]) -> dict[str, Any]:
+    """The numbers of one finished cell (shared by ``run`` and ``sweep``)."""
+    import statistics as st
+
+    def median_meta(key: str) -> float:
+        vals = [f.meta.get(key) for f in frames if f.meta.get(key) is not None]
+        return float(st.median(vals)) if vals else float("nan")
+
+    first = frames[0]
+    record = {"n_seeds": res.n_seeds, "seeds": [f.meta.get("seed") for f in frames],
+              "ci_kind": res.ci_kind, "ref_spp": first.meta.get("ref_spp"),
+              "ref_seed": first.meta.get("ref_seed"),
+              "ref_render_s": first.meta.get("ref_render_s"),
+              "render_s": median_meta("render_s"),
+              "stats_s": median_meta("stats_s") if "stats" in needs else 0.0,
+              **res.metrics, "time_s": res.time_s, "time_s_iqr": res.time_s_iqr,
+              "times_s": res.times_s, "n_nonfinite": res.n_nonfinite,
+              "per_seed": res.per_seed}
+    if first.kind == "sequence":
+        record.update(frames=len(first), warmup=res.sequence.summary["warmup"])
+    return record
 
 
 def run_group(config: SweepConfig, out: str, scene_name: str, spp: int,
               method_names: list[str]) -> list[str]:
-    """Load one frame and run the given methods on it, writing one cell file each."""
+    """Load one frame per seed and run the given methods on them, writing one cell file each."""
     from .. import datasets, methods as registry
+    from ..datasets import scenes as catalogue
     from .harness import run_cell, run_sequence_cell
 
     out_path = Path(out)
     cache = datasets.Cache(config.cache)
-    needs = {"reference"}
+    scene = catalogue.get(scene_name)
+    fingerprint = datasets.scene_fingerprint(scene, config.res)
+    labels = config.labels()
+    needs = {"reference", "emitter"}
     instances = {m: registry.get(m, **config.params.get(m, {})) for m in method_names}
     for inst in instances.values():
         needs |= set(inst.needs)
-    frame = datasets.load(scene_name, spp=spp, res=config.res, needs=needs, seed=config.seed,
-                          transform=config.transform, lam=config.lam, ref_spp=config.ref_spp,
-                          cache=cache, progress=False, frames=config.frames, bins=config.bins)
-    is_sequence = frame.kind == "sequence"
-    render_s = frame.meta.get("render_s")
-    if render_s is None:
-        render_s = float("nan")
+    frames = _load_seeds(config, scene_name, spp, needs, cache)
     written = []
     for m, inst in instances.items():
-        base = {"scene": scene_name, "method": m, "spp": spp, "res": config.res,
-                "params": inst.params, "render_s": render_s,
-                "stats_s": frame.meta.get("stats_s") if "stats" in inst.needs else 0.0,
-                "ref_spp": frame.meta.get("ref_spp")}
+        ident = cell_identity(config, scene, spp, m, fingerprint)
+        base = {"scene": scene_name, "method": labels[m], "base_method": m, "spp": spp,
+                "res": config.res, "params": ident["params"], "identity": ident,
+                "identity_hash": identity.digest(ident)}
         try:
-            if is_sequence:
-                res = run_sequence_cell(inst, frame, metric_names=config.metrics)
+            if frames[0].kind == "sequence":
+                res = run_sequence_cell(inst, frames, metric_names=config.metrics)
             else:
-                res = run_cell(inst, frame, metric_names=config.metrics, repeats=config.repeats)
+                res = run_cell(inst, frames, metric_names=config.metrics,
+                               repeats=config.repeats)
             if res.skipped:
                 cell = {**base, "status": "skipped", "reason": res.skipped}
             else:
-                cell = {**base, "status": "ok", **res.metrics, "time_s": res.time_s,
-                        "times_s": res.times_s, "n_nonfinite": res.n_nonfinite}
-                if is_sequence:
-                    cell.update(frames=len(frame), warmup=res.sequence.summary["warmup"])
+                cell = {**base, "status": "ok", **cell_record(res, frames, set(inst.needs))}
         except Exception as exc:  # noqa: BLE001 - one failing method must not stop the sweep
             cell = {**base, "status": "error", "error": f"{type(exc).__name__}: {exc}",
                     "traceback": traceback.format_exc(limit=5)}
-        io.write_json(cell_path(out_path, scene_name, spp, m), cell)
+        io.write_json(cell_path(out_path, scene_name, spp, labels[m]), cell)
         written.append(m)
     return written
 
@@ -169,41 +340,74 @@ def _prerender_references(config: SweepConfig, scenes: Iterable[str]) -> None:
     cache = datasets.Cache(config.cache)
     for s in scenes:
         datasets.load(s, spp=1, res=config.res, needs={"reference", "albedo"}, seed=config.seed,
-                      ref_spp=config.ref_spp, cache=cache, frames=config.frames,
-                      bins=config.bins)
+                      ref_seed=config.seed, ref_spp=config.ref_spp, cache=cache,
+                      frames=config.frames, bins=config.bins)
+
+
+def _die_with_parent() -> None:
+    """Worker initializer: the worker is killed when the sweep process dies (Linux
+    PR_SET_PDEATHSIG), so ``kill -9`` of a sweep never leaves workers behind."""
+    import signal
+    try:
+        import ctypes
+        libc = ctypes.CDLL("libc.so.6", use_errno=True)
+        libc.prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):  # pragma: no cover - not Linux
+        pass
+
+
+def stored_config(out: Path, config: SweepConfig) -> tuple[dict | None, dict]:
+    """(what to write to sweep.json or None, the stored record); refuses other settings."""
+    from .harness import machine_info
+
+    config_file = out / "sweep.json"
+    stored = read_cell(config_file) if config_file.exists() else None
+    new = _config_dict(config)
+    if stored is None:
+        return {"config": new, "machine": machine_info()}, {}
+    old = stored.get("config", {})
+    old.setdefault("seeds", 1)
+    differ = [k for k in SETTINGS if old.get(k) != new.get(k)]
+    if differ:
+        raise DbenchInputError(
+            f"--out {out}: holds a sweep with other settings ("
+            + ", ".join(f"{k}: {old.get(k)!r} there, {new.get(k)!r} now" for k in differ)
+            + "); use another --out or the same settings to resume or extend it")
+    # Extending a sweep with more methods, scenes, spp or parameter sets keeps every cell.
+    for key in ("methods", "scenes", "spp", "labels"):
+        new[key] = old.get(key, []) + [v for v in new[key] if v not in old.get(key, [])]
+    series = {**old.get("series", {}), **new["series"]}
+    new["series"] = series
+    new.pop("params", None)
+    if new != old:
+        return {**stored, "config": new}, stored
+    return None, stored
 
 
 def run_sweep(config: SweepConfig, out: str | Path, executor: str = "local", workers: int = 1,
               progress: bool = True) -> dict[str, int]:
-    """Run (or resume) a sweep; returns counts of computed, already finished and failed cells."""
+    """Run (or resume) a sweep; returns counts of computed, already finished and failed cells.
+
+    Every setting is validated and every finished cell's identity checked before anything is
+    written or rendered."""
     from tqdm.auto import tqdm
 
+    config.validate()
+    check_count("--workers", workers)
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    config_file = out / "sweep.json"
-    stored = read_cell(config_file)
-    new = _config_dict(config)
-    from .harness import machine_info
-    if stored is not None:
-        old = stored.get("config", {})
-        differ = [k for k in SETTINGS if old.get(k) != new.get(k)]
-        if differ:
-            raise ValueError(f"{out} holds a sweep with other settings ({', '.join(differ)}); "
-                             "use another --out or the same settings to resume or extend it")
-        # Extending a sweep with more methods, scenes or spp keeps every finished cell.
-        for key in ("methods", "scenes", "spp"):
-            new[key] = old.get(key, []) + [v for v in new[key] if v not in old.get(key, [])]
-        new["params"] = {**old.get("params", {}), **new["params"]}
-        if new != old:
-            io.write_json(config_file, {**stored, "config": new})
-    else:
-        io.write_json(config_file, {"config": new, "machine": machine_info()})
-
+    if out.exists() and not out.is_dir():
+        raise DbenchInputError(f"--out {out}: exists and is not a folder")
+    to_write, _ = stored_config(out, config)
+    io.ensure_writable_dir(out, "--out")
     groups, done, skipped = plan(config, out)
+    if to_write is not None:
+        io.write_json(out / "sweep.json", to_write)
     if not groups:
         return {"computed": 0, "skipped": skipped, "finished_before": done,
                 "errors": _count_errors(out)}
+    t_start = time.perf_counter()
     _prerender_references(config, sorted({g[0] for g in groups}))
+    t_refs = time.perf_counter() - t_start
     n_cells = sum(len(g[2]) for g in groups)
     bar = tqdm(total=n_cells, desc="sweep", unit="cell", disable=not progress)
     if executor == "ray":
@@ -217,7 +421,7 @@ def run_sweep(config: SweepConfig, out: str | Path, executor: str = "local", wor
             ready, pending = ray.wait(pending, num_returns=1)
             bar.update(len(ray.get(ready[0])))
     elif workers > 1:
-        with ProcessPoolExecutor(max_workers=workers) as pool:
+        with ProcessPoolExecutor(max_workers=workers, initializer=_die_with_parent) as pool:
             futures = [pool.submit(run_group, config, str(out), *g) for g in groups]
             for f in as_completed(futures):
                 bar.update(len(f.result()))
@@ -225,22 +429,31 @@ def run_sweep(config: SweepConfig, out: str | Path, executor: str = "local", wor
         for g in groups:
             bar.update(len(run_group(config, str(out), *g)))
     bar.close()
+    _record_run(out, {"cells": n_cells, "wall_s": round(time.perf_counter() - t_start, 1),
+                      "references_s": round(t_refs, 1), "workers": workers,
+                      "executor": executor})
     return {"computed": n_cells, "skipped": skipped, "finished_before": done,
             "errors": _count_errors(out)}
 
 
+def _record_run(out: Path, run: dict[str, Any]) -> None:
+    """Append one run's wall time (references included, and apart) to sweep.json."""
+    stored = read_cell(out / "sweep.json") or {}
+    stored.setdefault("runs", []).append(run)
+    io.write_json(out / "sweep.json", stored)
+
+
 def _count_errors(out: Path) -> int:
-    return sum(1 for p in (out / "cells").rglob("*.json")
-               if (read_cell(p) or {}).get("status") == "error")
+    return sum(1 for c in load_cells(out) if c.get("status") == "error")
 
 
 def _config_dict(config: SweepConfig) -> dict:
     d = dict(config.__dict__)
     d.pop("cache", None)  # where renders are cached does not change results
+    d.pop("rerun", None)
+    d["ref_spp"] = config.ref_spp  # the resolved value is in every cell's identity
+    labels = config.labels()
+    d["labels"] = [labels[m] for m in config.methods]
+    d["series"] = {labels[m]: {"method": m, "params": config.params.get(m, {})}
+                   for m in config.methods}
     return json.loads(json.dumps(d, default=str))
-
-
-def load_cells(out: str | Path) -> list[dict]:
-    """Every cell file of a sweep folder, sorted by scene, spp, method."""
-    cells = [c for p in sorted(Path(out).glob("cells/*/*/*.json")) if (c := read_cell(p))]
-    return sorted(cells, key=lambda c: (c["scene"], c["spp"], c["method"]))

@@ -1,0 +1,139 @@
+"""Sweep integrity (reliability audit, item 1, 4, 5, 8): a cell is reused only when its whole
+identity matches; other parameters make another labelled series; a changed default, code or
+reference is refused (exit 2) unless --rerun; refused sweeps write nothing; temporary and
+malformed files are never read as cells."""
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from dbench import cli
+from dbench.bench import identity, sweep
+from dbench.errors import DbenchInputError
+
+
+def test_labels_name_the_parameters_that_differ_from_the_defaults():
+    assert identity.label("jbf") == "jbf"
+    assert identity.label("jbf", {"radius": 3}) == "jbf[radius=3]"
+    default_radius = identity.resolved_params("jbf")["radius"]
+    assert identity.label("jbf", {"radius": default_radius}) == "jbf"
+    assert identity.file_stem("jbf[radius=3]") == "jbf[radius=3]"
+    odd = identity.file_stem("nca[weights=/tmp/x y.onnx]")
+    assert "/" not in odd and odd.startswith("nca@")
+
+
+def test_method_version_changes_with_its_code_and_is_stable():
+    from dbench import methods
+    cls = methods.method_class("jbf")
+    assert identity.method_version(cls) == identity.method_version(cls)
+    assert identity.method_version(cls) != identity.method_version(methods.method_class("oidn"))
+
+
+def _write(path: Path, obj) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(obj if isinstance(obj, str) else json.dumps(obj))
+
+
+def test_temporary_and_malformed_cell_files_are_not_cells(tmp_path):
+    ok = {"status": "ok", "scene": "cornell", "method": "noisy", "spp": 4, "rmse": 0.1}
+    _write(tmp_path / "cells/cornell/00004spp/noisy.json", ok)
+    _write(tmp_path / "cells/cornell/00004spp/.jbf.json.abc123.tmp.json", ok)
+    _write(tmp_path / "cells/cornell/00004spp/list.json", [1, 2])
+    _write(tmp_path / "cells/cornell/00004spp/abc.json", {**ok, "method": "jbf", "rmse": "abc"})
+    _write(tmp_path / "cells/cornell/00004spp/torn.json", '{"status": "o')
+    cells, problems = sweep.load_cells_checked(tmp_path)
+    assert [c["method"] for c in cells] == ["noisy"]
+    assert len(problems) == 3 and any("rmse is 'abc'" in p for p in problems)
+
+
+def test_bad_sweep_arguments_exit_2_and_write_nothing(tmp_path, capsys):
+    out = tmp_path / "S"
+    for bad in (["--res", "0"], ["--spp", "4,abc"], ["--spp", "0"], ["--seeds", "0"],
+                ["--res", "100000"], ["--param", "jbf.radius=" + "9" * 2000]):
+        rc = cli.main(["sweep", "--methods", "noisy,jbf", "--scenes", "cornell", "--spp", "4",
+                       "--res", "16", "--out", str(out), "--quiet"] + bad)
+        err = capsys.readouterr().err
+        assert rc == 2 and err.startswith("dbench: ") and "Traceback" not in err, bad
+        assert not out.exists(), bad
+    (tmp_path / "file").write_text("x")
+    rc = cli.main(["sweep", "--methods", "noisy", "--scenes", "cornell", "--spp", "4",
+                   "--res", "16", "--out", str(tmp_path / "file"), "--quiet"])
+    assert rc == 2 and "not a folder" in capsys.readouterr().err
+
+
+def test_report_refuses_missing_folders_without_creating_them(tmp_path, capsys):
+    rc = cli.main(["report", "--results", str(tmp_path / "none")])
+    assert rc == 2 and not (tmp_path / "none").exists()
+    (tmp_path / "r").mkdir()
+    rc = cli.main(["report", "--results", str(tmp_path / "r"), "--sweep", str(tmp_path / "s")])
+    assert rc == 2 and "sweep" in capsys.readouterr().err
+
+
+def _sweep(out, cache, *extra):
+    env = {**os.environ, "DBENCH_CACHE": str(cache)}
+    cmd = [sys.executable, "-m", "dbench.cli", "sweep", "--methods", "noisy,jbf", "--scenes",
+           "cornell", "--res", "16", "--ref-spp", "64", "--repeats", "1", "--out", str(out),
+           "--quiet", *extra]
+    return subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=300)
+
+
+@pytest.mark.mitsuba
+def test_changed_parameters_make_a_second_labelled_series(renderer, tmp_path):
+    out, cache = tmp_path / "S", tmp_path / "cache"
+    first = _sweep(out, cache, "--spp", "4")
+    assert first.returncode == 0, first.stderr
+    second = _sweep(out, cache, "--spp", "4,16", "--param", "jbf.radius=3")
+    assert second.returncode == 0, second.stderr
+    cells = sweep.load_cells(out)
+    series = {(c["method"], c["spp"]): c for c in cells}
+    assert set(series) == {("noisy", 4), ("noisy", 16), ("jbf", 4), ("jbf[radius=3]", 4),
+                           ("jbf[radius=3]", 16)}
+    default_radius = identity.resolved_params("jbf")["radius"]
+    assert series[("jbf", 4)]["params"]["radius"] == default_radius
+    assert all(series[("jbf[radius=3]", s)]["params"]["radius"] == 3 for s in (4, 16))
+    stored = sweep.read_cell(out / "sweep.json")["config"]
+    assert {"jbf", "jbf[radius=3]"} <= set(stored["labels"])
+    # another reference spp under the same labels is refused before rendering, with exit 2
+    third = _sweep(out, cache, "--spp", "4").returncode
+    assert third == 0
+    env_changed = subprocess.run(
+        [sys.executable, "-m", "dbench.cli", "sweep", "--methods", "noisy", "--scenes",
+         "cornell", "--res", "16", "--repeats", "1", "--spp", "4", "--out", str(out),
+         "--quiet"], env={**os.environ, "DBENCH_CACHE": str(cache), "DBENCH_REF_SPP": "128"},
+        capture_output=True, text=True, timeout=300)
+    assert env_changed.returncode == 2 and "ref_spp" in env_changed.stderr
+    assert "Traceback" not in env_changed.stderr
+
+
+@pytest.mark.mitsuba
+def test_a_changed_default_is_refused_and_rerun_recomputes(renderer, tmp_path, monkeypatch):
+    from dbench import methods
+    cfg = dict(methods=["noisy", "jbf"], scenes=["cornell"], spp=[4], res=12, ref_spp=16,
+               repeats=1, cache=str(tmp_path / "cache"))
+    out = tmp_path / "S"
+    sweep.run_sweep(sweep.SweepConfig(**cfg), out, progress=False)
+    cls = methods.method_class("jbf")
+    monkeypatch.setattr(cls, "defaults", {**cls.defaults, "radius": 2})
+    with pytest.raises(DbenchInputError, match="params.radius"):
+        sweep.run_sweep(sweep.SweepConfig(**cfg), out, progress=False)
+    counts = sweep.run_sweep(sweep.SweepConfig(**cfg, rerun=True), out, progress=False)
+    assert counts["computed"] == 1 and counts["finished_before"] == 1
+    cell = sweep.read_cell(sweep.cell_path(out, "cornell", 4, "jbf"))
+    assert cell["params"]["radius"] == 2
+
+
+@pytest.mark.mitsuba
+def test_sweep_with_three_seeds_shares_one_reference(renderer, tmp_path):
+    out = tmp_path / "S"
+    cfg = sweep.SweepConfig(methods=["noisy", "jbf"], scenes=["cornell"], spp=[4], res=16,
+                            ref_spp=64, repeats=1, seeds=3, cache=str(tmp_path / "cache"))
+    sweep.run_sweep(cfg, out, progress=False)
+    refs = list((tmp_path / "cache" / "reference").glob("*/meta.json"))
+    assert len(refs) == 1
+    for c in sweep.load_cells(out):
+        assert c["n_seeds"] == 3 and c["seeds"] == [0, 1, 2] and c["ref_spp"] == 64
+        assert c["rmse_ci"] > 0 and c["rmse_surface_ci"] > 0 and c["relmse_ci"] > 0
+        assert len(c["per_seed"]) == 3 and 0 < c["top1_share"] <= 1
