@@ -112,7 +112,8 @@ def test_report_is_reproducible_byte_for_byte(renderer, tmp_path):
     second = publish.publish(results).read_bytes()
     assert first == second
     text = first.decode()
-    for needle in ("## Headline", "## Convergence", "## Error against time", "pareto.png",
+    for needle in ("## Headline", "## Convergence", "## Error against time",
+                   "error_time_relmse.png",
                    "## Stress test", "## Environment", "relMSE"):
         assert needle in text or needle.lower() in text.lower()
     assert (results / "sweep" / "tables" / "convergence_rmse.csv").exists()

@@ -3,79 +3,199 @@
 Inputs: a sweep folder (cell JSON files and ``sweep.json`` with the settings and the machine it
 ran on), ``stress.md``, and optional extra Markdown files (per-issue results such as
 ``statistical.md``). Nothing is timed or rendered here and no clock is read, so the same files
-give the same README byte for byte.
+give the same README byte for byte (figures are written with fixed PNG metadata).
+
+Verdicts follow spec/verdicts.md: every entry is ``mean ± 95 % half-width``, methods whose
+intervals overlap the best's are tied, rankings use ``rank_by`` (relMSE by default), the
+reference spp is read from the cells (never the config) and a reference whose own error is
+above 10 % of a method's MSE is flagged with the ``--ref-spp`` that would fix it.
 """
 from __future__ import annotations
 
 from pathlib import Path
 
-from .. import io, metrics
-from .report import machine_md, markdown_table
-from .sweep import load_cells, read_cell
-from . import tables
+from .. import io
+from . import plots, tables, verdicts
+from .report import machine_md, markdown_table, metric_definitions_md
+from .sweep import read_cell
+
+#: Metrics shown as Markdown convergence tables in the README (others: CSV links).
+README_CONVERGENCE = ("rmse", "relmse", "rmse_surface")
+SEQUENCE_HEADLINE = ("rmse", "rmse_surface", "relmse", "ssim", "t_rmse", "tpsnr", "time_s")
+TRANSIENT_HEADLINE = ("rmse", "relmse", "ssim", "time_s")
 
 
-def build_readme(results: Path, sweep_dir: Path, headline_spp: int = 64) -> str:
-    sweep = read_cell(sweep_dir / "sweep.json") or {}
-    config = sweep.get("config", {})
-    cells = load_cells(sweep_dir)
+def load_sweep(sweep_dir: Path) -> tuple[dict, list[dict], list[str]]:
+    """(sweep.json, cells, problems): ``sweep.load_cells_checked`` when it exists, else every
+    readable cell file, with one line per file that is not a cell."""
+    from . import sweep as sweep_mod
+
+    sweep_dir = Path(sweep_dir)
+    info = read_cell(sweep_dir / "sweep.json") or {}
+    info = info if isinstance(info, dict) else {}
+    checked = getattr(sweep_mod, "load_cells_checked", None)
+    if checked is not None:
+        cells, problems = checked(sweep_dir)
+        return info, list(cells), [str(p) for p in problems]
+    cells, problems = [], []
+    for p in sorted(sweep_dir.glob("cells/*/*/*.json")):
+        c = read_cell(p)
+        if not isinstance(c, dict) or verdicts.cell_key(c) is None or not isinstance(
+                c.get("status"), str):
+            problems.append(f"{p.relative_to(sweep_dir).as_posix()}: not a readable cell")
+            continue
+        cells.append(c)
+    return info, sorted(cells, key=verdicts.cell_key), problems
+
+
+def _config(info: dict) -> dict:
+    c = info.get("config", {})
+    return c if isinstance(c, dict) else {}
+
+
+def _labels(config: dict) -> list:
+    return list(config.get("labels") or config.get("methods") or [])
+
+
+def _pick_rank(df, rank_by: str) -> str:
+    """``rank_by`` when some cell records it, else rmse (old or partial sweeps)."""
+    if rank_by in df.columns and df[rank_by].notna().any():
+        return rank_by
+    return "rmse"
+
+
+def wall_text(info: dict) -> str:
+    """The wall time the sweep's runs took (recorded in sweep.json by each run), references
+    apart; '' for sweeps that recorded none."""
+    runs = [r for r in info.get("runs", []) if isinstance(r, dict)]
+    if not runs:
+        return ""
+    wall = sum(float(r.get("wall_s", 0)) for r in runs)
+    refs = sum(float(r.get("references_s", 0)) for r in runs)
+    cells = sum(int(r.get("cells", 0)) for r in runs)
+    return (f"wall time {wall:.0f} s for {cells} cells over {len(runs)} run"
+            f"{'s' if len(runs) != 1 else ''}, of which {refs:.0f} s rendering references")
+
+
+def settings_line(config: dict, df, status: dict, rel_name: str, extras=()) -> str:
+    scenes = config.get("scenes") or sorted(df.scene.unique())
+    seeds = config.get("seeds")
+    seeds = seeds if isinstance(seeds, int) else 1
+    ref = config.get("ref_spp")
+    return (f"Sweep `{rel_name}`: {len(scenes)} scenes ({', '.join(map(str, scenes))}) × "
+            f"{len(_labels(config))} method labels × spp "
+            f"{', '.join(map(str, config.get('spp', [])))}, {config.get('res')}×"
+            f"{config.get('res')} px, {seeds} seed{'s' if seeds != 1 else ''} (first seed "
+            f"{config.get('seed')}); {verdicts.reference_summary(df)} (read from the cells; "
+            f"requested: {f'--ref-spp {ref}' if ref else 'the default'}); "
+            + "".join(f"{e}; " for e in extras)
+            + f"{verdicts.grid_status_text(status)}.")
+
+
+def problems_md(cells: list[dict], problems: list[str], missing) -> list[str]:
+    """Skipped pairs (once per reason), errors, malformed files and missing cells."""
+    lines, seen = [], set()
+    for c in cells:
+        if c.get("status") == "skipped":
+            key = (str(c.get("method")), str(c.get("scene")), str(c.get("reason", "")))
+            if key not in seen:
+                seen.add(key)
+                lines.append(f"- skipped {key[0]} on {key[1]}: {key[2]}")
+    lines += [f"- error {c.get('method')} on {c.get('scene')} at {c.get('spp')} spp: "
+              f"{c.get('error', '')}" for c in cells if c.get("status") == "error"]
+    lines += [f"- malformed cell file {p}" for p in problems]
+    lines += verdicts.missing_md(missing)
+    return lines
+
+
+def reference_md(df, rel_csv: str | None = None) -> list[str]:
+    """The reference-noise warnings (one line per scene and spp), or why there are none."""
+    if "ref_rmse" not in df.columns or not df["ref_rmse"].notna().any():
+        return ["The cells do not record `ref_rmse` (older format): the reference's own noise "
+                "is not checked here.", ""]
+    warn = verdicts.ref_warnings_md(df)
+    if not warn:
+        return ["No cell's reference error exceeds 10 % of the method's MSE "
+                "(ref_rmse² ≤ 0.1 · rmse² everywhere).", ""]
+    return (["Reference too noisy for these cells (ref_rmse² > 0.1 · rmse²; the reference's "
+             "variance scales as 1 / ref_spp):", ""] + warn + [""]
+            + ([f"Every flagged cell: [{rel_csv}]({rel_csv}).", ""] if rel_csv else []))
+
+
+def build_readme(results: Path, sweep_dir: Path, headline_spp: int = 64,
+                 rank_by: str = "relmse") -> str:
+    results, sweep_dir = Path(results), Path(sweep_dir)
+    info, cells, problems = load_sweep(sweep_dir)
+    config = _config(info)
     df = tables.cells_frame(cells)
+    rank = _pick_rank(df, rank_by)
+    status = verdicts.grid_status(config, cells)
     rel = lambda p: Path(p).relative_to(results).as_posix()  # noqa: E731
     paths = tables.write_tables(df, sweep_dir / "tables")
-    tables.convergence_plot(df, sweep_dir / "convergence.png")
-    tables.pareto_plot(df, sweep_dir / "pareto.png")
+    plots.convergence_plot(df, sweep_dir / "convergence.png")
+    figures = {m: sweep_dir / f"error_time_{m}.png" for m in ("rmse_surface", "relmse")}
+    drawn = {m: plots.error_time_plot(df, m, p) for m, p in figures.items()}
 
     parts = ["# dbench results", "",
              "Generated by `dbench report` from the files in this folder; do not edit by hand.",
              ""]
-    if config:
-        parts += [f"Sweep `{rel(sweep_dir)}`: {len(config.get('scenes', []))} scenes × "
-                  f"{len(config.get('methods', []))} methods × spp "
-                  f"{', '.join(map(str, config.get('spp', [])))}, "
-                  f"{config.get('res')}×{config.get('res')} px, reference "
-                  f"{config.get('ref_spp') or 4096} spp, seed {config.get('seed')}, "
-                  f"denoise time = median of {config.get('repeats')} calls after a warm-up "
-                  "(rendering excluded)." + (
-                      " Sequence scenes: each frame denoised once, in order; metrics are means "
-                      "and time the median per frame over the frames after the warm-up."
-                      if any(c.get("frames") for c in cells) else ""), ""]
-    head = tables.headline_table(df, headline_spp)
-    parts += [f"## Headline: every method × every scene at {headline_spp} spp", ""]
-    parts += [markdown_table(head) if len(head) else "(no cells at this spp)", ""]
+    sequence = any(c.get("frames") for c in cells)
+    timing = (f"denoise time = median of {config.get('repeats')} calls after a warm-up "
+              "(rendering excluded)")
+    parts += [settings_line(config, df, status, rel(sweep_dir),
+                            [timing] + [t for t in [wall_text(info)] if t]) + (
+        " Sequence scenes: each frame denoised once, in order; metrics are means "
+        "and time the median per frame over the frames after the warm-up." if sequence else ""),
+        ""]
+    spp = verdicts.headline_spp(df.spp.unique(), headline_spp) if len(df) else None
+    parts += [f"## Headline: every method × every scene at {spp} spp", ""]
+    if rank != rank_by:
+        parts += [f"(`{rank_by}` is not recorded in these cells: ranked by `{rank}`.)", ""]
+    parts += verdicts.headline_md(df, spp, rank)
+    parts += ["### Reference noise", ""] + reference_md(df, rel(paths["reference_noise"]))
 
-    skipped = [c for c in cells if c.get("status") == "skipped"]
-    errors = [c for c in cells if c.get("status") == "error"]
-    if skipped or errors:
-        parts += ["## Skipped and failed cells", ""]
-        seen = set()
-        for c in skipped:
-            key = (c["method"], c["scene"], c["reason"])
-            if key not in seen:
-                seen.add(key)
-                parts.append(f"- skipped {c['method']} on {c['scene']}: {c['reason']}")
-        parts += [f"- error {c['method']} on {c['scene']} at {c['spp']} spp: {c['error']}"
-                  for c in errors]
-        parts.append("")
+    lines = problems_md(cells, problems, status["missing"])
+    if lines:
+        parts += ["## Skipped and failed cells", ""] + lines + [""]
 
-    parts += ["## Convergence", "", f"![convergence]({rel(sweep_dir / 'convergence.png')})", ""]
-    for metric in ("rmse", "ssim", "flip"):
-        parts += [f"### {metric.upper()} (rows scene/method, columns spp)", "",
-                  markdown_table(tables.convergence_table(df, metric)), ""]
-    parts += ["Other metrics: " + ", ".join(
-        f"[{m}]({rel(paths['convergence_' + m])})" for m in ("relmse", "smape", "psnr")), ""]
+    parts += ["## Convergence", "", f"![convergence]({rel(sweep_dir / 'convergence.png')})", "",
+              "Entries are mean ± 95 % half-width (— where no cell).", ""]
+    for metric in README_CONVERGENCE:
+        if metric in df.columns and df[metric].notna().any():
+            parts += [f"### {metric.upper()} (rows scene/method, columns spp)", "",
+                      markdown_table(tables.convergence_table_md(df, metric)), ""]
+    others = [m for m in verdicts.METRICS if f"convergence_{m}" in paths
+              and m not in README_CONVERGENCE]
+    parts += ["Other metrics (CSV, numbers with `_ci` columns): " + ", ".join(
+        f"[{m}]({rel(paths['convergence_' + m])})" for m in others) + ".", ""]
+    parts += [("`rmse_unbiased` removes the reference's own noise, sqrt(max(0, MSE − mean "
+               "reference variance)): " + (
+                   f"[{rel(paths['convergence_rmse_unbiased'])}]"
+                   f"({rel(paths['convergence_rmse_unbiased'])})."
+                   if "convergence_rmse_unbiased" in paths else
+                   "not recorded in these cells (older format).")), ""]
 
-    parts += ["## Error against time", "", f"![pareto]({rel(sweep_dir / 'pareto.png')})", "",
-              "Equal-time view: `equal_rmse_spp` is the spp at which plain rendering reaches the "
-              "method's RMSE (log-log fit of the noisy input's RMSE against spp on the same "
-              "scene); `time_saved_s` = time to render that many samples − (render + denoise "
-              "time of the method). Positive: denoising beats rendering more samples.", ""]
-    eq = tables.equal_time_table(df)
-    if len(eq):
-        parts += [markdown_table(eq[eq.spp == headline_spp].reset_index(drop=True)), "",
+    parts += ["## Error against time", "",
+              "One panel per scene: x = render + denoise time (render includes statistics "
+              "collection), y = error, one line per method label through its spp points; the "
+              "noisy input dashed; the grey step line is the lower envelope over every point, "
+              f"the {plots.ENVELOPE_LABEL} (labelled with the method that owns each segment).",
+              ""]
+    for m, p in figures.items():
+        parts += ([f"![error against time, {m}]({rel(p)})", ""] if drawn[m] else
+                  [f"({m} against time: no cell records both.)", ""])
+    parts += ["Equal-time view: `equal_<m>_spp` is the spp at which plain rendering reaches the "
+              "method's error on metric m (log-log fit of the noisy input's m against spp on "
+              "the same scene); `<m>_time_saved_s` = time to render that many samples − "
+              "(render + denoise time of the method). Positive: denoising beats rendering more "
+              "samples.", ""]
+    eq = tables.equal_time_md(df, spp) if spp is not None else None
+    if eq is not None and len(eq):
+        parts += [f"At {spp} spp:", "", markdown_table(eq, ".3g"), "",
                   f"All spp: [{rel(paths['equal_time'])}]({rel(paths['equal_time'])})", ""]
 
     for other in extra_sweeps(results, sweep_dir):
-        parts += other_sweep_md(results, other)
+        parts += other_sweep_md(results, other, rank_by=rank_by)
 
     stress = results / "stress.md"
     if stress.exists():
@@ -93,11 +213,9 @@ def build_readme(results: Path, sweep_dir: Path, headline_spp: int = 64) -> str:
         parts += ["## Per-method results", ""]
         parts += [f"- [{p.stem}]({p.name})" for p in extra] + [""]
 
-    parts += ["## Metric definitions", ""]
-    parts += [f"- **{k}**: {v}" for k, v in metrics.DEFINITIONS.items()]
-    parts += [f"- Tone map: {metrics.TONEMAP_DEFINITION}", ""]
-    if "machine" in sweep:
-        parts += ["## Environment", "", machine_md(sweep["machine"]), ""]
+    parts += ["## Metric definitions", "", metric_definitions_md(), ""]
+    if isinstance(info.get("machine"), dict):
+        parts += ["## Environment", "", machine_md(info["machine"]), ""]
     return "\n".join(parts)
 
 
@@ -108,45 +226,58 @@ def extra_sweeps(results: Path, main: Path) -> list[Path]:
                   if p.parent.resolve() != main.resolve())
 
 
-def other_sweep_md(results: Path, sweep_dir: Path) -> list[str]:
-    """A section for one extra sweep: its settings, skipped pairs, and convergence tables."""
-    from ..datasets import scenes as catalogue
+def _is_transient(scene: str) -> bool:
+    try:
+        from ..datasets import scenes as catalogue
 
-    config = (read_cell(sweep_dir / "sweep.json") or {}).get("config", {})
-    cells = load_cells(sweep_dir)
+        return catalogue.get(scene).kind == "transient"
+    except Exception:  # noqa: BLE001 - an unknown scene name is not a transient one
+        return False
+
+
+def other_sweep_md(results: Path, sweep_dir: Path, rank_by: str = "relmse") -> list[str]:
+    """A section for one extra sweep: its settings, the headline per scene at its spp (with
+    intervals and the reference per cell), problems, and convergence tables."""
+    info, cells, problems = load_sweep(sweep_dir)
+    config = _config(info)
     df = tables.cells_frame(cells)
+    status = verdicts.grid_status(config, cells)
     rel = Path(sweep_dir).relative_to(results).as_posix()
     sequence = any(c.get("frames") for c in cells)
-    transient = any(catalogue.get(c["scene"]).kind == "transient" for c in cells)
+    transient = any(_is_transient(str(c.get("scene"))) for c in cells)
     extras = []
     if config.get("frames"):
         extras.append(f"first {config['frames']} frames")
     if config.get("bins"):
         extras.append(f"{config['bins']} time bins")
-    parts = [f"## Sweep `{rel}`", "",
-             f"{len(config.get('scenes', []))} scenes ({', '.join(config.get('scenes', []))}) × "
-             f"{len(config.get('methods', []))} methods × spp "
-             f"{', '.join(map(str, config.get('spp', [])))}, {config.get('res')}×"
-             f"{config.get('res')} px, reference {config.get('ref_spp') or 4096} spp"
-             + (f", {', '.join(extras)}" if extras else "") + "." +
-             (" Sequences: each frame denoised once, in order; metrics are means over the frames "
-              "after the 8-frame warm-up; `t_rmse` / `tPSNR` score frame-to-frame differences."
-              if sequence else "") +
+    if wall_text(info):
+        extras.append(wall_text(info))
+    parts = [f"## Sweep `{rel}`", "", settings_line(config, df, status, rel, extras) +
+             (" Sequences: each frame denoised once, in order; metrics are means over the "
+              "frames after the 8-frame warm-up; `t_rmse` / `tPSNR` score frame-to-frame "
+              "differences." if sequence else "") +
              (" Transient videos: RMSE and relMSE over every voxel; SSIM and FLIP on the "
               "time-integrated image." if transient else ""), ""]
-    skipped = sorted({(c["method"], c.get("reason", "")) for c in cells
-                      if c.get("status") == "skipped"})
+    skipped = sorted({str(c.get("method")) for c in cells if c.get("status") == "skipped"})
     if skipped:
-        parts += ["Not applicable: " + ", ".join(sorted({m for m, _ in skipped})) + ".", ""]
-    errors = [c for c in cells if c.get("status") == "error"]
-    parts += [f"- error {c['method']} on {c['scene']} at {c['spp']} spp: {c['error']}"
-              for c in errors] + ([""] if errors else [])
+        parts += ["Not applicable: " + ", ".join(skipped) + ".", ""]
+    lines = [ln for ln in problems_md(cells, problems, status["missing"])
+             if not ln.startswith("- skipped ")]
+    parts += lines + ([""] if lines else [])
+    rank = _pick_rank(df, rank_by)
+    spp = verdicts.headline_spp(df.spp.unique()) if len(df) else None
+    if spp is not None:
+        cols = SEQUENCE_HEADLINE if sequence else (
+            TRANSIENT_HEADLINE if transient else verdicts.HEADLINE)
+        parts += [f"### Headline at {spp} spp", ""]
+        parts += verdicts.headline_md(df, spp, rank, columns=cols, level="####")
+        parts += reference_md(df)
     shown = ("rmse", "ssim", "t_rmse", "tpsnr", "time_s") if sequence else (
         "rmse", "relmse", "ssim", "time_s")
     for metric in shown:
         if metric in df.columns and df[metric].notna().any():
             parts += [f"### {metric.upper()} (rows scene/method, columns spp)", "",
-                      markdown_table(tables.convergence_table(df, metric)), ""]
+                      markdown_table(tables.convergence_table_md(df, metric)), ""]
     return parts
 
 
@@ -154,7 +285,7 @@ def speed_md(results: Path, method: str | None = None) -> str:
     """Tables of the JSON lines that `dbench bench ... --out results/bench_*.jsonl` appended."""
     import json
 
-    rows_render, rows_method = [], []
+    rows_render, rows_method, rows_metrics = [], [], []
     for path in sorted(results.glob("bench_*.jsonl")):
         for line in path.read_text().splitlines():
             if not line.strip():
@@ -166,6 +297,14 @@ def speed_md(results: Path, method: str | None = None) -> str:
                                     "samples+stats_s": r["samples_stats_s"],
                                     "stats/plain": r["ratio_stats_vs_plain"],
                                     "when": r["when"]})
+            elif r.get("benchmark") == "metrics" and method is None:
+                rows_metrics.append({"size": f"{r['width']}x{r['height']}",
+                                     "plain_s": r["plain_s"], "judge_s": r["judge_s"],
+                                     "judge/plain": r["ratio_judge_vs_plain"],
+                                     "bootstrap_s": r["bootstrap_s"],
+                                     "(judge+bootstrap)/plain":
+                                         r["ratio_judge_bootstrap_vs_plain"],
+                                     "when": r["when"]})
             elif r.get("benchmark") == "method" and method in (None, r["method"]):
                 fr = r.get("fast_vs_reference") or {}
                 rows_method.append({"method": r["method"], "size": f"{r['width']}x{r['height']}",
@@ -179,6 +318,11 @@ def speed_md(results: Path, method: str | None = None) -> str:
     if rows_render:
         out += ["Statistics collection against a plain render of the same spp (same run):", "",
                 markdown_table(pd.DataFrame(rows_render), ".3g"), ""]
+    if rows_metrics:
+        out += ["Metric time of one output: the judge (whole-image and surface metrics, "
+                "top1_share, unbiased figures) and a one-seed block bootstrap, against the "
+                "plain metrics it replaces (same run, same image):", "",
+                markdown_table(pd.DataFrame(rows_metrics), ".3g"), ""]
     if rows_method:
         out += ["Methods on a synthetic frame, against OIDN in the same run (median after "
                 "warm-up; fast/ref = the method's fast path against its reference):", "",
@@ -242,13 +386,18 @@ def statistical_md(df, sweep_dir: Path) -> str:
     return "\n".join(parts)
 
 
-def publish(results: str | Path = "results", sweep_dir: str | Path | None = None) -> Path:
+def publish(results: str | Path = "results", sweep_dir: str | Path | None = None,
+            rank_by: str = "relmse") -> Path:
     results = Path(results)
     sweep_dir = Path(sweep_dir) if sweep_dir else results / "sweep"
-    df = tables.cells_frame(load_cells(sweep_dir))
+    _, cells, _ = load_sweep(sweep_dir)
+    df = tables.cells_frame(cells)
     if "statistical" in set(df.method):
         io.write_text(results / "statistical.md", statistical_md(df, sweep_dir))
-    text = build_readme(results, sweep_dir)
+    stale = sweep_dir / "pareto.png"  # replaced by the error_time_*.png figures
+    if stale.exists():
+        stale.unlink()
+    text = build_readme(results, sweep_dir, rank_by=rank_by)
     out = results / "README.md"
     io.write_text(out, text)
     return out

@@ -36,7 +36,13 @@ def markdown_table(table: pd.DataFrame, floatfmt: str = ".4g") -> str:
 
 
 def metric_definitions_md() -> str:
+    """The metric definitions, plus the verdict quantities (surface metrics, top1_share,
+    rmse_unbiased, ref_rmse, interval kinds) that :data:`dbench.metrics.DEFINITIONS` lacks."""
+    from .verdicts import DEFINITIONS as VERDICT_DEFINITIONS
+
     lines = [f"- **{name}**: {text}" for name, text in metrics.DEFINITIONS.items()]
+    lines += [f"- **{name}**: {text}" for name, text in VERDICT_DEFINITIONS.items()
+              if name not in metrics.DEFINITIONS]
     lines.append(f"- Tone map: {metrics.TONEMAP_DEFINITION}")
     return "\n".join(lines)
 
@@ -62,7 +68,7 @@ def zoom_window(reference: np.ndarray, outputs: Sequence[np.ndarray] = (), ev: f
 
     ref = metrics.tonemap(np.nan_to_num(reference), ev=ev).astype(np.float64)
     h, w = ref.shape[:2]
-    size = max(2, min(h, w, int(round(min(h, w) * frac))))
+    size = min(h, w, max(2, int(round(min(h, w) * frac))))  # 1 on a 1-pixel image
     if len(outputs):
         score = sum(np.abs(metrics.tonemap(np.nan_to_num(o), ev=ev) - ref).mean(-1)
                     for o in outputs)
@@ -75,6 +81,17 @@ def zoom_window(reference: np.ndarray, outputs: Sequence[np.ndarray] = (), ev: f
     inner = score[lo:hi_y + 1, lo:hi_x + 1]
     cy, cx = np.unravel_index(int(np.argmax(inner)), inner.shape)
     return int(cy), int(cx), size
+
+
+def error_map_title(output: np.ndarray, reference: np.ndarray) -> str:
+    """Title of an :func:`error_map` panel: what the map shows and the figure it illustrates,
+    the output's relMSE (mean((x − r)² / (r² + ε))) and its mean relative error (rMAE, the
+    map's mean)."""
+    if not np.all(np.isfinite(output)):
+        return "relative error map\n(non-finite output)"
+    rel = metrics.compute("relmse", output, reference)
+    rmae = float(error_map(output, reference).mean())
+    return f"relative error map\nrelMSE {rel:.3g}, map mean {rmae:.3g}"
 
 
 def comparison_grid(path: str | Path, images: Sequence[tuple[str, np.ndarray]],
@@ -116,33 +133,59 @@ def comparison_grid(path: str | Path, images: Sequence[tuple[str, np.ndarray]],
             continue
         emap = error_map(img, reference)
         im = ax.imshow(emap, cmap="magma", vmin=0.0, vmax=vmax, interpolation="nearest")
-        rmse = metrics.compute("rmse", img, reference) if np.all(np.isfinite(img)) else np.nan
-        ax.set_title(f"rel. error (RMSE {rmse:.3g})", fontsize=8)
+        ax.set_title(error_map_title(img, reference), fontsize=8)
         ax.set_axis_off()
     if rows == 3:
-        fig.colorbar(im, ax=axes[2, :].tolist(), shrink=0.8, label="|x−r|/(|r|+0.01)")
+        fig.colorbar(im, ax=axes[2, :].tolist(), shrink=0.8,
+                     label="relative error |x−r|/(|r|+0.01)")
     if title:
         fig.suptitle(title, fontsize=10)
     with io.atomic_path(path, suffix=".tmp.png") as tmp:
-        fig.savefig(tmp, dpi=110, format="png")
+        fig.savefig(tmp, dpi=110, format="png", metadata={"Software": None})
     plt.close(fig)
 
 
 def run_report_md(table: pd.DataFrame, settings: dict[str, Any], info: dict[str, Any],
-                  skipped: dict[str, str], notes: Sequence[str] = ()) -> str:
-    """The Markdown report of one ``dbench run``."""
-    shown = table[[c for c in RUN_COLUMNS if c in table.columns]]
+                  skipped: dict[str, str], notes: Sequence[str] = (),
+                  rank_by: str = "relmse") -> str:
+    """The Markdown report of one ``dbench run``.
+
+    ``table``: one row per method label with the columns of
+    :func:`dbench.bench.tables.cells_frame` (``<metric>_ci``, ``ci_kind``, ``n_seeds``,
+    ``ref_spp``, ``ref_rmse``); missing columns are shown as missing, not guessed.
+    """
+    from . import verdicts
+
+    d = _run_frame(table, settings)
+    if rank_by not in d.columns or not d[rank_by].notna().any():
+        rank_by = "rmse"
+    sequence = settings.get("kind") == "sequence"
+    cols = (("rmse", "rmse_surface", "relmse", "ssim", "t_rmse", "tpsnr", "time_s") if sequence
+            else verdicts.HEADLINE)
+    shown = [c for c in cols if c in d.columns and d[c].notna().any()]
     parts = [f"# dbench run: {settings['scene']} at {settings['spp']} spp, "
-             f"{settings['res']}×{settings['res']} px", "",
-             markdown_table(shown), "",
-             "Lower is better except PSNR, tPSNR and SSIM. " + (
-                 "Sequence: every frame is denoised once, in order; metrics are means and "
-                 "`time_s` the median per-frame time over the frames after the warm-up "
-                 f"({settings['repeats']}); `t_rmse`/`tpsnr` score the frame-to-frame "
-                 "differences against the reference's (rendering excluded)."
-                 if settings.get("kind") == "sequence" else
-                 "`time_s` is the median denoise time "
-                 f"of {settings['repeats']} calls after one warm-up (rendering excluded)."), ""]
+             f"{settings['res']}×{settings['res']} px", ""]
+    if len(d):
+        parts += verdicts.scene_block_md(d, rank_by, shown)
+    else:
+        parts += ["(no method finished)", ""]
+    absent = [c for c in cols if c not in shown]
+    parts += ["**Bold**: the best entry of a column and every entry whose interval overlaps it "
+              "(tied); entries are mean ± 95 % half-width. `verdict` names where a method is "
+              f"worse than the noisy input on `{rank_by}` or `rmse_surface`. Lower is better "
+              "except PSNR, tPSNR and SSIM. " + (
+                  "Sequence: every frame is denoised once, in order; metrics are means and "
+                  "`time_s` the median per-frame time over the frames after the warm-up "
+                  f"({settings['repeats']}); `t_rmse`/`tpsnr` score the frame-to-frame "
+                  "differences against the reference's (rendering excluded)."
+                  if sequence else
+                  "`time_s` is the median denoise time "
+                  f"of {settings['repeats']} calls after one warm-up (rendering excluded), ± "
+                  "half its interquartile range.")
+              + (f" Not recorded: {', '.join(absent)}." if absent else ""), ""]
+    warn = verdicts.ref_warnings_md(d) if len(d) else []
+    if warn:
+        parts += ["## Reference noise", ""] + warn + [""]
     if skipped:
         parts += ["## Skipped", ""] + [f"- {m}: {why}" for m, why in skipped.items()] + [""]
     parts += ["## Settings", ""]
@@ -151,7 +194,7 @@ def run_report_md(table: pd.DataFrame, settings: dict[str, Any], info: dict[str,
               "## Machine", "", machine_md(info), ""]
     if notes:
         parts += ["## Notes", ""] + [f"- {n}" for n in notes] + [""]
-    if settings.get("kind") == "sequence":
+    if sequence:
         parts += ["Files: `metrics.csv`, `per_frame_<method>.csv`, `error_per_frame.png`, "
                   "`comparison.png` (frames × methods), the last frame's outputs as EXR in "
                   "`images/`.", ""]
@@ -159,3 +202,20 @@ def run_report_md(table: pd.DataFrame, settings: dict[str, Any], info: dict[str,
         parts += ["Files: `metrics.csv`, `comparison.png`, one EXR per output in `images/`.",
                   ""]
     return "\n".join(parts)
+
+
+def _run_frame(table: pd.DataFrame, settings: dict[str, Any]) -> pd.DataFrame:
+    """The run's table as a cells frame: rows without a method dropped, values coerced to
+    numbers (NaN when malformed), ``ref_spp`` and ``ref_rmse`` from the settings only where the
+    rows lack them."""
+    from .tables import cells_frame
+
+    cells = []
+    for rec in table.to_dict("records"):
+        c = {k: v for k, v in rec.items() if not (isinstance(v, float) and np.isnan(v))}
+        c.setdefault("scene", settings.get("scene"))
+        c.setdefault("spp", settings.get("spp"))
+        c.setdefault("ref_spp", settings.get("ref_spp"))
+        c.setdefault("ref_rmse", settings.get("reference RMSE (estimated)"))
+        cells.append({**c, "status": "ok"})
+    return cells_frame(cells)

@@ -1,10 +1,15 @@
-"""Tables and plots from sweep cells (pandas → CSV / Markdown, matplotlib → PNG).
+"""Tables from sweep cells (pandas → CSV / Markdown).
 
-* convergence: for each metric, scene × spp with a column per method (ProDen's layout);
-* error against time: denoise, render and total time per method, scene and spp;
-* equal time: the spp at which plain rendering reaches the method's RMSE (from a log-log fit of
-  the noisy input's RMSE against spp on the same scene) and the time saved (positive) or lost
-  (negative) against rendering that many samples instead.
+* :func:`cells_frame`: one row per finished cell, every metric with its 95 % half-width
+  (``<metric>_ci``), the interval kind, the reference actually used and the times;
+* convergence: for each metric, scene × spp with a row per method label (ProDen's layout); the
+  CSV keeps numbers with separate ``<spp> spp_ci`` columns, Markdown shows ``mean ± ci``;
+* equal time: for rmse, relmse and rmse_surface, the spp at which plain rendering reaches the
+  method's error (log-log fit of the noisy input's metric against spp on the same scene) and the
+  time saved (positive) or lost (negative) against rendering that many samples instead.
+
+Plots live in :mod:`dbench.bench.plots`; verdicts (ties, rankings) in
+:mod:`dbench.bench.verdicts`.
 """
 from __future__ import annotations
 
@@ -13,35 +18,96 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .. import io
 from .report import markdown_table
+from .verdicts import METRICS, fmt_value, num
+
+ID_COLUMNS = ["scene", "method", "base_method", "spp", "res", "n_seeds", "ci_kind", "ref_spp",
+              "ref_rmse"]
+TIME_COLUMNS = ["time_s", "time_s_iqr", "render_s", "total_s"]
+TEMPORAL = ("t_rmse", "tpsnr")
+EQUAL_TIME_METRICS = ("rmse", "relmse", "rmse_surface")
+
+
+def _label(v) -> str | None:
+    return v if isinstance(v, str) and v else None
+
+
+def _row(c: dict) -> dict | None:
+    scene, method = _label(c.get("scene")), _label(c.get("method"))
+    spp = num(c.get("spp"))
+    if scene is None or method is None or not np.isfinite(spp):
+        return None
+    row = {"scene": scene, "method": method,
+           "base_method": _label(c.get("base_method")) or method.split("[")[0],
+           "spp": int(spp), "res": num(c.get("res")), "n_seeds": num(c.get("n_seeds")),
+           "ci_kind": _label(c.get("ci_kind")) or "", "ref_spp": num(c.get("ref_spp")),
+           "ref_rmse": num(c.get("ref_rmse"))}
+    for m in METRICS:
+        row[m] = num(c.get(m))
+        row[m + "_ci"] = num(c.get(m + "_ci"))
+    stats = num(c.get("stats_s"))
+    render = num(c.get("render_s"))
+    row["time_s"] = num(c.get("time_s"))
+    row["time_s_iqr"] = num(c.get("time_s_iqr"))
+    row["render_s"] = render + (stats if np.isfinite(stats) else 0.0)
+    row["total_s"] = row["render_s"] + row["time_s"]
+    row["n_nonfinite"] = num(c.get("n_nonfinite"))
+    return row
 
 
 def cells_frame(cells: list[dict]) -> pd.DataFrame:
-    ok = [c for c in cells if c.get("status") == "ok"]
-    cols = ["scene", "method", "spp", "res", "rmse", "relmse", "smape", "psnr", "ssim", "flip",
-            "t_rmse", "tpsnr", "time_s", "render_s", "stats_s"]
-    df = pd.DataFrame([{k: c.get(k, np.nan) for k in cols} for c in ok], columns=cols)
-    df["render_s"] = df["render_s"].astype(float) + df["stats_s"].fillna(0).astype(float)
-    df["total_s"] = df["render_s"] + df["time_s"]
-    temporal = [c for c in ("t_rmse", "tpsnr") if df[c].isna().all()]  # sequence cells only
-    return df.drop(columns=["stats_s"] + temporal)
+    """One row per ``ok`` cell. Missing or malformed values are NaN; cells without a scene,
+    method label or spp are left out. ``render_s`` includes statistics collection (``stats_s``)
+    and ``total_s`` = ``render_s`` + ``time_s``. The temporal metrics are kept only when some
+    cell has them (sequence scenes)."""
+    ok = [c for c in cells if isinstance(c, dict) and c.get("status") == "ok"]
+    cols = ID_COLUMNS + [k for m in METRICS for k in (m, m + "_ci")] + TIME_COLUMNS + [
+        "n_nonfinite"]
+    rows = [r for c in ok if (r := _row(c)) is not None]
+    df = pd.DataFrame(rows, columns=cols)
+    for c in cols:
+        if c not in ("scene", "method", "base_method", "ci_kind"):
+            df[c] = df[c].astype(float) if c != "spp" else df[c].astype(int)
+    drop = [k for m in TEMPORAL if df[m].isna().all() for k in (m, m + "_ci")]
+    df = df.drop(columns=drop)
+    return df.sort_values(["scene", "spp", "method"], kind="stable").reset_index(drop=True)
 
 
-def convergence_table(df: pd.DataFrame, metric: str) -> pd.DataFrame:
-    """Rows (scene, method), columns spp."""
-    t = df.pivot_table(index=["scene", "method"], columns="spp", values=metric, aggfunc="first")
-    t.columns = [f"{c} spp" for c in t.columns]
-    return t.reset_index()
+def convergence_table(df: pd.DataFrame, metric: str, ci: bool = True) -> pd.DataFrame:
+    """Rows (scene, method), columns ``<spp> spp`` and (``ci``) ``<spp> spp_ci``."""
+    cols = [metric] + ([metric + "_ci"] if ci and metric + "_ci" in df.columns else [])
+    if df.empty:
+        return pd.DataFrame(columns=["scene", "method"])
+    t = df.pivot_table(index=["scene", "method"], columns="spp", values=cols,
+                       aggfunc="first", dropna=False)
+    out = pd.DataFrame(index=t.index)
+    for spp in sorted(df.spp.unique()):
+        out[f"{spp} spp"] = t[(metric, spp)] if (metric, spp) in t.columns else np.nan
+        if len(cols) > 1:
+            out[f"{spp} spp_ci"] = t[(cols[1], spp)] if (cols[1], spp) in t.columns else np.nan
+    return out.reset_index()
 
 
-def noisy_fit(df: pd.DataFrame, scene: str) -> tuple[float, float] | None:
-    """Least-squares fit log RMSE = a + b log spp of the noisy input on ``scene``."""
-    d = df[(df.scene == scene) & (df.method == "noisy")].dropna(subset=["rmse"])
-    d = d[d.rmse > 0]
-    if len(d) < 2:
+def convergence_table_md(df: pd.DataFrame, metric: str) -> pd.DataFrame:
+    """Like :func:`convergence_table` with ``mean ± ci`` strings (``—`` where no cell)."""
+    t = convergence_table(df, metric)
+    spps = [c for c in t.columns if c.endswith(" spp")]
+    out = t[["scene", "method"]].copy()
+    for c in spps:
+        cis = t[c + "_ci"] if c + "_ci" in t.columns else [np.nan] * len(t)
+        out[c] = [fmt_value(m, h) for m, h in zip(t[c], cis)]
+    return out
+
+
+def noisy_fit(df: pd.DataFrame, scene: str, metric: str = "rmse") -> tuple[float, float] | None:
+    """Least-squares fit log metric = a + b log spp of the noisy input on ``scene``."""
+    if metric not in df.columns:
         return None
-    b, a = np.polyfit(np.log(d.spp.astype(float)), np.log(d.rmse.astype(float)), 1)
+    d = df[(df.scene == scene) & (df.method == "noisy")].dropna(subset=[metric])
+    d = d[d[metric] > 0]
+    if len(d) < 2 or d.spp.nunique() < 2:
+        return None
+    b, a = np.polyfit(np.log(d.spp.astype(float)), np.log(d[metric].astype(float)), 1)
     return float(a), float(b)
 
 
@@ -52,115 +118,79 @@ def render_cost_per_spp(df: pd.DataFrame, scene: str) -> float:
     return float(per.median()) if len(per) else float("nan")
 
 
-def equal_time_table(df: pd.DataFrame) -> pd.DataFrame:
+def equal_time_table(df: pd.DataFrame, metrics: tuple[str, ...] = EQUAL_TIME_METRICS
+                     ) -> pd.DataFrame:
+    """Per (scene, method, spp) and metric: ``equal_<m>_spp`` (plain rendering's spp at the
+    method's error), ``equal_<m>_render_s`` and ``<m>_time_saved_s``."""
+    metrics = tuple(m for m in metrics if m in df.columns)
     rows = []
     for scene in sorted(df.scene.unique()):
-        fit = noisy_fit(df, scene)
         cost = render_cost_per_spp(df, scene)
-        for r in df[(df.scene == scene) & (df.method != "noisy")].itertuples():
-            if fit is None or not np.isfinite(r.rmse) or r.rmse <= 0:
-                eq_spp = np.nan
-            else:
-                a, b = fit
-                eq_spp = float(np.exp((np.log(r.rmse) - a) / b)) if b < 0 else np.nan
-            eq_time = eq_spp * cost
-            rows.append({"scene": scene, "method": r.method, "spp": r.spp, "rmse": r.rmse,
-                         "equal_rmse_spp": eq_spp, "render_s": r.render_s,
-                         "denoise_s": r.time_s, "total_s": r.total_s,
-                         "equal_rmse_render_s": eq_time,
-                         "time_saved_s": eq_time - r.total_s})
+        fits = {m: noisy_fit(df, scene, m) for m in metrics}
+        d = df[(df.scene == scene) & (df.method != "noisy")].sort_values(["method", "spp"])
+        for _, r in d.iterrows():
+            row = {"scene": scene, "method": r.method, "spp": r.spp, "render_s": r.render_s,
+                   "denoise_s": r.time_s, "total_s": r.total_s}
+            for m in metrics:
+                fit, v = fits[m], r[m]
+                eq = np.nan
+                if fit is not None and np.isfinite(v) and v > 0 and fit[1] < 0:
+                    eq = float(np.exp((np.log(v) - fit[0]) / fit[1]))
+                row.update({m: v, f"equal_{m}_spp": eq, f"equal_{m}_render_s": eq * cost,
+                            f"{m}_time_saved_s": eq * cost - r.total_s})
+            rows.append(row)
     return pd.DataFrame(rows)
+
+
+def equal_time_md(df: pd.DataFrame, spp: int) -> pd.DataFrame:
+    """The equal-time table at one spp, compact: the equal spp and time saved per metric."""
+    eq = equal_time_table(df)
+    if eq.empty:
+        return eq
+    eq = eq[eq.spp == spp]
+    cols = ["scene", "method", "total_s"] + [c for m in EQUAL_TIME_METRICS
+                                             for c in (f"equal_{m}_spp", f"{m}_time_saved_s")
+                                             if c in eq.columns and eq[c].notna().any()]
+    return eq[cols].reset_index(drop=True)
 
 
 def headline_table(df: pd.DataFrame, spp: int) -> pd.DataFrame:
     d = df[df.spp == spp]
     if d.empty:
         return d
-    cols = ["scene", "method", "rmse", "ssim", "flip", "time_s"]
+    cols = [c for c in ("scene", "method", "rmse", "rmse_surface", "relmse", "ssim", "flip",
+                        "time_s") if c in d.columns]
     return d[cols].sort_values(["scene", "method"]).reset_index(drop=True)
 
 
-def _plt():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    plt.rcParams.update({"svg.hashsalt": "dbench", "figure.max_open_warning": 0})
-    return plt
-
-
-def _save(fig, path: Path) -> None:
-    # Fixed metadata so the same data gives the same PNG bytes.
-    with io.atomic_path(path, suffix=".tmp.png") as tmp:
-        fig.savefig(tmp, dpi=100, format="png", metadata={"Software": None})
-
-
-def convergence_plot(df: pd.DataFrame, path: Path) -> None:
-    plt = _plt()
-    scenes = sorted(df.scene.unique())
-    n = len(scenes)
-    cols = min(3, n)
-    rows = int(np.ceil(n / cols))
-    fig, axes = plt.subplots(rows, cols, figsize=(4.2 * cols, 3.4 * rows), squeeze=False)
-    for ax, scene in zip(axes.ravel(), scenes):
-        d = df[df.scene == scene]
-        for method in sorted(d.method.unique()):
-            m = d[d.method == method].sort_values("spp")
-            ax.plot(m.spp, m.rmse, marker="o", ms=3, label=method,
-                    ls="--" if method == "noisy" else "-")
-        ax.set_xscale("log", base=2)
-        ax.set_yscale("log")
-        ax.set_title(scene, fontsize=10)
-        ax.set_xlabel("spp")
-        ax.set_ylabel("RMSE")
-        ax.grid(True, which="both", alpha=0.3)
-    for ax in axes.ravel()[n:]:
-        ax.set_axis_off()
-    axes[0, 0].legend(fontsize=7)
-    fig.tight_layout()
-    _save(fig, path)
-    plt.close(fig)
-
-
-def pareto_plot(df: pd.DataFrame, path: Path) -> None:
-    """Total time (render + denoise) against RMSE relative to the noisy input at the same spp."""
-    plt = _plt()
-    fig, ax = plt.subplots(figsize=(6.5, 4.5))
-    base = df[df.method == "noisy"].set_index(["scene", "spp"]).rmse
-    d = df.copy()
-    d["rel_rmse"] = [r.rmse / base.get((r.scene, r.spp), np.nan) for r in d.itertuples()]
-    for method in sorted(d.method.unique()):
-        m = d[d.method == method]
-        ax.scatter(m.total_s, m.rel_rmse, s=14, label=method, alpha=0.8)
-    ax.set_xscale("log")
-    ax.set_yscale("log")
-    ax.axhline(1.0, color="grey", lw=0.8, ls="--")
-    ax.set_xlabel("render + denoise time (s)")
-    ax.set_ylabel("RMSE / noisy RMSE at the same spp")
-    ax.set_title("error against time (every scene and spp)")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7)
-    fig.tight_layout()
-    _save(fig, path)
-    plt.close(fig)
-
-
 def write_tables(df: pd.DataFrame, out: Path) -> dict[str, Path]:
-    """CSV files of every table under ``out``; returns their paths."""
+    """CSV files of every table under ``out``; returns their paths. A convergence CSV is
+    written for each metric some cell records (numbers, with ``_ci`` columns)."""
     from .report import write_csv
+    from .verdicts import ref_noise_frame
 
     paths = {}
-    for metric in ("rmse", "relmse", "smape", "psnr", "ssim", "flip"):
-        p = out / f"convergence_{metric}.csv"
-        write_csv(p, convergence_table(df, metric))
-        paths[f"convergence_{metric}"] = p
+    for metric in METRICS:
+        if metric in df.columns and (df[metric].notna().any() or metric in (
+                "rmse", "relmse", "smape", "psnr", "ssim", "flip")):
+            p = out / f"convergence_{metric}.csv"
+            write_csv(p, convergence_table(df, metric))
+            paths[f"convergence_{metric}"] = p
     paths["equal_time"] = out / "equal_time.csv"
     write_csv(paths["equal_time"], equal_time_table(df))
+    paths["reference_noise"] = out / "reference_noise.csv"
+    write_csv(paths["reference_noise"], ref_noise_frame(df))
     paths["cells"] = out / "cells.csv"
     write_csv(paths["cells"], df.sort_values(["scene", "spp", "method"]))
     return paths
 
 
-__all__ = ["cells_frame", "convergence_table", "equal_time_table", "headline_table",
-           "convergence_plot", "pareto_plot", "write_tables", "markdown_table"]
+def convergence_plot(df: pd.DataFrame, path: Path) -> None:  # kept for callers of tables
+    from .plots import convergence_plot as plot
+
+    plot(df, path)
+
+
+__all__ = ["cells_frame", "convergence_table", "convergence_table_md", "noisy_fit",
+           "render_cost_per_spp", "equal_time_table", "equal_time_md", "headline_table",
+           "write_tables", "convergence_plot", "markdown_table"]

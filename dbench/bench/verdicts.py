@@ -1,0 +1,377 @@
+"""Verdicts from sweep cells (spec/verdicts.md): intervals, best and tied methods, rankings,
+methods worse than the noisy input, the reference's own noise and missing cells.
+
+Everything here reads a frame of :func:`dbench.bench.tables.cells_frame` (one row per cell,
+``<metric>`` and ``<metric>_ci`` columns) and returns Markdown lines or small frames; nothing
+is timed, rendered or read from a clock, so the same cells give the same text.
+
+Conventions:
+
+* an entry is ``mean ± half-width`` of the cell's 95 % interval (``ci_kind`` says which kind);
+  ``time_s`` is the median denoise time ± half its interquartile range (a spread, not a CI);
+* two methods are *tied* when their intervals overlap, |m₁ − m₂| ≤ h₁ + h₂ (a missing interval
+  counts as 0); the best entry of a column and every entry tied with it are marked in bold;
+* lower is better except for PSNR, SSIM (and their surface variants) and tPSNR.
+"""
+from __future__ import annotations
+
+import math
+from typing import Any, Iterable, Sequence
+
+import numpy as np
+import pandas as pd
+
+#: Metric columns of a cell (each with a ``_ci`` half-width column).
+METRICS = ("rmse", "relmse", "smape", "psnr", "ssim", "flip",
+           "rmse_surface", "relmse_surface", "smape_surface", "psnr_surface", "ssim_surface",
+           "flip_surface", "top1_share", "rmse_unbiased", "relmse_unbiased", "t_rmse", "tpsnr")
+HIGHER_IS_BETTER = frozenset({"psnr", "ssim", "psnr_surface", "ssim_surface", "tpsnr"})
+#: Columns of the headline table.
+HEADLINE = ("rmse", "rmse_surface", "relmse", "ssim", "flip", "time_s")
+#: Warn when the reference's MSE exceeds this share of a method's MSE.
+REF_SHARE = 0.1
+NOISY = "noisy"
+
+#: One line per quantity the verdicts use that :data:`dbench.metrics.DEFINITIONS` may lack.
+DEFINITIONS = {
+    "surface": ("`<metric>_surface` (rmse_surface, relmse_surface, smape_surface, psnr_surface, "
+                "ssim_surface, flip_surface): the metric over surface pixels only, pixels whose "
+                "emitter fraction is 0 (directly visible lights excluded)"),
+    "top1_share": ("top1_share = Σ of the largest 1 % of per-pixel squared errors / Σ of all; "
+                   "near 1: a few pixels decide the MSE"),
+    "rmse_unbiased": ("rmse_unbiased = sqrt(max(0, MSE − mean v_r)), v_r the per-pixel variance "
+                      "of the reference mean: the error against the converged image with the "
+                      "reference's own noise removed"),
+    "relmse_unbiased": ("relmse_unbiased = relMSE − mean(v_r / (r² + ε)): first-order "
+                        "correction (r is in the denominator; accurate when v_r ≪ r² + ε)"),
+    "ref_rmse": ("ref_rmse = sqrt(mean v_r), the estimated RMSE of the reference itself; a "
+                 "warning is printed when ref_rmse² > 0.1 · MSE of a method"),
+    "ci": ("intervals: with N > 1 seeds, Student t over seeds, mean ± t_{0.975,N−1} · s / √N "
+           "(the shared reference's error is not in it; see ref_rmse); with one seed, a block "
+           "bootstrap percentile interval over B × B pixel blocks; `time_s` shows the median "
+           "denoise time ± half its interquartile range"),
+}
+
+
+def higher_is_better(metric: str) -> bool:
+    return metric in HIGHER_IS_BETTER
+
+
+def num(v: Any) -> float:
+    """A finite-or-NaN float from any cell value (None, strings, lists, bools → NaN)."""
+    if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, float, np.integer,
+                                                           np.floating)):
+        return float("nan")
+    return float(v)
+
+
+def _finite(v: Any) -> bool:
+    return isinstance(v, (int, float, np.integer, np.floating)) and math.isfinite(float(v))
+
+
+def half_width(row: Any, metric: str) -> float:
+    """The 95 % half-width of ``metric`` in ``row`` (NaN if unknown); for ``time_s`` the
+    interval when one is stored, else half the interquartile range."""
+    get = row.get if hasattr(row, "get") else (lambda k, d=None: getattr(row, k, d))
+    h = num(get(metric + "_ci", float("nan")))
+    if metric == "time_s" and not math.isfinite(h):
+        h = num(get("time_s_iqr", float("nan"))) / 2
+    return h
+
+
+def fmt_value(mean: float, ci: float = float("nan"), fmt: str = ".4g") -> str:
+    if not _finite(mean):
+        return "—"
+    return (f"{format(float(mean), fmt)} ± {float(ci):.2g}" if _finite(ci)
+            else format(float(mean), fmt))
+
+
+def overlaps(m1: float, h1: float, m2: float, h2: float) -> bool:
+    h1 = h1 if _finite(h1) else 0.0
+    h2 = h2 if _finite(h2) else 0.0
+    return abs(m1 - m2) <= h1 + h2
+
+
+def _entries(d: pd.DataFrame, metric: str, exclude: Iterable[str] = ()
+             ) -> list[tuple[float, float, str]]:
+    """(mean, half-width, label) of the rows with a finite value, best first."""
+    if metric not in d.columns:
+        return []
+    skip = set(exclude)
+    out = [(float(r[metric]), half_width(r, metric), str(r["method"]))
+           for _, r in d.iterrows() if _finite(r[metric]) and r["method"] not in skip]
+    sign = -1.0 if higher_is_better(metric) else 1.0
+    return sorted(out, key=lambda e: (sign * e[0], e[2]))
+
+
+def marked(d: pd.DataFrame, metric: str, exclude: Iterable[str] = ()) -> set[str]:
+    """The best label of ``metric`` and every label whose interval overlaps the best's."""
+    e = _entries(d, metric, exclude)
+    if not e:
+        return set()
+    m0, h0, _ = e[0]
+    return {lab for m, h, lab in e if overlaps(m, h, m0, h0)}
+
+
+def rank_groups(d: pd.DataFrame, metric: str) -> list[list[str]]:
+    """Labels best first; consecutive labels whose interval overlaps the group leader's form
+    one tied group."""
+    groups: list[list[str]] = []
+    leader = None
+    for m, h, lab in _entries(d, metric):
+        if leader is not None and overlaps(m, h, *leader):
+            groups[-1].append(lab)
+        else:
+            groups.append([lab])
+            leader = (m, h)
+    return groups
+
+
+def ranking_line(d: pd.DataFrame, metric: str) -> str:
+    """e.g. ``relmse (lower is better): oidn < a = b (tied: intervals overlap) < noisy``."""
+    if metric not in d.columns:
+        return f"{metric}: not recorded in these cells"
+    op = " > " if higher_is_better(metric) else " < "
+    parts = [" = ".join(g) + (" (tied: intervals overlap)" if len(g) > 1 else "")
+             for g in rank_groups(d, metric)]
+    missing = sorted(str(m) for m, v in zip(d["method"], d[metric]) if not _finite(v))
+    text = (f"{metric} ({'higher' if higher_is_better(metric) else 'lower'} is better): "
+            + (op.join(parts) if parts else "no values"))
+    return text + (f"; no value: {', '.join(missing)}" if missing else "")
+
+
+def worse_than_noisy(d: pd.DataFrame, metrics: Sequence[str]) -> dict[str, str]:
+    """label → words for each method whose mean is worse than the noisy input's."""
+    noisy = d[d["method"] == NOISY]
+    if noisy.empty:
+        return {}
+    base = noisy.iloc[0]
+    words: dict[str, list[str]] = {}
+    for metric in dict.fromkeys(metrics):
+        if metric not in d.columns or not _finite(base[metric]):
+            continue
+        b, hb = float(base[metric]), half_width(base, metric)
+        sign = -1.0 if higher_is_better(metric) else 1.0
+        for _, r in d.iterrows():
+            if r["method"] == NOISY or not _finite(r[metric]):
+                continue
+            m = float(r[metric])
+            if sign * (m - b) > 0:
+                tied = overlaps(m, half_width(r, metric), b, hb)
+                words.setdefault(str(r["method"]), []).append(
+                    f"{metric} (intervals overlap)" if tied else metric)
+    return {lab: "worse than noisy on " + ", ".join(w) for lab, w in words.items()}
+
+
+def ci_kind_text(d: pd.DataFrame) -> str:
+    kinds = sorted({str(k) for k in d.get("ci_kind", pd.Series(dtype=object))
+                    if isinstance(k, str) and k})
+    if not kinds:
+        return "no confidence intervals in these cells (one render, no interval stored)"
+    return "intervals: " + "; ".join(kinds)
+
+
+def scene_table(d: pd.DataFrame, columns: Sequence[str], rank_by: str) -> pd.DataFrame:
+    """Rows ranked by ``rank_by``; entries ``mean ± ci``, best and tied in bold, a verdict
+    column naming where a method is worse than the noisy input."""
+    cols = [c for c in dict.fromkeys([*columns, rank_by]) if c in d.columns]
+    bold = {c: marked(d, c, exclude=(NOISY,) if c == "time_s" else ()) for c in cols}
+    flags = worse_than_noisy(d, [rank_by, "rmse_surface"])
+    order = [lab for g in rank_groups(d, rank_by) for lab in g]
+    rest = sorted(set(map(str, d["method"])) - set(order))
+    by_label = {str(r["method"]): r for _, r in d.iterrows()}
+    rows = []
+    for lab in order + rest:
+        r = by_label[lab]
+        row = {"method": lab}
+        for c in cols:
+            text = fmt_value(num(r[c]), half_width(r, c))
+            row[c] = f"**{text}**" if lab in bold[c] else text
+        row["verdict"] = "noisy input" if lab == NOISY else flags.get(lab, "")
+        rows.append(row)
+    return pd.DataFrame(rows, columns=["method", *cols, "verdict"])
+
+
+def _cells_text(g: pd.DataFrame, all_methods: set[str]) -> str:
+    """``4, 16 spp`` or ``64 spp (jbf, oidn)`` for the cells of ``g``."""
+    parts = []
+    for spp, h in g.groupby("spp", sort=True):
+        ms = sorted(set(map(str, h["method"])))
+        parts.append(f"{int(spp)} spp" + ("" if set(ms) >= all_methods else
+                                          f" ({', '.join(ms)})"))
+    return ", ".join(parts)
+
+
+def reference_text(d: pd.DataFrame) -> str:
+    """The reference spp actually used by the cells of one scene (never the config's)."""
+    refs = d["ref_spp"].map(num) if "ref_spp" in d.columns else pd.Series(dtype=float)
+    known = sorted({int(v) for v in refs if math.isfinite(v)})
+    if not known:
+        return "reference spp not recorded in these cells"
+    if len(known) == 1 and refs.notna().all():
+        text = f"reference {known[0]} spp"
+    else:
+        methods = set(map(str, d["method"]))
+        per = [f"{v} spp for {_cells_text(d[refs == v], methods)}" for v in known]
+        if refs.isna().any():
+            per.append(f"not recorded for {_cells_text(d[refs.isna()], methods)}")
+        text = "reference differs between cells: " + "; ".join(per)
+    err = d["ref_rmse"].map(num) if "ref_rmse" in d.columns else pd.Series(dtype=float)
+    err = err[np.isfinite(err)]
+    if len(err):
+        lo, hi = float(err.min()), float(err.max())
+        text += (f", estimated reference RMSE {lo:.3g}" if lo == hi else
+                 f", estimated reference RMSE {lo:.3g}–{hi:.3g}")
+    return text
+
+
+def reference_summary(df: pd.DataFrame) -> str:
+    """One phrase for a sweep header: the reference spp of every scene, from the cells."""
+    if df.empty:
+        return "no finished cells"
+    texts = {s: reference_text(g) for s, g in df.groupby("scene", sort=True)}
+    if len(set(texts.values())) == 1:
+        return next(iter(texts.values())) + " in every scene"
+    return "per scene, " + "; ".join(f"{s}: {t}" for s, t in texts.items())
+
+
+def next_pow2(x: float) -> int:
+    return int(2 ** math.ceil(math.log2(max(x, 1.0))))
+
+
+def ref_noise_frame(df: pd.DataFrame) -> pd.DataFrame:
+    """Cells whose reference MSE exceeds :data:`REF_SHARE` of the method's MSE, with the
+    ``--ref-spp`` that would bring it under: ref_spp · ref_rmse² / (0.1 · rmse²), rounded up to
+    a power of two (the reference variance scales as 1 / ref_spp)."""
+    cols = ["scene", "spp", "method", "ref_spp", "ref_rmse", "rmse", "ref_mse_share",
+            "needed_ref_spp"]
+    if df.empty or "ref_rmse" not in df.columns:
+        return pd.DataFrame(columns=cols)
+    rows = []
+    for _, r in df.iterrows():
+        ref, err, n = num(r["ref_rmse"]), num(r["rmse"]), num(r.get("ref_spp"))
+        if not (math.isfinite(ref) and math.isfinite(err)) or err <= 0:
+            continue
+        share = ref * ref / (err * err)
+        if share > REF_SHARE:
+            need = next_pow2(n * share / REF_SHARE) if math.isfinite(n) and n > 0 else np.nan
+            rows.append({"scene": r["scene"], "spp": int(r["spp"]), "method": r["method"],
+                         "ref_spp": n, "ref_rmse": ref, "rmse": err, "ref_mse_share": share,
+                         "needed_ref_spp": need})
+    out = pd.DataFrame(rows, columns=cols)
+    return out.sort_values(["scene", "spp", "method"]).reset_index(drop=True)
+
+
+def ref_warnings_md(df: pd.DataFrame) -> list[str]:
+    """One line per (scene, spp) with a too-noisy reference, listing the methods."""
+    bad = ref_noise_frame(df)
+    lines = []
+    for (scene, spp), g in bad.groupby(["scene", "spp"], sort=True):
+        need = g["needed_ref_spp"].max()
+        refs = sorted({int(v) for v in g["ref_spp"] if _finite(v)})
+        fix = (f"`--ref-spp {int(need)}` would bring it under 10 %" if _finite(need)
+               else "a reference with more samples would fix it")
+        lines.append(
+            f"- ⚠ {scene}, {spp} spp: the reference's error is above 10 % of the method's "
+            f"(ref MSE / MSE up to {g['ref_mse_share'].max():.2g}) for "
+            f"{', '.join(map(str, g['method']))}"
+            + (f"; reference {', '.join(map(str, refs))} spp" if refs else "") + f"; {fix}.")
+    return lines
+
+
+def headline_spp(spps: Iterable[Any], preferred: int = 64) -> int | None:
+    """``preferred`` if present, else the spp closest to it (in log2; the lower on a tie)."""
+    vals = sorted({int(s) for s in spps if _finite(s) and s > 0})
+    if not vals:
+        return None
+    if preferred in vals:
+        return preferred
+    return min(vals, key=lambda s: (abs(math.log2(s) - math.log2(preferred)), s))
+
+
+def expected_grid(config: dict) -> list[tuple[str, int, str]]:
+    labels = config.get("labels") or config.get("methods") or []
+    try:
+        return [(str(s), int(p), str(m)) for s in config.get("scenes") or []
+                for p in config.get("spp") or [] for m in labels]
+    except (TypeError, ValueError):
+        return []
+
+
+def cell_key(c: dict) -> tuple[str, int, str] | None:
+    try:
+        return str(c["scene"]), int(c["spp"]), str(c["method"])
+    except (KeyError, TypeError, ValueError):
+        return None
+
+
+def grid_status(config: dict, cells: Sequence[dict]) -> dict[str, Any]:
+    """Counts of ok / skipped / error cells and the (scene, spp, label) cells the config
+    expects that no file holds."""
+    counts = {"ok": 0, "skipped": 0, "error": 0, "other": 0}
+    present = set()
+    for c in cells:
+        st = c.get("status")
+        counts[st if st in counts else "other"] += 1
+        k = cell_key(c)
+        if k is not None:
+            present.add(k)
+    expected = expected_grid(config)
+    missing = sorted(k for k in dict.fromkeys(expected) if k not in present)
+    return {**counts, "expected": len(set(expected)), "missing": missing}
+
+
+def grid_status_text(status: dict[str, Any]) -> str:
+    text = (f"cells: {status['expected']} expected, {status['ok']} ok, {status['skipped']} "
+            f"skipped, {status['error']} error, {len(status['missing'])} missing")
+    return text + (f", {status['other']} of unknown status" if status["other"] else "")
+
+
+def missing_md(missing: Sequence[tuple[str, int, str]]) -> list[str]:
+    """One line per (scene, label) listing the spp with no cell file."""
+    by: dict[tuple[str, str], list[int]] = {}
+    for scene, spp, label in missing:
+        by.setdefault((scene, label), []).append(spp)
+    return [f"- missing {label} on {scene} at {', '.join(map(str, sorted(s)))} spp"
+            for (scene, label), s in sorted(by.items())]
+
+
+def scene_block_md(d: pd.DataFrame, rank_by: str, columns: Sequence[str] = HEADLINE,
+                   heading: str | None = None) -> list[str]:
+    """Markdown for one scene at one spp: ranking line, intervals, reference, table."""
+    from .report import markdown_table
+
+    parts = [heading, ""] if heading else []
+    parts += [f"Ranking by {ranking_line(d, rank_by)}.", "",
+              f"{ci_kind_text(d).capitalize()}; {reference_text(d)}.", "",
+              markdown_table(scene_table(d, columns, rank_by)), ""]
+    return parts
+
+
+def headline_md(df: pd.DataFrame, spp: int | None, rank_by: str = "relmse",
+                columns: Sequence[str] = HEADLINE, level: str = "###") -> list[str]:
+    """Per scene at ``spp``: the ranking line and the ``mean ± ci`` table (columns that no
+    cell records are left out and named)."""
+    d = df[df["spp"] == spp] if spp is not None else df.iloc[0:0]
+    if d.empty:
+        return ["(no finished cells at this spp)", ""]
+    shown = [c for c in columns if c in d.columns and d[c].map(_finite).any()]
+    absent = [c for c in columns if c not in shown]
+    parts = [("**Bold**: the best entry of a column on the scene and every entry whose interval "
+              "overlaps it (tied). Entries are mean ± 95 % half-width; `time_s` is the median "
+              "denoise time ± half its IQR (the noisy input is not a candidate for the fastest). "
+              f"Rows ranked by `{rank_by}`; `verdict` names where a method is worse than the "
+              f"noisy input on `{rank_by}` or `rmse_surface`."), ""]
+    if absent:
+        parts += [f"Not recorded in these cells: {', '.join(absent)}.", ""]
+    for scene, g in d.groupby("scene", sort=True):
+        parts += scene_block_md(g, rank_by, shown, heading=f"{level} {scene}")
+    return parts
+
+
+__all__ = ["METRICS", "HEADLINE", "HIGHER_IS_BETTER", "DEFINITIONS", "REF_SHARE", "num",
+           "half_width", "fmt_value", "overlaps", "marked", "rank_groups", "ranking_line",
+           "worse_than_noisy", "ci_kind_text", "scene_table", "reference_text",
+           "reference_summary", "ref_noise_frame", "ref_warnings_md", "headline_spp",
+           "expected_grid", "grid_status", "grid_status_text", "missing_md", "scene_block_md",
+           "headline_md", "next_pow2"]

@@ -1,0 +1,297 @@
+"""Verdicts in the published README and the run report, on synthetic cells (no rendering):
+intervals and ties, best marked, worse-than-noisy flagged, reference noise, per-cell reference
+spp, labels kept apart, missing and malformed cells, reproducibility, figures, old cells."""
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from dbench.bench import plots, publish, report, tables, verdicts
+
+LABELS = ["noisy", "jbf", "jbf[radius=3]", "oidn", "statistical", "statistical-gate"]
+SCENES = ["cornell", "mirrors"]
+SPP = [16, 64]
+REF = {"cornell": (256, 0.01), "mirrors": (4096, 1e-4)}
+
+# relmse at 64 spp on cornell: oidn best; statistical and statistical-gate tied; both jbf
+# labels worse than noisy. rmse: oidn and statistical tied for the best.
+AT64 = {  # label: (rmse, rmse_ci, relmse, relmse_ci, rmse_surface)
+    "noisy": (0.050, 0.002, 0.0050, 0.0002, 0.030),
+    "jbf": (0.040, 0.002, 0.0060, 0.0002, 0.045),
+    "jbf[radius=3]": (0.045, 0.002, 0.0080, 0.0002, 0.050),
+    "oidn": (0.020, 0.002, 0.0010, 0.0001, 0.010),
+    "statistical": (0.021, 0.002, 0.0030, 0.0005, 0.012),
+    "statistical-gate": (0.030, 0.001, 0.0032, 0.0005, 0.013),
+}
+
+
+def _cell(scene, spp, label, **over):
+    rmse, rmse_ci, rel, rel_ci, surf = AT64[label]
+    f = 2.0 if spp == 16 else 1.0  # everything worse at 16 spp
+    ref_spp, ref_rmse = REF[scene]
+    c = {"status": "ok", "scene": scene, "method": label, "base_method": label.split("[")[0],
+         "spp": spp, "res": 16, "n_seeds": 3, "seeds": [0, 1, 2],
+         "ci_kind": "t 95 % over 3 seeds", "ref_spp": ref_spp, "ref_rmse": ref_rmse,
+         "ref_render_s": 2.0, "time_s": 0.0 if label == "noisy" else 0.01,
+         "time_s_iqr": 0.001, "times_s": [0.01, 0.01, 0.01],
+         "render_s": 0.05 * spp / 16, "stats_s": 0.02 if label.startswith("statistical") else 0,
+         "n_nonfinite": 0, "params": {}}
+    vals = {"rmse": rmse * f, "relmse": rel * f * f, "rmse_surface": surf * f,
+            "smape": 0.1 * f, "psnr": 30 / f, "ssim": 0.9 / f, "flip": 0.05 * f,
+            "top1_share": 0.5, "rmse_unbiased": rmse * f * 0.9, "relmse_unbiased": rel * f,
+            "relmse_surface": rel * f, "smape_surface": 0.1, "psnr_surface": 30.0,
+            "ssim_surface": 0.9, "flip_surface": 0.05}
+    cis = {"rmse": rmse_ci, "relmse": rel_ci}
+    for k, v in vals.items():
+        c[k] = v
+        c[k + "_ci"] = cis.get(k, v * 0.01)
+    c.update(over)
+    return c
+
+
+def _write(folder: Path, cells, config=None):
+    folder.mkdir(parents=True, exist_ok=True)
+    config = config or {"labels": LABELS, "methods": LABELS, "scenes": SCENES, "spp": SPP,
+                        "res": 16, "seeds": 3, "seed": 0, "ref_spp": None, "repeats": 3}
+    (folder / "sweep.json").write_text(json.dumps({"config": config, "machine": {
+        "cpu": "test cpu", "cores": 2, "gpu": "none", "python": "3", "platform": "test",
+        "packages": {"numpy": "x"}}}))
+    for c in cells:
+        p = folder / "cells" / c["scene"] / f"{c['spp']:05d}spp" / f"{c['method']}.json"
+        p.parent.mkdir(parents=True, exist_ok=True)
+        p.write_text(json.dumps(c))
+
+
+@pytest.fixture()
+def results(tmp_path):
+    cells = [_cell(s, p, m) for s in SCENES for p in SPP for m in LABELS
+             if (s, p, m) != ("mirrors", 16, "jbf[radius=3]")]  # one cell missing
+    res = tmp_path / "results"
+    _write(res / "sweep", cells)
+    return res
+
+
+def _frame(cells):
+    return tables.cells_frame(cells)
+
+
+def test_cells_frame_columns_and_labels_stay_apart():
+    df = _frame([_cell("cornell", 64, m) for m in LABELS])
+    for col in ("scene", "method", "base_method", "spp", "n_seeds", "ci_kind", "ref_spp",
+                "ref_rmse", "rmse", "rmse_ci", "rmse_surface", "top1_share", "rmse_unbiased",
+                "time_s", "time_s_iqr", "render_s", "total_s"):
+        assert col in df.columns
+    assert {"jbf", "jbf[radius=3]"} <= set(df.method)
+    assert len(df) == len(LABELS)
+    st = df[df.method == "statistical"].iloc[0]
+    assert st.render_s == pytest.approx(0.05 * 4 + 0.02)  # stats time counts as render
+    assert st.total_s == pytest.approx(st.render_s + 0.01)
+    conv = tables.convergence_table(df, "rmse")
+    assert list(conv.columns) == ["scene", "method", "64 spp", "64 spp_ci"]
+    assert len(conv) == len(LABELS)
+    md = tables.convergence_table_md(df, "rmse")
+    assert md.loc[md.method == "oidn", "64 spp"].item() == "0.02 ± 0.002"
+
+
+def test_ties_best_and_worse_than_noisy():
+    d = _frame([_cell("cornell", 64, m) for m in LABELS])
+    line = verdicts.ranking_line(d, "relmse")
+    assert line == ("relmse (lower is better): oidn < statistical = statistical-gate "
+                    "(tied: intervals overlap) < noisy < jbf < jbf[radius=3]")
+    assert verdicts.marked(d, "rmse") == {"oidn", "statistical"}
+    assert verdicts.marked(d, "ssim") == set(LABELS)  # equal means: everyone tied
+    flags = verdicts.worse_than_noisy(d, ["relmse", "rmse_surface"])
+    assert flags["jbf"] == "worse than noisy on relmse, rmse_surface"
+    assert flags["jbf[radius=3]"] == "worse than noisy on relmse, rmse_surface"
+    assert "oidn" not in flags and "noisy" not in flags
+    t = verdicts.scene_table(d, verdicts.HEADLINE, "relmse")
+    assert list(t.method) == ["oidn", "statistical", "statistical-gate", "noisy", "jbf",
+                              "jbf[radius=3]"]
+    row = t.set_index("method")
+    assert row.loc["oidn", "rmse"] == "**0.02 ± 0.002**"
+    assert row.loc["statistical", "rmse"].startswith("**")
+    assert not row.loc["statistical-gate", "rmse"].startswith("**")
+    assert row.loc["jbf", "verdict"] == "worse than noisy on relmse, rmse_surface"
+    # higher is better for SSIM
+    d2 = d.copy()
+    d2.loc[d2.method == "oidn", "ssim"] = 0.99
+    assert verdicts.ranking_line(d2, "ssim").startswith("ssim (higher is better): oidn > ")
+
+
+def test_reference_warning_suggests_ref_spp():
+    d = _frame([_cell("cornell", 64, m) for m in LABELS])
+    bad = verdicts.ref_noise_frame(d)
+    # ref_rmse 0.01 at 256 spp; oidn rmse 0.02: share 0.25 → 256 · 0.25 / 0.1 = 640 → 1024
+    oidn = bad[bad.method == "oidn"].iloc[0]
+    assert oidn.ref_mse_share == pytest.approx(0.25)
+    assert oidn.needed_ref_spp == 1024
+    assert "noisy" not in set(bad.method)  # 0.01² ≤ 0.1 · 0.05²
+    lines = verdicts.ref_warnings_md(d)
+    assert len(lines) == 1  # one line per scene and spp
+    assert "cornell, 64 spp" in lines[0] and "oidn, statistical" in lines[0]
+    worst = max(256 * (0.01 / AT64[m][0]) ** 2 / 0.1 for m in set(bad.method))
+    assert f"--ref-spp {verdicts.next_pow2(worst)}" in lines[0]
+    assert verdicts.next_pow2(640) == 1024 and verdicts.next_pow2(1024) == 1024
+
+
+def test_readme_verdicts(results):
+    text = publish.publish(results).read_text()
+    head = text[text.index("## Headline"):text.index("## Convergence")]
+    assert "Ranking by relmse (lower is better): oidn < statistical = statistical-gate " \
+           "(tied: intervals overlap) < noisy < jbf < jbf[radius=3]" in head
+    assert "Intervals: t 95 % over 3 seeds" in head
+    assert "| oidn | **0.02 ± 0.002** |" in head
+    assert "worse than noisy on relmse, rmse_surface" in head
+    # the reference spp actually used, per scene, never the config's (null) value
+    assert "cornell: reference 256 spp" in text and "mirrors: reference 4096 spp" in text
+    assert "4096 spp in every scene" not in text
+    cornell = head[head.index("### cornell"):head.index("### mirrors")]
+    assert "reference 256 spp" in cornell and "4096" not in cornell
+    assert "- ⚠ cornell, 64 spp:" in head and "--ref-spp" in head
+    assert "mirrors, 64 spp" not in head
+    # two labels of one base method stay two rows
+    assert "| jbf | " in head and "| jbf[radius=3] | " in head
+    # missing cell listed, counts stated
+    assert "- missing jbf[radius=3] on mirrors at 16 spp" in text
+    assert "24 expected, 23 ok, 0 skipped, 0 error, 1 missing" in text
+    assert "## Skipped and failed cells" in text
+    # equal-time for rmse, relmse and rmse_surface
+    for col in ("equal_rmse_spp", "equal_relmse_spp", "equal_rmse_surface_spp"):
+        assert col in text
+    assert "rmse_unbiased" in text and "top1_share" in text and "ref_rmse" in text
+    assert "t_{0.975,N−1}" in text
+    sweep = results / "sweep"
+    for name in ("error_time_rmse_surface.png", "error_time_relmse.png", "convergence.png"):
+        assert (sweep / name).stat().st_size > 1000
+        assert f"sweep/{name}" in text
+    assert not (sweep / "pareto.png").exists()
+    csv = pd.read_csv(sweep / "tables" / "convergence_rmse_unbiased.csv")
+    assert "64 spp_ci" in csv.columns
+    assert (sweep / "tables" / "convergence_rmse_surface.csv").exists()
+    ref = pd.read_csv(sweep / "tables" / "reference_noise.csv")
+    assert set(ref.scene) == {"cornell"}
+
+
+def test_report_is_byte_identical(results):
+    first = publish.publish(results).read_bytes()
+    pngs = {p.name: p.read_bytes() for p in (results / "sweep").glob("*.png")}
+    second = publish.publish(results).read_bytes()
+    assert first == second
+    assert pngs == {p.name: p.read_bytes() for p in (results / "sweep").glob("*.png")}
+
+
+def test_rank_by_is_selectable(results):
+    text = publish.publish(results, rank_by="rmse_surface").read_text()
+    assert "Ranking by rmse_surface (lower is better): oidn" in text
+    text = publish.build_readme(results, results / "sweep", rank_by="ssim")
+    assert "Ranking by ssim (higher is better)" in text
+
+
+def test_reference_differs_within_a_scene(tmp_path):
+    cells = [_cell("cornell", p, m, **({"ref_spp": 1024} if p == 64 else {}))
+             for p in SPP for m in LABELS]
+    d = _frame(cells)
+    text = verdicts.reference_text(d)
+    assert text.startswith("reference differs between cells: 256 spp for 16 spp; "
+                           "1024 spp for 64 spp")
+
+
+def test_malformed_values_and_files_do_not_crash(tmp_path):
+    cells = [_cell("cornell", p, m) for p in SPP for m in LABELS]
+    cells[0].update(rmse="oops", relmse=None, rmse_ci=[1, 2], ci_kind=7, ref_spp="many",
+                    time_s={"a": 1}, n_seeds=True)
+    cells[1].update(rmse=float("nan"), ref_rmse=None)
+    res = tmp_path / "results"
+    _write(res / "sweep", cells)
+    bad = res / "sweep" / "cells" / "cornell" / "00064spp"
+    (bad / "broken.json").write_text("[1, 2")
+    (bad / "list.json").write_text("[1, 2]")
+    (bad / "nomethod.json").write_text(json.dumps({"status": "ok", "scene": "cornell"}))
+    text = publish.publish(res).read_text()
+    assert "## Skipped and failed cells" in text
+    assert "list.json" in text and "nomethod.json" in text
+    df = tables.cells_frame(cells + [{"status": "ok"}, "junk", {"status": "ok", "scene": "x",
+                                                                 "method": "m", "spp": "1"}])
+    assert len(df) == len(cells)
+    assert math.isnan(df.loc[(df.spp == 16) & (df.method == "noisy"), "rmse"].item())
+
+
+def test_old_cells_without_new_keys_render(tmp_path):
+    old_keys = ("scene", "method", "spp", "res", "status", "rmse", "relmse", "smape", "psnr",
+                "ssim", "flip", "time_s", "times_s", "render_s", "stats_s", "n_nonfinite",
+                "params", "ref_spp")
+    cells = [{k: v for k, v in _cell(s, p, m, ref_spp=4096).items() if k in old_keys}
+             for s in SCENES for p in SPP for m in ("noisy", "jbf", "oidn")]
+    res = tmp_path / "results"
+    config = {"methods": ["noisy", "jbf", "oidn"], "scenes": SCENES, "spp": SPP, "res": 16,
+              "seed": 0, "ref_spp": None, "repeats": 3}
+    _write(res / "sweep", cells, config)
+    _write(res / "sweep-extra", [dict(c, spp=1) for c in cells[:3]],
+           dict(config, spp=[1], scenes=["cornell"]))
+    text = publish.publish(res).read_text()
+    assert "No confidence intervals in these cells" in text
+    assert "Not recorded in these cells: rmse_surface" in text
+    assert "reference 4096 spp in every scene" in text
+    assert "do not record `ref_rmse`" in text
+    assert "## Sweep `sweep-extra`" in text and "### Headline at 1 spp" in text
+    assert "0 missing" in text
+    assert (res / "sweep" / "error_time_relmse.png").exists()
+
+
+def test_styles_are_distinct_and_deterministic():
+    labels = ["statistical-gate", "noisy", "statistical", "jbf", "jbf[radius=3]", "oidn"]
+    s1 = plots.method_styles(labels)
+    assert s1 == plots.method_styles(list(reversed(labels)))
+    a, b = s1["statistical"], s1["statistical-gate"]
+    assert a["color"] != b["color"] and a["marker"] != b["marker"] and a["ls"] != b["ls"]
+    assert len({v["color"] for v in s1.values()}) == len(labels)
+    assert s1["noisy"]["ls"] == "--"
+
+
+def test_lower_envelope_owns_segments():
+    pts = pd.DataFrame({"method": ["a", "a", "b", "b"], "spp": [1, 4, 1, 4],
+                        "total_s": [1.0, 4.0, 2.0, 3.0], "relmse": [1.0, 0.1, 0.5, 0.3]})
+    env = plots.lower_envelope(pts, "relmse")
+    assert list(env.method) == ["a", "b", "b", "a"]
+    assert list(env.relmse) == [1.0, 0.5, 0.3, 0.1]
+
+
+def test_run_report_md_verdicts():
+    rows = [_cell("cornell", 64, m) for m in LABELS]
+    table = pd.DataFrame([{k: v for k, v in c.items() if k not in ("seeds", "times_s",
+                                                                   "params")} for c in rows])
+    settings = {"scene": "cornell", "kind": "steady", "spp": 64, "res": 16, "seed": 0,
+                "ref_spp": 4096, "repeats": 3}
+    info = {"cpu": "c", "cores": 2, "gpu": "none", "python": "3", "platform": "p",
+            "packages": {"numpy": "x"}}
+    md = report.run_report_md(table, settings, info, {"nca": "needs weights"})
+    assert md.startswith("# dbench run: cornell at 64 spp")
+    assert ("Ranking by relmse (lower is better): oidn < statistical = statistical-gate "
+            "(tied: intervals overlap)") in md
+    assert "Intervals: t 95 % over 3 seeds; reference 256 spp" in md  # the rows', not 4096
+    assert "estimated reference RMSE 0.01" in md
+    assert "## Reference noise" in md and "--ref-spp" in md
+    assert "| oidn | **0.02 ± 0.002** |" in md
+    assert "worse than noisy on relmse, rmse_surface" in md
+    assert "## Settings" in md and "## Machine" in md and "- nca: needs weights" in md
+    assert "rmse_unbiased" in md
+    # a table of the old kind (no intervals, no ref columns) still renders
+    old = table[["scene", "method", "spp", "res", "rmse", "relmse", "ssim", "flip", "time_s"]]
+    md = report.run_report_md(old, settings, info, {})
+    assert "No confidence intervals" in md and "reference 4096 spp" in md
+
+
+def test_error_map_title_names_the_map_and_its_figure(tmp_path):
+    ref = np.full((12, 12, 3), 0.5, np.float32)
+    out = ref * 1.1
+    title = report.error_map_title(out, ref)
+    assert title.startswith("relative error map")
+    rel = float(np.mean((out - ref) ** 2 / (ref ** 2 + 1e-2)))
+    assert f"relMSE {rel:.3g}" in title and "RMSE" not in title.replace("relMSE", "")
+    report.comparison_grid(tmp_path / "grid.png", [("noisy", out), ("oidn", ref)], ref)
+    assert (tmp_path / "grid.png").stat().st_size > 1000
