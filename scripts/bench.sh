@@ -10,15 +10,16 @@ bash scripts/setup.sh
 export PATH="$PWD/.venv/bin:$PATH"
 RES=${DBENCH_DEMO_RES:-96}
 SCENES=${DBENCH_DEMO_SCENES:-cornell,caustic,textured}
-dbench run --method all --scene cornell --spp 16 --res "$RES" --out results/demo/run-cornell --quiet
+dbench run --method all --scene cornell --spp 16 --res "$RES" --seeds 2 --out results/demo/run-cornell --quiet
 dbench run --method all --scene flicker --spp 1 --res 64 --frames 24 --ref-spp 256 \
   --out results/demo/run-flicker --quiet
 dbench run --method all --scene cornell-transient --spp 64 --res 32 --bins 100 --ref-spp 1024 \
   --repeats 3 --out results/demo/run-cornell-transient --quiet
-dbench sweep --methods all --scenes "$SCENES" --spp 4,16,64 --res "$RES" --repeats 3 \
+dbench sweep --methods all --scenes "$SCENES" --spp 4,16,64 --res "$RES" --repeats 3 --seeds 2 --rerun \
   --out results/demo/sweep --quiet
 dbench stress --out results/demo/stress.md --quiet > /dev/null || true
 dbench report --results results/demo --sweep results/demo/sweep
 dbench bench render --res 256 --spp 64
+dbench bench metrics
 echo
 echo "demo report: results/demo/README.md (runs: results/demo/run-*/report.md)"
