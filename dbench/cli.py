@@ -1,6 +1,7 @@
 """Command line: ``dbench run | sweep | stress | report | list | render | bench | train``.
 
-Exit codes: 0 success, 2 unknown names or bad arguments (the valid names are listed),
+Exit codes: 0 success, 2 unknown names or bad arguments (the valid names are listed) or a
+plugin asked for that failed to load (named, with the reason),
 3 renderer unavailable.
 """
 from __future__ import annotations
@@ -66,18 +67,31 @@ def cmd_list(args: argparse.Namespace) -> int:
     from . import methods
     from .datasets import scenes
 
+    from . import plugins
+
     if args.methods_only:
         print("\n".join(methods.available()))
         return 0
+    origin = {}
+    for p in plugins.all_plugins():
+        for name in p.provides:
+            origin[name] = p.origin
     print("Scenes:")
     for name in scenes.available():
         sc = scenes.get(name)
-        print(f"  {name:<12} {sc.kind:<10} {sc.description}")
+        print(f"  {name:<12} {sc.kind:<10} {sc.description}"
+              + (f"  [plugin: {origin[name]}]" if name in origin else ""))
     print("\nMethods:")
     for name in methods.available():
         cls = methods.method_class(name)
         print(f"  {name:<12} kinds={','.join(sorted(cls.kinds)):<26} "
-              f"needs={','.join(sorted(cls.needs))}")
+              f"needs={','.join(sorted(cls.needs))}"
+              + (f"  [plugin: {origin[name]}]" if name in origin else ""))
+    bad = plugins.broken()
+    if bad:
+        print("\nBroken plugins (not loaded):")
+        for p in bad:
+            print(f"  {p.name:<12} BROKEN  {p.origin}, {p.target}: {p.error}")
     return 0
 
 
@@ -503,17 +517,65 @@ def build_parser() -> argparse.ArgumentParser:
                     "folder, replacing the shipped weights)")
     common(tp)
     tp.set_defaults(func=cmd_train)
+    for sp in sub.choices.values():  # taken out of argv by main() wherever it stands; shown here
+        sp.add_argument("--plugin", action="append", metavar="MODULE_OR_FILE.py",
+                        help=PLUGIN_HELP)
     return p
+
+
+PLUGIN_HELP = ("import a module or .py file that registers methods or scenes (repeatable; "
+               "also $DBENCH_PLUGINS, os.pathsep-separated; installed entry points are found "
+               "without it)")
+
+
+def split_plugin_args(argv: Sequence[str]) -> tuple[list[str], list[str]]:
+    """(argv without ``--plugin X`` / ``--plugin=X``, the plugin specs): the option is taken
+    wherever it stands, before or after the subcommand."""
+    rest, specs = [], []
+    i = 0
+    while i < len(argv):
+        a = argv[i]
+        if a == "--plugin":
+            if i + 1 >= len(argv):
+                raise DbenchInputError("--plugin: expected a module name or a .py file")
+            specs.append(argv[i + 1])
+            i += 2
+            continue
+        if a.startswith("--plugin="):
+            specs.append(a.split("=", 1)[1])
+        elif a == "--":
+            rest += argv[i:]
+            break
+        else:
+            rest.append(a)
+        i += 1
+    return rest, specs
+
+
+def _load_plugins(args: argparse.Namespace, specs: Sequence[str]) -> None:
+    """Entry points, $DBENCH_PLUGINS and --plugin, before the command runs. A --plugin or
+    $DBENCH_PLUGINS entry that fails is an error (exit 2) except for ``list``, which shows it."""
+    from . import plugins
+
+    plugins.load_all(specs, strict=args.command != "list")
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     parser.add_argument("--debug", action="store_true", help="show tracebacks (for bug reports)")
+    parser.add_argument("--plugin", action="append", metavar="MODULE_OR_FILE.py",
+                        help=PLUGIN_HELP)
     argv = list(sys.argv[1:] if argv is None else argv)
     debug = "--debug" in argv
     argv = [a for a in argv if a != "--debug"]
+    try:
+        argv, plugin_specs = split_plugin_args(argv)
+    except DbenchInputError as exc:
+        print(f"dbench: {exc}", file=sys.stderr)
+        return 2
     args = parser.parse_args(argv)
     try:
+        _load_plugins(args, plugin_specs)
         return args.func(args)
     except UnknownNameError as exc:
         print(f"dbench: {exc}", file=sys.stderr)

@@ -85,15 +85,30 @@ def register(name: str) -> Callable[[type[Denoiser]], type[Denoiser]]:
     return wrap
 
 
+def _load_plugins() -> None:
+    """Built-in methods, then plugins (entry points, ``DBENCH_PLUGINS``), once per process."""
+    from . import plugins
+
+    plugins.ensure_loaded()
+
+
 def available() -> list[str]:
-    """Names of every registered method, sorted."""
+    """Names of every registered method (built-in and plugins), sorted."""
+    _load_plugins()
     return sorted(_REGISTRY)
 
 
 def method_class(name: str) -> type[Denoiser]:
+    if name not in _REGISTRY:
+        _load_plugins()
     try:
         return _REGISTRY[name]
     except KeyError:
+        from . import plugins
+
+        why = plugins.broken_reason(name)
+        if why:
+            raise plugins.PluginError(why) from None
         raise UnknownNameError(
             f"unknown method {name!r}; available methods: {', '.join(available())}") from None
 

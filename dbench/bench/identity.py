@@ -45,16 +45,22 @@ def _hash_files(paths: list[Path]) -> str:
 def method_version(cls: type) -> str:
     """The code version of a method class: its declared ``version`` (if any) joined with a hash
     of its source: every .py, .onnx and .json file of its package folder (weights included), and
-    the top-level modules of ``dbench.methods`` it may share (``temporal.py``, ...)."""
-    source = Path(inspect.getfile(cls))
+    the top-level modules of ``dbench.methods`` it may share (``temporal.py``, ...). A class
+    defined in a plugin package hashes that package's folder; one in a stand-alone file or
+    top-level module (``--plugin my_method.py``) hashes that file only."""
+    import dbench.methods as pkg
+
+    source = Path(inspect.getfile(cls)).resolve()
+    shared = Path(pkg.__file__).resolve().parent
     files = [source]
-    if source.name == "__init__.py" or source.parent.name != "methods":
+    outside_package = (shared not in source.parents and source.name != "__init__.py"
+                       and not (source.parent / "__init__.py").is_file())
+    if outside_package:
+        pass  # a plugin file or top-level module (dbench --plugin x.py): that file alone
+    elif source.name == "__init__.py" or source.parent.name != "methods":
         folder = source.parent
         files = [p for p in folder.rglob("*") if p.suffix in (".py", ".onnx", ".json")
                  and "__pycache__" not in p.parts]
-    import dbench.methods as pkg
-
-    shared = Path(pkg.__file__).parent
     if shared in source.parents:
         files += [p for p in shared.glob("*.py")]
     declared = getattr(cls, "version", None)

@@ -356,6 +356,24 @@ def _die_with_parent() -> None:
         pass
 
 
+def _worker_start(plugin_specs: Sequence[str] = ()) -> None:
+    """Process-pool initializer: die with the parent, then load the parent's plugins (entry
+    points, $DBENCH_PLUGINS and every --plugin), so the worker can build plugin methods."""
+    from .. import plugins
+
+    _die_with_parent()
+    plugins.worker_init(plugin_specs)
+
+
+def run_group_with_plugins(plugin_specs: Sequence[str], config: SweepConfig, out: str,
+                           scene_name: str, spp: int, method_names: list[str]) -> list[str]:
+    """:func:`run_group` after loading the parent's plugins (a Ray task's start-up)."""
+    from .. import plugins
+
+    plugins.worker_init(plugin_specs)
+    return run_group(config, out, scene_name, spp, method_names)
+
+
 def stored_config(out: Path, config: SweepConfig) -> tuple[dict | None, dict]:
     """(what to write to sweep.json or None, the stored record); refuses other settings."""
     from .harness import machine_info
@@ -410,18 +428,22 @@ def run_sweep(config: SweepConfig, out: str | Path, executor: str = "local", wor
     t_refs = time.perf_counter() - t_start
     n_cells = sum(len(g[2]) for g in groups)
     bar = tqdm(total=n_cells, desc="sweep", unit="cell", disable=not progress)
+    from .. import plugins
+
+    plugin_specs = plugins.requested()  # workers load the same plugins as this process
     if executor == "ray":
         import ray
 
         if not ray.is_initialized():
             ray.init(ignore_reinit_error=True, include_dashboard=False, log_to_driver=False)
-        remote = ray.remote(run_group)
-        pending = [remote.remote(config, str(out), *g) for g in groups]
+        remote = ray.remote(run_group_with_plugins)
+        pending = [remote.remote(plugin_specs, config, str(out), *g) for g in groups]
         while pending:
             ready, pending = ray.wait(pending, num_returns=1)
             bar.update(len(ray.get(ready[0])))
     elif workers > 1:
-        with ProcessPoolExecutor(max_workers=workers, initializer=_die_with_parent) as pool:
+        with ProcessPoolExecutor(max_workers=workers, initializer=_worker_start,
+                                 initargs=(plugin_specs,)) as pool:
             futures = [pool.submit(run_group, config, str(out), *g) for g in groups]
             for f in as_completed(futures):
                 bar.update(len(f.result()))

@@ -1,5 +1,7 @@
 """Registered denoisers. Importing this package registers every built-in method: each
-sub-package of ``dbench/methods/`` registers itself with ``@register`` when imported.
+sub-package of ``dbench/methods/`` registers itself with ``@register`` when imported. Methods from
+outside (entry points ``dbench.methods``, ``$DBENCH_PLUGINS``, ``--plugin``) are loaded by
+:mod:`dbench.plugins` on the first lookup, after these.
 
     >>> from dbench import methods
     >>> "noisy" in methods.available()
