@@ -84,7 +84,10 @@ def cmd_list(args: argparse.Namespace) -> int:
     print("\nMethods:")
     for name in methods.available():
         cls = methods.method_class(name)
-        print(f"  {name:<12} kinds={','.join(sorted(cls.kinds)):<26} "
+        kinds = ",".join(sorted(cls.kinds)) + (
+            "(+sequence per frame)" if "steady" in cls.kinds and "sequence" not in cls.kinds
+            else "")
+        print(f"  {name:<12} kinds={kinds:<26} "
               f"needs={','.join(sorted(cls.needs))}"
               + (f"  [plugin: {origin[name]}]" if name in origin else ""))
     bad = plugins.broken()

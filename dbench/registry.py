@@ -57,13 +57,19 @@ class Denoiser:
 
         Returns (ok, reason); the reason explains a skip in reports.
         """
-        if kind not in self.kinds:
+        if kind not in self.kinds and not self.per_frame(kind):
             return False, f"{self.name} works on {sorted(self.kinds)}, not on {kind} data"
         if available is not None:
             missing = set(self.needs) - set(available)
             if missing:
                 return False, f"{self.name} needs {sorted(missing)}, which the scene cannot provide"
         return True, ""
+
+    def per_frame(self, kind: str) -> bool:
+        """Whether the method runs on ``kind`` data as a single-frame method: a steady method on
+        a sequence denoises every frame alone (``reset()`` before each frame, no history), so
+        sequence tables hold single-frame and temporal methods side by side."""
+        return kind == "sequence" and "sequence" not in self.kinds and "steady" in self.kinds
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}({self.params})"

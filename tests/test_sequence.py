@@ -218,3 +218,41 @@ def test_quality_128(renderer, seq_cache):
     _, mean = _quality("orbit", 128, 24, seq_cache)
     for n in ("accumulate", "svgf", "asvgf", "bmfr"):
         assert mean[n] < mean["noisy"], n
+
+
+def test_steady_methods_run_on_sequences_frame_by_frame():
+    from dbench import methods
+    from dbench.bench.sequence import run_sequence, synthetic_sequence
+    from dbench.registry import Denoiser
+
+    class Counting(Denoiser):
+        name = "counting"
+        kinds = {"steady"}
+        needs = {"color"}
+        defaults = {}
+
+        def __init__(self):
+            super().__init__()
+            self.since_reset = 0
+            self.seen = []
+
+        def reset(self):
+            self.since_reset = 0
+
+        def denoise(self, data):
+            self.since_reset += 1
+            self.seen.append(self.since_reset)
+            return data.color.copy()
+
+    seq = synthetic_sequence(12, 16, frames=6)
+    m = Counting()
+    assert m.applies_to("sequence", {"color"}) == (True, "")
+    assert m.per_frame("sequence") and not m.per_frame("steady")
+    run_sequence(m, seq, warmup=2)
+    assert m.seen == [1] * 6  # reset before every frame: no history
+    jbf = methods.get("jbf")
+    ok, why = jbf.applies_to("sequence", {"color", "albedo", "normal", "depth"})
+    assert ok, why
+    assert not methods.get("statistical").applies_to("sequence", {"color", "albedo", "normal",
+                                                                  "depth"})[0]
+    assert not methods.get("svgf").per_frame("sequence")

@@ -104,7 +104,9 @@ def run_sequence(method, seq: Sequence, metric_names: Iterable[str] = SEQUENCE_M
                  warmup: int = WARMUP, keep_outputs: bool = False) -> SequenceResult:
     """Run ``method`` (name or Denoiser) over ``seq`` in order and score every frame.
 
-    Frames without a reference get times but no metrics. Returns a :class:`SequenceResult`.
+    A temporal method is reset once and keeps its history; a steady (single-frame) method is
+    reset before every frame (:meth:`dbench.registry.Denoiser.per_frame`). Frames without a
+    reference get times but no metrics. Returns a :class:`SequenceResult`.
     """
     m = _method(method)
     if not isinstance(seq, Sequence):
@@ -120,7 +122,10 @@ def run_sequence(method, seq: Sequence, metric_names: Iterable[str] = SEQUENCE_M
 
     m.reset()
     rows, outs, judgements = [], [], []
+    stateless = m.per_frame("sequence")  # a steady method: every frame alone
     for i, frame in enumerate(seq):
+        if stateless:
+            m.reset()
         t0 = time.perf_counter()
         out = m.denoise(frame)
         dt = time.perf_counter() - t0

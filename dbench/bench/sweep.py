@@ -326,6 +326,9 @@ def run_group(config: SweepConfig, out: str, scene_name: str, spp: int,
                 cell = {**base, "status": "skipped", "reason": res.skipped}
             else:
                 cell = {**base, "status": "ok", **cell_record(res, frames, set(inst.needs))}
+                if frames[0].kind == "sequence":
+                    cell["sequence_mode"] = ("frame by frame" if inst.per_frame("sequence")
+                                             else "temporal")
         except Exception as exc:  # noqa: BLE001 - one failing method must not stop the sweep
             cell = {**base, "status": "error", "error": f"{type(exc).__name__}: {exc}",
                     "traceback": traceback.format_exc(limit=5)}
