@@ -80,6 +80,17 @@ def _legend(fig, handles: dict) -> None:
                    bbox_to_anchor=(1.0, 0.5), fontsize=8, frameon=False)
 
 
+def _log_axes(ax, title: str, xlabel: str, ylabel: str, xbase: float = 10) -> None:
+    """Log-log axes with plain tick labels, a title, labels and a light grid."""
+    ax.set_xscale("log", base=xbase)
+    ax.set_yscale("log")
+    _plain_log_ticks(ax)
+    ax.set_title(title, fontsize=10)
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.grid(True, which="both", alpha=0.3)
+
+
 def convergence_plot(df: pd.DataFrame, path: Path, metric: str = "rmse") -> None:
     plt = _plt()
     scenes = sorted(df.scene.unique())
@@ -93,13 +104,7 @@ def convergence_plot(df: pd.DataFrame, path: Path, metric: str = "rmse") -> None
             st = styles[method]
             (h,) = ax.plot(m.spp, m[metric], ms=4, lw=1.2, label=method, **st)
             handles.setdefault(method, h)
-        ax.set_xscale("log", base=2)
-        ax.set_yscale("log")
-        _plain_log_ticks(ax)
-        ax.set_title(scene, fontsize=10)
-        ax.set_xlabel("spp")
-        ax.set_ylabel(metric)
-        ax.grid(True, which="both", alpha=0.3)
+        _log_axes(ax, scene, "spp", metric, xbase=2)
     fig.tight_layout()
     _legend(fig, dict(sorted(handles.items())))
     save(fig, path)
@@ -153,13 +158,7 @@ def error_time_plot(df: pd.DataFrame, metric: str, path: Path) -> bool:
                     ax.annotate(r.method, (r.total_s, r[metric]), xytext=(2, -9),
                                 textcoords="offset points", fontsize=6,
                                 color=styles[r.method]["color"])
-        ax.set_xscale("log")
-        ax.set_yscale("log")
-        _plain_log_ticks(ax)
-        ax.set_title(scene, fontsize=10)
-        ax.set_xlabel("render + denoise time (s)")
-        ax.set_ylabel(metric)
-        ax.grid(True, which="both", alpha=0.3)
+        _log_axes(ax, scene, "render + denoise time (s)", metric)
     fig.suptitle(f"{metric} against time (points: spp ladder of each method)", fontsize=10)
     fig.tight_layout()
     env_h = handles.pop(ENVELOPE_LABEL, None)

@@ -64,4 +64,23 @@ def clamp_magnitude(x: np.ndarray, limit: float = RADIANCE_MAX) -> np.ndarray:
     return out
 
 
-__all__ = ["RADIANCE_MAX", "clamp_magnitude", "require_buffers"]
+__all__ = ["RADIANCE_MAX", "clamp_magnitude", "require_buffers", "log_demodulated"]
+
+
+def log_demodulated(color: np.ndarray, a_eff: np.ndarray) -> np.ndarray:
+    """log1p(color / a_eff) as float32 for finite colour ≥ 0 and a_eff in (1e-3, 1] (the
+    learned models' input encoding).
+
+    The float32 quotient overflows to Inf for colour near the float32 maximum (3e38 / 0.2);
+    there the value is recomputed in float64 (log1p(3.4e38 / 1e-3) ≈ 95, finite), elsewhere it
+    is the plain float32 expression, bit for bit.
+    """
+    color = np.asarray(color, np.float32)
+    a_eff = np.broadcast_to(np.asarray(a_eff, np.float32), color.shape)
+    with np.errstate(over="ignore"):
+        q = color / a_eff
+    out = np.log1p(q)
+    big = np.isinf(q)
+    if big.any():
+        out[big] = np.log1p(color[big].astype(np.float64) / a_eff[big].astype(np.float64))
+    return out.astype(np.float32, copy=False)

@@ -6,6 +6,8 @@ from typing import Sequence
 
 import numpy as np
 
+from ..guards import log_demodulated  # noqa: F401 (part of this module's API)
+
 ALBEDO_EPS = 1e-3
 #: Architecture constants shared with the ONNX builder (spec §2).
 LEVELS = 5
@@ -32,22 +34,6 @@ def sanitize(name: str, x: np.ndarray, lo: float, hi: float) -> np.ndarray:
     return np.clip(x, lo, hi).astype(np.float32)
 
 
-def log_demodulated(color: np.ndarray, a_eff: np.ndarray) -> np.ndarray:
-    """log1p(color / a_eff) as float32 for finite colour ≥ 0 and a_eff in (1e-3, 1].
-
-    The float32 quotient overflows to Inf for colour near the float32 maximum (3e38 / 0.2);
-    there the value is recomputed in float64 (log1p(3.4e38 / 1e-3) ≈ 95, finite), elsewhere it
-    is the plain float32 expression, bit for bit.
-    """
-    color = np.asarray(color, np.float32)
-    a_eff = np.broadcast_to(np.asarray(a_eff, np.float32), color.shape)
-    with np.errstate(over="ignore"):
-        q = color / a_eff
-    out = np.log1p(q)
-    big = np.isinf(q)
-    if big.any():
-        out[big] = np.log1p(color[big].astype(np.float64) / a_eff[big].astype(np.float64))
-    return out.astype(np.float32, copy=False)
 
 
 def encode(color: np.ndarray, buffers: dict[str, np.ndarray],

@@ -12,22 +12,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..guards import log_demodulated  # noqa: F401 (part of this module's API)
+
 ENCODINGS = ("log1p", "log1p_demodulated")
-
-
-def log_demodulated(color: np.ndarray, a_eff: np.ndarray) -> np.ndarray:
-    """log1p(color / a_eff) float32, recomputed in float64 where the float32 quotient overflows
-    (colour near the float32 maximum, a_eff < 1): finite for every finite colour ≥ 0; bit for
-    bit the float32 expression elsewhere."""
-    color = np.asarray(color, np.float32)
-    a_eff = np.broadcast_to(np.asarray(a_eff, np.float32), color.shape)
-    with np.errstate(over="ignore"):
-        q = color / a_eff
-    out = np.log1p(q)
-    big = np.isinf(q)
-    if big.any():
-        out[big] = np.log1p(color[big].astype(np.float64) / a_eff[big].astype(np.float64))
-    return out.astype(np.float32, copy=False)
 ALBEDO_EPS = 1e-3
 
 
