@@ -64,17 +64,26 @@ def _pick_rank(df, rank_by: str) -> str:
     return "rmse"
 
 
-def wall_text(info: dict) -> str:
-    """The wall time the sweep's runs took (recorded in sweep.json by each run), references
-    apart; '' for sweeps that recorded none."""
+def wall_text(info: dict, cells: list[dict] | None = None) -> str:
+    """The wall time the sweep's runs took (recorded in sweep.json by each run) and the time
+    its references took to render (each distinct reference's ``ref_render_s`` from the cells,
+    also when it was rendered by an earlier, interrupted run); '' when nothing was recorded."""
     runs = [r for r in info.get("runs", []) if isinstance(r, dict)]
-    if not runs:
-        return ""
-    wall = sum(float(r.get("wall_s", 0)) for r in runs)
-    refs = sum(float(r.get("references_s", 0)) for r in runs)
-    cells = sum(int(r.get("cells", 0)) for r in runs)
-    return (f"wall time {wall:.0f} s for {cells} cells over {len(runs)} run"
-            f"{'s' if len(runs) != 1 else ''}, of which {refs:.0f} s rendering references")
+    refs: dict[tuple, float] = {}
+    for c in cells or []:
+        t = c.get("ref_render_s")
+        if isinstance(t, (int, float)) and not isinstance(t, bool):
+            refs[(c.get("scene"), c.get("ref_spp"), c.get("ref_seed"))] = float(t)
+    parts = []
+    if runs:
+        wall = sum(float(r.get("wall_s", 0)) for r in runs)
+        cells_n = sum(int(r.get("cells", 0)) for r in runs)
+        parts.append(f"wall time {wall:.0f} s for the last {cells_n} cells computed "
+                     f"({len(runs)} run{'s' if len(runs) != 1 else ''})")
+    if refs:
+        parts.append(f"{len(refs)} reference{'s' if len(refs) != 1 else ''} rendered in "
+                     f"{sum(refs.values()):.0f} s in all")
+    return ", ".join(parts)
 
 
 def settings_line(config: dict, df, status: dict, rel_name: str, extras=()) -> str:
@@ -143,7 +152,7 @@ def build_readme(results: Path, sweep_dir: Path, headline_spp: int = 64,
     timing = (f"denoise time = median of {config.get('repeats')} calls after a warm-up "
               "(rendering excluded)")
     parts += [settings_line(config, df, status, rel(sweep_dir),
-                            [timing] + [t for t in [wall_text(info)] if t]) + (
+                            [timing] + [t for t in [wall_text(info, cells)] if t]) + (
         " Sequence scenes: each frame denoised once, in order; metrics are means "
         "and time the median per frame over the frames after the warm-up." if sequence else ""),
         ""]
@@ -179,7 +188,12 @@ def build_readme(results: Path, sweep_dir: Path, headline_spp: int = 64,
               "One panel per scene: x = render + denoise time (render includes statistics "
               "collection), y = error, one line per method label through its spp points; the "
               "noisy input dashed; the grey step line is the lower envelope over every point, "
-              f"the {plots.ENVELOPE_LABEL} (labelled with the method that owns each segment).",
+              f"the {plots.ENVELOPE_LABEL} (labelled with the method that owns each segment). "
+              "Render time is the scene's measured cost per spp × spp (median seconds per spp "
+              "over the ladder, the lowest spp left out because the first render of a scene "
+              "carries one-time JIT compilation), plus the statistics' cost per spp for methods "
+              "that need them; each cell's measured seconds are in `tables/cells.csv` "
+              "(`render_measured_s`).",
               ""]
     for m, p in figures.items():
         parts += ([f"![error against time, {m}]({rel(p)})", ""] if drawn[m] else
@@ -250,8 +264,8 @@ def other_sweep_md(results: Path, sweep_dir: Path, rank_by: str = "relmse") -> l
         extras.append(f"first {config['frames']} frames")
     if config.get("bins"):
         extras.append(f"{config['bins']} time bins")
-    if wall_text(info):
-        extras.append(wall_text(info))
+    if wall_text(info, cells):
+        extras.append(wall_text(info, cells))
     parts = [f"## Sweep `{rel}`", "", settings_line(config, df, status, rel, extras) +
              (" Sequences: each frame denoised once, in order; metrics are means over the "
               "frames after the 8-frame warm-up; `t_rmse` / `tPSNR` score frame-to-frame "

@@ -49,25 +49,60 @@ def _row(c: dict) -> dict | None:
     render = num(c.get("render_s"))
     row["time_s"] = num(c.get("time_s"))
     row["time_s_iqr"] = num(c.get("time_s_iqr"))
-    row["render_s"] = render + (stats if np.isfinite(stats) else 0.0)
-    row["total_s"] = row["render_s"] + row["time_s"]
+    row["render_plain_s"] = render
+    row["stats_s"] = stats if np.isfinite(stats) else 0.0
+    row["render_measured_s"] = render + row["stats_s"]
     row["n_nonfinite"] = num(c.get("n_nonfinite"))
     return row
 
 
+def _per_spp_cost(values: pd.Series, spp: pd.Series) -> float:
+    """Median seconds per spp over a scene's ladder, its lowest spp left out when there are
+    others (the first render of a scene in a process carries one-time JIT compilation)."""
+    keep = spp > spp.min() if spp.nunique() > 1 else spp > 0
+    per = (values[keep] / spp[keep]).replace([np.inf, -np.inf], np.nan).dropna()
+    return float(per.median()) if len(per) else float("nan")
+
+
+def _model_render_time(df: pd.DataFrame) -> pd.DataFrame:
+    """``render_s`` = the scene's rendering cost per spp × spp, plus its statistics cost per
+    spp × spp for cells that collect statistics (costs: :func:`_per_spp_cost` over the scene's
+    cells); ``total_s`` = ``render_s`` + ``time_s``. A single render's wall time carries
+    compilation and whatever else ran on the machine; the per-spp model does not, and makes the
+    error-against-time curves comparable along the ladder. ``render_measured_s`` keeps the
+    measured seconds."""
+    df = df.copy()
+    df["render_s"] = df["render_measured_s"]
+    for scene, g in df.groupby("scene"):
+        per_spp = g.drop_duplicates("spp")
+        render_cost = _per_spp_cost(per_spp["render_plain_s"], per_spp["spp"])
+        with_stats = g[g["stats_s"] > 0].drop_duplicates("spp")
+        stats_cost = (_per_spp_cost(with_stats["stats_s"], with_stats["spp"])
+                      if len(with_stats) else 0.0)
+        if not np.isfinite(render_cost):
+            continue
+        idx = g.index
+        df.loc[idx, "render_s"] = render_cost * g["spp"] + np.where(
+            g["stats_s"] > 0, stats_cost * g["spp"], 0.0)
+    df["total_s"] = df["render_s"] + df["time_s"]
+    return df
+
+
 def cells_frame(cells: list[dict]) -> pd.DataFrame:
     """One row per ``ok`` cell. Missing or malformed values are NaN; cells without a scene,
-    method label or spp are left out. ``render_s`` includes statistics collection (``stats_s``)
-    and ``total_s`` = ``render_s`` + ``time_s``. The temporal metrics are kept only when some
+    method label or spp are left out. ``render_s`` is the modelled rendering time of the cell's
+    spp, statistics collection included where the method needs it (:func:`_model_render_time`;
+    ``render_measured_s`` the measured one) and ``total_s`` = ``render_s`` + ``time_s``. The temporal metrics are kept only when some
     cell has them (sequence scenes)."""
     ok = [c for c in cells if isinstance(c, dict) and c.get("status") == "ok"]
     cols = ID_COLUMNS + [k for m in METRICS for k in (m, m + "_ci")] + TIME_COLUMNS + [
         "n_nonfinite"]
     rows = [r for c in ok if (r := _row(c)) is not None]
-    df = pd.DataFrame(rows, columns=cols)
-    for c in cols:
+    df = pd.DataFrame(rows, columns=cols + ["render_plain_s", "stats_s", "render_measured_s"])
+    for c in df.columns:
         if c not in ("scene", "method", "base_method", "ci_kind"):
             df[c] = df[c].astype(float) if c != "spp" else df[c].astype(int)
+    df = _model_render_time(df).drop(columns=["render_plain_s", "stats_s"])
     drop = [k for m in TEMPORAL if df[m].isna().all() for k in (m, m + "_ci")]
     df = df.drop(columns=drop)
     return df.sort_values(["scene", "spp", "method"], kind="stable").reset_index(drop=True)
@@ -112,7 +147,8 @@ def noisy_fit(df: pd.DataFrame, scene: str, metric: str = "rmse") -> tuple[float
 
 
 def render_cost_per_spp(df: pd.DataFrame, scene: str) -> float:
-    """Seconds per spp of plain sample rendering on ``scene`` (median over the ladder)."""
+    """Seconds per spp of plain sample rendering on ``scene`` (the noisy input's modelled
+    render time per spp)."""
     d = df[(df.scene == scene) & (df.method == "noisy")]
     per = (d.render_s / d.spp).replace([np.inf, -np.inf], np.nan).dropna()
     return float(per.median()) if len(per) else float("nan")

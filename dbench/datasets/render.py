@@ -104,6 +104,21 @@ def sample_batches(scene: Scene, res: int, spp: int, seed: int = 0):
         yield film.reshape(res, copies, res, 3)
 
 
+_WARM: set[tuple] = set()
+
+
+def _warm_up(scene: Scene, res: int, copies: int) -> None:
+    """One untimed 1-spp batch the first time a (scene, res, copies) is rendered in this
+    process: scene loading and Dr.Jit's kernel compilation stay out of ``render_s``, as a
+    method's warm-up call stays out of its time (its samples are not used)."""
+    key = (scene.name, id(scene), res, copies, mitsuba().variant())
+    if key in _WARM:
+        return
+    mitsuba().render(loaded_batch_scene(scene, res, copies), spp=1,
+                     seed=pass_seed("warmup", 0, 0))
+    _WARM.add(key)
+
+
 def render_passes(scene: Scene, res: int, spp: int, seed: int = 0,
                   stats: tuple[str, float] | None = None, progress: bool = True
                   ) -> tuple[np.ndarray, SampleStats | None, dict]:
@@ -114,7 +129,8 @@ def render_passes(scene: Scene, res: int, spp: int, seed: int = 0,
         stats: ``(transform, lam)`` to accumulate sample statistics, or None.
     Returns:
         color (res, res, 3) float32, SampleStats of shape (res, res, 3) or None, and a dict with
-        ``render_s`` (rendering only), ``stats_s`` (host-side accumulation) and ``copies``.
+        ``render_s`` (rendering only, after an untimed warm-up render the first time the scene
+        is rendered in the process), ``stats_s`` (host-side accumulation) and ``copies``.
     """
     if spp < 1:
         raise ValueError(f"spp must be >= 1, got {spp}")
@@ -122,6 +138,7 @@ def render_passes(scene: Scene, res: int, spp: int, seed: int = 0,
     total = np.zeros((res, res, 3), np.float64)
     acc = PowerSums((res, res, 3), *stats) if stats else None
     render_s = stats_s = 0.0
+    _warm_up(scene, res, copies)
     batches = sample_batches(scene, res, spp, seed)
     with _progress(spp, f"{scene.name} {spp} spp", progress) as bar:
         while True:
