@@ -22,7 +22,7 @@ from .sweep import read_cell
 #: Metrics shown as Markdown convergence tables in the README (others: CSV links).
 README_CONVERGENCE = ("rmse", "relmse", "rmse_surface")
 SEQUENCE_HEADLINE = ("rmse", "rmse_surface", "relmse", "ssim", "t_rmse", "tpsnr", "time_s")
-TRANSIENT_HEADLINE = ("rmse", "relmse", "ssim", "time_s")
+TRANSIENT_HEADLINE = ("rmse", "rmse_surface", "relmse", "ssim", "time_s")
 
 
 def load_sweep(sweep_dir: Path) -> tuple[dict, list[dict], list[str]]:
