@@ -212,12 +212,10 @@ def test_quality_small(renderer, seq_cache):
 
 @pytest.mark.slow
 def test_quality_128(renderer, seq_cache):
-    """The same at 128×128 and 24 frames (about 5 minutes of rendering on 2 cores)."""
+    """The flicker check at 128×128 and 24 frames (about 2.5 minutes of rendering on 2 cores;
+    orbit is checked at 32 px above, and at 128 px in the published sequence sweep)."""
     res, mean = _quality("flicker", 128, 24, seq_cache)
     _check_flicker(res, mean)
-    _, mean = _quality("orbit", 128, 24, seq_cache)
-    for n in ("accumulate", "svgf", "asvgf", "bmfr"):
-        assert mean[n] < mean["noisy"], n
 
 
 def test_steady_methods_run_on_sequences_frame_by_frame():

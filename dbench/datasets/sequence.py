@@ -374,10 +374,14 @@ def render_reference(scene: SequenceScene, res: int, i: int, seed: int, spp: int
 
     Returns (reference (res, res, 3) float32, reference_var (res, res, 3) float32: variance of
     the mean from the chunk spread)."""
-    d = scene.frame_dict(mitsuba(), res, i)
+    mi = mitsuba()
+    # Loaded once for all chunks (loading is the expensive part of a small chunk's render);
+    # optimize=False as in _render_dict, so the pixels equal a per-chunk load bit for bit.
+    loaded = mi.load_dict(scene.frame_dict(mi, res, i), optimize=False)
     acc = _render.ChunkMoments((res, res, 3))
     for c, n in enumerate(_render.reference_chunks(spp, chunk)):
-        acc.add(_render_dict(d, n, _render.pass_seed(f"seq-reference-{i}", seed, c)), n)
+        img = mi.render(loaded, spp=n, seed=_render.pass_seed(f"seq-reference-{i}", seed, c))
+        acc.add(np.array(img, dtype=np.float32), n)
     return acc.mean().astype(np.float32), acc.var_mean().astype(np.float32)
 
 
