@@ -184,11 +184,22 @@ def _block_sums(maps: dict[str, np.ndarray], weights: dict[str, np.ndarray], sel
     sums = np.zeros((by * bx, len(names)))
     counts = np.zeros((by * bx, len(names)))
     ph, pw = by * block - h, bx * block - w
+
+    def blocks(arr: np.ndarray) -> np.ndarray:
+        if ph or pw:  # pad only images whose sides are not multiples of the block
+            arr = np.pad(arr, ((0, ph), (0, pw)))
+        return arr.reshape(by, block, bx, block).sum(axis=(1, 3)).ravel()
+
+    sel = select.astype(np.float64)
+    counted: dict[int, tuple[np.ndarray, np.ndarray]] = {}  # maps share weight arrays
     for j, n in enumerate(names):
-        wt = weights[n] * select
-        for arr, dst in ((maps[n] * wt, sums), (wt, counts)):
-            padded = np.pad(arr, ((0, ph), (0, pw)))
-            dst[:, j] = padded.reshape(by, block, bx, block).sum(axis=(1, 3)).ravel()
+        key = id(weights[n])
+        if key not in counted:
+            wt = weights[n] * sel
+            counted[key] = (wt, blocks(wt))
+        wt, count = counted[key]
+        sums[:, j] = blocks(maps[n] * wt)
+        counts[:, j] = count
     return sums, counts
 
 
