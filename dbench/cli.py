@@ -170,9 +170,9 @@ def _writable_cache(args: argparse.Namespace):
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    from . import datasets, methods
+    from . import methods
     from .bench import harness, identity, report
-    from .bench.sweep import cell_record
+    from .bench.sweep import cell_record, load_seeds
     from .datasets import scenes
     from .data import check_count
     from .io import ensure_writable_dir, write_exr, write_json, write_text
@@ -206,11 +206,10 @@ def cmd_run(args: argparse.Namespace) -> int:
     cache = _writable_cache(args)
     ensure_writable_dir(out, "--out")
     needs = set().union(*(instances[n].needs for n in runnable)) | {"reference", "emitter"}
-    frames = [datasets.load(scene, spp=args.spp, res=args.res, needs=needs, seed=args.seed + k,
-                            ref_seed=args.seed, transform=args.transform, lam=args.lam,
-                            ref_spp=args.ref_spp, cache=cache, progress=not args.quiet,
-                            frames=args.frames, bins=args.bins)
-              for k in range(args.seeds)]
+    frames = load_seeds(scene, args.seed, args.seeds, spp=args.spp, res=args.res, needs=needs,
+                        transform=args.transform, lam=args.lam, ref_spp=args.ref_spp,
+                        cache=cache, progress=not args.quiet, frames=args.frames,
+                        bins=args.bins)
     frame = frames[0]
     is_sequence = frame.kind == "sequence"
 

@@ -108,8 +108,9 @@ def run_cell(method: Denoiser, frame, metric_names=DEFAULT_METRICS, repeats: int
     """
     frames = _as_list(frame)
     first = frames[0]
-    available = {b for b in ("color", "albedo", "normal", "depth", "position", "stats",
-                             "reference", "emitter") if getattr(first, b, None) is not None}
+    from ..data import BUFFER_NAMES
+
+    available = {b for b in BUFFER_NAMES if getattr(first, b, None) is not None}
     ok, reason = method.applies_to(getattr(first, "kind", "steady"), available)
     if not ok:
         return CellResult(method.name, dict(method.params), None, skipped=reason)

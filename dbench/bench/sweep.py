@@ -259,15 +259,14 @@ def plan(config: SweepConfig, out: Path
     return groups, done, skipped
 
 
-def _load_seeds(config: SweepConfig, scene_name: str, spp: int, needs: set[str], cache) -> list:
-    """One frame (or sequence) per seed; every seed shares the reference of ``config.seed``."""
+def load_seeds(scene, seed: int, n_seeds: int, **load_kwargs) -> list:
+    """One frame (or sequence) per seed ``seed`` … ``seed + n_seeds − 1``, all scored against
+    the one reference of ``seed`` (shared by ``run`` and ``sweep``); ``load_kwargs`` go to
+    :func:`dbench.datasets.load`."""
     from .. import datasets
 
-    return [datasets.load(scene_name, spp=spp, res=config.res, needs=needs, seed=s,
-                          ref_seed=config.seed, transform=config.transform, lam=config.lam,
-                          ref_spp=config.ref_spp, cache=cache, progress=False,
-                          frames=config.frames, bins=config.bins)
-            for s in config.seed_list]
+    return [datasets.load(scene, seed=seed + k, ref_seed=seed, **load_kwargs)
+            for k in range(n_seeds)]
 
 
 def cell_record(res, frames: list, needs: set[str]) -> dict[str, Any]:
@@ -309,7 +308,10 @@ def run_group(config: SweepConfig, out: str, scene_name: str, spp: int,
     instances = {m: registry.get(m, **config.params.get(m, {})) for m in method_names}
     for inst in instances.values():
         needs |= set(inst.needs)
-    frames = _load_seeds(config, scene_name, spp, needs, cache)
+    frames = load_seeds(scene_name, config.seed, config.seeds, spp=spp, res=config.res,
+                        needs=needs, transform=config.transform, lam=config.lam,
+                        ref_spp=config.ref_spp, cache=cache, progress=False,
+                        frames=config.frames, bins=config.bins)
     written = []
     for m, inst in instances.items():
         ident = cell_identity(config, scene, spp, m, fingerprint)
