@@ -1,4 +1,4 @@
-"""Command line: ``dbench run | sweep | stress | report | list | render | bench | train``.
+"""Command line: ``dbench run | sweep | stress | report | list | render | export | bench | train``.
 
 Exit codes: 0 success, 2 unknown names or bad arguments (the valid names are listed) or a
 plugin asked for that failed to load (named, with the reason),
@@ -89,6 +89,8 @@ def cmd_list(args: argparse.Namespace) -> int:
             else "")
         print(f"  {name:<12} kinds={kinds:<26} "
               f"needs={','.join(sorted(cls.needs))}"
+              + (f" (optional: {','.join(sorted(cls.optional_needs))})"
+                 if cls.optional_needs else "")
               + (f"  [plugin: {origin[name]}]" if name in origin else ""))
     bad = plugins.broken()
     if bad:
@@ -126,17 +128,15 @@ def _ints(text: str, name: str) -> list[int]:
 
 def _check_common(args: argparse.Namespace) -> None:
     """Checks shared by ``run`` and ``sweep``, done before anything renders."""
-    from .bench.sweep import MAX_RES
     from .data import check_count
+    from .resolution import parse_res
 
     for item in args.param or []:
         if len(item) > MAX_PARAM_CHARS:
             raise DbenchInputError(f"--param: {len(item)} characters; at most {MAX_PARAM_CHARS}")
-    for name in ("res", "repeats", "seeds"):
+    args.res = parse_res(args.res, "--res")
+    for name in ("repeats", "seeds"):
         check_count(f"--{name}", getattr(args, name))
-    if args.res > MAX_RES:
-        raise DbenchInputError(f"--res: {args.res} is above the largest supported image side "
-                               f"{MAX_RES}")
     if args.ref_spp is not None:
         check_count("--ref-spp", args.ref_spp)
     if args.rank_by not in RANKABLE:
@@ -169,8 +169,27 @@ def _writable_cache(args: argparse.Namespace):
     return cache
 
 
+def _scene_of(args: argparse.Namespace):
+    """The Scene of ``--scene`` (catalogue name, scene file or folder) with ``--scene-param``."""
+    from .datasets import scene_files, scenes
+
+    return scenes.get(args.scene, scene_files.parse_scene_params(args.scene_param))
+
+
+def _default_spp(scene, fallback: int = 16) -> int:
+    """``--spp`` when not given: ``fallback`` for rendered scenes; a folder's only spp (a
+    folder with several makes the user choose)."""
+    if scene.renders:
+        return fallback
+    spps = list(scene.info.spps)
+    if len(spps) == 1:
+        return spps[0]
+    raise DbenchInputError(f"--spp: {scene.info.path} holds spp {', '.join(map(str, spps))}; "
+                           f"choose one")
+
+
 def cmd_run(args: argparse.Namespace) -> int:
-    from . import methods
+    from . import datasets, methods
     from .bench import harness, identity, report
     from .bench.sweep import cell_record, load_seeds
     from .datasets import scenes
@@ -182,8 +201,11 @@ def cmd_run(args: argparse.Namespace) -> int:
     names = methods.available() if args.method == "all" else _split(args.method)
     for n in names:
         methods.method_class(n)  # raises UnknownNameError listing valid names
-    scene = scenes.get(args.scene)
+    scene = _scene_of(args)
+    args.spp = _default_spp(scene) if args.spp is None else args.spp
     check_count("--spp", args.spp)
+    if args.res is None:
+        args.res = datasets.default_res(scene)
     _check_common(args)
     if "noisy" not in names:
         names = ["noisy"] + names
@@ -205,7 +227,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         f"{_dt.datetime.now().strftime('%Y%m%d-%H%M%S')}")
     cache = _writable_cache(args)
     ensure_writable_dir(out, "--out")
-    needs = set().union(*(instances[n].needs for n in runnable)) | {"reference", "emitter"}
+    needs = set().union(*(instances[n].wants(scene.provides) for n in runnable)) | {
+        "reference"} | ({"emitter"} & set(scene.provides))
     frames = load_seeds(scene, args.seed, args.seeds, spp=args.spp, res=args.res, needs=needs,
                         transform=args.transform, lam=args.lam, ref_spp=args.ref_spp,
                         cache=cache, progress=not args.quiet, frames=args.frames,
@@ -226,7 +249,7 @@ def cmd_run(args: argparse.Namespace) -> int:
             continue
         record = cell_record(res, frames, set(instances[n].needs))
         rows.append({"scene": scene.name, "method": labels[n], "base_method": n,
-                     "spp": args.spp, "res": args.res, **record,
+                     "spp": args.spp, "res": args.res.key, **record,
                      "params": json.dumps(res.params, sort_keys=True, default=str)})
         per_seed += [{"scene": scene.name, "method": labels[n], "spp": args.spp, **r}
                      for r in res.per_seed]
@@ -243,7 +266,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     if is_sequence:
         from .bench.sequence import plot_errors, strip
         runs = dict(outputs)
-        title = f"{scene.name}, {args.spp} spp, {args.res} px, {len(frame)} frames"
+        title = f"{scene.name}, {args.spp} spp, {args.res.text} px, {len(frame)} frames"
         plot_errors(runs, out / "error_per_frame.png", title=title,
                     events=frame.meta.get("events"))
         strip(frame, runs, out / "comparison.png", title=title)
@@ -255,10 +278,10 @@ def cmd_run(args: argparse.Namespace) -> int:
         write_figures(out, frame, dict(outputs), title=f"{scene.name}, {args.spp} spp")
     else:
         report.comparison_grid(out / "comparison.png", outputs, frame.reference, ev=scene.ev,
-                               title=f"{scene.name}, {args.spp} spp, {args.res} px")
+                               title=f"{scene.name}, {args.spp} spp, {args.res.text} px")
     info = harness.machine_info()
     seeds = [args.seed + k for k in range(args.seeds)]
-    settings = {"scene": scene.name, "kind": scene.kind, "spp": args.spp, "res": args.res,
+    settings = {"scene": scene.name, "kind": scene.kind, "spp": args.spp, "res": args.res.key,
                 "seeds": ", ".join(map(str, seeds)),
                 "ref_spp": frame.meta.get("ref_spp"),
                 "reference seed": frame.meta.get("ref_seed"),
@@ -284,21 +307,80 @@ def cmd_run(args: argparse.Namespace) -> int:
 def cmd_render(args: argparse.Namespace) -> int:
     """Render (or find cached) every buffer of the given scenes, e.g. to warm the cache."""
     from . import datasets
+    from .datasets import scene_files, scenes
+    from .resolution import parse_res
 
+    params = scene_files.parse_scene_params(args.scene_param)
+    names = _split(args.scene) if args.scene != "all" else datasets.available_scenes()
+    chosen = [scenes.get(n, params) for n in names]
+    sizes = [parse_res(args.res, "--res") if args.res is not None else datasets.default_res(sc)
+             for sc in chosen]
     cache = datasets.Cache(args.cache, enabled=not args.no_cache)
-    for name in _split(args.scene) if args.scene != "all" else datasets.available_scenes():
-        frame = datasets.load(name, spp=args.spp, res=args.res, seed=args.seed,
+    for name, sc, res in zip(names, chosen, sizes):
+        frame = datasets.load(sc, spp=args.spp, res=res, seed=args.seed,
                               ref_spp=args.ref_spp, cache=cache)
         print(f"{name}: rendered {frame.meta['rendered'] or 'nothing'}, "
               f"cached {frame.meta['cache_hits'] or 'nothing'}")
     return 0
 
 
+def cmd_export(args: argparse.Namespace) -> int:
+    """Write a scene's renders (noisy at each spp, features, emitter, statistics, reference)
+    in the OIDN folder layout that ``--scene DIR`` reads (dbench.datasets.export)."""
+    import re
+
+    from . import datasets
+    from .data import check_count
+    from .datasets.export import export_frame, write_dataset_json
+    from .io import ensure_writable_dir
+    from .resolution import parse_res
+
+    scene = _scene_of(args)
+    if not scene.renders:
+        raise DbenchInputError(f"--scene {args.scene}: already a folder of renders")
+    if scene.kind == "transient":
+        raise DbenchInputError(f"--scene {args.scene}: transient videos have no place in the "
+                               f"folder layout; export steady or sequence scenes")
+    spps = _ints(args.spp, "--spp")
+    for spp in spps:
+        check_count("--spp", spp)
+    res = parse_res(args.res, "--res") if args.res is not None else datasets.default_res(scene)
+    name = args.name or re.sub(r"[^A-Za-z0-9.-]+", "-", scene.name).strip("-") or "scene"
+    out = Path(args.out)
+    cache = _writable_cache(args)
+    ensure_writable_dir(out, "--out")
+    needs = set(scene.provides) - {"gradient", "emission"}
+    written: list[Path] = []
+    ref_spp = None
+    for i, spp in enumerate(spps):
+        data = datasets.load(scene, spp=spp, res=res, needs=needs, seed=args.seed,
+                             ref_spp=args.ref_spp, cache=cache, progress=not args.quiet,
+                             frames=args.frames)
+        frames = list(data) if data.kind == "sequence" else [data]
+        ref_spp = data.meta.get("ref_spp", ref_spp)
+        for k, frame in enumerate(frames):
+            written += export_frame(frame, out, name, spp,
+                                    frame_index=k if data.kind == "sequence" else None,
+                                    write_reference=(i == 0))
+    written.append(write_dataset_json(out, ref_spp=ref_spp, ev=scene.ev,
+                                      description=scene.description, scene=scene.name))
+    print(f"exported {scene.name} at {res.text} px, spp {', '.join(map(str, spps))}, "
+          f"reference {ref_spp} spp: {len(written)} files in {out}")
+    return 0
+
+
 def cmd_bench(args: argparse.Namespace) -> int:
     from .bench import speed
+    from .resolution import parse_res
 
+    # --res sets the render benchmark's size (default 256) and, when given, the image size of
+    # the method and metric benchmarks (instead of --width/--height)
+    if args.res is not None:
+        args.res = parse_res(args.res, "--res")
+        args.width, args.height = args.res
     if args.what == "render":
-        result = speed.bench_render(scene=args.scene, res=args.res, spp=args.spp,
+        result = speed.bench_render(scene=args.scene, res=args.res or parse_res(256),
+                                    spp=args.spp,
                                     repeats=args.repeats)
     elif args.what == "metrics":
         result = speed.bench_metrics(height=args.height, width=args.width,
@@ -315,11 +397,18 @@ def cmd_bench(args: argparse.Namespace) -> int:
 def cmd_sweep(args: argparse.Namespace) -> int:
     from .bench import sweep
 
-    methods_, scenes_ = sweep.resolve_names(args.methods, args.scenes)
+    from .datasets import scene_files
+
+    scene_params = scene_files.parse_scene_params(args.scene_param)
+    methods_, scenes_ = sweep.resolve_names(args.methods, args.scenes, scene_params)
+    res_given = args.res
+    args.res = args.res or "128"  # checked here; the sweep's own default is per scene
     _check_common(args)
     params = parse_params(args.param or [], methods_)
     config = sweep.SweepConfig(methods=methods_, scenes=scenes_,
-                               spp=_ints(args.spp, "--spp"), res=args.res,
+                               spp=_ints(args.spp, "--spp"),
+                               res=args.res.key if res_given is not None else None,
+                               scene_params=scene_params,
                                ref_spp=args.ref_spp, seed=args.seed, seeds=args.seeds,
                                repeats=args.repeats, rerun=args.rerun,
                                transform=args.transform, lam=args.lam, frames=args.frames,
@@ -413,6 +502,8 @@ def build_parser() -> argparse.ArgumentParser:
         sp.add_argument("--seed", type=int, default=0)
         sp.add_argument("--ref-spp", type=int, default=None,
                         help="reference spp (default $DBENCH_REF_SPP or 4096)")
+        sp.add_argument("--scene-param", action="append", metavar="NAME=VALUE",
+                        help="a $parameter of a Mitsuba scene file (repeatable)")
 
     def judged(sp: argparse.ArgumentParser) -> None:
         sp.add_argument("--seeds", type=int, default=1, help="independent noisy renders "
@@ -426,8 +517,11 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--method", required=True, help="NAME[,NAME...] or all (those that do not "
                    "apply to the scene are skipped with the reason)")
     r.add_argument("--scene", required=True)
-    r.add_argument("--spp", type=int, default=16)
-    r.add_argument("--res", type=int, default=128)
+    r.add_argument("--spp", type=int, default=None, help="samples per pixel (default 16; a "
+                   "folder of renders: its only spp)")
+    r.add_argument("--res", default=None, help="image size: N (N×N) or WIDTHxHEIGHT, e.g. "
+                   "1280x720 (default 128×128; a scene file: its film's aspect ratio with the "
+                   "longer side 128; a folder: its images' size)")
     r.add_argument("--out", default=None, help="output folder (default results/runs/<new>)")
     r.add_argument("--param", action="append", metavar="[METHOD.]KEY=VALUE")
     r.add_argument("--repeats", type=int, default=5, help="timed calls after one warm-up")
@@ -450,7 +544,8 @@ def build_parser() -> argparse.ArgumentParser:
     rp = sub.add_parser("render", help="render or find cached buffers of scenes")
     rp.add_argument("--scene", default="all")
     rp.add_argument("--spp", type=int, default=16)
-    rp.add_argument("--res", type=int, default=128)
+    rp.add_argument("--res", default=None, help="image size: N (N×N) or WIDTHxHEIGHT "
+                    "(default: as for run)")
     common(rp)
     rp.set_defaults(func=cmd_render)
 
@@ -458,7 +553,8 @@ def build_parser() -> argparse.ArgumentParser:
     sw.add_argument("--methods", default="all", help="all or NAME[,NAME...]")
     sw.add_argument("--scenes", default="all", help="all or NAME[,NAME...]")
     sw.add_argument("--spp", default="4,16,64,256,1024")
-    sw.add_argument("--res", type=int, default=128)
+    sw.add_argument("--res", default=None, help="image size: N (N×N) or WIDTHxHEIGHT "
+                    "(default: each scene's, as for run)")
     sw.add_argument("--out", default="results/sweep")
     sw.add_argument("--executor", choices=("local", "ray"), default="local")
     sw.add_argument("--workers", type=int, default=1, help="local process-pool size")
@@ -491,11 +587,29 @@ def build_parser() -> argparse.ArgumentParser:
     rp2.add_argument("--rank-by", default="relmse", help="metric that ranks the methods")
     rp2.set_defaults(func=cmd_report)
 
+    ex = sub.add_parser("export", help="write a scene's renders (noisy, features, emitter, "
+                        "statistics, reference) as a folder of EXR files in OIDN's layout, "
+                        "readable by --scene DIR")
+    ex.add_argument("scene", help="catalogue name or scene file")
+    ex.add_argument("--out", required=True)
+    ex.add_argument("--spp", default="4,16,64", help="comma list of spp")
+    ex.add_argument("--res", default=None, help="image size: N or WIDTHxHEIGHT (default: as "
+                    "for run)")
+    ex.add_argument("--name", default=None, help="file name prefix (default: the scene's "
+                    "name)")
+    ex.add_argument("--frames", type=int, default=None, help="sequence scenes: frames from "
+                    "the start (default all)")
+    ex.add_argument("--quiet", action="store_true")
+    common(ex)
+    ex.set_defaults(func=cmd_export)
+
     bp = sub.add_parser("bench", help="speed benchmarks with ratios measured in the same run")
     bp.add_argument("what", help="'render' (statistics cost), 'metrics' (the judge against "
                     "the plain metrics) or a method name")
     bp.add_argument("--scene", default="cornell")
-    bp.add_argument("--res", type=int, default=256)
+    bp.add_argument("--res", default=None, help="image size: N (N×N) or WIDTHxHEIGHT, "
+                    "e.g. 1280x720 (render: default 256; methods, metrics: default --width "
+                    "× --height)")
     bp.add_argument("--spp", type=int, default=64)
     bp.add_argument("--height", type=int, default=720)
     bp.add_argument("--width", type=int, default=1280)

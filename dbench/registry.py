@@ -26,7 +26,9 @@ class Denoiser:
 
     Class attributes a method sets:
         kinds: the Dataset kinds it accepts (``steady``, ``sequence``, ``transient``).
-        needs: the buffers it reads (names from :data:`dbench.data.BUFFER_NAMES`).
+        needs: the buffers it cannot run without (names from :data:`dbench.data.BUFFER_NAMES`).
+        optional_needs: buffers it uses when the data has them and runs without otherwise
+            (its docstring says what changes); loaded wherever the scene provides them.
         defaults: parameter defaults; ``get(name, **params)`` overrides them.
 
     Sequence methods keep state: call ``reset()`` and then ``denoise(frame)`` per frame in order.
@@ -36,6 +38,7 @@ class Denoiser:
     name: str = ""
     kinds: set[str] = {"steady"}
     needs: set[str] = {"color"}
+    optional_needs: set[str] = set()
     defaults: dict[str, Any] = {}
 
     def __init__(self, **params: Any) -> None:
@@ -65,6 +68,11 @@ class Denoiser:
                 return False, f"{self.name} needs {sorted(missing)}, which the scene cannot provide"
         return True, ""
 
+    def wants(self, available: set[str] | frozenset[str]) -> set[str]:
+        """The buffers to load for this method from a scene offering ``available``: ``needs``
+        and whichever ``optional_needs`` are there."""
+        return set(self.needs) | (set(self.optional_needs) & set(available))
+
     def per_frame(self, kind: str) -> bool:
         """Whether the method runs on ``kind`` data as a single-frame method: a steady method on
         a sequence denoises every frame alone (``reset()`` before each frame, no history), so
@@ -81,7 +89,7 @@ def register(name: str) -> Callable[[type[Denoiser]], type[Denoiser]]:
     def wrap(cls: type[Denoiser]) -> type[Denoiser]:
         if name in _REGISTRY and _REGISTRY[name] is not cls:
             raise ValueError(f"method {name!r} registered twice")
-        bad = set(cls.needs) - set(BUFFER_NAMES)
+        bad = (set(cls.needs) | set(cls.optional_needs)) - set(BUFFER_NAMES)
         if bad:
             raise ValueError(f"method {name!r} needs unknown buffers {sorted(bad)}")
         cls.name = name

@@ -68,11 +68,15 @@ def test_one_huge_finite_pixel_stays_finite(method, value):
 
 
 @pytest.mark.parametrize("method", ["jbf", "statistical", "statistical-gate"])
-def test_missing_depth_is_refused(method):
-    from dbench.errors import DbenchInputError
-    frame = stress.base_frame(16, 16).with_buffers(depth=None)
-    with pytest.raises(DbenchInputError, match="depth"):
-        methods.get(method).denoise(frame)
+def test_missing_depth_runs_with_the_hit_mask_from_normals(method):
+    """Depth is optional (renders from files lack it): without it the output is finite and
+    equals the run with a depth that is 1 where the normal is non-zero."""
+    import numpy as np
+    frame = stress.base_frame(16, 16)
+    hit = np.any(frame.normal != 0, axis=-1, keepdims=True).astype(np.float32)
+    out = methods.get(method).denoise(frame.with_buffers(depth=None))
+    assert np.isfinite(out).all()
+    np.testing.assert_array_equal(out, methods.get(method).denoise(frame.with_buffers(depth=hit)))
 
 
 def test_jbf_illumination_huge_pixel_matches_reference():

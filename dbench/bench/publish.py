@@ -15,6 +15,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from .. import io
+from ..resolution import size_text
 from . import plots, tables, verdicts
 from .report import machine_md, markdown_table, metric_definitions_md
 from .sweep import read_cell
@@ -93,8 +94,8 @@ def settings_line(config: dict, df, status: dict, rel_name: str, extras=()) -> s
     ref = config.get("ref_spp")
     return (f"Sweep `{rel_name}`: {len(scenes)} scenes ({', '.join(map(str, scenes))}) × "
             f"{len(_labels(config))} method labels × spp "
-            f"{', '.join(map(str, config.get('spp', [])))}, {config.get('res')}×"
-            f"{config.get('res')} px, {seeds} seed{'s' if seeds != 1 else ''} (first seed "
+            f"{', '.join(map(str, config.get('spp', [])))}, {size_text(config.get('res'))} px, "
+            f"{seeds} seed{'s' if seeds != 1 else ''} (first seed "
             f"{config.get('seed')}); {verdicts.reference_summary(df)} (read from the cells; "
             f"requested: {f'--ref-spp {ref}' if ref else 'the default'}); "
             + "".join(f"{e}; " for e in extras)

@@ -11,6 +11,7 @@ import numpy as np
 import pandas as pd
 
 from .. import io, metrics
+from ..resolution import size_text
 
 RUN_COLUMNS = ["scene", "method", "spp", "res", "rmse", "relmse", "smape", "psnr", "ssim", "flip",
                "t_rmse", "tpsnr", "time_s"]
@@ -108,8 +109,12 @@ def comparison_grid(path: str | Path, images: Sequence[tuple[str, np.ndarray]],
     cols = list(images) + ([("reference", reference)] if reference is not None else [])
     rows = 3 if reference is not None else 1
     size = 2.6
-    fig, axes = plt.subplots(rows, len(cols), figsize=(size * len(cols), size * rows + 0.4),
-                             squeeze=False)
+    # image rows as tall as the images' aspect ratio needs (the zoom row is square)
+    h, w = cols[0][1].shape[:2]
+    heights = [h / w, 1.0, h / w][:rows]
+    fig, axes = plt.subplots(rows, len(cols), squeeze=False,
+                             figsize=(size * len(cols), size * sum(heights) + 0.4 * rows),
+                             gridspec_kw={"height_ratios": heights})
     vmax = 1.0
     denoised = [img for label, img in images if label != "noisy"] or [img for _, img in images]
     zoom = zoom_window(reference, denoised, ev) if reference is not None else None
@@ -164,7 +169,7 @@ def run_report_md(table: pd.DataFrame, settings: dict[str, Any], info: dict[str,
             else verdicts.HEADLINE)
     shown = [c for c in cols if c in d.columns and d[c].notna().any()]
     parts = [f"# dbench run: {settings['scene']} at {settings['spp']} spp, "
-             f"{settings['res']}×{settings['res']} px", ""]
+             f"{size_text(settings['res'])} px", ""]
     if len(d):
         parts += verdicts.scene_block_md(d, rank_by, shown)
     else:

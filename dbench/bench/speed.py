@@ -20,6 +20,7 @@ from typing import Any, Callable
 import numpy as np
 
 from .harness import machine_info
+from ..resolution import parse_res, size_text
 
 
 def median_time(fn: Callable[[], Any], repeats: int) -> float:
@@ -33,7 +34,7 @@ def median_time(fn: Callable[[], Any], repeats: int) -> float:
     return statistics.median(times)
 
 
-def bench_render(scene: str = "cornell", res: int = 256, spp: int = 64, repeats: int = 3,
+def bench_render(scene: str = "cornell", res=256, spp: int = 64, repeats: int = 3,
                  transform: str = "box-cox", lam: float = 0.5) -> dict[str, Any]:
     from ..datasets import render, scenes
 
@@ -42,7 +43,7 @@ def bench_render(scene: str = "cornell", res: int = 256, spp: int = 64, repeats:
     passes = median_time(lambda: render.render_passes(sc, res, spp, progress=False), repeats)
     with_stats = median_time(lambda: render.render_passes(sc, res, spp, stats=(transform, lam),
                                                            progress=False), repeats)
-    return {"benchmark": "render", "scene": scene, "res": res, "spp": spp,
+    return {"benchmark": "render", "scene": scene, "res": parse_res(res).key, "spp": spp,
             "copies_per_call": render.batch_size(res, spp), "transform": transform,
             "plain_s": plain, "samples_s": passes, "samples_stats_s": with_stats,
             "ratio_stats_vs_plain": with_stats / plain, "ratio_samples_vs_plain": passes / plain,
@@ -119,7 +120,8 @@ def format_result(result: dict[str, Any]) -> str:
                 f"  judge + one-seed bootstrap   {(result['judge_s'] + result['bootstrap_s']) * 1e3:.1f} ms "
                 f"({result['ratio_judge_bootstrap_vs_plain']:.2f}x plain)")
     if result["benchmark"] == "render":
-        return (f"render benchmark: {result['scene']} {result['res']}² at {result['spp']} spp "
+        return (f"render benchmark: {result['scene']} {size_text(result['res'])} at "
+                f"{result['spp']} spp "
                 f"({result['copies_per_call']} samples per pixel per call)\n"
                 f"  plain render           {result['plain_s']:.3f} s\n"
                 f"  samples, no statistics {result['samples_s']:.3f} s "

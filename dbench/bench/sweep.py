@@ -26,6 +26,7 @@ from typing import Any, Iterable, Sequence
 from .. import io
 from ..data import check_count
 from ..errors import DbenchInputError
+from ..resolution import MAX_SIDE, Res, parse_res
 from . import identity
 
 DEFAULT_SPP = (4, 16, 64, 256, 1024)
@@ -43,7 +44,9 @@ class SweepConfig:
     methods: list[str]
     scenes: list[str]
     spp: list[int]
-    res: int = 128
+    #: image size: a side (square) or "WxH" (dbench.resolution; stored in its key form);
+    #: None: each scene's default (dbench.datasets.default_res)
+    res: int | str | None = 128
     ref_spp: int | None = None
     seed: int = 0
     #: independent noisy renders per cell (seeds ``seed`` … ``seed + seeds − 1``), all scored
@@ -63,11 +66,14 @@ class SweepConfig:
                                                         "ssim", "flip"])
     #: recompute cells whose identity changed (otherwise such a sweep is refused)
     rerun: bool = False
+    #: ``$parameters`` of scene files (--scene-param NAME=VALUE)
+    scene_params: dict[str, str] = field(default_factory=dict)
 
     def validate(self) -> None:
         """Every setting checked before anything is written or rendered (DbenchInputError)."""
-        for name, value in (("--res", self.res), ("--seeds", self.seeds),
-                            ("--repeats", self.repeats)):
+        if self.res is not None:
+            self.res = parse_res(self.res, "--res").key
+        for name, value in (("--seeds", self.seeds), ("--repeats", self.repeats)):
             check_count(name, value)
         for value in self.spp:
             check_count("--spp", value)
@@ -78,9 +84,18 @@ class SweepConfig:
         for name, value in (("--frames", self.frames), ("--bins", self.bins)):
             if value is not None:
                 check_count(name, value)
-        if self.res > MAX_RES:
-            raise DbenchInputError(f"--res: {self.res} is above the largest supported image "
-                                   f"side {MAX_RES}")
+
+    def scene(self, name: str):
+        """The Scene of a catalogue name, scene file or folder (with ``scene_params``)."""
+        from ..datasets import scenes as catalogue
+
+        return catalogue.get(name, self.scene_params or None)
+
+    def res_for(self, scene) -> Res:
+        """The size ``scene`` is rendered at: ``res``, or the scene's default when None."""
+        from .. import datasets
+
+        return parse_res(self.res) if self.res is not None else datasets.default_res(scene)
 
     @property
     def seed_list(self) -> list[int]:
@@ -92,7 +107,7 @@ class SweepConfig:
 
 
 #: Largest image side a sweep or run accepts (a 4096² float64 statistics buffer is ~1.2 GB).
-MAX_RES = 4096
+MAX_RES = MAX_SIDE
 
 
 def cell_path(out: Path, scene: str, spp: int, label: str) -> Path:
@@ -154,8 +169,8 @@ def load_cells(out: str | Path) -> list[dict]:
     return load_cells_checked(out)[0]
 
 
-def resolve_names(methods: str | Sequence[str], scenes: str | Sequence[str]
-                  ) -> tuple[list[str], list[str]]:
+def resolve_names(methods: str | Sequence[str], scenes: str | Sequence[str],
+                  scene_params: dict[str, str] | None = None) -> tuple[list[str], list[str]]:
     """``all`` or comma lists → validated names (UnknownNameError lists the valid ones)."""
     from .. import methods as registry
     from ..datasets import scenes as catalogue
@@ -168,7 +183,7 @@ def resolve_names(methods: str | Sequence[str], scenes: str | Sequence[str]
     for name in m:
         registry.method_class(name)
     for name in s:
-        catalogue.get(name)
+        catalogue.get(name, scene_params)
     if "noisy" not in m:
         m = ["noisy"] + m
     return m, s
@@ -191,7 +206,7 @@ def cell_identity(config: SweepConfig, scene, spp: int, method: str, fingerprint
 
     transform = config.transform or ("identity" if scene.kind == "transient" else "box-cox")
     return {"scene": scene.name, "scene_fingerprint": fingerprint, "kind": scene.kind,
-            "res": config.res, "spp": int(spp), "seeds": config.seed_list,
+            "res": config.res_for(scene).key, "spp": int(spp), "seeds": config.seed_list,
             "ref_spp": resolved_ref_spp(config, scene, spp), "ref_seed": config.seed,
             "transform": transform, "lam": float(config.lam), "frames": config.frames,
             "bins": config.bins, "metrics": list(config.metrics), "method": method,
@@ -211,18 +226,17 @@ def plan(config: SweepConfig, out: Path
     ``config.rerun`` is false.
     """
     from .. import datasets, methods as registry
-    from ..datasets import scenes as catalogue
 
     labels = config.labels()
     groups, done, skipped, conflicts = [], 0, 0, []
     pending_skips = []
     for scene_name in config.scenes:
-        scene = catalogue.get(scene_name)
-        fingerprint = datasets.scene_fingerprint(scene, config.res)
+        scene = config.scene(scene_name)
+        fingerprint = datasets.scene_fingerprint(scene, config.res_for(scene))
         for spp in config.spp:
             todo = []
             for m in config.methods:
-                path = cell_path(out, scene_name, spp, labels[m])
+                path = cell_path(out, scene.name, spp, labels[m])
                 ident = cell_identity(config, scene, spp, m, fingerprint)
                 key = identity.digest(ident)
                 cell = read_cell(path)
@@ -240,8 +254,9 @@ def plan(config: SweepConfig, out: Path
                 ok, why = method.applies_to(scene.kind, set(scene.provides))
                 if not ok:
                     pending_skips.append((path, {
-                        "status": "skipped", "reason": why, "scene": scene_name,
-                        "method": labels[m], "base_method": m, "spp": spp, "res": config.res,
+                        "status": "skipped", "reason": why, "scene": scene.name,
+                        "method": labels[m], "base_method": m, "spp": spp,
+                        "res": config.res_for(scene).key,
                         "identity": ident, "identity_hash": key}))
                     skipped += 1
                     continue
@@ -301,40 +316,42 @@ def run_group(config: SweepConfig, out: str, scene_name: str, spp: int,
 
     out_path = Path(out)
     cache = datasets.Cache(config.cache)
-    scene = catalogue.get(scene_name)
-    fingerprint = datasets.scene_fingerprint(scene, config.res)
+    scene = config.scene(scene_name)
+    res = config.res_for(scene)
+    fingerprint = datasets.scene_fingerprint(scene, res)
     labels = config.labels()
-    needs = {"reference", "emitter"}
+    needs = {"reference"} | ({"emitter"} & set(scene.provides))
     instances = {m: registry.get(m, **config.params.get(m, {})) for m in method_names}
     for inst in instances.values():
-        needs |= set(inst.needs)
-    frames = load_seeds(scene_name, config.seed, config.seeds, spp=spp, res=config.res,
+        needs |= inst.wants(scene.provides)
+    frames = load_seeds(scene, config.seed, config.seeds, spp=spp, res=res,
                         needs=needs, transform=config.transform, lam=config.lam,
                         ref_spp=config.ref_spp, cache=cache, progress=False,
                         frames=config.frames, bins=config.bins)
     written = []
     for m, inst in instances.items():
         ident = cell_identity(config, scene, spp, m, fingerprint)
-        base = {"scene": scene_name, "method": labels[m], "base_method": m, "spp": spp,
-                "res": config.res, "params": ident["params"], "identity": ident,
+        base = {"scene": scene.name, "method": labels[m], "base_method": m, "spp": spp,
+                "res": res.key, "params": ident["params"], "identity": ident,
                 "identity_hash": identity.digest(ident)}
         try:
             if frames[0].kind == "sequence":
-                res = run_sequence_cell(inst, frames, metric_names=config.metrics)
+                result = run_sequence_cell(inst, frames, metric_names=config.metrics)
             else:
-                res = run_cell(inst, frames, metric_names=config.metrics,
-                               repeats=config.repeats)
-            if res.skipped:
-                cell = {**base, "status": "skipped", "reason": res.skipped}
+                result = run_cell(inst, frames, metric_names=config.metrics,
+                                  repeats=config.repeats)
+            if result.skipped:
+                cell = {**base, "status": "skipped", "reason": result.skipped}
             else:
-                cell = {**base, "status": "ok", **cell_record(res, frames, set(inst.needs))}
+                cell = {**base, "status": "ok",
+                        **cell_record(result, frames, set(inst.needs))}
                 if frames[0].kind == "sequence":
                     cell["sequence_mode"] = ("frame by frame" if inst.per_frame("sequence")
                                              else "temporal")
         except Exception as exc:  # noqa: BLE001 - one failing method must not stop the sweep
             cell = {**base, "status": "error", "error": f"{type(exc).__name__}: {exc}",
                     "traceback": traceback.format_exc(limit=5)}
-        io.write_json(cell_path(out_path, scene_name, spp, labels[m]), cell)
+        io.write_json(cell_path(out_path, scene.name, spp, labels[m]), cell)
         written.append(m)
     return written
 
@@ -343,8 +360,12 @@ def _prerender_references(config: SweepConfig, scenes: Iterable[str]) -> None:
     from .. import datasets
 
     cache = datasets.Cache(config.cache)
-    for s in scenes:
-        datasets.load(s, spp=1, res=config.res, needs={"reference", "albedo"}, seed=config.seed,
+    for name in scenes:
+        s = config.scene(name)
+        if not s.renders:
+            continue
+        datasets.load(s, spp=1, res=config.res_for(s), needs={"reference", "albedo"},
+                      seed=config.seed,
                       ref_seed=config.seed, ref_spp=config.ref_spp, cache=cache,
                       frames=config.frames, bins=config.bins)
 

@@ -14,10 +14,13 @@ Plots live in :mod:`dbench.bench.plots`; verdicts (ties, rankings) in
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
 
+from ..errors import DbenchInputError
+from ..resolution import parse_res
 from .report import markdown_table
 from .verdicts import METRICS, fmt_value, num
 
@@ -32,6 +35,14 @@ def _label(v) -> str | None:
     return v if isinstance(v, str) and v else None
 
 
+def _res_key(value: Any) -> int | str | float:
+    """A cell's ``res`` in its key form (256 or "160x90"), NaN when it is not a size."""
+    try:
+        return parse_res(value).key
+    except DbenchInputError:
+        return float("nan")
+
+
 def _row(c: dict) -> dict | None:
     scene, method = _label(c.get("scene")), _label(c.get("method"))
     spp = num(c.get("spp"))
@@ -39,7 +50,7 @@ def _row(c: dict) -> dict | None:
         return None
     row = {"scene": scene, "method": method,
            "base_method": _label(c.get("base_method")) or method.split("[")[0],
-           "spp": int(spp), "res": num(c.get("res")), "n_seeds": num(c.get("n_seeds")),
+           "spp": int(spp), "res": _res_key(c.get("res")), "n_seeds": num(c.get("n_seeds")),
            "ci_kind": _label(c.get("ci_kind")) or "", "ref_spp": num(c.get("ref_spp")),
            "ref_rmse": num(c.get("ref_rmse"))}
     for m in METRICS:
@@ -100,7 +111,7 @@ def cells_frame(cells: list[dict]) -> pd.DataFrame:
     rows = [r for c in ok if (r := _row(c)) is not None]
     df = pd.DataFrame(rows, columns=cols + ["render_plain_s", "stats_s", "render_measured_s"])
     for c in df.columns:
-        if c not in ("scene", "method", "base_method", "ci_kind"):
+        if c not in ("scene", "method", "base_method", "ci_kind", "res"):
             df[c] = df[c].astype(float) if c != "spp" else df[c].astype(int)
     df = _model_render_time(df).drop(columns=["render_plain_s", "stats_s"])
     drop = [k for m in TEMPORAL if df[m].isna().all() for k in (m, m + "_ci")]

@@ -22,6 +22,7 @@ import numpy as np
 
 from ..data import Frame, SampleStats, Sequence, TransientFrame, check_count
 from ..errors import DbenchInputError
+from ..resolution import Res, parse_res
 from . import render as _render
 from . import scenes as _scenes
 from .cache import Cache, make_key
@@ -42,28 +43,28 @@ def reference_spp() -> int:
     return int(os.environ.get("DBENCH_REF_SPP", DEFAULT_REFERENCE_SPP))
 
 
-def _base_description(scene: Scene, res: int) -> dict:
+def _base_description(scene: Scene, res: Res) -> dict:
     mi = mitsuba()
-    return {"scene": scene.name, "res": res, "dict": scene.scene_dict(mi, res),
+    return {"scene": scene.name, "res": res.key, "dict": scene.key_dict(mi, res),
             "params": scene.params, "versions": versions()}
 
 
-def scene_fingerprint(scene: str | Scene, res: int) -> str:
+def scene_fingerprint(scene: str | Scene, res) -> str:
     """A short content hash (16 hex chars of sha256) of ``scene`` at ``res``: the canonical
     scene description (the Mitsuba dictionary through :func:`~dbench.datasets.cache.canonical`,
     ``params``, renderer :func:`versions`); every frame's dictionary for sequence scenes, the
     transient dictionary with the default window for transient scenes. Renders nothing.
     Two results with the same fingerprint were rendered from the same scene content."""
     sc = scene if isinstance(scene, Scene) else _scenes.get(scene)
-    res = check_count("res", res)
+    res = parse_res(res)
     mi = mitsuba()
     if sc.kind == "sequence":
-        desc = {"scene": sc.name, "kind": sc.kind, "res": res, "n_frames": int(sc.n_frames),
+        desc = {"scene": sc.name, "kind": sc.kind, "res": res.key, "n_frames": int(sc.n_frames),
                 "frames": [sc.frame_dict(mi, res, i) for i in range(sc.n_frames)],
                 "params": sc.params, "versions": versions()}
     elif sc.kind == "transient":
         window = sc.window()
-        desc = {"scene": sc.name, "kind": sc.kind, "res": res,
+        desc = {"scene": sc.name, "kind": sc.kind, "res": res.key,
                 "dict": sc.transient_dict(mi, res, window), "window": window.meta(),
                 "params": sc.params, "versions": versions()}
     else:
@@ -71,7 +72,7 @@ def scene_fingerprint(scene: str | Scene, res: int) -> str:
     return make_key(desc)[:16]
 
 
-def load(scene: str | Scene, spp: int, res: int, needs: Iterable[str] | None = None,
+def load(scene: str | Scene, spp: int, res, needs: Iterable[str] | None = None,
          transform: str | None = None, lam: float = 0.5, seed: int = 0,
          ref_spp: int | None = None, cache: Cache | None = None, progress: bool = True,
          frames: int | None = None, bins: int | None = None,
@@ -88,7 +89,8 @@ def load(scene: str | Scene, spp: int, res: int, needs: Iterable[str] | None = N
     Args:
         scene: catalogue name or Scene.
         spp: samples per pixel of the noisy color (and its statistics).
-        res: image side in pixels (square images).
+        res: image size: a side in pixels (square), ``"WxH"`` or (width, height)
+            (:func:`dbench.resolution.parse_res`).
         needs: buffer names (``color`` always comes); None means every buffer the scene provides.
         transform, lam: sample transform of the statistics (spec/statistical.md §3); None
             means the kind's default: Box-Cox for steady scenes, identity for transient ones.
@@ -103,6 +105,8 @@ def load(scene: str | Scene, spp: int, res: int, needs: Iterable[str] | None = N
         from the cache entry when cached) and ``ref_rmse`` = sqrt(mean(reference_var)).
     """
     sc = scene if isinstance(scene, Scene) else _scenes.get(scene)
+    if not sc.renders:
+        return _load_folder_scene(sc, spp, res, needs, seed, ref_spp, frames)
     if sc.kind == "sequence":
         return _sequence.load_sequence(sc, spp=spp, res=res, needs=needs, seed=seed,
                                        ref_spp=ref_spp, cache=cache, progress=progress,
@@ -115,7 +119,7 @@ def load(scene: str | Scene, spp: int, res: int, needs: Iterable[str] | None = N
                                          ref_seed=ref_seed)
     transform = "box-cox" if transform is None else transform
     check_count("spp", spp)
-    check_count("res", res)
+    res = parse_res(res)
     wanted = set(sc.provides if needs is None else needs) | {"color"}
     unknown = wanted - set(sc.provides)
     if unknown:
@@ -129,7 +133,7 @@ def load(scene: str | Scene, spp: int, res: int, needs: Iterable[str] | None = N
     cache = cache or Cache()
     ref_spp = ref_spp or reference_spp()
     base = _base_description(sc, res)
-    meta: dict = {"scene": sc.name, "kind": sc.kind, "spp": int(spp), "res": int(res),
+    meta: dict = {"scene": sc.name, "kind": sc.kind, "spp": int(spp), "res": res.key,
                   "seed": int(seed), "ev": sc.ev, "versions": base["versions"], "cache_hits": [],
                   "rendered": []}
 
@@ -193,6 +197,53 @@ def load(scene: str | Scene, spp: int, res: int, needs: Iterable[str] | None = N
     return Frame(color=color, stats=stats, meta=meta, **buffers)
 
 
+#: Longer image side of a scene's default size (catalogue scenes: DEFAULT_SIDE²).
+DEFAULT_SIDE = 128
+
+
+def default_res(scene: str | Scene, side: int = DEFAULT_SIDE) -> Res:
+    """The size a scene is rendered at when none is asked for: a folder of renders its own
+    size; a Mitsuba scene file its film's aspect ratio with the longer side ``side``; any
+    other scene ``side`` × ``side``."""
+    sc = _scenes.get(scene)
+    if isinstance(sc, _scenes.FolderScene):
+        return Res(sc.info.width, sc.info.height)
+    from .scene_files import XmlScene, file_film_size
+
+    if isinstance(sc, XmlScene):
+        w, h = file_film_size(sc)
+        scale = side / max(w, h)
+        return Res(max(1, round(w * scale)), max(1, round(h * scale)))
+    return Res(side, side)
+
+
+def _load_folder_scene(sc: Scene, spp: int, res, needs, seed: int, ref_spp: int | None,
+                       frames: int | None) -> Frame | Sequence:
+    """A frame (or, for numbered frames, a sequence) read from a folder of renders
+    (dbench.datasets.folder). Settings that cannot apply to files are refused: another size,
+    another reference spp, a seed other than the first (a folder holds one noisy image per
+    spp)."""
+    from .folder import load_folder
+
+    info = sc.info
+    where = f"{info.path}/{info.name}"
+    if res is not None and parse_res(res) != Res(info.width, info.height):
+        raise DbenchInputError(f"--res: {where} holds {info.width}x{info.height} images; "
+                               f"got {parse_res(res)}")
+    if seed != 0:
+        raise DbenchInputError(f"--seed/--seeds: {where} holds one noisy image per spp "
+                               f"(seed 0, one seed); got seed {seed}")
+    if ref_spp is not None and info.ref_spp is not None and int(ref_spp) != int(info.ref_spp):
+        raise DbenchInputError(f"--ref-spp: the reference in {where} has {info.ref_spp} spp; "
+                               f"got {ref_spp}")
+    if info.frames is None:
+        return load_folder(info, spp, needs)
+    numbers = list(info.frames)[:frames] if frames else list(info.frames)
+    out = [load_folder(info, spp, needs, frame=k) for k in numbers]
+    meta = {**out[0].meta, "kind": "sequence", "frames": len(out)}
+    return Sequence(out, meta=meta)
+
+
 def check_ref_seed(ref_seed: int | None) -> int:
     """The reference seed: 0 for None, else a non-negative integer (DbenchInputError)."""
     if ref_seed is None:
@@ -229,4 +280,4 @@ from . import sequence as _sequence  # noqa: E402  (registers the sequence scene
 from . import transient as _transient  # noqa: E402  (registers the transient scenes)
 
 __all__ = ["load", "available_scenes", "get_scene", "Cache", "Scene", "FEATURES",
-           "FEATURE_BUFFERS", "scene_fingerprint"]
+           "FEATURE_BUFFERS", "scene_fingerprint", "default_res"]

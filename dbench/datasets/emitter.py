@@ -95,10 +95,10 @@ def render_emitter_dict(d: dict, spp: int, seed: int, optimize: bool = True) -> 
     return render_emitter_scene(mi.load_dict(d, optimize=optimize), spp, seed)
 
 
-def render_emitter(scene, res: int, spp: int | None = None, seed: int = 0
+def render_emitter(scene, res, spp: int | None = None, seed: int = 0
                    ) -> tuple[np.ndarray, float]:
     """The emitter buffer of catalogue ``scene`` at ``res`` (default spp: the features'),
-    seed stream ``emitter``. Returns ((res, res, 1) float32, seconds)."""
+    seed stream ``emitter``. Returns ((H, W, 1) float32, seconds)."""
     from . import render as _render
 
     spp = _render.DEFAULT_FEATURE_SPP if spp is None else int(spp)

@@ -28,6 +28,7 @@ from .mitsuba_env import mitsuba
 from .scenes import Scene
 from .stats import PowerSums
 from ..data import SampleStats
+from ..resolution import Res, parse_res
 
 AOV_STRING = "albedo:albedo,nn:sh_normal,dd:depth,pp:position"
 #: (buffer, first channel, channel count) in the aov integrator's output.
@@ -51,7 +52,7 @@ def pass_seed(stream: str, seed: int, index: int) -> int:
 
 
 @lru_cache(maxsize=16)
-def loaded_scene(scene: Scene, res: int):
+def loaded_scene(scene: Scene, res: Res):
     mi = mitsuba()
     return mi.load_dict(scene.scene_dict(mi, res))
 
@@ -63,22 +64,22 @@ def _progress(total: int, desc: str, enabled: bool):
                 disable=(not enabled) or total < 8, mininterval=0.5)
 
 
-#: Upper bound on the pixels of one batched film (copies × res²), which bounds memory.
+#: Upper bound on the pixels of one batched film (copies × W × H), which bounds memory.
 MAX_BATCH_PIXELS = 1 << 22
 
 
-def batch_size(res: int, spp: int) -> int:
+def batch_size(res, spp: int) -> int:
     """Camera copies per call: the largest divisor of ``spp`` whose film fits MAX_BATCH_PIXELS."""
-    cap = max(1, MAX_BATCH_PIXELS // (res * res))
+    cap = max(1, MAX_BATCH_PIXELS // parse_res(res).pixels)
     return max(d for d in range(1, min(spp, cap) + 1) if spp % d == 0)
 
 
 @lru_cache(maxsize=16)
-def loaded_batch_scene(scene: Scene, res: int, copies: int):
+def loaded_batch_scene(scene: Scene, res: Res, copies: int):
     """The scene seen through a ``batch`` sensor of ``copies`` identical cameras.
 
     One 1-spp render of it gives ``copies`` independent samples in every pixel, side by side in
-    a (res, copies·res) film; with the box filter each sample stays in its own pixel, so this is
+    an (H, copies·W) film; with the box filter each sample stays in its own pixel, so this is
     the 1-spp pass method with the per-call overhead divided by ``copies``.
     """
     mi = mitsuba()
@@ -86,28 +87,29 @@ def loaded_batch_scene(scene: Scene, res: int, copies: int):
     camera = dict(d["sensor"])
     camera.pop("sampler", None)
     batch = {"type": "batch", "sampler": {"type": "independent"},
-             "film": {**camera["film"], "width": res * copies, "height": res}}
+             "film": {**camera["film"], "width": res.width * copies, "height": res.height}}
     for i in range(copies):
         batch[f"camera{i:03d}"] = dict(camera)
     d["sensor"] = batch
     return mi.load_dict(d)
 
 
-def sample_batches(scene: Scene, res: int, spp: int, seed: int = 0):
-    """Yield the individual samples: arrays (res, copies, res, 3), ``copies`` samples per pixel
+def sample_batches(scene: Scene, res: Res, spp: int, seed: int = 0):
+    """Yield the individual samples: arrays (H, copies, W, 3), ``copies`` samples per pixel
     each, ``spp`` in all. The only place the noisy samples are drawn."""
     mi = mitsuba()
+    res = parse_res(res)
     copies = batch_size(res, spp)
     sc = loaded_batch_scene(scene, res, copies)
     for k in range(spp // copies):
         film = np.array(mi.render(sc, spp=1, seed=pass_seed("noisy", seed, k)))
-        yield film.reshape(res, copies, res, 3)
+        yield film.reshape(res.height, copies, res.width, 3)
 
 
 _WARM: set[tuple] = set()
 
 
-def _warm_up(scene: Scene, res: int, copies: int) -> None:
+def _warm_up(scene: Scene, res: Res, copies: int) -> None:
     """One untimed 1-spp batch the first time a (scene, res, copies) is rendered in this
     process: scene loading and Dr.Jit's kernel compilation stay out of ``render_s``, as a
     method's warm-up call stays out of its time (its samples are not used)."""
@@ -119,7 +121,7 @@ def _warm_up(scene: Scene, res: int, copies: int) -> None:
     _WARM.add(key)
 
 
-def render_passes(scene: Scene, res: int, spp: int, seed: int = 0,
+def render_passes(scene: Scene, res: Res, spp: int, seed: int = 0,
                   stats: tuple[str, float] | None = None, progress: bool = True
                   ) -> tuple[np.ndarray, SampleStats | None, dict]:
     """Render ``spp`` independent samples per pixel; return the mean color, optional statistics
@@ -128,15 +130,16 @@ def render_passes(scene: Scene, res: int, spp: int, seed: int = 0,
     Args:
         stats: ``(transform, lam)`` to accumulate sample statistics, or None.
     Returns:
-        color (res, res, 3) float32, SampleStats of shape (res, res, 3) or None, and a dict with
+        color (H, W, 3) float32, SampleStats of shape (H, W, 3) or None, and a dict with
         ``render_s`` (rendering only, after an untimed warm-up render the first time the scene
         is rendered in the process), ``stats_s`` (host-side accumulation) and ``copies``.
     """
     if spp < 1:
         raise ValueError(f"spp must be >= 1, got {spp}")
+    res = parse_res(res)
     copies = batch_size(res, spp)
-    total = np.zeros((res, res, 3), np.float64)
-    acc = PowerSums((res, res, 3), *stats) if stats else None
+    total = np.zeros((res.height, res.width, 3), np.float64)
+    acc = PowerSums((res.height, res.width, 3), *stats) if stats else None
     render_s = stats_s = 0.0
     _warm_up(scene, res, copies)
     batches = sample_batches(scene, res, spp, seed)
@@ -159,23 +162,23 @@ def render_passes(scene: Scene, res: int, spp: int, seed: int = 0,
                                                       "copies": copies}
 
 
-def render_plain(scene: Scene, res: int, spp: int, seed: int = 0) -> tuple[np.ndarray, float]:
+def render_plain(scene: Scene, res: Res, spp: int, seed: int = 0) -> tuple[np.ndarray, float]:
     """One ordinary ``spp``-spp render (the baseline the statistics cost is measured against)."""
     mi = mitsuba()
-    sc = loaded_scene(scene, res)
+    sc = loaded_scene(scene, parse_res(res))
     t0 = time.perf_counter()
     img = np.array(mi.render(sc, spp=spp, seed=pass_seed("plain", seed, 0)))
     return img.astype(np.float32), time.perf_counter() - t0
 
 
-def render_features(scene: Scene, res: int, spp: int = DEFAULT_FEATURE_SPP, seed: int = 0
+def render_features(scene: Scene, res: Res, spp: int = DEFAULT_FEATURE_SPP, seed: int = 0
                     ) -> tuple[dict[str, np.ndarray], float]:
     """Albedo, shading normal, depth and position from the ``aov`` integrator (box filter).
 
-    Returns ({buffer: (res, res, C) float32}, seconds). Depth is 0 where nothing is hit.
+    Returns ({buffer: (H, W, C) float32}, seconds). Depth is 0 where nothing is hit.
     """
     mi = mitsuba()
-    sc = loaded_scene(scene, res)
+    sc = loaded_scene(scene, parse_res(res))
     integrator = mi.load_dict({"type": "aov", "aovs": AOV_STRING})
     t0 = time.perf_counter()
     out = np.array(mi.render(sc, integrator=integrator, spp=spp,
@@ -193,7 +196,7 @@ def feature_description(description: dict) -> dict:
     return {**description, "emitter": EMITTER_VERSION}
 
 
-def cached_features(cache, description: dict, scene: Scene, res: int, seed: int,
+def cached_features(cache, description: dict, scene: Scene, res: Res, seed: int,
                     meta: dict) -> dict[str, np.ndarray]:
     """:func:`render_features` and the ``emitter`` buffer of ``scene`` (both at
     DEFAULT_FEATURE_SPP, box filter) through ``cache`` (kind ``features``, one entry holding
@@ -260,17 +263,18 @@ class ChunkMoments:
         return np.maximum(self._m2, 0.0) / ((self.k - 1) * self.n)
 
 
-def render_reference(scene: Scene, res: int, spp: int, seed: int = 0,
+def render_reference(scene: Scene, res: Res, spp: int, seed: int = 0,
                      chunk: int = DEFAULT_REFERENCE_CHUNK, progress: bool = True
                      ) -> tuple[np.ndarray, np.ndarray, float]:
     """A high-spp reference, rendered as :func:`reference_chunks` with independent seeds
     (stream ``reference``, ``seed`` = the reference seed).
 
-    Returns (reference (res, res, 3) float32, reference_var (res, res, 3) float32: variance of
+    Returns (reference (H, W, 3) float32, reference_var (H, W, 3) float32: variance of
     the reference mean from the chunk spread, seconds)."""
     mi = mitsuba()
+    res = parse_res(res)
     sc = loaded_scene(scene, res)
-    acc = ChunkMoments((res, res, 3))
+    acc = ChunkMoments((res.height, res.width, 3))
     t0 = time.perf_counter()
     from tqdm.auto import tqdm
 

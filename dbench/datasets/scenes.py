@@ -21,7 +21,8 @@ from typing import Any, Callable
 
 import numpy as np
 
-from ..errors import UnknownNameError
+from ..errors import DbenchInputError, UnknownNameError
+from ..resolution import parse_res
 
 STEADY_BUFFERS = frozenset({"color", "albedo", "normal", "depth", "position", "emitter",
                             "stats", "reference"})
@@ -35,7 +36,8 @@ class Scene:
         name: catalogue name, used on the command line and in cache keys.
         kind: ``steady`` (``sequence`` and ``transient`` come with their datasets).
         description: one line for ``dbench list`` and reports.
-        build: ``build(mi, res) -> dict`` for ``mi.load_dict``; ``res`` is the image side in px.
+        build: ``build(mi, res) -> dict`` for ``mi.load_dict``; ``res`` is a
+            :class:`~dbench.resolution.Res` (width, height) in px (the film's size).
         max_depth: path length of the integrator (part of the cache key through the dict).
         provides: buffers this scene can render.
         params: anything else that changes the pixels (goes into the cache key).
@@ -51,10 +53,18 @@ class Scene:
     params: dict = field(default_factory=dict)
     ev: float = 0.0
 
-    def scene_dict(self, mi, res: int) -> dict:
-        d = self.build(mi, res)
+    def scene_dict(self, mi, res) -> dict:
+        d = self.build(mi, parse_res(res))
         d["integrator"] = {"type": "path", "max_depth": self.max_depth}
         return d
+
+    #: whether the scene is rendered (False: read from files, dbench.datasets.folder)
+    renders = True
+
+    def key_dict(self, mi, res) -> dict:
+        """What names this scene's content at ``res`` in cache keys: its dictionary (scene
+        files whose dictionaries hold loaded objects describe themselves instead)."""
+        return self.scene_dict(mi, res)
 
 
 _CATALOGUE: dict[str, Scene] = {}
@@ -80,25 +90,81 @@ def available() -> list[str]:
     return sorted(_CATALOGUE)
 
 
-def get(name: str) -> Scene:
-    try:
+def get(name: str | Scene, params: dict[str, str] | None = None) -> Scene:
+    """The Scene named ``name``: a catalogue name, a scene file (``.xml``, ``.py``;
+    dbench.datasets.scene_files, ``params`` fill its ``$parameters``) or a folder of EXR
+    renders (dbench.datasets.folder). UnknownNameError lists the catalogue otherwise."""
+    if isinstance(name, Scene):
+        return name
+    if name in _CATALOGUE:
+        if params:
+            raise DbenchInputError(f"--scene-param: {name} is a catalogue scene; parameters "
+                                   f"apply to scene files")
         return _CATALOGUE[name]
-    except KeyError:
-        raise UnknownNameError(
-            f"unknown scene {name!r}; available scenes: {', '.join(available())}") from None
+    from . import folder, scene_files
+
+    if scene_files.is_scene_file(name):
+        return scene_files.resolve(name, params)
+    if folder.is_folder_scene(name):
+        if params:
+            raise DbenchInputError(f"--scene-param: {name} is a folder of renders; parameters "
+                                   f"apply to scene files")
+        return folder_scene(name)
+    raise UnknownNameError(
+        f"unknown scene {name!r}; available scenes: {', '.join(available())}; or a Mitsuba "
+        f"scene file (.xml), a Python scene file (.py) or a folder of EXR renders") from None
+
+
+def folder_scene(path: str) -> Scene:
+    """A :class:`FolderScene` for a folder of EXR renders (one per folder content)."""
+    from . import folder
+
+    info = folder.scan_folder(path)
+    key = (str(info.path), info.name, info.fingerprint)
+    if key not in _FOLDERS:
+        # the same object for the same content, so per-scene caches are shared
+        _FOLDERS[key] = FolderScene(
+            name=info.name, kind="sequence" if info.frames else "steady",
+            description=f"renders read from {info.path} (view {info.name})", build=_no_build,
+            provides=frozenset(info.buffers), params={"fingerprint": info.fingerprint},
+            ev=float(info.ev), info=info)
+    return _FOLDERS[key]
+
+
+_FOLDERS: dict[tuple, Scene] = {}
+
+
+def _no_build(mi, res):  # pragma: no cover - a folder is read, never rendered
+    raise NotImplementedError("a folder of renders is read, not rendered")
+
+
+@dataclass(frozen=True, eq=False)
+class FolderScene(Scene):
+    """Renders read from a folder of EXR files (dbench.datasets.folder): nothing is rendered;
+    ``info`` (a FolderInfo) says which spp, buffers and size the folder holds."""
+
+    info: Any = None
+    renders = False
+
+    def key_dict(self, mi, res) -> dict:
+        return {"folder": str(self.info.path), "view": self.info.name,
+                "fingerprint": self.info.fingerprint}
 
 
 # ---------------------------------------------------------------------------------------------
 # building blocks
 
 
-def _film(res: int) -> dict:
-    return {"type": "hdrfilm", "width": res, "height": res, "rfilter": {"type": "box"},
-            "pixel_format": "rgb", "component_format": "float32"}
+def _film(res) -> dict:
+    res = parse_res(res)
+    return {"type": "hdrfilm", "width": res.width, "height": res.height,
+            "rfilter": {"type": "box"}, "pixel_format": "rgb", "component_format": "float32"}
 
 
-def _camera(mi, res: int, origin, target, fov: float = 39.3, up=(0, 1, 0)) -> dict:
-    return {"type": "perspective", "fov": fov, "fov_axis": "x",
+def _camera(mi, res, origin, target, fov: float = 39.3, up=(0, 1, 0)) -> dict:
+    """A perspective camera whose ``fov`` (degrees) spans x of a square image, and the
+    smaller side of any other (dbench.resolution)."""
+    return {"type": "perspective", "fov": fov, "fov_axis": parse_res(res).fov_axis,
             "to_world": mi.ScalarTransform4f().look_at(origin=origin, target=target, up=up),
             "film": _film(res), "sampler": {"type": "independent"}}
 

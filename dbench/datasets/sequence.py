@@ -77,6 +77,7 @@ import numpy as np
 
 from ..data import Frame, Sequence, check_count
 from ..errors import DbenchInputError
+from ..resolution import parse_res
 from . import emitter as _emitter
 from . import render as _render
 from . import scenes as _scenes
@@ -113,7 +114,7 @@ class SequenceScene(Scene):
     events: dict = field(default_factory=dict)
     fov: float = FOV
 
-    def frame_dict(self, mi, res: int, camera_frame: int, light_frame: int | None = None) -> dict:
+    def frame_dict(self, mi, res, camera_frame: int, light_frame: int | None = None) -> dict:
         """The Mitsuba dictionary with the camera of ``camera_frame`` and the lights of
         ``light_frame`` (default: the same frame)."""
         light_frame = camera_frame if light_frame is None else light_frame
@@ -128,7 +129,7 @@ class SequenceScene(Scene):
                                  "radiance": {"type": "rgb", "value": [float(v) for v in radiance]}}
         return d
 
-    def scene_dict(self, mi, res: int) -> dict:  # frame 0, for code written for steady scenes
+    def scene_dict(self, mi, res) -> dict:  # frame 0, for code written for steady scenes
         return self.frame_dict(mi, res, 0)
 
 
@@ -160,13 +161,16 @@ def look_at_matrix(origin, target, up=(0.0, 1.0, 0.0)) -> np.ndarray:
     return m
 
 
-def camera_info(scene: SequenceScene, res: int, i: int) -> dict:
+def camera_info(scene: SequenceScene, res, i: int) -> dict:
     """The camera of frame ``i``: ``to_world`` (4×4 list), ``origin``, ``fov`` (degrees),
-    ``fov_axis``, ``width``, ``height`` (JSON-able)."""
+    ``fov_axis`` (``x`` or ``y``: the axis ``fov`` spans, the smaller side of a non-square
+    image, dbench.resolution), ``width``, ``height`` (JSON-able)."""
+    res = parse_res(res)
     origin, target = scene.camera(i)
     m = look_at_matrix(origin, target)
     return {"to_world": m.tolist(), "origin": m[:3, 3].tolist(), "fov": float(scene.fov),
-            "fov_axis": "x", "width": int(res), "height": int(res)}
+            "fov_axis": "x" if res.width <= res.height else "y",
+            "width": res.width, "height": res.height}
 
 
 def project(points: np.ndarray, camera: dict) -> tuple[np.ndarray, np.ndarray]:
@@ -332,10 +336,10 @@ def _render_dict(d: dict, spp: int, seed: int, integrator=None) -> np.ndarray:
     return np.array(mi.render(scene, spp=spp, seed=seed, **kw), dtype=np.float32)
 
 
-def render_frame(scene: SequenceScene, res: int, spp: int, seed: int, camera_frame: int,
+def render_frame(scene: SequenceScene, res, spp: int, seed: int, camera_frame: int,
                  light_frame: int, seed_frame: int) -> dict[str, np.ndarray]:
     """Noisy colour and matched G-buffer: ``color``, ``emission``, ``albedo``, ``normal``,
-    ``depth``, ``position`` (res, res, C) from one render of ``spp`` samples per pixel with the camera of
+    ``depth``, ``position`` (H, W, C) from one render of ``spp`` samples per pixel with the camera of
     ``camera_frame``, the lights of ``light_frame`` and the seed of ``seed_frame``.
 
     The G-buffer is the box-filtered mean over the same samples as the colour: at 1 spp it is
@@ -352,7 +356,7 @@ def render_frame(scene: SequenceScene, res: int, spp: int, seed: int, camera_fra
     return {name: np.ascontiguousarray(out[..., c0:c0 + nc]) for name, c0, nc in MATCHED_LAYOUT}
 
 
-def render_gbuffer(scene: SequenceScene, res: int, i: int, seed: int,
+def render_gbuffer(scene: SequenceScene, res, i: int, seed: int,
                    spp: int = GBUFFER_SPP) -> dict[str, np.ndarray]:
     """Supersampled G-buffer of frame ``i``: ``emission``, ``albedo``, ``normal``, ``depth``,
     ``position`` as box-filtered means of ``spp`` samples (noise-free inside surfaces,
@@ -366,28 +370,29 @@ def render_gbuffer(scene: SequenceScene, res: int, i: int, seed: int,
             for name, c0, nc in MATCHED_LAYOUT[1:]}
 
 
-def render_reference(scene: SequenceScene, res: int, i: int, seed: int, spp: int,
+def render_reference(scene: SequenceScene, res, i: int, seed: int, spp: int,
                      chunk: int = REFERENCE_CHUNK) -> tuple[np.ndarray, np.ndarray]:
     """The reference of frame ``i``: ``spp`` samples in :func:`~dbench.datasets.render.
     reference_chunks` (K ≥ 16 when spp ≥ 16), a seed stream disjoint from the noisy frames'
     (``seed`` is the reference seed).
 
-    Returns (reference (res, res, 3) float32, reference_var (res, res, 3) float32: variance of
+    Returns (reference (H, W, 3) float32, reference_var (H, W, 3) float32: variance of
     the mean from the chunk spread)."""
     mi = mitsuba()
+    res = parse_res(res)
     # Loaded once for all chunks (loading is the expensive part of a small chunk's render);
     # optimize=False as in _render_dict, so the pixels equal a per-chunk load bit for bit.
     loaded = mi.load_dict(scene.frame_dict(mi, res, i), optimize=False)
-    acc = _render.ChunkMoments((res, res, 3))
+    acc = _render.ChunkMoments((res.height, res.width, 3))
     for c, n in enumerate(_render.reference_chunks(spp, chunk)):
         img = mi.render(loaded, spp=n, seed=_render.pass_seed(f"seq-reference-{i}", seed, c))
         acc.add(np.array(img, dtype=np.float32), n)
     return acc.mean().astype(np.float32), acc.var_mean().astype(np.float32)
 
 
-def render_emitter(scene: SequenceScene, res: int, i: int, seed: int,
+def render_emitter(scene: SequenceScene, res, i: int, seed: int,
                    spp: int = GBUFFER_SPP) -> np.ndarray:
-    """The ``emitter`` buffer of frame ``i`` (res, res, 1) float32 (its lights: a light switched
+    """The ``emitter`` buffer of frame ``i`` (H, W, 1) float32 (its lights: a light switched
     off does not count), seed stream ``seq-emitter``."""
     from .emitter import render_emitter_dict
 
@@ -418,7 +423,7 @@ def _cached(cache: Cache, kind: str, desc: dict, render: Callable[[], dict[str, 
     return _cached_entry(cache, kind, desc, render, meta, name)[0]
 
 
-def load_sequence(scene: str | SequenceScene, spp: int = 1, res: int = 64,
+def load_sequence(scene: str | SequenceScene, spp: int = 1, res=64,
                   needs: Iterable[str] | None = None, seed: int = 0, ref_spp: int | None = None,
                   cache: Cache | None = None, progress: bool = True,
                   frames: int | None = None, gbuffer: str = "matched",
@@ -428,7 +433,7 @@ def load_sequence(scene: str | SequenceScene, spp: int = 1, res: int = 64,
     Args:
         scene: name or :class:`SequenceScene`.
         spp: samples per pixel of the noisy color (1 for real-time denoisers).
-        res: image side in pixels (square frames).
+        res: image size (a side in pixels, ``"WxH"`` or (width, height)).
         needs: buffers wanted (``color`` always comes); None = all of SEQUENCE_BUFFERS.
         seed: base seed; noisy frames, features and references use disjoint seed streams.
         ref_spp: reference spp per frame (default ``DBENCH_REF_SPP`` or 4096).
@@ -450,7 +455,7 @@ def load_sequence(scene: str | SequenceScene, spp: int = 1, res: int = 64,
     if not isinstance(sc, SequenceScene):
         raise DbenchInputError(f"scene: {sc.name} is a {sc.kind} scene, not a sequence")
     check_count("spp", spp)
-    check_count("res", res)
+    res = parse_res(res)
     n = sc.n_frames if frames is None else frames
     if not isinstance(n, (int, np.integer)) or not 1 <= n <= sc.n_frames:
         raise DbenchInputError(f"frames: expected an integer in [1, {sc.n_frames}], got {frames!r}")
@@ -468,7 +473,7 @@ def load_sequence(scene: str | SequenceScene, spp: int = 1, res: int = 64,
     ref_spp = int(ref_spp or reference_spp())
     mi = mitsuba()
     vers = versions()
-    meta: dict = {"scene": sc.name, "kind": "sequence", "spp": int(spp), "res": int(res),
+    meta: dict = {"scene": sc.name, "kind": "sequence", "spp": int(spp), "res": res.key,
                   "seed": int(seed), "frames": int(n), "gbuffer": gbuffer, "ev": sc.ev, "events": dict(sc.events),
                   "versions": vers, "cache_hits": [], "rendered": [], "render_s": 0.0}
     if "reference" in wanted:
@@ -476,7 +481,7 @@ def load_sequence(scene: str | SequenceScene, spp: int = 1, res: int = 64,
     ref_vars: list[np.ndarray] = []
 
     def base(i: int, what: str, **extra) -> dict:
-        return {"scene": sc.name, "res": int(res), "frame": i, "what": what,
+        return {"scene": sc.name, "res": res.key, "frame": i, "what": what,
                 "dict": sc.frame_dict(mi, res, i), "params": sc.params, "versions": vers, **extra}
 
     out: list[Frame] = []
@@ -519,7 +524,7 @@ def load_sequence(scene: str | SequenceScene, spp: int = 1, res: int = 64,
                 lambda: {"emitter": render_emitter(sc, res, i, seed)},
                 meta, f"emitter{i}", time_key="emitter_s")[0]["emitter"]
         fmeta = {"scene": sc.name, "kind": "sequence", "frame": i, "spp": int(spp), "gbuffer": gbuffer,
-                 "res": int(res), "seed": int(seed), "ev": sc.ev, "camera": camera}
+                 "res": res.key, "seed": int(seed), "ev": sc.ev, "camera": camera}
         if "reference" in wanted:
             ref, ref_s = _cached_entry(
                 cache, "seq-reference",

@@ -50,6 +50,7 @@ import numpy as np
 
 from ..data import SampleStats, TransientFrame, check_count
 from ..errors import DbenchInputError
+from ..resolution import parse_res
 from . import render as _render
 from . import scenes as _scenes
 from .cache import Cache
@@ -135,15 +136,16 @@ class TransientScene(Scene):
         return Window(float(self.window_start),
                       (float(self.window_end) - float(self.window_start)) / int(t), int(t))
 
-    def scene_dict(self, mi, res: int) -> dict:
+    def scene_dict(self, mi, res) -> dict:
         """The steady scene (hdrfilm) with the steady integrator."""
-        d = self.build(mi, res)
+        d = self.build(mi, parse_res(res))
         d["integrator"] = {"type": self.steady_integrator, "max_depth": self.max_depth}
         return d
 
-    def transient_dict(self, mi, res: int, window: Window) -> dict:
+    def transient_dict(self, mi, res, window: Window) -> dict:
+        res = parse_res(res)
         d = self.build(mi, res)
-        d["sensor"]["film"] = transient_film(res, res, window)
+        d["sensor"]["film"] = transient_film(res.width, res.height, window)
         d["integrator"] = {"type": self.integrator, "max_depth": self.max_depth,
                            "rr_depth": self.rr_depth, "camera_unwarp": self.camera_unwarp}
         return d
@@ -193,20 +195,20 @@ def _register(name: str, description: str, **kw: Any):
 # to 0.5 m (results/transient.md lists the measured fractions).
 @_register("cornell-transient", "Cornell box, time-resolved (transient_path, warped OPL)",
            max_depth=8, window_start=3.8, window_end=11.5, default_bins=200)
-def cornell_transient(mi, res: int) -> dict:
+def cornell_transient(mi, res) -> dict:
     return _scenes.cornell(mi, res)
 
 
 @_register("caustic-transient", "glass sphere caustic, time-resolved: the caustic arrives late "
            "(glass OPL)", max_depth=12, window_start=3.7, window_end=14.0, default_bins=200)
-def caustic_transient(mi, res: int) -> dict:
+def caustic_transient(mi, res) -> dict:
     return _scenes.caustic(mi, res)
 
 
 FOG = {"type": "homogeneous", "sigma_s": 0.6, "sigma_a": 0.1, "g": 0.3, "units": "1/m"}
 
 
-def _fog_room(mi, res: int, with_fog: bool) -> dict:
+def _fog_room(mi, res, with_fog: bool) -> dict:
     T = mi.ScalarTransform4f
     d = {"type": "scene",
          "sensor": _scenes._camera(mi, res, origin=[0, 0, 3.9], target=[0, 0, 0])}
@@ -228,7 +230,7 @@ def _fog_room(mi, res: int, with_fog: bool) -> dict:
            "HG g 0.3): transient_prbvolpath", max_depth=8, window_start=3.8, window_end=10.0,
            default_bins=200, integrator="transient_prbvolpath", steady_integrator="volpath",
            feature_build=lambda mi, res: _fog_room(mi, res, with_fog=False), medium=FOG)
-def fog_transient(mi, res: int) -> dict:
+def fog_transient(mi, res) -> dict:
     return _fog_room(mi, res, with_fog=True)
 
 
@@ -305,18 +307,19 @@ def expected_direct_bins(res: int, window: Window, unwarp: bool, plane_z: float 
 
 
 @lru_cache(maxsize=16)
-def loaded_transient(scene: TransientScene, res: int, window: Window, copies: int = 1):
+def loaded_transient(scene: TransientScene, res, window: Window, copies: int = 1):
     """The transient scene; with ``copies`` > 1 seen through a ``batch`` sensor of that many
-    identical cameras (film (res, copies·res, T, 3)), as in :func:`render.loaded_batch_scene`."""
+    identical cameras (film (H, copies·W, T, 3)), as in :func:`render.loaded_batch_scene`."""
     mi = _mitransient()
+    res = parse_res(res)
     d = scene.transient_dict(mi, res, window)
     if copies > 1:
         camera = dict(d["sensor"])
         camera.pop("sampler", None)
-        # every camera keeps its own res × res film: it sets the camera's aspect ratio (without
+        # every camera keeps its own W × H film: it sets the camera's aspect ratio (without
         # one a camera falls back to a 768 × 576 film and sees a different view)
         film = dict(camera["film"])
-        film["width"] = res * copies
+        film["width"] = res.width * copies
         batch = {"type": "batch", "sampler": {"type": "independent"}, "film": film}
         for i in range(copies):
             batch[f"camera{i:03d}"] = dict(camera)
@@ -324,10 +327,11 @@ def loaded_transient(scene: TransientScene, res: int, window: Window, copies: in
     return mi.load_dict(d)
 
 
-def batch_copies(res: int, bins: int, spp: int) -> int:
+def batch_copies(res, bins: int, spp: int) -> int:
     """Camera copies per 1-spp call: the largest divisor of spp whose pass fits the budgets."""
-    cap = max(1, min(_render.MAX_BATCH_PIXELS // (res * res),
-                     MAX_BATCH_VOXELS // (res * res * bins * 3)))
+    pixels = parse_res(res).pixels
+    cap = max(1, min(_render.MAX_BATCH_PIXELS // pixels,
+                     MAX_BATCH_VOXELS // (pixels * bins * 3)))
     return max(d for d in range(1, min(spp, cap) + 1) if spp % d == 0)
 
 
@@ -410,14 +414,15 @@ def energy_fraction(video: np.ndarray, steady: np.ndarray) -> float:
     return float(np.sum(video, dtype=np.float64)) / total if total > 0 else float("nan")
 
 
-def pass_samples(scene: TransientScene, res: int, spp: int, seed: int = 0,
+def pass_samples(scene: TransientScene, res, spp: int, seed: int = 0,
                  bins: int | None = None, copies: int | None = None):
-    """Yield the individual samples of collector (a): (transient (res, copies, res, T, 3),
-    steady (res, copies, res, 3)) float32 per 1-spp call, ``spp`` samples per pixel in all.
+    """Yield the individual samples of collector (a): (transient (H, copies, W, T, 3),
+    steady (H, copies, W, 3)) float32 per 1-spp call, ``spp`` samples per pixel in all.
 
     Call k uses seed :func:`render.pass_seed` ("transient", seed, k); the same seeds drive
     collector (b) in its 1-spp-pass mode (tests compare the two bit for bit)."""
     mi = _mitransient()
+    res = parse_res(res)
     window = scene.window(bins)
     copies = copies or batch_copies(res, window.bins, spp)
     if spp % copies:
@@ -427,11 +432,11 @@ def pass_samples(scene: TransientScene, res: int, spp: int, seed: int = 0,
         steady, video = mi.render(sc, spp=1, seed=_render.pass_seed("transient", seed, k))
         video = np.array(video, dtype=np.float32)
         steady = np.array(steady, dtype=np.float32)
-        yield (video.reshape(res, copies, res, window.bins, 3),
-               steady.reshape(res, copies, res, 3))
+        yield (video.reshape(res.height, copies, res.width, window.bins, 3),
+               steady.reshape(res.height, copies, res.width, 3))
 
 
-def collect_passes(scene: TransientScene, res: int, spp: int, seed: int = 0,
+def collect_passes(scene: TransientScene, res, spp: int, seed: int = 0,
                    bins: int | None = None, stats: tuple[str, float] | None = None,
                    copies: int | None = None, progress: bool = False) -> TransientRender:
     """Collector (a): ``spp`` 1-spp samples per pixel, statistics on the host.
@@ -445,11 +450,12 @@ def collect_passes(scene: TransientScene, res: int, spp: int, seed: int = 0,
         (host-side accumulation).
     """
     check_count("spp", spp)
+    res = parse_res(res)
     window = scene.window(bins)
-    shape = (res, res, window.bins, 3)
+    shape = (res.height, res.width, window.bins, 3)
     acc = PowerSums(shape, *stats) if stats else None
     total = np.zeros(shape, np.float64)
-    steady = np.zeros((res, res, 3), np.float64)
+    steady = np.zeros((res.height, res.width, 3), np.float64)
     non_zero = np.zeros(shape, np.int32) if stats else None
     clamp = stats is not None and stats[0] == "box-cox"
     render_s = stats_s = 0.0
@@ -492,7 +498,7 @@ def collect_passes(scene: TransientScene, res: int, spp: int, seed: int = 0,
 # collector (b): in the integrator
 
 
-def collect_in_integrator(scene: TransientScene, res: int, spp: int, seed: int = 0,
+def collect_in_integrator(scene: TransientScene, res, spp: int, seed: int = 0,
                           bins: int | None = None, transform: str = DEFAULT_TRANSFORM,
                           lam: float = 0.5, per_pass: bool = False, slots: int = 0
                           ) -> TransientRender:
@@ -553,7 +559,7 @@ def _collector(sc, transform, lam, max_depth, rr_depth, unwarp, slots):
 # plain renders: timing baseline and reference
 
 
-def render_plain(scene: TransientScene, res: int, spp: int, seed: int = 0,
+def render_plain(scene: TransientScene, res, spp: int, seed: int = 0,
                  bins: int | None = None) -> tuple[np.ndarray, np.ndarray, float]:
     """One ordinary transient render of ``spp`` (the baseline of the collector benchmark).
 
@@ -569,7 +575,7 @@ def render_plain(scene: TransientScene, res: int, spp: int, seed: int = 0,
     return video, steady, time.perf_counter() - t0
 
 
-def render_reference(scene: TransientScene, res: int, spp: int, seed: int = 0,
+def render_reference(scene: TransientScene, res, spp: int, seed: int = 0,
                      bins: int | None = None, chunk: int = DEFAULT_REFERENCE_CHUNK,
                      progress: bool = False
                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
@@ -579,11 +585,12 @@ def render_reference(scene: TransientScene, res: int, spp: int, seed: int = 0,
     Returns (video (H, W, T, 3), video_var (H, W, T, 3): variance of the video mean per bin from
     the chunk spread, steady (H, W, 3), seconds), float32 arrays."""
     mi = _mitransient()
+    res = parse_res(res)
     window = scene.window(bins)
     sc = loaded_transient(scene, res, window, 1)
     chunks = _render.reference_chunks(spp, chunk)
-    video = _render.ChunkMoments((res, res, window.bins, 3))
-    steady = np.zeros((res, res, 3), np.float64)
+    video = _render.ChunkMoments((res.height, res.width, window.bins, 3))
+    steady = np.zeros((res.height, res.width, 3), np.float64)
     t0 = time.perf_counter()
     with _render._progress(len(chunks), f"{scene.name} reference {spp} spp",
                            progress and len(chunks) >= 8) as bar:
@@ -690,7 +697,7 @@ def reference_spp(spp: int, ref_spp: int | None) -> int:
     return int(ref_spp) if ref_spp else max(default_ref(), 16 * int(spp))
 
 
-def load_transient(scene: str | TransientScene, spp: int, res: int,
+def load_transient(scene: str | TransientScene, spp: int, res,
                    needs: Iterable[str] | None = None, transform: str = DEFAULT_TRANSFORM,
                    lam: float = 0.5, seed: int = 0, ref_spp: int | None = None,
                    cache: Cache | None = None, progress: bool = True, bins: int | None = None,
@@ -700,7 +707,7 @@ def load_transient(scene: str | TransientScene, spp: int, res: int,
     Args:
         scene: catalogue name or TransientScene.
         spp: samples per pixel (paths per pixel; each is one sample of every bin).
-        res: image side in pixels.
+        res: image size (a side in pixels, ``"WxH"`` or (width, height)).
         needs: buffers (``color`` always comes; ``stats`` adds ``non_zero``); None = all.
         transform, lam: sample transform of the statistics (default identity, spec §3).
         seed: base seed of the noisy samples and features (disjoint streams).
@@ -718,7 +725,7 @@ def load_transient(scene: str | TransientScene, spp: int, res: int,
     if not isinstance(sc, TransientScene):
         raise DbenchInputError(f"scene: {sc.name} is a {sc.kind} scene, not a transient one")
     check_count("spp", spp)
-    check_count("res", res)
+    res = parse_res(res)
     wanted = set(sc.provides if needs is None else needs) | {"color"}
     unknown = wanted - set(sc.provides)
     if unknown:
@@ -735,9 +742,9 @@ def load_transient(scene: str | TransientScene, spp: int, res: int,
     window = sc.window(bins)
     which = _resolve_collector(sc, collector)
     cache = cache or Cache()
-    base = {"scene": sc.name, "res": int(res), "dict": sc.transient_dict(mi, res, window),
+    base = {"scene": sc.name, "res": res.key, "dict": sc.transient_dict(mi, res, window),
             "params": sc.params, "versions": versions(), "window": window.meta()}
-    meta: dict = {"scene": sc.name, "kind": "transient", "spp": int(spp), "res": int(res),
+    meta: dict = {"scene": sc.name, "kind": "transient", "spp": int(spp), "res": res.key,
                   "seed": int(seed), "ev": sc.ev, "versions": base["versions"],
                   **window.meta(), "camera_unwarp": sc.camera_unwarp, "max_depth": sc.max_depth,
                   "integrator": sc.integrator, "emitter": "delta pulse at OPL 0",
@@ -796,7 +803,7 @@ def load_transient(scene: str | TransientScene, spp: int, res: int,
     feats_wanted = wanted & {"albedo", "normal", "depth", "position", "emitter"}
     if feats_wanted:
         fsc = sc.feature_scene
-        feat_desc = {"scene": sc.name, "res": int(res), "dict": fsc.scene_dict(mi, res),
+        feat_desc = {"scene": sc.name, "res": res.key, "dict": fsc.scene_dict(mi, res),
                      "versions": base["versions"], "what": "transient-features",
                      "spp": _render.DEFAULT_FEATURE_SPP, "seed": int(seed),
                      "aovs": _render.AOV_STRING}

@@ -47,6 +47,22 @@ def require_buffers(method: Any, data: Any, names: Iterable[str] | None = None) 
                 f"needs it (expected {_expected_shape(name)})")
 
 
+def depth_or_hit(data: Any) -> np.ndarray | None:
+    """``data.depth`` (H, W, 1) when present; else a stand-in that only serves the hit mask:
+    1 where the shading normal is non-zero (a surface was hit), 0 where it is all zero (Mitsuba,
+    OIDN and pbrt write zero normals where nothing is hit); None when neither buffer is there.
+    Renders from files often lack depth, and a filter that needs depth only for the hit mask
+    runs without it this way."""
+    depth = getattr(data, "depth", None)
+    if depth is not None:
+        return depth
+    normal = getattr(data, "normal", None)
+    if normal is None:
+        return None
+    normal = np.asarray(normal)
+    return np.any(normal != 0, axis=-1, keepdims=True).astype(np.float32)
+
+
 def clamp_magnitude(x: np.ndarray, limit: float = RADIANCE_MAX) -> np.ndarray:
     """``x`` with finite values outside [−limit, limit] set to ±limit; NaN and ±Inf kept.
 

@@ -318,10 +318,14 @@ def test_registered_method_on_frame():
     ref = get("jbf", radius=3, backend="reference").denoise(frame)
     assert rel_err(out, ref) < FAST_RTOL
     assert m.last_settings["radius"] == 3 and m.last_settings["sigma_convention"] == "variance"
-    # no depth: the method refuses (depth is in its needs); the function API still takes None
+    # no depth (renders from files): the hit mask comes from the normals (zero where nothing
+    # is hit); a "depth" feature still needs the buffer
     nodepth = Frame(color=frame.color, albedo=frame.albedo, normal=frame.normal)
+    hit = np.any(frame.normal != 0, axis=-1, keepdims=True).astype(np.float32)
+    g_hit = core.make_guide(frame.albedo, frame.normal, hit, radius=3)
+    assert rel_err(m.denoise(nodepth), core.jbf_reference(frame.color, g_hit)) < FAST_RTOL
     with pytest.raises(DbenchInputError, match="depth"):
-        m.denoise(nodepth)
+        get("jbf", radius=3, features=("xy", "albedo", "depth")).denoise(nodepth)
     g = core.make_guide(frame.albedo, frame.normal, None, radius=3)
     assert rel_err(core.jbf_fast(frame.color, g), core.jbf_reference(frame.color, g)) < FAST_RTOL
     # presets fill what is not given
@@ -333,3 +337,24 @@ def test_registered_method_on_frame():
     assert illum.denoise(frame).dtype == np.float32
     assert 0 < illum.last_settings["C"] < 1
     assert get("jbf").applies_to("steady", {"color", "albedo", "normal", "depth"})[0]
+
+
+def test_emitter_buffer_keeps_lights_apart_whatever_their_albedo():
+    """With the optional ``emitter`` buffer, a light whose albedo equals its surroundings' (as
+    in other renderers' files) is filtered only with itself: its pixels stay at its radiance."""
+    h = w = 16
+    albedo = np.full((h, w, 3), 0.8, np.float32)
+    normal = np.zeros((h, w, 3), np.float32)
+    normal[..., 2] = 1.0
+    color = np.full((h, w, 3), 0.5, np.float32)
+    emitter = np.zeros((h, w, 1), np.float32)
+    color[6:10, 6:10] = 20.0
+    emitter[6:10, 6:10] = 1.0
+    plain = Frame(color=color, albedo=albedo, normal=normal)
+    with_emitter = Frame(color=color, albedo=albedo, normal=normal, emitter=emitter)
+    m = get("jbf", radius=4)
+    assert m.denoise(plain)[8, 8, 0] < 10.0          # the light bleeds into the wall
+    out = m.denoise(with_emitter)
+    np.testing.assert_allclose(out[6:10, 6:10], 20.0, rtol=1e-5)
+    np.testing.assert_allclose(out[0:3, 0:3], 0.5, rtol=1e-5)
+    assert "emitter" in m.optional_needs and "depth" not in m.needs

@@ -11,8 +11,14 @@ Two modes of one method:
   direct/indirect split (the whole colour is filtered); the BDF-lobe factor and ``lobe_key``
   are not implemented.
 
-Every buffer of ``needs`` (color, albedo, normal, depth) must be present: a missing one raises
-DbenchInputError naming it (the filter does not silently drop a feature).
+Every buffer of ``needs`` (color, albedo, normal) must be present: a missing one raises
+DbenchInputError naming it (the filter does not silently drop a feature). Optional buffers:
+``depth`` (the hit mask; without it, pixels with an all-zero normal count as background,
+:func:`~dbench.methods.guards.depth_or_hit`; a ``features`` entry "depth" still requires it),
+``position`` (required when ``features`` or ``use_position`` asks for it) and ``emitter``
+(directly seen lights form their own label and never mix with the surfaces around them, so a
+light's albedo, black in the catalogue and anything in other renderers' files, does not
+matter).
 
 Huge finite colour (up to the float32 maximum, or its demodulated value in illumination mode)
 stays finite: a plane above 1e30 is divided by an exact power of two before the float32 window
@@ -50,7 +56,7 @@ import numpy as np
 
 from ...errors import DbenchInputError
 from ...registry import Denoiser, register
-from ..guards import require_buffers
+from ..guards import depth_or_hit, require_buffers
 from .core import (BACKENDS, FEATURES, PRESETS, SEED_SIGMA, SIGMA_CONVENTIONS, WINDOWS, Guide,
                    IlluminationSetup, accumulate, accumulate_torch, check_choice, check_positive,
                    check_radius, check_sigma, illumination_fast, illumination_filter,
@@ -70,7 +76,8 @@ class JBF(Denoiser):
     """Joint bilateral filter (spec/jbf.md §1) and the seed-002 illumination filter (§2.2)."""
 
     kinds = {"steady"}
-    needs = {"color", "albedo", "normal", "depth"}
+    needs = {"color", "albedo", "normal"}
+    optional_needs = {"depth", "position", "emitter"}
     defaults: dict[str, Any] = dict(
         radius=20, sigma=SEED_SIGMA, sigma_convention="variance", window="square",
         features=("xy", "albedo", "normal"), sigma_position=0.01, sigma_depth=0.01,
@@ -108,12 +115,13 @@ class JBF(Denoiser):
         if getattr(data, "kind", None) != "steady":
             raise DbenchInputError(f"jbf: expected a steady Frame, got "
                                    f"{getattr(data, 'kind', type(data).__name__)} data")
-        require_buffers(self, data)  # every buffer of ``needs``, depth included
+        require_buffers(self, data)  # every buffer of ``needs``
         p = self.params
+        depth = depth_or_hit(data)
         if p["mode"] == "illumination":
             opts = {k: p[k] for k in ("radius", "window", "alpha", "beta", "self_weight_min",
                                       "eps_albedo", "use_position", "sigma_P", "hit_mask")}
-            setup = make_illumination_setup(data.albedo, data.normal, data.depth, data.position,
+            setup = make_illumination_setup(data.albedo, data.normal, depth, data.position,
                                             shape=data.shape, **opts)
             self.last_settings = dict(mode="illumination", **setup.settings)
             if p["backend"] == "reference":
@@ -121,8 +129,10 @@ class JBF(Denoiser):
             return illumination_fast(data.color, setup)
         opts = {k: p[k] for k in ("radius", "sigma", "sigma_convention", "window", "features",
                                   "sigma_position", "sigma_depth", "hit_mask")}
-        guide = make_guide(data.albedo, data.normal, data.depth, data.position,
-                           shape=data.shape, **opts)
+        if "depth" in opts["features"] and data.depth is None:
+            require_buffers(self, data, ["depth"])
+        guide = make_guide(data.albedo, data.normal, depth, data.position,
+                           shape=data.shape, emitter=getattr(data, "emitter", None), **opts)
         self.last_settings = dict(mode="jbf", **guide.settings)
         backend = p["backend"]
         if backend == "auto":

@@ -81,7 +81,9 @@ BACKENDS = ("auto", "numba", "torch", "reference")
 
 #: Mask labels: pixels mix only with pixels of the same label. 0 = background (depth ≤ 0),
 #: 1 = hit, ≥ 2 = isolated pixels (one label each).
-LABEL_BACKGROUND, LABEL_HIT, LABEL_FIRST_ISOLATED = 0, 1, 2
+# Pixels of different labels never weigh each other: background (nothing hit), surfaces,
+# emitters seen directly (from the ``emitter`` buffer), and one label per isolated pixel.
+LABEL_BACKGROUND, LABEL_HIT, LABEL_EMITTER, LABEL_FIRST_ISOLATED = 0, 1, 2, 3
 #: In the Numba kernel the label becomes a feature plane 16·label; distinct labels differ by
 #: ≥ 16, i.e. add ≥ 256 to the exponent, and exp(−s) is exactly 0 for s ≥ 87 (see _exp32).
 _LABEL_SCALE = 16.0
@@ -223,7 +225,8 @@ def make_guide(albedo: Any, normal: Any, depth: Any = None, position: Any = None
                sigma_convention: str = "variance", window: str = "square",
                features: Sequence[str] = ("xy", "albedo", "normal"),
                sigma_position: float = 0.01, sigma_depth: float = 0.01,
-               hit_mask: bool = True, shape: tuple[int, int] | None = None) -> Guide:
+               hit_mask: bool = True, shape: tuple[int, int] | None = None,
+               emitter: Any = None) -> Guide:
     """Check the G-buffers and build the :class:`Guide` of the JBF (spec/jbf.md §1).
 
     Args:
@@ -240,6 +243,9 @@ def make_guide(albedo: Any, normal: Any, depth: Any = None, position: Any = None
             convention), defaults 0.01 [dbench].
         hit_mask: h_ij = 0 when exactly one of i, j is a hit (depth > 0) (spec/jbf.md §1.3).
         shape: (H, W) expected; taken from the first buffer given otherwise.
+        emitter: (H, W, 1) emitter coverage in [0, 1] or None: pixels with coverage ≥ 0.5
+            form their own label (a light never mixes with the surfaces around it, whatever
+            its albedo says) [dbench].
 
     Raises:
         DbenchInputError: naming the buffer or parameter that is wrong.
@@ -296,6 +302,9 @@ def make_guide(albedo: Any, normal: Any, depth: Any = None, position: Any = None
         labels = np.where(depth_arr > 0, LABEL_HIT, LABEL_BACKGROUND).astype(np.int64)
     else:
         labels = np.full((h, w), LABEL_HIT, np.int64)
+    if emitter is not None:
+        seen = check_buffer("emitter", emitter, (h, w, 1), dtype=np.float64)[..., 0]
+        labels[np.nan_to_num(seen) >= 0.5] = LABEL_EMITTER
     if bad.any():
         labels[bad] = LABEL_FIRST_ISOLATED + np.arange(int(bad.sum()))
         feats = feats.copy()

@@ -26,8 +26,10 @@ DbenchInputError naming it; the resolved values land in ``last_settings`` after 
     frame's meta names a medium or a volumetric integrator or it has no albedo/normal, else
     "jbf" | "jbf" | "gauss3d"), temporal_profile (None: "box" for the jbf base, "gaussian" for
     gauss3d | "box" | "gaussian"), sigma_t (1.0 bin), skip_empty (True).
-On images every buffer of ``needs`` (color, albedo, normal, depth, stats) must be present: a
-missing one raises DbenchInputError naming it. Videos keep their documented G-buffer-free
+On images every buffer of ``needs`` (color, albedo, normal, stats) must be present: a
+missing one raises DbenchInputError naming it. ``depth`` is optional: it feeds the JBF's hit
+mask, and without it pixels with an all-zero normal count as background
+(:func:`~dbench.methods.guards.depth_or_hit`). Videos keep their documented G-buffer-free
 fallback (media have no albedo/normal/depth).
 The sample transform (identity / Box-Cox / Yeo-Johnson and λ) is a property of the statistics
 (SampleStats.transform, .lam) and is recorded, not chosen here; transient datasets default to
@@ -54,7 +56,7 @@ import numpy as np
 
 from ...errors import DbenchInputError
 from ...registry import Denoiser, register
-from ..guards import require_buffers
+from ..guards import depth_or_hit, require_buffers
 from ..jbf.core import (SEED_SIGMA, SIGMA_CONVENTIONS, TEMPORAL_PROFILES, WINDOWS, check_choice,
                         check_positive, check_radius, check_sigma, make_guide)
 from .core import (BACKENDS, DEFAULT_ALPHA, StatPlanes, Threshold, _check_alpha, _g2_from_gamma,
@@ -102,7 +104,8 @@ class Statistical(Denoiser):
     images (§1-§8) and on transient videos (§11.3)."""
 
     kinds = {"steady", "transient"}
-    needs = {"color", "albedo", "normal", "depth", "stats"}
+    needs = {"color", "albedo", "normal", "stats"}
+    optional_needs = {"depth"}
     defaults: dict[str, Any] = dict(
         radius=None, alpha=None, gamma=None, sigma=SEED_SIGMA,
         sigma_convention="variance", window="square", backend="auto", hit_mask=True,
@@ -146,12 +149,12 @@ class Statistical(Denoiser):
         if kind != "steady":
             raise DbenchInputError(f"statistical: expected a steady Frame or a TransientFrame, "
                                    f"got {getattr(data, 'kind', type(data).__name__)} data")
-        require_buffers(self, data)  # images: every buffer of ``needs``, depth included
+        require_buffers(self, data)  # images: every buffer of ``needs``
         p = self.params
         alpha = p["alpha"] if (p["alpha"] is not None or p["gamma"] is not None) else DEFAULT_ALPHA
         radius = STEADY_RADIUS if p["radius"] is None else p["radius"]
         out, info = statistical_filter(
-            data.color, data.stats, data.albedo, data.normal, data.depth,
+            data.color, data.stats, data.albedo, data.normal, depth_or_hit(data),
             radius=radius, alpha=alpha, gamma=p["gamma"], sigma=p["sigma"],
             sigma_convention=p["sigma_convention"], window=p["window"], hit_mask=p["hit_mask"],
             membership_on=p["membership"], backend=p["backend"], return_info=True)
