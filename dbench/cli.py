@@ -81,6 +81,8 @@ def cmd_list(args: argparse.Namespace) -> int:
         sc = scenes.get(name)
         print(f"  {name:<12} {sc.kind:<10} {sc.description}"
               + (f"  [plugin: {origin[name]}]" if name in origin else ""))
+    print("  (or --scene PATH: a Mitsuba scene file .xml, a Python scene file .py, or a "
+          "folder of EXR renders in OIDN's layout)")
     print("\nMethods:")
     for name in methods.available():
         cls = methods.method_class(name)
@@ -382,6 +384,16 @@ def cmd_bench(args: argparse.Namespace) -> int:
         result = speed.bench_render(scene=args.scene, res=args.res or parse_res(256),
                                     spp=args.spp,
                                     repeats=args.repeats)
+    elif args.what in ("scene-file", "plugins"):
+        from .bench import speed_files
+        result = (speed_files.bench_plugin_discovery(repeats=max(args.repeats, 3))
+                  if args.what == "plugins" else
+                  speed_files.bench_scene_file(res=args.res or parse_res(256), spp=args.spp,
+                                               repeats=args.repeats))
+        print(speed_files.format_result(result))
+        if args.out:
+            speed.append_result(args.out, result)
+        return 0
     elif args.what == "metrics":
         result = speed.bench_metrics(height=args.height, width=args.width,
                                      repeats=args.repeats)
@@ -605,7 +617,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     bp = sub.add_parser("bench", help="speed benchmarks with ratios measured in the same run")
     bp.add_argument("what", help="'render' (statistics cost), 'metrics' (the judge against "
-                    "the plain metrics) or a method name")
+                    "the plain metrics), 'scene-file' (an XML scene against the catalogue's), "
+                    "'plugins' (entry-point discovery time) or a method name")
     bp.add_argument("--scene", default="cornell")
     bp.add_argument("--res", default=None, help="image size: N (N×N) or WIDTHxHEIGHT, "
                     "e.g. 1280x720 (render: default 256; methods, metrics: default --width "

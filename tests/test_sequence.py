@@ -254,3 +254,30 @@ def test_steady_methods_run_on_sequences_frame_by_frame():
     assert not methods.get("statistical").applies_to("sequence", {"color", "albedo", "normal",
                                                                   "depth"})[0]
     assert not methods.get("svgf").per_frame("sequence")
+
+
+def test_sequence_frames_carry_the_statistics_of_their_own_samples(renderer, tmp_cache):
+    """Per-frame sample statistics (issue: every method on every kind): the colour is the
+    mean of 1-spp passes whether or not statistics are asked for, a 1-spp frame is one render
+    with the frame's seed, and single-frame statistical methods run on the frames."""
+    from dbench import datasets, methods
+    from dbench.bench.harness import run_sequence_cell
+    from dbench.datasets import sequence as S
+    from dbench.datasets.mitsuba_env import mitsuba
+
+    with_stats = datasets.load("orbit", spp=4, res=16, frames=3, cache=tmp_cache,
+                               needs={"color", "stats", "albedo", "normal", "reference"},
+                               ref_spp=32, progress=False)
+    plain = S.load_sequence("orbit", spp=4, res=16, frames=3, needs={"color"},
+                            cache=datasets.Cache(tmp_cache.root / "other"), progress=False)
+    for a, b in zip(with_stats, plain):
+        np.testing.assert_array_equal(a.color, b.color)
+        np.testing.assert_array_equal(a.stats.n, 4)
+    mi = mitsuba()
+    sc = datasets.get_scene("orbit")
+    d = sc.frame_dict(mi, 16, 2, 2)
+    integ = mi.load_dict(S._matched_integrator(d["integrator"]), optimize=False)
+    one = S._render_dict(d, 1, S.frame_seed(0, 2), integrator=integ)[..., :3]
+    np.testing.assert_array_equal(S.render_frame(sc, 16, 1, 0, 2, 2, 2)["color"], one)
+    result = run_sequence_cell(methods.get("statistical"), [with_stats], warmup=1)
+    assert not result.skipped and np.isfinite(result.metrics["rmse"])

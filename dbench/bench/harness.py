@@ -152,12 +152,12 @@ def run_sequence_cell(method: Denoiser, seq, metric_names=DEFAULT_METRICS,
     bootstrap resamples the same pixel blocks in every frame). ``output`` is the last frame's
     output of the first seed.
     """
-    from ..data import FRAME_BUFFERS
+    from ..data import BUFFER_NAMES
     from .sequence import WARMUP, run_sequence
 
     warmup = WARMUP if warmup is None else int(warmup)
     seqs = _as_list(seq)
-    available = {b for b in FRAME_BUFFERS if seqs[0].has(b)}
+    available = {b for b in BUFFER_NAMES if seqs[0].has(b)}
     ok, reason = method.applies_to("sequence", available)
     if not ok:
         return CellResult(method.name, dict(method.params), None, skipped=reason)

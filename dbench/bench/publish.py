@@ -14,6 +14,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pandas as pd
+
 from .. import io
 from ..resolution import size_text
 from . import plots, tables, verdicts
@@ -287,6 +289,8 @@ def other_sweep_md(results: Path, sweep_dir: Path, rank_by: str = "relmse") -> l
         parts += [f"### Headline at {spp} spp", ""]
         parts += verdicts.headline_md(df, spp, rank, columns=cols, level="####")
         parts += reference_md(df)
+    if sequence:
+        parts += table31_md(df, cells)
     shown = ("rmse", "ssim", "t_rmse", "tpsnr", "time_s") if sequence else (
         "rmse", "relmse", "ssim", "time_s")
     for metric in shown:
@@ -294,6 +298,40 @@ def other_sweep_md(results: Path, sweep_dir: Path, rank_by: str = "relmse") -> l
             parts += [f"### {metric.upper()} (rows scene/method, columns spp)", "",
                       markdown_table(tables.convergence_table_md(df, metric)), ""]
     return parts
+
+
+def table31_md(df, cells: list[dict]) -> list[str]:
+    """Seed 001's Table 3.1 layout for a sequence sweep: per method, the mean SSIM over each
+    scene's frames (after the warm-up, ± the interval over seeds) at the sweep's lowest spp,
+    the median milliseconds per frame over the scenes, how the method ran (temporal, or a
+    single-frame method frame by frame) and the device. Methods that did not run are left
+    out (the section above says why)."""
+    if not len(df):
+        return []
+    spp = int(df.spp.min())
+    d = df[df.spp == spp]
+    scenes = sorted(d.scene.unique())
+    modes = {str(c.get("method")): c.get("sequence_mode", "") for c in cells
+             if c.get("status") == "ok" and c.get("spp") == spp}
+    rows = []
+    for method, g in d.groupby("method", sort=False):
+        row = {"method": method}
+        for scene in scenes:
+            one = g[g.scene == scene]
+            row[scene] = (verdicts.fmt_value(one.ssim.item(), one.ssim_ci.item(), ".3f")
+                          if len(one) else "")
+        row["ms per frame"] = f"{1e3 * float(g.time_s.median()):.2f}"
+        row["mode"] = "input" if method == "noisy" else modes.get(method, "")
+        row["device"] = "CPU"
+        rows.append(row)
+    order = sorted(rows, key=lambda r: -float(d[d.method == r["method"]].ssim.mean()))
+    res = ", ".join(sorted({size_text(v) for v in d.res.dropna().unique()}))
+    refs = ", ".join(sorted({f"{int(v)}" for v in d.ref_spp.dropna().unique()}))
+    return [f"### Table 3.1 layout (seed 001): SSIM and time per frame at {spp} spp", "",
+            f"SSIM against {refs}-spp references over the frames after the warm-up, "
+            f"{res} px; ms per frame: median over the scenes of each cell's median per-frame "
+            f"time on this machine's CPU (the seed ran A-SVGF and BMFR on a GPU at 1280×758).",
+            "", markdown_table(pd.DataFrame(order)), ""]
 
 
 def speed_md(results: Path, method: str | None = None) -> str:

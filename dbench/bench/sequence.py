@@ -111,8 +111,8 @@ def run_sequence(method, seq: Sequence, metric_names: Iterable[str] = SEQUENCE_M
     m = _method(method)
     if not isinstance(seq, Sequence):
         raise DbenchInputError(f"seq: expected a dbench.data.Sequence, got {type(seq).__name__}")
-    from ..data import FRAME_BUFFERS
-    available = {b for b in FRAME_BUFFERS if seq.has(b)}
+    from ..data import BUFFER_NAMES
+    available = {b for b in BUFFER_NAMES if seq.has(b)}
     ok, why = m.applies_to("sequence", available)
     if not ok:
         raise DbenchInputError(f"{m.name}: cannot run on this sequence: {why}")

@@ -189,10 +189,12 @@ def resolve_names(methods: str | Sequence[str], scenes: str | Sequence[str],
     return m, s
 
 
-def resolved_ref_spp(config: SweepConfig, scene, spp: int) -> int:
+def resolved_ref_spp(config: SweepConfig, scene, spp: int) -> int | None:
     """The reference spp a cell will use (the kind's rule for a missing --ref-spp)."""
     from .. import datasets
 
+    if not scene.renders:  # a folder of renders: its reference, whatever was asked
+        return scene.info.ref_spp
     if scene.kind == "transient":
         from ..datasets import transient
         return transient.reference_spp(spp, config.ref_spp)

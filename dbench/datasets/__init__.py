@@ -110,7 +110,8 @@ def load(scene: str | Scene, spp: int, res, needs: Iterable[str] | None = None,
     if sc.kind == "sequence":
         return _sequence.load_sequence(sc, spp=spp, res=res, needs=needs, seed=seed,
                                        ref_spp=ref_spp, cache=cache, progress=progress,
-                                       frames=frames, ref_seed=ref_seed)
+                                       frames=frames, ref_seed=ref_seed,
+                                       transform=transform or "box-cox", lam=lam)
     if sc.kind == "transient":
         return _transient.load_transient(sc, spp=spp, res=res, needs=needs,
                                          transform=transform or _transient.DEFAULT_TRANSFORM,

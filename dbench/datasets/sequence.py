@@ -84,9 +84,10 @@ from . import scenes as _scenes
 from .cache import Cache
 from .mitsuba_env import mitsuba, versions
 from .scenes import Scene
+from .stats import PowerSums, check_transform
 
 SEQUENCE_BUFFERS = frozenset({"color", "albedo", "normal", "depth", "position", "motion",
-                              "gradient", "emission", "emitter", "reference"})
+                              "gradient", "emission", "emitter", "stats", "reference"})
 FEATURES = ("albedo", "normal", "depth", "position")
 FOV = 39.3
 REFERENCE_CHUNK = _render.DEFAULT_REFERENCE_CHUNK
@@ -336,11 +337,23 @@ def _render_dict(d: dict, spp: int, seed: int, integrator=None) -> np.ndarray:
     return np.array(mi.render(scene, spp=spp, seed=seed, **kw), dtype=np.float32)
 
 
+def pass_seeds(seed: int, seed_frame: int, spp: int) -> list[int]:
+    """The seeds of the ``spp`` 1-spp passes of a noisy frame: the first is
+    :func:`frame_seed` (so a 1-spp frame is one render with the frame's seed), the others come
+    from a stream of their own per frame."""
+    return [frame_seed(seed, seed_frame)] + [
+        _render.pass_seed(f"seq-noisy-{seed_frame}", seed, k) for k in range(1, spp)]
+
+
 def render_frame(scene: SequenceScene, res, spp: int, seed: int, camera_frame: int,
-                 light_frame: int, seed_frame: int) -> dict[str, np.ndarray]:
+                 light_frame: int, seed_frame: int, stats: tuple[str, float] | None = None
+                 ) -> dict[str, np.ndarray]:
     """Noisy colour and matched G-buffer: ``color``, ``emission``, ``albedo``, ``normal``,
-    ``depth``, ``position`` (H, W, C) from one render of ``spp`` samples per pixel with the camera of
-    ``camera_frame``, the lights of ``light_frame`` and the seed of ``seed_frame``.
+    ``depth``, ``position`` (H, W, C), the means of ``spp`` 1-spp passes
+    (:func:`pass_seeds`) with the camera of ``camera_frame``, the lights of ``light_frame`` and
+    the seeds of ``seed_frame``. With ``stats`` = (transform, lam), the key ``stats`` holds the
+    SampleStats of the colour samples (the passes are the individual samples, as for steady
+    images, so the colour is the same with or without them).
 
     The G-buffer is the box-filtered mean over the same samples as the colour: at 1 spp it is
     the G-buffer of the very primary hit each colour sample started from, as a rasteriser
@@ -352,8 +365,24 @@ def render_frame(scene: SequenceScene, res, spp: int, seed: int, camera_frame: i
     mi = mitsuba()
     d = scene.frame_dict(mi, res, camera_frame, light_frame)
     integ = mi.load_dict(_matched_integrator(d["integrator"]), optimize=False)
-    out = _render_dict(d, spp, frame_seed(seed, seed_frame), integrator=integ)
-    return {name: np.ascontiguousarray(out[..., c0:c0 + nc]) for name, c0, nc in MATCHED_LAYOUT}
+    # optimize=False: see _render_dict
+    loaded = mi.load_dict(d, optimize=False)
+    total = None
+    acc = None
+    for k, pass_seed in enumerate(pass_seeds(seed, seed_frame, spp)):
+        out = np.array(mi.render(loaded, spp=1, seed=pass_seed, integrator=integ),
+                       dtype=np.float64)
+        if stats is not None:
+            if acc is None:
+                acc = PowerSums(out.shape[:2] + (3,), *stats)
+            acc.add(out[..., 0:3])
+        total = out if total is None else total + out
+    mean = (total / spp).astype(np.float32)
+    buffers = {name: np.ascontiguousarray(mean[..., c0:c0 + nc])
+               for name, c0, nc in MATCHED_LAYOUT}
+    if acc is not None:
+        buffers["stats"] = acc.finalize()
+    return buffers
 
 
 def render_gbuffer(scene: SequenceScene, res, i: int, seed: int,
@@ -418,6 +447,33 @@ def _cached_entry(cache: Cache, kind: str, desc: dict, render: Callable[[], dict
     return images, seconds
 
 
+def _frame_with_stats(cache: Cache, noisy_desc: dict, transform: str, lam: float, meta: dict,
+                      i: int, render: Callable[[], dict]) -> tuple[dict[str, np.ndarray], Any]:
+    """A noisy frame and the statistics of its samples, each through the cache (``seq-frame``
+    and ``seq-stats``); rendered once for both when either is missing (the passes are
+    deterministic, so a frame cached without statistics gets the same colour again)."""
+    from . import _stats_from_arrays, _stats_to_arrays
+
+    stats_desc = {**noisy_desc, "what": "stats", "transform": transform, "lam": float(lam)}
+    frame_entry = cache.get("seq-frame", noisy_desc)
+    stats_entry = cache.get("seq-stats", stats_desc)
+    if frame_entry is not None and stats_entry is not None:
+        meta["cache_hits"] += [f"frame{i}", f"stats{i}"]
+        return (frame_entry.images(),
+                _stats_from_arrays(stats_entry.arrays(), transform, float(lam)))
+    t0 = time.perf_counter()
+    images = render()
+    seconds = time.perf_counter() - t0
+    stats = images.pop("stats")
+    if frame_entry is None:
+        cache.put("seq-frame", noisy_desc, images=images, meta={"render_s": seconds})
+    cache.put("seq-stats", stats_desc, arrays=_stats_to_arrays(stats),
+              meta={"render_s": seconds, "diagnostics": stats.diagnostics})
+    meta["rendered"] += [f"frame{i}", f"stats{i}"]
+    meta["render_s"] = meta.get("render_s", 0.0) + seconds
+    return images, stats
+
+
 def _cached(cache: Cache, kind: str, desc: dict, render: Callable[[], dict[str, np.ndarray]],
             meta: dict, name: str) -> dict[str, np.ndarray]:
     return _cached_entry(cache, kind, desc, render, meta, name)[0]
@@ -427,7 +483,8 @@ def load_sequence(scene: str | SequenceScene, spp: int = 1, res=64,
                   needs: Iterable[str] | None = None, seed: int = 0, ref_spp: int | None = None,
                   cache: Cache | None = None, progress: bool = True,
                   frames: int | None = None, gbuffer: str = "matched",
-                  ref_seed: int | None = None) -> Sequence:
+                  ref_seed: int | None = None, transform: str = "box-cox",
+                  lam: float = 0.5) -> Sequence:
     """Render (or read from the cache) the first ``frames`` frames of a sequence scene.
 
     Args:
@@ -438,6 +495,8 @@ def load_sequence(scene: str | SequenceScene, spp: int = 1, res=64,
         seed: base seed; noisy frames, features and references use disjoint seed streams.
         ref_spp: reference spp per frame (default ``DBENCH_REF_SPP`` or 4096).
         frames: how many frames from the start (default: the whole sequence).
+        transform, lam: sample transform of the per-frame statistics (``stats`` in ``needs``;
+            spec/statistical.md §3), Box-Cox by default as for steady images.
         gbuffer: ``"matched"`` (default): the G-buffer and emission of the colour samples
             themselves (:func:`render_frame`); ``"supersampled"``: independent 64-spp
             footprint averages (:func:`render_gbuffer`). The colour is the same in both.
@@ -468,9 +527,14 @@ def load_sequence(scene: str | SequenceScene, spp: int = 1, res=64,
                                f"it provides {sorted(SEQUENCE_BUFFERS)}")
     if "reference" in wanted:
         wanted.add("emitter")
+    if "stats" in wanted:
+        check_transform(transform, lam)
     ref_seed = check_ref_seed(ref_seed)
     cache = cache or Cache()
     ref_spp = int(ref_spp or reference_spp())
+    # frames above 1 spp are the means of 1-spp passes (render_frame); the marker keeps them
+    # apart from entries rendered as one call of spp samples
+    samples = {"samples": "1-spp passes"} if spp > 1 else {}
     mi = mitsuba()
     vers = versions()
     meta: dict = {"scene": sc.name, "kind": "sequence", "spp": int(spp), "res": res.key,
@@ -491,10 +555,16 @@ def load_sequence(scene: str | SequenceScene, spp: int = 1, res=64,
     for i in tqdm(range(n), desc=f"{sc.name} frames", leave=False,
                   disable=not progress or n < 4, mininterval=0.5):
         camera = camera_info(sc, res, i)
-        noisy = _cached(cache, "seq-frame",
-                        base(i, "noisy+gbuffer+emission", spp=int(spp), seed=int(seed),
-                             aovs=_render.AOV_STRING),
-                        lambda: render_frame(sc, res, spp, seed, i, i, i), meta, f"frame{i}")
+        noisy_desc = base(i, "noisy+gbuffer+emission", spp=int(spp), seed=int(seed),
+                          aovs=_render.AOV_STRING, **samples)
+        stats = None
+        if "stats" in wanted:
+            noisy, stats = _frame_with_stats(cache, noisy_desc, transform, lam, meta, i,
+                                             lambda: render_frame(sc, res, spp, seed, i, i, i,
+                                                                  stats=(transform, lam)))
+        else:
+            noisy = _cached(cache, "seq-frame", noisy_desc,
+                            lambda: render_frame(sc, res, spp, seed, i, i, i), meta, f"frame{i}")
         gbuf = noisy
         if gbuffer == "supersampled" and wanted & (set(FEATURES) | {"emission", "motion"}):
             gbuf = _cached(cache, "seq-gbuffer",
@@ -511,7 +581,7 @@ def load_sequence(scene: str | SequenceScene, spp: int = 1, res=64,
                 buffers["gradient"] = noisy["color"]
             else:
                 desc = base(i, "gradient", spp=int(spp), seed=int(seed), aovs=_render.AOV_STRING,
-                            gdict=sc.frame_dict(mi, res, i - 1, i))
+                            gdict=sc.frame_dict(mi, res, i - 1, i), **samples)
                 buffers["gradient"] = _cached(
                     cache, "seq-gradient", desc,
                     lambda: {"gradient": render_frame(sc, res, spp, seed, i - 1, i, i - 1)["color"]},
@@ -538,7 +608,7 @@ def load_sequence(scene: str | SequenceScene, spp: int = 1, res=64,
             meta["ref_render_s"] += float(ref_s or 0.0)
             fmeta.update(reference_meta(ref_spp, ref_seed, ref["reference_var"]),
                          ref_render_s=ref_s)
-        out.append(Frame(meta=fmeta, **buffers))
+        out.append(Frame(meta=fmeta, stats=stats, **buffers))
         prev_camera = camera
     meta.pop("_ref_rendered_s", None)
     if ref_vars:

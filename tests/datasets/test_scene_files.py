@@ -220,3 +220,46 @@ def test_export_round_trip_reproduces_the_direct_run(renderer, tmp_path):
     assert list(a["method"]) == list(b["method"]) == methods.split(",")
     for col in ("rmse", "relmse", "ssim", "flip", "rmse_surface", "rmse_unbiased"):
         np.testing.assert_allclose(b[col], a[col], rtol=1e-6, err_msg=col)
+
+
+def test_sweep_over_a_scene_file_and_a_folder(renderer, tmp_path):
+    """File scenes and folders are first-class in sweeps: cells under the file's name, the
+    scene's own size when --res is not given, and a finished sweep resumes."""
+    from dbench.bench.sweep import load_cells
+    path = _write_xml(tmp_path)
+    folder = _oidn_folder(tmp_path / "renders", tmp_path)
+    out = tmp_path / "sweep"
+    args = ["sweep", "--methods", "noisy,jbf", "--scenes", f"{path},{folder}", "--spp", "4",
+            "--ref-spp", "16", "--repeats", "1", "--quiet", "--cache", str(tmp_path / "c"),
+            "--out", str(out)]
+    assert main(args) == 0
+    cells = load_cells(out)
+    by_scene = {(c["scene"], c["method"]): c for c in cells}
+    assert by_scene[("scene.xml", "jbf")]["res"] == "128x77"
+    assert by_scene[("view", "jbf")]["res"] == "40x24"
+    assert all(c["status"] == "ok" for c in cells)
+    assert main(args) == 0  # resumes: nothing to compute
+
+
+def test_exported_sequence_reads_back_as_a_sequence(renderer, tmp_path):
+    from dbench import datasets, methods
+    from dbench.bench.harness import run_sequence_cell
+    from dbench.datasets import scenes
+    folder = tmp_path / "seq"
+    assert main(["export", "orbit", "--out", str(folder), "--spp", "4", "--res", "24x16",
+                 "--frames", "3", "--ref-spp", "16", "--quiet",
+                 "--cache", str(tmp_path / "c")]) == 0
+    sc = scenes.get(str(folder))
+    assert sc.kind == "sequence" and {"motion", "stats", "reference"} <= set(sc.provides)
+    seq = datasets.load(sc, spp=4, res=None, needs={"color", "motion", "normal", "depth",
+                                                  "position", "reference"})
+    direct = datasets.load("orbit", spp=4, res="24x16", frames=3, ref_spp=16,
+                           cache=datasets.Cache(tmp_path / "c"), progress=False,
+                           needs={"color", "motion", "reference"})
+    assert len(seq) == 3
+    for a, b in zip(seq, direct):
+        np.testing.assert_array_equal(a.color, b.color)
+        np.testing.assert_array_equal(a.reference, b.reference)
+        np.testing.assert_array_equal(a.motion, b.motion)
+    result = run_sequence_cell(methods.get("accumulate"), [seq], warmup=1)
+    assert not result.skipped and np.isfinite(result.metrics["rmse"])
