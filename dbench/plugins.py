@@ -40,6 +40,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterable
 
+from .denoiser import _REGISTRY, Denoiser, register
 from .errors import DbenchInputError
 
 #: Entry-point groups.
@@ -123,7 +124,6 @@ def env_specs(environ: dict[str, str] | None = None) -> list[str]:
 
 
 def _method_names() -> set[str]:
-    from .registry import _REGISTRY
     return set(_REGISTRY)
 
 
@@ -133,8 +133,6 @@ def _scene_names() -> set[str]:
 
 
 def _register_method_object(name: str, obj: Any) -> None:
-    from .registry import Denoiser, _REGISTRY, register
-
     if inspect.ismodule(obj):
         return  # its import registered what it has
     if not (inspect.isclass(obj) and issubclass(obj, Denoiser)):

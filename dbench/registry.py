@@ -1,4 +1,7 @@
-"""The denoiser registry: a dictionary and a decorator, as timm registers models.
+"""The denoiser registry: look methods up by name (built-in methods and plugins).
+
+:class:`~dbench.denoiser.Denoiser` and :func:`~dbench.denoiser.register` (the dictionary and the
+decorator) live in :mod:`dbench.denoiser`, below :mod:`dbench.plugins`; they are re-exported here.
 
 Example:
     >>> from dbench.registry import register, Denoiser
@@ -11,98 +14,15 @@ Example:
 """
 from __future__ import annotations
 
-from typing import Any, Callable
+from typing import Any
 
-import numpy as np
-
-from .data import BUFFER_NAMES
-from .errors import DbenchInputError, UnknownNameError
-
-_REGISTRY: dict[str, type["Denoiser"]] = {}
-
-
-class Denoiser:
-    """Base class of every method.
-
-    Class attributes a method sets:
-        kinds: the Dataset kinds it accepts (``steady``, ``sequence``, ``transient``).
-        needs: the buffers it cannot run without (names from :data:`dbench.data.BUFFER_NAMES`).
-        optional_needs: buffers it uses when the data has them and runs without otherwise
-            (its docstring says what changes); loaded wherever the scene provides them.
-        defaults: parameter defaults; ``get(name, **params)`` overrides them.
-
-    Sequence methods keep state: call ``reset()`` and then ``denoise(frame)`` per frame in order.
-    ``denoise`` returns float32 with the shape of ``data.color``, finite wherever it is finite.
-    """
-
-    name: str = ""
-    kinds: set[str] = {"steady"}
-    needs: set[str] = {"color"}
-    optional_needs: set[str] = set()
-    defaults: dict[str, Any] = {}
-
-    def __init__(self, **params: Any) -> None:
-        unknown = set(params) - set(self.defaults)
-        if unknown:
-            raise DbenchInputError(
-                f"{self.name}: unknown parameter(s) {sorted(unknown)}; "
-                f"valid: {sorted(self.defaults) or 'none'}")
-        self.params: dict[str, Any] = {**self.defaults, **params}
-
-    def reset(self) -> None:
-        """Forget any state kept across frames (no-op for single-frame methods)."""
-
-    def denoise(self, data: Any) -> np.ndarray:  # pragma: no cover - abstract
-        raise NotImplementedError
-
-    def applies_to(self, kind: str, available: set[str] | None = None) -> tuple[bool, str]:
-        """Whether the method can run on a dataset of ``kind`` offering ``available`` buffers.
-
-        Returns (ok, reason); the reason explains a skip in reports.
-        """
-        if kind not in self.kinds and not self.per_frame(kind):
-            return False, f"{self.name} works on {sorted(self.kinds)}, not on {kind} data"
-        if available is not None:
-            missing = set(self.needs) - set(available)
-            if missing:
-                return False, f"{self.name} needs {sorted(missing)}, which the scene cannot provide"
-        return True, ""
-
-    def wants(self, available: set[str] | frozenset[str]) -> set[str]:
-        """The buffers to load for this method from a scene offering ``available``: ``needs``
-        and whichever ``optional_needs`` are there."""
-        return set(self.needs) | (set(self.optional_needs) & set(available))
-
-    def per_frame(self, kind: str) -> bool:
-        """Whether the method runs on ``kind`` data as a single-frame method: a steady method on
-        a sequence denoises every frame alone (``reset()`` before each frame, no history), so
-        sequence tables hold single-frame and temporal methods side by side."""
-        return kind == "sequence" and "sequence" not in self.kinds and "steady" in self.kinds
-
-    def __repr__(self) -> str:
-        return f"{type(self).__name__}({self.params})"
-
-
-def register(name: str) -> Callable[[type[Denoiser]], type[Denoiser]]:
-    """Class decorator adding a Denoiser subclass to the registry under ``name``."""
-
-    def wrap(cls: type[Denoiser]) -> type[Denoiser]:
-        if name in _REGISTRY and _REGISTRY[name] is not cls:
-            raise ValueError(f"method {name!r} registered twice")
-        bad = (set(cls.needs) | set(cls.optional_needs)) - set(BUFFER_NAMES)
-        if bad:
-            raise ValueError(f"method {name!r} needs unknown buffers {sorted(bad)}")
-        cls.name = name
-        _REGISTRY[name] = cls
-        return cls
-
-    return wrap
+from . import plugins
+from .denoiser import _REGISTRY, Denoiser, register
+from .errors import UnknownNameError
 
 
 def _load_plugins() -> None:
     """Built-in methods, then plugins (entry points, ``DBENCH_PLUGINS``), once per process."""
-    from . import plugins
-
     plugins.ensure_loaded()
 
 
@@ -118,8 +38,6 @@ def method_class(name: str) -> type[Denoiser]:
     try:
         return _REGISTRY[name]
     except KeyError:
-        from . import plugins
-
         why = plugins.broken_reason(name)
         if why:
             raise plugins.PluginError(why) from None
@@ -130,3 +48,6 @@ def method_class(name: str) -> type[Denoiser]:
 def get(name: str, **params: Any) -> Denoiser:
     """Build the method ``name`` with ``params`` overriding its defaults."""
     return method_class(name)(**params)
+
+
+__all__ = ["Denoiser", "register", "available", "method_class", "get"]

@@ -1,0 +1,101 @@
+"""The method base class and the registry it goes into: a dictionary and a decorator, as timm
+registers models. Lookups (``get``, ``available``, ``method_class``, which also load plugins)
+are in :mod:`dbench.registry`.
+
+Example:
+    >>> from dbench.denoiser import register, Denoiser
+    >>> @register("identity-example")
+    ... class IdentityExample(Denoiser):
+    ...     kinds = {"steady"}
+    ...     needs = {"color"}
+    ...     def denoise(self, data):
+    ...         return data.color.copy()
+"""
+from __future__ import annotations
+
+from typing import Any, Callable
+
+import numpy as np
+
+from .data import BUFFER_NAMES
+from .errors import DbenchInputError
+
+_REGISTRY: dict[str, type["Denoiser"]] = {}
+
+
+class Denoiser:
+    """Base class of every method.
+
+    Class attributes a method sets:
+        kinds: the Dataset kinds it accepts (``steady``, ``sequence``, ``transient``).
+        needs: the buffers it cannot run without (names from :data:`dbench.data.BUFFER_NAMES`).
+        optional_needs: buffers it uses when the data has them and runs without otherwise
+            (its docstring says what changes); loaded wherever the scene provides them.
+        defaults: parameter defaults; ``get(name, **params)`` overrides them.
+
+    Sequence methods keep state: call ``reset()`` and then ``denoise(frame)`` per frame in order.
+    ``denoise`` returns float32 with the shape of ``data.color``, finite wherever it is finite.
+    """
+
+    name: str = ""
+    kinds: set[str] = {"steady"}
+    needs: set[str] = {"color"}
+    optional_needs: set[str] = set()
+    defaults: dict[str, Any] = {}
+
+    def __init__(self, **params: Any) -> None:
+        unknown = set(params) - set(self.defaults)
+        if unknown:
+            raise DbenchInputError(
+                f"{self.name}: unknown parameter(s) {sorted(unknown)}; "
+                f"valid: {sorted(self.defaults) or 'none'}")
+        self.params: dict[str, Any] = {**self.defaults, **params}
+
+    def reset(self) -> None:
+        """Forget any state kept across frames (no-op for single-frame methods)."""
+
+    def denoise(self, data: Any) -> np.ndarray:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def applies_to(self, kind: str, available: set[str] | None = None) -> tuple[bool, str]:
+        """Whether the method can run on a dataset of ``kind`` offering ``available`` buffers.
+
+        Returns (ok, reason); the reason explains a skip in reports.
+        """
+        if kind not in self.kinds and not self.per_frame(kind):
+            return False, f"{self.name} works on {sorted(self.kinds)}, not on {kind} data"
+        if available is not None:
+            missing = set(self.needs) - set(available)
+            if missing:
+                return False, f"{self.name} needs {sorted(missing)}, which the scene cannot provide"
+        return True, ""
+
+    def wants(self, available: set[str] | frozenset[str]) -> set[str]:
+        """The buffers to load for this method from a scene offering ``available``: ``needs``
+        and whichever ``optional_needs`` are there."""
+        return set(self.needs) | (set(self.optional_needs) & set(available))
+
+    def per_frame(self, kind: str) -> bool:
+        """Whether the method runs on ``kind`` data as a single-frame method: a steady method on
+        a sequence denoises every frame alone (``reset()`` before each frame, no history), so
+        sequence tables hold single-frame and temporal methods side by side."""
+        return kind == "sequence" and "sequence" not in self.kinds and "steady" in self.kinds
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}({self.params})"
+
+
+def register(name: str) -> Callable[[type[Denoiser]], type[Denoiser]]:
+    """Class decorator adding a Denoiser subclass to the registry under ``name``."""
+
+    def wrap(cls: type[Denoiser]) -> type[Denoiser]:
+        if name in _REGISTRY and _REGISTRY[name] is not cls:
+            raise ValueError(f"method {name!r} registered twice")
+        bad = (set(cls.needs) | set(cls.optional_needs)) - set(BUFFER_NAMES)
+        if bad:
+            raise ValueError(f"method {name!r} needs unknown buffers {sorted(bad)}")
+        cls.name = name
+        _REGISTRY[name] = cls
+        return cls
+
+    return wrap
