@@ -143,7 +143,7 @@ def _check_common(args: argparse.Namespace) -> None:
         check_count("--ref-spp", args.ref_spp)
     if args.rank_by not in RANKABLE:
         raise DbenchInputError(f"--rank-by: {args.rank_by!r}; valid: {', '.join(RANKABLE)}")
-    from .datasets.stats import check_transform
+    from .data import check_transform
 
     try:
         check_transform(args.transform or "box-cox", args.lam)

@@ -92,6 +92,30 @@ def _fmt(shape: tuple[int | None, ...]) -> str:
     return "(" + ", ".join("*" if s is None else str(s) for s in shape) + ")"
 
 
+#: Sample transforms of the statistics (spec/statistical.md §3), checked by :func:`check_transform`.
+TRANSFORMS = ("identity", "box-cox", "yeo-johnson")
+
+#: λ accepted by the transforms. The spec's sweep range is [0.25, 1.5]; beyond |λ| = 3 the cubes
+#: of transformed radiance overflow float64 for bright pixels (λ = 300 gave Inf moments).
+LAM_RANGE = (-3.0, 3.0)
+
+
+def check_transform(transform: str, lam: float) -> None:
+    """A known transform and a λ it accepts (DbenchInputError naming the problem otherwise)."""
+    if transform not in TRANSFORMS:
+        raise DbenchInputError(f"transform: unknown {transform!r}; expected one of {TRANSFORMS}")
+    if isinstance(lam, bool) or not isinstance(lam, (int, float, np.integer, np.floating)) \
+            or not np.isfinite(lam):
+        raise DbenchInputError(f"lam: expected a finite number, got {lam!r}")
+    if transform != "identity" and not LAM_RANGE[0] <= lam <= LAM_RANGE[1]:
+        raise DbenchInputError(f"lam: {lam} is outside [{LAM_RANGE[0]}, {LAM_RANGE[1]}] "
+                               "(larger |λ| overflows the moments of bright samples)")
+    if transform == "box-cox" and lam <= 0:
+        # Rendered samples are often exactly 0, where Box-Cox with λ ≤ 0 is undefined (§3).
+        raise DbenchInputError(f"lam: Box-Cox needs λ > 0 on rendered samples (zeros occur), "
+                               f"got {lam}")
+
+
 @dataclass
 class SampleStats:
     """Per-pixel, per-channel statistics of the transformed samples (spec/statistical.md §4).
@@ -115,8 +139,6 @@ class SampleStats:
     diagnostics: dict[str, int] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        from .datasets.stats import check_transform  # the one list of transforms and λ range
-
         check_transform(self.transform, self.lam)
         mean = np.asarray(self.mean)
         if mean.ndim < 1:

@@ -20,7 +20,7 @@ from typing import Iterable
 
 import numpy as np
 
-from ..data import Frame, SampleStats, Sequence, TransientFrame, check_count
+from ..data import Frame, SampleStats, Sequence, TransientFrame, check_count, check_transform
 from ..errors import DbenchInputError
 from ..resolution import Res, parse_res
 from . import render as _render
@@ -28,7 +28,6 @@ from . import scenes as _scenes
 from .cache import Cache, make_key
 from .mitsuba_env import mitsuba, versions
 from .scenes import Scene
-from .stats import check_transform
 
 DEFAULT_REFERENCE_SPP = 4096
 FEATURES = ("albedo", "normal", "depth", "position")

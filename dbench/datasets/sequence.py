@@ -75,7 +75,7 @@ from typing import Any, Callable, Iterable
 
 import numpy as np
 
-from ..data import Frame, Sequence, check_count
+from ..data import Frame, Sequence, check_count, check_transform
 from ..errors import DbenchInputError
 from ..resolution import parse_res
 from . import emitter as _emitter
@@ -84,7 +84,7 @@ from . import scenes as _scenes
 from .cache import Cache
 from .mitsuba_env import mitsuba, versions
 from .scenes import Scene
-from .stats import PowerSums, check_transform
+from .stats import PowerSums
 
 SEQUENCE_BUFFERS = frozenset({"color", "albedo", "normal", "depth", "position", "motion",
                               "gradient", "emission", "emitter", "stats", "reference"})

@@ -17,33 +17,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..data import SampleStats
+from ..data import TRANSFORMS, SampleStats, check_transform
 from ..errors import DbenchInputError
-
-TRANSFORMS = ("identity", "box-cox", "yeo-johnson")
 
 #: σ² is taken as exactly 0 when the biased variance is below this fraction of S2/n (§4.1).
 ZERO_VARIANCE_RTOL = 1e-10
-
-
-#: λ accepted by the transforms. The spec's sweep range is [0.25, 1.5]; beyond |λ| = 3 the cubes
-#: of transformed radiance overflow float64 for bright pixels (λ = 300 gave Inf moments).
-LAM_RANGE = (-3.0, 3.0)
-
-
-def check_transform(transform: str, lam: float) -> None:
-    if transform not in TRANSFORMS:
-        raise DbenchInputError(f"transform: unknown {transform!r}; expected one of {TRANSFORMS}")
-    if isinstance(lam, bool) or not isinstance(lam, (int, float, np.integer, np.floating)) \
-            or not np.isfinite(lam):
-        raise DbenchInputError(f"lam: expected a finite number, got {lam!r}")
-    if transform != "identity" and not LAM_RANGE[0] <= lam <= LAM_RANGE[1]:
-        raise DbenchInputError(f"lam: {lam} is outside [{LAM_RANGE[0]}, {LAM_RANGE[1]}] "
-                               "(larger |λ| overflows the moments of bright samples)")
-    if transform == "box-cox" and lam <= 0:
-        # Rendered samples are often exactly 0, where Box-Cox with λ ≤ 0 is undefined (§3).
-        raise DbenchInputError(f"lam: Box-Cox needs λ > 0 on rendered samples (zeros occur), "
-                               f"got {lam}")
 
 
 def transform_samples(x: np.ndarray, transform: str, lam: float = 0.5) -> np.ndarray:

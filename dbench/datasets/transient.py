@@ -48,7 +48,7 @@ from typing import Any, Callable, Iterable
 
 import numpy as np
 
-from ..data import SampleStats, TransientFrame, check_count
+from ..data import SampleStats, TransientFrame, check_count, check_transform
 from ..errors import DbenchInputError
 from ..resolution import parse_res
 from . import render as _render
@@ -56,7 +56,7 @@ from . import scenes as _scenes
 from .cache import Cache
 from .mitsuba_env import mitsuba, require_llvm, versions
 from .scenes import Scene
-from .stats import ZERO_VARIANCE_RTOL, PowerSums, check_transform, transform_of_zero
+from .stats import ZERO_VARIANCE_RTOL, PowerSums, transform_of_zero
 
 #: Speed of light in m/s (time = OPL / c).
 SPEED_OF_LIGHT = 299792458.0

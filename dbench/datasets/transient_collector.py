@@ -54,7 +54,8 @@ import mitsuba as mi
 import numpy as np
 
 from .mitsuba_env import mitsuba, require_llvm
-from .stats import TRANSFORMS, check_transform, stats_from_power_sums, transform_of_zero
+from ..data import TRANSFORMS, check_transform
+from .stats import stats_from_power_sums, transform_of_zero
 
 PLUGIN = "transient_path_stats"
 _REGISTERED: dict[str, Any] = {}
