@@ -193,6 +193,7 @@ def _default_spp(scene, fallback: int = 16) -> int:
 def cmd_run(args: argparse.Namespace) -> int:
     from . import datasets, methods
     from .bench import harness, identity, report
+    from .bench.formats import markdown_table, write_csv
     from .bench.sweep import cell_record, load_seeds
     from .datasets import scenes
     from .data import check_count
@@ -263,8 +264,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     table = pd.DataFrame(rows)
     csv_table = table.drop(columns=[c for c in ("seeds", "times_s", "per_seed")
                                     if c in table.columns])
-    report.write_csv(out / "metrics.csv", csv_table)
-    report.write_csv(out / "metrics_per_seed.csv", pd.DataFrame(per_seed))
+    write_csv(out / "metrics.csv", csv_table)
+    write_csv(out / "metrics_per_seed.csv", pd.DataFrame(per_seed))
     if is_sequence:
         from .bench.sequence import plot_errors, strip
         runs = dict(outputs)
@@ -273,8 +274,7 @@ def cmd_run(args: argparse.Namespace) -> int:
                     events=frame.meta.get("events"))
         strip(frame, runs, out / "comparison.png", title=title)
         for n, run in runs.items():
-            report.write_csv(out / f"per_frame_{identity.file_stem(n)}.csv",
-                             pd.DataFrame(run.per_frame))
+            write_csv(out / f"per_frame_{identity.file_stem(n)}.csv", pd.DataFrame(run.per_frame))
     elif frame.kind == "transient":
         from .bench.transient import write_figures
         write_figures(out, frame, dict(outputs), title=f"{scene.name}, {args.spp} spp")
@@ -301,7 +301,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     write_json(out / "run.json", {"settings": settings, "machine": info, "skipped": skipped})
     print()
     shown = [c for c in report.RUN_COLUMNS if c in table.columns]
-    print(report.markdown_table(table[shown]))
+    print(markdown_table(table[shown]))
     print(f"\nreport: {out / 'report.md'}")
     return 0
 

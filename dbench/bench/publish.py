@@ -19,7 +19,8 @@ import pandas as pd
 from .. import io
 from ..resolution import size_text
 from . import plots, tables, verdicts
-from .report import machine_md, markdown_table, metric_definitions_md
+from .formats import markdown_table
+from .report import machine_md, metric_definitions_md
 from .sweep import read_cell
 
 #: Metrics shown as Markdown convergence tables in the README (others: CSV links).

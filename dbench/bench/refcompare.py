@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .report import markdown_table
+from .formats import markdown_table
 from .sweep import load_cells
 from .tables import cells_frame
 from .verdicts import half_width, higher_is_better, overlaps

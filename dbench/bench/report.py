@@ -1,4 +1,5 @@
-"""Result tables and pictures: pandas → CSV / Markdown, matplotlib → PNG comparison grids.
+"""Run reports and pictures: the Markdown report of one ``dbench run``, matplotlib → PNG
+comparison grids (CSV and Markdown tables themselves: :mod:`dbench.bench.formats`).
 
 The report reads results; it never renders or denoises. Every file is written atomically.
 """
@@ -12,37 +13,18 @@ import pandas as pd
 
 from .. import io, metrics
 from ..resolution import size_text
+from . import verdicts
+from .tables import cells_frame
 
 RUN_COLUMNS = ["scene", "method", "spp", "res", "rmse", "relmse", "smape", "psnr", "ssim", "flip",
                "t_rmse", "tpsnr", "time_s"]
 
 
-def write_csv(path: str | Path, table: pd.DataFrame) -> None:
-    with io.atomic_path(path, suffix=".tmp.csv") as tmp:
-        table.to_csv(tmp, index=False, float_format="%.6g")
-
-
-def markdown_table(table: pd.DataFrame, floatfmt: str = ".4g") -> str:
-    """A GitHub Markdown table (pandas' to_markdown needs tabulate; this does not)."""
-    def fmt(v: Any) -> str:
-        if isinstance(v, (float, np.floating)):
-            return "nan" if not np.isfinite(v) else format(float(v), floatfmt)
-        return str(v)
-
-    cols = [str(c) for c in table.columns]
-    lines = ["| " + " | ".join(cols) + " |", "|" + "|".join("---" for _ in cols) + "|"]
-    for row in table.itertuples(index=False):
-        lines.append("| " + " | ".join(fmt(v) for v in row) + " |")
-    return "\n".join(lines)
-
-
 def metric_definitions_md() -> str:
     """The metric definitions, plus the verdict quantities (surface metrics, top1_share,
     rmse_unbiased, ref_rmse, interval kinds) that :data:`dbench.metrics.DEFINITIONS` lacks."""
-    from .verdicts import DEFINITIONS as VERDICT_DEFINITIONS
-
     lines = [f"- **{name}**: {text}" for name, text in metrics.DEFINITIONS.items()]
-    lines += [f"- **{name}**: {text}" for name, text in VERDICT_DEFINITIONS.items()
+    lines += [f"- **{name}**: {text}" for name, text in verdicts.DEFINITIONS.items()
               if name not in metrics.DEFINITIONS]
     lines.append(f"- Tone map: {metrics.TONEMAP_DEFINITION}")
     return "\n".join(lines)
@@ -159,8 +141,6 @@ def run_report_md(table: pd.DataFrame, settings: dict[str, Any], info: dict[str,
     :func:`dbench.bench.tables.cells_frame` (``<metric>_ci``, ``ci_kind``, ``n_seeds``,
     ``ref_spp``, ``ref_rmse``); missing columns are shown as missing, not guessed.
     """
-    from . import verdicts
-
     d = _run_frame(table, settings)
     if rank_by not in d.columns or not d[rank_by].notna().any():
         rank_by = "rmse"
@@ -213,8 +193,6 @@ def _run_frame(table: pd.DataFrame, settings: dict[str, Any]) -> pd.DataFrame:
     """The run's table as a cells frame: rows without a method dropped, values coerced to
     numbers (NaN when malformed), ``ref_spp`` and ``ref_rmse`` from the settings only where the
     rows lack them."""
-    from .tables import cells_frame
-
     cells = []
     for rec in table.to_dict("records"):
         c = {k: v for k, v in rec.items() if not (isinstance(v, float) and np.isnan(v))}

@@ -526,7 +526,7 @@ def run_all(method_names: list[str] | None = None, progress: bool = True
 
 
 def stress_markdown(results: dict[str, dict[str, Outcome]]) -> str:
-    from .report import markdown_table
+    from .formats import markdown_table
     import pandas as pd
 
     symbol = {"pass": "pass", "fail": "**FAIL**", "n/a": "n/a"}

@@ -21,7 +21,7 @@ import pandas as pd
 
 from ..errors import DbenchInputError
 from ..resolution import parse_res
-from .report import markdown_table
+from .formats import markdown_table, write_csv
 from .verdicts import METRICS, fmt_value, num
 
 ID_COLUMNS = ["scene", "method", "base_method", "spp", "res", "n_seeds", "ci_kind", "ref_spp",
@@ -213,7 +213,6 @@ def headline_table(df: pd.DataFrame, spp: int) -> pd.DataFrame:
 def write_tables(df: pd.DataFrame, out: Path) -> dict[str, Path]:
     """CSV files of every table under ``out``; returns their paths. A convergence CSV is
     written for each metric some cell records (numbers, with ``_ci`` columns)."""
-    from .report import write_csv
     from .verdicts import ref_noise_frame
 
     paths = {}

@@ -298,7 +298,7 @@ def write_figures(out_dir: str | Path, frame: TransientFrame, outputs: dict[str,
     at 5/25/50/80 % of the reference's cumulative energy) and ``<prefix>streak.png`` (x–t slice
     of the middle row), each for the outputs (noisy included when given) and the reference.
     Also ``<prefix>rmse_per_bin.csv``. Returns the bins shown."""
-    from .report import write_csv
+    from .formats import write_csv
 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -328,7 +328,7 @@ def run_report(out_dir: str | Path = "results", scenes: Sequence[str] = (
     from ..datasets import scenes as catalogue
     from ..datasets import transient as tr
     from .harness import machine_info
-    from .report import markdown_table
+    from .formats import markdown_table
 
     out_dir = Path(out_dir)
     fig_dir = out_dir / "transient"

@@ -21,6 +21,8 @@ from typing import Any, Iterable, Sequence
 import numpy as np
 import pandas as pd
 
+from .formats import markdown_table
+
 #: Metric columns of a cell (each with a ``_ci`` half-width column).
 METRICS = ("rmse", "relmse", "smape", "psnr", "ssim", "flip",
            "rmse_surface", "relmse_surface", "smape_surface", "psnr_surface", "ssim_surface",
@@ -339,7 +341,6 @@ def missing_md(missing: Sequence[tuple[str, int, str]]) -> list[str]:
 def scene_block_md(d: pd.DataFrame, rank_by: str, columns: Sequence[str] = HEADLINE,
                    heading: str | None = None) -> list[str]:
     """Markdown for one scene at one spp: ranking line, intervals, reference, table."""
-    from .report import markdown_table
 
     parts = [heading, ""] if heading else []
     parts += [f"Ranking by {ranking_line(d, rank_by)}.", "",
