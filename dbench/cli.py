@@ -194,6 +194,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     from . import datasets, methods
     from .bench import harness, identity, report
     from .bench.formats import markdown_table, write_csv
+    from .bench.machine import machine_info
     from .bench.sweep import cell_record, load_seeds
     from .datasets import scenes
     from .data import check_count
@@ -281,7 +282,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     else:
         report.comparison_grid(out / "comparison.png", outputs, frame.reference, ev=scene.ev,
                                title=f"{scene.name}, {args.spp} spp, {args.res.text} px")
-    info = harness.machine_info()
+    info = machine_info()
     seeds = [args.seed + k for k in range(args.seeds)]
     settings = {"scene": scene.name, "kind": scene.kind, "spp": args.spp, "res": args.res.key,
                 "seeds": ", ".join(map(str, seeds)),

@@ -5,8 +5,6 @@ Timing (anchors.md §1): rendering and I/O are excluded; one warm-up call, then 
 """
 from __future__ import annotations
 
-import os
-import platform
 import statistics
 import time
 from dataclasses import dataclass, field
@@ -17,8 +15,8 @@ import numpy as np
 from ..metrics import judge
 from ..errors import DbenchInputError
 from ..registry import Denoiser
-
-DEFAULT_METRICS = ("rmse", "relmse", "smape", "psnr", "ssim", "flip")
+from .scoring import DEFAULT_METRICS, judge_frame
+from .sequence import WARMUP, run_sequence
 
 
 @dataclass
@@ -70,15 +68,6 @@ def time_call(fn, repeats: int = 5, warmup: int = 1) -> tuple[Any, list[float]]:
         result = fn()
         times.append(time.perf_counter() - t0)
     return result, times
-
-
-def judge_frame(output: np.ndarray, frame, names: Sequence[str] = DEFAULT_METRICS):
-    """:func:`dbench.metrics.judge.judge` of ``output`` against ``frame``'s reference, surface
-    (emitter fraction 0) and reference variance, when the frame carries them."""
-    return judge.judge(output, frame.reference, emitter=getattr(frame, "emitter", None),
-                       reference_var=getattr(frame, "reference_var", None),
-                       ev=frame.meta.get("ev", 0.0),
-                       names=[n for n in names if n in judge.JUDGED])
 
 
 def summarise_seeds(per_seed: list[dict[str, Any]], judgements: list[list],
@@ -153,7 +142,6 @@ def run_sequence_cell(method: Denoiser, seq, metric_names=DEFAULT_METRICS,
     output of the first seed.
     """
     from ..data import BUFFER_NAMES
-    from .sequence import WARMUP, run_sequence
 
     warmup = WARMUP if warmup is None else int(warmup)
     seqs = _as_list(seq)
@@ -180,32 +168,3 @@ def run_sequence_cell(method: Denoiser, seq, metric_names=DEFAULT_METRICS,
     if any(result.per_seed[0].get(c) == result.per_seed[0].get(c) for c in names):
         result.metrics, result.ci_kind = summarise_seeds(result.per_seed, judgements, columns)
     return result
-
-
-def machine_info() -> dict[str, Any]:
-    """CPU, core count and package versions, printed in every report."""
-    cpu = platform.processor() or platform.machine()
-    try:
-        with open("/proc/cpuinfo") as fh:
-            for line in fh:
-                if line.startswith("model name"):
-                    cpu = line.split(":", 1)[1].strip()
-                    break
-    except OSError:
-        pass
-    from importlib.metadata import PackageNotFoundError, version
-
-    packages = {}
-    for pkg in ("dbench", "mitsuba", "drjit", "mitransient", "numpy", "numba", "torch",
-                "pyoidn", "flip-evaluator", "scikit-image", "onnxruntime"):
-        try:
-            packages[pkg] = version(pkg)
-        except PackageNotFoundError:
-            packages[pkg] = "missing"
-    try:
-        import torch
-        gpu = torch.cuda.get_device_name(0) if torch.cuda.is_available() else "none"
-    except Exception:  # noqa: BLE001
-        gpu = "unknown"
-    return {"cpu": cpu, "cores": os.cpu_count(), "python": platform.python_version(),
-            "platform": platform.platform(), "gpu": gpu, "packages": packages}

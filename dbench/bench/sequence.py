@@ -118,7 +118,7 @@ def run_sequence(method, seq: Sequence, metric_names: Iterable[str] = SEQUENCE_M
         raise DbenchInputError(f"{m.name}: cannot run on this sequence: {why}")
     names = list(metric_names)
     ev = seq.meta.get("ev", seq[0].meta.get("ev", 0.0))
-    from .harness import judge_frame
+    from .scoring import judge_frame
 
     m.reset()
     rows, outs, judgements = [], [], []
@@ -310,7 +310,7 @@ def benchmark(height: int = 720, width: int = 1280, repeats: int = 6,
     import resource
 
     from .. import methods
-    from .harness import machine_info
+    from .machine import machine_info
 
     params = params or {}
     seq = synthetic_sequence(height, width, frames=repeats + 2)

@@ -19,7 +19,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from .harness import machine_info
+from .machine import machine_info
 from ..resolution import parse_res, size_text
 
 

@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from ..resolution import parse_res
-from .harness import machine_info
+from .machine import machine_info
 from .speed import median_time
 
 

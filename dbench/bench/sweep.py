@@ -404,7 +404,7 @@ def run_group_with_plugins(plugin_specs: Sequence[str], config: SweepConfig, out
 
 def stored_config(out: Path, config: SweepConfig) -> tuple[dict | None, dict]:
     """(what to write to sweep.json or None, the stored record); refuses other settings."""
-    from .harness import machine_info
+    from .machine import machine_info
 
     config_file = out / "sweep.json"
     stored = read_cell(config_file) if config_file.exists() else None

@@ -327,7 +327,7 @@ def run_report(out_dir: str | Path = "results", scenes: Sequence[str] = (
     from .. import datasets
     from ..datasets import scenes as catalogue
     from ..datasets import transient as tr
-    from .harness import machine_info
+    from .machine import machine_info
     from .formats import markdown_table
 
     out_dir = Path(out_dir)

@@ -120,7 +120,7 @@ def speed(height: int = 720, width: int = 1280, repeats: int = 5,
           methods: Sequence[str] = ("nca", "autoencoder", "oidn")) -> dict[str, Any]:
     """Median seconds per method on one synthetic frame, measured interleaved in one run."""
     from .. import methods as registry
-    from ..bench.harness import machine_info
+    from ..bench.machine import machine_info
     from ..bench.stress import base_frame
 
     frame = base_frame(height, width)

@@ -505,7 +505,7 @@ def validate_autoencoder(model, vs: TrainingSet, features) -> dict[str, float]:
 
 
 def _machine() -> dict[str, Any]:
-    from ..bench.harness import machine_info
+    from ..bench.machine import machine_info
 
     info = machine_info()
     return {"cpu": info["cpu"], "cores": info["cores"], "gpu": info["gpu"],
