@@ -15,7 +15,6 @@ Example:
 """
 from __future__ import annotations
 
-import os
 from typing import Iterable
 
 import numpy as np
@@ -25,21 +24,20 @@ from ..errors import DbenchInputError
 from ..resolution import Res, parse_res
 from . import render as _render
 from . import scenes as _scenes
+from . import sequence as _sequence  # registers the sequence scenes
+from . import transient as _transient  # registers the transient scenes
 from .cache import Cache, make_key
 from .mitsuba_env import mitsuba, versions
+from .references import check_ref_seed, reference_meta, reference_spp
 from .scenes import Scene
+from .stats import stats_from_arrays, stats_to_arrays
 
-DEFAULT_REFERENCE_SPP = 4096
 FEATURES = ("albedo", "normal", "depth", "position")
 #: Buffers of the cached feature render (FEATURES plus the emitter coverage).
 FEATURE_BUFFERS = FEATURES + ("emitter",)
 
 available_scenes = _scenes.available
 get_scene = _scenes.get
-
-
-def reference_spp() -> int:
-    return int(os.environ.get("DBENCH_REF_SPP", DEFAULT_REFERENCE_SPP))
 
 
 def _base_description(scene: Scene, res: Res) -> dict:
@@ -148,7 +146,7 @@ def load(scene: str | Scene, spp: int, res, needs: Iterable[str] | None = None,
         meta.update(render_s=color_entry.meta.get("render_s"))
         meta["cache_hits"].append("color")
         if stats_entry is not None:
-            stats = _stats_from_arrays(stats_entry.arrays(), transform, lam)
+            stats = stats_from_arrays(stats_entry.arrays(), transform, lam)
             meta.update(stats_s=stats_entry.meta.get("stats_s"))
             meta["cache_hits"].append("stats")
     else:
@@ -162,7 +160,7 @@ def load(scene: str | Scene, spp: int, res, needs: Iterable[str] | None = None,
         if stats is not None:
             meta.update(stats_s=timing["stats_s"])
             meta["rendered"].append("stats")
-            cache.put("stats", stats_desc, arrays=_stats_to_arrays(stats),
+            cache.put("stats", stats_desc, arrays=stats_to_arrays(stats),
                       meta={"stats_s": timing["stats_s"], "render_s": timing["render_s"],
                             "diagnostics": stats.diagnostics})
 
@@ -243,41 +241,6 @@ def _load_folder_scene(sc: Scene, spp: int, res, needs, seed: int, ref_spp: int 
     meta = {**out[0].meta, "kind": "sequence", "frames": len(out)}
     return Sequence(out, meta=meta)
 
-
-def check_ref_seed(ref_seed: int | None) -> int:
-    """The reference seed: 0 for None, else a non-negative integer (DbenchInputError)."""
-    if ref_seed is None:
-        return 0
-    if isinstance(ref_seed, (bool, np.bool_)) or not isinstance(ref_seed, (int, np.integer)) \
-            or ref_seed < 0:
-        raise DbenchInputError(f"ref_seed: expected an integer >= 0 or None, got {ref_seed!r}")
-    return int(ref_seed)
-
-
-def reference_meta(ref_spp: int, ref_seed: int, reference_var) -> dict:
-    """``ref_spp``, ``ref_seed`` and ``ref_rmse`` = sqrt(mean(reference_var)) for ``meta``
-    (``reference_var`` one array or a list of them, e.g. a sequence's frames)."""
-    if isinstance(reference_var, (list, tuple)):
-        total = sum(float(np.asarray(v, np.float64).sum()) for v in reference_var)
-        count = sum(int(np.asarray(v).size) for v in reference_var)
-        mean_var = total / max(count, 1)
-    else:
-        mean_var = float(np.mean(np.asarray(reference_var, np.float64)))
-    return {"ref_spp": int(ref_spp), "ref_seed": int(ref_seed),
-            "ref_rmse": float(np.sqrt(max(mean_var, 0.0)))}
-
-
-def _stats_to_arrays(stats: SampleStats) -> dict[str, np.ndarray]:
-    return {"n": stats.n, "mean": stats.mean, "var_mean": stats.var_mean, "m3": stats.m3}
-
-
-def _stats_from_arrays(arrays: dict[str, np.ndarray], transform: str, lam: float) -> SampleStats:
-    return SampleStats(n=arrays["n"], mean=arrays["mean"], var_mean=arrays["var_mean"],
-                       m3=arrays["m3"], transform=transform, lam=lam)
-
-
-from . import sequence as _sequence  # noqa: E402  (registers the sequence scenes)
-from . import transient as _transient  # noqa: E402  (registers the transient scenes)
 
 __all__ = ["load", "available_scenes", "get_scene", "Cache", "Scene", "FEATURES",
            "FEATURE_BUFFERS", "scene_fingerprint", "default_res"]

@@ -84,7 +84,8 @@ from . import scenes as _scenes
 from .cache import Cache
 from .mitsuba_env import mitsuba, versions
 from .scenes import Scene
-from .stats import PowerSums
+from .references import check_ref_seed, reference_meta, reference_spp
+from .stats import PowerSums, stats_from_arrays, stats_to_arrays
 
 SEQUENCE_BUFFERS = frozenset({"color", "albedo", "normal", "depth", "position", "motion",
                               "gradient", "emission", "emitter", "stats", "reference"})
@@ -452,22 +453,20 @@ def _frame_with_stats(cache: Cache, noisy_desc: dict, transform: str, lam: float
     """A noisy frame and the statistics of its samples, each through the cache (``seq-frame``
     and ``seq-stats``); rendered once for both when either is missing (the passes are
     deterministic, so a frame cached without statistics gets the same colour again)."""
-    from . import _stats_from_arrays, _stats_to_arrays
-
     stats_desc = {**noisy_desc, "what": "stats", "transform": transform, "lam": float(lam)}
     frame_entry = cache.get("seq-frame", noisy_desc)
     stats_entry = cache.get("seq-stats", stats_desc)
     if frame_entry is not None and stats_entry is not None:
         meta["cache_hits"] += [f"frame{i}", f"stats{i}"]
         return (frame_entry.images(),
-                _stats_from_arrays(stats_entry.arrays(), transform, float(lam)))
+                stats_from_arrays(stats_entry.arrays(), transform, float(lam)))
     t0 = time.perf_counter()
     images = render()
     seconds = time.perf_counter() - t0
     stats = images.pop("stats")
     if frame_entry is None:
         cache.put("seq-frame", noisy_desc, images=images, meta={"render_s": seconds})
-    cache.put("seq-stats", stats_desc, arrays=_stats_to_arrays(stats),
+    cache.put("seq-stats", stats_desc, arrays=stats_to_arrays(stats),
               meta={"render_s": seconds, "diagnostics": stats.diagnostics})
     meta["rendered"] += [f"frame{i}", f"stats{i}"]
     meta["render_s"] = meta.get("render_s", 0.0) + seconds
@@ -508,8 +507,6 @@ def load_sequence(scene: str | SequenceScene, spp: int = 1, res=64,
         reference renders, from the cache entries when cached; not in ``render_s``) and
         ``ref_rmse`` = sqrt(mean(reference_var)) (over all frames for the sequence).
     """
-    from . import check_ref_seed, reference_meta, reference_spp
-
     sc = scene if isinstance(scene, Scene) else _scenes.get(scene)
     if not isinstance(sc, SequenceScene):
         raise DbenchInputError(f"scene: {sc.name} is a {sc.kind} scene, not a sequence")

@@ -131,6 +131,17 @@ class PowerSums:
                                                             "n_clamped": self.n_clamped})
 
 
+def stats_to_arrays(stats: SampleStats) -> dict[str, np.ndarray]:
+    """The arrays of ``stats`` as a cache entry stores them."""
+    return {"n": stats.n, "mean": stats.mean, "var_mean": stats.var_mean, "m3": stats.m3}
+
+
+def stats_from_arrays(arrays: dict[str, np.ndarray], transform: str, lam: float) -> SampleStats:
+    """:class:`~dbench.data.SampleStats` from the arrays of a cache entry."""
+    return SampleStats(n=arrays["n"], mean=arrays["mean"], var_mean=arrays["var_mean"],
+                       m3=arrays["m3"], transform=transform, lam=lam)
+
+
 def stats_from_power_sums(n: int | np.ndarray, s1: np.ndarray, s2: np.ndarray, s3: np.ndarray,
                           k: float, transform: str, lam: float,
                           diagnostics: dict | None = None) -> SampleStats:

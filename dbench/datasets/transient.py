@@ -56,6 +56,8 @@ from . import scenes as _scenes
 from .cache import Cache
 from .mitsuba_env import mitsuba, require_llvm, versions
 from .scenes import Scene
+from .references import check_ref_seed, reference_meta
+from .references import reference_spp as default_ref
 from .stats import ZERO_VARIANCE_RTOL, PowerSums, transform_of_zero
 
 #: Speed of light in m/s (time = OPL / c).
@@ -692,8 +694,6 @@ def _resolve_collector(scene: TransientScene, collector: str) -> str:
 
 
 def reference_spp(spp: int, ref_spp: int | None) -> int:
-    from . import reference_spp as default_ref
-
     return int(ref_spp) if ref_spp else max(default_ref(), 16 * int(spp))
 
 
@@ -732,7 +732,6 @@ def load_transient(scene: str | TransientScene, spp: int, res,
         raise DbenchInputError(f"needs: scene {sc.name} cannot provide {sorted(unknown)}; "
                                f"it provides {sorted(sc.provides)}")
     check_transform(transform, lam)
-    from . import check_ref_seed, reference_meta
 
     if "reference" in wanted:
         wanted.add("emitter")
