@@ -14,14 +14,12 @@ sample, no shading), registered once per variant as ``dbench_emitter_hit``; it r
 integrators in scalar mode).
 
 Example:
-    >>> from dbench.datasets import emitter, scenes
-    >>> m, seconds = emitter.render_emitter(scenes.get("cornell"), 32)   # doctest: +SKIP
+    >>> from dbench.datasets import render, scenes
+    >>> m, seconds = render.render_emitter(scenes.get("cornell"), 32)    # doctest: +SKIP
     >>> m.shape, float(m.max())                                          # doctest: +SKIP
     ((32, 32, 1), 1.0)
 """
 from __future__ import annotations
-
-import time
 
 import numpy as np
 
@@ -95,18 +93,5 @@ def render_emitter_dict(d: dict, spp: int, seed: int, optimize: bool = True) -> 
     return render_emitter_scene(mi.load_dict(d, optimize=optimize), spp, seed)
 
 
-def render_emitter(scene, res, spp: int | None = None, seed: int = 0
-                   ) -> tuple[np.ndarray, float]:
-    """The emitter buffer of catalogue ``scene`` at ``res`` (default spp: the features'),
-    seed stream ``emitter``. Returns ((H, W, 1) float32, seconds)."""
-    from . import render as _render
-
-    spp = _render.DEFAULT_FEATURE_SPP if spp is None else int(spp)
-    sc = _render.loaded_scene(scene, res)
-    t0 = time.perf_counter()
-    out = render_emitter_scene(sc, spp, _render.pass_seed("emitter", seed, 0))
-    return out, time.perf_counter() - t0
-
-
-__all__ = ["EMITTER_VERSION", "INTEGRATOR_NAME", "integrator", "register", "render_emitter",
-           "render_emitter_dict", "render_emitter_scene"]
+__all__ = ["EMITTER_VERSION", "INTEGRATOR_NAME", "integrator", "register", "render_emitter_dict",
+           "render_emitter_scene"]

@@ -188,6 +188,20 @@ def render_features(scene: Scene, res: Res, spp: int = DEFAULT_FEATURE_SPP, seed
             for name, c0, nc in AOV_LAYOUT}, seconds
 
 
+def render_emitter(scene, res, spp: int | None = None, seed: int = 0
+                   ) -> tuple[np.ndarray, float]:
+    """The emitter buffer of catalogue ``scene`` at ``res`` (default spp: the features'),
+    seed stream ``emitter`` (:mod:`dbench.datasets.emitter`). Returns ((H, W, 1) float32,
+    seconds)."""
+    from .emitter import render_emitter_scene
+
+    spp = DEFAULT_FEATURE_SPP if spp is None else int(spp)
+    sc = loaded_scene(scene, res)
+    t0 = time.perf_counter()
+    out = render_emitter_scene(sc, spp, pass_seed("emitter", seed, 0))
+    return out, time.perf_counter() - t0
+
+
 def feature_description(description: dict) -> dict:
     """The cache key of a feature entry: the caller's ``description`` plus the marker of the
     ``emitter`` buffer it holds (entries written before it existed are not reused)."""
@@ -203,8 +217,6 @@ def cached_features(cache, description: dict, scene: Scene, res: Res, seed: int,
     albedo, normal, depth, position and emitter), recording ``features`` in
     ``meta["cache_hits"]`` or ``meta["rendered"]``. ``description`` is the caller's part of the
     cache key (scene description, spp, seed and AOV string); the emitter marker is added here."""
-    from .emitter import render_emitter
-
     description = feature_description(description)
     entry = cache.get("features", description)
     if entry is not None:
