@@ -25,7 +25,7 @@ from functools import lru_cache
 import numpy as np
 
 from .mitsuba_env import mitsuba
-from .scenes import Scene
+from .scene import Scene
 from .stats import PowerSums
 from ..data import SampleStats
 from ..resolution import Res, parse_res

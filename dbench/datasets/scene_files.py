@@ -57,9 +57,9 @@ import numpy as np
 
 from ..errors import DbenchInputError
 from ..resolution import Res, parse_res
-from . import scenes as _scenes
 from .mitsuba_env import mitsuba
-from .scenes import STEADY_BUFFERS, Scene
+from .scene import STEADY_BUFFERS, Scene
+from .scene_parts import _film
 
 #: Part of every file scene's cache key; change it when the translation above changes.
 FILE_SCENE_VERSION = "file-scene-1"
@@ -269,7 +269,7 @@ def _sensor_dict(mi, loaded, res: Res, path: str) -> dict:
                          "to_world": mi.ScalarTransform4f(matrix),
                          "near_clip": float(np.ravel(p["near_clip"])[0]),
                          "far_clip": float(np.ravel(p["far_clip"])[0]),
-                         "film": _scenes._film(res), "sampler": {"type": "independent"}}
+                         "film": _film(res), "sampler": {"type": "independent"}}
     for key in ("principal_point_offset_x", "principal_point_offset_y", "aperture_radius",
                 "focus_distance"):
         if key in p:
@@ -315,7 +315,7 @@ def _own_camera(d: dict, res) -> dict:
     states is read along x, Mitsuba's default, and kept along the smaller side)."""
     d = dict(d)
     sensor = dict(d["sensor"])
-    sensor["film"] = _scenes._film(res)
+    sensor["film"] = _film(res)
     sensor["sampler"] = {"type": "independent"}
     sensor["fov_axis"] = parse_res(res).fov_axis
     d["sensor"] = sensor

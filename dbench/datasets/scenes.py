@@ -15,59 +15,16 @@ harness uses that to skip methods that cannot run and to render only what is nee
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from functools import lru_cache
 from typing import Any, Callable
 
 import numpy as np
 
 from ..errors import DbenchInputError, UnknownNameError
-from ..resolution import parse_res
-
-STEADY_BUFFERS = frozenset({"color", "albedo", "normal", "depth", "position", "emitter",
-                            "stats", "reference"})
-
-
-@dataclass(frozen=True, eq=False)
-class Scene:
-    """A catalogue entry.
-
-    Attributes:
-        name: catalogue name, used on the command line and in cache keys.
-        kind: ``steady`` (``sequence`` and ``transient`` come with their datasets).
-        description: one line for ``dbench list`` and reports.
-        build: ``build(mi, res) -> dict`` for ``mi.load_dict``; ``res`` is a
-            :class:`~dbench.resolution.Res` (width, height) in px (the film's size).
-        max_depth: path length of the integrator (part of the cache key through the dict).
-        provides: buffers this scene can render.
-        params: anything else that changes the pixels (goes into the cache key).
-        ev: exposure (stops) of the tone map used by LDR metrics and PNGs.
-    """
-
-    name: str
-    kind: str
-    description: str
-    build: Callable[[Any, int], dict]
-    max_depth: int = 8
-    provides: frozenset = STEADY_BUFFERS
-    params: dict = field(default_factory=dict)
-    ev: float = 0.0
-
-    def scene_dict(self, mi, res) -> dict:
-        d = self.build(mi, parse_res(res))
-        d["integrator"] = {"type": "path", "max_depth": self.max_depth}
-        return d
-
-    #: whether the scene is rendered (False: read from files, dbench.datasets.folder)
-    renders = True
-
-    def key_dict(self, mi, res) -> dict:
-        """What names this scene's content at ``res`` in cache keys: its dictionary (scene
-        files whose dictionaries hold loaded objects describe themselves instead)."""
-        return self.scene_dict(mi, res)
-
-
-_CATALOGUE: dict[str, Scene] = {}
+from .scene import _CATALOGUE, Scene, available, register_scene
+from .scene_parts import (_camera, _ceiling_light, _diffuse, _film, _mirror_objects, _rect,
+                          _room)
 
 
 def _scene(name: str, description: str, **kw: Any):
@@ -76,18 +33,6 @@ def _scene(name: str, description: str, **kw: Any):
                                  **kw)
         return build
     return wrap
-
-
-def register_scene(scene: Scene) -> Scene:
-    """Add a Scene built elsewhere (e.g. the sequence scenes of datasets/sequence.py)."""
-    if scene.name in _CATALOGUE and _CATALOGUE[scene.name] is not scene:
-        raise ValueError(f"scene {scene.name!r} registered twice")
-    _CATALOGUE[scene.name] = scene
-    return scene
-
-
-def available() -> list[str]:
-    return sorted(_CATALOGUE)
 
 
 def get(name: str | Scene, params: dict[str, str] | None = None) -> Scene:
@@ -152,57 +97,6 @@ class FolderScene(Scene):
 
 
 # ---------------------------------------------------------------------------------------------
-# building blocks
-
-
-def _film(res) -> dict:
-    res = parse_res(res)
-    return {"type": "hdrfilm", "width": res.width, "height": res.height,
-            "rfilter": {"type": "box"}, "pixel_format": "rgb", "component_format": "float32"}
-
-
-def _camera(mi, res, origin, target, fov: float = 39.3, up=(0, 1, 0)) -> dict:
-    """A perspective camera whose ``fov`` (degrees) spans x of a square image, and the
-    smaller side of any other (dbench.resolution)."""
-    return {"type": "perspective", "fov": fov, "fov_axis": parse_res(res).fov_axis,
-            "to_world": mi.ScalarTransform4f().look_at(origin=origin, target=target, up=up),
-            "film": _film(res), "sampler": {"type": "independent"}}
-
-
-def _diffuse(rgb) -> dict:
-    return {"type": "diffuse", "reflectance": {"type": "rgb", "value": list(rgb)}}
-
-
-def _rect(mi, to_world, bsdf: dict, emitter: dict | None = None) -> dict:
-    d = {"type": "rectangle", "to_world": to_world, "bsdf": bsdf}
-    if emitter:
-        d["emitter"] = emitter
-    return d
-
-
-def _room(mi, back_bsdf=None, left_bsdf=None, right_bsdf=None, floor_bsdf=None) -> dict:
-    """An open Cornell-style room spanning [-1, 1]³, open towards +z where the camera sits."""
-    T = mi.ScalarTransform4f
-    white = _diffuse((0.75, 0.75, 0.75))
-    return {
-        "floor": _rect(mi, T().translate([0, -1, 0]).rotate([1, 0, 0], -90), floor_bsdf or white),
-        "ceiling": _rect(mi, T().translate([0, 1, 0]).rotate([1, 0, 0], 90), white),
-        "back": _rect(mi, T().translate([0, 0, -1]), back_bsdf or white),
-        "left": _rect(mi, T().translate([-1, 0, 0]).rotate([0, 1, 0], 90),
-                      left_bsdf or _diffuse((0.63, 0.065, 0.05))),
-        "right": _rect(mi, T().translate([1, 0, 0]).rotate([0, 1, 0], -90),
-                       right_bsdf or _diffuse((0.14, 0.45, 0.091))),
-    }
-
-
-def _ceiling_light(mi, size: float = 0.25, radiance=(17.0, 12.0, 4.0)) -> dict:
-    T = mi.ScalarTransform4f
-    return _rect(mi, T().translate([0, 0.99, 0]).rotate([1, 0, 0], 90).scale(size),
-                 _diffuse((0, 0, 0)), {"type": "area", "radiance": {"type": "rgb",
-                                                                   "value": list(radiance)}})
-
-
-# ---------------------------------------------------------------------------------------------
 # the catalogue
 
 
@@ -213,23 +107,6 @@ def cornell(mi, res: int) -> dict:
     d["sensor"]["film"] = _film(res)
     d["sensor"]["sampler"] = {"type": "independent"}
     return d
-
-
-def _mirror_objects(mi) -> dict:
-    """The objects in front of the mirror wall (``mirrors``, and ``mirror-pan`` in
-    dbench/datasets/sequence.py): a blue plastic ball, a chrome ball and a rotated box."""
-    T = mi.ScalarTransform4f
-    return {
-        "ball": {"type": "sphere", "center": [-0.45, -0.6, 0.2], "radius": 0.4,
-                 "bsdf": {"type": "plastic", "diffuse_reflectance":
-                          {"type": "rgb", "value": [0.1, 0.25, 0.7]}, "int_ior": 1.5}},
-        "chrome": {"type": "sphere", "center": [0.5, -0.7, 0.45], "radius": 0.3,
-                   "bsdf": {"type": "conductor", "material": "Cr"}},
-        "block": {"type": "cube",
-                  "to_world": T().translate([0.35, -0.75, -0.45]).rotate([0, 1, 0], 25)
-                  .scale(0.25),
-                  "bsdf": _diffuse((0.8, 0.6, 0.2))},
-    }
 
 
 @_scene("mirrors", "spheres and a box in front of a mirror back wall and a glossy side wall")

@@ -83,7 +83,8 @@ from . import render as _render
 from . import scenes as _scenes
 from .cache import Cache
 from .mitsuba_env import mitsuba, versions
-from .scenes import Scene
+from .scene import Scene, register_scene
+from .scene_parts import _camera, _diffuse, _mirror_objects, _rect, _room
 from .references import check_ref_seed, reference_meta, reference_spp
 from .stats import PowerSums, stats_from_arrays, stats_to_arrays
 
@@ -122,8 +123,8 @@ class SequenceScene(Scene):
         light_frame = camera_frame if light_frame is None else light_frame
         origin, target = self.camera(camera_frame)
         d = {"type": "scene",
-             "sensor": _scenes._camera(mi, res, origin=list(origin), target=list(target),
-                                       fov=self.fov),
+             "sensor": _camera(mi, res, origin=list(origin), target=list(target),
+                               fov=self.fov),
              "integrator": {"type": "path", "max_depth": self.max_depth}}
         d.update(self.geometry(mi))
         for key, radiance in self.lights(light_frame).items():
@@ -140,7 +141,7 @@ def _sequence_scene(name: str, description: str, **kw: Any):
         sc = SequenceScene(name=name, kind="sequence", description=description,
                            build=lambda mi, res, _n=name: _scenes.get(_n).frame_dict(mi, res, 0),
                            provides=SEQUENCE_BUFFERS, geometry=geometry, **kw)
-        _scenes.register_scene(sc)
+        register_scene(sc)
         return geometry
     return wrap
 
@@ -226,13 +227,13 @@ def _objects(mi) -> dict:
         "tall_box": {"type": "cube",
                      "to_world": T().translate([-0.38, -0.45, -0.3]).rotate([0, 1, 0], 20)
                      .scale([0.25, 0.55, 0.25]),
-                     "bsdf": _scenes._diffuse((0.75, 0.75, 0.72))},
+                     "bsdf": _diffuse((0.75, 0.75, 0.72))},
         "glossy_ball": {"type": "sphere", "center": [0.42, -0.65, 0.2], "radius": 0.35,
                         "bsdf": {"type": "roughplastic", "distribution": "ggx", "alpha": 0.08,
                                  "diffuse_reflectance": {"type": "rgb",
                                                          "value": [0.55, 0.5, 0.45]}}},
         "blue_ball": {"type": "sphere", "center": [-0.05, -0.82, 0.55], "radius": 0.18,
-                      "bsdf": _scenes._diffuse((0.1, 0.2, 0.65))},
+                      "bsdf": _diffuse((0.1, 0.2, 0.65))},
     }
 
 
@@ -242,8 +243,8 @@ def _light_shape(mi, x: float, size: float = 0.2, z: float = 0.74) -> dict:
     their average), an error no denoiser can remove and which would dominate every RMSE.
     The lights still appear in reflections."""
     T = mi.ScalarTransform4f
-    return _scenes._rect(mi, T().translate([x, 0.99, z]).rotate([1, 0, 0], 90).scale(size),
-                         _scenes._diffuse((0, 0, 0)))
+    return _rect(mi, T().translate([x, 0.99, z]).rotate([1, 0, 0], 90).scale(size),
+                 _diffuse((0, 0, 0)))
 
 
 def _orbit_camera(i: int) -> tuple:
@@ -257,7 +258,7 @@ def _orbit_camera(i: int) -> tuple:
                  camera=_orbit_camera, lights=lambda i: {"light": (50.0, 36.0, 12.0)},
                  max_depth=6)
 def orbit(mi) -> dict:
-    d = _scenes._room(mi)
+    d = _room(mi)
     d.update(_objects(mi))
     d["light"] = _light_shape(mi, 0.0, 0.25, z=0.74)
     return d
@@ -277,7 +278,7 @@ def _flicker_lights(i: int) -> dict:
                  camera=lambda i: ((0.0, -0.1, 3.9), (0.0, -0.3, 0.0)), lights=_flicker_lights,
                  events={"light_change": FLICKER_SWITCH}, max_depth=6)
 def flicker(mi) -> dict:
-    d = _scenes._room(mi)
+    d = _room(mi)
     d.update(_objects(mi))
     d["light_left"] = _light_shape(mi, -0.5)
     d["light_right"] = _light_shape(mi, 0.5)
@@ -294,12 +295,12 @@ def _pan_camera(i: int) -> tuple:
                  n_frames=48, camera=_pan_camera,
                  lights=lambda i: {"light": (50.0, 36.0, 12.0)}, max_depth=8)
 def mirror_pan(mi) -> dict:
-    d = _scenes._room(mi, back_bsdf={"type": "conductor", "material": "Ag"},
-                      right_bsdf={"type": "roughplastic", "distribution": "ggx", "alpha": 0.05,
-                                  "diffuse_reflectance": {"type": "rgb",
-                                                          "value": [0.45, 0.25, 0.12]}})
+    d = _room(mi, back_bsdf={"type": "conductor", "material": "Ag"},
+              right_bsdf={"type": "roughplastic", "distribution": "ggx", "alpha": 0.05,
+                          "diffuse_reflectance": {"type": "rgb",
+                                                  "value": [0.45, 0.25, 0.12]}})
     d["light"] = _light_shape(mi, 0.0, 0.3)
-    d.update(_scenes._mirror_objects(mi))
+    d.update(_mirror_objects(mi))
     return d
 
 

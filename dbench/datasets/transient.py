@@ -55,7 +55,8 @@ from . import render as _render
 from . import scenes as _scenes
 from .cache import Cache
 from .mitsuba_env import mitsuba, require_llvm, versions
-from .scenes import Scene
+from .scene import Scene, register_scene
+from .scene_parts import _camera, _ceiling_light, _diffuse, _room
 from .references import check_ref_seed, reference_meta
 from .references import reference_spp as default_ref
 from .stats import ZERO_VARIANCE_RTOL, PowerSums, transform_of_zero
@@ -185,9 +186,9 @@ def _mitransient():
 
 def _register(name: str, description: str, **kw: Any):
     def wrap(build: Callable[[Any, int], dict]) -> Callable[[Any, int], dict]:
-        _scenes.register_scene(TransientScene(name=name, kind="transient",
-                                              description=description, build=build,
-                                              provides=TRANSIENT_BUFFERS, **kw))
+        register_scene(TransientScene(name=name, kind="transient",
+                                      description=description, build=build,
+                                      provides=TRANSIENT_BUFFERS, **kw))
         return build
     return wrap
 
@@ -213,11 +214,11 @@ FOG = {"type": "homogeneous", "sigma_s": 0.6, "sigma_a": 0.1, "g": 0.3, "units":
 def _fog_room(mi, res, with_fog: bool) -> dict:
     T = mi.ScalarTransform4f
     d = {"type": "scene",
-         "sensor": _scenes._camera(mi, res, origin=[0, 0, 3.9], target=[0, 0, 0])}
-    d.update(_scenes._room(mi))
-    d["light"] = _scenes._ceiling_light(mi, 0.15, radiance=(60.0, 50.0, 36.0))
+         "sensor": _camera(mi, res, origin=[0, 0, 3.9], target=[0, 0, 0])}
+    d.update(_room(mi))
+    d["light"] = _ceiling_light(mi, 0.15, radiance=(60.0, 50.0, 36.0))
     d["ball"] = {"type": "sphere", "center": [0.3, -0.55, -0.1], "radius": 0.35,
-                 "bsdf": _scenes._diffuse((0.7, 0.7, 0.7))}
+                 "bsdf": _diffuse((0.7, 0.7, 0.7))}
     if with_fog:
         d["fog"] = {"type": "cube", "to_world": T().scale(0.98),
                     "bsdf": {"type": "null"},
@@ -264,7 +265,7 @@ def direct_arrival_dict(mi, res: int = 33, window: Window | None = None, unwarp:
                   "intensity": {"type": "rgb", "value": [1.0, 1.0, 1.0]}},
         "plane": {"type": "rectangle",
                   "to_world": T().translate([0, 0, plane_z]).rotate([0, 1, 0], 180).scale(5.0),
-                  "bsdf": _scenes._diffuse((0.5, 0.5, 0.5))},
+                  "bsdf": _diffuse((0.5, 0.5, 0.5))},
     }
 
 
