@@ -348,7 +348,7 @@ def _python_scene(path: str, params: tuple, digest: str) -> Scene:
 
 
 def _python_sequence(module, path: str, probe: dict, common: dict) -> Scene:
-    from .sequence import SEQUENCE_BUFFERS, SequenceScene
+    from .sequence_scene import SEQUENCE_BUFFERS, SequenceScene
 
     if not callable(getattr(module, "camera", None)):
         raise DbenchInputError(f"--scene {path}: a sequence scene needs camera(i) -> "

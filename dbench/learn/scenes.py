@@ -260,7 +260,7 @@ def training_sequence(index: int, n_frames: int = 8, family_seed: int = 0):
         >>> seq.name, seq.kind, seq.n_frames
         ('train-seq-003', 'sequence', 8)
     """
-    from ..datasets.sequence import SEQUENCE_BUFFERS, SequenceScene
+    from ..datasets.sequence_scene import SEQUENCE_BUFFERS, SequenceScene
 
     kind, origin, target, fov = _layout(np.random.default_rng([family_seed, index, 1234]))
     motion = np.random.default_rng([family_seed, index, 777])
