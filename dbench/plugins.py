@@ -146,11 +146,11 @@ def _register_method_object(name: str, obj: Any) -> None:
 
 
 def _register_scene_object(name: str, obj: Any) -> None:
-    from .datasets import scenes
+    from .datasets.scene import _CATALOGUE, Scene, register_scene
 
     if inspect.ismodule(obj):
         return
-    if isinstance(obj, scenes.Scene):
+    if isinstance(obj, Scene):
         scene = obj
     elif callable(obj):
         params = [p for p in inspect.signature(obj).parameters.values()
@@ -158,21 +158,21 @@ def _register_scene_object(name: str, obj: Any) -> None:
                                                          p.POSITIONAL_OR_KEYWORD)]
         if len(params) >= 2:  # build(mi, res) -> dict
             doc = (inspect.getdoc(obj) or "").strip().splitlines()
-            scene = scenes.Scene(name=name, kind="steady", build=obj,
-                                 description=doc[0] if doc else f"plugin scene {name}")
+            scene = Scene(name=name, kind="steady", build=obj,
+                          description=doc[0] if doc else f"plugin scene {name}")
         else:
             scene = obj()
-            if not isinstance(scene, scenes.Scene):
+            if not isinstance(scene, Scene):
                 raise TypeError(f"{obj.__qualname__}() returned {type(scene).__name__}, "
                                 "not a dbench.datasets.scenes.Scene")
     else:
         raise TypeError(f"{obj!r} is not a Scene, a function returning one or build(mi, res)")
-    if scene.name in scenes._CATALOGUE and scenes._CATALOGUE[scene.name] is not scene:
-        existing = scenes._CATALOGUE[scene.name]
+    if scene.name in _CATALOGUE and _CATALOGUE[scene.name] is not scene:
+        existing = _CATALOGUE[scene.name]
         if getattr(existing, "build", None) is scene.build:
             return  # the same build function wrapped again: already there
         raise ValueError(f"scene {scene.name!r} is already registered")
-    scenes.register_scene(scene)
+    register_scene(scene)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -22,7 +22,7 @@ from typing import Any, Callable
 import numpy as np
 
 from ..errors import DbenchInputError, UnknownNameError
-from .scene import _CATALOGUE, Scene, available, register_scene
+from .scene import _CATALOGUE, Scene, available
 from .scene_parts import (_camera, _ceiling_light, _diffuse, _film, _mirror_objects, _rect,
                           _room)
 
