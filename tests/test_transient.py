@@ -328,7 +328,7 @@ def test_fog_scene_uses_collector_a(tr):
 def test_fused_moments_equal_stats_from_power_sums(transform):
     """The fused moment kernel of both collectors = the library's stats_from_power_sums."""
     from dbench.datasets.stats import PowerSums, stats_from_power_sums
-    from dbench.datasets.transient import stats_from_sums
+    from dbench.datasets.stats import stats_from_sums
     rng = np.random.default_rng(0)
     x = np.where(rng.random((16, 5, 4, 7, 3)) < 0.7, 0.0,
                  rng.lognormal(0.0, 1.5, (16, 5, 4, 7, 3))).astype(np.float32)

@@ -367,7 +367,7 @@ def _python_sequence(module, path: str, probe: dict, common: dict) -> Scene:
 
 
 def _python_transient(module, path: str, build, common: dict) -> Scene:
-    from .transient import TRANSIENT_BUFFERS, TransientScene
+    from .transient_scene import TRANSIENT_BUFFERS, TransientScene
 
     missing = [a for a in ("window_start", "window_end") if not hasattr(module, a)]
     if missing:

@@ -40,7 +40,6 @@ Example:
 """
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import dataclass, field
 from functools import lru_cache
@@ -54,130 +53,23 @@ from ..resolution import parse_res
 from . import render as _render
 from . import scenes as _scenes
 from .cache import Cache
-from .mitsuba_env import mitsuba, require_llvm, versions
-from .scene import Scene, register_scene
-from .scene_parts import _camera, _ceiling_light, _diffuse, _room
+from .mitsuba_env import mitsuba, versions
 from .references import check_ref_seed, reference_meta
 from .references import reference_spp as default_ref
-from .stats import ZERO_VARIANCE_RTOL, PowerSums, transform_of_zero
+from .scene import Scene, register_scene
+from .scene_parts import _camera, _ceiling_light, _diffuse, _room
+from .stats import ZERO_VARIANCE_RTOL, PowerSums, stats_from_sums
+from .transient_render import (DEFAULT_REFERENCE_CHUNK, _mitransient, batch_copies,
+                               loaded_transient, render_plain, render_reference)
+from .transient_scene import (SPEED_OF_LIGHT, TRANSIENT_BUFFERS, TransientScene, Window,
+                              transient_film)
+from .transient_window import (direct_arrival_dict, direct_arrivals, expected_direct_bins,
+                               size_window)
 
-#: Speed of light in m/s (time = OPL / c).
-SPEED_OF_LIGHT = 299792458.0
-TRANSIENT_BUFFERS = frozenset({"color", "albedo", "normal", "depth", "position", "emitter",
-                               "stats", "reference"})
 COLLECTORS = ("auto", "a", "b")
 DEFAULT_TRANSFORM = "identity"   # spec/statistical.md §3: transient default
-#: float32 voxels of one batched pass (copies × H × W × T × 3): bounds the pass memory (64 MB).
-MAX_BATCH_VOXELS = 1 << 24
-DEFAULT_REFERENCE_CHUNK = 64
 #: Σ color ≥ this share of Σ steady counts as a window covering all contributions (spec §6).
 COVERS_ALL = 0.999
-
-
-@dataclass(frozen=True)
-class Window:
-    """The time axis of a transient film, in optical path length (scene units)."""
-
-    start_opl: float
-    bin_width_opl: float
-    bins: int
-
-    def __post_init__(self) -> None:
-        check_count("bins", self.bins)
-        if not (math.isfinite(self.bin_width_opl) and self.bin_width_opl > 0):
-            raise DbenchInputError(f"bin_width_opl: expected a number > 0, got "
-                                   f"{self.bin_width_opl!r}")
-
-    @property
-    def end_opl(self) -> float:
-        return self.start_opl + self.bins * self.bin_width_opl
-
-    def bin_of(self, opl: float) -> int:
-        """Bin index of an OPL, ``floor((opl − start)/width)`` (may fall outside [0, T))."""
-        return int(math.floor((opl - self.start_opl) / self.bin_width_opl))
-
-    def centers(self) -> np.ndarray:
-        return self.start_opl + (np.arange(self.bins) + 0.5) * self.bin_width_opl
-
-    def meta(self) -> dict:
-        return {"start_opl": float(self.start_opl), "bin_width_opl": float(self.bin_width_opl),
-                "bins": int(self.bins), "end_opl": float(self.end_opl),
-                "units": "m (optical path length; time = OPL / c)"}
-
-
-@dataclass(frozen=True, eq=False)
-class TransientScene(Scene):
-    """A catalogue entry of kind ``transient``.
-
-    ``build(mi, res)`` returns the steady scene dictionary (hdrfilm, box filter);
-    :meth:`transient_dict` swaps in the transient film and integrator.
-
-    Attributes (beyond :class:`~dbench.datasets.scenes.Scene`):
-        window_start, window_end: the OPL window (metres), from :func:`size_window`.
-        default_bins: T when ``bins`` is not given.
-        integrator: ``transient_path`` or ``transient_prbvolpath``.
-        steady_integrator: the steady counterpart (``path`` / ``volpath``).
-        rr_depth, camera_unwarp: integrator settings.
-        feature_build: ``(mi, res) -> dict`` for the AOV render (default ``build``); the fog
-            scene drops the medium so the G-buffers describe the surfaces behind it.
-        medium: description of the participating medium (metadata), or None.
-    """
-
-    window_start: float = 0.0
-    window_end: float = 1.0
-    default_bins: int = 200
-    integrator: str = "transient_path"
-    steady_integrator: str = "path"
-    rr_depth: int = 5
-    camera_unwarp: bool = False
-    feature_build: Callable[[Any, int], dict] | None = None
-    medium: dict | None = None
-
-    def window(self, bins: int | None = None) -> Window:
-        t = self.default_bins if bins is None else bins
-        check_count("bins", t)
-        return Window(float(self.window_start),
-                      (float(self.window_end) - float(self.window_start)) / int(t), int(t))
-
-    def scene_dict(self, mi, res) -> dict:
-        """The steady scene (hdrfilm) with the steady integrator."""
-        d = self.build(mi, parse_res(res))
-        d["integrator"] = {"type": self.steady_integrator, "max_depth": self.max_depth}
-        return d
-
-    def transient_dict(self, mi, res, window: Window) -> dict:
-        res = parse_res(res)
-        d = self.build(mi, res)
-        d["sensor"]["film"] = transient_film(res.width, res.height, window)
-        d["integrator"] = {"type": self.integrator, "max_depth": self.max_depth,
-                           "rr_depth": self.rr_depth, "camera_unwarp": self.camera_unwarp}
-        return d
-
-    @property
-    def feature_scene(self) -> Scene:
-        """A steady Scene for the AOV render (shared by every call, so loads are cached)."""
-        return _feature_scene(self)
-
-
-@lru_cache(maxsize=None)
-def _feature_scene(sc: TransientScene) -> Scene:
-    return Scene(name=f"{sc.name}:features", kind="steady", description="AOVs",
-                 build=sc.feature_build or sc.build, max_depth=sc.max_depth)
-
-
-def transient_film(width: int, height: int, window: Window) -> dict:
-    return {"type": "transient_hdr_film", "width": int(width), "height": int(height),
-            "rfilter": {"type": "box"}, "temporal_bins": int(window.bins),
-            "start_opl": float(window.start_opl), "bin_width_opl": float(window.bin_width_opl)}
-
-
-def _mitransient():
-    """Mitsuba with the variant set, then mitransient (import order: spec/transient.md §4)."""
-    require_llvm("transient rendering (mitransient)")
-    mi = mitsuba()
-    import mitransient  # noqa: F401
-
-    return mi
 
 
 # ---------------------------------------------------------------------------------------------
@@ -235,159 +127,6 @@ def _fog_room(mi, res, with_fog: bool) -> dict:
            feature_build=lambda mi, res: _fog_room(mi, res, with_fog=False), medium=FOG)
 def fog_transient(mi, res) -> dict:
     return _fog_room(mi, res, with_fog=True)
-
-
-#: Near clip of the direct-arrival test camera (Mitsuba's default is 0.01 m).
-DIRECT_NEAR_CLIP = 1e-4
-
-
-def direct_arrival_dict(mi, res: int = 33, window: Window | None = None, unwarp: bool = False,
-                        plane_z: float = 2.0, fov: float = 20.0,
-                        near_clip: float = DIRECT_NEAR_CLIP) -> dict:
-    """spec/transient.md §7 check 2: camera and point light at the origin looking down +z, a
-    diffuse plane facing the camera at ``plane_z``, ``transient_path`` max_depth 2.
-
-    **Note (measured):** Mitsuba's perspective sensor starts camera rays on the near-clip
-    plane, so a warped OPL misses ``near_clip/cos θ`` of the camera segment (0.01 m with the
-    default near clip: the centre pixel's OPL is 3.99, not 4.0, right at a bin edge of the
-    spec's window). This scene uses ``near_clip`` = 1e-4 and :func:`expected_direct_bins`
-    accounts for it."""
-    window = window or Window(1.49, 0.02, 200)
-    T = mi.ScalarTransform4f
-    return {
-        "type": "scene",
-        "integrator": {"type": "transient_path", "max_depth": 2, "camera_unwarp": bool(unwarp)},
-        "sensor": {"type": "perspective", "fov": fov, "fov_axis": "x", "near_clip": near_clip,
-                   "to_world": T().look_at(origin=[0, 0, 0], target=[0, 0, 1], up=[0, 1, 0]),
-                   "film": transient_film(res, res, window),
-                   "sampler": {"type": "independent"}},
-        "light": {"type": "point", "position": [0.0, 0.0, 0.0],
-                  "intensity": {"type": "rgb", "value": [1.0, 1.0, 1.0]}},
-        "plane": {"type": "rectangle",
-                  "to_world": T().translate([0, 0, plane_z]).rotate([0, 1, 0], 180).scale(5.0),
-                  "bsdf": _diffuse((0.5, 0.5, 0.5))},
-    }
-
-
-def direct_opl(ex, ey, unwarp: bool, plane_z: float = 2.0,
-               near_clip: float = DIRECT_NEAR_CLIP):
-    """OPL of the direct path through tan-plane coordinates (ex, ey) in
-    :func:`direct_arrival_dict`: a plane point at distance d = z·sqrt(1 + ex² + ey²) from the
-    camera (and the light) gives 2d − near_clip·sqrt(1 + ex² + ey²) warped, d unwarped."""
-    r = np.sqrt(1.0 + np.square(ex) + np.square(ey))
-    d = plane_z * r
-    return d if unwarp else 2.0 * d - near_clip * r
-
-
-def expected_direct_bins(res: int, window: Window, unwarp: bool, plane_z: float = 2.0,
-                         fov: float = 20.0, near_clip: float = DIRECT_NEAR_CLIP
-                         ) -> tuple[np.ndarray, np.ndarray]:
-    """(lowest, highest) direct-arrival bin per pixel of :func:`direct_arrival_dict`
-    (spec/transient.md §7 checks 2-3), from the OPL range over each pixel's footprint."""
-    t = math.tan(math.radians(fov) / 2.0)
-    edges = (1.0 - 2.0 * np.arange(res + 1) / res) * t      # tan-plane coordinate of pixel edges
-    ex, ey = np.meshgrid(edges, edges)                        # (res+1, res+1)
-    opl = direct_opl(ex, ey, unwarp, plane_z, near_clip)
-    corners = np.stack([opl[:-1, :-1], opl[:-1, 1:], opl[1:, :-1], opl[1:, 1:]])
-    lo_opl, hi_opl = corners.min(0), corners.max(0)
-    # footprints that contain an axis (ex = 0 or ey = 0) reach lower OPLs than their corners
-    cols = (edges[:-1] >= 0) & (edges[1:] <= 0)               # pixel spans ex = 0 / ey = 0
-    axis_x = direct_opl(0.0, np.minimum(np.abs(ey[:-1, :-1]), np.abs(ey[1:, :-1])), unwarp,
-                        plane_z, near_clip)
-    axis_y = direct_opl(np.minimum(np.abs(ex[:-1, :-1]), np.abs(ex[:-1, 1:])), 0.0, unwarp,
-                        plane_z, near_clip)
-    lo_opl = np.where(cols[None, :], np.minimum(lo_opl, axis_x), lo_opl)
-    lo_opl = np.where(cols[:, None], np.minimum(lo_opl, axis_y), lo_opl)
-    lo_opl = np.where(cols[:, None] & cols[None, :],
-                      direct_opl(0.0, 0.0, unwarp, plane_z, near_clip), lo_opl)
-    lo = np.floor((lo_opl - window.start_opl) / window.bin_width_opl).astype(int)
-    hi = np.floor((hi_opl - window.start_opl) / window.bin_width_opl).astype(int)
-    return lo, hi
-
-
-# ---------------------------------------------------------------------------------------------
-# loading scenes
-
-
-@lru_cache(maxsize=16)
-def loaded_transient(scene: TransientScene, res, window: Window, copies: int = 1):
-    """The transient scene; with ``copies`` > 1 seen through a ``batch`` sensor of that many
-    identical cameras (film (H, copies·W, T, 3)), as in :func:`render.loaded_batch_scene`."""
-    mi = _mitransient()
-    res = parse_res(res)
-    d = scene.transient_dict(mi, res, window)
-    if copies > 1:
-        camera = dict(d["sensor"])
-        camera.pop("sampler", None)
-        # every camera keeps its own W × H film: it sets the camera's aspect ratio (without
-        # one a camera falls back to a 768 × 576 film and sees a different view)
-        film = dict(camera["film"])
-        film["width"] = res.width * copies
-        batch = {"type": "batch", "sampler": {"type": "independent"}, "film": film}
-        for i in range(copies):
-            batch[f"camera{i:03d}"] = dict(camera)
-        d["sensor"] = batch
-    return mi.load_dict(d)
-
-
-def batch_copies(res, bins: int, spp: int) -> int:
-    """Camera copies per 1-spp call: the largest divisor of spp whose pass fits the budgets."""
-    pixels = parse_res(res).pixels
-    cap = max(1, min(_render.MAX_BATCH_PIXELS // pixels,
-                     MAX_BATCH_VOXELS // (pixels * bins * 3)))
-    return max(d for d in range(1, min(spp, cap) + 1) if spp % d == 0)
-
-
-# ---------------------------------------------------------------------------------------------
-# moments from power sums (both collectors)
-
-
-def _moments_py(n, s1, s2, s3, k, rtol, mean, var_mean, m3):  # pragma: no cover - jitted
-    """Fused, parallel form of :func:`dbench.datasets.stats.stats_from_power_sums` for one
-    sample count ``n`` (every voxel of a transient render has n = spp samples)."""
-    safe_n = max(n, 1.0)
-    denom = max(n - 1.0, 1.0)
-    for i in prange(s1.size):
-        a = s1[i] / safe_n
-        s2n = s2[i] / safe_n
-        m2b = s2n - a * a
-        zero = (m2b <= rtol * s2n) or (n < 2.0)
-        if zero:
-            m2b = 0.0
-            m3[i] = 0.0
-        else:
-            m3[i] = s3[i] / safe_n - 3.0 * a * m2b - a * a * a
-        sigma2 = m2b * n / denom if n >= 2.0 else 0.0
-        var_mean[i] = sigma2 / safe_n
-        mean[i] = a + k if n > 0 else 0.0
-
-
-try:
-    from numba import njit, prange
-
-    _moments = njit(parallel=True, cache=True)(_moments_py)
-except ImportError:  # pragma: no cover - numba is a dependency
-    prange = range
-    _moments = _moments_py
-
-
-def stats_from_sums(n: int, s1: np.ndarray, s2: np.ndarray, s3: np.ndarray, transform: str,
-                    lam: float, diagnostics: dict | None = None,
-                    shape: tuple[int, ...] | None = None) -> SampleStats:
-    """SampleStats from float64 power sums of u = g(x) − g(0) with one count ``n`` for every
-    voxel: the formulas of spec/statistical.md §4.1 exactly as
-    :func:`~dbench.datasets.stats.stats_from_power_sums` (tests compare them), fused into one
-    parallel pass (the numpy version costs about as much as the render at 64²×200 voxels).
-    1-D inputs (strided views allowed) are read in place; ``shape`` is then the output shape."""
-    shape = np.shape(s1) if shape is None else tuple(shape)
-    flat = [a if np.ndim(a) == 1 and np.asarray(a).dtype == np.float64
-            else np.ascontiguousarray(a, np.float64).reshape(-1) for a in (s1, s2, s3)]
-    out = [np.empty(flat[0].size) for _ in range(3)]
-    _moments(float(n), *flat, float(transform_of_zero(transform, lam)),
-             float(ZERO_VARIANCE_RTOL), *out)
-    mean, var_mean, m3 = (a.reshape(shape) for a in out)
-    return SampleStats(n=float(n), mean=mean, var_mean=var_mean, m3=m3, transform=transform,
-                       lam=float(lam), diagnostics=dict(diagnostics or {}))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -556,127 +295,6 @@ def _collector(sc, transform, lam, max_depth, rr_depth, unwarp, slots):
 
     return StatsCollector(sc, transform=transform, lam=lam, max_depth=max_depth,
                           rr_depth=rr_depth, camera_unwarp=unwarp, slots=slots)
-
-
-# ---------------------------------------------------------------------------------------------
-# plain renders: timing baseline and reference
-
-
-def render_plain(scene: TransientScene, res, spp: int, seed: int = 0,
-                 bins: int | None = None) -> tuple[np.ndarray, np.ndarray, float]:
-    """One ordinary transient render of ``spp`` (the baseline of the collector benchmark).
-
-    Returns (video (H, W, T, 3), steady (H, W, 3), seconds)."""
-    import drjit as dr
-
-    mi = _mitransient()
-    sc = loaded_transient(scene, res, scene.window(bins), 1)
-    t0 = time.perf_counter()
-    steady, video = mi.render(sc, spp=int(spp), seed=_render.pass_seed("plain", seed, 0))
-    dr.eval(steady, video)
-    video, steady = np.array(video, dtype=np.float32), np.array(steady, dtype=np.float32)
-    return video, steady, time.perf_counter() - t0
-
-
-def render_reference(scene: TransientScene, res, spp: int, seed: int = 0,
-                     bins: int | None = None, chunk: int = DEFAULT_REFERENCE_CHUNK,
-                     progress: bool = False
-                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
-    """High-spp video in :func:`~dbench.datasets.render.reference_chunks` (K ≥ 16 chunks of at
-    most ``chunk`` spp when spp ≥ 16) with independent seeds (same window).
-
-    Returns (video (H, W, T, 3), video_var (H, W, T, 3): variance of the video mean per bin from
-    the chunk spread, steady (H, W, 3), seconds), float32 arrays."""
-    mi = _mitransient()
-    res = parse_res(res)
-    window = scene.window(bins)
-    sc = loaded_transient(scene, res, window, 1)
-    chunks = _render.reference_chunks(spp, chunk)
-    video = _render.ChunkMoments((res.height, res.width, window.bins, 3))
-    steady = np.zeros((res.height, res.width, 3), np.float64)
-    t0 = time.perf_counter()
-    with _render._progress(len(chunks), f"{scene.name} reference {spp} spp",
-                           progress and len(chunks) >= 8) as bar:
-        for i, n in enumerate(chunks):
-            st, tr = mi.render(sc, spp=n, seed=_render.pass_seed("reference", seed, i))
-            video.add(np.array(tr, dtype=np.float64), n)
-            steady += np.array(st, dtype=np.float64) * n
-            bar.update(1)
-    return (video.mean().astype(np.float32), video.var_mean().astype(np.float32),
-            (steady / spp).astype(np.float32), time.perf_counter() - t0)
-
-
-# ---------------------------------------------------------------------------------------------
-# window sizing
-
-
-def _emitter_boxes(mi, sc) -> list[tuple[np.ndarray, np.ndarray]]:
-    boxes = []
-    for em in sc.emitters():
-        shape = em.get_shape()
-        if shape is not None:
-            bb = shape.bbox()
-            boxes.append((np.array(bb.min, np.float64).ravel(),
-                          np.array(bb.max, np.float64).ravel()))
-        else:
-            p = np.array(em.world_transform().translation(), np.float64).ravel()
-            boxes.append((p, p))
-    return boxes
-
-
-def direct_arrivals(scene: TransientScene, res: int = 32, seed: int = 0) -> np.ndarray:
-    """(res, res) warped OPL of the earliest direct arrival per pixel from the geometry:
-    camera → first hit (depth AOV) + first hit → nearest point of an emitter's bounding box;
-    NaN where nothing is hit. A lower bound on every path's OPL in the pixel (up to the pixel
-    footprint), used to place ``window_start``."""
-    mi = mitsuba()
-    # one sample per pixel: with the box filter the AOVs are then single hits, not averages
-    # of a hit and the background at silhouettes
-    feats, _ = _render.render_features(scene.feature_scene, res, spp=1, seed=seed)
-    sc = mi.load_dict(scene.build(mi, res))
-    depth = feats["depth"][..., 0].astype(np.float64)
-    pos = feats["position"].astype(np.float64)
-    best = np.full(depth.shape, np.inf)
-    for lo, hi in _emitter_boxes(mi, sc):
-        gap = np.maximum(np.maximum(lo - pos, pos - hi), 0.0)
-        best = np.minimum(best, np.sqrt((gap ** 2).sum(-1)))
-    out = depth + best
-    out[depth <= 0] = np.nan
-    return out
-
-
-def size_window(scene: TransientScene, coverage: float = 0.99, res: int = 24, spp: int = 256,
-                horizon: float = 40.0, bins: int = 4000, seed: int = 0) -> dict:
-    """Choose a window for ``scene``: start at the earliest direct arrival (geometry, rounded
-    down to 0.1 m) and end where ``coverage`` of the steady energy has arrived (pilot transient
-    render of ``res``² px at ``spp`` over [start, start + ``horizon``), rounded up to 0.5 m).
-
-    Returns start, end, the first direct arrival, the fraction of the pilot's steady energy
-    inside [start, end) and before start (which must be 0)."""
-    arrivals = direct_arrivals(scene, res=max(res, 64), seed=seed)
-    first = float(np.nanmin(arrivals))
-    start = math.floor(first * 10.0) / 10.0
-    pilot = TransientScene(name=f"{scene.name}:pilot", kind="transient", description="",
-                           build=scene.build, max_depth=scene.max_depth,
-                           window_start=0.0, window_end=start + horizon, default_bins=bins,
-                           integrator=scene.integrator, rr_depth=scene.rr_depth,
-                           camera_unwarp=scene.camera_unwarp)
-    video, _, steady, _ = render_reference(pilot, res, spp, seed=seed, chunk=64)
-    window = pilot.window()
-    per_bin = video.astype(np.float64).sum(axis=(0, 1, 3))
-    total = float(steady.astype(np.float64).sum())
-    cum = np.cumsum(per_bin) / total
-    first_bin = window.bin_of(start)
-    before = float(cum[first_bin - 1]) if first_bin > 0 else 0.0
-    inside = cum - before
-    idx = int(np.searchsorted(inside, coverage))
-    end = window.start_opl + (min(idx, window.bins - 1) + 1) * window.bin_width_opl
-    end = math.ceil(end * 2.0) / 2.0
-    last = window.bin_of(end)
-    frac = float(cum[min(last, window.bins) - 1] - before)
-    return {"scene": scene.name, "first_arrival": first, "start_opl": start, "end_opl": end,
-            "fraction_inside": frac, "fraction_before_start": before,
-            "fraction_in_pilot_window": float(cum[-1])}
 
 
 # ---------------------------------------------------------------------------------------------

@@ -487,7 +487,7 @@ class StatsCollector:
         (float32), each (H, W, T, 3), and the unpacked ``non_zero`` counts (int32), computed on
         the device from the power sums.
 
-        The arithmetic is that of :func:`dbench.datasets.transient.stats_from_sums` operation
+        The arithmetic is that of :func:`dbench.datasets.stats.stats_from_sums` operation
         for operation (spec/statistical.md §4.1), so the results are bit-identical to it (tested):
         the divisors are opaque so Dr.Jit does not turn a division by a constant into a
         multiplication by its reciprocal, and it contracts nothing into FMAs. Done here rather

@@ -1,0 +1,118 @@
+"""The transient scene record (:class:`TransientScene`), its time axis (:class:`Window`, in
+optical path length) and the transient film. The catalogue and the loader are in
+:mod:`dbench.datasets.transient`."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import lru_cache
+from typing import Any, Callable
+
+import numpy as np
+
+from ..data import check_count
+from ..errors import DbenchInputError
+from ..resolution import parse_res
+from .scene import Scene
+
+#: Speed of light in m/s (time = OPL / c).
+SPEED_OF_LIGHT = 299792458.0
+TRANSIENT_BUFFERS = frozenset({"color", "albedo", "normal", "depth", "position", "emitter",
+                               "stats", "reference"})
+
+
+@dataclass(frozen=True)
+class Window:
+    """The time axis of a transient film, in optical path length (scene units)."""
+
+    start_opl: float
+    bin_width_opl: float
+    bins: int
+
+    def __post_init__(self) -> None:
+        check_count("bins", self.bins)
+        if not (math.isfinite(self.bin_width_opl) and self.bin_width_opl > 0):
+            raise DbenchInputError(f"bin_width_opl: expected a number > 0, got "
+                                   f"{self.bin_width_opl!r}")
+
+    @property
+    def end_opl(self) -> float:
+        return self.start_opl + self.bins * self.bin_width_opl
+
+    def bin_of(self, opl: float) -> int:
+        """Bin index of an OPL, ``floor((opl − start)/width)`` (may fall outside [0, T))."""
+        return int(math.floor((opl - self.start_opl) / self.bin_width_opl))
+
+    def centers(self) -> np.ndarray:
+        return self.start_opl + (np.arange(self.bins) + 0.5) * self.bin_width_opl
+
+    def meta(self) -> dict:
+        return {"start_opl": float(self.start_opl), "bin_width_opl": float(self.bin_width_opl),
+                "bins": int(self.bins), "end_opl": float(self.end_opl),
+                "units": "m (optical path length; time = OPL / c)"}
+
+
+@dataclass(frozen=True, eq=False)
+class TransientScene(Scene):
+    """A catalogue entry of kind ``transient``.
+
+    ``build(mi, res)`` returns the steady scene dictionary (hdrfilm, box filter);
+    :meth:`transient_dict` swaps in the transient film and integrator.
+
+    Attributes (beyond :class:`~dbench.datasets.scenes.Scene`):
+        window_start, window_end: the OPL window (metres), from :func:`size_window`.
+        default_bins: T when ``bins`` is not given.
+        integrator: ``transient_path`` or ``transient_prbvolpath``.
+        steady_integrator: the steady counterpart (``path`` / ``volpath``).
+        rr_depth, camera_unwarp: integrator settings.
+        feature_build: ``(mi, res) -> dict`` for the AOV render (default ``build``); the fog
+            scene drops the medium so the G-buffers describe the surfaces behind it.
+        medium: description of the participating medium (metadata), or None.
+    """
+
+    window_start: float = 0.0
+    window_end: float = 1.0
+    default_bins: int = 200
+    integrator: str = "transient_path"
+    steady_integrator: str = "path"
+    rr_depth: int = 5
+    camera_unwarp: bool = False
+    feature_build: Callable[[Any, int], dict] | None = None
+    medium: dict | None = None
+
+    def window(self, bins: int | None = None) -> Window:
+        t = self.default_bins if bins is None else bins
+        check_count("bins", t)
+        return Window(float(self.window_start),
+                      (float(self.window_end) - float(self.window_start)) / int(t), int(t))
+
+    def scene_dict(self, mi, res) -> dict:
+        """The steady scene (hdrfilm) with the steady integrator."""
+        d = self.build(mi, parse_res(res))
+        d["integrator"] = {"type": self.steady_integrator, "max_depth": self.max_depth}
+        return d
+
+    def transient_dict(self, mi, res, window: Window) -> dict:
+        res = parse_res(res)
+        d = self.build(mi, res)
+        d["sensor"]["film"] = transient_film(res.width, res.height, window)
+        d["integrator"] = {"type": self.integrator, "max_depth": self.max_depth,
+                           "rr_depth": self.rr_depth, "camera_unwarp": self.camera_unwarp}
+        return d
+
+    @property
+    def feature_scene(self) -> Scene:
+        """A steady Scene for the AOV render (shared by every call, so loads are cached)."""
+        return _feature_scene(self)
+
+
+@lru_cache(maxsize=None)
+def _feature_scene(sc: TransientScene) -> Scene:
+    return Scene(name=f"{sc.name}:features", kind="steady", description="AOVs",
+                 build=sc.feature_build or sc.build, max_depth=sc.max_depth)
+
+
+def transient_film(width: int, height: int, window: Window) -> dict:
+    return {"type": "transient_hdr_film", "width": int(width), "height": int(height),
+            "rfilter": {"type": "box"}, "temporal_bins": int(window.bins),
+            "start_opl": float(window.start_opl), "bin_width_opl": float(window.bin_width_opl)}
