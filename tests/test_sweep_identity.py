@@ -32,6 +32,35 @@ def test_method_version_changes_with_its_code_and_is_stable():
     assert identity.method_version(cls) != identity.method_version(methods.method_class("oidn"))
 
 
+def test_method_version_covers_the_code_a_method_uses():
+    """Every function, class or module of ``dbench.methods`` that a method's modules hold (their
+    own code and what they import: shared kernels, another method's steps) lives in a file
+    that the method's version hashes."""
+    import inspect
+    import sys
+
+    from dbench import methods
+    root = Path(methods.__file__).resolve().parent
+    for name in ("jbf", "statistical", "jbf-bins", "svgf", "bmfr", "accumulate"):
+        cls = methods.method_class(name)
+        files = set(identity.method_files(cls))
+        package = cls.__module__
+        modules = [m for n, m in list(sys.modules.items())
+                   if n == package or n.startswith(package + ".")]
+        assert modules
+        for module in modules:
+            for value in vars(module).values():
+                if inspect.ismodule(value):
+                    owner = value
+                elif inspect.isfunction(value) or inspect.isclass(value):
+                    owner = inspect.getmodule(value)
+                else:
+                    continue
+                path = getattr(owner, "__file__", None)
+                if path and root in Path(path).resolve().parents:
+                    assert Path(path).resolve() in files, (name, module.__name__, path)
+
+
 def _write(path: Path, obj) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(obj if isinstance(obj, str) else json.dumps(obj))

@@ -12,6 +12,7 @@ parameter sets are two series in every table and never merged under one name.
 """
 from __future__ import annotations
 
+import ast
 import hashlib
 import inspect
 import json
@@ -41,13 +42,52 @@ def _hash_files(paths: list[Path]) -> str:
     return h.hexdigest()[:12]
 
 
-@lru_cache(maxsize=None)
-def method_version(cls: type) -> str:
-    """The code version of a method class: its declared ``version`` (if any) joined with a hash
-    of its source: every .py, .onnx and .json file of its package folder (weights included), and
-    the top-level modules of ``dbench.methods`` it may share (``temporal.py``, ...). A class
-    defined in a plugin package hashes that package's folder; one in a stand-alone file or
-    top-level module (``--plugin my_method.py``) hashes that file only."""
+def _module_file(root: Path, name: str) -> Path | None:
+    """The file of module ``name`` (dotted, under the package folder ``root``), or None."""
+    parts = name.split(".")[1:]
+    base = root.joinpath(*parts)
+    for candidate in (base.with_suffix(".py"), base / "__init__.py"):
+        if parts and candidate.is_file():
+            return candidate.resolve()
+    return None
+
+
+def _imported_files(path: Path, root: Path) -> set[Path]:
+    """The files of the ``dbench`` modules that the Python file ``path`` imports (every import
+    statement, those inside functions included), with the ``__init__.py`` of each package on
+    the way, since importing a module runs them."""
+    rel = path.relative_to(root.parent).with_suffix("").parts
+    package = list(rel[:-1])
+    names: set[str] = set()
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"), str(path))):
+        if isinstance(node, ast.Import):
+            names.update(a.name for a in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            base = package[:len(package) - node.level + 1] if node.level else []
+            mod = ".".join(base + ([node.module] if node.module else []))
+            names.add(mod)
+            names.update(f"{mod}.{a.name}" for a in node.names)
+    out: set[Path] = set()
+    for name in names:
+        if name.split(".")[0] != root.name:
+            continue
+        parts = name.split(".")
+        for i in range(2, len(parts) + 1):
+            f = _module_file(root, ".".join(parts[:i]))
+            if f is not None:
+                out.add(f)
+    return out
+
+
+def method_files(cls: type) -> list[Path]:
+    """The files behind a method's numbers, sorted: every .py, .onnx and .json file of its
+    package folder (weights included), the top-level modules of ``dbench.methods`` it may share
+    (``temporal.py``, ``guards.py``, ...) and every module of ``dbench.methods`` those files
+    import, directly or through one another (shared kernels such as
+    ``dbench/methods/kernels/``, or the steps of another method it reuses). A class defined in a
+    plugin package gives that package's folder; one in a stand-alone file or top-level module
+    (``--plugin my_method.py``) that file only."""
+    import dbench
     import dbench.methods as pkg
 
     source = Path(inspect.getfile(cls)).resolve()
@@ -63,8 +103,25 @@ def method_version(cls: type) -> str:
                  and "__pycache__" not in p.parts]
     if shared in source.parents:
         files += [p for p in shared.glob("*.py")]
+        root = Path(dbench.__file__).resolve().parent
+        todo = [p.resolve() for p in files if p.suffix == ".py"]
+        seen = set(todo)
+        while todo:
+            for f in _imported_files(todo.pop(), root):
+                if shared in f.parents and f not in seen:
+                    seen.add(f)
+                    todo.append(f)
+                    files.append(f)
+    return sorted(dict.fromkeys(p.resolve() for p in files))
+
+
+@lru_cache(maxsize=None)
+def method_version(cls: type) -> str:
+    """The code version of a method class: its declared ``version`` (if any) joined with a hash
+    of :func:`method_files` (its package folder, the shared top-level modules of
+    ``dbench.methods`` and every module of ``dbench.methods`` they import)."""
     declared = getattr(cls, "version", None)
-    code = _hash_files(list(dict.fromkeys(files)))
+    code = _hash_files(method_files(cls))
     return f"{declared}+{code}" if declared else code
 
 
@@ -120,5 +177,5 @@ def differences(old: dict[str, Any], new: dict[str, Any], prefix: str = "") -> l
     return out
 
 
-__all__ = ["digest", "method_version", "judge_version", "resolved_params", "label",
+__all__ = ["digest", "method_files", "method_version", "judge_version", "resolved_params", "label",
            "file_stem", "differences"]
