@@ -56,12 +56,13 @@ import numpy as np
 
 from ...errors import DbenchInputError
 from ...registry import Denoiser, register
+from ..checks import check_choice, check_positive, check_radius
 from ..guards import depth_or_hit, require_buffers
 from .core import (BACKENDS, FEATURES, PRESETS, SEED_SIGMA, SIGMA_CONVENTIONS, WINDOWS, Guide,
-                   IlluminationSetup, accumulate, accumulate_torch, check_choice, check_positive,
-                   check_radius, check_sigma, illumination_fast, illumination_filter,
-                   illumination_reference, jbf_fast, jbf_reference, joint_bilateral_filter,
-                   make_guide, make_illumination_setup, reference_weights, window_offsets)
+                   IlluminationSetup, accumulate, accumulate_torch, check_sigma, illumination_fast,
+                   illumination_filter, illumination_reference, jbf_fast, jbf_reference,
+                   joint_bilateral_filter, make_guide, make_illumination_setup, reference_weights,
+                   window_offsets)
 
 MODES = ("jbf", "illumination")
 

@@ -64,6 +64,7 @@ from numba.extending import intrinsic
 
 from ...data import check_buffer
 from ...errors import DbenchInputError
+from ..checks import check_choice, check_positive, check_radius
 
 #: Σ of the seed (spec/jbf.md §1.1): (x, y, albedo r, g, b, normal x, y, z), a covariance.
 SEED_SIGMA: tuple[float, ...] = (10.0, 10.0, 0.02, 0.02, 0.02, 0.1, 0.1, 0.1)
@@ -91,32 +92,8 @@ _EXP_CUTOFF = 87.0
 
 
 # ---------------------------------------------------------------------------------------------
-# Parameter checks
+# Parameter checks (the shared ones: dbench/methods/checks.py)
 # ---------------------------------------------------------------------------------------------
-
-def check_radius(radius: Any, name: str = "radius") -> int:
-    if isinstance(radius, bool) or not isinstance(radius, (int, np.integer)) or radius < 0:
-        raise DbenchInputError(f"{name}: expected an integer ≥ 0, got {radius!r}")
-    return int(radius)
-
-
-def check_choice(name: str, value: Any, choices: Sequence[str]) -> str:
-    if value not in choices:
-        raise DbenchInputError(f"{name}: expected one of {list(choices)}, got {value!r}")
-    return value
-
-
-def check_positive(name: str, value: Any, *, allow_inf: bool = False, allow_zero: bool = False) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise DbenchInputError(f"{name}: expected a number, got {value!r}") from None
-    if math.isnan(v) or (math.isinf(v) and not allow_inf) or v < 0 or (v == 0 and not allow_zero):
-        kind = "≥ 0" if allow_zero else "> 0"
-        raise DbenchInputError(f"{name}: expected a {'' if allow_inf else 'finite '}number {kind}, "
-                               f"got {value!r}")
-    return v
-
 
 def check_sigma(sigma: Any) -> tuple[float, ...]:
     """Σ diagonal as 8 numbers (x, y, albedo ×3, normal ×3), each > 0 (∞ switches a term off)."""

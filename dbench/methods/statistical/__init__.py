@@ -57,8 +57,9 @@ import numpy as np
 from ...errors import DbenchInputError
 from ...registry import Denoiser, register
 from ..guards import depth_or_hit, require_buffers
-from ..jbf.core import (SEED_SIGMA, SIGMA_CONVENTIONS, TEMPORAL_PROFILES, WINDOWS, check_choice,
-                        check_positive, check_radius, check_sigma, make_guide)
+from ..checks import check_choice, check_positive, check_radius
+from ..jbf.core import (SEED_SIGMA, SIGMA_CONVENTIONS, TEMPORAL_PROFILES, WINDOWS, check_sigma,
+                        make_guide)
 from .core import (BACKENDS, DEFAULT_ALPHA, StatPlanes, Threshold, _check_alpha, _g2_from_gamma,
                    gamma_from_gamma_t, gamma_t_from_gamma, membership, proden_gate,
                    proden_gate_factor, resolve_backend, resolve_threshold, stat_planes,

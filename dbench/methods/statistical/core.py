@@ -43,9 +43,10 @@ import numpy as np
 
 from ...data import SampleStats, check_buffer
 from ...errors import DbenchInputError
+from ..checks import check_choice
 from ..jbf.core import (SEED_SIGMA, Guide, _color_planes, _finish, _image_shape, accumulate,
-                        accumulate_torch, check_choice, make_guide, reference_weights,
-                        shift_slices, torch_cuda_available)
+                        accumulate_torch, make_guide, reference_weights, shift_slices,
+                        torch_cuda_available)
 
 DEFAULT_ALPHA = 0.005
 #: Largest ν with its own γ_t in the non-uniform table; beyond it the ν = ∞ value is used.

@@ -62,9 +62,9 @@ from numba import njit, prange
 
 from ...data import check_buffer
 from ...errors import DbenchInputError
-from ..jbf.core import (SEED_SIGMA, TEMPORAL_PROFILES, Guide, accumulate3d, check_choice,
-                        check_positive, check_radius, make_guide, reference_weights,
-                        shift_slices, temporal_factors, window_offsets)
+from ..checks import check_choice, check_positive, check_radius
+from ..jbf.core import (SEED_SIGMA, TEMPORAL_PROFILES, Guide, accumulate3d, make_guide,
+                        reference_weights, shift_slices, temporal_factors, window_offsets)
 from .core import Threshold, resolve_threshold, welch_pass
 
 #: Defaults for videos (spec §7 "Radius defaults", §5.1 "Transient default", §11.3).

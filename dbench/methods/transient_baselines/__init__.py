@@ -43,8 +43,8 @@ import numpy as np
 from ...data import check_buffer
 from ...errors import DbenchInputError
 from ...registry import Denoiser, register
-from ..jbf.core import (SEED_SIGMA, SIGMA_CONVENTIONS, WINDOWS, accumulate, check_choice,
-                        check_positive, check_radius, check_sigma, make_guide)
+from ..checks import check_choice, check_positive, check_radius
+from ..jbf.core import SEED_SIGMA, SIGMA_CONVENTIONS, WINDOWS, accumulate, check_sigma, make_guide
 from ..oidn import FEATURE_SETS, QUALITIES, oidn_denoise
 
 TEMPORAL_PROFILES = ("box", "gaussian")
