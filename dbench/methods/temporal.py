@@ -544,7 +544,7 @@ def sample_mask(color: np.ndarray) -> np.ndarray:
 
 def torch_cuda_available() -> bool:
     """True when PyTorch is importable and sees a CUDA device."""
-    from .jbf.core import torch_cuda_available as available
+    from .kernels.bilateral.torch_path import torch_cuda_available as available
     return available()
 
 

@@ -13,7 +13,7 @@ import pytest
 
 from dbench.data import Frame
 from dbench.errors import DbenchInputError
-from dbench.methods.jbf import core
+from dbench.methods import jbf as core
 from dbench.registry import get
 
 FAST_RTOL = 1e-5

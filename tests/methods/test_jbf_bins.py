@@ -7,7 +7,7 @@ import pytest
 from dbench import methods
 from dbench.data import Frame, TransientFrame
 from dbench.errors import DbenchInputError
-from dbench.methods.jbf.core import jbf_reference, make_guide
+from dbench.methods.jbf import jbf_reference, make_guide
 from dbench.methods.transient_baselines import jbf_bins
 
 
@@ -51,7 +51,7 @@ def test_temporal_radius_box_and_gaussian():
     assert np.allclose(den, 1.0)
     w = np.zeros(v.shape)
     for k in range(len(guide.dy)):
-        from dbench.methods.jbf.core import reference_weights
+        from dbench.methods.jbf import reference_weights
         w += reference_weights(guide, k)
     num = np.stack([jbf_reference(v.color[:, :, t], guide) * w[..., None]
                     for t in range(v.bins)], axis=2)

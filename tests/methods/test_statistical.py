@@ -14,7 +14,7 @@ import pytest
 
 from dbench.data import Frame, SampleStats
 from dbench.errors import DbenchInputError
-from dbench.methods.jbf import core as jc
+from dbench.methods import jbf as jc
 from dbench.methods.statistical import core as sc
 from dbench.methods.statistical import linear_variance
 from dbench.registry import get

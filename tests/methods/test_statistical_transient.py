@@ -14,7 +14,7 @@ import pytest
 from dbench.data import Frame, SampleStats, TransientFrame
 from dbench.datasets.stats import PowerSums, transform_of_zero
 from dbench.errors import DbenchInputError
-from dbench.methods.jbf import core as jc
+from dbench.methods.kernels import bilateral as jc
 from dbench.methods.statistical import transient as st
 from dbench.registry import get
 

@@ -22,11 +22,12 @@ matter).
 
 Huge finite colour (up to the float32 maximum, or its demodulated value in illumination mode)
 stays finite: a plane above 1e30 is divided by an exact power of two before the float32 window
-sums and multiplied back in float64 (:func:`~dbench.methods.jbf.core.accumulate`); ordinary
-inputs are untouched.
+sums and multiplied back in float64
+(:func:`~dbench.methods.kernels.bilateral.numba2d.accumulate`); ordinary inputs are untouched.
 
 Non-finite colour pixels are missing (no weight as neighbours; their own output is the filtered
-value of valid neighbours, or 0); pixels with non-finite G-buffers are isolated (see core).
+value of valid neighbours, or 0); pixels with non-finite G-buffers are isolated
+(:mod:`dbench.methods.kernels.bilateral`).
 
 Parameters (``get("jbf", **params)``; every value is checked, a bad one raises
 DbenchInputError naming it):
@@ -58,11 +59,14 @@ from ...errors import DbenchInputError
 from ...registry import Denoiser, register
 from ..checks import check_choice, check_positive, check_radius
 from ..guards import depth_or_hit, require_buffers
-from .core import (BACKENDS, FEATURES, PRESETS, SEED_SIGMA, SIGMA_CONVENTIONS, WINDOWS, Guide,
-                   IlluminationSetup, accumulate, accumulate_torch, check_sigma, illumination_fast,
-                   illumination_filter, illumination_reference, jbf_fast, jbf_reference,
-                   joint_bilateral_filter, make_guide, make_illumination_setup, reference_weights,
-                   window_offsets)
+from ..kernels.bilateral.guide import Guide, check_sigma, make_guide, window_offsets
+from ..kernels.bilateral.numba2d import accumulate
+from ..kernels.bilateral.params import FEATURES, SEED_SIGMA, SIGMA_CONVENTIONS, WINDOWS
+from ..kernels.bilateral.reference import reference_weights
+from ..kernels.bilateral.torch_path import accumulate_torch
+from .core import (BACKENDS, PRESETS, IlluminationSetup, illumination_fast, illumination_filter,
+                   illumination_reference, jbf_fast, jbf_reference, joint_bilateral_filter,
+                   make_illumination_setup, resolve_backend)
 
 MODES = ("jbf", "illumination")
 
@@ -137,7 +141,6 @@ class JBF(Denoiser):
         self.last_settings = dict(mode="jbf", **guide.settings)
         backend = p["backend"]
         if backend == "auto":
-            from .core import resolve_backend
             backend = resolve_backend("auto")
         self.last_settings["backend"] = backend
         if backend == "reference":

@@ -15,7 +15,8 @@ import numpy as np
 
 from ...bench.speed import median_time
 
-from .core import illumination_fast, jbf_fast, jbf_reference, make_guide, make_illumination_setup
+from ..kernels.bilateral.guide import make_guide
+from .core import illumination_fast, jbf_fast, jbf_reference, make_illumination_setup
 
 
 def synthetic_frame(height: int, width: int, seed: int = 0) -> dict[str, np.ndarray]:

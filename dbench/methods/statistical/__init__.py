@@ -58,8 +58,8 @@ from ...errors import DbenchInputError
 from ...registry import Denoiser, register
 from ..guards import depth_or_hit, require_buffers
 from ..checks import check_choice, check_positive, check_radius
-from ..jbf.core import (SEED_SIGMA, SIGMA_CONVENTIONS, TEMPORAL_PROFILES, WINDOWS, check_sigma,
-                        make_guide)
+from ..kernels.bilateral.guide import check_sigma, make_guide
+from ..kernels.bilateral.params import SEED_SIGMA, SIGMA_CONVENTIONS, TEMPORAL_PROFILES, WINDOWS
 from .core import (BACKENDS, DEFAULT_ALPHA, StatPlanes, Threshold, _check_alpha, _g2_from_gamma,
                    gamma_from_gamma_t, gamma_t_from_gamma, membership, proden_gate,
                    proden_gate_factor, resolve_backend, resolve_threshold, stat_planes,

@@ -23,7 +23,7 @@ import numpy as np
 from ...bench.speed import median_time
 from ...data import SampleStats
 from ..jbf.bench import synthetic_frame
-from ..jbf.core import make_guide
+from ..kernels.bilateral.guide import make_guide
 from .core import resolve_threshold, stat_planes, statistical_fast, statistical_reference
 
 

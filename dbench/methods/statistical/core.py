@@ -2,10 +2,12 @@
 
 w_ij = ρ_ij m_ij v_j / Σ_k ρ_ik m_ik v_k, out_i = Σ_j w_ij L_j          (spec §1, §8)
 
-* ρ is the joint bilateral filter of spec/jbf.md, built by :func:`dbench.methods.jbf.core.make_guide`
-  and evaluated by the same code as the ``jbf`` method (:func:`~dbench.methods.jbf.core.reference_weights`
-  in the reference, the shared Numba kernel :func:`~dbench.methods.jbf.core.accumulate` or
-  :func:`~dbench.methods.jbf.core.accumulate_torch` in the fast paths). Nothing is copied.
+* ρ is the joint bilateral filter of spec/jbf.md, built by
+  :func:`dbench.methods.kernels.bilateral.guide.make_guide` and evaluated by the same code as the
+  ``jbf`` method (:func:`~dbench.methods.kernels.bilateral.reference.reference_weights` in the
+  reference, the shared Numba kernel :func:`~dbench.methods.kernels.bilateral.numba2d.accumulate`
+  or :func:`~dbench.methods.kernels.bilateral.torch_path.accumulate_torch` in the fast paths).
+  Nothing is copied.
 * m_ij = AND over the channels c of pass_c = (d² < γ_t² S) or (d == 0), with d = θ̂_i − θ̂_j and
   S = Var(θ̂_i) + Var(θ̂_j) of the transformed samples (spec §5, §5.2, §6); m_ii = 1.
 * L is the linear noisy colour (Frame.color); v_j = 1 when L_j is finite (missing pixels get no
@@ -44,9 +46,11 @@ import numpy as np
 from ...data import SampleStats, check_buffer
 from ...errors import DbenchInputError
 from ..checks import check_choice
-from ..jbf.core import (SEED_SIGMA, Guide, _color_planes, _finish, _image_shape, accumulate,
-                        accumulate_torch, make_guide, reference_weights, shift_slices,
-                        torch_cuda_available)
+from ..kernels.bilateral.guide import Guide, color_planes, image_shape, make_guide
+from ..kernels.bilateral.numba2d import accumulate
+from ..kernels.bilateral.params import SEED_SIGMA
+from ..kernels.bilateral.reference import reference_weights, safe_divide, shift_slices
+from ..kernels.bilateral.torch_path import accumulate_torch, torch_cuda_available
 
 DEFAULT_ALPHA = 0.005
 #: Largest ν with its own γ_t in the non-uniform table; beyond it the ν = ∞ value is used.
@@ -269,7 +273,7 @@ def statistical_reference(color: Any, sp: StatPlanes, guide: Guide, threshold: T
                           membership_on: bool = True, return_weights: bool = False):
     """Readable statistical denoiser: loop over offsets, whole shifted images (spec §8).
 
-    For each offset o: ρ from :func:`~dbench.methods.jbf.core.reference_weights` (the JBF's own
+    For each offset o: ρ from :func:`~dbench.methods.kernels.bilateral.reference.reference_weights` (the JBF's own
     code), m from the per-channel Welch predicate, v from the colour's finiteness.
 
     Returns:
@@ -278,7 +282,7 @@ def statistical_reference(color: Any, sp: StatPlanes, guide: Guide, threshold: T
     """
     guide = guide.isolate(sp.bad)
     h, w = guide.shape
-    col, valid = _color_planes(color, (h, w))
+    col, valid = color_planes(color, (h, w))
     theta = np.moveaxis(sp.theta, 0, -1)
     var = np.moveaxis(sp.var, 0, -1)
     nint = np.moveaxis(sp.nint, 0, -1).astype(np.int64)
@@ -327,7 +331,7 @@ def statistical_fast(color: Any, sp: StatPlanes, guide: Guide, threshold: Thresh
     the PyTorch backend (default: CUDA if available, float32).
     """
     guide = guide.isolate(sp.bad)
-    col, valid = _color_planes(color, guide.shape)
+    col, valid = color_planes(color, guide.shape)
     planes = np.concatenate([np.moveaxis(col, -1, 0), valid[None].astype(np.float64)], axis=0)
     test = {}
     if membership_on:
@@ -341,7 +345,7 @@ def statistical_fast(color: Any, sp: StatPlanes, guide: Guide, threshold: Thresh
     else:
         sums = accumulate(guide, planes, **test)
     sums += planes                                       # centre: ρ_ii = m_ii = 1, weight v_i
-    out = _finish(sums[:3], sums[3:4])
+    out = safe_divide(sums[:3], sums[3:4])
     return np.ascontiguousarray(np.moveaxis(out, 0, -1), dtype=np.float32)
 
 
@@ -425,7 +429,7 @@ def statistical_filter(color: Any, stats: SampleStats, albedo: Any, normal: Any,
     Returns:
         (H, W, 3) float32 (and the info dict).
     """
-    shape = _image_shape(color)
+    shape = image_shape(color)
     backend = resolve_backend(backend)
     guide = make_guide(albedo, normal, depth, position, radius=radius, sigma=sigma,
                        sigma_convention=sigma_convention, window=window, hit_mask=hit_mask,

@@ -34,7 +34,7 @@ the neighbouring bins; 0 is what the data says). ``skip_empty=False`` filters ev
 
 Implementations: :func:`statistical_video_reference` (readable NumPy float64, loop over the 3D
 offsets on whole shifted videos) and :func:`statistical_video_fast` (the shared Numba kernel
-:func:`dbench.methods.jbf.core.accumulate3d`: float32 weights, float64 Welch test identical to
+:func:`dbench.methods.kernels.bilateral.numba3d.accumulate3d`: float32 weights, float64 Welch test identical to
 the reference's, symmetric pairs, spatial weights computed once per row and reused by every
 bin). They agree to 1e-5 relative (tests). There is no PyTorch/CUDA path for videos.
 
@@ -63,8 +63,10 @@ from numba import njit, prange
 from ...data import check_buffer
 from ...errors import DbenchInputError
 from ..checks import check_choice, check_positive, check_radius
-from ..jbf.core import (SEED_SIGMA, TEMPORAL_PROFILES, Guide, accumulate3d, make_guide,
-                        reference_weights, shift_slices, temporal_factors, window_offsets)
+from ..kernels.bilateral.guide import Guide, make_guide, temporal_factors, window_offsets
+from ..kernels.bilateral.numba3d import accumulate3d
+from ..kernels.bilateral.params import SEED_SIGMA, TEMPORAL_PROFILES
+from ..kernels.bilateral.reference import reference_weights, shift_slices
 from .core import Threshold, resolve_threshold, welch_pass
 
 #: Defaults for videos (spec §7 "Radius defaults", §5.1 "Transient default", §11.3).
@@ -341,7 +343,7 @@ def statistical_video_reference(color: Any, vs: VideoStats, guide: Guide, tfac: 
     """Readable spatio-temporal statistical denoiser (spec §11.3), float64.
 
     Loops over the (spatial offset o, temporal offset τ) of the window and accumulates whole
-    shifted videos: ρ from :func:`~dbench.methods.jbf.core.reference_weights` (the JBF's own
+    shifted videos: ρ from :func:`~dbench.methods.kernels.bilateral.reference.reference_weights` (the JBF's own
     code) times tfac[τ], m from the per-channel Welch predicate (centre voxel: m = 1), v from the
     colour's finiteness; voxels with bad statistics only keep their centre.
 
@@ -427,7 +429,7 @@ def statistical_video_fast(color: Any, stats: Any, guide: Guide, tfac: np.ndarra
     """Numba spatio-temporal statistical denoiser: (H, W, T, 3) float32.
 
     Only the ``keep`` bins (default all) and their r_t neighbours are prepared and enter the
-    kernel (:func:`prepare_video`, :func:`dbench.methods.jbf.core.accumulate3d`); the other
+    kernel (:func:`prepare_video`, :func:`dbench.methods.kernels.bilateral.numba3d.accumulate3d`); the other
     bins come back as 0. Threshold as :func:`statistical_filter_video`. With ``return_info``
     also (threshold, VideoStats, bins in play).
     """

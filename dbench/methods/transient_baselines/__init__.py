@@ -3,7 +3,7 @@
 * ``jbf-bins``: the joint bilateral filter of :mod:`dbench.methods.jbf` on every time bin, with
   the G-buffers (constant along time) shared by all bins (spec/jbf.md §1.4). The weights of a
   pixel pair do not depend on the bin, so all bins go through one call of the JBF's compiled
-  accumulation kernel (:func:`dbench.methods.jbf.core.accumulate`) with 4 planes per bin (colour
+  accumulation kernel (:func:`dbench.methods.kernels.bilateral.numba2d.accumulate`) with 4 planes per bin (colour
   × validity, validity): the same result as calling the JBF bin by bin (tests prove it), at a
   fraction of the cost. ``temporal_radius`` > 0 gives the JBF 3D of the spec (window
   (2r+1)² × (2r_t+1), ``temporal_profile`` "box" or "gaussian" with ``sigma_t`` bins; bins
@@ -44,7 +44,9 @@ from ...data import check_buffer
 from ...errors import DbenchInputError
 from ...registry import Denoiser, register
 from ..checks import check_choice, check_positive, check_radius
-from ..jbf.core import SEED_SIGMA, SIGMA_CONVENTIONS, WINDOWS, accumulate, check_sigma, make_guide
+from ..kernels.bilateral.guide import check_sigma, make_guide
+from ..kernels.bilateral.numba2d import accumulate
+from ..kernels.bilateral.params import SEED_SIGMA, SIGMA_CONVENTIONS, WINDOWS
 from ..oidn import FEATURE_SETS, QUALITIES, oidn_denoise
 
 TEMPORAL_PROFILES = ("box", "gaussian")
