@@ -61,14 +61,13 @@ from ..checks import check_choice, check_positive, check_radius
 from ..guards import depth_or_hit, require_buffers
 from ..kernels.bilateral.guide import Guide, check_sigma, make_guide, window_offsets
 from ..kernels.bilateral.numba2d import accumulate
-from ..kernels.bilateral.params import FEATURES, SEED_SIGMA, SIGMA_CONVENTIONS, WINDOWS
 from ..kernels.bilateral.reference import reference_weights
 from ..kernels.bilateral.torch_path import accumulate_torch
-from .core import (BACKENDS, PRESETS, IlluminationSetup, illumination_fast, illumination_filter,
-                   illumination_reference, jbf_fast, jbf_reference, joint_bilateral_filter,
-                   make_illumination_setup, resolve_backend)
-
-MODES = ("jbf", "illumination")
+from .fast import jbf_fast, joint_bilateral_filter, resolve_backend
+from .illumination import (IlluminationSetup, illumination_fast, illumination_filter,
+                           illumination_reference, make_illumination_setup)
+from .params import BACKENDS, FEATURES, MODES, PRESETS, SEED_SIGMA, SIGMA_CONVENTIONS, WINDOWS
+from .reference import jbf_reference
 
 __all__ = ["JBF", "Guide", "IlluminationSetup", "SEED_SIGMA", "PRESETS", "accumulate",
            "accumulate_torch", "illumination_fast", "illumination_filter",

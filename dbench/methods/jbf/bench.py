@@ -16,7 +16,9 @@ import numpy as np
 from ...bench.speed import median_time
 
 from ..kernels.bilateral.guide import make_guide
-from .core import illumination_fast, jbf_fast, jbf_reference, make_illumination_setup
+from .fast import jbf_fast
+from .illumination import illumination_fast, make_illumination_setup
+from .reference import jbf_reference
 
 
 def synthetic_frame(height: int, width: int, seed: int = 0) -> dict[str, np.ndarray]:

@@ -1,17 +1,5 @@
-"""The ``jbf`` method's own code on the shared bilateral kernels (dbench/methods/kernels/bilateral):
-the presets and backends, the readable JBF, the fast JBF (Numba, or PyTorch) with the public entry
-point :func:`joint_bilateral_filter`, and the seed-002 illumination filter (spec/jbf.md §2.2).
-
-Example:
-    >>> import numpy as np
-    >>> rng = np.random.default_rng(0)
-    >>> color = rng.random((16, 16, 3)).astype(np.float32)
-    >>> albedo = np.full((16, 16, 3), 0.5, np.float32)
-    >>> normal = np.zeros((16, 16, 3), np.float32); normal[..., 2] = 1
-    >>> out = joint_bilateral_filter(color, albedo, normal, radius=3)
-    >>> out.shape, out.dtype
-    ((16, 16, 3), dtype('float32'))
-"""
+"""Filtering effective illumination: the seed-002 filter as a post-process (spec/jbf.md §2.2,
+simplified), its readable reference and its fast path on the shared Numba kernel."""
 from __future__ import annotations
 
 import math
@@ -21,95 +9,11 @@ from typing import Any
 import numpy as np
 
 from ...errors import DbenchInputError
-from ..checks import check_choice, check_positive, check_radius
+from ..checks import check_positive, check_radius
 from ..kernels.bilateral.guide import Guide, color_planes, image_shape, make_guide
 from ..kernels.bilateral.numba2d import accumulate
-from ..kernels.bilateral.reference import reference_weights, safe_divide, shift_slices
-from ..kernels.bilateral.torch_path import accumulate_torch, torch_cuda_available
-
-#: Named parameter sets (spec/jbf.md §1.2).
-PRESETS: dict[str, dict[str, Any]] = {
-    "seed": dict(sigma_convention="variance", window="square", radius=20),
-    "statmc": dict(sigma_convention="sd", window="disk", radius=20),
-}
-BACKENDS = ("auto", "numba", "torch", "reference")
-
-
-def jbf_reference(color: Any, guide: Guide, *, return_weights: bool = False):
-    """Readable JBF: loop over offsets, accumulate shifted whole images (float64).
-
-    out_i = Σ_j ρ_ij h_ij v_j L_j / Σ_j ρ_ij h_ij v_j with v_j = colour finite (spec/jbf.md §1.1).
-
-    Returns:
-        (H, W, 3) float64; with ``return_weights`` also the (O, H, W) normalised weights w_ij
-        per offset (guide.dy, guide.dx), for checks.
-    """
-    col, valid = color_planes(color, guide.shape)
-    num = np.zeros(col.shape)
-    den = np.zeros(guide.shape)
-    stack = [] if return_weights else None
-    for k in range(len(guide.dy)):
-        (ys, xs), (yn, xn) = shift_slices(int(guide.dy[k]), int(guide.dx[k]), *guide.shape)
-        wk = reference_weights(guide, k)
-        wk[ys, xs] *= valid[yn, xn]
-        num[ys, xs] += wk[ys, xs, None] * col[yn, xn]
-        den += wk
-        if stack is not None:
-            stack.append(wk)
-    out = np.divide(num, den[..., None], out=np.zeros_like(num), where=den[..., None] > 0)
-    if return_weights:
-        ws = np.stack(stack)
-        return out, np.divide(ws, den, out=np.zeros_like(ws), where=den > 0)
-    return out
-
-
-def jbf_fast(color: Any, guide: Guide, *, backend: str = "numba") -> np.ndarray:
-    """Fast JBF (Numba, or PyTorch with ``backend="torch"``): (H, W, 3) float32.
-
-    Same result as :func:`jbf_reference` within float32 rounding (max relative difference
-    ≈ 1e-6 measured; tests use 1e-5).
-    """
-    col, valid = color_planes(color, guide.shape)
-    v = valid.astype(np.float64)
-    planes = np.concatenate([np.moveaxis(col, -1, 0), v[None]], axis=0)
-    if backend == "torch":
-        sums = accumulate_torch(guide, planes)
-    else:
-        sums = accumulate(guide, planes)
-    sums += planes  # centre pixel: ρ_ii = 1, weight v_i
-    out = safe_divide(sums[:3], sums[3:4])
-    return np.ascontiguousarray(np.moveaxis(out, 0, -1), dtype=np.float32)
-
-
-def resolve_backend(backend: str, *, allow_torch: bool = True) -> str:
-    check_choice("backend", backend, BACKENDS)
-    if backend == "auto":
-        return "torch" if allow_torch and torch_cuda_available() else "numba"
-    return backend
-
-
-def joint_bilateral_filter(color: Any, albedo: Any, normal: Any, depth: Any = None,
-                           position: Any = None, *, backend: str = "numba",
-                           **options: Any) -> np.ndarray:
-    """Joint bilateral filter of spec/jbf.md §1 on an (H, W, 3) image.
-
-    Args:
-        color: (H, W, 3) linear noisy radiance.
-        albedo, normal: (H, W, 3) G-buffers; depth (H, W, 1) for the hit mask (None = all hit);
-            position (H, W, 3) when ``features`` include ``"position"``.
-        backend: ``"numba"`` (default), ``"torch"``, ``"auto"`` or ``"reference"`` (float64 NumPy).
-        **options: :func:`make_guide` keywords (radius, sigma, sigma_convention, window,
-            features, sigma_position, sigma_depth, hit_mask).
-
-    Returns:
-        (H, W, 3) float32.
-    """
-    backend = resolve_backend(backend, allow_torch=False)
-    shape = image_shape(color)
-    guide = make_guide(albedo, normal, depth, position, shape=shape, **options)
-    if backend == "reference":
-        return jbf_reference(color, guide).astype(np.float32)
-    return jbf_fast(color, guide, backend=backend)
+from ..kernels.bilateral.reference import shift_slices
+from .fast import resolve_backend
 
 
 @dataclass(frozen=True)
