@@ -6,7 +6,7 @@ from dbench import methods
 from dbench.bench.sequence import synthetic_sequence
 from dbench.data import Frame, Sequence
 from dbench.errors import DbenchInputError
-from dbench.methods.svgf import core as C
+from dbench.methods import svgf as C
 
 
 @pytest.mark.parametrize("n,g,n_new,alpha", [(45, 0.01, 41.697, 0.03374),

@@ -7,7 +7,7 @@ from dbench.bench.sequence import run_sequence, synthetic_sequence
 from dbench.data import Frame
 from dbench.errors import DbenchInputError
 from dbench.methods import temporal as T
-from dbench.methods.svgf import core as C
+from dbench.methods import svgf as C
 
 
 def _planes(h, w, rng=None):

@@ -61,7 +61,7 @@ from ...errors import DbenchInputError
 from ...registry import register
 from .. import temporal as T
 from ..svgf import _emission
-from ..svgf import core as SC
+from ..svgf import dispatch as SC
 from .core import (FEATURE_PRESETS, N_OFFSETS, RCOND, block_origins, bmfr_fit,
                    bmfr_fit_fast, bmfr_fit_reference, feature_stack, grid_offsets,
                    householder_lstsq, householder_lstsq_reference, uniform_hash)

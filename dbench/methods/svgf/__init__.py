@@ -26,7 +26,7 @@ gradient_iterations (3), gradient_mode ("seed" | "paper"), n_max (256).
 
 Backends: "auto" (default) is "torch" when ``torch.cuda.is_available()``, else "numba";
 "numba" compiled kernels; "torch" the vectorised PyTorch kernels of
-:mod:`dbench.methods.svgf.torch_core` and :mod:`dbench.methods.temporal` (reprojection,
+:mod:`dbench.methods.svgf.torch_path` and :mod:`dbench.methods.temporal` (reprojection,
 accumulation, demodulation, variance, à-trous, A-SVGF strata/gradient filter/adaptive history) on
 CUDA when available, else on CPU — each kernel takes and returns NumPy, the history stays NumPy;
 "reference" readable NumPy (float64). All agree within the tolerances of
@@ -74,16 +74,14 @@ from ...errors import DbenchInputError
 from ...registry import register
 from .. import temporal as T
 from ..guards import RADIANCE_MAX, clamp_magnitude
-from . import core as C
-
-PRESETS = {
-    "paper": dict(sigma_z=1.0, sigma_n=128.0, sigma_l=4.0, iterations=5, feedback_tap=0,
-                  alpha_min=0.2, alpha_min_moments=0.2),
-    "falcor": dict(sigma_z=1.0, sigma_n=128.0, sigma_l=10.0, iterations=4, feedback_tap=1,
-                   alpha_min=0.05, alpha_min_moments=0.2),
-}
-GRADIENT_MODES = ("seed", "paper")
-ALPHA0_PAPER = 0.2
+from . import dispatch as C
+from .dispatch import (adaptive_history, atrous, depth_gradient, filter_gradients, prepare,
+                       remodulate, spatial_variance, stratum_gradients)
+from .numba_path import atrous_fast, fast_exp_neg, prepare_fast, spatial_variance_fast
+from .params import ALPHA0_PAPER, EPS_VAR, GRADIENT_MODES, H1, N_SPATIAL, PRESETS
+from .reference import (asvgf_history, atrous_reference, gradient_at_pixels, gradient_value,
+                        normal_weight, prepare_reference, spatial_variance_reference,
+                        stratum_samples)
 
 
 def _positive(name: str, value: Any, allow_zero: bool = False) -> float:
@@ -107,7 +105,7 @@ def _emission(data, h: int, w: int) -> np.ndarray | None:
 class _SVGFBase(T.HistoryDenoiser):
     kinds = {"sequence"}
     needs = {"color", "albedo", "normal", "depth", "position", "motion"}
-    defaults: dict[str, Any] = dict(preset="paper", **PRESETS["paper"], eps_var=C.EPS_VAR,
+    defaults: dict[str, Any] = dict(preset="paper", **PRESETS["paper"], eps_var=EPS_VAR,
                                     variance_boost=False, tau_d=T.TAU_D, tau_n=T.TAU_N,
                                     backend="auto")
 
@@ -163,7 +161,7 @@ class _SVGFBase(T.HistoryDenoiser):
         gather = geo.hit & ~emitter
         tap = gather & filled
         var = T.variance_from_moments(acc_m)
-        spatial = filled & (n < C.N_SPATIAL)
+        spatial = filled & (n < N_SPATIAL)
         if spatial.any():
             sv = C.spatial_variance(be, acc_m, geo.depth, gx, gy, geo.normal, tap,
                                     gather, spatial, sigma_z=p["sigma_z"], sigma_n=p["sigma_n"])
@@ -240,4 +238,8 @@ class ASVGF(_SVGFBase):
         self._prev_lum = prep["lum_raw"]
 
 
-__all__ = ["SVGF", "ASVGF", "PRESETS"]
+__all__ = ["SVGF", "ASVGF", "H1", "PRESETS", "adaptive_history", "asvgf_history", "atrous",
+           "atrous_fast", "atrous_reference", "depth_gradient", "fast_exp_neg", "filter_gradients",
+           "gradient_at_pixels", "gradient_value", "normal_weight", "prepare", "prepare_fast",
+           "prepare_reference", "remodulate", "spatial_variance", "spatial_variance_fast",
+           "spatial_variance_reference", "stratum_gradients", "stratum_samples"]

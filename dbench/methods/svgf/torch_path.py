@@ -1,9 +1,9 @@
 """PyTorch backend of the SVGF / A-SVGF core (spec/svgf.md): the same filters as
-:mod:`dbench.methods.svgf.core`, vectorised over whole images.
+:mod:`dbench.methods.svgf.reference`, vectorised over whole images.
 
 Every function takes NumPy arrays or tensors and returns float32 (bool for masks) tensors on the
 device of its first tensor argument, else CUDA when available, else CPU
-(:func:`dbench.methods.temporal.torch_device`). The NumPy-facing dispatchers of ``core``
+(:func:`dbench.methods.temporal.torch_device`). The NumPy-facing dispatchers of ``dispatch``
 (``atrous``, ``spatial_variance``, …) convert at their boundary. Neighbourhoods are slices of
 one zero-padded stack of planes per offset (no unfold: O(planes·H·W) memory), so a tap outside
 the image reads ``tap = 0`` and gets weight 0 exactly as in the reference.
@@ -21,7 +21,8 @@ import numpy as np
 
 from ...errors import DbenchInputError
 from ..temporal import LUMA, as_tensor, torch_device
-from .core import ALBEDO_EPS, EPS_VAR, EPS_Z, G3, H1, SPATIAL_RADIUS, emission_planar
+from .params import ALBEDO_EPS, EPS_VAR, EPS_Z, G3, H1, SPATIAL_RADIUS
+from .reference import emission_planar
 
 
 def _dev(*arrays: Any, device: Any = None):
@@ -51,7 +52,7 @@ def _padded(planes, pad: int):
 
 
 def prepare_torch(color, albedo, emission, hit, device=None) -> dict:
-    """:func:`~dbench.methods.svgf.core.prepare_reference` on tensors: interleaved (H, W, 3)
+    """:func:`~dbench.methods.svgf.reference.prepare_reference` on tensors: interleaved (H, W, 3)
     colour and albedo in, planar ``illum``, ``a_eff``, ``emission`` (3, H, W), ``moments``
     (2, H, W), ``lum_raw`` (H, W) float32 and bool ``present``, ``emitter`` (H, W) out. The
     emission buffer is validated in NumPy (errors name it) before it is moved."""
@@ -81,8 +82,9 @@ def remodulate_torch(illum, a_eff, emission, device=None):
 
 
 def depth_gradient_torch(z, hit, device=None):
-    """:func:`~dbench.methods.svgf.core.depth_gradient` (smaller one-sided difference, one-sided
-    at borders and next to pixels without hit, 0 without hit): (gx, gy) float32 tensors."""
+    """:func:`~dbench.methods.svgf.reference.depth_gradient_reference` (smaller one-sided
+    difference, one-sided at borders and next to pixels without hit, 0 without hit): (gx, gy)
+    float32 tensors."""
     import torch
     dev = _dev(z, hit, device=device)
     z = as_tensor(z, dev, torch.float64)
@@ -118,7 +120,7 @@ def atrous_torch(color, var, z, gx, gy, normal, tap, centre, hit, step, sigma_z=
                  sigma_n=128.0, sigma_l=4.0, eps_z=EPS_Z, eps_var=EPS_VAR, use_lum=True,
                  device=None):
     """One à-trous iteration (spec §5) — arguments and shapes of
-    :func:`~dbench.methods.svgf.core.atrous_reference`. Returns (colour (3, H, W),
+    :func:`~dbench.methods.svgf.reference.atrous_reference`. Returns (colour (3, H, W),
     variance (H, W)) float32 tensors."""
     import torch
     dev = _dev(color, var, device=device)
@@ -161,8 +163,8 @@ def atrous_torch(color, var, z, gx, gy, normal, tap, centre, hit, step, sigma_z=
 
 def spatial_variance_torch(mom, z, gx, gy, normal, tap, hit, select=None, sigma_z=1.0,
                            sigma_n=128.0, eps_z=EPS_Z, radius=SPATIAL_RADIUS, device=None):
-    """Spatial variance (spec §4) of :func:`~dbench.methods.svgf.core.spatial_variance_reference`
-    over the (2r+1)² window, 0 where ``select`` (H, W) is False: (H, W) float32 tensor. The
+    """Spatial variance (spec §4) of
+    :func:`~dbench.methods.svgf.reference.spatial_variance_reference` over the (2r+1)² window, 0 where ``select`` (H, W) is False: (H, W) float32 tensor. The
     window sums are float64 (m₂ − m₁² cancels)."""
     import torch
     dev = _dev(mom, z, device=device)
@@ -200,8 +202,8 @@ def spatial_variance_torch(mom, z, gx, gy, normal, tap, hit, select=None, sigma_
 
 def stratum_gradients_torch(l_prev, l_grad, prev_hit, prev_depth, prev_normal, size=3,
                             device=None) -> dict:
-    """Per-stratum gradients of :func:`~dbench.methods.svgf.core.stratum_gradients` on tensors:
-    the argmax of each size×size block (ties: first in row-major order, as ``np.argmax``).
+    """Per-stratum gradients of
+    :func:`~dbench.methods.svgf.reference.stratum_gradients_reference` on tensors: the argmax of each size×size block (ties: first in row-major order, as ``np.argmax``).
     Returns ``delta``, ``norm``, ``g``, ``depth`` (hs, ws) float32, ``has`` bool,
     ``normal`` (3, hs, ws) float32."""
     import torch
@@ -233,7 +235,7 @@ def stratum_gradients_torch(l_prev, l_grad, prev_hit, prev_depth, prev_normal, s
 
 def adaptive_history_torch(low, motion, hit, n_hist, n_max=256.0, mode="seed", alpha0=0.2,
                            size=3, device=None):
-    """:func:`~dbench.methods.svgf.core.adaptive_history` on tensors: G gathered at
+    """:func:`~dbench.methods.svgf.reference.adaptive_history_reference` on tensors: G gathered at
     round(p + motion) from the stratum image ``low`` (hs, ws), N' and α (spec §6.1). Returns
     three (H, W) float32 tensors."""
     import torch
