@@ -5,7 +5,7 @@ import pytest
 from dbench import methods
 from dbench.bench.sequence import run_sequence, synthetic_sequence
 from dbench.errors import DbenchInputError
-from dbench.methods.bmfr import core as B
+from dbench.methods import bmfr as B
 from dbench.methods.bmfr import householder_lstsq
 
 WORKED = np.array([[1, 5.5, 6.5, 1.2, 0.5], [1, 5.6, 6.5, 1.4, 0.4], [1, 5.7, 6.4, 1.2, 0.65],
@@ -228,7 +228,7 @@ def test_fit_reading_normals_and_positions_directly_equals_the_stack():
 # -- the PyTorch backend (CPU tensors here; CUDA when present) ---------------------------------
 
 def test_torch_lstsq_safeguard_and_fit_equal_reference():
-    from dbench.methods.bmfr import torch_core as BT
+    from dbench.methods.bmfr import torch_path as BT
 
     A = np.ones((1, 36, 7))
     A[0, :, 1:] = 0.5

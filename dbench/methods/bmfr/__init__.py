@@ -18,7 +18,7 @@ rcond (1e-10), seed (0: noise and offsets), tau_d, tau_n, backend ("auto" | "num
 "reference"; "auto", the default, is "torch" when ``torch.cuda.is_available()``, else "numba";
 "torch" runs reprojection, accumulation, demodulation, feature construction, the batched
 Householder fit of all blocks and the reconstruction as PyTorch kernels
-(:mod:`dbench.methods.bmfr.torch_core`) on CUDA when available, else on CPU, NumPy in and out
+(:mod:`dbench.methods.bmfr.torch_path`) on CUDA when available, else on CPU, NumPy in and out
 of each kernel, history kept as NumPy; ``params["backend"]`` holds the resolved name),
 preset (None | "seed": block 64, features "seed"; the seed's 36 random samples per block are not
 implemented — every pixel of a block is used).
@@ -62,12 +62,12 @@ from ...registry import register
 from .. import temporal as T
 from ..svgf import _emission
 from ..svgf import dispatch as SC
-from .core import (FEATURE_PRESETS, N_OFFSETS, RCOND, block_origins, bmfr_fit,
-                   bmfr_fit_fast, bmfr_fit_reference, feature_stack, grid_offsets,
-                   householder_lstsq, householder_lstsq_reference, uniform_hash)
-from .torch_core import bmfr_fit_torch, feature_stack_torch, householder_lstsq_torch
-
-PRESETS = {"seed": dict(block_size=64, features="seed")}
+from .dispatch import bmfr_fit, householder_lstsq
+from .numba_path import bmfr_fit_fast
+from .params import FEATURE_PRESETS, N_OFFSETS, PRESETS, RCOND
+from .reference import (block_origins, bmfr_fit_reference, feature_stack, grid_offsets,
+                        householder_lstsq_reference, uniform_hash)
+from .torch_path import bmfr_fit_torch, feature_stack_torch, householder_lstsq_torch
 
 __all__ = ["BMFR", "householder_lstsq", "householder_lstsq_reference", "bmfr_fit",
            "bmfr_fit_fast", "bmfr_fit_reference", "feature_stack", "grid_offsets",

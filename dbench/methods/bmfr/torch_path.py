@@ -7,7 +7,7 @@ which leave the least-squares solution — and |R_kk| of the rank safeguard — 
 block has the same m = B² and no Python loop runs over blocks or pixels. The QR is LAPACK's /
 cuSOLVER's Householder (``torch.linalg.qr(mode="r")``) of the augmented matrix [A | B]: Q is
 never formed and the first n rows of R's right part are Qᵀ B (spec §5), as in
-:func:`~dbench.methods.bmfr.core.householder_lstsq_reference`. The fit is float64 like the
+:func:`~dbench.methods.bmfr.reference.householder_lstsq_reference`. The fit is float64 like the
 other backends; images are float32.
 
 Functions take NumPy arrays or tensors and return tensors on the device of ``z`` / ``A`` when
@@ -22,7 +22,8 @@ import numpy as np
 
 from ...errors import DbenchInputError
 from ..temporal import as_tensor, torch_device
-from .core import FEATURE_PRESETS, RCOND, _GOLD, _M1, _M2, block_origins
+from .params import _GOLD, _M1, _M2, FEATURE_PRESETS, RCOND
+from .reference import block_origins
 
 
 def _dev(a: Any, device: Any):
@@ -64,7 +65,7 @@ def back_substitute_torch(Rt, r, rcond: float = RCOND):
 
 def feature_stack_torch(normal, position, preset: str = "paper", device=None):
     """Raw feature columns (M, H, W) float32 tensor of a preset from planar normal/position
-    (3, H, W) (:func:`~dbench.methods.bmfr.core.feature_stack`)."""
+    (3, H, W) (:func:`~dbench.methods.bmfr.reference.feature_stack`)."""
     import torch
     if preset not in FEATURE_PRESETS:
         raise DbenchInputError(f"features: expected one of {tuple(FEATURE_PRESETS)}, "
@@ -96,7 +97,7 @@ def _lsr(z, s: int):
 
 
 def uniform_hash_torch(seed: int, index, column: int):
-    """:func:`~dbench.methods.bmfr.core.uniform_hash` on an int64 index tensor: the same
+    """:func:`~dbench.methods.bmfr.reference.uniform_hash` on an int64 index tensor: the same
     splitmix64 bits with int64 wrap-around arithmetic, float64 uniforms in (0, 1)."""
     g, m1, m2 = int(_GOLD), int(_M1), int(_M2)
     z = index * _signed(m1) + _signed(seed * g + (column // 4) * m2)
@@ -109,7 +110,7 @@ def uniform_hash_torch(seed: int, index, column: int):
 
 def bmfr_fit_torch(z, feats, scaled, fit, recon, block, offset, noise_amount=0.01,
                    noise_seed=0, rcond=RCOND, clamp=True, device=None):
-    """:func:`~dbench.methods.bmfr.core.bmfr_fit_reference` with all blocks in one batch.
+    """:func:`~dbench.methods.bmfr.reference.bmfr_fit_reference` with all blocks in one batch.
 
     Args: as the reference — z (3, H, W), feats (M, H, W), scaled (M,) bool, fit/recon (H, W)
     bool, block size and grid offset (x, y), noise amplitude and seed, rcond, clamp.

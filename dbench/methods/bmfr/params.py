@@ -1,0 +1,27 @@
+"""Constants of ``bmfr`` with their sources (spec/bmfr.md; [dbench] marks values chosen here,
+[BMFR code] values of the authors' implementation), and the constants of the counter-based hash
+behind the feature noise (splitmix64) that the reference, Numba and PyTorch paths share."""
+from __future__ import annotations
+
+import numpy as np
+
+
+#: Feature presets (spec §2): names of the columns, constant first.
+FEATURE_PRESETS = {
+    "paper": ("1", "nx", "ny", "nz", "px", "py", "pz", "px2", "py2", "pz2"),
+    "seed": ("1", "nx", "ny", "nz", "px", "py", "pz"),
+    "normals": ("1", "nx", "ny", "nz"),
+    "positions": ("1", "px", "py", "pz"),
+}
+RCOND = 1e-10      # rank safeguard |R_kk| < rcond · max |R_jj| (spec §5) [dbench]
+N_OFFSETS = 16     # per-frame grid offsets, cycling [BMFR code]
+PRESETS = {"seed": dict(block_size=64, features="seed")}
+
+
+#: splitmix64 (Steele, Lea, Flood 2014): increment, multipliers, shifts; 2⁻⁵³; a 16-bit mask.
+_GOLD = np.uint64(0x9E3779B97F4A7C15)
+_M1 = np.uint64(0xBF58476D1CE4E5B9)
+_M2 = np.uint64(0x94D049BB133111EB)
+_S30, _S27, _S31, _S11 = np.uint64(30), np.uint64(27), np.uint64(31), np.uint64(11)
+_INV53 = 1.0 / 9007199254740992.0
+_MASK16 = np.uint64(0xFFFF)
