@@ -82,7 +82,7 @@ def _imported_files(path: Path, root: Path) -> set[Path]:
 def method_files(cls: type) -> list[Path]:
     """The files behind a method's numbers, sorted: every .py, .onnx and .json file of its
     package folder (weights included), the top-level modules of ``dbench.methods`` it may share
-    (``temporal.py``, ``guards.py``, ...) and every module of ``dbench.methods`` those files
+    (``guards.py``, ``checks.py``, ...) and every module of ``dbench.methods`` those files
     import, directly or through one another (shared kernels such as
     ``dbench/methods/kernels/``, or the steps of another method it reuses). A class defined in a
     plugin package gives that package's folder; one in a stand-alone file or top-level module

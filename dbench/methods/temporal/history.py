@@ -1,0 +1,97 @@
+"""The state a sequence method keeps between frames: :class:`History` (the previous frame's
+buffers and geometry, reprojected on demand) and :class:`HistoryDenoiser`, the base class of the
+temporal methods."""
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ...data import check_buffer
+from ...registry import Denoiser
+from ..guards import RADIANCE_MAX, clamp_magnitude
+from .dispatch import reproject, resolve_backend
+from .geometry import Geometry
+from .numba_path import kernel_threads
+from .params import EPS_F, TAU_D, TAU_N
+
+
+class History:
+    """The previous frame's geometry and history buffers of one sequence method.
+
+    ``fetch(cur, c)`` reprojects the stored (C, H, W) buffers into the current frame (all
+    reset when there is no previous frame, the size changed, or the frame has no motion);
+    ``store(cur, buffers, valid)`` keeps this frame's buffers for the next call.
+    The state is NumPy (float32 buffers, bool masks) for every backend; ``backend`` ("auto" is
+    resolved here) selects the reprojection kernel.
+    """
+
+    def __init__(self, tau_d: float = TAU_D, tau_n: float = TAU_N, eps_f: float = EPS_F,
+                 backend: str = "numba") -> None:
+        backend = resolve_backend(backend)
+        self.tau_d, self.tau_n, self.eps_f, self.backend = tau_d, tau_n, eps_f, backend
+        self.reset()
+
+    def reset(self) -> None:
+        self.prev: Geometry | None = None
+        self.buffers: np.ndarray | None = None
+        self.valid: np.ndarray | None = None
+        self.frames = 0
+
+    def fetch(self, cur: Geometry, channels: int) -> tuple[np.ndarray, np.ndarray]:
+        """(reprojected (C, H, W) float32, status (H, W) uint8); zeros/RESET without history."""
+        h, w = cur.shape
+        if (self.prev is None or self.buffers is None or cur.motion is None
+                or self.prev.shape != cur.shape or self.buffers.shape[0] != channels):
+            return np.zeros((channels, h, w), np.float32), np.zeros((h, w), np.uint8)
+        return reproject(self.buffers, cur, self.prev, self.valid, self.tau_d, self.tau_n,
+                         self.eps_f, self.backend)
+
+    def store(self, cur: Geometry, buffers: np.ndarray, valid: np.ndarray | None = None,
+              finite: bool = False) -> None:
+        """Keep (C, H, W) ``buffers`` of this frame; ``valid`` (H, W) marks usable pixels.
+        ``finite=True`` promises the buffers hold no NaN/Inf (skips that check)."""
+        buffers = np.ascontiguousarray(buffers, np.float32)
+        ok = cur.hit if valid is None else (cur.hit & valid)
+        if not finite:
+            ok = ok & np.isfinite(buffers).all(0)
+            buffers = np.where(ok, buffers, 0.0).astype(np.float32)
+        self.prev, self.buffers, self.valid = cur, buffers, ok
+        self.frames += 1
+
+
+class HistoryDenoiser(Denoiser):
+    """Base of the reprojecting sequence methods (``accumulate``, ``svgf``/``asvgf``, ``bmfr``).
+
+    Input range: finite colour values beyond ±:data:`~dbench.methods.guards.RADIANCE_MAX`
+    (1e15) are clamped to it before anything else (NaN/±Inf stay missing samples), so that the
+    float32 luminance moments l² — after albedo demodulation, (C / 1e-3)² — cannot overflow.
+
+    A subclass validates its parameters in ``__init__`` and then calls :meth:`_start`, and
+    implements ``_denoise(data, color)`` with ``color`` the checked (H, W, 3) input; ``denoise``
+    runs it with the kernel thread count of the frame size. ``last`` holds the diagnostics of
+    the latest frame; ``reset`` empties the history.
+    """
+
+    def _start(self) -> None:
+        p = self.params
+        # "auto" is decided once, here; params keep the resolved name so that result files
+        # record the kernels that ran
+        self.backend = p["backend"] = resolve_backend(p["backend"])
+        self.history = History(p["tau_d"], p["tau_n"], EPS_F, self.backend)
+        self.last: dict[str, Any] = {}
+
+    def reset(self) -> None:
+        self.history.reset()
+        self.last = {}
+
+    def denoise(self, data) -> np.ndarray:
+        color = check_buffer("color", getattr(data, "color", None), (None, None, 3))
+        # the moments l² (and SVGF/BMFR's demodulated l² ≤ (C / 1e-3)²) are float32 history:
+        # finite colours beyond RADIANCE_MAX would overflow them to Inf, then NaN (Inf − Inf)
+        color = clamp_magnitude(color, RADIANCE_MAX)
+        with kernel_threads(color.shape[0] * color.shape[1]):
+            return self._denoise(data, color)
+
+    def _denoise(self, data, color: np.ndarray) -> np.ndarray:
+        raise NotImplementedError

@@ -1,0 +1,166 @@
+"""Reprojection and accumulation compiled with Numba (parallel over rows), equal to
+:mod:`.reference` within float32 rounding, and the single-thread switch for small images."""
+from __future__ import annotations
+
+import math
+from contextlib import contextmanager
+from typing import Iterator
+
+import numpy as np
+
+from .params import EPS_F, FALLBACK_KERNEL, N_MAX, SMALL_IMAGE, TAU_D, TAU_N
+
+
+try:  # Numba is a dependency; the NumPy/Python reference still works without it
+    import numba
+    from numba import njit, prange
+except ImportError:  # pragma: no cover
+    numba = None
+
+
+@contextmanager
+def kernel_threads(n_pixels: int) -> Iterator[None]:
+    """Run the Numba kernels of one frame on a single thread when the image is small."""
+    if numba is None or n_pixels >= SMALL_IMAGE:
+        yield
+        return
+    old = numba.get_num_threads()
+    numba.set_num_threads(1)
+    try:
+        yield
+    finally:
+        numba.set_num_threads(old)
+
+
+if numba is not None:
+    @njit(cache=True, inline="always")
+    def _valid_nb(qx, qy, h, w, prev_ok, prev_depth, prev_normal, n0, n1, n2, de, tau_d, tau_n):
+        if qx < 0 or qy < 0 or qx >= w or qy >= h:
+            return False
+        if not prev_ok[qy, qx]:
+            return False
+        if abs(prev_depth[qy, qx] - de) > tau_d * de:
+            return False
+        dot = (prev_normal[0, qy, qx] * n0 + prev_normal[1, qy, qx] * n1
+               + prev_normal[2, qy, qx] * n2)
+        return dot >= tau_n
+
+    @njit(cache=True, parallel=True)
+    def _reproject_nb(history, motion, cur_hit, cur_normal, d_exp, prev_ok, prev_depth,
+                      prev_normal, tau_d, tau_n, eps_f, kernel, out, status):
+        c, h, w = history.shape
+        for y in prange(h):
+            acc = np.zeros(c, np.float64)
+            for x in range(w):
+                for k in range(c):
+                    out[k, y, x] = 0.0
+                status[y, x] = 0
+                mx = motion[0, y, x]
+                my = motion[1, y, x]
+                if not cur_hit[y, x] or not (np.isfinite(mx) and np.isfinite(my)):
+                    continue
+                n0 = cur_normal[0, y, x]
+                n1 = cur_normal[1, y, x]
+                n2 = cur_normal[2, y, x]
+                de = d_exp[y, x]
+                px = x + np.float64(mx)
+                py = y + np.float64(my)
+                x0 = int(math.floor(px))
+                y0 = int(math.floor(py))
+                wx = px - x0
+                wy = py - y0
+                f = 0.0
+                acc[:] = 0.0
+                for t in range(4):
+                    qx = x0 + (t & 1)
+                    qy = y0 + (t >> 1)
+                    bx = wx if (t & 1) else 1.0 - wx
+                    by = wy if (t >> 1) else 1.0 - wy
+                    b = bx * by
+                    if b > 0.0 and _valid_nb(qx, qy, h, w, prev_ok, prev_depth, prev_normal,
+                                             n0, n1, n2, de, tau_d, tau_n):
+                        f += b
+                        for k in range(c):
+                            acc[k] += b * history[k, qy, qx]
+                if f > eps_f:
+                    for k in range(c):
+                        out[k, y, x] = acc[k] / f
+                    status[y, x] = 1
+                    continue
+                cx = int(math.floor(px + 0.5))
+                cy = int(math.floor(py + 0.5))
+                g = 0.0
+                acc[:] = 0.0
+                for dy in range(-1, 2):
+                    for dx in range(-1, 2):
+                        if _valid_nb(cx + dx, cy + dy, h, w, prev_ok, prev_depth, prev_normal,
+                                     n0, n1, n2, de, tau_d, tau_n):
+                            kk = kernel[dy + 1, dx + 1]
+                            g += kk
+                            for k in range(c):
+                                acc[k] += kk * history[k, cy + dy, cx + dx]
+                if g > 0.0:
+                    for k in range(c):
+                        out[k, y, x] = acc[k] / g
+                    status[y, x] = 2
+
+
+def reproject_fast(history, motion, cur_hit, cur_normal, d_exp, prev_ok, prev_depth,
+                   prev_normal, tau_d=TAU_D, tau_n=TAU_N, eps_f=EPS_F):
+    """Compiled (Numba, parallel over rows) :func:`reproject_reference`; equal to it within
+    float32 rounding of the output (the weights are computed in float64 in both)."""
+    history = np.ascontiguousarray(history, np.float32)
+    out = np.empty_like(history)
+    status = np.empty(history.shape[1:], np.uint8)
+    _reproject_nb(history, np.ascontiguousarray(motion, np.float32),
+                  np.ascontiguousarray(cur_hit, np.bool_),
+                  np.ascontiguousarray(cur_normal, np.float32),
+                  np.ascontiguousarray(d_exp, np.float32), np.ascontiguousarray(prev_ok, np.bool_),
+                  np.ascontiguousarray(prev_depth, np.float32),
+                  np.ascontiguousarray(prev_normal, np.float32), float(tau_d), float(tau_n),
+                  float(eps_f), FALLBACK_KERNEL, out, status)
+    return out, status
+
+
+if numba is not None:
+    @njit(cache=True, parallel=True, fastmath=True, error_model="numpy")
+    def _accumulate_nb(sample, history, n_hist, ok, sample_ok, alpha, alpha_min, n_max,
+                       out, n_out, a_out):
+        c, h, w = sample.shape
+        has_alpha = alpha.shape[0] > 0
+        for y in prange(h):
+            for x in range(w):
+                if ok[y, x]:
+                    n = min(n_hist[y, x] + np.float32(1.0), n_max)
+                    a = alpha[y, x] if has_alpha else max(alpha_min, np.float32(1.0) / n)
+                else:
+                    n = np.float32(1.0)
+                    a = np.float32(1.0)
+                if sample_ok[y, x]:
+                    for k in range(c):
+                        out[k, y, x] = a * sample[k, y, x] + (np.float32(1.0) - a) * history[k, y, x]
+                    n_out[y, x] = n
+                    a_out[y, x] = a
+                else:
+                    for k in range(c):
+                        out[k, y, x] = history[k, y, x] if ok[y, x] else np.float32(0.0)
+                    n_out[y, x] = n_hist[y, x] if ok[y, x] else np.float32(0.0)
+                    a_out[y, x] = np.float32(0.0)
+
+
+def accumulate_fast(sample, history, n_hist, ok, alpha_min=0.0, n_max=N_MAX, alpha=None,
+                    sample_ok=None):
+    """Compiled :func:`accumulate` (same arguments and results, one fused pass)."""
+    sample = np.ascontiguousarray(sample, np.float32)
+    h, w = sample.shape[1:]
+    out = np.empty_like(sample)
+    n_out = np.empty((h, w), np.float32)
+    a_out = np.empty((h, w), np.float32)
+    _accumulate_nb(sample, np.ascontiguousarray(history, np.float32),
+                   np.ascontiguousarray(n_hist, np.float32), np.ascontiguousarray(ok, np.bool_),
+                   np.ones((h, w), np.bool_) if sample_ok is None
+                   else np.ascontiguousarray(sample_ok, np.bool_),
+                   np.zeros((0, 0), np.float32) if alpha is None
+                   else np.ascontiguousarray(alpha, np.float32),
+                   np.float32(alpha_min), np.float32(n_max), out, n_out, a_out)
+    return out, n_out, a_out
