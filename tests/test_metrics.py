@@ -11,7 +11,7 @@ from skimage.metrics import peak_signal_noise_ratio, structural_similarity
 
 import dbench.metrics as M
 from dbench.errors import DbenchInputError, UnknownNameError
-from dbench.metrics import image as image_mod
+from dbench.metrics import hdr as image_mod
 
 ALL = ["mse", "rmse", "relmse", "smape", "rmae", "psnr", "ssim", "flip", "hdrflip"]
 

@@ -25,34 +25,13 @@ Example:
 """
 from __future__ import annotations
 
-from .image import (
-    DEFINITIONS,
-    HIGHER_IS_BETTER,
-    PER_BIN_METRICS,
-    TONEMAP_DEFINITION,
-    available,
-    check_pair,
-    clear_exposure_cache,
-    compute,
-    compute_all,
-    flip,
-    flip_ldr,
-    hdrflip,
-    hdrflip_exposures,
-    mse,
-    per_bin,
-    psnr,
-    psnr_ldr,
-    relmse,
-    rmae,
-    rmse,
-    smape,
-    srgb_decode,
-    srgb_encode,
-    ssim,
-    ssim_ldr,
-    tonemap,
-)
+from .checks import check_pair
+from .hdr import clear_exposure_cache, hdrflip, hdrflip_exposures
+from .image import PER_BIN_METRICS, available, compute, compute_all, per_bin
+from .ldr import flip, flip_ldr, psnr, psnr_ldr, ssim, ssim_ldr
+from .params import DEFINITIONS, HIGHER_IS_BETTER
+from .pixel import mse, relmse, rmae, rmse, smape
+from .tonemapping import TONEMAP_DEFINITION, srgb_decode, srgb_encode, tonemap
 
 __all__ = [
     "DEFINITIONS", "HIGHER_IS_BETTER", "PER_BIN_METRICS", "TONEMAP_DEFINITION",

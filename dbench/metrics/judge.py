@@ -32,8 +32,10 @@ from typing import Any, Iterable, Sequence
 import numpy as np
 
 from ..errors import DbenchInputError
-from .image import (PSNR_CAP_DB, RELMSE_EPS, SMAPE_EPS, SSIM_K1, SSIM_K2, SSIM_SIGMA, SSIM_WIN,
-                    _flip_input, _integrate, _ssim_global, check_ev, check_pair, tonemap)
+from .checks import _integrate, check_pair
+from .ldr import _flip_input, _ssim_global
+from .params import PSNR_CAP_DB, RELMSE_EPS, SMAPE_EPS, SSIM_K1, SSIM_K2, SSIM_SIGMA, SSIM_WIN
+from .tonemapping import check_ev, tonemap
 
 #: Metrics the judge scores over every pixel and over surface pixels.
 JUDGED = ("rmse", "relmse", "smape", "psnr", "ssim", "flip")
@@ -82,7 +84,7 @@ def _pixel_mean(x: np.ndarray) -> np.ndarray:
 
 def _ssim_map(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(map, weight): skimage's SSIM map averaged over channels, weight 0 on the border it
-    crops; images smaller than the window get the global SSIM everywhere (image.ssim_ldr)."""
+    crops; images smaller than the window get the global SSIM everywhere (ldr.ssim_ldr)."""
     h, w = a.shape[:2]
     if min(h, w) < SSIM_WIN:
         return np.full((h, w), _ssim_global(a, b)), np.ones((h, w))

@@ -1,0 +1,143 @@
+"""LDR metrics on tone-mapped images: PSNR, SSIM, LDR-FLIP (spec anchors.md §1)."""
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from ..errors import DbenchInputError
+from .checks import _finite, _integrate, check_pair
+from .pixel import _err_sq
+from .params import PSNR_CAP_DB, SSIM_K1, SSIM_K2, SSIM_SIGMA, SSIM_WIN
+from .tonemapping import check_ev, tonemap
+
+
+def psnr_ldr(a: np.ndarray, b: np.ndarray) -> float:
+    """PSNR with data range 1 between two tone-mapped images in [0, 1], capped at 100 dB.
+
+    ``min(100, 10·log10(1 / mean((a − b)²)))``; 100 when the images are equal; NaN if ``a``
+    holds NaN. No shape checks (internal helper; :func:`psnr` checks).
+    """
+    if not _finite(a):
+        return float("nan")
+    m = float(np.mean(_err_sq(a, b)))
+    if m <= 0.0:
+        return PSNR_CAP_DB
+    return min(PSNR_CAP_DB, 10.0 * math.log10(1.0 / m))
+
+
+def ssim_ldr(a: np.ndarray, b: np.ndarray) -> float:
+    """SSIM between two tone-mapped (H, W, C) images in [0, 1] (anchors.md §1).
+
+    Images at least 11 px on both sides: ``skimage.metrics.structural_similarity(a, b,
+    gaussian_weights=True, sigma=1.5, use_sample_covariance=False, data_range=1,
+    channel_axis=-1)`` (K1 = 0.01, K2 = 0.03). Smaller images, where the 11×11 Gaussian window
+    does not fit: the same SSIM formula with a single window covering the whole image (global
+    means, population variances and covariance per channel, then averaged over channels); for a
+    1×1 image this reduces to the luminance term (2ab + C1)/(a² + b² + C1). Always finite for
+    finite input; NaN if ``a`` holds NaN.
+    """
+    if not _finite(a):
+        return float("nan")
+    h, w = a.shape[:2]
+    if min(h, w) >= SSIM_WIN:
+        from skimage.metrics import structural_similarity
+
+        return float(structural_similarity(a, b, gaussian_weights=True, sigma=SSIM_SIGMA,
+                                           use_sample_covariance=False, data_range=1.0,
+                                           channel_axis=-1, K1=SSIM_K1, K2=SSIM_K2))
+    return _ssim_global(a, b)
+
+
+def _ssim_global(a: np.ndarray, b: np.ndarray) -> float:
+    c1 = (SSIM_K1 * 1.0) ** 2
+    c2 = (SSIM_K2 * 1.0) ** 2
+    mu_a = a.mean(axis=(0, 1))
+    mu_b = b.mean(axis=(0, 1))
+    da = a - mu_a
+    db = b - mu_b
+    var_a = (da * da).mean(axis=(0, 1))
+    var_b = (db * db).mean(axis=(0, 1))
+    cov = (da * db).mean(axis=(0, 1))
+    s = ((2 * mu_a * mu_b + c1) * (2 * cov + c2)) / ((mu_a ** 2 + mu_b ** 2 + c1) * (var_a + var_b + c2))
+    return float(np.mean(s))
+
+
+def _flip_input(name: str, x: np.ndarray) -> np.ndarray:
+    """(H, W, 1 or 3) -> C-contiguous float32 (H, W, 3), the layout flip_evaluator takes."""
+    if x.shape[-1] not in (1, 3):
+        raise DbenchInputError(f"{name}: FLIP needs 1 or 3 channels; expected shape (H, W, 3) or "
+                               f"(H, W, 1), got {tuple(x.shape)}")
+    if x.shape[-1] == 1:
+        x = np.repeat(x, 3, axis=-1)
+    return np.ascontiguousarray(x, dtype=np.float32)
+
+
+def flip_ldr(a: np.ndarray, b: np.ndarray) -> float:
+    """Mean LDR-FLIP error between a tone-mapped test image ``a`` and reference ``b``.
+
+    Both (H, W, 1 or 3), sRGB-encoded in [0, 1]; one channel is replicated to three.
+    ``flip_evaluator.evaluate(b, a, "LDR", inputsRGB=True, applyMagma=False,
+    computeMeanError=True, parameters={})`` with the default ppd (67.02). NaN if ``a`` holds NaN.
+    """
+    if not _finite(a):
+        return float("nan")
+    import flip_evaluator
+
+    test = _flip_input("output", a)
+    ref = _flip_input("reference", b)
+    _, mean, _ = flip_evaluator.evaluate(ref, test, "LDR", inputsRGB=True, applyMagma=False,
+                                         computeMeanError=True, parameters={})
+    return float(mean)
+
+
+def psnr(output: Any, reference: Any, ev: float = 0.0) -> float:
+    """PSNR in dB on tone-mapped images (anchors.md §1), capped at 100 dB.
+
+    Args:
+        output, reference: (H, W, C) or (H, W, T, C), same shape; transient: the sum over T.
+        ev: exposure of the tone map in stops.
+    """
+    o, r = check_pair(output, reference)
+    ev = check_ev(ev)
+    if not _finite(o):
+        return float("nan")
+    return psnr_ldr(tonemap(_integrate(o), ev), tonemap(_integrate(r), ev))
+
+
+def ssim(output: Any, reference: Any, ev: float = 0.0) -> float:
+    """SSIM on tone-mapped images (anchors.md §1); see :func:`ssim_ldr` for the small-image rule.
+
+    Args:
+        output, reference: (H, W, C) or (H, W, T, C), same shape; transient: the sum over T.
+        ev: exposure of the tone map in stops.
+    """
+    o, r = check_pair(output, reference)
+    ev = check_ev(ev)
+    if not _finite(o):
+        return float("nan")
+    return ssim_ldr(tonemap(_integrate(o), ev), tonemap(_integrate(r), ev))
+
+
+def flip(output: Any, reference: Any, ev: float = 0.0) -> float:
+    """LDR-FLIP on tone-mapped sRGB images (anchors.md §1, §5).
+
+    Args:
+        output, reference: (H, W, C) or (H, W, T, C) with C = 1 or 3, same shape; transient:
+            the sum over T.
+        ev: exposure of the tone map in stops.
+    """
+    o, r = check_pair(output, reference)
+    ev = check_ev(ev)
+    _check_flip_channels(r)
+    if not _finite(o):
+        return float("nan")
+    return flip_ldr(tonemap(_integrate(o), ev), tonemap(_integrate(r), ev))
+
+
+def _check_flip_channels(r: np.ndarray) -> None:
+    if r.shape[-1] not in (1, 3):
+        layout = "(H, W, C)" if r.ndim == 3 else "(H, W, T, C)"
+        raise DbenchInputError(f"output, reference: FLIP needs C = 1 or 3 channels; expected "
+                               f"shape {layout} with C in (1, 3), got {tuple(r.shape)}")
