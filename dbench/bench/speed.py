@@ -3,7 +3,8 @@
 * ``bench_render``: statistics collection (1-spp samples + float64 power sums) against one plain
   render of the same spp, and the sample passes without statistics.
 * ``bench_method``: a method on a synthetic frame of a given size, against OIDN in the same run;
-  a method package with a ``bench.benchmark()`` adds its fast-path-versus-reference figures.
+  a module of :mod:`dbench.bench.methods` named after the method adds its
+  fast-path-versus-reference figures (``benchmark()``).
 * ``bench_metrics``: the judge (whole-image and surface metrics, top1_share, unbiased figures,
   and with one seed the block bootstrap) against the plain metrics it replaces
   (``metrics.compute_all`` of rmse, relmse, smape, psnr, ssim, flip) on the same image.
@@ -78,7 +79,7 @@ def bench_method(name: str, height: int = 720, width: int = 1280, repeats: int =
                               "machine": machine_info()["cpu"],
                               "when": time.strftime("%Y-%m-%d %H:%M:%S")}
     try:
-        extra = importlib.import_module(f"dbench.methods.{name}.bench")
+        extra = importlib.import_module(f"dbench.bench.methods.{name}")
     except ModuleNotFoundError:
         extra = None
     if extra is not None and hasattr(extra, "benchmark"):

@@ -8,7 +8,7 @@ float64. Measured max relative difference of the JBF to the float64 reference �
 assert 1e-5). Loop order: parallel over row bands, then rows, then window offsets, innermost the
 pixels of a row (vectorised); the weight of a pair is symmetric, so only half of the window is
 evaluated. 1280×720, r = 20 on 2 cores: ≈ 1-2 s (reference ≈ 40-60 s), see
-:mod:`dbench.bench.methods.jbf`."""
+the speed benchmark of the command line (``bench jbf``)."""
 from __future__ import annotations
 
 import math

@@ -5,9 +5,9 @@ from __future__ import annotations
 
 
 def benchmark(height: int = 720, width: int = 1280, repeats: int = 3) -> dict:
-    from ...bench.speed import median_time
-    from ...bench.stress import base_frame
-    from . import autoencoder_denoise, model_info, reference_denoise
+    from ..speed import median_time
+    from ..stress import base_frame
+    from ...methods.autoencoder import autoencoder_denoise, model_info, reference_denoise
 
     f = base_frame(height, width)
 

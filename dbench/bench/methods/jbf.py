@@ -1,6 +1,6 @@
 """Speed of the JBF fast path against the reference (prints; not a test).
 
-    python -m dbench.methods.jbf.bench            # 1280×720, radius 20
+    python -m dbench.bench.methods.jbf            # 1280×720, radius 20
 
 Times are medians of ``repeats`` runs after one warm-up call (which also compiles Numba).
 The reference is timed on a crop when the full frame would take too long and scaled per pixel
@@ -13,12 +13,11 @@ from typing import Any
 
 import numpy as np
 
-from ...bench.speed import median_time
-
-from ..kernels.bilateral.guide import make_guide
-from .fast import jbf_fast
-from .illumination import illumination_fast, make_illumination_setup
-from .reference import jbf_reference
+from ...methods.jbf.fast import jbf_fast
+from ...methods.jbf.illumination import illumination_fast, make_illumination_setup
+from ...methods.jbf.reference import jbf_reference
+from ...methods.kernels.bilateral.guide import make_guide
+from ..speed import median_time
 
 
 def synthetic_frame(height: int, width: int, seed: int = 0) -> dict[str, np.ndarray]:

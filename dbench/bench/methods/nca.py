@@ -5,9 +5,9 @@ from __future__ import annotations
 
 
 def benchmark(height: int = 720, width: int = 1280, repeats: int = 3) -> dict:
-    from ...bench.speed import median_time
-    from ...bench.stress import base_frame
-    from . import default_iterations, nca_denoise, reference_denoise
+    from ..speed import median_time
+    from ..stress import base_frame
+    from ...methods.nca import default_iterations, nca_denoise, reference_denoise
 
     f = base_frame(height, width)
     k = default_iterations()

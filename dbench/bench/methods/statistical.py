@@ -1,8 +1,8 @@
 """Speed of the statistical denoiser's fast path against its reference (prints; not a test).
 
-    python -m dbench.methods.statistical.bench           # 1280×720, radius 20
-    python -m dbench.methods.statistical.bench --torch   # also the PyTorch path (CPU or CUDA)
-    python -m dbench.methods.statistical.bench --transient   # 256×256×100 video, r_s 5, r_t 1,
+    python -m dbench.bench.methods.statistical           # 1280×720, radius 20
+    python -m dbench.bench.methods.statistical --torch   # also the PyTorch path (CPU or CUDA)
+    python -m dbench.bench.methods.statistical --transient   # 256×256×100 video, r_s 5, r_t 1,
                                                              # and time vs non-empty bins
 
 Times are medians of ``repeats`` runs after one warm-up call (which also compiles Numba). The
@@ -20,11 +20,12 @@ from typing import Any, Callable
 
 import numpy as np
 
-from ...bench.speed import median_time
 from ...data import SampleStats
-from ..jbf.bench import synthetic_frame
-from ..kernels.bilateral.guide import make_guide
-from .core import resolve_threshold, stat_planes, statistical_fast, statistical_reference
+from ...methods.kernels.bilateral.guide import make_guide
+from ...methods.statistical.core import (resolve_threshold, stat_planes, statistical_fast,
+                                         statistical_reference)
+from ..speed import median_time
+from .jbf import synthetic_frame
 
 
 def synthetic_stats(height: int, width: int, spp: int = 64, seed: int = 1,
@@ -99,8 +100,8 @@ def benchmark_transient(height: int = 256, width: int = 256, bins: int = 100, ra
     """
     import numba
 
-    from ..jbf.bench import synthetic_frame
-    from .transient import statistical_filter_video
+    from .jbf import synthetic_frame
+    from ...methods.statistical.transient import statistical_filter_video
 
     if threads is not None:
         numba.set_num_threads(int(threads))
@@ -274,7 +275,7 @@ def radius_t_study(scene: str = "cornell-transient", res: int = 64, spp: int = 2
     window (so the bin width changes): the seed's study of r_t against bin width (spec §11.3,
     [S000 Fig. 5.4-5.5]; its 8 / 83 / 833 ps ≈ 3080 / 308 / 31 bins of cornell-transient)."""
     from ... import datasets
-    from .transient import statistical_filter_video
+    from ...methods.statistical.transient import statistical_filter_video
 
     rows = []
     for bins in bins_list:
