@@ -12,7 +12,7 @@ RGB (spec: "losses are computed on the log1p-encoded, remodulated RGB").
 * ``temporal_loss`` L_t = mean |(T_i - T_{i-1}) - (P_i - P_{i-1})| over a sequence (N, F, 3, H, W).
 * ``FRAME_WEIGHTS``: the RAE's per-frame weights inside a 7-frame sequence.
 * ``clamped_linear_mse``: an optional [dbench] term on linear radiance clamped at 64, for the
-  configurations that add one (``linear_weight`` in :mod:`dbench.learn.train`).
+  configurations that add one (``linear_weight`` in :mod:`dbench.learn.configs`).
 * ``relative_linear_mse``: an optional [dbench] term, the output's linear MSE relative to the
   noisy input's, per crop (``relative_weight``).
 

@@ -1,0 +1,181 @@
+"""Training the ``autoencoder`` denoiser (spec/autoencoder.md §3-4): stage 1 on single frames
+(:func:`train_autoencoder`), stage 2 on 7-frame crops of camera-animated sequences with the
+hidden state carried (:func:`finetune_autoencoder_sequences`), and their validations."""
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import numpy as np
+import torch
+
+from . import losses as L
+from .configs import AEConfig, AESequenceConfig, TrainResult
+from .dataset import TrainingSet, sample_batch
+from .loop import add_linear_terms, loss_curve, lr_at, run_loop, seed_everything, to_tensor
+
+
+def ae_inputs(batch: dict[str, np.ndarray], features) -> tuple[torch.Tensor, torch.Tensor]:
+    """Network input (B, C, h, w) and a_eff (B, 3, h, w), as ``autoencoder.model.encode``."""
+    from ..methods.autoencoder.model import ALBEDO_EPS
+
+    albedo = to_tensor(batch["albedo"])
+    a_eff = torch.where(albedo > ALBEDO_EPS, albedo, torch.ones_like(albedo))
+    chans = [torch.log1p(to_tensor(batch["noisy"]) / a_eff)]
+    for f in features:
+        chans.append(to_tensor(batch[f]))
+    return torch.cat(chans, 1), a_eff
+
+
+def ae_prediction(y: torch.Tensor, a_eff: torch.Tensor) -> torch.Tensor:
+    """log1p of the remodulated output (what the loss compares with log1p(reference))."""
+    return torch.log1p(torch.expm1(y.clamp(max=20.0)) * a_eff)
+
+
+def train_autoencoder(ts: TrainingSet, cfg: AEConfig | None = None, progress: bool = False,
+                      validation: TrainingSet | None = None) -> TrainResult:
+    """Train the recurrent autoencoder on single-frame crops of ``ts`` (state reset)."""
+    from ..methods.autoencoder.model import RecurrentAE, in_channels_for
+
+    cfg = cfg or AEConfig()
+    rng = seed_everything(cfg.seed, cfg.threads)
+    model = RecurrentAE(in_channels_for(cfg.features), cfg.width_scale, cfg.recurrent,
+                        cfg.residual and not cfg.blend, cfg.blend)
+    if cfg.residual and not cfg.blend:  # start as the identity
+        with torch.no_grad():
+            model.out.weight.zero_()
+            model.out.bias.zero_()
+    if cfg.zero_recurrent_init:
+        with torch.no_grad():
+            for lvl, conv in enumerate(model.rec_b):
+                conv.weight[:, model.enc_widths[lvl]:] = 0.0
+    opt = torch.optim.Adam(model.parameters(), lr=cfg.lr, betas=cfg.betas)
+
+    def step_fn(step: int):
+        for g in opt.param_groups:
+            g["lr"] = lr_at(step, cfg)
+        batch = sample_batch(ts, rng, cfg.batch, cfg.crop, cfg.spp_choices,
+                             cfg.light_fraction)
+        x, a_eff = ae_inputs(batch, cfg.features)
+        y, _ = model(x)
+        pred = ae_prediction(y, a_eff)[:, None]
+        target = torch.log1p(to_tensor(batch["reference"]))[:, None]
+        loss, part = L.autoencoder_loss(pred, target, cfg.loss_weights)
+        loss = add_linear_terms(loss, part, pred[:, 0], target[:, 0], batch["noisy"], cfg)
+        opt.zero_grad(set_to_none=True)
+        loss.backward()
+        opt.step()
+        return loss.item(), part
+
+    losses, parts, seconds, done = run_loop("autoencoder", cfg, step_fn, 25, progress)
+    result = TrainResult("autoencoder", model, cfg, losses, parts, seconds, done,
+                         data={"hash": ts.hash, "scenes": ts.scenes, **ts.config})
+    if validation is not None:
+        result.validation = validate_autoencoder(model, validation, cfg.features)
+    return result
+
+
+def finetune_autoencoder_sequences(model, ss, cfg: AESequenceConfig, features,
+                                   steady: TrainingSet | None = None,
+                                   steady_cfg: AEConfig | None = None,
+                                   progress: bool = False) -> dict[str, Any]:
+    """Train ``model`` (in place) on crops of the :class:`~dbench.learn.dataset.SequenceSet`
+    ``ss``: the hidden state is carried through ``cfg.frames`` frames and the loss is
+    :func:`losses.autoencoder_loss` over the sequence (per-frame weights, L_t). Every
+    ``steady_every``-th step uses a single-frame batch of ``steady`` instead (state reset,
+    L_t = 0). ``steady_cfg``'s linear terms (:func:`add_linear_terms`) are added on every
+    frame, as in stage 1. Returns a summary for the shipped JSON: steps, wall time, loss curve and parts."""
+    from .dataset import sample_sequence_batch
+
+    rng = seed_everything(cfg.seed, cfg.threads)
+    steady_cfg = steady_cfg or AEConfig()
+    opt = torch.optim.Adam(model.parameters(), lr=cfg.lr, betas=cfg.betas)
+
+    def step_fn(step: int):
+        for g in opt.param_groups:
+            g["lr"] = lr_at(step, cfg)
+        use_steady = (steady is not None and cfg.steady_every > 0
+                      and (step + 1) % cfg.steady_every == 0)
+        if use_steady:
+            one = sample_batch(steady, rng, cfg.steady_batch, cfg.steady_crop,
+                               steady_cfg.spp_choices, steady_cfg.light_fraction)
+            batch = {k: v[:, None] for k, v in one.items() if k != "spp"}
+        else:
+            batch = sample_sequence_batch(ss, rng, cfg.batch, cfg.crop, cfg.frames)
+        hidden, preds, targets = None, [], []
+        for f in range(batch["noisy"].shape[1]):
+            frame = {k: v[:, f] for k, v in batch.items()}
+            x, a_eff = ae_inputs(frame, features)
+            y, hidden = model(x, hidden)
+            preds.append(ae_prediction(y, a_eff))
+            targets.append(torch.log1p(to_tensor(frame["reference"])))
+        pred, target = torch.stack(preds, 1), torch.stack(targets, 1)
+        loss, part = L.autoencoder_loss(pred, target, cfg.loss_weights)
+        # the stage-1 objective's extra terms, on every frame
+        noisy = batch["noisy"].reshape(-1, *batch["noisy"].shape[2:])
+        loss = add_linear_terms(loss, part, pred.flatten(0, 1), target.flatten(0, 1), noisy,
+                                 steady_cfg)
+        part = {f"{'steady' if use_steady else 'seq'}_{k}": v for k, v in part.items()}
+        opt.zero_grad(set_to_none=True)
+        loss.backward()
+        opt.step()
+        return loss.item(), part
+
+    losses, parts, seconds, done = run_loop("autoencoder (sequences)", cfg, step_fn, 25, progress)
+    seq_losses = [l for l, p in zip(losses, parts) if "seq_l1" in p]
+    tail = max(1, min(100, len(seq_losses)))
+    keys = sorted({k for p in parts for k in p})
+    mean_parts = {k: float(np.mean([p[k] for p in parts[-200:] if k in p] or [np.nan]))
+                  for k in keys}
+    return {"config": dataclasses.asdict(cfg), "steps_done": done, "wall_s": round(seconds, 1),
+            "final_sequence_loss": float(np.mean(seq_losses[-tail:])) if seq_losses else None,
+            "final_parts": mean_parts, "loss_curve": loss_curve(losses),
+            "data": {"hash": ss.hash, "scenes": ss.scenes, **ss.config}}
+
+
+def validate_autoencoder_sequences(model, ss, features, frames: int = 7) -> dict[str, float]:
+    """Mean per-frame spec loss over every full held-out sequence and spp with the state
+    carried, and with the state reset every frame (what the recurrence adds)."""
+    from ..methods.autoencoder.model import MULTIPLE
+
+    s, p_count, f_count, h, w, _ = ss.noisy.shape
+    if h % MULTIPLE or w % MULTIPLE:
+        return {}
+    out = {}
+    with torch.no_grad():
+        for carried in (True, False):
+            vals = []
+            for p in range(p_count):
+                hidden = None
+                for f in range(min(frames, f_count)):
+                    batch = {"noisy": ss.noisy[:, p, f], "normal": ss.normal[:, p, f],
+                             "albedo": ss.albedo[:, p, f], "depth": ss.depth[:, p, f]}
+                    x, a_eff = ae_inputs(batch, features)
+                    y, hidden = model(x, hidden if carried else None)
+                    pred = ae_prediction(y, a_eff)[:, None]
+                    t = torch.log1p(to_tensor(ss.reference[:, f]))[:, None]
+                    vals.append(float(L.autoencoder_loss(pred, t)[0]))
+            out["loss_state_carried" if carried else "loss_state_reset"] = float(np.mean(vals))
+    out["scenes"] = ss.scenes
+    return out
+
+
+def validate_autoencoder(model, vs: TrainingSet, features) -> dict[str, float]:
+    from ..methods.autoencoder.model import MULTIPLE
+
+    s, h, w = vs.shape
+    if h % MULTIPLE or w % MULTIPLE:
+        return {}
+    with torch.no_grad():
+        vals, base = [], []
+        for p in range(len(vs.spp)):
+            batch = {"noisy": vs.noisy[:, p], "normal": vs.normal, "albedo": vs.albedo,
+                     "depth": vs.depth}
+            x, a_eff = ae_inputs(batch, features)
+            pred = ae_prediction(model(x)[0], a_eff)[:, None]
+            t = torch.log1p(to_tensor(vs.reference))[:, None]
+            vals.append(float(L.autoencoder_loss(pred, t)[0]))
+            base.append(float(L.autoencoder_loss(torch.log1p(to_tensor(vs.noisy[:, p]))[:, None],
+                                                 t)[0]))
+    return {"loss": float(np.mean(vals)), "noisy_input_loss": float(np.mean(base)),
+            "scenes": vs.scenes}
