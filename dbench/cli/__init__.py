@@ -1,0 +1,87 @@
+"""Command line: ``dbench run | sweep | stress | report | list | render | export | bench | train``.
+
+Exit codes: 0 success, 2 unknown names or bad arguments (the valid names are listed) or a
+plugin asked for that failed to load (named, with the reason),
+3 renderer unavailable.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+from typing import Sequence
+
+from ..errors import DbenchInputError, RendererUnavailableError, UnknownNameError
+from .args import parse_params
+from .parser import PLUGIN_HELP, build_parser
+
+
+def split_plugin_args(argv: Sequence[str]) -> tuple[list[str], list[str]]:
+    """(argv without ``--plugin X`` / ``--plugin=X``, the plugin specs): the option is taken
+    wherever it stands, before or after the subcommand."""
+    rest, specs = [], []
+    i = 0
+    while i < len(argv):
+        a = argv[i]
+        if a == "--plugin":
+            if i + 1 >= len(argv):
+                raise DbenchInputError("--plugin: expected a module name or a .py file")
+            specs.append(argv[i + 1])
+            i += 2
+            continue
+        if a.startswith("--plugin="):
+            specs.append(a.split("=", 1)[1])
+        elif a == "--":
+            rest += argv[i:]
+            break
+        else:
+            rest.append(a)
+        i += 1
+    return rest, specs
+
+
+def _load_plugins(args: argparse.Namespace, specs: Sequence[str]) -> None:
+    """Entry points, $DBENCH_PLUGINS and --plugin, before the command runs. A --plugin or
+    $DBENCH_PLUGINS entry that fails is an error (exit 2) except for ``list``, which shows it."""
+    from .. import plugins
+
+    plugins.load_all(specs, strict=args.command != "list")
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    parser.add_argument("--debug", action="store_true", help="show tracebacks (for bug reports)")
+    parser.add_argument("--plugin", action="append", metavar="MODULE_OR_FILE.py",
+                        help=PLUGIN_HELP)
+    argv = list(sys.argv[1:] if argv is None else argv)
+    debug = "--debug" in argv
+    argv = [a for a in argv if a != "--debug"]
+    try:
+        argv, plugin_specs = split_plugin_args(argv)
+    except DbenchInputError as exc:
+        print(f"dbench: {exc}", file=sys.stderr)
+        return 2
+    args = parser.parse_args(argv)
+    try:
+        _load_plugins(args, plugin_specs)
+        return args.func(args)
+    except UnknownNameError as exc:
+        print(f"dbench: {exc}", file=sys.stderr)
+        return 2
+    except DbenchInputError as exc:
+        print(f"dbench: {exc}", file=sys.stderr)
+        return 2
+    except RendererUnavailableError as exc:
+        print(f"dbench: {exc}", file=sys.stderr)
+        return 3
+    except KeyboardInterrupt:
+        print("dbench: interrupted", file=sys.stderr)
+        return 130
+    except Exception as exc:  # noqa: BLE001 - one line, not a traceback (--debug shows it)
+        if debug:
+            raise
+        print(f"dbench: internal error: {type(exc).__name__}: {exc} (run again with --debug "
+              "for the traceback)", file=sys.stderr)
+        return 1
+
+
+__all__ = ["build_parser", "main", "parse_params", "split_plugin_args"]

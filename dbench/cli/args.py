@@ -1,0 +1,143 @@
+"""Shared argument handling of the commands: ``--param`` values, comma lists, the checks every
+rendering command makes, the cache, the scene and its default spp."""
+from __future__ import annotations
+
+import argparse
+import ast
+from typing import Any, Sequence
+
+from ..errors import DbenchInputError
+
+
+#: Columns ``--rank-by`` accepts.
+RANKABLE = ("relmse", "rmse", "rmse_surface", "relmse_surface", "smape", "smape_surface",
+            "psnr", "psnr_surface", "ssim", "ssim_surface", "flip", "flip_surface",
+            "rmse_unbiased", "relmse_unbiased")
+
+
+def _parse_value(text: str) -> Any:
+    try:
+        return ast.literal_eval(text)
+    except (ValueError, SyntaxError):
+        return text
+
+
+def parse_params(items: Sequence[str], method_names: Sequence[str]) -> dict[str, dict[str, Any]]:
+    """``key=value`` (every method that has ``key``) or ``method.key=value`` (one method)."""
+    from .. import methods
+
+    out: dict[str, dict[str, Any]] = {m: {} for m in method_names}
+    for item in items:
+        if "=" not in item:
+            raise DbenchInputError(f"--param: expected key=value or method.key=value, got {item!r}")
+        key, value = item.split("=", 1)
+        target, _, name = key.rpartition(".")
+        value = _parse_value(value)
+        if target:
+            if target not in out:
+                raise DbenchInputError(f"--param {item}: method {target!r} is not in this run "
+                                       f"({', '.join(method_names)})")
+            if name not in methods.method_class(target).defaults:
+                raise DbenchInputError(f"--param {item}: {target} has no parameter {name!r}; "
+                                       f"valid: {sorted(methods.method_class(target).defaults)}")
+            out[target][name] = value
+        else:
+            takers = [m for m in method_names if name in methods.method_class(m).defaults]
+            if not takers:
+                raise DbenchInputError(f"--param {item}: no method of this run has a parameter "
+                                       f"{name!r}")
+            for m in takers:
+                out[m][name] = value
+    return out
+
+
+def _split(text: str) -> list[str]:
+    return [t.strip() for t in text.split(",") if t.strip()]
+
+
+def _summarise_parts(parts: Sequence[str]) -> str:
+    """``frame0, frame1, reference0`` → ``frame ×2, reference ×1`` (sequence renders are cached
+    per frame); names without a frame number are listed as they are."""
+    import re
+    from collections import Counter
+
+    counts = Counter(re.sub(r"\d+$", "", p) if re.search(r"\d+$", p) else p for p in parts)
+    numbered = {re.sub(r"\d+$", "", p) for p in parts if re.search(r"\d+$", p)}
+    return ", ".join(f"{k} ×{v}" if k in numbered else k for k, v in counts.items())
+
+
+MAX_PARAM_CHARS = 1000
+
+
+def _ints(text: str, name: str) -> list[int]:
+    """``"4,16"`` → [4, 16]; a DbenchInputError naming ``name`` for anything else."""
+    out = []
+    for t in _split(text):
+        try:
+            out.append(int(t))
+        except ValueError:
+            raise DbenchInputError(f"{name}: expected a comma list of integers >= 1, got "
+                                   f"{t!r} in {text!r}") from None
+    return out
+
+
+def _check_common(args: argparse.Namespace) -> None:
+    """Checks shared by ``run`` and ``sweep``, done before anything renders."""
+    from ..data import check_count
+    from ..resolution import parse_res
+
+    for item in args.param or []:
+        if len(item) > MAX_PARAM_CHARS:
+            raise DbenchInputError(f"--param: {len(item)} characters; at most {MAX_PARAM_CHARS}")
+    args.res = parse_res(args.res, "--res")
+    for name in ("repeats", "seeds"):
+        check_count(f"--{name}", getattr(args, name))
+    if args.ref_spp is not None:
+        check_count("--ref-spp", args.ref_spp)
+    if args.rank_by not in RANKABLE:
+        raise DbenchInputError(f"--rank-by: {args.rank_by!r}; valid: {', '.join(RANKABLE)}")
+    from ..data import check_transform
+
+    try:
+        check_transform(args.transform or "box-cox", args.lam)
+    except DbenchInputError as exc:
+        raise DbenchInputError(f"--transform/--lam: {exc}") from None
+
+
+def _sequence_window(n_frames: int) -> str:
+    from ..bench.sequence import WARMUP
+
+    if n_frames > WARMUP:
+        return f"1 per frame; metrics and time over frames {WARMUP}-{n_frames - 1} of {n_frames}"
+    return (f"1 per frame; metrics and time over all {n_frames} frame(s) (no more frames than "
+            f"the {WARMUP}-frame warm-up)")
+
+
+def _writable_cache(args: argparse.Namespace):
+    """The run's cache, checked for writing before anything renders."""
+    from .. import datasets
+    from ..io import ensure_writable_dir
+
+    cache = datasets.Cache(args.cache, enabled=not args.no_cache)
+    if cache.enabled:
+        ensure_writable_dir(cache.root, "--cache")
+    return cache
+
+
+def _scene_of(args: argparse.Namespace):
+    """The Scene of ``--scene`` (catalogue name, scene file or folder) with ``--scene-param``."""
+    from ..datasets import scene_files, scenes
+
+    return scenes.get(args.scene, scene_files.parse_scene_params(args.scene_param))
+
+
+def _default_spp(scene, fallback: int = 16) -> int:
+    """``--spp`` when not given: ``fallback`` for rendered scenes; a folder's only spp (a
+    folder with several makes the user choose)."""
+    if scene.renders:
+        return fallback
+    spps = list(scene.info.spps)
+    if len(spps) == 1:
+        return spps[0]
+    raise DbenchInputError(f"--spp: {scene.info.path} holds spp {', '.join(map(str, spps))}; "
+                           f"choose one")

@@ -1,0 +1,246 @@
+"""The other commands: ``list``, ``render``, ``export``, ``bench``, ``sweep``, ``stress``,
+``report`` and ``train`` (``run`` has its own module)."""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from ..errors import DbenchInputError
+from .args import (RANKABLE, _check_common, _ints, _scene_of, _split, _writable_cache,
+                   parse_params)
+
+
+def cmd_list(args: argparse.Namespace) -> int:
+    from .. import methods
+    from ..datasets import scenes
+
+    from .. import plugins
+
+    if args.methods_only:
+        print("\n".join(methods.available()))
+        return 0
+    origin = {}
+    for p in plugins.all_plugins():
+        for name in p.provides:
+            origin[name] = p.origin
+    print("Scenes:")
+    for name in scenes.available():
+        sc = scenes.get(name)
+        print(f"  {name:<12} {sc.kind:<10} {sc.description}"
+              + (f"  [plugin: {origin[name]}]" if name in origin else ""))
+    print("  (or --scene PATH: a Mitsuba scene file .xml, a Python scene file .py, or a "
+          "folder of EXR renders in OIDN's layout)")
+    print("\nMethods:")
+    for name in methods.available():
+        cls = methods.method_class(name)
+        kinds = ",".join(sorted(cls.kinds)) + (
+            "(+sequence per frame)" if "steady" in cls.kinds and "sequence" not in cls.kinds
+            else "")
+        print(f"  {name:<12} kinds={kinds:<26} "
+              f"needs={','.join(sorted(cls.needs))}"
+              + (f" (optional: {','.join(sorted(cls.optional_needs))})"
+                 if cls.optional_needs else "")
+              + (f"  [plugin: {origin[name]}]" if name in origin else ""))
+    bad = plugins.broken()
+    if bad:
+        print("\nBroken plugins (not loaded):")
+        for p in bad:
+            print(f"  {p.name:<12} BROKEN  {p.origin}, {p.target}: {p.error}")
+    return 0
+
+
+def cmd_render(args: argparse.Namespace) -> int:
+    """Render (or find cached) every buffer of the given scenes, e.g. to warm the cache."""
+    from .. import datasets
+    from ..datasets import scene_files, scenes
+    from ..resolution import parse_res
+
+    params = scene_files.parse_scene_params(args.scene_param)
+    names = _split(args.scene) if args.scene != "all" else datasets.available_scenes()
+    chosen = [scenes.get(n, params) for n in names]
+    sizes = [parse_res(args.res, "--res") if args.res is not None else datasets.default_res(sc)
+             for sc in chosen]
+    cache = datasets.Cache(args.cache, enabled=not args.no_cache)
+    for name, sc, res in zip(names, chosen, sizes):
+        frame = datasets.load(sc, spp=args.spp, res=res, seed=args.seed,
+                              ref_spp=args.ref_spp, cache=cache)
+        print(f"{name}: rendered {frame.meta['rendered'] or 'nothing'}, "
+              f"cached {frame.meta['cache_hits'] or 'nothing'}")
+    return 0
+
+
+def cmd_export(args: argparse.Namespace) -> int:
+    """Write a scene's renders (noisy at each spp, features, emitter, statistics, reference)
+    in the OIDN folder layout that ``--scene DIR`` reads (dbench.datasets.export)."""
+    import re
+
+    from .. import datasets
+    from ..data import check_count
+    from ..datasets.export import export_frame, write_dataset_json
+    from ..io import ensure_writable_dir
+    from ..resolution import parse_res
+
+    scene = _scene_of(args)
+    if not scene.renders:
+        raise DbenchInputError(f"--scene {args.scene}: already a folder of renders")
+    if scene.kind == "transient":
+        raise DbenchInputError(f"--scene {args.scene}: transient videos have no place in the "
+                               f"folder layout; export steady or sequence scenes")
+    spps = _ints(args.spp, "--spp")
+    for spp in spps:
+        check_count("--spp", spp)
+    res = parse_res(args.res, "--res") if args.res is not None else datasets.default_res(scene)
+    name = args.name or re.sub(r"[^A-Za-z0-9.-]+", "-", scene.name).strip("-") or "scene"
+    out = Path(args.out)
+    cache = _writable_cache(args)
+    ensure_writable_dir(out, "--out")
+    needs = set(scene.provides) - {"gradient", "emission"}
+    written: list[Path] = []
+    ref_spp = None
+    for i, spp in enumerate(spps):
+        data = datasets.load(scene, spp=spp, res=res, needs=needs, seed=args.seed,
+                             ref_spp=args.ref_spp, cache=cache, progress=not args.quiet,
+                             frames=args.frames)
+        frames = list(data) if data.kind == "sequence" else [data]
+        ref_spp = data.meta.get("ref_spp", ref_spp)
+        for k, frame in enumerate(frames):
+            written += export_frame(frame, out, name, spp,
+                                    frame_index=k if data.kind == "sequence" else None,
+                                    write_reference=(i == 0))
+    written.append(write_dataset_json(out, ref_spp=ref_spp, ev=scene.ev,
+                                      description=scene.description, scene=scene.name))
+    print(f"exported {scene.name} at {res.text} px, spp {', '.join(map(str, spps))}, "
+          f"reference {ref_spp} spp: {len(written)} files in {out}")
+    return 0
+
+
+def cmd_bench(args: argparse.Namespace) -> int:
+    from ..bench import speed
+    from ..resolution import parse_res
+
+    # --res sets the render benchmark's size (default 256) and, when given, the image size of
+    # the method and metric benchmarks (instead of --width/--height)
+    if args.res is not None:
+        args.res = parse_res(args.res, "--res")
+        args.width, args.height = args.res
+    if args.what == "render":
+        result = speed.bench_render(scene=args.scene, res=args.res or parse_res(256),
+                                    spp=args.spp,
+                                    repeats=args.repeats)
+    elif args.what in ("scene-file", "plugins"):
+        from ..bench import speed_files
+        result = (speed_files.bench_plugin_discovery(repeats=max(args.repeats, 3))
+                  if args.what == "plugins" else
+                  speed_files.bench_scene_file(res=args.res or parse_res(256), spp=args.spp,
+                                               repeats=args.repeats))
+        print(speed_files.format_result(result))
+        if args.out:
+            speed.append_result(args.out, result)
+        return 0
+    elif args.what == "metrics":
+        result = speed.bench_metrics(height=args.height, width=args.width,
+                                     repeats=args.repeats)
+    else:
+        result = speed.bench_method(args.what, height=args.height, width=args.width,
+                                    repeats=args.repeats)
+    print(speed.format_result(result))
+    if args.out:
+        speed.append_result(args.out, result)
+    return 0
+
+
+def cmd_sweep(args: argparse.Namespace) -> int:
+    from ..bench import sweep
+
+    from ..datasets import scene_files
+
+    scene_params = scene_files.parse_scene_params(args.scene_param)
+    methods_, scenes_ = sweep.resolve_names(args.methods, args.scenes, scene_params)
+    res_given = args.res
+    args.res = args.res or "128"  # checked here; the sweep's own default is per scene
+    _check_common(args)
+    params = parse_params(args.param or [], methods_)
+    config = sweep.SweepConfig(methods=methods_, scenes=scenes_,
+                               spp=_ints(args.spp, "--spp"),
+                               res=args.res.key if res_given is not None else None,
+                               scene_params=scene_params,
+                               ref_spp=args.ref_spp, seed=args.seed, seeds=args.seeds,
+                               repeats=args.repeats, rerun=args.rerun,
+                               transform=args.transform, lam=args.lam, frames=args.frames,
+                               bins=args.bins,
+                               params={k: v for k, v in params.items() if v}, cache=args.cache)
+    _writable_cache(args)
+    counts = sweep.run_sweep(config, args.out, executor=args.executor, workers=args.workers,
+                             progress=not args.quiet)
+    print(f"sweep {args.out}: {counts['computed']} cells computed, "
+          f"{counts['skipped']} not applicable (skipped with the reason), "
+          f"{counts['finished_before']} already finished, {counts['errors']} errors")
+    return 0 if counts["errors"] == 0 else 1
+
+
+def cmd_stress(args: argparse.Namespace) -> int:
+    from ..bench import stress
+    from ..io import write_text
+
+    from .. import methods
+    from ..io import ensure_writable_dir
+
+    names = _split(args.methods) if args.methods != "all" else None
+    for n in names or []:
+        methods.method_class(n)
+    out = Path(args.out)
+    if out.is_dir() or args.out.endswith("/"):
+        out = out / "stress.md"  # a folder: the matrix goes into it
+    ensure_writable_dir(out.parent, "--out")
+    results = stress.run_all(names, progress=not args.quiet)
+    text = stress.stress_markdown(results)
+    write_text(out, text)
+    print("\n".join(text.splitlines()[:3 + len(results) + 4]))
+    print(f"written: {out}")
+    failed = sum(o.status == "fail" for r in results.values() for o in r.values())
+    return 0 if failed == 0 else 1
+
+
+def cmd_report(args: argparse.Namespace) -> int:
+    from ..bench import publish
+
+    if args.rank_by not in RANKABLE:
+        raise DbenchInputError(f"--rank-by: {args.rank_by!r}; valid: {', '.join(RANKABLE)}")
+    results = Path(args.results)
+    if not results.is_dir():
+        raise DbenchInputError(f"--results {results}: no such folder")
+    sweep_dir = Path(args.sweep) if args.sweep else results / "sweep"
+    if not (sweep_dir / "sweep.json").is_file():
+        raise DbenchInputError(f"--sweep {sweep_dir}: not a sweep folder (no sweep.json)")
+    try:
+        sweep_dir.resolve().relative_to(results.resolve())
+    except ValueError:
+        raise DbenchInputError(f"--sweep {sweep_dir}: must lie inside --results {results} "
+                               "(the report links to it)") from None
+    out = publish.publish(results, sweep_dir, rank_by=args.rank_by)
+    print(f"written: {out}")
+    return 0
+
+
+def cmd_train(args: argparse.Namespace) -> int:
+    """Render (or read cached) procedural training scenes, train, write the ONNX + JSON."""
+    from .. import datasets
+    from ..learn.train import run_training
+
+    overrides = {"seed": args.seed}
+    if args.steps is not None:
+        overrides["steps"] = args.steps
+    if args.minutes is not None:
+        overrides["max_minutes"] = args.minutes
+    if args.width_scale is not None:
+        if args.method != "autoencoder":
+            raise DbenchInputError("--width-scale: only the autoencoder has widths")
+        overrides["width_scale"] = args.width_scale
+    if args.sequences and args.method != "autoencoder":
+        raise DbenchInputError("--sequences: only the autoencoder is recurrent")
+    if args.sequences is None:
+        args.sequences = 16 if args.method == "autoencoder" else 0
+    run_training(args.method, n_scenes=args.scenes, res=args.res,
+                 ref_spp=args.ref_spp or 1024, out_dir=args.out, sequences=args.sequences,
+                 cache=datasets.Cache(args.cache, enabled=not args.no_cache), **overrides)
+    return 0

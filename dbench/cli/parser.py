@@ -1,0 +1,164 @@
+"""The argument parser of every command (``--help`` texts included)."""
+from __future__ import annotations
+
+import argparse
+
+from .commands import (cmd_bench, cmd_export, cmd_list, cmd_render, cmd_report, cmd_stress,
+                       cmd_sweep, cmd_train)
+from .run import cmd_run
+
+#: The first line of ``dbench --help`` (the first line of the package's docstring).
+DESCRIPTION = ("Command line: ``dbench run | sweep | stress | report | list | render | export | "
+               "bench | train``.")
+PLUGIN_HELP = ("import a module or .py file that registers methods or scenes (repeatable; "
+               "also $DBENCH_PLUGINS, os.pathsep-separated; installed entry points are found "
+               "without it)")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="dbench", description=DESCRIPTION)
+    sub = p.add_subparsers(dest="command", required=True)
+
+    def common(sp: argparse.ArgumentParser) -> None:
+        sp.add_argument("--cache", default=None, help="cache folder (default $DBENCH_CACHE or "
+                        "~/.cache/dbench)")
+        sp.add_argument("--no-cache", action="store_true", help="render everything afresh")
+        sp.add_argument("--seed", type=int, default=0)
+        sp.add_argument("--ref-spp", type=int, default=None,
+                        help="reference spp (default $DBENCH_REF_SPP or 4096)")
+        sp.add_argument("--scene-param", action="append", metavar="NAME=VALUE",
+                        help="a $parameter of a Mitsuba scene file (repeatable)")
+
+    def judged(sp: argparse.ArgumentParser) -> None:
+        sp.add_argument("--seeds", type=int, default=1, help="independent noisy renders "
+                        "(seeds --seed ... --seed+N-1) scored against one reference; metrics "
+                        "are their mean with a 95 %% Student-t interval (one seed: a block "
+                        "bootstrap interval)")
+        sp.add_argument("--rank-by", default="relmse", help="metric that ranks the methods "
+                        "(default relmse, the convention for HDR renders)")
+
+    r = sub.add_parser("run", help="run methods on one scene and write a report")
+    r.add_argument("--method", required=True, help="NAME[,NAME...] or all (those that do not "
+                   "apply to the scene are skipped with the reason)")
+    r.add_argument("--scene", required=True)
+    r.add_argument("--spp", type=int, default=None, help="samples per pixel (default 16; a "
+                   "folder of renders: its only spp)")
+    r.add_argument("--res", default=None, help="image size: N (N×N) or WIDTHxHEIGHT, e.g. "
+                   "1280x720 (default 128×128; a scene file: its film's aspect ratio with the "
+                   "longer side 128; a folder: its images' size)")
+    r.add_argument("--out", default=None, help="output folder (default results/runs/<new>)")
+    r.add_argument("--param", action="append", metavar="[METHOD.]KEY=VALUE")
+    r.add_argument("--repeats", type=int, default=5, help="timed calls after one warm-up")
+    r.add_argument("--transform", default=None, help="sample transform of the statistics "
+                   "(default: box-cox for steady scenes, identity for transient ones)")
+    r.add_argument("--lam", type=float, default=0.5)
+    r.add_argument("--frames", type=int, default=None, help="sequence scenes: frames from the "
+                   "start (default all)")
+    r.add_argument("--bins", type=int, default=None, help="transient scenes: time bins "
+                   "(default the scene's)")
+    r.add_argument("--quiet", action="store_true")
+    common(r)
+    judged(r)
+    r.set_defaults(func=cmd_run)
+
+    lp = sub.add_parser("list", help="list scenes and methods")
+    lp.add_argument("--methods-only", action="store_true", help="method names, one a line")
+    lp.set_defaults(func=cmd_list)
+
+    rp = sub.add_parser("render", help="render or find cached buffers of scenes")
+    rp.add_argument("--scene", default="all")
+    rp.add_argument("--spp", type=int, default=16)
+    rp.add_argument("--res", default=None, help="image size: N (N×N) or WIDTHxHEIGHT "
+                    "(default: as for run)")
+    common(rp)
+    rp.set_defaults(func=cmd_render)
+
+    sw = sub.add_parser("sweep", help="the benchmark grid, resumable")
+    sw.add_argument("--methods", default="all", help="all or NAME[,NAME...]")
+    sw.add_argument("--scenes", default="all", help="all or NAME[,NAME...]")
+    sw.add_argument("--spp", default="4,16,64,256,1024")
+    sw.add_argument("--res", default=None, help="image size: N (N×N) or WIDTHxHEIGHT "
+                    "(default: each scene's, as for run)")
+    sw.add_argument("--out", default="results/sweep")
+    sw.add_argument("--executor", choices=("local", "ray"), default="local")
+    sw.add_argument("--workers", type=int, default=1, help="local process-pool size")
+    sw.add_argument("--repeats", type=int, default=5)
+    sw.add_argument("--param", action="append", metavar="[METHOD.]KEY=VALUE")
+    sw.add_argument("--transform", default=None, help="sample transform of the statistics "
+                    "(default: box-cox for steady scenes, identity for transient ones)")
+    sw.add_argument("--lam", type=float, default=0.5)
+    sw.add_argument("--frames", type=int, default=None, help="sequence scenes: frames from the "
+                    "start (default all)")
+    sw.add_argument("--bins", type=int, default=None, help="transient scenes: time bins "
+                    "(default the scene's)")
+    sw.add_argument("--quiet", action="store_true")
+    sw.add_argument("--rerun", action="store_true", help="recompute finished cells whose "
+                    "identity (settings, parameters, code, reference) changed instead of "
+                    "refusing the sweep")
+    common(sw)
+    judged(sw)
+    sw.set_defaults(func=cmd_sweep)
+
+    st = sub.add_parser("stress", help="every method against adversarial inputs")
+    st.add_argument("--methods", default="all")
+    st.add_argument("--out", default="results/stress.md")
+    st.add_argument("--quiet", action="store_true")
+    st.set_defaults(func=cmd_stress)
+
+    rp2 = sub.add_parser("report", help="rebuild results/README.md from result files")
+    rp2.add_argument("--results", default="results")
+    rp2.add_argument("--sweep", default=None, help="sweep folder (default results/sweep)")
+    rp2.add_argument("--rank-by", default="relmse", help="metric that ranks the methods")
+    rp2.set_defaults(func=cmd_report)
+
+    ex = sub.add_parser("export", help="write a scene's renders (noisy, features, emitter, "
+                        "statistics, reference) as a folder of EXR files in OIDN's layout, "
+                        "readable by --scene DIR")
+    ex.add_argument("scene", help="catalogue name or scene file")
+    ex.add_argument("--out", required=True)
+    ex.add_argument("--spp", default="4,16,64", help="comma list of spp")
+    ex.add_argument("--res", default=None, help="image size: N or WIDTHxHEIGHT (default: as "
+                    "for run)")
+    ex.add_argument("--name", default=None, help="file name prefix (default: the scene's "
+                    "name)")
+    ex.add_argument("--frames", type=int, default=None, help="sequence scenes: frames from "
+                    "the start (default all)")
+    ex.add_argument("--quiet", action="store_true")
+    common(ex)
+    ex.set_defaults(func=cmd_export)
+
+    bp = sub.add_parser("bench", help="speed benchmarks with ratios measured in the same run")
+    bp.add_argument("what", help="'render' (statistics cost), 'metrics' (the judge against "
+                    "the plain metrics), 'scene-file' (an XML scene against the catalogue's), "
+                    "'plugins' (entry-point discovery time) or a method name")
+    bp.add_argument("--scene", default="cornell")
+    bp.add_argument("--res", default=None, help="image size: N (N×N) or WIDTHxHEIGHT, "
+                    "e.g. 1280x720 (render: default 256; methods, metrics: default --width "
+                    "× --height)")
+    bp.add_argument("--spp", type=int, default=64)
+    bp.add_argument("--height", type=int, default=720)
+    bp.add_argument("--width", type=int, default=1280)
+    bp.add_argument("--repeats", type=int, default=3)
+    bp.add_argument("--out", default=None, help="append the result to this JSON-lines file")
+    bp.set_defaults(func=cmd_bench)
+
+    tp = sub.add_parser("train", help="train nca or autoencoder on procedural training scenes "
+                        "rendered here; writes <name>.onnx and <name>.json")
+    tp.add_argument("method", choices=["nca", "autoencoder"])
+    tp.add_argument("--steps", type=int, default=None, help="optimiser steps (default: config)")
+    tp.add_argument("--minutes", type=float, default=None, help="stop after this wall time")
+    tp.add_argument("--scenes", type=int, default=48,
+                    help="training scenes (nca holds 4 out, autoencoder 2)")
+    tp.add_argument("--res", type=int, default=128)
+    tp.add_argument("--width-scale", type=float, default=None, help="autoencoder widths factor")
+    tp.add_argument("--sequences", type=int, default=None,
+                    help="autoencoder: training sequences for the recurrent stage (default 16; "
+                    "0: single frames only)")
+    tp.add_argument("--out", default=None, help="output folder (default: the method's package "
+                    "folder, replacing the shipped weights)")
+    common(tp)
+    tp.set_defaults(func=cmd_train)
+    for sp in sub.choices.values():  # taken out of argv by main() wherever it stands; shown here
+        sp.add_argument("--plugin", action="append", metavar="MODULE_OR_FILE.py",
+                        help=PLUGIN_HELP)
+    return p

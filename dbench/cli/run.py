@@ -1,0 +1,127 @@
+"""``dbench run``: every method on one scene, its table, report, comparison grid and outputs."""
+from __future__ import annotations
+
+import argparse
+import datetime as _dt
+import json
+from pathlib import Path
+
+from .args import (_check_common, _default_spp, _scene_of, _sequence_window, _split,
+                   _summarise_parts, _writable_cache, parse_params)
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    from .. import datasets, methods
+    from ..bench import harness, identity, report
+    from ..bench.formats import markdown_table, write_csv
+    from ..bench.machine import machine_info
+    from ..bench.sweep import cell_record, load_seeds
+    from ..datasets import scenes
+    from ..data import check_count
+    from ..io import ensure_writable_dir, write_exr, write_json, write_text
+
+    import pandas as pd
+
+    names = methods.available() if args.method == "all" else _split(args.method)
+    for n in names:
+        methods.method_class(n)  # raises UnknownNameError listing valid names
+    scene = _scene_of(args)
+    args.spp = _default_spp(scene) if args.spp is None else args.spp
+    check_count("--spp", args.spp)
+    if args.res is None:
+        args.res = datasets.default_res(scene)
+    _check_common(args)
+    if "noisy" not in names:
+        names = ["noisy"] + names
+    params = parse_params(args.param or [], names)
+    instances = {n: methods.get(n, **params[n]) for n in names}
+    labels = {n: identity.label(n, params[n]) for n in names}
+
+    skipped: dict[str, str] = {}
+    runnable = []
+    for n, m in instances.items():
+        ok, why = m.applies_to(scene.kind, set(scene.provides))
+        if ok:
+            runnable.append(n)
+        else:
+            skipped[n] = why
+            print(f"skipping {n}: {why}")
+    out = Path(args.out) if args.out else Path("results/runs") / (
+        f"{scene.name}_{args.spp}spp_{args.res}px_"
+        f"{_dt.datetime.now().strftime('%Y%m%d-%H%M%S')}")
+    cache = _writable_cache(args)
+    ensure_writable_dir(out, "--out")
+    needs = set().union(*(instances[n].wants(scene.provides) for n in runnable)) | {
+        "reference"} | ({"emitter"} & set(scene.provides))
+    frames = load_seeds(scene, args.seed, args.seeds, spp=args.spp, res=args.res, needs=needs,
+                        transform=args.transform, lam=args.lam, ref_spp=args.ref_spp,
+                        cache=cache, progress=not args.quiet, frames=args.frames,
+                        bins=args.bins)
+    frame = frames[0]
+    is_sequence = frame.kind == "sequence"
+
+    rows, per_seed, outputs = [], [], []
+    for n in runnable:
+        if not args.quiet:
+            print(f"running {labels[n]} ...", flush=True)
+        if is_sequence:
+            res = harness.run_sequence_cell(instances[n], frames)
+        else:
+            res = harness.run_cell(instances[n], frames, repeats=args.repeats)
+        if res.skipped:
+            skipped[n] = res.skipped
+            continue
+        record = cell_record(res, frames, set(instances[n].needs))
+        rows.append({"scene": scene.name, "method": labels[n], "base_method": n,
+                     "spp": args.spp, "res": args.res.key, **record,
+                     "params": json.dumps(res.params, sort_keys=True, default=str)})
+        per_seed += [{"scene": scene.name, "method": labels[n], "spp": args.spp, **r}
+                     for r in res.per_seed]
+        outputs.append((labels[n], res.sequence if is_sequence else res.output))
+        write_exr(out / "images" / f"{identity.file_stem(labels[n])}.exr", {"color": res.output})
+    last = frame[len(frame) - 1] if is_sequence else frame
+    write_exr(out / "images" / "reference.exr", {"color": last.reference})
+
+    table = pd.DataFrame(rows)
+    csv_table = table.drop(columns=[c for c in ("seeds", "times_s", "per_seed")
+                                    if c in table.columns])
+    write_csv(out / "metrics.csv", csv_table)
+    write_csv(out / "metrics_per_seed.csv", pd.DataFrame(per_seed))
+    if is_sequence:
+        from ..bench.sequence import plot_errors, strip
+        runs = dict(outputs)
+        title = f"{scene.name}, {args.spp} spp, {args.res.text} px, {len(frame)} frames"
+        plot_errors(runs, out / "error_per_frame.png", title=title,
+                    events=frame.meta.get("events"))
+        strip(frame, runs, out / "comparison.png", title=title)
+        for n, run in runs.items():
+            write_csv(out / f"per_frame_{identity.file_stem(n)}.csv", pd.DataFrame(run.per_frame))
+    elif frame.kind == "transient":
+        from ..bench.transient import write_figures
+        write_figures(out, frame, dict(outputs), title=f"{scene.name}, {args.spp} spp")
+    else:
+        report.comparison_grid(out / "comparison.png", outputs, frame.reference, ev=scene.ev,
+                               title=f"{scene.name}, {args.spp} spp, {args.res.text} px")
+    info = machine_info()
+    seeds = [args.seed + k for k in range(args.seeds)]
+    settings = {"scene": scene.name, "kind": scene.kind, "spp": args.spp, "res": args.res.key,
+                "seeds": ", ".join(map(str, seeds)),
+                "ref_spp": frame.meta.get("ref_spp"),
+                "reference seed": frame.meta.get("ref_seed"),
+                "reference RMSE (estimated)": frame.meta.get("ref_rmse"),
+                "repeats": (_sequence_window(len(frame)) if is_sequence else args.repeats),
+                "transform": (f"{frame.stats.transform} (λ = {frame.stats.lam})"
+                              if getattr(frame, "stats", None) is not None else "n/a"),
+                "variant": frame.meta["versions"]["variant"],
+                "render_s": frame.meta.get("render_s"),
+                "cache hits": _summarise_parts(frame.meta["cache_hits"]) or "none",
+                "rendered": _summarise_parts(frame.meta["rendered"]) or "nothing",
+                "method parameters": "; ".join(f"{r['method']}: {r['params']}" for r in rows)}
+    write_text(out / "report.md", report.run_report_md(table, settings, info, skipped,
+                                                       rank_by=args.rank_by))
+    write_json(out / "run.json", {"settings": settings, "machine": info, "skipped": skipped})
+    print()
+    shown = [c for c in report.RUN_COLUMNS if c in table.columns]
+    print(markdown_table(table[shown]))
+    print(f"\nreport: {out / 'report.md'}")
+    return 0
