@@ -23,7 +23,7 @@ FOV = 39.3
 class SequenceScene(Scene):
     """A catalogue entry whose camera and lights change per frame (geometry is static).
 
-    Attributes (beyond :class:`~dbench.datasets.scenes.Scene`):
+    Attributes (beyond :class:`~dbench.datasets.scene.Scene`):
         n_frames: length of the sequence.
         geometry: ``geometry(mi) -> dict`` of the static shapes (emitters included, with their
             radiance set per frame by ``lights``).

@@ -59,7 +59,7 @@ class TransientScene(Scene):
     ``build(mi, res)`` returns the steady scene dictionary (hdrfilm, box filter);
     :meth:`transient_dict` swaps in the transient film and integrator.
 
-    Attributes (beyond :class:`~dbench.datasets.scenes.Scene`):
+    Attributes (beyond :class:`~dbench.datasets.scene.Scene`):
         window_start, window_end: the OPL window (metres), from :func:`size_window`.
         default_bins: T when ``bins`` is not given.
         integrator: ``transient_path`` or ``transient_prbvolpath``.
