@@ -1,9 +1,11 @@
 #!/usr/bin/env bash
 # The main job: set everything up, then run a small benchmark that ends in a report.
-#   results/demo/run-cornell/report.md   one `dbench run` (table printed, comparison.png, EXRs)
+#   results/demo/run-cornell/report.md   one `dbench run` (table printed, comparison.png, EXRs;
+#                                        index.html: the interactive viewer)
 #   results/demo/run-flicker/report.md   the temporal methods on an animated sequence
 #   results/demo/run-cornell-transient/  the transient methods on a time-resolved video
 #   results/demo/README.md               a small sweep + stress test, published by `dbench report`
+#                                        (results/demo/index.html: the same, sortable)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
@@ -19,6 +21,8 @@ dbench sweep --methods all --scenes "$SCENES" --spp 4,16,64 --res "$RES" --repea
   --out results/demo/sweep --quiet
 dbench stress --out results/demo/stress.md --quiet > /dev/null || true
 dbench report --results results/demo --sweep results/demo/sweep
+.venv/bin/python scripts/viewer_screenshot.py results/demo/run-cornell results/demo/viewer.png \
+  || echo "viewer screenshot skipped (no chromium)"
 dbench bench render --res 256 --spp 64
 dbench bench metrics
 echo

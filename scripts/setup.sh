@@ -20,6 +20,19 @@ if ! ldconfig -p 2>/dev/null | grep -q "libLLVM-19\|libLLVM.so.19"; then
          "to Mitsuba's scalar_rgb variant and transient rendering will be unavailable" >&2
   fi
 fi
+# Headless Chromium and its driver for the HTML viewer's browser tests (Debian's packages; no
+# browser is downloaded at run time).
+if ! command -v chromium >/dev/null || ! command -v chromedriver >/dev/null; then
+  SUDO=""; [ "$(id -u)" -ne 0 ] && command -v sudo >/dev/null && SUDO="sudo"
+  if [ "$(id -u)" -eq 0 ] || [ -n "$SUDO" ]; then
+    echo "setup: installing chromium and chromium-driver (apt)"
+    $SUDO apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq chromium chromium-driver >/dev/null
+  else
+    echo "setup: WARNING: cannot install chromium (not root, no sudo); the viewer's browser" \
+         "tests will be skipped" >&2
+  fi
+fi
 if ! command -v "$PY" >/dev/null; then
   if command -v apt-get >/dev/null && [ "$(id -u)" -eq 0 ]; then
     apt-get install -y -qq python3.11 python3.11-venv >/dev/null
@@ -43,7 +56,7 @@ PIP=("$VENV/bin/pip" install -q --disable-pip-version-check)
   "torch==2.13.0" 2>&1 | grep -v "^WARNING" || true
 "$VENV/bin/python" -c "import torch" 2>/dev/null || "${PIP[@]}" "torch==2.13.0"
 "${PIP[@]}" -e ".[test]" 2>&1 | grep -v "^WARNING" || true
-"$VENV/bin/python" -c "import importlib.util as u, dbench, mitsuba, torch, pyoidn, flip_evaluator, numba, OpenEXR, kornia, onnxruntime, skimage, pandas, matplotlib; assert u.find_spec('mitransient')" \
+"$VENV/bin/python" -c "import importlib.util as u, dbench, mitsuba, torch, pyoidn, flip_evaluator, numba, OpenEXR, kornia, onnxruntime, skimage, pandas, matplotlib, selenium; assert u.find_spec('mitransient')" \
   || { echo "setup: package installation failed" >&2; exit 1; }
 echo "$want" > "$stamp"
 echo "setup: done ($("$VENV/bin/python" -c 'import torch, mitsuba; print("torch", torch.__version__, "| mitsuba", mitsuba.__version__)'))"

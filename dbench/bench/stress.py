@@ -437,7 +437,8 @@ def run_case(method_name: str, case: Case) -> Outcome:
     from .. import methods
 
     method = methods.get(method_name)
-    if case.needs_buffer is not None and case.needs_buffer not in method.needs \
+    used = set(method.needs) | set(getattr(method, "optional_needs", ()))
+    if case.needs_buffer is not None and case.needs_buffer not in used \
             and not case.all_methods:
         return Outcome("n/a", f"{method_name} does not use {case.needs_buffer}")
     if case.kind == "transient":

@@ -120,8 +120,28 @@ def cmd_run(args: argparse.Namespace) -> int:
     write_text(out / "report.md", report.run_report_md(table, settings, info, skipped,
                                                        rank_by=args.rank_by))
     write_json(out / "run.json", {"settings": settings, "machine": info, "skipped": skipped})
+    _write_run_page(out, scene, frame, outputs, table, settings, info, skipped, args)
     print()
     shown = [c for c in report.RUN_COLUMNS if c in table.columns]
     print(markdown_table(table[shown]))
     print(f"\nreport: {out / 'report.md'}")
     return 0
+
+
+def _write_run_page(out: Path, scene, frame, outputs, table, settings, info, skipped,
+                    args: argparse.Namespace) -> None:
+    """``index.html``: the run's interactive viewer and tables (dbench.bench.html)."""
+    from ..bench import html, report, verdicts
+
+    kind = frame.kind
+    columns = (("rmse", "rmse_surface", "relmse", "ssim", "t_rmse", "tpsnr", "time_s")
+               if kind == "sequence" else (*verdicts.HEADLINE[:-1], "psnr", "time_s"))
+    plots = {"sequence": [("error per frame", "error_per_frame.png"),
+                          ("frames", "comparison.png")],
+             "transient": [("streak image", "streak.png"), ("RMSE per bin", "rmse_per_bin.png"),
+                           ("bins", "bins.png")]}.get(kind, [("comparison", "comparison.png")])
+    title = f"{scene.name}, {args.spp} spp, {args.res.text} px"
+    html.run_page(out, title=title, frame=frame, outputs=outputs,
+                  table=report._run_frame(table, settings), columns=columns,
+                  settings=settings, machine=info, skipped=skipped, ev=scene.ev,
+                  plots=[(t, f) for t, f in plots if (out / f).exists()])
