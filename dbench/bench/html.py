@@ -241,13 +241,13 @@ def grid_table(df: pd.DataFrame, metric: str) -> dict[str, Any]:
             "text": text, "best": {}, "flagged": flagged}
 
 
-def sweep_page(results: str | Path, sweeps: Sequence[Path], rank_by: str = "relmse") -> Path:
-    """``results/index.html``: for every sweep, its settings, its figures (convergence and
+def sweep_page(results: str | Path, sweeps: Sequence[tuple[Path, list[dict]]],
+               rank_by: str = "relmse") -> Path:
+    """``results/index.html``: for every (sweep folder, its cells), its figures (convergence and
     error against time, static PNGs) and the sortable scene × method × spp grid of
     ``rank_by`` with intervals; rows worse than the noisy input at the headline spp in red.
     Sweeps keep numbers, not images: the images of a cell are in the folder of the
     ``dbench run`` that reproduces it (``dbench run --method M --scene S --spp N``)."""
-    from .publish import load_sweep
     from .tables import cells_frame
 
     results = Path(results)
@@ -257,8 +257,7 @@ def sweep_page(results: str | Path, sweeps: Sequence[Path], rank_by: str = "relm
                             "(viewer with zoom, exposure and error maps).</p>",
                             '<p><a href="README.md">README.md</a> · '
                             '<a href="table_3_1.md">Table 3.1</a></p>']
-    for sweep_dir in sweeps:
-        _, cells, _ = load_sweep(sweep_dir)
+    for sweep_dir, cells in sweeps:
         df = cells_frame(cells)
         if not len(df):
             continue

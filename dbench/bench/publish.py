@@ -493,7 +493,9 @@ def publish(results: str | Path = "results", sweep_dir: str | Path | None = None
         table31_file(results, results / "sweep-table31")
     from .html import sweep_page
 
-    sweep_page(results, [sweep_dir, *extra_sweeps(results, sweep_dir)], rank_by=rank_by)
+    sweep_page(results, [(d, load_sweep(d)[1]) for d in [sweep_dir, *extra_sweeps(results,
+                                                                                sweep_dir)]],
+               rank_by=rank_by)
     text = build_readme(results, sweep_dir, rank_by=rank_by)
     out = results / "README.md"
     io.write_text(out, text)

@@ -115,7 +115,7 @@ def test_keys_switch_to_the_pixels_of_method_k(browser, steady_run):
 
 def test_exposure_scales_linear_values_by_two_per_stop(browser, steady_run):
     from dbench import io
-    from dbench.metrics.image import srgb_decode
+    from dbench.metrics.tonemapping import srgb_decode
     noisy = io.read_exr(steady_run / "images" / "noisy.exr")["color"]
     body = _open(browser, steady_run)
     body.send_keys("0")
@@ -226,7 +226,8 @@ def test_sweep_page_sorts_the_grid(browser, tmp_path):
                               {"status": "ok", "scene": scene, "method": method, "spp": spp,
                                "res": 32, "relmse": v, "relmse_ci": 0.01, "rmse": v,
                                "time_s": 0.01})
-    sweep_page(tmp_path, [sweep])
+    from dbench.bench.sweep import load_cells
+    sweep_page(tmp_path, [(sweep, load_cells(sweep))])
     _open(browser, tmp_path)
     assert not _errors(browser)
     header = browser.find_elements("css selector", "table.metrics th")
