@@ -61,7 +61,11 @@ def test_load_rejects_bad_arguments(renderer, seq_cache):
     with pytest.raises(DbenchInputError, match="frames"):
         datasets.load("orbit", spp=1, res=8, frames=500, cache=seq_cache)
     with pytest.raises(DbenchInputError, match="needs"):
-        datasets.load("orbit", spp=1, res=8, frames=2, needs={"stats"}, cache=seq_cache)
+        datasets.load("orbit", spp=1, res=8, frames=2, needs={"bogus"}, cache=seq_cache)
+    # sequences provide per-frame statistics; a bad transform is refused before rendering
+    with pytest.raises(DbenchInputError, match="transform"):
+        datasets.load("orbit", spp=1, res=8, frames=2, needs={"stats"}, transform="nope",
+                      cache=seq_cache)
     with pytest.raises(DbenchInputError, match="gbuffer"):
         S.load_sequence("orbit", spp=1, res=8, frames=2, cache=seq_cache, gbuffer="fancy")
 
