@@ -26,15 +26,38 @@ def _load_plugins() -> None:
     plugins.ensure_loaded()
 
 
+#: Old names kept working: name -> the name it now has.
+ALIASES = {"statistical-gate": "statistical+gate"}
+
+
 def available() -> list[str]:
-    """Names of every registered method (built-in and plugins), sorted."""
+    """Names of every registered method (built-in and plugins), sorted. The ``NAME+gate``
+    variant of each steady method (:mod:`dbench.methods.gate`) is not listed; any of them
+    resolves through :func:`method_class`."""
     _load_plugins()
     return sorted(_REGISTRY)
 
 
+def canonical(name: str) -> str:
+    """The name a method is published under: ``statistical-gate`` -> ``statistical+gate``."""
+    return ALIASES.get(name, name)
+
+
 def method_class(name: str) -> type[Denoiser]:
+    """The class of ``name``: a registered method, an alias of one, or ``NAME+gate`` (the
+    registered steady method ``NAME`` wrapped by ProDen's gate, :mod:`dbench.methods.gate`)."""
+    name = canonical(name)
     if name not in _REGISTRY:
         _load_plugins()
+    if name.endswith("+gate") and name not in _REGISTRY:
+        # imported here: dbench.methods (the package) imports this module
+        from .methods.gate import SUFFIX, gated_class
+
+        try:
+            base = method_class(name[:-len(SUFFIX)])
+        except UnknownNameError as e:
+            raise UnknownNameError(f"{name}: {e}") from None
+        return gated_class(base)
     try:
         return _REGISTRY[name]
     except KeyError:
@@ -42,7 +65,8 @@ def method_class(name: str) -> type[Denoiser]:
         if why:
             raise plugins.PluginError(why) from None
         raise UnknownNameError(
-            f"unknown method {name!r}; available methods: {', '.join(available())}") from None
+            f"unknown method {name!r}; available methods: {', '.join(available())} "
+            "(and NAME+gate for any steady method)") from None
 
 
 def get(name: str, **params: Any) -> Denoiser:
@@ -50,4 +74,4 @@ def get(name: str, **params: Any) -> Denoiser:
     return method_class(name)(**params)
 
 
-__all__ = ["Denoiser", "register", "available", "method_class", "get"]
+__all__ = ["ALIASES", "Denoiser", "register", "available", "canonical", "method_class", "get"]

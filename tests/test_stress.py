@@ -6,7 +6,8 @@ from dbench.bench import stress
 
 
 @pytest.mark.parametrize("case", stress.CASES, ids=lambda c: c.name)
-@pytest.mark.parametrize("method", methods.available())
+@pytest.mark.parametrize("method", methods.available()
+                         + ["statistical+gate", "jbf+gate", "nca+gate"])
 def test_stress_case(method, case):
     outcome = stress.run_case(method, case)
     assert outcome.status in ("pass", "n/a"), f"{method} / {case.name}: {outcome.why}"
@@ -67,7 +68,7 @@ def test_one_huge_finite_pixel_stays_finite(method, value):
         assert bad == 0, f"{method}: {bad} non-finite pixels on frame {i + 1} at {value:g}"
 
 
-@pytest.mark.parametrize("method", ["jbf", "statistical", "statistical-gate"])
+@pytest.mark.parametrize("method", ["jbf", "statistical", "statistical+gate", "jbf+gate"])
 def test_missing_depth_runs_with_the_hit_mask_from_normals(method):
     """Depth is optional (renders from files lack it): without it the output is finite and
     equals the run with a depth that is 1 where the normal is non-zero."""

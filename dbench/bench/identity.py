@@ -90,7 +90,18 @@ def method_files(cls: type) -> list[Path]:
     import dbench
     import dbench.methods as pkg
 
-    source = Path(inspect.getfile(cls)).resolve()
+    wrapped = getattr(cls, "wrapped", None)  # NAME+gate: the gate's files and the method's
+    if wrapped is not None:
+        return sorted(set(method_files(wrapped)) | set(_package_files(inspect.getfile(cls))))
+    return _package_files(inspect.getfile(cls))
+
+
+def _package_files(source_file: str) -> list[Path]:
+    """:func:`method_files` of the class defined in ``source_file``."""
+    import dbench
+    import dbench.methods as pkg
+
+    source = Path(source_file).resolve()
     shared = Path(pkg.__file__).resolve().parent
     files = [source]
     outside_package = (shared not in source.parents and source.name != "__init__.py"

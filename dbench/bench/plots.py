@@ -30,7 +30,7 @@ ENVELOPE_LABEL = "best method for a budget of t seconds"
 def method_styles(labels) -> dict[str, dict]:
     """label → {color, marker, ls}: the noisy input dark grey and dashed; the others by their
     position among the sorted labels, so that neighbours (``statistical``,
-    ``statistical-gate``) differ in colour, marker and line style."""
+    ``statistical+gate``) differ in colour, marker and line style."""
     others = sorted({str(lab) for lab in labels} - {"noisy"})
     styles = {"noisy": dict(NOISY_STYLE)}
     for i, lab in enumerate(others):

@@ -454,7 +454,8 @@ def _statistical_checks(t, name: str) -> list[str]:
 def statistical_md(df, sweep_dir: Path) -> str:
     """results/statistical.md: statistical vs noisy, jbf and oidn on every steady scene and spp,
     with the issue's quality checks evaluated on the table (not asserted: reported)."""
-    names = [m for m in ("noisy", "jbf", "oidn", "statistical", "statistical-gate")
+    names = [m for m in ("noisy", "jbf", "oidn", "statistical", "statistical+gate",
+                         "statistical-gate")
              if m in set(df.method)]
     d = df[df.method.isin(names)]
     t = d.pivot_table(index=["scene", "spp"], columns="method", values="rmse", aggfunc="first")
@@ -466,7 +467,8 @@ def statistical_md(df, sweep_dir: Path) -> str:
     if "statistical" not in t.columns:
         return "\n".join(parts + ["(no statistical cells in this sweep)", ""])
     checks = []
-    for name in [m for m in ("statistical", "statistical-gate") if m in t.columns]:
+    for name in [m for m in ("statistical", "statistical+gate", "statistical-gate")
+                 if m in t.columns]:
         checks += [f"`{name}`:", ""] + _statistical_checks(t, name) + [""]
     parts += ["## Checks (issue 3)", ""] + checks
     timing = d.pivot_table(index="scene", columns="method", values="time_s", aggfunc="median")

@@ -509,13 +509,22 @@ def _judge(frame: Frame, out: np.ndarray, seconds: float) -> Outcome:
     return Outcome("pass", "finite output", seconds)
 
 
+def default_methods() -> list[str]:
+    """Every registered method and the ``NAME+gate`` variant of each steady one (``noisy``
+    aside: its gate is the identity), sorted."""
+    from .. import methods
+
+    names = methods.available()
+    gated = [f"{n}+gate" for n in names
+             if n != "noisy" and "steady" in methods.method_class(n).kinds]
+    return sorted(names + gated)
+
+
 def run_all(method_names: list[str] | None = None, progress: bool = True
             ) -> dict[str, dict[str, Outcome]]:
     from tqdm.auto import tqdm
 
-    from .. import methods
-
-    names = method_names or methods.available()
+    names = method_names or default_methods()
     results: dict[str, dict[str, Outcome]] = {}
     with tqdm(total=len(names) * len(CASES), desc="stress", disable=not progress) as bar:
         for m in names:

@@ -178,7 +178,8 @@ def resolve_names(methods: str | Sequence[str], scenes: str | Sequence[str],
     def split(v):
         return [s.strip() for s in v.split(",") if s.strip()] if isinstance(v, str) else list(v)
 
-    m = registry.available() if methods == "all" else split(methods)
+    m = registry.available() if methods == "all" else [registry.canonical(n)
+                                                          for n in split(methods)]
     s = catalogue.available() if scenes == "all" else split(scenes)
     for name in m:
         registry.method_class(name)

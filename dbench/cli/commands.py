@@ -185,7 +185,8 @@ def cmd_stress(args: argparse.Namespace) -> int:
     from .. import methods
     from ..io import ensure_writable_dir
 
-    names = _split(args.methods) if args.methods != "all" else None
+    names = ([methods.canonical(n) for n in _split(args.methods)] if args.methods != "all"
+             else None)
     for n in names or []:
         methods.method_class(n)
     out = Path(args.out)

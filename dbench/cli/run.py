@@ -22,7 +22,8 @@ def cmd_run(args: argparse.Namespace) -> int:
 
     import pandas as pd
 
-    names = methods.available() if args.method == "all" else _split(args.method)
+    names = (methods.available() if args.method == "all"
+             else [methods.canonical(n) for n in _split(args.method)])
     for n in names:
         methods.method_class(n)  # raises UnknownNameError listing valid names
     scene = _scene_of(args)

@@ -15,7 +15,7 @@ import pytest
 from dbench.data import Frame, SampleStats
 from dbench.errors import DbenchInputError
 from dbench.methods import jbf as jc
-from dbench.methods.statistical import core as sc
+from dbench.methods import statistical as sc
 from dbench.methods.statistical import linear_variance
 from dbench.registry import get
 
@@ -387,7 +387,6 @@ def test_bad_inputs():
     (dict(gamma=0.7), "gamma"), (dict(gamma=0.0), "gamma"), (dict(gamma="x"), "gamma"),
     (dict(sigma=(1, 1, 1)), "sigma"), (dict(sigma_convention="var"), "sigma_convention"),
     (dict(window="hex"), "window"), (dict(backend="cuda"), "backend"),
-    (dict(gate="yes"), "gate"), (dict(gate_alpha=2.0), "gate_alpha"),
     (dict(transform="box-cox"), "transform")])
 def test_bad_parameters_name_the_parameter(params, name):
     with pytest.raises(DbenchInputError, match=name):
@@ -430,6 +429,6 @@ def test_proden_gate():
     color, stats, albedo, normal, depth = synthetic_case(12, 12, seed=15)
     frame = Frame(color=color.astype(np.float32), albedo=albedo.astype(np.float32),
                   normal=normal.astype(np.float32), depth=depth.astype(np.float32), stats=stats)
-    gated = get("statistical", radius=3, gate=True, backend="numba").denoise(frame)
+    gated = get("statistical+gate", radius=3, backend="numba").denoise(frame)
     assert gated.dtype == np.float32 and np.all(np.isfinite(gated))
     assert np.all(linear_variance(stats, color) == stats.var_mean)

@@ -317,8 +317,8 @@ def test_bad_parameters_name_the_parameter(params, name):
 
 def test_steady_only_options_refused_on_video():
     frame = transient_frame()
-    with pytest.raises(DbenchInputError, match="gate"):
-        get("statistical", gate=True).denoise(frame)
+    with pytest.raises(DbenchInputError, match="steady"):
+        get("statistical+gate").denoise(frame)
     with pytest.raises(DbenchInputError, match="backend"):
         get("statistical", backend="torch").denoise(frame)
     bad = TransientFrame(color=frame.color, albedo=frame.albedo, normal=frame.normal)

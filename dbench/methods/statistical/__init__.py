@@ -20,8 +20,9 @@ DbenchInputError naming it; the resolved values land in ``last_settings`` after 
     γ_t² = 1/(2γ) − 1 from gamma, which wins when both are given), sigma ((10, 10, 0.02 ×3,
     0.1 ×3)), sigma_convention ("variance" | "sd"), window ("square" | "disk"), backend ("auto":
     PyTorch on CUDA for images, Numba otherwise | "numba" | "torch" (images only) |
-    "reference"), hit_mask (True), membership (True; False = plain base filter, the ablation),
-    gate (False; True applies the ProDen gate of spec §12 on top; images only), gate_alpha (1.0).
+    "reference"), hit_mask (True), membership (True; False = plain base filter, the ablation). The ProDen gate of spec §12 is
+    ``statistical+gate`` (:mod:`dbench.methods.gate`, which wraps any steady method;
+    ``statistical-gate`` is the old name of the same method).
     Videos only (spec §11.3, spec/jbf.md §1.4): radius_t (1), base ("auto": "gauss3d" when the
     frame's meta names a medium or a volumetric integrator or it has no albedo/normal, else
     "jbf" | "jbf" | "gauss3d"), temporal_profile (None: "box" for the jbf base, "gaussian" for
@@ -49,7 +50,6 @@ Example:
 """
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import numpy as np
@@ -61,10 +61,11 @@ from ..checks import check_choice, check_positive, check_radius
 from ..kernels.bilateral.guide import check_sigma, make_guide
 from ..kernels.bilateral.params import SEED_SIGMA, SIGMA_CONVENTIONS, TEMPORAL_PROFILES, WINDOWS
 from .core import (BACKENDS, DEFAULT_ALPHA, StatPlanes, Threshold, _check_alpha, _g2_from_gamma,
-                   gamma_from_gamma_t, gamma_t_from_gamma, membership, proden_gate,
-                   proden_gate_factor, resolve_backend, resolve_threshold, stat_planes,
+                   gamma_from_gamma_t, gamma_t_from_gamma, membership, resolve_backend,
+                   resolve_threshold, stat_planes,
                    statistical_fast, statistical_filter, statistical_reference, student_gamma_t,
                    welch_pass, welch_t, welch_t_from_weight, welch_weight)
+from ..kernels.gate import linear_variance, proden_gate, proden_gate_factor
 from .transient import (BASES, VIDEO_RADIUS, statistical_filter_video, statistical_video_fast,
                         statistical_video_reference)
 
@@ -74,25 +75,6 @@ __all__ = ["Statistical", "StatPlanes", "Threshold", "gamma_from_gamma_t", "gamm
            "statistical_filter_video", "statistical_video_fast", "statistical_video_reference",
            "statistical_reference", "student_gamma_t", "welch_pass", "welch_t",
            "welch_t_from_weight", "welch_weight"]
-
-
-def linear_variance(stats: Any, color: np.ndarray) -> np.ndarray:
-    """Variance of the linear mean for the ProDen gate, (H, W, 3) float64.
-
-    Exact for the identity transform; otherwise the delta method Var(x̄) ≈ Var(ȳ)/g'(x̄)² with
-    g'(x) = x^(λ−1) (Box-Cox) or (1 + x)^(λ−1) (Yeo-Johnson, x ≥ 0), an approximation
-    [dbench]; 0 where g' is infinite or the colour is not finite.
-    """
-    var = np.asarray(stats.var_mean, np.float64)
-    transform = getattr(stats, "transform", "identity")
-    if transform == "identity":
-        return np.where(np.isfinite(var), var, 0.0)
-    lam = float(stats.lam)
-    x = np.where(np.isfinite(color), np.maximum(np.asarray(color, np.float64), 0.0), 0.0)
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        deriv = x ** (lam - 1.0) if transform == "box-cox" else (1.0 + x) ** (lam - 1.0)
-        out = var / (deriv * deriv)
-    return np.where(np.isfinite(out), out, 0.0)
 
 
 #: Steady spatial radius (spec §7).
@@ -110,7 +92,7 @@ class Statistical(Denoiser):
     defaults: dict[str, Any] = dict(
         radius=None, alpha=None, gamma=None, sigma=SEED_SIGMA,
         sigma_convention="variance", window="square", backend="auto", hit_mask=True,
-        membership=True, gate=False, gate_alpha=1.0, radius_t=1, base="auto",
+        membership=True, radius_t=1, base="auto",
         temporal_profile=None, sigma_t=1.0, skip_empty=True)
 
     def __init__(self, **params: Any) -> None:
@@ -131,15 +113,9 @@ class Statistical(Denoiser):
         if p["temporal_profile"] is not None:
             check_choice("temporal_profile", p["temporal_profile"], TEMPORAL_PROFILES)
         check_positive("sigma_t", p["sigma_t"], allow_inf=True)
-        for name in ("hit_mask", "membership", "gate", "skip_empty"):
+        for name in ("hit_mask", "membership", "skip_empty"):
             if not isinstance(p[name], (bool, np.bool_)):
                 raise DbenchInputError(f"{name}: expected True or False, got {p[name]!r}")
-        try:
-            ga = float(p["gate_alpha"])
-        except (TypeError, ValueError):
-            ga = math.nan
-        if not (0.0 <= ga <= 1.0):
-            raise DbenchInputError(f"gate_alpha: expected a number in [0, 1], got {p['gate_alpha']!r}")
         #: Resolved settings of the last call: γ_t, ν, transform, λ, backend, base filter.
         self.last_settings: dict[str, Any] = {}
 
@@ -159,20 +135,12 @@ class Statistical(Denoiser):
             radius=radius, alpha=alpha, gamma=p["gamma"], sigma=p["sigma"],
             sigma_convention=p["sigma_convention"], window=p["window"], hit_mask=p["hit_mask"],
             membership_on=p["membership"], backend=p["backend"], return_info=True)
-        if p["gate"]:
-            var = linear_variance(data.stats, data.color)
-            hdr = np.where(np.isfinite(data.color), data.color, out)
-            out = proden_gate(hdr, out, var, alpha=float(p["gate_alpha"])).astype(np.float32)
-        info.update(gate=bool(p["gate"]), gate_alpha=float(p["gate_alpha"]))
         self.last_settings = info
         return out
 
     def _denoise_video(self, data: Any) -> np.ndarray:
         """Spatio-temporal denoiser on a TransientFrame (spec §11.3)."""
         p = self.params
-        if p["gate"]:
-            raise DbenchInputError("gate: the ProDen gate (spec §12) is for images only; "
-                                   "use gate=False on transient data")
         if p["backend"] == "torch":
             raise DbenchInputError("backend: 'torch' is not available for transient videos; "
                                    "use 'auto', 'numba' or 'reference'")
@@ -185,22 +153,6 @@ class Statistical(Denoiser):
             sigma=p["sigma"], sigma_convention=p["sigma_convention"], window=p["window"],
             hit_mask=p["hit_mask"], membership_on=p["membership"], skip_empty=p["skip_empty"],
             backend=backend, meta=getattr(data, "meta", None), return_info=True)
-        info.update(gate=False, kind="transient")
+        info.update(kind="transient")
         self.last_settings = info
         return out
-
-
-@register("statistical-gate")
-class StatisticalGated(Statistical):
-    """``statistical`` followed by ProDen's t-test gate (spec/statistical.md §12), images only.
-
-    Each pixel is mixed back towards its noisy value where the filtered value differs from it by
-    many standard errors of the noisy mean (gate Φ(−2(t − 4.2))), so the output converges to the
-    noisy input's limit as the variance vanishes. The Welch test keeps unlike neighbours out of
-    the average; the gate catches what gets through anyway (heavy-tailed caustic samples, the
-    biased average of a mirror's reflection), which the plain method leaves in. Same parameters
-    as ``statistical`` with ``gate=True``.
-    """
-
-    kinds = {"steady"}
-    defaults: dict[str, Any] = dict(Statistical.defaults, gate=True)

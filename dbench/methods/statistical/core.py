@@ -350,51 +350,6 @@ def statistical_fast(color: Any, sp: StatPlanes, guide: Guide, threshold: Thresh
 
 
 # ---------------------------------------------------------------------------------------------
-# Optional: ProDen gate (spec §12)
-# ---------------------------------------------------------------------------------------------
-
-def proden_gate_factor(t: Any, k: float = 2.0, t0: float = 4.2) -> np.ndarray:
-    """g(t) = ½(1 − erf(k(t − t0)/√2)) = Φ(−k(t − t0)): 0.5 at 4.2, 0.97725 at 3.2 (spec §12)."""
-    from scipy.special import erf
-
-    return 0.5 * (1.0 - erf(k * (np.asarray(t, np.float64) - t0) / math.sqrt(2.0)))
-
-
-def proden_gate(hdr: Any, den: Any, var: Any, *, alpha: float = 1.0, k: float = 2.0,
-                t0: float = 4.2) -> np.ndarray:
-    """ProDen t-test gate (spec §12, without the ``proden_exact`` terms).
-
-    Args:
-        hdr: (H, W, 3) noisy image; den: (H, W, 3) denoised image; var: (H, W, 3) per-pixel
-            variance of the mean in linear space.
-
-    Returns:
-        (H, W, 3) float64 out = hdr + α_gate (den − hdr), α_gate = α·g(t) per channel with
-        t = |G*(hdr + α(den − hdr)) − G*hdr| / (sqrt(G²*var) + 1e-6), G an 11×11 Gaussian with
-        σ_b = max(100·sqrt(clamp(mean(var), 0, 1)), 1e-3), zero-padded borders.
-    """
-    from scipy.ndimage import correlate
-
-    hdr = np.asarray(hdr, np.float64)
-    den = np.asarray(den, np.float64)
-    var = np.asarray(var, np.float64)
-    sb = max(100.0 * math.sqrt(min(max(float(np.mean(var)), 0.0), 1.0)), 1e-3)
-    ax = np.arange(-5, 6, dtype=np.float64)
-    g1 = np.exp(-0.5 * (ax / sb) ** 2)
-    kern = np.outer(g1, g1)
-    kern /= kern.sum()
-
-    def blur(img, kk):
-        return np.stack([correlate(img[..., c], kk, mode="constant") for c in range(img.shape[-1])],
-                        axis=-1)
-
-    mixed = hdr + alpha * (den - hdr)
-    t = np.abs(blur(mixed, kern) - blur(hdr, kern)) / (np.sqrt(blur(var, kern * kern)) + 1e-6)
-    a_gate = alpha * proden_gate_factor(t, k, t0)
-    return hdr + a_gate * (den - hdr)
-
-
-# ---------------------------------------------------------------------------------------------
 # Public entry point
 # ---------------------------------------------------------------------------------------------
 

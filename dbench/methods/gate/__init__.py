@@ -1,0 +1,139 @@
+"""``NAME+gate``: any steady method followed by ProDen's t-test gate (spec/statistical.md §12).
+
+The gate mixes the method's output back towards the noisy mean wherever the two differ by many
+standard errors of that mean, using dbench's exact per-pixel variance of the mean
+(:func:`~dbench.methods.kernels.gate.linear_variance` of ``Frame.stats``). As the variance of
+the mean falls with spp, every pixel the method got wrong is handed back to the input, so the
+output converges to the noisy input's limit: a consistent variant of a biased method.
+
+``gated_class(base)`` builds the wrapper class of a registered steady method (built-in or
+plugin); :func:`dbench.registry.method_class` calls it for any name ending in ``+gate``, so the
+variants are never listed one by one. The wrapper:
+
+* works where its method works on steady frames (and frame by frame on sequences);
+* needs what the method needs plus ``stats``, and passes its optional needs on;
+* takes the method's parameters plus ``gate_alpha`` (α of spec §12, in [0, 1], default 1),
+  ``gate_k`` (2.0) and ``gate_t0`` (4.2); ``gate_alpha = 0`` returns the input;
+* pixels whose noisy colour is not finite keep the method's output (there is nothing to mix
+  back to);
+* runs the compiled gate (:func:`~dbench.methods.kernels.gate.proden_gate_fast`);
+  ``gate_backend="reference"`` runs the readable SciPy form.
+
+Example:
+    >>> from dbench.registry import get
+    >>> m = get("jbf+gate", gate_alpha=0.5)
+    >>> sorted(m.needs)
+    ['albedo', 'color', 'normal', 'stats']
+"""
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from ...denoiser import Denoiser
+from ...errors import DbenchInputError
+from ..checks import check_choice
+from ..kernels.gate import GATE_K, GATE_T0, linear_variance, proden_gate, proden_gate_fast
+
+SUFFIX = "+gate"
+GATE_DEFAULTS: dict[str, Any] = dict(gate_alpha=1.0, gate_k=GATE_K, gate_t0=GATE_T0,
+                                     gate_backend="fast")
+GATE_BACKENDS = ("fast", "reference")
+
+_CLASSES: dict[type, type] = {}
+
+
+def _check_number(name: str, value: Any, lo: float, hi: float) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        v = math.nan
+    if isinstance(value, bool) or not (lo <= v <= hi):
+        raise DbenchInputError(f"{name}: expected a number in [{lo}, {hi}], got {value!r}")
+    return v
+
+
+def _require_stats(stats: Any) -> Any:
+    if stats is None:
+        raise DbenchInputError("stats: missing; expected SampleStats of shape (H, W, 3): the "
+                               "ProDen gate needs the per-pixel variance of the noisy mean")
+    return stats
+
+
+def gate_output(color: np.ndarray, denoised: np.ndarray, stats: Any, *, alpha: float = 1.0,
+                k: float = GATE_K, t0: float = GATE_T0, backend: str = "fast") -> np.ndarray:
+    """The gate applied to one image: (H, W, 3) noisy colour, (H, W, 3) method output and the
+    frame's statistics -> (H, W, 3) float32. Non-finite noisy pixels keep the output."""
+    _require_stats(stats)
+    var = linear_variance(stats, color)
+    hdr = np.where(np.isfinite(color), color, denoised)
+    den = np.where(np.isfinite(denoised), denoised, hdr)
+    if backend == "reference":
+        return proden_gate(hdr, den, var, alpha=alpha, k=k, t0=t0).astype(np.float32)
+    return proden_gate_fast(hdr, den, var, alpha=alpha, k=k, t0=t0)
+
+
+def gated_class(base: type[Denoiser]) -> type[Denoiser]:
+    """The ``NAME+gate`` class of the steady method class ``base`` (made once, then reused).
+
+    Raises DbenchInputError when ``base`` cannot carry the gate: it does not run on steady
+    frames, or it is already gated."""
+    if base in _CLASSES:
+        return _CLASSES[base]
+    name = f"{base.name}{SUFFIX}"
+    if getattr(base, "wrapped", None) is not None:
+        raise DbenchInputError(f"{name}: {base.name} is already gated")
+    if "steady" not in base.kinds:
+        raise DbenchInputError(f"{name}: the gate wraps methods that run on steady frames; "
+                               f"{base.name} works on {sorted(base.kinds)}")
+    clash = set(GATE_DEFAULTS) & set(base.defaults)
+    if clash:
+        raise DbenchInputError(f"{name}: {base.name} has parameters named like the gate's "
+                               f"({sorted(clash)})")
+
+    class Gated(Denoiser):
+        __doc__ = (f"``{base.name}`` followed by ProDen's t-test gate (spec/statistical.md "
+                   f"§12; :mod:`dbench.methods.gate`).")
+        wrapped = base
+        kinds = {"steady"}
+        needs = set(base.needs) | {"stats"}
+        optional_needs = set(base.optional_needs) - {"stats"}
+        defaults = {**base.defaults, **GATE_DEFAULTS}
+
+        def __init__(self, **params: Any) -> None:
+            super().__init__(**params)
+            p = self.params
+            _check_number("gate_alpha", p["gate_alpha"], 0.0, 1.0)
+            _check_number("gate_k", p["gate_k"], 1e-3, 1e3)
+            _check_number("gate_t0", p["gate_t0"], 0.0, 1e3)
+            check_choice("gate_backend", p["gate_backend"], GATE_BACKENDS)
+            self.inner = base(**{k: v for k, v in p.items() if k not in GATE_DEFAULTS})
+            self.last_settings: dict[str, Any] = {}
+
+        def reset(self) -> None:
+            self.inner.reset()
+
+        def denoise(self, data: Any) -> np.ndarray:
+            if getattr(data, "kind", "steady") != "steady":
+                raise DbenchInputError(f"{self.name}: expected a steady Frame, got "
+                                       f"{getattr(data, 'kind', type(data).__name__)} data")
+            stats = _require_stats(getattr(data, "stats", None))  # before the method runs
+            out = self.inner.denoise(data)
+            p = self.params
+            gated = gate_output(data.color, out, stats, alpha=float(p["gate_alpha"]),
+                                k=float(p["gate_k"]), t0=float(p["gate_t0"]),
+                                backend=p["gate_backend"])
+            self.last_settings = {**getattr(self.inner, "last_settings", {}),
+                                  "gate_alpha": float(p["gate_alpha"]),
+                                  "gate_transform": getattr(stats, "transform", "identity")}
+            return gated
+
+    Gated.__name__ = Gated.__qualname__ = f"{base.__name__}Gated"
+    Gated.name = name
+    _CLASSES[base] = Gated
+    return Gated
+
+
+__all__ = ["GATE_DEFAULTS", "SUFFIX", "gate_output", "gated_class"]

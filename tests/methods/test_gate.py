@@ -1,0 +1,193 @@
+"""Tests of ``NAME+gate``: any steady method followed by ProDen's t-test gate
+(spec/statistical.md §12, check 17; dbench/methods/gate)."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from dbench.data import Frame, SampleStats
+from dbench.denoiser import _REGISTRY, Denoiser, register
+from dbench.errors import DbenchInputError, UnknownNameError
+from dbench.methods.kernels import gate as kg
+from dbench.registry import available, canonical, get, method_class
+
+from test_statistical import synthetic_case  # pytest puts this folder on sys.path
+
+
+def _frame(seed=0, h=14, w=15):
+    color, stats, albedo, normal, depth = synthetic_case(h, w, seed=seed)
+    return Frame(color=color.astype(np.float32), albedo=albedo.astype(np.float32),
+                 normal=normal.astype(np.float32), depth=depth.astype(np.float32), stats=stats)
+
+
+def test_gate_factor_and_check_17():
+    np.testing.assert_allclose(kg.proden_gate_factor([4.2, 3.2, 5.2]),
+                               [0.5, 0.97725, 0.02275], atol=1e-5)
+    rng = np.random.default_rng(14)
+    hdr = rng.random((16, 16, 3))
+    den = hdr + 0.3
+    for gate in (kg.proden_gate, kg.proden_gate_fast):
+        np.testing.assert_allclose(gate(hdr, den, np.zeros_like(hdr)), hdr, atol=1e-6)
+        np.testing.assert_allclose(gate(hdr, den, np.full_like(hdr, 100.0)), den, atol=1e-6)
+
+
+@pytest.mark.parametrize("shape", [(1, 1), (3, 17), (23, 9), (40, 64)])
+@pytest.mark.parametrize("alpha", [1.0, 0.35])
+def test_fast_gate_equals_reference(shape, alpha):
+    """The compiled gate (separable blurs, tabulated Φ) equals the SciPy reference within
+    float32 rounding, over every regime of t (variance spread over four decades)."""
+    rng = np.random.default_rng(hash(shape) % 2 ** 32)
+    hdr = rng.gamma(1.0, 1.0, (*shape, 3)).astype(np.float32)
+    den = (hdr * rng.uniform(0.7, 1.3, hdr.shape)).astype(np.float32)
+    var = rng.gamma(1.0, 1.0, hdr.shape) * 10.0 ** rng.uniform(-6, -2, hdr.shape)
+    ref = kg.proden_gate(hdr, den, var, alpha=alpha)
+    fast = kg.proden_gate_fast(hdr, den, var, alpha=alpha)
+    assert fast.dtype == np.float32 and fast.shape == hdr.shape
+    np.testing.assert_allclose(fast, ref, rtol=1e-6, atol=1e-7)
+    factor = (ref - hdr) / np.where(den == hdr, 1, den - hdr)
+    assert 0.05 < np.mean(factor) < 0.95  # both the open and the closed gate are exercised
+
+
+def test_gate_table_error_bound():
+    t = np.linspace(0, 12, 100_003)
+    table = kg.gate_table()
+    u = np.minimum(t / kg.LUT_T_MAX * kg.LUT_SIZE, kg.LUT_SIZE - 1.0)
+    m = u.astype(int)
+    interp = table[m] + (u - m) * (table[m + 1] - table[m])
+    assert np.max(np.abs(interp - kg.proden_gate_factor(t))) < 2e-7
+
+
+def test_wrapper_equals_method_then_reference_gate():
+    """Known composition: jbf+gate = proden_gate(noisy, jbf output, Var(linear mean))."""
+    frame = _frame(seed=3)
+    den = get("jbf", radius=3).denoise(frame)
+    out = get("jbf+gate", radius=3).denoise(frame)
+    var = kg.linear_variance(frame.stats, frame.color)
+    expected = kg.proden_gate(frame.color, den, var)
+    np.testing.assert_allclose(out, expected, rtol=1e-6, atol=1e-7)
+    ref = get("jbf+gate", radius=3, gate_backend="reference").denoise(frame)
+    np.testing.assert_allclose(out, ref, rtol=1e-6, atol=1e-7)
+
+
+def test_class_shape_and_names():
+    cls = method_class("oidn+gate")
+    assert cls is method_class("oidn+gate") and cls.name == "oidn+gate"
+    assert cls.needs == method_class("oidn").needs | {"stats"} and cls.kinds == {"steady"}
+    assert set(cls.defaults) == set(method_class("oidn").defaults) | set(kg_defaults())
+    assert "oidn+gate" not in available() and "statistical-gate" not in available()
+    # the old name is an alias of statistical+gate, published under the new name
+    assert canonical("statistical-gate") == "statistical+gate"
+    assert method_class("statistical-gate") is method_class("statistical+gate")
+    jbf_gate = get("jbf+gate")
+    assert jbf_gate.optional_needs == method_class("jbf").optional_needs
+    assert jbf_gate.per_frame("sequence")  # frame by frame on sequences, like its method
+
+
+def kg_defaults():
+    from dbench.methods.gate import GATE_DEFAULTS
+    return GATE_DEFAULTS
+
+
+def test_refusals_name_the_problem():
+    with pytest.raises(DbenchInputError, match="steady"):
+        method_class("svgf+gate")
+    with pytest.raises(DbenchInputError, match="already gated"):
+        method_class("jbf+gate+gate")
+    with pytest.raises(UnknownNameError, match="nope"):
+        method_class("nope+gate")
+    with pytest.raises(DbenchInputError, match="gate_alpha"):
+        get("jbf+gate", gate_alpha=1.5)
+    with pytest.raises(DbenchInputError, match="gate_backend"):
+        get("jbf+gate", gate_backend="gpu")
+    with pytest.raises(DbenchInputError, match="radius"):
+        get("jbf+gate", radius=-1)  # the method's own checks still run
+    frame = _frame(seed=1)
+    with pytest.raises(DbenchInputError, match="stats"):
+        get("jbf+gate").denoise(frame.with_buffers(stats=None))
+    assert not get("jbf+gate").applies_to("steady", {"color", "albedo", "normal"})[0]
+
+
+def test_consistent_as_variance_vanishes():
+    """Zero variance: every pixel the method changed returns to the noisy value (t = ∞)."""
+    rng = np.random.default_rng(5)
+    h, w = 10, 11
+    color = rng.random((h, w, 3)) + 0.5
+    stats = SampleStats(n=np.full((h, w, 3), 64.0), mean=color, var_mean=np.zeros((h, w, 3)),
+                        m3=np.zeros((h, w, 3)), transform="identity")
+    frame = Frame(color=color.astype(np.float32), albedo=np.full((h, w, 3), 0.5, np.float32),
+                  normal=np.tile(np.float32([0, 0, 1]), (h, w, 1)),
+                  depth=np.ones((h, w, 1), np.float32), stats=stats)
+    for name in ("jbf+gate", "statistical+gate", "oidn+gate"):
+        out = get(name).denoise(frame)
+        np.testing.assert_allclose(out, frame.color, rtol=0, atol=1e-6)
+    assert np.array_equal(get("jbf+gate", gate_alpha=0.0).denoise(_frame(2)), _frame(2).color)
+
+
+def test_convergence_with_spp():
+    """A biased method (a constant blur) is wrong by a fixed amount at every spp; its gated
+    form's error falls with the noise, towards the noisy input's."""
+    rng = np.random.default_rng(11)
+    h, w = 48, 48
+    y, x = np.mgrid[0:h, 0:w] / h
+    truth = (0.5 + 0.4 * np.sin(6 * x) * np.cos(5 * y))[..., None] * np.ones(3)
+    errs = {}
+    for spp in (4, 64, 1024):
+        sd = 0.3 * truth / np.sqrt(spp)
+        noisy = truth + sd * rng.standard_normal(truth.shape)
+        stats = SampleStats(n=np.full(truth.shape, float(spp)), mean=noisy, var_mean=sd ** 2,
+                            m3=np.zeros(truth.shape), transform="identity")
+        frame = Frame(color=noisy.astype(np.float32), albedo=np.full((h, w, 3), 0.5, np.float32),
+                      normal=np.tile(np.float32([0, 0, 1]), (h, w, 1)),
+                      depth=np.ones((h, w, 1), np.float32), stats=stats)
+        plain = get("jbf", radius=6, sigma=(100.0, 100.0, 1e6, 1e6, 1e6, 1e6, 1e6, 1e6)).denoise(frame)
+        gated = get("jbf+gate", radius=6,
+                    sigma=(100.0, 100.0, 1e6, 1e6, 1e6, 1e6, 1e6, 1e6)).denoise(frame)
+        errs[spp] = [float(np.sqrt(np.mean((a - truth) ** 2))) for a in (noisy, plain, gated)]
+    assert errs[1024][1] > 3 * errs[1024][0]          # the blur alone does not converge
+    assert errs[1024][2] < 1.5 * errs[1024][0]         # the gated blur does
+    assert errs[4][2] < errs[64][2] * 10 and errs[1024][2] < errs[64][2] < errs[4][2]
+
+
+def test_plugin_method_takes_the_gate():
+    @register("test-gate-plugin-box")
+    class Box(Denoiser):
+        """A plugin-style method: a 3x3 box blur of the colour."""
+        kinds = {"steady"}
+        needs = {"color"}
+        defaults = {"passes": 1}
+
+        def denoise(self, data):
+            from scipy.ndimage import uniform_filter
+            out = data.color
+            for _ in range(self.params["passes"]):
+                out = uniform_filter(out, size=(3, 3, 1), mode="nearest")
+            return out.astype(np.float32)
+
+    try:
+        frame = _frame(seed=4)
+        m = get("test-gate-plugin-box+gate", passes=2)
+        assert m.needs == {"color", "stats"}
+        out = m.denoise(frame)
+        plain = get("test-gate-plugin-box", passes=2).denoise(frame)
+        var = kg.linear_variance(frame.stats, frame.color)
+        np.testing.assert_allclose(out, kg.proden_gate(frame.color, plain, var), rtol=1e-6,
+                                   atol=1e-7)
+    finally:  # leave the registry as the other tests expect it
+        _REGISTRY.pop("test-gate-plugin-box", None)
+
+
+def test_nonfinite_noisy_pixels_keep_the_method_output():
+    frame = _frame(seed=9)
+    color = frame.color.copy()
+    color[4, 5] = np.nan
+    out = get("jbf+gate", radius=3).denoise(frame.with_buffers(color=color))
+    assert np.isfinite(out).all()
+
+
+def test_never_further_from_noisy_than_plain():
+    """The gate only mixes towards the noisy value: |gated − noisy| <= |plain − noisy|."""
+    frame = _frame(seed=8)
+    plain = get("statistical", radius=4).denoise(frame).astype(np.float64)
+    gated = get("statistical+gate", radius=4).denoise(frame).astype(np.float64)
+    noisy = frame.color.astype(np.float64)
+    assert np.all(np.abs(gated - noisy) <= np.abs(plain - noisy) + 1e-6)
