@@ -138,7 +138,9 @@ def test_ship_and_load_trained_weights(tmp_path):
     assert "linear" in nca.parts[-1]
     onnx_path, json_path = T.ship_nca(nca, tmp_path)
     info = __import__("json").loads(json_path.read_text())
-    assert info["parameters"] == 360 and info["data"]["hash"] == tr.hash
+    # the seed's 360 numbers plus the two of the noise gate's step size
+    assert info["parameters"] == 362 and info["data"]["hash"] == tr.hash
+    assert info["autoexposure"] is True and len(info["noise_gate"]) == 2
     assert info["color_encoding"] == "log1p_demodulated"
     assert info["losses"]["steps_done"] == 6 and "loss" in info["losses"]["validation"]
     ae = T.train_autoencoder(tr, _ae_cfg(), validation=va)
@@ -149,9 +151,58 @@ def test_ship_and_load_trained_weights(tmp_path):
     assert methods.get("autoencoder", weights=str(ae_onnx)).denoise(f).shape == (20, 13, 3)
     from dbench.methods.nca import nca_denoise, reference_denoise
 
-    a = nca_denoise(f.color, f.normal, f.albedo, weights=onnx_path)
-    b = reference_denoise(f.color, f.normal, f.albedo, weights=onnx_path)
-    assert np.abs(a - b).max() <= 1e-4
+    for spp in (None, 1, 37, 1024):  # the step size follows the sample count
+        a = nca_denoise(f.color, f.normal, f.albedo, weights=onnx_path, spp=spp)
+        b = reference_denoise(f.color, f.normal, f.albedo, weights=onnx_path, spp=spp)
+        assert np.abs(a - b).max() <= 1e-4
+    from dbench.methods.autoencoder import autoencoder_denoise
+    from dbench.methods.autoencoder import reference_denoise as ae_reference
+
+    for spp in (1, 256):
+        a = autoencoder_denoise(f.color, f.albedo, f.normal, f.depth, weights=ae_onnx, spp=spp)[0]
+        b = ae_reference(f.color, f.albedo, f.normal, f.depth, weights=ae_onnx, spp=spp)[0]
+        assert np.abs(a - b).max() <= 1e-4
+
+
+def test_loop_form_equals_unrolled_with_step_size():
+    """The shipped Loop form (γ an input) and the unrolled form (γ built in) agree."""
+    import onnxruntime as ort
+
+    from dbench.methods.nca.export import build_onnx
+
+    rng = np.random.default_rng(3)
+    W = rng.normal(0, 0.3, (39, 9)).astype(np.float32)
+    b = rng.normal(-0.5, 0.1, 9).astype(np.float32)
+    state = rng.random((1, 9, 11, 13)).astype(np.float32)
+    loop = ort.InferenceSession(build_onnx(W, b).SerializeToString())
+    for gamma in (1.0, 0.3):
+        unrolled = ort.InferenceSession(build_onnx(W, b, iterations=3, gamma=gamma)
+                                        .SerializeToString())
+        a = loop.run(None, {"state": state, "iterations": np.array(3, np.int64),
+                            "gamma": np.array(gamma, np.float32)})[0]
+        c = unrolled.run(None, {"state": state})[0]
+        assert np.abs(a - c).max() <= 1e-5
+
+
+def test_mixed_spp_inputs_and_exposure():
+    """Sums of independent renders give exact inputs at the summed count; the exposed batch
+    scales noisy and reference alike."""
+    from dbench.learn.dataset import combine_spp, mixed_spp, sample_batch
+
+    rng = np.random.default_rng(0)
+    spp = (1, 2, 4, 8)
+    drawn = [sum(spp[i] for i in mixed_spp(spp, [0, 1, 2, 3], rng)) for _ in range(400)]
+    assert set(drawn) == set(range(1, 16))  # every count from 1 to 15 occurs
+    x = [np.full((2, 2, 3), v, np.float32) for v in (1.0, 2.0, 4.0, 8.0)]
+    assert np.allclose(combine_spp(x, spp, [1, 3]), (2 * 2 + 8 * 8) / 10)
+    ts = synthetic_training_set(3, 32, spp)
+    b = sample_batch(ts, np.random.default_rng(1), 6, 16, mix_spp=True, exposure=True)
+    assert b["spp"].min() >= 1 and b["spp"].max() <= 15
+    np.testing.assert_allclose(b["level"], np.log2(b["spp"]) / 10, rtol=1e-6)
+    assert np.all(b["exposure"] > 0)
+    plain = sample_batch(ts, np.random.default_rng(1), 6, 16, mix_spp=True, exposure=False)
+    np.testing.assert_allclose(b["reference"], plain["reference"]
+                               * b["exposure"][:, None, None, None], rtol=1e-5)
 
 
 def test_cli_train_parser():

@@ -78,6 +78,12 @@ def bench_method(name: str, height: int = 720, width: int = 1280, repeats: int =
                               "mpix_per_s": height * width / t_method / 1e6,
                               "machine": machine_info()["cpu"],
                               "when": time.strftime("%Y-%m-%d %H:%M:%S")}
+    wrapped = getattr(type(method), "wrapped", None)
+    if wrapped is not None:  # NAME+gate: the method alone in the same run, and the gate's share
+        inner = method.inner
+        t_inner = median_time(lambda: inner.denoise(frame), repeats)
+        result.update({"wrapped": wrapped.name, "wrapped_time_s": t_inner,
+                       "gate_overhead": t_method / t_inner - 1.0})
     try:
         extra = importlib.import_module(f"dbench.bench.methods.{name}")
     except ModuleNotFoundError:
@@ -132,6 +138,9 @@ def format_result(result: dict[str, Any]) -> str:
     lines = [f"{result['method']} at {result['width']}x{result['height']}: "
              f"{result['time_s'] * 1e3:.1f} ms ({result['mpix_per_s']:.2f} Mpix/s); "
              f"oidn {result['oidn_time_s'] * 1e3:.1f} ms; ratio {result['ratio_vs_oidn']:.2f}x oidn"]
+    if "wrapped" in result:
+        lines.append(f"  {result['wrapped']} alone {result['wrapped_time_s'] * 1e3:.1f} ms in the "
+                     f"same run: the gate adds {result['gate_overhead']:.0%}")
     if "fast_vs_reference" in result:
         lines.append(f"  fast path vs reference: {json.dumps(result['fast_vs_reference'], default=str)}")
     return "\n".join(lines)

@@ -242,6 +242,6 @@ def cmd_train(args: argparse.Namespace) -> int:
     if args.sequences is None:
         args.sequences = 16 if args.method == "autoencoder" else 0
     run_training(args.method, n_scenes=args.scenes, res=args.res,
-                 ref_spp=args.ref_spp or 1024, out_dir=args.out, sequences=args.sequences,
+                 ref_spp=args.ref_spp or 2048, out_dir=args.out, sequences=args.sequences,
                  cache=datasets.Cache(args.cache, enabled=not args.no_cache), **overrides)
     return 0

@@ -42,7 +42,15 @@ class NCAConfig:
     bias_init: float = -0.5
     w_init_std: float = 0.0
     grad_norm: bool = True
-    spp_choices: tuple[int, ...] = (1, 2, 4, 8)
+    # [dbench] inputs over the whole range users run: every rendered count (None: all of the
+    # set's, 1 ... 1024 spp) mixed into sums of independent renders (dataset.mixed_spp)
+    spp_choices: tuple[int, ...] | None = None
+    mix_spp: bool = True
+    # [dbench] OIDN-style HDR input: auto-exposure before log1p (methods/hdr_input.py)
+    autoexposure: bool = True
+    # [dbench] step size γ = sigmoid(v + u log2(spp)/10) per image (nca/model.py): 2 weights
+    noise_gate: bool = True
+    gate_init: tuple[float, float] = (0.0, 2.0)
     light_fraction: float = 0.25  # share of crops around visible lights (dataset.sample_batch)
     loss_weights: dict = field(default_factory=lambda: dict(L.NCA_WEIGHTS))
     max_minutes: float | None = None
@@ -61,12 +69,15 @@ class AEConfig:
     betas: tuple[float, float] = (0.9, 0.99)
     lr_decay_at: tuple[float, ...] = (0.6, 0.85)
     width_scale: float = 0.5
-    features: tuple[str, ...] = ("normal", "albedo", "depth")
+    # [dbench] "level": log2(spp)/10 as an input plane (codec.FEATURE_CHANNELS)
+    features: tuple[str, ...] = ("normal", "albedo", "depth", "level")
     recurrent: bool = True
     residual: bool = True  # [dbench] output = input colour + correction (model.RecurrentAE)
     blend: bool = False  # [dbench] output = gated blend of input colour and prediction
     zero_recurrent_init: bool = True
-    spp_choices: tuple[int, ...] = (1, 2, 4, 8)
+    spp_choices: tuple[int, ...] | None = None  # every rendered count, mixed (as NCAConfig)
+    mix_spp: bool = True
+    autoexposure: bool = True  # [dbench] OIDN-style auto-exposure before the log encoding
     light_fraction: float = 0.25  # share of crops around visible lights (dataset.sample_batch)
     loss_weights: dict = field(default_factory=lambda: dict(L.AE_WEIGHTS))
     linear_weight: float = 0.0  # weight of losses.clamped_linear_mse (0: spec loss only)

@@ -183,13 +183,44 @@ def synthetic_training_set(n_scenes: int = 4, res: int = 32, spp: Sequence[int] 
                        config={"synthetic": True, "seed": seed, "res": res})
 
 
+def mixed_spp(spp: Sequence[int], allowed: Sequence[int], rng: np.random.Generator
+              ) -> list[int]:
+    """Indices into ``spp`` whose renders are averaged into one input: the largest drawn
+    uniformly from ``allowed``, every smaller allowed index joined with probability ½.
+
+    The renders have independent seeds, so the spp-weighted mean of a subset is an exact
+    estimate at the summed sample count: from renders at 1, 2, 4, …, 1024 spp one gets inputs
+    at every count from 1 to 2047, spread nearly log-uniformly (the largest member sets the
+    octave)."""
+    top = int(rng.integers(len(allowed)))
+    chosen = [allowed[top]] + [i for i in allowed[:top] if rng.random() < 0.5]
+    return sorted(chosen, key=lambda i: spp[i])
+
+
+def combine_spp(noisy: np.ndarray, spp: Sequence[int], chosen: Sequence[int]) -> np.ndarray:
+    """The spp-weighted mean of ``noisy[i]`` over ``chosen`` (independent renders)."""
+    if len(chosen) == 1:
+        return noisy[chosen[0]]
+    weights = np.array([spp[i] for i in chosen], np.float64)
+    stack = np.stack([noisy[i] for i in chosen]).astype(np.float64)
+    return np.tensordot(weights / weights.sum(), stack, axes=1).astype(np.float32)
+
+
 def sample_batch(ts: TrainingSet, rng: np.random.Generator, batch: int, crop: int,
-                 spp_choices: Sequence[int] | None = None, light_fraction: float = 0.0
-                 ) -> dict[str, np.ndarray]:
+                 spp_choices: Sequence[int] | None = None, light_fraction: float = 0.0,
+                 mix_spp: bool = False, exposure: bool = False) -> dict[str, np.ndarray]:
     """A batch of random crops with random horizontal/vertical flips (whole deep image).
 
     Returns arrays (B, crop, crop, C): ``noisy``, ``reference``, ``albedo``, ``normal``,
-    ``depth``, and ``spp`` (B,). ``spp_choices`` restricts the noisy sample counts.
+    ``depth``; and (B,) ``spp``, ``level`` (log2(spp)/10) and ``exposure``. ``spp_choices``
+    restricts the noisy sample counts.
+
+    ``mix_spp``: the input is the mean of a random subset of the scene's independent renders
+    (:func:`mixed_spp`), so sample counts between the rendered ones occur too.
+
+    ``exposure``: noisy and reference are multiplied by the auto-exposure of the noisy crop
+    (:func:`dbench.methods.hdr_input.autoexposure`), as inference scales a whole image; the
+    losses then compare exposed radiance, which is what the network sees.
 
     ``light_fraction``: the share of crops drawn around a directly visible light
     (:meth:`TrainingSet.emitter_pixels`; a crop holding one of its pixels at a uniformly random
@@ -198,6 +229,8 @@ def sample_batch(ts: TrainingSet, rng: np.random.Generator, batch: int, crop: in
     dominate the linear RMSE of a scene that shows one, and uniform crops almost never teach
     the networks to keep them sharp.
     """
+    from ..methods.hdr_input import autoexposure, noise_level
+
     s_count, h, w = ts.shape
     if crop > h or crop > w:
         raise DbenchInputError(f"crop: {crop} exceeds the training images ({h}x{w})")
@@ -209,11 +242,14 @@ def sample_batch(ts: TrainingSet, rng: np.random.Generator, batch: int, crop: in
     lights = ts.emitter_pixels() if light_fraction > 0 else []
     lit = [i for i, px in enumerate(lights) if len(px)]
     out: dict[str, list] = {k: [] for k in ("noisy", "reference", "albedo", "normal", "depth")}
-    spps = []
+    spps, exposures = [], []
     for _ in range(batch):
         around_light = bool(lit) and rng.random() < light_fraction
         s = lit[int(rng.integers(len(lit)))] if around_light else int(rng.integers(s_count))
-        p = allowed[int(rng.integers(len(allowed)))]
+        if mix_spp:
+            chosen = mixed_spp(ts.spp, allowed, rng)
+        else:
+            chosen = [allowed[int(rng.integers(len(allowed)))]]
         if around_light:
             cy, cx = lights[s][int(rng.integers(len(lights[s])))]
             y0 = int(np.clip(cy - rng.integers(crop), 0, h - crop))
@@ -223,7 +259,9 @@ def sample_batch(ts: TrainingSet, rng: np.random.Generator, batch: int, crop: in
             x0 = int(rng.integers(w - crop + 1))
         fy, fx = bool(rng.integers(2)), bool(rng.integers(2))
         sl = (slice(y0, y0 + crop), slice(x0, x0 + crop))
-        items = {"noisy": ts.noisy[s, p][sl], "reference": ts.reference[s][sl],
+        noisy = combine_spp([ts.noisy[s, i][sl] for i in range(len(ts.spp))], ts.spp, chosen)
+        e = autoexposure(noisy) if exposure else 1.0
+        items = {"noisy": noisy * np.float32(e), "reference": ts.reference[s][sl] * np.float32(e),
                  "albedo": ts.albedo[s][sl], "normal": ts.normal[s][sl].copy(),
                  "depth": ts.depth[s][sl]}
         # a flip mirrors the image; the world-space normals are left as rendered (they are
@@ -234,10 +272,27 @@ def sample_batch(ts: TrainingSet, rng: np.random.Generator, batch: int, crop: in
             if fx:
                 v = v[:, ::-1]
             out[k].append(np.ascontiguousarray(v))
-        spps.append(ts.spp[p])
+        spps.append(sum(ts.spp[i] for i in chosen))
+        exposures.append(e)
     result = {k: np.stack(v).astype(np.float32) for k, v in out.items()}
     result["spp"] = np.array(spps, np.int64)
+    result["level"] = np.array([noise_level(n) for n in spps], np.float32)
+    result["exposure"] = np.array(exposures, np.float32)
     return result
+
+
+def full_images(ts: "TrainingSet", p: int, exposure: bool = False) -> dict[str, np.ndarray]:
+    """Every scene of ``ts`` at its p-th sample count as one batch (validation): the keys of
+    :func:`sample_batch`, each image scaled by its own auto-exposure when ``exposure``."""
+    from ..methods.hdr_input import autoexposure, noise_level
+
+    e = np.array([autoexposure(x) if exposure else 1.0 for x in ts.noisy[:, p]], np.float32)
+    scale = e[:, None, None, None]
+    n = ts.noisy.shape[0]
+    return {"noisy": ts.noisy[:, p] * scale, "reference": ts.reference * scale,
+            "albedo": ts.albedo, "normal": ts.normal, "depth": ts.depth,
+            "spp": np.full(n, ts.spp[p], np.int64),
+            "level": np.full(n, noise_level(ts.spp[p]), np.float32), "exposure": e}
 
 
 @dataclass
@@ -307,9 +362,14 @@ def build_sequence_set(n_sequences: int = 16, n_frames: int = 8, res: int = 96,
 
 
 def sample_sequence_batch(ss: SequenceSet, rng: np.random.Generator, batch: int, crop: int,
-                          frames: int | None = None) -> dict[str, np.ndarray]:
+                          frames: int | None = None, exposure: bool = False
+                          ) -> dict[str, np.ndarray]:
     """A batch of crops of ``frames`` consecutive frames (same window in every frame, random
-    start frame, spp and flips): arrays (B, F, crop, crop, C) named as in :func:`sample_batch`."""
+    start frame, spp and flips): arrays (B, F, crop, crop, C) named as in :func:`sample_batch`,
+    and (B, F) ``level`` and ``exposure`` (each frame's own auto-exposure when ``exposure``, as
+    inference computes it frame by frame)."""
+    from ..methods.hdr_input import autoexposure, noise_level
+
     s_count, p_count, f_count, h, w, _ = ss.noisy.shape
     frames = f_count if frames is None else frames
     if crop > h or crop > w:
@@ -317,13 +377,17 @@ def sample_sequence_batch(ss: SequenceSet, rng: np.random.Generator, batch: int,
     if not 1 <= frames <= f_count:
         raise DbenchInputError(f"frames: expected 1..{f_count}, got {frames}")
     out: dict[str, list] = {k: [] for k in ("noisy", "reference", "albedo", "normal", "depth")}
+    levels, exposures = [], []
     for _ in range(batch):
         s, p = int(rng.integers(s_count)), int(rng.integers(p_count))
         f0 = int(rng.integers(f_count - frames + 1))
         y0, x0 = int(rng.integers(h - crop + 1)), int(rng.integers(w - crop + 1))
         fy, fx = bool(rng.integers(2)), bool(rng.integers(2))
         sl = (slice(f0, f0 + frames), slice(y0, y0 + crop), slice(x0, x0 + crop))
-        items = {"noisy": ss.noisy[s, p][sl], "reference": ss.reference[s][sl],
+        noisy = ss.noisy[s, p][sl]
+        e = np.array([autoexposure(f) if exposure else 1.0 for f in noisy], np.float32)
+        scale = e[:, None, None, None]
+        items = {"noisy": noisy * scale, "reference": ss.reference[s][sl] * scale,
                  "albedo": ss.albedo[s, p][sl], "normal": ss.normal[s, p][sl],
                  "depth": ss.depth[s, p][sl]}
         for k, v in items.items():
@@ -332,7 +396,12 @@ def sample_sequence_batch(ss: SequenceSet, rng: np.random.Generator, batch: int,
             if fx:
                 v = v[:, :, ::-1]
             out[k].append(np.ascontiguousarray(v))
-    return {k: np.stack(v).astype(np.float32) for k, v in out.items()}
+        levels.append(np.full(frames, noise_level(ss.spp[p]), np.float32))
+        exposures.append(e)
+    result = {k: np.stack(v).astype(np.float32) for k, v in out.items()}
+    result["level"] = np.stack(levels)
+    result["exposure"] = np.stack(exposures)
+    return result
 
 
 def split_sequences(ss: SequenceSet, n_validation: int) -> tuple[SequenceSet, SequenceSet]:

@@ -2,6 +2,8 @@
 data hash, final losses, loss curve, wall time, machine) into the method's package folder."""
 from __future__ import annotations
 
+import json
+
 import dataclasses
 import os
 import time
@@ -54,7 +56,11 @@ def ship_nca(result: TrainResult, out_dir: str | Path | None = None) -> tuple[Pa
     b = result.model.b.detach().numpy().astype(np.float32)
     meta = {"update_channels": cfg.update_channels, "activation": cfg.activation,
             "color_encoding": cfg.color_encoding, "iterations": str(cfg.iterations),
-            "data_hash": result.data.get("hash", "")}
+            "autoexposure": str(bool(cfg.autoexposure)), "data_hash": result.data.get("hash", "")}
+    gate = None
+    if getattr(result.model, "noise_gate", False):
+        gate = [float(result.model.gate_u.detach()), float(result.model.gate_v.detach())]
+        meta["noise_gate"] = json.dumps(gate)
     model = build_onnx(W, b, cfg.update_channels, cfg.activation, None, meta)
     with atomic_path(out / "nca.onnx", suffix=".tmp.onnx") as tmp:
         onnx.save(model, str(tmp))
@@ -62,7 +68,8 @@ def ship_nca(result: TrainResult, out_dir: str | Path | None = None) -> tuple[Pa
     info = _describe(result, {
         "parameters": count_parameters(result.model), "iterations": cfg.iterations,
         "update_channels": cfg.update_channels, "activation": cfg.activation,
-        "color_encoding": cfg.color_encoding, "W": W.tolist(), "b": b.tolist()})
+        "color_encoding": cfg.color_encoding, "autoexposure": bool(cfg.autoexposure),
+        "noise_gate": gate, "W": W.tolist(), "b": b.tolist()})
     write_json(out / "nca.json", info)
     _readable(out / "nca.json")
     return out / "nca.onnx", out / "nca.json"
@@ -83,7 +90,8 @@ def ship_autoencoder(result: TrainResult, out_dir: str | Path | None = None
     state = {k: v.detach().numpy() for k, v in net.state_dict().items()}
     meta = {"features": ",".join(cfg.features), "width_scale": str(cfg.width_scale),
             "enc_widths": ",".join(map(str, net.enc_widths)),
-            "in_channels": str(net.in_channels), "data_hash": result.data.get("hash", "")}
+            "in_channels": str(net.in_channels), "autoexposure": str(bool(cfg.autoexposure)),
+            "data_hash": result.data.get("hash", "")}
     model = build_onnx(state, net.in_channels, net.enc_widths, stateful=True, metadata=meta,
                        residual=net.residual, blend=net.blend)
     with atomic_path(out / "autoencoder.onnx", suffix=".tmp.onnx") as tmp:
@@ -93,7 +101,8 @@ def ship_autoencoder(result: TrainResult, out_dir: str | Path | None = None
         "parameters": count_parameters(net), "in_channels": net.in_channels,
         "features": list(cfg.features), "width_scale": cfg.width_scale,
         "enc_widths": list(net.enc_widths), "dec_widths": list(net.dec_widths),
-        "recurrent": cfg.recurrent, "residual": net.residual, "blend": net.blend})
+        "recurrent": cfg.recurrent, "residual": net.residual, "blend": net.blend,
+        "autoexposure": bool(cfg.autoexposure)})
     write_json(out / "autoencoder.json", info)
     _readable(out / "autoencoder.json")
     return out / "autoencoder.onnx", out / "autoencoder.json"

@@ -43,6 +43,11 @@ from .train_autoencoder import (finetune_autoencoder_sequences, train_autoencode
 from .train_nca import select_iterations, train_nca, validate_nca
 
 
+#: Sample counts rendered for every training scene (independent seeds); sums of subsets give
+#: every count from 1 to 1375 (:func:`~dbench.learn.dataset.mixed_spp`).
+TRAINING_SPP = (1, 2, 4, 8, 16, 64, 256, 1024)
+
+
 def split(ts: TrainingSet, n_validation: int) -> tuple[TrainingSet, TrainingSet | None]:
     """The last ``n_validation`` scenes held out for validation."""
     if n_validation <= 0:
@@ -59,7 +64,8 @@ def split(ts: TrainingSet, n_validation: int) -> tuple[TrainingSet, TrainingSet 
     return part(slice(0, s - n_validation)), part(slice(s - n_validation, s))
 
 
-def run_training(method: str, *, n_scenes: int = 48, res: int = 128, ref_spp: int = 1024,
+def run_training(method: str, *, n_scenes: int = 48, res: int = 128, ref_spp: int = 2048,
+                 spp: tuple[int, ...] = TRAINING_SPP,
                  n_validation: int | None = None, cache=None, out_dir=None,
                  progress: bool = True, sequences: int = 0,
                  sequence_overrides: dict | None = None,
@@ -78,7 +84,7 @@ def run_training(method: str, *, n_scenes: int = 48, res: int = 128, ref_spp: in
                                "autoencoder, nca")
     if progress:
         print(f"training set: {n_scenes} procedural scenes at {res} px, reference {ref_spp} spp")
-    ts = build_training_set(n_scenes=n_scenes, res=res, ref_spp=ref_spp, cache=cache,
+    ts = build_training_set(n_scenes=n_scenes, res=res, spp=spp, ref_spp=ref_spp, cache=cache,
                             progress=progress)
     if n_validation is None:  # the NCA picks its step count on the held-out scenes: 4 of them
         n_validation = 4 if method == "nca" else 2
@@ -100,12 +106,13 @@ def run_training(method: str, *, n_scenes: int = 48, res: int = 128, ref_spp: in
             scfg = dataclasses.replace(AESequenceConfig(), **(sequence_overrides or {}))
             stage = finetune_autoencoder_sequences(result.model, seq_train, scfg, cfg.features,
                                                    train_set, cfg, progress)
-            stage["validation"] = validate_autoencoder_sequences(result.model, seq_val,
-                                                                 cfg.features, scfg.frames)
+            stage["validation"] = validate_autoencoder_sequences(
+                result.model, seq_val, cfg.features, scfg.frames, cfg.autoexposure)
             result.data["sequence_stage"] = stage
             result.seconds += stage["wall_s"]
             if val_set is not None:
-                result.validation = validate_autoencoder(result.model, val_set, cfg.features)
+                result.validation = validate_autoencoder(result.model, val_set, cfg.features,
+                                                         cfg.autoexposure)
         paths = ship_autoencoder(result, out_dir)
     if progress:
         print(json.dumps(result.summary(), indent=1, default=str))

@@ -11,7 +11,8 @@ import torch
 
 from . import losses as L
 from .configs import AEConfig, AESequenceConfig, TrainResult
-from .dataset import TrainingSet, sample_batch
+from ..methods.hdr_input import autoexposure, noise_level
+from .dataset import TrainingSet, full_images, sample_batch
 from .loop import add_linear_terms, loss_curve, lr_at, run_loop, seed_everything, to_tensor
 
 
@@ -23,7 +24,11 @@ def ae_inputs(batch: dict[str, np.ndarray], features) -> tuple[torch.Tensor, tor
     a_eff = torch.where(albedo > ALBEDO_EPS, albedo, torch.ones_like(albedo))
     chans = [torch.log1p(to_tensor(batch["noisy"]) / a_eff)]
     for f in features:
-        chans.append(to_tensor(batch[f]))
+        if f == "level":  # (B,) noise levels as constant planes
+            lv = torch.as_tensor(np.asarray(batch["level"], np.float32))
+            chans.append(lv[:, None, None, None].expand(-1, 1, *albedo.shape[2:]))
+        else:
+            chans.append(to_tensor(batch[f]))
     return torch.cat(chans, 1), a_eff
 
 
@@ -55,7 +60,7 @@ def train_autoencoder(ts: TrainingSet, cfg: AEConfig | None = None, progress: bo
         for g in opt.param_groups:
             g["lr"] = lr_at(step, cfg)
         batch = sample_batch(ts, rng, cfg.batch, cfg.crop, cfg.spp_choices,
-                             cfg.light_fraction)
+                             cfg.light_fraction, cfg.mix_spp, cfg.autoexposure)
         x, a_eff = ae_inputs(batch, cfg.features)
         y, _ = model(x)
         pred = ae_prediction(y, a_eff)[:, None]
@@ -71,7 +76,8 @@ def train_autoencoder(ts: TrainingSet, cfg: AEConfig | None = None, progress: bo
     result = TrainResult("autoencoder", model, cfg, losses, parts, seconds, done,
                          data={"hash": ts.hash, "scenes": ts.scenes, **ts.config})
     if validation is not None:
-        result.validation = validate_autoencoder(model, validation, cfg.features)
+        result.validation = validate_autoencoder(model, validation, cfg.features,
+                                                 cfg.autoexposure)
     return result
 
 
@@ -98,10 +104,12 @@ def finetune_autoencoder_sequences(model, ss, cfg: AESequenceConfig, features,
                       and (step + 1) % cfg.steady_every == 0)
         if use_steady:
             one = sample_batch(steady, rng, cfg.steady_batch, cfg.steady_crop,
-                               steady_cfg.spp_choices, steady_cfg.light_fraction)
+                               steady_cfg.spp_choices, steady_cfg.light_fraction,
+                               steady_cfg.mix_spp, steady_cfg.autoexposure)
             batch = {k: v[:, None] for k, v in one.items() if k != "spp"}
         else:
-            batch = sample_sequence_batch(ss, rng, cfg.batch, cfg.crop, cfg.frames)
+            batch = sample_sequence_batch(ss, rng, cfg.batch, cfg.crop, cfg.frames,
+                                          steady_cfg.autoexposure)
         hidden, preds, targets = None, [], []
         for f in range(batch["noisy"].shape[1]):
             frame = {k: v[:, f] for k, v in batch.items()}
@@ -133,7 +141,8 @@ def finetune_autoencoder_sequences(model, ss, cfg: AESequenceConfig, features,
             "data": {"hash": ss.hash, "scenes": ss.scenes, **ss.config}}
 
 
-def validate_autoencoder_sequences(model, ss, features, frames: int = 7) -> dict[str, float]:
+def validate_autoencoder_sequences(model, ss, features, frames: int = 7,
+                                   exposure: bool = False) -> dict[str, float]:
     """Mean per-frame spec loss over every full held-out sequence and spp with the state
     carried, and with the state reset every frame (what the recurrence adds)."""
     from ..methods.autoencoder.model import MULTIPLE
@@ -148,19 +157,23 @@ def validate_autoencoder_sequences(model, ss, features, frames: int = 7) -> dict
             for p in range(p_count):
                 hidden = None
                 for f in range(min(frames, f_count)):
-                    batch = {"noisy": ss.noisy[:, p, f], "normal": ss.normal[:, p, f],
-                             "albedo": ss.albedo[:, p, f], "depth": ss.depth[:, p, f]}
+                    e = np.array([autoexposure(x) if exposure else 1.0
+                                  for x in ss.noisy[:, p, f]], np.float32)[:, None, None, None]
+                    batch = {"noisy": ss.noisy[:, p, f] * e, "normal": ss.normal[:, p, f],
+                             "albedo": ss.albedo[:, p, f], "depth": ss.depth[:, p, f],
+                             "level": np.full(s, noise_level(ss.spp[p]), np.float32)}
                     x, a_eff = ae_inputs(batch, features)
                     y, hidden = model(x, hidden if carried else None)
                     pred = ae_prediction(y, a_eff)[:, None]
-                    t = torch.log1p(to_tensor(ss.reference[:, f]))[:, None]
+                    t = torch.log1p(to_tensor(ss.reference[:, f] * e))[:, None]
                     vals.append(float(L.autoencoder_loss(pred, t)[0]))
             out["loss_state_carried" if carried else "loss_state_reset"] = float(np.mean(vals))
     out["scenes"] = ss.scenes
     return out
 
 
-def validate_autoencoder(model, vs: TrainingSet, features) -> dict[str, float]:
+def validate_autoencoder(model, vs: TrainingSet, features, exposure: bool = False
+                         ) -> dict[str, float]:
     from ..methods.autoencoder.model import MULTIPLE
 
     s, h, w = vs.shape
@@ -169,13 +182,12 @@ def validate_autoencoder(model, vs: TrainingSet, features) -> dict[str, float]:
     with torch.no_grad():
         vals, base = [], []
         for p in range(len(vs.spp)):
-            batch = {"noisy": vs.noisy[:, p], "normal": vs.normal, "albedo": vs.albedo,
-                     "depth": vs.depth}
+            batch = full_images(vs, p, exposure)
             x, a_eff = ae_inputs(batch, features)
             pred = ae_prediction(model(x)[0], a_eff)[:, None]
-            t = torch.log1p(to_tensor(vs.reference))[:, None]
+            t = torch.log1p(to_tensor(batch["reference"]))[:, None]
             vals.append(float(L.autoencoder_loss(pred, t)[0]))
-            base.append(float(L.autoencoder_loss(torch.log1p(to_tensor(vs.noisy[:, p]))[:, None],
+            base.append(float(L.autoencoder_loss(torch.log1p(to_tensor(batch["noisy"]))[:, None],
                                                  t)[0]))
     return {"loss": float(np.mean(vals)), "noisy_input_loss": float(np.mean(base)),
             "scenes": vs.scenes}

@@ -11,7 +11,7 @@ import torch
 
 from . import losses as L
 from .configs import NCAConfig, TrainResult
-from .dataset import TrainingSet, sample_batch
+from .dataset import TrainingSet, full_images, sample_batch
 from .loop import add_linear_terms, lr_at, run_loop, seed_everything, to_tensor
 
 
@@ -45,16 +45,17 @@ def train_nca(ts: TrainingSet, cfg: NCAConfig | None = None, progress: bool = Fa
     rng = seed_everything(cfg.seed, cfg.threads)
     gen = torch.Generator().manual_seed(cfg.seed)
     model = NCA(cfg.update_channels, cfg.activation, cfg.bias_init, cfg.w_init_std,
-                generator=gen)
+                generator=gen, noise_gate=cfg.noise_gate, gate_init=cfg.gate_init)
     opt = torch.optim.Adam(model.parameters(), lr=cfg.lr)
 
     def step_fn(step: int):
         for g in opt.param_groups:
             g["lr"] = lr_at(step, cfg)
         batch = sample_batch(ts, rng, cfg.batch, cfg.crop, cfg.spp_choices,
-                             cfg.light_fraction)
+                             cfg.light_fraction, cfg.mix_spp, cfg.autoexposure)
         k = int(rng.integers(cfg.k_min, cfg.k_max + 1))
-        out = model(nca_state(batch, cfg.color_encoding), k)[:, :3]
+        out = model(nca_state(batch, cfg.color_encoding), k,
+                    torch.from_numpy(batch["level"]))[:, :3]
         pred = nca_prediction(out, batch, cfg.color_encoding)
         target = torch.log1p(to_tensor(batch["reference"]))
         loss, part = L.nca_loss(pred, target, cfg.loss_weights)
@@ -74,11 +75,13 @@ def train_nca(ts: TrainingSet, cfg: NCAConfig | None = None, progress: bool = Fa
     if validation is not None:
         if cfg.select_from:
             chosen, table = select_iterations(model, validation, cfg.select_from,
-                                              cfg.color_encoding, cfg.select_by)
+                                              cfg.color_encoding, cfg.select_by,
+                                              cfg.autoexposure)
             cfg = dataclasses.replace(cfg, iterations=chosen)
             result.config = cfg
             result.data["iterations_selection"] = table
-        result.validation = validate_nca(model, validation, cfg.iterations, cfg.color_encoding)
+        result.validation = validate_nca(model, validation, cfg.iterations, cfg.color_encoding,
+                                         cfg.autoexposure)
     return result
 
 
@@ -87,7 +90,8 @@ def _rmse(a: np.ndarray, b: np.ndarray) -> float:
 
 
 def select_iterations(model, vs: TrainingSet, candidates, encoding: str = "log1p",
-                      by: str = "worst") -> tuple[int, dict[str, dict[str, float]]]:
+                      by: str = "worst", exposure: bool = False
+                      ) -> tuple[int, dict[str, dict[str, float]]]:
     """The step count whose relative linear RMSE (output RMSE / noisy RMSE) over every held-out
     image and spp is best: ``by="worst"`` the lowest worst case (ties: lowest mean), i.e. the
     count least likely to make an image worse than its input; ``by="mean"`` the lowest mean.
@@ -99,29 +103,31 @@ def select_iterations(model, vs: TrainingSet, candidates, encoding: str = "log1p
         for k in candidates:
             rel = []
             for p in range(len(vs.spp)):
-                batch = {"noisy": vs.noisy[:, p], "normal": vs.normal, "albedo": vs.albedo}
-                out = nca_prediction(model(nca_state(batch, encoding), k)[:, :3], batch, encoding)
+                batch = full_images(vs, p, exposure)
+                out = model(nca_state(batch, encoding), k, torch.from_numpy(batch["level"]))
+                out = nca_prediction(out[:, :3], batch, encoding)
                 lin = np.maximum(np.expm1(np.minimum(out.numpy(), 80.0)), 0).transpose(0, 2, 3, 1)
                 for i in range(vs.shape[0]):
-                    rel.append(_rmse(lin[i], vs.reference[i])
-                               / max(_rmse(vs.noisy[i, p], vs.reference[i]), 1e-12))
+                    rel.append(_rmse(lin[i], batch["reference"][i])
+                               / max(_rmse(batch["noisy"][i], batch["reference"][i]), 1e-12))
             table[str(k)] = {"mean": float(np.mean(rel)), "worst": float(np.max(rel))}
     order = ("worst", "mean") if by == "worst" else ("mean", "worst")
     best = min(candidates, key=lambda k: tuple(table[str(k)][o] for o in order))
     return int(best), table
 
 
-def validate_nca(model, vs: TrainingSet, iterations: int, encoding: str = "log1p"
-                 ) -> dict[str, float]:
+def validate_nca(model, vs: TrainingSet, iterations: int, encoding: str = "log1p",
+                 exposure: bool = False) -> dict[str, float]:
     """Spec loss on every full image and spp of a held-out set, plus the noisy input's loss."""
     with torch.no_grad():
         vals, base = [], []
         for p in range(len(vs.spp)):
-            batch = {"noisy": vs.noisy[:, p], "normal": vs.normal, "albedo": vs.albedo}
-            out = model(nca_state(batch, encoding), iterations)[:, :3]
+            batch = full_images(vs, p, exposure)
+            out = model(nca_state(batch, encoding), iterations,
+                        torch.from_numpy(batch["level"]))[:, :3]
             out = nca_prediction(out, batch, encoding)
-            t = torch.log1p(to_tensor(vs.reference))
+            t = torch.log1p(to_tensor(batch["reference"]))
             vals.append(float(L.nca_loss(out, t)[0]))
-            base.append(float(L.nca_loss(torch.log1p(to_tensor(vs.noisy[:, p])), t)[0]))
+            base.append(float(L.nca_loss(torch.log1p(to_tensor(batch["noisy"])), t)[0]))
     return {"loss": float(np.mean(vals)), "noisy_input_loss": float(np.mean(base)),
             "iterations": iterations, "scenes": vs.scenes}

@@ -104,6 +104,7 @@ def test_onnx_runtime_equals_pytorch(update_channels, iterations):
     feeds = {"state": s.numpy()}
     if iterations is None:
         feeds["iterations"] = np.array(16, np.int64)
+        feeds["gamma"] = np.array(1.0, np.float32)
     out = sess.run(None, feeds)[0]
     assert np.abs(out - ref).max() <= 1e-4
 

@@ -35,7 +35,13 @@ and the decoder caps the network output at expm1(80). The output is finite every
 raise DbenchInputError naming the buffer.
 
 Parameters: ``recurrent`` (carry state across frames), ``weights`` (path of another
-``autoencoder.onnx``; None: the shipped file), ``threads`` (ONNX Runtime intra-op threads).
+``autoencoder.onnx``; None: the shipped file), ``threads`` (ONNX Runtime intra-op threads),
+``spp`` (the input's sample count, for a model with the ``level`` input; None:
+``data.meta["spp"]``, and 1 spp when that is absent too).
+
+HDR input ([dbench], recorded in the model's metadata): with ``autoexposure`` the colour is
+scaled by OIDN's auto-exposure (:func:`dbench.methods.hdr_input.autoexposure`) before the
+encoding and the output divided by it; the ``level`` feature is log2(spp)/10 as a constant plane.
 
 Example:
     >>> import numpy as np
@@ -59,6 +65,7 @@ import numpy as np
 from ...data import check_buffer
 from ...errors import DbenchInputError
 from ...registry import Denoiser, register
+from ..hdr_input import autoexposure, frame_spp, noise_level
 from ..ort_session import cpu_session
 from .codec import FEATURE_CHANNELS, decode, encode, pad_to_multiple
 
@@ -80,7 +87,8 @@ def _load(path: str):
             "enc_widths": tuple(int(w) for w in meta["enc_widths"].split(",")),
             "in_channels": int(meta["in_channels"]),
             "width_scale": float(meta.get("width_scale", 1.0)),
-            "residual": meta.get("residual") == "True", "blend": meta.get("blend") == "True"}
+            "residual": meta.get("residual") == "True", "blend": meta.get("blend") == "True",
+            "autoexposure": meta.get("autoexposure") == "True"}
     return model, info
 
 
@@ -100,13 +108,14 @@ def _session(path: str, stateful: bool, threads: int | None):
     return cpu_session(model.SerializeToString(), threads)
 
 
-def _buffers(color, albedo, normal, depth, features) -> tuple[np.ndarray, dict]:
+def _buffers(color, albedo, normal, depth, features, spp=None) -> tuple[np.ndarray, dict]:
     color = check_buffer("color", color, (None, None, 3))
     h, w = color.shape[:2]
     given = {"albedo": albedo, "normal": normal, "depth": depth}
-    out = {"albedo": check_buffer("albedo", albedo, (h, w, 3))}
+    out = {"albedo": check_buffer("albedo", albedo, (h, w, 3)),
+           "level": 0.0 if spp is None else noise_level(spp)}
     for f in features:
-        if f != "albedo":
+        if f not in ("albedo", "level"):
             if given[f] is None:
                 raise DbenchInputError(f"{f}: missing; the autoencoder needs an "
                                        f"(H, W, {FEATURE_CHANNELS[f]}) {f} buffer")
@@ -119,17 +128,19 @@ def _buffers(color, albedo, normal, depth, features) -> tuple[np.ndarray, dict]:
 
 def autoencoder_denoise(color: np.ndarray, albedo: np.ndarray, normal: np.ndarray | None = None,
                         depth: np.ndarray | None = None, hidden: list[np.ndarray] | None = None,
-                        weights: str | Path | None = None, threads: int | None = None
-                        ) -> tuple[np.ndarray, list[np.ndarray]]:
+                        weights: str | Path | None = None, threads: int | None = None,
+                        spp: float | None = None) -> tuple[np.ndarray, list[np.ndarray]]:
     """Denoise one (H, W, 3) frame; returns ((H, W, 3) float32, new hidden states).
 
     ``hidden``: the states returned for the previous frame of the same size, or None (frame 0).
+    ``spp``: the colour's sample count, for a model with the ``level`` input (None: 1 spp).
     """
     path = str(weights or SHIPPED_ONNX)
     _, info = _load(path)
-    color, bufs = _buffers(color, albedo, normal, depth, info["features"])
+    color, bufs = _buffers(color, albedo, normal, depth, info["features"], spp)
     h, w = color.shape[:2]
-    x, a_eff = encode(color, bufs, info["features"])
+    exposure = autoexposure(color) if info["autoexposure"] else 1.0
+    x, a_eff = encode(color, bufs, info["features"], exposure)
     xp, _, _ = pad_to_multiple(x)
     feeds = {"x": xp[None]}
     if hidden is not None:
@@ -142,10 +153,11 @@ def autoencoder_denoise(color: np.ndarray, albedo: np.ndarray, normal: np.ndarra
         feeds.update({f"h{l + 1}": t for l, t in enumerate(hidden)})
     outs = _session(path, hidden is not None, threads).run(None, feeds)
     y, new_hidden = outs[0][0, :, :h, :w], list(outs[1:])
-    return decode(y, a_eff), new_hidden
+    return decode(y, a_eff, exposure), new_hidden
 
 
-def reference_denoise(color, albedo, normal=None, depth=None, hidden=None, weights=None):
+def reference_denoise(color, albedo, normal=None, depth=None, hidden=None, weights=None,
+                      spp=None):
     """The same through the PyTorch model (tests: ONNX Runtime equals PyTorch)."""
     import torch
 
@@ -160,14 +172,15 @@ def reference_denoise(color, albedo, normal=None, depth=None, hidden=None, weigh
     if widths(scale)[0] != info["enc_widths"]:
         raise ValueError(f"cannot rebuild widths {info['enc_widths']}")
     net.load_state_dict({k: torch.from_numpy(np.array(v)) for k, v in state.items()})
-    color, bufs = _buffers(color, albedo, normal, depth, info["features"])
+    color, bufs = _buffers(color, albedo, normal, depth, info["features"], spp)
     h, w = color.shape[:2]
-    x, a_eff = encode(color, bufs, info["features"])
+    exposure = autoexposure(color) if info["autoexposure"] else 1.0
+    x, a_eff = encode(color, bufs, info["features"], exposure)
     xp, _, _ = pad_to_multiple(x)
     with torch.no_grad():
         hid = None if hidden is None else [torch.from_numpy(t) for t in hidden]
         y, new_hidden = net(torch.from_numpy(xp)[None], hid)
-    return decode(y[0, :, :h, :w].numpy(), a_eff), [t.numpy() for t in new_hidden]
+    return decode(y[0, :, :h, :w].numpy(), a_eff, exposure), [t.numpy() for t in new_hidden]
 
 
 def training_info(path: str | Path = SHIPPED_JSON) -> dict[str, Any]:
@@ -181,7 +194,7 @@ class Autoencoder(Denoiser):
 
     kinds = {"steady", "sequence"}
     needs = {"color", "albedo", "normal", "depth"}
-    defaults = dict(recurrent=True, weights=None, threads=None)
+    defaults = dict(recurrent=True, weights=None, threads=None, spp=None)
 
     def __init__(self, **params):
         super().__init__(**params)
@@ -199,7 +212,8 @@ class Autoencoder(Denoiser):
         hidden = self._hidden if self.params["recurrent"] else None
         out, new_hidden = autoencoder_denoise(
             data.color, data.albedo, getattr(data, "normal", None), getattr(data, "depth", None),
-            hidden=hidden, weights=self.params["weights"], threads=self.params["threads"])
+            hidden=hidden, weights=self.params["weights"], threads=self.params["threads"],
+            spp=frame_spp(data, self.params["spp"]))
         if self.params["recurrent"]:
             self._hidden = new_hidden
         return out

@@ -14,8 +14,10 @@ LEVELS = 5
 SLOPE = 0.1
 #: Spatial sizes must be multiples of this (five 2x2 poolings).
 MULTIPLE = 2 ** LEVELS
-FEATURE_ORDER = ("normal", "albedo", "depth")
-FEATURE_CHANNELS = {"normal": 3, "albedo": 3, "depth": 1}
+FEATURE_ORDER = ("normal", "albedo", "depth", "level")
+#: ``level``: the input's noise level log2(spp)/10 as a constant plane
+#: (:func:`dbench.methods.hdr_input.noise_level`), so one network serves every sample count.
+FEATURE_CHANNELS = {"normal": 3, "albedo": 3, "depth": 1, "level": 1}
 
 
 def in_channels_for(features: Sequence[str]) -> int:
@@ -37,14 +39,19 @@ def sanitize(name: str, x: np.ndarray, lo: float, hi: float) -> np.ndarray:
 
 
 def encode(color: np.ndarray, buffers: dict[str, np.ndarray],
-           features: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
-    """Network input (C, H, W) and a_eff (H, W, 3) from (H, W, 3) colour and feature buffers.
+           features: Sequence[str], exposure: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """Network input (C, H, W) and a_eff (H, W, 3) from (H, W, 3) colour and feature buffers
+    (``buffers["level"]`` a number when ``level`` is a feature). ``exposure`` multiplies the
+    colour first (auto-exposure); :func:`decode` divides by it again.
 
     Non-finite or negative colour is treated as missing (0); non-finite features are 0.
     Huge finite colour (up to the float32 maximum) encodes to a finite log value (at most ≈ 95,
     see :func:`log_demodulated`); the decoder caps the network output at expm1(80).
     """
     color = sanitize("color", color, 0.0, np.inf)
+    if exposure != 1.0:
+        color = sanitize("color", color.astype(np.float64) * exposure, 0.0,
+                         np.finfo(np.float32).max)
     albedo = sanitize("albedo", buffers["albedo"], 0.0, 1.0)
     a_eff = effective_albedo(albedo)
     chans = [log_demodulated(color, a_eff)]
@@ -58,16 +65,20 @@ def encode(color: np.ndarray, buffers: dict[str, np.ndarray],
             d = np.maximum(d, 0.0)
             dmax = float(d.max()) if d.size else 0.0
             chans.append((d / dmax if dmax > 0 else d).astype(np.float32))
+        elif f == "level":
+            chans.append(np.full(color.shape[:2] + (1,), float(buffers["level"]), np.float32))
         else:
             raise ValueError(f"unknown feature {f!r}; valid: {FEATURE_ORDER}")
     x = np.concatenate(chans, axis=-1).transpose(2, 0, 1)
     return np.ascontiguousarray(x, dtype=np.float32), a_eff
 
 
-def decode(y: np.ndarray, a_eff: np.ndarray) -> np.ndarray:
-    """(3, H, W) network output -> (H, W, 3) linear radiance: max(expm1(y), 0) * a_eff."""
+def decode(y: np.ndarray, a_eff: np.ndarray, exposure: float = 1.0) -> np.ndarray:
+    """(3, H, W) network output -> (H, W, 3) linear radiance:
+    max(expm1(y), 0) * a_eff / exposure."""
     lin = np.maximum(np.expm1(np.minimum(y.transpose(1, 2, 0), 80.0)), 0.0)
-    return np.ascontiguousarray(lin * a_eff, dtype=np.float32)
+    out = lin * a_eff if exposure == 1.0 else lin * a_eff / exposure
+    return np.ascontiguousarray(out, dtype=np.float32)
 
 
 def pad_to_multiple(x: np.ndarray, multiple: int = MULTIPLE) -> tuple[np.ndarray, int, int]:

@@ -20,7 +20,13 @@ everywhere. Missing or mis-shaped buffers raise DbenchInputError naming the buff
 
 Parameters: ``iterations`` (None: the trained default stored in the model), ``weights`` (path of
 another ``nca.onnx``; None: the shipped file), ``threads`` (ONNX Runtime intra-op threads; None:
-its default, all physical cores).
+its default, all physical cores), ``spp`` (the input's sample count for the noise gate; None:
+``data.meta["spp"]``, which every dbench loader records, and 1 spp when that is absent too).
+
+HDR input ([dbench], stored in the model's metadata): with ``autoexposure`` the colour is scaled
+by OIDN's auto-exposure (:func:`dbench.methods.hdr_input.autoexposure`) before ``log1p`` and the
+output divided by it; with ``noise_gate`` = (u, v) every automaton step is scaled by
+γ = sigmoid(v + u · log2(spp)/10) (:mod:`.model`).
 
 Example:
     >>> import numpy as np
@@ -43,6 +49,7 @@ import numpy as np
 from ...data import check_buffer
 from ...errors import DbenchInputError
 from ...registry import Denoiser, register
+from ..hdr_input import autoexposure, frame_spp, noise_level
 from ..ort_session import cpu_session
 from .codec import decode, encode
 
@@ -63,20 +70,36 @@ def _model_info(path: str) -> dict[str, Any]:
     model = onnx.load(str(p))
     W, b = weights_from_onnx(model)
     meta = metadata(model)
+    gate = json.loads(meta["noise_gate"]) if "noise_gate" in meta else None
     return {"W": W, "b": b, "update_channels": meta.get("update_channels", "all"),
             "activation": meta.get("activation", "sigmoid"),
             "encoding": meta.get("color_encoding", "log1p"),
-            "iterations": int(meta.get("iterations", 16))}
+            "iterations": int(meta.get("iterations", 16)),
+            "noise_gate": None if gate is None else (float(gate[0]), float(gate[1])),
+            "autoexposure": meta.get("autoexposure") == "True"}
 
 
-@lru_cache(maxsize=8)
-def _session(path: str, iterations: int, threads: int | None):
-    """An ONNX Runtime session of the unrolled automaton (built in memory from the weights)."""
+def step_size(path: str, spp: float | None) -> float:
+    """γ(ℓ) = sigmoid(v + u ℓ) of the model at ``path`` for a frame of ``spp`` samples
+    (float32 arithmetic, as in PyTorch); 1.0 for a model without the noise gate; unknown spp
+    counts as 1 spp (ℓ = 0: the strongest smoothing the model learnt)."""
+    gate = _model_info(path)["noise_gate"]
+    if gate is None:
+        return 1.0
+    level = np.float32(0.0 if spp is None else noise_level(spp))
+    z = np.float32(gate[1]) + np.float32(gate[0]) * level
+    return float(np.float32(1.0) / (np.float32(1.0) + np.exp(-z, dtype=np.float32)))
+
+
+@lru_cache(maxsize=32)
+def _session(path: str, iterations: int, threads: int | None, gamma: float = 1.0):
+    """An ONNX Runtime session of the unrolled automaton (built in memory from the weights)
+    with step size ``gamma``."""
     from .export import build_onnx
 
     info = _model_info(path)
     model = build_onnx(info["W"], info["b"], info["update_channels"], info["activation"],
-                       iterations=iterations)
+                       iterations=iterations, gamma=gamma)
     return cpu_session(model.SerializeToString(), threads)
 
 
@@ -86,9 +109,10 @@ def default_iterations(weights: str | Path | None = None) -> int:
 
 def nca_denoise(color: np.ndarray, normal: np.ndarray, albedo: np.ndarray,
                 iterations: int | None = None, weights: str | Path | None = None,
-                threads: int | None = None) -> np.ndarray:
+                threads: int | None = None, spp: float | None = None) -> np.ndarray:
     """Denoise (H, W, 3) linear colour with (H, W, 3) normal and albedo; returns (H, W, 3)
-    float32 (spec/nca.md; input policy in the module docstring)."""
+    float32 (spec/nca.md; input policy in the module docstring). ``spp``: the colour's sample
+    count, for the noise gate (None counts as 1 spp)."""
     color = check_buffer("color", color, (None, None, 3))
     h, w = color.shape[:2]
     normal = check_buffer("normal", normal, (h, w, 3))
@@ -97,15 +121,18 @@ def nca_denoise(color: np.ndarray, normal: np.ndarray, albedo: np.ndarray,
     k = _model_info(path)["iterations"] if iterations is None else iterations
     if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 0:
         raise DbenchInputError(f"iterations: expected an integer >= 0, got {k!r}")
-    enc = _model_info(path)["encoding"]
-    state = encode(color, normal, albedo, enc)[None]
-    rgb = _session(path, int(k), threads).run(None, {"state": state})[0][0]
-    return decode(rgb, albedo, enc)
+    info = _model_info(path)
+    enc = info["encoding"]
+    exposure = autoexposure(color) if info["autoexposure"] else 1.0
+    state = encode(color, normal, albedo, enc, exposure)[None]
+    gamma = step_size(path, spp)
+    rgb = _session(path, int(k), threads, gamma).run(None, {"state": state})[0][0]
+    return decode(rgb, albedo, enc, exposure)
 
 
 def reference_denoise(color: np.ndarray, normal: np.ndarray, albedo: np.ndarray,
-                      iterations: int | None = None, weights: str | Path | None = None
-                      ) -> np.ndarray:
+                      iterations: int | None = None, weights: str | Path | None = None,
+                      spp: float | None = None) -> np.ndarray:
     """The same result through the readable PyTorch model (perception + 39x9 product)."""
     import torch
 
@@ -113,17 +140,21 @@ def reference_denoise(color: np.ndarray, normal: np.ndarray, albedo: np.ndarray,
 
     info = _model_info(str(weights or SHIPPED_ONNX))
     k = info["iterations"] if iterations is None else iterations
-    nca = NCA(info["update_channels"], info["activation"])
+    gate = info["noise_gate"]
+    nca = NCA(info["update_channels"], info["activation"], noise_gate=gate is not None,
+              gate_init=gate or (0.0, 0.0))
     with torch.no_grad():
         nca.W.copy_(torch.from_numpy(info["W"]))
         nca.b.copy_(torch.from_numpy(info["b"]))
         color = check_buffer("color", color, (None, None, 3))
         h, w = color.shape[:2]
         albedo = check_buffer("albedo", albedo, (h, w, 3))
+        exposure = autoexposure(color) if info["autoexposure"] else 1.0
         s = torch.from_numpy(encode(color, check_buffer("normal", normal, (h, w, 3)), albedo,
-                                    info["encoding"]))[None]
-        rgb = nca(s, int(k))[0, :3].numpy()
-    return decode(rgb, albedo, info["encoding"])
+                                    info["encoding"], exposure))[None]
+        level = 0.0 if spp is None else noise_level(spp)
+        rgb = nca(s, int(k), level)[0, :3].numpy()
+    return decode(rgb, albedo, info["encoding"], exposure)
 
 
 def training_info(path: str | Path = SHIPPED_JSON) -> dict[str, Any]:
@@ -133,11 +164,12 @@ def training_info(path: str | Path = SHIPPED_JSON) -> dict[str, Any]:
 
 @register("nca")
 class NCADenoiser(Denoiser):
-    """TNND (spec/nca.md): 360 trained numbers, ``iterations`` automaton steps."""
+    """TNND (spec/nca.md): 360 trained numbers (362 with the noise gate), ``iterations``
+    automaton steps."""
 
     kinds = {"steady"}
     needs = {"color", "normal", "albedo"}
-    defaults = dict(iterations=None, weights=None, threads=None)
+    defaults = dict(iterations=None, weights=None, threads=None, spp=None)
 
     def __init__(self, **params):
         super().__init__(**params)
@@ -149,7 +181,8 @@ class NCADenoiser(Denoiser):
             if getattr(data, name, None) is None:
                 raise DbenchInputError(f"{name}: missing; nca needs an (H, W, 3) {name} buffer")
         return nca_denoise(data.color, data.normal, data.albedo, self.params["iterations"],
-                           self.params["weights"], self.params["threads"])
+                           self.params["weights"], self.params["threads"],
+                           frame_spp(data, self.params["spp"]))
 
 
 __all__ = ["NCADenoiser", "nca_denoise", "reference_denoise", "default_iterations",

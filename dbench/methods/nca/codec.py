@@ -30,8 +30,11 @@ def effective_albedo(albedo: np.ndarray) -> np.ndarray:
 
 
 def encode(color: np.ndarray, normal: np.ndarray, albedo: np.ndarray,
-           encoding: str = "log1p") -> np.ndarray:
+           encoding: str = "log1p", exposure: float = 1.0) -> np.ndarray:
     """(H, W, 3) buffers -> (9, H, W) initial state: encoded colour, normal, albedo.
+
+    ``exposure`` multiplies the colour before the encoding (auto-exposure,
+    :func:`dbench.methods.hdr_input.autoexposure`); :func:`decode` divides by it again.
 
     Non-finite or negative colour is 0; non-finite normal/albedo are 0; normal clipped to
     [-1, 1] and albedo to [0, 1]. Huge finite colour stays finite: the demodulated quotient is
@@ -40,6 +43,8 @@ def encode(color: np.ndarray, normal: np.ndarray, albedo: np.ndarray,
     if encoding not in ENCODINGS:
         raise ValueError(f"encoding: expected one of {ENCODINGS}, got {encoding!r}")
     c = sanitize(color, 0.0, np.inf)
+    if exposure != 1.0:
+        c = sanitize(c.astype(np.float64) * exposure, 0.0, np.finfo(np.float32).max)
     if encoding == "log1p_demodulated":
         rgb = log_demodulated(c, effective_albedo(albedo))
     else:
@@ -49,11 +54,13 @@ def encode(color: np.ndarray, normal: np.ndarray, albedo: np.ndarray,
 
 
 def decode(state_rgb: np.ndarray, albedo: np.ndarray | None = None,
-           encoding: str = "log1p") -> np.ndarray:
+           encoding: str = "log1p", exposure: float = 1.0) -> np.ndarray:
     """(3, H, W) final RGB state -> (H, W, 3) linear radiance (remodulated when the encoding is
-    demodulated; ``albedo`` (H, W, 3) is then required)."""
+    demodulated; ``albedo`` (H, W, 3) is then required), divided by ``exposure``."""
     x = np.minimum(state_rgb.transpose(1, 2, 0), 80.0)
     out = np.maximum(np.expm1(np.where(np.isfinite(x), x, 0.0)), 0.0)
     if encoding == "log1p_demodulated":
         out = out * effective_albedo(albedo)
+    if exposure != 1.0:
+        out = out / exposure
     return np.ascontiguousarray(out, dtype=np.float32)

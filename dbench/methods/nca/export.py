@@ -10,7 +10,8 @@ equal to the PyTorch reference (max abs 1e-4).
 Model (opset 17):
 
 * inputs ``state`` (N, 9, H, W) float32 (encoded, see ``model.encode``) and, in the looped form,
-  ``iterations`` (int64 scalar);
+  ``iterations`` (int64 scalar) and ``gamma`` (float scalar: the step size, 1 for the seed's
+  automaton, γ(ℓ) of the noise gate otherwise);
 * output ``rgb`` (N, 3, H, W): the RGB part of the state after the last step.
 
 Two forms from the same weights: ``iterations=None`` gives an ONNX ``Loop`` whose trip count is
@@ -42,7 +43,8 @@ def _step_nodes(prefix: str, s: str, out: str, update_channels: str, activation:
     n.append(helper.make_node("Pad", [s, "pads"], [pad], mode="edge"))
     n.append(helper.make_node("Conv", [pad, "K", "K_bias"], [conv], kernel_shape=[3, 3]))
     n.append(helper.make_node("Sigmoid" if activation == "sigmoid" else "Tanh", [conv], [act]))
-    n.append(helper.make_node("Add", [act, "b_bcast"], [upd]))
+    n.append(helper.make_node("Add", [act, "b_bcast"], [f"{prefix}_ungated"]))
+    n.append(helper.make_node("Mul", [f"{prefix}_ungated", "gamma"], [upd]))
     if update_channels == "all":
         n.append(helper.make_node("Add", [s, upd], [out]))
     else:
@@ -54,13 +56,27 @@ def _step_nodes(prefix: str, s: str, out: str, update_channels: str, activation:
     return n
 
 
+def _scaled_name(name: str, gamma: float) -> str:
+    return name if gamma == 1.0 else f"{name}_scaled"
+
+
+def _scaled(name: str, gamma: float) -> list[onnx.NodeProto]:
+    """``name`` × γ (no node when γ = 1)."""
+    if gamma == 1.0:
+        return []
+    return [helper.make_node("Mul", [name, "gamma_const"], [f"{name}_scaled"])]
+
+
 def _unrolled_nodes(K: np.ndarray, b: np.ndarray, iterations: int, update_channels: str,
-                    activation: str) -> tuple[list[onnx.NodeProto], list[onnx.TensorProto]]:
+                    activation: str, gamma: float = 1.0
+                    ) -> tuple[list[onnx.NodeProto], list[onnx.TensorProto]]:
     """Unrolled steps with the bias folded out of the state (fewer passes over memory).
 
-    With u_k = s_k - k b (the state minus its accumulated bias), edge padding keeps a constant
-    image constant, so Conv(Pad(s_k)) = Conv(Pad(u_k)) + k c with c_o = sum_{c,i,j} K[o,c,i,j] b_c,
-    and the update becomes u_{k+1} = u_k + act(Conv(Pad(u_k)) + k c); at the end s = u + K b.
+    With u_k = s_k - k γ b (the state minus its accumulated bias), edge padding keeps a constant
+    image constant, so Conv(Pad(s_k)) = Conv(Pad(u_k)) + k γ c with
+    c_o = sum_{c,i,j} K[o,c,i,j] b_c, and the update s_{k+1} = s_k + γ (act(Conv(Pad(s_k))) + b)
+    becomes u_{k+1} = u_k + γ act(Conv(Pad(u_k)) + k γ c); at the end s = u + K γ b (K steps;
+    γ = 1 without the noise gate, and then no multiplication is emitted).
     With ``update_channels="rgb"`` the normal/albedo part of the convolution is constant and is
     computed once (G), so each step convolves only the 3 RGB channels.
     """
@@ -70,18 +86,19 @@ def _unrolled_nodes(K: np.ndarray, b: np.ndarray, iterations: int, update_channe
         c = (K.astype(np.float64).sum(axis=(2, 3)) @ b.astype(np.float64))
         u = "state"
         for k in range(iterations):
-            inits.append(numpy_helper.from_array((k * c).astype(np.float32), f"bias{k}"))
+            inits.append(numpy_helper.from_array((k * gamma * c).astype(np.float32), f"bias{k}"))
             nodes += [helper.make_node("Pad", [u, "pads"], [f"p{k}"], mode="edge"),
                       helper.make_node("Conv", [f"p{k}", "K", f"bias{k}"], [f"z{k}"],
                                        kernel_shape=[3, 3]),
                       helper.make_node(act_op, [f"z{k}"], [f"a{k}"]),
-                      helper.make_node("Add", [u, f"a{k}"], [f"u{k + 1}"])]
+                      *_scaled(f"a{k}", gamma),
+                      helper.make_node("Add", [u, _scaled_name(f"a{k}", gamma)], [f"u{k + 1}"])]
             u = f"u{k + 1}"
         nodes.append(helper.make_node("Slice", [u, "c0", "c3", "axis1"], ["u_rgb"]))
     else:
         K_rgb, K_static = K[:RGB, :RGB].copy(), K[:RGB].copy()
         K_static[:, :RGB] = 0.0
-        c = (K_rgb.astype(np.float64).sum(axis=(2, 3)) @ b[:RGB].astype(np.float64))
+        c = gamma * (K_rgb.astype(np.float64).sum(axis=(2, 3)) @ b[:RGB].astype(np.float64))
         inits += [numpy_helper.from_array(K_rgb, "K_rgb"),
                   numpy_helper.from_array(K_static, "K_static")]
         nodes += [helper.make_node("Pad", ["state", "pads"], ["p_static"], mode="edge"),
@@ -96,21 +113,26 @@ def _unrolled_nodes(K: np.ndarray, b: np.ndarray, iterations: int, update_channe
                                        kernel_shape=[3, 3]),
                       helper.make_node("Add", [f"z{k}", "G"], [f"g{k}"]),
                       helper.make_node(act_op, [f"g{k}"], [f"a{k}"]),
-                      helper.make_node("Add", [u, f"a{k}"], [f"u{k + 1}"])]
+                      *_scaled(f"a{k}", gamma),
+                      helper.make_node("Add", [u, _scaled_name(f"a{k}", gamma)], [f"u{k + 1}"])]
             u = f"u{k + 1}"
         nodes.append(helper.make_node("Identity", [u], ["u_rgb"]))
+    if gamma != 1.0:
+        inits.append(numpy_helper.from_array(np.array(gamma, np.float32), "gamma_const"))
     inits.append(numpy_helper.from_array(
-        (iterations * b[:RGB].astype(np.float64)).astype(np.float32).reshape(1, RGB, 1, 1),
-        "total_bias"))
+        (iterations * gamma * b[:RGB].astype(np.float64)).astype(np.float32)
+        .reshape(1, RGB, 1, 1), "total_bias"))
     nodes.append(helper.make_node("Add", ["u_rgb", "total_bias"], ["rgb"]))
     return nodes, inits
 
 
 def build_onnx(W: np.ndarray, b: np.ndarray, update_channels: str = "all",
                activation: str = "sigmoid", iterations: int | None = None,
-               metadata: Mapping[str, str] | None = None) -> onnx.ModelProto:
-    """The NCA as an ONNX model; ``iterations=None`` for the Loop form (trip count input),
-    an integer for the unrolled, bias-folded form."""
+               metadata: Mapping[str, str] | None = None, gamma: float = 1.0
+               ) -> onnx.ModelProto:
+    """The NCA as an ONNX model; ``iterations=None`` for the Loop form (trip count and step
+    size γ are inputs), an integer for the unrolled, bias-folded form with the step size
+    ``gamma`` built in."""
     W = np.asarray(W, np.float32)
     b = np.asarray(b, np.float32)
     if W.shape != (PERCEPTION_CHANNELS, STATE_CHANNELS) or b.shape != (STATE_CHANNELS,):
@@ -135,6 +157,7 @@ def build_onnx(W: np.ndarray, b: np.ndarray, update_channels: str = "all",
         if update_channels == "rgb":
             inits.append(numpy_helper.from_array(np.array([STATE_CHANNELS], np.int64), "c9"))
         inputs.append(helper.make_tensor_value_info("iterations", TensorProto.INT64, []))
+        inputs.append(helper.make_tensor_value_info("gamma", TensorProto.FLOAT, []))
         body_nodes = _step_nodes("step", "s_in", "s_out", update_channels, activation)
         body_nodes.append(helper.make_node("Identity", ["cond_in"], ["cond_out"]))
         body = helper.make_graph(
@@ -153,7 +176,7 @@ def build_onnx(W: np.ndarray, b: np.ndarray, update_channels: str = "all",
         if update_channels == "all":
             inits.append(numpy_helper.from_array(K9, "K"))
         more_nodes, more_inits = _unrolled_nodes(K9, b, int(iterations), update_channels,
-                                                 activation)
+                                                 activation, float(gamma))
         nodes += more_nodes
         inits += more_inits
     graph = helper.make_graph(nodes, "tnnd_nca", inputs,

@@ -10,7 +10,11 @@ Laplacian K_l (9), Sobel-x K_sx (9), Sobel-y K_sy (9); fixed 3x3 kernels applied
 ``filter2d`` (cross-correlation) and replicate padding.
 
 Update (spec §3): s <- s + sigmoid(p · W) + b, W (39, 9), b (9,): 351 + 9 = 360 trainable
-parameters. ``update_channels="rgb"`` masks the update to RGB (normal and albedo stay the input
+parameters. [dbench] ``noise_gate=True`` scales every update by a step size that depends on the
+input's noise level ℓ = log2(spp)/10 (:func:`dbench.methods.hdr_input.noise_level`):
+s <- s + γ(ℓ) (sigmoid(p · W) + b), γ(ℓ) = sigmoid(v + u ℓ), two more trained numbers (362 in
+all). The automaton can then smooth a 1-spp image and leave a 1024-spp one nearly alone; γ = 1
+without the gate. ``update_channels="rgb"`` masks the update to RGB (normal and albedo stay the input
 bit for bit); ``activation="tanh"`` replaces the sigmoid.
 
 The fast path (:func:`folded_kernel`): perception followed by the 1x1 product with W is one
@@ -90,8 +94,13 @@ class NCA(nn.Module):
     """
 
     def __init__(self, update_channels: str = "all", activation: str = "sigmoid",
-                 bias_init: float = -0.5, w_init_std: float = 0.0, generator=None):
+                 bias_init: float = -0.5, w_init_std: float = 0.0, generator=None,
+                 noise_gate: bool = False, gate_init: tuple[float, float] = (0.0, 2.0)):
         super().__init__()
+        self.noise_gate = bool(noise_gate)
+        if self.noise_gate:  # (u, v) of γ(ℓ) = sigmoid(v + u ℓ)
+            self.gate_u = nn.Parameter(torch.tensor(float(gate_init[0])))
+            self.gate_v = nn.Parameter(torch.tensor(float(gate_init[1])))
         if update_channels not in UPDATE_CHANNELS:
             raise ValueError(f"update_channels: expected one of {UPDATE_CHANNELS}")
         if activation not in ACTIVATIONS:
@@ -111,18 +120,29 @@ class NCA(nn.Module):
     def act(self, z: torch.Tensor) -> torch.Tensor:
         return torch.sigmoid(z) if self.activation == "sigmoid" else torch.tanh(z)
 
-    def step(self, s: torch.Tensor) -> torch.Tensor:
-        """One update: s + sigmoid(p · W) + b (masked to RGB when update_channels="rgb")."""
+    def step_size(self, level: torch.Tensor | float | None, n: int) -> torch.Tensor | float:
+        """γ per batch item, (N, 1, 1, 1), from the noise level ℓ (scalar or (N,)); 1.0 without
+        the gate. ``level=None`` with the gate means 1 spp (ℓ = 0)."""
+        if not self.noise_gate:
+            return 1.0
+        lv = torch.zeros(n) if level is None else torch.as_tensor(level, dtype=torch.float32)
+        lv = lv.reshape(-1)[:, None, None, None] if lv.ndim else lv.reshape(1, 1, 1, 1)
+        return torch.sigmoid(self.gate_v + self.gate_u * lv)
+
+    def step(self, s: torch.Tensor, gamma: torch.Tensor | float = 1.0) -> torch.Tensor:
+        """One update: s + γ (sigmoid(p · W) + b) (masked to RGB when update_channels="rgb")."""
         p = perceive(s)
         z = torch.einsum("nphw,pc->nchw", p, self.W)
-        ds = self.act(z) + self.b[None, :, None, None]
+        ds = gamma * (self.act(z) + self.b[None, :, None, None])
         if self.update_channels == "rgb":
             return torch.cat([s[:, :RGB] + ds[:, :RGB], s[:, RGB:]], dim=1)
         return s + ds
 
-    def forward(self, s: torch.Tensor, iterations: int) -> torch.Tensor:
+    def forward(self, s: torch.Tensor, iterations: int,
+                level: torch.Tensor | float | None = None) -> torch.Tensor:
+        gamma = self.step_size(level, s.shape[0])
         for _ in range(int(iterations)):
-            s = self.step(s)
+            s = self.step(s, gamma)
         return s
 
 

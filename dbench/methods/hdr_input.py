@@ -1,0 +1,76 @@
+"""Inputs the learned denoisers share so that one network serves every exposure and noise level
+(OIDN's approach for HDR input, plus the sample count dbench always knows).
+
+* :func:`autoexposure` — OIDN's auto-exposure: the image is averaged over 16×16-pixel blocks, and
+  the exposure is key / (geometric mean of the block luminances above 1e-8), key = 0.18; 1 when
+  every block is black. The networks read ``log1p(exposure · colour)`` and their output is
+  divided by the exposure again, so scaling an input image by s scales the output by s.
+* :func:`noise_level` — ``log2(spp) / 10``: 0 at 1 spp, 1 at 1024 spp. The networks receive it
+  (the NCA through its step size, the autoencoder as an input channel) so that they can leave a
+  converged image alone; without it a network trained at 1-8 spp blurs a 1024-spp image.
+* :func:`frame_spp` — the sample count of a frame: the method's ``spp`` parameter when given,
+  else ``data.meta["spp"]`` (every dbench loader records it), else None.
+
+Example:
+    >>> import numpy as np
+    >>> round(autoexposure(np.full((32, 32, 3), 0.36, np.float32)), 6)
+    0.5
+    >>> noise_level(1024)
+    1.0
+"""
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ..errors import DbenchInputError
+
+EXPOSURE_KEY = 0.18
+EXPOSURE_BLOCK = 16
+#: Rec. 709 luminance weights (what OIDN uses for its auto-exposure).
+LUMINANCE = np.array([0.2126, 0.7152, 0.0722], np.float64)
+
+
+def autoexposure(color: np.ndarray, block: int = EXPOSURE_BLOCK) -> float:
+    """Exposure of an (H, W, 3) linear image (or a batch (..., H, W, 3): one value for all):
+    key / exp(mean log L) over the block-averaged luminances L > 1e-8; 1.0 for a black image.
+    Non-finite and negative values count as 0."""
+    c = np.asarray(color, np.float64)
+    c = np.where(np.isfinite(c) & (c > 0), c, 0.0)
+    lum = c @ LUMINANCE
+    lum = lum.reshape(-1, *lum.shape[-2:])
+    h, w = lum.shape[-2:]
+    bh, bw = -(-h // block), -(-w // block)
+    pad = np.zeros((lum.shape[0], bh * block, bw * block))
+    pad[:, :h, :w] = lum
+    counts = np.zeros((bh * block, bw * block))
+    counts[:h, :w] = 1.0
+    sums = pad.reshape(-1, bh, block, bw, block).sum(axis=(2, 4))
+    means = sums / counts.reshape(bh, block, bw, block).sum(axis=(1, 3))
+    means = means[means > 1e-8]
+    if means.size == 0:
+        return 1.0
+    return float(EXPOSURE_KEY / np.exp(np.mean(np.log(means))))
+
+
+def noise_level(spp: Any) -> float:
+    """log2(spp) / 10 for a sample count ≥ 1 (0 at 1 spp, 1 at 1024 spp)."""
+    s = float(spp)
+    if not np.isfinite(s) or s < 1:
+        raise DbenchInputError(f"spp: expected a sample count >= 1, got {spp!r}")
+    return float(np.log2(s) / 10.0)
+
+
+def frame_spp(data: Any, given: Any = None) -> float | None:
+    """The sample count behind ``data.color``: ``given`` (a method parameter) when not None,
+    else ``data.meta["spp"]``, else None."""
+    if given is not None:
+        noise_level(given)  # validates
+        return float(given)
+    meta = getattr(data, "meta", None) or {}
+    spp = meta.get("spp")
+    return None if spp is None else float(spp)
+
+
+__all__ = ["EXPOSURE_KEY", "autoexposure", "frame_spp", "noise_level"]
