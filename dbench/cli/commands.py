@@ -182,10 +182,10 @@ def cmd_stress(args: argparse.Namespace) -> int:
     from ..bench import stress
     from ..io import write_text
 
-    from .. import methods
+    from .. import methods, registry
     from ..io import ensure_writable_dir
 
-    names = ([methods.canonical(n) for n in _split(args.methods)] if args.methods != "all"
+    names = ([registry.canonical(n) for n in _split(args.methods)] if args.methods != "all"
              else None)
     for n in names or []:
         methods.method_class(n)

@@ -11,7 +11,7 @@ from .args import (_check_common, _default_spp, _scene_of, _sequence_window, _sp
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    from .. import datasets, methods
+    from .. import datasets, methods, registry
     from ..bench import harness, identity, report
     from ..bench.formats import markdown_table, write_csv
     from ..bench.machine import machine_info
@@ -23,7 +23,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     import pandas as pd
 
     names = (methods.available() if args.method == "all"
-             else [methods.canonical(n) for n in _split(args.method)])
+             else [registry.canonical(n) for n in _split(args.method)])
     for n in names:
         methods.method_class(n)  # raises UnknownNameError listing valid names
     scene = _scene_of(args)

@@ -229,7 +229,7 @@ def sample_batch(ts: TrainingSet, rng: np.random.Generator, batch: int, crop: in
     dominate the linear RMSE of a scene that shows one, and uniform crops almost never teach
     the networks to keep them sharp.
     """
-    from ..methods.hdr_input import autoexposure, noise_level
+    from ..methods.kernels.hdr_input import autoexposure, noise_level
 
     s_count, h, w = ts.shape
     if crop > h or crop > w:
@@ -284,7 +284,7 @@ def sample_batch(ts: TrainingSet, rng: np.random.Generator, batch: int, crop: in
 def full_images(ts: "TrainingSet", p: int, exposure: bool = False) -> dict[str, np.ndarray]:
     """Every scene of ``ts`` at its p-th sample count as one batch (validation): the keys of
     :func:`sample_batch`, each image scaled by its own auto-exposure when ``exposure``."""
-    from ..methods.hdr_input import autoexposure, noise_level
+    from ..methods.kernels.hdr_input import autoexposure, noise_level
 
     e = np.array([autoexposure(x) if exposure else 1.0 for x in ts.noisy[:, p]], np.float32)
     scale = e[:, None, None, None]
@@ -368,7 +368,7 @@ def sample_sequence_batch(ss: SequenceSet, rng: np.random.Generator, batch: int,
     start frame, spp and flips): arrays (B, F, crop, crop, C) named as in :func:`sample_batch`,
     and (B, F) ``level`` and ``exposure`` (each frame's own auto-exposure when ``exposure``, as
     inference computes it frame by frame)."""
-    from ..methods.hdr_input import autoexposure, noise_level
+    from ..methods.kernels.hdr_input import autoexposure, noise_level
 
     s_count, p_count, f_count, h, w, _ = ss.noisy.shape
     frames = f_count if frames is None else frames

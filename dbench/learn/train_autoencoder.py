@@ -11,7 +11,7 @@ import torch
 
 from . import losses as L
 from .configs import AEConfig, AESequenceConfig, TrainResult
-from ..methods.hdr_input import autoexposure, noise_level
+from ..methods.kernels.hdr_input import autoexposure, noise_level
 from .dataset import TrainingSet, full_images, sample_batch
 from .loop import add_linear_terms, loss_curve, lr_at, run_loop, seed_everything, to_tensor
 

@@ -10,10 +10,10 @@ outside (entry points ``dbench.methods``, ``$DBENCH_PLUGINS``, ``--plugin``) are
 import pkgutil
 from importlib import import_module
 
-from ..registry import Denoiser, available, canonical, get, method_class, register
+from ..registry import Denoiser, available, get, method_class, register
 
 for _info in pkgutil.iter_modules(__path__):
     if _info.ispkg:
         import_module(f"{__name__}.{_info.name}")
 
-__all__ = ["Denoiser", "available", "canonical", "get", "method_class", "register"]
+__all__ = ["Denoiser", "available", "get", "method_class", "register"]

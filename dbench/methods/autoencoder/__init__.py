@@ -65,7 +65,7 @@ import numpy as np
 from ...data import check_buffer
 from ...errors import DbenchInputError
 from ...registry import Denoiser, register
-from ..hdr_input import autoexposure, frame_spp, noise_level
+from ..kernels.hdr_input import autoexposure, frame_spp, noise_level
 from ..ort_session import cpu_session
 from .codec import FEATURE_CHANNELS, decode, encode, pad_to_multiple
 

@@ -49,7 +49,7 @@ import numpy as np
 from ...data import check_buffer
 from ...errors import DbenchInputError
 from ...registry import Denoiser, register
-from ..hdr_input import autoexposure, frame_spp, noise_level
+from ..kernels.hdr_input import autoexposure, frame_spp, noise_level
 from ..ort_session import cpu_session
 from .codec import decode, encode
 

@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import DbenchInputError
+from ...errors import DbenchInputError
 
 EXPOSURE_KEY = 0.18
 EXPOSURE_BLOCK = 16
