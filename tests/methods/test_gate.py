@@ -191,3 +191,18 @@ def test_never_further_from_noisy_than_plain():
     gated = get("statistical+gate", radius=4).denoise(frame).astype(np.float64)
     noisy = frame.color.astype(np.float64)
     assert np.all(np.abs(gated - noisy) <= np.abs(plain - noisy) + 1e-6)
+
+
+def test_one_sample_leaves_the_gate_open():
+    """n < 2: the variance of the mean is unknown (stored as 0); the gate passes the method's
+    output instead of returning the noisy input, so at 1 spp NAME+gate equals NAME."""
+    frame = _frame(seed=6)
+    st = frame.stats
+    one = frame.with_buffers(stats=SampleStats(n=np.ones_like(st.n), mean=st.mean,
+                                               var_mean=np.zeros_like(st.var_mean), m3=st.m3,
+                                               transform=st.transform, lam=st.lam))
+    np.testing.assert_array_equal(get("jbf+gate", radius=3).denoise(one),
+                                  get("jbf", radius=3).denoise(one))
+    half = get("jbf+gate", radius=3, gate_alpha=0.5).denoise(one)
+    plain = get("jbf", radius=3).denoise(one)
+    np.testing.assert_allclose(half, 0.5 * (frame.color + plain), rtol=1e-6, atol=1e-7)

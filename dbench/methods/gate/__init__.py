@@ -15,7 +15,8 @@ variants are never listed one by one. The wrapper:
 * takes the method's parameters plus ``gate_alpha`` (α of spec §12, in [0, 1], default 1),
   ``gate_k`` (2.0) and ``gate_t0`` (4.2); ``gate_alpha = 0`` returns the input;
 * pixels whose noisy colour is not finite keep the method's output (there is nothing to mix
-  back to);
+  back to), and so do pixels with fewer than 2 samples (their variance of the mean is unknown,
+  so nothing is significant: at 1 spp ``NAME+gate`` equals ``NAME``);
 * runs the compiled gate (:func:`~dbench.methods.kernels.gate.proden_gate_fast`);
   ``gate_backend="reference"`` runs the readable SciPy form.
 
@@ -71,8 +72,17 @@ def gate_output(color: np.ndarray, denoised: np.ndarray, stats: Any, *, alpha: f
     hdr = np.where(np.isfinite(color), color, denoised)
     den = np.where(np.isfinite(denoised), denoised, hdr)
     if backend == "reference":
-        return proden_gate(hdr, den, var, alpha=alpha, k=k, t0=t0).astype(np.float32)
-    return proden_gate_fast(hdr, den, var, alpha=alpha, k=k, t0=t0)
+        out = proden_gate(hdr, den, var, alpha=alpha, k=k, t0=t0).astype(np.float32)
+    else:
+        out = proden_gate_fast(hdr, den, var, alpha=alpha, k=k, t0=t0)
+    # [dbench] Fewer than 2 samples: the variance of the mean is unknown (SampleStats stores 0
+    # there), not zero, so there is no evidence against the method's value: the gate stays
+    # open (α). Read as a known zero it would return the noisy input at 1 spp.
+    unknown = np.asarray(stats.n) < 2
+    if np.any(unknown):
+        open_gate = (hdr + alpha * (den - hdr)).astype(np.float32)
+        out = np.where(unknown, open_gate, out)
+    return out
 
 
 def gated_class(base: type[Denoiser]) -> type[Denoiser]:
