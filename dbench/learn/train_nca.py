@@ -46,11 +46,16 @@ def train_nca(ts: TrainingSet, cfg: NCAConfig | None = None, progress: bool = Fa
     gen = torch.Generator().manual_seed(cfg.seed)
     model = NCA(cfg.update_channels, cfg.activation, cfg.bias_init, cfg.w_init_std,
                 generator=gen, noise_gate=cfg.noise_gate, gate_init=cfg.gate_init)
-    opt = torch.optim.Adam(model.parameters(), lr=cfg.lr)
+    gate = [p for n, p in model.named_parameters() if n.startswith("gate_")]
+    core = [p for n, p in model.named_parameters() if not n.startswith("gate_")]
+    groups = [{"params": core, "lr_scale": 1.0}]
+    if gate:
+        groups.append({"params": gate, "lr_scale": cfg.gate_lr / cfg.lr})
+    opt = torch.optim.Adam(groups, lr=cfg.lr)
 
     def step_fn(step: int):
         for g in opt.param_groups:
-            g["lr"] = lr_at(step, cfg)
+            g["lr"] = lr_at(step, cfg) * g["lr_scale"]
         batch = sample_batch(ts, rng, cfg.batch, cfg.crop, cfg.spp_choices,
                              cfg.light_fraction, cfg.mix_spp, cfg.autoexposure)
         k = int(rng.integers(cfg.k_min, cfg.k_max + 1))
