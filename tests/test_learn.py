@@ -140,7 +140,7 @@ def test_ship_and_load_trained_weights(tmp_path):
     info = __import__("json").loads(json_path.read_text())
     # the seed's 360 numbers plus the two of the noise gate's step size
     assert info["parameters"] == 362 and info["data"]["hash"] == tr.hash
-    assert info["autoexposure"] is True and len(info["noise_gate"]) == 2
+    assert info["autoexposure"] is True and len(info["noise_gate"]) == 3  # u, v, γ_max
     assert info["color_encoding"] == "log1p_demodulated"
     assert info["losses"]["steps_done"] == 6 and "loss" in info["losses"]["validation"]
     ae = T.train_autoencoder(tr, _ae_cfg(), validation=va)

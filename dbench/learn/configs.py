@@ -55,6 +55,7 @@ class NCAConfig:
     noise_gate: bool = True
     gate_init: tuple[float, float] = (-6.0, 2.0)
     gate_lr: float = 1e-2
+    gate_max: float = 1.0  # γ in (0, gate_max): 2 lets a 1-spp image take a double step
     light_fraction: float = 0.25  # share of crops around visible lights (dataset.sample_batch)
     loss_weights: dict = field(default_factory=lambda: dict(L.NCA_WEIGHTS))
     max_minutes: float | None = None

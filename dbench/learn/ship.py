@@ -59,7 +59,8 @@ def ship_nca(result: TrainResult, out_dir: str | Path | None = None) -> tuple[Pa
             "autoexposure": str(bool(cfg.autoexposure)), "data_hash": result.data.get("hash", "")}
     gate = None
     if getattr(result.model, "noise_gate", False):
-        gate = [float(result.model.gate_u.detach()), float(result.model.gate_v.detach())]
+        gate = [float(result.model.gate_u.detach()), float(result.model.gate_v.detach()),
+                float(result.model.gate_max)]
         meta["noise_gate"] = json.dumps(gate)
     model = build_onnx(W, b, cfg.update_channels, cfg.activation, None, meta)
     with atomic_path(out / "nca.onnx", suffix=".tmp.onnx") as tmp:

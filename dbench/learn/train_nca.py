@@ -45,7 +45,8 @@ def train_nca(ts: TrainingSet, cfg: NCAConfig | None = None, progress: bool = Fa
     rng = seed_everything(cfg.seed, cfg.threads)
     gen = torch.Generator().manual_seed(cfg.seed)
     model = NCA(cfg.update_channels, cfg.activation, cfg.bias_init, cfg.w_init_std,
-                generator=gen, noise_gate=cfg.noise_gate, gate_init=cfg.gate_init)
+                generator=gen, noise_gate=cfg.noise_gate, gate_init=cfg.gate_init,
+                gate_max=cfg.gate_max)
     gate = [p for n, p in model.named_parameters() if n.startswith("gate_")]
     core = [p for n, p in model.named_parameters() if not n.startswith("gate_")]
     groups = [{"params": core, "lr_scale": 1.0}]

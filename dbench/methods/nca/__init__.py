@@ -25,8 +25,8 @@ its default, all physical cores), ``spp`` (the input's sample count for the nois
 
 HDR input ([dbench], stored in the model's metadata): with ``autoexposure`` the colour is scaled
 by OIDN's auto-exposure (:func:`dbench.methods.hdr_input.autoexposure`) before ``log1p`` and the
-output divided by it; with ``noise_gate`` = (u, v) every automaton step is scaled by
-γ = sigmoid(v + u · log2(spp)/10) (:mod:`.model`).
+output divided by it; with ``noise_gate`` = (u, v, γ_max) every automaton step is scaled by
+γ = γ_max sigmoid(v + u · log2(spp)/10) (:mod:`.model`).
 
 Example:
     >>> import numpy as np
@@ -76,6 +76,7 @@ def _model_info(path: str) -> dict[str, Any]:
             "encoding": meta.get("color_encoding", "log1p"),
             "iterations": int(meta.get("iterations", 16)),
             "noise_gate": None if gate is None else (float(gate[0]), float(gate[1])),
+            "gate_max": 1.0 if gate is None or len(gate) < 3 else float(gate[2]),
             "autoexposure": meta.get("autoexposure") == "True"}
 
 
@@ -88,7 +89,8 @@ def step_size(path: str, spp: float | None) -> float:
         return 1.0
     level = np.float32(0.0 if spp is None else noise_level(spp))
     z = np.float32(gate[1]) + np.float32(gate[0]) * level
-    return float(np.float32(1.0) / (np.float32(1.0) + np.exp(-z, dtype=np.float32)))
+    sig = np.float32(1.0) / (np.float32(1.0) + np.exp(-z, dtype=np.float32))
+    return float(np.float32(_model_info(path)["gate_max"]) * sig)
 
 
 @lru_cache(maxsize=32)
@@ -142,7 +144,7 @@ def reference_denoise(color: np.ndarray, normal: np.ndarray, albedo: np.ndarray,
     k = info["iterations"] if iterations is None else iterations
     gate = info["noise_gate"]
     nca = NCA(info["update_channels"], info["activation"], noise_gate=gate is not None,
-              gate_init=gate or (0.0, 0.0))
+              gate_init=gate or (0.0, 0.0), gate_max=info["gate_max"])
     with torch.no_grad():
         nca.W.copy_(torch.from_numpy(info["W"]))
         nca.b.copy_(torch.from_numpy(info["b"]))

@@ -12,8 +12,8 @@ Laplacian K_l (9), Sobel-x K_sx (9), Sobel-y K_sy (9); fixed 3x3 kernels applied
 Update (spec §3): s <- s + sigmoid(p · W) + b, W (39, 9), b (9,): 351 + 9 = 360 trainable
 parameters. [dbench] ``noise_gate=True`` scales every update by a step size that depends on the
 input's noise level ℓ = log2(spp)/10 (:func:`dbench.methods.hdr_input.noise_level`):
-s <- s + γ(ℓ) (sigmoid(p · W) + b), γ(ℓ) = sigmoid(v + u ℓ), two more trained numbers (362 in
-all). The automaton can then smooth a 1-spp image and leave a 1024-spp one nearly alone; γ = 1
+s <- s + γ(ℓ) (sigmoid(p · W) + b), γ(ℓ) = γ_max sigmoid(v + u ℓ), two more trained numbers
+(362 in all; γ_max a fixed setting, 1 or 2). The automaton can then smooth a 1-spp image and leave a 1024-spp one nearly alone; γ = 1
 without the gate. ``update_channels="rgb"`` masks the update to RGB (normal and albedo stay the input
 bit for bit); ``activation="tanh"`` replaces the sigmoid.
 
@@ -95,9 +95,11 @@ class NCA(nn.Module):
 
     def __init__(self, update_channels: str = "all", activation: str = "sigmoid",
                  bias_init: float = -0.5, w_init_std: float = 0.0, generator=None,
-                 noise_gate: bool = False, gate_init: tuple[float, float] = (0.0, 2.0)):
+                 noise_gate: bool = False, gate_init: tuple[float, float] = (0.0, 2.0),
+                 gate_max: float = 1.0):
         super().__init__()
         self.noise_gate = bool(noise_gate)
+        self.gate_max = float(gate_max)  # γ in (0, gate_max)
         if self.noise_gate:  # (u, v) of γ(ℓ) = sigmoid(v + u ℓ)
             self.gate_u = nn.Parameter(torch.tensor(float(gate_init[0])))
             self.gate_v = nn.Parameter(torch.tensor(float(gate_init[1])))
@@ -127,7 +129,7 @@ class NCA(nn.Module):
             return 1.0
         lv = torch.zeros(n) if level is None else torch.as_tensor(level, dtype=torch.float32)
         lv = lv.reshape(-1)[:, None, None, None] if lv.ndim else lv.reshape(1, 1, 1, 1)
-        return torch.sigmoid(self.gate_v + self.gate_u * lv)
+        return self.gate_max * torch.sigmoid(self.gate_v + self.gate_u * lv)
 
     def step(self, s: torch.Tensor, gamma: torch.Tensor | float = 1.0) -> torch.Tensor:
         """One update: s + γ (sigmoid(p · W) + b) (masked to RGB when update_channels="rgb")."""
