@@ -172,7 +172,7 @@ def load_cells(out: str | Path) -> list[dict]:
 def resolve_names(methods: str | Sequence[str], scenes: str | Sequence[str],
                   scene_params: dict[str, str] | None = None) -> tuple[list[str], list[str]]:
     """``all`` or comma lists → validated names (UnknownNameError lists the valid ones)."""
-    from .. import methods as registry
+    from .. import registry
     from ..datasets import scenes as catalogue
 
     def split(v):

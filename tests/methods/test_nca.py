@@ -119,7 +119,7 @@ def test_shipped_weights_onnx_equals_pytorch():
 
 def test_shipped_files_load_in_a_fresh_process():
     info = json.loads(SHIPPED_JSON.read_text())
-    assert info["parameters"] == 360 and "hash" in info["data"]
+    assert info["parameters"] == 362 and "hash" in info["data"]  # 360 + the step size's 2
     assert "final_train_loss" in info["losses"]
     code = ("import numpy as np; from dbench import methods; from dbench.data import Frame; "
             "f = Frame(color=np.ones((6, 9, 3)), albedo=np.full((6, 9, 3), .5), "
