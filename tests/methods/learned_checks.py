@@ -40,9 +40,9 @@ def convergence(denoise, spps=(4, 64, 1024)) -> list[tuple[int, float, float]]:
     return out
 
 
-def assert_converges(denoise) -> None:
+def assert_converges(denoise, spps=(4, 64, 1024)) -> None:
     """Below the noisy input at every spp, and the error falling as spp grows."""
-    res = convergence(denoise)
+    res = convergence(denoise, spps)
     for spp, noisy, method in res:
         assert method < noisy, f"{spp} spp: method relMSE {method:.3g} >= noisy {noisy:.3g}"
     errs = [m for _, _, m in res]
