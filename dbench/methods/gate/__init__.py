@@ -68,21 +68,21 @@ def gate_output(color: np.ndarray, denoised: np.ndarray, stats: Any, *, alpha: f
     """The gate applied to one image: (H, W, 3) noisy colour, (H, W, 3) method output and the
     frame's statistics -> (H, W, 3) float32. Non-finite noisy pixels keep the output."""
     _require_stats(stats)
-    var = linear_variance(stats, color)
     hdr = np.where(np.isfinite(color), color, denoised)
     den = np.where(np.isfinite(denoised), denoised, hdr)
-    if backend == "reference":
-        out = proden_gate(hdr, den, var, alpha=alpha, k=k, t0=t0).astype(np.float32)
-    else:
-        out = proden_gate_fast(hdr, den, var, alpha=alpha, k=k, t0=t0)
     # [dbench] Fewer than 2 samples: the variance of the mean is unknown (SampleStats stores 0
     # there), not zero, so there is no evidence against the method's value: the gate stays
     # open (α). Read as a known zero it would return the noisy input at 1 spp.
     unknown = np.asarray(stats.n) < 2
-    if np.any(unknown):
-        open_gate = (hdr + alpha * (den - hdr)).astype(np.float32)
-        out = np.where(unknown, open_gate, out)
-    return out
+    open_gate = (hdr + alpha * (den - hdr)).astype(np.float32) if np.any(unknown) else None
+    if open_gate is not None and np.all(unknown):  # 1 spp: nothing to test, skip the blurs
+        return open_gate
+    var = linear_variance(stats, color)
+    if backend == "reference":
+        out = proden_gate(hdr, den, var, alpha=alpha, k=k, t0=t0).astype(np.float32)
+    else:
+        out = proden_gate_fast(hdr, den, var, alpha=alpha, k=k, t0=t0)
+    return out if open_gate is None else np.where(unknown, open_gate, out)
 
 
 def gated_class(base: type[Denoiser]) -> type[Denoiser]:
