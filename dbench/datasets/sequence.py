@@ -86,13 +86,28 @@ from .scene import Scene, register_scene
 from .scene_parts import _diffuse, _mirror_objects, _rect, _room
 from .sequence_scene import (SEQUENCE_BUFFERS, SequenceScene, camera_info, look_at_matrix,
                              motion_vectors, project)
+from .psr import psr_integrator
 from .references import check_ref_seed, reference_meta, reference_spp
 from .stats import PowerSums, stats_from_arrays, stats_to_arrays
 
 FEATURES = ("albedo", "normal", "depth", "position")
 REFERENCE_CHUNK = _render.DEFAULT_REFERENCE_CHUNK
 GBUFFER_SPP = _render.DEFAULT_FEATURE_SPP
-GBUFFERS = ("matched", "supersampled")
+GBUFFERS = ("psr", "matched", "supersampled")
+PSR_VERSION = 1
+GRADIENTS = ("reshade", "frame")
+RESHADE_VERSION = 1
+
+
+def _reshade(sc: SequenceScene, res, spp: int, seed: int, i: int, prev: dict) -> np.ndarray:
+    """The re-shaded gradient samples of frame ``i`` (:func:`~dbench.datasets.reshade.
+    render_reshade`) from frame i−1's colour, depth and position (``prev``)."""
+    from .reshade import render_reshade, select_strata
+
+    d = sc.frame_dict(mitsuba(), res, i, i)
+    selected = select_strata(prev["color"], prev["depth"])
+    return render_reshade(d, d["integrator"], sc.camera(i)[0], prev["position"], selected,
+                          pass_seeds(seed, i - 1, spp))
 
 
 def _sequence_scene(name: str, description: str, **kw: Any):
@@ -239,8 +254,8 @@ def pass_seeds(seed: int, seed_frame: int, spp: int) -> list[int]:
 
 
 def render_frame(scene: SequenceScene, res, spp: int, seed: int, camera_frame: int,
-                 light_frame: int, seed_frame: int, stats: tuple[str, float] | None = None
-                 ) -> dict[str, np.ndarray]:
+                 light_frame: int, seed_frame: int, stats: tuple[str, float] | None = None,
+                 gbuffer: str = "psr") -> dict[str, np.ndarray]:
     """Noisy colour and matched G-buffer: ``color``, ``emission``, ``albedo``, ``normal``,
     ``depth``, ``position`` (H, W, C), the means of ``spp`` 1-spp passes
     (:func:`pass_seeds`) with the camera of ``camera_frame``, the lights of ``light_frame`` and
@@ -254,10 +269,13 @@ def render_frame(scene: SequenceScene, res, spp: int, seed: int, camera_frame: i
     surfaces at silhouettes while the 1-spp colour sample sees only one of them; dividing such
     a sample by the mixed albedo, e.g. a light's edge or a black conductor's silhouette,
     amplifies it by orders of magnitude — so sequence datasets use the matched G-buffer.)
+    With ``gbuffer="psr"`` (default) that G-buffer sees through mirrors and glass
+    (:mod:`dbench.datasets.psr`); otherwise it is Mitsuba's AOVs of the primary hit.
     """
     mi = mitsuba()
     d = scene.frame_dict(mi, res, camera_frame, light_frame)
-    integ = mi.load_dict(_matched_integrator(d["integrator"]), optimize=False)
+    integ = mi.load_dict(psr_integrator(d["integrator"]) if gbuffer == "psr"
+                         else _matched_integrator(d["integrator"]), optimize=False)
     # optimize=False: see _render_dict
     loaded = mi.load_dict(d, optimize=False)
     total = None
@@ -373,9 +391,9 @@ def _cached(cache: Cache, kind: str, desc: dict, render: Callable[[], dict[str, 
 def load_sequence(scene: str | SequenceScene, spp: int = 1, res=64,
                   needs: Iterable[str] | None = None, seed: int = 0, ref_spp: int | None = None,
                   cache: Cache | None = None, progress: bool = True,
-                  frames: int | None = None, gbuffer: str = "matched",
+                  frames: int | None = None, gbuffer: str = "psr",
                   ref_seed: int | None = None, transform: str = "box-cox",
-                  lam: float = 0.5) -> Sequence:
+                  lam: float = 0.5, gradient: str = "reshade") -> Sequence:
     """Render (or read from the cache) the first ``frames`` frames of a sequence scene.
 
     Args:
@@ -388,9 +406,17 @@ def load_sequence(scene: str | SequenceScene, spp: int = 1, res=64,
         frames: how many frames from the start (default: the whole sequence).
         transform, lam: sample transform of the per-frame statistics (``stats`` in ``needs``;
             spec/statistical.md §3), Box-Cox by default as for steady images.
-        gbuffer: ``"matched"`` (default): the G-buffer and emission of the colour samples
-            themselves (:func:`render_frame`); ``"supersampled"``: independent 64-spp
-            footprint averages (:func:`render_gbuffer`). The colour is the same in both.
+        gbuffer: ``"psr"`` (default): the G-buffer and emission of the colour samples
+            themselves, seen through mirrors and glass (primary surface replacement,
+            :mod:`dbench.datasets.psr`); ``"matched"``: the same samples' plain AOVs (the
+            mirror itself); ``"supersampled"``: independent 64-spp footprint averages
+            (:func:`render_gbuffer`). The colour is the same in all three.
+        gradient: the A-SVGF gradient buffer: ``"reshade"`` (default; spec/svgf.md §6.5,
+            :mod:`dbench.datasets.reshade`): the brightest sample of each 3×3 stratum of frame
+            i−1 re-shaded from camera i under the lights of i with the random numbers of i−1,
+            NaN elsewhere; ``"frame"``: the older emulation, a whole frame rendered from camera
+            i−1 with the lights of i and the seeds of i−1 (§6.4). The seconds spent rendering
+            it are in the sequence's ``meta["gradient_s"]`` (new renders only).
     Returns:
         :class:`~dbench.data.Sequence`; each frame's ``meta`` holds ``frame`` and ``camera``;
         the sequence's ``meta`` holds the settings, ``events`` and cache hits. With
@@ -407,6 +433,8 @@ def load_sequence(scene: str | SequenceScene, spp: int = 1, res=64,
     n = sc.n_frames if frames is None else frames
     if not isinstance(n, (int, np.integer)) or not 1 <= n <= sc.n_frames:
         raise DbenchInputError(f"frames: expected an integer in [1, {sc.n_frames}], got {frames!r}")
+    if gradient not in GRADIENTS:
+        raise DbenchInputError(f"gradient: expected one of {GRADIENTS}, got {gradient!r}")
     if gbuffer not in GBUFFERS:
         raise DbenchInputError(f"gbuffer: expected one of {GBUFFERS}, got {gbuffer!r}")
     wanted = set(SEQUENCE_BUFFERS if needs is None else needs) | {"color"}
@@ -424,6 +452,8 @@ def load_sequence(scene: str | SequenceScene, spp: int = 1, res=64,
     # frames above 1 spp are the means of 1-spp passes (render_frame); the marker keeps them
     # apart from entries rendered as one call of spp samples
     samples = {"samples": "1-spp passes"} if spp > 1 else {}
+    psr = {"psr": PSR_VERSION} if gbuffer == "psr" else {}
+    frame_gbuffer = "psr" if gbuffer == "psr" else "matched"
     mi = mitsuba()
     vers = versions()
     meta: dict = {"scene": sc.name, "kind": "sequence", "spp": int(spp), "res": res.key,
@@ -438,22 +468,24 @@ def load_sequence(scene: str | SequenceScene, spp: int = 1, res=64,
                 "dict": sc.frame_dict(mi, res, i), "params": sc.params, "versions": vers, **extra}
 
     out: list[Frame] = []
-    prev_camera = None
+    prev_camera, prev_noisy = None, None
     from tqdm.auto import tqdm
 
     for i in tqdm(range(n), desc=f"{sc.name} frames", leave=False,
                   disable=not progress or n < 4, mininterval=0.5):
         camera = camera_info(sc, res, i)
         noisy_desc = base(i, "noisy+gbuffer+emission", spp=int(spp), seed=int(seed),
-                          aovs=_render.AOV_STRING, **samples)
+                          aovs=_render.AOV_STRING, **samples, **psr)
         stats = None
         if "stats" in wanted:
             noisy, stats = _frame_with_stats(cache, noisy_desc, transform, lam, meta, i,
                                              lambda: render_frame(sc, res, spp, seed, i, i, i,
-                                                                  stats=(transform, lam)))
+                                                                  stats=(transform, lam),
+                                                                  gbuffer=frame_gbuffer))
         else:
             noisy = _cached(cache, "seq-frame", noisy_desc,
-                            lambda: render_frame(sc, res, spp, seed, i, i, i), meta, f"frame{i}")
+                            lambda: render_frame(sc, res, spp, seed, i, i, i,
+                                                 gbuffer=frame_gbuffer), meta, f"frame{i}")
         gbuf = noisy
         if gbuffer == "supersampled" and wanted & (set(FEATURES) | {"emission", "motion"}):
             gbuf = _cached(cache, "seq-gbuffer",
@@ -468,13 +500,20 @@ def load_sequence(scene: str | SequenceScene, spp: int = 1, res=64,
         if "gradient" in wanted:
             if i == 0:
                 buffers["gradient"] = noisy["color"]
-            else:
+            elif gradient == "frame":
                 desc = base(i, "gradient", spp=int(spp), seed=int(seed), aovs=_render.AOV_STRING,
                             gdict=sc.frame_dict(mi, res, i - 1, i), **samples)
                 buffers["gradient"] = _cached(
                     cache, "seq-gradient", desc,
                     lambda: {"gradient": render_frame(sc, res, spp, seed, i - 1, i, i - 1)["color"]},
                     meta, f"gradient{i}")["gradient"]
+            else:
+                desc = base(i, "gradient-reshade", spp=int(spp), seed=int(seed),
+                            aovs=_render.AOV_STRING, reshade=RESHADE_VERSION, **samples, **psr)
+                buffers["gradient"] = _cached_entry(
+                    cache, "seq-gradient", desc,
+                    lambda: {"gradient": _reshade(sc, res, spp, seed, i, prev_noisy)},
+                    meta, f"gradient{i}", time_key="gradient_s")[0]["gradient"]
         if "emitter" in wanted:
             buffers["emitter"] = _cached_entry(
                 cache, "seq-emitter",
@@ -498,7 +537,7 @@ def load_sequence(scene: str | SequenceScene, spp: int = 1, res=64,
             fmeta.update(reference_meta(ref_spp, ref_seed, ref["reference_var"]),
                          ref_render_s=ref_s)
         out.append(Frame(meta=fmeta, stats=stats, **buffers))
-        prev_camera = camera
+        prev_camera, prev_noisy = camera, noisy
     meta.pop("_ref_rendered_s", None)
     if ref_vars:
         meta.update(reference_meta(ref_spp, ref_seed, ref_vars))

@@ -60,12 +60,12 @@ from ...data import check_buffer
 from ...errors import DbenchInputError
 from ...registry import register
 from .. import temporal as T
-from ..svgf import _emission
+from ..svgf import _accumulate_emission, _emission
 from ..svgf import dispatch as SC
 from .dispatch import bmfr_fit, householder_lstsq
 from .numba_path import bmfr_fit_fast
 from .params import FEATURE_PRESETS, N_OFFSETS, PRESETS, RCOND
-from .reference import (block_origins, bmfr_fit_reference, feature_stack, grid_offsets,
+from .reference import (block_origins, block_sample_mask, bmfr_fit_reference, feature_stack, grid_offsets,
                         householder_lstsq_reference, uniform_hash)
 from .torch_path import bmfr_fit_torch, feature_stack_torch, householder_lstsq_torch
 
@@ -84,7 +84,7 @@ class BMFR(T.HistoryDenoiser):
     defaults: dict[str, Any] = dict(features="paper", block_size=32, noise_amount=0.01,
                                     offsets=N_OFFSETS, alpha1=0.2, alpha2=0.1,
                                     clamp_negative=True, rcond=RCOND, seed=0, tau_d=T.TAU_D,
-                                    tau_n=T.TAU_N, backend="auto", preset=None)
+                                    tau_n=T.TAU_N, backend="auto", preset=None, samples=None)
 
     def __init__(self, **params: Any) -> None:
         super().__init__(**params)
@@ -110,6 +110,10 @@ class BMFR(T.HistoryDenoiser):
         if not 0.0 <= float(p["noise_amount"]) < 1.0:
             raise DbenchInputError(f"noise_amount: expected a number in [0, 1), "
                                    f"got {p['noise_amount']!r}")
+        if p["samples"] is not None and (not isinstance(p["samples"], (int, np.integer))
+                                         or isinstance(p["samples"], bool) or p["samples"] < 1):
+            raise DbenchInputError(f"samples: expected None (every pixel of a block) or an "
+                                   f"integer >= 1, got {p['samples']!r}")
         self._start()
         self.grid = grid_offsets(int(p["block_size"]), int(p["offsets"]), int(p["seed"]))
         self.scaled = np.array([c[0] == "p" for c in FEATURE_PRESETS[p["features"]]], bool)
@@ -128,11 +132,14 @@ class BMFR(T.HistoryDenoiser):
         prep = SC.prepare(be, color, albedo, _emission(data, h, w), geo.hit)
         present = prep["present"]
 
-        hist, status = self.history.fetch(geo, 7)
+        # history: Z accumulated (3), N, the fit accumulated (3), emission accumulated (3)
+        hist, status = self.history.fetch(geo, 10)
         ok = status > 0
         acc = partial(T.accumulate_any, be)
         z_acc, n1, _ = acc(prep["illum"], hist[0:3], hist[3], ok, p["alpha1"], T.N_MAX, None,
                            present)
+        acc_e = _accumulate_emission(be, prep, hist[7:10], hist[3], ok, p["alpha1"], T.N_MAX,
+                                     None, present)
         filled = n1 > 0
         recon = geo.hit & ~prep["emitter"]
         fit = recon & filled
@@ -141,6 +148,9 @@ class BMFR(T.HistoryDenoiser):
         noise_seed = (int(p["seed"]) * 1_000_003 + k) & 0x7FFFFFFFFFFFFFFF
         fit_args = (int(p["block_size"]), offset, float(p["noise_amount"]), noise_seed,
                     float(p["rcond"]), bool(p["clamp_negative"]))
+        if p["samples"] is not None:  # the seed's W random pixels per block (spec §3.1)
+            fit = fit & block_sample_mask(fit, int(p["block_size"]), offset, int(p["samples"]),
+                                          noise_seed)
         scaled = self.scaled
         if be == "torch":
             feats = feature_stack_torch(geo.normal, geo.position, p["features"])
@@ -154,9 +164,9 @@ class BMFR(T.HistoryDenoiser):
         # the second history length equals the first one (same reprojection, same resets)
         y_acc, n2, _ = acc(y_fit, hist[4:7], hist[3], ok, p["alpha2"], T.N_MAX, None,
                            filled | recon)
-        self.history.store(geo, np.concatenate([z_acc, n1[None], y_acc]),
+        self.history.store(geo, np.concatenate([z_acc, n1[None], y_acc, acc_e]),
                            valid=filled | recon, finite=True)
         self.frame_index += 1
         self.last = {"dropped": dropped, "offset": tuple(int(v) for v in offset), "n1": n1,
                      "n2": n2, "status": status}
-        return SC.remodulate(y_acc, prep["a_eff"], prep["emission"], be)
+        return SC.remodulate(y_acc, prep["a_eff"], acc_e, be)

@@ -162,3 +162,25 @@ def bmfr_fit_reference(z: np.ndarray, feats: np.ndarray, scaled: np.ndarray, fit
         blk[:, rec_blk] = yfit[:, rec_blk]
         out[:, ys, xs] = blk.reshape(c, ys.stop - ys.start, xs.stop - xs.start)
     return out, dropped
+
+
+def block_sample_mask(fit: np.ndarray, block: int, offset, samples: int, seed: int
+                      ) -> np.ndarray:
+    """(H, W) bool: ``samples`` pixels of ``fit`` drawn uniformly without replacement in every
+    block of the grid with ``offset`` (x, y) (spec §3.1, the seed's 36 random coordinates per
+    block); every fit pixel of a block that has no more than ``samples`` of them. The draw is the
+    order of counter-based uniforms (:func:`uniform_hash`, column 63 so that it is independent of
+    the feature noise), so it is reproducible and changes with ``seed`` (per frame)."""
+    h, w = fit.shape
+    ox, oy = int(offset[0]), int(offset[1])
+    yy, xx = np.mgrid[0:h, 0:w]
+    block_id = ((yy - oy) // block + 2) * (w // block + 8) + ((xx - ox) // block + 2)
+    key = uniform_hash(seed, np.arange(h * w, dtype=np.uint64), 63).reshape(h, w)
+    idx = np.flatnonzero(fit)
+    order = idx[np.lexsort((key.ravel()[idx], block_id.ravel()[idx]))]
+    ids = block_id.ravel()[order]
+    first = np.r_[0, np.flatnonzero(np.diff(ids)) + 1]
+    rank = np.arange(order.size) - np.repeat(first, np.diff(np.r_[first, order.size]))
+    out = np.zeros(h * w, bool)
+    out[order[rank < samples]] = True
+    return out.reshape(h, w)

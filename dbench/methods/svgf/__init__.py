@@ -78,7 +78,8 @@ from . import dispatch as C
 from .dispatch import (adaptive_history, atrous, depth_gradient, filter_gradients, prepare,
                        remodulate, spatial_variance, stratum_gradients)
 from .numba_path import atrous_fast, fast_exp_neg, prepare_fast, spatial_variance_fast
-from .params import ALPHA0_PAPER, EPS_VAR, GRADIENT_MODES, H1, N_SPATIAL, PRESETS
+from .params import (ALPHA0_PAPER, EPS_VAR, GRADIENT_MODES, H1, MAX_ITERATIONS, N_SPATIAL, PRESETS,
+                     VARIANCE_OF, auto_iterations)
 from .reference import (asvgf_history, atrous_reference, gradient_at_pixels, gradient_value,
                         normal_weight, prepare_reference, spatial_variance_reference,
                         stratum_samples)
@@ -94,6 +95,20 @@ def _positive(name: str, value: Any, allow_zero: bool = False) -> float:
     return v
 
 
+def _accumulate_emission(backend: str, prep: dict, history: np.ndarray, n_hist, ok, alpha_min,
+                         n_max, alpha, present) -> np.ndarray:
+    """(3, H, W) float32 emission of the primary hits accumulated like the colour (the same
+    reprojection, history length and α); 0 where the pixel has no emission history."""
+    acc, _, _ = T.accumulate_any(backend, prep["emission"], history, n_hist, ok, alpha_min,
+                                 n_max, alpha, present)
+    return acc
+
+
+def _integer_in(value: Any, low: int, high: int) -> bool:
+    return (isinstance(value, (int, np.integer)) and not isinstance(value, bool)
+            and low <= value <= high)
+
+
 def _emission(data, h: int, w: int) -> np.ndarray | None:
     """The optional ``emission`` buffer, checked and clamped to ±RADIANCE_MAX like the colour."""
     emission = getattr(data, "emission", None)
@@ -105,7 +120,7 @@ def _emission(data, h: int, w: int) -> np.ndarray | None:
 class _SVGFBase(T.HistoryDenoiser):
     kinds = {"sequence"}
     needs = {"color", "albedo", "normal", "depth", "position", "motion"}
-    defaults: dict[str, Any] = dict(preset="paper", **PRESETS["paper"], eps_var=EPS_VAR,
+    defaults: dict[str, Any] = dict(preset="dbench", **PRESETS["dbench"], eps_var=EPS_VAR,
                                     variance_boost=False, tau_d=T.TAU_D, tau_n=T.TAU_N,
                                     backend="auto")
 
@@ -123,12 +138,15 @@ class _SVGFBase(T.HistoryDenoiser):
         for key in ("alpha_min", "alpha_min_moments"):
             if not 0.0 <= float(p[key]) <= 1.0:
                 raise DbenchInputError(f"{key}: expected a number in [0, 1], got {p[key]!r}")
-        if int(p["iterations"]) != p["iterations"] or not 0 <= p["iterations"] <= 12:
-            raise DbenchInputError(f"iterations: expected an integer in [0, 12], "
-                                   f"got {p['iterations']!r}")
-        if int(p["feedback_tap"]) != p["feedback_tap"] or p["feedback_tap"] < 0:
-            raise DbenchInputError(f"feedback_tap: expected an integer >= 0, "
-                                   f"got {p['feedback_tap']!r}")
+        if p["iterations"] != "auto" and not _integer_in(p["iterations"], 0, MAX_ITERATIONS):
+            raise DbenchInputError(f"iterations: expected \"auto\" or an integer in "
+                                   f"[0, {MAX_ITERATIONS}], got {p['iterations']!r}")
+        if p["feedback_tap"] is not None and not _integer_in(p["feedback_tap"], 0, MAX_ITERATIONS):
+            raise DbenchInputError(f"feedback_tap: expected None (no feedback) or an integer in "
+                                   f"[0, {MAX_ITERATIONS}], got {p['feedback_tap']!r}")
+        if p["variance_of"] not in VARIANCE_OF:
+            raise DbenchInputError(f"variance_of: expected one of {VARIANCE_OF}, "
+                                   f"got {p['variance_of']!r}")
         self._start()
 
     # hook for A-SVGF: (n_hist_for_accumulate, alpha or None, extras)
@@ -147,40 +165,66 @@ class _SVGFBase(T.HistoryDenoiser):
         prep = C.prepare(be, color, albedo, emission, geo.hit)
         present, emitter = prep["present"], prep["emitter"]
 
-        hist, status = self.history.fetch(geo, 6)
+        # history: feedback colour (3), moments (2), N, Σ of squared blend weights, emission (3)
+        hist, status = self.history.fetch(geo, 10)
         ok = status > 0
         hist_n, alpha, extras = self._adaptive(data, geo, hist[5], ok, prep)
         n_max = getattr(self, "n_max", T.N_MAX)
+        alpha_m = alpha
+        if alpha is not None and p.get("alpha_floor", False):
+            # A-SVGF's α never falls below SVGF's (the paper's α = (1 − λ)α₀ + λ, Q2RTX's
+            # max(α_min, 1/N)); without the floor the seed's 1/N' grows a window of up to 256
+            # frames that lags behind view-dependent shading (results/temporal.md)
+            alpha, alpha_m = (np.maximum(alpha, np.float32(p["alpha_min"])),
+                              np.maximum(alpha, np.float32(p["alpha_min_moments"])))
         acc_c, n, a_used = T.accumulate_any(be, prep["illum"], hist[:3], hist_n, ok,
                                             p["alpha_min"], n_max, alpha, present)
         acc_m, _, _ = T.accumulate_any(be, prep["moments"], hist[3:5], hist_n, ok,
-                                       p["alpha_min_moments"], n_max, alpha, present)
+                                       p["alpha_min_moments"], n_max, alpha_m, present)
+        # the emission of 1-spp primary hits is exact but aliased (a jittered sample sees the
+        # lamp or not): accumulated with the colour's α it converges to the pixel's coverage,
+        # as TAA would; adding the raw sample back made every lamp edge flicker
+        acc_e = _accumulate_emission(be, prep, hist[7:10], hist_n, ok, p["alpha_min"], n_max,
+                                     alpha, present)
         filled = n > 0
 
         gx, gy = C.depth_gradient(geo.depth, geo.hit, backend=be)
         gather = geo.hit & ~emitter
         tap = gather & filled
         var = T.variance_from_moments(acc_m)
+        # Σ w² of the accumulation weights: the variance of the accumulated mean is the
+        # per-sample variance times this (1/N for a running mean, α/(2 − α) in the EMA limit)
+        weight_sq = np.where(ok, a_used * a_used + (1.0 - a_used) ** 2 * hist[6],
+                             1.0).astype(np.float32)
+        of_mean = p["variance_of"] == "mean"
+        if of_mean:
+            var = (var * weight_sq).astype(np.float32)
         spatial = filled & (n < N_SPATIAL)
         if spatial.any():
             sv = C.spatial_variance(be, acc_m, geo.depth, gx, gy, geo.normal, tap,
                                     gather, spatial, sigma_z=p["sigma_z"], sigma_n=p["sigma_n"])
             if p["variance_boost"]:
                 sv = sv * 4.0 / np.maximum(n, 1.0)
+            if of_mean:
+                sv = sv * weight_sq
             var = np.where(spatial, sv, var).astype(np.float32)
 
         cur, feedback = acc_c, acc_c
-        for i in range(int(p["iterations"])):
+        iterations = (auto_iterations(h, w) if p["iterations"] == "auto"
+                      else int(p["iterations"]))
+        for i in range(iterations):
             cur, var = C.atrous(be, cur, var, geo.depth, gx, gy, geo.normal, tap,
                                 filled, gather, 2 ** i, sigma_z=p["sigma_z"],
                                 sigma_n=p["sigma_n"], sigma_l=p["sigma_l"], eps_var=p["eps_var"])
             if i == p["feedback_tap"]:
                 feedback = cur
-        self.history.store(geo, np.concatenate([feedback, acc_m, n[None]]), valid=filled,
+        self.history.store(geo, np.concatenate([feedback, acc_m, n[None], weight_sq[None], acc_e]),
+                           valid=filled,
                            finite=True)
         self._after(geo, prep)
-        self.last = {"n": n, "alpha": a_used, "variance": var, "status": status, **extras}
-        return C.remodulate(cur, prep["a_eff"], prep["emission"], be)
+        self.last = {"n": n, "alpha": a_used, "variance": var, "status": status,
+                     "iterations": iterations, "weight_sq": weight_sq, **extras}
+        return C.remodulate(cur, prep["a_eff"], acc_e, be)
 
 
 @register("svgf")
@@ -194,7 +238,7 @@ class ASVGF(_SVGFBase):
 
     needs = _SVGFBase.needs | {"gradient"}
     defaults: dict[str, Any] = dict(_SVGFBase.defaults, gradient_iterations=3,
-                                    gradient_mode="seed", n_max=T.N_MAX)
+                                    gradient_mode="seed", n_max=T.N_MAX, alpha_floor=None)
 
     def __init__(self, **params: Any) -> None:
         super().__init__(**params)
@@ -202,6 +246,11 @@ class ASVGF(_SVGFBase):
             raise DbenchInputError(f"gradient_mode: expected one of {GRADIENT_MODES}, "
                                    f"got {self.params['gradient_mode']!r}")
         self.n_max = _positive("n_max", self.params["n_max"])
+        if self.params["alpha_floor"] is None:  # on with the dbench preset, off with the others
+            self.params["alpha_floor"] = self.params["preset"] == "dbench"
+        if not isinstance(self.params["alpha_floor"], bool):
+            raise DbenchInputError(f"alpha_floor: expected True or False, "
+                                   f"got {self.params['alpha_floor']!r}")
         self._prev_lum: np.ndarray | None = None
 
     def reset(self) -> None:

@@ -14,11 +14,30 @@ ALBEDO_EPS = np.float32(1e-3)  # spec §2
 N_SPATIAL = 4      # history below this: spatial variance (spec §4)
 SPATIAL_RADIUS = 3  # 7×7 window
 
+#: ``dbench`` (the default) keeps the paper's weights and α but filters with the variance of
+#: the accumulated colour (``variance_of="mean"``), feeds the unfiltered accumulation back
+#: (``feedback_tap=None``) and scales the à-trous footprint with the image (``iterations="auto"``,
+#: :func:`auto_iterations`); spec/svgf.md §7.1 gives the reasons and results/temporal.md the study.
+#: ``paper`` is the SVGF paper [SVGF], ``falcor`` Falcor's SVGFPass defaults [Falcor].
 PRESETS = {
+    "dbench": dict(sigma_z=1.0, sigma_n=128.0, sigma_l=4.0, iterations="auto", feedback_tap=None,
+                   alpha_min=0.2, alpha_min_moments=0.2, variance_of="mean"),
     "paper": dict(sigma_z=1.0, sigma_n=128.0, sigma_l=4.0, iterations=5, feedback_tap=0,
-                  alpha_min=0.2, alpha_min_moments=0.2),
+                  alpha_min=0.2, alpha_min_moments=0.2, variance_of="sample"),
     "falcor": dict(sigma_z=1.0, sigma_n=128.0, sigma_l=10.0, iterations=4, feedback_tap=1,
-                   alpha_min=0.05, alpha_min_moments=0.2),
+                   alpha_min=0.05, alpha_min_moments=0.2, variance_of="sample"),
 }
+VARIANCE_OF = ("mean", "sample")
+MAX_ITERATIONS = 12
+
+
+def auto_iterations(height: int, width: int) -> int:
+    """À-trous iterations K for ``iterations="auto"`` [dbench]: the paper's K = 5 (footprint
+    ±62 px) from 256 px up, one fewer per halving of the shorter side below it, at least 1:
+    32 px → 2, 64 px → 3, 128 px → 4. The footprint 2^(K+1) − 2 stays about a quarter of the
+    shorter side, as 5 iterations are on the 256-px images; at 64 px the paper's ±62 px spans
+    the whole image and blurs the illumination across it (results/temporal.md)."""
+    side = max(1, min(int(height), int(width)))
+    return int(min(5, max(1, int(np.floor(np.log2(side))) - 3)))
 GRADIENT_MODES = ("seed", "paper")
 ALPHA0_PAPER = 0.2

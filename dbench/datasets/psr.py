@@ -1,0 +1,104 @@
+"""Primary surface replacement (PSR): a G-buffer that sees through mirrors and glass
+(spec/temporal.md §1.1).
+
+Mitsuba's ``albedo`` AOV is 0 on smooth conductors and dielectrics, and their normal and
+position describe the mirror, not what it shows. Demodulating a reflection by that albedo
+amplifies it (or, with the fallback a_eff = 1, leaves the reflected texture in the signal), and
+the flat mirror's normal and depth let every filter blur the reflected scene across the mirror.
+The seed's answer (reflected normals for surfaces with roughness < 0.4, spec/temporal.md §1) and
+production's (NVIDIA's primary surface replacement) is the same: describe the pixel by the first
+surface along the specular chain that is not a delta (perfectly specular) BSDF.
+
+Per primary sample (:class:`MatchedPSR`, an integrator that wraps the frame's ``path``
+integrator so that the colour is the very same sample, bit for bit):
+
+* follow at most ``bounces`` (4) delta reflections / refractions — BSDFs with a delta lobe and no
+  diffuse or glossy lobe (smooth ``conductor``, ``dielectric``, ``thindielectric``), choosing the
+  lobe with the sampler as the path tracer does — to the first other surface;
+* ``albedo`` = throughput of the chain (Fresnel reflectance or transmittance) × that surface's
+  diffuse reflectance: the *specular albedo* rule of issue 16 for metals and glass;
+* ``emission`` = throughput × radiance that surface emits towards the chain (a lamp seen in a
+  mirror is an emitter pixel, kept out of the filters like a directly visible one);
+* ``normal`` = that surface's shading normal (the reflected normal);
+* ``depth`` = length of the whole chain and ``position`` = camera origin + primary direction ×
+  depth: the virtual image point, which is static while the camera moves in front of a planar
+  mirror, so the motion vectors of spec/temporal.md §3.1 reproject reflections correctly.
+
+Surfaces that are not delta keep Mitsuba's own AOVs (the results equal the ``aov`` integrator's
+bit for bit; tested). A chain that leaves the scene gives a "no hit" pixel (zeros).
+"""
+from __future__ import annotations
+
+from .mitsuba_env import mitsuba
+
+PSR_BOUNCES = 4
+#: channel layout of the render: colour, then the G-buffer (same order as sequence.MATCHED_LAYOUT)
+PSR_AOVS = ("emission.R", "emission.G", "emission.B", "albedo.R", "albedo.G", "albedo.B",
+            "nn.X", "nn.Y", "nn.Z", "dd.T", "pp.X", "pp.Y", "pp.Z")
+_REGISTERED = False
+
+
+def register() -> str:
+    """Register the ``dbench_psr`` integrator once per process; returns its type name."""
+    global _REGISTERED
+    if _REGISTERED:
+        return "dbench_psr"
+    mi = mitsuba()
+    dr = __import__("drjit")
+
+    class MatchedPSR(mi.SamplingIntegrator):
+        """The nested ``color`` integrator's sample and the PSR G-buffer of its primary ray."""
+
+        def __init__(self, props):
+            super().__init__(props)
+            self.nested = props["color"]
+            self.bounces = int(props.get("bounces", PSR_BOUNCES))
+
+        def sample(self, scene, sampler, ray, medium=None, active=True):
+            # the colour first, so that it consumes the sampler exactly as a plain render does
+            spec, valid, _ = self.nested.sample(scene, sampler, ray, medium, active)
+            ray = mi.Ray3f(ray)
+            origin, direction = mi.Point3f(ray.o), mi.Vector3f(ray.d)
+            si = scene.ray_intersect(ray, active)
+            alive = mi.Bool(active) & si.is_valid()
+            length = dr.select(alive, si.t, 0.0)
+            throughput = mi.Spectrum(1.0)
+            ctx = mi.BSDFContext()
+            for _ in range(self.bounces):
+                flags = si.bsdf(ray).flags()
+                delta = (alive & mi.has_flag(flags, mi.BSDFFlags.Delta)
+                         & ~mi.has_flag(flags, mi.BSDFFlags.Smooth))
+                bs, weight = si.bsdf(ray).sample(ctx, si, sampler.next_1d(delta),
+                                                 sampler.next_2d(delta), delta)
+                delta &= dr.any(weight > 0)
+                next_ray = si.spawn_ray(si.to_world(bs.wo))
+                nxt = scene.ray_intersect(next_ray, delta)
+                throughput[delta] = throughput * weight
+                length[delta] = length + dr.select(nxt.is_valid(), nxt.t, 0.0)
+                alive &= ~(delta & ~nxt.is_valid())
+                ray[delta] = next_ray
+                si[delta] = nxt
+            hit = alive & si.is_valid()
+            albedo = throughput * si.bsdf(ray).eval_diffuse_reflectance(si, hit)
+            emission = throughput * si.emitter(scene).eval(si, hit)
+            normal = si.sh_frame.n
+            length = dr.select(hit, length, 0.0)
+            position = origin + direction * length
+            values = (emission[0], emission[1], emission[2], albedo[0], albedo[1], albedo[2],
+                      normal.x, normal.y, normal.z, length, position.x, position.y, position.z)
+            return spec, valid, [dr.select(hit, mi.Float(v), 0.0) for v in values]
+
+        def aov_names(self):
+            return list(PSR_AOVS)
+
+    mi.register_integrator("dbench_psr", lambda props: MatchedPSR(props))
+    _REGISTERED = True
+    return "dbench_psr"
+
+
+def psr_integrator(path: dict) -> dict:
+    """The integrator dictionary of a PSR render around the frame's ``path`` integrator."""
+    return {"type": register(), "color": dict(path), "bounces": PSR_BOUNCES}
+
+
+__all__ = ["PSR_AOVS", "PSR_BOUNCES", "psr_integrator", "register"]

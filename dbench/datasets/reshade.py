@@ -1,0 +1,143 @@
+"""A-SVGF's temporal-gradient samples as the seed describes them (spec/svgf.md §6.1, §6.5):
+the brightest sample of every 3×3 stratum of frame i−1 is re-shaded from frame i's camera,
+under frame i's lights, with frame i−1's random numbers.
+
+How the random numbers are reused: Mitsuba's independent sampler gives wavefront lane k of a
+render with seed s the same random stream every time (lane k is pixel k at 1 spp). The re-shading
+render therefore runs the frame-(i−1) wavefront again with the frame-(i−1) seed, and lane q —
+which sampled the camera jitter of pixel q exactly as before — replaces its camera ray by the ray
+from the *current* camera origin to the surface point P_{i−1}(q) that pixel q hit. The nested
+path integrator then continues with the random numbers pixel q used for its path in frame i−1.
+Lanes outside the selection are inactive (no ray is traced for them), so the cost is the ray
+generation of a frame plus one path per stratum (about 1/9 of a frame's paths).
+
+A sample is dropped (NaN in the buffer) when P_{i−1}(q) is hidden from the current camera (the
+first hit along the new ray is more than 0.1 % of the distance short of it: disocclusion),
+unless that first hit is a mirror or glass (a delta BSDF): the target is then the virtual point
+of a PSR G-buffer (:mod:`dbench.datasets.psr`), reached through it. Unlike the earlier emulation (the whole frame re-rendered from the previous
+camera), view-dependent changes — a highlight moving over a glossy sphere as the camera moves —
+now show up as gradients.
+
+Public: :func:`select_strata` (the brightest hit pixel per stratum) and :func:`render_reshade`
+(the (H, W, 3) gradient buffer: re-shaded colour at the selected pixels, NaN elsewhere).
+"""
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from .mitsuba_env import mitsuba
+
+STRATUM = 3
+#: a re-shaded sample is visible when its first hit is within this fraction of the distance
+OCCLUSION_TOLERANCE = 1e-3
+_REGISTERED = False
+
+
+def select_strata(color: np.ndarray, depth: np.ndarray, size: int = STRATUM) -> np.ndarray:
+    """(H, W) bool: in every ``size``×``size`` stratum (aligned at the top-left corner; partial
+    strata at the right and bottom borders), the pixel of highest Rec. 709 luminance among those
+    with a hit (depth > 0) and a finite colour; the first in row-major order on ties; none in a
+    stratum without such a pixel.
+
+    Args:
+        color: (H, W, 3) noisy colour of frame i−1.
+        depth: (H, W) or (H, W, 1) depth of frame i−1 (0 where no hit).
+    """
+    color = np.asarray(color, np.float64)
+    h, w = color.shape[:2]
+    depth = np.asarray(depth, np.float64).reshape(h, w)
+    lum = color @ np.array([0.2126, 0.7152, 0.0722])
+    usable = (depth > 0) & np.isfinite(lum)
+    score = np.where(usable, lum, -np.inf)
+    hs, ws = -(-h // size), -(-w // size)
+    padded = np.full((hs * size, ws * size), -np.inf)
+    padded[:h, :w] = score
+    blocks = padded.reshape(hs, size, ws, size).transpose(0, 2, 1, 3).reshape(hs, ws, size * size)
+    arg = blocks.argmax(-1)
+    has = np.isfinite(np.take_along_axis(blocks, arg[..., None], -1)[..., 0])
+    sy, sx = np.nonzero(has)
+    qy = sy * size + arg[sy, sx] // size
+    qx = sx * size + arg[sy, sx] % size
+    out = np.zeros((h, w), bool)
+    out[qy, qx] = True
+    return out
+
+
+def _register(mi) -> None:
+    """Register the ``dbench_reshade`` integrator once per process."""
+    global _REGISTERED
+    if _REGISTERED:
+        return
+    dr = __import__("drjit")
+
+    class Reshade(mi.SamplingIntegrator):
+        """Lane k: the nested integrator's path from the camera origin to ``targets[k]``
+        where ``selected[k]``; the AOV ``valid`` says where a path was traced."""
+
+        def __init__(self, props):
+            super().__init__(props)
+            self.nested = props["color"]
+            self.origin = mi.Point3f(0.0)
+            self.targets = mi.Point3f(0.0)
+            self.selected = mi.Bool(False)
+
+        def sample(self, scene, sampler, ray, medium=None, active=True):
+            # lane index = pixel index at 1 spp (mi.render's wavefront is row-major)
+            idx = dr.arange(mi.UInt32, dr.width(ray.o))
+            target = dr.gather(mi.Point3f, self.targets, idx)
+            chosen = dr.gather(mi.Bool, self.selected, idx) & mi.Bool(active)
+            to_target = target - self.origin
+            dist = dr.norm(to_target)
+            direction = to_target / dr.maximum(dist, 1e-12)
+            new_ray = mi.Ray3f(self.origin, direction, ray.time, ray.wavelengths)
+            first = scene.ray_intersect(new_ray, chosen)
+            # a target behind a mirror or glass is the virtual point of a PSR G-buffer
+            # (dbench.datasets.psr): the ray reaches it through the delta surface it hits
+            flags = first.bsdf(new_ray).flags()
+            through = (mi.has_flag(flags, mi.BSDFFlags.Delta)
+                       & ~mi.has_flag(flags, mi.BSDFFlags.Smooth))
+            visible = chosen & first.is_valid() & (
+                through | (first.t > dist * (1.0 - OCCLUSION_TOLERANCE)))
+            spec, _, _ = self.nested.sample(scene, sampler, new_ray, medium, visible)
+            spec = dr.select(visible, spec, 0.0)
+            return spec, mi.Bool(True), [dr.select(visible, mi.Float(1.0), mi.Float(0.0))]
+
+        def aov_names(self):
+            return ["valid.V"]
+
+    mi.register_integrator("dbench_reshade", lambda props: Reshade(props))
+    _REGISTERED = True
+
+
+def render_reshade(scene_dict: dict, path: dict, origin, targets: np.ndarray,
+                   selected: np.ndarray, seeds: list[int]) -> np.ndarray:
+    """Re-shade the ``selected`` pixels: (H, W, 3) float32, the mean over ``seeds`` (one 1-spp
+    pass each, the seeds of frame i−1's passes) of the path from ``origin`` (frame i's camera
+    position) to ``targets`` (frame i−1's world positions, (H, W, 3)) in the scene of
+    ``scene_dict`` (frame i's camera and lights); NaN where not selected or not visible.
+
+    ``path``: the nested integrator's dictionary (the frame's ``path`` integrator)."""
+    mi = mitsuba()
+    _register(mi)
+    dr = __import__("drjit")
+    h, w = selected.shape
+    loaded = mi.load_dict(scene_dict, optimize=False)  # optimize=False: see sequence._render_dict
+    integ: Any = mi.load_dict({"type": "dbench_reshade", "color": dict(path)}, optimize=False)
+    integ.origin = mi.Point3f(*[float(v) for v in origin])
+    t = np.ascontiguousarray(np.nan_to_num(np.asarray(targets, np.float32)).reshape(-1, 3))
+    integ.targets = mi.Point3f(mi.Float(t[:, 0]), mi.Float(t[:, 1]), mi.Float(t[:, 2]))
+    integ.selected = mi.Bool(np.ascontiguousarray(selected.reshape(-1)))
+    total = np.zeros((h, w, 3))
+    valid = np.ones((h, w), bool)
+    for s in seeds:
+        out = np.array(mi.render(loaded, spp=1, seed=int(s), integrator=integ), np.float64)
+        total += out[..., :3]
+        valid &= out[..., 3] > 0.5
+    dr.sync_thread()
+    res = np.where(valid[..., None], total / len(seeds), np.nan)
+    return res.astype(np.float32)
+
+
+__all__ = ["OCCLUSION_TOLERANCE", "STRATUM", "render_reshade", "select_strata"]
