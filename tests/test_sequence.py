@@ -134,13 +134,52 @@ def test_frames_carry_every_buffer_and_the_camera(flicker):
     np.testing.assert_array_equal(flicker[0].gradient, flicker[0].color)
 
 
-def test_gradient_frame_reuses_the_previous_random_numbers(flicker):
+def test_reshaded_samples_are_the_brightest_and_reuse_the_previous_random_numbers(flicker):
+    """docs/temporal.md §2: one re-shaded sample per 3×3 stratum of frame i−1, its brightest hit
+    pixel, traced again with frame i−1's random numbers (static camera here, so with unchanged
+    lights it equals frame i−1's colour up to the float rounding of the rebuilt ray)."""
+    from dbench.datasets.reshade import select_strata
+
     k = S.FLICKER_SWITCH
-    for i in (1, 5, k - 1, k + 1):  # lights unchanged: exactly the previous frame
-        np.testing.assert_array_equal(flicker[i].gradient, flicker[i - 1].color)
-    assert not np.array_equal(flicker[k].gradient, flicker[k - 1].color)
-    # and differs from an independent render of the same state
-    assert not np.array_equal(flicker[k].gradient, flicker[k].color)
+    for i in (1, 5, k - 1, k + 1):  # lights unchanged
+        g, prev = flicker[i].gradient, flicker[i - 1]
+        chosen = np.isfinite(g[..., 0])
+        np.testing.assert_array_equal(chosen, select_strata(prev.color, prev.depth))
+        np.testing.assert_allclose(g[chosen], prev.color[chosen], rtol=1e-4, atol=1e-6)
+        lum = prev.color @ np.array([0.2126, 0.7152, 0.0722])
+        for y, x in zip(*np.nonzero(chosen)):  # the brightest hit pixel of its stratum
+            y0, x0 = y // 3 * 3, x // 3 * 3
+            block = np.where(prev.depth[y0:y0 + 3, x0:x0 + 3, 0] > 0,
+                             lum[y0:y0 + 3, x0:x0 + 3], -np.inf)
+            assert lum[y, x] == block.max()
+    chosen = np.isfinite(flicker[k].gradient[..., 0])
+    assert not np.allclose(flicker[k].gradient[chosen], flicker[k - 1].color[chosen])
+
+
+def test_select_strata_takes_one_brightest_hit_per_stratum():
+    from dbench.datasets.reshade import select_strata
+
+    color = np.zeros((4, 5, 3))
+    color[0, 1] = 2.0
+    color[1, 2] = 3.0          # brighter, but no hit
+    color[3, 4] = 1.0          # a partial stratum at the corner
+    depth = np.ones((4, 5))
+    depth[1, 2] = 0.0
+    sel = select_strata(color, depth)
+    assert sel[0, 1] and not sel[1, 2] and sel[3, 4]
+    assert sel.sum() == 4      # 2 × 2 strata, each with hit pixels
+    assert not select_strata(color, np.zeros((4, 5))).any()
+
+
+def test_gradient_frame_emulation_reuses_the_previous_random_numbers(renderer, seq_cache):
+    """The older emulation (``gradient="frame"``, spec §6.4): bit-identical to frame i−1 while
+    the lights do not change."""
+    from dbench.datasets.sequence import load_sequence
+
+    seq = load_sequence("flicker", spp=1, res=RES, frames=3, cache=seq_cache, progress=False,
+                        needs={"color", "gradient"}, gradient="frame")
+    for i in (1, 2):
+        np.testing.assert_array_equal(seq[i].gradient, seq[i - 1].color)
 
 
 def test_cache_is_reused(renderer, seq_cache, flicker):

@@ -58,7 +58,10 @@ def scene_fingerprint(scene: str | Scene, res) -> str:
     if sc.kind == "sequence":
         desc = {"scene": sc.name, "kind": sc.kind, "res": res.key, "n_frames": int(sc.n_frames),
                 "frames": [sc.frame_dict(mi, res, i) for i in range(sc.n_frames)],
-                "params": sc.params, "versions": versions()}
+                "params": sc.params, "versions": versions(),
+                # how the G-buffer and the A-SVGF gradient samples are made changes the inputs
+                "gbuffer": f"psr-{_sequence.PSR_VERSION}",
+                "gradient": f"reshade-{_sequence.RESHADE_VERSION}"}
     elif sc.kind == "transient":
         window = sc.window()
         desc = {"scene": sc.name, "kind": sc.kind, "res": res.key,

@@ -1,5 +1,5 @@
 """Primary surface replacement (PSR): a G-buffer that sees through mirrors and glass
-(spec/temporal.md §1.1).
+(docs/temporal.md §1).
 
 Mitsuba's ``albedo`` AOV is 0 on smooth conductors and dielectrics, and their normal and
 position describe the mirror, not what it shows. Demodulating a reflection by that albedo
@@ -63,6 +63,7 @@ def register() -> str:
             alive = mi.Bool(active) & si.is_valid()
             length = dr.select(alive, si.t, 0.0)
             throughput = mi.Spectrum(1.0)
+            moved = mi.Bool(False)
             ctx = mi.BSDFContext()
             for _ in range(self.bounces):
                 flags = si.bsdf(ray).flags()
@@ -74,6 +75,7 @@ def register() -> str:
                 next_ray = si.spawn_ray(si.to_world(bs.wo))
                 nxt = scene.ray_intersect(next_ray, delta)
                 throughput[delta] = throughput * weight
+                moved |= delta
                 length[delta] = length + dr.select(nxt.is_valid(), nxt.t, 0.0)
                 alive &= ~(delta & ~nxt.is_valid())
                 ray[delta] = next_ray
@@ -83,7 +85,9 @@ def register() -> str:
             emission = throughput * si.emitter(scene).eval(si, hit)
             normal = si.sh_frame.n
             length = dr.select(hit, length, 0.0)
-            position = origin + direction * length
+            # the hit point itself where no delta surface was followed (Mitsuba's AOV, bit for
+            # bit), the virtual point along the primary ray otherwise
+            position = dr.select(moved, origin + direction * length, si.p)
             values = (emission[0], emission[1], emission[2], albedo[0], albedo[1], albedo[2],
                       normal.x, normal.y, normal.z, length, position.x, position.y, position.z)
             return spec, valid, [dr.select(hit, mi.Float(v), 0.0) for v in values]

@@ -1,4 +1,5 @@
-"""A-SVGF's temporal-gradient samples as the seed describes them (spec/svgf.md §6.1, §6.5):
+"""A-SVGF's temporal-gradient samples as the seed describes them (spec/svgf.md §6.1;
+docs/temporal.md §2):
 the brightest sample of every 3×3 stratum of frame i−1 is re-shaded from frame i's camera,
 under frame i's lights, with frame i−1's random numbers.
 
@@ -140,4 +141,14 @@ def render_reshade(scene_dict: dict, path: dict, origin, targets: np.ndarray,
     return res.astype(np.float32)
 
 
-__all__ = ["OCCLUSION_TOLERANCE", "STRATUM", "render_reshade", "select_strata"]
+def reshade_frame(scene, res, i: int, prev: dict, seeds: list[int]) -> np.ndarray:
+    """The gradient buffer of frame ``i`` of a sequence ``scene``: :func:`render_reshade` of
+    :func:`select_strata` of frame i−1's colour and depth (``prev``), aimed at its
+    ``position``, with frame i's camera and lights and frame i−1's pass ``seeds``."""
+    d = scene.frame_dict(mitsuba(), res, i, i)
+    selected = select_strata(prev["color"], prev["depth"])
+    return render_reshade(d, d["integrator"], scene.camera(i)[0], prev["position"], selected,
+                          seeds)
+
+
+__all__ = ["OCCLUSION_TOLERANCE", "STRATUM", "render_reshade", "reshade_frame", "select_strata"]

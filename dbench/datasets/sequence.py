@@ -87,6 +87,8 @@ from .scene_parts import _diffuse, _mirror_objects, _rect, _room
 from .sequence_scene import (SEQUENCE_BUFFERS, SequenceScene, camera_info, look_at_matrix,
                              motion_vectors, project)
 from .psr import psr_integrator
+from .reshade import reshade_frame
+from .sequence_render import render_emitter, render_reference
 from .references import check_ref_seed, reference_meta, reference_spp
 from .stats import PowerSums, stats_from_arrays, stats_to_arrays
 
@@ -94,20 +96,9 @@ FEATURES = ("albedo", "normal", "depth", "position")
 REFERENCE_CHUNK = _render.DEFAULT_REFERENCE_CHUNK
 GBUFFER_SPP = _render.DEFAULT_FEATURE_SPP
 GBUFFERS = ("psr", "matched", "supersampled")
-PSR_VERSION = 1
+PSR_VERSION = 2
 GRADIENTS = ("reshade", "frame")
 RESHADE_VERSION = 1
-
-
-def _reshade(sc: SequenceScene, res, spp: int, seed: int, i: int, prev: dict) -> np.ndarray:
-    """The re-shaded gradient samples of frame ``i`` (:func:`~dbench.datasets.reshade.
-    render_reshade`) from frame i−1's colour, depth and position (``prev``)."""
-    from .reshade import render_reshade, select_strata
-
-    d = sc.frame_dict(mitsuba(), res, i, i)
-    selected = select_strata(prev["color"], prev["depth"])
-    return render_reshade(d, d["integrator"], sc.camera(i)[0], prev["position"], selected,
-                          pass_seeds(seed, i - 1, spp))
 
 
 def _sequence_scene(name: str, description: str, **kw: Any):
@@ -310,36 +301,6 @@ def render_gbuffer(scene: SequenceScene, res, i: int, seed: int,
             for name, c0, nc in MATCHED_LAYOUT[1:]}
 
 
-def render_reference(scene: SequenceScene, res, i: int, seed: int, spp: int,
-                     chunk: int = REFERENCE_CHUNK) -> tuple[np.ndarray, np.ndarray]:
-    """The reference of frame ``i``: ``spp`` samples in :func:`~dbench.datasets.render.
-    reference_chunks` (K ≥ 16 when spp ≥ 16), a seed stream disjoint from the noisy frames'
-    (``seed`` is the reference seed).
-
-    Returns (reference (H, W, 3) float32, reference_var (H, W, 3) float32: variance of
-    the mean from the chunk spread)."""
-    mi = mitsuba()
-    res = parse_res(res)
-    # Loaded once for all chunks (loading is the expensive part of a small chunk's render);
-    # optimize=False as in _render_dict, so the pixels equal a per-chunk load bit for bit.
-    loaded = mi.load_dict(scene.frame_dict(mi, res, i), optimize=False)
-    acc = _render.ChunkMoments((res.height, res.width, 3))
-    for c, n in enumerate(_render.reference_chunks(spp, chunk)):
-        img = mi.render(loaded, spp=n, seed=_render.pass_seed(f"seq-reference-{i}", seed, c))
-        acc.add(np.array(img, dtype=np.float32), n)
-    return acc.mean().astype(np.float32), acc.var_mean().astype(np.float32)
-
-
-def render_emitter(scene: SequenceScene, res, i: int, seed: int,
-                   spp: int = GBUFFER_SPP) -> np.ndarray:
-    """The ``emitter`` buffer of frame ``i`` (H, W, 1) float32 (its lights: a light switched
-    off does not count), seed stream ``seq-emitter``."""
-    from .emitter import render_emitter_dict
-
-    d = scene.frame_dict(mitsuba(), res, i)
-    return render_emitter_dict(d, spp, _render.pass_seed("seq-emitter", seed, i), optimize=False)
-
-
 def _cached_entry(cache: Cache, kind: str, desc: dict, render: Callable[[], dict[str, np.ndarray]],
                   meta: dict, name: str, time_key: str = "render_s"
                   ) -> tuple[dict[str, np.ndarray], float | None]:
@@ -411,7 +372,7 @@ def load_sequence(scene: str | SequenceScene, spp: int = 1, res=64,
             :mod:`dbench.datasets.psr`); ``"matched"``: the same samples' plain AOVs (the
             mirror itself); ``"supersampled"``: independent 64-spp footprint averages
             (:func:`render_gbuffer`). The colour is the same in all three.
-        gradient: the A-SVGF gradient buffer: ``"reshade"`` (default; spec/svgf.md §6.5,
+        gradient: the A-SVGF gradient buffer: ``"reshade"`` (default; docs/temporal.md §2,
             :mod:`dbench.datasets.reshade`): the brightest sample of each 3×3 stratum of frame
             i−1 re-shaded from camera i under the lights of i with the random numbers of i−1,
             NaN elsewhere; ``"frame"``: the older emulation, a whole frame rendered from camera
@@ -512,7 +473,8 @@ def load_sequence(scene: str | SequenceScene, spp: int = 1, res=64,
                             aovs=_render.AOV_STRING, reshade=RESHADE_VERSION, **samples, **psr)
                 buffers["gradient"] = _cached_entry(
                     cache, "seq-gradient", desc,
-                    lambda: {"gradient": _reshade(sc, res, spp, seed, i, prev_noisy)},
+                    lambda: {"gradient": reshade_frame(sc, res, i, prev_noisy,
+                                                        pass_seeds(seed, i - 1, spp))},
                     meta, f"gradient{i}", time_key="gradient_s")[0]["gradient"]
         if "emitter" in wanted:
             buffers["emitter"] = _cached_entry(

@@ -68,13 +68,18 @@ def _static(h, w, frames, off_at=None, seed=0):
 
 def test_static_scene_has_no_gradient_and_history_grows():
     seq = _static(12, 12, 10)
-    m = methods.get("asvgf")
+    m = methods.get("asvgf", alpha_floor=False)  # the seed's rule: α = 1/N'
     m.reset()
     for i, f in enumerate(seq):
         m.denoise(f)
         if i >= 1:
             assert m.last["gradient"].mean() < 0.05
     assert np.allclose(m.last["n"], 10) and np.allclose(m.last["alpha"], 0.1)
+    floored = methods.get("asvgf")  # dbench preset: α never below SVGF's α_min = 0.2
+    floored.reset()
+    for f in seq:
+        floored.denoise(f)
+    assert np.allclose(floored.last["n"], 10) and np.allclose(floored.last["alpha"], 0.2)
 
 
 def test_light_off_drops_quickly_for_asvgf_and_slowly_for_svgf():

@@ -296,3 +296,53 @@ def test_torch_backend_validation_and_auto(monkeypatch):
         methods.get("bmfr", backend="cuda")
     with pytest.raises(DbenchInputError, match="backend"):
         householder_lstsq(np.ones((1, 5, 2)), np.ones((1, 5, 1)), backend="cuda")
+
+
+# -- issue 16: the seed's random samples per block, gradient-driven accumulation -------------
+
+def test_block_sample_mask_draws_w_pixels_per_block():
+    from dbench.methods.bmfr.reference import block_origins, block_sample_mask
+
+    h, w, b = 40, 50, 16
+    fit = np.ones((h, w), bool)
+    fit[:5] = False
+    offset = (-6, 3)
+    mask = block_sample_mask(fit, b, offset, 36, seed=7)
+    assert not (mask & ~fit).any()
+    for y0, x0 in block_origins(h, w, b, offset):
+        ys, xs = slice(max(y0, 0), min(y0 + b, h)), slice(max(x0, 0), min(x0 + b, w))
+        assert mask[ys, xs].sum() == min(36, fit[ys, xs].sum())
+    np.testing.assert_array_equal(mask, block_sample_mask(fit, b, offset, 36, seed=7))
+    assert not np.array_equal(mask, block_sample_mask(fit, b, offset, 36, seed=8))
+
+
+def test_seed_preset_fits_from_36_samples_and_still_beats_noisy():
+    m = methods.get("bmfr", preset="seed")
+    assert (m.params["block_size"], m.params["samples"], m.params["features"]) == (64, 36, "seed")
+    seq = synthetic_sequence(64, 64, frames=10)
+    r = {n: run_sequence(methods.get(n, **kw), seq, warmup=4).summary["mean_rmse"]
+         for n, kw in (("noisy", {}), ("bmfr", dict(preset="seed")))}
+    assert r["bmfr"] < r["noisy"]
+    with pytest.raises(DbenchInputError, match="samples"):
+        methods.get("bmfr", samples=0)
+
+
+def test_temporal_gradient_drops_the_history_at_a_light_change():
+    """With the re-shaded gradient samples (spec/svgf.md §6) BMFR's two accumulations restart
+    where the light changed (α ≥ 0.99), and keep the BMFR code's α otherwise."""
+    from tests.methods.test_asvgf import _static
+
+    seq = _static(16, 16, 14, off_at=10)
+    for flag in (True, False):
+        m = methods.get("bmfr", temporal_gradient=flag, block_size=8)
+        m.reset()
+        means = []
+        for i, f in enumerate(seq):
+            means.append(m.denoise(f).mean())
+            if flag and i == 10:
+                assert np.allclose(m.last["gradient"], 1.0)
+        if flag:
+            assert means[11] < 0.05 * np.mean(means[5:10])
+        else:
+            assert means[11] > 0.5 * np.mean(means[5:10])
+    assert "gradient" in methods.get("bmfr").optional_needs

@@ -294,3 +294,76 @@ def test_torch_backend_validation_and_auto(monkeypatch):
     assert methods.get("svgf", backend="torch").backend == "torch"
     with pytest.raises(DbenchInputError, match="backend"):
         methods.get("svgf", backend="cuda")
+
+
+# -- dbench preset: variance of the mean, no filtered feedback, footprint, emission (issue 16) --
+
+def test_dbench_preset_and_auto_iterations():
+    from dbench.methods.svgf.params import auto_iterations
+
+    p = methods.get("svgf").params
+    assert (p["preset"], p["variance_of"], p["feedback_tap"], p["iterations"]) == (
+        "dbench", "mean", None, "auto")
+    paper = methods.get("svgf", preset="paper").params
+    assert (paper["variance_of"], paper["feedback_tap"], paper["iterations"]) == ("sample", 0, 5)
+    assert [auto_iterations(s, s) for s in (16, 32, 64, 128, 256, 720)] == [1, 2, 3, 4, 5, 5]
+    assert auto_iterations(64, 1280) == 3
+    for bad in (dict(variance_of="pixel"), dict(feedback_tap=-1), dict(iterations="many")):
+        with pytest.raises(DbenchInputError, match=list(bad)[0]):
+            methods.get("svgf", **bad)
+
+
+def test_variance_of_the_mean_follows_the_blend_weights():
+    """Σw² of the accumulation: 1/N for the running mean up to 1/α_min = 5 frames, then the
+    EMA recursion w² = α² + (1 − α)² w²← towards α/(2 − α) = 1/9."""
+    seq = synthetic_sequence(8, 8, frames=30, shift=0)
+    m = methods.get("svgf")
+    m.reset()
+    expected = None
+    for i, f in enumerate(seq):
+        m.denoise(f)
+        a = max(0.2, 1.0 / (i + 1))
+        expected = 1.0 if i == 0 else a * a + (1 - a) ** 2 * expected
+        np.testing.assert_allclose(m.last["weight_sq"], expected, rtol=1e-5)
+    assert abs(expected - 0.2 / 1.8) < 1e-3
+    np.testing.assert_allclose(methods.get("svgf").params["alpha_min"], 0.2)
+
+
+def test_variance_of_the_mean_blurs_less_once_converged():
+    """On a converged history the luminance weights of the mean's variance keep a step that the
+    per-sample variance lets the à-trous filter blur (the bias measured on orbit)."""
+    h, w, n = 16, 16, 25
+    rng = np.random.default_rng(3)
+    clean = np.full((h, w, 3), 0.2, np.float32)
+    clean[:, w // 2:] = 0.6
+    g = dict(albedo=np.ones((h, w, 3), np.float32), depth=np.ones((h, w, 1)),
+             normal=np.tile([0, 0, 1.0], (h, w, 1)), position=np.zeros((h, w, 3)),
+             motion=np.zeros((h, w, 2)))
+    frames = [Frame(color=clean * rng.exponential(1.0, (h, w, 1)).astype(np.float32),
+                    reference=clean, **g) for _ in range(n)]
+    err = {}
+    for v in ("sample", "mean"):
+        m = methods.get("svgf", variance_of=v, iterations=5)
+        m.reset()
+        outs = [m.denoise(f) for f in frames]
+        err[v] = np.sqrt(np.mean([(o - clean) ** 2 for o in outs[-5:]]))
+    assert err["mean"] < err["sample"]
+
+
+def test_emission_is_accumulated_not_added_raw():
+    """An aliased emitter edge (a 1-spp sample sees the lamp in one frame, not in the next):
+    the output's emission converges to the coverage instead of flickering with the sample."""
+    h, w = 8, 8
+    seq = synthetic_sequence(h, w, frames=12, shift=0)
+    m = methods.get("svgf")
+    m.reset()
+    outs = []
+    for i, f in enumerate(seq):
+        emi = np.zeros((h, w, 3), np.float32)
+        if i % 2 == 0:
+            emi[2:4, 2:4] = 40.0
+        outs.append(m.denoise(f.with_buffers(color=f.color + emi, emission=emi)))
+    lamp = np.array([o[2:4, 2:4].mean() for o in outs[6:]])
+    assert np.all(np.abs(np.diff(lamp)) < 10.0)          # raw emission would jump by 40
+    assert 10.0 < lamp.mean() < 30.0                     # about the coverage 20
+    assert "emission" in methods.get("svgf").optional_needs

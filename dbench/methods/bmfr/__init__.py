@@ -8,25 +8,34 @@ first (0, 0)); per block a least-squares fit of Z' on the features
 column but the constant (stochastic regularisation, §4), solved by batched Householder QR
 without Q with R shared by the three channels (§5, :func:`householder_lstsq`); reconstruction
 with the noise-free features, negatives clamped to 0; accumulation 2 of the fit with
-α2 = max(1/N, 0.1); remodulation.
+α2 = max(1/N, 0.1); remodulation, with the emission accumulated like Z.
+
+Temporal gradient (``temporal_gradient=True``, default; docs/temporal.md §5): when the frame has
+a ``gradient`` buffer (the re-shaded samples A-SVGF uses), both accumulations take A-SVGF's
+adaptive history (:func:`dbench.methods.svgf.gradient_history`): N' = min(N(1 − G)^10 + 1, 256),
+α_k = max(mix(1/N', 1, G), α_k). The BMFR code's fixed α lags ~10 frames behind a light change
+(it was 1.05× plain accumulation on ``flicker``); A-SVGF's authors present the gradient as usable
+by any temporal filter. ``False`` (or a frame without the buffer) gives the fixed rule.
 
 Public: :func:`householder_lstsq` (A (K, m, n), B (K, m, c)) -> X (K, n, c).
 
 Parameters: features ("paper" | "seed" | "normals" | "positions"), block_size (32),
-noise_amount (0.01), offsets (16), alpha1 (0.2), alpha2 (0.1), clamp_negative (True),
-rcond (1e-10), seed (0: noise and offsets), tau_d, tau_n, backend ("auto" | "numba" | "torch" |
-"reference"; "auto", the default, is "torch" when ``torch.cuda.is_available()``, else "numba";
-"torch" runs reprojection, accumulation, demodulation, feature construction, the batched
-Householder fit of all blocks and the reconstruction as PyTorch kernels
-(:mod:`dbench.methods.bmfr.torch_path`) on CUDA when available, else on CPU, NumPy in and out
-of each kernel, history kept as NumPy; ``params["backend"]`` holds the resolved name),
-preset (None | "seed": block 64, features "seed"; the seed's 36 random samples per block are not
-implemented — every pixel of a block is used).
+samples (None: every pixel of a block; an integer W: W pixels drawn per block and frame, the
+seed's 36, :func:`block_sample_mask`), noise_amount (0.01), offsets (16), alpha1 (0.2),
+alpha2 (0.1), clamp_negative (True), rcond (1e-10), seed (0: noise, offsets and samples),
+temporal_gradient (True), tau_d, tau_n, backend ("auto" | "numba" | "torch" | "reference";
+"auto", the default, is "torch" when ``torch.cuda.is_available()``, else "numba"; "torch" runs
+reprojection, accumulation, demodulation, feature construction, the batched Householder fit of
+all blocks and the reconstruction as PyTorch kernels (:mod:`dbench.methods.bmfr.torch_path`) on
+CUDA when available, else on CPU, NumPy in and out of each kernel, history kept as NumPy;
+``params["backend"]`` holds the resolved name), preset (None | "seed": block 64, 36 samples,
+features "seed" — the seed's implementation, spec §3.1).
 
 Fit set: pixels with a hit, no emission and a usable accumulated value; reconstructed: every
 hit pixel without emission (a pixel whose sample was non-finite gets the block's fit).
 Pixels without hit and emitters keep their accumulated value. ``last`` holds ``dropped``
-(columns zeroed by the rank safeguard this frame), ``offset`` and ``n1``/``n2``.
+(columns zeroed by the rank safeguard this frame), ``offset``, ``n1``/``n2`` and ``gradient``
+(G, or None without the gradient step).
 
 Non-finite policy: non-finite colour is missing (accumulation keeps history, the pixel is left
 out of the fit and reconstructed from its features); non-finite features make a pixel "no hit".
@@ -60,7 +69,7 @@ from ...data import check_buffer
 from ...errors import DbenchInputError
 from ...registry import register
 from .. import temporal as T
-from ..svgf import _accumulate_emission, _emission
+from ..svgf import _accumulate_emission, _emission, gradient_history
 from ..svgf import dispatch as SC
 from .dispatch import bmfr_fit, householder_lstsq
 from .numba_path import bmfr_fit_fast
@@ -70,7 +79,7 @@ from .reference import (block_origins, block_sample_mask, bmfr_fit_reference, fe
 from .torch_path import bmfr_fit_torch, feature_stack_torch, householder_lstsq_torch
 
 __all__ = ["BMFR", "householder_lstsq", "householder_lstsq_reference", "bmfr_fit",
-           "bmfr_fit_fast", "bmfr_fit_reference", "feature_stack", "grid_offsets",
+           "bmfr_fit_fast", "bmfr_fit_reference", "block_sample_mask", "feature_stack", "grid_offsets",
            "block_origins", "uniform_hash", "FEATURE_PRESETS", "bmfr_fit_torch",
            "feature_stack_torch", "householder_lstsq_torch"]
 
@@ -81,10 +90,12 @@ class BMFR(T.HistoryDenoiser):
 
     kinds = {"sequence"}
     needs = {"color", "albedo", "normal", "depth", "position", "motion"}
+    optional_needs = {"emission", "gradient"}
     defaults: dict[str, Any] = dict(features="paper", block_size=32, noise_amount=0.01,
                                     offsets=N_OFFSETS, alpha1=0.2, alpha2=0.1,
                                     clamp_negative=True, rcond=RCOND, seed=0, tau_d=T.TAU_D,
-                                    tau_n=T.TAU_N, backend="auto", preset=None, samples=None)
+                                    tau_n=T.TAU_N, backend="auto", preset=None, samples=None,
+                                    temporal_gradient=True)
 
     def __init__(self, **params: Any) -> None:
         super().__init__(**params)
@@ -114,14 +125,32 @@ class BMFR(T.HistoryDenoiser):
                                          or isinstance(p["samples"], bool) or p["samples"] < 1):
             raise DbenchInputError(f"samples: expected None (every pixel of a block) or an "
                                    f"integer >= 1, got {p['samples']!r}")
+        if not isinstance(p["temporal_gradient"], bool):
+            raise DbenchInputError(f"temporal_gradient: expected True or False, "
+                                   f"got {p['temporal_gradient']!r}")
         self._start()
         self.grid = grid_offsets(int(p["block_size"]), int(p["offsets"]), int(p["seed"]))
         self.scaled = np.array([c[0] == "p" for c in FEATURE_PRESETS[p["features"]]], bool)
         self.frame_index = 0
+        self._prev_lum: np.ndarray | None = None
 
     def reset(self) -> None:
         super().reset()
         self.frame_index = 0
+        self._prev_lum = None
+
+    def _alphas(self, data, geo, n_hist, prep):
+        """(history length to accumulate on, α1, α2, G): the fixed rule of the BMFR code, or,
+        with ``temporal_gradient`` and a ``gradient`` buffer on the frame, A-SVGF's adaptive
+        history (spec/svgf.md §6; Schied et al. 2018 present the gradient as usable by any
+        temporal filter): N' = min(N(1 − G)^10 + 1, 256), α_k = max(mix(1/N', 1, G), α_k)."""
+        p = self.params
+        if not p["temporal_gradient"] or getattr(data, "gradient", None) is None:
+            return n_hist, None, None, None
+        g, n_new, a = gradient_history(data, geo, self.history.prev, self._prev_lum, n_hist,
+                                       T.N_MAX, backend=self.backend)
+        return (n_new - np.float32(1.0), np.maximum(a, np.float32(p["alpha1"])),
+                np.maximum(a, np.float32(p["alpha2"])), g)
 
     def _denoise(self, data, color: np.ndarray) -> np.ndarray:
         p, be = self.params, self.backend
@@ -136,10 +165,11 @@ class BMFR(T.HistoryDenoiser):
         hist, status = self.history.fetch(geo, 10)
         ok = status > 0
         acc = partial(T.accumulate_any, be)
-        z_acc, n1, _ = acc(prep["illum"], hist[0:3], hist[3], ok, p["alpha1"], T.N_MAX, None,
+        n_hist, a1, a2, g = self._alphas(data, geo, hist[3], prep)
+        z_acc, n1, _ = acc(prep["illum"], hist[0:3], n_hist, ok, p["alpha1"], T.N_MAX, a1,
                            present)
-        acc_e = _accumulate_emission(be, prep, hist[7:10], hist[3], ok, p["alpha1"], T.N_MAX,
-                                     None, present)
+        acc_e = _accumulate_emission(be, prep, hist[7:10], n_hist, ok, p["alpha1"], T.N_MAX,
+                                     a1, present)
         filled = n1 > 0
         recon = geo.hit & ~prep["emitter"]
         fit = recon & filled
@@ -162,11 +192,12 @@ class BMFR(T.HistoryDenoiser):
             feats, _ = feature_stack(geo.normal, geo.position, p["features"])
             y_fit, dropped = bmfr_fit_reference(z_acc, feats, scaled, fit, recon, *fit_args)
         # the second history length equals the first one (same reprojection, same resets)
-        y_acc, n2, _ = acc(y_fit, hist[4:7], hist[3], ok, p["alpha2"], T.N_MAX, None,
+        y_acc, n2, _ = acc(y_fit, hist[4:7], n_hist, ok, p["alpha2"], T.N_MAX, a2,
                            filled | recon)
         self.history.store(geo, np.concatenate([z_acc, n1[None], y_acc, acc_e]),
                            valid=filled | recon, finite=True)
         self.frame_index += 1
-        self.last = {"dropped": dropped, "offset": tuple(int(v) for v in offset), "n1": n1,
+        self._prev_lum = prep["lum_raw"]
+        self.last = {"gradient": g, "dropped": dropped, "offset": tuple(int(v) for v in offset), "n1": n1,
                      "n2": n2, "status": status}
         return SC.remodulate(y_acc, prep["a_eff"], acc_e, be)

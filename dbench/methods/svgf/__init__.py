@@ -4,25 +4,44 @@ Per frame (spec §1): subtract the emission of the primary hits (``emission`` bu
 SVGFPass does; 0 when absent), demodulate by albedo (§2), reproject and accumulate the illumination and
 its luminance moments (spec/temporal.md), estimate the variance (temporal where the history has
 ≥ 4 frames, else a 7×7 spatial estimate, §4), run K à-trous iterations with normal, depth and
-luminance edge-stopping weights and variance propagation (§3, §5), keep the output of iteration
-``feedback_tap`` as next frame's colour history, remodulate.
+luminance edge-stopping weights and variance propagation (§3, §5), store the colour history
+(unfiltered, or the output of iteration ``feedback_tap``), remodulate and add the accumulated
+emission back.
 
-``svgf`` blends with α = max(α_min, 1/N) (paper: α_min = 0.2 for colour and moments).
+``svgf`` blends with α = max(α_min, 1/N) (α_min = 0.2 for colour and moments, the paper's).
 ``asvgf`` replaces α by the temporal-gradient rule of the seed (§6.1): per 3×3 stratum of the
-previous frame, the brightest pixel is re-shaded with the previous frame's random numbers under
-the current lights (the frame's ``gradient`` buffer, spec §6.4),
-``G = (|L_new − L_prev| / max(L_new, L_prev))²``; G is filtered by 3 à-trous iterations without
-the luminance weight, fetched at full resolution through the motion vectors (the gather form of
-the spec's forward projection — identical for a static camera), and
-``N' = min(N(1 − G)^10 + 1, 256)``, ``α = mix(1/N', 1, G)``. ``gradient_mode="paper"`` uses
-the original paper's λ = min(1, |δ̂|/Δ̂) with δ and Δ filtered separately, α = mix(0.2, 1, λ)
-floored at 1/N' (N' from λ as above) — an option, not the default.
+previous frame, the brightest pixel is re-shaded with the previous frame's random numbers from
+the current camera under the current lights (the frame's ``gradient`` buffer,
+docs/temporal.md §2), ``G = (|L_new − L_prev| / max(L_new, L_prev))²``; G is filtered by 3
+à-trous iterations without the luminance weight, fetched at full resolution through the motion
+vectors (the gather form of the spec's forward projection — identical for a static camera), and
+``N' = min(N(1 − G)^10 + 1, 256)``, ``α = mix(1/N', 1, G)``, floored at α_min with the dbench
+preset (``alpha_floor``; the A-SVGF paper's α = (1 − λ)α₀ + λ and Q2RTX's max(α_min, 1/N) never
+go below a base α either). ``gradient_mode="paper"`` uses the original paper's
+λ = min(1, |δ̂|/Δ̂) with δ and Δ filtered separately, α = mix(0.2, 1, λ) floored at 1/N'.
+:func:`gradient_history` is that step on its own (BMFR uses it).
 
-Parameters (``get("svgf", **params)``; presets ``paper`` (default) and ``falcor`` fill in the
-values not given): sigma_z (1), sigma_n (128), sigma_l (4), iterations (5), feedback_tap (0),
-alpha_min (0.2), alpha_min_moments (0.2), eps_var (1e-4), variance_boost (False), tau_d (0.05),
-tau_n (0.9), backend ("auto" | "numba" | "torch" | "reference"); asvgf adds
-gradient_iterations (3), gradient_mode ("seed" | "paper"), n_max (256).
+Presets (``get("svgf", **params)``; a preset fills in the values not given; docs/temporal.md §3
+and results/temporal.md give the reasons and the study):
+
+======================  =========================  =============  ==============
+parameter               ``dbench`` (default)       ``paper``      ``falcor``
+======================  =========================  =============  ==============
+sigma_z, sigma_n        1, 128                     1, 128         1, 128
+sigma_l                 4                          4              10
+iterations              "auto" (1-5, by size)      5              4
+feedback_tap            None (unfiltered history)  0              1
+alpha_min (moments)     0.2 (0.2)                  0.2 (0.2)      0.05 (0.2)
+variance_of             "mean"                     "sample"       "sample"
+======================  =========================  =============  ==============
+
+``variance_of="mean"``: the luminance weights use the variance of the accumulated colour — the
+per-sample variance from the moments times Σw² of the blend weights (1/N for a running mean,
+α/(2 − α) for the EMA) — the quantity that is filtered, as the variance propagation of §5
+already assumes; ``"sample"`` is the paper's per-sample variance. Other parameters: eps_var
+(1e-4), variance_boost (False), tau_d (0.05), tau_n (0.9), backend ("auto" | "numba" | "torch"
+| "reference"); asvgf adds gradient_iterations (3), gradient_mode ("seed" | "paper"), n_max
+(256), alpha_floor (None: on with the dbench preset).
 
 Backends: "auto" (default) is "torch" when ``torch.cuda.is_available()``, else "numba";
 "numba" compiled kernels; "torch" the vectorised PyTorch kernels of
@@ -32,10 +51,12 @@ CUDA when available, else on CPU — each kernel takes and returns NumPy, the hi
 "reference" readable NumPy (float64). All agree within the tolerances of
 tests/methods/test_svgf.py and test_asvgf.py. ``params["backend"]`` holds the resolved name.
 
-``emission`` is optional (not in ``needs``: synthetic sequences have none); the sequence
-datasets always provide it. Pixels on emitters (emission > 0) are neither taps nor filtered: their output is their own
-accumulated value plus their emission. Without that, a visible light is blurred into the surface
-around it, which no edge-stopping weight prevents under 1-spp variance.
+``emission`` is optional (``optional_needs``: loaded whenever the scene has it; synthetic
+sequences have none). Pixels on emitters (emission > 0) are neither taps nor filtered: their
+output is their own accumulated value plus their accumulated emission. Without that, a visible
+light is blurred into the surface around it, which no edge-stopping weight prevents under 1-spp
+variance; and the emission is accumulated (like the colour) because a 1-spp primary sample sees
+a lamp's edge in one frame and not in the next.
 
 Non-finite policy: non-finite colour pixels are missing (history kept or empty; empty pixels are
 no tap for their neighbours and are filled from them); non-finite albedo demodulates by 1;
@@ -117,9 +138,45 @@ def _emission(data, h: int, w: int) -> np.ndarray | None:
     return clamp_magnitude(check_buffer("emission", emission, (h, w, 3)), RADIANCE_MAX)
 
 
+def gradient_history(data, geo, prev, prev_lum, hist_n, n_max: float, iterations: int = 3,
+                     mode: str = "seed", sigma_z: float = 1.0, sigma_n: float = 128.0,
+                     backend: str = "numba") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A-SVGF's temporal gradient and adaptive history (spec/svgf.md §6) for any reprojecting
+    method: G per 3×3 stratum of the previous frame from the frame's ``gradient`` buffer (the
+    re-shaded samples) against ``prev_lum`` (previous raw luminance, (H, W)), filtered by
+    ``iterations`` à-trous passes, fetched at full resolution through the motion vectors;
+    ``N' = min(N(1 − G)^10 + 1, n_max)``, α = mix(1/N', 1, G) (``mode="paper"``: λ).
+
+    Args: ``geo``/``prev``: this and the previous frame's Geometry; ``hist_n`` (H, W) the
+    reprojected history length. Returns (G, N', α), each (H, W) float32; G = 0 without a
+    previous frame or motion.
+    """
+    h, w = geo.shape
+    low = np.zeros((-(-h // 3), -(-w // 3)), np.float32)  # no gradient without history
+    motion = geo.motion if geo.motion is not None else np.full((2, h, w), np.nan, np.float32)
+    if (prev_lum is not None and prev is not None and prev.shape == geo.shape
+            and geo.motion is not None):
+        grad = clamp_magnitude(check_buffer("gradient", getattr(data, "gradient", None),
+                                            (h, w, 3)), RADIANCE_MAX)
+        l_grad = grad @ T.LUMA  # (H, W) luminance of the re-shaded previous samples
+        strata = C.stratum_gradients(prev_lum, l_grad, prev.hit, prev.depth, prev.normal,
+                                     backend=backend)
+        filt = C.filter_gradients(strata, iterations, sigma_z, sigma_n, backend)
+        if mode == "seed":
+            low = filt["g"]
+        else:
+            with np.errstate(divide="ignore", invalid="ignore"):
+                low = np.where(filt["norm"] > 0,
+                               np.minimum(1.0, np.abs(filt["delta"]) / filt["norm"]), 0.0)
+    return C.adaptive_history(low, motion, geo.hit, hist_n, n_max, mode, ALPHA0_PAPER, backend)
+
+
 class _SVGFBase(T.HistoryDenoiser):
     kinds = {"sequence"}
     needs = {"color", "albedo", "normal", "depth", "position", "motion"}
+    # loaded whenever the scene has it: without it in the list the harness loaded emission only
+    # when another method of the run needed it, so a result depended on its neighbours
+    optional_needs = {"emission"}
     defaults: dict[str, Any] = dict(preset="dbench", **PRESETS["dbench"], eps_var=EPS_VAR,
                                     variance_boost=False, tau_d=T.TAU_D, tau_n=T.TAU_N,
                                     backend="auto")
@@ -259,27 +316,10 @@ class ASVGF(_SVGFBase):
 
     def _adaptive(self, data, geo, hist_n, ok, prep):
         p = self.params
-        h, w = geo.shape
-        prev = self.history.prev
-        low = np.zeros((-(-h // 3), -(-w // 3)), np.float32)  # no gradient without history
-        motion = geo.motion if geo.motion is not None else np.full((2, h, w), np.nan, np.float32)
-        if (self._prev_lum is not None and prev is not None and prev.shape == geo.shape
-                and geo.motion is not None):
-            grad = clamp_magnitude(check_buffer("gradient", getattr(data, "gradient", None),
-                                                (h, w, 3)), RADIANCE_MAX)
-            l_grad = grad @ T.LUMA  # (H, W) luminance of the re-shaded previous samples
-            strata = C.stratum_gradients(self._prev_lum, l_grad, prev.hit, prev.depth,
-                                         prev.normal, backend=self.backend)
-            filt = C.filter_gradients(strata, int(p["gradient_iterations"]), p["sigma_z"],
-                                      p["sigma_n"], self.backend)
-            if p["gradient_mode"] == "seed":
-                low = filt["g"]
-            else:
-                with np.errstate(divide="ignore", invalid="ignore"):
-                    low = np.where(filt["norm"] > 0,
-                                   np.minimum(1.0, np.abs(filt["delta"]) / filt["norm"]), 0.0)
-        g_img, n_new, alpha = C.adaptive_history(low, motion, geo.hit, hist_n, self.n_max,
-                                                 p["gradient_mode"], ALPHA0_PAPER, self.backend)
+        g_img, n_new, alpha = gradient_history(
+            data, geo, self.history.prev, self._prev_lum, hist_n, self.n_max,
+            int(p["gradient_iterations"]), p["gradient_mode"], p["sigma_z"], p["sigma_n"],
+            self.backend)
         # accumulate() computes N = min(N_hist + 1, n_max): hand it N' − 1.
         return n_new - np.float32(1.0), alpha, {"gradient": g_img}
 
@@ -287,7 +327,7 @@ class ASVGF(_SVGFBase):
         self._prev_lum = prep["lum_raw"]
 
 
-__all__ = ["SVGF", "ASVGF", "H1", "PRESETS", "adaptive_history", "asvgf_history", "atrous",
+__all__ = ["SVGF", "ASVGF", "H1", "gradient_history", "PRESETS", "adaptive_history", "asvgf_history", "atrous",
            "atrous_fast", "atrous_reference", "depth_gradient", "fast_exp_neg", "filter_gradients",
            "gradient_at_pixels", "gradient_value", "normal_weight", "prepare", "prepare_fast",
            "prepare_reference", "remodulate", "spatial_variance", "spatial_variance_fast",

@@ -17,7 +17,8 @@ SPATIAL_RADIUS = 3  # 7×7 window
 #: ``dbench`` (the default) keeps the paper's weights and α but filters with the variance of
 #: the accumulated colour (``variance_of="mean"``), feeds the unfiltered accumulation back
 #: (``feedback_tap=None``) and scales the à-trous footprint with the image (``iterations="auto"``,
-#: :func:`auto_iterations`); spec/svgf.md §7.1 gives the reasons and results/temporal.md the study.
+#: :func:`auto_iterations`); docs/temporal.md §3 gives the reasons, results/temporal.md the
+#: study.
 #: ``paper`` is the SVGF paper [SVGF], ``falcor`` Falcor's SVGFPass defaults [Falcor].
 PRESETS = {
     "dbench": dict(sigma_z=1.0, sigma_n=128.0, sigma_l=4.0, iterations="auto", feedback_tap=None,

@@ -1,0 +1,116 @@
+"""The PSR G-buffer (dbench/datasets/psr.py, docs/temporal.md §1): mirrors and glass described by
+what they show; everything else exactly Mitsuba's AOVs; the colour untouched."""
+import numpy as np
+import pytest
+
+RES = 16
+
+
+def _scene(mi, mirror_bsdf, extra=None):
+    """Camera at z = 5 looking down −z at a 45° mirror in the origin that reflects towards +x,
+    where a diffuse wall (reflectance 0.5, normal −x) stands at x = 3; a light above."""
+    T = mi.ScalarTransform4f
+    d = {"type": "scene",
+         "sensor": {"type": "perspective", "fov": 20,
+                    "to_world": T().look_at(origin=[0, 0, 5], target=[0, 0, 0], up=[0, 1, 0]),
+                    "film": {"type": "hdrfilm", "width": RES, "height": RES,
+                             "rfilter": {"type": "box"}, "pixel_format": "rgb"}},
+         "mirror": {"type": "rectangle", "bsdf": mirror_bsdf,
+                    "to_world": T().rotate([0, 1, 0], 45).scale(2.0)},
+         "wall": {"type": "rectangle", "to_world": T().translate([3, 0, 0]).rotate([0, 1, 0], -90)
+                  .scale(6.0),
+                  "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": 0.5}}},
+         "light": {"type": "point", "position": [1.5, 2.5, 1.0],
+                   "intensity": {"type": "rgb", "value": 20.0}}}
+    d.update(extra or {})
+    return d
+
+
+def _render(mi, d, integrator, seed=3):
+    scene = mi.load_dict(d, optimize=False)
+    integ = mi.load_dict(integrator, optimize=False)
+    return np.array(mi.render(scene, spp=1, seed=seed, integrator=integ), np.float64)
+
+
+def _buffers(img):
+    from dbench.datasets.sequence import MATCHED_LAYOUT
+    return {name: img[..., c0:c0 + nc] for name, c0, nc in MATCHED_LAYOUT}
+
+
+def test_mirror_pixels_see_the_reflected_wall(renderer):
+    from dbench.datasets.psr import psr_integrator
+
+    mi = renderer
+    d = _scene(mi, {"type": "conductor", "material": "none"})
+    b = _buffers(_render(mi, d, psr_integrator({"type": "path", "max_depth": 4})))
+    c = RES // 2
+    # the reflected (wall's) normal, the wall's albedo through a perfect mirror, the whole
+    # chain's length and the virtual point behind the mirror
+    np.testing.assert_allclose(b["normal"][c, c], [-1, 0, 0], atol=1e-4)
+    np.testing.assert_allclose(b["albedo"][c, c], [0.5, 0.5, 0.5], atol=1e-4)
+    assert b["depth"][c, c, 0] == pytest.approx(8.0, abs=0.05)
+    # a pixel spans ≈ 0.18 scene units at that distance; the jittered sample is inside it
+    np.testing.assert_allclose(b["position"][c, c], [0, 0, -3], atol=0.2)
+    assert b["position"][c, c, 2] == pytest.approx(-3.0, abs=0.05)
+
+
+def test_colour_equals_a_plain_render_and_diffuse_pixels_equal_mitsubas_aovs(renderer):
+    from dbench.datasets.psr import psr_integrator
+    from dbench.datasets.sequence import _matched_integrator
+
+    mi = renderer
+    path = {"type": "path", "max_depth": 4}
+    d = _scene(mi, {"type": "diffuse", "reflectance": {"type": "rgb", "value": 0.3}})
+    psr = _render(mi, d, psr_integrator(path))
+    plain = _render(mi, d, {"type": "path", "max_depth": 4})
+    matched = _render(mi, d, _matched_integrator(path))
+    np.testing.assert_array_equal(psr[..., :3], plain[..., :3])
+    np.testing.assert_array_equal(psr, matched)  # no delta surface: every buffer identical
+
+
+def test_conductor_demodulation_stays_bounded_and_glass_is_seen_through(renderer):
+    """Mitsuba's albedo AOV is 0 on a smooth conductor: the colour divided by the fallback
+    a_eff = 1 keeps the wall's texture, and any small albedo amplifies it. The PSR albedo is the
+    Fresnel reflectance × the wall's albedo, so the demodulated mirror pixels carry the wall's
+    illumination, the same range as the wall seen directly."""
+    from dbench.datasets.psr import psr_integrator
+    from dbench.datasets.sequence import _matched_integrator
+
+    mi = renderer
+    path = {"type": "path", "max_depth": 4}
+    d = _scene(mi, {"type": "conductor", "material": "Cr"})
+    plain = _buffers(_render(mi, d, _matched_integrator(path)))
+    psr = _buffers(_render(mi, d, psr_integrator(path)))
+    c = RES // 2
+    mirror = np.zeros((RES, RES), bool)
+    mirror[c - 2:c + 2, c - 2:c + 2] = True
+    assert plain["albedo"][mirror].max() < 1e-6            # the problem
+    fresnel = psr["albedo"][mirror] / 0.5
+    assert (fresnel > 0.4).all() and (fresnel < 1.0).all()  # chromium reflects 55-65 %
+    np.testing.assert_allclose(psr["normal"][mirror], np.tile([-1, 0, 0], (mirror.sum(), 1)),
+                               atol=1e-3)
+    T = mi.ScalarTransform4f
+    backdrop = {"backdrop": {"type": "rectangle", "to_world": T().translate([0, 0, -3]).scale(8),
+                             "bsdf": {"type": "diffuse",
+                                      "reflectance": {"type": "rgb", "value": 0.5}}}}
+    glass = _buffers(_render(mi, _scene(mi, {"type": "thindielectric"}, backdrop),
+                             psr_integrator(path)))
+    plain_glass = _buffers(_render(mi, _scene(mi, {"type": "thindielectric"}, backdrop),
+                                   _matched_integrator(path)))
+    assert plain_glass["albedo"][mirror].max() < 1e-6
+    assert (glass["albedo"][mirror] > 0.01).all()          # seen through (or reflected), not 0
+
+
+def test_a_lamp_in_a_mirror_is_an_emitter_pixel(renderer):
+    from dbench.datasets.psr import psr_integrator
+
+    mi = renderer
+    T = mi.ScalarTransform4f
+    lamp = {"lamp": {"type": "rectangle", "to_world": T().translate([2.9, 0, 0])
+                     .rotate([0, 1, 0], -90).scale(0.3),
+                     "emitter": {"type": "area", "radiance": {"type": "rgb", "value": 10.0}}}}
+    d = _scene(mi, {"type": "conductor", "material": "none"}, lamp)
+    b = _buffers(_render(mi, d, psr_integrator({"type": "path", "max_depth": 4})))
+    c = RES // 2
+    np.testing.assert_allclose(b["emission"][c, c], [10, 10, 10], rtol=1e-4)
+    assert b["emission"][0, 0].max() == 0
