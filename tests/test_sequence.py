@@ -324,3 +324,18 @@ def test_sequence_frames_carry_the_statistics_of_their_own_samples(renderer, tmp
     np.testing.assert_array_equal(S.render_frame(sc, 16, 1, 0, 2, 2, 2)["color"], one)
     result = run_sequence_cell(methods.get("statistical"), [with_stats], warmup=1)
     assert not result.skipped and np.isfinite(result.metrics["rmse"])
+
+
+def test_temporal_study_tables_give_intervals_and_flag_variants_not_below_accumulate():
+    from dbench.bench.temporal_study import VARIANTS, _interval, tables
+
+    rows = []
+    for seed, (acc, good, bad) in enumerate([(1.0, 0.8, 1.2), (1.2, 0.9, 1.3), (1.1, 0.85, 1.1)]):
+        for label, v in (("accumulate", acc), ("svgf", good), ("bmfr", bad)):
+            rows.append({"scene": "orbit", "label": label, "seed": seed, "rmse": v,
+                         "relmse": v, "t_rmse": v})
+    text = tables(rows, 64)
+    assert "| svgf | 0.8500 ± 0.1242 | 0.773 |" in text
+    assert "| bmfr | 1.2000 ± 0.2484 | 1.091 (not below) |" in text
+    assert _interval([2.0]) == (2.0, 0.0)
+    assert len({label for label, _, _ in VARIANTS}) == len(VARIANTS)

@@ -295,15 +295,16 @@ def synthetic_sequence(height: int, width: int, frames: int = 12, shift: int = 2
 
 
 def benchmark(height: int = 720, width: int = 1280, repeats: int = 6,
-              method_names: Iterable[str] = ("accumulate", "svgf", "asvgf", "bmfr"),
+              method_names: Iterable[str] = ("accumulate", "svgf", "asvgf", "bmfr", "oidn"),
               params: dict[str, dict] | None = None, threads: int | None = None
               ) -> dict[str, Any]:
     """Per-frame time of each method at ``height``×``width`` on :func:`synthetic_sequence`.
 
     Two warm-up frames (compilation, history filling), then ``repeats`` timed frames; reports
     the median wall time per frame and the process CPU time per frame (both cores together),
-    which is less sensitive to other processes on a shared machine. ``threads`` sets Numba's
-    thread count for the run (default: all cores); the 1-minute load average before and after
+    which is less sensitive to other processes on a shared machine. OIDN runs in the same run
+    (frame by frame) and every method's ``vs_oidn`` is its median over OIDN's. ``threads`` sets
+    Numba's thread count for the run (default: all cores); the 1-minute load average before and after
     the run is recorded, since other processes on a small machine change the wall times a lot.
     """
     import os
@@ -356,6 +357,10 @@ def _bench_methods(out, seq, method_names, params, methods, resource) -> None:
                                 "min_ms": 1e3 * min(walls),
                                 "cpu_ms": 1e3 * statistics.median(cpus),
                                 "params": m.params}
+    oidn = out["methods"].get("oidn")
+    if oidn:
+        for v in out["methods"].values():
+            v["vs_oidn"] = v["median_ms"] / oidn["median_ms"]
 
 
 # ---------------------------------------------------------------------------------------------

@@ -355,3 +355,19 @@ def test_auto_backend_is_numba_without_cuda(monkeypatch):
         T.resolve_backend("cuda")
     with pytest.raises(DbenchInputError, match="backend"):
         methods.get("accumulate", backend="torch-cuda")
+
+
+def test_fused_numba_frame_equals_reference_over_a_hard_sequence():
+    """The Numba backend's fused accumulation (accumulate/fast.py) against the readable chain:
+    outputs (NaN where both are missing), N, status and variance over disocclusions, missing
+    samples and the 3×3 fallback."""
+    a = methods.get("accumulate", backend="numba")
+    b = methods.get("accumulate", backend="reference")
+    a.reset()
+    b.reset()
+    for f in hard_sequence():
+        oa, ob = a.denoise(f), b.denoise(f)
+        np.testing.assert_allclose(oa, ob, rtol=1e-6, atol=1e-6)
+        np.testing.assert_array_equal(a.last["status"], b.last["status"])
+        np.testing.assert_allclose(a.last["n"], b.last["n"], rtol=1e-6)
+        np.testing.assert_allclose(a.last["variance"], b.last["variance"], rtol=1e-5, atol=1e-6)

@@ -19,7 +19,8 @@ are clamped to ±1e15 (NaN/±Inf stay missing), so the float32 luminance moment 
 was Inf).
 
 Parameters: alpha_min (0), n_max (256), tau_d (0.05), tau_n (0.9), backend ("auto" (default):
-PyTorch on CUDA when ``torch.cuda.is_available()``, else Numba; "numba"; "torch": vectorised
+PyTorch on CUDA when ``torch.cuda.is_available()``, else Numba; "numba": compiled reprojection
+and the accumulation fused into one pass (:func:`.fast.accumulate_frame`); "torch": vectorised
 PyTorch reprojection and accumulation (:func:`~dbench.methods.temporal.reproject_torch`,
 :func:`~dbench.methods.temporal.accumulate_torch`) on CUDA when available, else on CPU;
 "reference": readable NumPy). Every backend takes and returns NumPy at the method boundary and
@@ -48,6 +49,7 @@ import numpy as np
 from ...errors import DbenchInputError
 from ...registry import register
 from .. import temporal as T
+from . import fast as _fast
 
 
 def _check_params(p: dict[str, Any]) -> None:
@@ -74,6 +76,14 @@ class Accumulate(T.HistoryDenoiser):
 
     def _denoise(self, data, color: np.ndarray) -> np.ndarray:
         geo = T.frame_geometry(data)
+        if self.backend == "numba" and _fast.numba is not None:
+            hist, status = self.history.fetch(geo, 6)
+            stored, out, variance = _fast.accumulate_frame(
+                color, hist, status > 0, self.params["alpha_min"], self.params["n_max"])
+            # finite by construction: colours are clamped to ±1e15, so l² ≤ 1e30 in float32
+            self.history.store(geo, stored, valid=stored[5] > 0, finite=True)
+            self.last = {"variance": variance, "n": stored[5], "status": status}
+            return out
         c = T.to_planar(color)
         ok_s = T.sample_mask(c)
         c = np.where(ok_s, c, 0.0).astype(np.float32)
