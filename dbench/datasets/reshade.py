@@ -34,6 +34,7 @@ STRATUM = 3
 #: a re-shaded sample is visible when its first hit is within this fraction of the distance
 OCCLUSION_TOLERANCE = 1e-3
 _REGISTERED = False
+_INTEGRATORS: dict[str, Any] = {}
 
 
 def select_strata(color: np.ndarray, depth: np.ndarray, size: int = STRATUM) -> np.ndarray:
@@ -125,8 +126,15 @@ def render_reshade(scene_dict: dict, path: dict, origin, targets: np.ndarray,
     dr = __import__("drjit")
     h, w = selected.shape
     loaded = mi.load_dict(scene_dict, optimize=False)  # optimize=False: see sequence._render_dict
-    integ: Any = mi.load_dict({"type": "dbench_reshade", "color": dict(path)}, optimize=False)
+    key = repr(sorted(path.items()))
+    integ: Any = _INTEGRATORS.get(key)
+    if integ is None:  # one object per nested integrator: Dr.Jit then reuses its kernels
+        integ = _INTEGRATORS[key] = mi.load_dict({"type": "dbench_reshade", "color": dict(path)},
+                                                 optimize=False)
+    # opaque: a literal origin would be baked into the traced kernel, which Dr.Jit would then
+    # compile anew for every frame of a moving camera (0.7 s each at 64 px)
     integ.origin = mi.Point3f(*[float(v) for v in origin])
+    dr.make_opaque(integ.origin)
     t = np.ascontiguousarray(np.nan_to_num(np.asarray(targets, np.float32)).reshape(-1, 3))
     integ.targets = mi.Point3f(mi.Float(t[:, 0]), mi.Float(t[:, 1]), mi.Float(t[:, 2]))
     integ.selected = mi.Bool(np.ascontiguousarray(selected.reshape(-1)))
