@@ -339,3 +339,17 @@ def test_temporal_study_tables_give_intervals_and_flag_variants_not_below_accumu
     assert "| bmfr | 1.2000 ± 0.2484 | 1.091 (not below) |" in text
     assert _interval([2.0]) == (2.0, 0.0)
     assert len({label for label, _, _ in VARIANTS}) == len(VARIANTS)
+
+
+def test_gradient_samples_cost_counts_with_the_methods_that_use_them(flicker):
+    """docs/temporal.md §2: the per-frame seconds of the re-shaded samples (cached or not) are in
+    the sequence's meta, and the tables add them to the total time of a cell that used them."""
+    from dbench.bench.tables import cells_frame
+
+    assert flicker.meta["gradient_per_frame_s"] > 0
+    base = {"status": "ok", "scene": "flicker", "spp": 1, "res": 32, "rmse": 0.1,
+            "time_s": 0.01, "render_s": 0.2}
+    df = cells_frame([{**base, "method": "svgf"},
+                      {**base, "method": "asvgf", "gradient_s": 0.05}]).set_index("method")
+    assert df.loc["asvgf", "gradient_s"] == 0.05 and df.loc["svgf", "gradient_s"] == 0
+    assert df.loc["asvgf", "total_s"] - df.loc["svgf", "total_s"] == pytest.approx(0.05)

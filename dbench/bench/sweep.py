@@ -288,7 +288,8 @@ def load_seeds(scene, seed: int, n_seeds: int, **load_kwargs) -> list:
 
 
 def cell_record(res, frames: list, needs: set[str]) -> dict[str, Any]:
-    """The numbers of one finished cell (shared by ``run`` and ``sweep``)."""
+    """The numbers of one finished cell (shared by ``run`` and ``sweep``); ``needs``: the
+    buffers the method used (its ``wants``)."""
     import statistics as st
 
     def median_meta(key: str) -> float:
@@ -302,6 +303,10 @@ def cell_record(res, frames: list, needs: set[str]) -> dict[str, Any]:
               "ref_render_s": first.meta.get("ref_render_s"),
               "render_s": median_meta("render_s"),
               "stats_s": median_meta("stats_s") if "stats" in needs else 0.0,
+              # A-SVGF's re-shaded samples are rendered for the methods that use them: their
+              # cost per frame counts with the method (docs/temporal.md §2)
+              "gradient_s": (median_meta("gradient_per_frame_s") if "gradient" in needs
+                             and first.kind == "sequence" else 0.0),
               **res.metrics, "time_s": res.time_s, "time_s_iqr": res.time_s_iqr,
               "times_s": res.times_s, "n_nonfinite": res.n_nonfinite,
               "per_seed": res.per_seed}
@@ -347,7 +352,7 @@ def run_group(config: SweepConfig, out: str, scene_name: str, spp: int,
                 cell = {**base, "status": "skipped", "reason": result.skipped}
             else:
                 cell = {**base, "status": "ok",
-                        **cell_record(result, frames, set(inst.needs))}
+                        **cell_record(result, frames, inst.wants(scene.provides))}
                 if frames[0].kind == "sequence":
                     cell["sequence_mode"] = ("frame by frame" if inst.per_frame("sequence")
                                              else "temporal")

@@ -26,7 +26,7 @@ from .verdicts import METRICS, fmt_value, num
 
 ID_COLUMNS = ["scene", "method", "base_method", "spp", "res", "n_seeds", "ci_kind", "ref_spp",
               "ref_rmse"]
-TIME_COLUMNS = ["time_s", "time_s_iqr", "render_s", "total_s"]
+TIME_COLUMNS = ["time_s", "time_s_iqr", "render_s", "gradient_s", "total_s"]
 TEMPORAL = ("t_rmse", "tpsnr")
 EQUAL_TIME_METRICS = ("rmse", "relmse", "rmse_surface")
 
@@ -63,6 +63,9 @@ def _row(c: dict) -> dict | None:
     row["render_plain_s"] = render
     row["stats_s"] = stats if np.isfinite(stats) else 0.0
     row["render_measured_s"] = render + row["stats_s"]
+    gradient = num(c.get("gradient_s"))
+    # per frame: rendering A-SVGF's re-shaded samples for a method that uses them
+    row["gradient_s"] = gradient if np.isfinite(gradient) else 0.0
     row["n_nonfinite"] = num(c.get("n_nonfinite"))
     return row
 
@@ -78,7 +81,8 @@ def _per_spp_cost(values: pd.Series, spp: pd.Series) -> float:
 def _model_render_time(df: pd.DataFrame) -> pd.DataFrame:
     """``render_s`` = the scene's rendering cost per spp × spp, plus its statistics cost per
     spp × spp for cells that collect statistics (costs: :func:`_per_spp_cost` over the scene's
-    cells); ``total_s`` = ``render_s`` + ``time_s``. A single render's wall time carries
+    cells); ``total_s`` = ``render_s`` + ``time_s`` + ``gradient_s`` (the per-frame cost of
+    the re-shaded gradient samples, for the methods that use them). A single render's wall time carries
     compilation and whatever else ran on the machine; the per-spp model does not, and makes the
     error-against-time curves comparable along the ladder. ``render_measured_s`` keeps the
     measured seconds."""
@@ -95,7 +99,7 @@ def _model_render_time(df: pd.DataFrame) -> pd.DataFrame:
         idx = g.index
         df.loc[idx, "render_s"] = render_cost * g["spp"] + np.where(
             g["stats_s"] > 0, stats_cost * g["spp"], 0.0)
-    df["total_s"] = df["render_s"] + df["time_s"]
+    df["total_s"] = df["render_s"] + df["time_s"] + df["gradient_s"]
     return df
 
 
@@ -103,8 +107,10 @@ def cells_frame(cells: list[dict]) -> pd.DataFrame:
     """One row per ``ok`` cell. Missing or malformed values are NaN; cells without a scene,
     method label or spp are left out. ``render_s`` is the modelled rendering time of the cell's
     spp, statistics collection included where the method needs it (:func:`_model_render_time`;
-    ``render_measured_s`` the measured one) and ``total_s`` = ``render_s`` + ``time_s``. The temporal metrics are kept only when some
-    cell has them (sequence scenes)."""
+    ``render_measured_s`` the measured one), ``gradient_s`` the per-frame cost of the re-shaded
+    gradient samples where the method uses them, and ``total_s`` = ``render_s`` + ``time_s`` +
+    ``gradient_s``. The temporal metrics are kept only when some cell has them (sequence
+    scenes)."""
     ok = [c for c in cells if isinstance(c, dict) and c.get("status") == "ok"]
     cols = ID_COLUMNS + [k for m in METRICS for k in (m, m + "_ci")] + TIME_COLUMNS + [
         "n_nonfinite"]

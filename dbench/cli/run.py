@@ -72,7 +72,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         if res.skipped:
             skipped[n] = res.skipped
             continue
-        record = cell_record(res, frames, set(instances[n].needs))
+        record = cell_record(res, frames, instances[n].wants(scene.provides))
         rows.append({"scene": scene.name, "method": labels[n], "base_method": n,
                      "spp": args.spp, "res": args.res.key, **record,
                      "params": json.dumps(res.params, sort_keys=True, default=str)})

@@ -377,7 +377,8 @@ def load_sequence(scene: str | SequenceScene, spp: int = 1, res=64,
             i−1 re-shaded from camera i under the lights of i with the random numbers of i−1,
             NaN elsewhere; ``"frame"``: the older emulation, a whole frame rendered from camera
             i−1 with the lights of i and the seeds of i−1 (§6.4). The seconds spent rendering
-            it are in the sequence's ``meta["gradient_s"]`` (new renders only).
+            it are in the sequence's ``meta["gradient_s"]`` (new renders only) and, per frame
+            and whether cached or not, ``meta["gradient_per_frame_s"]``.
     Returns:
         :class:`~dbench.data.Sequence`; each frame's ``meta`` holds ``frame`` and ``camera``;
         the sequence's ``meta`` holds the settings, ``events`` and cache hits. With
@@ -430,6 +431,7 @@ def load_sequence(scene: str | SequenceScene, spp: int = 1, res=64,
 
     out: list[Frame] = []
     prev_camera, prev_noisy = None, None
+    gradient_seconds: list[float] = []  # per frame, cached or not: the cost of the samples
     from tqdm.auto import tqdm
 
     for i in tqdm(range(n), desc=f"{sc.name} frames", leave=False,
@@ -471,11 +473,14 @@ def load_sequence(scene: str | SequenceScene, spp: int = 1, res=64,
             else:
                 desc = base(i, "gradient-reshade", spp=int(spp), seed=int(seed),
                             aovs=_render.AOV_STRING, reshade=RESHADE_VERSION, **samples, **psr)
-                buffers["gradient"] = _cached_entry(
+                images, seconds = _cached_entry(
                     cache, "seq-gradient", desc,
                     lambda: {"gradient": reshade_frame(sc, res, i, prev_noisy,
                                                         pass_seeds(seed, i - 1, spp))},
-                    meta, f"gradient{i}", time_key="gradient_s")[0]["gradient"]
+                    meta, f"gradient{i}", time_key="gradient_s")
+                buffers["gradient"] = images["gradient"]
+                if seconds is not None:
+                    gradient_seconds.append(float(seconds))
         if "emitter" in wanted:
             buffers["emitter"] = _cached_entry(
                 cache, "seq-emitter",
@@ -501,6 +506,8 @@ def load_sequence(scene: str | SequenceScene, spp: int = 1, res=64,
         out.append(Frame(meta=fmeta, stats=stats, **buffers))
         prev_camera, prev_noisy = camera, noisy
     meta.pop("_ref_rendered_s", None)
+    if gradient_seconds:
+        meta["gradient_per_frame_s"] = float(np.mean(gradient_seconds))
     if ref_vars:
         meta.update(reference_meta(ref_spp, ref_seed, ref_vars))
     return Sequence(out, meta=meta)

@@ -114,3 +114,45 @@ def test_a_lamp_in_a_mirror_is_an_emitter_pixel(renderer):
     c = RES // 2
     np.testing.assert_allclose(b["emission"][c, c], [10, 10, 10], rtol=1e-4)
     assert b["emission"][0, 0].max() == 0
+
+
+def test_chrome_sphere_albedo_is_never_near_zero_and_normals_are_reflected(renderer):
+    """A chrome sphere in a closed diffuse room (issue 16's check: the demodulated signal of a
+    conductor stays bounded). Mitsuba's AOV gives the sphere albedo 0, and values just above the
+    1e-3 cut-off amplify a reflection up to 1000×. With PSR every sphere pixel has albedo
+    Fresnel(Cr) × 0.5 ≥ 0.2 (at most 5× amplification), the normal of the wall it reflects
+    (axis-aligned), and a demodulated illumination of the order of the walls' own."""
+    from dbench.datasets.psr import psr_integrator
+    from dbench.datasets.sequence import MATCHED_LAYOUT
+
+    mi = renderer
+    T = mi.ScalarTransform4f
+    d = {"type": "scene",
+         "sensor": {"type": "perspective", "fov": 40,  # the sphere fills the central 60 %
+                    "to_world": T().look_at(origin=[0, 0, 4.4], target=[0, 0, 0], up=[0, 1, 0]),
+                    "film": {"type": "hdrfilm", "width": RES, "height": RES,
+                             "rfilter": {"type": "box"}, "pixel_format": "rgb"}},
+         "room": {"type": "cube", "flip_normals": True, "to_world": T().scale(4.5),
+                  "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": 0.5}}},
+         "sphere": {"type": "sphere", "radius": 1.0, "bsdf": {"type": "conductor",
+                                                               "material": "Cr"}},
+         "light": {"type": "point", "position": [1.5, 3.0, 2.5],
+                   "intensity": {"type": "rgb", "value": 40.0}}}
+    scene = mi.load_dict(d, optimize=False)
+    integ = mi.load_dict(psr_integrator({"type": "path", "max_depth": 6}), optimize=False)
+    img = np.array(mi.render(scene, spp=64, seed=1, integrator=integ), np.float64)
+    b = {name: img[..., c0:c0 + nc] for name, c0, nc in MATCHED_LAYOUT}
+    c = RES // 2
+    sphere = np.zeros((RES, RES), bool)
+    sphere[c - 3:c + 3, c - 3:c + 3] = True       # well inside the sphere's silhouette
+    wall = np.zeros((RES, RES), bool)
+    wall[:2] = True                               # the room's back wall above it
+    a = b["albedo"]
+    assert (a[sphere] > 0.2).all() and (a[sphere] < 0.5).all()   # Fresnel(Cr) × 0.5
+    one = np.array(mi.render(scene, spp=1, seed=1, integrator=integ), np.float64)
+    normal = one[..., 9:12]  # one sample per pixel: the reflected wall's own normal
+    np.testing.assert_allclose(np.abs(normal[sphere]).max(-1), 1.0, atol=1e-3)
+    illum = (b["color"] - b["emission"]) / np.maximum(a, 1e-3)
+    assert np.isfinite(illum[sphere]).all()
+    # the sphere shows walls nearer the light than the back wall: same order, not amplified
+    assert illum[sphere].max() < 10 * illum[wall].max()
