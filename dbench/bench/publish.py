@@ -324,6 +324,8 @@ def table31_md(df, cells: list[dict], spp: int | None = None) -> list[str]:
             row[scene] = (verdicts.fmt_value(one.ssim.item(), one.ssim_ci.item(), ".3f")
                           if len(one) else "")
         row["ms per frame"] = f"{1e3 * float(g.time_s.median()):.2f}"
+        extra = float(g.gradient_s.median()) if "gradient_s" in g else 0.0
+        row["+ gradient samples, ms"] = f"{1e3 * extra:.1f}" if extra > 0 else ""
         same = method != "noisy" and len(noisy) and all(
             scene in noisy.index and one_ssim == noisy[scene]
             for scene, one_ssim in zip(g.scene, g.ssim))
@@ -337,7 +339,9 @@ def table31_md(df, cells: list[dict], spp: int | None = None) -> list[str]:
     return [f"### Table 3.1 layout (seed 001): SSIM and time per frame at {spp} spp", "",
             f"SSIM against {refs}-spp references over the frames after the warm-up, "
             f"{res} px; ms per frame: median over the scenes of each cell's median per-frame "
-            f"time on this machine's CPU (the seed ran A-SVGF and BMFR on a GPU at 1280×758). "
+            f"time on this machine's CPU (the seed ran A-SVGF and BMFR on a GPU at 1280×758); "
+            f"\"+ gradient samples\": the median per-frame time of rendering the re-shaded "
+            f"A-SVGF samples the method uses, on top of the denoiser's time. "
             f"A method that returns its input does so where its statistics carry no "
             f"information (one sample per pixel has no variance).",
             "", markdown_table(pd.DataFrame(order)), ""]
