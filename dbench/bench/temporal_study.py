@@ -16,10 +16,7 @@ writes ``study.json`` (every seed's numbers) and ``study.md`` (the tables).
 from __future__ import annotations
 
 import argparse
-import json
 import math
-import os
-import tempfile
 from pathlib import Path
 from typing import Any
 
@@ -59,14 +56,12 @@ METRICS = ("rmse", "rmse_surface", "relmse", "t_rmse")
 
 
 def _interval(values: list[float]) -> tuple[float, float]:
-    """Mean and half-width of the 95 % t-interval (0 for a single value)."""
-    from scipy import stats
+    """Mean and half-width of the 95 % t-interval (:func:`dbench.metrics.judge.t_interval`),
+    the half-width 0 for a single seed."""
+    from ..metrics.judge import t_interval
 
-    v = np.asarray(values, np.float64)
-    if v.size < 2:
-        return float(v.mean()), 0.0
-    half = stats.t.ppf(0.975, v.size - 1) * v.std(ddof=1) / math.sqrt(v.size)
-    return float(v.mean()), float(half)
+    mean, half = t_interval(values)
+    return mean, (half if math.isfinite(half) else 0.0)
 
 
 def run(res: int = 64, seeds: tuple[int, ...] = (0, 1, 2), scenes=tuple(SCENES),
@@ -130,13 +125,6 @@ def tables(rows: list[dict[str, Any]], res: int) -> str:
     return "\n".join(out)
 
 
-def _write(path: Path, text: str) -> None:
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
-    with os.fdopen(fd, "w") as f:
-        f.write(text)
-    os.replace(tmp, path)
-
-
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", default="results/temporal_study")
@@ -144,12 +132,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seeds", default="0,1,2")
     ap.add_argument("--scenes", default=",".join(SCENES))
     args = ap.parse_args(argv)
+    from ..io import write_json, write_text
+
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     rows = run(args.res, tuple(int(s) for s in args.seeds.split(",")),
                tuple(args.scenes.split(",")))
-    _write(out / "study.json", json.dumps({"res": args.res, "rows": rows}, indent=1))
-    _write(out / "study.md", tables(rows, args.res))
+    write_json(out / "study.json", {"res": args.res, "rows": rows})
+    write_text(out / "study.md", tables(rows, args.res))
     print(f"wrote {out / 'study.md'}")
     return 0
 

@@ -123,7 +123,6 @@ def test_chrome_sphere_albedo_is_never_near_zero_and_normals_are_reflected(rende
     Fresnel(Cr) × 0.5 ≥ 0.2 (at most 5× amplification), the normal of the wall it reflects
     (axis-aligned), and a demodulated illumination of the order of the walls' own."""
     from dbench.datasets.psr import psr_integrator
-    from dbench.datasets.sequence import MATCHED_LAYOUT
 
     mi = renderer
     T = mi.ScalarTransform4f
@@ -140,8 +139,7 @@ def test_chrome_sphere_albedo_is_never_near_zero_and_normals_are_reflected(rende
                    "intensity": {"type": "rgb", "value": 40.0}}}
     scene = mi.load_dict(d, optimize=False)
     integ = mi.load_dict(psr_integrator({"type": "path", "max_depth": 6}), optimize=False)
-    img = np.array(mi.render(scene, spp=64, seed=1, integrator=integ), np.float64)
-    b = {name: img[..., c0:c0 + nc] for name, c0, nc in MATCHED_LAYOUT}
+    b = _buffers(np.array(mi.render(scene, spp=64, seed=1, integrator=integ), np.float64))
     c = RES // 2
     sphere = np.zeros((RES, RES), bool)
     sphere[c - 3:c + 3, c - 3:c + 3] = True       # well inside the sphere's silhouette
@@ -149,8 +147,9 @@ def test_chrome_sphere_albedo_is_never_near_zero_and_normals_are_reflected(rende
     wall[:2] = True                               # the room's back wall above it
     a = b["albedo"]
     assert (a[sphere] > 0.2).all() and (a[sphere] < 0.5).all()   # Fresnel(Cr) × 0.5
-    one = np.array(mi.render(scene, spp=1, seed=1, integrator=integ), np.float64)
-    normal = one[..., 9:12]  # one sample per pixel: the reflected wall's own normal
+    # one sample per pixel: the reflected wall's own normal
+    normal = _buffers(np.array(mi.render(scene, spp=1, seed=1, integrator=integ), np.float64))[
+        "normal"]
     np.testing.assert_allclose(np.abs(normal[sphere]).max(-1), 1.0, atol=1e-3)
     illum = (b["color"] - b["emission"]) / np.maximum(a, 1e-3)
     assert np.isfinite(illum[sphere]).all()
