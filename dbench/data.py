@@ -332,6 +332,10 @@ class TransientFrame:
             camera, as for the features; :class:`Frame`), or None.
         reference_var: (H, W, T, 3) float32 ≥ 0, the variance of ``reference`` (the mean) per
             pixel, bin and channel from K independent chunks (spec/verdicts.md §2), or None.
+        total_var: (H, W, 3) float64 ≥ 0, the variance of the mean of the per-path sums over
+            the window's bins (the noisy time-integrated image's own variance, from the same
+            samples as ``stats``; below Σ_t Var because a path's bins are anti-correlated), or
+            None.
 
     Example:
         >>> import numpy as np
@@ -353,6 +357,7 @@ class TransientFrame:
     meta: dict[str, Any] = field(default_factory=dict)
     emitter: np.ndarray | None = None
     reference_var: np.ndarray | None = None
+    total_var: np.ndarray | None = None
 
     kind = "transient"
 
@@ -370,6 +375,11 @@ class TransientFrame:
         _check_pixel_buffers(self, TRANSIENT_PIXEL_BUFFERS, h, w)
         if self.non_zero is not None:
             self.non_zero = check_buffer("non_zero", self.non_zero, (h, w, t, 3), dtype=np.int32)
+        if self.total_var is not None:
+            self.total_var = check_buffer("total_var", self.total_var, (h, w, 3),
+                                          dtype=np.float64)
+            if np.any(self.total_var < 0):
+                raise DbenchInputError("total_var: negative values; expected a variance ≥ 0")
         if self.stats is not None and self.stats.shape != (h, w, t, 3):
             raise DbenchInputError(f"stats: expected shape (H, W, T, 3) = ({h}, {w}, {t}, 3), "
                                    f"got {self.stats.shape}")

@@ -1,7 +1,8 @@
 """Transient benchmarks and reports: collector timings, per-bin error curves, streak images.
 
 * :func:`bench_collectors`: collector (a) (1-spp passes + host power sums) and collector (b)
-  (in-integrator running sums) as ratios to one plain ``transient_path`` render of the same spp,
+  (in-integrator running sums: ``transient_path_stats``, or ``transient_prbvolpath_stats`` for
+  participating media) as ratios to one plain render of the scene's integrator at the same spp,
   all measured in the same run, interleaved (median of ``repeats`` after a warm-up).
 * :func:`state_bytes_vs_spp`: the statistics state of collector (b) for several spp (constant).
 * :func:`video_metrics` / :func:`per_bin_table`: whole-video RMSE and relMSE (linear, every
@@ -43,6 +44,14 @@ NOTES = [
     "- Collector (b) keeps 2·max_depth slots per path (an emitter hit and a next-event estimate "
     "per vertex), so it can never run out; `slots < 2·max_depth` frees slots of bins the path "
     "has passed and counts forced early flushes in `n_overflow` (exact iff 0).",
+    "- Media (`transient_prbvolpath_stats`, dbench/datasets/transient_collector_media.py): the "
+    "primal path of mitransient's `transient_prbvolpath` with the film histogram replaced by the "
+    "same slots; volume scatter vertices do next-event estimation too, and a path still adds at "
+    "most 2·max_depth contributions (emitter hits at depth 0…max_depth, next-event estimates at "
+    "vertices 1…max_depth−1). Emitters on null-BSDF shapes could exceed that: such a "
+    "contribution is flushed on its own and counted in `n_overflow` (a guard that costs about "
+    "5 % of a plain render). Bit-identical to collector (a) for the same seeds "
+    "(tests/test_transient_media_collector.py).",
     "- Rendering all spp in one call (the default of `load(..., collector='b')`) gives the same "
     "statistics up to the order of the float64 atomic additions; its paths differ from (a)'s "
     "(different sample streams), which is why the cache key holds the collector.",
@@ -52,9 +61,9 @@ NOTES = [
     "- Measured: Mitsuba's perspective sensor starts camera rays on the near-clip plane, so a "
     "warped OPL misses near_clip/cos θ of the camera segment (0.01 m with the default near "
     "clip). The direct-arrival test scene uses near_clip = 1e-4.",
-    "- fog-transient uses `transient_prbvolpath`; collector (b) is implemented for "
-    "`transient_path` only, so media use collector (a). Its G-buffers come from the same "
-    "camera with the fog removed (surfaces behind the medium).",
+    "- fog-transient uses `transient_prbvolpath` (collector (b) through "
+    "`transient_prbvolpath_stats`). Its G-buffers come from the same camera with the fog "
+    "removed (surfaces behind the medium).",
     "- Whole-video RMSE weights every voxel equally: on cornell-transient it is dominated by "
     "the directly visible light in the first bins, which every spatial filter spreads into "
     "its neighbours, and filtering a bin spatially also blurs the wavefront across pixels "
@@ -71,7 +80,8 @@ NOTES = [
 def bench_collectors(scene: str = "cornell-transient", res: int = 64, spp: int = 64,
                      bins: int = 200, repeats: int = 3, transform: str = "identity",
                      lam: float = 0.5, seed: int = 0) -> dict[str, Any]:
-    """Time a plain transient render, collector (a) and collector (b) at the same spp.
+    """Time a plain transient render (the scene's integrator), collector (a) and collector (b)
+    at the same spp, interleaved.
 
     Returns seconds (medians) and ratios to the plain render: ``a_s`` (passes through a batch
     sensor + host sums), ``b_s`` (one in-integrator render incl. reading the sums back and the
@@ -111,7 +121,8 @@ def bench_collectors(scene: str = "cornell-transient", res: int = 64, spp: int =
         timings["b_render"].append(last_b.timing["render_s"])
     med = {k: statistics.median(v) for k, v in timings.items()}
     window = sc.window(bins)
-    return {"benchmark": "transient-collectors", "scene": scene, "res": res, "spp": spp,
+    return {"benchmark": "transient-collectors", "scene": scene, "integrator": sc.integrator,
+            "load": os.getloadavg()[0], "res": res, "spp": spp,
             "bins": window.bins, "transform": transform, "copies_a": out_a.timing["copies"],
             "plain_s": med["plain"], "a_s": med["a"], "a_render_s": med["a_render"],
             "b_s": med["b"], "b_render_s": med["b_render"], "ratio_a": med["a"] / med["plain"],
@@ -138,6 +149,52 @@ def state_bytes_vs_spp(scene: str = "cornell-transient", res: int = 32, bins: in
                      "max_non_zero": int(out.non_zero.max()),
                      "n_overflow": int(out.timing["n_overflow"])})
     return rows
+
+
+def collector_section(scenes: Sequence[str], res: int = 64, spp: int = 64, bins: int = 200,
+                      repeats: int = 5, media_res: int = 48, media_bins: int = 100
+                      ) -> list[str]:
+    """The Markdown lines of the collector benchmark: one row per scene that has collector (b)
+    (:func:`bench_collectors`; media scenes at ``media_res``/``media_bins``), and the state size
+    against spp for a surface and a media scene."""
+    from ..datasets import scenes as catalogue
+    from ..datasets import transient as tr
+    from .formats import markdown_table
+
+    lines = ["## Per-bin statistics: collectors", "",
+             "Both collectors compute, per pixel, bin and channel, float64 power sums of the "
+             "transformed per-path bin sums (spec/statistical.md §11). (a): 1-spp passes "
+             "(several camera copies per call through a `batch` sensor) with host-side sums; "
+             "(b): the `transient_path_stats` integrator (`transient_prbvolpath_stats` for the "
+             "media scene), per-path slots of running sums flushed with atomics, state "
+             "independent of spp. Ratios are to one plain render of the scene's integrator at "
+             "the same spp (film histogram only, read back to NumPy). "
+             "`a render` is the rendering part of (a) (1-spp calls, each developing a whole "
+             "film); `b render` is (b)'s render call alone; `b` adds reading the sums back and "
+             "computing the moments, colour and counts on the device (bit-identical to the "
+             "host formulas). `load`: the 1-minute load average when the row finished.", ""]
+    brow, media = [], []
+    for name in scenes:
+        sc = catalogue.get(name)
+        if sc.integrator not in tr.IN_INTEGRATOR:
+            continue
+        if sc.medium:
+            media.append(name)
+        r_res, r_bins = (media_res, media_bins) if sc.medium else (res, bins)
+        r = bench_collectors(name, r_res, spp, r_bins, repeats=repeats)
+        brow.append({k: r[k] for k in ("scene", "integrator", "res", "spp", "bins", "copies_a",
+                                       "plain_s", "a_s", "a_render_s", "b_s", "b_render_s",
+                                       "ratio_a", "ratio_b", "ratio_b_render", "b_state_mb",
+                                       "b_reentries", "b_overflow", "load")})
+    lines += [markdown_table(pd.DataFrame(brow)), ""]
+    for name in ["cornell-transient"] + media[:1]:
+        mem = state_bytes_vs_spp(name)
+        lines += [f"Collector (b) state vs spp ({name}, 32×32 px, 100 bins): " +
+                  ", ".join(f"{r['spp']} spp → {r['state_bytes']:,} B" for r in mem) +
+                  " (constant by construction; it holds 3 float64 sums per voxel and channel "
+                  "and one uint64 per voxel packing the three `non_zero` counts; overflows: " +
+                  ", ".join(str(r["n_overflow"]) for r in mem) + ").", ""]
+    return lines
 
 
 # ---------------------------------------------------------------------------------------------
@@ -321,9 +378,13 @@ def run_report(out_dir: str | Path = "results", scenes: Sequence[str] = (
         "cornell-transient", "caustic-transient", "fog-transient"), res: int = 64,
                spp: int = 32, bins: int = 200, ref_spp: int = 2048,
                methods_: Sequence[str] = DEFAULT_METHODS, bench_res: int = 64,
-               bench_spp: int = 64, bench_repeats: int = 5, progress: bool = True) -> str:
+               bench_spp: int = 64, bench_repeats: int = 5, progress: bool = True,
+               media_res: int = 48, media_bins: int = 100) -> str:
     """Benchmark collectors and baselines on the transient scenes; write
-    ``<out_dir>/transient.md`` and figures under ``<out_dir>/transient/``. Returns the text."""
+    ``<out_dir>/transient.md`` and figures under ``<out_dir>/transient/``. Returns the text.
+
+    ``media_res``, ``media_bins``: the collector benchmark's size for participating-media scenes
+    (a media path costs about 10× a surface path, so they are timed smaller)."""
     from .. import datasets
     from ..datasets import scenes as catalogue
     from ..datasets import transient as tr
@@ -374,30 +435,8 @@ def run_report(out_dir: str | Path = "results", scenes: Sequence[str] = (
               markdown_table(pd.DataFrame(sized)), ""]
 
     # -- collectors -----------------------------------------------------------------------------
-    lines += ["## Per-bin statistics: collectors", "",
-              "Both collectors compute, per pixel, bin and channel, float64 power sums of the "
-              "transformed per-path bin sums (spec/statistical.md §11). (a): 1-spp passes "
-              "(several camera copies per call through a `batch` sensor) with host-side sums; "
-              "(b): the `transient_path_stats` integrator, per-path slots of running sums "
-              "flushed with atomics, state independent of spp. Ratios are to one plain "
-              "`transient_path` render of the same spp (film histogram only, read back to NumPy). "
-              "`a render` is the rendering part of (a) (1-spp calls, each developing a whole "
-              "film); `b render` is (b)'s render call alone; `b` adds reading the sums back and "
-              "computing the moments, colour and counts on the device (bit-identical to the "
-              "host formulas).", ""]
-    brow = []
-    for name in [s for s in scenes if catalogue.get(s).integrator == "transient_path"]:
-        r = bench_collectors(name, bench_res, bench_spp, bins, repeats=bench_repeats)
-        brow.append({k: r[k] for k in ("scene", "res", "spp", "bins", "copies_a", "plain_s",
-                                       "a_s", "a_render_s", "b_s", "b_render_s", "ratio_a",
-                                       "ratio_b", "ratio_b_render", "b_state_mb",
-                                       "b_reentries")})
-    lines += [markdown_table(pd.DataFrame(brow)), ""]
-    mem = state_bytes_vs_spp()
-    lines += ["Collector (b) state vs spp (cornell-transient, 32×32 px, 100 bins): " +
-              ", ".join(f"{r['spp']} spp → {r['state_bytes']:,} B" for r in mem) +
-              " (constant by construction; it holds 3 float64 sums per voxel and channel and "
-              "one uint64 per voxel packing the three `non_zero` counts).", ""]
+    lines += collector_section(scenes, bench_res, bench_spp, bins, bench_repeats, media_res,
+                               media_bins)
 
     # -- baselines ------------------------------------------------------------------------------
     lines += ["## Baselines", "",
@@ -431,10 +470,21 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--scenes", default="cornell-transient,caustic-transient,fog-transient")
     ap.add_argument("--methods", default=",".join(DEFAULT_METHODS))
+    ap.add_argument("--media-res", type=int, default=48)
+    ap.add_argument("--media-bins", type=int, default=100)
+    ap.add_argument("--collectors-only", action="store_true",
+                    help="print the collector benchmark only (results/transient.md untouched)")
     a = ap.parse_args(argv)
-    print(run_report(a.out, [s for s in a.scenes.split(",") if s], a.res, a.spp, a.bins,
+    scenes = [s for s in a.scenes.split(",") if s]
+    if a.collectors_only:
+        print(f"load average {os.getloadavg()[0]:.2f} at the start")
+        print("\n".join(collector_section(scenes, a.bench_res, a.bench_spp, a.bins, a.repeats,
+                                          a.media_res, a.media_bins)))
+        print(f"load average {os.getloadavg()[0]:.2f} at the end")
+        return 0
+    print(run_report(a.out, scenes, a.res, a.spp, a.bins,
                      a.ref_spp, [m for m in a.methods.split(",") if m], a.bench_res,
-                     a.bench_spp, a.repeats))
+                     a.bench_spp, a.repeats, media_res=a.media_res, media_bins=a.media_bins))
     return 0
 
 

@@ -13,6 +13,7 @@ from .args import (RANKABLE, _check_common, _ints, _scene_of, _split, _writable_
 def cmd_list(args: argparse.Namespace) -> int:
     from .. import methods
     from ..datasets import scenes
+    from ..datasets.scene_params import describe_all
 
     from .. import plugins
 
@@ -28,6 +29,8 @@ def cmd_list(args: argparse.Namespace) -> int:
         sc = scenes.get(name)
         print(f"  {name:<12} {sc.kind:<10} {sc.description}"
               + (f"  [plugin: {origin[name]}]" if name in origin else ""))
+        if sc.declared:
+            print(f"  {'':<12} --scene-param: {describe_all(sc.declared)}")
     print("  (or --scene PATH: a Mitsuba scene file .xml, a Python scene file .py, or a "
           "folder of EXR renders in OIDN's layout)")
     print("\nMethods:")

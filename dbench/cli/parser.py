@@ -27,7 +27,9 @@ def build_parser() -> argparse.ArgumentParser:
         sp.add_argument("--ref-spp", type=int, default=None,
                         help="reference spp (default $DBENCH_REF_SPP or 4096)")
         sp.add_argument("--scene-param", action="append", metavar="NAME=VALUE",
-                        help="a $parameter of a Mitsuba scene file (repeatable)")
+                        help="a $parameter of a Mitsuba scene file, or a parameter a "
+                        "catalogue scene declares (dbench list shows them; e.g. g=0.5, "
+                        "emission=step on the transient scenes) (repeatable)")
 
     def judged(sp: argparse.ArgumentParser) -> None:
         sp.add_argument("--seeds", type=int, default=1, help="independent noisy renders "

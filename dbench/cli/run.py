@@ -105,7 +105,11 @@ def cmd_run(args: argparse.Namespace) -> int:
                                title=f"{scene.name}, {args.spp} spp, {args.res.text} px")
     info = machine_info()
     seeds = [args.seed + k for k in range(args.seeds)]
-    settings = {"scene": scene.name, "kind": scene.kind, "spp": args.spp, "res": args.res.key,
+    settings = {"scene": scene.name, "kind": scene.kind,
+                **({"scene parameters": ", ".join(f"{k}={v}" for k, v in
+                                                  frame.meta["scene_params"].items())}
+                   if frame.meta.get("scene_params") else {}),
+                "spp": args.spp, "res": args.res.key,
                 "seeds": ", ".join(map(str, seeds)),
                 "ref_spp": frame.meta.get("ref_spp"),
                 "reference seed": frame.meta.get("ref_seed"),

@@ -65,6 +65,16 @@ def canonical(obj: Any) -> Any:
     type_name = type(obj).__name__
     if "Bitmap" in type_name:
         return {"bitmap": canonical(np.array(obj))}
+    if "VolumeGrid" in type_name:  # its repr names the size, not the voxels
+        return {"volume_grid": canonical(np.array(obj)), "channels": int(obj.channel_count())}
+    if hasattr(obj, "faces_buffer") and hasattr(obj, "vertex_positions_buffer"):
+        # a mesh built in memory: its repr names the counts, not the vertices, and its media's
+        # repr leaves out their phase functions
+        media = [None if m is None else {"medium": repr(m), "phase": repr(m.phase_function())}
+                 for m in (obj.interior_medium(), obj.exterior_medium())]
+        return {"mesh": canonical(np.array(obj.vertex_positions_buffer())),
+                "faces": canonical(np.array(obj.faces_buffer())), "media": media,
+                "repr": repr(obj)}
     if hasattr(obj, "matrix"):
         return {type_name: canonical(np.array(obj.matrix, dtype=np.float64))}
     return {type_name: repr(obj)}

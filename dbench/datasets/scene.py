@@ -24,8 +24,13 @@ class Scene:
             :class:`~dbench.resolution.Res` (width, height) in px (the film's size).
         max_depth: path length of the integrator (part of the cache key through the dict).
         provides: buffers this scene can render.
-        params: anything else that changes the pixels (goes into the cache key).
+        params: anything else that changes the pixels (goes into the cache key); for a scene
+            made from ``--scene-param`` values, every declared parameter's value.
         ev: exposure (stops) of the tone map used by LDR metrics and PNGs.
+        declared: the parameters ``--scene-param NAME=VALUE`` may set
+            (:class:`dbench.datasets.scene_params.Param`; empty: none).
+        variant: ``variant(scene, values) -> Scene``, the scene of one set of values (every
+            declared name, checked); :func:`dbench.datasets.scene_params.bind` calls it.
     """
 
     name: str
@@ -36,6 +41,8 @@ class Scene:
     provides: frozenset = STEADY_BUFFERS
     params: dict = field(default_factory=dict)
     ev: float = 0.0
+    declared: tuple = ()
+    variant: Callable[["Scene", dict], "Scene"] | None = None
 
     def scene_dict(self, mi, res) -> dict:
         d = self.build(mi, parse_res(res))

@@ -36,15 +36,17 @@ def _scene(name: str, description: str, **kw: Any):
 
 
 def get(name: str | Scene, params: dict[str, str] | None = None) -> Scene:
-    """The Scene named ``name``: a catalogue name, a scene file (``.xml``, ``.py``;
+    """The Scene named ``name``: a catalogue name (``params``: the values of the parameters
+    it declares, dbench.datasets.scene_params), a scene file (``.xml``, ``.py``;
     dbench.datasets.scene_files, ``params`` fill its ``$parameters``) or a folder of EXR
     renders (dbench.datasets.folder). UnknownNameError lists the catalogue otherwise."""
     if isinstance(name, Scene):
         return name
     if name in _CATALOGUE:
-        if params:
-            raise DbenchInputError(f"--scene-param: {name} is a catalogue scene; parameters "
-                                   f"apply to scene files")
+        if params:  # the parameters the scene declares (dbench.datasets.scene_params)
+            from .scene_params import bind
+
+            return bind(_CATALOGUE[name], params)
         return _CATALOGUE[name]
     from . import folder, scene_files
 

@@ -2,7 +2,8 @@
 
 Scenes of kind ``transient``: ``cornell-transient`` and ``caustic-transient`` (``transient_path``)
 and ``fog-transient`` (a homogeneous participating medium, ``transient_prbvolpath``; the setting of
-seed 004). The time axis is optical path length (OPL) in metres, warped (the camera segment is
+seed 004); ``cloud-transient`` and ``fog-unwarped`` and the scene parameters (medium, emission
+pulse or step, scattering orders) are in :mod:`dbench.datasets.transient_media`. The time axis is optical path length (OPL) in metres, warped (the camera segment is
 included, as a real ultrafast sensor records it); each scene carries a window
 [``start_opl``, ``end_opl``) chosen with :func:`size_window` from the scene geometry (earliest
 direct arrival) and a pilot render (the OPL below which ``coverage`` of the steady energy
@@ -16,9 +17,10 @@ Collectors of the per-bin statistics (spec/statistical.md §11):
   (:class:`~dbench.datasets.stats.PowerSums`, bins a path never reaches add g(0) − K = 0).
   Several samples per call come from a Mitsuba ``batch`` sensor holding copies of the camera
   (the transient film works as the batch film; each copy is an independent sample).
-* (b) :func:`collect_in_integrator`: the in-integrator collector of
-  :mod:`dbench.datasets.transient_collector` (running sums per path, flushed with atomics),
-  whose memory does not depend on spp. ``transient_path`` scenes only.
+* (b) :func:`collect_in_integrator`: the in-integrator collectors (running sums per path,
+  flushed with atomics), whose memory does not depend on spp:
+  :mod:`dbench.datasets.transient_collector` in ``transient_path`` and
+  :mod:`dbench.datasets.transient_collector_media` in ``transient_prbvolpath`` (media).
 
 Buffers of a :class:`~dbench.data.TransientFrame` from :func:`load_transient`: ``color``
 (H, W, T, 3), ``stats`` and ``non_zero`` (H, W, T, 3), ``steady`` (H, W, 3; the same samples,
@@ -29,8 +31,9 @@ ignored), ``reference`` (H, W, T, 3, plain transient render at ref_spp ≥ 16·s
 seed ``ref_seed``, in K ≥ 16 chunks) and ``reference_var`` (H, W, T, 3, the variance of the
 reference mean per bin from the chunk spread, spec/verdicts.md §2). ``meta`` holds the window
 (``start_opl``, ``bin_width_opl``, ``bins``, ``end_opl``, ``units``), ``energy_fraction``
-(Σ color / Σ steady: the share of the steady energy inside the window), integrator settings and
-timings.
+(Σ color / Σ steady: the share of the steady energy inside the window; a step's last bin over
+Σ steady), ``emitter`` (pulse or step), ``scene_params`` (the ``--scene-param`` values, empty
+for a catalogue scene as it is), integrator settings and timings.
 
 Example:
     >>> from dbench import datasets
@@ -57,10 +60,11 @@ from .mitsuba_env import mitsuba, versions
 from .references import check_ref_seed, reference_meta
 from .references import reference_spp as default_ref
 from .scene import Scene, register_scene
-from .scene_parts import _camera, _ceiling_light, _diffuse, _room
+from .transient_media import (EMISSION, FOG, FOG_PARAMS, FOG_RANGE_WINDOW, _fog_room,
+                              media_variant, transient_variant)
 from .stats import ZERO_VARIANCE_RTOL, PowerSums, stats_from_sums
 from .transient_render import (DEFAULT_REFERENCE_CHUNK, _mitransient, batch_copies,
-                               loaded_transient, render_plain, render_reference)
+                               loaded_transient, render_plain, render_reference, render_signal)
 from .transient_scene import (SPEED_OF_LIGHT, TRANSIENT_BUFFERS, TransientScene, Window,
                               transient_film)
 from .transient_window import (direct_arrival_dict, direct_arrivals, expected_direct_bins,
@@ -68,6 +72,9 @@ from .transient_window import (direct_arrival_dict, direct_arrivals, expected_di
 
 COLLECTORS = ("auto", "a", "b")
 DEFAULT_TRANSFORM = "identity"   # spec/statistical.md §3: transient default
+#: Version of the ``total_var`` array stored with the statistics (the noisy total's variance).
+TOTAL_VAR_VERSION = 2
+
 #: Σ color ≥ this share of Σ steady counts as a window covering all contributions (spec §6).
 COVERS_ALL = 0.999
 
@@ -89,42 +96,24 @@ def _register(name: str, description: str, **kw: Any):
 # rounded down (no energy before it in the pilot), end = 99 % of the steady energy, rounded up
 # to 0.5 m (results/transient.md lists the measured fractions).
 @_register("cornell-transient", "Cornell box, time-resolved (transient_path, warped OPL)",
-           max_depth=8, window_start=3.8, window_end=11.5, default_bins=200)
+           max_depth=8, window_start=3.8, window_end=11.5, default_bins=200,
+           declared=(EMISSION,), variant=transient_variant)
 def cornell_transient(mi, res) -> dict:
     return _scenes.cornell(mi, res)
 
 
 @_register("caustic-transient", "glass sphere caustic, time-resolved: the caustic arrives late "
-           "(glass OPL)", max_depth=12, window_start=3.7, window_end=14.0, default_bins=200)
+           "(glass OPL)", max_depth=12, window_start=3.7, window_end=14.0, default_bins=200,
+           declared=(EMISSION,), variant=transient_variant)
 def caustic_transient(mi, res) -> dict:
     return _scenes.caustic(mi, res)
-
-
-FOG = {"type": "homogeneous", "sigma_s": 0.6, "sigma_a": 0.1, "g": 0.3, "units": "1/m"}
-
-
-def _fog_room(mi, res, with_fog: bool) -> dict:
-    T = mi.ScalarTransform4f
-    d = {"type": "scene",
-         "sensor": _camera(mi, res, origin=[0, 0, 3.9], target=[0, 0, 0])}
-    d.update(_room(mi))
-    d["light"] = _ceiling_light(mi, 0.15, radiance=(60.0, 50.0, 36.0))
-    d["ball"] = {"type": "sphere", "center": [0.3, -0.55, -0.1], "radius": 0.35,
-                 "bsdf": _diffuse((0.7, 0.7, 0.7))}
-    if with_fog:
-        d["fog"] = {"type": "cube", "to_world": T().scale(0.98),
-                    "bsdf": {"type": "null"},
-                    "interior": {"type": "homogeneous", "albedo": FOG["sigma_s"] /
-                                 (FOG["sigma_s"] + FOG["sigma_a"]),
-                                 "sigma_t": FOG["sigma_s"] + FOG["sigma_a"],
-                                 "phase": {"type": "hg", "g": FOG["g"]}}}
-    return d
 
 
 @_register("fog-transient", "Cornell-style room filled with homogeneous fog (σs 0.6, σa 0.1 /m, "
            "HG g 0.3): transient_prbvolpath", max_depth=8, window_start=3.8, window_end=10.0,
            default_bins=200, integrator="transient_prbvolpath", steady_integrator="volpath",
-           feature_build=lambda mi, res: _fog_room(mi, res, with_fog=False), medium=FOG)
+           feature_build=lambda mi, res: _fog_room(mi, res, with_fog=False), medium=FOG,
+           declared=FOG_PARAMS, variant=media_variant(_fog_room, FOG_RANGE_WINDOW))
 def fog_transient(mi, res) -> dict:
     return _fog_room(mi, res, with_fog=True)
 
@@ -144,15 +133,30 @@ class TransientRender:
     timing: dict = field(default_factory=dict)
     #: float64 power sums of u = g(x) − g(0): ``s1``, ``s2``, ``s3`` (H, W, T, 3), and ``n``
     sums: dict | None = None
+    emission: str = "pulse"             # the scene's (TransientScene.emission)
+    #: (H, W, 3) float64 variance of the mean of the per-path sums over the window's bins
+    total_var: np.ndarray | None = None
 
     @property
     def energy_fraction(self) -> float:
-        return energy_fraction(self.color, self.steady)
+        return energy_fraction(self.color, self.steady, self.emission)
 
 
-def energy_fraction(video: np.ndarray, steady: np.ndarray) -> float:
-    """Share of the steady energy inside the window: Σ video / Σ steady (all pixels, channels)."""
+def total_variance(n: int, s1: np.ndarray, s2: np.ndarray, s3: np.ndarray) -> np.ndarray | None:
+    """(H, W, 3) variance of the mean of the per-path window totals from their identity power
+    sums (spec/statistical.md §4.1 rules), or None below 2 samples (unknown, not zero)."""
+    if n < 2:
+        return None
+    return np.asarray(stats_from_sums(n, s1, s2, s3, "identity", 0.5).var_mean, np.float64)
+
+
+def energy_fraction(video: np.ndarray, steady: np.ndarray, emission: str = "pulse") -> float:
+    """Share of the steady energy inside the window: Σ video / Σ steady (all pixels, channels).
+    A step video (``emission="step"``, the cumsum of the pulse's) holds that sum in its last
+    bin: Σ video[..., -1, :] / Σ steady."""
     total = float(np.sum(steady, dtype=np.float64))
+    if emission == "step":
+        video = video[..., -1, :]
     return float(np.sum(video, dtype=np.float64)) / total if total > 0 else float("nan")
 
 
@@ -162,18 +166,18 @@ def pass_samples(scene: TransientScene, res, spp: int, seed: int = 0,
     steady (H, copies, W, 3)) float32 per 1-spp call, ``spp`` samples per pixel in all.
 
     Call k uses seed :func:`render.pass_seed` ("transient", seed, k); the same seeds drive
-    collector (b) in its 1-spp-pass mode (tests compare the two bit for bit)."""
-    mi = _mitransient()
+    collector (b) in its 1-spp-pass mode (tests compare the two bit for bit). Each sample is
+    the scene's signal (:func:`render_signal`: a step scene's is the cumsum along T of the
+    path's pulse contributions)."""
+    _mitransient()
     res = parse_res(res)
     window = scene.window(bins)
     copies = copies or batch_copies(res, window.bins, spp)
     if spp % copies:
         raise DbenchInputError(f"copies: expected a divisor of spp = {spp}, got {copies}")
-    sc = loaded_transient(scene, res, window, copies)
     for k in range(spp // copies):
-        steady, video = mi.render(sc, spp=1, seed=_render.pass_seed("transient", seed, k))
-        video = np.array(video, dtype=np.float32)
-        steady = np.array(steady, dtype=np.float32)
+        steady, video = render_signal(scene, res, window, copies, 1,
+                                      _render.pass_seed("transient", seed, k))
         yield (video.reshape(res.height, copies, res.width, window.bins, 3),
                steady.reshape(res.height, copies, res.width, 3))
 
@@ -198,6 +202,8 @@ def collect_passes(scene: TransientScene, res, spp: int, seed: int = 0,
     acc = PowerSums(shape, *stats) if stats else None
     total = np.zeros(shape, np.float64)
     steady = np.zeros((res.height, res.width, 3), np.float64)
+    # per-path sums over the window's bins (identity): the noisy total's own variance
+    totals = PowerSums((res.height, res.width, 3), "identity") if stats else None
     non_zero = np.zeros(shape, np.int32) if stats else None
     clamp = stats is not None and stats[0] == "box-cox"
     render_s = stats_s = 0.0
@@ -214,6 +220,7 @@ def collect_passes(scene: TransientScene, res, spp: int, seed: int = 0,
             steady += st.sum(axis=1, dtype=np.float64)
             if acc is not None:
                 total += acc.add_batch(video, axis=1)
+                totals.add_batch(video.sum(axis=3, dtype=np.float64), axis=1)
                 nz = (video > 0) if clamp else (video != 0)
                 if acc.n_nonfinite:
                     nz &= np.isfinite(video)
@@ -224,7 +231,7 @@ def collect_passes(scene: TransientScene, res, spp: int, seed: int = 0,
             stats_s += time.perf_counter() - t1
             bar.update(copies)
     out = TransientRender(color=(total / spp).astype(np.float32),
-                          steady=(steady / spp).astype(np.float32),
+                          steady=(steady / spp).astype(np.float32), emission=scene.emission,
                           stats=(stats_from_sums(acc.n, acc.s1, acc.s2, acc.s3, acc.transform,
                                                  acc.lam, {"n_nonfinite": acc.n_nonfinite,
                                                            "n_clamped": acc.n_clamped})
@@ -232,7 +239,9 @@ def collect_passes(scene: TransientScene, res, spp: int, seed: int = 0,
                           timing={"render_s": render_s, "stats_s": stats_s, "copies": copies,
                                   "collector": "a"},
                           sums=({"s1": acc.s1, "s2": acc.s2, "s3": acc.s3, "n": acc.n}
-                                if acc else None))
+                                if acc else None),
+                          total_var=total_variance(totals.n, totals.s1, totals.s2, totals.s3)
+                          if totals is not None else None)
     return out
 
 
@@ -244,8 +253,10 @@ def collect_in_integrator(scene: TransientScene, res, spp: int, seed: int = 0,
                           bins: int | None = None, transform: str = DEFAULT_TRANSFORM,
                           lam: float = 0.5, per_pass: bool = False, slots: int = 0
                           ) -> TransientRender:
-    """Collector (b) (:mod:`dbench.datasets.transient_collector`): running per-path sums inside
-    ``transient_path``, flushed into float64 power sums with atomics.
+    """Collector (b): running per-path sums inside the scene's integrator, flushed into float64
+    power sums with atomics (spec/statistical.md §11.2 mode B; ``transient_path``:
+    :mod:`dbench.datasets.transient_collector`, ``transient_prbvolpath``:
+    :mod:`dbench.datasets.transient_collector_media`).
 
     Args:
         per_pass: render ``spp`` 1-spp passes with collector (a)'s seeds (bit-identical to (a)
@@ -253,16 +264,19 @@ def collect_in_integrator(scene: TransientScene, res, spp: int, seed: int = 0,
             ``pass_seed("transient-b", seed, 0)``).
         slots: per-path slots (0 = 2·max_depth, exact).
     """
-    if scene.integrator != "transient_path":
-        raise DbenchInputError(f"collector: (b) runs inside transient_path; scene {scene.name} "
-                               f"uses {scene.integrator}, use collector 'a'")
+    if scene.integrator not in IN_INTEGRATOR:
+        raise DbenchInputError(f"collector: (b) runs inside {' or '.join(IN_INTEGRATOR)}; "
+                               f"scene {scene.name} uses {scene.integrator}, use collector 'a'")
+    if scene.needs_passes:  # its signal is made from whole rendered passes
+        raise DbenchInputError(f"collector: (b) sums inside one render; scene {scene.name} "
+                               f"needs whole passes (step emission or a minus scene), use 'a'")
     check_count("spp", spp)
     check_transform(transform, lam)
     _mitransient()
     window = scene.window(bins)
     sc = loaded_transient(scene, res, window, 1)
-    col = _collector(sc, transform, float(lam), scene.max_depth, scene.rr_depth,
-                     scene.camera_unwarp, int(slots))
+    col = _collector(sc, scene.integrator, transform, float(lam), scene.max_depth,
+                     scene.rr_depth, scene.camera_unwarp, int(slots))
     col.reset()
     if per_pass:
         for k in range(spp):
@@ -277,10 +291,11 @@ def collect_in_integrator(scene: TransientScene, res, spp: int, seed: int = 0,
                         diagnostics=col.diagnostics())
     color, non_zero = mom["color"], mom["non_zero"]
     steady = (col.steady / col.n).astype(np.float32)
+    total_var = col.total_var()
     state_bytes, diagnostics = col.nbytes(), col.diagnostics()
     col.release()  # the cached collector keeps its integrator, not the sums
     return TransientRender(color=color, steady=steady, stats=stats,
-                           non_zero=non_zero,
+                           non_zero=non_zero, total_var=total_var,
                            sums={"s1": sums["s1"], "s2": sums["s2"], "s3": sums["s3"],
                                  "n": col.n},
                            timing={"render_s": col.render_s,
@@ -289,12 +304,19 @@ def collect_in_integrator(scene: TransientScene, res, spp: int, seed: int = 0,
                                    "slots": col.slots, **diagnostics})
 
 
-@lru_cache(maxsize=4)
-def _collector(sc, transform, lam, max_depth, rr_depth, unwarp, slots):
-    from .transient_collector import StatsCollector
+#: integrators that have an in-integrator collector (b)
+IN_INTEGRATOR = ("transient_path", "transient_prbvolpath")
 
-    return StatsCollector(sc, transform=transform, lam=lam, max_depth=max_depth,
-                          rr_depth=rr_depth, camera_unwarp=unwarp, slots=slots)
+
+@lru_cache(maxsize=4)
+def _collector(sc, integrator, transform, lam, max_depth, rr_depth, unwarp, slots):
+    if integrator == "transient_prbvolpath":
+        from .transient_collector_media import MediaStatsCollector as cls
+    else:
+        from .transient_collector import StatsCollector as cls
+
+    return cls(sc, transform=transform, lam=lam, max_depth=max_depth, rr_depth=rr_depth,
+               camera_unwarp=unwarp, slots=slots)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -304,11 +326,18 @@ def _collector(sc, transform, lam, max_depth, rr_depth, unwarp, slots):
 def _resolve_collector(scene: TransientScene, collector: str) -> str:
     if collector not in COLLECTORS:
         raise DbenchInputError(f"collector: expected one of {COLLECTORS}, got {collector!r}")
+    # the cache key holds the resolved collector: (a) and (b) draw different paths
+    if scene.needs_passes:  # step emission, scattering=multiple: built from whole passes
+        if collector == "b":
+            raise DbenchInputError(f"collector: 'b' sums inside one render; {scene.name} with "
+                                   f"{scene.params} (step emission or scattering=multiple) is "
+                                   f"made from whole 1-spp passes; use 'a' or 'auto'")
+        return "a"
     if collector == "auto":
-        return "b" if scene.integrator == "transient_path" else "a"
-    if collector == "b" and scene.integrator != "transient_path":
-        raise DbenchInputError(f"collector: 'b' needs transient_path; {scene.name} uses "
-                               f"{scene.integrator}; use 'a' or 'auto'")
+        return "b" if scene.integrator in IN_INTEGRATOR else "a"
+    if collector == "b" and scene.integrator not in IN_INTEGRATOR:
+        raise DbenchInputError(f"collector: 'b' needs {' or '.join(IN_INTEGRATOR)}; "
+                               f"{scene.name} uses {scene.integrator}; use 'a' or 'auto'")
     return collector
 
 
@@ -337,8 +366,11 @@ def load_transient(scene: str | TransientScene, spp: int, res,
             ``ref_seed``, ``ref_render_s`` and ``ref_rmse`` = sqrt(mean(reference_var)).
         bins: T (default the scene's); the window [start, end) stays the scene's.
         collector: ``"a"`` (1-spp passes, host sums), ``"b"`` (in-integrator) or ``"auto"``
-            (b for transient_path scenes, a for media). The color comes from the same samples
-            as the statistics, so it does not depend on whether ``stats`` was asked for.
+            (b for transient_path and transient_prbvolpath scenes, a otherwise). The color
+            comes from the same samples as the statistics, so it does not depend on whether
+            ``stats`` was asked for. Scenes made from whole passes (``emission=step``: each
+            path's cumsum along T; ``scattering=multiple``: a second render subtracted) use
+            (a) whatever is asked for with ``auto`` and refuse ``b``.
     """
     sc = scene if isinstance(scene, Scene) else _scenes.get(scene)
     if not isinstance(sc, TransientScene):
@@ -365,17 +397,17 @@ def load_transient(scene: str | TransientScene, spp: int, res,
     meta: dict = {"scene": sc.name, "kind": "transient", "spp": int(spp), "res": res.key,
                   "seed": int(seed), "ev": sc.ev, "versions": base["versions"],
                   **window.meta(), "camera_unwarp": sc.camera_unwarp, "max_depth": sc.max_depth,
-                  "integrator": sc.integrator, "emitter": "delta pulse at OPL 0",
-                  "medium": sc.medium, "collector": which, "cache_hits": [], "rendered": []}
+                  "integrator": sc.integrator, "emitter": sc.emitter_meta,
+                  "scene_params": dict(sc.params), "medium": sc.medium, "collector": which, "cache_hits": [], "rendered": []}
 
     copies = batch_copies(res, window.bins, spp) if which == "a" else 1
     noisy_desc = {**base, "what": "transient-noisy", "spp": int(spp), "seed": int(seed),
                   "collector": which, "copies": copies}
     stats_desc = {**noisy_desc, "what": "transient-stats", "transform": transform,
-                  "lam": float(lam)}
+                  "lam": float(lam), "total_var": TOTAL_VAR_VERSION}
     noisy = cache.get("transient-noisy", noisy_desc)
     st_entry = cache.get("transient-stats", stats_desc) if "stats" in wanted else None
-    stats = non_zero = None
+    stats = non_zero = total_var = None
     if noisy is not None and ("stats" not in wanted or st_entry is not None):
         arrays = noisy.arrays()
         color, steady = arrays["color"], arrays["steady"]
@@ -387,6 +419,7 @@ def load_transient(scene: str | TransientScene, spp: int, res,
                                 m3=sa["m3"], transform=transform, lam=float(lam),
                                 diagnostics=st_entry.meta.get("diagnostics", {}))
             non_zero = sa["non_zero"]
+            total_var = sa.get("total_var")
             meta.update(stats_s=st_entry.meta.get("stats_s"))
             meta["cache_hits"].append("stats")
     else:
@@ -404,17 +437,18 @@ def load_transient(scene: str | TransientScene, spp: int, res,
                       meta={"render_s": out.timing["render_s"],
                             "timing": {k: v for k, v in out.timing.items()}})
         if out.stats is not None and "stats" in wanted:
-            stats, non_zero = out.stats, out.non_zero
+            stats, non_zero, total_var = out.stats, out.non_zero, out.total_var
             meta.update(stats_s=out.timing["stats_s"])
             meta["rendered"].append("stats")
+            totals = {} if total_var is None else {"total_var": total_var}
             cache.put("transient-stats", stats_desc,
                       arrays={"mean": stats.mean, "var_mean": stats.var_mean, "m3": stats.m3,
-                              "non_zero": non_zero},
+                              "non_zero": non_zero, **totals},
                       meta={"stats_s": out.timing["stats_s"],
                             "diagnostics": stats.diagnostics})
     if stats is not None:
         meta["stats_diagnostics"] = dict(stats.diagnostics)
-    meta["energy_fraction"] = energy_fraction(color, steady)
+    meta["energy_fraction"] = energy_fraction(color, steady, sc.emission)
     meta["window_covers_all"] = bool(meta["energy_fraction"] >= COVERS_ALL)
 
     buffers: dict[str, np.ndarray] = {}
@@ -450,10 +484,11 @@ def load_transient(scene: str | TransientScene, spp: int, res,
             meta["rendered"].append("reference")
         buffers["reference"], buffers["reference_var"] = ref, ref_var
         meta.update(reference_meta(rspp, ref_seed, ref_var))
-        meta["reference_energy_fraction"] = energy_fraction(ref, ref_steady)
+        meta["reference_energy_fraction"] = energy_fraction(ref, ref_steady, sc.emission)
 
     return TransientFrame(color=color, stats=stats, steady=steady,
-                          non_zero=None if non_zero is None else non_zero, meta=meta, **buffers)
+                          non_zero=None if non_zero is None else non_zero, meta=meta,
+                          total_var=total_var, **buffers)
 
 
 __all__ = ["TransientScene", "Window", "TransientRender", "load_transient", "collect_passes",

@@ -35,8 +35,9 @@ side :class:`~dbench.datasets.stats.PowerSums`, so for the same seeds (1-spp pas
 bit-for-bit that of collector (a) (tests/test_transient.py). Rendering all spp in one call gives
 the same statistics up to the order of the float64 atomic additions.
 
-Only primal rendering is supported (no AD). Participating media (``transient_prbvolpath``) use
-collector (a).
+Only primal rendering is supported (no AD). The slot logic itself lives in
+:mod:`dbench.datasets.transient_slots`, shared with the participating-media collector
+(:mod:`dbench.datasets.transient_collector_media`, ``transient_prbvolpath``).
 
 Example:
     >>> from dbench.datasets.transient_collector import StatsCollector   # doctest: +SKIP
@@ -55,7 +56,8 @@ import numpy as np
 
 from .mitsuba_env import mitsuba, require_llvm
 from ..data import TRANSFORMS, check_transform
-from .stats import stats_from_power_sums, transform_of_zero
+from .stats import ZERO_VARIANCE_RTOL, stats_from_power_sums, transform_of_zero
+from .transient_slots import with_slots
 
 PLUGIN = "transient_path_stats"
 _REGISTERED: dict[str, Any] = {}
@@ -74,80 +76,25 @@ def _define():
     # @dr.syntax recompiles sample() against the module globals, not this closure
     globals()["mis_weight"] = mis_weight
 
-    class TransientPathStats(TransientPath):
+    class TransientPathStats(with_slots(TransientPath)):
         """``transient_path`` with per-path, per-bin running sums flushed into power sums.
 
         Properties: those of ``transient_path`` plus ``slots`` (int, 0 = 2·max_depth).
         Attach a :class:`StatsCollector` (``integrator.collector = c``) before rendering.
+        A path adds at most one emitter hit and one next-event estimate per loop iteration
+        (max_depth iterations), so 2·max_depth slots never overflow (no guard).
         """
 
         def __init__(self, props):
             super().__init__(props)
-            slots = int(props.get("slots", 0))
-            if self.max_depth < 1:
-                raise ValueError("transient_path_stats needs a finite max_depth >= 1")
-            self.slots = slots if slots > 0 else 2 * self.max_depth
-            self.collector = None
-            self._pos = None
-            self._weight = None
-
-        # the base render() builds this callback right before calling sample(): keep what the
-        # collector needs (pixel positions, ray weights); the film histogram is not written
-        def add_transient_f(self, film, pos, ray_weight, sample_scale):
-            self._pos = pos
-            self._weight = ray_weight
-            return lambda *args, **kwargs: None
-
-        def _insert(self, bins, vals, ages, b, v, ok, clock, last):
-            """Add contribution ``v`` (mask ``ok``) of bin ``b`` into the slots."""
-            k = self.slots
-            found = mi.Bool(False)
-            for i in range(k):
-                m = ok & (bins[i] == b)
-                vals[i] = dr.select(m, vals[i] + v, vals[i])
-                found |= m
-            # a re-entry: the bin is open but was not the previous contribution's bin
-            reentry = found & (b != last)
-            need = ok & ~found
-            # the first free slot takes a new bin
-            for i in range(k):
-                e = need & (bins[i] < 0)
-                bins[i] = dr.select(e, b, bins[i])
-                vals[i] = dr.select(e, v, vals[i])
-                if ages:
-                    ages[i] = dr.select(e, clock, ages[i])
-                need &= ~e
-            return bins, vals, ages, need, reentry
-
-        def _flush(self, col, voxel0, bins, vals, bad, neg, limit=None):
-            """Scatter every slot whose bin is < ``limit`` (all when None) and free it."""
-            for i in range(self.slots):
-                act = bins[i] >= 0
-                if limit is not None:
-                    act &= bins[i] < limit
-                nb, nn = col._scatter(voxel0 + mi.UInt32(dr.maximum(bins[i], 0)), vals[i], act)
-                bad += nb
-                neg += nn
-                bins[i] = dr.select(act, -1, bins[i])
-                vals[i] = dr.select(act, mi.Spectrum(0.0), vals[i])
-            return bins, vals, bad, neg
+            self._init_slots(props, PLUGIN)
 
         @dr.syntax
         def sample(self, mode, scene, sampler, ray, β, δL, state_in, active, add_transient,
                    gather_derivatives_at_distance=None, **kwargs):
             if mode != dr.ADMode.Primal:
                 raise NotImplementedError("transient_path_stats renders primal images only")
-            col = self.collector
-            if col is None:
-                raise RuntimeError("transient_path_stats: attach a StatsCollector first")
-            k = self.slots
-            start, width, nbins = col.start_opl, col.bin_width_opl, col.bins
-            pos = self._pos
-            px = mi.UInt32(dr.floor(pos.x))
-            py = mi.UInt32(dr.floor(pos.y))
-            pixel_ok = (pos.x >= 0) & (pos.y >= 0) & (px < col.width) & (py < col.height)
-            voxel0 = (py * col.width + px) * nbins
-            ray_weight = mi.Spectrum(self._weight)
+            col, voxel0, pixel_ok, ray_weight, st = self._open(PLUGIN)
 
             bsdf_ctx = mi.BSDFContext()
             ray = mi.Ray3f(dr.detach(ray))
@@ -159,16 +106,6 @@ def _define():
             prev_si = dr.zeros(mi.SurfaceInteraction3f)
             prev_bsdf_pdf = mi.Float(1.0)
             prev_bsdf_delta = mi.Bool(True)
-
-            bins = [mi.Int32(-1) for _ in range(k)]
-            vals = [mi.Spectrum(0.0) for _ in range(k)]
-            exact = k >= 2 * self.max_depth   # slots can never run out
-            ages = [] if exact else [mi.UInt32(0) for _ in range(k)]
-            clock = mi.UInt32(0)
-            last = mi.Int32(-1)
-            n_re = mi.UInt32(0)
-            bad = mi.UInt32(0)
-            neg = mi.UInt32(0)
 
             if self.camera_unwarp:
                 si0 = scene.ray_intersect(mi.Ray3f(ray), ray_flags=mi.RayFlags.All,
@@ -191,29 +128,10 @@ def _define():
                 Le = β * mi.Spectrum(mis) * dr.select(self.discard_direct_light, 0,
                                                      ds.emitter.eval(si, active_next))
 
-                # With fewer slots than contributions, free slots early: every later
-                # contribution lies at or after this vertex's OPL, so the slots of earlier bins
-                # are final (with enough slots everything is flushed at the path's end).
-                if dr.hint(not exact, mode='scalar'):
-                    base = (distance - start) / width
-                    base_bin = mi.Int32(dr.floor(dr.clip(base, -1.0, nbins)))
-                    bins, vals, bad, neg = self._flush(
-                        col, voxel0, bins, vals, bad, neg,
-                        limit=dr.select(active & pixel_ok, base_bin, -1))
-
-                t_e = (distance - start) / width
-                v_e = Le * ray_weight
-                ok_e = (active & pixel_ok & (t_e >= 0) & (t_e < nbins)
-                        & dr.any(v_e != 0.0))
-                b_e = mi.Int32(dr.floor(t_e))
-                bins, vals, ages, over, re = self._insert(bins, vals, ages, b_e, v_e, ok_e,
-                                                          clock, last)
-                n_re += dr.select(re, 1, 0)
-                last = dr.select(ok_e, b_e, last)
-                clock += 1
-                if dr.hint(not exact, mode='scalar'):
-                    bins, vals, ages, bad, neg = col._overflow(
-                        self, voxel0, bins, vals, ages, over, b_e, v_e, clock, bad, neg)
+                # with fewer slots than contributions, free the slots of bins this vertex's
+                # OPL has passed (no-op with the full slot set)
+                st = self._release(col, voxel0, st, distance, active & pixel_ok)
+                st = self._add(col, voxel0, st, distance, Le * ray_weight, active & pixel_ok)
 
                 # ---------------------- Emitter sampling ----------------------
                 active_next &= (depth + 1 < self.max_depth) & si.is_valid()
@@ -227,19 +145,8 @@ def _define():
                 mis_em = dr.select(ds.delta, 1, mis_weight(ds.pdf, bsdf_pdf_em))
                 Lr_dir = β * mi.Spectrum(mis_em) * bsdf_value_em * em_weight
 
-                t_n = (distance + ds.dist * η - start) / width
-                v_n = Lr_dir * ray_weight
-                ok_n = (active & pixel_ok & (t_n >= 0) & (t_n < nbins)
-                        & dr.any(v_n != 0.0))
-                b_n = mi.Int32(dr.floor(t_n))
-                bins, vals, ages, over, re = self._insert(bins, vals, ages, b_n, v_n, ok_n,
-                                                          clock, last)
-                n_re += dr.select(re, 1, 0)
-                last = dr.select(ok_n, b_n, last)
-                clock += 1
-                if dr.hint(not exact, mode='scalar'):
-                    bins, vals, ages, bad, neg = col._overflow(
-                        self, voxel0, bins, vals, ages, over, b_n, v_n, clock, bad, neg)
+                st = self._add(col, voxel0, st, distance + ds.dist * η, Lr_dir * ray_weight,
+                               active & pixel_ok)
 
                 # ------------------ Detached BSDF sampling -------------------
                 bsdf_sample, bsdf_weight = bsdf.sample(bsdf_ctx, si, sampler.next_1d(),
@@ -266,9 +173,7 @@ def _define():
                 depth[si.is_valid()] += 1
                 active = active_next
 
-            bins, vals, bad, neg = self._flush(col, voxel0, bins, vals, bad, neg, limit=None)
-            col._count(bad, neg)
-            dr.scatter_reduce(dr.ReduceOp.Add, col.counters, n_re, mi.UInt32(3), n_re > 0)
+            self._finish(col, voxel0, st)
             return L, (depth != 0), [], L
 
     mi.register_integrator(PLUGIN, lambda props: TransientPathStats(props))
@@ -279,12 +184,16 @@ def _define():
 class StatsCollector:
     """Float64 per-bin statistics filled by :class:`TransientPathStats` (collector (b)).
 
+    Subclasses drive another slot integrator by overriding :attr:`plugin` and
+    :meth:`define_integrator` (``transient_prbvolpath``:
+    :class:`~dbench.datasets.transient_collector_media.MediaStatsCollector`).
+
     Args:
         scene: a loaded Mitsuba scene with a ``transient_hdr_film`` (its window and size are read
             from the film).
         transform, lam: the sample transform (spec/statistical.md §3; transient default identity).
         max_depth, rr_depth, camera_unwarp: integrator settings (same meaning as
-            ``transient_path``).
+            ``transient_path`` / ``transient_prbvolpath``).
         slots: per-path slots (0 = 2·max_depth, exact).
 
     ``render(spp, seed)`` may be called repeatedly (e.g. spp passes of 1 spp with the seeds of
@@ -292,13 +201,21 @@ class StatsCollector:
     colour, the :class:`~dbench.data.SampleStats` and the ``non_zero`` counts.
     """
 
+    #: the slot integrator's plugin name
+    plugin = PLUGIN
+
+    @staticmethod
+    def define_integrator():
+        """Define and register the slot integrator (once per process)."""
+        return _define()
+
     def __init__(self, scene, transform: str = "identity", lam: float = 0.5, max_depth: int = 8,
                  rr_depth: int = 5, camera_unwarp: bool = False, slots: int = 0):
         check_transform(transform, lam)
         mi = mitsuba()
         import drjit as dr
 
-        _define()
+        self.define_integrator()
         self.mi, self.dr = mi, dr
         self.scene = scene
         film = scene.sensors()[0].film()
@@ -312,7 +229,7 @@ class StatsCollector:
         self.transform, self.lam = transform, float(lam)
         self.k = transform_of_zero(transform, lam)
         self.code = TRANSFORMS.index(transform)
-        self.integrator = mi.load_dict({"type": PLUGIN, "max_depth": int(max_depth),
+        self.integrator = mi.load_dict({"type": self.plugin, "max_depth": int(max_depth),
                                         "rr_depth": int(rr_depth),
                                         "camera_unwarp": bool(camera_unwarp),
                                         "slots": int(slots)})
@@ -337,6 +254,8 @@ class StatsCollector:
         self.sums = dr.zeros(mi.Float64, 3 * n)
         self.plain = dr.zeros(mi.Float64, n) if self.keep_plain else None
         self.nz = dr.zeros(mi.UInt64, n // 3)   # non_zero, 3 × 21-bit fields per voxel
+        # per pixel and channel: Σ total, Σ total² of the paths' window totals (identity)
+        self.totals = dr.zeros(mi.Float64, 2 * self.height * self.width * 3)
         # n_nonfinite, n_clamped, n_overflow, n_reentry
         self.counters = dr.zeros(mi.UInt32, 4)
         self.n = 0
@@ -345,12 +264,12 @@ class StatsCollector:
 
     def release(self) -> None:
         """Drop the statistics state (``reset`` allocates it again)."""
-        self.sums = self.plain = self.nz = None
+        self.sums = self.plain = self.nz = self.totals = None
         self.counters = None
 
     def nbytes(self) -> int:
         """Bytes of the statistics state (independent of spp by construction)."""
-        arrays = [self.sums, self.nz, self.counters]
+        arrays = [self.sums, self.nz, self.counters, self.totals]
         if self.plain is not None:
             arrays.append(self.plain)
         return int(sum(dr_nbytes(a) for a in arrays))
@@ -380,9 +299,10 @@ class StatsCollector:
             yn = -(dr.power(1.0 - dr.minimum(x, 0.0), 2.0 - lam) - 1.0) / (2.0 - lam)
         return dr.select(pos, yp, yn) - self.k
 
-    def _scatter(self, voxel, value, active):
+    def _scatter(self, voxel, value, active, total=None):
         """Flush one slot per lane: ``value`` (Spectrum, the path's float32 sum in the bin) into
         voxel ``voxel`` = (y·W + x)·T + bin. Returns the lane's (non-finite, clamped) counts.
+        ``total`` (3 Float64, the path's running window total) gets the flushed finite values.
 
         Per channel: S1 += u, S2 += u², S3 += u³ (u = g(x) − g(0), float64) and the plain sum
         when kept; the three ``non_zero`` counters are packed into one uint64 per voxel
@@ -397,6 +317,8 @@ class StatsCollector:
             finite = dr.isfinite(x)
             n_bad += dr.select(active & ~finite, 1, 0)
             x = dr.select(finite, x, 0.0)
+            if total is not None:
+                total[c] = total[c] + dr.select(active, x, 0.0)
             if self.code == 1:
                 n_neg += dr.select(active & (x < 0.0), 1, 0)
                 x = dr.maximum(x, 0.0)
@@ -414,33 +336,38 @@ class StatsCollector:
                           mode=self.mode)
         return n_bad, n_neg
 
+    def _add_total(self, voxel0, total) -> None:
+        """Add a path's window total and its square (per channel, float64) to its pixel's
+        sums; ``voxel0`` = (y·W + x)·T. Zero totals add nothing, so they need no atomics."""
+        dr, mi = self.dr, self.mi
+        pixel = voxel0 // mi.UInt32(self.bins)
+        inside = pixel < mi.UInt32(self.height * self.width)
+        for c in range(3):
+            j = (pixel * 3 + c) * 2
+            active = inside & (total[c] != 0.0)
+            dr.scatter_reduce(dr.ReduceOp.Add, self.totals, total[c], j, active, mode=self.mode)
+            dr.scatter_reduce(dr.ReduceOp.Add, self.totals, total[c] * total[c], j + 1, active,
+                              mode=self.mode)
+
+    def total_var(self) -> np.ndarray | None:
+        """(H, W, 3) float64 variance of the mean of the paths' window totals (spec/statistical.md
+        §4.1 rules), None below 2 samples."""
+        if self.n < 2:
+            return None
+        t = _host(self.totals).reshape(self.height, self.width, 3, 2)
+        n = float(self.n)
+        a = t[..., 0] / n
+        s2n = t[..., 1] / n
+        m2b = s2n - a * a
+        m2b = np.where(m2b <= ZERO_VARIANCE_RTOL * s2n, 0.0, m2b)
+        return m2b * n / (n - 1.0) / n      # the operations of stats_from_sums
+
     def _count(self, n_bad, n_neg) -> None:
         """Add per-lane diagnostic counts (once per path) to the counters."""
         dr, mi = self.dr, self.mi
         dr.scatter_reduce(dr.ReduceOp.Add, self.counters, n_bad, mi.UInt32(0), n_bad > 0)
         if self.code == 1:
             dr.scatter_reduce(dr.ReduceOp.Add, self.counters, n_neg, mi.UInt32(1), n_neg > 0)
-
-    def _overflow(self, integ, voxel0, bins, vals, ages, over, b, v, clock, bad, neg):
-        """Every slot busy (only possible with slots < 2·max_depth): flush the oldest slot
-        early (counted in ``n_overflow``; the statistics are then inexact) and give it to the
-        new bin. With ``slots = 1`` this is the seed's Alg. 4 as printed: flush on bin change."""
-        dr, mi = self.dr, self.mi
-        dr.scatter_reduce(dr.ReduceOp.Add, self.counters, mi.UInt32(1), mi.UInt32(2), over)
-        oldest = mi.UInt32(0xFFFFFFFF)
-        for i in range(integ.slots):
-            oldest = dr.minimum(oldest, ages[i])
-        taken = mi.Bool(False)
-        for i in range(integ.slots):
-            e = over & ~taken & (ages[i] == oldest)
-            nb, nn = self._scatter(voxel0 + mi.UInt32(dr.maximum(bins[i], 0)), vals[i], e)
-            bad += nb
-            neg += nn
-            bins[i] = dr.select(e, b, bins[i])
-            vals[i] = dr.select(e, v, vals[i])
-            ages[i] = dr.select(e, clock, ages[i])
-            taken |= e
-        return bins, vals, ages, bad, neg
 
     # -- host side ------------------------------------------------------------------------------
 
@@ -453,7 +380,7 @@ class StatsCollector:
         t0 = time.perf_counter()
         steady, _ = mi.render(self.scene, integrator=self.integrator, spp=int(spp),
                               seed=int(seed))
-        arrays = [self.sums, self.nz, self.counters]
+        arrays = [self.sums, self.nz, self.counters, self.totals]
         if self.plain is not None:
             arrays.append(self.plain)
         dr.eval(steady, *arrays)

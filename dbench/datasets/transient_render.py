@@ -48,6 +48,24 @@ def loaded_transient(scene: TransientScene, res, window: Window, copies: int = 1
     return mi.load_dict(d)
 
 
+def render_signal(scene: TransientScene, res, window: Window, copies: int, spp: int,
+                  seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """One ``mi.render`` of ``spp`` samples turned into the scene's signal: (steady (H, copies·W,
+    3), video (H, copies·W, T, 3)) float32. A ``scene.minus`` is rendered with the same seed and
+    subtracted (the same sample indices draw the same random numbers, so each path loses exactly
+    its part in ``minus``), then :meth:`TransientScene.signal` applies (step: cumsum along T)."""
+    mi = _mitransient()
+    steady, video = mi.render(loaded_transient(scene, res, window, copies), spp=int(spp),
+                              seed=seed)
+    steady, video = np.array(steady, dtype=np.float32), np.array(video, dtype=np.float32)
+    if scene.minus is not None:
+        st2, v2 = mi.render(loaded_transient(scene.minus, res, window, copies), spp=int(spp),
+                            seed=seed)
+        steady = (steady.astype(np.float64) - np.array(st2, np.float64)).astype(np.float32)
+        video = (video.astype(np.float64) - np.array(v2, np.float64)).astype(np.float32)
+    return steady, scene.signal(video)
+
+
 def batch_copies(res, bins: int, spp: int) -> int:
     """Camera copies per 1-spp call: the largest divisor of spp whose pass fits the budgets."""
     pixels = parse_res(res).pixels
@@ -61,14 +79,10 @@ def render_plain(scene: TransientScene, res, spp: int, seed: int = 0,
     """One ordinary transient render of ``spp`` (the baseline of the collector benchmark).
 
     Returns (video (H, W, T, 3), steady (H, W, 3), seconds)."""
-    import drjit as dr
-
-    mi = _mitransient()
-    sc = loaded_transient(scene, res, scene.window(bins), 1)
+    window = scene.window(bins)
+    loaded_transient(scene, res, window, 1)  # loading is not part of the time
     t0 = time.perf_counter()
-    steady, video = mi.render(sc, spp=int(spp), seed=_render.pass_seed("plain", seed, 0))
-    dr.eval(steady, video)
-    video, steady = np.array(video, dtype=np.float32), np.array(steady, dtype=np.float32)
+    steady, video = render_signal(scene, res, window, 1, spp, _render.pass_seed("plain", seed, 0))
     return video, steady, time.perf_counter() - t0
 
 
@@ -81,10 +95,8 @@ def render_reference(scene: TransientScene, res, spp: int, seed: int = 0,
 
     Returns (video (H, W, T, 3), video_var (H, W, T, 3): variance of the video mean per bin from
     the chunk spread, steady (H, W, 3), seconds), float32 arrays."""
-    mi = _mitransient()
     res = parse_res(res)
     window = scene.window(bins)
-    sc = loaded_transient(scene, res, window, 1)
     chunks = _render.reference_chunks(spp, chunk)
     video = _render.ChunkMoments((res.height, res.width, window.bins, 3))
     steady = np.zeros((res.height, res.width, 3), np.float64)
@@ -92,9 +104,11 @@ def render_reference(scene: TransientScene, res, spp: int, seed: int = 0,
     with _render._progress(len(chunks), f"{scene.name} reference {spp} spp",
                            progress and len(chunks) >= 8) as bar:
         for i, n in enumerate(chunks):
-            st, tr = mi.render(sc, spp=n, seed=_render.pass_seed("reference", seed, i))
-            video.add(np.array(tr, dtype=np.float64), n)
-            steady += np.array(st, dtype=np.float64) * n
+            # the chunk spread of the signal (a step's cumsum per chunk) gives its variance
+            st, tr = render_signal(scene, res, window, 1, n,
+                                   _render.pass_seed("reference", seed, i))
+            video.add(tr.astype(np.float64), n)
+            steady += st.astype(np.float64) * n
             bar.update(1)
     return (video.mean().astype(np.float32), video.var_mean().astype(np.float32),
             (steady / spp).astype(np.float32), time.perf_counter() - t0)

@@ -68,6 +68,15 @@ class TransientScene(Scene):
         feature_build: ``(mi, res) -> dict`` for the AOV render (default ``build``); the fog
             scene drops the medium so the G-buffers describe the surfaces behind it.
         medium: description of the participating medium (metadata), or None.
+        emission: ``"pulse"`` (a Dirac delta at OPL 0, what mitransient renders) or ``"step"``
+            (a Heaviside step switched on at OPL 0): the step response is the cumulative sum
+            along T of the pulse response (spec/transient.md §7 check 5), taken per rendered
+            pass (:meth:`signal`), so per-bin statistics of a step scene are those of each
+            path's cumulative contributions. The window (and its energy check: the last bin
+            against the steady image) is the pulse's.
+        minus: a scene rendered with the same seeds whose video and steady image are subtracted
+            pass by pass (``scattering=multiple`` of dbench.datasets.transient_media: all
+            paths minus the paths of at most one scattering vertex), or None.
     """
 
     window_start: float = 0.0
@@ -79,6 +88,8 @@ class TransientScene(Scene):
     camera_unwarp: bool = False
     feature_build: Callable[[Any, int], dict] | None = None
     medium: dict | None = None
+    emission: str = "pulse"
+    minus: "TransientScene | None" = None
 
     def window(self, bins: int | None = None) -> Window:
         t = self.default_bins if bins is None else bins
@@ -99,6 +110,24 @@ class TransientScene(Scene):
         d["integrator"] = {"type": self.integrator, "max_depth": self.max_depth,
                            "rr_depth": self.rr_depth, "camera_unwarp": self.camera_unwarp}
         return d
+
+    def signal(self, video: np.ndarray) -> np.ndarray:
+        """The scene's signal from a rendered pulse video (..., T, C): itself for ``pulse``;
+        for ``step`` its cumulative sum along T (float64 sums, float32 out)."""
+        if self.emission == "step":
+            return np.cumsum(video, axis=-2, dtype=np.float64).astype(np.float32)
+        return video
+
+    @property
+    def needs_passes(self) -> bool:
+        """Whether the signal is made from whole rendered passes (step emission, a ``minus``
+        scene): per-bin statistics then come from collector (a) only."""
+        return self.emission == "step" or self.minus is not None
+
+    @property
+    def emitter_meta(self) -> str:
+        return ("Heaviside step at OPL 0 (cumulative sum of the pulse response along T)"
+                if self.emission == "step" else "delta pulse at OPL 0")
 
     @property
     def feature_scene(self) -> Scene:

@@ -3,6 +3,7 @@ arrival from the geometry, end where a pilot render has gathered ``coverage`` of
 energy) and the direct-arrival test scene of spec/transient.md §7 with its expected bins."""
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -122,20 +123,30 @@ def size_window(scene: TransientScene, coverage: float = 0.99, res: int = 24, sp
     down to 0.1 m) and end where ``coverage`` of the steady energy has arrived (pilot transient
     render of ``res``² px at ``spp`` over [start, start + ``horizon``), rounded up to 0.5 m).
 
-    Returns start, end, the first direct arrival, the fraction of the pilot's steady energy
-    inside [start, end) and before start (which must be 0)."""
-    arrivals = direct_arrivals(scene, res=max(res, 64), seed=seed)
-    first = float(np.nanmin(arrivals))
-    start = math.floor(first * 10.0) / 10.0
-    pilot = TransientScene(name=f"{scene.name}:pilot", kind="transient", description="",
-                           build=scene.build, max_depth=scene.max_depth,
-                           window_start=0.0, window_end=start + horizon, default_bins=bins,
-                           integrator=scene.integrator, rr_depth=scene.rr_depth,
-                           camera_unwarp=scene.camera_unwarp)
+    Unwarped scenes (``camera_unwarp``) have no geometric start (in media, mitransient's
+    unwarping puts energy below OPL 0, dbench.datasets.transient_media): the pilot covers
+    [−horizon/4, 3·horizon/4) and the start is its first bin holding energy, rounded down to
+    0.1 m, less 0.1 m (an empirical bound: a pilot sees a finite set of paths).
+
+    The pilot renders the scene as it is (medium, ``minus`` scene, max_depth) with pulse
+    emission (a step's window is its pulse's). Returns start, end, the first arrival, the
+    fraction of the pilot's steady energy inside [start, end) and before start (which must
+    be 0)."""
+    if scene.camera_unwarp:
+        lo, hi = -horizon / 4.0, 0.75 * horizon
+    else:
+        first = float(np.nanmin(direct_arrivals(scene, res=max(res, 64), seed=seed)))
+        start = math.floor(first * 10.0) / 10.0
+        lo, hi = 0.0, start + horizon
+    pilot = dataclasses.replace(scene, name=f"{scene.name}:pilot", window_start=lo,
+                                window_end=hi, default_bins=bins, emission="pulse")
     video, _, steady, _ = render_reference(pilot, res, spp, seed=seed, chunk=64)
     window = pilot.window()
     per_bin = video.astype(np.float64).sum(axis=(0, 1, 3))
     total = float(steady.astype(np.float64).sum())
+    if scene.camera_unwarp:
+        first = float(window.start_opl + np.flatnonzero(per_bin > 0)[0] * window.bin_width_opl)
+        start = math.floor(first * 10.0) / 10.0 - 0.1
     cum = np.cumsum(per_bin) / total
     first_bin = window.bin_of(start)
     before = float(cum[first_bin - 1]) if first_bin > 0 else 0.0

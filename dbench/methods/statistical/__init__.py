@@ -15,18 +15,23 @@ empty bins skipped (they cost nothing and return 0).
 Parameters (``get("statistical", **params)``; every value is checked, a bad one raises
 DbenchInputError naming it; the resolved values land in ``last_settings`` after each call):
     radius (None: 20 for images [spec §7], 5 for videos [spec §7, §11.3]; an integer applies to
-    both), alpha / gamma (both None: α = 0.005 for images [spec §5.1 steady default], γ = 0.05
-    for videos [spec §5.1 transient default, §11.3]; γ_t = t_{1−α/2, n_i+n_j−2} from alpha,
+    both), alpha / gamma (both None: α = 0.005 for images [spec §5.1 steady default], γ = 0.1
+    for videos [the upper end of spec §5.1's transient range 0.05-0.1, measured best on every
+    rendered scene: results/transient_statistical.md §6]; γ_t = t_{1−α/2, n_i+n_j−2} from alpha,
     γ_t² = 1/(2γ) − 1 from gamma, which wins when both are given), sigma ((10, 10, 0.02 ×3,
     0.1 ×3)), sigma_convention ("variance" | "sd"), window ("square" | "disk"), backend ("auto":
     PyTorch on CUDA for images, Numba otherwise | "numba" | "torch" (images only) |
     "reference"), hit_mask (True), membership (True; False = plain base filter, the ablation). The ProDen gate of spec §12 is
     ``statistical+gate`` (:mod:`dbench.methods.gate`, which wraps any steady method;
     ``statistical-gate`` is the old name of the same method).
-    Videos only (spec §11.3, spec/jbf.md §1.4): radius_t (1), base ("auto": "gauss3d" when the
-    frame's meta names a medium or a volumetric integrator or it has no albedo/normal, else
-    "jbf" | "jbf" | "gauss3d"), temporal_profile (None: "box" for the jbf base, "gaussian" for
-    gauss3d | "box" | "gaussian"), sigma_t (1.0 bin), skip_empty (True).
+    Videos only (spec §11.3, spec/jbf.md §1.4): radius_t (1), base ("auto": "jbf" when the
+    frame has albedo and normal, media included (measured better than the seed's 3D Gaussian
+    on dbench's media scenes), else "gauss3d" | "jbf" | "gauss3d"), temporal_profile (None: "box" for the jbf base, "gaussian" for
+    gauss3d | "box" | "gaussian"), sigma_t (1.0 bin), skip_empty (True), shrink (True: the
+    centre-versus-neighbourhood shrinkage of :mod:`dbench.methods.statistical.shrink`; False:
+    the seed's normalised sum), mass (True: each pixel's time integral shrunk towards the noisy
+    total by its own variance, ``TransientFrame.total_var``; skipped, and recorded in
+    ``last_settings``, when the frame has none).
 On images every buffer of ``needs`` (color, albedo, normal, stats) must be present: a
 missing one raises DbenchInputError naming it. ``depth`` is optional: it feeds the JBF's hit
 mask, and without it pixels with an all-zero normal count as background
@@ -66,6 +71,7 @@ from .core import (BACKENDS, DEFAULT_ALPHA, StatPlanes, Threshold, _check_alpha,
                    statistical_fast, statistical_filter, statistical_reference, student_gamma_t,
                    welch_pass, welch_t, welch_t_from_weight, welch_weight)
 from ..kernels.gate import linear_variance, proden_gate, proden_gate_factor
+from .shrink import mass_shrink
 from .transient import (BASES, VIDEO_RADIUS, statistical_filter_video, statistical_video_fast,
                         statistical_video_reference)
 
@@ -93,7 +99,7 @@ class Statistical(Denoiser):
         radius=None, alpha=None, gamma=None, sigma=SEED_SIGMA,
         sigma_convention="variance", window="square", backend="auto", hit_mask=True,
         membership=True, radius_t=1, base="auto",
-        temporal_profile=None, sigma_t=1.0, skip_empty=True)
+        temporal_profile=None, sigma_t=1.0, skip_empty=True, shrink=True, mass=True)
 
     def __init__(self, **params: Any) -> None:
         super().__init__(**params)
@@ -113,7 +119,7 @@ class Statistical(Denoiser):
         if p["temporal_profile"] is not None:
             check_choice("temporal_profile", p["temporal_profile"], TEMPORAL_PROFILES)
         check_positive("sigma_t", p["sigma_t"], allow_inf=True)
-        for name in ("hit_mask", "membership", "skip_empty"):
+        for name in ("hit_mask", "membership", "skip_empty", "shrink", "mass"):
             if not isinstance(p[name], (bool, np.bool_)):
                 raise DbenchInputError(f"{name}: expected True or False, got {p[name]!r}")
         #: Resolved settings of the last call: γ_t, ν, transform, λ, backend, base filter.
@@ -152,7 +158,15 @@ class Statistical(Denoiser):
             base=p["base"], temporal_profile=p["temporal_profile"], sigma_t=p["sigma_t"],
             sigma=p["sigma"], sigma_convention=p["sigma_convention"], window=p["window"],
             hit_mask=p["hit_mask"], membership_on=p["membership"], skip_empty=p["skip_empty"],
-            backend=backend, meta=getattr(data, "meta", None), return_info=True)
-        info.update(kind="transient")
+            shrink=p["shrink"], backend=backend, meta=getattr(data, "meta", None),
+            return_info=True)
+        total_var = getattr(data, "total_var", None)
+        info.update(kind="transient", mass="off")
+        if p["mass"] and p["membership"]:
+            if total_var is None:
+                info["mass"] = "skipped: the frame has no total_var"
+            else:
+                out, beta = mass_shrink(out, data.color, total_var)
+                info.update(mass="on", mass_beta_mean=float(np.mean(beta)))
         self.last_settings = info
         return out

@@ -15,12 +15,21 @@
   − ½τ²/σ_t²) without G-buffer terms or hit mask, σ_s² from the spatial Σ entries of ``sigma``
   (10 px² by default, the JBF's spatial term) and σ_t = 1 bin (default profile ``"gaussian"``).
 * m_ij: the per-channel Welch test of spec §5 on the per-bin statistics, AND over channels (§6).
-  Default threshold for videos: γ = 0.05 given directly (γ_t = 3, spec §5.1 / §11.3); ``alpha``
+  Default threshold for videos: γ = 0.1 given directly (γ_t = 2; the upper end of the range
+  spec §5.1 / §11.3 recommends, 0.05-0.1: measured better on every rendered scene,
+  results/transient_statistical.md §6); ``alpha``
   gives γ_t = t_{1−α/2, ν}, ν = n_i + n_j − 2 (= 2·spp − 2 for rendered videos).
 * v_j = 1 where the colour is finite. A voxel whose θ̂, Var(θ̂) or n is not finite has no
   neighbours and is nobody's neighbour (its output is its own colour, as in the steady method).
   A pixel isolated by non-finite G-buffers (jbf base) still mixes with its own other bins:
   the G-buffer terms of a pixel with itself are 0 [dbench].
+* Centre-versus-neighbourhood shrinkage (``shrink=True``, the default; [dbench],
+  :mod:`dbench.methods.statistical.shrink`): after the seed's weights are summed, the centre
+  and the combination of its accepted neighbours are mixed by spec §5's MSE rule once more, so
+  a high-variance voxel (a light reached by a few paths) that passed the test against dim
+  neighbours keeps the weight its precision earns instead of collapsing onto them.
+  ``shrink=False`` is the seed's normalised sum. The inputs (statistics of the bins in play)
+  are prepared by :mod:`dbench.methods.statistical.transient_inputs`.
 * The sample transform (identity by default for transient data, Yeo-Johnson the alternative;
   spec §3, §11.3) is a property of the statistics, recorded in the info, not chosen here.
 
@@ -50,29 +59,29 @@ Example:
     >>> out, info = statistical_filter_video(y.mean(-1), st, base="gauss3d", radius=2,
     ...                                      return_info=True)
     >>> out.shape, info["gamma_t"], info["window_voxels"]
-    ((8, 8, 6, 3), 3.0, 75)
+    ((8, 8, 6, 3), 2.0, 75)
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Any, Sequence
 
 import numpy as np
-from numba import njit, prange
 
 from ...data import check_buffer
-from ...errors import DbenchInputError
 from ..checks import check_choice, check_positive, check_radius
 from ..kernels.bilateral.guide import Guide, make_guide, temporal_factors, window_offsets
 from ..kernels.bilateral.numba3d import accumulate3d
 from ..kernels.bilateral.params import SEED_SIGMA, TEMPORAL_PROFILES
 from ..kernels.bilateral.reference import reference_weights, shift_slices
 from .core import Threshold, resolve_threshold, welch_pass
+from .shrink import SQUARED_FROM, merge_shrink3d, shrink_planes, shrink_reference
+from .transient_inputs import (VideoStats, bins_in_play, nonempty_bins, prepare_video,
+                               video_shape, video_stats)
 
 #: Defaults for videos (spec §7 "Radius defaults", §5.1 "Transient default", §11.3).
 VIDEO_RADIUS = 5
 VIDEO_RADIUS_T = 1
-VIDEO_GAMMA = 0.05
+VIDEO_GAMMA = 0.1
 BASES = ("jbf", "gauss3d")
 VIDEO_BACKENDS = ("auto", "numba", "reference")
 
@@ -80,219 +89,6 @@ __all__ = ["VideoStats", "video_stats", "nonempty_bins", "bins_in_play", "window
            "make_video_guide", "resolve_base", "prepare_video", "statistical_video_reference",
            "statistical_video_fast", "statistical_filter_video", "BASES", "VIDEO_RADIUS",
            "VIDEO_RADIUS_T", "VIDEO_GAMMA"]
-
-
-# ---------------------------------------------------------------------------------------------
-# Inputs
-# ---------------------------------------------------------------------------------------------
-
-@dataclass(frozen=True)
-class VideoStats:
-    """Per-voxel statistics of some bins (spec §11.1).
-
-    theta, var: θ̂ and Var(θ̂), float64; nint: int32 n (None when not needed); bad: voxels with
-    non-finite statistics; bins: (K,) time indices; transform, lam: as recorded in the
-    SampleStats. Layouts: (K, 3, H, W) / bad (K, H, W) for the kernel (:func:`prepare_video`,
-    θ̂ NaN and Var 0 at bad voxels, so that every test with them fails), or (H, W, K, 3) / bad
-    (H, W, K) for the reference (``video_stats(..., channel_first=False)``, θ̂ = Var = n = 0 at
-    bad voxels).
-    """
-
-    theta: np.ndarray
-    var: np.ndarray
-    nint: np.ndarray
-    bad: np.ndarray
-    bins: np.ndarray
-    transform: str
-    lam: float
-
-
-def _video_shape(color: Any) -> tuple[int, int, int]:
-    arr = np.asarray(color) if color is not None else None
-    if arr is None or arr.ndim != 4 or arr.shape[3] != 3 or 0 in arr.shape:
-        raise DbenchInputError(f"color: expected shape (H, W, T, 3), got "
-                               f"{None if arr is None else tuple(arr.shape)}")
-    return arr.shape[0], arr.shape[1], arr.shape[2]
-
-
-def video_stats(stats: Any, shape: tuple[int, int, int], bins: Sequence[int] | None = None,
-                channel_first: bool = True) -> VideoStats:
-    """Check (H, W, T, 3) SampleStats and return θ̂, Var(θ̂), n of the chosen ``bins``.
-
-    θ̂ = μ + M3/(6σ²n) (spec §4, correction 0 where σ² = 0), computed for those bins only.
-    With ``channel_first`` the arrays are (K, 3, H, W) (the kernel's layout), else (H, W, K, 3).
-
-    Raises:
-        DbenchInputError: missing statistics, wrong shape, negative variance or count.
-    """
-    h, w, t = shape
-    if stats is None:
-        raise DbenchInputError(f"stats: missing; expected SampleStats with arrays of shape "
-                               f"({h}, {w}, {t}, 3)")
-    full = (h, w, t, 3)
-    idx = np.arange(t) if bins is None else np.asarray(bins, np.int64)
-    everything = idx.size == t
-
-    def pick(name, arr):
-        a = check_buffer(name, np.broadcast_to(arr, full) if np.ndim(arr) == 0 else arr, full,
-                         dtype=np.float64)
-        return a if everything else a[:, :, idx]
-
-    mean = pick("stats.mean", stats.mean)
-    var = pick("stats.var_mean", stats.var_mean)
-    n = pick("stats.n", stats.n)
-    m3 = pick("stats.m3", stats.m3)
-    with np.errstate(invalid="ignore"):
-        if np.any(var < 0):
-            raise DbenchInputError("stats.var_mean: negative values; expected Var(θ̂) ≥ 0")
-        if np.any(n < 0):
-            raise DbenchInputError("stats.n: negative sample counts")
-    with np.errstate(invalid="ignore", over="ignore"):
-        denom = 6.0 * var * n * n
-        theta = mean + np.divide(m3, denom, out=np.zeros_like(m3), where=denom > 0)
-    bad = ~(np.all(np.isfinite(theta), -1) & np.all(np.isfinite(var), -1)
-            & np.all(np.isfinite(n), -1))
-    if bad.any():
-        theta = np.where(bad[..., None], 0.0, theta)
-        var = np.where(bad[..., None], 0.0, var)
-        n = np.where(bad[..., None], 0.0, n)
-    nint = np.minimum(np.rint(n), 2 ** 30).astype(np.int32)
-    if channel_first:
-        def cf(a):
-            return np.ascontiguousarray(np.transpose(a, (2, 3, 0, 1)))
-        theta, var, nint, bad = cf(theta), cf(var), cf(nint), np.ascontiguousarray(
-            np.transpose(bad, (2, 0, 1)))
-    return VideoStats(theta, var, nint, bad, idx, str(getattr(stats, "transform", "unknown")),
-                      float(getattr(stats, "lam", float("nan"))))
-
-
-def nonempty_bins(color: Any) -> np.ndarray:
-    """(T,) bool: bins of an (H, W, T, 3) video holding any value other than exactly 0
-    (NaN counts as non-empty)."""
-    return np.asarray(np.any(np.asarray(color) != 0, axis=(0, 1, 3)))
-
-
-@njit(parallel=True, cache=True)
-def _prepare_video(color, mean, var, n, m3, idx, want_stats, want_nint, planes, theta, vout,
-                   nint, bad, flags):
-    """One parallel pass over the (H, W, T, 3) inputs for the bins ``idx`` (kernel layout).
-
-    planes[k] = (colour·v, v) with v = colour finite; with ``want_stats`` θ̂ = μ + M3/(6σ²n)
-    (the same float64 expression as :func:`video_stats`), NaN at voxels with non-finite
-    statistics (``bad``), and Var(θ̂) (0 there); with ``want_nint`` the rounded counts.
-    flags[y] = (negative variance seen, negative n seen, min n, max n over good voxels).
-    """
-    H = color.shape[0]
-    W = color.shape[1]
-    K = idx.shape[0]
-    for y in prange(H):
-        neg_v = 0
-        neg_n = 0
-        lo = 1 << 30
-        hi = -1
-        for x in range(W):
-            for k in range(K):
-                t = idx[k]
-                ok = True
-                for c in range(3):
-                    if not np.isfinite(color[y, x, t, c]):
-                        ok = False
-                for c in range(3):
-                    planes[k, c, y, x] = color[y, x, t, c] if ok else np.float32(0.0)
-                planes[k, 3, y, x] = np.float32(1.0) if ok else np.float32(0.0)
-                if not want_stats:
-                    continue
-                good = True
-                for c in range(3):
-                    v = var[y, x, t, c]
-                    nn = n[y, x, t, c]
-                    if v < 0:
-                        neg_v = 1
-                    if nn < 0:
-                        neg_n = 1
-                    denom = 6.0 * v * nn * nn
-                    th = mean[y, x, t, c]
-                    if denom > 0:
-                        th = th + m3[y, x, t, c] / denom
-                    theta[k, c, y, x] = th
-                    vout[k, c, y, x] = v
-                    if not (np.isfinite(th) and np.isfinite(v) and np.isfinite(nn)):
-                        good = False
-                bad[k, y, x] = not good
-                if not good:
-                    for c in range(3):
-                        theta[k, c, y, x] = np.nan
-                        vout[k, c, y, x] = 0.0
-                for c in range(3):
-                    ni = 0
-                    if good:
-                        ni = np.int32(np.rint(min(n[y, x, t, c], 1073741824.0)))
-                        lo = min(lo, ni)
-                        hi = max(hi, ni)
-                    if want_nint:
-                        nint[k, c, y, x] = ni
-        flags[y, 0] = neg_v
-        flags[y, 1] = neg_n
-        flags[y, 2] = lo
-        flags[y, 3] = hi
-
-
-def prepare_video(color: Any, stats: Any, bins: np.ndarray, *, want_stats: bool = True,
-                  want_nint: bool = False):
-    """Kernel inputs for the ``bins`` of a video in one parallel pass (:func:`_prepare_video`).
-
-    Returns:
-        planes (K, 4, H, W) float32 (colour·v, v) and, with ``want_stats``, a
-        :class:`VideoStats` whose θ̂ is NaN at bad voxels (its ``nint`` None unless
-        ``want_nint``), plus (min n, max n) over the good voxels ((−1, −1) if none).
-    """
-    h, w, t = _video_shape(color)
-    col = check_buffer("color", color, (h, w, t, 3), dtype=np.float32)
-    idx = np.ascontiguousarray(bins, dtype=np.int64)
-    k = idx.size
-    full = (h, w, t, 3)
-    planes = np.empty((k, 4, h, w), np.float32)
-    flags = np.zeros((h, 4), np.int64)
-    if want_stats:
-        if stats is None:
-            raise DbenchInputError(f"stats: missing; expected SampleStats with arrays of shape "
-                                   f"{full}")
-        arrs = [check_buffer(name, np.broadcast_to(a, full) if np.ndim(a) == 0 else a, full,
-                             dtype=np.float64)
-                for name, a in (("stats.mean", stats.mean), ("stats.var_mean", stats.var_mean),
-                                ("stats.n", stats.n), ("stats.m3", stats.m3))]
-        theta = np.empty((k, 3, h, w), np.float64)
-        vout = np.empty((k, 3, h, w), np.float64)
-        bad = np.empty((k, h, w), np.bool_)
-        nint = np.empty((k, 3, h, w) if want_nint else (1, 3, 1, 1), np.int32)
-    else:
-        arrs = [np.zeros((1, 1, 1, 3))] * 4
-        theta = vout = np.zeros((1, 3, 1, 1))
-        bad = np.zeros((1, 1, 1), np.bool_)
-        nint = np.zeros((1, 3, 1, 1), np.int32)
-    _prepare_video(col, *arrs, idx, bool(want_stats), bool(want_nint), planes, theta, vout,
-                   nint, bad, flags)
-    if not want_stats:
-        return planes, None, (-1, -1)
-    if flags[:, 0].any():
-        raise DbenchInputError("stats.var_mean: negative values; expected Var(θ̂) ≥ 0")
-    if flags[:, 1].any():
-        raise DbenchInputError("stats.n: negative sample counts")
-    lo, hi = int(flags[:, 2].min()), int(flags[:, 3].max())
-    vs = VideoStats(theta, vout, nint if want_nint else None, bad, idx,
-                    str(getattr(stats, "transform", "unknown")),
-                    float(getattr(stats, "lam", float("nan"))))
-    return planes, vs, ((lo, hi) if hi >= 0 else (-1, -1))
-
-
-def bins_in_play(keep: np.ndarray, radius_t: int) -> np.ndarray:
-    """(T,) bool: the kept bins dilated by r_t (the bins the kept ones see as neighbours)."""
-    keep = np.asarray(keep, bool)
-    out = keep.copy()
-    for k in range(1, min(int(radius_t), len(keep)) + 1):
-        out[k:] |= keep[:-k]
-        out[:-k] |= keep[k:]
-    return out
 
 
 def window_size(radius: int, radius_t: int, window: str = "square") -> int:
@@ -304,14 +100,18 @@ def window_size(radius: int, radius_t: int, window: str = "square") -> int:
 
 def resolve_base(base: str, meta: dict | None = None, normal: Any = None,
                  albedo: Any = None) -> str:
-    """``"auto"`` → ``"gauss3d"`` when the data is a participating medium (meta ``medium`` set,
-    or a ``transient_prbvolpath`` integrator) or lacks albedo/normal, else ``"jbf"``."""
+    """``"auto"`` → ``"jbf"`` when the frame has albedo and normal G-buffers, else ``"gauss3d"``.
+
+    The seed uses the plain 3D Gaussian for participating media (spec §11.3). dbench's media
+    scenes are rooms with fog or a cloud in front of surfaces whose G-buffers (rendered without
+    the medium) still mark the geometric edges, and there the JBF base is better at every spp
+    (results/transient_statistical.md §6: fog-transient, whole-video RMSE 0.61-0.75× the
+    noisy input's with the JBF base against 0.72-1.08× with gauss3d). ``meta`` is accepted
+    for callers that pass it; a medium no longer decides the base by itself."""
     check_choice("base", base, ("auto",) + BASES)
     if base != "auto":
         return base
-    meta = meta or {}
-    media = bool(meta.get("medium")) or "volpath" in str(meta.get("integrator", ""))
-    return "gauss3d" if (media or normal is None or albedo is None) else "jbf"
+    return "gauss3d" if (normal is None or albedo is None) else "jbf"
 
 
 def make_video_guide(base: str, shape: tuple[int, int], albedo: Any = None, normal: Any = None,
@@ -338,7 +138,7 @@ def make_video_guide(base: str, shape: tuple[int, int], albedo: Any = None, norm
 
 def statistical_video_reference(color: Any, vs: VideoStats, guide: Guide, tfac: np.ndarray,
                                 threshold: Threshold, *, membership_on: bool = True,
-                                keep: np.ndarray | None = None,
+                                keep: np.ndarray | None = None, shrink: bool = False,
                                 return_weights: bool = False):
     """Readable spatio-temporal statistical denoiser (spec §11.3), float64.
 
@@ -358,7 +158,7 @@ def statistical_video_reference(color: Any, vs: VideoStats, guide: Guide, tfac: 
     Returns:
         (H, W, T, 3) float64 (and the weights, memberships).
     """
-    h, w, t = _video_shape(color)
+    h, w, t = video_shape(color)
     col = check_buffer("color", color, (h, w, t, 3), dtype=np.float64)
     valid = np.all(np.isfinite(col), axis=-1)
     col = np.where(valid[..., None], col, 0.0)
@@ -367,6 +167,9 @@ def statistical_video_reference(color: Any, vs: VideoStats, guide: Guide, tfac: 
     r_t = (len(tfac) - 1) // 2
     num = np.zeros((h, w, t, 3))
     den = np.zeros((h, w, t))
+    centre_w = np.zeros((h, w, t))
+    theta_num, var2_num, w2_num = (np.zeros((h, w, t)) for _ in range(3))
+    theta_bar, var_bar = theta.mean(-1), var.mean(-1)
     stack, members = [], []
     for k in range(len(guide.dy)):
         dy, dx = int(guide.dy[k]), int(guide.dx[k])
@@ -391,11 +194,22 @@ def statistical_video_reference(color: Any, vs: VideoStats, guide: Guide, tfac: 
             if inside:
                 wk[ys, xs, ts] *= valid[yn, xn, tn]
                 num[ys, xs, ts] += wk[ys, xs, ts, None] * col[yn, xn, tn]
+                if shrink and not (dy == 0 and dx == 0 and tau == 0):
+                    wn = wk[ys, xs, ts]
+                    theta_num[ys, xs, ts] += wn * theta_bar[yn, xn, tn]
+                    var2_num[ys, xs, ts] += wn * wn * var_bar[yn, xn, tn]
+                    w2_num[ys, xs, ts] += wn * wn
+            if dy == 0 and dx == 0 and tau == 0:
+                centre_w = wk.copy()
             den += wk
             if return_weights:
                 stack.append(wk)
                 members.append(m)
     out = np.divide(num, den[..., None], out=np.zeros_like(num), where=den[..., None] > 0)
+    if shrink and membership_on:
+        # neighbour sums without the centre term (its weight is v_i), spec: shrink module
+        out = shrink_reference(col, theta_bar, var_bar, valid, num - centre_w[..., None] * col,
+                               den - centre_w, theta_num, var2_num, w2_num)
     if keep is not None:
         out[:, :, ~np.asarray(keep, bool)] = 0.0
     if return_weights:
@@ -410,7 +224,7 @@ def statistical_video_reference(color: Any, vs: VideoStats, guide: Guide, tfac: 
 
 def _threshold_for(alpha: float | None, gamma: float | None, n_range: tuple[int, int],
                    vs: VideoStats | None) -> Threshold:
-    """γ_t from γ (wins; both None → γ = 0.05) or from α and ν = n_i + n_j − 2 (spec §5.1)."""
+    """γ_t from γ (wins; both None → γ = VIDEO_GAMMA) or from α and ν = n_i + n_j − 2 (spec §5.1)."""
     if alpha is None and gamma is None:
         gamma = VIDEO_GAMMA
     if gamma is not None:
@@ -425,7 +239,7 @@ def _threshold_for(alpha: float | None, gamma: float | None, n_range: tuple[int,
 def statistical_video_fast(color: Any, stats: Any, guide: Guide, tfac: np.ndarray, *,
                            alpha: float | None = None, gamma: float | None = None,
                            membership_on: bool = True, keep: np.ndarray | None = None,
-                           return_info: bool = False):
+                           shrink: bool = False, return_info: bool = False):
     """Numba spatio-temporal statistical denoiser: (H, W, T, 3) float32.
 
     Only the ``keep`` bins (default all) and their r_t neighbours are prepared and enter the
@@ -433,7 +247,7 @@ def statistical_video_fast(color: Any, stats: Any, guide: Guide, tfac: np.ndarra
     bins come back as 0. Threshold as :func:`statistical_filter_video`. With ``return_info``
     also (threshold, VideoStats, bins in play).
     """
-    h, w, t = _video_shape(color)
+    h, w, t = video_shape(color)
     tfac = np.asarray(tfac, np.float64)
     r_t = (len(tfac) - 1) // 2
     keep = np.ones(t, bool) if keep is None else np.asarray(keep, bool)
@@ -455,7 +269,14 @@ def statistical_video_fast(color: Any, stats: Any, guide: Guide, tfac: np.ndarra
             # plain base filter, bad voxels still isolated: θ = NaN there, 0 elsewhere, γ_t = 0
             theta = vs.theta * 0.0
             test = dict(theta=theta, var=np.zeros_like(theta), g2=0.0)
-        accumulate3d(guide, planes, tfac, idx, keep[idx], n_bins=t, normalise_into=out, **test)
+        if shrink and membership_on:
+            planes = shrink_planes(planes, vs.theta, vs.var)
+            sums = accumulate3d(guide, planes, tfac, idx, keep[idx], n_bins=t,
+                                squared_from=SQUARED_FROM, **test)
+            merge_shrink3d(sums, planes, keep[idx], idx, out)
+        else:
+            accumulate3d(guide, planes, tfac, idx, keep[idx], n_bins=t, normalise_into=out,
+                         **test)
     if return_info:
         return out, (thr, vs, idx)
     return out
@@ -475,6 +296,7 @@ def statistical_filter_video(color: Any, stats: Any, albedo: Any = None, normal:
                              hit_mask: bool = True,
                              features: Sequence[str] = ("xy", "albedo", "normal"),
                              membership_on: bool = True, skip_empty: bool = True,
+                             shrink: bool = True,
                              backend: str = "auto", meta: dict | None = None,
                              return_info: bool = False):
     """Statistical denoiser of spec/statistical.md §11.3 on an (H, W, T, 3) video.
@@ -487,7 +309,7 @@ def statistical_filter_video(color: Any, stats: Any, albedo: Any = None, normal:
             ``"gauss3d"``).
         radius, radius_t: r_s (default 5) and r_t (default 1) of the (2r_s+1)²(2r_t+1) window.
         alpha, gamma: test level (γ_t = t_{1−α/2, n_i+n_j−2}) or threshold given directly
-            (``gamma`` wins when both are given; both None: γ = 0.05, γ_t = 3; spec §5.1).
+            (``gamma`` wins when both are given; both None: γ = 0.1, γ_t = 2; spec §5.1).
         base: ``"jbf"`` (G-buffers replicated along time), ``"gauss3d"`` (plain 3D Gaussian,
             media) or ``"auto"`` (:func:`resolve_base` from ``meta`` and the G-buffers).
         temporal_profile: ``"box"`` or ``"gaussian"`` (σ_t = ``sigma_t`` bins); None = box for
@@ -496,13 +318,16 @@ def statistical_filter_video(color: Any, stats: Any, albedo: Any = None, normal:
             spec/jbf.md (gauss3d uses the spatial Σ entries only).
         membership_on: False gives the plain 3D base filter (ablation).
         skip_empty: bins without energy cost nothing and return 0 (module docstring).
+        shrink: the centre-versus-neighbourhood shrinkage of
+            :mod:`dbench.methods.statistical.shrink` (default); False gives the seed's
+            normalised sum. Ignored with ``membership_on=False``.
         backend: ``"auto"``/``"numba"`` (fast path) or ``"reference"`` (float64 NumPy).
         return_info: also return the resolved settings (γ_t, ν, window, bins filtered, ...).
 
     Returns:
         (H, W, T, 3) float32 (and the info dict).
     """
-    h, w, t = _video_shape(color)
+    h, w, t = video_shape(color)
     check_choice("backend", backend, VIDEO_BACKENDS)
     radius_t = check_radius(radius_t, "radius_t")
     base = resolve_base(base, meta, normal, albedo)
@@ -521,12 +346,13 @@ def statistical_filter_video(color: Any, stats: Any, albedo: Any = None, normal:
         thr = resolve_threshold(vs.nint, alpha, gamma,
                                 valid=np.broadcast_to(~vs.bad[..., None], vs.nint.shape))
         out = statistical_video_reference(color, vs, guide, tfac, thr, membership_on=membership_on,
-                                          keep=keep).astype(np.float32)
+                                          keep=keep, shrink=shrink).astype(np.float32)
         idx = np.flatnonzero(bins_in_play(keep, radius_t))
     else:
         out, (thr, vs, idx) = statistical_video_fast(color, stats, guide, tfac, alpha=alpha,
                                                      gamma=gamma, membership_on=membership_on,
-                                                     keep=keep, return_info=True)
+                                                     keep=keep, shrink=shrink,
+                                                     return_info=True)
     if not return_info:
         return out
     info = dict(guide.settings, base=base, radius_t=radius_t, temporal_profile=profile,
@@ -535,7 +361,7 @@ def statistical_filter_video(color: Any, stats: Any, albedo: Any = None, normal:
                 threshold_source=thr.source, uniform_n=thr.table is None,
                 transform=vs.transform, lam=vs.lam, membership=bool(membership_on),
                 backend="reference" if backend == "reference" else "numba",
-                skip_empty=bool(skip_empty), bins=t, nonempty_bins=int(keep.sum()),
+                skip_empty=bool(skip_empty), shrink=bool(shrink and membership_on), bins=t, nonempty_bins=int(keep.sum()),
                 bins_in_play=int(idx.size), n_bad_stats=int(vs.bad.sum()))
     if base == "gauss3d":
         info["features"] = ("xy",)

@@ -19,7 +19,7 @@ from .vexp import F0, F_CUT
 
 @njit(parallel=True, cache=True)
 def _accumulate3d_kernel(fsq, fdot, planes, dys, dxs, es, dt_first, tfac, nbr, active,
-                         theta, var, nint, g2, table, test_mode, nbands, halo):
+                         theta, var, nint, g2, table, test_mode, nbands, halo, sq_from):
     """Σ_{j ≠ i} W_ij · planes[j] over a 3D window for every voxel i of the bins in play.
 
     Voxel i = (bin k, row y, column x); j = (nbr[k, τ], y + dy, x + dx) for the spatial offsets
@@ -28,6 +28,7 @@ def _accumulate3d_kernel(fsq, fdot, planes, dys, dxs, es, dt_first, tfac, nbr, a
     offset, only τ > 0 for the centre). W_ij = ρ_spatial(y, x; o) · tfac[τ] · (Welch membership)
     is symmetric, so each pair is evaluated once and added to both voxels. The spatial base
     weights of a row are computed once per row for all offsets and reused by every bin.
+    Planes p ≥ ``sq_from`` are summed with W_ij² instead of W_ij (variances of weighted means).
 
     Pairs with neither end ``active`` are skipped; sums into an inactive bin are not made
     (its output is not wanted). Row bands run in parallel, each with a private float32
@@ -91,6 +92,9 @@ def _accumulate3d_kernel(fsq, fdot, planes, dys, dxs, es, dt_first, tfac, nbr, a
                             row_welch_pair_table(theta[k], var[k], nint[k], theta[kk], var[kk],
                                                   nint[kk], table, y, yy, x0, x1, dx, w)
                         for p in range(P):
+                            if p == sq_from:
+                                for i in range(n):
+                                    w[i] = w[i] * w[i]
                             if act_k:
                                 pb = planes[kk, p, yy, x0 + dx:x1 + dx]
                                 aa = acc[b, k, p, r0, x0:x1]
@@ -175,7 +179,8 @@ def accumulate3d(guide: Guide, planes: np.ndarray, tfac: np.ndarray, bins: np.nd
                  theta: np.ndarray | None = None, var: np.ndarray | None = None,
                  nint: np.ndarray | None = None, g2: float | None = None,
                  g2_table: np.ndarray | None = None,
-                 normalise_into: np.ndarray | None = None) -> np.ndarray:
+                 normalise_into: np.ndarray | None = None,
+                 squared_from: int | None = None) -> np.ndarray:
     """Numba fast path in 3D: Σ_{j ≠ i} W_ij · planes_j over a (2r+1)² × (2r_t+1) window.
 
     The base weight is the JBF of ``guide`` replicated along time (its G-buffers are per pixel)
@@ -196,6 +201,8 @@ def accumulate3d(guide: Guide, planes: np.ndarray, tfac: np.ndarray, bins: np.nd
             filter); nint (K, 3, H, W) int32 with ``g2_table`` for non-uniform n, else ``g2``.
             A NaN θ fails every test, which makes that voxel nobody's neighbour.
 
+        squared_from: planes from this index on are summed with the squared weight W_ij²
+            (for the variance of a weighted mean, Σ W² Var); None: every plane with W_ij.
         normalise_into: optional (H, W, n_bins, P − 1) float32 video; the active bins are then
             written there as (sums + planes)[:P−1] / (sums + planes)[P−1] (the centre term
             added, 0 where the denominator is 0) and the video is returned instead of the sums.
@@ -250,7 +257,8 @@ def accumulate3d(guide: Guide, planes: np.ndarray, tfac: np.ndarray, bins: np.nd
     acc = _accumulate3d_kernel(fsq, np.zeros((0, 1, 1), np.float32), planes, dys, dxs, es,
                                dt_first, tfac.astype(np.float32), np.ascontiguousarray(nbr),
                                active, th, va, ni, np.float64(gg), table, int(test_mode),
-                               num_bands(h), int(guide.radius))
+                               num_bands(h), int(guide.radius),
+                               int(planes.shape[1] if squared_from is None else squared_from))
     if normalise_into is None:
         return _merge_bands3d(acc, active, h)
     _merge_normalise3d(acc, planes, active, bins, normalise_into)
