@@ -26,6 +26,17 @@ def renderer():
     return mitsuba()
 
 
+@pytest.fixture(scope="module")
+def tr(renderer):
+    """dbench.datasets.transient with mitransient imported (transient tests; needs LLVM)."""
+    from dbench.datasets import mitsuba_env
+    if not mitsuba_env.mitsuba().variant().startswith(("llvm", "cuda")):
+        pytest.skip("transient rendering needs the llvm_ad_rgb variant")
+    from dbench.datasets import transient
+    transient._mitransient()
+    return transient
+
+
 @pytest.fixture()
 def tmp_cache(tmp_path):
     from dbench.datasets import Cache

@@ -47,16 +47,6 @@ def test_transient_frame_validation_names_the_buffer(kwargs, name):
 # rendering fixtures
 
 
-@pytest.fixture(scope="module")
-def tr(renderer):
-    from dbench.datasets import mitsuba_env
-    if not mitsuba_env.mitsuba().variant().startswith(("llvm", "cuda")):
-        pytest.skip("transient rendering needs the llvm_ad_rgb variant")
-    from dbench.datasets import transient
-    transient._mitransient()
-    return transient
-
-
 def _corridor(mi, res):
     """A narrow corridor lit by its far end: along the corridor OPL + distance to the light is
     nearly constant, so next-event estimates of later vertices fall back into earlier bins."""

@@ -122,16 +122,6 @@ def test_list_shows_the_declared_parameters(capsys):
 # rendering
 
 
-@pytest.fixture(scope="module")
-def tr(renderer):
-    from dbench.datasets import mitsuba_env
-    if not mitsuba_env.mitsuba().variant().startswith(("llvm", "cuda")):
-        pytest.skip("transient rendering needs the llvm_ad_rgb variant")
-    from dbench.datasets import transient
-    transient._mitransient()
-    return transient
-
-
 def test_hg_g_changes_the_render_and_the_cache_entry(tr, tmp_cache):
     from dbench import datasets
     from dbench.datasets import scenes

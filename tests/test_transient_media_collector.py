@@ -11,16 +11,6 @@ RES, BINS, SPP = 8, 20, 4
 
 
 @pytest.fixture(scope="module")
-def tr(renderer):
-    from dbench.datasets import mitsuba_env
-    if not mitsuba_env.mitsuba().variant().startswith(("llvm", "cuda")):
-        pytest.skip("transient rendering needs the llvm_ad_rgb variant")
-    from dbench.datasets import transient
-    transient._mitransient()
-    return transient
-
-
-@pytest.fixture(scope="module")
 def fog(tr):
     from dbench.datasets import scenes
     sc = scenes.get("fog-transient")

@@ -191,8 +191,9 @@ def collector_section(scenes: Sequence[str], res: int = 64, spp: int = 64, bins:
         mem = state_bytes_vs_spp(name)
         lines += [f"Collector (b) state vs spp ({name}, 32×32 px, 100 bins): " +
                   ", ".join(f"{r['spp']} spp → {r['state_bytes']:,} B" for r in mem) +
-                  " (constant by construction; it holds 3 float64 sums per voxel and channel "
-                  "and one uint64 per voxel packing the three `non_zero` counts; overflows: " +
+                  " (constant by construction; it holds 3 float64 sums per voxel and channel, "
+                  "one uint64 per voxel packing the three `non_zero` counts and, per pixel and "
+                  "channel, Σ total and Σ total² of the paths' window totals; overflows: " +
                   ", ".join(str(r["n_overflow"]) for r in mem) + ").", ""]
     return lines
 

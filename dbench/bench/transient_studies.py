@@ -6,7 +6,10 @@
   scene (the window stays the scene's, so the bin count sets the width);
 * ``fig5.6``: error against spp (16 … 2048) for the noisy input, ``statistical``, ``jbf-bins``
   and ``oidn-bins``: a ``dbench sweep`` over the transient scenes (3 seeds, 95 % intervals),
-  then its figure.
+  then its figure;
+* ``ablation``: the statistical denoiser's rules one at a time (the seed's rule, + shrinkage,
+  + the pixel-total rule, + γ = 0.1; both base filters on the media scene) at every spp
+  (results/transient_statistical.md §6).
 
 Each writes ``<out>/<study>.json`` (every number), ``<out>/<study>.md`` (the table) and
 ``<out>/<study>.png`` (the figure). Figures and tables give the error as a ratio to the noisy
@@ -18,6 +21,7 @@ Reproduce::
     python -m dbench.bench.transient_studies fig5.4 --out results/transient_studies
     python -m dbench.bench.transient_studies fig5.5 --out results/transient_studies
     python -m dbench.bench.transient_studies fig5.6 --out results/transient_studies
+    python -m dbench.bench.transient_studies ablation --out results/transient_studies
 """
 from __future__ import annotations
 
@@ -42,6 +46,13 @@ BINS = (31, 100, 308, 1000)
 RADII_T = (0, 1, 2, 3)
 RADII_S = (2, 5)
 FIG56_METHODS = ("noisy", "statistical", "jbf-bins", "oidn-bins")
+#: the ablation's rows: one rule added at a time (results/transient_statistical.md §6)
+ABLATION = (("A seed rule (γ 0.05)", dict(shrink=False, mass=False, gamma=0.05)),
+            ("B + shrinkage", dict(shrink=True, mass=False, gamma=0.05)),
+            ("C + pixel-total rule", dict(shrink=True, mass=True, gamma=0.05)),
+            ("D + γ 0.1 (defaults)", dict(shrink=True, mass=True, gamma=0.1)))
+#: references of the ablation: 1/16 of the largest input where affordable, 1/8 for the media
+ABLATION_REF = {"cornell-transient": 32768, "caustic-transient": 32768, "fog-transient": 16384}
 FIG56_SPP = (16, 64, 256, 1024, 2048)
 
 
@@ -140,6 +151,30 @@ def fig56(out: Path, scenes: Sequence[str] = SCENES, res: int = 64,
     return sorted(rows, key=lambda r: (r["scene"], r["method"], r["spp"]))
 
 
+def ablation(scenes: Sequence[str] = SCENES, res: int = 64, spp: Sequence[int] = FIG56_SPP,
+             seed: int = 0) -> list[dict[str, Any]]:
+    """One row per (scene, spp, rule set, base filter); media scenes run both bases."""
+    from ..datasets import load, scenes as catalogue
+
+    rows = []
+    for scene in scenes:
+        ref_spp = ABLATION_REF.get(scene, 16384)
+        media = catalogue.get(scene).medium is not None
+        for n in spp:
+            frame = load(scene, n, res, seed=seed, ref_spp=ref_spp, progress=False)
+            noisy = score(frame.color, frame)
+            for name, params in ABLATION:
+                for base in (("gauss3d", "jbf") if media else ("jbf",)):
+                    out, seconds = _denoise(frame, base=base, **params)
+                    den = score(out, frame)
+                    rows.append({"scene": scene, "spp": n, "variant": name, "base": base,
+                                 "ref_spp": ref_spp, "ref_rmse": frame.meta.get("ref_rmse"),
+                                 "time_s": seconds,
+                                 **{f"noisy_{k}": v for k, v in noisy.items()}, **den,
+                                 **_ratios(den, noisy)})
+    return rows
+
+
 # ---------------------------------------------------------------------------------------------
 # tables and figures
 
@@ -158,55 +193,45 @@ def table(rows: list[dict[str, Any]], columns: Sequence[str]) -> str:
                           for r in rows)
 
 
-def plot54(rows: list[dict[str, Any]], path: Path) -> None:
+def ratio_panels(panels: dict[str, dict[str, list[dict[str, Any]]]], x_key: str, xlabel: str,
+                 path: Path) -> None:
+    """One panel per title, one line per label: ``rmse_ratio`` against ``x_key`` (log x), the
+    noisy input's level drawn at 1."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    scenes = sorted({r["scene"] for r in rows})
-    fig, axes = plt.subplots(1, len(scenes), figsize=(4.2 * len(scenes), 3.4), squeeze=False)
-    for ax, scene in zip(axes[0], scenes):
-        for transform, lam in TRANSFORMS:
-            sel = [r for r in rows if r["scene"] == scene and r["transform"] == transform
-                   and (transform == "identity" or r["lam"] == lam)]
-            label = transform if transform == "identity" else f"{transform} λ={lam}"
-            ax.plot([r["gamma"] for r in sel], [r["rmse_ratio"] for r in sel], "o-",
-                    label=label)
+    fig, axes = plt.subplots(1, len(panels), figsize=(4.3 * len(panels), 3.4), squeeze=False)
+    for ax, (title, lines) in zip(axes[0], panels.items()):
+        for label, sel in lines.items():
+            sel = sorted(sel, key=lambda r: r[x_key])
+            ax.plot([r[x_key] for r in sel], [r["rmse_ratio"] for r in sel], "o-", label=label)
         ax.axhline(1.0, color="k", lw=0.8)
-        ax.set_xscale("log")
-        ax.set_title(scene)
-        ax.set_xlabel("γ")
-        ax.set_ylabel("RMSE / noisy RMSE")
+        ax.set(xscale="log", title=title, xlabel=xlabel, ylabel="RMSE / noisy RMSE")
     axes[0][0].legend(fontsize=7)
     fig.tight_layout()
     save(fig, path)
     plt.close(fig)
+
+
+def plot54(rows: list[dict[str, Any]], path: Path) -> None:
+    panels = {}
+    for scene in sorted({r["scene"] for r in rows}):
+        panels[scene] = {
+            (t if t == "identity" else f"{t} λ={lam}"):
+                [r for r in rows if r["scene"] == scene and r["transform"] == t
+                 and (t == "identity" or r["lam"] == lam)]
+            for t, lam in TRANSFORMS}
+    ratio_panels(panels, "gamma", "γ", path)
 
 
 def plot55(rows: list[dict[str, Any]], path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    radii_s = sorted({r["radius"] for r in rows})
-    fig, axes = plt.subplots(1, len(radii_s), figsize=(4.4 * len(radii_s), 3.4), squeeze=False)
-    for ax, r_s in zip(axes[0], radii_s):
-        for r_t in sorted({r["radius_t"] for r in rows}):
-            sel = sorted((r for r in rows if r["radius"] == r_s and r["radius_t"] == r_t),
-                         key=lambda r: r["bin_width_ps"])
-            ax.plot([r["bin_width_ps"] for r in sel], [r["rmse_ratio"] for r in sel], "o-",
-                    label=f"r_t = {r_t}")
-        ax.axhline(1.0, color="k", lw=0.8)
-        ax.set_xscale("log")
-        ax.set_title(f"r_s = {r_s}")
-        ax.set_xlabel("bin width (ps)")
-        ax.set_ylabel("RMSE / noisy RMSE")
-    axes[0][0].legend(fontsize=7)
-    fig.tight_layout()
-    save(fig, path)
-    plt.close(fig)
+    panels = {f"r_s = {r_s}": {f"r_t = {r_t}": [r for r in rows if r["radius"] == r_s
+                                                and r["radius_t"] == r_t]
+                               for r_t in sorted({r["radius_t"] for r in rows})}
+              for r_s in sorted({r["radius"] for r in rows})}
+    ratio_panels(panels, "bin_width_ps", "bin width (ps)", path)
 
 
 def plot56(rows: list[dict[str, Any]], path: Path) -> None:
@@ -237,6 +262,58 @@ def plot56(rows: list[dict[str, Any]], path: Path) -> None:
     plt.close(fig)
 
 
+def fig56_summary(rows: list[dict[str, Any]]) -> str:
+    """Markdown: each method's mean RMSE ÷ the noisy input's (all voxels) and its PSNR gain on
+    the time-integrated image (dB, ± the 95 % interval over the seeds), per scene and spp."""
+    by = {(r["scene"], r["spp"], r["method"]): r for r in rows}
+    methods = [m for m in FIG56_METHODS if m != "noisy"]
+    text = ("| scene | spp | noisy RMSE | " + " | ".join(f"{m} RMSE ÷ noisy" for m in methods)
+            + " | " + " | ".join(f"{m} Δ PSNR integrated, dB" for m in methods) + " |\n|"
+            + "---|" * (3 + 2 * len(methods)) + "\n")
+    for scene, spp in sorted({(r["scene"], r["spp"]) for r in rows}):
+        noisy = by.get((scene, spp, "noisy"))
+        if noisy is None:
+            continue
+        cells = []
+        for m in methods:
+            r = by.get((scene, spp, m))
+            ratio = r["rmse"] / noisy["rmse"] if r else float("nan")
+            cells.append(f"**{ratio:.3f}**" if ratio >= 1 else f"{ratio:.3f}")
+        for m in methods:
+            r = by.get((scene, spp, m))
+            gain = r["psnr"] - noisy["psnr"] if r else float("nan")
+            text_gain = f"{gain:+.2f} ± {r.get('psnr_ci') or 0:.2f}" if r else ""
+            cells.append(f"**{text_gain}**" if gain <= 0 else text_gain)
+        text += (f"| {scene} | {spp} | {noisy['rmse']:.3g} ± {noisy.get('rmse_ci') or 0:.2g} | "
+                 + " | ".join(cells) + " |\n")
+    return text + "\n**Bold**: not better than the noisy input. The full cells follow.\n\n"
+
+
+def ablation_table(rows: list[dict[str, Any]]) -> str:
+    """Markdown: per scene, whole-video ÷ noisy / integrated ÷ noisy, bold where ≥ 1."""
+    def cell(r):
+        return " / ".join(f"**{x:.3f}**" if x >= 1 else f"{x:.3f}"
+                          for x in (r["rmse_ratio"], r["rmse_integrated_ratio"]))
+
+    text = ""
+    for scene in dict.fromkeys(r["scene"] for r in rows):
+        sel = [r for r in rows if r["scene"] == scene]
+        spps = sorted({r["spp"] for r in sel})
+        text += (f"**{scene}** (whole-video RMSE ÷ noisy / time-integrated-image RMSE ÷ noisy; "
+                 f"reference {sel[0]['ref_spp']} spp, its own RMSE {sel[0]['ref_rmse']:.2g})\n\n"
+                 "| variant | base | " + " | ".join(f"{n} spp" for n in spps) + " |\n|---|---|"
+                 + "---:|" * len(spps) + "\n")
+        for name, _ in ABLATION:
+            for base in dict.fromkeys(r["base"] for r in sel):
+                by_spp = {r["spp"]: r for r in sel if r["variant"] == name and r["base"] == base}
+                text += (f"| {name} | {base} | "
+                         + " | ".join(cell(by_spp[n]) for n in spps) + " |\n")
+        noisy = ", ".join(f"{next(r for r in sel if r['spp'] == n)['noisy_rmse']:.3g}"
+                          for n in spps)
+        text += f"\nNoisy RMSE: {noisy}.\n\n"
+    return text
+
+
 COLUMNS = {
     "fig5.4": ("scene", "transform", "lam", "gamma", "rmse_ratio", "rmse_unbiased_ratio",
                "rmse_integrated_ratio", "noisy_rmse", "ref_rmse"),
@@ -244,11 +321,13 @@ COLUMNS = {
                "rmse_unbiased_ratio", "rmse_integrated_ratio", "noisy_rmse"),
     "fig5.6": ("scene", "spp", "method", "rmse", "rmse_ci", "rmse_unbiased", "psnr", "psnr_ci",
                "ssim", "ref_spp", "ref_rmse"),
+    "ablation": (),
 }
 TITLES = {
     "fig5.4": "Statistical denoiser: sample transform × λ × γ (seed Fig. 5.4)",
     "fig5.5": "Statistical denoiser: temporal radius × bin width × spatial radius (seed Fig. 5.5)",
     "fig5.6": "Transient error against spp: noisy, statistical, jbf-bins, oidn-bins (seed Fig. 5.6)",
+    "ablation": "Statistical denoiser on transient scenes: its rules one at a time",
 }
 
 
@@ -272,17 +351,28 @@ def main(argv: list[str] | None = None) -> None:
     elif args.study == "fig5.5":
         rows = fig55(scenes[0], args.res, args.spp, args.ref_spp or 4096)
         plot55(rows, out / "fig5.5.png")
-    else:
+    elif args.study == "fig5.6":
         rows = fig56(out, scenes, args.res, ref_spp=args.ref_spp or 16384)
         plot56(rows, out / "fig5.6.png")
+        runs = io.read_json(out / "sweep" / "sweep.json").get("runs", [])
+        sweep_s = sum(float(r.get("wall_s") or 0.0) for r in runs)
+    else:
+        rows = ablation(scenes, args.res)
     seconds = time.perf_counter() - t0
+    if args.study == "fig5.6":
+        seconds = max(seconds, sweep_s)     # the sweep's own compute time, over its runs
     io.write_json(out / f"{args.study}.json", {"rows": rows, "wall_s": seconds})
     cmd = f"python -m dbench.bench.transient_studies {args.study} --out {args.out}"
-    text = (f"# {TITLES[args.study]}\n\nGenerated by `{cmd}` in {seconds:.0f} s. Ratios are to "
-            f"the noisy input of the same render; `rmse_unbiased` removes the reference's own "
-            f"variance (spec/verdicts.md §2); `rmse_integrated` is the RMSE of the "
-            f"time-integrated image.\n\n![{args.study}]({args.study}.png)\n\n"
-            + table(rows, COLUMNS[args.study]))
+    figure = "" if args.study == "ablation" else f"![{args.study}]({args.study}.png)\n\n"
+    body = ablation_table(rows) if args.study == "ablation" else table(rows, COLUMNS[args.study])
+    if args.study == "fig5.6":
+        body = fig56_summary(rows) + body
+    text = (f"# {TITLES[args.study]}\n\nGenerated by `{cmd}` in {seconds:.0f} s (2-core CPU). "
+            f"64 × 64 px, each scene's 200-bin window unless a table says otherwise. Ratios are "
+            f"to the noisy input of the same render; `rmse_unbiased` removes the reference's own "
+            f"variance (spec/verdicts.md §2); `rmse_integrated` and `psnr` are those of the "
+            f"time-integrated image (Σ over bins)" + (", the sweep's means over 3 seeds with "
+            f"95 % t-intervals" if args.study == "fig5.6" else "") + ".\n\n" + figure + body)
     io.write_text(out / f"{args.study}.md", text)
     print(f"wrote {out / (args.study + '.md')}")
 
