@@ -342,9 +342,11 @@ def base_video(h: int = 12, w: int = 12, t: int = 10, seed: int = 0, spp: int = 
     albedo = np.where(((x // 3 + y // 3) % 2)[..., None] > 0, 0.8, 0.2) * np.ones(3)
     normal = np.zeros((h, w, 3))
     normal[..., 2] = 1.0
+    # the bins are independent here, so the noisy total's variance is the sum of theirs
+    total_var = stats.var_mean.sum(axis=2)
     return TransientFrame(color=color.astype(np.float32), stats=stats, albedo=albedo,
                           normal=normal, depth=np.ones((h, w, 1)),
-                          reference=clean.astype(np.float32),
+                          reference=clean.astype(np.float32), total_var=total_var,
                           meta={"start_opl": 3.0, "bin_width_opl": 0.05, "units": "m"})
 
 
