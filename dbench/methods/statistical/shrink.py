@@ -163,12 +163,14 @@ def mass_shrink(video: np.ndarray, color: np.ndarray, total_var: np.ndarray) -> 
         ((H, W, T, 3) float32 video, (H, W, 3) float64 β).
     """
     out = np.asarray(video, np.float64)
-    m_d = out.sum(axis=2)
-    m_n = np.asarray(color, np.float64).sum(axis=2)
-    v_m = np.maximum(np.asarray(total_var, np.float64), 0.0)
-    den = v_m + (m_d - m_n) ** 2
-    beta = np.divide(v_m, den, out=np.ones_like(den), where=den > 0)
-    target = m_n + beta * (m_d - m_n)
+    # non-finite totals (an Inf or NaN voxel) are expected here and left alone below
+    with np.errstate(invalid="ignore", over="ignore"):
+        m_d = out.sum(axis=2)
+        m_n = np.asarray(color, np.float64).sum(axis=2)
+        v_m = np.maximum(np.asarray(total_var, np.float64), 0.0)
+        den = v_m + (m_d - m_n) ** 2
+        beta = np.divide(v_m, den, out=np.ones_like(den), where=den > 0)
+        target = m_n + beta * (m_d - m_n)
     # a pixel with a non-finite noisy total (or none to rescale) keeps the denoiser's total
     ok = (m_d > 0) & np.isfinite(target) & np.isfinite(m_d)
     scale = np.divide(target, m_d, out=np.ones_like(m_d), where=ok)
