@@ -4,7 +4,7 @@ import pytest
 from scipy import stats as sps
 
 from dbench.datasets.stats import (PowerSums, stats_from_power_sums, stats_from_samples,
-                                   transform_of_zero, transform_samples)
+                                   transform_of_zero, transform_samples, variance_of_mean)
 from dbench.errors import DbenchInputError
 
 
@@ -120,3 +120,15 @@ def test_shape_mismatch_names_the_buffer():
     acc = PowerSums((2, 3), "identity")
     with pytest.raises(DbenchInputError, match="samples: expected shape"):
         acc.add(np.zeros((3, 2)))
+
+
+def test_variance_of_mean_from_plain_sums():
+    """The transient totals' variance (both collectors) follows spec §4.1: σ²/n with the
+    n/(n−1) factor, 0 for constant samples, unknown (None) below 2 samples."""
+    rng = np.random.default_rng(5)
+    x = rng.exponential(2.0, size=(40, 4, 3))
+    x[:, 0, 0] = 0.7                                          # constant samples
+    got = variance_of_mean(40, x.sum(0), (x * x).sum(0))
+    np.testing.assert_allclose(got, x.var(0, ddof=1) / 40, rtol=1e-10, atol=1e-15)
+    assert got[0, 0] == 0.0
+    assert variance_of_mean(1, x[0], x[0] ** 2) is None

@@ -267,3 +267,15 @@ def stats_from_sums(n: int, s1: np.ndarray, s2: np.ndarray, s3: np.ndarray, tran
     mean, var_mean, m3 = (a.reshape(shape) for a in out)
     return SampleStats(n=float(n), mean=mean, var_mean=var_mean, m3=m3, transform=transform,
                        lam=float(lam), diagnostics=dict(diagnostics or {}))
+
+
+def variance_of_mean(n: int, s1: np.ndarray, s2: np.ndarray) -> np.ndarray | None:
+    """Var of the mean of ``n`` plain (identity) samples from their float64 sums Σx and Σx², with
+    the rules of :func:`stats_from_sums` (spec/statistical.md §4.1: zero-variance tolerance, the
+    n/(n−1) factor), or None below 2 samples (the spread is unknown, not zero). Used for the
+    transient noisy totals (``TransientFrame.total_var``) of both collectors."""
+    if n < 2:
+        return None
+    s1 = np.asarray(s1, np.float64)
+    return np.asarray(stats_from_sums(n, s1, s2, np.zeros_like(s1), "identity", 0.5).var_mean,
+                      np.float64)

@@ -62,7 +62,7 @@ from .references import reference_spp as default_ref
 from .scene import Scene, register_scene
 from .transient_media import (EMISSION, FOG, FOG_PARAMS, FOG_RANGE_WINDOW, _fog_room,
                               media_variant, transient_variant)
-from .stats import ZERO_VARIANCE_RTOL, PowerSums, stats_from_sums
+from .stats import ZERO_VARIANCE_RTOL, PowerSums, stats_from_sums, variance_of_mean
 from .transient_render import (DEFAULT_REFERENCE_CHUNK, _mitransient, batch_copies,
                                loaded_transient, render_plain, render_reference, render_signal)
 from .transient_scene import (SPEED_OF_LIGHT, TRANSIENT_BUFFERS, TransientScene, Window,
@@ -140,14 +140,6 @@ class TransientRender:
     @property
     def energy_fraction(self) -> float:
         return energy_fraction(self.color, self.steady, self.emission)
-
-
-def total_variance(n: int, s1: np.ndarray, s2: np.ndarray, s3: np.ndarray) -> np.ndarray | None:
-    """(H, W, 3) variance of the mean of the per-path window totals from their identity power
-    sums (spec/statistical.md §4.1 rules), or None below 2 samples (unknown, not zero)."""
-    if n < 2:
-        return None
-    return np.asarray(stats_from_sums(n, s1, s2, s3, "identity", 0.5).var_mean, np.float64)
 
 
 def energy_fraction(video: np.ndarray, steady: np.ndarray, emission: str = "pulse") -> float:
@@ -240,7 +232,7 @@ def collect_passes(scene: TransientScene, res, spp: int, seed: int = 0,
                                   "collector": "a"},
                           sums=({"s1": acc.s1, "s2": acc.s2, "s3": acc.s3, "n": acc.n}
                                 if acc else None),
-                          total_var=total_variance(totals.n, totals.s1, totals.s2, totals.s3)
+                          total_var=variance_of_mean(totals.n, totals.s1, totals.s2)
                           if totals is not None else None)
     return out
 

@@ -56,7 +56,7 @@ import numpy as np
 
 from .mitsuba_env import mitsuba, require_llvm
 from ..data import TRANSFORMS, check_transform
-from .stats import ZERO_VARIANCE_RTOL, stats_from_power_sums, transform_of_zero
+from .stats import stats_from_power_sums, transform_of_zero, variance_of_mean
 from .transient_slots import with_slots
 
 PLUGIN = "transient_path_stats"
@@ -350,17 +350,10 @@ class StatsCollector:
                               mode=self.mode)
 
     def total_var(self) -> np.ndarray | None:
-        """(H, W, 3) float64 variance of the mean of the paths' window totals (spec/statistical.md
-        §4.1 rules), None below 2 samples."""
-        if self.n < 2:
-            return None
+        """(H, W, 3) float64 variance of the mean of the paths' window totals, None below 2
+        samples (:func:`~dbench.datasets.stats.variance_of_mean`)."""
         t = _host(self.totals).reshape(self.height, self.width, 3, 2)
-        n = float(self.n)
-        a = t[..., 0] / n
-        s2n = t[..., 1] / n
-        m2b = s2n - a * a
-        m2b = np.where(m2b <= ZERO_VARIANCE_RTOL * s2n, 0.0, m2b)
-        return m2b * n / (n - 1.0) / n      # the operations of stats_from_sums
+        return variance_of_mean(self.n, t[..., 0], t[..., 1])
 
     def _count(self, n_bad, n_neg) -> None:
         """Add per-lane diagnostic counts (once per path) to the counters."""
