@@ -34,10 +34,11 @@ def test_the_old_rule_fails_and_the_shrinkage_keeps_the_bright_voxel():
                                             shrink=False)
     shrunk = st.statistical_filter_video(color, stats, base="gauss3d", radius=3)
     assert seed_rule[4, 4, 1, 0] < 0.2 * noisy                # collapsed onto the dim voxels
-    # β = V/(V + b²) with b² = d² − V (d from the skew-corrected θ̂ of spec §4, the dim
-    # voxels' mean and variance negligible): the centre keeps 1 − V/d² of its own value
-    v, n = stats.var_mean[4, 4, 1, 0], 16
-    d = noisy + stats.m3[4, 4, 1, 0] / (6.0 * v * n * n) - 0.01
+    # β = V/(V + b²) with b² = d² − V (d from the colour: identity transform, so the
+    # variances are the colour's; the dim voxels' mean and variance negligible): the centre
+    # keeps 1 − V/d² of its own value
+    v = stats.var_mean[4, 4, 1, 0]
+    d = noisy - 0.01
     expected = noisy * (1.0 - v / d ** 2) + 0.01 * v / d ** 2
     assert shrunk[4, 4, 1, 0] == pytest.approx(expected, rel=0.02)
 
@@ -64,11 +65,38 @@ def test_cost_in_homogeneous_noise():
 @pytest.mark.parametrize("base", ["jbf", "gauss3d"])
 @pytest.mark.parametrize("shape,radius,radius_t", [((12, 12, 10), 3, 1), ((7, 8, 1), 3, 1),
                                                    ((11, 10, 4), 1, 0)])
-def test_fast_equals_reference_with_and_without_shrinkage(base, shape, radius, radius_t):
-    case = synthetic_video(*shape, seed=radius + shape[2], empty=(0,) if shape[2] > 1 else ())
+@pytest.mark.parametrize("transform", ["identity", "yeo-johnson"])
+def test_fast_equals_reference_with_and_without_shrinkage(base, shape, radius, radius_t,
+                                                          transform):
+    """Both layouts of the shrinkage kernel: the bias measured on the colour (identity, 6
+    planes) and on θ̂ (any other transform, 7 planes; here the same statistics relabelled)."""
+    color, stats, *gbuf = synthetic_video(*shape, seed=radius + shape[2],
+                                          empty=(0,) if shape[2] > 1 else ())
+    stats = SampleStats(n=stats.n, mean=stats.mean, var_mean=stats.var_mean, m3=stats.m3,
+                        transform=transform, lam=0.5)
+    case = (color, stats, *gbuf)
     for shrink in (True, False):
         kw = dict(base=base, radius=radius, radius_t=radius_t, shrink=shrink)
         assert rel_err(run(case, "numba", **kw), run(case, "reference", **kw)) < 1e-5
+
+
+def test_bias_is_measured_on_the_colour_for_the_identity_transform():
+    """Same statistics, different transform label: only the shrinkage's bias estimate differs
+    (θ̂ carries the skewness correction, the colour does not), and the identity layout needs
+    one kernel plane less."""
+    assert sh.shrink_layout(sh.bias_from_colour("identity"))[0] == 6
+    assert sh.shrink_layout(sh.bias_from_colour("yeo-johnson"))[0] == 7
+    y = light_case()
+    color, stats = y.mean(-1), stats_from_samples(y)
+    relabelled = SampleStats(n=stats.n, mean=stats.mean, var_mean=stats.var_mean, m3=stats.m3,
+                             transform="yeo-johnson", lam=1.0)
+    on_colour = st.statistical_filter_video(color, stats, base="gauss3d", radius=3)
+    on_theta = st.statistical_filter_video(color, relabelled, base="gauss3d", radius=3)
+    assert on_colour[4, 4, 1, 0] != on_theta[4, 4, 1, 0]
+    seed_a = st.statistical_filter_video(color, stats, base="gauss3d", radius=3, shrink=False)
+    seed_b = st.statistical_filter_video(color, relabelled, base="gauss3d", radius=3,
+                                         shrink=False)
+    np.testing.assert_array_equal(seed_a, seed_b)
 
 
 def test_shrink_beta_equals_its_array_reference():
@@ -88,29 +116,49 @@ def test_shrink_beta_equals_its_array_reference():
         np.testing.assert_allclose(got, ref[i], rtol=1e-12, atol=1e-15)
 
 
-def test_mass_rule():
+@pytest.mark.parametrize("rule", [sh.mass_shrink, sh.mass_shrink_reference])
+def test_mass_rule(rule):
     rng = np.random.default_rng(3)
     color = rng.random((4, 5, 6, 3))
     video = color * 1.3                                     # a biased denoiser: totals +30 %
     exact = np.zeros((4, 5, 3))                             # a deterministic total (a light)
-    out, beta = sh.mass_shrink(video, color, exact)
+    out, beta = rule(video, color, exact)
     np.testing.assert_allclose(out.sum(2), color.sum(2), rtol=1e-5)
     np.testing.assert_array_equal(beta, 0.0)
     # the profile over time stays the denoiser's
     np.testing.assert_allclose(out / out.sum(2, keepdims=True),
                                video / video.sum(2, keepdims=True), rtol=1e-5)
     vague = np.full((4, 5, 3), 1e6)                          # a total known to nobody
-    out, beta = sh.mass_shrink(video, color, vague)
+    out, beta = rule(video, color, vague)
     np.testing.assert_allclose(out, video, rtol=1e-5)
     # in between: β = V/(V + d²)
     d2 = (0.3 * color.sum(2)) ** 2
-    out, beta = sh.mass_shrink(video, color, d2 / 3.0)
+    out, beta = rule(video, color, d2 / 3.0)
     np.testing.assert_allclose(beta, 0.25, rtol=1e-9)
     np.testing.assert_allclose(out.sum(2), color.sum(2) * (1 + 0.25 * 0.3), rtol=1e-5)
     # a non-finite noisy total leaves the pixel alone
     color[0, 0, 2, 1] = np.nan
-    out, _ = sh.mass_shrink(video, color, exact)
+    out, _ = rule(video, color, exact)
     np.testing.assert_allclose(out[0, 0, :, 1], video[0, 0, :, 1], rtol=1e-6)
+
+
+def test_mass_rule_fast_equals_reference():
+    """The Numba pass equals the readable NumPy rule (float32 inputs, float64 sums) on a video
+    with zero, negative, NaN and infinite totals and variances."""
+    rng = np.random.default_rng(4)
+    color = rng.random((9, 7, 12, 3)).astype(np.float32)
+    video = (color * rng.uniform(0.5, 1.5, size=color.shape)).astype(np.float32)
+    total_var = rng.random((9, 7, 3)) ** 3 * 0.1
+    color[0, 0] = 0.0
+    video[0, 1] = 0.0
+    color[1, 2, 3, 0] = np.nan
+    video[2, 2, 5, 1] = np.inf
+    total_var[3, 3, 2], total_var[3, 4, 0], total_var[4, 4, 1] = -1.0, np.nan, 0.0
+    out, beta = sh.mass_shrink(video, color, total_var)
+    ref, beta_ref = sh.mass_shrink_reference(video, color, total_var)
+    np.testing.assert_allclose(beta, beta_ref, rtol=1e-9, equal_nan=True)
+    np.testing.assert_allclose(out, ref, rtol=1e-6, atol=0, equal_nan=True)
+    assert out.dtype == np.float32 and out.shape == video.shape
 
 
 def test_method_records_the_mass_step():

@@ -255,6 +255,34 @@ def transient_frame(meta=None, with_gbuffers=True, seed=10):
     return TransientFrame(color=color.astype(np.float32), stats=stats, meta=meta or {}, **kw)
 
 
+@pytest.mark.parametrize("width,expected", [(0.0385, 0), (0.02, 1), (0.0077, 2), (0.0025, 3),
+                                            (None, 1)])
+def test_auto_radius_t_follows_the_bin_width(width, expected):
+    assert st.auto_radius_t(width) == expected
+    frame = transient_frame(meta=None if width is None else {"bin_width_opl": width,
+                                                             "units": "m (optical path length)"})
+    m = get("statistical", radius=1)
+    m.denoise(frame)
+    assert m.last_settings["radius_t"] == expected
+    assert m.last_settings["radius_t_source"] == "auto"
+    m = get("statistical", radius=1, radius_t=2)
+    m.denoise(frame)
+    assert m.last_settings["radius_t"] == 2 and m.last_settings["radius_t_source"] == "given"
+
+
+def test_auto_radius_t_ignores_widths_that_are_not_metres():
+    assert st.auto_radius_t(float("nan")) == 1 and st.auto_radius_t(0.0) == 1
+    m = get("statistical", radius=1)
+    m.denoise(transient_frame(meta={"bin_width_opl": 0.001, "units": "bins"}))
+    assert m.last_settings["radius_t"] == 1 and m.last_settings["bin_width_m"] is None
+
+
+@pytest.mark.parametrize("bad", ["automatic", -1, 1.5, True])
+def test_bad_radius_t_is_refused_with_the_choices(bad):
+    with pytest.raises(DbenchInputError, match="radius_t: expected 'auto' or an integer"):
+        get("statistical", radius_t=bad)
+
+
 def test_registered_method_on_transient_frame():
     m = get("statistical", backend="numba")
     assert {"steady", "transient"} <= m.kinds
@@ -263,7 +291,9 @@ def test_registered_method_on_transient_frame():
     out = m.denoise(frame)
     assert out.dtype == np.float32 and out.shape == frame.color.shape
     s = m.last_settings
+    # no bin width in the frame's meta: the automatic r_t falls back to the spec's 1
     assert s["radius"] == 5 and s["radius_t"] == 1 and s["window_voxels"] == 363
+    assert s["radius_t_source"] == "auto"
     assert s["gamma"] == 0.1 and s["gamma_t"] == 2.0 and s["threshold_source"] == "gamma"
     assert s["base"] == "jbf" and s["temporal_profile"] == "box" and s["transform"] == "identity"
     assert s["nonempty_bins"] == 6 and s["kind"] == "transient"

@@ -21,12 +21,18 @@ DbenchInputError naming it; the resolved values land in ``last_settings`` after 
     γ_t² = 1/(2γ) − 1 from gamma, which wins when both are given), sigma ((10, 10, 0.02 ×3,
     0.1 ×3)), sigma_convention ("variance" | "sd"), window ("square" | "disk"), backend ("auto":
     PyTorch on CUDA for images, Numba otherwise | "numba" | "torch" (images only) |
-    "reference"), hit_mask (True), membership (True; False = plain base filter, the ablation). The ProDen gate of spec §12 is
+    "reference"), hit_mask (True), membership (True; False = plain base filter, the ablation).
+    The ProDen gate of spec §12 is
     ``statistical+gate`` (:mod:`dbench.methods.gate`, which wraps any steady method;
     ``statistical-gate`` is the old name of the same method).
-    Videos only (spec §11.3, spec/jbf.md §1.4): radius_t (1), base ("auto": "jbf" when the
+    Videos only (spec §11.3, spec/jbf.md §1.4): radius_t ("auto": follows the bin width,
+    min(3, ⌊20 mm / bin width⌋) from the frame's ``meta["bin_width_opl"]`` in metres, 1 when
+    the frame has no window in metres;
+    :func:`~dbench.methods.statistical.transient.auto_radius_t` | an integer), base ("auto":
+    "jbf" when the
     frame has albedo and normal, media included (measured better than the seed's 3D Gaussian
-    on dbench's media scenes), else "gauss3d" | "jbf" | "gauss3d"), temporal_profile (None: "box" for the jbf base, "gaussian" for
+    on dbench's media scenes), else "gauss3d" | "jbf" | "gauss3d"), temporal_profile (None:
+    "box" for the jbf base, "gaussian" for
     gauss3d | "box" | "gaussian"), sigma_t (1.0 bin), skip_empty (True), shrink (True: the
     centre-versus-neighbourhood shrinkage of :mod:`dbench.methods.statistical.shrink`; False:
     the seed's normalised sum), mass (True: each pixel's time integral shrunk towards the noisy
@@ -72,7 +78,8 @@ from .core import (BACKENDS, DEFAULT_ALPHA, StatPlanes, Threshold, _check_alpha,
                    welch_pass, welch_t, welch_t_from_weight, welch_weight)
 from ..kernels.gate import linear_variance, proden_gate, proden_gate_factor
 from .shrink import mass_shrink
-from .transient import (BASES, VIDEO_RADIUS, statistical_filter_video, statistical_video_fast,
+from .transient import (BASES, VIDEO_RADIUS, auto_radius_t, statistical_filter_video,
+                        statistical_video_fast,
                         statistical_video_reference)
 
 __all__ = ["Statistical", "StatPlanes", "Threshold", "gamma_from_gamma_t", "gamma_t_from_gamma",
@@ -98,7 +105,7 @@ class Statistical(Denoiser):
     defaults: dict[str, Any] = dict(
         radius=None, alpha=None, gamma=None, sigma=SEED_SIGMA,
         sigma_convention="variance", window="square", backend="auto", hit_mask=True,
-        membership=True, radius_t=1, base="auto",
+        membership=True, radius_t="auto", base="auto",
         temporal_profile=None, sigma_t=1.0, skip_empty=True, shrink=True, mass=True)
 
     def __init__(self, **params: Any) -> None:
@@ -106,7 +113,11 @@ class Statistical(Denoiser):
         p = self.params
         if p["radius"] is not None:
             check_radius(p["radius"])
-        check_radius(p["radius_t"], "radius_t")
+        if p["radius_t"] != "auto" and (isinstance(p["radius_t"], (str, bool))
+                                        or not isinstance(p["radius_t"], (int, np.integer))
+                                        or p["radius_t"] < 0):
+            raise DbenchInputError(f"radius_t: expected 'auto' or an integer ≥ 0, got "
+                                   f"{p['radius_t']!r}")
         if p["alpha"] is not None:
             _check_alpha(p["alpha"])
         if p["gamma"] is not None:
@@ -152,16 +163,25 @@ class Statistical(Denoiser):
                                    "use 'auto', 'numba' or 'reference'")
         radius = VIDEO_RADIUS if p["radius"] is None else p["radius"]
         backend = "reference" if p["backend"] == "reference" else "numba"
+        meta = getattr(data, "meta", None) or {}
+        radius_t = p["radius_t"]
+        # a bin width in metres of path (rendered or declared); a frame without a window has
+        # the placeholder width 1 in units of "bins", which says nothing about the signal
+        width_m = (meta.get("bin_width_opl") if str(meta.get("units", "")).startswith("m")
+                   else None)
+        if radius_t == "auto":
+            radius_t = auto_radius_t(width_m)
         out, info = statistical_filter_video(
             data.color, data.stats, data.albedo, data.normal, getattr(data, "depth", None),
-            radius=radius, radius_t=p["radius_t"], alpha=p["alpha"], gamma=p["gamma"],
+            radius=radius, radius_t=radius_t, alpha=p["alpha"], gamma=p["gamma"],
             base=p["base"], temporal_profile=p["temporal_profile"], sigma_t=p["sigma_t"],
             sigma=p["sigma"], sigma_convention=p["sigma_convention"], window=p["window"],
             hit_mask=p["hit_mask"], membership_on=p["membership"], skip_empty=p["skip_empty"],
-            shrink=p["shrink"], backend=backend, meta=getattr(data, "meta", None),
-            return_info=True)
+            shrink=p["shrink"], backend=backend, return_info=True)
         total_var = getattr(data, "total_var", None)
-        info.update(kind="transient", mass="off")
+        info.update(kind="transient", mass="off",
+                    radius_t_source=("auto" if p["radius_t"] == "auto" else "given"),
+                    bin_width_m=width_m)
         if p["mass"] and p["membership"]:
             if total_var is None:
                 info["mass"] = "skipped: the frame has no total_var"

@@ -27,7 +27,8 @@ Example:
     >>> rng = np.random.default_rng(0)
     >>> y = rng.normal(1.0, 1.0, size=(16, 16, 3, 64))
     >>> stats = SampleStats(n=np.full((16, 16, 3), 64.0), mean=y.mean(-1),
-    ...                     var_mean=y.var(-1, ddof=1) / 64, m3=((y - y.mean(-1, keepdims=True)) ** 3).mean(-1),
+    ...                     var_mean=y.var(-1, ddof=1) / 64,
+    ...                     m3=((y - y.mean(-1, keepdims=True)) ** 3).mean(-1),
     ...                     transform="identity")
     >>> flat = np.zeros((16, 16, 3)); flat[..., 2] = 1
     >>> out, info = statistical_filter(y.mean(-1), stats, np.full((16, 16, 3), 0.5), flat,
@@ -273,8 +274,8 @@ def statistical_reference(color: Any, sp: StatPlanes, guide: Guide, threshold: T
                           membership_on: bool = True, return_weights: bool = False):
     """Readable statistical denoiser: loop over offsets, whole shifted images (spec §8).
 
-    For each offset o: ρ from :func:`~dbench.methods.kernels.bilateral.reference.reference_weights` (the JBF's own
-    code), m from the per-channel Welch predicate, v from the colour's finiteness.
+    For each offset o: ρ from
+    :func:`~dbench.methods.kernels.bilateral.reference.reference_weights` (the JBF's own code), m from the per-channel Welch predicate, v from the colour's finiteness.
 
     Returns:
         (H, W, 3) float64; with ``return_weights`` also (O, H, W) normalised weights and the
@@ -361,7 +362,8 @@ def resolve_backend(backend: str) -> str:
 
 
 def statistical_filter(color: Any, stats: SampleStats, albedo: Any, normal: Any, depth: Any = None,
-                       position: Any = None, *, radius: int = 20, alpha: float | None = DEFAULT_ALPHA,
+                       position: Any = None, *, radius: int = 20,
+                       alpha: float | None = DEFAULT_ALPHA,
                        gamma: float | None = None, sigma=SEED_SIGMA,
                        sigma_convention: str = "variance", window: str = "square",
                        hit_mask: bool = True, features=("xy", "albedo", "normal"),

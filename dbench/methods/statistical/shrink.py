@@ -11,9 +11,9 @@ pairwise weight says such a neighbour deserves 1 − w* = 1/(2(t² + 1)) ≈ 0.0
 
 The rule applies spec §5's MSE argument once more, between the centre voxel i and the
 combination of the neighbours its test accepted. With the seed's weights w_j = ρ_ij m_ij v_j
-(j ≠ i, centre weight 1) and the channel means θ̄ = mean_c θ̂_c, V̄ = mean_c Var(θ̂_c) (one β
-per voxel: the channels of a rendered sample move together, and one β keeps the kernel at 7
-planes instead of 13, which halved its speed):
+(j ≠ i, centre weight 1), V̄ = mean_c Var(θ̂_c) and θ̄ the channel mean of the values whose
+bias is measured (one β per voxel: the channels of a rendered sample move together, and one β
+keeps the kernel at 6-7 planes instead of 13, which halved its speed):
 
     A = Σ w_j,  L_N = Σ w_j L_j / A,  θ_N = Σ w_j θ̄_j / A,  V_N = Σ w_j² V̄_j / A²
     V_i' = max(V̄_i, V_N · A² / Σ w_j²)     (a voxel no path reached has variance 0 but an
@@ -24,42 +24,44 @@ planes instead of 13, which halved its speed):
     β  = min(A / (1 + A), β*)              (never more smoothing than the seed's own weights)
     out_c = (1 − β) L_i,c + β L_N,c
 
+Which θ̄ (:func:`bias_from_colour`): the MSE above is that of the mixed linear colour L, so its
+bias is measured on L wherever the variances are those of L, i.e. for the identity transform
+(transient data's default: Var(θ̂) is then the variance of the sample mean L; θ̂ only adds the
+skewness correction of spec §4, which is not in the output). The kernel then needs no θ̄
+plane (Σ w θ̄ is the channel mean of the colour sums), which saves one of seven planes. For
+the other transforms the variances are those of the transformed θ̂, and θ̄ is θ̂'s channel
+mean, as the test sees it.
+
 Where the accepted neighbours agree with the centre (b² ≈ 0) and have its variance, β* ≈
 A/(1 + A) and the output is the seed's; where they are significantly brighter or darker in
-aggregate, the centre keeps the weight its precision earns. θ̂ and variances are those of the
-test (transformed samples, spec §3-4), the mixing applies to the linear colour L as in spec §2.
-A centre with no accepted neighbour, non-finite colour or bad statistics gets the seed's output.
-The positive-part estimate of b² is itself noisy: in homogeneous noise it gives up part of the
-seed's variance reduction (tests/methods/test_statistical_shrink.py states the measured cost).
+aggregate, the centre keeps the weight its precision earns. A centre with no accepted
+neighbour, non-finite colour or bad statistics gets the seed's output. The positive-part
+estimate of b² is itself noisy: in homogeneous noise it gives up part of the seed's variance
+reduction (tests/methods/test_statistical_shrink.py states the measured cost).
 
-Shapes: sums (K, 7, H, W) float64 neighbour sums (planes below, without the centre term);
-planes (K, 7, H, W) float32 centre values; out (H, W, T, 3) float32.
-
-Planes (:func:`shrink_planes`): 0-2 colour·v, 3 v, 4 θ̄·v (summed with w), 5 V̄·v and 6 v
-(summed with w²).
+Kernel planes (:func:`shrink_layout`; written by
+:func:`dbench.methods.statistical.transient_inputs.prepare_video` in its one pass): 0-2
+colour·v, 3 v (summed with w); then, when the bias is measured on θ̂, θ̄·v (summed with w);
+then V̄·v and v (summed with w²). Shapes: planes (K, P, H, W) float32 with P = 6 or 7; band
+accumulators of :func:`dbench.methods.kernels.bilateral.numba3d.accumulate3d` (``bands=True``);
+out (H, W, T, 3) float32.
 """
 from __future__ import annotations
 
 import numpy as np
 from numba import njit, prange
 
-#: Number of planes of the shrinkage path and the first one summed with squared weights.
-SHRINK_PLANES = 7
-SQUARED_FROM = 5
+from ...data import check_buffer
+
+def bias_from_colour(transform: str) -> bool:
+    """True when the shrinkage measures the bias on the linear colour (identity transform: the
+    variances are those of the colour), False when on θ̂ (module docstring)."""
+    return str(transform) == "identity"
 
 
-def shrink_planes(planes: np.ndarray, theta: np.ndarray, var: np.ndarray) -> np.ndarray:
-    """(K, 7, H, W) float32 kernel planes from the seed's (K, 4, H, W) planes (colour·v, v)
-    and the (K, 3, H, W) θ̂ (NaN at bad voxels, which are nobody's neighbours: 0 here) and
-    Var(θ̂): 4 θ̄·v (summed with w), 5 V̄·v and 6 v (both summed with w²)."""
-    k, _, h, w = planes.shape
-    out = np.empty((k, SHRINK_PLANES, h, w), np.float32)
-    out[:, :4] = planes
-    v = planes[:, 3]
-    out[:, 4] = np.nan_to_num(theta.mean(axis=1), nan=0.0, posinf=0.0, neginf=0.0) * v
-    out[:, 5] = var.mean(axis=1) * v
-    out[:, 6] = v
-    return out
+def shrink_layout(colour_bias: bool) -> tuple[int, int, int]:
+    """(planes, first plane summed with w², θ̄ plane or −1) of the kernel (module docstring)."""
+    return (6, 4, -1) if colour_bias else (7, 5, 4)
 
 
 @njit(cache=True)
@@ -81,32 +83,56 @@ def shrink_beta(theta_i, var_i, a, theta_sum, var2_sum, w2_sum):
 
 
 @njit(parallel=True, cache=True)
-def merge_shrink3d(sums, planes, active, bins, out):
-    """Shrunk outputs of the active bins written into ``out`` (H, W, T, 3) float32."""
+def merge_shrink3d(acc, band, planes, active, bins, theta_plane, out):
+    """Shrunk outputs of the active bins written into ``out`` (H, W, T, 3) float32.
+
+    ``acc`` (nbands, K, P, band + halo, W) float32 are the band accumulators of the 3D kernel
+    (neighbour sums without the centre term), summed here in float64 per voxel; ``band`` rows
+    per band. ``theta_plane`` is the θ̄ plane, or −1 when θ̄ is the colour's channel mean.
+    """
+    nbands = acc.shape[0]
     K = planes.shape[0]
+    P = planes.shape[1]
     H = planes.shape[2]
     W = planes.shape[3]
+    span = acc.shape[3]
+    vi = P - 2                                    # V̄·v, then v, both summed with w²
     for y in prange(H):
+        s = np.zeros((P, W), np.float64)
         for k in range(K):
             if not active[k]:
                 continue
+            s[:] = 0.0
+            for bb in range(nbands):
+                r = y - bb * band
+                if 0 <= r < span:
+                    for p in range(P):
+                        for x in range(W):
+                            s[p, x] += acc[bb, k, p, r, x]
             t = bins[k]
             for x in range(W):
                 v = planes[k, 3, y, x]
-                a = sums[k, 3, y, x]
+                a = s[3, x]
                 if v + a <= 0:
                     for c in range(3):
                         out[y, x, t, c] = 0.0
                     continue
                 if v == 0 or a <= 0:                   # the seed's output
                     for c in range(3):
-                        out[y, x, t, c] = (planes[k, c, y, x] + sums[k, c, y, x]) / (v + a)
+                        out[y, x, t, c] = (planes[k, c, y, x] + s[c, x]) / (v + a)
                     continue
-                beta = shrink_beta(planes[k, 4, y, x], planes[k, 5, y, x], a,
-                                   sums[k, 4, y, x], sums[k, 5, y, x], sums[k, 6, y, x])
+                if theta_plane < 0:
+                    theta_i = (np.float64(planes[k, 0, y, x]) + np.float64(planes[k, 1, y, x])
+                               + np.float64(planes[k, 2, y, x])) / 3.0
+                    theta_sum = (s[0, x] + s[1, x] + s[2, x]) / 3.0
+                else:
+                    theta_i = planes[k, theta_plane, y, x]
+                    theta_sum = s[theta_plane, x]
+                beta = shrink_beta(theta_i, planes[k, vi, y, x], a, theta_sum, s[vi, x],
+                                   s[vi + 1, x])
                 for c in range(3):
                     out[y, x, t, c] = ((1.0 - beta) * planes[k, c, y, x]
-                                       + beta * sums[k, c, y, x] / a)
+                                       + beta * s[c, x] / a)
 
 
 def shrink_reference(col, theta, var, valid, num, den, theta_num, var2_num, w2_num):
@@ -133,7 +159,7 @@ def shrink_reference(col, theta, var, valid, num, den, theta_num, var2_num, w2_n
     return np.where(use[..., None], shrunk, seed)
 
 
-def mass_shrink(video: np.ndarray, color: np.ndarray, total_var: np.ndarray) -> tuple:
+def mass_shrink_reference(video: np.ndarray, color: np.ndarray, total_var: np.ndarray) -> tuple:
     """Per-pixel time integral of a denoised video shrunk towards the noisy one [dbench].
 
     Why (results/transient_statistical.md §6): each voxel's small bias, harmless in its own
@@ -175,3 +201,53 @@ def mass_shrink(video: np.ndarray, color: np.ndarray, total_var: np.ndarray) -> 
     ok = (m_d > 0) & np.isfinite(target) & np.isfinite(m_d)
     scale = np.divide(target, m_d, out=np.ones_like(m_d), where=ok)
     return (out * scale[:, :, None, :]).astype(np.float32), beta
+
+
+@njit(parallel=True, cache=True)
+def _mass_shrink_kernel(video, color, total_var, out, beta):
+    """One pass per pixel of :func:`mass_shrink_reference`'s rule, float64 sums."""
+    H = video.shape[0]
+    W = video.shape[1]
+    T = video.shape[2]
+    for y in prange(H):
+        m_d = np.empty(3, np.float64)
+        m_n = np.empty(3, np.float64)
+        for x in range(W):
+            m_d[:] = 0.0
+            m_n[:] = 0.0
+            for t in range(T):
+                for c in range(3):
+                    m_d[c] += video[y, x, t, c]
+                    m_n[c] += color[y, x, t, c]
+            for c in range(3):
+                v_m = total_var[y, x, c]
+                if not np.isnan(v_m):
+                    v_m = max(v_m, 0.0)
+                d = m_d[c] - m_n[c]
+                den = v_m + d * d
+                b = v_m / den if den > 0 else 1.0
+                beta[y, x, c] = b
+                target = m_n[c] + b * d
+                scale = 1.0
+                if m_d[c] > 0 and np.isfinite(target) and np.isfinite(m_d[c]):
+                    scale = target / m_d[c]
+                for t in range(T):
+                    out[y, x, t, c] = np.float64(video[y, x, t, c]) * scale
+
+
+def mass_shrink(video: np.ndarray, color: np.ndarray, total_var: np.ndarray) -> tuple:
+    """The pixel-total rule of :func:`mass_shrink_reference` in one parallel pass (Numba);
+    equal to it within float32 rounding (tests). Same arguments and returns."""
+    h, w, t = np.shape(video)[:3]
+
+    def exact_float(a):                  # float32 or float64 as given, anything else float32
+        dt = np.asarray(a).dtype
+        return dt if dt in (np.float32, np.float64) else np.float32
+
+    video = check_buffer("video", video, (h, w, t, 3), dtype=exact_float(video))
+    color = check_buffer("color", color, (h, w, t, 3), dtype=exact_float(color))
+    total_var = check_buffer("total_var", total_var, (h, w, 3), dtype=np.float64)
+    out = np.empty((h, w, t, 3), np.float32)
+    beta = np.empty((h, w, 3), np.float64)
+    _mass_shrink_kernel(video, color, total_var, out, beta)
+    return out, beta

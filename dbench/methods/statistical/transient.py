@@ -43,7 +43,8 @@ the neighbouring bins; 0 is what the data says). ``skip_empty=False`` filters ev
 
 Implementations: :func:`statistical_video_reference` (readable NumPy float64, loop over the 3D
 offsets on whole shifted videos) and :func:`statistical_video_fast` (the shared Numba kernel
-:func:`dbench.methods.kernels.bilateral.numba3d.accumulate3d`: float32 weights, float64 Welch test identical to
+:func:`dbench.methods.kernels.bilateral.numba3d.accumulate3d`: float32 weights, float64 Welch
+test identical to
 the reference's, symmetric pairs, spatial weights computed once per row and reused by every
 bin). They agree to 1e-5 relative (tests). There is no PyTorch/CUDA path for videos.
 
@@ -74,7 +75,7 @@ from ..kernels.bilateral.numba3d import accumulate3d
 from ..kernels.bilateral.params import SEED_SIGMA, TEMPORAL_PROFILES
 from ..kernels.bilateral.reference import reference_weights, shift_slices
 from .core import Threshold, resolve_threshold, welch_pass
-from .shrink import SQUARED_FROM, merge_shrink3d, shrink_planes, shrink_reference
+from .shrink import bias_from_colour, merge_shrink3d, shrink_layout, shrink_reference
 from .transient_inputs import (VideoStats, bins_in_play, nonempty_bins, prepare_video,
                                video_shape, video_stats)
 
@@ -82,10 +83,15 @@ from .transient_inputs import (VideoStats, bins_in_play, nonempty_bins, prepare_
 VIDEO_RADIUS = 5
 VIDEO_RADIUS_T = 1
 VIDEO_GAMMA = 0.1
+#: Optical path length (m) the automatic temporal radius covers on each side of a bin, and its
+#: cap (:func:`auto_radius_t`).
+AUTO_RT_OPL = 0.02
+AUTO_RT_MAX = 3
 BASES = ("jbf", "gauss3d")
 VIDEO_BACKENDS = ("auto", "numba", "reference")
 
-__all__ = ["VideoStats", "video_stats", "nonempty_bins", "bins_in_play", "window_size",
+__all__ = ["auto_radius_t", "AUTO_RT_OPL", "VideoStats", "video_stats", "nonempty_bins",
+           "bins_in_play", "window_size",
            "make_video_guide", "resolve_base", "prepare_video", "statistical_video_reference",
            "statistical_video_fast", "statistical_filter_video", "BASES", "VIDEO_RADIUS",
            "VIDEO_RADIUS_T", "VIDEO_GAMMA"]
@@ -98,16 +104,35 @@ def window_size(radius: int, radius_t: int, window: str = "square") -> int:
     return int(dy.size) * (2 * check_radius(radius_t, "radius_t") + 1)
 
 
-def resolve_base(base: str, meta: dict | None = None, normal: Any = None,
-                 albedo: Any = None) -> str:
+def auto_radius_t(bin_width_opl: float | None) -> int:
+    """The temporal radius that follows the bin width: r_t = min(3, ⌊20 mm / Δ⌋) for bins of
+    optical path length Δ (m); the spec default 1 when Δ is unknown.
+
+    Why (results/transient_statistical.md §6.8, seed Fig. 5.5 and spec §11.3 "the temporal
+    radius matters most for narrow bins (8 ps), little at 83 ps and not at 833 ps"): on
+    cornell-transient at 256 spp the best r_t was 0 for bins of 248, 77 and 25 mm and 2-3 for
+    7.7 mm bins, and at the catalogue's 200-bin windows (31-52 mm bins) r_t = 0 was below
+    r_t = 1 in whole-video RMSE in 9 of 12 scene × spp cells. A neighbouring bin is a sample
+    of the same signal only while the signal changes little over the bin gap; 20 mm of path
+    (67 ps) is where that stopped holding in these measurements.
+    """
+    if bin_width_opl is None:
+        return VIDEO_RADIUS_T
+    width = float(bin_width_opl)
+    if not (np.isfinite(width) and width > 0):
+        return VIDEO_RADIUS_T
+    return int(min(AUTO_RT_MAX, np.floor(AUTO_RT_OPL / width + 1e-9)))
+
+
+def resolve_base(base: str, normal: Any = None, albedo: Any = None) -> str:
     """``"auto"`` → ``"jbf"`` when the frame has albedo and normal G-buffers, else ``"gauss3d"``.
 
     The seed uses the plain 3D Gaussian for participating media (spec §11.3). dbench's media
     scenes are rooms with fog or a cloud in front of surfaces whose G-buffers (rendered without
     the medium) still mark the geometric edges, and there the JBF base is better at every spp
     (results/transient_statistical.md §6: fog-transient, whole-video RMSE 0.61-0.75× the
-    noisy input's with the JBF base against 0.72-1.08× with gauss3d). ``meta`` is accepted
-    for callers that pass it; a medium no longer decides the base by itself."""
+    noisy input's with the JBF base against 0.72-1.08× with gauss3d); a medium no longer
+    decides the base by itself."""
     check_choice("base", base, ("auto",) + BASES)
     if base != "auto":
         return base
@@ -143,13 +168,15 @@ def statistical_video_reference(color: Any, vs: VideoStats, guide: Guide, tfac: 
     """Readable spatio-temporal statistical denoiser (spec §11.3), float64.
 
     Loops over the (spatial offset o, temporal offset τ) of the window and accumulates whole
-    shifted videos: ρ from :func:`~dbench.methods.kernels.bilateral.reference.reference_weights` (the JBF's own
+    shifted videos: ρ from
+    :func:`~dbench.methods.kernels.bilateral.reference.reference_weights` (the JBF's own
     code) times tfac[τ], m from the per-channel Welch predicate (centre voxel: m = 1), v from the
     colour's finiteness; voxels with bad statistics only keep their centre.
 
     Args:
         color: (H, W, T, 3) linear noisy video.
-        vs: :class:`VideoStats` of all T bins, channel-last (``video_stats(..., channel_first=False)``).
+        vs: :class:`VideoStats` of all T bins, channel-last
+            (``video_stats(..., channel_first=False)``).
         guide: spatial base filter; tfac: (2r_t+1,) temporal factors.
         keep: (T,) bool bins whose output is wanted (the others come back as 0), or None (all).
         return_weights: also return the (O, H, W, T) normalised weights of every 3D offset (the
@@ -169,7 +196,9 @@ def statistical_video_reference(color: Any, vs: VideoStats, guide: Guide, tfac: 
     den = np.zeros((h, w, t))
     centre_w = np.zeros((h, w, t))
     theta_num, var2_num, w2_num = (np.zeros((h, w, t)) for _ in range(3))
-    theta_bar, var_bar = theta.mean(-1), var.mean(-1)
+    # the bias of the shrinkage is measured on the colour for the identity transform (shrink)
+    theta_bar = col.mean(-1) if bias_from_colour(vs.transform) else theta.mean(-1)
+    var_bar = var.mean(-1)
     stack, members = [], []
     for k in range(len(guide.dy)):
         dy, dx = int(guide.dy[k]), int(guide.dx[k])
@@ -224,7 +253,8 @@ def statistical_video_reference(color: Any, vs: VideoStats, guide: Guide, tfac: 
 
 def _threshold_for(alpha: float | None, gamma: float | None, n_range: tuple[int, int],
                    vs: VideoStats | None) -> Threshold:
-    """γ_t from γ (wins; both None → γ = VIDEO_GAMMA) or from α and ν = n_i + n_j − 2 (spec §5.1)."""
+    """γ_t from γ (wins; both None → γ = VIDEO_GAMMA) or from α and ν = n_i + n_j − 2
+    (spec §5.1)."""
     if alpha is None and gamma is None:
         gamma = VIDEO_GAMMA
     if gamma is not None:
@@ -243,7 +273,8 @@ def statistical_video_fast(color: Any, stats: Any, guide: Guide, tfac: np.ndarra
     """Numba spatio-temporal statistical denoiser: (H, W, T, 3) float32.
 
     Only the ``keep`` bins (default all) and their r_t neighbours are prepared and enter the
-    kernel (:func:`prepare_video`, :func:`dbench.methods.kernels.bilateral.numba3d.accumulate3d`); the other
+    kernel (:func:`prepare_video`, :func:`dbench.methods.kernels.bilateral.numba3d.accumulate3d`);
+    the other
     bins come back as 0. Threshold as :func:`statistical_filter_video`. With ``return_info``
     also (threshold, VideoStats, bins in play).
     """
@@ -254,7 +285,11 @@ def statistical_video_fast(color: Any, stats: Any, guide: Guide, tfac: np.ndarra
     idx = np.flatnonzero(bins_in_play(keep, r_t))
     out = np.zeros((h, w, t, 3), np.float32)
     want_nint = membership_on and gamma is None and alpha is not None
-    planes, vs, n_range = prepare_video(color, stats, idx, want_stats=True, want_nint=want_nint)
+    shrink = bool(shrink and membership_on)
+    n_planes, squared_from, theta_plane = shrink_layout(
+        bias_from_colour(getattr(stats, "transform", "unknown")))
+    planes, vs, n_range = prepare_video(color, stats, idx, want_stats=True, want_nint=want_nint,
+                                        n_planes=n_planes if shrink else 4)
     thr = _threshold_for(alpha, gamma, n_range, vs)
     if idx.size:
         test: dict[str, Any] = {}
@@ -269,11 +304,10 @@ def statistical_video_fast(color: Any, stats: Any, guide: Guide, tfac: np.ndarra
             # plain base filter, bad voxels still isolated: θ = NaN there, 0 elsewhere, γ_t = 0
             theta = vs.theta * 0.0
             test = dict(theta=theta, var=np.zeros_like(theta), g2=0.0)
-        if shrink and membership_on:
-            planes = shrink_planes(planes, vs.theta, vs.var)
-            sums = accumulate3d(guide, planes, tfac, idx, keep[idx], n_bins=t,
-                                squared_from=SQUARED_FROM, **test)
-            merge_shrink3d(sums, planes, keep[idx], idx, out)
+        if shrink:
+            acc, band = accumulate3d(guide, planes, tfac, idx, keep[idx], n_bins=t,
+                                     squared_from=squared_from, bands=True, **test)
+            merge_shrink3d(acc, band, planes, keep[idx], idx, theta_plane, out)
         else:
             accumulate3d(guide, planes, tfac, idx, keep[idx], n_bins=t, normalise_into=out,
                          **test)
@@ -297,7 +331,7 @@ def statistical_filter_video(color: Any, stats: Any, albedo: Any = None, normal:
                              features: Sequence[str] = ("xy", "albedo", "normal"),
                              membership_on: bool = True, skip_empty: bool = True,
                              shrink: bool = True,
-                             backend: str = "auto", meta: dict | None = None,
+                             backend: str = "auto",
                              return_info: bool = False):
     """Statistical denoiser of spec/statistical.md §11.3 on an (H, W, T, 3) video.
 
@@ -311,7 +345,7 @@ def statistical_filter_video(color: Any, stats: Any, albedo: Any = None, normal:
         alpha, gamma: test level (γ_t = t_{1−α/2, n_i+n_j−2}) or threshold given directly
             (``gamma`` wins when both are given; both None: γ = 0.1, γ_t = 2; spec §5.1).
         base: ``"jbf"`` (G-buffers replicated along time), ``"gauss3d"`` (plain 3D Gaussian,
-            media) or ``"auto"`` (:func:`resolve_base` from ``meta`` and the G-buffers).
+            media) or ``"auto"`` (:func:`resolve_base` from the G-buffers).
         temporal_profile: ``"box"`` or ``"gaussian"`` (σ_t = ``sigma_t`` bins); None = box for
             the jbf base, gaussian for gauss3d (spec/jbf.md §1.4).
         sigma, sigma_convention, window, hit_mask, features: the spatial base filter as in
@@ -330,7 +364,7 @@ def statistical_filter_video(color: Any, stats: Any, albedo: Any = None, normal:
     h, w, t = video_shape(color)
     check_choice("backend", backend, VIDEO_BACKENDS)
     radius_t = check_radius(radius_t, "radius_t")
-    base = resolve_base(base, meta, normal, albedo)
+    base = resolve_base(base, normal, albedo)
     profile = temporal_profile or ("box" if base == "jbf" else "gaussian")
     check_choice("temporal_profile", profile, TEMPORAL_PROFILES)
     sigma_t = check_positive("sigma_t", sigma_t, allow_inf=True)
@@ -361,7 +395,8 @@ def statistical_filter_video(color: Any, stats: Any, albedo: Any = None, normal:
                 threshold_source=thr.source, uniform_n=thr.table is None,
                 transform=vs.transform, lam=vs.lam, membership=bool(membership_on),
                 backend="reference" if backend == "reference" else "numba",
-                skip_empty=bool(skip_empty), shrink=bool(shrink and membership_on), bins=t, nonempty_bins=int(keep.sum()),
+                skip_empty=bool(skip_empty), shrink=bool(shrink and membership_on), bins=t,
+                nonempty_bins=int(keep.sum()),
                 bins_in_play=int(idx.size), n_bad_stats=int(vs.bad.sum()))
     if base == "gauss3d":
         info["features"] = ("xy",)

@@ -112,7 +112,10 @@ def _prepare_video(color, mean, var, n, m3, idx, want_stats, want_nint, planes, 
                    nint, bad, flags):
     """One parallel pass over the (H, W, T, 3) inputs for the bins ``idx`` (kernel layout).
 
-    planes[k] = (colour·v, v) with v = colour finite; with ``want_stats`` θ̂ = μ + M3/(6σ²n)
+    planes[k] = (colour·v, v) with v = colour finite, followed, when ``planes`` has more than 4
+    planes, by the shrinkage planes of :func:`dbench.methods.statistical.shrink.shrink_layout`
+    (7: θ̄·v, V̄·v, v; 6: V̄·v, v; θ̄, V̄ channel means, 0 at bad voxels); with ``want_stats``
+    θ̂ = μ + M3/(6σ²n)
     (the same float64 expression as :func:`video_stats`), NaN at voxels with non-finite
     statistics (``bad``), and Var(θ̂) (0 there); with ``want_nint`` the rounded counts.
     flags[y] = (negative variance seen, negative n seen, min n, max n over good voxels).
@@ -120,6 +123,7 @@ def _prepare_video(color, mean, var, n, m3, idx, want_stats, want_nint, planes, 
     H = color.shape[0]
     W = color.shape[1]
     K = idx.shape[0]
+    P = planes.shape[1]
     for y in prange(H):
         neg_v = 0
         neg_n = 0
@@ -166,6 +170,17 @@ def _prepare_video(color, mean, var, n, m3, idx, want_stats, want_nint, planes, 
                         hi = max(hi, ni)
                     if want_nint:
                         nint[k, c, y, x] = ni
+                if P > 4:
+                    vv = planes[k, 3, y, x]
+                    th_bar = 0.0
+                    var_bar = 0.0
+                    if good:
+                        th_bar = (theta[k, 0, y, x] + theta[k, 1, y, x] + theta[k, 2, y, x]) / 3.0
+                        var_bar = (vout[k, 0, y, x] + vout[k, 1, y, x] + vout[k, 2, y, x]) / 3.0
+                    if P == 7:
+                        planes[k, 4, y, x] = th_bar * vv
+                    planes[k, P - 2, y, x] = var_bar * vv
+                    planes[k, P - 1, y, x] = vv
         flags[y, 0] = neg_v
         flags[y, 1] = neg_n
         flags[y, 2] = lo
@@ -173,11 +188,14 @@ def _prepare_video(color, mean, var, n, m3, idx, want_stats, want_nint, planes, 
 
 
 def prepare_video(color: Any, stats: Any, bins: np.ndarray, *, want_stats: bool = True,
-                  want_nint: bool = False):
+                  want_nint: bool = False, n_planes: int = 4):
     """Kernel inputs for the ``bins`` of a video in one parallel pass (:func:`_prepare_video`).
 
+    ``n_planes``: 4 (colour·v, v), or 6 / 7 with the shrinkage planes
+    (:func:`dbench.methods.statistical.shrink.shrink_layout`; needs ``want_stats``).
+
     Returns:
-        planes (K, 4, H, W) float32 (colour·v, v) and, with ``want_stats``, a
+        planes (K, n_planes, H, W) float32 and, with ``want_stats``, a
         :class:`VideoStats` whose θ̂ is NaN at bad voxels (its ``nint`` None unless
         ``want_nint``), plus (min n, max n) over the good voxels ((−1, −1) if none).
     """
@@ -186,7 +204,9 @@ def prepare_video(color: Any, stats: Any, bins: np.ndarray, *, want_stats: bool 
     idx = np.ascontiguousarray(bins, dtype=np.int64)
     k = idx.size
     full = (h, w, t, 3)
-    planes = np.empty((k, 4, h, w), np.float32)
+    if n_planes not in (4, 6, 7) or (n_planes > 4 and not want_stats):
+        raise ValueError(f"n_planes: expected 4, or 6 / 7 with want_stats, got {n_planes}")
+    planes = np.empty((k, n_planes, h, w), np.float32)
     flags = np.zeros((h, 4), np.int64)
     if want_stats:
         if stats is None:

@@ -180,7 +180,7 @@ def accumulate3d(guide: Guide, planes: np.ndarray, tfac: np.ndarray, bins: np.nd
                  nint: np.ndarray | None = None, g2: float | None = None,
                  g2_table: np.ndarray | None = None,
                  normalise_into: np.ndarray | None = None,
-                 squared_from: int | None = None) -> np.ndarray:
+                 squared_from: int | None = None, bands: bool = False):
     """Numba fast path in 3D: Σ_{j ≠ i} W_ij · planes_j over a (2r+1)² × (2r_t+1) window.
 
     The base weight is the JBF of ``guide`` replicated along time (its G-buffers are per pixel)
@@ -206,10 +206,13 @@ def accumulate3d(guide: Guide, planes: np.ndarray, tfac: np.ndarray, bins: np.nd
         normalise_into: optional (H, W, n_bins, P − 1) float32 video; the active bins are then
             written there as (sums + planes)[:P−1] / (sums + planes)[P−1] (the centre term
             added, 0 where the denominator is 0) and the video is returned instead of the sums.
+        bands: return the kernel's band accumulators unmerged, for a caller that merges them
+            in its own pass: (acc (nbands, K, P, rows + halo, W) float32, rows per band); row
+            y of band b is acc[b, :, :, y − b·rows] where 0 ≤ y − b·rows < rows + halo.
 
     Returns:
-        (K, P, H, W) float64 sums without the centre term (the caller adds it), or
-        ``normalise_into``.
+        (K, P, H, W) float64 sums without the centre term (the caller adds it),
+        ``normalise_into``, or the bands.
 
     Precision as :func:`accumulate`: float32 weights and band sums, float64 Welch test and merge.
     """
@@ -252,13 +255,18 @@ def accumulate3d(guide: Guide, planes: np.ndarray, tfac: np.ndarray, bins: np.nd
                 or not normalise_into.flags.c_contiguous):
             raise DbenchInputError(f"normalise_into: expected a C-contiguous float32 array of "
                                    f"shape {shape}")
+    nbands = num_bands(h)
     if k_ == 0:
+        if bands:
+            return np.zeros((nbands, 0) + planes.shape[1:2] + (1, w), np.float32), h
         return np.zeros(planes.shape, np.float64) if normalise_into is None else normalise_into
     acc = _accumulate3d_kernel(fsq, np.zeros((0, 1, 1), np.float32), planes, dys, dxs, es,
                                dt_first, tfac.astype(np.float32), np.ascontiguousarray(nbr),
                                active, th, va, ni, np.float64(gg), table, int(test_mode),
-                               num_bands(h), int(guide.radius),
+                               nbands, int(guide.radius),
                                int(planes.shape[1] if squared_from is None else squared_from))
+    if bands:
+        return acc, (h + nbands - 1) // nbands
     if normalise_into is None:
         return _merge_bands3d(acc, active, h)
     _merge_normalise3d(acc, planes, active, bins, normalise_into)
