@@ -47,10 +47,12 @@ RADII_T = (0, 1, 2, 3)
 RADII_S = (2, 5)
 FIG56_METHODS = ("noisy", "statistical", "jbf-bins", "oidn-bins")
 #: the ablation's rows: one rule added at a time (results/transient_statistical.md §6)
-ABLATION = (("A seed rule (γ 0.05)", dict(shrink=False, mass=False, gamma=0.05)),
-            ("B + shrinkage", dict(shrink=True, mass=False, gamma=0.05)),
-            ("C + pixel-total rule", dict(shrink=True, mass=True, gamma=0.05)),
-            ("D + γ 0.1 (defaults)", dict(shrink=True, mass=True, gamma=0.1)))
+ABLATION = (("A seed rule (γ 0.05, r_t 1)", dict(shrink=False, mass=False, gamma=0.05,
+                                                  radius_t=1)),
+            ("B + shrinkage", dict(shrink=True, mass=False, gamma=0.05, radius_t=1)),
+            ("C + pixel-total rule", dict(shrink=True, mass=True, gamma=0.05, radius_t=1)),
+            ("D + γ 0.1", dict(shrink=True, mass=True, gamma=0.1, radius_t=1)),
+            ("E + r_t from the bin width (defaults)", dict(shrink=True, mass=True, gamma=0.1)))
 #: references of the ablation: 1/16 of the largest input where affordable, 1/8 for the media
 ABLATION_REF = {"cornell-transient": 32768, "caustic-transient": 32768, "fog-transient": 16384}
 FIG56_SPP = (16, 64, 256, 1024, 2048)
@@ -109,12 +111,14 @@ def fig55(scene: str = "cornell-transient", res: int = 64, spp: int = 256, ref_s
           radii_s: Sequence[int] = RADII_S, seed: int = 0) -> list[dict[str, Any]]:
     """Temporal radius × bin width × spatial radius (seed Fig. 5.5)."""
     from ..datasets import load, scenes as catalogue
+    from ..methods.statistical.transient import auto_radius_t
 
     sc = catalogue.get(scene)
     rows = []
     for bins in bins_list:
         frame = load(scene, spp, res, seed=seed, ref_spp=ref_spp, bins=bins, progress=False)
         width = sc.window(bins).bin_width_opl
+        auto = auto_radius_t(width)
         noisy = score(frame.color, frame)
         for r_s in radii_s:
             for r_t in radii_t:
@@ -122,7 +126,8 @@ def fig55(scene: str = "cornell-transient", res: int = 64, spp: int = 256, ref_s
                 den = score(out, frame)
                 rows.append({"scene": scene, "bins": bins, "bin_width_mm": 1000.0 * width,
                              "bin_width_ps": 1e12 * width / 299792458.0, "radius": r_s,
-                             "radius_t": r_t, "spp": spp, "res": res, "ref_spp": ref_spp,
+                             "radius_t": r_t, "auto_radius_t": auto,
+                             "spp": spp, "res": res, "ref_spp": ref_spp,
                              "ref_rmse": frame.meta.get("ref_rmse"), "time_s": seconds,
                              **{f"noisy_{k}": v for k, v in noisy.items()}, **den,
                              **_ratios(den, noisy)})
@@ -317,7 +322,8 @@ def ablation_table(rows: list[dict[str, Any]]) -> str:
 COLUMNS = {
     "fig5.4": ("scene", "transform", "lam", "gamma", "rmse_ratio", "rmse_unbiased_ratio",
                "rmse_integrated_ratio", "noisy_rmse", "ref_rmse"),
-    "fig5.5": ("bins", "bin_width_mm", "bin_width_ps", "radius", "radius_t", "rmse_ratio",
+    "fig5.5": ("bins", "bin_width_mm", "bin_width_ps", "radius", "radius_t", "auto_radius_t",
+               "rmse_ratio",
                "rmse_unbiased_ratio", "rmse_integrated_ratio", "noisy_rmse"),
     "fig5.6": ("scene", "spp", "method", "rmse", "rmse_ci", "rmse_unbiased", "psnr", "psnr_ci",
                "ssim", "ref_spp", "ref_rmse"),

@@ -22,22 +22,21 @@ DbenchInputError naming it; the resolved values land in ``last_settings`` after 
     0.1 ×3)), sigma_convention ("variance" | "sd"), window ("square" | "disk"), backend ("auto":
     PyTorch on CUDA for images, Numba otherwise | "numba" | "torch" (images only) |
     "reference"), hit_mask (True), membership (True; False = plain base filter, the ablation).
-    The ProDen gate of spec §12 is
-    ``statistical+gate`` (:mod:`dbench.methods.gate`, which wraps any steady method;
-    ``statistical-gate`` is the old name of the same method).
+    The ProDen gate of spec §12 is ``statistical+gate`` (:mod:`dbench.methods.gate`, which
+    wraps any steady method; ``statistical-gate`` is the old name of the same method).
     Videos only (spec §11.3, spec/jbf.md §1.4): radius_t ("auto": follows the bin width,
     min(3, ⌊20 mm / bin width⌋) from the frame's ``meta["bin_width_opl"]`` in metres, 1 when
     the frame has no window in metres;
     :func:`~dbench.methods.statistical.transient.auto_radius_t` | an integer), base ("auto":
-    "jbf" when the
-    frame has albedo and normal, media included (measured better than the seed's 3D Gaussian
-    on dbench's media scenes), else "gauss3d" | "jbf" | "gauss3d"), temporal_profile (None:
-    "box" for the jbf base, "gaussian" for
-    gauss3d | "box" | "gaussian"), sigma_t (1.0 bin), skip_empty (True), shrink (True: the
+    "jbf" when the frame has albedo and normal, media included (measured better than the
+    seed's 3D Gaussian on dbench's media scenes), else "gauss3d" | "jbf" | "gauss3d"),
+    temporal_profile (None: "box" for the jbf base, "gaussian" for gauss3d | "box" |
+    "gaussian"), sigma_t (1.0 bin), skip_empty (True), shrink (True: the
     centre-versus-neighbourhood shrinkage of :mod:`dbench.methods.statistical.shrink`; False:
     the seed's normalised sum), mass (True: each pixel's time integral shrunk towards the noisy
     total by its own variance, ``TransientFrame.total_var``; skipped, and recorded in
-    ``last_settings``, when the frame has none).
+    ``last_settings``, when the frame has none). The seed's rule is ``shrink=False,
+    mass=False, gamma=0.05, radius_t=1``.
 On images every buffer of ``needs`` (color, albedo, normal, stats) must be present: a
 missing one raises DbenchInputError naming it. ``depth`` is optional: it feeds the JBF's hit
 mask, and without it pixels with an all-zero normal count as background

@@ -275,7 +275,8 @@ def statistical_reference(color: Any, sp: StatPlanes, guide: Guide, threshold: T
     """Readable statistical denoiser: loop over offsets, whole shifted images (spec §8).
 
     For each offset o: ρ from
-    :func:`~dbench.methods.kernels.bilateral.reference.reference_weights` (the JBF's own code), m from the per-channel Welch predicate, v from the colour's finiteness.
+    :func:`~dbench.methods.kernels.bilateral.reference.reference_weights` (the JBF's own code),
+    m from the per-channel Welch predicate, v from the colour's finiteness.
 
     Returns:
         (H, W, 3) float64; with ``return_weights`` also (O, H, W) normalised weights and the

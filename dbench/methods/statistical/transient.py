@@ -44,9 +44,8 @@ the neighbouring bins; 0 is what the data says). ``skip_empty=False`` filters ev
 Implementations: :func:`statistical_video_reference` (readable NumPy float64, loop over the 3D
 offsets on whole shifted videos) and :func:`statistical_video_fast` (the shared Numba kernel
 :func:`dbench.methods.kernels.bilateral.numba3d.accumulate3d`: float32 weights, float64 Welch
-test identical to
-the reference's, symmetric pairs, spatial weights computed once per row and reused by every
-bin). They agree to 1e-5 relative (tests). There is no PyTorch/CUDA path for videos.
+test identical to the reference's, symmetric pairs, spatial weights computed once per row and
+reused by every bin). They agree to 1e-5 relative (tests). There is no PyTorch/CUDA path for videos.
 
 Shapes: colour and statistics (H, W, T, 3); G-buffers (H, W, ·); outputs (H, W, T, 3) float32.
 
@@ -108,13 +107,15 @@ def auto_radius_t(bin_width_opl: float | None) -> int:
     """The temporal radius that follows the bin width: r_t = min(3, ⌊20 mm / Δ⌋) for bins of
     optical path length Δ (m); the spec default 1 when Δ is unknown.
 
-    Why (results/transient_statistical.md §6.8, seed Fig. 5.5 and spec §11.3 "the temporal
+    Why (results/transient_statistical.md §6.5, seed Fig. 5.5 and spec §11.3 "the temporal
     radius matters most for narrow bins (8 ps), little at 83 ps and not at 833 ps"): on
-    cornell-transient at 256 spp the best r_t was 0 for bins of 248, 77 and 25 mm and 2-3 for
-    7.7 mm bins, and at the catalogue's 200-bin windows (31-52 mm bins) r_t = 0 was below
-    r_t = 1 in whole-video RMSE in 9 of 12 scene × spp cells. A neighbouring bin is a sample
-    of the same signal only while the signal changes little over the bin gap; 20 mm of path
-    (67 ps) is where that stopped holding in these measurements.
+    cornell-transient at 256 spp, r_t = 0 was the best or within 0.003 of it for bins of 248,
+    77 and 25 mm, and r_t = 2-3 the best for 7.7 mm bins. At the catalogue's 200-bin windows
+    (31-52 mm bins) r_t = 0 beat r_t = 1 in 7 of 12 scene × spp cells over all voxels and in 8
+    of 12 on the time-integrated image (2 ties), by up to 0.20 of the noisy error; caustic at
+    16-256 spp preferred r_t = 1 (by up to 0.055). A neighbouring bin is a sample of the same
+    signal only while the signal changes little over the bin gap; 20 mm of path (67 ps) is
+    where that stopped holding in these measurements.
     """
     if bin_width_opl is None:
         return VIDEO_RADIUS_T
@@ -274,9 +275,8 @@ def statistical_video_fast(color: Any, stats: Any, guide: Guide, tfac: np.ndarra
 
     Only the ``keep`` bins (default all) and their r_t neighbours are prepared and enter the
     kernel (:func:`prepare_video`, :func:`dbench.methods.kernels.bilateral.numba3d.accumulate3d`);
-    the other
-    bins come back as 0. Threshold as :func:`statistical_filter_video`. With ``return_info``
-    also (threshold, VideoStats, bins in play).
+    the other bins come back as 0. Threshold as :func:`statistical_filter_video`. With
+    ``return_info`` also (threshold, VideoStats, bins in play).
     """
     h, w, t = video_shape(color)
     tfac = np.asarray(tfac, np.float64)
