@@ -41,6 +41,29 @@ def test_cell_is_skipped_with_reason_when_buffers_are_missing():
     assert res.output is None and "albedo" in res.skipped
 
 
+class _Resolving(Denoiser):
+    """Records what it resolved, including values a cell file cannot hold."""
+    name = "resolving"
+    kinds = {"steady"}
+    needs = {"color"}
+    defaults = {"radius": "auto"}
+
+    def denoise(self, data):
+        self.last_settings = {"radius": np.int64(3), "source": "auto", "gain": np.float32(0.5),
+                              "features": ("xy", "albedo"), "weights": np.ones((4, 4)),
+                              "nested": {"a": 1}}
+        return data.color.copy()
+
+
+def test_cell_records_the_resolved_settings_as_plain_scalars():
+    f = Frame(color=np.zeros((8, 8, 3)), reference=np.zeros((8, 8, 3)))
+    res = harness.run_cell(_Resolving(), f, metric_names=["rmse"], repeats=1)
+    assert res.settings == {"radius": 3, "source": "auto", "gain": 0.5,
+                            "features": ["xy", "albedo"]}
+    assert type(res.settings["radius"]) is int and res.params == {"radius": "auto"}
+    assert harness.run_cell(_Sleepy(), f, metric_names=["rmse"], repeats=1).settings == {}
+
+
 @pytest.mark.mitsuba
 def test_noisy_rmse_converges_like_inverse_sqrt_spp(renderer, tmp_cache):
     from dbench import datasets

@@ -39,6 +39,9 @@ class CellResult:
     sequence: Any = None  # the SequenceResult of a sequence cell (first seed)
     per_seed: list[dict[str, Any]] = field(default_factory=list)
     ci_kind: str = ""
+    #: what the method resolved on the first seed (its ``last_settings``: e.g. the statistical
+    #: denoiser's γ_t, ν, base filter and automatic temporal radius), scalars only
+    settings: dict[str, Any] = field(default_factory=dict)
 
     @property
     def time_s(self) -> float:
@@ -55,6 +58,23 @@ class CellResult:
     @property
     def n_seeds(self) -> int:
         return max(1, len(self.per_seed))
+
+
+def resolved_settings(method: Denoiser) -> dict[str, Any]:
+    """The scalar entries of a method's ``last_settings`` after a call (numbers, strings,
+    booleans, None, and short lists or tuples of them), as plain Python values; arrays and
+    nested objects are left out. {} for a method that records none."""
+    out: dict[str, Any] = {}
+    for key, value in (getattr(method, "last_settings", None) or {}).items():
+        if isinstance(value, np.generic):
+            value = value.item()
+        if isinstance(value, (list, tuple)) and len(value) <= 16 and all(
+                isinstance(v, (bool, int, float, str, type(None), np.generic)) for v in value):
+            value = [v.item() if isinstance(v, np.generic) else v for v in value]
+        elif not isinstance(value, (bool, int, float, str, type(None))):
+            continue
+        out[str(key)] = value
+    return out
 
 
 def time_call(fn, repeats: int = 5, warmup: int = 1) -> tuple[Any, list[float]]:
@@ -120,6 +140,7 @@ def run_cell(method: Denoiser, frame, metric_names=DEFAULT_METRICS, repeats: int
         result.n_nonfinite += int((~np.isfinite(output)).sum())
         if result.output is None:
             result.output = output.astype(np.float32)
+            result.settings = resolved_settings(method)
         if f.reference is not None:
             j = judge_frame(output, f, metric_names)
             judgements.append([j])
@@ -160,6 +181,7 @@ def run_sequence_cell(method: Denoiser, seq, metric_names=DEFAULT_METRICS,
         result.n_nonfinite += int(sum((~np.isfinite(o)).sum() for o in run.outputs))
         if result.sequence is None:
             result.sequence, result.output = run, run.outputs[-1]
+            result.settings = resolved_settings(method)
         row = {"seed": s.meta.get("seed", i)}
         row.update({c: run.summary.get(f"mean_{c}", run.summary.get(c, float("nan")))
                     for c in columns + ["ref_rmse"]})

@@ -310,6 +310,8 @@ def cell_record(res, frames: list, needs: set[str]) -> dict[str, Any]:
               **res.metrics, "time_s": res.time_s, "time_s_iqr": res.time_s_iqr,
               "times_s": res.times_s, "n_nonfinite": res.n_nonfinite,
               "per_seed": res.per_seed}
+    if res.settings:
+        record["settings"] = res.settings       # what the method resolved (first seed)
     if first.kind == "sequence":
         record.update(frames=len(first), warmup=res.sequence.summary["warmup"])
     return record

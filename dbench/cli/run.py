@@ -84,7 +84,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     write_exr(out / "images" / "reference.exr", {"color": last.reference})
 
     table = pd.DataFrame(rows)
-    csv_table = table.drop(columns=[c for c in ("seeds", "times_s", "per_seed")
+    csv_table = table.drop(columns=[c for c in ("seeds", "times_s", "per_seed", "settings")
                                     if c in table.columns])
     write_csv(out / "metrics.csv", csv_table)
     write_csv(out / "metrics_per_seed.csv", pd.DataFrame(per_seed))
@@ -122,6 +122,11 @@ def cmd_run(args: argparse.Namespace) -> int:
                 "cache hits": _summarise_parts(frame.meta["cache_hits"]) or "none",
                 "rendered": _summarise_parts(frame.meta["rendered"]) or "nothing",
                 "method parameters": "; ".join(f"{r['method']}: {r['params']}" for r in rows)}
+    resolved = {r["method"]: r["settings"] for r in rows if r.get("settings")}
+    if resolved:
+        # what the methods resolved from "auto"/None defaults on this frame (first seed)
+        settings["resolved settings"] = "; ".join(
+            f"{m}: {json.dumps(v, sort_keys=True, default=str)}" for m, v in resolved.items())
     write_text(out / "report.md", report.run_report_md(table, settings, info, skipped,
                                                        rank_by=args.rank_by))
     write_json(out / "run.json", {"settings": settings, "machine": info, "skipped": skipped})
