@@ -206,3 +206,24 @@ def test_one_sample_leaves_the_gate_open():
     half = get("jbf+gate", radius=3, gate_alpha=0.5).denoise(one)
     plain = get("jbf", radius=3).denoise(one)
     np.testing.assert_allclose(half, 0.5 * (frame.color + plain), rtol=1e-6, atol=1e-7)
+
+
+@pytest.mark.parametrize("transform,lam", [("identity", 0.5), ("box-cox", 0.5),
+                                           ("box-cox", 0.25), ("yeo-johnson", 0.5)])
+def test_gate_from_statistics_equals_the_composed_fast_gate(transform, lam):
+    """proden_gate_stats forms the substitutions and the linear variance inside its first pass
+    (identity, Box-Cox ½) or through linear_variance (other transforms): the same numbers as
+    proden_gate_fast on the prepared arrays, non-finite values included."""
+    rng = np.random.default_rng(31)
+    color = rng.gamma(1.0, 1.0, (19, 23, 3)).astype(np.float32)
+    den = (color * rng.uniform(0.7, 1.3, color.shape)).astype(np.float32)
+    var = rng.gamma(1.0, 1.0, color.shape) * 10.0 ** rng.uniform(-6, -2, color.shape)
+    color[2, 3, 1], color[5, 5, 0], den[7, 8, 2], var[9, 9, 1] = np.nan, np.inf, np.nan, np.inf
+    stats = SampleStats(n=np.full(color.shape, 8.0), mean=np.zeros(color.shape), var_mean=var,
+                        m3=np.zeros(color.shape), transform=transform, lam=lam)
+    hdr = np.where(np.isfinite(color), color, den)
+    den_fixed = np.where(np.isfinite(den), den, hdr)
+    expected = kg.proden_gate_fast(hdr, den_fixed, kg.linear_variance(stats, color))
+    got = kg.proden_gate_stats(color, den, stats)
+    assert got.dtype == np.float32 and np.isfinite(got[np.isfinite(expected)]).all()
+    np.testing.assert_allclose(got, expected, rtol=1e-6, atol=1e-7)

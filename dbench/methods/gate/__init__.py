@@ -17,7 +17,8 @@ variants are never listed one by one. The wrapper:
 * pixels whose noisy colour is not finite keep the method's output (there is nothing to mix
   back to), and so do pixels with fewer than 2 samples (their variance of the mean is unknown,
   so nothing is significant: at 1 spp ``NAME+gate`` equals ``NAME``);
-* runs the compiled gate (:func:`~dbench.methods.kernels.gate.proden_gate_fast`);
+* runs the compiled gate (:func:`~dbench.methods.kernels.gate.proden_gate_stats`, the passes
+  of :func:`~dbench.methods.kernels.gate.proden_gate_fast` fed from the statistics);
   ``gate_backend="reference"`` runs the readable SciPy form.
 
 Example:
@@ -36,7 +37,7 @@ import numpy as np
 from ...denoiser import Denoiser
 from ...errors import DbenchInputError
 from ..checks import check_choice
-from ..kernels.gate import GATE_K, GATE_T0, linear_variance, proden_gate, proden_gate_fast
+from ..kernels.gate import GATE_K, GATE_T0, linear_variance, proden_gate, proden_gate_stats
 
 SUFFIX = "+gate"
 GATE_DEFAULTS: dict[str, Any] = dict(gate_alpha=1.0, gate_k=GATE_K, gate_t0=GATE_T0,
@@ -68,20 +69,23 @@ def gate_output(color: np.ndarray, denoised: np.ndarray, stats: Any, *, alpha: f
     """The gate applied to one image: (H, W, 3) noisy colour, (H, W, 3) method output and the
     frame's statistics -> (H, W, 3) float32. Non-finite noisy pixels keep the output."""
     _require_stats(stats)
-    hdr = np.where(np.isfinite(color), color, denoised)
-    den = np.where(np.isfinite(denoised), denoised, hdr)
     # [dbench] Fewer than 2 samples: the variance of the mean is unknown (SampleStats stores 0
     # there), not zero, so there is no evidence against the method's value: the gate stays
     # open (α). Read as a known zero it would return the noisy input at 1 spp.
     unknown = np.asarray(stats.n) < 2
-    open_gate = (hdr + alpha * (den - hdr)).astype(np.float32) if np.any(unknown) else None
-    if open_gate is not None and np.all(unknown):  # 1 spp: nothing to test, skip the blurs
-        return open_gate
-    var = linear_variance(stats, color)
+    open_gate = None
+    if backend == "reference" or np.any(unknown):
+        hdr = np.where(np.isfinite(color), color, denoised)
+        den = np.where(np.isfinite(denoised), denoised, hdr)
+        if np.any(unknown):
+            open_gate = (hdr + alpha * (den - hdr)).astype(np.float32)
+            if np.all(unknown):  # 1 spp: nothing to test, skip the blurs
+                return open_gate
     if backend == "reference":
-        out = proden_gate(hdr, den, var, alpha=alpha, k=k, t0=t0).astype(np.float32)
-    else:
-        out = proden_gate_fast(hdr, den, var, alpha=alpha, k=k, t0=t0)
+        out = proden_gate(hdr, den, linear_variance(stats, color), alpha=alpha, k=k,
+                          t0=t0).astype(np.float32)
+    else:  # the same substitutions and the linear variance, inside the compiled passes
+        out = proden_gate_stats(color, denoised, stats, alpha=alpha, k=k, t0=t0)
     return out if open_gate is None else np.where(unknown, open_gate, out)
 
 

@@ -15,6 +15,9 @@ noisy mean (:func:`linear_variance` derives it from dbench's statistics). Zero-p
   (G = g gᵀ, G² = g² g²ᵀ) and G*(hdr + α(den − hdr)) − G*hdr = α G*(den − hdr), so two
   separable blurs replace three 2-D ones, and Φ comes from a table (:func:`gate_table`).
   Equal to the reference within 1e-6 · |den − hdr| (test).
+* :func:`proden_gate_stats` — the same passes fed directly from a frame's colour, the method's
+  output and dbench's statistics (non-finite substitutions and the linear variance formed in
+  the first pass), which is what ``NAME+gate`` runs.
 
 A kernel imports no method and nothing of the harness.
 
@@ -102,56 +105,136 @@ def gate_table(k: float = GATE_K, t0: float = GATE_T0) -> np.ndarray:
     return proden_gate_factor(np.linspace(0.0, LUT_T_MAX, LUT_SIZE + 1), k, t0)
 
 
-@njit(parallel=True, cache=True, fastmath=True)
-def _blur_rows(hdr, den, var, g, g2, bd, bv):  # pragma: no cover - compiled
-    """Zero-padded blur along x of interleaved (H, W·C) rows, C = 3 (a neighbour is 3 values
-    away): bd = g * (den − hdr), bv = g² * var, float64."""
-    h, wc = hdr.shape
-    n = g.shape[0]
-    r = n // 2
+#: Fast-math flags of the gate passes: everything but "no NaN / no Inf", so that the finiteness
+#: tests of the inputs are not optimised away.
+_FASTMATH = {"nsz", "arcp", "contract", "afn", "reassoc"}
+
+
+@njit(inline="always")
+def _inputs(color, den, var, x, box_cox_half, fix, y, i):  # pragma: no cover - compiled
+    """(hdr, den, linear variance) of one value: with ``fix`` a non-finite noisy value takes
+    the method's and a non-finite method value the noisy one (as :func:`gate_output` does);
+    the variance is ``var`` (box_cox_half False) or var · max(x, 0) (Box-Cox ½, x the noisy
+    colour), 0 where it is not finite (:func:`linear_variance`)."""
+    a = np.float64(color[y, i])
+    d = np.float64(den[y, i])
+    if fix:
+        if not np.isfinite(a):
+            a = d
+        if not np.isfinite(d):
+            d = a
+    v = var[y, i]
+    if box_cox_half:
+        xx = np.float64(x[y, i])
+        xx = max(xx, 0.0) if np.isfinite(xx) else 0.0
+        v = v * xx
+    if not np.isfinite(v):
+        v = 0.0
+    return a, d, v
+
+
+@njit(parallel=True, cache=True, fastmath=_FASTMATH)
+def _mean_variance(color, den, var, x, box_cox_half, fix):  # pragma: no cover - compiled
+    """Mean of the linear variance over the image (σ_b of spec §12), float64."""
+    h, wc = var.shape
+    sums = np.zeros(h, np.float64)
     for row in prange(h):
         y = np.int64(row)
-        a, d, b, oa, ob = hdr[y], den[y], var[y], bd[y], bv[y]
+        s = 0.0
         for i in range(wc):
-            lo, hi = max(0, r - i // 3), min(n, (wc - 1 - i) // 3 + r + 1)
-            s1 = 0.0
-            s2 = 0.0
-            for j in range(lo, hi):
-                q = i + 3 * (j - r)
-                s1 += g[j] * (np.float64(d[q]) - np.float64(a[q]))
-                s2 += g2[j] * b[q]
-            oa[i] = s1
-            ob[i] = s2
+            s += _inputs(color, den, var, x, box_cox_half, fix, y, i)[2]
+        sums[y] = s
+    return sums.sum() / max(h * wc, 1)
 
 
-@njit(parallel=True, cache=True, fastmath=True)
-def _blur_cols_gate(bd, bv, hdr, den, g, g2, alpha, table, t_max, sd, sv, out):  # pragma: no cover
-    """Blur along y (zero padding) into ``sd``, ``sv``, then out = hdr + α Φ(−k(t − t0))
-    (den − hdr) with t = α|G*(den − hdr)| / (√(G²*var) + 1e-6), Φ read from ``table``;
-    (H, W·C) rows; ``sd`` and ``sv`` are scratch rows of the same shape."""
+@njit(parallel=True, cache=True, fastmath=_FASTMATH)
+def _blur_rows(color, den, var, x, box_cox_half, fix, g, g2, bd, bv):  # pragma: no cover
+    """Zero-padded blur along x of interleaved (H, W·C) rows, C = 3 (a neighbour is 3 values
+    away): bd = g * (den − hdr), bv = g² * var, float64. The taps are symmetric, so each pair
+    g_j (f[i − 3j] + f[i + 3j]) is one pass over a zero-padded copy of the row."""
+    h, wc = color.shape
+    r = g.shape[0] // 2
+    c = 3 * r
+    for row in prange(h):
+        y = np.int64(row)
+        pd = np.zeros(wc + 2 * c, np.float64)
+        pv = np.zeros(wc + 2 * c, np.float64)
+        for i in range(wc):
+            a, d, v = _inputs(color, den, var, x, box_cox_half, fix, y, i)
+            pd[i + c] = d - a
+            pv[i + c] = v
+        oa, ob = bd[y], bv[y]
+        for i in range(wc):
+            oa[i] = g[r] * pd[i + c]
+            ob[i] = g2[r] * pv[i + c]
+        for j in range(1, r + 1):
+            gj, g2j, s = g[r + j], g2[r + j], 3 * j
+            for i in range(wc):
+                oa[i] += gj * (pd[i + c - s] + pd[i + c + s])
+                ob[i] += g2j * (pv[i + c - s] + pv[i + c + s])
+
+
+@njit(parallel=True, cache=True, fastmath=_FASTMATH)
+def _blur_cols_gate(bd, bv, color, den, fix, g, g2, alpha, table, t_max, out):  # pragma: no cover
+    """Blur along y (zero padding), then out = hdr + α Φ(−k(t − t0)) (den − hdr) with
+    t = α|G*(den − hdr)| / (√(G²*var) + 1e-6), Φ read from ``table``; (H, W·C) rows."""
     h, wc = bd.shape
     r = g.shape[0] // 2
     last = table.shape[0] - 1
     scale = last / t_max
     for row in prange(h):
         y = np.int64(row)  # prange may hand out unsigned indices, and -y must stay negative
-        rd, rv = sd[y], sv[y]
-        rd[:] = 0.0
-        rv[:] = 0.0
-        for j in range(max(-r, -y), min(r, h - 1 - y) + 1):
-            gj, g2j = g[j + r], g2[j + r]
-            a = bd[y + j]
-            b = bv[y + j]
-            for i in range(wc):
-                rd[i] += gj * a[i]
-                rv[i] += g2j * b[i]
-        hh, dd, o = hdr[y], den[y], out[y]
+        rd = np.empty(wc, np.float64)
+        rv = np.empty(wc, np.float64)
+        a0, b0 = bd[y], bv[y]
+        for i in range(wc):
+            rd[i] = g[r] * a0[i]
+            rv[i] = g2[r] * b0[i]
+        for j in range(1, r + 1):
+            gj, g2j = g[r + j], g2[r + j]
+            up, down = y - j >= 0, y + j <= h - 1
+            if up and down:
+                a1, a2, b1, b2 = bd[y - j], bd[y + j], bv[y - j], bv[y + j]
+                for i in range(wc):
+                    rd[i] += gj * (a1[i] + a2[i])
+                    rv[i] += g2j * (b1[i] + b2[i])
+            elif up or down:
+                a1, b1 = (bd[y - j], bv[y - j]) if up else (bd[y + j], bv[y + j])
+                for i in range(wc):
+                    rd[i] += gj * a1[i]
+                    rv[i] += g2j * b1[i]
+        o = out[y]
         for i in range(wc):
             u = min(alpha * abs(rd[i]) / (math.sqrt(max(rv[i], 0.0)) + 1e-6) * scale, last - 1.0)
             m = int(u)
             phi = table[m] + (u - m) * (table[m + 1] - table[m])
-            x = np.float64(hh[i])
-            o[i] = x + alpha * phi * (np.float64(dd[i]) - x)
+            hv = np.float64(color[y, i])
+            dv = np.float64(den[y, i])
+            if fix:
+                if not np.isfinite(hv):
+                    hv = dv
+                if not np.isfinite(dv):
+                    dv = hv
+            o[i] = hv + alpha * phi * (dv - hv)
+
+
+def _gate_passes(color, den, var, x, box_cox_half: bool, fix: bool, alpha: float, k: float,
+                 t0: float) -> np.ndarray:
+    """The two compiled passes on (H, W, 3) arrays (see :func:`proden_gate_fast`)."""
+    h, w, c = color.shape
+    color = np.ascontiguousarray(color).reshape(h, w * c)
+    den = np.ascontiguousarray(den, color.dtype).reshape(h, w * c)
+    var = np.ascontiguousarray(var, np.float64).reshape(h, w * c)
+    x = color if x is None else np.ascontiguousarray(x, color.dtype).reshape(h, w * c)
+    g = gate_taps(max(100.0 * math.sqrt(min(max(
+        _mean_variance(color, den, var, x, box_cox_half, fix), 0.0), 1.0)), 1e-3))
+    bd = np.empty((h, w * c), np.float64)
+    bv = np.empty((h, w * c), np.float64)
+    _blur_rows(color, den, var, x, box_cox_half, fix, g, g * g, bd, bv)
+    out = np.empty((h, w * c), np.float32)
+    _blur_cols_gate(bd, bv, color, den, fix, g, g * g, float(alpha), gate_table(k, t0),
+                    LUT_T_MAX, out)
+    return out.reshape(h, w, c)
 
 
 def proden_gate_fast(hdr: Any, den: Any, var: Any, *, alpha: float = 1.0, k: float = GATE_K,
@@ -160,18 +243,27 @@ def proden_gate_fast(hdr: Any, den: Any, var: Any, *, alpha: float = 1.0, k: flo
     blurs with float64 sums, the gate factor from :func:`gate_table`); (H, W, 3) float32. Equal
     to the reference within float32 rounding (tests: 1e-6 relative)."""
     hdr = np.ascontiguousarray(hdr)
-    h, w, c = hdr.shape
-    den = np.ascontiguousarray(den, hdr.dtype).reshape(h, w * c)
-    var = np.ascontiguousarray(var, np.float64)
-    g = gate_taps(gate_sigma(var))
-    bd = np.empty((h, w * c), np.float64)
-    bv = np.empty((h, w * c), np.float64)
-    flat = hdr.reshape(h, w * c)
-    _blur_rows(flat, den, var.reshape(h, w * c), g, g * g, bd, bv)
-    out = np.empty((h, w * c), np.float32)
-    _blur_cols_gate(bd, bv, flat, den, g, g * g, float(alpha), gate_table(k, t0), LUT_T_MAX,
-                    np.empty_like(bd), np.empty_like(bv), out)
-    return out.reshape(h, w, c)
+    return _gate_passes(hdr, den, var, None, False, False, alpha, k, t0)
+
+
+def proden_gate_stats(color: Any, den: Any, stats: Any, *, alpha: float = 1.0,
+                      k: float = GATE_K, t0: float = GATE_T0) -> np.ndarray:
+    """The gate of a method output ``den`` on a noisy ``color`` with dbench's ``stats``, in the
+    same two passes: non-finite noisy values take the method's and non-finite method values the
+    noisy ones, and the linear variance (:func:`linear_variance`) is formed inside the first
+    pass for the identity transform and Box-Cox ½ (any other transform is prepared by
+    :func:`linear_variance` first). Equal to ``proden_gate_fast(hdr, den',
+    linear_variance(stats, color))`` with those substitutions (tests); (H, W, 3) float32."""
+    color = np.ascontiguousarray(color)
+    shape = color.shape
+    transform = getattr(stats, "transform", "identity")
+    var = np.broadcast_to(np.asarray(stats.var_mean, np.float64), shape)
+    if transform == "identity":
+        return _gate_passes(color, den, var, None, False, True, alpha, k, t0)
+    if transform == "box-cox" and float(stats.lam) == 0.5:
+        return _gate_passes(color, den, var, color, True, True, alpha, k, t0)
+    return _gate_passes(color, den, linear_variance(stats, color), None, False, True, alpha,
+                        k, t0)
 
 
 def linear_variance(stats: Any, color: np.ndarray) -> np.ndarray:
@@ -198,4 +290,4 @@ def linear_variance(stats: Any, color: np.ndarray) -> np.ndarray:
 
 
 __all__ = ["GATE_K", "GATE_T0", "gate_sigma", "gate_taps", "linear_variance", "proden_gate",
-           "proden_gate_factor", "proden_gate_fast"]
+           "proden_gate_factor", "proden_gate_fast", "proden_gate_stats"]
