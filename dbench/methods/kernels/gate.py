@@ -111,11 +111,9 @@ _FASTMATH = {"nsz", "arcp", "contract", "afn", "reassoc"}
 
 
 @njit(inline="always")
-def _inputs(color, den, var, x, box_cox_half, fix, y, i):  # pragma: no cover - compiled
-    """(hdr, den, linear variance) of one value: with ``fix`` a non-finite noisy value takes
-    the method's and a non-finite method value the noisy one (as :func:`gate_output` does);
-    the variance is ``var`` (box_cox_half False) or var · max(x, 0) (Box-Cox ½, x the noisy
-    colour), 0 where it is not finite (:func:`linear_variance`)."""
+def _pair(color, den, fix, y, i):  # pragma: no cover - compiled
+    """(hdr, den) of one value, float64: with ``fix`` a non-finite noisy value takes the
+    method's and a non-finite method value the noisy one (as :func:`gate_output` does)."""
     a = np.float64(color[y, i])
     d = np.float64(den[y, i])
     if fix:
@@ -123,6 +121,15 @@ def _inputs(color, den, var, x, box_cox_half, fix, y, i):  # pragma: no cover - 
             a = d
         if not np.isfinite(d):
             d = a
+    return a, d
+
+
+@njit(inline="always")
+def _inputs(color, den, var, x, box_cox_half, fix, y, i):  # pragma: no cover - compiled
+    """(hdr, den, linear variance) of one value (:func:`_pair`); the variance is ``var``
+    (box_cox_half False) or var · max(x, 0) (Box-Cox ½, x the noisy colour), 0 where it is not
+    finite (:func:`linear_variance`)."""
+    a, d = _pair(color, den, fix, y, i)
     v = var[y, i]
     if box_cox_half:
         xx = np.float64(x[y, i])
@@ -208,13 +215,7 @@ def _blur_cols_gate(bd, bv, color, den, fix, g, g2, alpha, table, t_max, out):  
             u = min(alpha * abs(rd[i]) / (math.sqrt(max(rv[i], 0.0)) + 1e-6) * scale, last - 1.0)
             m = int(u)
             phi = table[m] + (u - m) * (table[m + 1] - table[m])
-            hv = np.float64(color[y, i])
-            dv = np.float64(den[y, i])
-            if fix:
-                if not np.isfinite(hv):
-                    hv = dv
-                if not np.isfinite(dv):
-                    dv = hv
+            hv, dv = _pair(color, den, fix, y, i)
             o[i] = hv + alpha * phi * (dv - hv)
 
 
