@@ -52,6 +52,8 @@ import numpy as np
 from numba import njit, prange
 
 from ...data import check_buffer
+from ..kernels.bilateral.numba3d import add_band_rows
+
 
 def bias_from_colour(transform: str) -> bool:
     """True when the shrinkage measures the bias on the linear colour (identity transform: the
@@ -90,12 +92,10 @@ def merge_shrink3d(acc, band, planes, active, bins, theta_plane, out):
     (neighbour sums without the centre term), summed here in float64 per voxel; ``band`` rows
     per band. ``theta_plane`` is the θ̄ plane, or −1 when θ̄ is the colour's channel mean.
     """
-    nbands = acc.shape[0]
     K = planes.shape[0]
     P = planes.shape[1]
     H = planes.shape[2]
     W = planes.shape[3]
-    span = acc.shape[3]
     vi = P - 2                                    # V̄·v, then v, both summed with w²
     for y in prange(H):
         s = np.zeros((P, W), np.float64)
@@ -103,12 +103,7 @@ def merge_shrink3d(acc, band, planes, active, bins, theta_plane, out):
             if not active[k]:
                 continue
             s[:] = 0.0
-            for bb in range(nbands):
-                r = y - bb * band
-                if 0 <= r < span:
-                    for p in range(P):
-                        for x in range(W):
-                            s[p, x] += acc[bb, k, p, r, x]
+            add_band_rows(acc, k, y, band, s)
             t = bins[k]
             for x in range(W):
                 v = planes[k, 3, y, x]

@@ -108,22 +108,33 @@ def _accumulate3d_kernel(fsq, fdot, planes, dys, dxs, es, dt_first, tfac, nbr, a
     return acc
 
 
+@njit(inline="always")
+def add_band_rows(acc, k, y, band, s):  # pragma: no cover - compiled
+    """s[p, x] += acc[b, k, p, y − b·band, x] for every band b holding row y (its own rows and
+    its halo), in band order: the merge of :func:`_accumulate3d_kernel`'s accumulators for bin
+    k and row y into the (P, W) float64 ``s``; ``band`` rows per band."""
+    nbands = acc.shape[0]
+    P = acc.shape[2]
+    span = acc.shape[3]
+    W = acc.shape[4]
+    for bb in range(nbands):
+        r = y - bb * band
+        if 0 <= r < span:
+            for p in range(P):
+                for x in range(W):
+                    s[p, x] += acc[bb, k, p, r, x]
+
+
 @njit(parallel=True, cache=True)
 def _merge_bands3d(acc, active, H):
     """Sum the band accumulators of :func:`_accumulate3d_kernel`: (K, P, H, W) float64."""
     nbands, K, P, BH, W = acc.shape
-    halo = BH - (H + nbands - 1) // nbands
-    B = BH - halo
+    B = (H + nbands - 1) // nbands
     out = np.zeros((K, P, H, W), np.float64)
     for y in prange(H):
-        for bb in range(nbands):
-            r = y - bb * B
-            if 0 <= r < B + halo:
-                for k in range(K):
-                    if active[k]:
-                        for p in range(P):
-                            for x in range(W):
-                                out[k, p, y, x] += acc[bb, k, p, r, x]
+        for k in range(K):
+            if active[k]:
+                add_band_rows(acc, k, y, B, out[k, :, y, :])
     return out
 
 
@@ -137,8 +148,7 @@ def _merge_normalise3d(acc, planes, active, bins, out):
     """
     nbands, K, P, BH, W = acc.shape
     H = planes.shape[2]
-    halo = BH - (H + nbands - 1) // nbands
-    B = BH - halo
+    B = (H + nbands - 1) // nbands
     C = P - 1
     for y in prange(H):
         s = np.empty((P, W), np.float64)
@@ -148,12 +158,7 @@ def _merge_normalise3d(acc, planes, active, bins, out):
             for p in range(P):
                 for x in range(W):
                     s[p, x] = planes[k, p, y, x]
-            for bb in range(nbands):
-                r = y - bb * B
-                if 0 <= r < B + halo:
-                    for p in range(P):
-                        for x in range(W):
-                            s[p, x] += acc[bb, k, p, r, x]
+            add_band_rows(acc, k, y, B, s)
             t = bins[k]
             for x in range(W):
                 d = s[C, x]
