@@ -73,11 +73,12 @@ def gate_output(color: np.ndarray, denoised: np.ndarray, stats: Any, *, alpha: f
     # there), not zero, so there is no evidence against the method's value: the gate stays
     # open (α). Read as a known zero it would return the noisy input at 1 spp.
     unknown = np.asarray(stats.n) < 2
+    any_unknown = bool(np.any(unknown))
     open_gate = None
-    if backend == "reference" or np.any(unknown):
+    if backend == "reference" or any_unknown:
         hdr = np.where(np.isfinite(color), color, denoised)
         den = np.where(np.isfinite(denoised), denoised, hdr)
-        if np.any(unknown):
+        if any_unknown:
             open_gate = (hdr + alpha * (den - hdr)).astype(np.float32)
             if np.all(unknown):  # 1 spp: nothing to test, skip the blurs
                 return open_gate

@@ -50,7 +50,12 @@ def proden_gate_factor(t: Any, k: float = GATE_K, t0: float = GATE_T0) -> np.nda
 
 def gate_sigma(var: np.ndarray) -> float:
     """σ_b = max(100 · sqrt(clamp(mean(var), 0, 1)), 1e-3) (spec §12)."""
-    return max(100.0 * math.sqrt(min(max(float(np.mean(var)), 0.0), 1.0)), 1e-3)
+    return sigma_from_mean(float(np.mean(var)))
+
+
+def sigma_from_mean(mean_var: float) -> float:
+    """σ_b of :func:`gate_sigma` from the mean variance itself."""
+    return max(100.0 * math.sqrt(min(max(mean_var, 0.0), 1.0)), 1e-3)
 
 
 def gate_taps(sigma: float, taps: int = GATE_TAPS) -> np.ndarray:
@@ -227,8 +232,7 @@ def _gate_passes(color, den, var, x, box_cox_half: bool, fix: bool, alpha: float
     den = np.ascontiguousarray(den, color.dtype).reshape(h, w * c)
     var = np.ascontiguousarray(var, np.float64).reshape(h, w * c)
     x = color if x is None else np.ascontiguousarray(x, color.dtype).reshape(h, w * c)
-    g = gate_taps(max(100.0 * math.sqrt(min(max(
-        _mean_variance(color, den, var, x, box_cox_half, fix), 0.0), 1.0)), 1e-3))
+    g = gate_taps(sigma_from_mean(_mean_variance(color, den, var, x, box_cox_half, fix)))
     bd = np.empty((h, w * c), np.float64)
     bv = np.empty((h, w * c), np.float64)
     _blur_rows(color, den, var, x, box_cox_half, fix, g, g * g, bd, bv)
