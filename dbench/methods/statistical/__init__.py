@@ -112,11 +112,12 @@ class Statistical(Denoiser):
         p = self.params
         if p["radius"] is not None:
             check_radius(p["radius"])
-        if p["radius_t"] != "auto" and (isinstance(p["radius_t"], (str, bool))
-                                        or not isinstance(p["radius_t"], (int, np.integer))
-                                        or p["radius_t"] < 0):
-            raise DbenchInputError(f"radius_t: expected 'auto' or an integer ≥ 0, got "
-                                   f"{p['radius_t']!r}")
+        if p["radius_t"] != "auto":
+            try:
+                check_radius(p["radius_t"], "radius_t")
+            except DbenchInputError:  # the same check, with "auto" among the choices
+                raise DbenchInputError(f"radius_t: expected 'auto' or an integer ≥ 0, got "
+                                       f"{p['radius_t']!r}") from None
         if p["alpha"] is not None:
             _check_alpha(p["alpha"])
         if p["gamma"] is not None:
