@@ -199,15 +199,36 @@ if HAVE_NUMBA:
                 for j in range(m_):
                     Xs[j, q] = scale[j] * X[j, q]
                     b0[q] -= shift[j] * scale[j] * X[j, q]
+            # reconstruction one image row of the block at a time, feature by feature, so
+            # that the loops over x read contiguous feature rows and vectorise (the same sum,
+            # b + Σ_j f_j X_j in column order, as the reference)
+            nx = xb - xa
+            acc = np.empty((c, nx), np.float64)
             for y in range(ya, yb):
-                for x in range(xa, xb):
-                    if not recon[y, x]:
+                for q in range(c):
+                    for i in range(nx):
+                        acc[q, i] = b0[q]
+                for j in range(m_):
+                    k = kinds[j]
+                    if k == 0:
+                        for q in range(c):
+                            coef = Xs[j, q]
+                            for i in range(nx):
+                                acc[q, i] += coef
                         continue
+                    row = src_a[axes[j], y, xa:xb] if k == 1 else src_b[axes[j], y, xa:xb]
+                    square = k == 3
                     for q in range(c):
-                        acc = b0[q]
-                        for j in range(m_):
-                            acc += _feat(src_a, src_b, kinds, axes, j, y, x) * Xs[j, q]
-                        out[q, y, x] = max(acc, 0.0) if clamp else acc
+                        coef = Xs[j, q]
+                        for i in range(nx):
+                            f = np.float64(row[i])
+                            if square:
+                                f = f * f
+                            acc[q, i] += f * coef
+                for i in range(nx):
+                    if recon[y, xa + i]:
+                        for q in range(c):
+                            out[q, y, xa + i] = max(acc[q, i], 0.0) if clamp else acc[q, i]
 
 
 def bmfr_fit_fast(z, feats, scaled, fit, recon, block, offset, noise_amount=0.01, noise_seed=0,

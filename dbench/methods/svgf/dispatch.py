@@ -105,7 +105,7 @@ def filter_gradients(strata: dict, iterations: int = 3, sigma_z: float = 1.0,
     1, 2, 4 …; returns filtered ``delta``, ``norm``, ``g`` (hs, ws) float32."""
     img = np.stack([strata["delta"], strata["norm"], strata["g"]]).astype(np.float32)
     has = strata["has"]
-    gx, gy = depth_gradient(strata["depth"], has)
+    gx, gy = depth_gradient(strata["depth"], has, backend)
     var = np.zeros(has.shape, np.float32)
     for i in range(iterations):
         img, _ = atrous(backend, img, var, strata["depth"], gx, gy, strata["normal"], has, has,
