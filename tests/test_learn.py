@@ -145,6 +145,9 @@ def test_ship_and_load_trained_weights(tmp_path):
     assert info["losses"]["steps_done"] == 6 and "loss" in info["losses"]["validation"]
     ae = T.train_autoencoder(tr, _ae_cfg(), validation=va)
     ae_onnx, ae_json = T.ship_autoencoder(ae, tmp_path)
+    gate = __import__("json").loads(ae_json.read_text())["level_gate"]
+    assert gate["channel"] == 10 and set(gate["gamma_at_spp"]) == {"1", "4", "16", "64", "256",
+                                                                    "1024"}
     f = Frame(color=ts.noisy[0, 0, :20, :13], albedo=ts.albedo[0, :20, :13],
               normal=ts.normal[0, :20, :13], depth=ts.depth[0, :20, :13])
     assert methods.get("nca", weights=str(onnx_path)).denoise(f).shape == (20, 13, 3)
@@ -260,10 +263,27 @@ def test_light_fraction_without_lights_falls_back_to_uniform_crops():
         assert np.array_equal(a[k], b[k])
 
 
-def test_blend_output_onnx_equals_pytorch_and_keeps_the_input_where_gated():
+def _assert_onnx_forms_equal_pytorch(net, model, x):
+    """The stateful ONNX model (random hidden states) and its stateless form equal ``net``."""
     import onnxruntime as ort
 
-    from dbench.methods.autoencoder.export import build_onnx, stateless_from_stateful
+    from dbench.methods.autoencoder.export import stateless_from_stateful
+
+    n, c, h, w = x.shape
+    hidden = [torch.randn(s) for s in net.hidden_shapes(n, h, w)]
+    with torch.no_grad():
+        y, _ = net(x, hidden)
+        y0, _ = net(x)
+    feeds = {"x": x.numpy(), **{f"h{i + 1}": t.numpy() for i, t in enumerate(hidden)}}
+    got = ort.InferenceSession(model.SerializeToString()).run(None, feeds)[0]
+    assert np.abs(got - y.numpy()).max() <= 1e-4
+    stateless = stateless_from_stateful(model, c, net.enc_widths)
+    got0 = ort.InferenceSession(stateless.SerializeToString()).run(None, {"x": x.numpy()})[0]
+    assert np.abs(got0 - y0.numpy()).max() <= 1e-4
+
+
+def test_blend_output_onnx_equals_pytorch_and_keeps_the_input_where_gated():
+    from dbench.methods.autoencoder.export import build_onnx
     from dbench.methods.autoencoder.model import RecurrentAE
 
     torch.manual_seed(0)
@@ -275,16 +295,7 @@ def test_blend_output_onnx_equals_pytorch_and_keeps_the_input_where_gated():
     model = build_onnx(state, 10, net.enc_widths, metadata=meta, blend=True)
     assert {p.key: p.value for p in model.metadata_props}["blend"] == "True"
     x = torch.randn(1, 10, 64, 32)
-    hidden = [torch.randn(s) for s in net.hidden_shapes(1, 64, 32)]
-    with torch.no_grad():
-        y, _ = net(x, hidden)
-        y0, _ = net(x)
-    feeds = {"x": x.numpy(), **{f"h{i + 1}": h.numpy() for i, h in enumerate(hidden)}}
-    got = ort.InferenceSession(model.SerializeToString()).run(None, feeds)[0]
-    assert np.abs(got - y.numpy()).max() <= 1e-4
-    stateless = stateless_from_stateful(model, 10, net.enc_widths)
-    got0 = ort.InferenceSession(stateless.SerializeToString()).run(None, {"x": x.numpy()})[0]
-    assert np.abs(got0 - y0.numpy()).max() <= 1e-4
+    _assert_onnx_forms_equal_pytorch(net, model, x)
     with torch.no_grad():  # a gate saturated at "keep" returns the input colour
         net.out.weight[3].zero_()
         net.out.bias[3] = 60.0
@@ -292,6 +303,36 @@ def test_blend_output_onnx_equals_pytorch_and_keeps_the_input_where_gated():
     assert torch.allclose(y, x[:, :3], atol=1e-6)
     with pytest.raises(ValueError, match="exclude"):
         RecurrentAE(10, 0.25, residual=True, blend=True)
+
+
+def test_level_gate_onnx_equals_pytorch_and_passes_a_converged_input_through():
+    from dbench.methods.autoencoder.export import build_onnx
+    from dbench.methods.autoencoder.model import RecurrentAE
+
+    torch.manual_seed(0)
+    net = RecurrentAE(11, 0.25, residual=True, level_gate=10, gate_init=(-3.0, 1.5))
+    with torch.no_grad():  # a non-zero correction (the training init starts at zero)
+        net.out.weight.normal_(0.0, 0.05)
+    state = {k: v.detach().numpy() for k, v in net.state_dict().items()}
+    assert set(state) >= {"level_gate"}
+    model = build_onnx(state, 11, net.enc_widths, residual=True, level_gate=10, gate_max=2.0)
+    meta = {p.key: p.value for p in model.metadata_props}
+    assert meta["level_gate"] == "10" and float(meta["gate_max"]) == 2.0
+    x = torch.randn(2, 11, 64, 32)
+    x[:, 10] = torch.tensor([0.0, 0.7])[:, None, None]  # two noise levels in one batch
+    _assert_onnx_forms_equal_pytorch(net, model, x)
+    # the correction is the ungated one times γ(ℓ) = 2 sigmoid(1.5 − 3ℓ), per image
+    with torch.no_grad():
+        gated = net(x)[0] - x[:, :3]
+        net.level_channel = None
+        plain = net(x)[0] - x[:, :3]
+        net.level_channel = 10
+        gamma = 2.0 * torch.sigmoid(1.5 - 3.0 * torch.tensor([0.0, 0.7]))
+        assert torch.allclose(gated, plain * gamma[:, None, None, None], rtol=1e-4, atol=1e-6)
+        net.level_gate[1] = -60.0  # a closed gate returns the input colour
+        assert torch.allclose(net(x)[0], x[:, :3], atol=1e-6)
+    with pytest.raises(ValueError, match="level_gate"):
+        RecurrentAE(11, 0.25, residual=False, level_gate=10)
 
 
 def test_blend_training_ships_a_blend_model(tmp_path):
@@ -400,6 +441,37 @@ def test_step_count_selection_worst_case_first():
     assert table[str(k_mean)]["mean"] == min(v["mean"] for v in table.values())
     with pytest.raises(ValueError, match="worst"):
         T.select_iterations(r.model, va, (1,), by="median")
+
+
+def test_step_count_selection_per_sample_count_and_lookup(tmp_path):
+    """select_iterations(per_spp=True) picks, for every sample count of the held-out set, the
+    count with the lowest worst-case relMSE ratio; the shipped table then gives a frame's step
+    count by the nearest tabulated spp in log2 (unknown spp: the 1-spp entry)."""
+    from dbench.methods.nca import default_iterations, nca_denoise
+
+    ts = synthetic_training_set(3, 32, (1, 4))
+    tr, va = T.split(ts, 1)
+    cfg = _nca_cfg(steps=4, relative_weight=1.0)
+    r = T.train_nca(tr, cfg)
+    chosen, tables = T.select_iterations(r.model, va, (1, 2, 3), metric="relmse", per_spp=True)
+    assert set(chosen) == {1, 4} and set(tables) == {"1", "4"}
+    for n, k in chosen.items():
+        assert tables[str(n)][str(k)]["worst"] == min(v["worst"] for v in tables[str(n)].values())
+    with pytest.raises(ValueError, match="metric"):
+        T.select_iterations(r.model, va, (1,), metric="psnr")
+    # ship with a hand-made table and look the counts up
+    r.data["iterations_by_spp"] = {1: 3, 16: 2, 1024: 1}
+    onnx_path, json_path = T.ship_nca(r, tmp_path)
+    assert __import__("json").loads(json_path.read_text())["iterations_by_spp"] == \
+        {"1": 3, "16": 2, "1024": 1}
+    for spp, k in ((None, 3), (1, 3), (3, 3), (5, 2), (16, 2), (100, 2), (200, 1), (4096, 1)):
+        assert default_iterations(onnx_path, spp) == k, spp
+    f = va.noisy[0, 0]
+    for spp in (1, 16, 1024):  # None means the table's count for the frame's spp
+        k = default_iterations(onnx_path, spp)
+        np.testing.assert_array_equal(
+            nca_denoise(f, va.normal[0], va.albedo[0], weights=onnx_path, spp=spp),
+            nca_denoise(f, va.normal[0], va.albedo[0], iterations=k, weights=onnx_path, spp=spp))
 
 
 def test_relative_linear_mse():

@@ -2,7 +2,8 @@
 range users run, on the steady catalogue and on scenes no network was trained or tuned on.
 
     python -m dbench.learn.convergence [--res 64] [--spp 1,4,16,64,256,1024] [--ref-spp 4096]
-        [--old-nca PATH --old-autoencoder PATH] [--out results/learned_convergence.md]
+        [--old-nca PATH --old-autoencoder PATH] [--weights LABEL=METHOD:PATH ...]
+        [--out results/learned_convergence.md]
 
 For every scene and spp: relMSE (ε = 1e-2) of each method divided by the noisy input's relMSE
 (< 1: the method helps), the log-log slope of each method's relMSE from 16 to 1024 spp (least
@@ -163,6 +164,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--ref-spp", type=int, default=4096)
     p.add_argument("--old-nca", default=None)
     p.add_argument("--old-autoencoder", default=None)
+    p.add_argument("--weights", action="append", default=[], metavar="LABEL=METHOD:PATH",
+                   help="more columns: METHOD (nca or autoencoder) with the ONNX file PATH "
+                        "under LABEL, e.g. 'autoencoder (no gate)=autoencoder:old.onnx'")
     p.add_argument("--out", default="results/learned_convergence.md")
     args = p.parse_args(argv)
     from .. import datasets
@@ -173,6 +177,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         methods["nca (old)"] = ("nca", {"weights": args.old_nca})
     if args.old_autoencoder:
         methods["autoencoder (old)"] = ("autoencoder", {"weights": args.old_autoencoder})
+    for spec in args.weights:
+        label, _, rest = spec.partition("=")
+        method, _, path = rest.partition(":")
+        if not label or method not in ("nca", "autoencoder") or not path:
+            from ..errors import DbenchInputError
+            raise DbenchInputError(f"--weights: expected LABEL=nca:PATH or "
+                                   f"LABEL=autoencoder:PATH, got {spec!r}")
+        methods[label] = (method, {"weights": path})
     scenes = list(EVAL_SCENES) + outside_scenes()
     spps = [int(s) for s in args.spp.split(",")]
     data = rows(scenes, spps, args.res, args.ref_spp, methods, cache=datasets.Cache())

@@ -57,6 +57,9 @@ def ship_nca(result: TrainResult, out_dir: str | Path | None = None) -> tuple[Pa
     meta = {"update_channels": cfg.update_channels, "activation": cfg.activation,
             "color_encoding": cfg.color_encoding, "iterations": str(cfg.iterations),
             "autoexposure": str(bool(cfg.autoexposure)), "data_hash": result.data.get("hash", "")}
+    by_spp = result.data.get("iterations_by_spp")
+    if by_spp:
+        meta["iterations_by_spp"] = json.dumps({str(k): int(v) for k, v in by_spp.items()})
     gate = None
     if getattr(result.model, "noise_gate", False):
         gate = [float(result.model.gate_u.detach()), float(result.model.gate_v.detach()),
@@ -68,6 +71,7 @@ def ship_nca(result: TrainResult, out_dir: str | Path | None = None) -> tuple[Pa
     _readable(out / "nca.onnx")
     info = _describe(result, {
         "parameters": count_parameters(result.model), "iterations": cfg.iterations,
+        "iterations_by_spp": by_spp,
         "update_channels": cfg.update_channels, "activation": cfg.activation,
         "color_encoding": cfg.color_encoding, "autoexposure": bool(cfg.autoexposure),
         "noise_gate": gate, "W": W.tolist(), "b": b.tolist()})
@@ -94,7 +98,14 @@ def ship_autoencoder(result: TrainResult, out_dir: str | Path | None = None
             "in_channels": str(net.in_channels), "autoexposure": str(bool(cfg.autoexposure)),
             "data_hash": result.data.get("hash", "")}
     model = build_onnx(state, net.in_channels, net.enc_widths, stateful=True, metadata=meta,
-                       residual=net.residual, blend=net.blend)
+                       residual=net.residual, blend=net.blend, level_gate=net.level_channel,
+                       gate_max=net.gate_max)
+    gate = None
+    if net.level_channel is not None:
+        u, v = (float(t) for t in net.level_gate.detach())
+        gate = {"u": u, "v": v, "gate_max": net.gate_max, "channel": net.level_channel,
+                "gamma_at_spp": {str(n): net.gate_max / (1.0 + np.exp(-(v + u * np.log2(n) / 10)))
+                                 for n in (1, 4, 16, 64, 256, 1024)}}
     with atomic_path(out / "autoencoder.onnx", suffix=".tmp.onnx") as tmp:
         onnx.save(model, str(tmp))
     _readable(out / "autoencoder.onnx")
@@ -103,7 +114,7 @@ def ship_autoencoder(result: TrainResult, out_dir: str | Path | None = None
         "features": list(cfg.features), "width_scale": cfg.width_scale,
         "enc_widths": list(net.enc_widths), "dec_widths": list(net.dec_widths),
         "recurrent": cfg.recurrent, "residual": net.residual, "blend": net.blend,
-        "autoexposure": bool(cfg.autoexposure)})
+        "level_gate": gate, "autoexposure": bool(cfg.autoexposure)})
     write_json(out / "autoencoder.json", info)
     _readable(out / "autoencoder.json")
     return out / "autoencoder.onnx", out / "autoencoder.json"

@@ -37,6 +37,34 @@ def ae_prediction(y: torch.Tensor, a_eff: torch.Tensor) -> torch.Tensor:
     return torch.log1p(torch.expm1(y.clamp(max=20.0)) * a_eff)
 
 
+def level_channel(features) -> int | None:
+    """Index of the ``level`` plane in the network input (None without it)."""
+    from ..methods.autoencoder.model import FEATURE_CHANNELS
+
+    if "level" not in features:
+        return None
+    before = features[:list(features).index("level")]
+    return 3 + sum(FEATURE_CHANNELS[f] for f in before)
+
+
+def make_optimizer(model, lr: float, betas, gate_lr: float) -> torch.optim.Adam:
+    """Adam over the model; the level gate's (u, v), if any, in a group of its own at
+    ``gate_lr`` (Adam moves a parameter by about lr per step: at the network's 1e-3 the two
+    numbers could move by only a few units in a whole run). Each group's ``lr_scale`` is its lr
+    over ``lr``, so the schedule (:func:`set_lr`) keeps the ratio."""
+    gate = [p for n, p in model.named_parameters() if n == "level_gate"]
+    rest = [p for n, p in model.named_parameters() if n != "level_gate"]
+    groups = [{"params": rest, "lr_scale": 1.0}]
+    if gate:
+        groups.append({"params": gate, "lr_scale": gate_lr / lr})
+    return torch.optim.Adam(groups, lr=lr, betas=betas)
+
+
+def set_lr(opt: torch.optim.Optimizer, lr: float) -> None:
+    for g in opt.param_groups:
+        g["lr"] = lr * g.get("lr_scale", 1.0)
+
+
 def train_autoencoder(ts: TrainingSet, cfg: AEConfig | None = None, progress: bool = False,
                       validation: TrainingSet | None = None) -> TrainResult:
     """Train the recurrent autoencoder on single-frame crops of ``ts`` (state reset)."""
@@ -44,8 +72,10 @@ def train_autoencoder(ts: TrainingSet, cfg: AEConfig | None = None, progress: bo
 
     cfg = cfg or AEConfig()
     rng = seed_everything(cfg.seed, cfg.threads)
+    residual = cfg.residual and not cfg.blend
+    gate = level_channel(cfg.features) if cfg.level_gate and residual else None
     model = RecurrentAE(in_channels_for(cfg.features), cfg.width_scale, cfg.recurrent,
-                        cfg.residual and not cfg.blend, cfg.blend)
+                        residual, cfg.blend, gate, cfg.gate_max, tuple(cfg.gate_init))
     if cfg.residual and not cfg.blend:  # start as the identity
         with torch.no_grad():
             model.out.weight.zero_()
@@ -54,11 +84,10 @@ def train_autoencoder(ts: TrainingSet, cfg: AEConfig | None = None, progress: bo
         with torch.no_grad():
             for lvl, conv in enumerate(model.rec_b):
                 conv.weight[:, model.enc_widths[lvl]:] = 0.0
-    opt = torch.optim.Adam(model.parameters(), lr=cfg.lr, betas=cfg.betas)
+    opt = make_optimizer(model, cfg.lr, cfg.betas, cfg.gate_lr)
 
     def step_fn(step: int):
-        for g in opt.param_groups:
-            g["lr"] = lr_at(step, cfg)
+        set_lr(opt, lr_at(step, cfg))
         batch = sample_batch(ts, rng, cfg.batch, cfg.crop, cfg.spp_choices,
                              cfg.light_fraction, cfg.mix_spp, cfg.autoexposure)
         x, a_eff = ae_inputs(batch, cfg.features)
@@ -95,11 +124,10 @@ def finetune_autoencoder_sequences(model, ss, cfg: AESequenceConfig, features,
 
     rng = seed_everything(cfg.seed, cfg.threads)
     steady_cfg = steady_cfg or AEConfig()
-    opt = torch.optim.Adam(model.parameters(), lr=cfg.lr, betas=cfg.betas)
+    opt = make_optimizer(model, cfg.lr, cfg.betas, cfg.lr * steady_cfg.gate_lr / steady_cfg.lr)
 
     def step_fn(step: int):
-        for g in opt.param_groups:
-            g["lr"] = lr_at(step, cfg)
+        set_lr(opt, lr_at(step, cfg))
         use_steady = (steady is not None and cfg.steady_every > 0
                       and (step + 1) % cfg.steady_every == 0)
         if use_steady:

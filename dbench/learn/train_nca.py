@@ -82,7 +82,11 @@ def train_nca(ts: TrainingSet, cfg: NCAConfig | None = None, progress: bool = Fa
         if cfg.select_from:
             chosen, table = select_iterations(model, validation, cfg.select_from,
                                               cfg.color_encoding, cfg.select_by,
-                                              cfg.autoexposure)
+                                              cfg.autoexposure, cfg.select_metric,
+                                              cfg.select_per_spp)
+            if isinstance(chosen, dict):  # per sample count; the 1-spp count is the default
+                result.data["iterations_by_spp"] = chosen
+                chosen = chosen[min(chosen)]
             cfg = dataclasses.replace(cfg, iterations=chosen)
             result.config = cfg
             result.data["iterations_selection"] = table
@@ -96,30 +100,56 @@ def _rmse(a: np.ndarray, b: np.ndarray) -> float:
 
 
 def select_iterations(model, vs: TrainingSet, candidates, encoding: str = "log1p",
-                      by: str = "worst", exposure: bool = False
-                      ) -> tuple[int, dict[str, dict[str, float]]]:
-    """The step count whose relative linear RMSE (output RMSE / noisy RMSE) over every held-out
-    image and spp is best: ``by="worst"`` the lowest worst case (ties: lowest mean), i.e. the
-    count least likely to make an image worse than its input; ``by="mean"`` the lowest mean.
-    Returns (k, {k: {"mean": ..., "worst": ...}})."""
+                      by: str = "worst", exposure: bool = False, metric: str = "rmse",
+                      per_spp: bool = False) -> tuple[int | dict[int, int], dict]:
+    """The step count whose error relative to the noisy input's over the held-out images is
+    best: ``by="worst"`` the lowest worst case (ties: lowest mean), i.e. the count least likely
+    to make an image worse than its input; ``by="mean"`` the lowest mean.
+
+    ``metric``: "rmse" (output RMSE / noisy RMSE, linear) or "relmse" (relMSE with ε = 1e-2
+    over the noisy input's, :func:`dbench.metrics.relmse`). ``per_spp``: one choice per sample
+    count of the set (the inference step count then follows the frame's spp) instead of one
+    over all of them. Returns (k or {spp: k}, {k: {"mean", "worst"}} or {spp: that table})."""
+    from ..metrics import relmse
+
     if by not in ("worst", "mean"):
         raise ValueError(f"by: expected 'worst' or 'mean', got {by!r}")
-    table = {}
+    if metric not in ("rmse", "relmse"):
+        raise ValueError(f"metric: expected 'rmse' or 'relmse', got {metric!r}")
+
+    def error(x, ref):
+        return _rmse(x, ref) if metric == "rmse" else relmse(x, ref)
+
+    ratios: dict[int, dict[int, list[float]]] = {}  # k -> spp -> per-image ratios
     with torch.no_grad():
         for k in candidates:
-            rel = []
+            ratios[k] = {}
             for p in range(len(vs.spp)):
                 batch = full_images(vs, p, exposure)
                 out = model(nca_state(batch, encoding), k, torch.from_numpy(batch["level"]))
                 out = nca_prediction(out[:, :3], batch, encoding)
                 lin = np.maximum(np.expm1(np.minimum(out.numpy(), 80.0)), 0).transpose(0, 2, 3, 1)
-                for i in range(vs.shape[0]):
-                    rel.append(_rmse(lin[i], batch["reference"][i])
-                               / max(_rmse(batch["noisy"][i], batch["reference"][i]), 1e-12))
-            table[str(k)] = {"mean": float(np.mean(rel)), "worst": float(np.max(rel))}
+                ratios[k][int(vs.spp[p])] = [
+                    error(lin[i], batch["reference"][i])
+                    / max(error(batch["noisy"][i], batch["reference"][i]), 1e-12)
+                    for i in range(vs.shape[0])]
     order = ("worst", "mean") if by == "worst" else ("mean", "worst")
-    best = min(candidates, key=lambda k: tuple(table[str(k)][o] for o in order))
-    return int(best), table
+
+    def pick(spps) -> tuple[int, dict[str, dict[str, float]]]:
+        table = {}
+        for k in candidates:
+            rel = [r for n in spps for r in ratios[k][n]]
+            table[str(k)] = {"mean": float(np.mean(rel)), "worst": float(np.max(rel))}
+        best = min(candidates, key=lambda k: tuple(table[str(k)][o] for o in order))
+        return int(best), table
+
+    spps = [int(n) for n in vs.spp]
+    if not per_spp:
+        return pick(spps)
+    chosen, tables = {}, {}
+    for n in spps:
+        chosen[n], tables[str(n)] = pick([n])
+    return chosen, tables
 
 
 def validate_nca(model, vs: TrainingSet, iterations: int, encoding: str = "log1p",

@@ -11,9 +11,9 @@ Pipeline (shapes for an H x W frame; C = 3 + feature channels, 10 for the shippe
     y (1, 3, H', W') --crop, max(expm1(y), 0) * a_eff--> (H, W, 3)
 
 The shipped model is residual (metadata ``residual``): the graph adds the input's colour channels
-x[:, 0:3] to y, so the network predicts a correction of the noisy colour (see
-``model.RecurrentAE``). Its widths (``width_scale`` 0.5) and inputs are in its metadata and in
-``autoencoder.json``.
+x[:, 0:3] to y, so the network predicts a correction of the noisy colour, scaled by a trained
+function of the noise level (metadata ``level_gate``; see ``model.RecurrentAE``). Its widths
+(``width_scale`` 0.5) and inputs are in its metadata and in ``autoencoder.json``.
 
 Recurrence: ``reset()`` forgets the hidden states; each ``denoise(frame)`` then uses and
 updates them (``recurrent=True``). A frame with no state (the first after ``reset()``, and every
@@ -77,6 +77,8 @@ SHIPPED_JSON = Path(__file__).resolve().parent / "autoencoder.json"
 def _load(path: str):
     import onnx
 
+    from .export import gate_from_metadata
+
     p = Path(path)
     if not p.exists():
         raise DbenchInputError(f"weights: {p} does not exist; run `dbench train autoencoder` "
@@ -89,6 +91,7 @@ def _load(path: str):
             "width_scale": float(meta.get("width_scale", 1.0)),
             "residual": meta.get("residual") == "True", "blend": meta.get("blend") == "True",
             "autoexposure": meta.get("autoexposure") == "True"}
+    info["level_gate"], info["gate_max"] = gate_from_metadata(meta)
     return model, info
 
 
@@ -168,7 +171,8 @@ def reference_denoise(color, albedo, normal=None, depth=None, hidden=None, weigh
     model, info = _load(path)
     state = state_from_onnx(model)
     scale = info["width_scale"]
-    net = RecurrentAE(info["in_channels"], scale, residual=info["residual"], blend=info["blend"])
+    net = RecurrentAE(info["in_channels"], scale, residual=info["residual"], blend=info["blend"],
+                      level_gate=info["level_gate"], gate_max=info["gate_max"])
     if widths(scale)[0] != info["enc_widths"]:
         raise ValueError(f"cannot rebuild widths {info['enc_widths']}")
     net.load_state_dict({k: torch.from_numpy(np.array(v)) for k, v in state.items()})

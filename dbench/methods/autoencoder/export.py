@@ -11,7 +11,9 @@ Graph (opset 17), H and W dynamic (multiples of 32):
 * outputs ``y`` (N, 3, H, W) and ``h1_out``..``h5_out`` (the next frame's hidden states);
   with ``residual`` the input's colour channels x[:, 0:3] are added to y (metadata
   ``residual``); with ``blend`` the last convolution's 4 channels (f, g) give
-  y = f + sigmoid(g) (x[:, 0:3] - f) (metadata ``blend``).
+  y = f + sigmoid(g) (x[:, 0:3] - f) (metadata ``blend``); with ``level_gate`` the correction
+  is first scaled by gate_max · sigmoid(v + u · x[:, level_gate]) (metadata ``level_gate``,
+  ``gate_max``; initializer ``level_gate`` = (u, v)).
 
 The stateless variant (frame 0 of a sequence, or single frames with the state reset) drops the
 hidden inputs: the recurrent convolution conv3(concat(a, 0)) equals conv3(a) with the first half
@@ -68,8 +70,11 @@ class _Graph:
 
 def build_onnx(state: Mapping[str, np.ndarray], in_channels: int, enc_widths: tuple[int, ...],
                stateful: bool = True, metadata: Mapping[str, str] | None = None,
-               residual: bool = False, blend: bool = False) -> onnx.ModelProto:
-    """The autoencoder as an ONNX model from a state dict (NumPy arrays, PyTorch key names)."""
+               residual: bool = False, blend: bool = False, level_gate: int | None = None,
+               gate_max: float = 2.0) -> onnx.ModelProto:
+    """The autoencoder as an ONNX model from a state dict (NumPy arrays, PyTorch key names);
+    ``level_gate``/``gate_max`` as in :class:`~dbench.methods.autoencoder.model.RecurrentAE`
+    (the state's ``level_gate`` holds (u, v))."""
     g = _Graph(state)
     inputs = [helper.make_tensor_value_info("x", TensorProto.FLOAT, ["N", in_channels, "H", "W"])]
     outputs = [helper.make_tensor_value_info("y", TensorProto.FLOAT, ["N", 3, "H", "W"])]
@@ -104,6 +109,18 @@ def build_onnx(state: Mapping[str, np.ndarray], in_channels: int, enc_widths: tu
         x = g.conv(x, f"dec_a.{i}")
         x = g.conv(x, f"dec_b.{i}")
     y = g.conv(x, "out", act=False)
+    if level_gate is not None:  # y *= gate_max · sigmoid(v + u · x[:, level])
+        uv = g.const("level_gate", g.state["level_gate"])
+        i0, i1, i2 = (g.const(f"gate_index{i}", np.array([i], np.int64)) for i in (0, 1, 2))
+        axis0, axis1 = (g.const(f"gate_axis{i}", np.array([i], np.int64)) for i in (0, 1))
+        lo, hi = (g.const(f"gate_level{i}", np.array([level_gate + i], np.int64)) for i in (0, 1))
+        u = g.op("Slice", [uv, i0, i1, axis0], "gate_u")
+        v = g.op("Slice", [uv, i1, i2, axis0], "gate_v")
+        lv = g.op("Slice", ["x", lo, hi, axis1], "gate_level")
+        z = g.op("Add", [g.op("Mul", [lv, u], "gate_ul"), v], "gate_z")
+        gamma = g.op("Mul", [g.op("Sigmoid", [z], "gate_sig"),
+                             g.const("gate_max", np.array([gate_max], np.float32))], "gate_gamma")
+        y = g.op("Mul", [y, gamma], "gate_scaled")
     if residual or blend:
         c0, c3, c4 = (g.const(f"chan{i}", np.array([i], np.int64)) for i in (0, 3, 4))
         axes = g.const("chan_axis", np.array([1], np.int64))
@@ -120,7 +137,9 @@ def build_onnx(state: Mapping[str, np.ndarray], in_channels: int, enc_widths: tu
     model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", OPSET)],
                               producer_name="dbench")
     model.ir_version = 8
-    for k, v in {"residual": str(bool(residual)), "blend": str(bool(blend)),
+    gate_meta = {} if level_gate is None else {"level_gate": str(int(level_gate)),
+                                               "gate_max": repr(float(gate_max))}
+    for k, v in {"residual": str(bool(residual)), "blend": str(bool(blend)), **gate_meta,
                  **(metadata or {})}.items():
         entry = model.metadata_props.add()
         entry.key, entry.value = str(k), str(v)
@@ -131,12 +150,21 @@ def build_onnx(state: Mapping[str, np.ndarray], in_channels: int, enc_widths: tu
 def state_from_onnx(model: onnx.ModelProto) -> dict[str, np.ndarray]:
     """The weights (PyTorch key names) stored in a stateful autoencoder ONNX model."""
     return {t.name: numpy_helper.to_array(t) for t in model.graph.initializer
-            if t.name.endswith((".weight", ".bias"))}
+            if t.name.endswith((".weight", ".bias")) or t.name == "level_gate"}
+
+
+def gate_from_metadata(meta: Mapping[str, str]) -> tuple[int | None, float]:
+    """(level_gate channel or None, gate_max) recorded in a model's metadata."""
+    if not meta.get("level_gate"):
+        return None, 2.0
+    return int(meta["level_gate"]), float(meta.get("gate_max", 2.0))
 
 
 def stateless_from_stateful(model: onnx.ModelProto, in_channels: int,
                             enc_widths: tuple[int, ...]) -> onnx.ModelProto:
     """The single-frame variant (no hidden inputs) built from a shipped stateful model."""
     meta = {p.key: p.value for p in model.metadata_props}
+    level_gate, gate_max = gate_from_metadata(meta)
     return build_onnx(state_from_onnx(model), in_channels, enc_widths, stateful=False,
-                      residual=meta.get("residual") == "True", blend=meta.get("blend") == "True")
+                      residual=meta.get("residual") == "True", blend=meta.get("blend") == "True",
+                      level_gate=level_gate, gate_max=gate_max)

@@ -73,6 +73,13 @@ class RecurrentAE(nn.Module):
             ``sigmoid(g) * x_rgb + (1 - sigmoid(g)) * f``: per pixel, the network chooses
             between keeping the input colour (visible lights, converged pixels) and replacing
             it (noise), instead of only correcting it.
+        level_gate: [dbench option, with ``residual``] the index of the input's noise-level
+            plane ℓ = log2(spp)/10; the correction is scaled by γ(ℓ) = gate_max ·
+            sigmoid(v + u ℓ) (two trained numbers, ``self.level_gate`` = (u, v)), the NCA's
+            step size (spec/nca.md, dbench): a converged input (ℓ → 1) can be passed through
+            by one scalar, which the convolutions alone did not learn (worse than the input at
+            256-1024 spp without it, results/learned.md).
+        gate_max, gate_init: γ's upper bound and the initial (u, v).
 
     ``forward(x, hidden=None)``: x (N, C, H, W) with H, W multiples of 32; hidden a list of
     ``LEVELS`` tensors (N, e_l, H / 2^(l-1), W / 2^(l-1)) or None (zeros, i.e. frame 0).
@@ -80,10 +87,18 @@ class RecurrentAE(nn.Module):
     """
 
     def __init__(self, in_channels: int = 9, width_scale: float = 1.0, recurrent: bool = True,
-                 residual: bool = False, blend: bool = False):
+                 residual: bool = False, blend: bool = False, level_gate: int | None = None,
+                 gate_max: float = 2.0, gate_init: tuple[float, float] = (-4.0, 2.0)):
         super().__init__()
         if residual and blend:
             raise ValueError("residual and blend exclude each other")
+        if level_gate is not None and not (residual and 3 <= level_gate < in_channels):
+            raise ValueError(f"level_gate: expected a residual model and a channel index in "
+                             f"[3, {in_channels}), got {level_gate!r}")
+        self.level_channel = level_gate
+        self.gate_max = float(gate_max)
+        if level_gate is not None:
+            self.level_gate = nn.Parameter(torch.tensor(gate_init, dtype=torch.float32))
         self.blend = blend
         self.in_channels = in_channels
         self.width_scale = width_scale
@@ -146,6 +161,9 @@ class RecurrentAE(nn.Module):
             x = F.leaky_relu(self.dec_a[i](x), SLOPE)
             x = F.leaky_relu(self.dec_b[i](x), SLOPE)
         y = self.out(x)
+        if self.level_channel is not None:
+            lv = x_in[:, self.level_channel:self.level_channel + 1]
+            y = y * (self.gate_max * torch.sigmoid(self.level_gate[1] + self.level_gate[0] * lv))
         if self.residual:
             y = y + x_in[:, :3]
         elif self.blend:

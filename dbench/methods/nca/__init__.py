@@ -18,7 +18,9 @@ missing and replaced by 0 before encoding; non-finite normal/albedo values by 0;
 clipped to [-1, 1] and albedo to [0, 1]. A NaN is therefore never spread: the output is finite
 everywhere. Missing or mis-shaped buffers raise DbenchInputError naming the buffer.
 
-Parameters: ``iterations`` (None: the trained default stored in the model), ``weights`` (path of
+Parameters: ``iterations`` (None: the model's step count for the frame's spp, from the table
+chosen on held-out training scenes and stored in the model, :func:`default_iterations`),
+``weights`` (path of
 another ``nca.onnx``; None: the shipped file), ``threads`` (ONNX Runtime intra-op threads; None:
 its default, all physical cores), ``spp`` (the input's sample count for the noise gate; None:
 ``data.meta["spp"]``, which every dbench loader records, and 1 spp when that is absent too).
@@ -75,6 +77,8 @@ def _model_info(path: str) -> dict[str, Any]:
             "activation": meta.get("activation", "sigmoid"),
             "encoding": meta.get("color_encoding", "log1p"),
             "iterations": int(meta.get("iterations", 16)),
+            "iterations_by_spp": {int(k): int(v) for k, v in
+                                  json.loads(meta.get("iterations_by_spp", "{}")).items()},
             "noise_gate": None if gate is None else (float(gate[0]), float(gate[1])),
             "gate_max": 1.0 if gate is None or len(gate) < 3 else float(gate[2]),
             "autoexposure": meta.get("autoexposure") == "True"}
@@ -105,8 +109,17 @@ def _session(path: str, iterations: int, threads: int | None, gamma: float = 1.0
     return cpu_session(model.SerializeToString(), threads)
 
 
-def default_iterations(weights: str | Path | None = None) -> int:
-    return _model_info(str(weights or SHIPPED_ONNX))["iterations"]
+def default_iterations(weights: str | Path | None = None, spp: float | None = None) -> int:
+    """The model's step count for a frame of ``spp`` samples: from its per-sample-count table
+    (metadata ``iterations_by_spp``, chosen on held-out training scenes) the entry nearest in
+    log2(spp), unknown spp counting as 1 spp; without a table its single trained default."""
+    info = _model_info(str(weights or SHIPPED_ONNX))
+    table = info["iterations_by_spp"]
+    if not table:
+        return info["iterations"]
+    level = 0.0 if spp is None else float(np.log2(max(float(spp), 1.0)))
+    nearest = min(table, key=lambda n: (abs(np.log2(n) - level), n))
+    return table[nearest]
 
 
 def nca_denoise(color: np.ndarray, normal: np.ndarray, albedo: np.ndarray,
@@ -120,7 +133,7 @@ def nca_denoise(color: np.ndarray, normal: np.ndarray, albedo: np.ndarray,
     normal = check_buffer("normal", normal, (h, w, 3))
     albedo = check_buffer("albedo", albedo, (h, w, 3))
     path = str(weights or SHIPPED_ONNX)
-    k = _model_info(path)["iterations"] if iterations is None else iterations
+    k = default_iterations(path, spp) if iterations is None else iterations
     if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 0:
         raise DbenchInputError(f"iterations: expected an integer >= 0, got {k!r}")
     info = _model_info(path)
@@ -141,7 +154,7 @@ def reference_denoise(color: np.ndarray, normal: np.ndarray, albedo: np.ndarray,
     from .model import NCA
 
     info = _model_info(str(weights or SHIPPED_ONNX))
-    k = info["iterations"] if iterations is None else iterations
+    k = default_iterations(weights, spp) if iterations is None else iterations
     gate = info["noise_gate"]
     nca = NCA(info["update_channels"], info["activation"], noise_gate=gate is not None,
               gate_init=gate or (0.0, 0.0), gate_max=info["gate_max"])
