@@ -83,7 +83,7 @@ def train_nca(ts: TrainingSet, cfg: NCAConfig | None = None, progress: bool = Fa
             chosen, table = select_iterations(model, validation, cfg.select_from,
                                               cfg.color_encoding, cfg.select_by,
                                               cfg.autoexposure, cfg.select_metric,
-                                              cfg.select_per_spp)
+                                              cfg.select_per_spp, cfg.select_tolerance)
             if isinstance(chosen, dict):  # per sample count; the 1-spp count is the default
                 result.data["iterations_by_spp"] = chosen
                 chosen = chosen[min(chosen)]
@@ -101,7 +101,8 @@ def _rmse(a: np.ndarray, b: np.ndarray) -> float:
 
 def select_iterations(model, vs: TrainingSet, candidates, encoding: str = "log1p",
                       by: str = "worst", exposure: bool = False, metric: str = "rmse",
-                      per_spp: bool = False) -> tuple[int | dict[int, int], dict]:
+                      per_spp: bool = False, tolerance: float = 0.0
+                      ) -> tuple[int | dict[int, int], dict]:
     """The step count whose error relative to the noisy input's over the held-out images is
     best: ``by="worst"`` the lowest worst case (ties: lowest mean), i.e. the count least likely
     to make an image worse than its input; ``by="mean"`` the lowest mean.
@@ -109,7 +110,9 @@ def select_iterations(model, vs: TrainingSet, candidates, encoding: str = "log1p
     ``metric``: "rmse" (output RMSE / noisy RMSE, linear) or "relmse" (relMSE with ε = 1e-2
     over the noisy input's, :func:`dbench.metrics.relmse`). ``per_spp``: one choice per sample
     count of the set (the inference step count then follows the frame's spp) instead of one
-    over all of them. Returns (k or {spp: k}, {k: {"mean", "worst"}} or {spp: that table})."""
+    over all of them. ``tolerance``: the fewest steps whose criterion is within that fraction
+    of the best one's (each step costs a convolution of the whole image). Returns (k or
+    {spp: k}, {k: {"mean", "worst"}} or {spp: that table})."""
     from ..metrics import relmse
 
     if by not in ("worst", "mean"):
@@ -141,7 +144,9 @@ def select_iterations(model, vs: TrainingSet, candidates, encoding: str = "log1p
             rel = [r for n in spps for r in ratios[k][n]]
             table[str(k)] = {"mean": float(np.mean(rel)), "worst": float(np.max(rel))}
         best = min(candidates, key=lambda k: tuple(table[str(k)][o] for o in order))
-        return int(best), table
+        bound = table[str(best)][order[0]] * (1.0 + tolerance)
+        fewest = min(k for k in candidates if table[str(k)][order[0]] <= bound)
+        return int(fewest), table
 
     spps = [int(n) for n in vs.spp]
     if not per_spp:
