@@ -92,10 +92,11 @@ class AEConfig:
     recurrent: bool = True
     residual: bool = True  # [dbench] output = input colour + correction (model.RecurrentAE)
     blend: bool = False  # [dbench] output = gated blend of input colour and prediction
-    # [dbench] with residual and the "level" feature: the correction scaled by
-    # γ(ℓ) = gate_max · sigmoid(v + u ℓ) (model.RecurrentAE), (u, v) trained at gate_lr; without
-    # it the network stayed worse than its input at 256-1024 spp (results/learned.md)
-    level_gate: bool = True
+    # [dbench option, off] with residual and the "level" feature: the correction scaled by
+    # γ(ℓ) = gate_max · sigmoid(v + u ℓ) (model.RecurrentAE), (u, v) trained at gate_lr. Tried
+    # against the gap at 256-1024 spp and not shipped: it learnt γ = 0.24 at 1024 spp and the
+    # model got worse from 64 spp up (results/learned.md, results/learned_convergence.md)
+    level_gate: bool = False
     gate_init: tuple[float, float] = (-4.0, 2.0)  # γ 1.76 at 1 spp, 0.8 at 64, 0.24 at 1024
     gate_lr: float = 1e-2
     gate_max: float = 2.0

@@ -2,7 +2,7 @@
 range users run, on the steady catalogue and on scenes no network was trained or tuned on.
 
     python -m dbench.learn.convergence [--res 64] [--spp 1,4,16,64,256,1024] [--ref-spp 4096]
-        [--old-nca PATH --old-autoencoder PATH] [--weights LABEL=METHOD:PATH ...]
+        [--old-nca PATH --old-autoencoder PATH] [--weights LABEL=METHOD:PATH ...] [--nca-steps K]
         [--out results/learned_convergence.md]
 
 For every scene and spp: relMSE (ε = 1e-2) of each method divided by the noisy input's relMSE
@@ -167,6 +167,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--weights", action="append", default=[], metavar="LABEL=METHOD:PATH",
                    help="more columns: METHOD (nca or autoencoder) with the ONNX file PATH "
                         "under LABEL, e.g. 'autoencoder (no gate)=autoencoder:old.onnx'")
+    p.add_argument("--nca-steps", type=int, action="append", default=[],
+                   help="a column of the shipped nca with this fixed step count")
     p.add_argument("--out", default="results/learned_convergence.md")
     args = p.parse_args(argv)
     from .. import datasets
@@ -185,6 +187,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             raise DbenchInputError(f"--weights: expected LABEL=nca:PATH or "
                                    f"LABEL=autoencoder:PATH, got {spec!r}")
         methods[label] = (method, {"weights": path})
+    for k in args.nca_steps:
+        methods[f"nca ({k} step{'s' if k != 1 else ''})"] = ("nca", {"iterations": k})
     scenes = list(EVAL_SCENES) + outside_scenes()
     spps = [int(s) for s in args.spp.split(",")]
     data = rows(scenes, spps, args.res, args.ref_spp, methods, cache=datasets.Cache())

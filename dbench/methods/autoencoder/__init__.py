@@ -11,9 +11,10 @@ Pipeline (shapes for an H x W frame; C = 3 + feature channels, 10 for the shippe
     y (1, 3, H', W') --crop, max(expm1(y), 0) * a_eff--> (H, W, 3)
 
 The shipped model is residual (metadata ``residual``): the graph adds the input's colour channels
-x[:, 0:3] to y, so the network predicts a correction of the noisy colour, scaled by a trained
-function of the noise level (metadata ``level_gate``; see ``model.RecurrentAE``). Its widths
-(``width_scale`` 0.5) and inputs are in its metadata and in ``autoencoder.json``.
+x[:, 0:3] to y, so the network predicts a correction of the noisy colour (see
+``model.RecurrentAE``; a model trained with ``level_gate`` scales that correction by a trained
+function of the noise level, metadata ``level_gate``). Its widths (``width_scale`` 0.5) and
+inputs are in its metadata and in ``autoencoder.json``.
 
 Recurrence: ``reset()`` forgets the hidden states; each ``denoise(frame)`` then uses and
 updates them (``recurrent=True``). A frame with no state (the first after ``reset()``, and every
