@@ -67,7 +67,7 @@ def rows(scenes: Sequence[Any], spps: Sequence[int] = SPPS, res: int = 64,
         for spp in spps:
             frame = datasets.load(sc, spp=spp, res=res, seed=seed, ref_spp=ref_spp,
                                   needs={"color", "albedo", "normal", "depth", "reference",
-                                         "stats"}, cache=cache, progress=False)
+                                         "stats", "emitter"}, cache=cache, progress=False)
             ref_var = float(np.mean(frame.reference_var)) if frame.reference_var is not None \
                 else float("nan")
             for label, (name, params) in methods.items():

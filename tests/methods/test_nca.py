@@ -206,3 +206,25 @@ def test_exposure_invariance_and_spp_from_meta():
     same = methods.get("nca", spp=16).denoise(f.with_buffers(meta={}))
     np.testing.assert_array_equal(same, a)
     assert not np.array_equal(methods.get("nca", spp=1024).denoise(f), a)
+
+
+def test_directly_seen_lights_keep_the_input():
+    """Pixels covered by an emitter keep the input in proportion to the coverage; without the
+    buffer the output is the automaton's (the harness loads ``emitter`` as an optional need)."""
+    from dbench.methods.nca import keep_emitters
+
+    rng = np.random.default_rng(5)
+    color = rng.gamma(1.0, 1.0, (6, 7, 3)).astype(np.float32)
+    color[0, 0, 1] = np.nan
+    out = rng.gamma(1.0, 1.0, (6, 7, 3)).astype(np.float32)
+    e = np.zeros((6, 7, 1), np.float32)
+    e[0, 0], e[1, 2], e[3, 3], e[4, 4] = 1.0, 1.0, 0.25, np.nan
+    got = keep_emitters(color, out, e)
+    np.testing.assert_array_equal(got[1, 2], color[1, 2])
+    np.testing.assert_allclose(got[3, 3], out[3, 3] + 0.25 * (color[3, 3] - out[3, 3]), rtol=1e-6)
+    assert got[0, 0, 1] == out[0, 0, 1] and got[0, 0, 0] == color[0, 0, 0]
+    mask = np.ones((6, 7), bool)
+    mask[[0, 1, 3], [0, 2, 3]] = False
+    np.testing.assert_array_equal(got[mask], out[mask])
+    assert keep_emitters(color, out, None) is out
+    assert "emitter" in methods.get("nca").optional_needs
