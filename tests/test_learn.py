@@ -143,7 +143,8 @@ def test_ship_and_load_trained_weights(tmp_path):
     assert info["autoexposure"] is True and len(info["noise_gate"]) == 3  # u, v, γ_max
     assert info["color_encoding"] == "log1p_demodulated"
     assert info["losses"]["steps_done"] == 6 and "loss" in info["losses"]["validation"]
-    ae = T.train_autoencoder(tr, _ae_cfg(), validation=va)
+    # the level-gated variant (an option, off by default) ships and loads like the plain one
+    ae = T.train_autoencoder(tr, _ae_cfg(level_gate=True), validation=va)
     ae_onnx, ae_json = T.ship_autoencoder(ae, tmp_path)
     gate = __import__("json").loads(ae_json.read_text())["level_gate"]
     assert gate["channel"] == 10 and set(gate["gamma_at_spp"]) == {"1", "4", "16", "64", "256",

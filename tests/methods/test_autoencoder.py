@@ -202,3 +202,31 @@ def test_exposure_invariance_and_spp_from_meta():
     same = methods.get("autoencoder", spp=16).denoise(f.with_buffers(meta={}))
     np.testing.assert_allclose(same, a, rtol=1e-6)
     assert not np.array_equal(methods.get("autoencoder", spp=1024).denoise(f), a)
+
+
+@pytest.mark.parametrize("h,w,exposure", [(37, 45, 1.0), (64, 32, 3.7), (33, 70, 0.01)])
+def test_compiled_encoding_equals_encode_then_pad(h, w, exposure):
+    """kernels.learned_input.encode_planar (what inference runs) equals codec.encode then
+    pad_to_multiple within 1e-6 relative, non-finite, negative, huge and zero-albedo values
+    included; the same a_eff."""
+    from dbench.methods.autoencoder.codec import encode, pad_to_multiple
+    from dbench.methods.autoencoder.codec import MULTIPLE
+    from dbench.methods.kernels.learned_input import encode_planar
+
+    rng = np.random.default_rng(h * w)
+    color = rng.gamma(0.5, 2.0, (h, w, 3)).astype(np.float32)
+    color[0, 0, 0], color[1, 1, 1], color[2, 2, 2], color[3, 3, 0] = np.nan, -3, np.inf, 3e38
+    albedo = rng.random((h, w, 3)).astype(np.float32)
+    albedo[5, 5], albedo[6, 6, 1], albedo[7, 7, 2] = 0.0, np.nan, 1.5
+    normal = rng.normal(size=(h, w, 3)).astype(np.float32)
+    normal[8, 8, 0] = np.inf
+    depth = (rng.random((h, w, 1)) * 5).astype(np.float32)
+    depth[9, 9], depth[10, 10] = np.nan, -1.0
+    bufs = {"albedo": albedo, "normal": normal, "depth": depth, "level": 0.3}
+    for feats in (("normal", "albedo", "depth", "level"), ("normal", "albedo", "depth")):
+        x, a_eff = encode(color, bufs, feats, exposure)
+        ref, _, _ = pad_to_multiple(x)
+        got, a_fast = encode_planar(color, bufs, feats, exposure, MULTIPLE)
+        assert got.shape == ref.shape and got.dtype == np.float32
+        np.testing.assert_allclose(got, ref, rtol=1e-6, atol=1e-7)
+        np.testing.assert_array_equal(a_fast, a_eff)

@@ -31,3 +31,17 @@ def test_noise_level_and_frame_spp():
     f = Frame(color=np.zeros((2, 2, 3), np.float32), meta={"spp": 64})
     assert frame_spp(f) == 64 and frame_spp(f, 8) == 8
     assert frame_spp(Frame(color=np.zeros((2, 2, 3), np.float32))) is None
+
+
+@pytest.mark.parametrize("shape", [(37, 45, 3), (16, 16, 3), (5, 3, 3), (130, 70, 3)])
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_compiled_autoexposure_equals_the_reference(shape, dtype):
+    """One image goes through the compiled block means: the same exposure as the NumPy
+    reference within 1e-12 relative (edge tiles, non-finite and negative values included)."""
+    from dbench.methods.kernels.hdr_input import autoexposure_reference
+
+    rng = np.random.default_rng(sum(shape))
+    c = rng.gamma(0.3, 2.0, shape).astype(dtype)
+    c[0, 0, 0], c[-1, -1, 1], c[1, 1, 2] = np.nan, -2.0, np.inf
+    assert autoexposure(c) == pytest.approx(autoexposure_reference(c), rel=1e-12)
+    assert autoexposure(np.zeros(shape, dtype)) == autoexposure_reference(np.zeros(shape)) == 1.0

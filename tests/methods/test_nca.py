@@ -228,3 +228,31 @@ def test_directly_seen_lights_keep_the_input():
     np.testing.assert_array_equal(got[mask], out[mask])
     assert keep_emitters(color, out, None) is out
     assert "emitter" in methods.get("nca").optional_needs
+
+
+@pytest.mark.parametrize("encoding", ["log1p", "log1p_demodulated"])
+def test_compiled_encoding_equals_the_codec(encoding):
+    """The state inference builds and its decoding (kernels.learned_input) equal codec.encode
+    and codec.decode within 1e-6 relative, non-finite, negative, huge and zero-albedo values
+    included."""
+    from dbench.methods.kernels.learned_input import decode_planar, encode_planar
+    from dbench.methods.nca.codec import decode, encode
+
+    rng = np.random.default_rng(11)
+    color = rng.gamma(0.5, 2.0, (23, 31, 3)).astype(np.float32)
+    color[0, 0, 0], color[1, 1, 1], color[2, 2, 2], color[3, 3, 0] = np.nan, -3, np.inf, 3e38
+    albedo = rng.random((23, 31, 3)).astype(np.float32)
+    albedo[5, 5], albedo[6, 6, 1] = 0.0, np.nan
+    normal = rng.normal(size=(23, 31, 3)).astype(np.float32)
+    normal[8, 8, 0] = -np.inf
+    for exposure in (1.0, 4.5):
+        ref = encode(color, normal, albedo, encoding, exposure)
+        got, _ = encode_planar(color, {"albedo": albedo, "normal": normal}, ("normal", "albedo"),
+                               exposure, demodulate=encoding == "log1p_demodulated")
+        assert got.shape == ref.shape == (9, 23, 31)
+        np.testing.assert_allclose(got, ref, rtol=1e-6, atol=1e-7)
+        state = ref[:3] * 1.7
+        state[0, 0, 0], state[1, 2, 3], state[2, 4, 4] = np.nan, 200.0, -np.inf
+        dec = decode_planar(state, albedo, encoding == "log1p_demodulated", exposure)
+        np.testing.assert_allclose(dec, decode(state, albedo, encoding, exposure), rtol=1e-6,
+                                   atol=1e-7)

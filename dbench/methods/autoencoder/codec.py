@@ -7,17 +7,17 @@ from typing import Sequence
 import numpy as np
 
 from ..guards import log_demodulated  # noqa: F401 (part of this module's API)
+# a_eff's threshold and the feature planes, shared with the compiled encoder
+from ..kernels.learned_input import ALBEDO_EPS, FEATURE_CHANNELS
 
-ALBEDO_EPS = 1e-3
 #: Architecture constants shared with the ONNX builder (spec §2).
 LEVELS = 5
 SLOPE = 0.1
 #: Spatial sizes must be multiples of this (five 2x2 poolings).
 MULTIPLE = 2 ** LEVELS
 FEATURE_ORDER = ("normal", "albedo", "depth", "level")
-#: ``level``: the input's noise level log2(spp)/10 as a constant plane
+#: FEATURE_CHANNELS["level"]: the input's noise level log2(spp)/10 as a constant plane
 #: (:func:`dbench.methods.hdr_input.noise_level`), so one network serves every sample count.
-FEATURE_CHANNELS = {"normal": 3, "albedo": 3, "depth": 1, "level": 1}
 
 
 def in_channels_for(features: Sequence[str]) -> int:

@@ -23,6 +23,7 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
+from numba import njit, prange
 
 from ...errors import DbenchInputError
 
@@ -30,12 +31,52 @@ EXPOSURE_KEY = 0.18
 EXPOSURE_BLOCK = 16
 #: Rec. 709 luminance weights (what OIDN uses for its auto-exposure).
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722], np.float64)
+_LUMA = (0.2126, 0.7152, 0.0722)  # the same, as a tuple the compiled pass reads
 
 
 def autoexposure(color: np.ndarray, block: int = EXPOSURE_BLOCK) -> float:
     """Exposure of an (H, W, 3) linear image (or a batch (..., H, W, 3): one value for all):
     key / exp(mean log L) over the block-averaged luminances L > 1e-8; 1.0 for a black image.
-    Non-finite and negative values count as 0."""
+    Non-finite and negative values count as 0. A single image goes through one compiled pass
+    (:func:`_block_means_nb`, 1 ms instead of 17-22 ms at 720p), equal to
+    :func:`autoexposure_reference` within 1e-12 relative (tests)."""
+    c = np.asarray(color)
+    if c.ndim != 3 or c.shape[-1] != 3 or c.size == 0:
+        return autoexposure_reference(color, block)
+    means = _block_means_nb(np.ascontiguousarray(c, np.float32 if c.dtype == np.float32
+                                                 else np.float64), int(block))
+    means = means[means > 1e-8]
+    if means.size == 0:
+        return 1.0
+    return float(EXPOSURE_KEY / np.exp(np.mean(np.log(means))))
+
+
+@njit(parallel=True, cache=True)
+def _block_means_nb(color, block):  # pragma: no cover - compiled
+    """Mean Rec. 709 luminance (float64) of each block × block tile of an (H, W, 3) image
+    (edge tiles over their pixels only), non-finite and negative values as 0."""
+    h, w = color.shape[0], color.shape[1]
+    bh, bw = -(-h // block), -(-w // block)
+    means = np.empty(bh * bw, np.float64)
+    for t in prange(bh * bw):
+        by, bx = t // bw, t % bw
+        y0, x0 = by * block, bx * block
+        y1, x1 = min(y0 + block, h), min(x0 + block, w)
+        acc = 0.0
+        for y in range(y0, y1):
+            for x in range(x0, x1):
+                lum = 0.0
+                for k in range(3):
+                    v = np.float64(color[y, x, k])
+                    if np.isfinite(v) and v > 0:
+                        lum += _LUMA[k] * v
+                acc += lum
+        means[t] = acc / ((y1 - y0) * (x1 - x0))
+    return means
+
+
+def autoexposure_reference(color: np.ndarray, block: int = EXPOSURE_BLOCK) -> float:
+    """The readable NumPy form of :func:`autoexposure` (any leading batch dimensions)."""
     c = np.asarray(color, np.float64)
     c = np.where(np.isfinite(c) & (c > 0), c, 0.0)
     lum = c @ LUMINANCE

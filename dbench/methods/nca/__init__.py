@@ -55,6 +55,7 @@ from ...data import check_buffer
 from ...errors import DbenchInputError
 from ...registry import Denoiser, register
 from ..kernels.hdr_input import autoexposure, frame_spp, noise_level
+from ..kernels.learned_input import decode_planar, encode_planar
 from ..ort_session import cpu_session
 from .codec import decode, encode
 
@@ -142,10 +143,13 @@ def nca_denoise(color: np.ndarray, normal: np.ndarray, albedo: np.ndarray,
     info = _model_info(path)
     enc = info["encoding"]
     exposure = autoexposure(color) if info["autoexposure"] else 1.0
-    state = encode(color, normal, albedo, enc, exposure)[None]
+    # codec.encode and codec.decode in compiled passes (kernels/learned_input.py, tested equal
+    # within 1e-6)
+    state = encode_planar(color, {"albedo": albedo, "normal": normal}, ("normal", "albedo"),
+                          exposure, demodulate=enc == "log1p_demodulated")[0][None]
     gamma = step_size(path, spp)
     rgb = _session(path, int(k), threads, gamma).run(None, {"state": state})[0][0]
-    return decode(rgb, albedo, enc, exposure)
+    return decode_planar(rgb, albedo, enc == "log1p_demodulated", exposure)
 
 
 def reference_denoise(color: np.ndarray, normal: np.ndarray, albedo: np.ndarray,
@@ -190,12 +194,18 @@ def keep_emitters(color: np.ndarray, out: np.ndarray, emitter: np.ndarray | None
     if emitter is None:
         return out
     h, w = out.shape[:2]
-    e = check_buffer("emitter", emitter, (h, w, 1), dtype=np.float32)
-    e = np.clip(np.where(np.isfinite(e), e, 0.0), 0.0, 1.0)
-    color = np.asarray(color, np.float32)
-    target = np.where(np.isfinite(color), color, out)
-    mixed = np.where(e > 0, out + e * (target - out), out)
-    return np.where(e >= 1, target, mixed).astype(np.float32)  # full coverage: the input, exactly
+    e = check_buffer("emitter", emitter, (h, w, 1), dtype=np.float32)[..., 0]
+    ys, xs = np.nonzero(np.isfinite(e) & (e > 0))  # lights cover few pixels: touch only those
+    if ys.size == 0:
+        return out
+    cov = np.minimum(e[ys, xs], 1.0)[:, None]
+    o = out[ys, xs]
+    c = np.asarray(color, np.float32)[ys, xs]
+    target = np.where(np.isfinite(c), c, o)
+    out = np.array(out, np.float32, copy=True)
+    # full coverage: the input, exactly
+    out[ys, xs] = np.where(cov >= 1, target, o + cov * (target - o))
+    return out
 
 
 @register("nca")

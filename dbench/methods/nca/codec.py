@@ -13,9 +13,9 @@ from __future__ import annotations
 import numpy as np
 
 from ..guards import log_demodulated  # noqa: F401 (part of this module's API)
+from ..kernels.learned_input import ALBEDO_EPS  # a_eff's threshold, one source
 
 ENCODINGS = ("log1p", "log1p_demodulated")
-ALBEDO_EPS = 1e-3
 
 
 def sanitize(x: np.ndarray, lo: float, hi: float) -> np.ndarray:
