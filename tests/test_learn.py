@@ -336,6 +336,28 @@ def test_level_gate_onnx_equals_pytorch_and_passes_a_converged_input_through():
         RecurrentAE(11, 0.25, residual=False, level_gate=10)
 
 
+def test_pixel_gate_onnx_equals_pytorch_and_gates_the_correction():
+    from dbench.methods.autoencoder.export import build_onnx
+    from dbench.methods.autoencoder.model import RecurrentAE
+
+    torch.manual_seed(2)
+    net = RecurrentAE(10, 0.25, residual=True, pixel_gate=True)
+    assert net.out.out_channels == 4
+    with torch.no_grad():
+        net.out.weight.normal_(0.0, 0.05)
+    state = {k: v.detach().numpy() for k, v in net.state_dict().items()}
+    model = build_onnx(state, 10, net.enc_widths, residual=True, pixel_gate=True)
+    assert {p.key: p.value for p in model.metadata_props}["pixel_gate"] == "True"
+    x = torch.randn(1, 10, 64, 32)
+    _assert_onnx_forms_equal_pytorch(net, model, x)
+    with torch.no_grad():  # a closed gate returns the input colour
+        net.out.weight[3].zero_()
+        net.out.bias[3] = -60.0
+        assert torch.allclose(net(x)[0], x[:, :3], atol=1e-6)
+    with pytest.raises(ValueError, match="pixel_gate"):
+        RecurrentAE(10, 0.25, pixel_gate=True)
+
+
 def test_blend_training_ships_a_blend_model(tmp_path):
     from dbench.methods.autoencoder import autoencoder_denoise, reference_denoise
 

@@ -97,6 +97,10 @@ class AEConfig:
     # against the gap at 256-1024 spp and not shipped: it learnt γ = 0.24 at 1024 spp and the
     # model got worse from 64 spp up (results/learned.md, results/learned_convergence.md)
     level_gate: bool = False
+    # [dbench option, off] with residual: a fourth output channel gates the correction per
+    # pixel (model.RecurrentAE pixel_gate). Tried against the same gap and not shipped: worse
+    # at every spp but on textured and train-001 at 256-1024 (results/learned.md)
+    pixel_gate: bool = False
     gate_init: tuple[float, float] = (-4.0, 2.0)  # γ 1.76 at 1 spp, 0.8 at 64, 0.24 at 1024
     gate_lr: float = 1e-2
     gate_max: float = 2.0

@@ -99,7 +99,7 @@ def ship_autoencoder(result: TrainResult, out_dir: str | Path | None = None
             "data_hash": result.data.get("hash", "")}
     model = build_onnx(state, net.in_channels, net.enc_widths, stateful=True, metadata=meta,
                        residual=net.residual, blend=net.blend, level_gate=net.level_channel,
-                       gate_max=net.gate_max)
+                       gate_max=net.gate_max, pixel_gate=net.pixel_gate)
     gate = None
     if net.level_channel is not None:
         u, v = (float(t) for t in net.level_gate.detach())
@@ -114,7 +114,8 @@ def ship_autoencoder(result: TrainResult, out_dir: str | Path | None = None
         "features": list(cfg.features), "width_scale": cfg.width_scale,
         "enc_widths": list(net.enc_widths), "dec_widths": list(net.dec_widths),
         "recurrent": cfg.recurrent, "residual": net.residual, "blend": net.blend,
-        "level_gate": gate, "autoexposure": bool(cfg.autoexposure)})
+        "level_gate": gate, "pixel_gate": net.pixel_gate,
+        "autoexposure": bool(cfg.autoexposure)})
     write_json(out / "autoencoder.json", info)
     _readable(out / "autoencoder.json")
     return out / "autoencoder.onnx", out / "autoencoder.json"

@@ -75,7 +75,8 @@ def train_autoencoder(ts: TrainingSet, cfg: AEConfig | None = None, progress: bo
     residual = cfg.residual and not cfg.blend
     gate = level_channel(cfg.features) if cfg.level_gate and residual else None
     model = RecurrentAE(in_channels_for(cfg.features), cfg.width_scale, cfg.recurrent,
-                        residual, cfg.blend, gate, cfg.gate_max, tuple(cfg.gate_init))
+                        residual, cfg.blend, gate, cfg.gate_max, tuple(cfg.gate_init),
+                        cfg.pixel_gate and residual)
     if cfg.residual and not cfg.blend:  # start as the identity
         with torch.no_grad():
             model.out.weight.zero_()

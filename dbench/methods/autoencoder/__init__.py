@@ -94,6 +94,7 @@ def _load(path: str):
             "residual": meta.get("residual") == "True", "blend": meta.get("blend") == "True",
             "autoexposure": meta.get("autoexposure") == "True"}
     info["level_gate"], info["gate_max"] = gate_from_metadata(meta)
+    info["pixel_gate"] = meta.get("pixel_gate") == "True"
     return model, info
 
 
@@ -174,7 +175,8 @@ def reference_denoise(color, albedo, normal=None, depth=None, hidden=None, weigh
     state = state_from_onnx(model)
     scale = info["width_scale"]
     net = RecurrentAE(info["in_channels"], scale, residual=info["residual"], blend=info["blend"],
-                      level_gate=info["level_gate"], gate_max=info["gate_max"])
+                      level_gate=info["level_gate"], gate_max=info["gate_max"],
+                      pixel_gate=info["pixel_gate"])
     if widths(scale)[0] != info["enc_widths"]:
         raise ValueError(f"cannot rebuild widths {info['enc_widths']}")
     net.load_state_dict({k: torch.from_numpy(np.array(v)) for k, v in state.items()})

@@ -71,7 +71,7 @@ class _Graph:
 def build_onnx(state: Mapping[str, np.ndarray], in_channels: int, enc_widths: tuple[int, ...],
                stateful: bool = True, metadata: Mapping[str, str] | None = None,
                residual: bool = False, blend: bool = False, level_gate: int | None = None,
-               gate_max: float = 2.0) -> onnx.ModelProto:
+               gate_max: float = 2.0, pixel_gate: bool = False) -> onnx.ModelProto:
     """The autoencoder as an ONNX model from a state dict (NumPy arrays, PyTorch key names);
     ``level_gate``/``gate_max`` as in :class:`~dbench.methods.autoencoder.model.RecurrentAE`
     (the state's ``level_gate`` holds (u, v))."""
@@ -109,6 +109,12 @@ def build_onnx(state: Mapping[str, np.ndarray], in_channels: int, enc_widths: tu
         x = g.conv(x, f"dec_a.{i}")
         x = g.conv(x, f"dec_b.{i}")
     y = g.conv(x, "out", act=False)
+    if pixel_gate:  # y = y[:, 0:3] * sigmoid(y[:, 3:4])
+        p0, p3, p4 = (g.const(f"pg{i}", np.array([i], np.int64)) for i in (0, 3, 4))
+        pax = g.const("pg_axis", np.array([1], np.int64))
+        delta = g.op("Slice", [y, p0, p3, pax], "pg_delta")
+        gate = g.op("Sigmoid", [g.op("Slice", [y, p3, p4, pax], "pg_logit")], "pg_gate")
+        y = g.op("Mul", [delta, gate], "pg_scaled")
     if level_gate is not None:  # y *= gate_max · sigmoid(v + u · x[:, level])
         uv = g.const("level_gate", g.state["level_gate"])
         i0, i1, i2 = (g.const(f"gate_index{i}", np.array([i], np.int64)) for i in (0, 1, 2))
@@ -139,6 +145,8 @@ def build_onnx(state: Mapping[str, np.ndarray], in_channels: int, enc_widths: tu
     model.ir_version = 8
     gate_meta = {} if level_gate is None else {"level_gate": str(int(level_gate)),
                                                "gate_max": repr(float(gate_max))}
+    if pixel_gate:
+        gate_meta["pixel_gate"] = "True"
     for k, v in {"residual": str(bool(residual)), "blend": str(bool(blend)), **gate_meta,
                  **(metadata or {})}.items():
         entry = model.metadata_props.add()
@@ -167,4 +175,5 @@ def stateless_from_stateful(model: onnx.ModelProto, in_channels: int,
     level_gate, gate_max = gate_from_metadata(meta)
     return build_onnx(state_from_onnx(model), in_channels, enc_widths, stateful=False,
                       residual=meta.get("residual") == "True", blend=meta.get("blend") == "True",
-                      level_gate=level_gate, gate_max=gate_max)
+                      level_gate=level_gate, gate_max=gate_max,
+                      pixel_gate=meta.get("pixel_gate") == "True")

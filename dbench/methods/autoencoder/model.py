@@ -80,6 +80,10 @@ class RecurrentAE(nn.Module):
             by one scalar, which the convolutions alone did not learn (worse than the input at
             256-1024 spp without it, results/learned.md).
         gate_max, gate_init: γ's upper bound and the initial (u, v).
+        pixel_gate: [dbench option, with ``residual``] the last convolution gives 4 channels,
+            a correction Δ (3) and a logit g (1), and the output is x_rgb + sigmoid(g) Δ: the
+            network can switch its correction off per pixel (edges, texture of a converged
+            input) with one saturating channel instead of driving three to exactly zero.
 
     ``forward(x, hidden=None)``: x (N, C, H, W) with H, W multiples of 32; hidden a list of
     ``LEVELS`` tensors (N, e_l, H / 2^(l-1), W / 2^(l-1)) or None (zeros, i.e. frame 0).
@@ -88,10 +92,14 @@ class RecurrentAE(nn.Module):
 
     def __init__(self, in_channels: int = 9, width_scale: float = 1.0, recurrent: bool = True,
                  residual: bool = False, blend: bool = False, level_gate: int | None = None,
-                 gate_max: float = 2.0, gate_init: tuple[float, float] = (-4.0, 2.0)):
+                 gate_max: float = 2.0, gate_init: tuple[float, float] = (-4.0, 2.0),
+                 pixel_gate: bool = False):
         super().__init__()
         if residual and blend:
             raise ValueError("residual and blend exclude each other")
+        if pixel_gate and not residual:
+            raise ValueError("pixel_gate: needs residual")
+        self.pixel_gate = pixel_gate
         if level_gate is not None and not (residual and 3 <= level_gate < in_channels):
             raise ValueError(f"level_gate: expected a residual model and a channel index in "
                              f"[3, {in_channels}), got {level_gate!r}")
@@ -126,7 +134,7 @@ class RecurrentAE(nn.Module):
             self.dec_a.append(_conv(c + enc[level], d))
             self.dec_b.append(_conv(d, d))
             c = d
-        self.out = _conv(c, 4 if blend else 3)
+        self.out = _conv(c, 4 if (blend or pixel_gate) else 3)
 
     def hidden_shapes(self, n: int, h: int, w: int) -> list[tuple[int, int, int, int]]:
         """Shapes of the hidden states for an (n, C, h, w) input."""
@@ -161,6 +169,8 @@ class RecurrentAE(nn.Module):
             x = F.leaky_relu(self.dec_a[i](x), SLOPE)
             x = F.leaky_relu(self.dec_b[i](x), SLOPE)
         y = self.out(x)
+        if self.pixel_gate:
+            y = y[:, :3] * torch.sigmoid(y[:, 3:4])
         if self.level_channel is not None:
             lv = x_in[:, self.level_channel:self.level_channel + 1]
             y = y * (self.gate_max * torch.sigmoid(self.level_gate[1] + self.level_gate[0] * lv))
