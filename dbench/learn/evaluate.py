@@ -45,7 +45,8 @@ def quality(scenes: Sequence[str] = EVAL_SCENES, spps: Sequence[int] = (1, 2, 4)
     for scene in scenes:
         for spp in spps:
             frame = datasets.load(scene, spp=spp, res=res, seed=seed, ref_spp=ref_spp,
-                                  needs={"color", "albedo", "normal", "depth", "reference", "emitter"},
+                                  needs={"color", "albedo", "normal", "depth", "reference",
+                                         "emitter"},
                                   cache=cache, progress=False)
             for name in present:
                 m = registry.get(name)

@@ -6,9 +6,10 @@ nca`` runs after training, with the settings of :class:`~dbench.learn.configs.NC
 
 The training set is rebuilt through the render cache with the settings recorded in ``nca.json``
 (its hash is recorded with the selection: another CPU rounds some samples differently, so it may
-differ from the weights' data hash); the last 4 scenes are the held-out ones, as in training. The model file keeps its weights; its
-metadata ``iterations`` (the 1-spp count, used when a frame's spp is unknown) and
-``iterations_by_spp`` are rewritten, and ``nca.json`` records the new selection table.
+differ from the weights' data hash); the last 4 scenes are the held-out ones, as in training.
+The model file keeps its weights; its metadata ``iterations`` (the 1-spp count, used when a
+frame's spp is unknown) and ``iterations_by_spp`` are rewritten, and ``nca.json`` records the
+new selection table.
 """
 from __future__ import annotations
 

@@ -6,7 +6,8 @@ data hash, losses and widths).
 Pipeline (shapes for an H x W frame; C = 3 + feature channels, 11 for the shipped model):
 
     color, normal, albedo, depth --encode--> x (C, H, W), a_eff (H, W, 3)
-      --replicate-pad to multiples of 32--> (1, C, H', W')  [one compiled pass: kernels/learned_input.py]
+      --replicate-pad to multiples of 32--> (1, C, H', W')   [both in one compiled pass,
+                                                              kernels/learned_input.py]
       --ONNX Runtime: U-Net with a recurrent block per level; hidden states h1..h5 in and out-->
     y (1, 3, H', W') --crop, max(expm1(y), 0) * a_eff--> (H, W, 3)
 
@@ -32,8 +33,8 @@ Input policy (documented finite result): non-finite or negative colour values ar
 missing and replaced by 0 before encoding; non-finite normal/albedo/depth by 0; normals clipped
 to [-1, 1], albedo to [0, 1]. Huge finite colour (up to the float32 maximum) is encoded
 without overflow (``log1p`` of the float64 quotient where the float32 one is Inf, at most ≈ 95)
-and the decoder caps the network output at expm1(80). The output is finite everywhere. Missing or mis-shaped buffers
-raise DbenchInputError naming the buffer.
+and the decoder caps the network output at expm1(80). The output is finite everywhere. Missing
+or mis-shaped buffers raise DbenchInputError naming the buffer.
 
 Parameters: ``recurrent`` (carry state across frames), ``weights`` (path of another
 ``autoencoder.onnx``; None: the shipped file), ``threads`` (ONNX Runtime intra-op threads),

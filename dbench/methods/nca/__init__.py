@@ -23,10 +23,10 @@ proportion to their coverage (:func:`keep_emitters`).
 
 Parameters: ``iterations`` (None: the model's step count for the frame's spp, from the table
 chosen on held-out training scenes and stored in the model, :func:`default_iterations`),
-``weights`` (path of
-another ``nca.onnx``; None: the shipped file), ``threads`` (ONNX Runtime intra-op threads; None:
-its default, all physical cores), ``spp`` (the input's sample count for the noise gate; None:
-``data.meta["spp"]``, which every dbench loader records, and 1 spp when that is absent too).
+``weights`` (path of another ``nca.onnx``; None: the shipped file), ``threads`` (ONNX Runtime
+intra-op threads; None: its default, all physical cores), ``spp`` (the input's sample count for
+the noise gate and the step count; None: ``data.meta["spp"]``, which every dbench loader
+records, and 1 spp when that is absent too).
 
 HDR input ([dbench], stored in the model's metadata): with ``autoexposure`` the colour is scaled
 by OIDN's auto-exposure (:func:`dbench.methods.hdr_input.autoexposure`) before ``log1p`` and the
@@ -233,5 +233,5 @@ class NCADenoiser(Denoiser):
         return keep_emitters(data.color, out, getattr(data, "emitter", None))
 
 
-__all__ = ["NCADenoiser", "keep_emitters", "nca_denoise", "reference_denoise", "default_iterations",
-           "training_info", "SHIPPED_ONNX", "SHIPPED_JSON"]
+__all__ = ["NCADenoiser", "keep_emitters", "nca_denoise", "reference_denoise",
+           "default_iterations", "training_info", "SHIPPED_ONNX", "SHIPPED_JSON"]
