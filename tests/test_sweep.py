@@ -156,3 +156,17 @@ def test_sequence_and_transient_scenes_in_one_sweep(renderer, tmp_path):
     assert "## Sweep `sweep-kinds`" in text and "first 10 frames" in text
     assert "### TPSNR (rows scene/method, columns spp)" in text
     assert "| flicker | accumulate |" in text and "| cornell-transient | gauss3d |" in text
+
+
+def test_a_resumed_sweep_removes_the_temporary_files_of_a_killed_one(tmp_path):
+    """A run killed between writing a cell's temporary file and renaming it leaves the file;
+    the next run deletes it before planning, and nothing else."""
+    cell_dir = tmp_path / "cells" / "cornell" / "00004spp"
+    cell_dir.mkdir(parents=True)
+    stale = cell_dir / ".oidn.json.x1y2z3.tmp.json"
+    stale.write_text('{"half": ')
+    kept = cell_dir / "noisy.json"
+    kept.write_text("{}")
+    assert sweep.remove_interrupted_writes(tmp_path) == 1
+    assert not stale.exists() and kept.exists()
+    assert sweep.remove_interrupted_writes(tmp_path) == 0

@@ -438,6 +438,17 @@ def stored_config(out: Path, config: SweepConfig) -> tuple[dict | None, dict]:
     return None, stored
 
 
+def remove_interrupted_writes(out: Path) -> int:
+    """Delete the temporary cell files (``.NAME.json.*.tmp.json``, :func:`dbench.io.atomic_path`)
+    that a killed run left in the sweep folder ``out``; returns how many. Readers already skip
+    them (their names start with a dot); a resumed sweep removes them so that the folder holds
+    exactly one file per cell. One sweep writes to a folder at a time."""
+    stale = list(Path(out).glob("cells/*/*/.*.tmp.json"))
+    for p in stale:
+        p.unlink(missing_ok=True)
+    return len(stale)
+
+
 def run_sweep(config: SweepConfig, out: str | Path, executor: str = "local", workers: int = 1,
               progress: bool = True) -> dict[str, int]:
     """Run (or resume) a sweep; returns counts of computed, already finished and failed cells.
@@ -453,6 +464,7 @@ def run_sweep(config: SweepConfig, out: str | Path, executor: str = "local", wor
         raise DbenchInputError(f"--out {out}: exists and is not a folder")
     to_write, _ = stored_config(out, config)
     io.ensure_writable_dir(out, "--out")
+    remove_interrupted_writes(out)
     groups, done, skipped = plan(config, out)
     if to_write is not None:
         io.write_json(out / "sweep.json", to_write)
