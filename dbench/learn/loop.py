@@ -28,6 +28,26 @@ def lr_at(step: int, cfg) -> float:
     return lr
 
 
+def make_optimizer(model: torch.nn.Module, lr: float, fast, fast_lr: float,
+                   betas: tuple[float, float] = (0.9, 0.999)) -> torch.optim.Adam:
+    """Adam over ``model``; the parameters whose name satisfies ``fast(name)`` (a step-size
+    gate's two numbers) in a group of their own at ``fast_lr``: Adam moves a parameter by about
+    lr per step, and at the network's lr such scalars could move by only a few units in a whole
+    run. Each group's ``lr_scale`` is its lr over ``lr``; :func:`set_lr` keeps the ratio."""
+    named = list(model.named_parameters())
+    groups = [{"params": [p for n, p in named if not fast(n)], "lr_scale": 1.0}]
+    quick = [p for n, p in named if fast(n)]
+    if quick:
+        groups.append({"params": quick, "lr_scale": fast_lr / lr})
+    return torch.optim.Adam(groups, lr=lr, betas=betas)
+
+
+def set_lr(opt: torch.optim.Optimizer, lr: float) -> None:
+    """Every group of ``opt`` at ``lr`` times its ``lr_scale`` (:func:`make_optimizer`)."""
+    for g in opt.param_groups:
+        g["lr"] = lr * g.get("lr_scale", 1.0)
+
+
 def to_tensor(x: np.ndarray) -> torch.Tensor:
     """(B, H, W, C) NumPy -> (B, C, H, W) tensor."""
     return torch.from_numpy(np.ascontiguousarray(x.transpose(0, 3, 1, 2)))

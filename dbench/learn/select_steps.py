@@ -66,6 +66,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     from ..io import atomic_path, write_json
     from ..methods.nca import SHIPPED_JSON, SHIPPED_ONNX
     from .configs import NCAConfig
+    from .ship import steps_table_text
     from .train_nca import select_iterations
 
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -94,7 +95,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     meta["iterations"] = str(default)
     meta.pop("iterations_by_spp", None)
     if by_spp:
-        meta["iterations_by_spp"] = json.dumps({str(k): int(v) for k, v in by_spp.items()})
+        meta["iterations_by_spp"] = steps_table_text(by_spp)
     del model.metadata_props[:]
     for key, value in meta.items():
         entry = model.metadata_props.add()

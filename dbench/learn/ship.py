@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from ..methods.kernels.hdr_input import noise_level
 from .configs import TrainResult
 from .loop import loss_curve
 
@@ -41,6 +42,11 @@ def _readable(path: Path) -> None:
     os.chmod(path, 0o644)
 
 
+def steps_table_text(by_spp: dict) -> str:
+    """The NCA's per-spp step counts as its metadata stores them: JSON {"spp": steps}."""
+    return json.dumps({str(k): int(v) for k, v in by_spp.items()})
+
+
 def ship_nca(result: TrainResult, out_dir: str | Path | None = None) -> tuple[Path, Path]:
     """Write ``nca.onnx`` (Loop form) and ``nca.json`` into ``out_dir`` (default: the package)."""
     import onnx
@@ -59,7 +65,7 @@ def ship_nca(result: TrainResult, out_dir: str | Path | None = None) -> tuple[Pa
             "autoexposure": str(bool(cfg.autoexposure)), "data_hash": result.data.get("hash", "")}
     by_spp = result.data.get("iterations_by_spp")
     if by_spp:
-        meta["iterations_by_spp"] = json.dumps({str(k): int(v) for k, v in by_spp.items()})
+        meta["iterations_by_spp"] = steps_table_text(by_spp)
     gate = None
     if getattr(result.model, "noise_gate", False):
         gate = [float(result.model.gate_u.detach()), float(result.model.gate_v.detach()),
@@ -104,7 +110,7 @@ def ship_autoencoder(result: TrainResult, out_dir: str | Path | None = None
     if net.level_channel is not None:
         u, v = (float(t) for t in net.level_gate.detach())
         gate = {"u": u, "v": v, "gate_max": net.gate_max, "channel": net.level_channel,
-                "gamma_at_spp": {str(n): net.gate_max / (1.0 + np.exp(-(v + u * np.log2(n) / 10)))
+                "gamma_at_spp": {str(n): net.gate_max / (1.0 + np.exp(-(v + u * noise_level(n))))
                                  for n in (1, 4, 16, 64, 256, 1024)}}
     with atomic_path(out / "autoencoder.onnx", suffix=".tmp.onnx") as tmp:
         onnx.save(model, str(tmp))

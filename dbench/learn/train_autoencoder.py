@@ -13,7 +13,8 @@ from . import losses as L
 from .configs import AEConfig, AESequenceConfig, TrainResult
 from ..methods.kernels.hdr_input import autoexposure, noise_level
 from .dataset import TrainingSet, full_images, sample_batch
-from .loop import add_linear_terms, loss_curve, lr_at, run_loop, seed_everything, to_tensor
+from .loop import (add_linear_terms, loss_curve, lr_at, make_optimizer, run_loop,
+                   seed_everything, set_lr, to_tensor)
 
 
 def ae_inputs(batch: dict[str, np.ndarray], features) -> tuple[torch.Tensor, torch.Tensor]:
@@ -39,30 +40,14 @@ def ae_prediction(y: torch.Tensor, a_eff: torch.Tensor) -> torch.Tensor:
 
 def level_channel(features) -> int | None:
     """Index of the ``level`` plane in the network input (None without it)."""
-    from ..methods.autoencoder.model import FEATURE_CHANNELS
+    from ..methods.autoencoder.model import in_channels_for
 
-    if "level" not in features:
-        return None
-    before = features[:list(features).index("level")]
-    return 3 + sum(FEATURE_CHANNELS[f] for f in before)
+    features = list(features)
+    return in_channels_for(features[:features.index("level")]) if "level" in features else None
 
 
-def make_optimizer(model, lr: float, betas, gate_lr: float) -> torch.optim.Adam:
-    """Adam over the model; the level gate's (u, v), if any, in a group of its own at
-    ``gate_lr`` (Adam moves a parameter by about lr per step: at the network's 1e-3 the two
-    numbers could move by only a few units in a whole run). Each group's ``lr_scale`` is its lr
-    over ``lr``, so the schedule (:func:`set_lr`) keeps the ratio."""
-    gate = [p for n, p in model.named_parameters() if n == "level_gate"]
-    rest = [p for n, p in model.named_parameters() if n != "level_gate"]
-    groups = [{"params": rest, "lr_scale": 1.0}]
-    if gate:
-        groups.append({"params": gate, "lr_scale": gate_lr / lr})
-    return torch.optim.Adam(groups, lr=lr, betas=betas)
-
-
-def set_lr(opt: torch.optim.Optimizer, lr: float) -> None:
-    for g in opt.param_groups:
-        g["lr"] = lr * g.get("lr_scale", 1.0)
+def _is_level_gate(name: str) -> bool:
+    return name == "level_gate"
 
 
 def train_autoencoder(ts: TrainingSet, cfg: AEConfig | None = None, progress: bool = False,
@@ -85,7 +70,7 @@ def train_autoencoder(ts: TrainingSet, cfg: AEConfig | None = None, progress: bo
         with torch.no_grad():
             for lvl, conv in enumerate(model.rec_b):
                 conv.weight[:, model.enc_widths[lvl]:] = 0.0
-    opt = make_optimizer(model, cfg.lr, cfg.betas, cfg.gate_lr)
+    opt = make_optimizer(model, cfg.lr, _is_level_gate, cfg.gate_lr, cfg.betas)
 
     def step_fn(step: int):
         set_lr(opt, lr_at(step, cfg))
@@ -125,7 +110,8 @@ def finetune_autoencoder_sequences(model, ss, cfg: AESequenceConfig, features,
 
     rng = seed_everything(cfg.seed, cfg.threads)
     steady_cfg = steady_cfg or AEConfig()
-    opt = make_optimizer(model, cfg.lr, cfg.betas, cfg.lr * steady_cfg.gate_lr / steady_cfg.lr)
+    gate_lr = cfg.lr * steady_cfg.gate_lr / steady_cfg.lr  # stage 1's ratio to the network's lr
+    opt = make_optimizer(model, cfg.lr, _is_level_gate, gate_lr, cfg.betas)
 
     def step_fn(step: int):
         set_lr(opt, lr_at(step, cfg))

@@ -12,7 +12,8 @@ import torch
 from . import losses as L
 from .configs import NCAConfig, TrainResult
 from .dataset import TrainingSet, full_images, sample_batch
-from .loop import add_linear_terms, lr_at, run_loop, seed_everything, to_tensor
+from .loop import (add_linear_terms, lr_at, make_optimizer, run_loop, seed_everything, set_lr,
+                   to_tensor)
 
 
 def _a_eff(albedo: torch.Tensor) -> torch.Tensor:
@@ -47,16 +48,10 @@ def train_nca(ts: TrainingSet, cfg: NCAConfig | None = None, progress: bool = Fa
     model = NCA(cfg.update_channels, cfg.activation, cfg.bias_init, cfg.w_init_std,
                 generator=gen, noise_gate=cfg.noise_gate, gate_init=cfg.gate_init,
                 gate_max=cfg.gate_max)
-    gate = [p for n, p in model.named_parameters() if n.startswith("gate_")]
-    core = [p for n, p in model.named_parameters() if not n.startswith("gate_")]
-    groups = [{"params": core, "lr_scale": 1.0}]
-    if gate:
-        groups.append({"params": gate, "lr_scale": cfg.gate_lr / cfg.lr})
-    opt = torch.optim.Adam(groups, lr=cfg.lr)
+    opt = make_optimizer(model, cfg.lr, lambda n: n.startswith("gate_"), cfg.gate_lr)
 
     def step_fn(step: int):
-        for g in opt.param_groups:
-            g["lr"] = lr_at(step, cfg) * g["lr_scale"]
+        set_lr(opt, lr_at(step, cfg))
         batch = sample_batch(ts, rng, cfg.batch, cfg.crop, cfg.spp_choices,
                              cfg.light_fraction, cfg.mix_spp, cfg.autoexposure)
         k = int(rng.integers(cfg.k_min, cfg.k_max + 1))
