@@ -76,14 +76,15 @@ class RecurrentAE(nn.Module):
         level_gate: [dbench option, with ``residual``] the index of the input's noise-level
             plane ℓ = log2(spp)/10; the correction is scaled by γ(ℓ) = gate_max ·
             sigmoid(v + u ℓ) (two trained numbers, ``self.level_gate`` = (u, v)), the NCA's
-            step size (spec/nca.md, dbench): a converged input (ℓ → 1) can be passed through
-            by one scalar, which the convolutions alone did not learn (worse than the input at
-            256-1024 spp without it, results/learned.md).
+            step size (spec/nca.md, dbench), so that one scalar can pass a converged input
+            (ℓ → 1) through. Tried against the shipped model's gap at 256-1024 spp and worse
+            (results/learned.md); not used by the shipped model.
         gate_max, gate_init: γ's upper bound and the initial (u, v).
         pixel_gate: [dbench option, with ``residual``] the last convolution gives 4 channels,
             a correction Δ (3) and a logit g (1), and the output is x_rgb + sigmoid(g) Δ: the
             network can switch its correction off per pixel (edges, texture of a converged
-            input) with one saturating channel instead of driving three to exactly zero.
+            input) with one saturating channel instead of driving three to exactly zero. Tried
+            and worse (results/learned.md); not used by the shipped model.
 
     ``forward(x, hidden=None)``: x (N, C, H, W) with H, W multiples of 32; hidden a list of
     ``LEVELS`` tensors (N, e_l, H / 2^(l-1), W / 2^(l-1)) or None (zeros, i.e. frame 0).

@@ -31,7 +31,6 @@ EXPOSURE_KEY = 0.18
 EXPOSURE_BLOCK = 16
 #: Rec. 709 luminance weights (what OIDN uses for its auto-exposure).
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722], np.float64)
-_LUMA = (0.2126, 0.7152, 0.0722)  # the same, as a tuple the compiled pass reads
 
 
 def autoexposure(color: np.ndarray, block: int = EXPOSURE_BLOCK) -> float:
@@ -44,7 +43,12 @@ def autoexposure(color: np.ndarray, block: int = EXPOSURE_BLOCK) -> float:
     if c.ndim != 3 or c.shape[-1] != 3 or c.size == 0:
         return autoexposure_reference(color, block)
     means = _block_means_nb(np.ascontiguousarray(c, np.float32 if c.dtype == np.float32
-                                                 else np.float64), int(block))
+                                                 else np.float64), int(block), LUMINANCE)
+    return _exposure_from_means(means)
+
+
+def _exposure_from_means(means: np.ndarray) -> float:
+    """key / exp(mean log L) over the block means L > 1e-8; 1.0 when there is none."""
     means = means[means > 1e-8]
     if means.size == 0:
         return 1.0
@@ -52,7 +56,7 @@ def autoexposure(color: np.ndarray, block: int = EXPOSURE_BLOCK) -> float:
 
 
 @njit(parallel=True, cache=True)
-def _block_means_nb(color, block):  # pragma: no cover - compiled
+def _block_means_nb(color, block, luma):  # pragma: no cover - compiled
     """Mean Rec. 709 luminance (float64) of each block × block tile of an (H, W, 3) image
     (edge tiles over their pixels only), non-finite and negative values as 0."""
     h, w = color.shape[0], color.shape[1]
@@ -69,7 +73,7 @@ def _block_means_nb(color, block):  # pragma: no cover - compiled
                 for k in range(3):
                     v = np.float64(color[y, x, k])
                     if np.isfinite(v) and v > 0:
-                        lum += _LUMA[k] * v
+                        lum += luma[k] * v
                 acc += lum
         means[t] = acc / ((y1 - y0) * (x1 - x0))
     return means
@@ -88,11 +92,7 @@ def autoexposure_reference(color: np.ndarray, block: int = EXPOSURE_BLOCK) -> fl
     counts = np.zeros((bh * block, bw * block))
     counts[:h, :w] = 1.0
     sums = pad.reshape(-1, bh, block, bw, block).sum(axis=(2, 4))
-    means = sums / counts.reshape(bh, block, bw, block).sum(axis=(1, 3))
-    means = means[means > 1e-8]
-    if means.size == 0:
-        return 1.0
-    return float(EXPOSURE_KEY / np.exp(np.mean(np.log(means))))
+    return _exposure_from_means(sums / counts.reshape(bh, block, bw, block).sum(axis=(1, 3)))
 
 
 def noise_level(spp: Any) -> float:
