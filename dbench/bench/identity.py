@@ -2,7 +2,8 @@
 
 A benchmark cell is reused only when everything that changes its numbers matches (issue
 "results that cannot be silently wrong"): the scene (its description's fingerprint), resolution,
-spp, seeds, the reference spp actually used and its seed, the sample transform, the frames or
+spp, seeds, the reference spp actually used and its seed, the feature buffers' spp where it is
+not the default 64 (:func:`dbench.datasets.feature_identity`), the sample transform, the frames or
 bins, the method, its *resolved* parameters (defaults included, so changing a default in code
 changes the identity), the method's code version and the judge's code version.
 

@@ -205,7 +205,7 @@ def resolved_ref_spp(config: SweepConfig, scene, spp: int) -> int | None:
 def cell_identity(config: SweepConfig, scene, spp: int, method: str, fingerprint: str
                   ) -> dict[str, Any]:
     """Everything that changes a cell's numbers (module docstring of bench/identity.py)."""
-    from .. import methods as registry
+    from .. import datasets, methods as registry
 
     transform = config.transform or ("identity" if scene.kind == "transient" else "box-cox")
     return {"scene": scene.name, "scene_fingerprint": fingerprint, "kind": scene.kind,
@@ -215,7 +215,8 @@ def cell_identity(config: SweepConfig, scene, spp: int, method: str, fingerprint
             "bins": config.bins, "metrics": list(config.metrics), "method": method,
             "params": identity.resolved_params(method, config.params.get(method)),
             "method_version": identity.method_version(registry.method_class(method)),
-            "judge_version": identity.judge_version()}
+            "judge_version": identity.judge_version(),
+            **datasets.feature_identity(scene, spp)}
 
 
 def plan(config: SweepConfig, out: Path

@@ -244,7 +244,17 @@ def cmd_train(args: argparse.Namespace) -> int:
         raise DbenchInputError("--sequences: only the autoencoder is recurrent")
     if args.sequences is None:
         args.sequences = 16 if args.method == "autoencoder" else 0
+    if args.from_weights is not None:
+        if args.method != "autoencoder":
+            raise DbenchInputError("--from-weights: only the autoencoder has later stages")
+        if not Path(args.from_weights).is_file():
+            raise DbenchInputError(f"--from-weights: no such file {args.from_weights}")
+        overrides.pop("seed")  # stage 1's; stage 3 has its own
+        if overrides:
+            raise DbenchInputError("--from-weights: --steps, --minutes and --width-scale are "
+                                   "stage-1 settings")
     run_training(args.method, n_scenes=args.scenes, res=args.res,
                  ref_spp=args.ref_spp or 2048, out_dir=args.out, sequences=args.sequences,
-                 cache=datasets.Cache(args.cache, enabled=not args.no_cache), **overrides)
+                 cache=datasets.Cache(args.cache, enabled=not args.no_cache),
+                 from_weights=args.from_weights, **overrides)
     return 0

@@ -156,6 +156,9 @@ def build_parser() -> argparse.ArgumentParser:
     tp.add_argument("--sequences", type=int, default=None,
                     help="autoencoder: training sequences for the recurrent stage (default 16; "
                     "0: single frames only)")
+    tp.add_argument("--from-weights", default=None, metavar="ONNX",
+                    help="autoencoder: start from these weights (their .json beside them) and "
+                    "run only the consistency stage (stage 3)")
     tp.add_argument("--out", default=None, help="output folder (default: the method's package "
                     "folder, replacing the shipped weights)")
     common(tp)

@@ -46,6 +46,20 @@ def _base_description(scene: Scene, res: Res) -> dict:
             "params": scene.params, "versions": versions()}
 
 
+def feature_identity(scene: str | Scene, spp: int) -> dict:
+    """The part of a result's identity that the feature buffers' sample count adds: {} where it
+    is DEFAULT_FEATURE_SPP (every result made before the count followed the colour's, which
+    keeps its identity), else {"feature_spp": n} for rendered steady scenes
+    (:func:`~dbench.datasets.render.feature_spp`). Sequences (matched G-buffer), transient
+    scenes and folders of renders do not render steady features by this rule."""
+    sc = scene if isinstance(scene, Scene) else _scenes.get(scene)
+    n = _render.feature_spp(spp)
+    if sc.kind != "steady" or isinstance(sc, _scenes.FolderScene) \
+            or n == _render.DEFAULT_FEATURE_SPP:
+        return {}
+    return {"feature_spp": n}
+
+
 def scene_fingerprint(scene: str | Scene, res) -> str:
     """A short content hash (16 hex chars of sha256) of ``scene`` at ``res``: the canonical
     scene description (the Mitsuba dictionary through :func:`~dbench.datasets.cache.canonical`,
@@ -169,9 +183,11 @@ def load(scene: str | Scene, spp: int, res, needs: Iterable[str] | None = None,
 
     buffers: dict[str, np.ndarray] = {}
     if wanted & set(FEATURE_BUFFERS):
-        feat_desc = {**base, "what": "features", "spp": _render.DEFAULT_FEATURE_SPP,
-                     "seed": int(seed), "aovs": _render.AOV_STRING}
-        feats = _render.cached_features(cache, feat_desc, sc, res, seed, meta)
+        fspp = _render.feature_spp(spp)
+        feat_desc = {**base, "what": "features", "spp": fspp, "seed": int(seed),
+                     "aovs": _render.AOV_STRING}
+        feats = _render.cached_features(cache, feat_desc, sc, res, seed, meta, fspp)
+        meta["feature_spp"] = fspp
         buffers.update({k: feats[k] for k in FEATURE_BUFFERS if k in wanted})
 
     if "reference" in wanted:
@@ -246,4 +262,4 @@ def _load_folder_scene(sc: Scene, spp: int, res, needs, seed: int, ref_spp: int 
 
 
 __all__ = ["load", "available_scenes", "get_scene", "Cache", "Scene", "FEATURES",
-           "FEATURE_BUFFERS", "scene_fingerprint", "default_res"]
+           "FEATURE_BUFFERS", "scene_fingerprint", "feature_identity", "default_res"]

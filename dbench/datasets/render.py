@@ -34,6 +34,19 @@ AOV_STRING = "albedo:albedo,nn:sh_normal,dd:depth,pp:position"
 #: (buffer, first channel, channel count) in the aov integrator's output.
 AOV_LAYOUT = (("albedo", 0, 3), ("normal", 3, 3), ("depth", 6, 1), ("position", 7, 3))
 DEFAULT_FEATURE_SPP = 64
+
+
+def feature_spp(spp: int) -> int:
+    """Samples per pixel of the feature buffers (albedo, normal, depth, position, emitter) of a
+    steady frame whose colour has ``spp``: max(DEFAULT_FEATURE_SPP, spp).
+
+    A renderer accumulates its AOVs with the beauty pass, so a guide is never noisier than the
+    colour it guides. Fixed 64-spp features under a 256- or 1024-spp colour put the albedo's own
+    sampling noise (≈ 10 % per pixel on pixel-frequency texture) into every method that
+    demodulates by or is guided by it: measured on ``textured`` at 64², 1024 spp, the
+    autoencoder's relMSE was 5.3x the noisy input's with 64-spp features and 1.4x with
+    1024-spp ones, OIDN's 3.1x and 1.3x (results/learned.md)."""
+    return max(DEFAULT_FEATURE_SPP, int(spp))
 DEFAULT_REFERENCE_CHUNK = 256
 #: References are split into at least this many chunks (when spp allows) for their variance.
 MIN_REFERENCE_CHUNKS = 16
@@ -211,9 +224,9 @@ def feature_description(description: dict) -> dict:
 
 
 def cached_features(cache, description: dict, scene: Scene, res: Res, seed: int,
-                    meta: dict) -> dict[str, np.ndarray]:
-    """:func:`render_features` and the ``emitter`` buffer of ``scene`` (both at
-    DEFAULT_FEATURE_SPP, box filter) through ``cache`` (kind ``features``, one entry holding
+                    meta: dict, spp: int = DEFAULT_FEATURE_SPP) -> dict[str, np.ndarray]:
+    """:func:`render_features` and the ``emitter`` buffer of ``scene`` (both at ``spp``, box
+    filter) through ``cache`` (kind ``features``, one entry holding
     albedo, normal, depth, position and emitter), recording ``features`` in
     ``meta["cache_hits"]`` or ``meta["rendered"]``. ``description`` is the caller's part of the
     cache key (scene description, spp, seed and AOV string); the emitter marker is added here."""
@@ -224,8 +237,8 @@ def cached_features(cache, description: dict, scene: Scene, res: Res, seed: int,
         if "emitter" in images:
             meta["cache_hits"].append("features")
             return images
-    feats, seconds = render_features(scene, res, seed=seed)
-    feats["emitter"], emitter_s = render_emitter(scene, res, DEFAULT_FEATURE_SPP, seed=seed)
+    feats, seconds = render_features(scene, res, spp=spp, seed=seed)
+    feats["emitter"], emitter_s = render_emitter(scene, res, spp, seed=seed)
     cache.put("features", description, images=feats,
               meta={"render_s": seconds + emitter_s, "aov_s": seconds, "emitter_s": emitter_s})
     meta["rendered"].append("features")

@@ -113,42 +113,53 @@ def probe_mean(scene, res: int = 32, spp: int = 16) -> float:
 
 def build_training_set(n_scenes: int = 24, res: int = 128, spp: Sequence[int] = DEFAULT_SPP,
                        ref_spp: int = 1024, family_seed: int = 0, cache=None,
-                       min_mean: float = 0.03, progress: bool = True) -> TrainingSet:
+                       min_mean: float = 0.03, progress: bool = True,
+                       features_with: str = "first") -> TrainingSet:
     """Render (or read from the cache) ``n_scenes`` procedural training scenes.
 
-    Noisy images at spp[p] use seed p (independent sample streams); features and reference use
-    seed 0. Returns a :class:`TrainingSet`; ``config`` records the settings and render times.
+    Noisy images at spp[p] use seed p (independent sample streams); the reference uses seed 0.
+    The features come with the render at spp[0] (``features_with="first"``: seed 0,
+    max(64, spp[0]) samples, :func:`dbench.datasets.render.feature_spp`) or with the one at
+    spp[-1] (``"last"``: its seed and max(64, spp[-1]) samples, never noisier than any input,
+    as the benchmark's features at high spp). Returns a :class:`TrainingSet`; ``config``
+    records the settings and render times.
     """
     from .. import datasets
 
+    if features_with not in ("first", "last"):
+        raise ValueError(f"features_with: expected 'first' or 'last', got {features_with!r}")
     cache = cache or datasets.Cache()
     noisy, refs, albedo, normal, depth, names, skipped = [], [], [], [], [], [], []
     t0 = time.perf_counter()
     index = 0
+    feature_needs = {"albedo", "normal", "depth"}
     while len(names) < n_scenes:
         sc = training_scene(index, family_seed)
         index += 1
         if probe_mean(sc) < min_mean:
             skipped.append(sc.name)
             continue
+        first = features_with == "first"
         base = datasets.load(sc, spp=int(spp[0]), res=res,
-                             needs={"color", "albedo", "normal", "depth", "reference"}, seed=0,
-                             ref_spp=ref_spp, cache=cache, progress=False)
-        frames = [base.color]
-        for p, n in enumerate(spp[1:], start=1):
-            frames.append(datasets.load(sc, spp=int(n), res=res, needs={"color"}, seed=p,
-                                        cache=cache, progress=False).color)
-        noisy.append(np.stack([_finite(f) for f in frames]))
+                             needs={"color", "reference"} | (feature_needs if first else set()),
+                             seed=0, ref_spp=ref_spp, cache=cache, progress=False)
+        loads = [base] + [datasets.load(sc, spp=int(n), res=res,
+                                        needs={"color"} | (feature_needs if p == len(spp) - 1
+                                                           and not first else set()),
+                                        seed=p, cache=cache, progress=False)
+                          for p, n in enumerate(spp[1:], start=1)]
+        feats = loads[0 if first else -1]
+        noisy.append(np.stack([_finite(f.color) for f in loads]))
         refs.append(_finite(base.reference))
-        albedo.append(np.clip(_finite(base.albedo), 0, 1))
-        normal.append(np.clip(_finite(base.normal), -1, 1))
-        depth.append(normalize_depth(base.depth))
+        albedo.append(np.clip(_finite(feats.albedo), 0, 1))
+        normal.append(np.clip(_finite(feats.normal), -1, 1))
+        depth.append(normalize_depth(feats.depth))
         names.append(sc.name)
         if progress:
             print(f"  {sc.name}: rendered {base.meta['rendered'] or 'nothing'} "
                   f"({time.perf_counter() - t0:.0f} s so far)", flush=True)
     config = {"n_scenes": n_scenes, "res": res, "spp": list(map(int, spp)),
-              "ref_spp": ref_spp, "family_seed": family_seed, "min_mean": min_mean,
+              "ref_spp": ref_spp, "features_with": features_with, "family_seed": family_seed, "min_mean": min_mean,
               "skipped_dark": skipped, "build_s": round(time.perf_counter() - t0, 1)}
     return TrainingSet(noisy=np.stack(noisy), spp=tuple(int(s) for s in spp),
                        reference=np.stack(refs), albedo=np.stack(albedo),

@@ -254,6 +254,18 @@ def _training_section() -> str:
          lambda i: "-" if get(i, "data", "sequence_stage") == "-" else
          f"{fmt(get(i, 'data', 'sequence_stage', 'validation', 'loss_state_carried'))} / "
          f"{fmt(get(i, 'data', 'sequence_stage', 'validation', 'loss_state_reset'))}"),
+        ("consistency stage (steps, wall time, relative term)",
+         lambda i: "-" if get(i, "data", "consistency_stage") == "-" else
+         f"{get(i, 'data', 'consistency_stage', 'steps_done')} steps, "
+         f"{get(i, 'data', 'consistency_stage', 'wall_s')} s, "
+         f"{get(i, 'data', 'consistency_stage', 'config', 'relative_weight')} x "
+         f"{get(i, 'data', 'consistency_stage', 'config', 'relative_metric')} ratio, "
+         f"ε {get(i, 'data', 'consistency_stage', 'config', 'relative_eps')}, "
+         f"on {get(i, 'data', 'consistency_stage', 'machine', 'cpu')}"),
+        ("held-out sequences after it: carried / reset",
+         lambda i: "-" if get(i, "data", "consistency_stage") == "-" else
+         f"{fmt(get(i, 'data', 'consistency_stage', 'validation', 'loss_state_carried'))} / "
+         f"{fmt(get(i, 'data', 'consistency_stage', 'validation', 'loss_state_reset'))}"),
     ]
     for label, f in rows:
         lines.append(f"| {label} | {f(infos['nca'])} | {f(infos['autoencoder'])} |")

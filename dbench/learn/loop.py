@@ -64,7 +64,8 @@ def add_linear_terms(loss: torch.Tensor, part: dict[str, float], pred: torch.Ten
         loss = loss + cfg.linear_weight * lin
         part["linear"] = lin.item()
     if cfg.relative_weight:
-        rel = L.relative_linear_mse(pred, target, to_tensor(noisy), cfg.linear_clamp)
+        rel = L.relative_linear_mse(pred, target, to_tensor(noisy), cfg.linear_clamp,
+                                    cfg.relative_eps, cfg.relative_metric)
         loss = loss + cfg.relative_weight * rel
         part["relative"] = rel.item()
     return loss

@@ -103,17 +103,28 @@ def clamped_linear_mse(p_log: torch.Tensor, t_log: torch.Tensor, clamp: float = 
 
 
 def relative_linear_mse(p_log: torch.Tensor, t_log: torch.Tensor, noisy: torch.Tensor,
-                        clamp: float = 64.0, eps: float = 1e-3) -> torch.Tensor:
-    """Mean over the batch of (linear MSE of the output) / (linear MSE of the noisy input + eps),
-    per (N, 3, H, W) crop, on radiance clamped at ``clamp``: the training form of "beat the
+                        clamp: float = 64.0, eps: float = 1e-3, metric: str = "mse"
+                        ) -> torch.Tensor:
+    """Mean over the batch of (error of the output) / (error of the noisy input + eps), per
+    (N, 3, H, W) crop, on linear radiance clamped at ``clamp``: the training form of "beat the
     input on every image". A crop whose input is already nearly right (flat texture, converged
     pixels) weighs as much as one full of fireflies, and blurring a visible light, which costs
-    far more than the light edge's own sample noise, is punished in proportion."""
+    far more than the light edge's own sample noise, is punished in proportion.
+
+    ``metric`` "mse": the error is the linear MSE. "relmse": the relative MSE
+    mean((x − r)² / (r² + 1e-2)) that dbench's verdicts rank HDR images by
+    (dbench.metrics.pixel.relmse); its per-crop value is bounded below by the sample noise of
+    the pixels' relative values, not by the crop's brightness, so ``eps`` can be small enough
+    (1e-6) that a converged crop's ratio is its ratio, where with "mse" a dark crop's input
+    error of 1e-9 turns the ratio's gradient into spikes."""
+    if metric not in ("mse", "relmse"):
+        raise ValueError(f"metric: expected 'mse' or 'relmse', got {metric!r}")
     pl = torch.expm1(p_log.clamp(max=20.0)).clamp(max=clamp)
     tl = torch.expm1(t_log.clamp(max=20.0)).clamp(max=clamp)
     nl = noisy.clamp(min=0.0, max=clamp)
-    out = ((pl - tl) ** 2).mean(dim=(1, 2, 3))
-    base = ((nl - tl) ** 2).mean(dim=(1, 2, 3))
+    scale = 1.0 / (tl * tl + 1e-2) if metric == "relmse" else 1.0
+    out = ((pl - tl) ** 2 * scale).mean(dim=(1, 2, 3))
+    base = ((nl - tl) ** 2 * scale).mean(dim=(1, 2, 3))
     return (out / (base + eps)).mean()
 
 

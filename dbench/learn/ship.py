@@ -21,7 +21,9 @@ from .loop import loss_curve
 PACKAGE_METHODS = Path(__file__).resolve().parent.parent / "methods"
 
 
-def _machine() -> dict[str, Any]:
+def machine_record() -> dict[str, Any]:
+    """The CPU, cores, GPU and torch's thread count of this process (a training record's
+    ``machine``)."""
     from ..bench.machine import machine_info
 
     info = machine_info()
@@ -32,8 +34,13 @@ def _machine() -> dict[str, Any]:
 def _describe(result: TrainResult, extra: dict) -> dict[str, Any]:
     cfg = dataclasses.asdict(result.config)
     return {"method": result.method, "trained_on": "cpu" if not torch.cuda.is_available()
-            else "cuda", "machine": _machine(), "training_config": cfg,
-            "data": result.data, "losses": result.summary(), "loss_curve": loss_curve(result.losses),
+            else "cuda",
+            # a run resumed from shipped weights keeps the machine of stages 1-2; its own stage
+            # records where it ran
+            "machine": result.previous.get("machine") or machine_record(),
+            "training_config": cfg,
+            "data": result.data, "losses": result.summary(),
+            "loss_curve": loss_curve(result.losses) or result.previous.get("loss_curve", []),
             "created": time.strftime("%Y-%m-%d %H:%M:%S"), **extra}
 
 

@@ -13,6 +13,10 @@
 * :func:`finetune_autoencoder_sequences` — stage 2: 7-frame crops of camera-animated training
   sequences (:func:`~dbench.learn.dataset.build_sequence_set`) with the hidden state carried,
   per-frame weights and L_t, every other step a single-frame batch.
+* :func:`consistency_stage` — [dbench] stage 3 (:class:`AEConsistencyConfig`): stage 2's
+  alternation at a lower lr, the relative term measured in relMSE with ε = 1e-6 so that every
+  crop, the nearly converged ones included, asks the output to beat its input; the single frames
+  carry features from the highest-spp render. ``from_weights`` runs it alone on shipped weights.
 * Both models draw a quarter of their crops around visible lights
   (:func:`~dbench.learn.dataset.sample_batch`, ``light_fraction``).
 * :func:`ship_nca`, :func:`ship_autoencoder` — ONNX file plus a JSON with the training
@@ -35,11 +39,14 @@ import dataclasses
 import json
 from pathlib import Path
 
-from .configs import AEConfig, AESequenceConfig, NCAConfig, TrainResult
+import numpy as np
+
+from .configs import AEConfig, AEConsistencyConfig, AESequenceConfig, NCAConfig, TrainResult
 from .dataset import TrainingSet
-from .ship import ship_autoencoder, ship_nca
-from .train_autoencoder import (finetune_autoencoder_sequences, train_autoencoder,
-                                validate_autoencoder, validate_autoencoder_sequences)
+from .ship import machine_record, ship_autoencoder, ship_nca
+from .train_autoencoder import (consistency_stage, finetune_autoencoder_sequences,
+                                train_autoencoder, validate_autoencoder,
+                                validate_autoencoder_sequences)
 from .train_nca import select_iterations, train_nca, validate_nca
 
 
@@ -64,38 +71,86 @@ def split(ts: TrainingSet, n_validation: int) -> tuple[TrainingSet, TrainingSet 
     return part(slice(0, s - n_validation)), part(slice(s - n_validation, s))
 
 
+def resume_autoencoder(weights: str | Path) -> TrainResult:
+    """A :class:`TrainResult` holding the shipped autoencoder ``weights`` (ONNX) as a PyTorch
+    model, with the configuration, data record and stage-1 losses of the JSON beside it (the
+    stage-1 record stands for the resumed run's; ``previous``)."""
+    import onnx
+    import torch
+
+    from ..errors import DbenchInputError
+    from ..methods.autoencoder.export import state_from_onnx
+    from ..methods.autoencoder.model import RecurrentAE
+
+    weights = Path(weights)
+    record = weights.with_suffix(".json")
+    if not weights.is_file() or not record.is_file():
+        raise DbenchInputError(f"--from-weights: expected an autoencoder .onnx with its .json "
+                               f"beside it, got {weights}")
+    prev = json.loads(record.read_text())
+    fields = {f.name for f in dataclasses.fields(AEConfig)}
+    cfg = AEConfig(**{k: tuple(v) if isinstance(v, list) else v
+                      for k, v in prev["training_config"].items() if k in fields})
+    residual = cfg.residual and not cfg.blend
+    net = RecurrentAE(int(prev["in_channels"]), cfg.width_scale, cfg.recurrent, residual,
+                      cfg.blend, None, cfg.gate_max, tuple(cfg.gate_init),
+                      bool(prev.get("pixel_gate")) and residual)
+    if prev.get("level_gate"):
+        raise DbenchInputError("--from-weights: a level-gated model cannot be resumed")
+    net.load_state_dict({k: torch.from_numpy(np.array(v))  # writable copies
+                         for k, v in state_from_onnx(onnx.load(str(weights))).items()})
+    losses = prev.get("losses", {})
+    return TrainResult("autoencoder", net, cfg, [], [], float(losses.get("wall_s", 0.0)),
+                       int(losses.get("steps_done", 0)), dict(losses.get("validation", {})),
+                       dict(prev.get("data", {})), previous=prev)
+
+
 def run_training(method: str, *, n_scenes: int = 48, res: int = 128, ref_spp: int = 2048,
                  spp: tuple[int, ...] = TRAINING_SPP,
                  n_validation: int | None = None, cache=None, out_dir=None,
                  progress: bool = True, sequences: int = 0,
-                 sequence_overrides: dict | None = None,
+                 sequence_overrides: dict | None = None, consistency: bool = True,
+                 consistency_overrides: dict | None = None, from_weights=None,
                  **overrides) -> tuple[TrainResult, tuple[Path, Path]]:
     """What ``dbench train`` runs: build (or read) the training set, train, ship.
 
     ``sequences`` (autoencoder only): after the single-frame stage, render that many training
     sequences (:func:`~dbench.learn.dataset.build_sequence_set`; the last 2 held out) and train
     the recurrence on them (:func:`finetune_autoencoder_sequences`, settings
-    :class:`AESequenceConfig` updated by ``sequence_overrides``)."""
+    :class:`AESequenceConfig` updated by ``sequence_overrides``); then, with ``consistency``,
+    stage 3 (:func:`consistency_stage`, :class:`AEConsistencyConfig` updated by
+    ``consistency_overrides``). ``from_weights`` (autoencoder): start from a shipped model and
+    run stage 3 only (:func:`resume_autoencoder`)."""
     from .dataset import build_training_set
 
     if method not in ("nca", "autoencoder"):
         from ..errors import UnknownNameError
         raise UnknownNameError(f"unknown trainable method {method!r}; available: "
                                "autoencoder, nca")
+    if from_weights is not None and (method != "autoencoder" or not sequences or overrides
+                                     or not consistency):
+        from ..errors import DbenchInputError
+        raise DbenchInputError("--from-weights: autoencoder only, with sequences, and without "
+                               "stage-1 settings (they are the shipped model's)")
     if progress:
         print(f"training set: {n_scenes} procedural scenes at {res} px, reference {ref_spp} spp")
     ts = build_training_set(n_scenes=n_scenes, res=res, spp=spp, ref_spp=ref_spp, cache=cache,
-                            progress=progress)
+                            progress=progress) if from_weights is None else None
     if n_validation is None:  # the NCA picks its step count on the held-out scenes: 4 of them
         n_validation = 4 if method == "nca" else 2
-    train_set, val_set = split(ts, n_validation)
     if method == "nca":
+        train_set, val_set = split(ts, n_validation)
         cfg = dataclasses.replace(NCAConfig(), **overrides)
         result = train_nca(train_set, cfg, progress, val_set)
         paths = ship_nca(result, out_dir)
     else:
-        cfg = dataclasses.replace(AEConfig(), **overrides)
-        result = train_autoencoder(train_set, cfg, progress, val_set)
+        if from_weights is None:
+            train_set, val_set = split(ts, n_validation)
+            cfg = dataclasses.replace(AEConfig(), **overrides)
+            result = train_autoencoder(train_set, cfg, progress, val_set)
+        else:
+            result = resume_autoencoder(from_weights)
+            cfg = result.config
         if sequences:
             from .dataset import build_sequence_set, split_sequences
 
@@ -104,12 +159,31 @@ def run_training(method: str, *, n_scenes: int = 48, res: int = 128, ref_spp: in
             seq_train, seq_val = split_sequences(
                 build_sequence_set(n_sequences=sequences, cache=cache, progress=progress), 2)
             scfg = dataclasses.replace(AESequenceConfig(), **(sequence_overrides or {}))
-            stage = finetune_autoencoder_sequences(result.model, seq_train, scfg, cfg.features,
-                                                   train_set, cfg, progress)
-            stage["validation"] = validate_autoencoder_sequences(
-                result.model, seq_val, cfg.features, scfg.frames, cfg.autoexposure)
-            result.data["sequence_stage"] = stage
-            result.seconds += stage["wall_s"]
+            if from_weights is None:
+                stage = finetune_autoencoder_sequences(result.model, seq_train, scfg,
+                                                       cfg.features, train_set, cfg, progress)
+                stage["validation"] = validate_autoencoder_sequences(
+                    result.model, seq_val, cfg.features, scfg.frames, cfg.autoexposure)
+                result.data["sequence_stage"] = stage
+                result.seconds += stage["wall_s"]
+            if consistency:
+                ccfg = dataclasses.replace(AEConsistencyConfig(),
+                                           **(consistency_overrides or {}))
+                if progress:
+                    print(f"stage 3: single frames with features of the "
+                          f"{ccfg.features_with} render")
+                late = build_training_set(n_scenes=n_scenes, res=res, spp=spp,
+                                          ref_spp=ref_spp, cache=cache, progress=progress,
+                                          features_with=ccfg.features_with)
+                late_train, late_val = split(late, n_validation)
+                stage = consistency_stage(result.model, seq_train, late_train, ccfg, cfg,
+                                          progress)
+                stage["machine"] = machine_record()
+                stage["validation"] = validate_autoencoder_sequences(
+                    result.model, seq_val, cfg.features, scfg.frames, cfg.autoexposure)
+                result.data["consistency_stage"] = stage
+                result.seconds += stage["wall_s"]
+                val_set = late_val
             if val_set is not None:
                 result.validation = validate_autoencoder(result.model, val_set, cfg.features,
                                                          cfg.autoexposure)
@@ -120,7 +194,8 @@ def run_training(method: str, *, n_scenes: int = 48, res: int = 128, ref_spp: in
     return result, paths
 
 
-__all__ = ["AEConfig", "AESequenceConfig", "NCAConfig", "TrainResult",
+__all__ = ["AEConfig", "AEConsistencyConfig", "AESequenceConfig", "consistency_stage",
+           "resume_autoencoder", "NCAConfig", "TrainResult",
            "finetune_autoencoder_sequences", "run_training", "select_iterations",
            "ship_autoencoder", "ship_nca", "split", "train_autoencoder", "train_nca",
            "validate_autoencoder", "validate_autoencoder_sequences", "validate_nca"]

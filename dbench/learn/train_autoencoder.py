@@ -10,7 +10,7 @@ import numpy as np
 import torch
 
 from . import losses as L
-from .configs import AEConfig, AESequenceConfig, TrainResult
+from .configs import AEConfig, AEConsistencyConfig, AESequenceConfig, TrainResult
 from ..methods.kernels.hdr_input import autoexposure, noise_level
 from .dataset import TrainingSet, full_images, sample_batch
 from .loop import (add_linear_terms, loss_curve, lr_at, make_optimizer, run_loop,
@@ -51,22 +51,26 @@ def _is_level_gate(name: str) -> bool:
 
 
 def train_autoencoder(ts: TrainingSet, cfg: AEConfig | None = None, progress: bool = False,
-                      validation: TrainingSet | None = None) -> TrainResult:
-    """Train the recurrent autoencoder on single-frame crops of ``ts`` (state reset)."""
+                      validation: TrainingSet | None = None, model=None) -> TrainResult:
+    """Train the recurrent autoencoder on single-frame crops of ``ts`` (state reset); ``model``
+    (a :class:`RecurrentAE`) is trained in place from its weights, otherwise a new one from
+    ``cfg``'s initialisation."""
     from ..methods.autoencoder.model import RecurrentAE, in_channels_for
 
     cfg = cfg or AEConfig()
     rng = seed_everything(cfg.seed, cfg.threads)
     residual = cfg.residual and not cfg.blend
     gate = level_channel(cfg.features) if cfg.level_gate and residual else None
-    model = RecurrentAE(in_channels_for(cfg.features), cfg.width_scale, cfg.recurrent,
-                        residual, cfg.blend, gate, cfg.gate_max, tuple(cfg.gate_init),
-                        cfg.pixel_gate and residual)
-    if cfg.residual and not cfg.blend:  # start as the identity
+    fresh = model is None
+    if fresh:
+        model = RecurrentAE(in_channels_for(cfg.features), cfg.width_scale, cfg.recurrent,
+                            residual, cfg.blend, gate, cfg.gate_max, tuple(cfg.gate_init),
+                            cfg.pixel_gate and residual)
+    if fresh and cfg.residual and not cfg.blend:  # start as the identity
         with torch.no_grad():
             model.out.weight.zero_()
             model.out.bias.zero_()
-    if cfg.zero_recurrent_init:
+    if fresh and cfg.zero_recurrent_init:
         with torch.no_grad():
             for lvl, conv in enumerate(model.rec_b):
                 conv.weight[:, model.enc_widths[lvl]:] = 0.0
@@ -154,6 +158,25 @@ def finetune_autoencoder_sequences(model, ss, cfg: AESequenceConfig, features,
             "final_sequence_loss": float(np.mean(seq_losses[-tail:])) if seq_losses else None,
             "final_parts": mean_parts, "loss_curve": loss_curve(losses),
             "data": {"hash": ss.hash, "scenes": ss.scenes, **ss.config}}
+
+
+def consistency_stage(model, ss, ts: TrainingSet, cfg: AEConsistencyConfig, ae_cfg: AEConfig,
+                      progress: bool = False) -> dict[str, Any]:
+    """Stage 3 (:class:`AEConsistencyConfig`): :func:`finetune_autoencoder_sequences` of
+    ``model`` in place on the sequences ``ss`` and the single frames ``ts`` (built with
+    ``cfg.features_with``), its relative term replaced by ``cfg``'s. Returns the stage's record
+    (as stage 2's, plus this configuration)."""
+    seq_cfg = AESequenceConfig(seed=cfg.seed, steps=cfg.steps, lr=cfg.lr,
+                               lr_decay_at=tuple(cfg.lr_decay_at), max_minutes=cfg.max_minutes,
+                               threads=cfg.threads)
+    loss_cfg = dataclasses.replace(ae_cfg, relative_weight=cfg.relative_weight,
+                                   relative_eps=cfg.relative_eps,
+                                   relative_metric=cfg.relative_metric)
+    stage = finetune_autoencoder_sequences(model, ss, seq_cfg, ae_cfg.features, ts, loss_cfg,
+                                           progress)
+    stage["config"] = {**dataclasses.asdict(cfg), "sequence_schedule": stage["config"]}
+    stage["steady_data"] = {"hash": ts.hash, **ts.config}
+    return stage
 
 
 def validate_autoencoder_sequences(model, ss, features, frames: int = 7,

@@ -25,6 +25,14 @@ The shipped recurrent weights were trained on camera-animated training sequences
 (``dbench train autoencoder``, stage 2); ``results/learned.md`` measures what carrying the state
 adds on the catalogue's sequences.
 
+Optional ``emitter`` buffer (coverage of directly seen lights): those pixels keep the input in
+proportion to their coverage (:func:`dbench.methods.kernels.hdr_input.keep_emitters`, the NCA's
+rule).
+
+Training: stage 1 on single frames, stage 2 on sequences, and stage 3, the consistency stage
+whose loss asks every crop, the nearly converged ones included, to beat its input
+(``dbench.learn.configs.AEConsistencyConfig``; results/learned.md).
+
 Inputs (documented choice): albedo-demodulated colour ``log1p(color / a_eff)``, world-space
 normal, albedo and depth divided by the frame's largest depth (spec §1, the ``seed`` variant plus
 depth).
@@ -67,7 +75,7 @@ import numpy as np
 from ...data import check_buffer
 from ...errors import DbenchInputError
 from ...registry import Denoiser, register
-from ..kernels.hdr_input import autoexposure, frame_spp, noise_level
+from ..kernels.hdr_input import autoexposure, frame_spp, keep_emitters, noise_level
 from ..kernels.learned_input import encode_planar
 from ..ort_session import cpu_session
 from .codec import FEATURE_CHANNELS, MULTIPLE, decode, encode, pad_to_multiple
@@ -203,6 +211,7 @@ class Autoencoder(Denoiser):
 
     kinds = {"steady", "sequence"}
     needs = {"color", "albedo", "normal", "depth"}
+    optional_needs = {"emitter"}  # directly seen lights keep the input (keep_emitters)
     defaults = dict(recurrent=True, weights=None, threads=None, spp=None)
 
     def __init__(self, **params):
@@ -225,7 +234,7 @@ class Autoencoder(Denoiser):
             spp=frame_spp(data, self.params["spp"]))
         if self.params["recurrent"]:
             self._hidden = new_hidden
-        return out
+        return keep_emitters(data.color, out, getattr(data, "emitter", None))
 
 
 __all__ = ["Autoencoder", "autoencoder_denoise", "reference_denoise", "model_info",

@@ -54,7 +54,7 @@ import numpy as np
 from ...data import check_buffer
 from ...errors import DbenchInputError
 from ...registry import Denoiser, register
-from ..kernels.hdr_input import autoexposure, frame_spp, noise_level
+from ..kernels.hdr_input import autoexposure, frame_spp, keep_emitters, noise_level
 from ..kernels.learned_input import decode_planar, encode_planar
 from ..ort_session import cpu_session
 from .codec import decode, encode
@@ -182,30 +182,6 @@ def reference_denoise(color: np.ndarray, normal: np.ndarray, albedo: np.ndarray,
 def training_info(path: str | Path = SHIPPED_JSON) -> dict[str, Any]:
     """The JSON written beside the shipped weights (training configuration, losses, ...)."""
     return json.loads(Path(path).read_text())
-
-
-def keep_emitters(color: np.ndarray, out: np.ndarray, emitter: np.ndarray | None
-                  ) -> np.ndarray:
-    """out + e (color − out), e the (H, W, 1) emitter coverage in [0, 1] (non-finite: 0): a
-    light seen directly is not Monte Carlo noise, so its pixels keep the input, and the
-    automaton's output counts only for the part of a pixel that sees a surface. Without it the
-    log-space steps darkened the lamp of ``cornell`` (RMSE over all pixels 2.7x the noisy
-    input's at 4 spp, results/learned.md). Non-finite input colour keeps the output."""
-    if emitter is None:
-        return out
-    h, w = out.shape[:2]
-    e = check_buffer("emitter", emitter, (h, w, 1), dtype=np.float32)[..., 0]
-    ys, xs = np.nonzero(np.isfinite(e) & (e > 0))  # lights cover few pixels: touch only those
-    if ys.size == 0:
-        return out
-    cov = np.minimum(e[ys, xs], 1.0)[:, None]
-    o = out[ys, xs]
-    c = np.asarray(color, np.float32)[ys, xs]
-    target = np.where(np.isfinite(c), c, o)
-    out = np.array(out, np.float32, copy=True)
-    # full coverage: the input, exactly
-    out[ys, xs] = np.where(cov >= 1, target, o + cov * (target - o))
-    return out
 
 
 @register("nca")
