@@ -1,4 +1,5 @@
 """The stress cases of `dbench stress`, run for every registered method (issue: benchmark suite)."""
+import numpy as np
 import pytest
 
 from dbench import methods
@@ -101,3 +102,26 @@ def test_clamp_magnitude_keeps_ordinary_and_missing_values():
     assert y[6] == -np.inf
     ordinary = np.linspace(-10, 10, 7, dtype=np.float32)
     assert clamp_magnitude(ordinary) is ordinary
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_compiled_clamp_equals_clamp_magnitude(dtype):
+    """temporal.clamp_radiance (the sequence methods' input guard) equals guards.clamp_magnitude
+    bit for bit: the input itself when nothing exceeds the limit, the same clamped copy
+    otherwise (limits at float32 rounding, NaN and ±Inf kept, non-contiguous input too)."""
+    from dbench.methods.guards import RADIANCE_MAX, clamp_magnitude
+    from dbench.methods.temporal import clamp_radiance
+
+    rng = np.random.default_rng(3)
+    x = rng.standard_normal((37, 41, 3)).astype(dtype) * 1e3
+    assert clamp_radiance(x, RADIANCE_MAX) is x
+    for value in (1e16, -3e38 if dtype == np.float32 else -1e300, np.nan, np.inf, -np.inf,
+                  np.float32(RADIANCE_MAX), np.nextafter(dtype(RADIANCE_MAX), dtype(np.inf))):
+        y = x.copy()
+        y[5, 7, 1] = value
+        y[30, 2, 0] = -abs(value) if np.isfinite(value) else value
+        want, got = clamp_magnitude(y, RADIANCE_MAX), clamp_radiance(y, RADIANCE_MAX)
+        np.testing.assert_array_equal(got, want)
+        assert (got is y) == (want is y)
+    strided = x[:, ::2]
+    np.testing.assert_array_equal(clamp_radiance(strided, 1.0), clamp_magnitude(strided, 1.0))

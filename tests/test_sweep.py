@@ -31,6 +31,16 @@ def test_sweep_writes_one_cell_per_file_and_resumes(renderer, tmp_path):
     assert counts == {"computed": 8, "skipped": 0, "finished_before": 0, "errors": 0}
     cells = sweep.load_cells(out)
     assert len(cells) == 8 and all(c["status"] == "ok" for c in cells)
+    from dbench.bench.machine import machine_label
+    from dbench.bench.publish import machines_text
+
+    # every cell and run records where it was timed
+    assert all(c["machine"] == machine_label() for c in cells)
+    assert sweep.read_cell(out / "sweep.json")["runs"][-1]["machine"] == machine_label()
+    assert machines_text(cells) == [f"cells timed on {machine_label()} (8)"]
+    assert machines_text(cells + [{"status": "skipped"}]) == machines_text(cells)
+    mixed = machines_text(cells + [{"time_s": 1.0}])
+    assert "not recorded (1)" in mixed[0] and "do not compare" in mixed[0]
     before = _mtimes(out)
     again = sweep.run_sweep(cfg, out, progress=False)
     assert again["computed"] == 0 and again["finished_before"] == 8

@@ -3,20 +3,33 @@ from __future__ import annotations
 
 import os
 import platform
+from functools import lru_cache
 from typing import Any
 
 
-def machine_info() -> dict[str, Any]:
-    """CPU, core count and package versions, printed in every report."""
+@lru_cache(maxsize=1)
+def cpu_name() -> str:
+    """The CPU's model name (``/proc/cpuinfo``), else what ``platform`` knows."""
     cpu = platform.processor() or platform.machine()
     try:
         with open("/proc/cpuinfo") as fh:
             for line in fh:
                 if line.startswith("model name"):
-                    cpu = line.split(":", 1)[1].strip()
-                    break
+                    return line.split(":", 1)[1].strip()
     except OSError:
         pass
+    return cpu
+
+
+def machine_label() -> str:
+    """"<cpu>, <n> cores": what a sweep cell and run record, so that timings measured on
+    different machines are never compared unknowingly."""
+    return f"{cpu_name()}, {os.cpu_count()} cores"
+
+
+def machine_info() -> dict[str, Any]:
+    """CPU, core count and package versions, printed in every report."""
+    cpu = cpu_name()
     from importlib.metadata import PackageNotFoundError, version
 
     packages = {}

@@ -87,7 +87,28 @@ def wall_text(info: dict, cells: list[dict] | None = None) -> str:
     if refs:
         parts.append(f"{len(refs)} reference{'s' if len(refs) != 1 else ''} rendered in "
                      f"{sum(refs.values()):.0f} s in all")
-    return ", ".join(parts)
+    return ", ".join(parts + machines_text(cells or []))
+
+
+def machines_text(cells: list[dict]) -> list[str]:
+    """Where the computed cells were timed (each cell records its machine; older cells do
+    not): one entry per machine with its cell count, and a warning when they differ, since
+    ``time_s`` of two machines do not compare. Skip and error records are not counted."""
+    counts: dict[str, int] = {}
+    for c in cells:
+        if c.get("status", "ok") != "ok":  # skip and error records time nothing
+            continue
+        label = c.get("machine") if isinstance(c.get("machine"), str) else "not recorded"
+        counts[label] = counts.get(label, 0) + 1
+    if not counts:
+        return []
+    if list(counts) == ["not recorded"]:
+        return [f"the machine the cells were timed on is not recorded ({counts['not recorded']} "
+                f"cells, computed before cells recorded it)"]
+    text = "cells timed on " + "; ".join(f"{k} ({v})" for k, v in sorted(counts.items()))
+    if len(counts) > 1:
+        text += " (**times from different machines do not compare**)"
+    return [text]
 
 
 def settings_line(config: dict, df, status: dict, rel_name: str, extras=()) -> str:

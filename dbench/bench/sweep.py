@@ -28,6 +28,7 @@ from ..data import check_count
 from ..errors import DbenchInputError
 from ..resolution import MAX_SIDE, Res, parse_res
 from . import identity
+from .machine import machine_label
 
 DEFAULT_SPP = (4, 16, 64, 256, 1024)
 #: Settings every cell of one sweep folder shares; methods, scenes and spp may be extended.
@@ -310,7 +311,7 @@ def cell_record(res, frames: list, needs: set[str]) -> dict[str, Any]:
                              and first.kind == "sequence" else 0.0),
               **res.metrics, "time_s": res.time_s, "time_s_iqr": res.time_s_iqr,
               "times_s": res.times_s, "n_nonfinite": res.n_nonfinite,
-              "per_seed": res.per_seed}
+              "per_seed": res.per_seed, "machine": machine_label()}
     if res.settings:
         record["settings"] = res.settings       # what the method resolved (first seed)
     if first.kind == "sequence":
@@ -502,7 +503,7 @@ def run_sweep(config: SweepConfig, out: str | Path, executor: str = "local", wor
     bar.close()
     _record_run(out, {"cells": n_cells, "wall_s": round(time.perf_counter() - t_start, 1),
                       "references_s": round(t_refs, 1), "workers": workers,
-                      "executor": executor})
+                      "executor": executor, "machine": machine_label()})
     return {"computed": n_cells, "skipped": skipped, "finished_before": done,
             "errors": _count_errors(out)}
 

@@ -79,7 +79,7 @@ def test_class_shape_and_names():
     assert canonical("statistical-gate") == "statistical+gate"
     assert method_class("statistical-gate") is method_class("statistical+gate")
     jbf_gate = get("jbf+gate")
-    assert jbf_gate.optional_needs == method_class("jbf").optional_needs
+    assert jbf_gate.optional_needs == method_class("jbf").optional_needs | {"emitter"}
     assert jbf_gate.per_frame("sequence")  # frame by frame on sequences, like its method
 
 
@@ -99,6 +99,8 @@ def test_refusals_name_the_problem():
         get("jbf+gate", gate_alpha=1.5)
     with pytest.raises(DbenchInputError, match="gate_backend"):
         get("jbf+gate", gate_backend="gpu")
+    with pytest.raises(DbenchInputError, match="gate_emitters"):
+        get("jbf+gate", gate_emitters="yes")
     with pytest.raises(DbenchInputError, match="radius"):
         get("jbf+gate", radius=-1)  # the method's own checks still run
     frame = _frame(seed=1)
@@ -227,3 +229,24 @@ def test_gate_from_statistics_equals_the_composed_fast_gate(transform, lam):
     got = kg.proden_gate_stats(color, den, stats)
     assert got.dtype == np.float32 and np.isfinite(got[np.isfinite(expected)]).all()
     np.testing.assert_allclose(got, expected, rtol=1e-6, atol=1e-7)
+
+
+def test_directly_seen_lights_keep_the_input_after_the_gate():
+    """gate_emitters (default): pixels an emitter covers keep the input in proportion to the
+    coverage, after the gate; without the buffer, or with gate_emitters=False, the gate alone."""
+    from dbench.methods.kernels.emitters import keep_emitters
+
+    frame = _frame(seed=4)
+    h, w = frame.color.shape[:2]
+    e = np.zeros((h, w, 1), np.float32)
+    e[2:5, 3:7] = 1.0
+    e[8, 9] = 0.4
+    lit = frame.with_buffers(emitter=e)
+    np.testing.assert_array_equal(get("jbf+gate", radius=3).denoise(frame),
+                                  get("jbf+gate", radius=3, gate_emitters=False).denoise(frame))
+    plain = get("jbf+gate", radius=3, gate_emitters=False).denoise(lit)
+    out = get("jbf+gate", radius=3).denoise(lit)
+    np.testing.assert_array_equal(out, keep_emitters(frame.color, plain, e))
+    np.testing.assert_array_equal(out[2:5, 3:7], frame.color[2:5, 3:7])
+    np.testing.assert_allclose(out[8, 9], plain[8, 9] + 0.4 * (frame.color[8, 9] - plain[8, 9]),
+                               rtol=1e-6)

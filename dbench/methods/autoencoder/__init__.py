@@ -26,7 +26,7 @@ The shipped recurrent weights were trained on camera-animated training sequences
 adds on the catalogue's sequences.
 
 Optional ``emitter`` buffer (coverage of directly seen lights): those pixels keep the input in
-proportion to their coverage (:func:`dbench.methods.kernels.hdr_input.keep_emitters`, the NCA's
+proportion to their coverage (:func:`dbench.methods.kernels.emitters.keep_emitters`, the NCA's
 rule).
 
 Training: stage 1 on single frames, stage 2 on sequences, and stage 3, the consistency stage
@@ -75,7 +75,8 @@ import numpy as np
 from ...data import check_buffer
 from ...errors import DbenchInputError
 from ...registry import Denoiser, register
-from ..kernels.hdr_input import autoexposure, frame_spp, keep_emitters, noise_level
+from ..kernels.emitters import keep_emitters
+from ..kernels.hdr_input import autoexposure, frame_spp, noise_level
 from ..kernels.learned_input import encode_planar
 from ..ort_session import cpu_session
 from .codec import FEATURE_CHANNELS, MULTIPLE, decode, encode, pad_to_multiple

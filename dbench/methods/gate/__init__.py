@@ -17,6 +17,14 @@ variants are never listed one by one. The wrapper:
 * pixels whose noisy colour is not finite keep the method's output (there is nothing to mix
   back to), and so do pixels with fewer than 2 samples (their variance of the mean is unknown,
   so nothing is significant: at 1 spp ``NAME+gate`` equals ``NAME``);
+* [dbench] with ``gate_emitters`` (default True) and a frame that has the optional ``emitter``
+  buffer, pixels covered by a directly seen light keep the input in proportion to their
+  coverage after the gate (:func:`~dbench.methods.kernels.emitters.keep_emitters`, the rule of
+  ``nca`` and ``autoencoder``): a lamp's edge pixels carry coverage noise with a large variance
+  of the mean, so the t-test rarely rejects a filter's blur there, and on ``cornell`` at 256²,
+  1024 spp those 108 pixels held 89 % of ``oidn+gate``'s squared error (RMSE over all pixels
+  1.63x the noisy input's; 0.97x with the rule). ``gate_emitters=False`` is the gate of
+  spec §12 alone;
 * runs the compiled gate (:func:`~dbench.methods.kernels.gate.proden_gate_stats`, the passes
   of :func:`~dbench.methods.kernels.gate.proden_gate_fast` fed from the statistics);
   ``gate_backend="reference"`` runs the readable SciPy form.
@@ -37,11 +45,12 @@ import numpy as np
 from ...denoiser import Denoiser
 from ...errors import DbenchInputError
 from ..checks import check_choice
+from ..kernels.emitters import keep_emitters
 from ..kernels.gate import GATE_K, GATE_T0, linear_variance, proden_gate, proden_gate_stats
 
 SUFFIX = "+gate"
 GATE_DEFAULTS: dict[str, Any] = dict(gate_alpha=1.0, gate_k=GATE_K, gate_t0=GATE_T0,
-                                     gate_backend="fast")
+                                     gate_backend="fast", gate_emitters=True)
 GATE_BACKENDS = ("fast", "reference")
 
 _CLASSES: dict[type, type] = {}
@@ -114,7 +123,7 @@ def gated_class(base: type[Denoiser]) -> type[Denoiser]:
         wrapped = base
         kinds = {"steady"}
         needs = set(base.needs) | {"stats"}
-        optional_needs = set(base.optional_needs) - {"stats"}
+        optional_needs = (set(base.optional_needs) | {"emitter"}) - {"stats"}
         defaults = {**base.defaults, **GATE_DEFAULTS}
 
         def __init__(self, **params: Any) -> None:
@@ -124,6 +133,9 @@ def gated_class(base: type[Denoiser]) -> type[Denoiser]:
             _check_number("gate_k", p["gate_k"], 1e-3, 1e3)
             _check_number("gate_t0", p["gate_t0"], 0.0, 1e3)
             check_choice("gate_backend", p["gate_backend"], GATE_BACKENDS)
+            if not isinstance(p["gate_emitters"], bool):
+                raise DbenchInputError(f"gate_emitters: expected True or False, "
+                                       f"got {p['gate_emitters']!r}")
             self.inner = base(**{k: v for k, v in p.items() if k not in GATE_DEFAULTS})
             self.last_settings: dict[str, Any] = {}
 
@@ -140,6 +152,8 @@ def gated_class(base: type[Denoiser]) -> type[Denoiser]:
             gated = gate_output(data.color, out, stats, alpha=float(p["gate_alpha"]),
                                 k=float(p["gate_k"]), t0=float(p["gate_t0"]),
                                 backend=p["gate_backend"])
+            if p["gate_emitters"]:
+                gated = keep_emitters(data.color, gated, getattr(data, "emitter", None))
             self.last_settings = {**getattr(self.inner, "last_settings", {}),
                                   "gate_alpha": float(p["gate_alpha"]),
                                   "gate_transform": getattr(stats, "transform", "identity")}

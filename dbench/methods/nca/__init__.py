@@ -54,7 +54,8 @@ import numpy as np
 from ...data import check_buffer
 from ...errors import DbenchInputError
 from ...registry import Denoiser, register
-from ..kernels.hdr_input import autoexposure, frame_spp, keep_emitters, noise_level
+from ..kernels.emitters import keep_emitters
+from ..kernels.hdr_input import autoexposure, frame_spp, noise_level
 from ..kernels.learned_input import decode_planar, encode_planar
 from ..ort_session import cpu_session
 from .codec import decode, encode

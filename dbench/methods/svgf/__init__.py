@@ -94,7 +94,7 @@ from ...data import check_buffer
 from ...errors import DbenchInputError
 from ...registry import register
 from .. import temporal as T
-from ..guards import RADIANCE_MAX, clamp_magnitude
+from ..guards import RADIANCE_MAX
 from . import dispatch as C
 from .dispatch import (adaptive_history, atrous, depth_gradient, filter_gradients, prepare,
                        remodulate, spatial_variance, stratum_gradients)
@@ -135,7 +135,7 @@ def _emission(data, h: int, w: int) -> np.ndarray | None:
     emission = getattr(data, "emission", None)
     if emission is None:
         return None
-    return clamp_magnitude(check_buffer("emission", emission, (h, w, 3)), RADIANCE_MAX)
+    return T.clamp_radiance(check_buffer("emission", emission, (h, w, 3)), RADIANCE_MAX)
 
 
 def gradient_history(data, geo, prev, prev_lum, hist_n, n_max: float, iterations: int = 3,
@@ -156,8 +156,8 @@ def gradient_history(data, geo, prev, prev_lum, hist_n, n_max: float, iterations
     motion = geo.motion if geo.motion is not None else np.full((2, h, w), np.nan, np.float32)
     if (prev_lum is not None and prev is not None and prev.shape == geo.shape
             and geo.motion is not None):
-        grad = clamp_magnitude(check_buffer("gradient", getattr(data, "gradient", None),
-                                            (h, w, 3)), RADIANCE_MAX)
+        grad = T.clamp_radiance(check_buffer("gradient", getattr(data, "gradient", None),
+                                             (h, w, 3)), RADIANCE_MAX)
         l_grad = grad @ T.LUMA  # (H, W) luminance of the re-shaded previous samples
         strata = C.stratum_gradients(prev_lum, l_grad, prev.hit, prev.depth, prev.normal,
                                      backend=backend)

@@ -53,14 +53,14 @@ from .color import luminance, moments, sample_mask, to_interleaved, to_planar, v
 from .dispatch import accumulate_any, reproject, resolve_backend
 from .geometry import Geometry, expected_distance, frame_geometry
 from .history import History, HistoryDenoiser
-from .numba_path import accumulate_fast, kernel_threads, reproject_fast
+from .numba_path import accumulate_fast, clamp_radiance, kernel_threads, reproject_fast
 from .params import (BACKENDS, BILINEAR, EPS_F, FALLBACK, FALLBACK_KERNEL, LUMA, N_MAX, RESET,
                      SMALL_IMAGE, TAU_D, TAU_N)
 from .reference import accumulate, reproject_reference
 from .torch_path import (accumulate_torch, as_tensor, reproject_torch, to_numpy,
                          torch_cuda_available, torch_device)
 
-__all__ = ["BACKENDS", "BILINEAR", "EPS_F", "FALLBACK", "FALLBACK_KERNEL", "Geometry", "History",
+__all__ = ["clamp_radiance", "BACKENDS", "BILINEAR", "EPS_F", "FALLBACK", "FALLBACK_KERNEL", "Geometry", "History",
            "HistoryDenoiser", "LUMA", "N_MAX", "RESET", "SMALL_IMAGE", "TAU_D", "TAU_N",
            "accumulate", "accumulate_any", "accumulate_fast", "accumulate_torch", "as_tensor",
            "expected_distance", "frame_geometry", "kernel_threads", "luminance", "moments",

@@ -9,10 +9,10 @@ import numpy as np
 
 from ...data import check_buffer
 from ...registry import Denoiser
-from ..guards import RADIANCE_MAX, clamp_magnitude
+from ..guards import RADIANCE_MAX
 from .dispatch import reproject, resolve_backend
 from .geometry import Geometry
-from .numba_path import kernel_threads
+from .numba_path import clamp_radiance, kernel_threads
 from .params import EPS_F, TAU_D, TAU_N
 
 
@@ -89,7 +89,7 @@ class HistoryDenoiser(Denoiser):
         color = check_buffer("color", getattr(data, "color", None), (None, None, 3))
         # the moments l² (and SVGF/BMFR's demodulated l² ≤ (C / 1e-3)²) are float32 history:
         # finite colours beyond RADIANCE_MAX would overflow them to Inf, then NaN (Inf − Inf)
-        color = clamp_magnitude(color, RADIANCE_MAX)
+        color = clamp_radiance(color, RADIANCE_MAX)  # guards.clamp_magnitude, compiled check
         with kernel_threads(color.shape[0] * color.shape[1]):
             return self._denoise(data, color)
 

@@ -164,3 +164,36 @@ def accumulate_fast(sample, history, n_hist, ok, alpha_min=0.0, n_max=N_MAX, alp
                    else np.ascontiguousarray(alpha, np.float32),
                    np.float32(alpha_min), np.float32(n_max), out, n_out, a_out)
     return out, n_out, a_out
+
+
+if numba is not None:
+    @njit(cache=True, parallel=True, fastmath=False, error_model="numpy")
+    def _count_over_nb(flat, limit):
+        """How many finite values of ``flat`` have a magnitude above ``limit`` (NaN and ±Inf
+        compare false, as in :func:`~dbench.methods.guards.clamp_magnitude`)."""
+        n = flat.shape[0]
+        chunks = 64
+        step = (n + chunks - 1) // chunks
+        counts = np.zeros(chunks, np.int64)
+        for c in prange(chunks):
+            k = 0
+            for i in range(c * step, min(n, (c + 1) * step)):
+                v = abs(flat[i])
+                k += (v > limit) & (v < np.inf)  # branch-free, so the loop vectorises
+            counts[c] = k
+        return counts.sum()
+
+
+def clamp_radiance(x: np.ndarray, limit: float) -> np.ndarray:
+    """:func:`~dbench.methods.guards.clamp_magnitude` (``x`` itself when nothing exceeds
+    ``limit``, a clamped copy otherwise; NaN and ±Inf kept) with the common case, nothing to
+    clamp, decided in one compiled read of ``x`` instead of four NumPy passes (2.5 ms per 720p
+    colour buffer). Equal to it bit for bit (tests)."""
+    from ..guards import clamp_magnitude
+
+    x = np.asarray(x)
+    if numba is None or x.dtype not in (np.float32, np.float64) or not x.flags.c_contiguous:
+        return clamp_magnitude(x, limit)
+    if _count_over_nb(x.reshape(-1), x.dtype.type(limit)) == 0:
+        return x
+    return clamp_magnitude(x, limit)
