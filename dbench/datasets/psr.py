@@ -24,6 +24,14 @@ integrator so that the colour is the very same sample, bit for bit):
   depth: the virtual image point, which is static while the camera moves in front of a planar
   mirror, so the motion vectors of spec/temporal.md §3.1 reproject reflections correctly.
 
+With ``glossy_alpha`` > 0 (the ``"psr-glossy"`` G-buffer of :func:`~dbench.datasets.sequence.
+load_sequence`, α < 0.4 as seed 001 §1.2.1 says), a pixel whose surface (after the delta chain)
+has a glossy lobe with roughness α < ``glossy_alpha`` gets the shading normal of the surface
+its mirror direction hits as ``normal`` (the seed's reflected normal for glossy surfaces); its
+albedo, depth and position stay its own. The roughness is the BSDF's ``alpha`` attribute per
+lane (``eval_attribute_1``; the mean of ``alpha_u`` and ``alpha_v`` for anisotropic ones); a
+mirror ray that leaves the scene keeps the surface's own normal.
+
 Surfaces that are not delta keep Mitsuba's own AOVs (the results equal the ``aov`` integrator's
 bit for bit; tested). A chain that leaves the scene gives a "no hit" pixel (zeros).
 """
@@ -32,6 +40,8 @@ from __future__ import annotations
 from .mitsuba_env import mitsuba
 
 PSR_BOUNCES = 4
+#: roughness below which a glossy surface's normal is its reflection's (seed 001 §1.2.1)
+GLOSSY_ALPHA = 0.4
 #: channel layout of the render: colour, then the G-buffer (same order as sequence.MATCHED_LAYOUT)
 PSR_AOVS = ("emission.R", "emission.G", "emission.B", "albedo.R", "albedo.G", "albedo.B",
             "nn.X", "nn.Y", "nn.Z", "dd.T", "pp.X", "pp.Y", "pp.Z")
@@ -53,6 +63,7 @@ def register() -> str:
             super().__init__(props)
             self.nested = props["color"]
             self.bounces = int(props.get("bounces", PSR_BOUNCES))
+            self.glossy_alpha = float(props.get("glossy_alpha", 0.0))
 
         def sample(self, scene, sampler, ray, medium=None, active=True):
             # the colour first, so that it consumes the sampler exactly as a plain render does
@@ -84,6 +95,9 @@ def register() -> str:
             albedo = throughput * si.bsdf(ray).eval_diffuse_reflectance(si, hit)
             emission = throughput * si.emitter(scene).eval(si, hit)
             normal = si.sh_frame.n
+            if self.glossy_alpha > 0.0:
+                normal = _glossy_reflected_normal(mi, dr, scene, si, ray, hit, normal,
+                                                  self.glossy_alpha)
             length = dr.select(hit, length, 0.0)
             # the hit point itself where no delta surface was followed (Mitsuba's AOV, bit for
             # bit), the virtual point along the primary ray otherwise
@@ -100,9 +114,30 @@ def register() -> str:
     return "dbench_psr"
 
 
-def psr_integrator(path: dict) -> dict:
-    """The integrator dictionary of a PSR render around the frame's ``path`` integrator."""
-    return {"type": register(), "color": dict(path), "bounces": PSR_BOUNCES}
+def _glossy_reflected_normal(mi, dr, scene, si, ray, hit, normal, glossy_alpha: float):
+    """``normal``, replaced on the lanes whose BSDF is glossy with roughness below
+    ``glossy_alpha`` by the shading normal of the first surface along the mirror direction."""
+    bsdf = si.bsdf(ray)
+    glossy = hit & mi.has_flag(bsdf.flags(), mi.BSDFFlags.Glossy)
+    iso = bsdf.has_attribute("alpha", glossy)
+    aniso = bsdf.has_attribute("alpha_u", glossy) & ~iso
+    alpha = dr.select(iso, bsdf.eval_attribute_1("alpha", si, glossy & iso),
+                      dr.select(aniso, 0.5 * (bsdf.eval_attribute_1("alpha_u", si, aniso)
+                                              + bsdf.eval_attribute_1("alpha_v", si, aniso)),
+                                dr.inf))
+    smooth = glossy & (alpha < glossy_alpha)
+    mirror = si.spawn_ray(si.to_world(mi.reflect(si.wi)))
+    seen = scene.ray_intersect(mirror, smooth)
+    return dr.select(smooth & seen.is_valid(), seen.sh_frame.n, normal)
 
 
-__all__ = ["PSR_AOVS", "PSR_BOUNCES", "psr_integrator", "register"]
+def psr_integrator(path: dict, glossy_alpha: float = 0.0) -> dict:
+    """The integrator dictionary of a PSR render around the frame's ``path`` integrator;
+    ``glossy_alpha`` > 0 adds the glossy reflected-normal rule (module docstring)."""
+    d = {"type": register(), "color": dict(path), "bounces": PSR_BOUNCES}
+    if glossy_alpha > 0.0:
+        d["glossy_alpha"] = float(glossy_alpha)
+    return d
+
+
+__all__ = ["GLOSSY_ALPHA", "PSR_AOVS", "PSR_BOUNCES", "psr_integrator", "register"]

@@ -86,6 +86,7 @@ from .scene import Scene, register_scene
 from .scene_parts import _diffuse, _mirror_objects, _rect, _room
 from .sequence_scene import (SEQUENCE_BUFFERS, SequenceScene, camera_info, look_at_matrix,
                              motion_vectors, project)
+from . import psr as _psr
 from .psr import psr_integrator
 from .reshade import reshade_frame
 from .sequence_render import render_emitter, render_reference
@@ -95,7 +96,7 @@ from .stats import PowerSums, stats_from_arrays, stats_to_arrays
 FEATURES = ("albedo", "normal", "depth", "position")
 REFERENCE_CHUNK = _render.DEFAULT_REFERENCE_CHUNK
 GBUFFER_SPP = _render.DEFAULT_FEATURE_SPP
-GBUFFERS = ("psr", "matched", "supersampled")
+GBUFFERS = ("psr", "psr-glossy", "matched", "supersampled")
 PSR_VERSION = 2
 GRADIENTS = ("reshade", "frame")
 RESHADE_VERSION = 1
@@ -261,12 +262,16 @@ def render_frame(scene: SequenceScene, res, spp: int, seed: int, camera_frame: i
     a sample by the mixed albedo, e.g. a light's edge or a black conductor's silhouette,
     amplifies it by orders of magnitude — so sequence datasets use the matched G-buffer.)
     With ``gbuffer="psr"`` (default) that G-buffer sees through mirrors and glass
-    (:mod:`dbench.datasets.psr`); otherwise it is Mitsuba's AOVs of the primary hit.
+    (:mod:`dbench.datasets.psr`), with ``"psr-glossy"`` glossy surfaces of roughness < 0.4 also
+    get their reflection's normal; otherwise it is Mitsuba's AOVs of the primary hit.
     """
     mi = mitsuba()
     d = scene.frame_dict(mi, res, camera_frame, light_frame)
-    integ = mi.load_dict(psr_integrator(d["integrator"]) if gbuffer == "psr"
-                         else _matched_integrator(d["integrator"]), optimize=False)
+    if gbuffer in ("psr", "psr-glossy"):
+        glossy = _psr.GLOSSY_ALPHA if gbuffer == "psr-glossy" else 0.0
+        integ = mi.load_dict(psr_integrator(d["integrator"], glossy), optimize=False)
+    else:
+        integ = mi.load_dict(_matched_integrator(d["integrator"]), optimize=False)
     # optimize=False: see _render_dict
     loaded = mi.load_dict(d, optimize=False)
     total = None
@@ -369,7 +374,9 @@ def load_sequence(scene: str | SequenceScene, spp: int = 1, res=64,
             spec/statistical.md §3), Box-Cox by default as for steady images.
         gbuffer: ``"psr"`` (default): the G-buffer and emission of the colour samples
             themselves, seen through mirrors and glass (primary surface replacement,
-            :mod:`dbench.datasets.psr`); ``"matched"``: the same samples' plain AOVs (the
+            :mod:`dbench.datasets.psr`); ``"psr-glossy"``: the same, and glossy surfaces with
+            roughness < 0.4 get the normal of what their mirror direction sees (seed 001's
+            reflected normal); ``"matched"``: the same samples' plain AOVs (the
             mirror itself); ``"supersampled"``: independent 64-spp footprint averages
             (:func:`render_gbuffer`). The colour is the same in all three.
         gradient: the A-SVGF gradient buffer: ``"reshade"`` (default; docs/temporal.md §2,
@@ -415,7 +422,9 @@ def load_sequence(scene: str | SequenceScene, spp: int = 1, res=64,
     # apart from entries rendered as one call of spp samples
     samples = {"samples": "1-spp passes"} if spp > 1 else {}
     psr = {"psr": PSR_VERSION} if gbuffer == "psr" else {}
-    frame_gbuffer = "psr" if gbuffer == "psr" else "matched"
+    if gbuffer == "psr-glossy":  # its frames are other cache entries; the default's keep theirs
+        psr = {"psr": PSR_VERSION, "glossy_alpha": _psr.GLOSSY_ALPHA}
+    frame_gbuffer = gbuffer if gbuffer in ("psr", "psr-glossy") else "matched"
     mi = mitsuba()
     vers = versions()
     meta: dict = {"scene": sc.name, "kind": "sequence", "spp": int(spp), "res": res.key,

@@ -155,3 +155,54 @@ def test_chrome_sphere_albedo_is_never_near_zero_and_normals_are_reflected(rende
     assert np.isfinite(illum[sphere]).all()
     # the sphere shows walls nearer the light than the back wall: same order, not amplified
     assert illum[sphere].max() < 10 * illum[wall].max()
+
+
+@pytest.mark.parametrize("bsdf,reflected", [
+    ({"type": "roughplastic", "alpha": 0.1,
+      "diffuse_reflectance": {"type": "rgb", "value": 0.2}}, True),
+    ({"type": "roughconductor", "alpha_u": 0.05, "alpha_v": 0.15}, True),
+    ({"type": "roughplastic", "alpha": 0.6}, False),
+    ({"type": "diffuse", "reflectance": {"type": "rgb", "value": 0.3}}, False)])
+def test_glossy_rule_gives_low_roughness_surfaces_the_reflected_normal(renderer, bsdf, reflected):
+    """glossy_alpha = 0.4: the 45° glossy plane's normal becomes the wall's (−x), which its
+    mirror direction hits, when its roughness (isotropic α or the mean of α_u, α_v) is below
+    0.4; rougher or diffuse surfaces keep their own normal; the colour and the other buffers are
+    those of the plain PSR render."""
+    from dbench.datasets.psr import GLOSSY_ALPHA, psr_integrator
+
+    mi = renderer
+    path = {"type": "path", "max_depth": 4}
+    d = _scene(mi, bsdf)
+    plain = _render(mi, d, psr_integrator(path))
+    rule = _render(mi, d, psr_integrator(path, GLOSSY_ALPHA))
+    pb, rb = _buffers(plain), _buffers(rule)
+    c = RES // 2
+    own = np.array([np.sqrt(0.5), 0.0, np.sqrt(0.5)])  # the plane rotated 45° about y
+    np.testing.assert_allclose(pb["normal"][c, c], own, atol=1e-4)
+    np.testing.assert_allclose(rb["normal"][c, c], [-1, 0, 0] if reflected else own, atol=1e-4)
+    for name in ("color", "albedo", "depth", "position", "emission"):
+        if name in pb:
+            np.testing.assert_array_equal(rb[name], pb[name])
+
+
+def test_sequences_offer_the_glossy_rule_as_a_gbuffer(renderer, tmp_path):
+    """load_sequence(gbuffer="psr-glossy") on `orbit` (a rough-plastic sphere, α = 0.08): the same
+    colour, albedo, depth and position as the default PSR G-buffer, other normals on the
+    sphere only, and its own cache entries."""
+    from dbench import datasets
+    from dbench.datasets.cache import Cache
+    from dbench.datasets.sequence import load_sequence
+
+    cache = Cache(tmp_path)
+    kw = dict(spp=1, res=24, seed=0, frames=2, cache=cache, progress=False,
+              needs={"color", "albedo", "normal", "depth", "position"})
+    sc = datasets.get_scene("orbit")
+    plain = load_sequence(sc, gbuffer="psr", **kw)
+    glossy = load_sequence(sc, gbuffer="psr-glossy", **kw)
+    for a, b in zip(plain, glossy):
+        for name in ("color", "albedo", "depth", "position"):
+            np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+    changed = np.any(plain[0].normal != glossy[0].normal, axis=-1)
+    assert 0 < changed.mean() < 0.5  # the glossy sphere's pixels, not the diffuse room
+    # rendered, not read from the default G-buffer's cache entries
+    assert {"frame0", "frame1"} <= set(glossy.meta["rendered"])
