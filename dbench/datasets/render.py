@@ -34,6 +34,11 @@ AOV_STRING = "albedo:albedo,nn:sh_normal,dd:depth,pp:position"
 #: (buffer, first channel, channel count) in the aov integrator's output.
 AOV_LAYOUT = (("albedo", 0, 3), ("normal", 3, 3), ("depth", 6, 1), ("position", 7, 3))
 DEFAULT_FEATURE_SPP = 64
+DEFAULT_REFERENCE_CHUNK = 256
+#: References are split into at least this many chunks (when spp allows) for their variance.
+MIN_REFERENCE_CHUNKS = 16
+#: Marker in the cache key of reference entries that hold ``reference_var`` (chunk variance).
+REFERENCE_VAR_VERSION = "chunk-var-1"
 
 
 def feature_spp(spp: int) -> int:
@@ -47,11 +52,6 @@ def feature_spp(spp: int) -> int:
     autoencoder's relMSE was 5.3x the noisy input's with 64-spp features and 1.4x with
     1024-spp ones, OIDN's 3.1x and 1.3x (results/learned.md)."""
     return max(DEFAULT_FEATURE_SPP, int(spp))
-DEFAULT_REFERENCE_CHUNK = 256
-#: References are split into at least this many chunks (when spp allows) for their variance.
-MIN_REFERENCE_CHUNKS = 16
-#: Marker in the cache key of reference entries that hold ``reference_var`` (chunk variance).
-REFERENCE_VAR_VERSION = "chunk-var-1"
 
 
 def pass_seed(stream: str, seed: int, index: int) -> int:

@@ -97,6 +97,9 @@ FEATURES = ("albedo", "normal", "depth", "position")
 REFERENCE_CHUNK = _render.DEFAULT_REFERENCE_CHUNK
 GBUFFER_SPP = _render.DEFAULT_FEATURE_SPP
 GBUFFERS = ("psr", "psr-glossy", "matched", "supersampled")
+#: the PSR G-buffers and the roughness below which glossy surfaces get their reflection's normal
+#: (0: the rule off)
+PSR_GLOSSY_ALPHA = {"psr": 0.0, "psr-glossy": _psr.GLOSSY_ALPHA}
 PSR_VERSION = 2
 GRADIENTS = ("reshade", "frame")
 RESHADE_VERSION = 1
@@ -267,11 +270,9 @@ def render_frame(scene: SequenceScene, res, spp: int, seed: int, camera_frame: i
     """
     mi = mitsuba()
     d = scene.frame_dict(mi, res, camera_frame, light_frame)
-    if gbuffer in ("psr", "psr-glossy"):
-        glossy = _psr.GLOSSY_ALPHA if gbuffer == "psr-glossy" else 0.0
-        integ = mi.load_dict(psr_integrator(d["integrator"], glossy), optimize=False)
-    else:
-        integ = mi.load_dict(_matched_integrator(d["integrator"]), optimize=False)
+    integ = mi.load_dict(psr_integrator(d["integrator"], PSR_GLOSSY_ALPHA[gbuffer])
+                         if gbuffer in PSR_GLOSSY_ALPHA
+                         else _matched_integrator(d["integrator"]), optimize=False)
     # optimize=False: see _render_dict
     loaded = mi.load_dict(d, optimize=False)
     total = None
@@ -421,10 +422,12 @@ def load_sequence(scene: str | SequenceScene, spp: int = 1, res=64,
     # frames above 1 spp are the means of 1-spp passes (render_frame); the marker keeps them
     # apart from entries rendered as one call of spp samples
     samples = {"samples": "1-spp passes"} if spp > 1 else {}
-    psr = {"psr": PSR_VERSION} if gbuffer == "psr" else {}
-    if gbuffer == "psr-glossy":  # its frames are other cache entries; the default's keep theirs
-        psr = {"psr": PSR_VERSION, "glossy_alpha": _psr.GLOSSY_ALPHA}
-    frame_gbuffer = gbuffer if gbuffer in ("psr", "psr-glossy") else "matched"
+    psr = {}
+    if gbuffer in PSR_GLOSSY_ALPHA:  # with the glossy rule, other cache entries than the default's
+        psr = {"psr": PSR_VERSION}
+        if PSR_GLOSSY_ALPHA[gbuffer] > 0.0:
+            psr["glossy_alpha"] = PSR_GLOSSY_ALPHA[gbuffer]
+    frame_gbuffer = gbuffer if gbuffer in PSR_GLOSSY_ALPHA else "matched"
     mi = mitsuba()
     vers = versions()
     meta: dict = {"scene": sc.name, "kind": "sequence", "spp": int(spp), "res": res.key,

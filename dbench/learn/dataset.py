@@ -133,13 +133,13 @@ def build_training_set(n_scenes: int = 24, res: int = 128, spp: Sequence[int] = 
     t0 = time.perf_counter()
     index = 0
     feature_needs = {"albedo", "normal", "depth"}
+    first = features_with == "first"
     while len(names) < n_scenes:
         sc = training_scene(index, family_seed)
         index += 1
         if probe_mean(sc) < min_mean:
             skipped.append(sc.name)
             continue
-        first = features_with == "first"
         base = datasets.load(sc, spp=int(spp[0]), res=res,
                              needs={"color", "reference"} | (feature_needs if first else set()),
                              seed=0, ref_spp=ref_spp, cache=cache, progress=False)
@@ -159,7 +159,8 @@ def build_training_set(n_scenes: int = 24, res: int = 128, spp: Sequence[int] = 
             print(f"  {sc.name}: rendered {base.meta['rendered'] or 'nothing'} "
                   f"({time.perf_counter() - t0:.0f} s so far)", flush=True)
     config = {"n_scenes": n_scenes, "res": res, "spp": list(map(int, spp)),
-              "ref_spp": ref_spp, "features_with": features_with, "family_seed": family_seed, "min_mean": min_mean,
+              "ref_spp": ref_spp, "features_with": features_with, "family_seed": family_seed,
+              "min_mean": min_mean,
               "skipped_dark": skipped, "build_s": round(time.perf_counter() - t0, 1)}
     return TrainingSet(noisy=np.stack(noisy), spp=tuple(int(s) for s in spp),
                        reference=np.stack(refs), albedo=np.stack(albedo),

@@ -51,26 +51,22 @@ def _is_level_gate(name: str) -> bool:
 
 
 def train_autoencoder(ts: TrainingSet, cfg: AEConfig | None = None, progress: bool = False,
-                      validation: TrainingSet | None = None, model=None) -> TrainResult:
-    """Train the recurrent autoencoder on single-frame crops of ``ts`` (state reset); ``model``
-    (a :class:`RecurrentAE`) is trained in place from its weights, otherwise a new one from
-    ``cfg``'s initialisation."""
+                      validation: TrainingSet | None = None) -> TrainResult:
+    """Train the recurrent autoencoder on single-frame crops of ``ts`` (state reset)."""
     from ..methods.autoencoder.model import RecurrentAE, in_channels_for
 
     cfg = cfg or AEConfig()
     rng = seed_everything(cfg.seed, cfg.threads)
     residual = cfg.residual and not cfg.blend
     gate = level_channel(cfg.features) if cfg.level_gate and residual else None
-    fresh = model is None
-    if fresh:
-        model = RecurrentAE(in_channels_for(cfg.features), cfg.width_scale, cfg.recurrent,
-                            residual, cfg.blend, gate, cfg.gate_max, tuple(cfg.gate_init),
-                            cfg.pixel_gate and residual)
-    if fresh and cfg.residual and not cfg.blend:  # start as the identity
+    model = RecurrentAE(in_channels_for(cfg.features), cfg.width_scale, cfg.recurrent,
+                        residual, cfg.blend, gate, cfg.gate_max, tuple(cfg.gate_init),
+                        cfg.pixel_gate and residual)
+    if residual:  # start as the identity
         with torch.no_grad():
             model.out.weight.zero_()
             model.out.bias.zero_()
-    if fresh and cfg.zero_recurrent_init:
+    if cfg.zero_recurrent_init:
         with torch.no_grad():
             for lvl, conv in enumerate(model.rec_b):
                 conv.weight[:, model.enc_widths[lvl]:] = 0.0

@@ -60,9 +60,10 @@ from .reference import accumulate, reproject_reference
 from .torch_path import (accumulate_torch, as_tensor, reproject_torch, to_numpy,
                          torch_cuda_available, torch_device)
 
-__all__ = ["clamp_radiance", "BACKENDS", "BILINEAR", "EPS_F", "FALLBACK", "FALLBACK_KERNEL", "Geometry", "History",
+__all__ = ["BACKENDS", "BILINEAR", "EPS_F", "FALLBACK", "FALLBACK_KERNEL", "Geometry", "History",
            "HistoryDenoiser", "LUMA", "N_MAX", "RESET", "SMALL_IMAGE", "TAU_D", "TAU_N",
            "accumulate", "accumulate_any", "accumulate_fast", "accumulate_torch", "as_tensor",
+           "clamp_radiance",
            "expected_distance", "frame_geometry", "kernel_threads", "luminance", "moments",
            "reproject", "reproject_fast", "reproject_reference", "reproject_torch",
            "resolve_backend", "sample_mask", "to_interleaved", "to_numpy", "to_planar",
