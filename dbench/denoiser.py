@@ -32,6 +32,9 @@ class Denoiser:
         optional_needs: buffers it uses when the data has them and runs without otherwise
             (its docstring says what changes); loaded wherever the scene provides them.
         defaults: parameter defaults; ``get(name, **params)`` overrides them.
+        keeps_emitters: True when ``denoise`` already hands directly seen lights back to the
+            input (:func:`dbench.methods.kernels.emitters.keep_emitters`), so that a wrapper
+            such as ``NAME+gate`` does not apply the rule a second time.
 
     Sequence methods keep state: call ``reset()`` and then ``denoise(frame)`` per frame in order.
     ``denoise`` returns float32 with the shape of ``data.color``, finite wherever it is finite.
@@ -42,6 +45,7 @@ class Denoiser:
     needs: set[str] = {"color"}
     optional_needs: set[str] = set()
     defaults: dict[str, Any] = {}
+    keeps_emitters: bool = False
 
     def __init__(self, **params: Any) -> None:
         unknown = set(params) - set(self.defaults)

@@ -250,3 +250,36 @@ def test_directly_seen_lights_keep_the_input_after_the_gate():
     np.testing.assert_array_equal(out[2:5, 3:7], frame.color[2:5, 3:7])
     np.testing.assert_allclose(out[8, 9], plain[8, 9] + 0.4 * (frame.color[8, 9] - plain[8, 9]),
                                rtol=1e-6)
+
+
+def test_a_method_that_keeps_emitters_gets_the_rule_once():
+    """keeps_emitters: the wrapper does not hand a lamp's edge pixel back a second time (a
+    coverage of 0.4 would become 1 − 0.6² = 0.64)."""
+    from dbench.methods.kernels.emitters import keep_emitters
+    from scipy.ndimage import uniform_filter
+
+    @register("test-gate-keeps-emitters")
+    class KeepsLights(Denoiser):
+        """A 3x3 box blur that hands directly seen lights back to the input itself."""
+        kinds = {"steady"}
+        needs = {"color"}
+        optional_needs = {"emitter"}
+        keeps_emitters = True
+
+        def denoise(self, data):
+            out = uniform_filter(data.color, size=(3, 3, 1), mode="nearest").astype(np.float32)
+            return keep_emitters(data.color, out, getattr(data, "emitter", None))
+
+    try:
+        frame = _frame(seed=4)
+        e = np.zeros(frame.color.shape[:2] + (1,), np.float32)
+        e[8, 9] = 0.4
+        lit = frame.with_buffers(emitter=e)
+        inner = KeepsLights().denoise(lit)
+        expected = kg.proden_gate(frame.color, inner, kg.linear_variance(frame.stats, frame.color))
+        got = get("test-gate-keeps-emitters+gate").denoise(lit)
+        np.testing.assert_allclose(got, expected, rtol=1e-6, atol=1e-7)
+        twice = keep_emitters(frame.color, expected, e)
+        assert not np.allclose(got[8, 9], twice[8, 9])  # the pixel differs from its input
+    finally:
+        _REGISTRY.pop("test-gate-keeps-emitters", None)

@@ -213,6 +213,7 @@ class Autoencoder(Denoiser):
     kinds = {"steady", "sequence"}
     needs = {"color", "albedo", "normal", "depth"}
     optional_needs = {"emitter"}  # directly seen lights keep the input (keep_emitters)
+    keeps_emitters = True  # so NAME+gate does not apply the rule a second time
     defaults = dict(recurrent=True, weights=None, threads=None, spp=None)
 
     def __init__(self, **params):

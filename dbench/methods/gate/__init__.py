@@ -24,7 +24,9 @@ variants are never listed one by one. The wrapper:
   of the mean, so the t-test rarely rejects a filter's blur there, and on ``cornell`` at 256²,
   1024 spp those 108 pixels held 89 % of ``oidn+gate``'s squared error (RMSE over all pixels
   1.63x the noisy input's; 0.97x with the rule). ``gate_emitters=False`` is the gate of
-  spec §12 alone;
+  spec §12 alone. A method that applies the rule itself (``keeps_emitters``: ``nca``,
+  ``autoencoder``) is not given it twice: a second pass would hand a lamp's edge pixel of
+  coverage e back by 1 − (1 − e)² instead of e;
 * runs the compiled gate (:func:`~dbench.methods.kernels.gate.proden_gate_stats`, the passes
   of :func:`~dbench.methods.kernels.gate.proden_gate_fast` fed from the statistics);
   ``gate_backend="reference"`` runs the readable SciPy form.
@@ -152,7 +154,7 @@ def gated_class(base: type[Denoiser]) -> type[Denoiser]:
             gated = gate_output(data.color, out, stats, alpha=float(p["gate_alpha"]),
                                 k=float(p["gate_k"]), t0=float(p["gate_t0"]),
                                 backend=p["gate_backend"])
-            if p["gate_emitters"]:
+            if p["gate_emitters"] and not base.keeps_emitters:
                 gated = keep_emitters(data.color, gated, getattr(data, "emitter", None))
             self.last_settings = {**getattr(self.inner, "last_settings", {}),
                                   "gate_alpha": float(p["gate_alpha"]),

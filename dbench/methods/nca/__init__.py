@@ -193,6 +193,7 @@ class NCADenoiser(Denoiser):
     kinds = {"steady"}
     needs = {"color", "normal", "albedo"}
     optional_needs = {"emitter"}
+    keeps_emitters = True  # denoise ends with keep_emitters; NAME+gate does not repeat it
     defaults = dict(iterations=None, weights=None, threads=None, spp=None)
 
     def __init__(self, **params):
