@@ -75,7 +75,8 @@ def scene_fingerprint(scene: str | Scene, res) -> str:
                 "params": sc.params, "versions": versions(),
                 # how the G-buffer and the A-SVGF gradient samples are made changes the inputs
                 "gbuffer": f"psr-{_sequence.PSR_VERSION}",
-                "gradient": f"reshade-{_sequence.RESHADE_VERSION}"}
+                "gradient": f"reshade-{_sequence.RESHADE_VERSION}",
+                "motion": _sequence.MOTION_VERSION}
     elif sc.kind == "transient":
         window = sc.window()
         desc = {"scene": sc.name, "kind": sc.kind, "res": res.key,

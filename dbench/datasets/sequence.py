@@ -18,7 +18,8 @@ emission     (H, W, 3)   radiance emitted at those primary hits (nested ``path``
 emitter      (H, W, 1)   fraction of the footprint whose primary ray sees an emitter with
                          radiance > 0 (64 spp, box filter, dbench/datasets/emitter.py; cached
                          per frame, kind ``seq-emitter``); comes with ``reference``
-motion       (H, W, 2)   :func:`motion_vectors` from the world position and the previous camera
+motion       (H, W, 2)   :func:`motion_vectors`: the world position seen by the previous camera
+                         minus the same point seen by this frame's (no sub-pixel jitter)
 gradient     (H, W, 3)   lights of frame i, camera of frame i−1, seed of frame i−1 (spec/svgf.md
                          §6.4): every pixel re-traces the path of frame i−1 under the new
                          lighting. Frame 0: equal to ``color``.
@@ -103,6 +104,8 @@ PSR_GLOSSY_ALPHA = {"psr": 0.0, "psr-glossy": _psr.GLOSSY_ALPHA}
 PSR_VERSION = 2
 GRADIENTS = ("reshade", "frame")
 RESHADE_VERSION = 1
+#: 2: motion of the surface point without the sample's sub-pixel jitter (motion_vectors)
+MOTION_VERSION = 2
 
 
 def _sequence_scene(name: str, description: str, **kw: Any):
@@ -471,7 +474,7 @@ def load_sequence(scene: str | SequenceScene, spp: int = 1, res=64,
         buffers.update({k: gbuf[k] for k in ("emission",) + FEATURES if k in wanted})
         if "motion" in wanted:
             buffers["motion"] = motion_vectors(gbuf["position"], gbuf["depth"],
-                                               prev_camera or camera)
+                                               prev_camera or camera, camera)
         if "gradient" in wanted:
             if i == 0:
                 buffers["gradient"] = noisy["color"]

@@ -104,19 +104,28 @@ def project(points: np.ndarray, camera: dict) -> tuple[np.ndarray, np.ndarray]:
     return np.stack([u * w - 0.5, v * h - 0.5], axis=-1), cz
 
 
-def motion_vectors(position: np.ndarray, depth: np.ndarray, prev_camera: dict) -> np.ndarray:
-    """Offsets (H, W, 2) float32 from every pixel to its surface point's position in the frame
+def motion_vectors(position: np.ndarray, depth: np.ndarray, prev_camera: dict, camera: dict
+                   ) -> np.ndarray:
+    """Offsets (H, W, 2) float32 from every pixel to where its surface point was in the frame
     seen by ``prev_camera`` (spec/temporal.md §3.1), exact for static geometry.
 
-    ``motion[y, x] = p← − (x, y)`` in pixels (x right, y down); NaN where nothing is hit
-    (depth 0 or non-finite) or the point is behind the previous camera (c_z ≤ 0).
+    ``motion[y, x] = project(P, prev_camera) − project(P, camera)`` in pixels (x right, y down),
+    P the pixel's world position: the motion of the surface point, without the sub-pixel jitter
+    of the sample that found it. A pixel's 1-spp G-buffer sample lies anywhere in its footprint,
+    so ``project(P, prev_camera) − (x, y)`` (the form used before) moved every history fetch by
+    a random offset of up to half a pixel, a blur that builds up over the history (a static
+    camera got non-zero motion): on ``orbit`` at 64², 1 spp, plain accumulation's relMSE was
+    0.056 with it and 0.034 without (results/temporal.md). Real-time renderers remove the
+    jitter from their motion vectors the same way. NaN where nothing is hit (depth 0 or
+    non-finite) or the point is behind either camera.
     """
     h, w = depth.shape[:2]
     position = np.asarray(position, np.float64).reshape(h, w, 3)
     depth = np.asarray(depth, np.float64).reshape(h, w)
-    p, cz = project(position, prev_camera)
-    yy, xx = np.mgrid[0:h, 0:w]
-    motion = np.stack([p[..., 0] - xx, p[..., 1] - yy], axis=-1)
-    bad = ~(np.isfinite(depth) & (depth > 0) & (cz > 0) & np.isfinite(position).all(-1))
+    p_prev, cz_prev = project(position, prev_camera)
+    p_now, cz_now = project(position, camera)
+    motion = p_prev - p_now
+    bad = ~(np.isfinite(depth) & (depth > 0) & (cz_prev > 0) & (cz_now > 0)
+            & np.isfinite(position).all(-1) & np.isfinite(motion).all(-1))
     motion[bad] = np.nan
     return motion.astype(np.float32)

@@ -205,7 +205,7 @@ def test_behind_previous_camera_is_never_valid():
     pos = np.zeros((4, 4, 3))
     pos[..., 2] = -2.0  # behind the camera
     pos[0, 0] = (0.0, 0.0, 3.0)
-    mot = motion_vectors(pos, np.ones((4, 4)), cam)
+    mot = motion_vectors(pos, np.ones((4, 4)), cam, cam)
     assert np.isnan(mot[1:, :]).all() and np.isfinite(mot[0, 0]).all()
     m = methods.get("accumulate")
     m.reset()
