@@ -191,9 +191,10 @@ class Frame:
             colour samples' primary rays hit (0 off lights), so filters can keep lights out of
             the demodulated illumination.
         emitter: (H, W, 1) float32 in [0, 1]: the fraction of the pixel's footprint (box
-            filter, 64 spp) whose primary ray sees an emitter sending radiance > 0 toward the
-            camera (an area light's front, or the environment where the ray escapes); 0 on
-            surfaces, fractional on a light's edge (dbench.datasets.emitter). Or None.
+            filter) whose primary ray, directly or after reflections in smooth mirrors, sees
+            an emitter sending radiance > 0 toward the camera (an area light's front, or the
+            environment where the ray escapes); 0 on surfaces, fractional on a light's edge
+            (dbench.datasets.emitter). Or None.
         reference_var: (H, W, 3) float32 ≥ 0, the variance of ``reference`` (the mean) per pixel
             and channel, estimated from K independent chunks of the reference render
             (spec/verdicts.md §2), or None. Comes with ``reference``; ``meta["ref_rmse"]`` =

@@ -32,8 +32,8 @@ class Denoiser:
         optional_needs: buffers it uses when the data has them and runs without otherwise
             (its docstring says what changes); loaded wherever the scene provides them.
         defaults: parameter defaults; ``get(name, **params)`` overrides them.
-        keeps_emitters: True when ``denoise`` already hands directly seen lights back to the
-            input (:func:`dbench.methods.kernels.emitters.keep_emitters`), so that a wrapper
+        keeps_emitters: True when ``denoise`` already hands the lights of the ``emitter`` buffer
+            back to the input (:func:`dbench.methods.kernels.emitters.keep_emitters`), so that a wrapper
             such as ``NAME+gate`` does not apply the rule a second time.
 
     Sequence methods keep state: call ``reset()`` and then ``denoise(frame)`` per frame in order.

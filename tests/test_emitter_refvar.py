@@ -152,6 +152,40 @@ def test_emitter_with_a_white_bsdf_and_the_environment(renderer):
     assert dark[0, 0, 0] == 0.0 and dark[c, c, 0] == 1.0
 
 
+def _mirror_scene(mi, res: int, bsdf: dict) -> dict:
+    """A surface with ``bsdf`` filling the view at z = 3 and a lamp behind the camera facing
+    it: the lamp is seen only in the surface's reflection."""
+    T = mi.ScalarTransform4f
+    return {"type": "scene",
+            "sensor": {"type": "perspective", "fov": 30, "fov_axis": "x",
+                       "to_world": T().look_at(origin=[0, 0, 0], target=[0, 0, 1], up=[0, 1, 0]),
+                       "film": {"type": "hdrfilm", "width": res, "height": res,
+                                "rfilter": {"type": "box"}},
+                       "sampler": {"type": "independent"}},
+            "wall": {"type": "rectangle", "bsdf": bsdf,
+                     "to_world": T().translate([0, 0, 3]).rotate([0, 1, 0], 180).scale(2.0)},
+            "lamp": {"type": "rectangle", "to_world": T().translate([0, 0, -2]).scale(0.5),
+                     "emitter": {"type": "area", "radiance": {"type": "rgb", "value": [5] * 3}}}}
+
+
+MIRRORS = {"smooth conductor": ({"type": "conductor"}, 1.0),
+           "rough conductor": ({"type": "roughconductor", "alpha": 0.2}, 0.0),
+           "glass": ({"type": "dielectric"}, 0.0),
+           "smooth plastic": ({"type": "plastic"}, 0.0),
+           "diffuse": ({"type": "diffuse"}, 0.0)}
+
+
+@pytest.mark.parametrize("name", list(MIRRORS))
+def test_lights_seen_in_smooth_mirrors_count(renderer, name):
+    """Only a smooth mirror's reflection of a light is deterministic; rough metal, glass (a
+    random lobe), smooth plastic and diffuse surfaces show noise, not the light."""
+    bsdf, centre = MIRRORS[name]
+    res = 16
+    e = E.render_emitter_dict(_mirror_scene(renderer, res, bsdf), 16, seed=2)
+    assert e[res // 2, res // 2, 0] == centre, name
+    assert e[0, 0, 0] == 0.0  # the corners see the mirror beside the lamp's image
+
+
 def test_emitter_integrator_in_scalar_rgb(renderer):
     code = textwrap.dedent("""
         import numpy as np
@@ -162,13 +196,15 @@ def test_emitter_integrator_in_scalar_rgb(renderer):
         assert mi.variant() == "scalar_rgb", mi.variant()
         e = E.render_emitter_dict(_facing_rect_scene(mi, 8, env=0.5), 4, seed=1)
         f = E.render_emitter_dict(_facing_rect_scene(mi, 8, facing=False), 4, seed=1)
-        print("OK", e.shape, float(e.min()), float(f.max()))
+        from tests.test_emitter_refvar import _mirror_scene
+        g = E.render_emitter_dict(_mirror_scene(mi, 8, {"type": "conductor"}), 4, seed=1)
+        print("OK", e.shape, float(e.min()), float(f.max()), float(g[3:5, 3:5].min() > 0), float(g[0, 0, 0]))
     """)
     root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     env = {**os.environ, "DBENCH_VARIANT": "scalar_rgb", "PYTHONPATH": root}
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env,
                          cwd=root, timeout=300)
-    assert "OK (8, 8, 1) 1.0 0.0" in out.stdout, out.stdout + out.stderr
+    assert "OK (8, 8, 1) 1.0 0.0 1.0 0.0" in out.stdout, out.stdout + out.stderr
 
 
 # -- reference variance and shared references ----------------------------------------------------

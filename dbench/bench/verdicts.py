@@ -38,7 +38,7 @@ NOISY = "noisy"
 DEFINITIONS = {
     "surface": ("`<metric>_surface` (rmse_surface, relmse_surface, smape_surface, psnr_surface, "
                 "ssim_surface, flip_surface): the metric over surface pixels only, pixels whose "
-                "emitter fraction is 0 (directly visible lights excluded)"),
+                "emitter fraction is 0 (lights seen directly or in smooth mirrors excluded)"),
     "top1_share": ("top1_share = Σ of the largest 1 % of per-pixel squared errors / Σ of all; "
                    "near 1: a few pixels decide the MSE"),
     "rmse_unbiased": ("rmse_unbiased = sqrt(max(0, MSE − mean v_r)), v_r the per-pixel variance "

@@ -1,11 +1,11 @@
 """Datasets: ``load(scene, spp, res, needs)`` renders what is missing and reuses the cache.
 
 Steady buffers: ``color`` and ``stats`` (the noisy samples, seed ``seed``), ``albedo``,
-``normal``, ``depth``, ``position`` and ``emitter`` (one cached feature render at 64 spp, box
-filter), ``reference`` with ``reference_var`` (the variance of the reference mean from K ≥ 16
+``normal``, ``depth``, ``position`` and ``emitter`` (one cached feature render at max(64, spp)
+spp, box filter), ``reference`` with ``reference_var`` (the variance of the reference mean from K ≥ 16
 independent chunks; seed ``ref_seed``, independent of ``seed`` so that N noisy seeds share one
 reference). Whenever ``reference`` is loaded, ``emitter`` comes with it (the judge separates
-directly visible lights from surfaces). :func:`scene_fingerprint` names a scene's content.
+lights seen directly or in smooth mirrors from surfaces). :func:`scene_fingerprint` names a scene's content.
 
 Example:
     >>> from dbench import datasets
@@ -22,6 +22,7 @@ import numpy as np
 from ..data import Frame, SampleStats, Sequence, TransientFrame, check_count, check_transform
 from ..errors import DbenchInputError
 from ..resolution import Res, parse_res
+from . import emitter as _emitter
 from . import render as _render
 from . import scenes as _scenes
 from . import sequence as _sequence  # registers the sequence scenes
@@ -84,6 +85,8 @@ def scene_fingerprint(scene: str | Scene, res) -> str:
                 "params": sc.params, "versions": versions()}
     else:
         desc = {**_base_description(sc, res), "kind": sc.kind}
+    # the emitter buffer feeds the surface metrics and the methods that keep lights
+    desc["emitter"] = _emitter.EMITTER_VERSION
     return make_key(desc)[:16]
 
 

@@ -58,15 +58,19 @@ def test_gate_table_error_bound():
 
 
 def test_wrapper_equals_method_then_reference_gate():
-    """Known composition: jbf+gate = proden_gate(noisy, jbf output, Var(linear mean))."""
+    """Known composition: jbf+gate = proden_gate(noisy, jbf output, Var(linear mean) floored
+    over 11x11 windows); gate_pool=0 is the spec's gate on the raw variance."""
     frame = _frame(seed=3)
     den = get("jbf", radius=3).denoise(frame)
-    out = get("jbf+gate", radius=3).denoise(frame)
     var = kg.linear_variance(frame.stats, frame.color)
-    expected = kg.proden_gate(frame.color, den, var)
-    np.testing.assert_allclose(out, expected, rtol=1e-6, atol=1e-7)
-    ref = get("jbf+gate", radius=3, gate_backend="reference").denoise(frame)
-    np.testing.assert_allclose(out, ref, rtol=1e-6, atol=1e-7)
+    for pool in (5, 0, 2):
+        params = {} if pool == 5 else {"gate_pool": pool}
+        out = get("jbf+gate", radius=3, **params).denoise(frame)
+        expected = kg.proden_gate(frame.color, den, var, pool_radius=pool)
+        np.testing.assert_allclose(out, expected, rtol=1e-6, atol=1e-7)
+        ref = get("jbf+gate", radius=3, gate_backend="reference", **params).denoise(frame)
+        np.testing.assert_allclose(out, ref, rtol=1e-6, atol=1e-7)
+
 
 
 def test_class_shape_and_names():
@@ -101,6 +105,9 @@ def test_refusals_name_the_problem():
         get("jbf+gate", gate_backend="gpu")
     with pytest.raises(DbenchInputError, match="gate_emitters"):
         get("jbf+gate", gate_emitters="yes")
+    for bad in (-1, 2.5, True, 65):
+        with pytest.raises(DbenchInputError, match="gate_pool"):
+            get("jbf+gate", gate_pool=bad)
     with pytest.raises(DbenchInputError, match="radius"):
         get("jbf+gate", radius=-1)  # the method's own checks still run
     frame = _frame(seed=1)
@@ -172,8 +179,8 @@ def test_plugin_method_takes_the_gate():
         out = m.denoise(frame)
         plain = get("test-gate-plugin-box", passes=2).denoise(frame)
         var = kg.linear_variance(frame.stats, frame.color)
-        np.testing.assert_allclose(out, kg.proden_gate(frame.color, plain, var), rtol=1e-6,
-                                   atol=1e-7)
+        np.testing.assert_allclose(out, kg.proden_gate(frame.color, plain, var, pool_radius=5),
+                                   rtol=1e-6, atol=1e-7)
     finally:  # leave the registry as the other tests expect it
         _REGISTRY.pop("test-gate-plugin-box", None)
 
@@ -276,10 +283,67 @@ def test_a_method_that_keeps_emitters_gets_the_rule_once():
         e[8, 9] = 0.4
         lit = frame.with_buffers(emitter=e)
         inner = KeepsLights().denoise(lit)
-        expected = kg.proden_gate(frame.color, inner, kg.linear_variance(frame.stats, frame.color))
+        expected = kg.proden_gate(frame.color, inner, kg.linear_variance(frame.stats, frame.color),
+                                  pool_radius=5)
         got = get("test-gate-keeps-emitters+gate").denoise(lit)
         np.testing.assert_allclose(got, expected, rtol=1e-6, atol=1e-7)
         twice = keep_emitters(frame.color, expected, e)
         assert not np.allclose(got[8, 9], twice[8, 9])  # the pixel differs from its input
     finally:
         _REGISTRY.pop("test-gate-keeps-emitters", None)
+
+
+@pytest.mark.parametrize("transform", ["identity", "box-cox", "yeo-johnson"])
+def test_pooled_gate_from_statistics_equals_the_reference(transform):
+    """proden_gate_stats with pool_radius equals the readable gate on the floored linear
+    variance, with non-finite colour and method values substituted as the wrapper does."""
+    rng = np.random.default_rng(21)
+    h, w = 19, 23
+    color = rng.gamma(1.0, 1.0, (h, w, 3)).astype(np.float32)
+    color[4, 5, 1] = np.nan
+    den = (color * rng.uniform(0.8, 1.2, color.shape)).astype(np.float32)
+    den[7, 8, 2] = np.inf
+    var = rng.gamma(1.0, 1.0, color.shape) * 10.0 ** rng.uniform(-6, -2, color.shape)
+    stats = SampleStats(n=np.full(color.shape, 8.0), mean=color, var_mean=var,
+                        m3=np.zeros(color.shape), transform=transform, lam=0.5)
+    hdr = np.where(np.isfinite(color), color, den)
+    fixed = np.where(np.isfinite(den), den, hdr)
+    expected = kg.proden_gate(hdr, fixed, kg.linear_variance(stats, color), pool_radius=4)
+    got = kg.proden_gate_stats(color, den, stats, pool_radius=4)
+    ok = np.isfinite(expected)
+    np.testing.assert_allclose(got[ok], expected[ok], rtol=1e-6, atol=1e-7)
+    np.testing.assert_allclose(kg.proden_gate_fast(hdr, fixed, kg.linear_variance(stats, color),
+                                                   pool_radius=4), expected, rtol=1e-6, atol=1e-7)
+
+
+def test_variance_floor_keeps_a_good_denoiser_at_few_samples():
+    """Heavy-tailed pixels at 8 samples: most pixels never drew the rare bright sample, so their
+    own variance is far below the true one. An exact denoiser (the true mean) is then handed
+    back to the noise in many pixels by the per-pixel test, in few with the floor; with no
+    noise at all (zero variance everywhere) both still return the input."""
+    rng = np.random.default_rng(8)
+    h, w, n, p, big = 48, 48, 8, 0.02, 50.0
+    draws = 1.0 + big * (rng.random((n, h, w, 3)) < p)
+    color = draws.mean(0)
+    var_mean = draws.var(0, ddof=1) / n
+    truth = np.full((h, w, 3), 1.0 + big * p)
+    off = lambda out: np.mean(np.abs(out - truth) > 0.5 * np.abs(color - truth) + 1e-9)
+    plain = kg.proden_gate(color, truth, var_mean)
+    floored = kg.proden_gate(color, truth, var_mean, pool_radius=5)
+    assert np.mean((truth - floored) ** 2) < 0.5 * np.mean((truth - plain) ** 2)
+    assert off(floored) < off(plain)
+    zero = np.zeros_like(color)
+    np.testing.assert_allclose(kg.proden_gate(color, truth, zero, pool_radius=5), color)
+
+
+@pytest.mark.parametrize("shape,pool", [((1, 1), 5), ((3, 17), 2), ((37, 29), 5), ((12, 40), 7)])
+def test_pooled_fast_gate_equals_reference(shape, pool):
+    """The floor fused into the compiled passes (column sums, then the row pass) equals the
+    reference gate on the SciPy-floored variance, with variances over many decades."""
+    rng = np.random.default_rng(sum(shape) + pool)
+    hdr = rng.gamma(1.0, 1.0, (*shape, 3)).astype(np.float32)
+    den = (hdr * rng.uniform(0.7, 1.3, hdr.shape)).astype(np.float32)
+    var = rng.lognormal(0.0, 3.0, hdr.shape) * 1e-4
+    ref = kg.proden_gate(hdr, den, var, pool_radius=pool)
+    np.testing.assert_allclose(kg.proden_gate_fast(hdr, den, var, pool_radius=pool), ref,
+                               rtol=1e-6, atol=1e-7)

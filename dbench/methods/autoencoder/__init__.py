@@ -25,9 +25,9 @@ The shipped recurrent weights were trained on camera-animated training sequences
 (``dbench train autoencoder``, stage 2); ``results/learned.md`` measures what carrying the state
 adds on the catalogue's sequences.
 
-Optional ``emitter`` buffer (coverage of directly seen lights): those pixels keep the input in
-proportion to their coverage (:func:`dbench.methods.kernels.emitters.keep_emitters`, the NCA's
-rule).
+Optional ``emitter`` buffer (coverage of lights seen directly or in smooth mirrors): those
+pixels keep the input in proportion to their coverage
+(:func:`dbench.methods.kernels.emitters.keep_emitters`, the NCA's rule).
 
 Training: stage 1 on single frames, stage 2 on sequences, and stage 3, the consistency stage
 whose loss asks every crop, the nearly converged ones included, to beat its input
@@ -212,7 +212,7 @@ class Autoencoder(Denoiser):
 
     kinds = {"steady", "sequence"}
     needs = {"color", "albedo", "normal", "depth"}
-    optional_needs = {"emitter"}  # directly seen lights keep the input (keep_emitters)
+    optional_needs = {"emitter"}  # lights keep the input (keep_emitters)
     keeps_emitters = True  # so NAME+gate does not apply the rule a second time
     defaults = dict(recurrent=True, weights=None, threads=None, spp=None)
 

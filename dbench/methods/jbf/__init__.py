@@ -16,9 +16,9 @@ DbenchInputError naming it (the filter does not silently drop a feature). Option
 ``depth`` (the hit mask; without it, pixels with an all-zero normal count as background,
 :func:`~dbench.methods.guards.depth_or_hit`; a ``features`` entry "depth" still requires it),
 ``position`` (required when ``features`` or ``use_position`` asks for it) and ``emitter``
-(directly seen lights form their own label and never mix with the surfaces around them, so a
-light's albedo, black in the catalogue and anything in other renderers' files, does not
-matter).
+(lights seen directly or in smooth mirrors form their own label and never mix with the
+surfaces around them, so a light's albedo, black in the catalogue and anything in other
+renderers' files, does not matter).
 
 Huge finite colour (up to the float32 maximum, or its demodulated value in illumination mode)
 stays finite: a plane above 1e30 is divided by an exact power of two before the float32 window

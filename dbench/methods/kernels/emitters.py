@@ -1,10 +1,11 @@
-"""Directly seen lights in a denoiser's output: :func:`keep_emitters` hands the pixels that a
+"""Lights in a denoiser's output: :func:`keep_emitters` hands the pixels that a
 frame's ``emitter`` buffer marks as covered by an emitter (the fraction of the pixel's
-footprint whose primary hit emits light, :mod:`dbench.datasets.emitter`) back to the input.
+footprint whose primary ray sees a light, directly or in smooth mirrors,
+:mod:`dbench.datasets.emitter`) back to the input.
 
-A light seen directly is not Monte Carlo noise: its interior is exact at any spp, and its edge
-pixels carry coverage noise that no image-space filter removes without blurring the edge. Used
-by ``nca``, ``autoencoder`` and the ``NAME+gate`` wrapper.
+A light seen directly or in a smooth mirror is not Monte Carlo noise: its interior is exact at
+any spp, and its edge pixels carry coverage noise that no image-space filter removes without
+blurring the edge. Used by ``nca``, ``autoencoder`` and the ``NAME+gate`` wrapper.
 
 A kernel imports no method and nothing of the harness.
 

@@ -18,6 +18,9 @@ noisy mean (:func:`linear_variance` derives it from dbench's statistics). Zero-p
 * :func:`proden_gate_stats` — the same passes fed directly from a frame's colour, the method's
   output and dbench's statistics (non-finite substitutions and the linear variance formed in
   the first pass), which is what ``NAME+gate`` runs.
+* ``pool_radius`` r > 0 (all three; default 0, the spec's gate) [dbench]: the variance is first
+  floored at its mean over the (2r + 1)² window (:mod:`~dbench.methods.kernels.variance_floor`,
+  the reason there), which ``NAME+gate`` does with r = 5.
 
 A kernel imports no method and nothing of the harness.
 
@@ -34,6 +37,8 @@ from typing import Any
 
 import numpy as np
 from numba import njit, prange
+
+from .variance_floor import column_sums, floor_row, floored_variance, linear_value
 
 #: Defaults of spec §12.
 GATE_K = 2.0
@@ -66,7 +71,7 @@ def gate_taps(sigma: float, taps: int = GATE_TAPS) -> np.ndarray:
 
 
 def proden_gate(hdr: Any, den: Any, var: Any, *, alpha: float = 1.0, k: float = GATE_K,
-                t0: float = GATE_T0) -> np.ndarray:
+                t0: float = GATE_T0, pool_radius: int = 0) -> np.ndarray:
     """ProDen t-test gate (spec §12, without the ``proden_exact`` terms), the readable form.
 
     Args:
@@ -76,14 +81,18 @@ def proden_gate(hdr: Any, den: Any, var: Any, *, alpha: float = 1.0, k: float = 
     Returns:
         (H, W, 3) float64 out = hdr + α_gate (den − hdr), α_gate = α·g(t) per channel with
         t = |G*(hdr + α(den − hdr)) − G*hdr| / (sqrt(G²*var) + 1e-6), G an 11×11 Gaussian with
-        σ_b = max(100·sqrt(clamp(mean(var), 0, 1)), 1e-3), zero-padded borders.
+        σ_b = max(100·sqrt(clamp(mean(var), 0, 1)), 1e-3), zero-padded borders; with
+        ``pool_radius`` r > 0, the t-test's var is :func:`floored_variance` (var, r) [dbench]
+        (σ_b still from the mean of var).
     """
     from scipy.ndimage import correlate
 
     hdr = np.asarray(hdr, np.float64)
     den = np.asarray(den, np.float64)
     var = np.asarray(var, np.float64)
-    g1 = gate_taps(gate_sigma(var))
+    g1 = gate_taps(gate_sigma(var))  # σ_b from the variance itself, floored or not
+    if pool_radius:
+        var = floored_variance(var, pool_radius)
     kern = np.outer(g1, g1)
     kern /= kern.sum()
 
@@ -133,16 +142,9 @@ def _pair(color, den, fix, y, i):  # pragma: no cover - compiled
 def _inputs(color, den, var, x, box_cox_half, fix, y, i):  # pragma: no cover - compiled
     """(hdr, den, linear variance) of one value (:func:`_pair`); the variance is ``var``
     (box_cox_half False) or var · max(x, 0) (Box-Cox ½, x the noisy colour), 0 where it is not
-    finite (:func:`linear_variance`)."""
+    finite (:func:`linear_variance`; the rule of ``variance_floor.linear_value``)."""
     a, d = _pair(color, den, fix, y, i)
-    v = var[y, i]
-    if box_cox_half:
-        xx = np.float64(x[y, i])
-        xx = max(xx, 0.0) if np.isfinite(xx) else 0.0
-        v = v * xx
-    if not np.isfinite(v):
-        v = 0.0
-    return a, d, v
+    return a, d, linear_value(var, x, box_cox_half, y, i)
 
 
 @njit(parallel=True, cache=True, fastmath=_FASTMATH)
@@ -160,10 +162,12 @@ def _mean_variance(color, den, var, x, box_cox_half, fix):  # pragma: no cover -
 
 
 @njit(parallel=True, cache=True, fastmath=_FASTMATH)
-def _blur_rows(color, den, var, x, box_cox_half, fix, g, g2, bd, bv):  # pragma: no cover
+def _blur_rows(color, den, var, x, box_cox_half, fix, g, g2, bd, bv, sums, pool
+               ):  # pragma: no cover - compiled
     """Zero-padded blur along x of interleaved (H, W·C) rows, C = 3 (a neighbour is 3 values
     away): bd = g * (den − hdr), bv = g² * var, float64. The taps are symmetric, so each pair
-    g_j (f[i − 3j] + f[i + 3j]) is one pass over a zero-padded copy of the row."""
+    g_j (f[i − 3j] + f[i + 3j]) is one pass over a zero-padded copy of the row. With ``pool``
+    r > 0, var is first floored from the window's column ``sums`` (:func:`floor_row`)."""
     h, wc = color.shape
     r = g.shape[0] // 2
     c = 3 * r
@@ -171,10 +175,17 @@ def _blur_rows(color, den, var, x, box_cox_half, fix, g, g2, bd, bv):  # pragma:
         y = np.int64(row)
         pd = np.zeros(wc + 2 * c, np.float64)
         pv = np.zeros(wc + 2 * c, np.float64)
+        lin = np.empty(wc, np.float64)
         for i in range(wc):
             a, d, v = _inputs(color, den, var, x, box_cox_half, fix, y, i)
             pd[i + c] = d - a
-            pv[i + c] = v
+            lin[i] = v
+        if pool > 0:
+            floored = np.empty(wc, np.float64)
+            floor_row(lin, sums[y], y, h, pool, 3, floored)
+            lin = floored
+        for i in range(wc):
+            pv[i + c] = lin[i]
         oa, ob = bd[y], bv[y]
         for i in range(wc):
             oa[i] = g[r] * pd[i + c]
@@ -225,8 +236,9 @@ def _blur_cols_gate(bd, bv, color, den, fix, g, g2, alpha, table, t_max, out):  
 
 
 def _gate_passes(color, den, var, x, box_cox_half: bool, fix: bool, alpha: float, k: float,
-                 t0: float) -> np.ndarray:
-    """The two compiled passes on (H, W, 3) arrays (see :func:`proden_gate_fast`)."""
+                 t0: float, pool: int = 0) -> np.ndarray:
+    """The two compiled passes on (H, W, 3) arrays (see :func:`proden_gate_fast`), three with
+    the variance floor of radius ``pool`` (its column sums first)."""
     h, w, c = color.shape
     color = np.ascontiguousarray(color).reshape(h, w * c)
     den = np.ascontiguousarray(den, color.dtype).reshape(h, w * c)
@@ -235,7 +247,14 @@ def _gate_passes(color, den, var, x, box_cox_half: bool, fix: bool, alpha: float
     g = gate_taps(sigma_from_mean(_mean_variance(color, den, var, x, box_cox_half, fix)))
     bd = np.empty((h, w * c), np.float64)
     bv = np.empty((h, w * c), np.float64)
-    _blur_rows(color, den, var, x, box_cox_half, fix, g, g * g, bd, bv)
+    if pool:
+        # the column sums live in bd: row y of _blur_rows reads only sums[y], and reads it
+        # whole before it writes bd[y], so no second (H, W·C) array is needed
+        sums = bd
+        column_sums(var, x, box_cox_half, int(pool), sums)
+    else:
+        sums = np.zeros((1, 1), np.float64)
+    _blur_rows(color, den, var, x, box_cox_half, fix, g, g * g, bd, bv, sums, int(pool))
     out = np.empty((h, w * c), np.float32)
     _blur_cols_gate(bd, bv, color, den, fix, g, g * g, float(alpha), gate_table(k, t0),
                     LUT_T_MAX, out)
@@ -243,32 +262,35 @@ def _gate_passes(color, den, var, x, box_cox_half: bool, fix: bool, alpha: float
 
 
 def proden_gate_fast(hdr: Any, den: Any, var: Any, *, alpha: float = 1.0, k: float = GATE_K,
-                     t0: float = GATE_T0) -> np.ndarray:
+                     t0: float = GATE_T0, pool_radius: int = 0) -> np.ndarray:
     """:func:`proden_gate` through two compiled passes over the interleaved rows (separable
     blurs with float64 sums, the gate factor from :func:`gate_table`); (H, W, 3) float32. Equal
     to the reference within float32 rounding (tests: 1e-6 relative)."""
     hdr = np.ascontiguousarray(hdr)
-    return _gate_passes(hdr, den, var, None, False, False, alpha, k, t0)
+    return _gate_passes(hdr, den, var, None, False, False, alpha, k, t0, pool_radius)
 
 
 def proden_gate_stats(color: Any, den: Any, stats: Any, *, alpha: float = 1.0,
-                      k: float = GATE_K, t0: float = GATE_T0) -> np.ndarray:
+                      k: float = GATE_K, t0: float = GATE_T0, pool_radius: int = 0
+                      ) -> np.ndarray:
     """The gate of a method output ``den`` on a noisy ``color`` with dbench's ``stats``, in the
     same two passes: non-finite noisy values take the method's and non-finite method values the
     noisy ones, and the linear variance (:func:`linear_variance`) is formed inside the first
     pass for the identity transform and Box-Cox ½ (any other transform is prepared by
     :func:`linear_variance` first). Equal to ``proden_gate_fast(hdr, den',
-    linear_variance(stats, color))`` with those substitutions (tests); (H, W, 3) float32."""
+    linear_variance(stats, color), pool_radius=r)`` with those substitutions (tests); with
+    ``pool_radius`` r > 0 one more pass sums the floor's columns first
+    (:mod:`~dbench.methods.kernels.variance_floor`); (H, W, 3) float32."""
     color = np.ascontiguousarray(color)
     shape = color.shape
     transform = getattr(stats, "transform", "identity")
     var = np.broadcast_to(np.asarray(stats.var_mean, np.float64), shape)
     if transform == "identity":
-        return _gate_passes(color, den, var, None, False, True, alpha, k, t0)
+        return _gate_passes(color, den, var, None, False, True, alpha, k, t0, pool_radius)
     if transform == "box-cox" and float(stats.lam) == 0.5:
-        return _gate_passes(color, den, var, color, True, True, alpha, k, t0)
+        return _gate_passes(color, den, var, color, True, True, alpha, k, t0, pool_radius)
     return _gate_passes(color, den, linear_variance(stats, color), None, False, True, alpha,
-                        k, t0)
+                        k, t0, pool_radius)
 
 
 def linear_variance(stats: Any, color: np.ndarray) -> np.ndarray:

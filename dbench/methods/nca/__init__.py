@@ -18,8 +18,8 @@ missing and replaced by 0 before encoding; non-finite normal/albedo values by 0;
 clipped to [-1, 1] and albedo to [0, 1]. A NaN is therefore never spread: the output is finite
 everywhere. Missing or mis-shaped buffers raise DbenchInputError naming the buffer.
 
-Optional ``emitter`` buffer (coverage of directly seen lights): those pixels keep the input in
-proportion to their coverage (:func:`keep_emitters`).
+Optional ``emitter`` buffer (coverage of lights seen directly or in smooth mirrors): those
+pixels keep the input in proportion to their coverage (:func:`keep_emitters`).
 
 Parameters: ``iterations`` (None: the model's step count for the frame's spp, from the table
 chosen on held-out training scenes and stored in the model, :func:`default_iterations`),
