@@ -85,7 +85,8 @@ from .cache import Cache
 from .mitsuba_env import mitsuba, versions
 from .scene import Scene, register_scene
 from .scene_parts import _diffuse, _mirror_objects, _rect, _room
-from .sequence_scene import (SEQUENCE_BUFFERS, SequenceScene, camera_info, look_at_matrix,
+from .sequence_scene import (GBUFFER_PARAM, GBUFFERS, SEQUENCE_BUFFERS, SequenceScene,
+                             camera_info, gbuffer_variant, look_at_matrix,
                              motion_vectors, project)
 from . import psr as _psr
 from .psr import psr_integrator
@@ -97,7 +98,6 @@ from .stats import PowerSums, stats_from_arrays, stats_to_arrays
 FEATURES = ("albedo", "normal", "depth", "position")
 REFERENCE_CHUNK = _render.DEFAULT_REFERENCE_CHUNK
 GBUFFER_SPP = _render.DEFAULT_FEATURE_SPP
-GBUFFERS = ("psr", "psr-glossy", "matched", "supersampled")
 #: the PSR G-buffers and the roughness below which glossy surfaces get their reflection's normal
 #: (0: the rule off)
 PSR_GLOSSY_ALPHA = {"psr": 0.0, "psr-glossy": _psr.GLOSSY_ALPHA}
@@ -112,7 +112,8 @@ def _sequence_scene(name: str, description: str, **kw: Any):
     def wrap(geometry: Callable[[Any], dict]) -> Callable[[Any], dict]:
         sc = SequenceScene(name=name, kind="sequence", description=description,
                            build=lambda mi, res, _n=name: _scenes.get(_n).frame_dict(mi, res, 0),
-                           provides=SEQUENCE_BUFFERS, geometry=geometry, **kw)
+                           provides=SEQUENCE_BUFFERS, geometry=geometry,
+                           declared=(GBUFFER_PARAM,), variant=gbuffer_variant, **kw)
         register_scene(sc)
         return geometry
     return wrap
@@ -361,7 +362,7 @@ def _cached(cache: Cache, kind: str, desc: dict, render: Callable[[], dict[str, 
 def load_sequence(scene: str | SequenceScene, spp: int = 1, res=64,
                   needs: Iterable[str] | None = None, seed: int = 0, ref_spp: int | None = None,
                   cache: Cache | None = None, progress: bool = True,
-                  frames: int | None = None, gbuffer: str = "psr",
+                  frames: int | None = None, gbuffer: str | None = None,
                   ref_seed: int | None = None, transform: str = "box-cox",
                   lam: float = 0.5, gradient: str = "reshade") -> Sequence:
     """Render (or read from the cache) the first ``frames`` frames of a sequence scene.
@@ -376,8 +377,9 @@ def load_sequence(scene: str | SequenceScene, spp: int = 1, res=64,
         frames: how many frames from the start (default: the whole sequence).
         transform, lam: sample transform of the per-frame statistics (``stats`` in ``needs``;
             spec/statistical.md §3), Box-Cox by default as for steady images.
-        gbuffer: ``"psr"`` (default): the G-buffer and emission of the colour samples
-            themselves, seen through mirrors and glass (primary surface replacement,
+        gbuffer: None (default): the scene's ``gbuffer`` parameter (``--scene-param
+            gbuffer=…``; "psr" unless set). ``"psr"``: the G-buffer and emission of the colour
+            samples themselves, seen through mirrors and glass (primary surface replacement,
             :mod:`dbench.datasets.psr`); ``"psr-glossy"``: the same, and glossy surfaces with
             roughness < 0.4 get the normal of what their mirror direction sees (seed 001's
             reflected normal); ``"matched"``: the same samples' plain AOVs (the
@@ -408,6 +410,12 @@ def load_sequence(scene: str | SequenceScene, spp: int = 1, res=64,
         raise DbenchInputError(f"frames: expected an integer in [1, {sc.n_frames}], got {frames!r}")
     if gradient not in GRADIENTS:
         raise DbenchInputError(f"gradient: expected one of {GRADIENTS}, got {gradient!r}")
+    declared = sc.params.get("gbuffer", GBUFFER_PARAM.default)
+    if gbuffer is None:
+        gbuffer = declared
+    elif gbuffer != declared and declared != GBUFFER_PARAM.default:
+        raise DbenchInputError(f"gbuffer: {gbuffer!r} given, but scene {sc.name} was bound "
+                               f"with gbuffer={declared!r}; give one of them")
     if gbuffer not in GBUFFERS:
         raise DbenchInputError(f"gbuffer: expected one of {GBUFFERS}, got {gbuffer!r}")
     wanted = set(SEQUENCE_BUFFERS if needs is None else needs) | {"color"}
@@ -440,9 +448,14 @@ def load_sequence(scene: str | SequenceScene, spp: int = 1, res=64,
         meta.update(ref_spp=ref_spp, ref_seed=ref_seed, ref_render_s=0.0)
     ref_vars: list[np.ndarray] = []
 
+    # the G-buffer choice is keyed by ``psr`` in the frames' entries only: references, emitter
+    # buffers and gradient samples do not depend on it, and are shared
+    data_params = {k: v for k, v in sc.params.items() if k != GBUFFER_PARAM.name}
+
     def base(i: int, what: str, **extra) -> dict:
         return {"scene": sc.name, "res": res.key, "frame": i, "what": what,
-                "dict": sc.frame_dict(mi, res, i), "params": sc.params, "versions": vers, **extra}
+                "dict": sc.frame_dict(mi, res, i), "params": data_params, "versions": vers,
+                **extra}
 
     out: list[Frame] = []
     prev_camera, prev_noisy = None, None

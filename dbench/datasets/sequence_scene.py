@@ -4,6 +4,7 @@ frame) and its camera geometry (spec/mitsuba.md §9, spec/temporal.md §3.1): Mi
 :mod:`dbench.datasets.sequence`."""
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from typing import Any, Callable
@@ -12,11 +13,27 @@ import numpy as np
 
 from ..resolution import parse_res
 from .scene import Scene
+from .scene_params import Param, non_default
 from .scene_parts import _camera
 
 SEQUENCE_BUFFERS = frozenset({"color", "albedo", "normal", "depth", "position", "motion",
                               "gradient", "emission", "emitter", "stats", "reference"})
 FOV = 39.3
+#: the G-buffers :func:`dbench.datasets.sequence.load_sequence` can attach to the colour
+GBUFFERS = ("psr", "psr-glossy", "matched", "supersampled")
+#: ``--scene-param gbuffer=…`` of every catalogue sequence: which G-buffer the frames carry
+#: (a data choice, so part of the scene's identity through ``Scene.params``)
+GBUFFER_PARAM = Param("gbuffer", "psr", doc="G-buffer", choices=GBUFFERS)
+
+
+def gbuffer_variant(base: "SequenceScene", values: dict[str, Any]) -> "SequenceScene":
+    """The sequence scene of a checked ``--scene-param`` set (dbench.datasets.scene_params.bind):
+    the same frames, with ``params`` naming the G-buffer :func:`load_sequence` attaches."""
+    changed = non_default(base, values)
+    return dataclasses.replace(
+        base, params=dict(values), declared=(), variant=None,
+        description=f"{base.description} [" + ", ".join(f"{k}={v}" for k, v in changed.items())
+        + "]")
 
 
 @dataclass(frozen=True, eq=False)

@@ -206,3 +206,38 @@ def test_sequences_offer_the_glossy_rule_as_a_gbuffer(renderer, tmp_path):
     assert 0 < changed.mean() < 0.5  # the glossy sphere's pixels, not the diffuse room
     # rendered, not read from the default G-buffer's cache entries
     assert {"frame0", "frame1"} <= set(glossy.meta["rendered"])
+
+
+def test_the_gbuffer_is_a_scene_parameter_of_every_sequence(renderer, tmp_path):
+    """``--scene-param gbuffer=psr-glossy`` (what `dbench run` and `sweep` pass): a scene of its
+    own identity whose frames carry the glossy rule's normals, sharing the references and
+    emitter buffers of the default G-buffer; a bad value or a second, different choice is
+    refused naming the parameter."""
+    from dbench import datasets
+    from dbench.datasets.cache import Cache
+    from dbench.datasets.sequence import load_sequence
+    from dbench.errors import DbenchInputError
+
+    for name in ("orbit", "flicker", "mirror-pan"):
+        assert [p.name for p in datasets.get_scene(name).declared] == ["gbuffer"]
+    orbit = datasets.get_scene("orbit")
+    bound = datasets.get_scene("orbit", {"gbuffer": "psr-glossy"})
+    assert bound.params == {"gbuffer": "psr-glossy"} and bound.name == "orbit"
+    assert datasets.get_scene("orbit", {"gbuffer": "psr"}) is orbit
+    assert datasets.scene_fingerprint(bound, 24) != datasets.scene_fingerprint(orbit, 24)
+    with pytest.raises(DbenchInputError, match="gbuffer.*psr\\|psr-glossy"):
+        datasets.get_scene("orbit", {"gbuffer": "shiny"})
+    cache = Cache(tmp_path)
+    kw = dict(spp=1, res=24, seed=0, frames=2, cache=cache, progress=False, ref_spp=4,
+              needs={"color", "normal", "reference"})
+    direct = load_sequence(orbit, gbuffer="psr-glossy", **kw)
+    via = datasets.load(bound, **kw)
+    assert via.meta["gbuffer"] == "psr-glossy"
+    for a, b in zip(direct, via):
+        np.testing.assert_array_equal(a.normal, b.normal)
+        np.testing.assert_array_equal(a.reference, b.reference)
+    assert "reference0" in direct.meta["rendered"]
+    # the same frames, references and emitter buffers: nothing rendered twice
+    assert via.meta["rendered"] == [] and "reference0" in via.meta["cache_hits"]
+    with pytest.raises(DbenchInputError, match="gbuffer"):
+        load_sequence(bound, gbuffer="psr", **kw)
