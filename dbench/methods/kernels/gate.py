@@ -175,17 +175,14 @@ def _blur_rows(color, den, var, x, box_cox_half, fix, g, g2, bd, bv, sums, pool
         y = np.int64(row)
         pd = np.zeros(wc + 2 * c, np.float64)
         pv = np.zeros(wc + 2 * c, np.float64)
-        lin = np.empty(wc, np.float64)
         for i in range(wc):
             a, d, v = _inputs(color, den, var, x, box_cox_half, fix, y, i)
             pd[i + c] = d - a
-            lin[i] = v
-        if pool > 0:
+            pv[i + c] = v
+        if pool > 0:  # floor_row reads the row's variance whole, then it is replaced
             floored = np.empty(wc, np.float64)
-            floor_row(lin, sums[y], y, h, pool, 3, floored)
-            lin = floored
-        for i in range(wc):
-            pv[i + c] = lin[i]
+            floor_row(pv[c:c + wc], sums[y], y, h, pool, 3, floored)
+            pv[c:c + wc] = floored
         oa, ob = bd[y], bv[y]
         for i in range(wc):
             oa[i] = g[r] * pd[i + c]

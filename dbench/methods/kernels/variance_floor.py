@@ -33,14 +33,10 @@ from typing import Any
 import numpy as np
 from numba import njit, prange
 
+from ..checks import check_radius
+
 #: Radius of the window: the gate's 11×11 Gaussian footprint (kernels/gate.py GATE_TAPS).
 POOL_RADIUS = 5
-
-
-def _check_radius(radius: Any) -> int:
-    if isinstance(radius, bool) or not isinstance(radius, (int, np.integer)) or radius < 0:
-        raise ValueError(f"radius: expected an integer >= 0, got {radius!r}")
-    return int(radius)
 
 
 def floored_variance(var: Any, radius: int = POOL_RADIUS) -> np.ndarray:
@@ -55,7 +51,7 @@ def floored_variance(var: Any, radius: int = POOL_RADIUS) -> np.ndarray:
     from scipy.ndimage import uniform_filter
 
     var = np.asarray(var, np.float64)
-    r = _check_radius(radius)
+    r = check_radius(radius)
     if r == 0:
         return var.copy()
     size = (2 * r + 1, 2 * r + 1, 1)
