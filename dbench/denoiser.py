@@ -33,8 +33,8 @@ class Denoiser:
             (its docstring says what changes); loaded wherever the scene provides them.
         defaults: parameter defaults; ``get(name, **params)`` overrides them.
         keeps_emitters: True when ``denoise`` already hands the lights of the ``emitter`` buffer
-            back to the input (:func:`dbench.methods.kernels.emitters.keep_emitters`), so that a wrapper
-            such as ``NAME+gate`` does not apply the rule a second time.
+            back to the input (:func:`dbench.methods.kernels.emitters.keep_emitters`), so that
+            a wrapper such as ``NAME+gate`` does not apply the rule a second time.
 
     Sequence methods keep state: call ``reset()`` and then ``denoise(frame)`` per frame in order.
     ``denoise`` returns float32 with the shape of ``data.color``, finite wherever it is finite.

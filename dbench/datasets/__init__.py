@@ -2,10 +2,11 @@
 
 Steady buffers: ``color`` and ``stats`` (the noisy samples, seed ``seed``), ``albedo``,
 ``normal``, ``depth``, ``position`` and ``emitter`` (one cached feature render at max(64, spp)
-spp, box filter), ``reference`` with ``reference_var`` (the variance of the reference mean from K ≥ 16
-independent chunks; seed ``ref_seed``, independent of ``seed`` so that N noisy seeds share one
-reference). Whenever ``reference`` is loaded, ``emitter`` comes with it (the judge separates
-lights seen directly or in smooth mirrors from surfaces). :func:`scene_fingerprint` names a scene's content.
+spp, box filter), ``reference`` with ``reference_var`` (the variance of the reference mean from
+K ≥ 16 independent chunks; seed ``ref_seed``, independent of ``seed`` so that N noisy seeds
+share one reference). Whenever ``reference`` is loaded, ``emitter`` comes with it (the judge
+separates lights seen directly or in smooth mirrors from surfaces). :func:`scene_fingerprint`
+names a scene's content.
 
 Example:
     >>> from dbench import datasets

@@ -9,8 +9,9 @@ emitter with radiance > 0 in that direction; otherwise 0. A light seen in a mirr
 as one seen directly (the reflection is deterministic; only its edge carries coverage noise):
 on ``mirrors`` at 256², 1024 spp, the lamp's reflection in the back mirror held 74 % of the
 noisy input's squared error in excess in ``oidn+gate``'s output before it counted here. Glass
-and smooth plastic choose their lobe at random, so the chain stops at them. Rendered with a box filter, the pixel value is the share of the
-pixel's footprint covered by emitters, in [0, 1] (multiples of 1/spp). Unlike an albedo test
+and smooth plastic choose their lobe at random, so the chain stops at them. Rendered with a box
+filter, the pixel value is the share of the pixel's footprint covered by emitters, in [0, 1]
+(multiples of 1/spp). Unlike an albedo test
 it does not rely on the catalogue's "lights have a black BSDF" convention, and a light that is
 switched off (radiance 0) does not count.
 
@@ -138,5 +139,5 @@ def render_emitter_dict(d: dict, spp: int, seed: int, optimize: bool = True) -> 
     return render_emitter_scene(mi.load_dict(d, optimize=optimize), spp, seed)
 
 
-__all__ = ["EMITTER_VERSION", "INTEGRATOR_NAME", "MIRROR_BOUNCES", "integrator", "register", "render_emitter_dict",
-           "render_emitter_scene"]
+__all__ = ["EMITTER_VERSION", "INTEGRATOR_NAME", "MIRROR_BOUNCES", "integrator", "register",
+           "render_emitter_dict", "render_emitter_scene"]

@@ -16,8 +16,9 @@ albedo …     (H, W, C)   albedo, sh_normal, depth, position of the *same* samp
                          the ``aov`` integrator with a nested ``path``; :func:`render_frame`)
 emission     (H, W, 3)   radiance emitted at those primary hits (nested ``path``, max_depth 1)
 emitter      (H, W, 1)   fraction of the footprint whose primary ray sees an emitter with
-                         radiance > 0 (64 spp, box filter, dbench/datasets/emitter.py; cached
-                         per frame, kind ``seq-emitter``); comes with ``reference``
+                         radiance > 0, directly or in smooth mirrors (64 spp, box filter,
+                         dbench/datasets/emitter.py; cached per frame, kind
+                         ``seq-emitter``); comes with ``reference``
 motion       (H, W, 2)   :func:`motion_vectors`: the world position seen by the previous camera
                          minus the same point seen by this frame's (no sub-pixel jitter)
 gradient     (H, W, 3)   lights of frame i, camera of frame i−1, seed of frame i−1 (spec/svgf.md
