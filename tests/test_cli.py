@@ -81,3 +81,27 @@ def test_run_all_methods_skips_those_that_do_not_apply(renderer, tmp_path, capsy
     printed = capsys.readouterr().out
     assert "skipping svgf: svgf works on ['sequence'], not on steady data" in printed
     assert "## Skipped" in (out / "report.md").read_text()
+
+
+def test_bench_times_a_method_at_the_spp_and_parameters_given(tmp_path, capsys):
+    """``dbench bench METHOD``: the synthetic frame's statistics have --spp samples, so nca
+    takes its step count for that spp; --param builds the method; the record says both."""
+    import json
+
+    from dbench.methods.nca import default_iterations
+
+    out = tmp_path / "bench.jsonl"
+    assert main(["bench", "nca", "--res", "24x16", "--spp", "4", "--repeats", "1",
+                 "--out", str(out)]) == 0
+    assert main(["bench", "nca", "--res", "24x16", "--param", "iterations=2", "--repeats", "1",
+                 "--out", str(out)]) == 0
+    first, second = [json.loads(line) for line in out.read_text().splitlines()]
+    assert first["spp"] == 4 and first["width"] == 24 and first["height"] == 16
+    assert first["fast_vs_reference"]["iterations"] == default_iterations(spp=4)
+    assert second["spp"] == 16 and second["params"]["iterations"] == 2
+    assert "4 spp" in capsys.readouterr().out
+    for bad in (["render", "--param", "iterations=2"], ["nca", "--spp", "0"],
+                ["nca", "--param", "bogus=1"]):
+        assert main(["bench", *bad, "--res", "8"]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith("dbench: ") and err.count("\n") == 1, err

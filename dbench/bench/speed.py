@@ -12,6 +12,7 @@
 from __future__ import annotations
 
 import importlib
+import inspect
 import json
 import statistics
 import time
@@ -67,13 +68,21 @@ def bench_render(scene: str = "cornell", res=256, spp: int = 64, repeats: int = 
             "machine": machine_info()["cpu"], "when": time.strftime("%Y-%m-%d %H:%M:%S")}
 
 
-def bench_method(name: str, height: int = 720, width: int = 1280, repeats: int = 3
+#: Samples per pixel of the synthetic frame a method is timed on (``dbench bench METHOD``).
+METHOD_SPP = 16
+
+
+def bench_method(name: str, height: int = 720, width: int = 1280, repeats: int = 3,
+                 spp: int = METHOD_SPP, params: dict[str, Any] | None = None
                  ) -> dict[str, Any]:
+    """A method's time per frame on a synthetic (height, width) frame whose statistics are of
+    ``spp`` samples (a method whose settings follow the spp, like ``nca``'s step count, takes
+    them from it), built with ``params``; OIDN timed in the same run."""
     from .. import methods
     from .stress import base_frame
 
-    frame = base_frame(height, width)
-    method = methods.get(name)
+    frame = base_frame(height, width, spp=spp)
+    method = methods.get(name, **(params or {}))
     if "steady" not in method.kinds and "sequence" in method.kinds:
         # A temporal method is timed per frame in steady state: zero motion (static camera) and
         # an unchanged-light gradient frame, so every call reprojects history, after the
@@ -105,7 +114,9 @@ def bench_method(name: str, height: int = 720, width: int = 1280, repeats: int =
     oidn = methods.get("oidn")
     t_oidn = median_time(lambda: oidn.denoise(frame), repeats)
     result: dict[str, Any] = {"benchmark": "method", "method": name, "height": height,
-                              "width": width, "params": method.params, "time_s": t_method,
+                              "width": width, "spp": spp, "params": method.params,
+                              "settings": dict(getattr(method, "last_settings", {}) or {}),
+                              "time_s": t_method,
                               "oidn_time_s": t_oidn, "ratio_vs_oidn": t_method / t_oidn,
                               "mpix_per_s": height * width / t_method / 1e6,
                               "machine": machine_info()["cpu"],
@@ -118,8 +129,10 @@ def bench_method(name: str, height: int = 720, width: int = 1280, repeats: int =
     except ModuleNotFoundError:
         extra = None
     if extra is not None and hasattr(extra, "benchmark"):
+        takes_spp = "spp" in inspect.signature(extra.benchmark).parameters
         result["fast_vs_reference"] = extra.benchmark(height=height, width=width,
-                                                      repeats=repeats)
+                                                      repeats=repeats,
+                                                      **({"spp": spp} if takes_spp else {}))
     return result
 
 
@@ -164,7 +177,8 @@ def format_result(result: dict[str, Any]) -> str:
                 f"({result['ratio_samples_vs_plain']:.2f}x plain)\n"
                 f"  samples + statistics   {result['samples_stats_s']:.3f} s "
                 f"({result['ratio_stats_vs_plain']:.2f}x plain)")
-    lines = [f"{result['method']} at {result['width']}x{result['height']}: "
+    lines = [f"{result['method']} at {result['width']}x{result['height']}"
+             f"{', %s spp' % result['spp'] if 'spp' in result else ''}: "
              f"{result['time_s'] * 1e3:.1f} ms ({result['mpix_per_s']:.2f} Mpix/s); "
              f"oidn {result['oidn_time_s'] * 1e3:.1f} ms; ratio {result['ratio_vs_oidn']:.2f}x oidn"]
     if "wrapped" in result:

@@ -126,6 +126,14 @@ def cmd_bench(args: argparse.Namespace) -> int:
     if args.res is not None:
         args.res = parse_res(args.res, "--res")
         args.width, args.height = args.res
+    if args.spp is not None and args.spp < 1:
+        raise DbenchInputError(f"--spp: expected an integer >= 1, got {args.spp}")
+    timed_method = args.what not in ("render", "scene-file", "plugins", "metrics")
+    if args.param and not timed_method:
+        raise DbenchInputError(f"--param: only a method's benchmark takes parameters, not "
+                               f"{args.what!r}")
+    if not timed_method:
+        args.spp = 64 if args.spp is None else args.spp
     if args.what == "render":
         result = speed.bench_render(scene=args.scene, res=args.res or parse_res(256),
                                     spp=args.spp,
@@ -144,8 +152,11 @@ def cmd_bench(args: argparse.Namespace) -> int:
         result = speed.bench_metrics(height=args.height, width=args.width,
                                      repeats=args.repeats)
     else:
+        params = parse_params(args.param or [], [args.what]).get(args.what, {})
         result = speed.bench_method(args.what, height=args.height, width=args.width,
-                                    repeats=args.repeats)
+                                    repeats=args.repeats,
+                                    spp=speed.METHOD_SPP if args.spp is None else args.spp,
+                                    params=params)
     print(speed.format_result(result))
     if args.out:
         speed.append_result(args.out, result)

@@ -137,7 +137,12 @@ def build_parser() -> argparse.ArgumentParser:
     bp.add_argument("--res", default=None, help="image size: N (N×N) or WIDTHxHEIGHT, "
                     "e.g. 1280x720 (render: default 256; methods, metrics: default --width "
                     "× --height)")
-    bp.add_argument("--spp", type=int, default=64)
+    bp.add_argument("--spp", type=int, default=None, help="samples per pixel: of the render "
+                    "(render, scene-file: default 64) or of the synthetic frame's statistics "
+                    "a method is timed on (default 16; a method whose settings follow the spp, "
+                    "like nca's steps, takes them from it)")
+    bp.add_argument("--param", action="append", metavar="KEY=VALUE",
+                    help="a parameter of the method timed (repeatable)")
     bp.add_argument("--height", type=int, default=720)
     bp.add_argument("--width", type=int, default=1280)
     bp.add_argument("--repeats", type=int, default=3)

@@ -94,8 +94,9 @@ def gate_output(color: np.ndarray, denoised: np.ndarray, stats: Any, *, alpha: f
     # [dbench] Fewer than 2 samples: the variance of the mean is unknown (SampleStats stores 0
     # there), not zero, so there is no evidence against the method's value: the gate stays
     # open (α). Read as a known zero it would return the noisy input at 1 spp.
-    unknown = np.asarray(stats.n) < 2
-    any_unknown = bool(np.any(unknown))
+    counts = np.asarray(stats.n)
+    any_unknown = counts.size > 0 and bool(counts.min() < 2)  # no (H, W, 3) mask when all ≥ 2
+    unknown = counts < 2 if any_unknown else None
     open_gate = None
     if backend == "reference" or any_unknown:
         hdr = np.where(np.isfinite(color), color, denoised)

@@ -11,13 +11,15 @@ Shapes: ``hdr``, ``den`` and ``var`` are (H, W, 3); ``var`` is the variance of t
 noisy mean (:func:`linear_variance` derives it from dbench's statistics). Zero-padded borders.
 
 * :func:`proden_gate` — the readable reference (SciPy 2-D correlation, float64).
-* :func:`proden_gate_fast` — the same numbers through two Numba passes: G is separable
-  (G = g gᵀ, G² = g² g²ᵀ) and G*(hdr + α(den − hdr)) − G*hdr = α G*(den − hdr), so two
-  separable blurs replace three 2-D ones, and Φ comes from a table (:func:`gate_table`).
-  Equal to the reference within 1e-6 · |den − hdr| (test).
+* :func:`proden_gate_fast` — the same numbers in one compiled pass over bands of rows: G is
+  separable (G = g gᵀ, G² = g² g²ᵀ) and G*(hdr + α(den − hdr)) − G*hdr = α G*(den − hdr), so
+  two separable blurs replace three 2-D ones; each band blurs its rows along x into a ring of
+  11 rows that the blur along y reads while it is in the cache, and Φ comes from a table
+  (:func:`gate_table`). Equal to the reference within 1e-6 · |den − hdr| (test), and the same
+  whatever the rows per band (test).
 * :func:`proden_gate_stats` — the same passes fed directly from a frame's colour, the method's
-  output and dbench's statistics (non-finite substitutions and the linear variance formed in
-  the first pass), which is what ``NAME+gate`` runs.
+  output and dbench's statistics (non-finite substitutions and the linear variance formed as
+  each row is read), which is what ``NAME+gate`` runs.
 * ``pool_radius`` r > 0 (all three; default 0, the spec's gate) [dbench]: the variance is first
   floored at its mean over the (2r + 1)² window (:mod:`~dbench.methods.kernels.variance_floor`,
   the reason there), which ``NAME+gate`` does with r = 5.
@@ -36,14 +38,18 @@ import math
 from typing import Any
 
 import numpy as np
-from numba import njit, prange
+from numba import get_num_threads, njit, prange
 
-from .variance_floor import column_sums, floor_row, floored_variance, linear_value
+from .variance_floor import advance_column_sums, floor_row, floored_variance, linear_value
 
 #: Defaults of spec §12.
 GATE_K = 2.0
 GATE_T0 = 4.2
 GATE_TAPS = 11
+#: The compiled passes' radius, a constant so that their tap loops are unrolled (the column
+#: pass is written out for it: :func:`_column_gate`).
+_RADIUS = GATE_TAPS // 2
+assert _RADIUS == 5, "_column_gate's two passes are written for 11 taps"
 
 
 def proden_gate_factor(t: Any, k: float = GATE_K, t0: float = GATE_T0) -> np.ndarray:
@@ -161,106 +167,149 @@ def _mean_variance(color, den, var, x, box_cox_half, fix):  # pragma: no cover -
     return sums.sum() / max(h * wc, 1)
 
 
-@njit(parallel=True, cache=True, fastmath=_FASTMATH)
-def _blur_rows(color, den, var, x, box_cox_half, fix, g, g2, bd, bv, sums, pool
-               ):  # pragma: no cover - compiled
-    """Zero-padded blur along x of interleaved (H, W·C) rows, C = 3 (a neighbour is 3 values
-    away): bd = g * (den − hdr), bv = g² * var, float64. The taps are symmetric, so each pair
-    g_j (f[i − 3j] + f[i + 3j]) is one pass over a zero-padded copy of the row. With ``pool``
-    r > 0, var is first floored from the window's column ``sums`` (:func:`floor_row`)."""
-    h, wc = color.shape
-    r = g.shape[0] // 2
+@njit(inline="always")
+def _row_blur(color, den, var, x, box_cox_half, fix, g, g2, pool, h, y, pd, pv, sums, inv_cols,
+              prefix, out_d, out_v):  # pragma: no cover - compiled
+    """Row y of the blur along x, zero-padded, of interleaved (W·C) values, C = 3 (a neighbour
+    is 3 values away): out_d = g * (den − hdr), out_v = g² * var, float64, from the zero-padded
+    copies ``pd`` and ``pv`` of the row; the taps are symmetric, so each pair adds
+    g_j (f[i − 3j] + f[i + 3j]). With ``pool`` r > 0, var is first floored from the window's
+    column ``sums`` (variance_floor.floor_row)."""
+    wc = out_d.shape[0]
+    r = _RADIUS  # a compile-time constant: the tap loop below is unrolled
     c = 3 * r
-    for row in prange(h):
-        y = np.int64(row)
-        pd = np.zeros(wc + 2 * c, np.float64)
-        pv = np.zeros(wc + 2 * c, np.float64)
-        for i in range(wc):
-            a, d, v = _inputs(color, den, var, x, box_cox_half, fix, y, i)
-            pd[i + c] = d - a
-            pv[i + c] = v
-        if pool > 0:  # floor_row reads the row's variance whole, then it is replaced
-            floored = np.empty(wc, np.float64)
-            floor_row(pv[c:c + wc], sums[y], y, h, pool, 3, floored)
-            pv[c:c + wc] = floored
-        oa, ob = bd[y], bv[y]
-        for i in range(wc):
-            oa[i] = g[r] * pd[i + c]
-            ob[i] = g2[r] * pv[i + c]
+    for i in range(wc):
+        a, d, v = _inputs(color, den, var, x, box_cox_half, fix, y, i)
+        pd[i + c] = d - a
+        pv[i + c] = v
+    if pool > 0:  # sums: the window's column sums of row y (advance_column_sums)
+        rows_in = min(y + pool, h - 1) - max(y - pool, 0) + 1
+        floor_row(pv[c:c + wc], sums, rows_in, pool, 3, inv_cols, prefix)
+    for i in range(wc):  # the sums stay in registers: one store per value, not r + 1
+        sd = g[r] * pd[i + c]
+        sv = g2[r] * pv[i + c]
         for j in range(1, r + 1):
-            gj, g2j, s = g[r + j], g2[r + j], 3 * j
-            for i in range(wc):
-                oa[i] += gj * (pd[i + c - s] + pd[i + c + s])
-                ob[i] += g2j * (pv[i + c - s] + pv[i + c + s])
+            sd += g[r + j] * (pd[i + c - 3 * j] + pd[i + c + 3 * j])
+            sv += g2[r + j] * (pv[i + c - 3 * j] + pv[i + c + 3 * j])
+        out_d[i] = sd
+        out_v[i] = sv
+
+
+@njit(inline="always")
+def _column_gate(ring_d, ring_v, color, den, fix, g, g2, alpha, table, scale, h, y, rd, rv,
+                 out_row):  # pragma: no cover - compiled
+    """Output row y: the blur along y of the x-blurred rows y − r … y + r held in the rings
+    (row yy in slot yy mod 2r + 1; rows outside the image read the rings' last row, kept at 0:
+    zero padding), then out = hdr + α Φ(−k(t − t0)) (den − hdr) with
+    t = α|G*(den − hdr)| / (√(G²*var) + 1e-6), Φ read from ``table``."""
+    wc = out_row.shape[0]
+    r = _RADIUS
+    taps = 2 * r + 1
+    last = table.shape[0] - 1
+    sl = np.empty(taps, np.int64)  # sl[r + j]: the ring row of image row y + j
+    for j in range(-r, r + 1):
+        sl[r + j] = (y + j) % taps if 0 <= y + j <= h - 1 else taps
+    # two passes of three taps each (r = 5: the centre and pairs 1-2, then pairs 3-5), so rd and
+    # rv are stored twice, not r + 1 times
+    a0, a1, a2, a3, a4 = (ring_d[sl[5]], ring_d[sl[4]], ring_d[sl[6]], ring_d[sl[3]],
+                          ring_d[sl[7]])
+    b0, b1, b2, b3, b4 = (ring_v[sl[5]], ring_v[sl[4]], ring_v[sl[6]], ring_v[sl[3]],
+                          ring_v[sl[7]])
+    for i in range(wc):
+        rd[i] = g[5] * a0[i] + g[6] * (a1[i] + a2[i]) + g[7] * (a3[i] + a4[i])
+        rv[i] = g2[5] * b0[i] + g2[6] * (b1[i] + b2[i]) + g2[7] * (b3[i] + b4[i])
+    a1, a2, a3, a4, a5, a6 = (ring_d[sl[2]], ring_d[sl[8]], ring_d[sl[1]], ring_d[sl[9]],
+                              ring_d[sl[0]], ring_d[sl[10]])
+    b1, b2, b3, b4, b5, b6 = (ring_v[sl[2]], ring_v[sl[8]], ring_v[sl[1]], ring_v[sl[9]],
+                              ring_v[sl[0]], ring_v[sl[10]])
+    # the second pass ends in t (into rd); the table reads that follow have a loop of their
+    # own, because a table read keeps a loop from being vectorised
+    for i in range(wc):
+        sd = rd[i] + g[8] * (a1[i] + a2[i]) + g[9] * (a3[i] + a4[i]) + g[10] * (a5[i] + a6[i])
+        sv = rv[i] + g2[8] * (b1[i] + b2[i]) + g2[9] * (b3[i] + b4[i]) + g2[10] * (b5[i] + b6[i])
+        rd[i] = min(alpha * abs(sd) / (math.sqrt(max(sv, 0.0)) + 1e-6) * scale, last - 1.0)
+    for i in range(wc):
+        u = rd[i]
+        m = int(u)
+        rd[i] = table[m] + (u - m) * (table[m + 1] - table[m])
+    for i in range(wc):
+        hv, dv = _pair(color, den, fix, y, i)
+        out_row[i] = hv + alpha * rd[i] * (dv - hv)
 
 
 @njit(parallel=True, cache=True, fastmath=_FASTMATH)
-def _blur_cols_gate(bd, bv, color, den, fix, g, g2, alpha, table, t_max, out):  # pragma: no cover
-    """Blur along y (zero padding), then out = hdr + α Φ(−k(t − t0)) (den − hdr) with
-    t = α|G*(den − hdr)| / (√(G²*var) + 1e-6), Φ read from ``table``; (H, W·C) rows."""
-    h, wc = bd.shape
-    r = g.shape[0] // 2
-    last = table.shape[0] - 1
-    scale = last / t_max
-    for row in prange(h):
-        y = np.int64(row)  # prange may hand out unsigned indices, and -y must stay negative
+def _gate_bands(color, den, var, x, box_cox_half, fix, g, g2, pool, alpha, table, t_max, band,
+                out):  # pragma: no cover - compiled
+    """The whole gate on interleaved (H, W·C) rows, one band of ``band`` output rows per task:
+    each band x-blurs its rows and r rows either side into rings of 2r + 1 rows, and emits an
+    output row as soon as the rows below it are blurred, so the blurred images never leave the
+    cache. Every row's sums run in the same order whatever the band (the floor's column sums
+    slide from fixed anchor rows: variance_floor.advance_column_sums), so the result does not
+    depend on ``band`` (test)."""
+    h, wc = color.shape
+    r = _RADIUS
+    taps = 2 * r + 1
+    scale = (table.shape[0] - 1) / t_max
+    w = wc // 3
+    inv_cols = np.empty(wc, np.float64)  # 1 / the floor window's columns inside the image
+    for i in range(wc):
+        xp = i // 3
+        inv_cols[i] = 1.0 / (min(xp + pool, w - 1) - max(xp - pool, 0) + 1)
+    n_bands = (h + band - 1) // band
+    for b in prange(n_bands):
+        y0 = np.int64(b) * band  # signed: prange may hand out unsigned indices
+        y1 = min(y0 + band, h)
+        ring_d = np.zeros((taps + 1, wc), np.float64)  # the last row stays 0 (padding)
+        ring_v = np.zeros((taps + 1, wc), np.float64)
+        pd = np.zeros(wc + 6 * r, np.float64)
+        pv = np.zeros(wc + 6 * r, np.float64)
+        sums = np.empty(wc, np.float64)
+        prefix = np.empty(wc + 3 * (2 * pool + 1), np.float64)
         rd = np.empty(wc, np.float64)
         rv = np.empty(wc, np.float64)
-        a0, b0 = bd[y], bv[y]
-        for i in range(wc):
-            rd[i] = g[r] * a0[i]
-            rv[i] = g2[r] * b0[i]
-        for j in range(1, r + 1):
-            gj, g2j = g[r + j], g2[r + j]
-            up, down = y - j >= 0, y + j <= h - 1
-            if up and down:
-                a1, a2, b1, b2 = bd[y - j], bd[y + j], bv[y - j], bv[y + j]
-                for i in range(wc):
-                    rd[i] += gj * (a1[i] + a2[i])
-                    rv[i] += g2j * (b1[i] + b2[i])
-            elif up or down:
-                a1, b1 = (bd[y - j], bv[y - j]) if up else (bd[y + j], bv[y + j])
-                for i in range(wc):
-                    rd[i] += gj * a1[i]
-                    rv[i] += g2j * b1[i]
-        o = out[y]
-        for i in range(wc):
-            u = min(alpha * abs(rd[i]) / (math.sqrt(max(rv[i], 0.0)) + 1e-6) * scale, last - 1.0)
-            m = int(u)
-            phi = table[m] + (u - m) * (table[m + 1] - table[m])
-            hv, dv = _pair(color, den, fix, y, i)
-            o[i] = hv + alpha * phi * (dv - hv)
+        top = min(y1 + r, h)  # rows [max(y0 − r, 0), top) are blurred along x
+        first = max(y0 - r, 0)
+        for yy in range(first, top):
+            if pool > 0:
+                advance_column_sums(var, x, box_cox_half, yy, yy == first, h, pool, sums)
+            _row_blur(color, den, var, x, box_cox_half, fix, g, g2, pool, h, yy, pd, pv, sums,
+                      inv_cols, prefix, ring_d[yy % taps], ring_v[yy % taps])
+            y = yy - r
+            if y >= y0:
+                _column_gate(ring_d, ring_v, color, den, fix, g, g2, alpha, table, scale, h, y,
+                             rd, rv, out[y])
+        for y in range(max(top - r, y0), y1):  # the image's last rows: nothing below them
+            _column_gate(ring_d, ring_v, color, den, fix, g, g2, alpha, table, scale, h, y,
+                         rd, rv, out[y])
+
+
+def _band_rows(h: int, r: int) -> int:
+    """Output rows per task: two tasks per thread (the halo of 2r blurred rows per band costs
+    2r / band extra), never fewer than 2r + 1 rows."""
+    return max(2 * r + 1, -(-h // (2 * get_num_threads())))
 
 
 def _gate_passes(color, den, var, x, box_cox_half: bool, fix: bool, alpha: float, k: float,
-                 t0: float, pool: int = 0) -> np.ndarray:
-    """The two compiled passes on (H, W, 3) arrays (see :func:`proden_gate_fast`), three with
-    the variance floor of radius ``pool`` (its column sums first)."""
+                 t0: float, pool: int = 0, band: int | None = None) -> np.ndarray:
+    """The compiled gate on (H, W, 3) arrays (see :func:`proden_gate_fast`): the mean variance
+    (σ_b), then one pass of bands (:func:`_gate_bands`), with the variance floor of radius
+    ``pool`` fused into it; ``band`` output rows per task (default :func:`_band_rows`)."""
     h, w, c = color.shape
     color = np.ascontiguousarray(color).reshape(h, w * c)
     den = np.ascontiguousarray(den, color.dtype).reshape(h, w * c)
-    var = np.ascontiguousarray(var, np.float64).reshape(h, w * c)
+    var = np.ascontiguousarray(var).reshape(h, w * c)
     x = color if x is None else np.ascontiguousarray(x, color.dtype).reshape(h, w * c)
     g = gate_taps(sigma_from_mean(_mean_variance(color, den, var, x, box_cox_half, fix)))
-    bd = np.empty((h, w * c), np.float64)
-    bv = np.empty((h, w * c), np.float64)
-    if pool:
-        # the column sums live in bd: row y of _blur_rows reads only sums[y], and reads it
-        # whole before it writes bd[y], so no second (H, W·C) array is needed
-        sums = bd
-        column_sums(var, x, box_cox_half, int(pool), sums)
-    else:
-        sums = np.zeros((1, 1), np.float64)
-    _blur_rows(color, den, var, x, box_cox_half, fix, g, g * g, bd, bv, sums, int(pool))
     out = np.empty((h, w * c), np.float32)
-    _blur_cols_gate(bd, bv, color, den, fix, g, g * g, float(alpha), gate_table(k, t0),
-                    LUT_T_MAX, out)
+    band = _band_rows(h, len(g) // 2) if band is None else int(band)
+    _gate_bands(color, den, var, x, box_cox_half, fix, g, g * g, int(pool), float(alpha),
+                gate_table(k, t0), LUT_T_MAX, band, out)
     return out.reshape(h, w, c)
 
 
 def proden_gate_fast(hdr: Any, den: Any, var: Any, *, alpha: float = 1.0, k: float = GATE_K,
                      t0: float = GATE_T0, pool_radius: int = 0) -> np.ndarray:
-    """:func:`proden_gate` through two compiled passes over the interleaved rows (separable
+    """:func:`proden_gate` through one compiled pass over bands of interleaved rows (separable
     blurs with float64 sums, the gate factor from :func:`gate_table`); (H, W, 3) float32. Equal
     to the reference within float32 rounding (tests: 1e-6 relative)."""
     hdr = np.ascontiguousarray(hdr)
@@ -271,12 +320,12 @@ def proden_gate_stats(color: Any, den: Any, stats: Any, *, alpha: float = 1.0,
                       k: float = GATE_K, t0: float = GATE_T0, pool_radius: int = 0
                       ) -> np.ndarray:
     """The gate of a method output ``den`` on a noisy ``color`` with dbench's ``stats``, in the
-    same two passes: non-finite noisy values take the method's and non-finite method values the
-    noisy ones, and the linear variance (:func:`linear_variance`) is formed inside the first
-    pass for the identity transform and Box-Cox ½ (any other transform is prepared by
+    same compiled pass: non-finite noisy values take the method's and non-finite method values
+    the noisy ones, and the linear variance (:func:`linear_variance`) is formed as each row is
+    read for the identity transform and Box-Cox ½ (any other transform is prepared by
     :func:`linear_variance` first). Equal to ``proden_gate_fast(hdr, den',
     linear_variance(stats, color), pool_radius=r)`` with those substitutions (tests); with
-    ``pool_radius`` r > 0 one more pass sums the floor's columns first
+    ``pool_radius`` r > 0 the variance is floored inside the pass
     (:mod:`~dbench.methods.kernels.variance_floor`); (H, W, 3) float32."""
     color = np.ascontiguousarray(color)
     shape = color.shape

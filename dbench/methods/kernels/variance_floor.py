@@ -13,10 +13,11 @@ is too low, and as the spp grow both vanish, so the gate still converges to the 
 r = 5 is the gate's own 11×11 footprint.
 
 * :func:`floored_variance` — the readable reference (SciPy box filters, float64).
-* :func:`column_sums` and :func:`floor_row` — the compiled form, fused into the gate's passes
-  (:func:`dbench.methods.kernels.gate.proden_gate_stats`): one pass sums each column's window,
-  and the gate's row pass completes the sums along x and takes the maximum, so the floored
-  variance is never stored (tests: the pooled fast gate equals the reference within 1e-6).
+* :func:`advance_column_sums` and :func:`floor_row` — the compiled form, fused into the gate's
+  band pass (:func:`dbench.methods.kernels.gate.proden_gate_stats`): the window's column sums
+  slide down the rows, and each row completes them along x from a prefix sum and takes the
+  maximum, so the floored variance is never stored (tests: the pooled fast gate equals the
+  reference within 1e-6, whatever the rows per task).
 
 A kernel imports no method and nothing of the harness.
 
@@ -31,7 +32,7 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from ..checks import check_radius
 
@@ -64,49 +65,80 @@ def floored_variance(var: Any, radius: int = POOL_RADIUS) -> np.ndarray:
 def linear_value(var, x, box_cox_half, y, i):  # pragma: no cover - compiled
     """The linear variance of one value: ``var`` or, for Box-Cox ½ statistics, var · max(x, 0)
     (x the noisy colour); 0 where it is not finite (kernels/gate.py linear_variance)."""
-    v = var[y, i]
+    v = np.float64(var[y, i])
     if box_cox_half:
         xx = np.float64(x[y, i])
         v = v * (max(xx, 0.0) if np.isfinite(xx) else 0.0)
     return v if np.isfinite(v) else 0.0
 
 
-@njit(parallel=True, cache=True)
-def column_sums(var, x, box_cox_half, r, out):  # pragma: no cover - compiled
-    """out[y, i] = Σ lin[y + j, i] over |j| ≤ r inside the image, (H, W·C) float64: the first
-    half of the window sum, which the gate's row pass completes along x
-    (:mod:`dbench.methods.kernels.gate`), so the floored variance is never stored."""
-    h, wc = var.shape
-    for row in prange(h):
-        y = np.int64(row)
-        o = out[y]
+@njit(inline="always")
+def window_column_sums(var, x, box_cox_half, y, h, r, out):  # pragma: no cover - compiled
+    """out[i] = Σ lin[yy, i] over the rows yy of [y − r, y + r] inside the image, (W·C,)
+    float64, in row order: the first half of row y's window sums, which :func:`floor_row`
+    completes along x."""
+    wc = out.shape[0]
+    for i in range(wc):
+        out[i] = 0.0
+    for yy in range(max(y - r, 0), min(y + r, h - 1) + 1):
         for i in range(wc):
-            o[i] = 0.0
-        for yy in range(max(y - r, 0), min(y + r, h - 1) + 1):
-            for i in range(wc):
-                o[i] += linear_value(var, x, box_cox_half, yy, i)
+            out[i] += linear_value(var, x, box_cox_half, yy, i)
+
+
+#: Rows between fresh column sums in :func:`advance_column_sums`.
+SUM_ANCHOR = 32
 
 
 @njit(inline="always")
-def floor_row(lin_row, sums_row, y, h, r, c, out_row):  # pragma: no cover - compiled
-    """One row of the floor from :func:`column_sums`: out = max(lin, Σ over |k| ≤ r columns of
-    the column sums / the window's pixel count inside the image)."""
+def _slide_column_sums(var, x, box_cox_half, y, h, r, sums):  # pragma: no cover - compiled
+    """Row y − 1's window column sums -> row y's: add row y + r, remove row y − r − 1."""
+    wc = sums.shape[0]
+    if y + r <= h - 1:
+        for i in range(wc):
+            sums[i] += linear_value(var, x, box_cox_half, y + r, i)
+    if y - r - 1 >= 0:
+        for i in range(wc):
+            sums[i] -= linear_value(var, x, box_cox_half, y - r - 1, i)
+
+
+@njit(inline="always")
+def advance_column_sums(var, x, box_cox_half, y, fresh, h, r, sums):  # pragma: no cover
+    """Row y's window column sums (:func:`window_column_sums`) in ``sums``, which holds row
+    y − 1's unless ``fresh``: the sums slide by one row (2 values read, not 2r + 1), and are
+    summed afresh at every SUM_ANCHOR-th row, then slid from there. A row's sums are therefore
+    the same operations whichever row a task starts at (deterministic whatever the threads),
+    and a slide's rounding is carried over at most SUM_ANCHOR − 1 rows: relative to the
+    window's sum, under SUM_ANCHOR ulp of the largest value that passed through it."""
+    if fresh or y % SUM_ANCHOR == 0:
+        start = y - y % SUM_ANCHOR
+        window_column_sums(var, x, box_cox_half, start, h, r, sums)
+        for z in range(start + 1, y + 1):
+            _slide_column_sums(var, x, box_cox_half, z, h, r, sums)
+    else:
+        _slide_column_sums(var, x, box_cox_half, y, h, r, sums)
+
+
+@njit(inline="always")
+def floor_row(lin_row, sums_row, rows_in, r, c, inv_cols, prefix):  # pragma: no cover
+    """One row of the floor, in place: lin = max(lin, Σ over the |k| ≤ r columns of
+    :func:`window_column_sums` / the window's pixel count inside the image), (W·C,) values of C
+    interleaved channels. The x-sums are differences of a running prefix sum of the row padded
+    with r zero columns either side (``prefix``: (W + 2r + 1)·C scratch), and ``inv_cols``
+    (W·C,) holds 1 / the window's column count inside the image, so each value costs O(1)
+    whatever r, and the last loop has no bounds to clamp (it is vectorised)."""
     wc = sums_row.shape[0]
-    w = wc // c
+    pad = r * c
+    for k in range(pad + c):  # prefix[k] = Σ of the padded row's values k − C, k − 2C, … ≥ 0
+        prefix[k] = 0.0
     for i in range(wc):
-        out_row[i] = sums_row[i]
-    for k in range(1, r + 1):
-        s = k * c
-        for i in range(s, wc):
-            out_row[i] += sums_row[i - s]
-        for i in range(wc - s):
-            out_row[i] += sums_row[i + s]
-    rows_in = min(y + r, h - 1) - max(y - r, 0) + 1
-    for xp in range(w):
-        n = rows_in * (min(xp + r, w - 1) - max(xp - r, 0) + 1)
-        for ch in range(c):
-            i = xp * c + ch
-            out_row[i] = max(lin_row[i], out_row[i] / n)
+        prefix[pad + c + i] = prefix[pad + i] + sums_row[i]
+    for k in range(wc + pad + c, wc + 2 * pad + c):
+        prefix[k] = prefix[k - c]
+    inv_rows = 1.0 / rows_in
+    span = 2 * pad + c  # the window: values i − rC … i + rC of the row are padded i … i + 2rC
+    for i in range(wc):
+        lin_row[i] = max(lin_row[i], (prefix[i + span] - prefix[i]) * (inv_rows * inv_cols[i]))
 
 
-__all__ = ["POOL_RADIUS", "column_sums", "floor_row", "floored_variance", "linear_value"]
+__all__ = ["POOL_RADIUS", "SUM_ANCHOR", "advance_column_sums", "floor_row", "floored_variance",
+           "linear_value", "window_column_sums"]
