@@ -105,3 +105,31 @@ def test_bench_times_a_method_at_the_spp_and_parameters_given(tmp_path, capsys):
         assert main(["bench", *bad, "--res", "8"]) == 2
         err = capsys.readouterr().err
         assert err.startswith("dbench: ") and err.count("\n") == 1, err
+
+
+def test_bench_frame_says_its_spp_to_the_method():
+    """The timed method sees a frame of --spp samples as a rendered one: statistics of that
+    count and meta["spp"] (which nca's step count and noise gate read), with its parameters."""
+    from dbench.bench.speed import bench_method
+    from dbench.denoiser import _REGISTRY, Denoiser, register
+    from dbench.methods.kernels.hdr_input import frame_spp
+
+    seen = []
+
+    @register("test-bench-spp")
+    class Probe(Denoiser):
+        kinds = {"steady"}
+        needs = {"color"}
+        defaults = {"scale": 1.0}
+
+        def denoise(self, data):
+            seen.append((frame_spp(data), float(data.stats.n.min()), self.params["scale"]))
+            return data.color * self.params["scale"]
+
+    try:
+        result = bench_method("test-bench-spp", height=8, width=12, repeats=1, spp=4,
+                              params={"scale": 0.5})
+    finally:
+        _REGISTRY.pop("test-bench-spp", None)
+    assert seen and set(seen) == {(4.0, 4.0, 0.5)}
+    assert result["spp"] == 4 and result["params"]["scale"] == 0.5

@@ -81,7 +81,8 @@ def bench_method(name: str, height: int = 720, width: int = 1280, repeats: int =
     from .. import methods
     from .stress import base_frame
 
-    frame = base_frame(height, width, spp=spp)
+    # the frame says its spp as a rendered frame does (meta), for methods that follow it
+    frame = base_frame(height, width, spp=spp).with_buffers(meta={"spp": spp})
     method = methods.get(name, **(params or {}))
     if "steady" not in method.kinds and "sequence" in method.kinds:
         # A temporal method is timed per frame in steady state: zero motion (static camera) and
