@@ -371,3 +371,44 @@ def test_fused_numba_frame_equals_reference_over_a_hard_sequence():
         np.testing.assert_array_equal(a.last["status"], b.last["status"])
         np.testing.assert_allclose(a.last["n"], b.last["n"], rtol=1e-6)
         np.testing.assert_allclose(a.last["variance"], b.last["variance"], rtol=1e-5, atol=1e-6)
+
+
+def test_history_reuses_its_arrays_without_overwriting_what_it_still_needs():
+    """History hands out reused arrays (no page faults of fresh ones per frame): staging never
+    returns the stored history, the two staging arrays alternate, fetch writes into one array
+    each frame, and storing a view of that array keeps a copy (the next fetch overwrites it)."""
+    h, w = 5, 7
+    geo = T.Geometry.flat(h, w, motion=(0.0, 0.0))
+    hist = T.History(backend="numba")
+    first = hist.staging(3, h, w)
+    first[:] = 1.0
+    hist.store(geo, first, finite=True)
+    second = hist.staging(3, h, w)
+    assert not np.shares_memory(second, first)
+    fetched, status = hist.fetch(geo, 3)
+    np.testing.assert_array_equal(fetched, 1.0)
+    second[:] = 2.0
+    hist.store(geo, second, finite=True)
+    assert hist.staging(3, h, w) is first  # the arrays alternate
+    again, _ = hist.fetch(geo, 3)
+    assert again is fetched and (again == 2.0).all()
+    hist.store(geo, again[0:3], finite=True)  # a view of the fetched array: kept as a copy
+    assert not np.shares_memory(hist.buffers, again)
+    again[:] = -1.0
+    np.testing.assert_array_equal(hist.fetch(geo, 3)[0], 2.0)
+
+
+def test_kernels_write_into_given_arrays_or_refuse_them():
+    rng = np.random.default_rng(9)
+    sample = rng.random((3, 4, 6)).astype(np.float32)
+    history = rng.random((3, 4, 6)).astype(np.float32)
+    n_hist = np.full((4, 6), 3.0, np.float32)
+    ok = np.ones((4, 6), bool)
+    plane = np.empty((4, 4, 6), np.float32)
+    acc, n, _ = T.accumulate_fast(sample, history, n_hist, ok, out=(plane[0:3], plane[3]))
+    assert np.shares_memory(acc, plane) and np.shares_memory(n, plane)
+    ref, n_ref, _ = T.accumulate(sample, history, n_hist, ok)
+    np.testing.assert_allclose(plane[0:3], ref, rtol=1e-6)
+    np.testing.assert_array_equal(plane[3], n_ref)
+    with pytest.raises(ValueError, match="out"):
+        T.accumulate_fast(sample, history, n_hist, ok, out=(np.empty((3, 4, 6)), None))

@@ -78,8 +78,10 @@ class Accumulate(T.HistoryDenoiser):
         geo = T.frame_geometry(data)
         if self.backend == "numba" and _fast.numba is not None:
             hist, status = self.history.fetch(geo, 6)
+            h, w = color.shape[:2]
             stored, out, variance = _fast.accumulate_frame(
-                color, hist, status > 0, self.params["alpha_min"], self.params["n_max"])
+                color, hist, status > 0, self.params["alpha_min"], self.params["n_max"],
+                out_hist=self.history.staging(6, h, w))
             # finite by construction: colours are clamped to ±1e15, so l² ≤ 1e30 in float32
             self.history.store(geo, stored, valid=stored[5] > 0, finite=True)
             self.last = {"variance": variance, "n": stored[5], "status": status}

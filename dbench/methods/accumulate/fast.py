@@ -54,7 +54,8 @@ _kernel_nb = (numba.njit(parallel=True, cache=True, fastmath=False)(_kernel)
 
 
 def accumulate_frame(color: np.ndarray, hist: np.ndarray, ok: np.ndarray, alpha_min: float,
-                     n_max: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                     n_max: float, out_hist: np.ndarray | None = None
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """One frame of ``accumulate``.
 
     Args:
@@ -62,12 +63,18 @@ def accumulate_frame(color: np.ndarray, hist: np.ndarray, ok: np.ndarray, alpha_
         hist: (6, H, W) float32 reprojected history: colour (3), moments [l, l²] (2), N.
         ok: (H, W) bool, reprojection succeeded.
         alpha_min, n_max: α = max(alpha_min, 1/N), N = min(N← + 1, n_max).
+        out_hist: an optional (6, H, W) float32 C-contiguous array to write the history into
+            (a reused one: :meth:`~dbench.methods.temporal.History.staging`), not ``hist``.
     Returns:
         (history (6, H, W) float32 to store, output (H, W, 3) float32, variance (H, W) float32).
     """
     color = np.ascontiguousarray(color, np.float32)
     h, w = color.shape[:2]
-    out_hist = np.empty((6, h, w), np.float32)
+    if out_hist is None:
+        out_hist = np.empty((6, h, w), np.float32)
+    elif (out_hist.shape != (6, h, w) or out_hist.dtype != np.float32
+          or not out_hist.flags.c_contiguous):
+        raise ValueError(f"out_hist: expected a C-contiguous float32 array of shape (6, {h}, {w})")
     out_img = np.empty((h, w, 3), np.float32)
     variance = np.empty((h, w), np.float32)
     _kernel_nb(color, np.ascontiguousarray(hist, np.float32), np.ascontiguousarray(ok, np.bool_),

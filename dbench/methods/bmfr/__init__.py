@@ -166,10 +166,12 @@ class BMFR(T.HistoryDenoiser):
         ok = status > 0
         acc = partial(T.accumulate_any, be)
         n_hist, a1, a2, g = self._alphas(data, geo, hist[3], prep)
+        # this frame's history is written in place into a reused array (History.staging)
+        stage = self.history.staging(10, h, w)
         z_acc, n1, _ = acc(prep["illum"], hist[0:3], n_hist, ok, p["alpha1"], T.N_MAX, a1,
-                           present)
+                           present, out=(stage[0:3], stage[3]))
         acc_e = _accumulate_emission(be, prep, hist[7:10], n_hist, ok, p["alpha1"], T.N_MAX,
-                                     a1, present)
+                                     a1, present, out=stage[7:10])
         filled = n1 > 0
         recon = geo.hit & ~prep["emitter"]
         fit = recon & filled
@@ -193,9 +195,10 @@ class BMFR(T.HistoryDenoiser):
             y_fit, dropped = bmfr_fit_reference(z_acc, feats, scaled, fit, recon, *fit_args)
         # the second history length equals the first one (same reprojection, same resets)
         y_acc, n2, _ = acc(y_fit, hist[4:7], n_hist, ok, p["alpha2"], T.N_MAX, a2,
-                           filled | recon)
-        self.history.store(geo, np.concatenate([z_acc, n1[None], y_acc, acc_e]),
-                           valid=filled | recon, finite=True)
+                           filled | recon, out=(stage[4:7], None))
+        if not fast:  # the other backends return new arrays: gather them
+            stage = np.concatenate([z_acc, n1[None], y_acc, acc_e])
+        self.history.store(geo, stage, valid=filled | recon, finite=True)
         self.frame_index += 1
         self._prev_lum = prep["lum_raw"]
         self.last = {"gradient": g, "dropped": dropped, "offset": tuple(int(v) for v in offset), "n1": n1,

@@ -133,8 +133,7 @@ if HAVE_NUMBA:
             x0 = origins[b, 1]
             ya, yb = max(y0, 0), min(y0 + block, h)
             xa, xb = max(x0, 0), min(x0 + block, w)
-            lo = np.full(m_, np.inf)
-            hi = np.full(m_, -np.inf)
+            # the fit rows' pixels, then the raw feature columns (contiguous rows of M)
             rows = 0
             anyrec = False
             for y in range(ya, yb):
@@ -143,23 +142,9 @@ if HAVE_NUMBA:
                         anyrec = True
                     if fit[y, x]:
                         rows += 1
-                        for j in range(m_):
-                            if scaled[j]:
-                                f = _feat(src_a, src_b, kinds, axes, j, y, x)
-                                if f < lo[j]:
-                                    lo[j] = f
-                                if f > hi[j]:
-                                    hi[j] = f
             dropped[b] = 0
             if rows == 0 or not anyrec:
                 continue
-            scale = np.ones(m_)
-            shift = np.zeros(m_)
-            for j in range(m_):
-                if scaled[j]:
-                    shift[j] = lo[j]
-                    scale[j] = 1.0 / max(hi[j] - lo[j], 1.0)
-            # pixel list of the fit rows, then the matrix one column at a time (contiguous)
             py = np.empty(rows, np.int64)
             px = np.empty(rows, np.int64)
             r = 0
@@ -172,20 +157,40 @@ if HAVE_NUMBA:
             M = np.empty((m_ + c, rows), np.float64)
             for j in range(m_):
                 col = M[j]
-                sh, sc = shift[j], scale[j]
                 for r in range(rows):
-                    col[r] = (_feat(src_a, src_b, kinds, axes, j, py[r], px[r]) - sh) * sc
+                    col[r] = _feat(src_a, src_b, kinds, axes, j, py[r], px[r])
+            # per-block scaling of the scaled columns to [0, 1]: f' = (f − min) / max(range, 1),
+            # in place on the raw columns (the same numbers as scaling while reading them)
+            scale = np.ones(m_)
+            shift = np.zeros(m_)
+            for j in range(m_):
+                if scaled[j]:
+                    col = M[j]
+                    lo, hi = np.inf, -np.inf
+                    for r in range(rows):
+                        lo = min(lo, col[r])
+                        hi = max(hi, col[r])
+                    shift[j] = lo
+                    scale[j] = 1.0 / max(hi - lo, 1.0)
+                    sh, sc = shift[j], scale[j]
+                    for r in range(rows):
+                        col[r] = (col[r] - sh) * sc
             if noise_amount > 0:
                 amp = 2.0 * noise_amount
+                hashes = np.empty(rows, np.uint64)
                 for g in range((m_ + 2) // 4):  # columns 1 … m_−1, four per hash
                     for r in range(rows):
-                        hsh = _hash64_nb(seed, py[r] * w + px[r], g)
-                        for t in range(4):
-                            j = 4 * g + t
-                            if j >= 1 and j < m_:
-                                u = (np.float64((hsh >> np.uint64(16 * t)) & _MASK16) + 0.5) \
-                                    * (1.0 / 65536.0)
-                                M[j, r] += amp * (u - 0.5)
+                        hashes[r] = _hash64_nb(seed, py[r] * w + px[r], g)
+                    for t in range(4):  # one column at a time: branch-free, vectorised
+                        j = 4 * g + t
+                        if j < 1 or j >= m_:
+                            continue
+                        col = M[j]
+                        sh16 = np.uint64(16 * t)
+                        for r in range(rows):
+                            u = (np.float64((hashes[r] >> sh16) & _MASK16) + 0.5) \
+                                * (1.0 / 65536.0)
+                            col[r] += amp * (u - 0.5)
             for q in range(c):
                 col = M[m_ + q]
                 for r in range(rows):

@@ -117,11 +117,12 @@ def _positive(name: str, value: Any, allow_zero: bool = False) -> float:
 
 
 def _accumulate_emission(backend: str, prep: dict, history: np.ndarray, n_hist, ok, alpha_min,
-                         n_max, alpha, present) -> np.ndarray:
+                         n_max, alpha, present, out: np.ndarray | None = None) -> np.ndarray:
     """(3, H, W) float32 emission of the primary hits accumulated like the colour (the same
-    reprojection, history length and α); 0 where the pixel has no emission history."""
+    reprojection, history length and α); 0 where the pixel has no emission history. ``out``:
+    an optional (3, H, W) array for the compiled kernel to write into."""
     acc, _, _ = T.accumulate_any(backend, prep["emission"], history, n_hist, ok, alpha_min,
-                                 n_max, alpha, present)
+                                 n_max, alpha, present, out=None if out is None else (out, None))
     return acc
 
 
@@ -234,15 +235,21 @@ class _SVGFBase(T.HistoryDenoiser):
             # frames that lags behind view-dependent shading (results/temporal.md)
             alpha, alpha_m = (np.maximum(alpha, np.float32(p["alpha_min"])),
                               np.maximum(alpha, np.float32(p["alpha_min_moments"])))
+        # the compiled kernels write this frame's history planes in place into a reused array
+        # (History.staging); the other backends' new arrays are gathered at the end
+        fast = be == "numba"
+        stage = self.history.staging(10, h, w) if fast else None
         acc_c, n, a_used = T.accumulate_any(be, prep["illum"], hist[:3], hist_n, ok,
-                                            p["alpha_min"], n_max, alpha, present)
+                                            p["alpha_min"], n_max, alpha, present,
+                                            out=(None, stage[5]) if fast else None)
         acc_m, _, _ = T.accumulate_any(be, prep["moments"], hist[3:5], hist_n, ok,
-                                       p["alpha_min_moments"], n_max, alpha_m, present)
+                                       p["alpha_min_moments"], n_max, alpha_m, present,
+                                       out=(stage[3:5], None) if fast else None)
         # the emission of 1-spp primary hits is exact but aliased (a jittered sample sees the
         # lamp or not): accumulated with the colour's α it converges to the pixel's coverage,
         # as TAA would; adding the raw sample back made every lamp edge flicker
         acc_e = _accumulate_emission(be, prep, hist[7:10], hist_n, ok, p["alpha_min"], n_max,
-                                     alpha, present)
+                                     alpha, present, out=stage[7:10] if fast else None)
         filled = n > 0
 
         gx, gy = C.depth_gradient(geo.depth, geo.hit, backend=be)
@@ -275,9 +282,12 @@ class _SVGFBase(T.HistoryDenoiser):
                                 sigma_n=p["sigma_n"], sigma_l=p["sigma_l"], eps_var=p["eps_var"])
             if i == p["feedback_tap"]:
                 feedback = cur
-        self.history.store(geo, np.concatenate([feedback, acc_m, n[None], weight_sq[None], acc_e]),
-                           valid=filled,
-                           finite=True)
+        if fast:
+            stage[0:3] = feedback
+            stage[6] = weight_sq
+        else:
+            stage = np.concatenate([feedback, acc_m, n[None], weight_sq[None], acc_e])
+        self.history.store(geo, stage, valid=filled, finite=True)
         self._after(geo, prep)
         self.last = {"n": n, "alpha": a_used, "variance": var, "status": status,
                      "iterations": iterations, "weight_sq": weight_sq, **extras}

@@ -24,7 +24,8 @@ def resolve_backend(backend: str) -> str:
 
 def reproject(history: np.ndarray, cur: Geometry, prev: Geometry, prev_ok: np.ndarray,
               tau_d: float = TAU_D, tau_n: float = TAU_N, eps_f: float = EPS_F,
-              backend: str = "numba") -> tuple[np.ndarray, np.ndarray]:
+              backend: str = "numba", out: np.ndarray | None = None
+              ) -> tuple[np.ndarray, np.ndarray]:
     """Reproject the previous frame's ``history`` (C, H, W) into the current frame.
 
     ``backend``: one of :data:`BACKENDS` ("torch" runs :func:`reproject_torch` on CUDA when
@@ -34,6 +35,8 @@ def reproject(history: np.ndarray, cur: Geometry, prev: Geometry, prev_ok: np.nd
         history: (C, H, W) buffers of frame i−1 (colour, moments, history length, …).
         cur, prev: geometry of frames i and i−1; ``cur.motion`` gives p← (spec §3.1).
         prev_ok: (H, W) bool, which previous pixels may be read (hit, finite, not empty).
+        out: an optional (C, H, W) float32 array the compiled kernel writes into (and returns)
+            instead of a new one; the other backends ignore it.
     Returns:
         (reprojected (C, H, W) float32, status (H, W) uint8: 0 reset, 1 bilinear, 2 fallback).
     """
@@ -52,17 +55,20 @@ def reproject(history: np.ndarray, cur: Geometry, prev: Geometry, prev_ok: np.nd
     if backend == "reference" or numba is None:
         out, status = reproject_reference(*args)
         return out.astype(np.float32), status
-    return reproject_fast(*args)
+    return reproject_fast(*args, out=out)
 
 
 def accumulate_any(backend: str, sample, history, n_hist, ok, alpha_min=0.0, n_max=N_MAX,
-                   alpha=None, sample_ok=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                   alpha=None, sample_ok=None, out=None
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`accumulate` on the resolved ``backend`` ("numba": :func:`accumulate_fast`,
-    "torch": :func:`accumulate_torch`, "reference": :func:`accumulate`), NumPy float32 out."""
+    "torch": :func:`accumulate_torch`, "reference": :func:`accumulate`), NumPy float32 out.
+    ``out``: optional (accumulated (C, H, W), N (H, W)) arrays the compiled kernel writes into
+    (and returns); the other backends ignore it."""
     backend = resolve_backend(backend)
     args = (sample, history, n_hist, ok, alpha_min, n_max, alpha, sample_ok)
     if backend == "torch":
         return tuple(to_numpy(t) for t in accumulate_torch(*args))
     if backend == "numba" and numba is not None:
-        return accumulate_fast(*args)
+        return accumulate_fast(*args, out=out)
     return accumulate(*args)
