@@ -365,3 +365,63 @@ def test_fast_gate_does_not_depend_on_the_rows_per_task(pool):
         np.testing.assert_array_equal(out, outs[0])
     ref = kg.proden_gate(hdr, den, var, pool_radius=pool)
     np.testing.assert_allclose(outs[0], ref, rtol=1e-6, atol=1e-7)
+
+
+@pytest.mark.parametrize("shape,pool,alpha", [((1, 1), 5, 1.0), ((3, 17), 0, 1.0),
+                                              ((23, 9), 5, 0.4), ((40, 64), 0, 0.7),
+                                              ((157, 21), 5, 1.0)])
+def test_wiener_handback_fast_equals_reference(shape, pool, alpha):
+    """The Wiener hand-back fused into the compiled band pass equals the readable SciPy form
+    within float32 rounding of the image's values, and gives the same bits whatever the rows
+    per task (bands start at the sliding sums' anchor rows)."""
+    rng = np.random.default_rng(sum(shape) + pool)
+    hdr = rng.gamma(1.0, 1.0, (*shape, 3)).astype(np.float32)
+    den = (hdr * rng.uniform(0.7, 1.3, hdr.shape)).astype(np.float32)
+    var = rng.lognormal(0.0, 3.0, hdr.shape) * 1e-3
+    ref = kg.proden_gate(hdr, den, var, alpha=alpha, pool_radius=pool, handback="wiener")
+    outs = [kg._gate_passes(hdr, den, var, None, False, False, alpha, kg.GATE_K, kg.GATE_T0,
+                            pool, band, handback="wiener") for band in (None, 11, 40, 157)]
+    for out in outs[1:]:
+        np.testing.assert_array_equal(out, outs[0])
+    np.testing.assert_allclose(outs[0], ref, rtol=1e-6, atol=1e-6 * np.abs(ref).max())
+    spec = kg.proden_gate(hdr, den, var, alpha=alpha, pool_radius=pool)
+    if shape[0] > 3 and alpha == 1.0:
+        assert np.abs(ref - spec).max() > 1e-3  # the two rules differ here
+
+
+def test_wiener_handback_limits():
+    """α = 0 and zero variance return the input, a huge variance the method's output, as the
+    spec's gate does (check 17)."""
+    rng = np.random.default_rng(14)
+    hdr = rng.random((16, 16, 3))
+    den = hdr + 0.3 * rng.random(hdr.shape)
+    for gate in (kg.proden_gate, kg.proden_gate_fast):
+        np.testing.assert_allclose(gate(hdr, den, np.zeros_like(hdr), handback="wiener"), hdr,
+                                   atol=1e-6)
+        np.testing.assert_allclose(gate(hdr, den, np.full_like(hdr, 100.0), handback="wiener"),
+                                   den, atol=1e-6)
+        np.testing.assert_allclose(gate(hdr, den, np.full_like(hdr, 1e-3), alpha=0.0,
+                                        handback="wiener"), hdr, atol=1e-6)
+
+
+def test_wiener_handback_returns_the_bias_without_the_noise():
+    """Two cases at the same noise: a method off by a constant everywhere (a local bias), and
+    one whose error is a sharp pattern far above the noise. The spec's hand-back returns the
+    whole residual, noise included; the Wiener one returns the local mean of the residual in
+    the first case (less noise: far nearer the truth) and, in the second, where the residual's
+    energy exceeds the noise's, about all of it, like the spec's gate."""
+    rng = np.random.default_rng(5)
+    h, w, sd = 64, 64, 0.05
+    truth = np.full((h, w, 3), 1.0)
+    hdr = truth + sd * rng.standard_normal(truth.shape)
+    var = np.full(truth.shape, sd * sd)
+    off = truth + 0.5  # biased everywhere by 10 standard errors
+    err = lambda out: float(np.sqrt(np.mean((out - truth) ** 2)))
+    spec = kg.proden_gate(hdr, off, var)
+    wiener = kg.proden_gate(hdr, off, var, handback="wiener")
+    assert err(spec) > 0.9 * sd and err(wiener) < 0.5 * sd
+    stripes = truth + 0.5 * (np.arange(w) % 2)[None, :, None]  # a 2-pixel pattern: no local mean
+    truth_hdr = stripes + sd * rng.standard_normal(truth.shape)
+    spec = kg.proden_gate(truth_hdr, truth, var)
+    wiener = kg.proden_gate(truth_hdr, truth, var, handback="wiener")
+    assert np.abs(wiener - spec).max() < 0.1 * 0.5

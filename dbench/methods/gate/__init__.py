@@ -34,6 +34,13 @@ variants are never listed one by one. The wrapper:
   estimate is noisy and, for heavy-tailed radiance, low exactly where rare bright samples were
   missed, so the test handed good pixels back to the noise (``oidn+gate`` on ``fireflies``,
   256², 16 spp: relMSE 2.2x plain OIDN's, 1.07x with the floor; results/learned.md);
+* [dbench] with ``gate_handback="wiener"`` (the default; ``"pixel"`` for spec §12) the gate
+  hands back the local mean of the residual where the t-test fails, and the rest of it only in
+  proportion to how far its window energy exceeds the noise's
+  (:mod:`~dbench.methods.kernels.handback`): the spec's gate hands back the pixel's whole
+  residual, noise included, which made ``oidn+gate`` 2-10x plain OIDN's relMSE at 64-256 spp
+  on ``fireflies`` and ``caustic`` (results/learned.md). ``gate_pool=0, gate_handback="pixel"``
+  is the gate of spec §12;
 * runs the compiled gate (:func:`~dbench.methods.kernels.gate.proden_gate_stats`, the passes
   of :func:`~dbench.methods.kernels.gate.proden_gate_fast` fed from the statistics);
   ``gate_backend="reference"`` runs the readable SciPy form.
@@ -56,12 +63,13 @@ from ...errors import DbenchInputError
 from ..checks import check_choice
 from ..kernels.emitters import keep_emitters
 from ..kernels.gate import GATE_K, GATE_T0, linear_variance, proden_gate, proden_gate_stats
+from ..kernels.handback import HANDBACKS
 from ..kernels.variance_floor import POOL_RADIUS
 
 SUFFIX = "+gate"
 GATE_DEFAULTS: dict[str, Any] = dict(gate_alpha=1.0, gate_k=GATE_K, gate_t0=GATE_T0,
                                      gate_backend="fast", gate_emitters=True,
-                                     gate_pool=POOL_RADIUS)
+                                     gate_pool=POOL_RADIUS, gate_handback="wiener")
 GATE_BACKENDS = ("fast", "reference")
 
 _CLASSES: dict[type, type] = {}
@@ -86,10 +94,11 @@ def _require_stats(stats: Any) -> Any:
 
 def gate_output(color: np.ndarray, denoised: np.ndarray, stats: Any, *, alpha: float = 1.0,
                 k: float = GATE_K, t0: float = GATE_T0, backend: str = "fast",
-                pool: int = 0) -> np.ndarray:
+                pool: int = 0, handback: str = "pixel") -> np.ndarray:
     """The gate applied to one image: (H, W, 3) noisy colour, (H, W, 3) method output and the
     frame's statistics -> (H, W, 3) float32. Non-finite noisy pixels keep the output; ``pool``
-    r > 0 floors the variance over (2r + 1)² windows first."""
+    r > 0 floors the variance over (2r + 1)² windows first; ``handback`` is the rule of what
+    goes back (:mod:`~dbench.methods.kernels.handback`)."""
     _require_stats(stats)
     # [dbench] Fewer than 2 samples: the variance of the mean is unknown (SampleStats stores 0
     # there), not zero, so there is no evidence against the method's value: the gate stays
@@ -107,10 +116,10 @@ def gate_output(color: np.ndarray, denoised: np.ndarray, stats: Any, *, alpha: f
                 return open_gate
     if backend == "reference":
         out = proden_gate(hdr, den, linear_variance(stats, color), alpha=alpha, k=k,
-                          t0=t0, pool_radius=pool).astype(np.float32)
+                          t0=t0, pool_radius=pool, handback=handback).astype(np.float32)
     else:  # the same substitutions and the linear variance, inside the compiled passes
         out = proden_gate_stats(color, denoised, stats, alpha=alpha, k=k, t0=t0,
-                                pool_radius=pool)
+                                pool_radius=pool, handback=handback)
     return out if open_gate is None else np.where(unknown, open_gate, out)
 
 
@@ -148,6 +157,7 @@ def gated_class(base: type[Denoiser]) -> type[Denoiser]:
             _check_number("gate_k", p["gate_k"], 1e-3, 1e3)
             _check_number("gate_t0", p["gate_t0"], 0.0, 1e3)
             check_choice("gate_backend", p["gate_backend"], GATE_BACKENDS)
+            check_choice("gate_handback", p["gate_handback"], HANDBACKS)
             pool = p["gate_pool"]
             if isinstance(pool, bool) or not isinstance(pool, (int, np.integer)) \
                     or not 0 <= pool <= 64:
@@ -170,7 +180,8 @@ def gated_class(base: type[Denoiser]) -> type[Denoiser]:
             p = self.params
             gated = gate_output(data.color, out, stats, alpha=float(p["gate_alpha"]),
                                 k=float(p["gate_k"]), t0=float(p["gate_t0"]),
-                                backend=p["gate_backend"], pool=int(p["gate_pool"]))
+                                backend=p["gate_backend"], pool=int(p["gate_pool"]),
+                                handback=p["gate_handback"])
             if p["gate_emitters"] and not base.keeps_emitters:
                 gated = keep_emitters(data.color, gated, getattr(data, "emitter", None))
             self.last_settings = {**getattr(self.inner, "last_settings", {}),

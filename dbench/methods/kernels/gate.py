@@ -40,7 +40,10 @@ from typing import Any
 import numpy as np
 from numba import get_num_threads, njit, prange
 
-from .variance_floor import advance_column_sums, floor_row, floored_variance, linear_value
+from ..checks import check_choice
+from .handback import HANDBACKS, WIENER_RADIUS, wiener_handback, wiener_row
+from .variance_floor import (SUM_ANCHOR, advance_column_sums, floor_row, floored_variance,
+                             linear_value)
 
 #: Defaults of spec §12.
 GATE_K = 2.0
@@ -77,7 +80,8 @@ def gate_taps(sigma: float, taps: int = GATE_TAPS) -> np.ndarray:
 
 
 def proden_gate(hdr: Any, den: Any, var: Any, *, alpha: float = 1.0, k: float = GATE_K,
-                t0: float = GATE_T0, pool_radius: int = 0) -> np.ndarray:
+                t0: float = GATE_T0, pool_radius: int = 0, handback: str = "pixel"
+                ) -> np.ndarray:
     """ProDen t-test gate (spec §12, without the ``proden_exact`` terms), the readable form.
 
     Args:
@@ -89,13 +93,16 @@ def proden_gate(hdr: Any, den: Any, var: Any, *, alpha: float = 1.0, k: float = 
         t = |G*(hdr + α(den − hdr)) − G*hdr| / (sqrt(G²*var) + 1e-6), G an 11×11 Gaussian with
         σ_b = max(100·sqrt(clamp(mean(var), 0, 1)), 1e-3), zero-padded borders; with
         ``pool_radius`` r > 0, the t-test's var is :func:`floored_variance` (var, r) [dbench]
-        (σ_b still from the mean of var).
+        (σ_b still from the mean of var); with ``handback="wiener"`` [dbench] the residual
+        handed back is split (:func:`~dbench.methods.kernels.handback.wiener_handback`, with
+        the unfloored var).
     """
     from scipy.ndimage import correlate
 
     hdr = np.asarray(hdr, np.float64)
     den = np.asarray(den, np.float64)
-    var = np.asarray(var, np.float64)
+    var = raw_var = np.asarray(var, np.float64)
+    check_choice("handback", handback, HANDBACKS)
     g1 = gate_taps(gate_sigma(var))  # σ_b from the variance itself, floored or not
     if pool_radius:
         var = floored_variance(var, pool_radius)
@@ -109,7 +116,10 @@ def proden_gate(hdr: Any, den: Any, var: Any, *, alpha: float = 1.0, k: float = 
     mixed = hdr + alpha * (den - hdr)
     t = np.abs(blur(mixed, kern) - blur(hdr, kern)) / (np.sqrt(blur(var, kern * kern)) + 1e-6)
     a_gate = alpha * proden_gate_factor(t, k, t0)
-    return hdr + a_gate * (den - hdr)
+    if handback == "pixel":
+        return hdr + a_gate * (den - hdr)
+    low = blur(hdr - den, kern) / blur(np.ones_like(hdr[..., :1]), kern)
+    return wiener_handback(hdr, den, a_gate, low, raw_var, alpha)
 
 
 #: The gate factor is read from a table of Φ(−k(t − t0)) on [0, LUT_T_MAX] with linear
@@ -197,11 +207,14 @@ def _row_blur(color, den, var, x, box_cox_half, fix, g, g2, pool, h, y, pd, pv, 
 
 @njit(inline="always")
 def _column_gate(ring_d, ring_v, color, den, fix, g, g2, alpha, table, scale, h, y, rd, rv,
-                 out_row):  # pragma: no cover - compiled
-    """Output row y: the blur along y of the x-blurred rows y − r … y + r held in the rings
-    (row yy in slot yy mod 2r + 1; rows outside the image read the rings' last row, kept at 0:
-    zero padding), then out = hdr + α Φ(−k(t − t0)) (den − hdr) with
-    t = α|G*(den − hdr)| / (√(G²*var) + 1e-6), Φ read from ``table``."""
+                 wiener, inv_norm_y, inv_norm_x, out_row, low_row, high2_row
+                 ):  # pragma: no cover - compiled
+    """Row y of the gate: the blur along y of the x-blurred rows y − r … y + r held in the
+    rings (row yy in slot yy mod 2r + 1; rows outside the image read the rings' last row, kept
+    at 0: zero padding), t = α|G*(den − hdr)| / (√(G²*var) + 1e-6) and α_gate = α Φ(−k(t − t0))
+    with Φ read from ``table``. Then out = hdr + α_gate (den − hdr) into ``out_row``, and for
+    the Wiener hand-back (α − α_gate) high into ``low_row`` and high² into ``high2_row``,
+    high = hdr − den − low, low = G*(hdr − den) / G*1 (G*1 = 1 / (inv_norm_y · inv_norm_x))."""
     wc = out_row.shape[0]
     r = _RADIUS
     taps = 2 * r + 1
@@ -228,33 +241,92 @@ def _column_gate(ring_d, ring_v, color, den, fix, g, g2, alpha, table, scale, h,
         sd = rd[i] + g[8] * (a1[i] + a2[i]) + g[9] * (a3[i] + a4[i]) + g[10] * (a5[i] + a6[i])
         sv = rv[i] + g2[8] * (b1[i] + b2[i]) + g2[9] * (b3[i] + b4[i]) + g2[10] * (b5[i] + b6[i])
         rd[i] = min(alpha * abs(sd) / (math.sqrt(max(sv, 0.0)) + 1e-6) * scale, last - 1.0)
+        if wiener:
+            low_row[i] = -sd * (inv_norm_y * inv_norm_x[i])
     for i in range(wc):
         u = rd[i]
         m = int(u)
         rd[i] = table[m] + (u - m) * (table[m + 1] - table[m])
+    if wiener:  # what the output row needs: the spec's output, (α − α_gate) high and high²
+        for i in range(wc):
+            hv, dv = _pair(color, den, fix, y, i)
+            a = alpha * rd[i]
+            out_row[i] = hv + a * (dv - hv)
+            high = (hv - dv) - low_row[i]
+            low_row[i] = (alpha - a) * high
+            high2_row[i] = high * high
+    else:
+        for i in range(wc):
+            hv, dv = _pair(color, den, fix, y, i)
+            out_row[i] = hv + alpha * rd[i] * (dv - hv)
+
+
+@njit(inline="always")
+def _wiener_output(var, x, box_cox_half, ring_a, ring_low, ring_h2, h, y, fresh, noise_sums,
+                   high_sums, lin, energy, inv_cols_w, prefix_w, out_row
+                   ):  # pragma: no cover - compiled
+    """Output row y of the Wiener hand-back (handback.wiener_row) from the rings of the
+    spec's output, (α − α_gate) high and high² (row yy in slot yy mod 2R + 2, R =
+    WIENER_RADIUS; :func:`_column_gate`) and the window column sums of high² and of the
+    variance, slid from anchor rows (``fresh`` at a band's first row, which is one)."""
+    wc = out_row.shape[0]
+    rw = WIENER_RADIUS
+    nw = ring_h2.shape[0]  # 2R + 2 rows: the row that leaves the window is still there
+    advance_column_sums(var, x, box_cox_half, y, fresh, h, rw, noise_sums)
+    if fresh or y % SUM_ANCHOR == 0:  # afresh at anchor rows (a band starts at one)
+        for i in range(wc):
+            high_sums[i] = 0.0
+        for yy in range(max(y - rw, 0), min(y + rw, h - 1) + 1):
+            src = ring_h2[yy % nw]
+            for i in range(wc):
+                high_sums[i] += src[i]
+    else:  # slid by one row, as the variance's sums
+        if y + rw <= h - 1:
+            src = ring_h2[(y + rw) % nw]
+            for i in range(wc):
+                high_sums[i] += src[i]
+        if y - rw - 1 >= 0:
+            src = ring_h2[(y - rw - 1) % nw]
+            for i in range(wc):
+                high_sums[i] -= src[i]
     for i in range(wc):
-        hv, dv = _pair(color, den, fix, y, i)
-        out_row[i] = hv + alpha * rd[i] * (dv - hv)
+        lin[i] = linear_value(var, x, box_cox_half, y, i)
+    rows_in = min(y + rw, h - 1) - max(y - rw, 0) + 1
+    wiener_row(ring_a[y % nw], ring_low[y % nw], lin, high_sums, noise_sums, rows_in,
+               inv_cols_w, prefix_w, energy, out_row)
 
 
 @njit(parallel=True, cache=True, fastmath=_FASTMATH)
 def _gate_bands(color, den, var, x, box_cox_half, fix, g, g2, pool, alpha, table, t_max, band,
-                out):  # pragma: no cover - compiled
+                wiener, out):  # pragma: no cover - compiled
     """The whole gate on interleaved (H, W·C) rows, one band of ``band`` output rows per task:
-    each band x-blurs its rows and r rows either side into rings of 2r + 1 rows, and emits an
-    output row as soon as the rows below it are blurred, so the blurred images never leave the
-    cache. Every row's sums run in the same order whatever the band (the floor's column sums
-    slide from fixed anchor rows: variance_floor.advance_column_sums), so the result does not
-    depend on ``band`` (test)."""
+    each band x-blurs its rows and the rows either side it needs into rings of 2r + 1 rows, and
+    finishes a row as soon as the rows below it are ready, so no intermediate image leaves the
+    cache. With the Wiener hand-back the gate's rows (α_gate, low, high²) go to three more
+    rings of 2R + 1 rows, R = WIENER_RADIUS, which the output rows read R rows later. Every
+    row's sums run in the same order whatever the band (window column sums slide from fixed
+    anchor rows: variance_floor.advance_column_sums), so the result does not depend on
+    ``band`` (test)."""
     h, wc = color.shape
     r = _RADIUS
     taps = 2 * r + 1
+    rw = WIENER_RADIUS
+    nw = 2 * rw + 2  # the gate's rows R above and below an output row, and the one leaving
+    lag = rw if wiener else 0  # the gate's rows needed beyond a band, each side
     scale = (table.shape[0] - 1) / t_max
     w = wc // 3
     inv_cols = np.empty(wc, np.float64)  # 1 / the floor window's columns inside the image
+    inv_cols_w = np.empty(wc, np.float64)  # the same for the Wiener window
+    inv_norm_x = np.empty(wc, np.float64)  # 1 / Σ of the taps inside the image, along x
     for i in range(wc):
         xp = i // 3
         inv_cols[i] = 1.0 / (min(xp + pool, w - 1) - max(xp - pool, 0) + 1)
+        inv_cols_w[i] = 1.0 / (min(xp + rw, w - 1) - max(xp - rw, 0) + 1)
+        sx = 0.0
+        for j in range(-r, r + 1):
+            if 0 <= xp + j <= w - 1:
+                sx += g[r + j]
+        inv_norm_x[i] = 1.0 / sx
     n_bands = (h + band - 1) // band
     for b in prange(n_bands):
         y0 = np.int64(b) * band  # signed: prange may hand out unsigned indices
@@ -264,36 +336,67 @@ def _gate_bands(color, den, var, x, box_cox_half, fix, g, g2, pool, alpha, table
         pd = np.zeros(wc + 6 * r, np.float64)
         pv = np.zeros(wc + 6 * r, np.float64)
         sums = np.empty(wc, np.float64)
-        prefix = np.empty(wc + 3 * (2 * pool + 1), np.float64)
+        prefix = np.empty(wc + 3 * (2 * max(pool, rw) + 1), np.float64)
         rd = np.empty(wc, np.float64)
         rv = np.empty(wc, np.float64)
-        top = min(y1 + r, h)  # rows [max(y0 − r, 0), top) are blurred along x
-        first = max(y0 - r, 0)
+        nr = nw if wiener else 1
+        ring_a = np.empty((nr, wc), np.float32)  # float32: the rings stay in the cache
+        ring_low = np.empty((nr, wc), np.float32)
+        ring_h2 = np.empty((nr, wc), np.float32)
+        noise_sums = np.empty(wc if wiener else 1, np.float64)
+        high_sums = np.empty(wc if wiener else 1, np.float64)
+        lin = np.empty(wc if wiener else 1, np.float64)
+        energy = np.empty(wc if wiener else 1, np.float64)
+        prefix_w = np.empty((2, wc + 3 * (2 * rw + 1) if wiener else 1), np.float64)
+        first = max(y0 - r - lag, 0)
+        top = min(y1 + r + lag, h)  # rows [first, top) are blurred along x
+        next_g = max(y0 - lag, 0)  # the next row of the gate, and the last one + 1
+        end_g = min(y1 + lag, h)
+        next_o = y0  # the next output row (Wiener)
         for yy in range(first, top):
             if pool > 0:
                 advance_column_sums(var, x, box_cox_half, yy, yy == first, h, pool, sums)
             _row_blur(color, den, var, x, box_cox_half, fix, g, g2, pool, h, yy, pd, pv, sums,
                       inv_cols, prefix, ring_d[yy % taps], ring_v[yy % taps])
-            y = yy - r
-            if y >= y0:
-                _column_gate(ring_d, ring_v, color, den, fix, g, g2, alpha, table, scale, h, y,
-                             rd, rv, out[y])
-        for y in range(max(top - r, y0), y1):  # the image's last rows: nothing below them
-            _column_gate(ring_d, ring_v, color, den, fix, g, g2, alpha, table, scale, h, y,
-                         rd, rv, out[y])
+            # a gate row needs the x-blurred rows to r below it (or to the image's last row)
+            while next_g < end_g and yy >= min(next_g + r, h - 1):
+                yg = next_g
+                gy = 0.0
+                for j in range(-r, r + 1):
+                    if 0 <= yg + j <= h - 1:
+                        gy += g[r + j]
+                if wiener:
+                    _column_gate(ring_d, ring_v, color, den, fix, g, g2, alpha, table, scale,
+                                 h, yg, rd, rv, True, 1.0 / gy, inv_norm_x, ring_a[yg % nw],
+                                 ring_low[yg % nw], ring_h2[yg % nw])
+                elif yg >= y0 and yg < y1:
+                    _column_gate(ring_d, ring_v, color, den, fix, g, g2, alpha, table, scale,
+                                 h, yg, rd, rv, False, 1.0, inv_norm_x, out[yg], rd, rd)
+                next_g += 1
+                # an output row needs the gate's rows to R below it (or to the last row)
+                while wiener and next_o < y1 and next_g - 1 >= min(next_o + rw, h - 1):
+                    _wiener_output(var, x, box_cox_half, ring_a, ring_low, ring_h2, h, next_o,
+                                   next_o == y0, noise_sums, high_sums, lin, energy, inv_cols_w,
+                                   prefix_w, out[next_o])
+                    next_o += 1
 
 
 def _band_rows(h: int, r: int) -> int:
-    """Output rows per task: two tasks per thread (the halo of 2r blurred rows per band costs
-    2r / band extra), never fewer than 2r + 1 rows."""
-    return max(2 * r + 1, -(-h // (2 * get_num_threads())))
+    """Output rows per task: two tasks per thread (the halo of blurred rows per band costs
+    about 2r / band extra), a multiple of SUM_ANCHOR, so that every band starts at an anchor
+    row of the sliding window sums (the same sums whatever the bands)."""
+    rows = max(2 * r + 1, -(-h // (2 * get_num_threads())))
+    return -(-rows // SUM_ANCHOR) * SUM_ANCHOR
 
 
 def _gate_passes(color, den, var, x, box_cox_half: bool, fix: bool, alpha: float, k: float,
-                 t0: float, pool: int = 0, band: int | None = None) -> np.ndarray:
+                 t0: float, pool: int = 0, band: int | None = None, handback: str = "pixel"
+                 ) -> np.ndarray:
     """The compiled gate on (H, W, 3) arrays (see :func:`proden_gate_fast`): the mean variance
     (σ_b), then one pass of bands (:func:`_gate_bands`), with the variance floor of radius
-    ``pool`` fused into it; ``band`` output rows per task (default :func:`_band_rows`)."""
+    ``pool`` and the ``handback`` rule fused into it; ``band`` output rows per task (default
+    :func:`_band_rows`)."""
+    check_choice("handback", handback, HANDBACKS)
     h, w, c = color.shape
     color = np.ascontiguousarray(color).reshape(h, w * c)
     den = np.ascontiguousarray(den, color.dtype).reshape(h, w * c)
@@ -301,24 +404,26 @@ def _gate_passes(color, den, var, x, box_cox_half: bool, fix: bool, alpha: float
     x = color if x is None else np.ascontiguousarray(x, color.dtype).reshape(h, w * c)
     g = gate_taps(sigma_from_mean(_mean_variance(color, den, var, x, box_cox_half, fix)))
     out = np.empty((h, w * c), np.float32)
-    band = _band_rows(h, len(g) // 2) if band is None else int(band)
+    band = _band_rows(h, len(g) // 2) if band is None else -(-int(band) // SUM_ANCHOR) * SUM_ANCHOR
     _gate_bands(color, den, var, x, box_cox_half, fix, g, g * g, int(pool), float(alpha),
-                gate_table(k, t0), LUT_T_MAX, band, out)
+                gate_table(k, t0), LUT_T_MAX, band, handback == "wiener", out)
     return out.reshape(h, w, c)
 
 
 def proden_gate_fast(hdr: Any, den: Any, var: Any, *, alpha: float = 1.0, k: float = GATE_K,
-                     t0: float = GATE_T0, pool_radius: int = 0) -> np.ndarray:
+                     t0: float = GATE_T0, pool_radius: int = 0, handback: str = "pixel"
+                     ) -> np.ndarray:
     """:func:`proden_gate` through one compiled pass over bands of interleaved rows (separable
     blurs with float64 sums, the gate factor from :func:`gate_table`); (H, W, 3) float32. Equal
     to the reference within float32 rounding (tests: 1e-6 relative)."""
     hdr = np.ascontiguousarray(hdr)
-    return _gate_passes(hdr, den, var, None, False, False, alpha, k, t0, pool_radius)
+    return _gate_passes(hdr, den, var, None, False, False, alpha, k, t0, pool_radius,
+                        handback=handback)
 
 
 def proden_gate_stats(color: Any, den: Any, stats: Any, *, alpha: float = 1.0,
-                      k: float = GATE_K, t0: float = GATE_T0, pool_radius: int = 0
-                      ) -> np.ndarray:
+                      k: float = GATE_K, t0: float = GATE_T0, pool_radius: int = 0,
+                      handback: str = "pixel") -> np.ndarray:
     """The gate of a method output ``den`` on a noisy ``color`` with dbench's ``stats``, in the
     same compiled pass: non-finite noisy values take the method's and non-finite method values
     the noisy ones, and the linear variance (:func:`linear_variance`) is formed as each row is
@@ -331,12 +436,15 @@ def proden_gate_stats(color: Any, den: Any, stats: Any, *, alpha: float = 1.0,
     shape = color.shape
     transform = getattr(stats, "transform", "identity")
     var = np.broadcast_to(np.asarray(stats.var_mean, np.float64), shape)
+    rule = dict(handback=handback)
     if transform == "identity":
-        return _gate_passes(color, den, var, None, False, True, alpha, k, t0, pool_radius)
+        return _gate_passes(color, den, var, None, False, True, alpha, k, t0, pool_radius,
+                            **rule)
     if transform == "box-cox" and float(stats.lam) == 0.5:
-        return _gate_passes(color, den, var, color, True, True, alpha, k, t0, pool_radius)
+        return _gate_passes(color, den, var, color, True, True, alpha, k, t0, pool_radius,
+                            **rule)
     return _gate_passes(color, den, linear_variance(stats, color), None, False, True, alpha,
-                        k, t0, pool_radius)
+                        k, t0, pool_radius, **rule)
 
 
 def linear_variance(stats: Any, color: np.ndarray) -> np.ndarray:

@@ -49,16 +49,23 @@ def floored_variance(var: Any, radius: int = POOL_RADIUS) -> np.ndarray:
     Returns:
         (H, W, C) float64.
     """
-    from scipy.ndimage import uniform_filter
-
     var = np.asarray(var, np.float64)
     r = check_radius(radius)
     if r == 0:
         return var.copy()
-    size = (2 * r + 1, 2 * r + 1, 1)
-    total = uniform_filter(var, size, mode="constant")
-    inside = uniform_filter(np.ones(var.shape[:2] + (1,)), size, mode="constant")
-    return np.maximum(var, total / inside)
+    return np.maximum(var, window_mean(var, r))
+
+
+def window_mean(x: Any, radius: int) -> np.ndarray:
+    """Mean of each channel of (H, W, C) ``x`` over the (2r + 1)² window around each pixel,
+    of the part of it inside the image (SciPy box filters); (H, W, C) float64."""
+    from scipy.ndimage import uniform_filter
+
+    x = np.asarray(x, np.float64)
+    size = (2 * radius + 1, 2 * radius + 1, 1)
+    total = uniform_filter(x, size, mode="constant")
+    inside = uniform_filter(np.ones(x.shape[:2] + (1,)), size, mode="constant")
+    return total / inside
 
 
 @njit(inline="always")
@@ -141,4 +148,4 @@ def floor_row(lin_row, sums_row, rows_in, r, c, inv_cols, prefix):  # pragma: no
 
 
 __all__ = ["POOL_RADIUS", "SUM_ANCHOR", "advance_column_sums", "floor_row", "floored_variance",
-           "linear_value", "window_column_sums"]
+           "linear_value", "window_column_sums", "window_mean"]
