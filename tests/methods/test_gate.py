@@ -425,3 +425,16 @@ def test_wiener_handback_returns_the_bias_without_the_noise():
     spec = kg.proden_gate(truth_hdr, truth, var)
     wiener = kg.proden_gate(truth_hdr, truth, var, handback="wiener")
     assert np.abs(wiener - spec).max() < 0.1 * 0.5
+
+
+@pytest.mark.parametrize("big", [1e20, 3e38])
+def test_wiener_handback_stays_finite_near_the_float32_limit(big):
+    """Squares of values near float32's limit overflow float32: the hand-back keeps its
+    residual energies in float64, so finite inputs give finite outputs."""
+    rng = np.random.default_rng(2)
+    hdr = rng.random((30, 40, 3)).astype(np.float32)
+    hdr[10:13, 10:13] = big
+    den = (hdr * 0.5).astype(np.float32)
+    var = np.full(hdr.shape, 1e-3)
+    out = kg.proden_gate_fast(hdr, den, var, pool_radius=5, handback="wiener")
+    assert np.isfinite(out).all()

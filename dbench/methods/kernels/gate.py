@@ -340,9 +340,9 @@ def _gate_bands(color, den, var, x, box_cox_half, fix, g, g2, pool, alpha, table
         rd = np.empty(wc, np.float64)
         rv = np.empty(wc, np.float64)
         nr = nw if wiener else 1
-        ring_a = np.empty((nr, wc), np.float32)  # float32: the rings stay in the cache
-        ring_low = np.empty((nr, wc), np.float32)
-        ring_h2 = np.empty((nr, wc), np.float32)
+        ring_a = np.empty((nr, wc), np.float32)  # the output itself: float32 holds it
+        ring_low = np.empty((nr, wc), np.float64)
+        ring_h2 = np.empty((nr, wc), np.float64)
         noise_sums = np.empty(wc if wiener else 1, np.float64)
         high_sums = np.empty(wc if wiener else 1, np.float64)
         lin = np.empty(wc if wiener else 1, np.float64)

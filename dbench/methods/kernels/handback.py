@@ -8,14 +8,18 @@ Wiener hand-back splits r into its local mean and the rest:
     high = r − low
     s²   = max(B(high²) − B(var), 0)        (B: mean over the 11×11 window inside the image;
                                             the energy of high beyond that of the noise)
-    λ    = s² / (s² + max(var, B(var)))     (a Wiener gain per value; 1 where both are 0)
+    λ    = s² / (s² + var)                  (a Wiener gain per value; 1 where both are 0)
     out  = hdr + α_gate (den − hdr) − (α − α_gate)(1 − λ) · high
          = den + (1 − α_gate) (low + λ · high)           for α = 1 (the default)
 
 Where the method is right, high is the noisy input's noise: its window energy is the noise's,
 λ ≈ 0, and only the local mean goes back (its noise averaged over the window). Where the
 method errs at the pixel scale (a blurred edge, a lost highlight) the energy exceeds the
-noise's and λ → 1: the spec's hand-back. The first form is the spec's output less the part of
+noise's and λ → 1: the spec's hand-back. λ weighs that excess against the pixel's own
+variance, not a floored one: with the window's mean variance instead (the gate's floor),
+pixels beside bright, noisy ones (a lamp's reflection) lost the hand-back of a method's sharp
+errors, and `statistical+gate` on `mirrors` at 4 spp rose from 0.074 to 0.120 relMSE (one
+seed). The first form is the spec's output less the part of
 the noise the spec hands back: with λ = 1 it is the spec's gate, and with α = 0 the input, as
 in the spec (α_gate = α Φ(−k(t − t0)) ≤ α). As the variance vanishes σ_b → 0
 (G*r → r) and λ → 1 wherever r ≠ 0, so the gate still converges to the input. var is the
@@ -62,7 +66,7 @@ def wiener_handback(hdr: Any, den: Any, a_gate: Any, low: Any, var: Any, alpha: 
     high = (hdr - den) - low
     noise = window_mean(var, radius)
     excess = np.maximum(window_mean(high * high, radius) - noise, 0.0)
-    total = excess + np.maximum(var, noise)
+    total = excess + var
     with np.errstate(invalid="ignore", divide="ignore"):
         lam = np.where(total > 0, excess / np.where(total > 0, total, 1.0), 1.0)
     a_gate = np.asarray(a_gate, np.float64)
@@ -103,7 +107,7 @@ def wiener_row(spec_row, c_row, lin_row, high_sums, noise_sums, rows_in, inv_col
         energy[i] = sh * scale
         noise = sv * scale
         excess = max(energy[i] - noise, 0.0)
-        total = excess + max(lin_row[i], noise)
+        total = excess + lin_row[i]
         lam = excess / total if total > 0.0 else 1.0
         out_row[i] = spec_row[i] - (1.0 - lam) * c_row[i]
 
