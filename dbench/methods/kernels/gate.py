@@ -263,7 +263,7 @@ def _column_gate(ring_d, ring_v, color, den, fix, g, g2, alpha, table, scale, h,
 
 @njit(inline="always")
 def _wiener_output(var, x, box_cox_half, ring_a, ring_low, ring_h2, h, y, fresh, noise_sums,
-                   high_sums, lin, energy, inv_cols_w, prefix_w, out_row
+                   high_sums, lin, inv_cols_w, prefix_w, out_row
                    ):  # pragma: no cover - compiled
     """Output row y of the Wiener hand-back (handback.wiener_row) from the rings of the
     spec's output, (α − α_gate) high and high² (row yy in slot yy mod 2R + 2, R =
@@ -293,7 +293,7 @@ def _wiener_output(var, x, box_cox_half, ring_a, ring_low, ring_h2, h, y, fresh,
         lin[i] = linear_value(var, x, box_cox_half, y, i)
     rows_in = min(y + rw, h - 1) - max(y - rw, 0) + 1
     wiener_row(ring_a[y % nw], ring_low[y % nw], lin, high_sums, noise_sums, rows_in,
-               inv_cols_w, prefix_w, energy, out_row)
+               inv_cols_w, prefix_w, out_row)
 
 
 @njit(parallel=True, cache=True, fastmath=_FASTMATH)
@@ -346,7 +346,6 @@ def _gate_bands(color, den, var, x, box_cox_half, fix, g, g2, pool, alpha, table
         noise_sums = np.empty(wc if wiener else 1, np.float64)
         high_sums = np.empty(wc if wiener else 1, np.float64)
         lin = np.empty(wc if wiener else 1, np.float64)
-        energy = np.empty(wc if wiener else 1, np.float64)
         prefix_w = np.empty((2, wc + 3 * (2 * rw + 1) if wiener else 1), np.float64)
         first = max(y0 - r - lag, 0)
         top = min(y1 + r + lag, h)  # rows [first, top) are blurred along x
@@ -376,7 +375,7 @@ def _gate_bands(color, den, var, x, box_cox_half, fix, g, g2, pool, alpha, table
                 # an output row needs the gate's rows to R below it (or to the last row)
                 while wiener and next_o < y1 and next_g - 1 >= min(next_o + rw, h - 1):
                     _wiener_output(var, x, box_cox_half, ring_a, ring_low, ring_h2, h, next_o,
-                                   next_o == y0, noise_sums, high_sums, lin, energy, inv_cols_w,
+                                   next_o == y0, noise_sums, high_sums, lin, inv_cols_w,
                                    prefix_w, out[next_o])
                     next_o += 1
 
