@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..temporal.numba_path import out_array
 from ..temporal.params import LUMA
 
 try:
@@ -70,11 +71,7 @@ def accumulate_frame(color: np.ndarray, hist: np.ndarray, ok: np.ndarray, alpha_
     """
     color = np.ascontiguousarray(color, np.float32)
     h, w = color.shape[:2]
-    if out_hist is None:
-        out_hist = np.empty((6, h, w), np.float32)
-    elif (out_hist.shape != (6, h, w) or out_hist.dtype != np.float32
-          or not out_hist.flags.c_contiguous):
-        raise ValueError(f"out_hist: expected a C-contiguous float32 array of shape (6, {h}, {w})")
+    out_hist = out_array(out_hist, (6, h, w), "out_hist")
     out_img = np.empty((h, w, 3), np.float32)
     variance = np.empty((h, w), np.float32)
     _kernel_nb(color, np.ascontiguousarray(hist, np.float32), np.ascontiguousarray(ok, np.bool_),

@@ -178,6 +178,12 @@ def _mean_variance(color, den, var, x, box_cox_half, fix):  # pragma: no cover -
 
 
 @njit(inline="always")
+def _window_cols(xp, r, w):  # pragma: no cover - compiled
+    """Columns of the (2r + 1)-wide window around column xp inside a W-wide image."""
+    return min(xp + r, w - 1) - max(xp - r, 0) + 1
+
+
+@njit(inline="always")
 def _row_blur(color, den, var, x, box_cox_half, fix, g, g2, pool, h, y, pd, pv, sums, inv_cols,
               prefix, out_d, out_v):  # pragma: no cover - compiled
     """Row y of the blur along x, zero-padded, of interleaved (W·C) values, C = 3 (a neighbour
@@ -207,14 +213,15 @@ def _row_blur(color, den, var, x, box_cox_half, fix, g, g2, pool, h, y, pd, pv, 
 
 @njit(inline="always")
 def _column_gate(ring_d, ring_v, color, den, fix, g, g2, alpha, table, scale, h, y, rd, rv,
-                 wiener, inv_norm_y, inv_norm_x, out_row, low_row, high2_row
+                 wiener, inv_norm_y, inv_norm_x, out_row, c_row, high2_row
                  ):  # pragma: no cover - compiled
     """Row y of the gate: the blur along y of the x-blurred rows y − r … y + r held in the
     rings (row yy in slot yy mod 2r + 1; rows outside the image read the rings' last row, kept
     at 0: zero padding), t = α|G*(den − hdr)| / (√(G²*var) + 1e-6) and α_gate = α Φ(−k(t − t0))
     with Φ read from ``table``. Then out = hdr + α_gate (den − hdr) into ``out_row``, and for
-    the Wiener hand-back (α − α_gate) high into ``low_row`` and high² into ``high2_row``,
-    high = hdr − den − low, low = G*(hdr − den) / G*1 (G*1 = 1 / (inv_norm_y · inv_norm_x))."""
+    the Wiener hand-back c = (α − α_gate) high into ``c_row`` (which holds low on the way) and
+    high² into ``high2_row``, high = hdr − den − low, low = G*(hdr − den) / G*1
+    (G*1 = 1 / (inv_norm_y · inv_norm_x))."""
     wc = out_row.shape[0]
     r = _RADIUS
     taps = 2 * r + 1
@@ -242,7 +249,7 @@ def _column_gate(ring_d, ring_v, color, den, fix, g, g2, alpha, table, scale, h,
         sv = rv[i] + g2[8] * (b1[i] + b2[i]) + g2[9] * (b3[i] + b4[i]) + g2[10] * (b5[i] + b6[i])
         rd[i] = min(alpha * abs(sd) / (math.sqrt(max(sv, 0.0)) + 1e-6) * scale, last - 1.0)
         if wiener:
-            low_row[i] = -sd * (inv_norm_y * inv_norm_x[i])
+            c_row[i] = -sd * (inv_norm_y * inv_norm_x[i])  # low, for now
     for i in range(wc):
         u = rd[i]
         m = int(u)
@@ -252,8 +259,8 @@ def _column_gate(ring_d, ring_v, color, den, fix, g, g2, alpha, table, scale, h,
             hv, dv = _pair(color, den, fix, y, i)
             a = alpha * rd[i]
             out_row[i] = hv + a * (dv - hv)
-            high = (hv - dv) - low_row[i]
-            low_row[i] = (alpha - a) * high
+            high = (hv - dv) - c_row[i]
+            c_row[i] = (alpha - a) * high
             high2_row[i] = high * high
     else:
         for i in range(wc):
@@ -262,7 +269,7 @@ def _column_gate(ring_d, ring_v, color, den, fix, g, g2, alpha, table, scale, h,
 
 
 @njit(inline="always")
-def _wiener_output(var, x, box_cox_half, ring_a, ring_low, ring_h2, h, y, fresh, noise_sums,
+def _wiener_output(var, x, box_cox_half, ring_spec, ring_c, ring_h2, h, y, fresh, noise_sums,
                    high_sums, lin, inv_cols_w, prefix_w, out_row
                    ):  # pragma: no cover - compiled
     """Output row y of the Wiener hand-back (handback.wiener_row) from the rings of the
@@ -292,7 +299,7 @@ def _wiener_output(var, x, box_cox_half, ring_a, ring_low, ring_h2, h, y, fresh,
     for i in range(wc):
         lin[i] = linear_value(var, x, box_cox_half, y, i)
     rows_in = min(y + rw, h - 1) - max(y - rw, 0) + 1
-    wiener_row(ring_a[y % nw], ring_low[y % nw], lin, high_sums, noise_sums, rows_in,
+    wiener_row(ring_spec[y % nw], ring_c[y % nw], lin, high_sums, noise_sums, rows_in,
                inv_cols_w, prefix_w, out_row)
 
 
@@ -302,8 +309,9 @@ def _gate_bands(color, den, var, x, box_cox_half, fix, g, g2, pool, alpha, table
     """The whole gate on interleaved (H, W·C) rows, one band of ``band`` output rows per task:
     each band x-blurs its rows and the rows either side it needs into rings of 2r + 1 rows, and
     finishes a row as soon as the rows below it are ready, so no intermediate image leaves the
-    cache. With the Wiener hand-back the gate's rows (α_gate, low, high²) go to three more
-    rings of 2R + 1 rows, R = WIENER_RADIUS, which the output rows read R rows later. Every
+    cache. With the Wiener hand-back the gate's rows (the spec's output, (α − α_gate) high and
+    high²) go to three more rings of 2R + 2 rows, R = WIENER_RADIUS, which the output rows read
+    R rows later. Every
     row's sums run in the same order whatever the band (window column sums slide from fixed
     anchor rows: variance_floor.advance_column_sums), so the result does not depend on
     ``band`` (test)."""
@@ -320,8 +328,8 @@ def _gate_bands(color, den, var, x, box_cox_half, fix, g, g2, pool, alpha, table
     inv_norm_x = np.empty(wc, np.float64)  # 1 / Σ of the taps inside the image, along x
     for i in range(wc):
         xp = i // 3
-        inv_cols[i] = 1.0 / (min(xp + pool, w - 1) - max(xp - pool, 0) + 1)
-        inv_cols_w[i] = 1.0 / (min(xp + rw, w - 1) - max(xp - rw, 0) + 1)
+        inv_cols[i] = 1.0 / _window_cols(xp, pool, w)
+        inv_cols_w[i] = 1.0 / _window_cols(xp, rw, w)
         sx = 0.0
         for j in range(-r, r + 1):
             if 0 <= xp + j <= w - 1:
@@ -336,12 +344,12 @@ def _gate_bands(color, den, var, x, box_cox_half, fix, g, g2, pool, alpha, table
         pd = np.zeros(wc + 6 * r, np.float64)
         pv = np.zeros(wc + 6 * r, np.float64)
         sums = np.empty(wc, np.float64)
-        prefix = np.empty(wc + 3 * (2 * max(pool, rw) + 1), np.float64)
+        prefix = np.empty(wc + 3 * (2 * pool + 1), np.float64)  # floor_row's scratch
         rd = np.empty(wc, np.float64)
         rv = np.empty(wc, np.float64)
         nr = nw if wiener else 1
-        ring_a = np.empty((nr, wc), np.float32)  # the output itself: float32 holds it
-        ring_low = np.empty((nr, wc), np.float64)
+        ring_spec = np.empty((nr, wc), np.float32)  # an output: float32 holds it
+        ring_c = np.empty((nr, wc), np.float64)
         ring_h2 = np.empty((nr, wc), np.float64)
         noise_sums = np.empty(wc if wiener else 1, np.float64)
         high_sums = np.empty(wc if wiener else 1, np.float64)
@@ -360,21 +368,21 @@ def _gate_bands(color, den, var, x, box_cox_half, fix, g, g2, pool, alpha, table
             # a gate row needs the x-blurred rows to r below it (or to the image's last row)
             while next_g < end_g and yy >= min(next_g + r, h - 1):
                 yg = next_g
-                gy = 0.0
-                for j in range(-r, r + 1):
-                    if 0 <= yg + j <= h - 1:
-                        gy += g[r + j]
                 if wiener:
+                    gy = 0.0  # Σ of the taps inside the image, along y
+                    for j in range(-r, r + 1):
+                        if 0 <= yg + j <= h - 1:
+                            gy += g[r + j]
                     _column_gate(ring_d, ring_v, color, den, fix, g, g2, alpha, table, scale,
-                                 h, yg, rd, rv, True, 1.0 / gy, inv_norm_x, ring_a[yg % nw],
-                                 ring_low[yg % nw], ring_h2[yg % nw])
+                                 h, yg, rd, rv, True, 1.0 / gy, inv_norm_x, ring_spec[yg % nw],
+                                 ring_c[yg % nw], ring_h2[yg % nw])
                 elif yg >= y0 and yg < y1:
                     _column_gate(ring_d, ring_v, color, den, fix, g, g2, alpha, table, scale,
                                  h, yg, rd, rv, False, 1.0, inv_norm_x, out[yg], rd, rd)
                 next_g += 1
                 # an output row needs the gate's rows to R below it (or to the last row)
                 while wiener and next_o < y1 and next_g - 1 >= min(next_o + rw, h - 1):
-                    _wiener_output(var, x, box_cox_half, ring_a, ring_low, ring_h2, h, next_o,
+                    _wiener_output(var, x, box_cox_half, ring_spec, ring_c, ring_h2, h, next_o,
                                    next_o == y0, noise_sums, high_sums, lin, inv_cols_w,
                                    prefix_w, out[next_o])
                     next_o += 1
@@ -384,8 +392,12 @@ def _band_rows(h: int, r: int) -> int:
     """Output rows per task: two tasks per thread (the halo of blurred rows per band costs
     about 2r / band extra), a multiple of SUM_ANCHOR, so that every band starts at an anchor
     row of the sliding window sums (the same sums whatever the bands)."""
-    rows = max(2 * r + 1, -(-h // (2 * get_num_threads())))
-    return -(-rows // SUM_ANCHOR) * SUM_ANCHOR
+    return _anchored(max(2 * r + 1, -(-h // (2 * get_num_threads()))))
+
+
+def _anchored(rows: int) -> int:
+    """``rows`` rounded up to a multiple of SUM_ANCHOR (bands start at anchor rows)."""
+    return -(-int(rows) // SUM_ANCHOR) * SUM_ANCHOR
 
 
 def _gate_passes(color, den, var, x, box_cox_half: bool, fix: bool, alpha: float, k: float,
@@ -403,7 +415,7 @@ def _gate_passes(color, den, var, x, box_cox_half: bool, fix: bool, alpha: float
     x = color if x is None else np.ascontiguousarray(x, color.dtype).reshape(h, w * c)
     g = gate_taps(sigma_from_mean(_mean_variance(color, den, var, x, box_cox_half, fix)))
     out = np.empty((h, w * c), np.float32)
-    band = _band_rows(h, len(g) // 2) if band is None else -(-int(band) // SUM_ANCHOR) * SUM_ANCHOR
+    band = _band_rows(h, len(g) // 2) if band is None else _anchored(band)
     _gate_bands(color, den, var, x, box_cox_half, fix, g, g * g, int(pool), float(alpha),
                 gate_table(k, t0), LUT_T_MAX, band, handback == "wiener", out)
     return out.reshape(h, w, c)

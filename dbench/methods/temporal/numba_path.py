@@ -33,7 +33,7 @@ def kernel_threads(n_pixels: int) -> Iterator[None]:
         numba.set_num_threads(old)
 
 
-def _out_array(out, shape, name: str) -> np.ndarray:
+def out_array(out, shape, name: str) -> np.ndarray:
     """``out`` checked as a kernel's output (float32, C-contiguous, of ``shape``), or a new
     array when it is None. Why: a temporal method that writes each frame into the same arrays
     skips the page faults of fresh ones, about 6 ms per 18 MB at 720p on the 2-core machine."""
@@ -151,9 +151,9 @@ def reproject_fast(history, motion, cur_hit, cur_normal, d_exp, prev_ok, prev_de
     """Compiled (Numba, parallel over rows) :func:`reproject_reference`; equal to it within
     float32 rounding of the output (the weights are computed in float64 in both). ``out``: a
     (C, H, W) float32 C-contiguous array to write into, not overlapping ``history``
-    (:func:`_out_array`)."""
+    (:func:`out_array`)."""
     history = np.ascontiguousarray(history, np.float32)
-    out = _out_array(out, history.shape, "out")
+    out = out_array(out, history.shape, "out")
     status = np.empty(history.shape[1:], np.uint8)
     _reproject_nb(history, np.ascontiguousarray(motion, np.float32),
                   np.ascontiguousarray(cur_hit, np.bool_),
@@ -195,12 +195,12 @@ def accumulate_fast(sample, history, n_hist, ok, alpha_min=0.0, n_max=N_MAX, alp
                     sample_ok=None, out=None):
     """Compiled :func:`accumulate` (same arguments and results, one fused pass). ``out``:
     optional (accumulated (C, H, W), N (H, W)) float32 arrays to write into, either None
-    (:func:`_out_array`), e.g. planes of the buffer the method stores as its history."""
+    (:func:`out_array`), e.g. planes of the buffer the method stores as its history."""
     sample = np.ascontiguousarray(sample, np.float32)
     h, w = sample.shape[1:]
     acc_out, n_given = (None, None) if out is None else out
-    out = _out_array(acc_out, sample.shape, "out[0]")
-    n_out = _out_array(n_given, (h, w), "out[1]")
+    out = out_array(acc_out, sample.shape, "out[0]")
+    n_out = out_array(n_given, (h, w), "out[1]")
     a_out = np.empty((h, w), np.float32)
     _accumulate_nb(sample, np.ascontiguousarray(history, np.float32),
                    np.ascontiguousarray(n_hist, np.float32), np.ascontiguousarray(ok, np.bool_),
