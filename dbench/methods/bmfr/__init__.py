@@ -10,6 +10,16 @@ without Q with R shared by the three channels (§5, :func:`householder_lstsq`); 
 with the noise-free features, negatives clamped to 0; accumulation 2 of the fit with
 α2 = max(1/N, 0.1); remodulation, with the emission accumulated like Z.
 
+Residual hand-back (``handback="wiener"``, default; [dbench], docs/temporal.md §9,
+:mod:`dbench.methods.bmfr.handback`): before accumulation 2 the fit y gets back the part of
+Z' − y that is not noise — its 7×7 local mean, and the rest in proportion to its window energy
+beyond the variance of Z' (accumulated per channel from Z² and the blend weights, spatial below
+4 effective samples). A block fit cannot follow a contact shadow or a highlight inside a block:
+fed the reference itself, the paper's BMFR had twice plain accumulation's error on ``orbit``,
+and that bias does not fall as frames accumulate. With the hand-back the output converges to
+the accumulated input as its variance vanishes. ``"none"`` is the paper's method (10 history
+planes instead of 14).
+
 Temporal gradient (``temporal_gradient=True``, default; docs/temporal.md §5): when the frame has
 a ``gradient`` buffer (the re-shaded samples A-SVGF uses), both accumulations take A-SVGF's
 adaptive history (:func:`dbench.methods.svgf.gradient_history`): N' = min(N(1 − G)^10 + 1, 256),
@@ -29,7 +39,8 @@ reprojection, accumulation, demodulation, feature construction, the batched Hous
 all blocks and the reconstruction as PyTorch kernels (:mod:`dbench.methods.bmfr.torch_path`) on
 CUDA when available, else on CPU, NumPy in and out of each kernel, history kept as NumPy;
 ``params["backend"]`` holds the resolved name), preset (None | "seed": block 64, 36 samples,
-features "seed" — the seed's implementation, spec §3.1).
+features "seed", no hand-back — the seed's implementation, spec §3.1 | "paper": no hand-back),
+handback ("wiener" | "none").
 
 Fit set: pixels with a hit, no emission and a usable accumulated value; reconstructed: every
 hit pixel without emission (a pixel whose sample was non-finite gets the block's fit).
@@ -71,6 +82,7 @@ from ...registry import register
 from .. import temporal as T
 from ..svgf import _accumulate_emission, _emission, gradient_history
 from ..svgf import dispatch as SC
+from . import handback as HB
 from .dispatch import bmfr_fit, householder_lstsq
 from .numba_path import bmfr_fit_fast
 from .params import FEATURE_PRESETS, N_OFFSETS, PRESETS, RCOND
@@ -95,7 +107,7 @@ class BMFR(T.HistoryDenoiser):
                                     offsets=N_OFFSETS, alpha1=0.2, alpha2=0.1,
                                     clamp_negative=True, rcond=RCOND, seed=0, tau_d=T.TAU_D,
                                     tau_n=T.TAU_N, backend="auto", preset=None, samples=None,
-                                    temporal_gradient=True)
+                                    temporal_gradient=True, handback="wiener")
 
     def __init__(self, **params: Any) -> None:
         super().__init__(**params)
@@ -128,7 +140,11 @@ class BMFR(T.HistoryDenoiser):
         if not isinstance(p["temporal_gradient"], bool):
             raise DbenchInputError(f"temporal_gradient: expected True or False, "
                                    f"got {p['temporal_gradient']!r}")
+        if p["handback"] not in HB.HANDBACKS:
+            raise DbenchInputError(f"handback: expected one of {HB.HANDBACKS}, "
+                                   f"got {p['handback']!r}")
         self._start()
+        self._buffers: dict[str, np.ndarray] = {}
         self.grid = grid_offsets(int(p["block_size"]), int(p["offsets"]), int(p["seed"]))
         self.scaled = np.array([c[0] == "p" for c in FEATURE_PRESETS[p["features"]]], bool)
         self.frame_index = 0
@@ -138,6 +154,14 @@ class BMFR(T.HistoryDenoiser):
         super().reset()
         self.frame_index = 0
         self._prev_lum = None
+
+    def _buffer(self, key: str, shape) -> np.ndarray:
+        """A float32 work array kept from frame to frame (a fresh one costs its page faults at
+        720p, History.staging); its values are stale."""
+        arr = self._buffers.get(key)
+        if arr is None or arr.shape != shape:
+            arr = self._buffers[key] = np.empty(shape, np.float32)
+        return arr
 
     def _alphas(self, data, geo, n_hist, prep):
         """(history length to accumulate on, α1, α2, G): the fixed rule of the BMFR code, or,
@@ -161,20 +185,23 @@ class BMFR(T.HistoryDenoiser):
         prep = SC.prepare(be, color, albedo, _emission(data, h, w), geo.hit)
         present = prep["present"]
 
-        # history: Z accumulated (3), N, the fit accumulated (3), emission accumulated (3)
-        hist, status = self.history.fetch(geo, 10)
+        # history: Z accumulated (3), N, the fit accumulated (3), emission accumulated (3);
+        # with the hand-back also Z² accumulated (3) and Σ w² of the first accumulation
+        wiener = p["handback"] == "wiener"
+        planes = 10 + (HB.EXTRA_PLANES if wiener else 0)
+        hist, status = self.history.fetch(geo, planes)
         ok = status > 0
         acc = partial(T.accumulate_any, be)
         n_hist, a1, a2, g = self._alphas(data, geo, hist[3], prep)
         # this frame's history is written in place into a reused array (History.staging)
-        stage = self.history.staging(10, h, w)
-        z_acc, n1, _ = acc(prep["illum"], hist[0:3], n_hist, ok, p["alpha1"], T.N_MAX, a1,
-                           present, out=(stage[0:3], stage[3]))
+        stage = self.history.staging(planes, h, w)
+        z_acc, n1, a_used = acc(prep["illum"], hist[0:3], n_hist, ok, p["alpha1"], T.N_MAX, a1,
+                                present, out=(stage[0:3], stage[3]))
         acc_e = _accumulate_emission(be, prep, hist[7:10], n_hist, ok, p["alpha1"], T.N_MAX,
                                      a1, present, out=stage[7:10])
         filled = n1 > 0
         recon = geo.hit & ~prep["emitter"]
-        fit = recon & filled
+        fit = handed = recon & filled  # handed: where the residual may go back
         k = self.frame_index
         offset = self.grid[k % len(self.grid)]
         noise_seed = (int(p["seed"]) * 1_000_003 + k) & 0x7FFFFFFFFFFFFFFF
@@ -193,11 +220,26 @@ class BMFR(T.HistoryDenoiser):
         else:
             feats, _ = feature_stack(geo.normal, geo.position, p["features"])
             y_fit, dropped = bmfr_fit_reference(z_acc, feats, scaled, fit, recon, *fit_args)
+        if wiener:  # the residual's hand-back before the second accumulation (handback.py)
+            # the torch backend runs the hand-back's compiled CPU kernels (NumPy in and out)
+            compiled = be != "reference"
+            if compiled:
+                zz_acc, s, var = HB.moments_fast(
+                    prep["illum"], z_acc, a_used, hist[10:14], ok, present, handed,
+                    stage[10:14] if fast else np.empty((4, h, w), np.float32),
+                    self._buffer("var", z_acc.shape))
+            else:
+                zz_acc, s, var = HB.moments_reference(be, prep["illum"], z_acc, a_used,
+                                                      hist[10:14], n_hist, ok, present, handed,
+                                                      p["alpha1"], T.N_MAX, a1)
+            y_fit = HB.handback(z_acc, y_fit, var, handed, compiled,
+                                out=self._buffer("handback", y_fit.shape) if compiled else None)
         # the second history length equals the first one (same reprojection, same resets)
         y_acc, n2, _ = acc(y_fit, hist[4:7], n_hist, ok, p["alpha2"], T.N_MAX, a2,
                            filled | recon, out=(stage[4:7], None))
         if not fast:  # the other backends return new arrays: gather them
-            stage = np.concatenate([z_acc, n1[None], y_acc, acc_e])
+            parts = [z_acc, n1[None], y_acc, acc_e] + ([zz_acc, s[None]] if wiener else [])
+            stage = np.concatenate(parts)
         self.history.store(geo, stage, valid=filled | recon, finite=True)
         self.frame_index += 1
         self._prev_lum = prep["lum_raw"]

@@ -15,8 +15,10 @@ FEATURE_PRESETS = {
 }
 RCOND = 1e-10      # rank safeguard |R_kk| < rcond · max |R_jj| (spec §5) [dbench]
 N_OFFSETS = 16     # per-frame grid offsets, cycling [BMFR code]
-#: the seed's implementation [S001 §3.2]: 64×64 blocks fitted from 36 random pixels, feature set 3
-PRESETS = {"seed": dict(block_size=64, features="seed", samples=36)}
+#: the seed's implementation [S001 §3.2]: 64×64 blocks fitted from 36 random pixels, feature set
+#: 3; the paper's method: every default but the [dbench] residual hand-back (docs/temporal.md §9)
+PRESETS = {"seed": dict(block_size=64, features="seed", samples=36, handback="none"),
+           "paper": dict(handback="none")}
 
 
 #: splitmix64 (Steele, Lea, Flood 2014): increment, multipliers, shifts; 2⁻⁵³; a 16-bit mask.

@@ -24,8 +24,11 @@ def householder_lstsq_reference(A: np.ndarray, B: np.ndarray, rcond: float = RCO
         (X (K, n, c) float64, dropped (K,) int: columns zeroed by the safeguard).
     """
     R = np.concatenate([np.asarray(A, np.float64), np.asarray(B, np.float64)], axis=2)
-    k_, m, _ = R.shape
     n = A.shape[2]
+    if R.shape[1] < n:  # fewer rows than columns (a block's corner): zero rows change nothing,
+        # and the columns they leave without a pivot are dropped by the safeguard below
+        R = np.concatenate([R, np.zeros((R.shape[0], n - R.shape[1], R.shape[2]))], axis=1)
+    k_, m, _ = R.shape
     for k in range(min(n, m)):
         x = R[:, k:, k]
         norm = np.sqrt((x * x).sum(1))

@@ -1,0 +1,281 @@
+"""The Wiener hand-back of a temporal filter's residual [dbench] (docs/temporal.md §9).
+
+A regression or a spatial filter fed a temporally accumulated signal z returns y, which is
+biased where its model cannot follow the image (BMFR's block fit across a contact shadow, a
+highlight inside a 32-px block). On a static scene the accumulated z keeps converging while that
+bias stays: fed the reference itself, BMFR's output had twice plain accumulation's error on
+``orbit``. The hand-back returns to y the part of the residual r = z − y that is not noise,
+with the split of :mod:`dbench.methods.kernels.handback` (the ProDen gate's Wiener rule):
+
+    low  = G*r / G*1                   (G: Gaussian of σ = 2 px truncated at the 7×7 window,
+                                        zero padding; the local bias)
+    high = r − low
+    s²   = max(B(high²) − B(var), 0)    (B: mean over the 7×7 window inside the image)
+    λ    = s² / (s² + var)              (1 where both are 0)
+    out  = y + low + λ · high           where ``mask``; y elsewhere
+
+``var`` is the variance of z itself (of the accumulated mean, per channel). Where y is right, r
+is z's noise: λ ≈ 0 and only its local mean goes back. Where y errs at the pixel scale the
+window's energy exceeds the noise's and λ → 1: z. As var → 0 (a converged history) out → z,
+so the filter converges with its own accumulation instead of keeping its bias. The 7×7 window
+is SVGF's variance window (spec/svgf.md §3); r and var are 0 outside ``mask``.
+
+* :func:`residual_handback_reference` — the readable form (SciPy, float64; the split is
+  :func:`~dbench.methods.kernels.handback.wiener_handback` with α_gate = 0).
+* :func:`residual_handback_fast` — compiled (Numba, parallel over rows, float32 images, float64
+  sums), equal to the reference within float32 rounding (tests).
+* :func:`window_variance_reference` / :func:`window_variance_fast` — the per-channel variance of
+  this frame's samples over the 7×7 window (``valid`` pixels only), the estimate a pixel with a
+  short history takes instead of its temporal one (as SVGF's §3 does below 4 frames).
+
+A kernel imports no method and nothing of the harness.
+"""
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numba import njit, prange
+
+from .handback import wiener_handback
+
+#: Radius of the window of the energies and of the Gaussian's support: 7×7.
+HANDBACK_RADIUS = 3
+#: σ of the Gaussian that takes the residual's local mean, in pixels.
+HANDBACK_SIGMA = 2.0
+
+
+def handback_taps(sigma: float = HANDBACK_SIGMA, radius: int = HANDBACK_RADIUS) -> np.ndarray:
+    """The normalised 1-D Gaussian (2·radius + 1,) float64 of the local mean."""
+    ax = np.arange(-radius, radius + 1, dtype=np.float64)
+    g = np.exp(-0.5 * (ax / sigma) ** 2)
+    return g / g.sum()
+
+
+def _check(z, y, var, mask):
+    z, y, var = (np.asarray(a) for a in (z, y, var))
+    if z.ndim != 3 or y.shape != z.shape or var.shape != z.shape:
+        raise ValueError(f"z, y, var: expected equal (C, H, W) shapes, got {z.shape}, {y.shape}, "
+                         f"{var.shape}")
+    mask = np.asarray(mask, bool)
+    if mask.shape != z.shape[1:]:
+        raise ValueError(f"mask: expected shape {z.shape[1:]}, got {mask.shape}")
+    return z, y, var, mask
+
+
+def residual_handback_reference(z: Any, y: Any, var: Any, mask: Any,
+                                sigma: float = HANDBACK_SIGMA,
+                                radius: int = HANDBACK_RADIUS) -> np.ndarray:
+    """out = y + low + λ·high of the module docstring (readable form).
+
+    Args:
+        z: (C, H, W) accumulated signal; y: (C, H, W) the filter's output; var: (C, H, W)
+        variance of z, ≥ 0; mask: (H, W) bool, where the residual is handed back.
+
+    Returns:
+        (C, H, W) float64.
+    """
+    from scipy.ndimage import correlate1d
+
+    z, y, var, mask = _check(z, y, var, mask)
+    z, y = np.asarray(z, np.float64), np.asarray(y, np.float64)
+    r = np.where(mask, z - y, 0.0)
+    var0 = np.where(mask, np.asarray(var, np.float64), 0.0)
+    g = handback_taps(sigma, radius)
+
+    def blur(img):
+        img = correlate1d(img, g, axis=-1, mode="constant")
+        return correlate1d(img, g, axis=-2, mode="constant")
+
+    low = blur(r) / blur(np.ones(z.shape[1:]))
+    # wiener_handback(hdr = y + r, den = y, α_gate = 0, α = 1) = y + low + λ·high
+    cl = (lambda a: np.moveaxis(a, 0, -1))
+    out = wiener_handback(cl(y + r), cl(y), 0.0, cl(low), cl(var0), 1.0, radius)
+    return np.where(mask, np.moveaxis(out, -1, 0), y)
+
+
+def _inside_counts(n: int, radius: int) -> np.ndarray:
+    """How many of the window's 2r + 1 positions along an axis of length n lie inside."""
+    idx = np.arange(n)
+    return (np.minimum(idx + radius, n - 1) - np.maximum(idx - radius, 0) + 1).astype(np.float64)
+
+
+def _gauss_norm(n: int, g: np.ndarray) -> np.ndarray:
+    """G*1 along an axis of length n (zero padding)."""
+    from scipy.ndimage import correlate1d
+
+    return correlate1d(np.ones(n), g, mode="constant")
+
+
+#: Output rows per task of the compiled hand-back: each task keeps its intermediate rows (the
+#: band and 2R rows either side) in buffers small enough for the cache, instead of five
+#: full-size intermediate images (which made it memory-bound: 13.7 ms at 720p against 5.6 ms).
+BAND_ROWS = 64
+
+
+@njit(cache=True, parallel=True, fastmath=True)
+def _handback_bands(z, y, var, mask, g, radius, inv_norm_x, norm_y, inv_x, inv_y, band,
+                    out):  # pragma: no cover - compiled
+    """:func:`residual_handback_reference` over bands of ``band`` output rows, in float32 (the
+    inputs' magnitudes are bounded by the methods' input guard,
+    :data:`dbench.methods.guards.RADIANCE_MAX`, so the 49 squares of a window stay finite).
+
+    Per band and channel: the rows of r and of its x-blur G_x*r from 2R above to 2R below
+    the band (``rr``, ``rx``), then from R above to R below the local mean (G_y of rx over G*1,
+    ``lo``), the x-sums of high² and of the masked variance (``hx``, ``vx``), then the
+    band's output rows from their y-sums. Rows are padded with R zeros either side so the tap
+    loops have no branches, and run x innermost so that they vectorise."""
+    c_n, h, w = z.shape
+    r = radius
+    taps = 2 * r + 1
+    n_bands = (h + band - 1) // band
+    for b in prange(n_bands):
+        y_lo = b * band
+        y_hi = min(y_lo + band, h)
+        a0, a1 = max(y_lo - 2 * r, 0), min(y_hi + 2 * r, h)
+        b0, b1 = max(y_lo - r, 0), min(y_hi + r, h)
+        rr = np.empty((a1 - a0, w), np.float32)
+        rx = np.empty((a1 - a0, w), np.float32)
+        lo = np.empty((b1 - b0, w), np.float32)
+        hx = np.empty((b1 - b0, w), np.float32)
+        vx = np.empty((b1 - b0, w), np.float32)
+        pr = np.zeros(w + 2 * r, np.float32)
+        pv = np.zeros(w + 2 * r, np.float32)
+        acc = np.empty(w, np.float32)
+        eh = np.empty(w, np.float32)
+        ev = np.empty(w, np.float32)
+        for c in range(c_n):
+            for ya in range(a0, a1):
+                i = ya - a0
+                for x in range(w):
+                    d = z[c, ya, x] - y[c, ya, x]
+                    pr[x + r] = d if mask[ya, x] else np.float32(0.0)
+                    rr[i, x] = pr[x + r]
+                acc[:] = 0.0
+                for k in range(taps):  # x innermost: this loop vectorises
+                    gk = g[k]
+                    for x in range(w):
+                        acc[x] += gk * pr[x + k]
+                rx[i, :] = acc
+            for yb in range(b0, b1):
+                j = yb - b0
+                acc[:] = 0.0
+                for k in range(taps):
+                    y2 = yb + k - r
+                    if 0 <= y2 < h:
+                        gk = g[k]
+                        for x in range(w):
+                            acc[x] += gk * rx[y2 - a0, x]
+                inv_ny = np.float32(1.0) / norm_y[yb]
+                for x in range(w):
+                    low = acc[x] * (inv_ny * inv_norm_x[x])
+                    lo[j, x] = low
+                    hv = rr[yb - a0, x] - low
+                    pr[x + r] = hv * hv
+                    pv[x + r] = var[c, yb, x] if mask[yb, x] else np.float32(0.0)
+                eh[:] = 0.0
+                ev[:] = 0.0
+                for k in range(taps):
+                    for x in range(w):
+                        eh[x] += pr[x + k]
+                        ev[x] += pv[x + k]
+                hx[j, :] = eh
+                vx[j, :] = ev
+            for yo in range(y_lo, y_hi):
+                eh[:] = 0.0
+                ev[:] = 0.0
+                for y2 in range(max(yo - r, 0), min(yo + r + 1, h)):
+                    for x in range(w):
+                        eh[x] += hx[y2 - b0, x]
+                        ev[x] += vx[y2 - b0, x]
+                inv_y_o = inv_y[yo]
+                for x in range(w):
+                    excess = max(eh[x] - ev[x], np.float32(0.0)) * (inv_x[x] * inv_y_o)
+                    v = var[c, yo, x]
+                    total = excess + v
+                    lam = excess / total if total > 0.0 else np.float32(1.0)
+                    low = lo[yo - b0, x]
+                    back = low + lam * (rr[yo - a0, x] - low)
+                    out[c, yo, x] = y[c, yo, x] + back if mask[yo, x] else y[c, yo, x]
+
+
+def residual_handback_fast(z: np.ndarray, y: np.ndarray, var: np.ndarray, mask: np.ndarray,
+                           out: np.ndarray | None = None, sigma: float = HANDBACK_SIGMA,
+                           radius: int = HANDBACK_RADIUS, band: int = BAND_ROWS) -> np.ndarray:
+    """:func:`residual_handback_reference`, compiled; float32 (C, H, W) out (any ``band`` height
+    gives the same values to float32 rounding).
+
+    ``out``: an optional (C, H, W) float32 array to write into (not z, y or var).
+    """
+    z, y, var, mask = _check(z, y, var, mask)
+    shape = z.shape
+    if out is None:
+        out = np.empty(shape, np.float32)
+    elif out.shape != shape or out.dtype != np.float32:
+        raise ValueError(f"out: expected float32 of shape {shape}, got {out.dtype} {out.shape}")
+    g = handback_taps(sigma, radius)
+    h, w = shape[1:]
+    f32 = (lambda a: np.ascontiguousarray(a, np.float32))
+    _handback_bands(f32(z), f32(y), f32(var), np.ascontiguousarray(mask), f32(g), radius,
+                    f32(1.0 / _gauss_norm(w, g)), f32(_gauss_norm(h, g)),
+                    f32(1.0 / _inside_counts(w, radius)), f32(1.0 / _inside_counts(h, radius)),
+                    max(int(band), 1), out)
+    return out
+
+
+def window_variance_reference(x: Any, valid: Any, radius: int = HANDBACK_RADIUS) -> np.ndarray:
+    """Per-channel variance E[x²] − E[x]² of (C, H, W) ``x`` over the ``valid`` (H, W) pixels of
+    the (2r + 1)² window around each pixel (0 where the window holds none); float64."""
+    from scipy.ndimage import uniform_filter
+
+    x = np.asarray(x, np.float64)
+    valid = np.asarray(valid, bool)
+    xv = np.where(valid, x, 0.0)
+    size = (1, 2 * radius + 1, 2 * radius + 1)
+    cnt = uniform_filter(valid.astype(np.float64), size[1:], mode="constant")
+    m1 = uniform_filter(xv, size, mode="constant")
+    m2 = uniform_filter(xv * xv, size, mode="constant")
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = np.where(cnt > 0, m1 / np.where(cnt > 0, cnt, 1.0), 0.0)
+        mean2 = np.where(cnt > 0, m2 / np.where(cnt > 0, cnt, 1.0), 0.0)
+    return np.maximum(mean2 - mean * mean, 0.0)
+
+
+@njit(cache=True, parallel=True, fastmath=False)
+def _window_variance(x, valid, need, radius, out):  # pragma: no cover - compiled
+    c_n, h, w = x.shape
+    for yy in prange(h):
+        for xx in range(w):
+            if not need[yy, xx]:
+                continue
+            for c in range(c_n):
+                n = 0
+                s1 = 0.0
+                s2 = 0.0
+                for y2 in range(max(yy - radius, 0), min(yy + radius + 1, h)):
+                    for x2 in range(max(xx - radius, 0), min(xx + radius + 1, w)):
+                        if valid[y2, x2]:
+                            v = np.float64(x[c, y2, x2])
+                            n += 1
+                            s1 += v
+                            s2 += v * v
+                if n > 0:
+                    m = s1 / n
+                    out[c, yy, xx] = max(s2 / n - m * m, 0.0)
+                else:
+                    out[c, yy, xx] = 0.0
+
+
+def window_variance_fast(x: np.ndarray, valid: np.ndarray, need: np.ndarray, out: np.ndarray,
+                         radius: int = HANDBACK_RADIUS) -> np.ndarray:
+    """:func:`window_variance_reference` written into ``out`` (C, H, W) float32 at the ``need``
+    (H, W) pixels only (the others keep their value); compiled."""
+    if out.shape != x.shape or out.dtype != np.float32:
+        raise ValueError(f"out: expected float32 of shape {x.shape}, got {out.dtype} {out.shape}")
+    _window_variance(np.ascontiguousarray(x, np.float32), np.ascontiguousarray(valid, bool),
+                     np.ascontiguousarray(need, bool), radius, out)
+    return out
+
+
+__all__ = ["HANDBACK_RADIUS", "HANDBACK_SIGMA", "handback_taps", "residual_handback_fast",
+           "residual_handback_reference", "window_variance_fast", "window_variance_reference"]

@@ -1,0 +1,207 @@
+"""bmfr's residual hand-back [dbench] (docs/temporal.md §9; kernels/residual_handback.py)."""
+import numpy as np
+import pytest
+
+from dbench import methods
+from dbench.bench.sequence import synthetic_sequence
+from dbench.data import Frame
+from dbench.errors import DbenchInputError
+from dbench.methods.bmfr import handback as HB
+from dbench.methods.kernels import residual_handback as RH
+
+
+def _images(seed, h=37, w=53):
+    rng = np.random.default_rng(seed)
+    z = rng.gamma(1.0, 1.0, (3, h, w)).astype(np.float32)
+    y = (z + rng.normal(0, 0.3, z.shape)).astype(np.float32)
+    var = rng.uniform(0, 0.2, z.shape).astype(np.float32)
+    mask = rng.uniform(size=(h, w)) > 0.15
+    return z, y, var, mask
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_fast_equals_reference(seed):
+    z, y, var, mask = _images(seed)
+    ref = RH.residual_handback_reference(z, y, var, mask)
+    first = None
+    for band in (1, 5, 16, 64):  # any band height: the same values to float32 rounding
+        fast = RH.residual_handback_fast(z, y, var, mask, band=band)
+        np.testing.assert_allclose(fast, ref, rtol=1e-5, atol=1e-5 * np.abs(ref).max())
+        first = fast if first is None else first
+        np.testing.assert_allclose(fast, first, rtol=1e-6, atol=1e-7)
+    np.testing.assert_array_equal(ref[:, ~mask], y[:, ~mask])  # outside the mask: y
+
+
+def test_window_variance_fast_equals_reference_where_needed():
+    z, _, _, mask = _images(2)
+    need = np.random.default_rng(3).uniform(size=mask.shape) > 0.5
+    out = np.full(z.shape, -1.0, np.float32)
+    RH.window_variance_fast(z, mask, need, out)
+    ref = RH.window_variance_reference(z, mask)
+    np.testing.assert_allclose(out[:, need], ref[:, need], rtol=1e-5, atol=1e-6)
+    assert (out[:, ~need] == -1.0).all()
+    # a window with one valid sample has variance 0
+    lone = np.zeros(mask.shape, bool)
+    lone[10, 10] = True
+    np.testing.assert_allclose(RH.window_variance_reference(z, lone)[:, 10, 10], 0.0, atol=1e-12)
+
+
+def test_limits_zero_variance_gives_z_and_zero_residual_gives_y():
+    z, y, var, mask = _images(4)
+    for rule in (RH.residual_handback_reference, RH.residual_handback_fast):
+        out = rule(z, y, np.zeros_like(var), mask)  # a converged history: its own value
+        np.testing.assert_allclose(out[:, mask], z[:, mask], rtol=1e-5, atol=1e-5)
+        out = rule(z, z, var, mask)
+        np.testing.assert_allclose(out, z, rtol=1e-6, atol=1e-6)
+
+
+def test_noise_stays_out_and_bias_goes_back():
+    """y the truth and z = truth + noise of known variance: the hand-back keeps most of the
+    noise out. y biased by a 2-px stripe (a fit across a contact shadow): most of the bias goes
+    back."""
+    rng = np.random.default_rng(5)
+    h, w = 64, 64
+    truth = np.ones((3, h, w), np.float32)
+    truth[:, :, 30:32] = 0.1  # the stripe
+    sd = 0.05
+    z = (truth + rng.normal(0, sd, truth.shape)).astype(np.float32)
+    var = np.full(truth.shape, sd * sd, np.float32)
+    mask = np.ones((h, w), bool)
+    rmse = (lambda a: float(np.sqrt(((a - truth) ** 2).mean())))
+    out = RH.residual_handback_fast(z, truth, var, mask)
+    assert rmse(out) < 0.35 * rmse(z)
+    biased = np.ones_like(truth)  # the fit missed the stripe
+    out = RH.residual_handback_fast(z, biased, var, mask)
+    assert rmse(out) < 0.25 * rmse(biased)
+    assert rmse(out) < rmse(z)
+
+
+def test_weight_sq_is_the_variance_factor_of_the_mean():
+    ok = np.ones((1, 1), bool)
+    s = np.ones((1, 1), np.float32)
+    for n in range(2, 9):  # running mean: α = 1/N gives S = 1/N
+        s = HB.weight_sq(np.full((1, 1), 1.0 / n, np.float32), s, ok)
+        assert s[0, 0] == pytest.approx(1.0 / n, rel=1e-5)
+    for _ in range(200):  # EMA limit α/(2 − α)
+        s = HB.weight_sq(np.full((1, 1), 0.2, np.float32), s, ok)
+    assert s[0, 0] == pytest.approx(0.2 / 1.8, rel=1e-5)
+    # a missing sample (α = 0) keeps S; a reset (α = 1, no history) gives 1
+    assert HB.weight_sq(np.zeros((1, 1), np.float32), s, ok)[0, 0] == s[0, 0]
+    assert HB.weight_sq(np.ones((1, 1), np.float32), s, ~ok)[0, 0] == 1.0
+
+
+def test_short_histories_take_the_spatial_variance():
+    rng = np.random.default_rng(6)
+    illum = rng.gamma(1.0, 1.0, (3, 20, 20)).astype(np.float32)
+    z, zz = illum.copy(), illum * illum  # one sample: the temporal moments give 0
+    fit = np.ones((20, 20), bool)
+    s = np.ones((20, 20), np.float32)
+    var = HB.illumination_variance(illum, z, zz, s, fit, fit)
+    np.testing.assert_allclose(var, RH.window_variance_reference(illum, fit), rtol=1e-5,
+                               atol=1e-6)
+    s_long = np.full((20, 20), 0.1, np.float32)  # 10 effective samples: the temporal moments
+    var = HB.illumination_variance(illum, z, zz + 1.0, s_long, fit, fit)
+    np.testing.assert_allclose(var, 0.1, rtol=1e-5)
+
+
+@pytest.mark.parametrize("seed", [7, 8])
+def test_fused_moments_equal_the_readable_chain(seed):
+    """moments_fast (one compiled pass) against accumulate + weight_sq + illumination_variance,
+    with resets, missing samples, short and long histories."""
+    rng = np.random.default_rng(seed)
+    h, w = 23, 31
+    illum = rng.gamma(1.0, 1.0, (3, h, w)).astype(np.float32)
+    hist = np.concatenate([rng.gamma(1.0, 2.0, (3, h, w)),
+                           rng.uniform(0.01, 1.0, (1, h, w))]).astype(np.float32)
+    z_acc = rng.gamma(1.0, 1.0, (3, h, w)).astype(np.float32)
+    ok = rng.uniform(size=(h, w)) > 0.2
+    present = rng.uniform(size=(h, w)) > 0.1
+    fit = rng.uniform(size=(h, w)) > 0.1
+    n_hist = np.where(ok, rng.integers(0, 30, (h, w)), 0).astype(np.float32)
+    from dbench.methods import temporal as T
+
+    _, _, alpha = T.accumulate_any("reference", illum, z_acc, n_hist, ok, 0.2, T.N_MAX, None,
+                                   present)
+    ref = HB.moments_reference("reference", illum, z_acc, alpha, hist, n_hist, ok, present, fit,
+                               0.2, T.N_MAX, None)
+    out_hist = np.empty((4, h, w), np.float32)
+    var = np.empty((3, h, w), np.float32)
+    fast = HB.moments_fast(illum, z_acc, alpha, hist, ok, present, fit, out_hist, var)
+    for a, b in zip(fast, ref):
+        np.testing.assert_allclose(a, b, rtol=2e-5, atol=1e-6)
+    assert (ref[1] * HB.MIN_TEMPORAL_SAMPLES > 1).any() and (ref[1] < 0.25).any()
+
+
+def _shadow_sequence(frames, noisy, seed=0):
+    """A static 64² wall with a 2-px contact shadow the block fit cannot follow."""
+    h = w = 64
+    rng = np.random.default_rng(seed)
+    y, x = np.mgrid[0:h, 0:w].astype(np.float64)
+    clean = np.full((h, w, 3), 0.6)
+    clean[:, 40:42] = 0.05
+    g = dict(albedo=np.ones((h, w, 3)), depth=np.ones((h, w, 1)),
+             normal=np.tile([0, 0, 1.0], (h, w, 1)),
+             position=np.dstack([x / w, y / h, np.zeros((h, w))]), motion=np.zeros((h, w, 2)))
+    out = []
+    for _ in range(frames):
+        color = clean * rng.exponential(1.0, (h, w, 1)) if noisy else clean
+        out.append(Frame(color=color, reference=clean, **g))
+    return out
+
+
+def test_bmfr_converges_to_its_accumulation_where_the_fit_is_biased():
+    """Fed a clean image, the paper's BMFR keeps its block fit's bias; with the hand-back the
+    output converges to the input (from the 4th frame its fit is handed back whole; the second
+    accumulation forgets the first frames at 0.9 a frame). With noise, the hand-back is below the paper's output and below the
+    first accumulation."""
+    err = {}
+    for rule in ("none", "wiener"):
+        m = methods.get("bmfr", handback=rule)
+        m.reset()
+        for f in _shadow_sequence(48, noisy=False):
+            out = m.denoise(f)
+        err[rule] = float(np.sqrt(((out - f.reference) ** 2).mean()))
+    assert err["none"] > 0.05 and err["wiener"] < 0.01 * err["none"]
+    late = {}
+    for rule in ("none", "wiener"):
+        m = methods.get("bmfr", handback=rule)
+        m.reset()
+        e = []
+        for i, f in enumerate(_shadow_sequence(24, noisy=True, seed=1)):
+            out = m.denoise(f)
+            if i >= 12:
+                e.append(float(np.sqrt(((out - f.reference) ** 2).mean())))
+        late[rule] = np.mean(e)
+    acc = methods.get("accumulate", alpha_min=0.2)
+    acc.reset()
+    e = []
+    for i, f in enumerate(_shadow_sequence(24, noisy=True, seed=1)):
+        out = acc.denoise(f)
+        if i >= 12:
+            e.append(float(np.sqrt(((out - f.reference) ** 2).mean())))
+    assert late["wiener"] < 0.8 * late["none"]
+    assert late["wiener"] < np.mean(e)
+
+
+def test_backends_agree_with_the_hand_back_and_history_planes():
+    from test_accumulate import hard_sequence
+
+    ms = {b: methods.get("bmfr", backend=b) for b in ("numba", "reference", "torch")}
+    for m in ms.values():
+        m.reset()
+    for f in hard_sequence(24, 40, frames=5):  # disocclusion, NaN/Inf colour and motion
+        outs = {b: m.denoise(f) for b, m in ms.items()}
+        for b in ("reference", "torch"):
+            np.testing.assert_allclose(outs["numba"], outs[b], rtol=1e-4, atol=1e-5)
+        assert np.isfinite(outs["numba"]).all() and (outs["numba"] >= 0).all()
+    assert ms["numba"].history.buffers.shape[0] == 10 + HB.EXTRA_PLANES
+    plain = methods.get("bmfr", handback="none")
+    plain.reset()
+    plain.denoise(synthetic_sequence(8, 8, frames=1)[0])
+    assert plain.history.buffers.shape[0] == 10
+
+
+def test_handback_parameter_is_checked():
+    with pytest.raises(DbenchInputError, match="handback"):
+        methods.get("bmfr", handback="pixel")
+    assert methods.get("bmfr").params["handback"] == "wiener"
