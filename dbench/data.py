@@ -4,7 +4,8 @@ Plain dataclasses around NumPy arrays, constructible directly so that methods an
 run on synthetic data. Shapes use (H, W, C) with row 0 at the top; C = 3 for colour buffers.
 
 Buffer names (used in code, files and reports): ``color``, ``albedo``, ``normal``, ``depth``,
-``position``, ``emitter``, ``motion``, ``gradient``, ``emission``, ``stats``, ``reference``.
+``position``, ``emitter``, ``motion``, ``gradient``, ``emission``, ``stats``, ``reference``,
+``geo_normal``, ``reflected_normal``.
 ``reference_var`` (the variance of the reference mean) rides along with ``reference`` for the
 judge; methods never ask for it. A :class:`Sequence` is a list of Frames of one animated scene
 (spec/temporal.md §1).
@@ -36,6 +37,8 @@ FRAME_BUFFERS: dict[str, int] = {
     "gradient": 3,
     "emission": 3,
     "emitter": 1,
+    "geo_normal": 3,
+    "reflected_normal": 3,
 }
 #: Every name a method may list in ``needs``.
 BUFFER_NAMES = tuple(FRAME_BUFFERS) + ("stats",)
@@ -199,6 +202,11 @@ class Frame:
             and channel, estimated from K independent chunks of the reference render
             (spec/verdicts.md §2), or None. Comes with ``reference``; ``meta["ref_rmse"]`` =
             sqrt(mean(reference_var)).
+        geo_normal: (H, W, 3) float32 sequence frames only (PSR G-buffers): the world-space
+            geometric (face) normal of the surface ``normal`` describes, or None.
+        reflected_normal: (H, W, 3) float32 sequence frames only (PSR G-buffers): ``normal``,
+            replaced on glossy surfaces of roughness < 0.4 by the shading normal of what their
+            mirror direction hits (seed 001 §1.2.1), or None.
     """
 
     color: np.ndarray
@@ -214,6 +222,8 @@ class Frame:
     emission: np.ndarray | None = None
     emitter: np.ndarray | None = None
     reference_var: np.ndarray | None = None
+    geo_normal: np.ndarray | None = None
+    reflected_normal: np.ndarray | None = None
 
     kind = "steady"
 

@@ -5,7 +5,8 @@ scene), scored after the 8-frame warm-up like :mod:`dbench.bench.sequence`: mean
 ``t_rmse`` per seed, then the mean and the 95 % t-interval over the seeds. The variants change one
 thing at a time from the method's default, so the table shows how sensitive each method is to
 each parameter (α, à-trous iterations, the variance the luminance weights use, the feedback tap,
-BMFR's block size, feature set, samples per block and the temporal gradient).
+the normal buffer of the edge-stopping weights, BMFR's residual hand-back, block size, feature
+set — with the reflected and geometric normals —, samples per block and the temporal gradient).
 
 Reproduce (about 10 minutes on 2 cores once the sequences are cached)::
 
@@ -37,17 +38,25 @@ VARIANTS: tuple[tuple[str, str, dict[str, Any]], ...] = (
     ("svgf alpha_min=0.05", "svgf", {"alpha_min": 0.05}),
     ("svgf sigma_l=2", "svgf", {"sigma_l": 2.0}),
     ("svgf sigma_l=10", "svgf", {"sigma_l": 10.0}),
+    ("svgf normal_buffer=reflected_normal", "svgf", {"normal_buffer": "reflected_normal"}),
+    ("svgf normal_buffer=geo_normal", "svgf", {"normal_buffer": "geo_normal"}),
     ("asvgf", "asvgf", {}),
     ("asvgf alpha_floor=False", "asvgf", {"alpha_floor": False}),
     ("asvgf preset=paper", "asvgf", {"preset": "paper"}),
     ("asvgf gradient_mode=paper", "asvgf", {"gradient_mode": "paper"}),
+    ("asvgf normal_buffer=reflected_normal", "asvgf", {"normal_buffer": "reflected_normal"}),
     ("bmfr", "bmfr", {}),
+    ("bmfr handback=none (the paper's)", "bmfr", {"handback": "none"}),
+    ("bmfr handback=none block_size=16", "bmfr", {"handback": "none", "block_size": 16}),
     ("bmfr temporal_gradient=False", "bmfr", {"temporal_gradient": False}),
     ("bmfr block_size=8", "bmfr", {"block_size": 8}),
     ("bmfr block_size=16", "bmfr", {"block_size": 16}),
     ("bmfr block_size=64", "bmfr", {"block_size": 64}),
     ("bmfr features=seed", "bmfr", {"features": "seed"}),
     ("bmfr features=normals", "bmfr", {"features": "normals"}),
+    ("bmfr features=reflected", "bmfr", {"features": "reflected"}),
+    ("bmfr features=paper+geo", "bmfr", {"features": "paper+geo"}),
+    ("bmfr features=reflected+geo", "bmfr", {"features": "reflected+geo"}),
     ("bmfr samples=36", "bmfr", {"samples": 36}),
     ("bmfr preset=seed", "bmfr", {"preset": "seed"}),
     ("bmfr alpha1=0.05", "bmfr", {"alpha1": 0.05}),

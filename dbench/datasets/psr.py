@@ -32,6 +32,15 @@ albedo, depth and position stay its own. The roughness is the BSDF's ``alpha`` a
 lane (``eval_attribute_1``; the mean of ``alpha_u`` and ``alpha_v`` for anisotropic ones); a
 mirror ray that leaves the scene keeps the surface's own normal.
 
+Two more buffers ride along (seed 001 §1.2.1's feature buffers, offered to BMFR and SVGF):
+
+* ``geo_normal`` — the geometric (face) normal ``si.n`` of the same surface, in world space
+  (the seed's "geometry normal buffer" holds the object-space normal; world space keeps it
+  comparable between instances and with ``normal``);
+* ``reflected_normal`` — the glossy reflected-normal rule above with α < 0.4 whatever
+  ``glossy_alpha`` is (the surface's own shading normal where the rule does not apply), so a
+  method can use it beside or instead of ``normal`` without a second render.
+
 Surfaces that are not delta keep Mitsuba's own AOVs (the results equal the ``aov`` integrator's
 bit for bit; tested). A chain that leaves the scene gives a "no hit" pixel (zeros).
 """
@@ -44,7 +53,10 @@ PSR_BOUNCES = 4
 GLOSSY_ALPHA = 0.4
 #: channel layout of the render: colour, then the G-buffer (same order as sequence.MATCHED_LAYOUT)
 PSR_AOVS = ("emission.R", "emission.G", "emission.B", "albedo.R", "albedo.G", "albedo.B",
-            "nn.X", "nn.Y", "nn.Z", "dd.T", "pp.X", "pp.Y", "pp.Z")
+            "nn.X", "nn.Y", "nn.Z", "dd.T", "pp.X", "pp.Y", "pp.Z",
+            "gn.X", "gn.Y", "gn.Z", "rn.X", "rn.Y", "rn.Z")
+#: (buffer, first channel, channel count) of the two buffers PSR adds after MATCHED_LAYOUT's
+PSR_EXTRA_LAYOUT = (("geo_normal", 16, 3), ("reflected_normal", 19, 3))
 _REGISTERED = False
 
 
@@ -94,16 +106,24 @@ def register() -> str:
             hit = alive & si.is_valid()
             albedo = throughput * si.bsdf(ray).eval_diffuse_reflectance(si, hit)
             emission = throughput * si.emitter(scene).eval(si, hit)
-            normal = si.sh_frame.n
-            if self.glossy_alpha > 0.0:
-                normal = _glossy_reflected_normal(mi, dr, scene, si, ray, hit, normal,
+            reflected = _glossy_reflected_normal(mi, dr, scene, si, ray, hit, si.sh_frame.n,
+                                                 GLOSSY_ALPHA)
+            if self.glossy_alpha == GLOSSY_ALPHA:
+                normal = reflected
+            elif self.glossy_alpha > 0.0:
+                normal = _glossy_reflected_normal(mi, dr, scene, si, ray, hit, si.sh_frame.n,
                                                   self.glossy_alpha)
+            else:
+                normal = si.sh_frame.n
+            geo_normal = si.n
             length = dr.select(hit, length, 0.0)
             # the hit point itself where no delta surface was followed (Mitsuba's AOV, bit for
             # bit), the virtual point along the primary ray otherwise
             position = dr.select(moved, origin + direction * length, si.p)
             values = (emission[0], emission[1], emission[2], albedo[0], albedo[1], albedo[2],
-                      normal.x, normal.y, normal.z, length, position.x, position.y, position.z)
+                      normal.x, normal.y, normal.z, length, position.x, position.y, position.z,
+                      geo_normal.x, geo_normal.y, geo_normal.z,
+                      reflected.x, reflected.y, reflected.z)
             return spec, valid, [dr.select(hit, mi.Float(v), 0.0) for v in values]
 
         def aov_names(self):
@@ -140,4 +160,5 @@ def psr_integrator(path: dict, glossy_alpha: float = 0.0) -> dict:
     return d
 
 
-__all__ = ["GLOSSY_ALPHA", "PSR_AOVS", "PSR_BOUNCES", "psr_integrator", "register"]
+__all__ = ["GLOSSY_ALPHA", "PSR_AOVS", "PSR_BOUNCES", "PSR_EXTRA_LAYOUT", "psr_integrator",
+           "register"]

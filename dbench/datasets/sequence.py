@@ -102,7 +102,10 @@ GBUFFER_SPP = _render.DEFAULT_FEATURE_SPP
 #: the PSR G-buffers and the roughness below which glossy surfaces get their reflection's normal
 #: (0: the rule off)
 PSR_GLOSSY_ALPHA = {"psr": 0.0, "psr-glossy": _psr.GLOSSY_ALPHA}
-PSR_VERSION = 2
+#: 3: the render adds ``geo_normal`` and ``reflected_normal`` (psr.py)
+PSR_VERSION = 3
+#: buffers only the PSR G-buffers carry
+PSR_BUFFERS = tuple(name for name, _, _ in _psr.PSR_EXTRA_LAYOUT)
 GRADIENTS = ("reshade", "frame")
 RESHADE_VERSION = 1
 #: 2: motion of the surface point without the sample's sub-pixel jitter (motion_vectors)
@@ -291,8 +294,8 @@ def render_frame(scene: SequenceScene, res, spp: int, seed: int, camera_frame: i
             acc.add(out[..., 0:3])
         total = out if total is None else total + out
     mean = (total / spp).astype(np.float32)
-    buffers = {name: np.ascontiguousarray(mean[..., c0:c0 + nc])
-               for name, c0, nc in MATCHED_LAYOUT}
+    layout = MATCHED_LAYOUT + (_psr.PSR_EXTRA_LAYOUT if gbuffer in PSR_GLOSSY_ALPHA else ())
+    buffers = {name: np.ascontiguousarray(mean[..., c0:c0 + nc]) for name, c0, nc in layout}
     if acc is not None:
         buffers["stats"] = acc.finalize()
     return buffers
@@ -486,6 +489,8 @@ def load_sequence(scene: str | SequenceScene, spp: int = 1, res=64,
                            lambda: render_gbuffer(sc, res, i, seed), meta, f"gbuffer{i}")
         buffers = {"color": noisy["color"]}
         buffers.update({k: gbuf[k] for k in ("emission",) + FEATURES if k in wanted})
+        # geo_normal and reflected_normal: PSR G-buffers only (None with the others)
+        buffers.update({k: noisy[k] for k in PSR_BUFFERS if k in wanted and k in noisy})
         if "motion" in wanted:
             buffers["motion"] = motion_vectors(gbuf["position"], gbuf["depth"],
                                                prev_camera or camera, camera)

@@ -17,7 +17,8 @@ from .scene_params import Param, non_default
 from .scene_parts import _camera
 
 SEQUENCE_BUFFERS = frozenset({"color", "albedo", "normal", "depth", "position", "motion",
-                              "gradient", "emission", "emitter", "stats", "reference"})
+                              "gradient", "emission", "emitter", "stats", "reference",
+                              "geo_normal", "reflected_normal"})
 FOV = 39.3
 #: the G-buffers :func:`dbench.datasets.sequence.load_sequence` can attach to the colour
 GBUFFERS = ("psr", "psr-glossy", "matched", "supersampled")

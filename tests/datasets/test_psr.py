@@ -33,8 +33,10 @@ def _render(mi, d, integrator, seed=3):
 
 
 def _buffers(img):
+    from dbench.datasets.psr import PSR_EXTRA_LAYOUT
     from dbench.datasets.sequence import MATCHED_LAYOUT
-    return {name: img[..., c0:c0 + nc] for name, c0, nc in MATCHED_LAYOUT}
+    layout = MATCHED_LAYOUT + (PSR_EXTRA_LAYOUT if img.shape[-1] > 16 else ())
+    return {name: img[..., c0:c0 + nc] for name, c0, nc in layout}
 
 
 def test_mirror_pixels_see_the_reflected_wall(renderer):
@@ -65,7 +67,35 @@ def test_colour_equals_a_plain_render_and_diffuse_pixels_equal_mitsubas_aovs(ren
     plain = _render(mi, d, {"type": "path", "max_depth": 4})
     matched = _render(mi, d, _matched_integrator(path))
     np.testing.assert_array_equal(psr[..., :3], plain[..., :3])
-    np.testing.assert_array_equal(psr, matched)  # no delta surface: every buffer identical
+    # no delta surface: every buffer identical to Mitsuba's AOVs
+    np.testing.assert_array_equal(psr[..., :matched.shape[-1]], matched)
+    b = _buffers(psr)
+    # flat rectangles: the geometric normal is the shading normal; nothing glossy: the
+    # reflected normal is the pixel's own
+    np.testing.assert_allclose(b["geo_normal"], b["normal"], atol=1e-6)
+    np.testing.assert_array_equal(b["reflected_normal"], b["normal"])
+
+
+def test_geo_normal_is_the_face_normal_of_a_smooth_shaded_mesh(renderer, tmp_path):
+    """A quad facing +z whose vertex normals lean towards +x: ``normal`` is the interpolated
+    (shading) normal, ``geo_normal`` the face's own +z (seed 001 §1.2.1's geometry normal)."""
+    from dbench.datasets.psr import psr_integrator
+
+    mi = renderer
+    lean = np.array([0.3, 0.0, 1.0]) / np.linalg.norm([0.3, 0.0, 1.0])
+    obj = tmp_path / "quad.obj"
+    obj.write_text("v -3 -3 0\nv 3 -3 0\nv 3 3 0\nv -3 3 0\n"
+                   f"vn {lean[0]} {lean[1]} {lean[2]}\n"
+                   "f 1//1 2//1 3//1\nf 1//1 3//1 4//1\n")
+    d = _scene(mi, {"type": "diffuse"})
+    del d["mirror"], d["wall"]
+    d["quad"] = {"type": "obj", "filename": str(obj), "face_normals": False,
+                 "bsdf": {"type": "diffuse"}}
+    b = _buffers(_render(mi, d, psr_integrator({"type": "path", "max_depth": 4})))
+    c = RES // 2
+    np.testing.assert_allclose(b["normal"][c, c], lean, atol=1e-4)
+    np.testing.assert_allclose(b["geo_normal"][c, c], [0, 0, 1], atol=1e-5)
+    np.testing.assert_allclose(b["reflected_normal"][c, c], lean, atol=1e-4)
 
 
 def test_conductor_demodulation_stays_bounded_and_glass_is_seen_through(renderer):
@@ -180,6 +210,11 @@ def test_glossy_rule_gives_low_roughness_surfaces_the_reflected_normal(renderer,
     own = np.array([np.sqrt(0.5), 0.0, np.sqrt(0.5)])  # the plane rotated 45° about y
     np.testing.assert_allclose(pb["normal"][c, c], own, atol=1e-4)
     np.testing.assert_allclose(rb["normal"][c, c], [-1, 0, 0] if reflected else own, atol=1e-4)
+    # every PSR render carries the rule's normal as ``reflected_normal`` and the plane's face
+    # normal as ``geo_normal``, whatever its ``normal`` is
+    for b in (pb, rb):
+        np.testing.assert_array_equal(b["reflected_normal"], rb["normal"])
+        np.testing.assert_allclose(b["geo_normal"][c, c], own, atol=1e-4)
     for name in ("color", "albedo", "depth", "position", "emission"):
         if name in pb:
             np.testing.assert_array_equal(rb[name], pb[name])

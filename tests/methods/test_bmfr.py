@@ -346,3 +346,40 @@ def test_temporal_gradient_drops_the_history_at_a_light_change():
         else:
             assert means[11] > 0.5 * np.mean(means[5:10])
     assert "gradient" in methods.get("bmfr").optional_needs
+
+
+def test_reflection_feature_presets_read_their_buffers():
+    """Seed 001 §1.2.1's feature buffers: "reflected" reads ``reflected_normal`` instead of the
+    shading normal, "+geo" adds ``geo_normal``; all three backends build the same columns; a
+    frame without the buffer is refused naming it."""
+    from dbench.methods.bmfr.params import FEATURE_PRESETS, normal_column, normal_sources
+
+    assert normal_sources("reflected+geo") == ("g", "r")
+    assert normal_column("reflected+geo", "rx") == 3 and normal_column("reflected+geo", "gz") == 2
+    rng = np.random.default_rng(11)
+    h, w = 20, 28
+    normals = rng.normal(size=(6, h, w)).astype(np.float32)
+    position = rng.normal(size=(3, h, w)).astype(np.float32)
+    feats, scaled = B.feature_stack(normals, position, "reflected+geo")
+    assert feats.shape[0] == len(FEATURE_PRESETS["reflected+geo"]) == 13
+    np.testing.assert_array_equal(feats[1:4], normals[3:6])  # r first among the columns
+    np.testing.assert_array_equal(feats[4:7], normals[0:3])
+    np.testing.assert_array_equal(B.feature_stack_torch(normals, position, "reflected+geo")
+                                  .cpu().numpy(), feats)
+    z = rng.gamma(1.0, 1.0, (3, h, w)).astype(np.float32)
+    fit = np.ones((h, w), bool)
+    args = (16, (0, 0), 0.01, 5)
+    ref, _ = B.bmfr_fit_reference(z, feats, scaled, fit, fit, *args)
+    fast, _ = B.bmfr_fit_fast(z, None, scaled, fit, fit, *args,
+                              source=(normals, position, "reflected+geo"))
+    np.testing.assert_allclose(fast, ref, rtol=1e-4, atol=1e-5)
+
+    f = synthetic_sequence(16, 16, frames=1)[0]
+    for preset, buffer in (("reflected", "reflected_normal"), ("paper+geo", "geo_normal")):
+        with pytest.raises(DbenchInputError, match=buffer):
+            methods.get("bmfr", features=preset).denoise(f)
+    # with the buffers equal to the shading normal, "reflected" is "paper"
+    g = f.with_buffers(reflected_normal=f.normal, geo_normal=f.normal)
+    outs = [methods.get("bmfr", features=p).denoise(g) for p in ("paper", "reflected")]
+    np.testing.assert_array_equal(outs[0], outs[1])
+    assert np.isfinite(methods.get("bmfr", features="reflected+geo").denoise(g)).all()

@@ -367,3 +367,31 @@ def test_emission_is_accumulated_not_added_raw():
     assert np.all(np.abs(np.diff(lamp)) < 10.0)          # raw emission would jump by 40
     assert 10.0 < lamp.mean() < 30.0                     # about the coverage 20
     assert "emission" in methods.get("svgf").optional_needs
+
+
+def test_normal_buffer_chooses_the_edge_stopping_normal():
+    """``normal_buffer``: the à-trous and spatial-variance weights read the chosen buffer (seed
+    001 §1.2.1's reflected or geometric normal); reprojection keeps the shading normal. Equal
+    buffers give equal output, a different one changes the filtering, a missing one is refused."""
+    from dbench.bench.sequence import synthetic_sequence
+    from dbench.errors import DbenchInputError
+
+    seq = synthetic_sequence(24, 32, frames=3)
+    rng = np.random.default_rng(2)
+    other = rng.normal(size=seq[0].normal.shape).astype(np.float32)
+    other /= np.linalg.norm(other, axis=-1, keepdims=True)
+    outs = {}
+    for label, buffer, value in (("default", "normal", None), ("same", "reflected_normal", "n"),
+                                 ("other", "geo_normal", other)):
+        m = methods.get("svgf", normal_buffer=buffer)
+        m.reset()
+        for f in seq:
+            extra = {} if value is None else {buffer: f.normal if isinstance(value, str) else value}
+            out = m.denoise(f.with_buffers(**extra))
+        outs[label] = out
+    np.testing.assert_array_equal(outs["default"], outs["same"])
+    assert np.abs(outs["other"] - outs["default"]).max() > 1e-3
+    with pytest.raises(DbenchInputError, match="geo_normal"):
+        methods.get("asvgf", normal_buffer="geo_normal").denoise(seq[0])
+    with pytest.raises(DbenchInputError, match="normal_buffer"):
+        methods.get("svgf", normal_buffer="mirror")

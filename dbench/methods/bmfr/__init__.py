@@ -29,7 +29,9 @@ by any temporal filter. ``False`` (or a frame without the buffer) gives the fixe
 
 Public: :func:`householder_lstsq` (A (K, m, n), B (K, m, c)) -> X (K, n, c).
 
-Parameters: features ("paper" | "seed" | "normals" | "positions"), block_size (32),
+Parameters: features ("paper" | "seed" | "normals" | "positions" | "reflected" | "paper+geo" |
+"reflected+geo": the last three read the frame's ``reflected_normal`` (instead of ``normal``)
+and ``geo_normal`` (beside it) buffers, seed 001 §1.2.1, params.FEATURE_PRESETS), block_size (32),
 samples (None: every pixel of a block; an integer W: W pixels drawn per block and frame, the
 seed's 36, :func:`block_sample_mask`), noise_amount (0.01), offsets (16), alpha1 (0.2),
 alpha2 (0.1), clamp_negative (True), rcond (1e-10), seed (0: noise, offsets and samples),
@@ -85,7 +87,7 @@ from ..svgf import dispatch as SC
 from . import handback as HB
 from .dispatch import bmfr_fit, householder_lstsq
 from .numba_path import bmfr_fit_fast
-from .params import FEATURE_PRESETS, N_OFFSETS, PRESETS, RCOND
+from .params import FEATURE_PRESETS, N_OFFSETS, NORMAL_SOURCES, PRESETS, RCOND, normal_sources
 from .reference import (block_origins, block_sample_mask, bmfr_fit_reference, feature_stack, grid_offsets,
                         householder_lstsq_reference, uniform_hash)
 from .torch_path import bmfr_fit_torch, feature_stack_torch, householder_lstsq_torch
@@ -102,7 +104,7 @@ class BMFR(T.HistoryDenoiser):
 
     kinds = {"sequence"}
     needs = {"color", "albedo", "normal", "depth", "position", "motion"}
-    optional_needs = {"emission", "gradient"}
+    optional_needs = {"emission", "gradient", "geo_normal", "reflected_normal"}
     defaults: dict[str, Any] = dict(features="paper", block_size=32, noise_amount=0.01,
                                     offsets=N_OFFSETS, alpha1=0.2, alpha2=0.1,
                                     clamp_negative=True, rcond=RCOND, seed=0, tau_d=T.TAU_D,
@@ -154,6 +156,16 @@ class BMFR(T.HistoryDenoiser):
         super().reset()
         self.frame_index = 0
         self._prev_lum = None
+
+    def _normals(self, data, geo) -> np.ndarray:
+        """The planar (3·k, H, W) normals the feature preset reads (params.normal_sources):
+        the shading normal alone for the spec's presets."""
+        sources = normal_sources(self.params["features"])
+        if sources in ((), ("n",)):
+            return geo.normal
+        why = f"features={self.params['features']!r}"
+        return np.concatenate([T.feature_normal(data, geo, NORMAL_SOURCES[k], why)
+                               for k in sources])
 
     def _buffer(self, key: str, shape) -> np.ndarray:
         """A float32 work array kept from frame to frame (a fresh one costs its page faults at
@@ -211,14 +223,15 @@ class BMFR(T.HistoryDenoiser):
             fit = fit & block_sample_mask(fit, int(p["block_size"]), offset, int(p["samples"]),
                                           noise_seed)
         scaled = self.scaled
+        normals = self._normals(data, geo)
         if be == "torch":
-            feats = feature_stack_torch(geo.normal, geo.position, p["features"])
+            feats = feature_stack_torch(normals, geo.position, p["features"])
             y_fit, dropped = bmfr_fit("torch", z_acc, feats, scaled, fit, recon, *fit_args)
         elif fast:
             y_fit, dropped = bmfr_fit_fast(z_acc, None, scaled, fit, recon, *fit_args,
-                                           source=(geo.normal, geo.position, p["features"]))
+                                           source=(normals, geo.position, p["features"]))
         else:
-            feats, _ = feature_stack(geo.normal, geo.position, p["features"])
+            feats, _ = feature_stack(normals, geo.position, p["features"])
             y_fit, dropped = bmfr_fit_reference(z_acc, feats, scaled, fit, recon, *fit_args)
         if wiener:  # the residual's hand-back before the second accumulation (handback.py)
             # the torch backend runs the hand-back's compiled CPU kernels (NumPy in and out)

@@ -9,7 +9,8 @@ import math
 import numpy as np
 
 from ...errors import DbenchInputError
-from .params import _GOLD, _M1, _M2, _MASK16, _S27, _S30, _S31, FEATURE_PRESETS, RCOND
+from .params import (_GOLD, _M1, _M2, _MASK16, _S27, _S30, _S31, FEATURE_PRESETS, NORMAL_SOURCES,
+                     RCOND, normal_column)
 from .reference import block_origins
 
 
@@ -178,7 +179,7 @@ if HAVE_NUMBA:
             if noise_amount > 0:
                 amp = 2.0 * noise_amount
                 hashes = np.empty(rows, np.uint64)
-                for g in range((m_ + 2) // 4):  # columns 1 … m_−1, four per hash
+                for g in range((m_ + 3) // 4):  # columns 1 … m_−1, four per hash
                     for r in range(rows):
                         hashes[r] = _hash64_nb(seed, py[r] * w + px[r], g)
                     for t in range(4):  # one column at a time: branch-free, vectorised
@@ -240,7 +241,8 @@ def bmfr_fit_fast(z, feats, scaled, fit, recon, block, offset, noise_amount=0.01
                   rcond=RCOND, clamp=True, source=None):
     """Compiled :func:`bmfr_fit_reference` (same arguments and results; blocks in parallel).
 
-    ``source=(normal, position, preset)`` (planar (3, H, W) arrays) lets the kernel read the
+    ``source=(normals, position, preset)`` (planar (3·k, H, W) stacked normals as
+    :func:`~dbench.methods.bmfr.reference.feature_stack` takes them, (3, H, W)) lets the kernel read the
     feature columns directly instead of from the (M, H, W) stack ``feats`` (which may then be
     None): the same numbers without building the stack.
     """
@@ -270,7 +272,8 @@ def bmfr_fit_fast(z, feats, scaled, fit, recon, block, offset, noise_amount=0.01
 
 def feature_layout(preset: str) -> tuple[np.ndarray, np.ndarray]:
     """(kinds, axes) int64 of a preset's columns for the compiled fit: kind 0 constant,
-    1 normal, 2 position, 3 squared position; axis 0/1/2 = x/y/z."""
+    1 normal (axis: the channel of the stacked normals, :func:`normal_column`), 2 position,
+    3 squared position (axis 0/1/2 = x/y/z)."""
     if preset not in FEATURE_PRESETS:
         raise DbenchInputError(f"features: expected one of {tuple(FEATURE_PRESETS)}, "
                                f"got {preset!r}")
@@ -279,7 +282,10 @@ def feature_layout(preset: str) -> tuple[np.ndarray, np.ndarray]:
         if name == "1":
             kinds.append(0)
             axes.append(0)
+        elif name[0] in NORMAL_SOURCES:
+            kinds.append(1)
+            axes.append(normal_column(preset, name))
         else:
-            kinds.append(1 if name[0] == "n" else 3 if name.endswith("2") else 2)
+            kinds.append(3 if name.endswith("2") else 2)
             axes.append("xyz".index(name[1]))
     return np.array(kinds, np.int64), np.array(axes, np.int64)

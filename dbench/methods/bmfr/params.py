@@ -6,13 +6,34 @@ from __future__ import annotations
 import numpy as np
 
 
-#: Feature presets (spec §2): names of the columns, constant first.
+_P = ("px", "py", "pz")
+_P2 = ("px2", "py2", "pz2")
+#: Feature presets (spec §2): names of the columns, constant first. Normal columns name their
+#: buffer by their first letter (NORMAL_SOURCES): n the shading normal, g the geometric normal,
+#: r the glossy reflected normal (seed 001 §1.2.1's feature buffers; docs/temporal.md §10).
 FEATURE_PRESETS = {
-    "paper": ("1", "nx", "ny", "nz", "px", "py", "pz", "px2", "py2", "pz2"),
-    "seed": ("1", "nx", "ny", "nz", "px", "py", "pz"),
+    "paper": ("1", "nx", "ny", "nz") + _P + _P2,
+    "seed": ("1", "nx", "ny", "nz") + _P,
     "normals": ("1", "nx", "ny", "nz"),
-    "positions": ("1", "px", "py", "pz"),
+    "positions": ("1",) + _P,
+    "reflected": ("1", "rx", "ry", "rz") + _P + _P2,
+    "paper+geo": ("1", "nx", "ny", "nz", "gx", "gy", "gz") + _P + _P2,
+    "reflected+geo": ("1", "rx", "ry", "rz", "gx", "gy", "gz") + _P + _P2,
 }
+#: The normal buffers behind a column's first letter, in the order of the stacked normals the
+#: fit reads (planar (3·k, H, W): the k sources a preset uses, in this order).
+NORMAL_SOURCES = {"n": "normal", "g": "geo_normal", "r": "reflected_normal"}
+
+
+def normal_sources(preset: str) -> tuple[str, ...]:
+    """The letters of NORMAL_SOURCES a preset's columns read, in NORMAL_SOURCES' order."""
+    used = {name[0] for name in FEATURE_PRESETS[preset] if name[0] in NORMAL_SOURCES}
+    return tuple(k for k in NORMAL_SOURCES if k in used)
+
+
+def normal_column(preset: str, name: str) -> int:
+    """The channel of the stacked normals a normal column ``name`` ("nx", "gy", …) reads."""
+    return 3 * normal_sources(preset).index(name[0]) + "xyz".index(name[1])
 RCOND = 1e-10      # rank safeguard |R_kk| < rcond · max |R_jj| (spec §5) [dbench]
 N_OFFSETS = 16     # per-frame grid offsets, cycling [BMFR code]
 #: the seed's implementation [S001 §3.2]: 64×64 blocks fitted from 36 random pixels, feature set

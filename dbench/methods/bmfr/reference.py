@@ -8,7 +8,7 @@ import numpy as np
 
 from ...errors import DbenchInputError
 from .params import (_GOLD, _M1, _M2, _MASK16, _S27, _S30, _S31, FEATURE_PRESETS, N_OFFSETS,
-                     RCOND)
+                     NORMAL_SOURCES, RCOND, normal_column)
 
 
 def householder_lstsq_reference(A: np.ndarray, B: np.ndarray, rcond: float = RCOND,
@@ -58,8 +58,10 @@ def _back_substitute(Rt: np.ndarray, r: np.ndarray, rcond: float):
 
 def feature_stack(normal: np.ndarray, position: np.ndarray, preset: str = "paper"
                   ) -> tuple[np.ndarray, np.ndarray]:
-    """Raw feature columns (M, H, W) float32 of a preset from planar normal/position (3, H, W),
-    and a (M,) bool mask of the position-derived columns that get per-block scaling (§2.1)."""
+    """Raw feature columns (M, H, W) float32 of a preset from planar normals (3·k, H, W) — the
+    k normal buffers the preset reads, stacked in NORMAL_SOURCES' order (:func:`normal_sources`;
+    just the shading normal for the spec's presets) — and position (3, H, W), and a (M,) bool
+    mask of the position-derived columns that get per-block scaling (§2.1)."""
     if preset not in FEATURE_PRESETS:
         raise DbenchInputError(f"features: expected one of {tuple(FEATURE_PRESETS)}, "
                                f"got {preset!r}")
@@ -67,8 +69,8 @@ def feature_stack(normal: np.ndarray, position: np.ndarray, preset: str = "paper
     for name in FEATURE_PRESETS[preset]:
         if name == "1":
             cols.append(np.ones(normal.shape[1:], np.float32))
-        elif name[0] == "n":
-            cols.append(normal["xyz".index(name[1])])
+        elif name[0] in NORMAL_SOURCES:
+            cols.append(normal[normal_column(preset, name)])
         elif name.endswith("2"):
             p = position["xyz".index(name[1])]
             cols.append(p * p)

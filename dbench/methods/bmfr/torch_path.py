@@ -22,7 +22,7 @@ import numpy as np
 
 from ...errors import DbenchInputError
 from ..temporal import as_tensor, torch_device
-from .params import _GOLD, _M1, _M2, FEATURE_PRESETS, RCOND
+from .params import _GOLD, _M1, _M2, FEATURE_PRESETS, NORMAL_SOURCES, RCOND, normal_column
 from .reference import block_origins
 
 
@@ -64,8 +64,8 @@ def back_substitute_torch(Rt, r, rcond: float = RCOND):
 
 
 def feature_stack_torch(normal, position, preset: str = "paper", device=None):
-    """Raw feature columns (M, H, W) float32 tensor of a preset from planar normal/position
-    (3, H, W) (:func:`~dbench.methods.bmfr.reference.feature_stack`)."""
+    """Raw feature columns (M, H, W) float32 tensor of a preset from planar stacked normals
+    (3·k, H, W) and position (3, H, W) (:func:`~dbench.methods.bmfr.reference.feature_stack`)."""
     import torch
     if preset not in FEATURE_PRESETS:
         raise DbenchInputError(f"features: expected one of {tuple(FEATURE_PRESETS)}, "
@@ -77,8 +77,8 @@ def feature_stack_torch(normal, position, preset: str = "paper", device=None):
     for name in FEATURE_PRESETS[preset]:
         if name == "1":
             cols.append(torch.ones_like(n[0]))
-        elif name[0] == "n":
-            cols.append(n["xyz".index(name[1])])
+        elif name[0] in NORMAL_SOURCES:
+            cols.append(n[normal_column(preset, name)])
         else:
             v = p["xyz".index(name[1])]
             cols.append(v * v if name.endswith("2") else v)

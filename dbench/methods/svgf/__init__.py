@@ -39,8 +39,12 @@ variance_of             "mean"                     "sample"       "sample"
 per-sample variance from the moments times Σw² of the blend weights (1/N for a running mean,
 α/(2 − α) for the EMA) — the quantity that is filtered, as the variance propagation of §5
 already assumes; ``"sample"`` is the paper's per-sample variance. Other parameters: eps_var
-(1e-4), variance_boost (False), tau_d (0.05), tau_n (0.9), backend ("auto" | "numba" | "torch"
-| "reference"); asvgf adds gradient_iterations (3), gradient_mode ("seed" | "paper"), n_max
+(1e-4), variance_boost (False), tau_d (0.05), tau_n (0.9), normal_buffer ("normal" |
+"reflected_normal" | "geo_normal": the normal of the edge-stopping weight w_n in the spatial
+variance and the à-trous passes — the shading normal, seed 001 §1.2.1's reflected normal of
+glossy surfaces with roughness < 0.4, or the geometric normal; reprojection keeps the shading
+normal; the last two read the frame's buffers of those names, which the sequence scenes' PSR
+G-buffers provide), backend ("auto" | "numba" | "torch" | "reference"); asvgf adds gradient_iterations (3), gradient_mode ("seed" | "paper"), n_max
 (256), alpha_floor (None: on with the dbench preset).
 
 Backends: "auto" (default) is "torch" when ``torch.cuda.is_available()``, else "numba";
@@ -177,10 +181,10 @@ class _SVGFBase(T.HistoryDenoiser):
     needs = {"color", "albedo", "normal", "depth", "position", "motion"}
     # loaded whenever the scene has it: without it in the list the harness loaded emission only
     # when another method of the run needed it, so a result depended on its neighbours
-    optional_needs = {"emission"}
+    optional_needs = {"emission", "geo_normal", "reflected_normal"}
     defaults: dict[str, Any] = dict(preset="dbench", **PRESETS["dbench"], eps_var=EPS_VAR,
                                     variance_boost=False, tau_d=T.TAU_D, tau_n=T.TAU_N,
-                                    backend="auto")
+                                    normal_buffer="normal", backend="auto")
 
     def __init__(self, **params: Any) -> None:
         super().__init__(**params)
@@ -205,6 +209,9 @@ class _SVGFBase(T.HistoryDenoiser):
         if p["variance_of"] not in VARIANCE_OF:
             raise DbenchInputError(f"variance_of: expected one of {VARIANCE_OF}, "
                                    f"got {p['variance_of']!r}")
+        if p["normal_buffer"] not in T.NORMAL_BUFFERS:
+            raise DbenchInputError(f"normal_buffer: expected one of {T.NORMAL_BUFFERS}, "
+                                   f"got {p['normal_buffer']!r}")
         self._start()
 
     # hook for A-SVGF: (n_hist_for_accumulate, alpha or None, extras)
@@ -253,6 +260,8 @@ class _SVGFBase(T.HistoryDenoiser):
         filled = n > 0
 
         gx, gy = C.depth_gradient(geo.depth, geo.hit, backend=be)
+        w_normal = T.feature_normal(data, geo, p["normal_buffer"],
+                                    f"normal_buffer={p['normal_buffer']!r}")
         gather = geo.hit & ~emitter
         tap = gather & filled
         var = T.variance_from_moments(acc_m)
@@ -265,7 +274,7 @@ class _SVGFBase(T.HistoryDenoiser):
             var = (var * weight_sq).astype(np.float32)
         spatial = filled & (n < N_SPATIAL)
         if spatial.any():
-            sv = C.spatial_variance(be, acc_m, geo.depth, gx, gy, geo.normal, tap,
+            sv = C.spatial_variance(be, acc_m, geo.depth, gx, gy, w_normal, tap,
                                     gather, spatial, sigma_z=p["sigma_z"], sigma_n=p["sigma_n"])
             if p["variance_boost"]:
                 sv = sv * 4.0 / np.maximum(n, 1.0)
@@ -277,7 +286,7 @@ class _SVGFBase(T.HistoryDenoiser):
         iterations = (auto_iterations(h, w) if p["iterations"] == "auto"
                       else int(p["iterations"]))
         for i in range(iterations):
-            cur, var = C.atrous(be, cur, var, geo.depth, gx, gy, geo.normal, tap,
+            cur, var = C.atrous(be, cur, var, geo.depth, gx, gy, w_normal, tap,
                                 filled, gather, 2 ** i, sigma_z=p["sigma_z"],
                                 sigma_n=p["sigma_n"], sigma_l=p["sigma_l"], eps_var=p["eps_var"])
             if i == p["feedback_tap"]:

@@ -51,7 +51,7 @@ from __future__ import annotations
 
 from .color import luminance, moments, sample_mask, to_interleaved, to_planar, variance_from_moments
 from .dispatch import accumulate_any, reproject, resolve_backend
-from .geometry import Geometry, expected_distance, frame_geometry
+from .geometry import NORMAL_BUFFERS, Geometry, expected_distance, feature_normal, frame_geometry
 from .history import History, HistoryDenoiser
 from .numba_path import accumulate_fast, clamp_radiance, kernel_threads, reproject_fast
 from .params import (BACKENDS, BILINEAR, EPS_F, FALLBACK, FALLBACK_KERNEL, LUMA, N_MAX, RESET,
@@ -61,6 +61,7 @@ from .torch_path import (accumulate_torch, as_tensor, reproject_torch, to_numpy,
                          torch_cuda_available, torch_device)
 
 __all__ = ["BACKENDS", "BILINEAR", "EPS_F", "FALLBACK", "FALLBACK_KERNEL", "Geometry", "History",
+           "NORMAL_BUFFERS", "feature_normal",
            "HistoryDenoiser", "LUMA", "N_MAX", "RESET", "SMALL_IMAGE", "TAU_D", "TAU_N",
            "accumulate", "accumulate_any", "accumulate_fast", "accumulate_torch", "as_tensor",
            "clamp_radiance",

@@ -70,6 +70,31 @@ def _frame_array(frame: Any, name: str, h: int, w: int, c: int, required: bool):
     return check_buffer(name, value, (h, w, c))
 
 
+#: The normal buffers a filter may read for its feature normals (seed 001 §1.2.1): the shading
+#: normal, the geometric (face) normal, the glossy reflected normal (dbench.datasets.psr).
+NORMAL_BUFFERS = ("normal", "geo_normal", "reflected_normal")
+
+
+def feature_normal(frame: Any, geo: Geometry, name: str, why: str) -> np.ndarray:
+    """The (3, H, W) float32 planar normal buffer ``name`` of ``frame`` for a filter's weights or
+    features: ``geo.normal`` for "normal", else the frame's buffer, 0 where ``geo`` has no hit or
+    the value is not finite. A missing buffer is a DbenchInputError naming it and ``why`` (the
+    parameter that asked for it)."""
+    if name == "normal":
+        return geo.normal
+    if name not in NORMAL_BUFFERS:
+        raise DbenchInputError(f"normal buffer: expected one of {NORMAL_BUFFERS}, got {name!r}")
+    h, w = geo.shape
+    value = getattr(frame, name, None)
+    if value is None:
+        raise DbenchInputError(f"{name}: missing, and {why} needs it; the sequence scenes' PSR "
+                               f"G-buffers (gbuffer=psr or psr-glossy) provide it")
+    value = check_buffer(name, np.asarray(value), (h, w, 3))
+    ok = geo.hit & np.isfinite(value).all(-1)
+    return np.ascontiguousarray(np.where(ok[..., None], value, 0).transpose(2, 0, 1),
+                                dtype=np.float32)
+
+
 def frame_geometry(frame: Any, position: bool = True, backend: str = "numba") -> Geometry:
     """Validate a Frame's G-buffers (errors name the buffer) and return its :class:`Geometry`.
 
