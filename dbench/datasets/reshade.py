@@ -12,12 +12,22 @@ path integrator then continues with the random numbers pixel q used for its path
 Lanes outside the selection are inactive (no ray is traced for them), so the cost is the ray
 generation of a frame plus one path per stratum (about 1/9 of a frame's paths).
 
-A sample is dropped (NaN in the buffer) when P_{i−1}(q) is hidden from the current camera (the
-first hit along the new ray is more than 0.1 % of the distance short of it: disocclusion),
-unless that first hit is a mirror or glass (a delta BSDF): the target is then the virtual point
-of a PSR G-buffer (:mod:`dbench.datasets.psr`), reached through it. Unlike the earlier emulation (the whole frame re-rendered from the previous
-camera), view-dependent changes — a highlight moving over a glossy sphere as the camera moves —
-now show up as gradients.
+Which point each pass aims at: the render runs in a scene with frame i−1's camera and frame i's
+lights, so lane q's camera ray is, bit for bit, the ray pixel q traced in that pass of frame i−1
+(the same random numbers; the geometry is static), and its first hit is that pass's own point
+P_{i−1}(q): the re-shaded path goes from frame i's camera to it (through a mirror or glass the
+nested path follows the delta bounce itself, as the original path did). A pass whose ray left
+the scene is traced again along the same direction from the new origin (the environment is a
+function of direction). Earlier every pass aimed at the pixel's *mean* G-buffer position (and,
+behind a mirror, at its virtual point): at 1 spp the same point, but above 1 spp each re-shaded
+sample started from another point than the sample it is compared with, and a static light
+showed gradients (orbit, 128², 4 spp: mean G 0.0098 against 6·10⁻⁵ at 1 spp; A-SVGF and BMFR
+then shortened their histories and lost to plain accumulation in relMSE).
+
+A sample is dropped (NaN in the buffer) when its point P_{i−1}(q) is hidden from the current
+camera (the first hit along the new ray is more than 0.1 % of the distance short of it:
+disocclusion). View-dependent changes — a highlight moving over a glossy sphere as the camera
+moves — show up as gradients.
 
 Public: :func:`select_strata` (the brightest hit pixel per stratum) and :func:`render_reshade`
 (the (H, W, 3) gradient buffer: re-shaded colour at the selected pixels, NaN elsewhere).
@@ -75,33 +85,30 @@ def _register(mi) -> None:
     dr = __import__("drjit")
 
     class Reshade(mi.SamplingIntegrator):
-        """Lane k: the nested integrator's path from the camera origin to ``targets[k]``
-        where ``selected[k]``; the AOV ``valid`` says where a path was traced."""
+        """Lane k: the nested integrator's path from ``origin`` to the first hit of lane k's
+        camera ray where ``selected[k]``; the AOV ``valid`` says where a path was traced."""
 
         def __init__(self, props):
             super().__init__(props)
             self.nested = props["color"]
             self.origin = mi.Point3f(0.0)
-            self.targets = mi.Point3f(0.0)
             self.selected = mi.Bool(False)
 
         def sample(self, scene, sampler, ray, medium=None, active=True):
             # lane index = pixel index at 1 spp (mi.render's wavefront is row-major)
             idx = dr.arange(mi.UInt32, dr.width(ray.o))
-            target = dr.gather(mi.Point3f, self.targets, idx)
             chosen = dr.gather(mi.Bool, self.selected, idx) & mi.Bool(active)
-            to_target = target - self.origin
+            # ``ray`` is this pass's camera ray of frame i−1 (the scene holds that camera): its
+            # first hit is the sample's own point, the target of the re-shaded path
+            own = scene.ray_intersect(mi.Ray3f(ray), chosen)
+            hit = own.is_valid()
+            to_target = own.p - self.origin
             dist = dr.norm(to_target)
-            direction = to_target / dr.maximum(dist, 1e-12)
+            direction = dr.select(hit, to_target / dr.maximum(dist, 1e-12), ray.d)
             new_ray = mi.Ray3f(self.origin, direction, ray.time, ray.wavelengths)
-            first = scene.ray_intersect(new_ray, chosen)
-            # a target behind a mirror or glass is the virtual point of a PSR G-buffer
-            # (dbench.datasets.psr): the ray reaches it through the delta surface it hits
-            flags = first.bsdf(new_ray).flags()
-            through = (mi.has_flag(flags, mi.BSDFFlags.Delta)
-                       & ~mi.has_flag(flags, mi.BSDFFlags.Smooth))
-            visible = chosen & first.is_valid() & (
-                through | (first.t > dist * (1.0 - OCCLUSION_TOLERANCE)))
+            first = scene.ray_intersect(new_ray, chosen & hit)
+            visible = chosen & (~hit | (first.is_valid()
+                                        & (first.t > dist * (1.0 - OCCLUSION_TOLERANCE))))
             spec, _, _ = self.nested.sample(scene, sampler, new_ray, medium, visible)
             spec = dr.select(visible, spec, 0.0)
             return spec, mi.Bool(True), [dr.select(visible, mi.Float(1.0), mi.Float(0.0))]
@@ -113,12 +120,13 @@ def _register(mi) -> None:
     _REGISTERED = True
 
 
-def render_reshade(scene_dict: dict, path: dict, origin, targets: np.ndarray,
-                   selected: np.ndarray, seeds: list[int]) -> np.ndarray:
-    """Re-shade the ``selected`` pixels: (H, W, 3) float32, the mean over ``seeds`` (one 1-spp
-    pass each, the seeds of frame i−1's passes) of the path from ``origin`` (frame i's camera
-    position) to ``targets`` (frame i−1's world positions, (H, W, 3)) in the scene of
-    ``scene_dict`` (frame i's camera and lights); NaN where not selected or not visible.
+def render_reshade(scene_dict: dict, path: dict, origin, selected: np.ndarray,
+                   seeds: list[int]) -> np.ndarray:
+    """Re-shade the ``selected`` (H, W) pixels: (H, W, 3) float32, the mean over ``seeds`` (one
+    1-spp pass each, the seeds of frame i−1's passes) of the path from ``origin`` (frame i's
+    camera position) to each pass's first hit along the camera ray of ``scene_dict`` (frame
+    i−1's camera, frame i's lights; along the same direction where that ray left the scene);
+    NaN where not selected or, in any pass, hidden.
 
     ``path``: the nested integrator's dictionary (the frame's ``path`` integrator)."""
     mi = mitsuba()
@@ -135,8 +143,6 @@ def render_reshade(scene_dict: dict, path: dict, origin, targets: np.ndarray,
     # compile anew for every frame of a moving camera (0.7 s each at 64 px)
     integ.origin = mi.Point3f(*[float(v) for v in origin])
     dr.make_opaque(integ.origin)
-    t = np.ascontiguousarray(np.nan_to_num(np.asarray(targets, np.float32)).reshape(-1, 3))
-    integ.targets = mi.Point3f(mi.Float(t[:, 0]), mi.Float(t[:, 1]), mi.Float(t[:, 2]))
     integ.selected = mi.Bool(np.ascontiguousarray(selected.reshape(-1)))
     total = np.zeros((h, w, 3))
     valid = np.ones((h, w), bool)
@@ -151,12 +157,12 @@ def render_reshade(scene_dict: dict, path: dict, origin, targets: np.ndarray,
 
 def reshade_frame(scene, res, i: int, prev: dict, seeds: list[int]) -> np.ndarray:
     """The gradient buffer of frame ``i`` of a sequence ``scene``: :func:`render_reshade` of
-    :func:`select_strata` of frame i−1's colour and depth (``prev``), aimed at its
-    ``position``, with frame i's camera and lights and frame i−1's pass ``seeds``."""
-    d = scene.frame_dict(mitsuba(), res, i, i)
+    :func:`select_strata` of frame i−1's colour and depth (``prev``), each pass aimed at its
+    own hit of frame i−1, traced from frame i's camera under frame i's lights with frame i−1's
+    pass ``seeds``."""
+    d = scene.frame_dict(mitsuba(), res, i - 1, i)  # frame i−1's camera rays, frame i's lights
     selected = select_strata(prev["color"], prev["depth"])
-    return render_reshade(d, d["integrator"], scene.camera(i)[0], prev["position"], selected,
-                          seeds)
+    return render_reshade(d, d["integrator"], scene.camera(i)[0], selected, seeds)
 
 
 __all__ = ["OCCLUSION_TOLERANCE", "STRATUM", "render_reshade", "reshade_frame", "select_strata"]

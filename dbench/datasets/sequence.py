@@ -107,7 +107,8 @@ PSR_VERSION = 3
 #: buffers only the PSR G-buffers carry
 PSR_BUFFERS = tuple(name for name, _, _ in _psr.PSR_EXTRA_LAYOUT)
 GRADIENTS = ("reshade", "frame")
-RESHADE_VERSION = 1
+#: 3: each pass re-shaded from its own hit of frame i−1, not the pixel's mean position
+RESHADE_VERSION = 3
 #: 2: motion of the surface point without the sample's sub-pixel jitter (motion_vectors)
 MOTION_VERSION = 2
 
