@@ -15,19 +15,23 @@ generation of a frame plus one path per stratum (about 1/9 of a frame's paths).
 Which point each pass aims at: the render runs in a scene with frame i−1's camera and frame i's
 lights, so lane q's camera ray is, bit for bit, the ray pixel q traced in that pass of frame i−1
 (the same random numbers; the geometry is static), and its first hit is that pass's own point
-P_{i−1}(q): the re-shaded path goes from frame i's camera to it (through a mirror or glass the
-nested path follows the delta bounce itself, as the original path did). A pass whose ray left
-the scene is traced again along the same direction from the new origin (the environment is a
-function of direction). Earlier every pass aimed at the pixel's *mean* G-buffer position (and,
-behind a mirror, at its virtual point): at 1 spp the same point, but above 1 spp each re-shaded
-sample started from another point than the sample it is compared with, and a static light
-showed gradients (orbit, 128², 4 spp: mean G 0.0098 against 6·10⁻⁵ at 1 spp; A-SVGF and BMFR
-then shortened their histories and lost to plain accumulation in relMSE).
+P_{i−1}(q), the target of the re-shaded path. Where that hit is a mirror or glass (a delta BSDF)
+the target is the pixel's PSR virtual point (:mod:`dbench.datasets.psr`, the G-buffer's
+``position``), reached through the delta surface the new ray meets: the re-shaded sample then
+sees the same reflected point as before, not whatever the mirror shows from the new camera
+(aimed at the mirror's own surface point instead, mirror-pan at 128² lost a third of A-SVGF's
+and BMFR's gain). A pass whose ray left the scene is traced along the same direction from the
+new origin (the environment is a function of direction). At 1 spp the targets are the
+G-buffer's positions exactly, as before; above 1 spp every pass used to aim at the pixel's
+*mean* position, so each re-shaded sample started from another point than the sample it is
+compared with, and a static light showed gradients (orbit, 128², 4 spp: mean G 0.0098 against
+6·10⁻⁵ at 1 spp; A-SVGF and BMFR then shortened their histories and lost to plain accumulation
+in relMSE). Behind mirrors the mean virtual point remains an approximation above 1 spp.
 
-A sample is dropped (NaN in the buffer) when its point P_{i−1}(q) is hidden from the current
-camera (the first hit along the new ray is more than 0.1 % of the distance short of it:
-disocclusion). View-dependent changes — a highlight moving over a glossy sphere as the camera
-moves — show up as gradients.
+A sample is dropped (NaN in the buffer) when its point is hidden from the current camera (the
+first hit along the new ray is more than 0.1 % of the distance short of it, and not a mirror or
+glass: disocclusion). View-dependent changes — a highlight moving over a glossy sphere as the
+camera moves — show up as gradients.
 
 Public: :func:`select_strata` (the brightest hit pixel per stratum) and :func:`render_reshade`
 (the (H, W, 3) gradient buffer: re-shaded colour at the selected pixels, NaN elsewhere).
@@ -77,6 +81,11 @@ def select_strata(color: np.ndarray, depth: np.ndarray, size: int = STRATUM) -> 
     return out
 
 
+def _delta(mi, flags):
+    """A delta BSDF without a smooth lobe: smooth conductor, dielectric, thin dielectric."""
+    return mi.has_flag(flags, mi.BSDFFlags.Delta) & ~mi.has_flag(flags, mi.BSDFFlags.Smooth)
+
+
 def _register(mi) -> None:
     """Register the ``dbench_reshade`` integrator once per process."""
     global _REGISTERED
@@ -86,29 +95,36 @@ def _register(mi) -> None:
 
     class Reshade(mi.SamplingIntegrator):
         """Lane k: the nested integrator's path from ``origin`` to the first hit of lane k's
-        camera ray where ``selected[k]``; the AOV ``valid`` says where a path was traced."""
+        camera ray (``targets[k]`` where that hit is a delta surface) where ``selected[k]``;
+        the AOV ``valid`` says where a path was traced."""
 
         def __init__(self, props):
             super().__init__(props)
             self.nested = props["color"]
             self.origin = mi.Point3f(0.0)
+            self.targets = mi.Point3f(0.0)
             self.selected = mi.Bool(False)
 
         def sample(self, scene, sampler, ray, medium=None, active=True):
             # lane index = pixel index at 1 spp (mi.render's wavefront is row-major)
             idx = dr.arange(mi.UInt32, dr.width(ray.o))
+            stored = dr.gather(mi.Point3f, self.targets, idx)
             chosen = dr.gather(mi.Bool, self.selected, idx) & mi.Bool(active)
             # ``ray`` is this pass's camera ray of frame i−1 (the scene holds that camera): its
-            # first hit is the sample's own point, the target of the re-shaded path
+            # first hit is the sample's own point, the target of the re-shaded path; behind a
+            # mirror or glass the target is the PSR virtual point (the G-buffer's position)
             own = scene.ray_intersect(mi.Ray3f(ray), chosen)
             hit = own.is_valid()
-            to_target = own.p - self.origin
+            target = dr.select(_delta(mi, own.bsdf(mi.Ray3f(ray)).flags()), stored, own.p)
+            to_target = target - self.origin
             dist = dr.norm(to_target)
             direction = dr.select(hit, to_target / dr.maximum(dist, 1e-12), ray.d)
             new_ray = mi.Ray3f(self.origin, direction, ray.time, ray.wavelengths)
             first = scene.ray_intersect(new_ray, chosen & hit)
-            visible = chosen & (~hit | (first.is_valid()
-                                        & (first.t > dist * (1.0 - OCCLUSION_TOLERANCE))))
+            # a virtual point is reached through the mirror or glass the new ray meets first
+            through = _delta(mi, first.bsdf(new_ray).flags())
+            visible = chosen & (~hit | (first.is_valid() & (
+                through | (first.t > dist * (1.0 - OCCLUSION_TOLERANCE)))))
             spec, _, _ = self.nested.sample(scene, sampler, new_ray, medium, visible)
             spec = dr.select(visible, spec, 0.0)
             return spec, mi.Bool(True), [dr.select(visible, mi.Float(1.0), mi.Float(0.0))]
@@ -120,13 +136,14 @@ def _register(mi) -> None:
     _REGISTERED = True
 
 
-def render_reshade(scene_dict: dict, path: dict, origin, selected: np.ndarray,
-                   seeds: list[int]) -> np.ndarray:
+def render_reshade(scene_dict: dict, path: dict, origin, targets: np.ndarray,
+                   selected: np.ndarray, seeds: list[int]) -> np.ndarray:
     """Re-shade the ``selected`` (H, W) pixels: (H, W, 3) float32, the mean over ``seeds`` (one
     1-spp pass each, the seeds of frame i−1's passes) of the path from ``origin`` (frame i's
     camera position) to each pass's first hit along the camera ray of ``scene_dict`` (frame
-    i−1's camera, frame i's lights; along the same direction where that ray left the scene);
-    NaN where not selected or, in any pass, hidden.
+    i−1's camera, frame i's lights) — to ``targets`` (frame i−1's G-buffer positions, (H, W,
+    3): the PSR virtual point) where that hit is a mirror or glass, along the same direction
+    where the ray left the scene; NaN where not selected or, in any pass, hidden.
 
     ``path``: the nested integrator's dictionary (the frame's ``path`` integrator)."""
     mi = mitsuba()
@@ -143,6 +160,8 @@ def render_reshade(scene_dict: dict, path: dict, origin, selected: np.ndarray,
     # compile anew for every frame of a moving camera (0.7 s each at 64 px)
     integ.origin = mi.Point3f(*[float(v) for v in origin])
     dr.make_opaque(integ.origin)
+    t = np.ascontiguousarray(np.nan_to_num(np.asarray(targets, np.float32)).reshape(-1, 3))
+    integ.targets = mi.Point3f(mi.Float(t[:, 0]), mi.Float(t[:, 1]), mi.Float(t[:, 2]))
     integ.selected = mi.Bool(np.ascontiguousarray(selected.reshape(-1)))
     total = np.zeros((h, w, 3))
     valid = np.ones((h, w), bool)
@@ -158,11 +177,13 @@ def render_reshade(scene_dict: dict, path: dict, origin, selected: np.ndarray,
 def reshade_frame(scene, res, i: int, prev: dict, seeds: list[int]) -> np.ndarray:
     """The gradient buffer of frame ``i`` of a sequence ``scene``: :func:`render_reshade` of
     :func:`select_strata` of frame i−1's colour and depth (``prev``), each pass aimed at its
-    own hit of frame i−1, traced from frame i's camera under frame i's lights with frame i−1's
-    pass ``seeds``."""
+    own hit of frame i−1 (behind mirrors and glass at ``prev["position"]``, the PSR virtual
+    point), traced from frame i's camera under frame i's lights with frame i−1's pass
+    ``seeds``."""
     d = scene.frame_dict(mitsuba(), res, i - 1, i)  # frame i−1's camera rays, frame i's lights
     selected = select_strata(prev["color"], prev["depth"])
-    return render_reshade(d, d["integrator"], scene.camera(i)[0], selected, seeds)
+    return render_reshade(d, d["integrator"], scene.camera(i)[0], prev["position"], selected,
+                          seeds)
 
 
 __all__ = ["OCCLUSION_TOLERANCE", "STRATUM", "render_reshade", "reshade_frame", "select_strata"]

@@ -107,8 +107,9 @@ PSR_VERSION = 3
 #: buffers only the PSR G-buffers carry
 PSR_BUFFERS = tuple(name for name, _, _ in _psr.PSR_EXTRA_LAYOUT)
 GRADIENTS = ("reshade", "frame")
-#: 3: each pass re-shaded from its own hit of frame i−1, not the pixel's mean position
-RESHADE_VERSION = 3
+#: 4: each pass re-shaded from its own hit of frame i−1 (the virtual point behind mirrors and
+#: glass), not from the pixel's mean position
+RESHADE_VERSION = 4
 #: 2: motion of the surface point without the sample's sub-pixel jitter (motion_vectors)
 MOTION_VERSION = 2
 
