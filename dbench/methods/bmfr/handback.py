@@ -18,7 +18,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from ..kernels.residual_handback import (HANDBACK_RADIUS, residual_handback_fast,
+from ..kernels.residual_handback import (HANDBACK_RADIUS, pixel_window_variance,
+                                         residual_handback_fast,
                                          residual_handback_reference, window_variance_reference)
 
 #: The rules: hand back nothing (the BMFR paper's output) or the Wiener split.
@@ -88,21 +89,8 @@ def _moments_nb(illum, z_acc, alpha, hist, ok, present, fit, radius, min_samples
                 var[c, yy, x] = max(zz - zc * zc, np.float32(0.0)) * s
             if short:  # the spatial variance of this frame's samples (as SVGF's §3)
                 for c in range(c_n):
-                    n = 0
-                    s1 = 0.0
-                    s2 = 0.0
-                    for y2 in range(max(yy - radius, 0), min(yy + radius + 1, h)):
-                        for x2 in range(max(x - radius, 0), min(x + radius + 1, w)):
-                            if fit[y2, x2] and present[y2, x2]:
-                                v = np.float64(illum[c, y2, x2])
-                                n += 1
-                                s1 += v
-                                s2 += v * v
-                    sv = 0.0
-                    if n > 0:
-                        m = s1 / n
-                        sv = max(s2 / n - m * m, 0.0)
-                    var[c, yy, x] = np.float32(sv) * s
+                    var[c, yy, x] = np.float32(pixel_window_variance(
+                        illum, c, yy, x, radius, fit, present)) * s
 
 
 def moments_fast(illum, z_acc, alpha, hist, ok, present, fit, out_hist, var):

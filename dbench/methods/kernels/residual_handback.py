@@ -241,29 +241,36 @@ def window_variance_reference(x: Any, valid: Any, radius: int = HANDBACK_RADIUS)
     return np.maximum(mean2 - mean * mean, 0.0)
 
 
+@njit(inline="always")
+def pixel_window_variance(x, c, yy, xx, radius, valid_a, valid_b):  # pragma: no cover
+    """E[x²] − E[x]² (float64, ≥ 0) of channel c of planar (C, H, W) ``x`` over the pixels of
+    the (2r + 1)² window around (yy, xx) where both (H, W) masks hold; 0 when there are none
+    (the compiled form of :func:`window_variance_reference` at one pixel)."""
+    h, w = x.shape[1], x.shape[2]
+    n = 0
+    s1 = 0.0
+    s2 = 0.0
+    for y2 in range(max(yy - radius, 0), min(yy + radius + 1, h)):
+        for x2 in range(max(xx - radius, 0), min(xx + radius + 1, w)):
+            if valid_a[y2, x2] and valid_b[y2, x2]:
+                v = np.float64(x[c, y2, x2])
+                n += 1
+                s1 += v
+                s2 += v * v
+    if n == 0:
+        return 0.0
+    m = s1 / n
+    return max(s2 / n - m * m, 0.0)
+
+
 @njit(cache=True, parallel=True, fastmath=False)
 def _window_variance(x, valid, need, radius, out):  # pragma: no cover - compiled
     c_n, h, w = x.shape
     for yy in prange(h):
         for xx in range(w):
-            if not need[yy, xx]:
-                continue
-            for c in range(c_n):
-                n = 0
-                s1 = 0.0
-                s2 = 0.0
-                for y2 in range(max(yy - radius, 0), min(yy + radius + 1, h)):
-                    for x2 in range(max(xx - radius, 0), min(xx + radius + 1, w)):
-                        if valid[y2, x2]:
-                            v = np.float64(x[c, y2, x2])
-                            n += 1
-                            s1 += v
-                            s2 += v * v
-                if n > 0:
-                    m = s1 / n
-                    out[c, yy, xx] = max(s2 / n - m * m, 0.0)
-                else:
-                    out[c, yy, xx] = 0.0
+            if need[yy, xx]:
+                for c in range(c_n):
+                    out[c, yy, xx] = pixel_window_variance(x, c, yy, xx, radius, valid, valid)
 
 
 def window_variance_fast(x: np.ndarray, valid: np.ndarray, need: np.ndarray, out: np.ndarray,
@@ -277,5 +284,6 @@ def window_variance_fast(x: np.ndarray, valid: np.ndarray, need: np.ndarray, out
     return out
 
 
-__all__ = ["HANDBACK_RADIUS", "HANDBACK_SIGMA", "handback_taps", "residual_handback_fast",
+__all__ = ["HANDBACK_RADIUS", "HANDBACK_SIGMA", "handback_taps", "pixel_window_variance",
+           "residual_handback_fast",
            "residual_handback_reference", "window_variance_fast", "window_variance_reference"]
