@@ -229,7 +229,8 @@ class BMFR(T.HistoryDenoiser):
             y_fit, dropped = bmfr_fit("torch", z_acc, feats, scaled, fit, recon, *fit_args)
         elif fast:
             y_fit, dropped = bmfr_fit_fast(z_acc, None, scaled, fit, recon, *fit_args,
-                                           source=(normals, geo.position, p["features"]))
+                                           source=(normals, geo.position, p["features"]),
+                                           out=self._buffer("fit", z_acc.shape))
         else:
             feats, _ = feature_stack(normals, geo.position, p["features"])
             y_fit, dropped = bmfr_fit_reference(z_acc, feats, scaled, fit, recon, *fit_args)

@@ -67,7 +67,7 @@ def moments_reference(be: str, illum, z_acc, alpha, hist, n_hist, ok, present, f
     return zz_acc, s, illumination_variance(illum, z_acc, zz_acc, s, fit, present)
 
 
-@njit(cache=True, parallel=True, fastmath=False)
+@njit(cache=True, parallel=True, fastmath=True)
 def _moments_nb(illum, z_acc, alpha, hist, ok, present, fit, radius, min_samples,
                 out_hist, var):  # pragma: no cover - compiled
     c_n, h, w = illum.shape
@@ -81,6 +81,8 @@ def _moments_nb(illum, z_acc, alpha, hist, ok, present, fit, radius, min_samples
             out_hist[3, yy, x] = s
             short = fit[yy, x] and s * min_samples > 1.0
             for c in range(c_n):
+                # a missing sample has α = 0 and a reset history 1 − α = 0: both terms vanish,
+                # but a NaN sample or a stale history value must not be multiplied by that 0
                 sample = illum[c, yy, x] if here else np.float32(0.0)
                 prev = hist[c, yy, x] if good else np.float32(0.0)
                 zz = a * (sample * sample) + (np.float32(1.0) - a) * prev
