@@ -22,6 +22,9 @@ SEQUENCE_BUFFERS = frozenset({"color", "albedo", "normal", "depth", "position", 
 FOV = 39.3
 #: the G-buffers :func:`dbench.datasets.sequence.load_sequence` can attach to the colour
 GBUFFERS = ("psr", "psr-glossy", "matched", "supersampled")
+#: the G-buffers of the PSR render (dbench.datasets.psr), and the buffers only they carry
+PSR_GBUFFERS = ("psr", "psr-glossy")
+PSR_ONLY_BUFFERS = frozenset({"geo_normal", "reflected_normal"})
 #: ``--scene-param gbuffer=…`` of every catalogue sequence: which G-buffer the frames carry
 #: (a data choice, so part of the scene's identity through ``Scene.params``)
 GBUFFER_PARAM = Param("gbuffer", "psr", doc="G-buffer", choices=GBUFFERS)
@@ -31,8 +34,13 @@ def gbuffer_variant(base: "SequenceScene", values: dict[str, Any]) -> "SequenceS
     """The sequence scene of a checked ``--scene-param`` set (dbench.datasets.scene_params.bind):
     the same frames, with ``params`` naming the G-buffer :func:`load_sequence` attaches."""
     changed = non_default(base, values)
+    provides = base.provides
+    if values.get(GBUFFER_PARAM.name, GBUFFER_PARAM.default) not in PSR_GBUFFERS:
+        # geo_normal and reflected_normal come with the PSR render only: a method that needs
+        # them is skipped on the other G-buffers before anything is rendered
+        provides = frozenset(provides) - PSR_ONLY_BUFFERS
     return dataclasses.replace(
-        base, params=dict(values), declared=(), variant=None,
+        base, params=dict(values), declared=(), variant=None, provides=provides,
         description=f"{base.description} [" + ", ".join(f"{k}={v}" for k, v in changed.items())
         + "]")
 

@@ -276,3 +276,27 @@ def test_the_gbuffer_is_a_scene_parameter_of_every_sequence(renderer, tmp_path):
     assert via.meta["rendered"] == [] and "reference0" in via.meta["cache_hits"]
     with pytest.raises(DbenchInputError, match="gbuffer"):
         load_sequence(bound, gbuffer="psr", **kw)
+
+
+def test_methods_needing_the_psr_normals_are_skipped_on_other_gbuffers():
+    """``geo_normal`` and ``reflected_normal`` come with the PSR render only: a BMFR preset or an
+    SVGF ``normal_buffer`` that reads them needs them, and is skipped on `matched` and
+    `supersampled` scenes before anything is rendered; the default PSR scene provides them."""
+    from dbench import datasets, methods
+
+    psr = datasets.get_scene("orbit")
+    assert {"geo_normal", "reflected_normal"} <= set(psr.provides)
+    for gbuffer in ("matched", "supersampled"):
+        other = datasets.get_scene("orbit", {"gbuffer": gbuffer})
+        assert not {"geo_normal", "reflected_normal"} & set(other.provides)
+        for name, params, buffer in (("bmfr", {"features": "reflected"}, "reflected_normal"),
+                                     ("bmfr", {"features": "paper+geo"}, "geo_normal"),
+                                     ("svgf", {"normal_buffer": "geo_normal"}, "geo_normal"),
+                                     ("asvgf", {"normal_buffer": "reflected_normal"},
+                                      "reflected_normal")):
+            m = methods.get(name, **params)
+            ok, why = m.applies_to(other.kind, set(other.provides))
+            assert not ok and buffer in why
+            assert m.applies_to(psr.kind, set(psr.provides))[0]
+        assert methods.get("bmfr").applies_to(other.kind, set(other.provides))[0]
+    assert datasets.get_scene("orbit", {"gbuffer": "psr-glossy"}).provides == psr.provides

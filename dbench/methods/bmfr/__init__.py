@@ -145,6 +145,10 @@ class BMFR(T.HistoryDenoiser):
         if p["handback"] not in HB.HANDBACKS:
             raise DbenchInputError(f"handback: expected one of {HB.HANDBACKS}, "
                                    f"got {p['handback']!r}")
+        # a feature preset with the reflected or geometric normal needs that buffer: the
+        # harness then skips scenes that cannot provide it, before rendering
+        self.needs = set(self.needs) | {NORMAL_SOURCES[k] for k in normal_sources(p["features"])
+                                        if k != "n"}
         self._start()
         self._buffers: dict[str, np.ndarray] = {}
         self.grid = grid_offsets(int(p["block_size"]), int(p["offsets"]), int(p["seed"]))

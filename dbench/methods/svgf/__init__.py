@@ -212,6 +212,8 @@ class _SVGFBase(T.HistoryDenoiser):
         if p["normal_buffer"] not in T.NORMAL_BUFFERS:
             raise DbenchInputError(f"normal_buffer: expected one of {T.NORMAL_BUFFERS}, "
                                    f"got {p['normal_buffer']!r}")
+        # another normal buffer is needed, not optional: scenes without it are skipped
+        self.needs = set(self.needs) | {p["normal_buffer"]}
         self._start()
 
     # hook for A-SVGF: (n_hist_for_accumulate, alpha or None, extras)
