@@ -86,8 +86,8 @@ from .cache import Cache
 from .mitsuba_env import mitsuba, versions
 from .scene import Scene, register_scene
 from .scene_parts import _diffuse, _mirror_objects, _rect, _room
-from .sequence_scene import (GBUFFER_PARAM, GBUFFERS, SEQUENCE_BUFFERS, SequenceScene,
-                             camera_info, gbuffer_variant, look_at_matrix,
+from .sequence_scene import (GBUFFER_PARAM, GBUFFERS, PSR_ONLY_BUFFERS, SEQUENCE_BUFFERS,
+                             SequenceScene, camera_info, gbuffer_variant, look_at_matrix,
                              motion_vectors, project)
 from . import psr as _psr
 from .psr import psr_integrator
@@ -104,8 +104,6 @@ GBUFFER_SPP = _render.DEFAULT_FEATURE_SPP
 PSR_GLOSSY_ALPHA = {"psr": 0.0, "psr-glossy": _psr.GLOSSY_ALPHA}
 #: 3: the render adds ``geo_normal`` and ``reflected_normal`` (psr.py)
 PSR_VERSION = 3
-#: buffers only the PSR G-buffers carry
-PSR_BUFFERS = tuple(name for name, _, _ in _psr.PSR_EXTRA_LAYOUT)
 GRADIENTS = ("reshade", "frame")
 #: 4: each pass re-shaded from its own hit of frame i−1 (the virtual point behind mirrors and
 #: glass), not from the pixel's mean position
@@ -492,7 +490,7 @@ def load_sequence(scene: str | SequenceScene, spp: int = 1, res=64,
         buffers = {"color": noisy["color"]}
         buffers.update({k: gbuf[k] for k in ("emission",) + FEATURES if k in wanted})
         # geo_normal and reflected_normal: PSR G-buffers only (None with the others)
-        buffers.update({k: noisy[k] for k in PSR_BUFFERS if k in wanted and k in noisy})
+        buffers.update({k: noisy[k] for k in PSR_ONLY_BUFFERS if k in wanted and k in noisy})
         if "motion" in wanted:
             buffers["motion"] = motion_vectors(gbuf["position"], gbuf["depth"],
                                                prev_camera or camera, camera)

@@ -12,6 +12,7 @@ from typing import Any, Callable
 import numpy as np
 
 from ..resolution import parse_res
+from .psr import PSR_EXTRA_LAYOUT
 from .scene import Scene
 from .scene_params import Param, non_default
 from .scene_parts import _camera
@@ -24,7 +25,7 @@ FOV = 39.3
 GBUFFERS = ("psr", "psr-glossy", "matched", "supersampled")
 #: the G-buffers of the PSR render (dbench.datasets.psr), and the buffers only they carry
 PSR_GBUFFERS = ("psr", "psr-glossy")
-PSR_ONLY_BUFFERS = frozenset({"geo_normal", "reflected_normal"})
+PSR_ONLY_BUFFERS = frozenset(name for name, _, _ in PSR_EXTRA_LAYOUT)
 #: ``--scene-param gbuffer=…`` of every catalogue sequence: which G-buffer the frames carry
 #: (a data choice, so part of the scene's identity through ``Scene.params``)
 GBUFFER_PARAM = Param("gbuffer", "psr", doc="G-buffer", choices=GBUFFERS)

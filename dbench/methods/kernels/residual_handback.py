@@ -24,9 +24,10 @@ is SVGF's variance window (spec/svgf.md §3); r and var are 0 outside ``mask``.
   :func:`~dbench.methods.kernels.handback.wiener_handback` with α_gate = 0).
 * :func:`residual_handback_fast` — compiled (Numba, parallel over rows, float32 images, float64
   sums), equal to the reference within float32 rounding (tests).
-* :func:`window_variance_reference` / :func:`window_variance_fast` — the per-channel variance of
-  this frame's samples over the 7×7 window (``valid`` pixels only), the estimate a pixel with a
-  short history takes instead of its temporal one (as SVGF's §3 does below 4 frames).
+* :func:`window_variance_reference` / :func:`pixel_window_variance` — the per-channel variance
+  of this frame's samples over the 7×7 window (``valid`` pixels only), the estimate a pixel with
+  a short history takes instead of its temporal one (as SVGF's §3 does below 4 frames); the
+  compiled form is one pixel's, inlined into BMFR's fused moments pass.
 
 A kernel imports no method and nothing of the harness.
 """
@@ -265,27 +266,5 @@ def pixel_window_variance(x, c, yy, xx, radius, valid_a, valid_b):  # pragma: no
     return max(s2 / n - m * m, 0.0)
 
 
-@njit(cache=True, parallel=True, fastmath=False)
-def _window_variance(x, valid, need, radius, out):  # pragma: no cover - compiled
-    c_n, h, w = x.shape
-    for yy in prange(h):
-        for xx in range(w):
-            if need[yy, xx]:
-                for c in range(c_n):
-                    out[c, yy, xx] = pixel_window_variance(x, c, yy, xx, radius, valid, valid)
-
-
-def window_variance_fast(x: np.ndarray, valid: np.ndarray, need: np.ndarray, out: np.ndarray,
-                         radius: int = HANDBACK_RADIUS) -> np.ndarray:
-    """:func:`window_variance_reference` written into ``out`` (C, H, W) float32 at the ``need``
-    (H, W) pixels only (the others keep their value); compiled."""
-    if out.shape != x.shape or out.dtype != np.float32:
-        raise ValueError(f"out: expected float32 of shape {x.shape}, got {out.dtype} {out.shape}")
-    _window_variance(np.ascontiguousarray(x, np.float32), np.ascontiguousarray(valid, bool),
-                     np.ascontiguousarray(need, bool), radius, out)
-    return out
-
-
 __all__ = ["HANDBACK_RADIUS", "HANDBACK_SIGMA", "handback_taps", "pixel_window_variance",
-           "residual_handback_fast",
-           "residual_handback_reference", "window_variance_fast", "window_variance_reference"]
+           "residual_handback_fast", "residual_handback_reference", "window_variance_reference"]

@@ -85,11 +85,10 @@ def feature_normal(frame: Any, geo: Geometry, name: str, why: str) -> np.ndarray
     if name not in NORMAL_BUFFERS:
         raise DbenchInputError(f"normal buffer: expected one of {NORMAL_BUFFERS}, got {name!r}")
     h, w = geo.shape
-    value = getattr(frame, name, None)
+    value = _frame_array(frame, name, h, w, 3, False)
     if value is None:
         raise DbenchInputError(f"{name}: missing, and {why} needs it; the sequence scenes' PSR "
                                f"G-buffers (gbuffer=psr or psr-glossy) provide it")
-    value = check_buffer(name, np.asarray(value), (h, w, 3))
     ok = geo.hit & np.isfinite(value).all(-1)
     return np.ascontiguousarray(np.where(ok[..., None], value, 0).transpose(2, 0, 1),
                                 dtype=np.float32)
