@@ -148,6 +148,8 @@ def test_fit_fast_equals_reference_and_noise_streams_agree():
     n /= np.linalg.norm(n, axis=0)
     pos = (rng.random((3, h, w)) * 5).astype(np.float32)
     fit, recon = rng.random((h, w)) > 0.1, rng.random((h, w)) > 0.05
+    fit[:, 50:] = False  # blocks without fit rows, and a corner without anything to rebuild:
+    recon[30:, :20] = False  # both keep z
     for preset in ("paper", "seed", "normals"):
         feats, scaled = B.feature_stack(n, pos, preset)
         for off in ((0, 0), (-14, -14), (4, -6)):
@@ -155,6 +157,12 @@ def test_fit_fast_equals_reference_and_noise_streams_agree():
             f, df = B.bmfr_fit_fast(z, feats, scaled, fit, recon, 32, off, 0.01, 7)
             np.testing.assert_allclose(f, r, rtol=1e-5, atol=1e-6)
             assert dr == df
+            # a kept output buffer full of stale values: the kernel writes every pixel
+            kept = np.full_like(z, np.nan)
+            g, _ = B.bmfr_fit_fast(z, None, scaled, fit, recon, 32, off, 0.01, 7,
+                                   source=(n, pos, preset), out=kept)
+            assert g is kept
+            np.testing.assert_allclose(g, r, rtol=1e-5, atol=1e-6)
 
 
 def test_whole_method_backends_agree_and_output_is_non_negative():
@@ -383,3 +391,18 @@ def test_reflection_feature_presets_read_their_buffers():
     outs = [methods.get("bmfr", features=p).denoise(g) for p in ("paper", "reflected")]
     np.testing.assert_array_equal(outs[0], outs[1])
     assert np.isfinite(methods.get("bmfr", features="reflected+geo").denoise(g)).all()
+
+
+@pytest.mark.parametrize("backend", ["numba", "reference"])
+def test_without_an_emission_buffer_the_emission_history_is_left_out(backend):
+    """No ``emission`` buffer: the emission is 0 everywhere, so its three history planes are
+    neither reprojected nor accumulated; the output equals the one with a zero buffer."""
+    seq = synthetic_sequence(24, 40, frames=4)
+    zero = np.zeros((24, 40, 3), np.float32)
+    for handback in ("wiener", "none"):
+        a, b = (methods.get("bmfr", backend=backend, handback=handback) for _ in range(2))
+        a.reset()
+        b.reset()
+        for f in seq:
+            np.testing.assert_array_equal(a.denoise(f), b.denoise(f.with_buffers(emission=zero)))
+        assert b.history.buffers.shape[0] == a.history.buffers.shape[0] + 3

@@ -191,11 +191,15 @@ def test_backends_agree_with_the_hand_back_and_history_planes():
         for b in ("reference", "torch"):
             np.testing.assert_allclose(outs["numba"], outs[b], rtol=1e-4, atol=1e-5)
         assert np.isfinite(outs["numba"]).all() and (outs["numba"] >= 0).all()
-    assert ms["numba"].history.buffers.shape[0] == 10 + HB.EXTRA_PLANES
-    plain = methods.get("bmfr", handback="none")
-    plain.reset()
-    plain.denoise(synthetic_sequence(8, 8, frames=1)[0])
-    assert plain.history.buffers.shape[0] == 10
+    emissive = getattr(f, "emission", None) is not None
+    # Z (3), N, the fit (3), Z² (3) and S; the emission (3) only with an emission buffer
+    assert ms["numba"].history.buffers.shape[0] == 7 + HB.EXTRA_PLANES + 3 * emissive
+    frame = synthetic_sequence(8, 8, frames=1)[0]
+    for emission, planes in ((None, 7), (np.zeros((8, 8, 3), np.float32), 10)):
+        plain = methods.get("bmfr", handback="none")
+        plain.reset()
+        plain.denoise(frame.with_buffers(emission=emission) if emission is not None else frame)
+        assert plain.history.buffers.shape[0] == planes
 
 
 def test_handback_parameter_is_checked():

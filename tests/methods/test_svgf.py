@@ -395,3 +395,18 @@ def test_normal_buffer_chooses_the_edge_stopping_normal():
         methods.get("asvgf", normal_buffer="geo_normal").denoise(seq[0])
     with pytest.raises(DbenchInputError, match="normal_buffer"):
         methods.get("svgf", normal_buffer="mirror")
+
+
+@pytest.mark.parametrize("name", ["svgf", "asvgf"])
+@pytest.mark.parametrize("backend", ["numba", "reference"])
+def test_without_an_emission_buffer_the_emission_history_is_left_out(name, backend):
+    """No ``emission`` buffer: the emission is 0 everywhere, so its three history planes are
+    neither reprojected nor accumulated; the output equals the one with a zero buffer."""
+    seq = synthetic_sequence(24, 40, frames=4)
+    zero = np.zeros((24, 40, 3), np.float32)
+    a, b = (methods.get(name, backend=backend) for _ in range(2))
+    a.reset()
+    b.reset()
+    for f in seq:
+        np.testing.assert_array_equal(a.denoise(f), b.denoise(f.with_buffers(emission=zero)))
+    assert b.history.buffers.shape[0] == a.history.buffers.shape[0] + 3

@@ -17,8 +17,8 @@ beyond the variance of Z' (accumulated per channel from Z² and the blend weight
 4 effective samples). A block fit cannot follow a contact shadow or a highlight inside a block:
 fed the reference itself, the paper's BMFR had twice plain accumulation's error on ``orbit``,
 and that bias does not fall as frames accumulate. With the hand-back the output converges to
-the accumulated input as its variance vanishes. ``"none"`` is the paper's method (10 history
-planes instead of 14).
+the accumulated input as its variance vanishes. ``"none"`` is the paper's method (4 history
+planes fewer: 7 instead of 11, 3 more each with an ``emission`` buffer).
 
 Temporal gradient (``temporal_gradient=True``, default; docs/temporal.md §5): when the frame has
 a ``gradient`` buffer (the re-shaded samples A-SVGF uses), both accumulations take A-SVGF's
@@ -198,13 +198,18 @@ class BMFR(T.HistoryDenoiser):
         h, w = color.shape[:2]
         albedo = check_buffer("albedo", getattr(data, "albedo", None), (h, w, 3))
         geo = T.frame_geometry(data, backend=be)
-        prep = SC.prepare(be, color, albedo, _emission(data, h, w), geo.hit)
+        emission = _emission(data, h, w)
+        prep = SC.prepare(be, color, albedo, emission, geo.hit)
         present = prep["present"]
 
-        # history: Z accumulated (3), N, the fit accumulated (3), emission accumulated (3);
-        # with the hand-back also Z² accumulated (3) and Σ w² of the first accumulation
+        # history: Z accumulated (3), N, the fit accumulated (3); with the hand-back Z²
+        # accumulated (3) and Σ w² of the first accumulation; with an emission buffer the
+        # emission accumulated (3) (without one it is 0 everywhere: nothing to reproject or
+        # accumulate; a change of the buffer's presence resets the history)
         wiener = p["handback"] == "wiener"
-        planes = 10 + (HB.EXTRA_PLANES if wiener else 0)
+        emissive = emission is not None
+        base = 7 + (HB.EXTRA_PLANES if wiener else 0)  # the emission planes' start
+        planes = base + (3 if emissive else 0)
         hist, status = self.history.fetch(geo, planes)
         ok = status > 0
         acc = partial(T.accumulate_any, be)
@@ -213,8 +218,9 @@ class BMFR(T.HistoryDenoiser):
         stage = self.history.staging(planes, h, w)
         z_acc, n1, a_used = acc(prep["illum"], hist[0:3], n_hist, ok, p["alpha1"], T.N_MAX, a1,
                                 present, out=(stage[0:3], stage[3]))
-        acc_e = _accumulate_emission(be, prep, hist[7:10], n_hist, ok, p["alpha1"], T.N_MAX,
-                                     a1, present, out=stage[7:10])
+        acc_e = (_accumulate_emission(be, prep, hist[base:], n_hist, ok, p["alpha1"], T.N_MAX,
+                                      a1, present, out=stage[base:])
+                 if emissive else prep["emission"])
         filled = n1 > 0
         recon = geo.hit & ~prep["emitter"]
         fit = handed = recon & filled  # handed: where the residual may go back
@@ -243,12 +249,12 @@ class BMFR(T.HistoryDenoiser):
             compiled = be != "reference"
             if compiled:
                 zz_acc, s, var = HB.moments_fast(
-                    prep["illum"], z_acc, a_used, hist[10:14], ok, present, handed,
-                    stage[10:14] if fast else np.empty((4, h, w), np.float32),
+                    prep["illum"], z_acc, a_used, hist[7:11], ok, present, handed,
+                    stage[7:11] if fast else np.empty((4, h, w), np.float32),
                     self._buffer("var", z_acc.shape))
             else:
                 zz_acc, s, var = HB.moments_reference(be, prep["illum"], z_acc, a_used,
-                                                      hist[10:14], n_hist, ok, present, handed,
+                                                      hist[7:11], n_hist, ok, present, handed,
                                                       p["alpha1"], T.N_MAX, a1)
             y_fit = HB.handback(z_acc, y_fit, var, handed, compiled,
                                 out=self._buffer("handback", y_fit.shape) if compiled else None)
@@ -256,7 +262,8 @@ class BMFR(T.HistoryDenoiser):
         y_acc, n2, _ = acc(y_fit, hist[4:7], n_hist, ok, p["alpha2"], T.N_MAX, a2,
                            filled | recon, out=(stage[4:7], None))
         if not fast:  # the other backends return new arrays: gather them
-            parts = [z_acc, n1[None], y_acc, acc_e] + ([zz_acc, s[None]] if wiener else [])
+            parts = ([z_acc, n1[None], y_acc] + ([zz_acc, s[None]] if wiener else [])
+                     + ([acc_e] if emissive else []))
             stage = np.concatenate(parts)
         self.history.store(geo, stage, valid=filled | recon, finite=True)
         self.frame_index += 1

@@ -110,21 +110,13 @@ if HAVE_NUMBA:
 
 
 if HAVE_NUMBA:
-    @njit(cache=True, inline="always")
-    def _feat(src_a, src_b, kinds, axes, j, y, x):
-        """Feature column j at pixel (y, x): kind 0 → 1, 1 → src_a[axis], 2 → src_b[axis],
-        3 → src_b[axis]² (so the fit can read normals/positions without a feature stack)."""
-        k = kinds[j]
-        if k == 0:
-            return 1.0
-        if k == 1:
-            return np.float64(src_a[axes[j], y, x])
-        v = np.float64(src_b[axes[j], y, x])
-        return v * v if k == 3 else v
-
     @njit(cache=True, parallel=True, fastmath=True, error_model="numpy")
     def _bmfr_fit_nb(z, src_a, src_b, kinds, axes, scaled, fit, recon, origins, block,
                      noise_amount, noise_seed, rcond, clamp, out, dropped):
+        """``z``, ``out`` (C, H, W); ``src_a``, ``src_b`` flattened to (·, H·W) so that a
+        feature column is one gather through the fit pixels' flat indices, its kind (constant,
+        value, square: ``kinds``, :func:`feature_layout`) decided once per column, not per
+        pixel. Pixels of a block that are not reconstructed keep ``z``."""
         c, h, w = z.shape
         m_ = kinds.shape[0]
         nb = origins.shape[0]
@@ -145,21 +137,32 @@ if HAVE_NUMBA:
                         rows += 1
             dropped[b] = 0
             if rows == 0 or not anyrec:
+                for y in range(ya, yb):
+                    for q in range(c):
+                        out[q, y, xa:xb] = z[q, y, xa:xb]
                 continue
-            py = np.empty(rows, np.int64)
-            px = np.empty(rows, np.int64)
+            pix = np.empty(rows, np.int64)  # the fit pixels' flat indices y·W + x
             r = 0
             for y in range(ya, yb):
                 for x in range(xa, xb):
                     if fit[y, x]:
-                        py[r] = y
-                        px[r] = x
+                        pix[r] = y * w + x
                         r += 1
             M = np.empty((m_ + c, rows), np.float64)
             for j in range(m_):
                 col = M[j]
-                for r in range(rows):
-                    col[r] = _feat(src_a, src_b, kinds, axes, j, py[r], px[r])
+                k = kinds[j]
+                if k == 0:
+                    col[:] = 1.0
+                    continue
+                plane = src_a[axes[j]] if k == 1 else src_b[axes[j]]
+                if k == 3:
+                    for r in range(rows):
+                        v = np.float64(plane[pix[r]])
+                        col[r] = v * v
+                else:
+                    for r in range(rows):
+                        col[r] = np.float64(plane[pix[r]])
             # per-block scaling of the scaled columns to [0, 1]: f' = (f − min) / max(range, 1),
             # in place on the raw columns (the same numbers as scaling while reading them)
             scale = np.ones(m_)
@@ -181,7 +184,7 @@ if HAVE_NUMBA:
                 hashes = np.empty(rows, np.uint64)
                 for g in range((m_ + 3) // 4):  # columns 1 … m_−1, four per hash
                     for r in range(rows):
-                        hashes[r] = _hash64_nb(seed, py[r] * w + px[r], g)
+                        hashes[r] = _hash64_nb(seed, pix[r], g)
                     for t in range(4):  # one column at a time: branch-free, vectorised
                         j = 4 * g + t
                         if j < 1 or j >= m_:
@@ -192,10 +195,12 @@ if HAVE_NUMBA:
                             u = (np.float64((hashes[r] >> sh16) & _MASK16) + 0.5) \
                                 * (1.0 / 65536.0)
                             col[r] += amp * (u - 0.5)
+            zf = z.reshape(c, h * w)
             for q in range(c):
                 col = M[m_ + q]
+                zq = zf[q]
                 for r in range(rows):
-                    col[r] = z[q, py[r], px[r]]
+                    col[r] = zq[pix[r]]
             X = np.zeros((m_, c), np.float64)
             dropped[b] = _qr_solve_cm(M, rows, m_, c, rcond, X)
             # fold the per-block scaling into the coefficients: y = Σ_j f_j X'_j + b
@@ -222,7 +227,9 @@ if HAVE_NUMBA:
                             for i in range(nx):
                                 acc[q, i] += coef
                         continue
-                    row = src_a[axes[j], y, xa:xb] if k == 1 else src_b[axes[j], y, xa:xb]
+                    start = y * w + xa
+                    row = (src_a[axes[j], start:start + nx] if k == 1
+                           else src_b[axes[j], start:start + nx])
                     square = k == 3
                     for q in range(c):
                         coef = Xs[j, q]
@@ -235,6 +242,9 @@ if HAVE_NUMBA:
                     if recon[y, xa + i]:
                         for q in range(c):
                             out[q, y, xa + i] = max(acc[q, i], 0.0) if clamp else acc[q, i]
+                    else:
+                        for q in range(c):
+                            out[q, y, xa + i] = z[q, y, xa + i]
 
 
 def bmfr_fit_fast(z, feats, scaled, fit, recon, block, offset, noise_amount=0.01, noise_seed=0,
@@ -250,11 +260,9 @@ def bmfr_fit_fast(z, feats, scaled, fit, recon, block, offset, noise_amount=0.01
     """
     z = np.ascontiguousarray(z, np.float32)
     if out is None:
-        out = z.copy()
-    else:
-        if out.shape != z.shape or out.dtype != np.float32 or np.may_share_memory(out, z):
-            raise ValueError(f"out: expected a float32 {z.shape} array apart from z")
-        np.copyto(out, z)
+        out = np.empty_like(z)  # the blocks tile the image: the kernel writes every pixel
+    elif out.shape != z.shape or out.dtype != np.float32 or np.may_share_memory(out, z):
+        raise ValueError(f"out: expected a float32 {z.shape} array apart from z")
     h, w = z.shape[1:]
     if source is not None:
         normal, position, preset = source
@@ -266,6 +274,8 @@ def bmfr_fit_fast(z, feats, scaled, fit, recon, block, offset, noise_amount=0.01
         src_b = np.zeros((1, 1, 1), np.float32)
         kinds = np.ones(len(src_a), np.int64)
         axes = np.arange(len(src_a), dtype=np.int64)
+    src_a = src_a.reshape(len(src_a), -1)
+    src_b = src_b.reshape(len(src_b), -1)
     scaled = np.asarray(scaled, np.bool_)
     origins = block_origins(h, w, block, offset)
     dropped = np.zeros(len(origins), np.int64)

@@ -232,8 +232,12 @@ class _SVGFBase(T.HistoryDenoiser):
         prep = C.prepare(be, color, albedo, emission, geo.hit)
         present, emitter = prep["present"], prep["emitter"]
 
-        # history: feedback colour (3), moments (2), N, Σ of squared blend weights, emission (3)
-        hist, status = self.history.fetch(geo, 10)
+        # history: feedback colour (3), moments (2), N, Σ of squared blend weights, and the
+        # emission (3) when the frame has an emission buffer (without one it is 0 everywhere:
+        # nothing to reproject or accumulate; a change of the buffer's presence resets history)
+        emissive = emission is not None
+        planes = 7 + (3 if emissive else 0)
+        hist, status = self.history.fetch(geo, planes)
         ok = status > 0
         hist_n, alpha, extras = self._adaptive(data, geo, hist[5], ok, prep)
         n_max = getattr(self, "n_max", T.N_MAX)
@@ -247,7 +251,7 @@ class _SVGFBase(T.HistoryDenoiser):
         # the compiled kernels write this frame's history planes in place into a reused array
         # (History.staging); the other backends' new arrays are gathered at the end
         fast = be == "numba"
-        stage = self.history.staging(10, h, w) if fast else None
+        stage = self.history.staging(planes, h, w) if fast else None
         acc_c, n, a_used = T.accumulate_any(be, prep["illum"], hist[:3], hist_n, ok,
                                             p["alpha_min"], n_max, alpha, present,
                                             out=(None, stage[5]) if fast else None)
@@ -257,8 +261,9 @@ class _SVGFBase(T.HistoryDenoiser):
         # the emission of 1-spp primary hits is exact but aliased (a jittered sample sees the
         # lamp or not): accumulated with the colour's α it converges to the pixel's coverage,
         # as TAA would; adding the raw sample back made every lamp edge flicker
-        acc_e = _accumulate_emission(be, prep, hist[7:10], hist_n, ok, p["alpha_min"], n_max,
-                                     alpha, present, out=stage[7:10] if fast else None)
+        acc_e = (_accumulate_emission(be, prep, hist[7:10], hist_n, ok, p["alpha_min"], n_max,
+                                      alpha, present, out=stage[7:10] if fast else None)
+                 if emissive else prep["emission"])
         filled = n > 0
 
         gx, gy = C.depth_gradient(geo.depth, geo.hit, backend=be)
@@ -297,7 +302,8 @@ class _SVGFBase(T.HistoryDenoiser):
             stage[0:3] = feedback
             stage[6] = weight_sq
         else:
-            stage = np.concatenate([feedback, acc_m, n[None], weight_sq[None], acc_e])
+            stage = np.concatenate([feedback, acc_m, n[None], weight_sq[None]]
+                                   + ([acc_e] if emissive else []))
         self.history.store(geo, stage, valid=filled, finite=True)
         self._after(geo, prep)
         self.last = {"n": n, "alpha": a_used, "variance": var, "status": status,
