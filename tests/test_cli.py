@@ -133,3 +133,21 @@ def test_bench_frame_says_its_spp_to_the_method():
         _REGISTRY.pop("test-bench-spp", None)
     assert seen and set(seen) == {(4.0, 4.0, 0.5)}
     assert result["spp"] == 4 and result["params"]["scale"] == 0.5
+
+
+def test_gate_share_is_paired_per_round_with_the_order_alternating():
+    """The gate's share of its method's time: the two are timed in turn in each round, the order
+    reversed every other round (ABBA), and the share is the median of the per-round ratios
+    with its quartiles; ``dbench bench NAME+gate`` reports it so."""
+    from dbench.bench.speed import bench_method, interleaved_times, paired_share
+
+    calls = []
+    times = interleaved_times([lambda: calls.append("a"), lambda: calls.append("b")], 4)
+    assert calls == ["a", "b"] + ["a", "b", "b", "a", "a", "b", "b", "a"]  # warm-up, then ABBA
+    assert [len(t) for t in times] == [4, 4]
+    share = paired_share([1.2, 2.2, 1.1, 3.3, 1.15], [1.0, 2.0, 1.0, 3.0, 1.0])
+    assert abs(share["median"] - 0.1) < 1e-12 and share["rounds"] == 5
+    assert share["q25"] <= share["median"] <= share["q75"]
+    result = bench_method("jbf+gate", height=8, width=12, repeats=1, spp=4)
+    lo, hi = result["gate_overhead_quartiles"]
+    assert lo <= result["gate_overhead"] <= hi and result["gate_overhead_rounds"] >= 5

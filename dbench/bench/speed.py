@@ -36,20 +36,30 @@ def median_time(fn: Callable[[], Any], repeats: int) -> float:
     return statistics.median(times)
 
 
-def interleaved_medians(fns: list[Callable[[], Any]], repeats: int) -> list[float]:
-    """Median wall seconds of each of ``fns`` over ``repeats`` rounds, each round calling them
-    one after another (after one warm-up round), so that a slow spell of the machine falls on
-    all of them alike: the ratio of two medians is then far steadier than with the functions
+def interleaved_times(fns: list[Callable[[], Any]], repeats: int) -> list[list[float]]:
+    """Wall seconds of each of ``fns`` in each of ``repeats`` rounds (after one warm-up round),
+    each round calling them one after another, the order reversed every other round (ABBA), so
+    that a slow spell of the machine falls on all of them alike and none always runs first:
+    the ratio of two functions' times in the same round is far steadier than with the functions
     timed one block after the other (a gate's share of 41-72 % in separate blocks)."""
     for fn in fns:
         fn()
     times: list[list[float]] = [[] for _ in fns]
-    for _ in range(repeats):
-        for k, fn in enumerate(fns):
+    order = list(range(len(fns)))
+    for r in range(repeats):
+        for k in (order if r % 2 == 0 else order[::-1]):
             t0 = time.perf_counter()
-            fn()
+            fns[k]()
             times[k].append(time.perf_counter() - t0)
-    return [statistics.median(t) for t in times]
+    return times
+
+
+def paired_share(times_a: list[float], times_b: list[float]) -> dict[str, float]:
+    """What A adds to B, from their times in the same rounds (:func:`interleaved_times`): the
+    median of the per-round ratios A/B − 1, with their quartiles as its spread."""
+    shares = np.array(times_a) / np.array(times_b) - 1.0
+    q25, q50, q75 = np.percentile(shares, [25, 50, 75])
+    return {"median": float(q50), "q25": float(q25), "q75": float(q75), "rounds": len(shares)}
 
 
 def bench_render(scene: str = "cornell", res=256, spp: int = 64, repeats: int = 3,
@@ -70,6 +80,8 @@ def bench_render(scene: str = "cornell", res=256, spp: int = 64, repeats: int = 
 
 #: Samples per pixel of the synthetic frame a method is timed on (``dbench bench METHOD``).
 METHOD_SPP = 16
+#: Rounds at least of ``NAME+gate`` and ``NAME`` timed in turn for the gate's share.
+GATE_SHARE_ROUNDS = 15
 
 
 def bench_method(name: str, height: int = 720, width: int = 1280, repeats: int = 3,
@@ -108,8 +120,10 @@ def bench_method(name: str, height: int = 720, width: int = 1280, repeats: int =
     wrapped = getattr(type(method), "wrapped", None)
     if wrapped is not None:  # NAME+gate: the method alone, interleaved with it, for the share
         inner = method.inner
-        t_method, t_inner = interleaved_medians([lambda: run(method), lambda: run(inner)],
-                                                max(repeats, 5))
+        rounds = interleaved_times([lambda: run(method), lambda: run(inner)],
+                                   max(repeats, GATE_SHARE_ROUNDS))
+        t_method, t_inner = (statistics.median(t) for t in rounds)
+        share = paired_share(*rounds)
     else:
         t_method = median_time(lambda: run(method), repeats)
     oidn = methods.get("oidn")
@@ -124,7 +138,9 @@ def bench_method(name: str, height: int = 720, width: int = 1280, repeats: int =
                               "when": time.strftime("%Y-%m-%d %H:%M:%S")}
     if wrapped is not None:
         result.update({"wrapped": wrapped.name, "wrapped_time_s": t_inner,
-                       "gate_overhead": t_method / t_inner - 1.0})
+                       "gate_overhead": share["median"],
+                       "gate_overhead_quartiles": [share["q25"], share["q75"]],
+                       "gate_overhead_rounds": share["rounds"]})
     try:
         extra = importlib.import_module(f"dbench.bench.methods.{name}")
     except ModuleNotFoundError:
@@ -184,7 +200,10 @@ def format_result(result: dict[str, Any]) -> str:
              f"oidn {result['oidn_time_s'] * 1e3:.1f} ms; ratio {result['ratio_vs_oidn']:.2f}x oidn"]
     if "wrapped" in result:
         lines.append(f"  {result['wrapped']} alone {result['wrapped_time_s'] * 1e3:.1f} ms in the "
-                     f"same run: the gate adds {result['gate_overhead']:.0%}")
+                     f"same run: the gate adds {result['gate_overhead']:.1%} (median of "
+                     f"{result['gate_overhead_rounds']} paired rounds; quartiles "
+                     f"{result['gate_overhead_quartiles'][0]:.1%} to "
+                     f"{result['gate_overhead_quartiles'][1]:.1%})")
     if "fast_vs_reference" in result:
         lines.append(f"  fast path vs reference: {json.dumps(result['fast_vs_reference'], default=str)}")
     return "\n".join(lines)
