@@ -238,40 +238,6 @@ def test_gate_from_statistics_equals_the_composed_fast_gate(transform, lam):
     np.testing.assert_allclose(got, expected, rtol=1e-6, atol=1e-7)
 
 
-@pytest.mark.parametrize("transform,lam", [("identity", 0.5), ("box-cox", 0.5),
-                                           ("yeo-johnson", 0.5)])
-def test_variance_summary_reads_counts_and_mean_variance_in_one_pass(transform, lam):
-    """variance_summary: the smallest sample count and the mean linear variance (σ_b's input)
-    equal NumPy's min and mean; with that mean handed in, the gate gives the same bits, and
-    NAME+gate's fast path equals its reference path with and without pixels under 2 samples."""
-    rng = np.random.default_rng(7)
-    color = rng.gamma(1.0, 1.0, (17, 21, 3)).astype(np.float32)
-    color[3, 4, 2] = np.nan
-    var = rng.gamma(1.0, 1.0, color.shape) * 1e-3
-    var[5, 6, 0] = np.inf
-    for low in (8.0, 1.0):
-        n = np.full(color.shape, 8.0)
-        n[2, 2, 1] = low
-        stats = SampleStats(n=n, mean=np.zeros(color.shape), var_mean=var,
-                            m3=np.zeros(color.shape), transform=transform, lam=lam)
-        smallest, mean = kg.variance_summary(color, stats)
-        assert smallest == low
-        np.testing.assert_allclose(mean, kg.linear_variance(stats, color).mean(), rtol=1e-12)
-        den = (np.nan_to_num(color) * 0.9).astype(np.float32)
-        np.testing.assert_array_equal(kg.proden_gate_stats(color, den, stats, mean_var=mean),
-                                      kg.proden_gate_stats(color, den, stats))
-        frame = _frame(seed=6)
-        st = frame.stats
-        n = np.array(st.n, copy=True)
-        n[2, 2, 1] = low
-        frame = frame.with_buffers(stats=SampleStats(n=n, mean=st.mean, var_mean=st.var_mean,
-                                                     m3=st.m3, transform=transform, lam=lam))
-        fast = get("jbf+gate", radius=3, gate_backend="fast").denoise(frame)
-        ref = get("jbf+gate", radius=3, gate_backend="reference").denoise(frame)
-        assert not np.allclose(fast, frame.color)  # the gate has something to do
-        np.testing.assert_allclose(fast, ref, rtol=1e-5, atol=1e-6)
-
-
 def test_directly_seen_lights_keep_the_input_after_the_gate():
     """gate_emitters (default): pixels an emitter covers keep the input in proportion to the
     coverage, after the gate; without the buffer, or with gate_emitters=False, the gate alone."""

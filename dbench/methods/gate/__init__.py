@@ -62,8 +62,7 @@ from ...denoiser import Denoiser
 from ...errors import DbenchInputError
 from ..checks import check_choice
 from ..kernels.emitters import keep_emitters
-from ..kernels.gate import (GATE_K, GATE_T0, linear_variance, proden_gate, proden_gate_stats,
-                            variance_summary)
+from ..kernels.gate import GATE_K, GATE_T0, linear_variance, proden_gate, proden_gate_stats
 from ..kernels.handback import HANDBACKS
 from ..kernels.variance_floor import POOL_RADIUS
 
@@ -105,13 +104,8 @@ def gate_output(color: np.ndarray, denoised: np.ndarray, stats: Any, *, alpha: f
     # there), not zero, so there is no evidence against the method's value: the gate stays
     # open (α). Read as a known zero it would return the noisy input at 1 spp.
     counts = np.asarray(stats.n)
-    mean_var = None
-    if backend == "reference":
-        any_unknown = counts.size > 0 and bool(counts.min() < 2)
-    else:  # the counts read in the compiled pass that also takes the gate's mean variance
-        smallest, mean_var = variance_summary(color, stats)
-        any_unknown = smallest < 2
-    unknown = counts < 2 if any_unknown else None  # no (H, W, 3) mask when all ≥ 2
+    any_unknown = counts.size > 0 and bool(counts.min() < 2)  # no (H, W, 3) mask when all ≥ 2
+    unknown = counts < 2 if any_unknown else None
     open_gate = None
     if backend == "reference" or any_unknown:
         hdr = np.where(np.isfinite(color), color, denoised)
@@ -125,7 +119,7 @@ def gate_output(color: np.ndarray, denoised: np.ndarray, stats: Any, *, alpha: f
                           t0=t0, pool_radius=pool, handback=handback).astype(np.float32)
     else:  # the same substitutions and the linear variance, inside the compiled passes
         out = proden_gate_stats(color, denoised, stats, alpha=alpha, k=k, t0=t0,
-                                pool_radius=pool, handback=handback, mean_var=mean_var)
+                                pool_radius=pool, handback=handback)
     return out if open_gate is None else np.where(unknown, open_gate, out)
 
 

@@ -164,29 +164,17 @@ def _inputs(color, den, var, x, box_cox_half, fix, y, i):  # pragma: no cover - 
 
 
 @njit(parallel=True, cache=True, fastmath=_FASTMATH)
-def _variance_summary(var, x, box_cox_half, counts):  # pragma: no cover - compiled
-    """(mean of the linear variance over the image (σ_b of spec §12), float64; the smallest of
-    ``counts``, +inf when it is empty) of (H, W·C) rows in one pass: after the method the
-    statistics have left the cache, so reading the counts beside the variance saves a pass."""
+def _mean_variance(color, den, var, x, box_cox_half, fix):  # pragma: no cover - compiled
+    """Mean of the linear variance over the image (σ_b of spec §12), float64."""
     h, wc = var.shape
     sums = np.zeros(h, np.float64)
-    mins = np.full(h, np.inf)
-    with_counts = counts.shape[0] == h
     for row in prange(h):
         y = np.int64(row)
         s = 0.0
         for i in range(wc):
-            s += linear_value(var, x, box_cox_half, y, i)
+            s += _inputs(color, den, var, x, box_cox_half, fix, y, i)[2]
         sums[y] = s
-        if with_counts:
-            m = np.inf
-            for i in range(wc):
-                m = min(m, counts[y, i])
-            mins[y] = m
-    return sums.sum() / max(h * wc, 1), mins.min() if h > 0 else np.inf
-
-
-_NO_COUNTS = np.zeros((0, 0), np.float64)
+    return sums.sum() / max(h * wc, 1)
 
 
 @njit(inline="always")
@@ -401,12 +389,10 @@ def _gate_bands(color, den, var, x, box_cox_half, fix, g, g2, pool, alpha, table
 
 
 def _band_rows(h: int, r: int) -> int:
-    """Output rows per task: one task per thread, since each band recomputes the rows of its
-    halo (r rows of x-blur and, with the Wiener hand-back, WIENER_RADIUS rows of the gate each
-    side; at 720p with 2 threads two bands per thread took 0.8-1.4 ms longer than one, of about
-    17 ms), rounded up to a multiple of SUM_ANCHOR, so that every band starts at an anchor row
-    of the sliding window sums (the same sums whatever the bands)."""
-    return _anchored(max(2 * r + 1, -(-h // get_num_threads())))
+    """Output rows per task: two tasks per thread (the halo of blurred rows per band costs
+    about 2r / band extra), a multiple of SUM_ANCHOR, so that every band starts at an anchor
+    row of the sliding window sums (the same sums whatever the bands)."""
+    return _anchored(max(2 * r + 1, -(-h // (2 * get_num_threads()))))
 
 
 def _anchored(rows: int) -> int:
@@ -415,12 +401,11 @@ def _anchored(rows: int) -> int:
 
 
 def _gate_passes(color, den, var, x, box_cox_half: bool, fix: bool, alpha: float, k: float,
-                 t0: float, pool: int = 0, band: int | None = None, handback: str = "pixel",
-                 mean_var: float | None = None) -> np.ndarray:
+                 t0: float, pool: int = 0, band: int | None = None, handback: str = "pixel"
+                 ) -> np.ndarray:
     """The compiled gate on (H, W, 3) arrays (see :func:`proden_gate_fast`): the mean variance
-    (σ_b; ``mean_var`` when the caller has it, :func:`variance_summary`), then one pass of
-    bands (:func:`_gate_bands`), with the variance floor of radius ``pool`` and the
-    ``handback`` rule fused into it; ``band`` output rows per task (default
+    (σ_b), then one pass of bands (:func:`_gate_bands`), with the variance floor of radius
+    ``pool`` and the ``handback`` rule fused into it; ``band`` output rows per task (default
     :func:`_band_rows`)."""
     check_choice("handback", handback, HANDBACKS)
     h, w, c = color.shape
@@ -428,9 +413,7 @@ def _gate_passes(color, den, var, x, box_cox_half: bool, fix: bool, alpha: float
     den = np.ascontiguousarray(den, color.dtype).reshape(h, w * c)
     var = np.ascontiguousarray(var).reshape(h, w * c)
     x = color if x is None else np.ascontiguousarray(x, color.dtype).reshape(h, w * c)
-    if mean_var is None:
-        mean_var = _variance_summary(var, x, box_cox_half, _NO_COUNTS)[0]
-    g = gate_taps(sigma_from_mean(mean_var))
+    g = gate_taps(sigma_from_mean(_mean_variance(color, den, var, x, box_cox_half, fix)))
     out = np.empty((h, w * c), np.float32)
     band = _band_rows(h, len(g) // 2) if band is None else _anchored(band)
     _gate_bands(color, den, var, x, box_cox_half, fix, g, g * g, int(pool), float(alpha),
@@ -449,37 +432,9 @@ def proden_gate_fast(hdr: Any, den: Any, var: Any, *, alpha: float = 1.0, k: flo
                         handback=handback)
 
 
-def _stats_inputs(color: np.ndarray, stats: Any) -> tuple[np.ndarray, np.ndarray | None, bool]:
-    """(var, x, Box-Cox ½) for the compiled passes: the statistics' variance of the mean, read
-    as it is for the identity transform and times the colour for Box-Cox ½, else the linear
-    variance prepared by :func:`linear_variance`."""
-    transform = getattr(stats, "transform", "identity")
-    if transform == "identity":
-        return np.broadcast_to(np.asarray(stats.var_mean, np.float64), color.shape), None, False
-    if transform == "box-cox" and float(stats.lam) == 0.5:
-        return (np.broadcast_to(np.asarray(stats.var_mean, np.float64), color.shape), color,
-                True)
-    return linear_variance(stats, color), None, False
-
-
-def variance_summary(color: Any, stats: Any) -> tuple[float, float]:
-    """(the smallest sample count of ``stats``, the mean of the linear variance that σ_b of spec
-    §12 is taken from) in one compiled pass over the statistics; (+inf, 0) for an empty
-    image. ``NAME+gate`` reads both before gating: where a pixel has fewer than 2 samples
-    its variance is unknown, and the mean goes to :func:`proden_gate_stats`."""
-    color = np.ascontiguousarray(color)
-    h, w, c = color.shape
-    var, x, box_cox_half = _stats_inputs(color, stats)
-    flat = (lambda a: np.ascontiguousarray(a).reshape(h, w * c))  # noqa: E731
-    counts = np.broadcast_to(np.asarray(stats.n, np.float64), color.shape)
-    mean, smallest = _variance_summary(flat(var), flat(color if x is None else x),
-                                       box_cox_half, flat(counts))
-    return float(smallest), float(mean)
-
-
 def proden_gate_stats(color: Any, den: Any, stats: Any, *, alpha: float = 1.0,
                       k: float = GATE_K, t0: float = GATE_T0, pool_radius: int = 0,
-                      handback: str = "pixel", mean_var: float | None = None) -> np.ndarray:
+                      handback: str = "pixel") -> np.ndarray:
     """The gate of a method output ``den`` on a noisy ``color`` with dbench's ``stats``, in the
     same compiled pass: non-finite noisy values take the method's and non-finite method values
     the noisy ones, and the linear variance (:func:`linear_variance`) is formed as each row is
@@ -487,12 +442,20 @@ def proden_gate_stats(color: Any, den: Any, stats: Any, *, alpha: float = 1.0,
     :func:`linear_variance` first). Equal to ``proden_gate_fast(hdr, den',
     linear_variance(stats, color), pool_radius=r)`` with those substitutions (tests); with
     ``pool_radius`` r > 0 the variance is floored inside the pass
-    (:mod:`~dbench.methods.kernels.variance_floor`); (H, W, 3) float32. ``mean_var``: the
-    mean linear variance when the caller has it (:func:`variance_summary`)."""
+    (:mod:`~dbench.methods.kernels.variance_floor`); (H, W, 3) float32."""
     color = np.ascontiguousarray(color)
-    var, x, box_cox_half = _stats_inputs(color, stats)
-    return _gate_passes(color, den, var, x, box_cox_half, True, alpha, k, t0, pool_radius,
-                        handback=handback, mean_var=mean_var)
+    shape = color.shape
+    transform = getattr(stats, "transform", "identity")
+    var = np.broadcast_to(np.asarray(stats.var_mean, np.float64), shape)
+    rule = dict(handback=handback)
+    if transform == "identity":
+        return _gate_passes(color, den, var, None, False, True, alpha, k, t0, pool_radius,
+                            **rule)
+    if transform == "box-cox" and float(stats.lam) == 0.5:
+        return _gate_passes(color, den, var, color, True, True, alpha, k, t0, pool_radius,
+                            **rule)
+    return _gate_passes(color, den, linear_variance(stats, color), None, False, True, alpha,
+                        k, t0, pool_radius, **rule)
 
 
 def linear_variance(stats: Any, color: np.ndarray) -> np.ndarray:
@@ -519,4 +482,4 @@ def linear_variance(stats: Any, color: np.ndarray) -> np.ndarray:
 
 
 __all__ = ["GATE_K", "GATE_T0", "gate_sigma", "gate_taps", "linear_variance", "proden_gate",
-           "proden_gate_factor", "proden_gate_fast", "proden_gate_stats", "variance_summary"]
+           "proden_gate_factor", "proden_gate_fast", "proden_gate_stats"]
