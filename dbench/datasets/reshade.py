@@ -15,9 +15,12 @@ generation of a frame plus one path per stratum (about 1/9 of a frame's paths).
 Which point each pass aims at: the render runs in a scene with frame i−1's camera and frame i's
 lights, so lane q's camera ray is, bit for bit, the ray pixel q traced in that pass of frame i−1
 (the same random numbers; the geometry is static), and its first hit is that pass's own point
-P_{i−1}(q), the target of the re-shaded path. Where that hit is a mirror or glass (a delta BSDF)
-the target is the pixel's PSR virtual point (:mod:`dbench.datasets.psr`, the G-buffer's
-``position``), reached through the delta surface the new ray meets: the re-shaded sample then
+P_{i−1}(q), the target of the re-shaded path. Where that hit is a mirror (a delta BSDF) the
+target is that pass's own PSR virtual point (:mod:`dbench.datasets.psr`: the chain of delta
+reflections followed again from the same ray), behind glass the pixel's (the G-buffer's
+``position``, its mean over the passes: PSR chooses between reflection and refraction with
+random numbers drawn after the colour's path, which the re-shaded path cannot replay),
+reached through the delta surface the new ray meets: the re-shaded sample then
 sees the same reflected point as before, not whatever the mirror shows from the new camera
 (aimed at the mirror's own surface point instead, mirror-pan at 128² lost a third of A-SVGF's
 and BMFR's gain). A pass whose ray left the scene is traced along the same direction from the
@@ -26,7 +29,7 @@ G-buffer's positions exactly, as before; above 1 spp every pass used to aim at t
 *mean* position, so each re-shaded sample started from another point than the sample it is
 compared with, and a static light showed gradients (orbit, 128², 4 spp: mean G 0.0098 against
 6·10⁻⁵ at 1 spp; A-SVGF and BMFR then shortened their histories and lost to plain accumulation
-in relMSE). Behind mirrors the mean virtual point remains an approximation above 1 spp.
+in relMSE). Behind glass the mean virtual point remains an approximation above 1 spp.
 
 A sample is dropped (NaN in the buffer) when its point is hidden from the current camera (the
 first hit along the new ray is more than 0.1 % of the distance short of it, and not a mirror or
@@ -86,6 +89,39 @@ def _delta(mi, flags):
     return mi.has_flag(flags, mi.BSDFFlags.Delta) & ~mi.has_flag(flags, mi.BSDFFlags.Smooth)
 
 
+def _own_virtual_point(mi, dr, scene, ray, si, active):
+    """(point, exact): this pass's PSR virtual point — the camera ray's origin plus its direction
+    times the length of its chain of delta surfaces, followed as :mod:`dbench.datasets.psr`
+    follows it (at most PSR_BOUNCES, spawned rays, the same lengths) — for the lanes ``active``
+    whose first hit ``si`` along ``ray`` is a delta surface. ``exact`` is False where the
+    chain meets glass: PSR draws the lobe there from the sampler after the colour's path, which
+    a re-shaded path cannot replay (such lanes keep the G-buffer's mean position), and where
+    the chain leaves the scene. A mirror's reflection does not depend on the sample, so the
+    lobe is drawn with constants."""
+    from .psr import PSR_BOUNCES
+
+    ray = mi.Ray3f(ray)
+    origin, direction = mi.Point3f(ray.o), mi.Vector3f(ray.d)
+    alive = mi.Bool(active)
+    exact = mi.Bool(active)
+    length = dr.select(alive, si.t, 0.0)
+    ctx = mi.BSDFContext()
+    for _ in range(PSR_BOUNCES):
+        flags = si.bsdf(ray).flags()
+        delta = alive & _delta(mi, flags)
+        exact &= ~(delta & mi.has_flag(flags, mi.BSDFFlags.DeltaTransmission))
+        bs, weight = si.bsdf(ray).sample(ctx, si, mi.Float(0.5), mi.Point2f(0.5, 0.5), delta)
+        delta &= dr.any(weight > 0)
+        next_ray = si.spawn_ray(si.to_world(bs.wo))
+        nxt = scene.ray_intersect(next_ray, delta)
+        length[delta] = length + dr.select(nxt.is_valid(), nxt.t, 0.0)
+        exact &= ~(delta & ~nxt.is_valid())
+        alive &= ~(delta & ~nxt.is_valid())
+        ray[delta] = next_ray
+        si[delta] = nxt
+    return origin + direction * length, exact
+
+
 def _register(mi) -> None:
     """Register the ``dbench_reshade`` integrator once per process."""
     global _REGISTERED
@@ -112,10 +148,13 @@ def _register(mi) -> None:
             chosen = dr.gather(mi.Bool, self.selected, idx) & mi.Bool(active)
             # ``ray`` is this pass's camera ray of frame i−1 (the scene holds that camera): its
             # first hit is the sample's own point, the target of the re-shaded path; behind a
-            # mirror or glass the target is the PSR virtual point (the G-buffer's position)
+            # mirror the target is this pass's own PSR virtual point, behind glass the
+            # G-buffer's (the pixel's mean over its passes)
             own = scene.ray_intersect(mi.Ray3f(ray), chosen)
             hit = own.is_valid()
-            target = dr.select(_delta(mi, own.bsdf(mi.Ray3f(ray)).flags()), stored, own.p)
+            behind = _delta(mi, own.bsdf(mi.Ray3f(ray)).flags())
+            virtual, exact = _own_virtual_point(mi, dr, scene, ray, own, chosen & hit & behind)
+            target = dr.select(behind, dr.select(exact, virtual, stored), own.p)
             to_target = target - self.origin
             dist = dr.norm(to_target)
             direction = dr.select(hit, to_target / dr.maximum(dist, 1e-12), ray.d)

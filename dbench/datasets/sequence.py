@@ -106,8 +106,8 @@ PSR_GLOSSY_ALPHA = {"psr": 0.0, "psr-glossy": _psr.GLOSSY_ALPHA}
 PSR_VERSION = 3
 GRADIENTS = ("reshade", "frame")
 #: 4: each pass re-shaded from its own hit of frame i−1 (the virtual point behind mirrors and
-#: glass), not from the pixel's mean position
-RESHADE_VERSION = 4
+#: glass), not from the pixel's mean position; 5: behind mirrors, each pass's own virtual point
+RESHADE_VERSION = 5
 #: 2: motion of the surface point without the sample's sub-pixel jitter (motion_vectors)
 MOTION_VERSION = 2
 

@@ -300,3 +300,26 @@ def test_methods_needing_the_psr_normals_are_skipped_on_other_gbuffers():
             assert m.applies_to(psr.kind, set(psr.provides))[0]
         assert methods.get("bmfr").applies_to(other.kind, set(other.provides))[0]
     assert datasets.get_scene("orbit", {"gbuffer": "psr-glossy"}).provides == psr.provides
+
+
+def test_reshaded_mirror_passes_aim_at_their_own_virtual_points(renderer):
+    """Above 1 spp each pass of a mirror pixel is re-shaded towards its own PSR virtual point
+    (docs/temporal.md §2): from an unchanged camera, under unchanged lights, the re-shaded
+    passes are the frame's own passes, whatever position the G-buffer holds (here zeros, where
+    the mean over the passes used to be the target)."""
+    from dbench.datasets.reshade import render_reshade
+
+    mi = renderer
+    d = _scene(mi, {"type": "conductor", "material": "none"})
+    path = {"type": "path", "max_depth": 4}
+    seeds = [3, 4, 5]
+    scene = mi.load_dict(d, optimize=False)
+    integ = mi.load_dict(path, optimize=False)
+    passes = np.mean([np.array(mi.render(scene, spp=1, seed=s, integrator=integ), np.float64)
+                      for s in seeds], axis=0)
+    selected = np.ones((RES, RES), bool)
+    got = render_reshade(d, path, (0.0, 0.0, 5.0), np.zeros((RES, RES, 3), np.float32),
+                         selected, seeds)
+    c = RES // 2
+    assert passes[c, c].max() > 0.01  # the mirror shows the lit wall
+    np.testing.assert_allclose(got, passes, rtol=1e-4, atol=1e-6)
