@@ -83,26 +83,11 @@ def register() -> str:
             ray = mi.Ray3f(ray)
             origin, direction = mi.Point3f(ray.o), mi.Vector3f(ray.d)
             si = scene.ray_intersect(ray, active)
-            alive = mi.Bool(active) & si.is_valid()
-            length = dr.select(alive, si.t, 0.0)
-            throughput = mi.Spectrum(1.0)
-            moved = mi.Bool(False)
-            ctx = mi.BSDFContext()
-            for _ in range(self.bounces):
-                flags = si.bsdf(ray).flags()
-                delta = (alive & mi.has_flag(flags, mi.BSDFFlags.Delta)
-                         & ~mi.has_flag(flags, mi.BSDFFlags.Smooth))
-                bs, weight = si.bsdf(ray).sample(ctx, si, sampler.next_1d(delta),
-                                                 sampler.next_2d(delta), delta)
-                delta &= dr.any(weight > 0)
-                next_ray = si.spawn_ray(si.to_world(bs.wo))
-                nxt = scene.ray_intersect(next_ray, delta)
-                throughput[delta] = throughput * weight
-                moved |= delta
-                length[delta] = length + dr.select(nxt.is_valid(), nxt.t, 0.0)
-                alive &= ~(delta & ~nxt.is_valid())
-                ray[delta] = next_ray
-                si[delta] = nxt
+            chain = follow_delta_chain(
+                mi, dr, scene, ray, si, mi.Bool(active) & si.is_valid(), self.bounces,
+                lambda delta: (sampler.next_1d(delta), sampler.next_2d(delta)))
+            ray, si, length, alive = chain["ray"], chain["si"], chain["length"], chain["alive"]
+            throughput, moved = chain["throughput"], chain["moved"]
             hit = alive & si.is_valid()
             albedo = throughput * si.bsdf(ray).eval_diffuse_reflectance(si, hit)
             emission = throughput * si.emitter(scene).eval(si, hit)
@@ -134,6 +119,41 @@ def register() -> str:
     return "dbench_psr"
 
 
+def follow_delta_chain(mi, dr, scene, ray, si, alive, bounces: int, draw) -> dict:
+    """Follow at most ``bounces`` delta reflections / refractions (BSDFs with a delta lobe and
+    no smooth one) from ``si``, the first hit of ``ray``, on the lanes ``alive``, each lobe
+    drawn with ``draw(delta)`` -> (sample1, sample2) (the sampler, as the path tracer does, or
+    constants where only mirrors matter). Returns ``ray`` and ``si`` (the last segment and the
+    first surface that is not delta), ``length`` (the whole chain's), ``alive`` (False where the
+    chain left the scene), ``throughput`` (the delta lobes' weights), ``moved`` (a delta
+    surface was followed) and ``refracted`` (a lobe was drawn at a surface that also
+    transmits: glass, whose choice depends on the draw). The PSR G-buffer's chain, and the one
+    the re-shaded samples follow again (:mod:`dbench.datasets.reshade`)."""
+    length = dr.select(alive, si.t, 0.0)
+    throughput = mi.Spectrum(1.0)
+    moved = mi.Bool(False)
+    refracted = mi.Bool(False)
+    ctx = mi.BSDFContext()
+    for _ in range(bounces):
+        flags = si.bsdf(ray).flags()
+        delta = (alive & mi.has_flag(flags, mi.BSDFFlags.Delta)
+                 & ~mi.has_flag(flags, mi.BSDFFlags.Smooth))
+        refracted |= delta & mi.has_flag(flags, mi.BSDFFlags.DeltaTransmission)
+        sample1, sample2 = draw(delta)
+        bs, weight = si.bsdf(ray).sample(ctx, si, sample1, sample2, delta)
+        delta &= dr.any(weight > 0)
+        next_ray = si.spawn_ray(si.to_world(bs.wo))
+        nxt = scene.ray_intersect(next_ray, delta)
+        throughput[delta] = throughput * weight
+        moved |= delta
+        length[delta] = length + dr.select(nxt.is_valid(), nxt.t, 0.0)
+        alive &= ~(delta & ~nxt.is_valid())
+        ray[delta] = next_ray
+        si[delta] = nxt
+    return {"ray": ray, "si": si, "length": length, "alive": alive, "throughput": throughput,
+            "moved": moved, "refracted": refracted}
+
+
 def _glossy_reflected_normal(mi, dr, scene, si, ray, hit, normal, glossy_alpha: float):
     """``normal``, replaced on the lanes whose BSDF is glossy with roughness below
     ``glossy_alpha`` by the shading normal of the first surface along the mirror direction."""
@@ -160,5 +180,5 @@ def psr_integrator(path: dict, glossy_alpha: float = 0.0) -> dict:
     return d
 
 
-__all__ = ["GLOSSY_ALPHA", "PSR_AOVS", "PSR_BOUNCES", "PSR_EXTRA_LAYOUT", "psr_integrator",
-           "register"]
+__all__ = ["GLOSSY_ALPHA", "PSR_AOVS", "PSR_BOUNCES", "PSR_EXTRA_LAYOUT", "follow_delta_chain",
+           "psr_integrator", "register"]

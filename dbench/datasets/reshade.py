@@ -91,35 +91,20 @@ def _delta(mi, flags):
 
 def _own_virtual_point(mi, dr, scene, ray, si, active):
     """(point, exact): this pass's PSR virtual point — the camera ray's origin plus its direction
-    times the length of its chain of delta surfaces, followed as :mod:`dbench.datasets.psr`
-    follows it (at most PSR_BOUNCES, spawned rays, the same lengths) — for the lanes ``active``
-    whose first hit ``si`` along ``ray`` is a delta surface. ``exact`` is False where the
-    chain meets glass: PSR draws the lobe there from the sampler after the colour's path, which
-    a re-shaded path cannot replay (such lanes keep the G-buffer's mean position), and where
-    the chain leaves the scene. A mirror's reflection does not depend on the sample, so the
-    lobe is drawn with constants."""
-    from .psr import PSR_BOUNCES
+    times the length of its chain of delta surfaces, followed by PSR's own code
+    (:func:`dbench.datasets.psr.follow_delta_chain`) — for the lanes ``active`` whose first hit
+    ``si`` along ``ray`` is a delta surface. ``exact`` is False where the chain meets glass:
+    PSR draws the lobe there from the sampler after the colour's path, which a re-shaded path
+    cannot replay (such lanes keep the G-buffer's mean position), and where the chain leaves
+    the scene. A mirror's reflection does not depend on the draw, so the lobes are drawn with
+    constants."""
+    from .psr import PSR_BOUNCES, follow_delta_chain
 
     ray = mi.Ray3f(ray)
     origin, direction = mi.Point3f(ray.o), mi.Vector3f(ray.d)
-    alive = mi.Bool(active)
-    exact = mi.Bool(active)
-    length = dr.select(alive, si.t, 0.0)
-    ctx = mi.BSDFContext()
-    for _ in range(PSR_BOUNCES):
-        flags = si.bsdf(ray).flags()
-        delta = alive & _delta(mi, flags)
-        exact &= ~(delta & mi.has_flag(flags, mi.BSDFFlags.DeltaTransmission))
-        bs, weight = si.bsdf(ray).sample(ctx, si, mi.Float(0.5), mi.Point2f(0.5, 0.5), delta)
-        delta &= dr.any(weight > 0)
-        next_ray = si.spawn_ray(si.to_world(bs.wo))
-        nxt = scene.ray_intersect(next_ray, delta)
-        length[delta] = length + dr.select(nxt.is_valid(), nxt.t, 0.0)
-        exact &= ~(delta & ~nxt.is_valid())
-        alive &= ~(delta & ~nxt.is_valid())
-        ray[delta] = next_ray
-        si[delta] = nxt
-    return origin + direction * length, exact
+    chain = follow_delta_chain(mi, dr, scene, ray, si, mi.Bool(active), PSR_BOUNCES,
+                               lambda delta: (mi.Float(0.5), mi.Point2f(0.5, 0.5)))
+    return origin + direction * chain["length"], chain["alive"] & ~chain["refracted"]
 
 
 def _register(mi) -> None:
