@@ -119,6 +119,12 @@ def register() -> str:
     return "dbench_psr"
 
 
+def delta_only(mi, flags):
+    """A delta BSDF without a smooth lobe: smooth conductor, dielectric, thin dielectric (the
+    surfaces PSR looks through)."""
+    return mi.has_flag(flags, mi.BSDFFlags.Delta) & ~mi.has_flag(flags, mi.BSDFFlags.Smooth)
+
+
 def follow_delta_chain(mi, dr, scene, ray, si, alive, bounces: int, draw) -> dict:
     """Follow at most ``bounces`` delta reflections / refractions (BSDFs with a delta lobe and
     no smooth one) from ``si``, the first hit of ``ray``, on the lanes ``alive``, each lobe
@@ -136,8 +142,7 @@ def follow_delta_chain(mi, dr, scene, ray, si, alive, bounces: int, draw) -> dic
     ctx = mi.BSDFContext()
     for _ in range(bounces):
         flags = si.bsdf(ray).flags()
-        delta = (alive & mi.has_flag(flags, mi.BSDFFlags.Delta)
-                 & ~mi.has_flag(flags, mi.BSDFFlags.Smooth))
+        delta = alive & delta_only(mi, flags)
         refracted |= delta & mi.has_flag(flags, mi.BSDFFlags.DeltaTransmission)
         sample1, sample2 = draw(delta)
         bs, weight = si.bsdf(ray).sample(ctx, si, sample1, sample2, delta)
@@ -180,5 +185,5 @@ def psr_integrator(path: dict, glossy_alpha: float = 0.0) -> dict:
     return d
 
 
-__all__ = ["GLOSSY_ALPHA", "PSR_AOVS", "PSR_BOUNCES", "PSR_EXTRA_LAYOUT", "follow_delta_chain",
-           "psr_integrator", "register"]
+__all__ = ["GLOSSY_ALPHA", "PSR_AOVS", "PSR_BOUNCES", "PSR_EXTRA_LAYOUT", "delta_only",
+           "follow_delta_chain", "psr_integrator", "register"]

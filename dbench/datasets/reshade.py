@@ -46,6 +46,7 @@ from typing import Any
 import numpy as np
 
 from .mitsuba_env import mitsuba
+from .psr import PSR_BOUNCES, delta_only, follow_delta_chain
 
 STRATUM = 3
 #: a re-shaded sample is visible when its first hit is within this fraction of the distance
@@ -84,11 +85,6 @@ def select_strata(color: np.ndarray, depth: np.ndarray, size: int = STRATUM) -> 
     return out
 
 
-def _delta(mi, flags):
-    """A delta BSDF without a smooth lobe: smooth conductor, dielectric, thin dielectric."""
-    return mi.has_flag(flags, mi.BSDFFlags.Delta) & ~mi.has_flag(flags, mi.BSDFFlags.Smooth)
-
-
 def _own_virtual_point(mi, dr, scene, ray, si, active):
     """(point, exact): this pass's PSR virtual point — the camera ray's origin plus its direction
     times the length of its chain of delta surfaces, followed by PSR's own code
@@ -98,8 +94,6 @@ def _own_virtual_point(mi, dr, scene, ray, si, active):
     cannot replay (such lanes keep the G-buffer's mean position), and where the chain leaves
     the scene. A mirror's reflection does not depend on the draw, so the lobes are drawn with
     constants."""
-    from .psr import PSR_BOUNCES, follow_delta_chain
-
     ray = mi.Ray3f(ray)
     origin, direction = mi.Point3f(ray.o), mi.Vector3f(ray.d)
     chain = follow_delta_chain(mi, dr, scene, ray, si, mi.Bool(active), PSR_BOUNCES,
@@ -137,7 +131,7 @@ def _register(mi) -> None:
             # G-buffer's (the pixel's mean over its passes)
             own = scene.ray_intersect(mi.Ray3f(ray), chosen)
             hit = own.is_valid()
-            behind = _delta(mi, own.bsdf(mi.Ray3f(ray)).flags())
+            behind = delta_only(mi, own.bsdf(mi.Ray3f(ray)).flags())
             virtual, exact = _own_virtual_point(mi, dr, scene, ray, own, chosen & hit & behind)
             target = dr.select(behind, dr.select(exact, virtual, stored), own.p)
             to_target = target - self.origin
@@ -146,7 +140,7 @@ def _register(mi) -> None:
             new_ray = mi.Ray3f(self.origin, direction, ray.time, ray.wavelengths)
             first = scene.ray_intersect(new_ray, chosen & hit)
             # a virtual point is reached through the mirror or glass the new ray meets first
-            through = _delta(mi, first.bsdf(new_ray).flags())
+            through = delta_only(mi, first.bsdf(new_ray).flags())
             visible = chosen & (~hit | (first.is_valid() & (
                 through | (first.t > dist * (1.0 - OCCLUSION_TOLERANCE)))))
             spec, _, _ = self.nested.sample(scene, sampler, new_ray, medium, visible)

@@ -150,7 +150,6 @@ class BMFR(T.HistoryDenoiser):
         self.needs = set(self.needs) | {NORMAL_SOURCES[k] for k in normal_sources(p["features"])
                                         if k != "n"}
         self._start()
-        self._buffers: dict[str, np.ndarray] = {}
         self.grid = grid_offsets(int(p["block_size"]), int(p["offsets"]), int(p["seed"]))
         self.scaled = np.array([c[0] == "p" for c in FEATURE_PRESETS[p["features"]]], bool)
         self.frame_index = 0
@@ -172,12 +171,9 @@ class BMFR(T.HistoryDenoiser):
                                for k in sources])
 
     def _buffer(self, key: str, shape) -> np.ndarray:
-        """A float32 work array kept from frame to frame (a fresh one costs its page faults at
-        720p, History.staging); its values are stale."""
-        arr = self._buffers.get(key)
-        if arr is None or arr.shape != shape:
-            arr = self._buffers[key] = np.empty(shape, np.float32)
-        return arr
+        """A float32 work array kept from frame to frame in the history's pool (a fresh one
+        costs its page faults at 720p); its values are stale."""
+        return self.history.work_array(f"bmfr-{key}", tuple(shape))
 
     def _alphas(self, data, geo, n_hist, prep):
         """(history length to accumulate on, α1, α2, G): the fixed rule of the BMFR code, or,

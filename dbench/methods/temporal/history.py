@@ -39,8 +39,10 @@ class History:
         self._arrays: dict[str, np.ndarray] = {}
         self.reset()
 
-    def _array(self, key: str, shape: tuple[int, ...]) -> np.ndarray:
-        """The reusable float32 array ``key`` of ``shape`` (a new one when the shape changed)."""
+    def work_array(self, key: str, shape: tuple[int, ...]) -> np.ndarray:
+        """The reusable float32 array ``key`` of ``shape`` (a new one when the shape changed),
+        kept from frame to frame: its values are stale. A method keeps its own work arrays here
+        too, under keys of its own ("fetched", "stage-a" and "stage-b" are the history's)."""
         arr = self._arrays.get(key)
         if arr is None or arr.shape != shape:
             arr = self._arrays[key] = np.empty(shape, np.float32)
@@ -51,7 +53,7 @@ class History:
         stored now (two alternate), so the kernels can write into it while the stored one is
         still to be read. Its values are stale: the caller writes every element."""
         for key in ("stage-a", "stage-b"):
-            arr = self._array(key, (channels, h, w))
+            arr = self.work_array(key, (channels, h, w))
             if self.buffers is None or not np.may_share_memory(arr, self.buffers):
                 return arr
         raise AssertionError("both staging arrays hold the history")  # pragma: no cover
@@ -69,7 +71,8 @@ class History:
                 or self.prev.shape != cur.shape or self.buffers.shape[0] != channels):
             return np.zeros((channels, h, w), np.float32), np.zeros((h, w), np.uint8)
         return reproject(self.buffers, cur, self.prev, self.valid, self.tau_d, self.tau_n,
-                         self.eps_f, self.backend, out=self._array("fetched", self.buffers.shape))
+                         self.eps_f, self.backend,
+                         out=self.work_array("fetched", self.buffers.shape))
 
     def store(self, cur: Geometry, buffers: np.ndarray, valid: np.ndarray | None = None,
               finite: bool = False) -> None:
