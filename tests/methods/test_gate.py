@@ -369,11 +369,13 @@ def test_fast_gate_does_not_depend_on_the_rows_per_task(pool):
 
 @pytest.mark.parametrize("shape,pool,alpha", [((1, 1), 5, 1.0), ((3, 17), 0, 1.0),
                                               ((23, 9), 5, 0.4), ((40, 64), 0, 0.7),
-                                              ((157, 21), 5, 1.0)])
+                                              ((157, 21), 5, 1.0), ((64, 40), 2, 1.0),
+                                              ((45, 30), 7, 0.8)])
 def test_wiener_handback_fast_equals_reference(shape, pool, alpha):
     """The Wiener hand-back fused into the compiled band pass equals the readable SciPy form
     within float32 rounding of the image's values, and gives the same bits whatever the rows
-    per task (bands start at the sliding sums' anchor rows)."""
+    per task (bands start at the sliding sums' anchor rows); with the floor's window equal to
+    the hand-back's (pool 5) or not (pool 0, 2, 7: the hand-back sums the variance itself)."""
     rng = np.random.default_rng(sum(shape) + pool)
     hdr = rng.gamma(1.0, 1.0, (*shape, 3)).astype(np.float32)
     den = (hdr * rng.uniform(0.7, 1.3, hdr.shape)).astype(np.float32)

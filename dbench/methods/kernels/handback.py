@@ -74,34 +74,30 @@ def wiener_handback(hdr: Any, den: Any, a_gate: Any, low: Any, var: Any, alpha: 
 
 
 @njit(inline="always")
-def wiener_row(spec_row, c_row, lin_row, high_sums, noise_sums, rows_in, inv_cols, prefix,
+def wiener_row(spec_row, c_row, lin_row, high_sums, noise_mean, rows_in, inv_cols, prefix,
                out_row):  # pragma: no cover - compiled
     """One output row of :func:`wiener_handback`, out = spec − (1 − λ)·c, from (W·C,)
     interleaved rows (C = 3): the spec's output hdr + α_gate (den − hdr), c = (α − α_gate) high,
-    the linear variance of the row, and the window's column sums of high² and of the variance
-    over its ``rows_in`` rows inside the image. The x-sums are differences of running sums of
-    the rows padded with R zero columns either side (``prefix``: (2, ≥ (W + 2R + 1)·C) scratch,
-    R = WIENER_RADIUS; both sums in one loop, so their dependency chains overlap);
-    ``inv_cols`` (W·C,) is 1 / the window's columns inside the image (the column sums are left
-    as they are: they slide on to the next row)."""
+    the linear variance of the row, the window's column sums of high² over its ``rows_in`` rows
+    inside the image, and the window means of the variance (B(var):
+    variance_floor.window_mean_row). B(high²) comes from differences of running sums of the
+    column sums padded with R zero columns either side (``prefix``: ≥ (W + 2R + 1)·C scratch,
+    R = WIENER_RADIUS); ``inv_cols`` (W·C,) is 1 / the window's columns inside the image (the
+    column sums are left as they are: they slide on to the next row)."""
     wc = out_row.shape[0]
     c = 3
     pad = WIENER_RADIUS * c
     span = 2 * pad + c
     inv_rows = 1.0 / rows_in
-    ph, pv = prefix[0], prefix[1]
     for k in range(pad + c):
-        ph[k] = 0.0
-        pv[k] = 0.0
+        prefix[k] = 0.0
     for i in range(wc):
-        ph[pad + c + i] = ph[pad + i] + high_sums[i]
-        pv[pad + c + i] = pv[pad + i] + noise_sums[i]
+        prefix[pad + c + i] = prefix[pad + i] + high_sums[i]
     for k in range(wc + pad + c, wc + 2 * pad + c):
-        ph[k] = ph[k - c]
-        pv[k] = pv[k - c]
+        prefix[k] = prefix[k - c]
     for i in range(wc):
-        scale = inv_rows * inv_cols[i]
-        excess = max((ph[i + span] - ph[i]) - (pv[i + span] - pv[i]), 0.0) * scale
+        excess = max((prefix[i + span] - prefix[i]) * (inv_rows * inv_cols[i]) - noise_mean[i],
+                     0.0)
         total = excess + lin_row[i]
         lam = excess / total if total > 0.0 else 1.0
         out_row[i] = spec_row[i] - (1.0 - lam) * c_row[i]

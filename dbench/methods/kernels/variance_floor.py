@@ -13,7 +13,7 @@ is too low, and as the spp grow both vanish, so the gate still converges to the 
 r = 5 is the gate's own 11×11 footprint.
 
 * :func:`floored_variance` — the readable reference (SciPy box filters, float64).
-* :func:`advance_column_sums` and :func:`floor_row` — the compiled form, fused into the gate's
+* :func:`advance_column_sums`, :func:`window_mean_row` and :func:`floor_row` — the compiled form, fused into the gate's
   band pass (:func:`dbench.methods.kernels.gate.proden_gate_stats`): the window's column sums
   slide down the rows, and each row completes them along x from a prefix sum and takes the
   maximum, so the floored variance is never stored (tests: the pooled fast gate equals the
@@ -126,9 +126,9 @@ def advance_column_sums(var, x, box_cox_half, y, fresh, h, r, sums):  # pragma: 
 
 
 @njit(inline="always")
-def floor_row(lin_row, sums_row, rows_in, r, c, inv_cols, prefix):  # pragma: no cover
-    """One row of the floor, in place: lin = max(lin, Σ over the |k| ≤ r columns of
-    :func:`window_column_sums` / the window's pixel count inside the image), (W·C,) values of C
+def window_mean_row(sums_row, rows_in, r, c, inv_cols, prefix, mean_row):  # pragma: no cover
+    """One row of the window means: mean_row = Σ over the |k| ≤ r columns of
+    :func:`window_column_sums` / the window's pixel count inside the image, (W·C,) values of C
     interleaved channels. The x-sums are differences of a running prefix sum of the row padded
     with r zero columns either side (``prefix``: (W + 2r + 1)·C scratch), and ``inv_cols``
     (W·C,) holds 1 / the window's column count inside the image, so each value costs O(1)
@@ -144,8 +144,18 @@ def floor_row(lin_row, sums_row, rows_in, r, c, inv_cols, prefix):  # pragma: no
     inv_rows = 1.0 / rows_in
     span = 2 * pad + c  # the window: values i − rC … i + rC of the row are padded i … i + 2rC
     for i in range(wc):
-        lin_row[i] = max(lin_row[i], (prefix[i + span] - prefix[i]) * (inv_rows * inv_cols[i]))
+        mean_row[i] = (prefix[i + span] - prefix[i]) * (inv_rows * inv_cols[i])
+
+
+@njit(inline="always")
+def floor_row(lin_row, sums_row, rows_in, r, c, inv_cols, prefix, mean_row):  # pragma: no cover
+    """One row of the floor, in place: lin = max(lin, the window mean of
+    :func:`window_mean_row`), which is left in ``mean_row`` (W·C,) for whoever needs the same
+    window's mean again (the gate's Wiener hand-back, kernels/gate.py)."""
+    window_mean_row(sums_row, rows_in, r, c, inv_cols, prefix, mean_row)
+    for i in range(sums_row.shape[0]):
+        lin_row[i] = max(lin_row[i], mean_row[i])
 
 
 __all__ = ["POOL_RADIUS", "SUM_ANCHOR", "advance_column_sums", "floor_row", "floored_variance",
-           "linear_value", "window_column_sums", "window_mean"]
+           "linear_value", "window_column_sums", "window_mean", "window_mean_row"]
