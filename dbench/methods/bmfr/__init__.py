@@ -185,8 +185,10 @@ class BMFR(T.HistoryDenoiser):
             return n_hist, None, None, None
         g, n_new, a = gradient_history(data, geo, self.history.prev, self._prev_lum, n_hist,
                                        T.N_MAX, backend=self.backend)
-        return (n_new - np.float32(1.0), np.maximum(a, np.float32(p["alpha1"])),
-                np.maximum(a, np.float32(p["alpha2"])), g)
+        # in place where it can be: three fresh (H, W) arrays a frame cost their page faults
+        a1 = np.maximum(a, np.float32(p["alpha1"]))
+        a2 = np.maximum(a, np.float32(p["alpha2"]), out=a)
+        return np.subtract(n_new, np.float32(1.0), out=n_new), a1, a2, g
 
     def _denoise(self, data, color: np.ndarray) -> np.ndarray:
         p, be = self.params, self.backend
