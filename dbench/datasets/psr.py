@@ -13,8 +13,11 @@ Per primary sample (:class:`MatchedPSR`, an integrator that wraps the frame's ``
 integrator so that the colour is the very same sample, bit for bit):
 
 * follow at most ``bounces`` (4) delta reflections / refractions — BSDFs with a delta lobe and no
-  diffuse or glossy lobe (smooth ``conductor``, ``dielectric``, ``thindielectric``), choosing the
-  lobe with the sampler as the path tracer does — to the first other surface;
+  diffuse or glossy lobe (smooth ``conductor``, ``dielectric``, ``thindielectric``) — to the
+  first other surface, choosing the lobe (reflection or refraction at glass) with uniform
+  numbers hashed from the primary ray's direction (:func:`replayable_draw`), not from the
+  sampler: any later pass that sees the same camera ray (the re-shaded gradient samples,
+  :mod:`dbench.datasets.reshade`) follows the very same chain, glass included;
 * ``albedo`` = throughput of the chain (Fresnel reflectance or transmittance) × that surface's
   diffuse reflectance: the *specular albedo* rule of issue 16 for metals and glass;
 * ``emission`` = throughput × radiance that surface emits towards the chain (a lamp seen in a
@@ -83,9 +86,8 @@ def register() -> str:
             ray = mi.Ray3f(ray)
             origin, direction = mi.Point3f(ray.o), mi.Vector3f(ray.d)
             si = scene.ray_intersect(ray, active)
-            chain = follow_delta_chain(
-                mi, dr, scene, ray, si, mi.Bool(active) & si.is_valid(), self.bounces,
-                lambda delta: (sampler.next_1d(delta), sampler.next_2d(delta)))
+            chain = follow_delta_chain(mi, dr, scene, ray, si, mi.Bool(active) & si.is_valid(),
+                                       self.bounces)
             ray, si, length, alive = chain["ray"], chain["si"], chain["length"], chain["alive"]
             throughput, moved = chain["throughput"], chain["moved"]
             hit = alive & si.is_valid()
@@ -125,26 +127,45 @@ def delta_only(mi, flags):
     return mi.has_flag(flags, mi.BSDFFlags.Delta) & ~mi.has_flag(flags, mi.BSDFFlags.Smooth)
 
 
-def follow_delta_chain(mi, dr, scene, ray, si, alive, bounces: int, draw) -> dict:
+def replayable_draw(mi, dr, ray):
+    """``draw(bounce)`` -> (sample1 Float, sample2 Point2f): uniform numbers in [0, 1) for the
+    lobe of each ``bounce`` of the delta chain of the camera ray ``ray``, hashed (Mitsuba's TEA)
+    from the bits of its direction, which differ between pixels and between passes (each pass
+    jitters its rays with its own seed). Why not the sampler: PSR draws after the colour's path,
+    whose length varies, so a re-shaded path (:mod:`dbench.datasets.reshade`) could not replay
+    those draws and aimed at the pixel's mean point behind glass; a hash of the ray it sees
+    again gives each pass its own chain there too. The choice keeps the sampler's distribution
+    (reflection with the Fresnel probability)."""
+    bits = [dr.reinterpret_array(mi.UInt32, c) for c in (ray.d.x, ray.d.y, ray.d.z)]
+    key = mi.sample_tea_32(bits[0], bits[1])[0] ^ bits[2]
+
+    def draw(bounce: int):
+        first = 3 * bounce
+        return (mi.sample_tea_float32(key, mi.UInt32(first)),
+                mi.Point2f(mi.sample_tea_float32(key, mi.UInt32(first + 1)),
+                           mi.sample_tea_float32(key, mi.UInt32(first + 2))))
+
+    return draw
+
+
+def follow_delta_chain(mi, dr, scene, ray, si, alive, bounces: int) -> dict:
     """Follow at most ``bounces`` delta reflections / refractions (BSDFs with a delta lobe and
-    no smooth one) from ``si``, the first hit of ``ray``, on the lanes ``alive``, each lobe
-    drawn with ``draw(delta)`` -> (sample1, sample2) (the sampler, as the path tracer does, or
-    constants where only mirrors matter). Returns ``ray`` and ``si`` (the last segment and the
+    no smooth one) from ``si``, the first hit of the camera ray ``ray``, on the lanes
+    ``alive``, each lobe drawn by :func:`replayable_draw` of ``ray``, so the chain is a
+    function of the camera ray alone. Returns ``ray`` and ``si`` (the last segment and the
     first surface that is not delta), ``length`` (the whole chain's), ``alive`` (False where the
-    chain left the scene), ``throughput`` (the delta lobes' weights), ``moved`` (a delta
-    surface was followed) and ``refracted`` (a lobe was drawn at a surface that also
-    transmits: glass, whose choice depends on the draw). The PSR G-buffer's chain, and the one
-    the re-shaded samples follow again (:mod:`dbench.datasets.reshade`)."""
+    chain left the scene), ``throughput`` (the delta lobes' weights) and ``moved`` (a delta
+    surface was followed). The PSR G-buffer's chain, and the one the re-shaded samples follow
+    again (:mod:`dbench.datasets.reshade`)."""
+    draw = replayable_draw(mi, dr, ray)
     length = dr.select(alive, si.t, 0.0)
     throughput = mi.Spectrum(1.0)
     moved = mi.Bool(False)
-    refracted = mi.Bool(False)
     ctx = mi.BSDFContext()
-    for _ in range(bounces):
+    for bounce in range(bounces):
         flags = si.bsdf(ray).flags()
         delta = alive & delta_only(mi, flags)
-        refracted |= delta & mi.has_flag(flags, mi.BSDFFlags.DeltaTransmission)
-        sample1, sample2 = draw(delta)
+        sample1, sample2 = draw(bounce)
         bs, weight = si.bsdf(ray).sample(ctx, si, sample1, sample2, delta)
         delta &= dr.any(weight > 0)
         next_ray = si.spawn_ray(si.to_world(bs.wo))
@@ -156,7 +177,7 @@ def follow_delta_chain(mi, dr, scene, ray, si, alive, bounces: int, draw) -> dic
         ray[delta] = next_ray
         si[delta] = nxt
     return {"ray": ray, "si": si, "length": length, "alive": alive, "throughput": throughput,
-            "moved": moved, "refracted": refracted}
+            "moved": moved}
 
 
 def _glossy_reflected_normal(mi, dr, scene, si, ray, hit, normal, glossy_alpha: float):
@@ -186,4 +207,4 @@ def psr_integrator(path: dict, glossy_alpha: float = 0.0) -> dict:
 
 
 __all__ = ["GLOSSY_ALPHA", "PSR_AOVS", "PSR_BOUNCES", "PSR_EXTRA_LAYOUT", "delta_only",
-           "follow_delta_chain", "psr_integrator", "register"]
+           "follow_delta_chain", "psr_integrator", "register", "replayable_draw"]

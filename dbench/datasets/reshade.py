@@ -15,12 +15,11 @@ generation of a frame plus one path per stratum (about 1/9 of a frame's paths).
 Which point each pass aims at: the render runs in a scene with frame i−1's camera and frame i's
 lights, so lane q's camera ray is, bit for bit, the ray pixel q traced in that pass of frame i−1
 (the same random numbers; the geometry is static), and its first hit is that pass's own point
-P_{i−1}(q), the target of the re-shaded path. Where that hit is a mirror (a delta BSDF) the
-target is that pass's own PSR virtual point (:mod:`dbench.datasets.psr`: the chain of delta
-reflections followed again from the same ray), behind glass the pixel's (the G-buffer's
-``position``, its mean over the passes: PSR chooses between reflection and refraction with
-random numbers drawn after the colour's path, which the re-shaded path cannot replay),
-reached through the delta surface the new ray meets: the re-shaded sample then
+P_{i−1}(q), the target of the re-shaded path. Where that hit is a mirror or glass (a delta
+BSDF) the target is that pass's own PSR virtual point (:mod:`dbench.datasets.psr`: the chain
+of delta reflections and refractions followed again from the same ray; PSR draws each lobe
+from a hash of the camera ray, so the same ray makes the same choice at glass), reached
+through the delta surface the new ray meets: the re-shaded sample then
 sees the same reflected point as before, not whatever the mirror shows from the new camera
 (aimed at the mirror's own surface point instead, mirror-pan at 128² lost a third of A-SVGF's
 and BMFR's gain). A pass whose ray left the scene is traced along the same direction from the
@@ -29,7 +28,9 @@ G-buffer's positions exactly, as before; above 1 spp every pass used to aim at t
 *mean* position, so each re-shaded sample started from another point than the sample it is
 compared with, and a static light showed gradients (orbit, 128², 4 spp: mean G 0.0098 against
 6·10⁻⁵ at 1 spp; A-SVGF and BMFR then shortened their histories and lost to plain accumulation
-in relMSE). Behind glass the mean virtual point remains an approximation above 1 spp.
+in relMSE). Behind glass every pass aimed at the mean point until PSR's lobe choice became
+replayable (RESHADE_VERSION 6, PSR_VERSION 4): it was drawn from the sampler after the
+colour's path.
 
 A sample is dropped (NaN in the buffer) when its point is hidden from the current camera (the
 first hit along the new ray is more than 0.1 % of the distance short of it, and not a mirror or
@@ -88,17 +89,14 @@ def select_strata(color: np.ndarray, depth: np.ndarray, size: int = STRATUM) -> 
 def _own_virtual_point(mi, dr, scene, ray, si, active):
     """(point, exact): this pass's PSR virtual point — the camera ray's origin plus its direction
     times the length of its chain of delta surfaces, followed by PSR's own code
-    (:func:`dbench.datasets.psr.follow_delta_chain`) — for the lanes ``active`` whose first hit
-    ``si`` along ``ray`` is a delta surface. ``exact`` is False where the chain meets glass:
-    PSR draws the lobe there from the sampler after the colour's path, which a re-shaded path
-    cannot replay (such lanes keep the G-buffer's mean position), and where the chain leaves
-    the scene. A mirror's reflection does not depend on the draw, so the lobes are drawn with
-    constants."""
+    (:func:`dbench.datasets.psr.follow_delta_chain`, whose lobes at glass are drawn from the
+    camera ray itself, so the chain is the one PSR followed for this pass) — for the lanes
+    ``active`` whose first hit ``si`` along ``ray`` is a delta surface. ``exact`` is False where
+    the chain leaves the scene (such lanes keep the G-buffer's position)."""
     ray = mi.Ray3f(ray)
     origin, direction = mi.Point3f(ray.o), mi.Vector3f(ray.d)
-    chain = follow_delta_chain(mi, dr, scene, ray, si, mi.Bool(active), PSR_BOUNCES,
-                               lambda delta: (mi.Float(0.5), mi.Point2f(0.5, 0.5)))
-    return origin + direction * chain["length"], chain["alive"] & ~chain["refracted"]
+    chain = follow_delta_chain(mi, dr, scene, ray, si, mi.Bool(active), PSR_BOUNCES)
+    return origin + direction * chain["length"], chain["alive"]
 
 
 def _register(mi) -> None:
@@ -127,8 +125,7 @@ def _register(mi) -> None:
             chosen = dr.gather(mi.Bool, self.selected, idx) & mi.Bool(active)
             # ``ray`` is this pass's camera ray of frame i−1 (the scene holds that camera): its
             # first hit is the sample's own point, the target of the re-shaded path; behind a
-            # mirror the target is this pass's own PSR virtual point, behind glass the
-            # G-buffer's (the pixel's mean over its passes)
+            # mirror or glass the target is this pass's own PSR virtual point
             own = scene.ray_intersect(mi.Ray3f(ray), chosen)
             hit = own.is_valid()
             behind = delta_only(mi, own.bsdf(mi.Ray3f(ray)).flags())
@@ -159,9 +156,10 @@ def render_reshade(scene_dict: dict, path: dict, origin, targets: np.ndarray,
     """Re-shade the ``selected`` (H, W) pixels: (H, W, 3) float32, the mean over ``seeds`` (one
     1-spp pass each, the seeds of frame i−1's passes) of the path from ``origin`` (frame i's
     camera position) to each pass's first hit along the camera ray of ``scene_dict`` (frame
-    i−1's camera, frame i's lights) — to ``targets`` (frame i−1's G-buffer positions, (H, W,
-    3): the PSR virtual point) where that hit is a mirror or glass, along the same direction
-    where the ray left the scene; NaN where not selected or, in any pass, hidden.
+    i−1's camera, frame i's lights) — to that pass's own PSR virtual point where that hit is a
+    mirror or glass (``targets``, frame i−1's G-buffer positions (H, W, 3), where its chain
+    leaves the scene), along the same direction where the ray left the scene; NaN where not
+    selected or, in any pass, hidden.
 
     ``path``: the nested integrator's dictionary (the frame's ``path`` integrator)."""
     mi = mitsuba()
@@ -195,8 +193,7 @@ def render_reshade(scene_dict: dict, path: dict, origin, targets: np.ndarray,
 def reshade_frame(scene, res, i: int, prev: dict, seeds: list[int]) -> np.ndarray:
     """The gradient buffer of frame ``i`` of a sequence ``scene``: :func:`render_reshade` of
     :func:`select_strata` of frame i−1's colour and depth (``prev``), each pass aimed at its
-    own hit of frame i−1 (behind mirrors and glass at ``prev["position"]``, the PSR virtual
-    point), traced from frame i's camera under frame i's lights with frame i−1's pass
+    own hit of frame i−1 (behind mirrors and glass at its own PSR virtual point), traced from frame i's camera under frame i's lights with frame i−1's pass
     ``seeds``."""
     d = scene.frame_dict(mitsuba(), res, i - 1, i)  # frame i−1's camera rays, frame i's lights
     selected = select_strata(prev["color"], prev["depth"])

@@ -102,12 +102,14 @@ GBUFFER_SPP = _render.DEFAULT_FEATURE_SPP
 #: the PSR G-buffers and the roughness below which glossy surfaces get their reflection's normal
 #: (0: the rule off)
 PSR_GLOSSY_ALPHA = {"psr": 0.0, "psr-glossy": _psr.GLOSSY_ALPHA}
-#: 3: the render adds ``geo_normal`` and ``reflected_normal`` (psr.py)
-PSR_VERSION = 3
+#: 3: the render adds ``geo_normal`` and ``reflected_normal`` (psr.py); 4: the lobe at glass
+#: drawn from a hash of the camera ray, not the sampler (psr.replayable_draw)
+PSR_VERSION = 4
 GRADIENTS = ("reshade", "frame")
 #: 4: each pass re-shaded from its own hit of frame i−1 (the virtual point behind mirrors and
-#: glass), not from the pixel's mean position; 5: behind mirrors, each pass's own virtual point
-RESHADE_VERSION = 5
+#: glass), not from the pixel's mean position; 5: behind mirrors, each pass's own virtual point;
+#: 6: behind glass too (PSR_VERSION 4)
+RESHADE_VERSION = 6
 #: 2: motion of the surface point without the sample's sub-pixel jitter (motion_vectors)
 MOTION_VERSION = 2
 

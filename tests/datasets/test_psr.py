@@ -323,3 +323,69 @@ def test_reshaded_mirror_passes_aim_at_their_own_virtual_points(renderer):
     c = RES // 2
     assert passes[c, c].max() > 0.01  # the mirror shows the lit wall
     np.testing.assert_allclose(got, passes, rtol=1e-4, atol=1e-6)
+
+
+def _glass_scene(mi):
+    """:func:`_scene` with a glass pane (a dielectric rectangle) at 45° and a diffuse backdrop
+    behind it, lit by a second light behind the pane: a camera ray either reflects to the wall
+    at x = 3 (normal −x) or goes through to the backdrop at z = −3 (normal +z), so the normal
+    says which lobe a pass drew."""
+    T = mi.ScalarTransform4f
+    backdrop = {"backdrop": {"type": "rectangle", "to_world": T().translate([0, 0, -3]).scale(8),
+                             "bsdf": {"type": "diffuse",
+                                      "reflectance": {"type": "rgb", "value": 0.5}}},
+                "light2": {"type": "point", "position": [-1.0, 1.0, -2.0],
+                           "intensity": {"type": "rgb", "value": 10.0}}}
+    return _scene(mi, {"type": "dielectric"}, backdrop)
+
+
+def test_psr_lobe_at_glass_is_a_function_of_the_camera_ray(renderer):
+    """PSR draws the reflection/refraction choice at glass from a hash of the camera ray
+    (psr.replayable_draw), not from the sampler after the colour's path: the G-buffer of a pass
+    is the same whatever the colour integrator consumed (here path depths 2 and 8; it differed
+    when the draws followed the colour's), while another seed (other rays) draws otherwise on
+    some pixels, and both lobes occur."""
+    from dbench.datasets.psr import psr_integrator
+
+    mi = renderer
+    d = _glass_scene(mi)
+    short = _buffers(_render(mi, d, psr_integrator({"type": "path", "max_depth": 2}), seed=7))
+    deep = _buffers(_render(mi, d, psr_integrator({"type": "path", "max_depth": 8}), seed=7))
+    for name in ("depth", "position", "albedo", "normal"):
+        np.testing.assert_array_equal(short[name], deep[name])
+    c = RES // 2
+    pane = np.zeros((RES, RES), bool)
+    pane[c - 3:c + 3, c - 3:c + 3] = True
+    refracted = np.abs(short["normal"][..., 2] - 1.0) < 1e-3  # the backdrop faces +z
+    reflected = np.abs(short["normal"][..., 0] + 1.0) < 1e-3  # the wall faces −x
+    other = _buffers(_render(mi, d, psr_integrator({"type": "path", "max_depth": 2}), seed=8))
+    assert (refracted | reflected)[pane].all()
+    changed = ((np.abs(other["normal"][..., 0] + 1.0) < 1e-3) != reflected)[pane].sum()
+    assert 0 < changed < pane.sum()
+    # the Fresnel reflectance of glass at 45° is about 5 %: reflections are the rare lobe
+    many = [_buffers(_render(mi, d, psr_integrator({"type": "path", "max_depth": 2}), seed=s))
+            for s in range(12)]
+    share = np.mean([(np.abs(b["normal"][..., 0] + 1.0) < 1e-3)[pane].mean() for b in many])
+    assert 0.01 < share < 0.15
+
+
+def test_reshaded_glass_passes_aim_at_their_own_virtual_points(renderer):
+    """Behind glass too, each pass is re-shaded towards its own PSR virtual point (PSR_VERSION
+    4, RESHADE_VERSION 6): from an unchanged camera, under unchanged lights, the re-shaded
+    passes equal the frame's own passes whatever position the G-buffer holds (zeros here;
+    before, glass pixels aimed at that position)."""
+    from dbench.datasets.reshade import render_reshade
+
+    mi = renderer
+    d = _glass_scene(mi)
+    path = {"type": "path", "max_depth": 6}
+    seeds = [3, 4, 5, 6]
+    scene = mi.load_dict(d, optimize=False)
+    integ = mi.load_dict(path, optimize=False)
+    passes = np.mean([np.array(mi.render(scene, spp=1, seed=s, integrator=integ), np.float64)
+                      for s in seeds], axis=0)
+    got = render_reshade(d, path, (0.0, 0.0, 5.0), np.zeros((RES, RES, 3), np.float32),
+                         np.ones((RES, RES), bool), seeds)
+    c = RES // 2
+    assert passes[c, c].max() > 0.01
+    np.testing.assert_allclose(got, passes, rtol=1e-4, atol=1e-6)
