@@ -25,7 +25,8 @@ import numpy as np
 
 #: scene: (frames, reference spp) — orbit as issue 16 measured it, the others as the sweep
 SCENES = {"orbit": (48, 4096), "flicker": (24, 256), "mirror-pan": (24, 256)}
-BASELINES = (("noisy", "noisy", {}), ("accumulate", "accumulate", {}))
+BASELINES = (("noisy", "noisy", {}), ("accumulate", "accumulate", {}),
+             ("accumulate taa=True", "accumulate", {"taa": True}))
 VARIANTS: tuple[tuple[str, str, dict[str, Any]], ...] = (
     ("svgf", "svgf", {}),
     ("svgf preset=paper", "svgf", {"preset": "paper"}),
@@ -40,11 +41,13 @@ VARIANTS: tuple[tuple[str, str, dict[str, Any]], ...] = (
     ("svgf sigma_l=10", "svgf", {"sigma_l": 10.0}),
     ("svgf normal_buffer=reflected_normal", "svgf", {"normal_buffer": "reflected_normal"}),
     ("svgf normal_buffer=geo_normal", "svgf", {"normal_buffer": "geo_normal"}),
+    ("svgf taa=True", "svgf", {"taa": True}),
     ("asvgf", "asvgf", {}),
     ("asvgf alpha_floor=False", "asvgf", {"alpha_floor": False}),
     ("asvgf preset=paper", "asvgf", {"preset": "paper"}),
     ("asvgf gradient_mode=paper", "asvgf", {"gradient_mode": "paper"}),
     ("asvgf normal_buffer=reflected_normal", "asvgf", {"normal_buffer": "reflected_normal"}),
+    ("asvgf taa=True", "asvgf", {"taa": True}),
     ("bmfr", "bmfr", {}),
     ("bmfr handback=none (the paper's)", "bmfr", {"handback": "none"}),
     ("bmfr handback=none block_size=16", "bmfr", {"handback": "none", "block_size": 16}),
@@ -60,6 +63,7 @@ VARIANTS: tuple[tuple[str, str, dict[str, Any]], ...] = (
     ("bmfr samples=36", "bmfr", {"samples": 36}),
     ("bmfr preset=seed", "bmfr", {"preset": "seed"}),
     ("bmfr alpha1=0.05", "bmfr", {"alpha1": 0.05}),
+    ("bmfr taa=True", "bmfr", {"taa": True}),
 )
 METRICS = ("rmse", "rmse_surface", "relmse", "t_rmse")
 

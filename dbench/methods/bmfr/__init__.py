@@ -42,7 +42,8 @@ all blocks and the reconstruction as PyTorch kernels (:mod:`dbench.methods.bmfr.
 CUDA when available, else on CPU, NumPy in and out of each kernel, history kept as NumPy;
 ``params["backend"]`` holds the resolved name), preset (None | "seed": block 64, 36 samples,
 features "seed", no hand-back — the seed's implementation, spec §3.1 | "paper": no hand-back),
-handback ("wiener" | "none").
+handback ("wiener" | "none"), taa (False: spec §1 step 6, the BMFR code's temporal
+antialiasing of the output, :mod:`dbench.methods.temporal.taa`) and taa_alpha (0.2).
 
 Fit set: pixels with a hit, no emission and a usable accumulated value; reconstructed: every
 hit pixel without emission (a pixel whose sample was non-finite gets the block's fit).
@@ -109,7 +110,8 @@ class BMFR(T.HistoryDenoiser):
                                     offsets=N_OFFSETS, alpha1=0.2, alpha2=0.1,
                                     clamp_negative=True, rcond=RCOND, seed=0, tau_d=T.TAU_D,
                                     tau_n=T.TAU_N, backend="auto", preset=None, samples=None,
-                                    temporal_gradient=True, handback="wiener")
+                                    temporal_gradient=True, handback="wiener", taa=False,
+                                    taa_alpha=T.TAA_ALPHA)
 
     def __init__(self, **params: Any) -> None:
         super().__init__(**params)
@@ -268,4 +270,5 @@ class BMFR(T.HistoryDenoiser):
         self._prev_lum = prep["lum_raw"]
         self.last = {"gradient": g, "dropped": dropped, "offset": tuple(int(v) for v in offset), "n1": n1,
                      "n2": n2, "status": status}
-        return SC.remodulate(y_acc, prep["a_eff"], acc_e, be)
+        out = SC.remodulate(y_acc, prep["a_eff"], acc_e, be)
+        return self._with_taa(out, geo.motion, bool(ok.any()))

@@ -44,7 +44,9 @@ already assumes; ``"sample"`` is the paper's per-sample variance. Other paramete
 variance and the à-trous passes — the shading normal, seed 001 §1.2.1's reflected normal of
 glossy surfaces with roughness < 0.4, or the geometric normal; reprojection keeps the shading
 normal; the last two read the frame's buffers of those names, which the sequence scenes' PSR
-G-buffers provide), backend ("auto" | "numba" | "torch" | "reference"); asvgf adds gradient_iterations (3), gradient_mode ("seed" | "paper"), n_max
+G-buffers provide), taa (False) and taa_alpha (0.2) [dbench] (the temporal antialiasing of
+the output that BMFR's code runs, :mod:`dbench.methods.temporal.taa`), backend ("auto" |
+"numba" | "torch" | "reference"); asvgf adds gradient_iterations (3), gradient_mode ("seed" | "paper"), n_max
 (256), alpha_floor (None: on with the dbench preset).
 
 Backends: "auto" (default) is "torch" when ``torch.cuda.is_available()``, else "numba";
@@ -184,7 +186,8 @@ class _SVGFBase(T.HistoryDenoiser):
     optional_needs = {"emission", "geo_normal", "reflected_normal"}
     defaults: dict[str, Any] = dict(preset="dbench", **PRESETS["dbench"], eps_var=EPS_VAR,
                                     variance_boost=False, tau_d=T.TAU_D, tau_n=T.TAU_N,
-                                    normal_buffer="normal", backend="auto")
+                                    normal_buffer="normal", taa=False, taa_alpha=T.TAA_ALPHA,
+                                    backend="auto")
 
     def __init__(self, **params: Any) -> None:
         super().__init__(**params)
@@ -308,7 +311,8 @@ class _SVGFBase(T.HistoryDenoiser):
         self._after(geo, prep)
         self.last = {"n": n, "alpha": a_used, "variance": var, "status": status,
                      "iterations": iterations, "weight_sq": weight_sq, **extras}
-        return C.remodulate(cur, prep["a_eff"], acc_e, be)
+        out = C.remodulate(cur, prep["a_eff"], acc_e, be)
+        return self._with_taa(out, geo.motion, bool((status > 0).any()))
 
 
 @register("svgf")

@@ -8,12 +8,14 @@ from typing import Any
 import numpy as np
 
 from ...data import check_buffer
+from ...errors import DbenchInputError
 from ...registry import Denoiser
 from ..guards import RADIANCE_MAX
 from .dispatch import reproject, resolve_backend
 from .geometry import Geometry
 from .numba_path import clamp_radiance, kernel_threads
 from .params import EPS_F, TAU_D, TAU_N
+from .taa import TAA_ALPHA, taa
 
 
 class History:
@@ -100,7 +102,9 @@ class HistoryDenoiser(Denoiser):
     A subclass validates its parameters in ``__init__`` and then calls :meth:`_start`, and
     implements ``_denoise(data, color)`` with ``color`` the checked (H, W, 3) input; ``denoise``
     runs it with the kernel thread count of the frame size. ``last`` holds the diagnostics of
-    the latest frame; ``reset`` empties the history.
+    the latest frame; ``reset`` empties the history. A method with the parameters ``taa`` and
+    ``taa_alpha`` passes its output through :meth:`_with_taa` (temporal antialiasing,
+    :mod:`.taa`), whose own history is the previous TAA output.
     """
 
     def _start(self) -> None:
@@ -110,10 +114,33 @@ class HistoryDenoiser(Denoiser):
         self.backend = p["backend"] = resolve_backend(p["backend"])
         self.history = History(p["tau_d"], p["tau_n"], EPS_F, self.backend)
         self.last: dict[str, Any] = {}
+        self._taa_prev: np.ndarray | None = None
+        if "taa" in p:
+            if not isinstance(p["taa"], bool):
+                raise DbenchInputError(f"taa: expected True or False, got {p['taa']!r}")
+            a = p.get("taa_alpha", TAA_ALPHA)
+            if isinstance(a, bool) or not isinstance(a, (int, float)) or not 0.0 < a <= 1.0:
+                raise DbenchInputError(f"taa_alpha: expected a number in (0, 1], got {a!r}")
 
     def reset(self) -> None:
         self.history.reset()
         self.last = {}
+        self._taa_prev = None
+
+    def _with_taa(self, out: np.ndarray, motion: np.ndarray | None, continued: bool
+                  ) -> np.ndarray:
+        """``out`` (H, W, 3) after temporal antialiasing when the ``taa`` parameter is on
+        (:func:`.taa.taa` with the previous TAA output, none on the first frame or where the
+        method's own history restarted: ``continued`` False); ``out`` itself otherwise."""
+        p = self.params
+        if not p.get("taa", False):
+            return out
+        prev = self._taa_prev
+        if not continued or prev is None or prev.shape != out.shape:
+            prev = None
+        out = taa(self.backend, out, prev, motion, float(p.get("taa_alpha", TAA_ALPHA)))
+        self._taa_prev = out.copy()  # the caller owns the returned array
+        return out
 
     def denoise(self, data) -> np.ndarray:
         color = check_buffer("color", getattr(data, "color", None), (None, None, 3))
