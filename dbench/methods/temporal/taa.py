@@ -21,8 +21,9 @@ and the blend are the same operations). Motion vectors point from a pixel to its
 the previous frame (spec/temporal.md §3.1), planar (2, H, W).
 
 * :func:`taa_reference` — the readable form (NumPy, float64 inside).
-* :func:`taa_fast` — compiled (Numba, parallel over rows); equal to it within float32 rounding
-  (tests).
+* :func:`taa_fast` — compiled (Numba, parallel over rows): one pass for each value's YCoCg and
+  its row's 3-pixel extremes, then the fetch, clamp and blend, which read the box's and the
+  cross's extremes from those rows; equal to the readable form within float32 rounding (tests).
 """
 from __future__ import annotations
 
@@ -31,6 +32,7 @@ import math
 import numpy as np
 
 from ...data import check_buffer
+from ...errors import DbenchInputError
 
 #: the blend of the current frame [BMFR code]
 TAA_ALPHA = 0.2
@@ -67,7 +69,7 @@ def _check(current, history, motion, alpha):
         motion = check_buffer("motion", motion, (2, h, w))
     alpha = float(alpha)
     if not 0.0 < alpha <= 1.0:
-        raise ValueError(f"alpha: expected a number in (0, 1], got {alpha!r}")
+        raise DbenchInputError(f"alpha: expected a number in (0, 1], got {alpha!r}")
     return current, history, motion, alpha
 
 
