@@ -218,6 +218,44 @@ def test_one_sample_leaves_the_gate_open():
 
 
 @pytest.mark.parametrize("transform,lam", [("identity", 0.5), ("box-cox", 0.5),
+                                           ("yeo-johnson", 0.5)])
+def test_pixels_with_one_sample_found_through_the_rows_of_zero_variance(transform, lam):
+    """Above 1 spp the fast gate reads the sample counts only in the rows whose variance has a
+    value ≤ 0 or NaN (SampleStats stores 0 where n < 2): a frame with a few 1-sample pixels,
+    with zero-variance pixels of 8 samples elsewhere and with a NaN variance, gives the
+    reference backend's output, the 1-sample pixels the open gate's; and the rows each pass
+    reports are exactly those."""
+    from dbench.methods.gate import gate_output
+
+    rng = np.random.default_rng(5)
+    shape = (21, 17, 3)
+    color = rng.gamma(1.0, 1.0, shape).astype(np.float32)
+    den = (color * rng.uniform(0.6, 1.4, shape)).astype(np.float32)
+    var = rng.gamma(1.0, 1.0, shape) * 1e-3
+    n = np.full(shape, 8.0)
+    n[4, 6], var[4, 6] = 1.0, 0.0           # unknown: one sample
+    n[13, 2, 1], var[13, 2, 1] = 1.0, 0.0
+    var[9, 10] = 0.0                        # a constant pixel: known, zero variance
+    var[17, 3, 2] = np.nan
+    stats = SampleStats(n=n, mean=np.zeros(shape), var_mean=var, m3=np.zeros(shape),
+                        transform=transform, lam=lam)
+    for alpha in (1.0, 0.6):
+        fast = gate_output(color, den, stats, alpha=alpha, pool=5, handback="wiener")
+        ref = gate_output(color, den, stats, alpha=alpha, pool=5, handback="wiener",
+                          backend="reference")
+        np.testing.assert_allclose(fast, ref, rtol=1e-5, atol=1e-6)
+        np.testing.assert_allclose(fast[4, 6], (color[4, 6] + alpha * (den[4, 6] - color[4, 6])),
+                                   rtol=1e-6)
+    positive = np.empty(shape[0], np.bool_)
+    kg.proden_gate_stats(color, den, stats, rows_positive=positive)
+    flagged = set(np.flatnonzero(~positive))
+    if transform == "identity":
+        assert flagged == {4, 9, 13, 17}
+    else:  # the linear variance is also 0 where the colour is not > 0: a superset
+        assert {4, 9, 13, 17} <= flagged
+
+
+@pytest.mark.parametrize("transform,lam", [("identity", 0.5), ("box-cox", 0.5),
                                            ("box-cox", 0.25), ("yeo-johnson", 0.5)])
 def test_gate_from_statistics_equals_the_composed_fast_gate(transform, lam):
     """proden_gate_stats forms the substitutions and the linear variance inside its first pass

@@ -169,16 +169,21 @@ def _inputs(color, den, var, x, box_cox_half, fix, y, i):  # pragma: no cover - 
 
 
 @njit(parallel=True, cache=True, fastmath=_FASTMATH)
-def _mean_variance(color, den, var, x, box_cox_half, fix):  # pragma: no cover - compiled
-    """Mean of the linear variance over the image (σ_b of spec §12), float64."""
+def _mean_variance(color, den, var, x, box_cox_half, fix, positive
+                   ):  # pragma: no cover - compiled
+    """Mean of the linear variance over the image (σ_b of spec §12), float64; ``positive[y]``
+    is True where every value of ``var``'s row y is > 0 (NaN is not), counted as it is read."""
     h, wc = var.shape
     sums = np.zeros(h, np.float64)
     for row in prange(h):
         y = np.int64(row)
         s = 0.0
+        above = 0
         for i in range(wc):
             s += _inputs(color, den, var, x, box_cox_half, fix, y, i)[2]
+            above += var[y, i] > 0.0
         sums[y] = s
+        positive[y] = above == wc
     return sums.sum() / max(h * wc, 1)
 
 
@@ -433,19 +438,22 @@ def _anchored(rows: int) -> int:
 
 
 def _gate_passes(color, den, var, x, box_cox_half: bool, fix: bool, alpha: float, k: float,
-                 t0: float, pool: int = 0, band: int | None = None, handback: str = "pixel"
-                 ) -> np.ndarray:
+                 t0: float, pool: int = 0, band: int | None = None, handback: str = "pixel",
+                 rows_positive: np.ndarray | None = None) -> np.ndarray:
     """The compiled gate on (H, W, 3) arrays (see :func:`proden_gate_fast`): the mean variance
     (σ_b), then one pass of bands (:func:`_gate_bands`), with the variance floor of radius
     ``pool`` and the ``handback`` rule fused into it; ``band`` output rows per task (default
-    :func:`_band_rows`)."""
+    :func:`_band_rows`). ``rows_positive`` (H,) bool, when given, receives whether every
+    value of ``var``'s row is > 0 (read in the mean's pass)."""
     check_choice("handback", handback, HANDBACKS)
     h, w, c = color.shape
     color = np.ascontiguousarray(color).reshape(h, w * c)
     den = np.ascontiguousarray(den, color.dtype).reshape(h, w * c)
     var = np.ascontiguousarray(var).reshape(h, w * c)
     x = color if x is None else np.ascontiguousarray(x, color.dtype).reshape(h, w * c)
-    g = gate_taps(sigma_from_mean(_mean_variance(color, den, var, x, box_cox_half, fix)))
+    positive = np.empty(h, np.bool_) if rows_positive is None else rows_positive
+    g = gate_taps(sigma_from_mean(_mean_variance(color, den, var, x, box_cox_half, fix,
+                                                 positive)))
     out = np.empty((h, w * c), np.float32)
     band = _band_rows(h, len(g) // 2) if band is None else _anchored(band)
     _gate_bands(color, den, var, x, box_cox_half, fix, g, g * g, int(pool), float(alpha),
@@ -466,7 +474,8 @@ def proden_gate_fast(hdr: Any, den: Any, var: Any, *, alpha: float = 1.0, k: flo
 
 def proden_gate_stats(color: Any, den: Any, stats: Any, *, alpha: float = 1.0,
                       k: float = GATE_K, t0: float = GATE_T0, pool_radius: int = 0,
-                      handback: str = "pixel") -> np.ndarray:
+                      handback: str = "pixel", rows_positive: np.ndarray | None = None
+                      ) -> np.ndarray:
     """The gate of a method output ``den`` on a noisy ``color`` with dbench's ``stats``, in the
     same compiled pass: non-finite noisy values take the method's and non-finite method values
     the noisy ones, and the linear variance (:func:`linear_variance`) is formed as each row is
@@ -474,12 +483,16 @@ def proden_gate_stats(color: Any, den: Any, stats: Any, *, alpha: float = 1.0,
     :func:`linear_variance` first). Equal to ``proden_gate_fast(hdr, den',
     linear_variance(stats, color), pool_radius=r)`` with those substitutions (tests); with
     ``pool_radius`` r > 0 the variance is floored inside the pass
-    (:mod:`~dbench.methods.kernels.variance_floor`); (H, W, 3) float32."""
+    (:mod:`~dbench.methods.kernels.variance_floor`); (H, W, 3) float32. ``rows_positive``
+    (H,) bool, when given, receives whether every value of the row's variance is > 0 (the
+    statistics' variance of the mean, or for transforms other than the identity and Box-Cox ½
+    its linear form, which is 0 wherever the first is): ``SampleStats`` stores 0 where n < 2,
+    so only the other rows can hold a pixel of unknown variance."""
     color = np.ascontiguousarray(color)
     shape = color.shape
     transform = getattr(stats, "transform", "identity")
     var = np.broadcast_to(np.asarray(stats.var_mean, np.float64), shape)
-    rule = dict(handback=handback)
+    rule = dict(handback=handback, rows_positive=rows_positive)
     if transform == "identity":
         return _gate_passes(color, den, var, None, False, True, alpha, k, t0, pool_radius,
                             **rule)
