@@ -193,8 +193,8 @@ def render_reshade(scene_dict: dict, path: dict, origin, targets: np.ndarray,
 def reshade_frame(scene, res, i: int, prev: dict, seeds: list[int]) -> np.ndarray:
     """The gradient buffer of frame ``i`` of a sequence ``scene``: :func:`render_reshade` of
     :func:`select_strata` of frame i−1's colour and depth (``prev``), each pass aimed at its
-    own hit of frame i−1 (behind mirrors and glass at its own PSR virtual point), traced from frame i's camera under frame i's lights with frame i−1's pass
-    ``seeds``."""
+    own hit of frame i−1 (behind mirrors and glass at its own PSR virtual point), traced from
+    frame i's camera under frame i's lights with frame i−1's pass ``seeds``."""
     d = scene.frame_dict(mitsuba(), res, i - 1, i)  # frame i−1's camera rays, frame i's lights
     selected = select_strata(prev["color"], prev["depth"])
     return render_reshade(d, d["integrator"], scene.camera(i)[0], prev["position"], selected,

@@ -18,15 +18,15 @@ are clamped to ±1e15 (NaN/±Inf stay missing), so the float32 luminance moment 
 (before, a pixel above ~1.8e19 made l² Inf: the pixel lost its history and ``last["variance"]``
 was Inf).
 
-Parameters: alpha_min (0), n_max (256), tau_d (0.05), tau_n (0.9), taa (False) and taa_alpha
-(0.2) (the temporal antialiasing the filters offer, :mod:`dbench.methods.temporal.taa`), backend ("auto" (default):
-PyTorch on CUDA when ``torch.cuda.is_available()``, else Numba; "numba": compiled reprojection
-and the accumulation fused into one pass (:func:`.fast.accumulate_frame`); "torch": vectorised
-PyTorch reprojection and accumulation (:func:`~dbench.methods.temporal.reproject_torch`,
+Parameters: alpha_min (0), n_max (256), tau_d (0.05), tau_n (0.9), taa (False) and taa_alpha (0.2)
+(the temporal antialiasing the filters offer, :mod:`dbench.methods.temporal.taa`), backend ("auto"
+(default): PyTorch on CUDA when ``torch.cuda.is_available()``, else Numba; "numba": compiled
+reprojection and the accumulation fused into one pass (:func:`.fast.accumulate_frame`); "torch":
+vectorised PyTorch reprojection and accumulation (:func:`~dbench.methods.temporal.reproject_torch`,
 :func:`~dbench.methods.temporal.accumulate_torch`) on CUDA when available, else on CPU;
 "reference": readable NumPy). Every backend takes and returns NumPy at the method boundary and
-keeps its history as NumPy (:class:`~dbench.methods.temporal.History`). ``params["backend"]``
-holds the resolved name after construction ("auto" becomes "torch" or "numba").
+keeps its history as NumPy (:class:`~dbench.methods.temporal.History`). ``params["backend"]`` holds
+the resolved name after construction ("auto" becomes "torch" or "numba").
 
 Example:
     >>> import numpy as np
@@ -86,7 +86,7 @@ class Accumulate(T.HistoryDenoiser):
             # finite by construction: colours are clamped to ±1e15, so l² ≤ 1e30 in float32
             self.history.store(geo, stored, valid=stored[5] > 0, finite=True)
             self.last = {"variance": variance, "n": stored[5], "status": status}
-            return self._with_taa(out, geo.motion, bool((status > 0).any()))
+            return self._with_taa(out, geo.motion, status)
         c = T.to_planar(color)
         ok_s = T.sample_mask(c)
         c = np.where(ok_s, c, 0.0).astype(np.float32)
@@ -104,4 +104,4 @@ class Accumulate(T.HistoryDenoiser):
         empty = n <= 0
         if empty.any():
             out[empty] = color[empty]
-        return self._with_taa(out, geo.motion, bool(ok.any()))
+        return self._with_taa(out, geo.motion, status)

@@ -271,4 +271,4 @@ class BMFR(T.HistoryDenoiser):
         self.last = {"gradient": g, "dropped": dropped, "offset": tuple(int(v) for v in offset), "n1": n1,
                      "n2": n2, "status": status}
         out = SC.remodulate(y_acc, prep["a_eff"], acc_e, be)
-        return self._with_taa(out, geo.motion, bool(ok.any()))
+        return self._with_taa(out, geo.motion, status)

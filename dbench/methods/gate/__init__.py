@@ -104,32 +104,34 @@ def gate_output(color: np.ndarray, denoised: np.ndarray, stats: Any, *, alpha: f
     # there), not zero, so there is no evidence against the method's value: the gate stays
     # open (α). Read as a known zero it would return the noisy input at 1 spp.
     counts = np.asarray(stats.n)
-    if backend != "reference" and counts.ndim == 3 and counts.size > 0 \
-            and counts.shape[0] == np.shape(color)[0] and counts.flat[0] >= 2:
-        # the counts are read only in the rows whose variance has a value ≤ 0 (or NaN), which
-        # the compiled passes report: elsewhere every n ≥ 2 (a 22 MB read less at 720p)
-        positive = np.empty(counts.shape[0], np.bool_)
-        out = proden_gate_stats(color, denoised, stats, alpha=alpha, k=k, t0=t0,
-                                pool_radius=pool, handback=handback, rows_positive=positive)
-        rows = np.flatnonzero(~positive)
-        if rows.size == 0 or not bool(counts[rows].min() < 2):
-            return out
-        unknown = counts < 2
-        return np.where(unknown, _open_gate(color, denoised, alpha)[0], out)
-    any_unknown = counts.size > 0 and bool(counts.min() < 2)  # no (H, W, 3) mask when all ≥ 2
-    unknown = counts < 2 if any_unknown else None
-    open_gate = None
-    if backend == "reference" or any_unknown:
-        open_gate, hdr, den = _open_gate(color, denoised, alpha)
+    # Above 1 spp the compiled passes report the rows whose variance has a value ≤ 0 or NaN,
+    # and the counts are read only there (elsewhere every n ≥ 2: a 22 MB read less at 720p);
+    # otherwise they are read first, so that at 1 spp the blurs can be skipped.
+    scan_rows = (backend != "reference" and counts.ndim == 3 and counts.size > 0
+                 and counts.shape[0] == np.shape(color)[0] and counts.flat[0] >= 2)
+    if not scan_rows:
+        any_unknown = counts.size > 0 and bool(counts.min() < 2)  # no (H, W, 3) mask if none
+        unknown = counts < 2 if any_unknown else None
         if any_unknown and np.all(unknown):  # 1 spp: nothing to test, skip the blurs
-            return open_gate
+            return _open_gate(color, denoised, alpha)[0]
+    open_gate = None
     if backend == "reference":
+        open_gate, hdr, den = _open_gate(color, denoised, alpha)
         out = proden_gate(hdr, den, linear_variance(stats, color), alpha=alpha, k=k,
                           t0=t0, pool_radius=pool, handback=handback).astype(np.float32)
     else:  # the same substitutions and the linear variance, inside the compiled passes
+        positive = np.empty(counts.shape[0], np.bool_) if scan_rows else None
         out = proden_gate_stats(color, denoised, stats, alpha=alpha, k=k, t0=t0,
-                                pool_radius=pool, handback=handback)
-    return out if not any_unknown else np.where(unknown, open_gate, out)
+                                pool_radius=pool, handback=handback, rows_positive=positive)
+        if scan_rows:
+            rows = np.flatnonzero(~positive)
+            any_unknown = rows.size > 0 and bool(counts[rows].min() < 2)
+            unknown = counts < 2 if any_unknown else None
+    if not any_unknown:
+        return out
+    if open_gate is None:
+        open_gate = _open_gate(color, denoised, alpha)[0]
+    return np.where(unknown, open_gate, out)
 
 
 def _open_gate(color: np.ndarray, denoised: np.ndarray, alpha: float):

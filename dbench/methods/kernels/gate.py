@@ -338,9 +338,9 @@ def _gate_bands(color, den, var, x, box_cox_half, fix, g, g2, pool, alpha, table
     high²) go to three more rings of 2R + 2 rows, R = WIENER_RADIUS, which the output rows read
     R rows later. Where the variance floor's window is the Wiener window (``pool`` = R, as
     ``NAME+gate`` runs it) each blurred row's variance and window means go to two rings that the
-    output row reads, instead of summing the variance's window again. Every row's sums run in the same order whatever the band (window column sums slide from fixed
-    anchor rows: variance_floor.advance_column_sums), so the result does not depend on
-    ``band`` (test)."""
+    output row reads, instead of summing the variance's window again. Every row's sums run in
+    the same order whatever the band (window column sums slide from fixed anchor rows:
+    variance_floor.advance_column_sums), so the result does not depend on ``band`` (test)."""
     h, wc = color.shape
     r = _RADIUS
     taps = 2 * r + 1

@@ -13,11 +13,11 @@ is too low, and as the spp grow both vanish, so the gate still converges to the 
 r = 5 is the gate's own 11×11 footprint.
 
 * :func:`floored_variance` — the readable reference (SciPy box filters, float64).
-* :func:`advance_column_sums`, :func:`window_mean_row` and :func:`floor_row` — the compiled form, fused into the gate's
-  band pass (:func:`dbench.methods.kernels.gate.proden_gate_stats`): the window's column sums
-  slide down the rows, and each row completes them along x from a prefix sum and takes the
-  maximum, so the floored variance is never stored (tests: the pooled fast gate equals the
-  reference within 1e-6, whatever the rows per task).
+* :func:`advance_column_sums`, :func:`window_mean_row` and :func:`floor_row` — the compiled
+  form, fused into the gate's band pass (:func:`dbench.methods.kernels.gate.proden_gate_stats`):
+  the window's column sums slide down the rows, and each row completes them along x from a
+  prefix sum and takes the maximum, so the floored variance is never stored (tests: the pooled
+  fast gate equals the reference within 1e-6, whatever the rows per task).
 
 A kernel imports no method and nothing of the harness.
 

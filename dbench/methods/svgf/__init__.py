@@ -46,8 +46,8 @@ glossy surfaces with roughness < 0.4, or the geometric normal; reprojection keep
 normal; the last two read the frame's buffers of those names, which the sequence scenes' PSR
 G-buffers provide), taa (False) and taa_alpha (0.2) [dbench] (the temporal antialiasing of
 the output that BMFR's code runs, :mod:`dbench.methods.temporal.taa`), backend ("auto" |
-"numba" | "torch" | "reference"); asvgf adds gradient_iterations (3), gradient_mode ("seed" | "paper"), n_max
-(256), alpha_floor (None: on with the dbench preset).
+"numba" | "torch" | "reference"); asvgf adds gradient_iterations (3), gradient_mode ("seed" |
+"paper"), n_max (256), alpha_floor (None: on with the dbench preset).
 
 Backends: "auto" (default) is "torch" when ``torch.cuda.is_available()``, else "numba";
 "numba" compiled kernels; "torch" the vectorised PyTorch kernels of
@@ -312,7 +312,7 @@ class _SVGFBase(T.HistoryDenoiser):
         self.last = {"n": n, "alpha": a_used, "variance": var, "status": status,
                      "iterations": iterations, "weight_sq": weight_sq, **extras}
         out = C.remodulate(cur, prep["a_eff"], acc_e, be)
-        return self._with_taa(out, geo.motion, bool((status > 0).any()))
+        return self._with_taa(out, geo.motion, status)
 
 
 @register("svgf")

@@ -412,11 +412,7 @@ if HAVE_NUMBA:
                     qy = math.floor(y + np.float64(motion[1, y, x]) + 0.5)
                     if qx >= 0 and qy >= 0 and qx < w and qy < h:  # False for NaN motion
                         g = min(max(np.float64(low[int(qy) // size, int(qx) // size]), 0.0), 1.0)
-                # (1 − G)^10 by products, not a power call, which kept the loop scalar
-                t = 1.0 - g
-                t2 = t * t
-                t4 = t2 * t2
-                n_new = min(n_hist[y, x] * (t4 * t4 * t2) + 1.0, n_max)
+                n_new = min(n_hist[y, x] * (1.0 - g) ** 10 + 1.0, n_max)
                 a = (1.0 - g) / n_new + g
                 if paper:
                     a = max((1.0 - g) * alpha0 + g, 1.0 / n_new)

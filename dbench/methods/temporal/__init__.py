@@ -61,7 +61,8 @@ from .taa import TAA_ALPHA, taa, taa_fast, taa_reference
 from .torch_path import (accumulate_torch, as_tensor, reproject_torch, to_numpy,
                          torch_cuda_available, torch_device)
 
-__all__ = ["BACKENDS", "BILINEAR", "TAA_ALPHA", "taa", "taa_fast", "taa_reference", "EPS_F", "FALLBACK", "FALLBACK_KERNEL", "Geometry", "History",
+__all__ = ["BACKENDS", "BILINEAR", "EPS_F", "FALLBACK", "FALLBACK_KERNEL", "Geometry", "History",
+           "TAA_ALPHA", "taa", "taa_fast", "taa_reference",
            "NORMAL_BUFFERS", "feature_normal",
            "HistoryDenoiser", "LUMA", "N_MAX", "RESET", "SMALL_IMAGE", "TAU_D", "TAU_N",
            "accumulate", "accumulate_any", "accumulate_fast", "accumulate_torch", "as_tensor",

@@ -127,16 +127,17 @@ class HistoryDenoiser(Denoiser):
         self.last = {}
         self._taa_prev = None
 
-    def _with_taa(self, out: np.ndarray, motion: np.ndarray | None, continued: bool
+    def _with_taa(self, out: np.ndarray, motion: np.ndarray | None, status: np.ndarray
                   ) -> np.ndarray:
         """``out`` (H, W, 3) after temporal antialiasing when the ``taa`` parameter is on
         (:func:`.taa.taa` with the previous TAA output, none on the first frame or where the
-        method's own history restarted: ``continued`` False); ``out`` itself otherwise."""
+        method's own history restarted: no pixel of the reprojection ``status`` (H, W) > 0);
+        ``out`` itself otherwise."""
         p = self.params
         if not p.get("taa", False):
             return out
         prev = self._taa_prev
-        if not continued or prev is None or prev.shape != out.shape:
+        if prev is None or prev.shape != out.shape or not (status > 0).any():
             prev = None
         out = taa(self.backend, out, prev, motion, float(p.get("taa_alpha", TAA_ALPHA)))
         self._taa_prev = out.copy()  # the caller owns the returned array
