@@ -386,6 +386,24 @@ def test_temporal_study_tables_give_intervals_and_flag_variants_not_below_accumu
     assert len({label for label, _, _ in VARIANTS}) == len(VARIANTS)
 
 
+def test_development_study_table_gives_geometric_mean_ratios_to_accumulate():
+    """dbench.bench.temporal_dev: ratios to accumulate on the same scene and seed, geometric
+    mean over the pairs, and the share of pairs where relMSE is below accumulate's."""
+    from dbench.bench.temporal_dev import VARIANTS, table
+
+    rows = []
+    for scene, seed, acc, svgf in (("a", 0, 1.0, 0.5), ("a", 1, 2.0, 4.0), ("b", 0, 1.0, 0.5),
+                                   ("b", 1, 1.0, 2.0)):
+        for label, v in (("accumulate", acc), ("svgf", svgf)):
+            rows.append({"scene": scene, "seed": seed, "label": label, "rmse": v,
+                         "rmse_surface": v, "relmse": v})
+    text = table(rows)
+    assert "| svgf | 1.000 | 1.000 | 1.000 | 50% |" in text   # (0.5 · 2 · 0.5 · 2)^¼ = 1
+    assert "4 pairs" in text and "2 seeds each" in text
+    assert len({label for label, _, _ in VARIANTS}) == len(VARIANTS)
+    assert sum("(default)" in label for label, _, _ in VARIANTS) == 5
+
+
 def test_gradient_samples_cost_counts_with_the_methods_that_use_them(flicker):
     """docs/temporal.md §2: the per-frame seconds of the re-shaded samples (cached or not) are in
     the sequence's meta, and the tables add them to the total time of a cell that used them."""

@@ -410,3 +410,46 @@ def test_without_an_emission_buffer_the_emission_history_is_left_out(name, backe
     for f in seq:
         np.testing.assert_array_equal(a.denoise(f), b.denoise(f.with_buffers(emission=zero)))
     assert b.history.buffers.shape[0] == a.history.buffers.shape[0] + 3
+
+
+def test_demodulation_albedo_is_continuous_and_bounded_on_every_backend():
+    """a_eff = clip(albedo, ALBEDO_FLOOR, 1) where finite, else 1 (docs/temporal.md §12): no
+    jump between albedo 0 and albedo just above 1e-3 (the spec's rule gave 1 and 0.001)."""
+    from dbench.methods.svgf.params import ALBEDO_FLOOR
+
+    values = np.array([0.0, 1e-4, 2e-3, 0.05, ALBEDO_FLOOR, 0.5, 1.5, np.nan, np.inf, -0.2],
+                      np.float32)
+    albedo = np.repeat(values[None, :, None], 3, axis=2)          # (1, 10, 3)
+    want = np.array([ALBEDO_FLOOR] * 5 + [0.5, 1.0, 1.0, 1.0, ALBEDO_FLOOR], np.float32)
+    color = np.ones((1, values.size, 3), np.float32)
+    hit = np.ones((1, values.size), bool)
+    for backend in ("reference", "numba", "torch"):
+        pr = C.prepare(backend, color, albedo, None, hit)
+        np.testing.assert_allclose(pr["a_eff"][:, 0], np.tile(want, (3, 1)), rtol=1e-6,
+                                   err_msg=backend)
+        assert pr["illum"].max() <= 1.0 / ALBEDO_FLOOR + 1e-4
+    np.testing.assert_allclose(C.prepare("numba", color, albedo, None, hit, 0.3)["a_eff"][:, 0, :5],
+                               0.3, rtol=1e-6)
+    with pytest.raises(DbenchInputError, match="albedo_floor"):
+        methods.get("svgf", albedo_floor=0.0)
+
+
+@pytest.mark.parametrize("name", ["svgf", "asvgf", "bmfr"])
+def test_pixels_with_zero_and_tiny_albedo_side_by_side_stay_bounded(name):
+    """A surface whose 1-spp albedo samples are 0 (a conductor's AOV) in some pixels and 0.002
+    (a dark reflection's PSR albedo) in others, changing from frame to frame: the spec's rule
+    demodulated them by 1 and by 0.002, the filters mixed illumination 500x apart, and pixels
+    came out hundreds of times too bright (found on the autoencoder's training sequences)."""
+    from dbench.data import Sequence
+
+    seq = synthetic_sequence(32, 40, frames=10)
+    rng = np.random.default_rng(3)
+    frames = []
+    for f in seq:
+        albedo = np.where(rng.random(f.albedo.shape[:2])[..., None] < 0.5, 0.0, 0.002)
+        frames.append(f.with_buffers(albedo=np.broadcast_to(albedo, f.albedo.shape)
+                                     .astype(np.float32), emission=None))
+    r = run_sequence(name, Sequence(frames), warmup=4, keep_outputs=True)
+    for out, f in zip(r.outputs[4:], frames[4:]):
+        assert np.isfinite(out).all()
+        assert out.max() < 3.0 * f.reference.max()

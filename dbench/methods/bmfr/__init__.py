@@ -85,6 +85,7 @@ from ...registry import register
 from .. import temporal as T
 from ..svgf import _accumulate_emission, _emission, gradient_history
 from ..svgf import dispatch as SC
+from ..svgf.params import ALBEDO_FLOOR
 from . import handback as HB
 from .dispatch import bmfr_fit, householder_lstsq
 from .numba_path import bmfr_fit_fast
@@ -111,7 +112,7 @@ class BMFR(T.HistoryDenoiser):
                                     clamp_negative=True, rcond=RCOND, seed=0, tau_d=T.TAU_D,
                                     tau_n=T.TAU_N, backend="auto", preset=None, samples=None,
                                     temporal_gradient=True, handback="wiener", taa=False,
-                                    taa_alpha=T.TAA_ALPHA)
+                                    taa_alpha=T.TAA_ALPHA, albedo_floor=ALBEDO_FLOOR)
 
     def __init__(self, **params: Any) -> None:
         super().__init__(**params)
@@ -199,7 +200,7 @@ class BMFR(T.HistoryDenoiser):
         albedo = check_buffer("albedo", getattr(data, "albedo", None), (h, w, 3))
         geo = T.frame_geometry(data, backend=be)
         emission = _emission(data, h, w)
-        prep = SC.prepare(be, color, albedo, emission, geo.hit)
+        prep = SC.prepare(be, color, albedo, emission, geo.hit, p["albedo_floor"])
         present = prep["present"]
 
         # history: Z accumulated (3), N, the fit accumulated (3); with the hand-back Z²

@@ -105,8 +105,8 @@ from . import dispatch as C
 from .dispatch import (adaptive_history, atrous, depth_gradient, filter_gradients, prepare,
                        remodulate, spatial_variance, stratum_gradients)
 from .numba_path import atrous_fast, fast_exp_neg, prepare_fast, spatial_variance_fast
-from .params import (ALPHA0_PAPER, EPS_VAR, GRADIENT_MODES, H1, MAX_ITERATIONS, N_SPATIAL, PRESETS,
-                     VARIANCE_OF, auto_iterations)
+from .params import (ALBEDO_FLOOR, ALPHA0_PAPER, EPS_VAR, GRADIENT_MODES, H1, MAX_ITERATIONS,
+                     N_SPATIAL, PRESETS, VARIANCE_OF, auto_iterations)
 from .reference import (asvgf_history, atrous_reference, gradient_at_pixels, gradient_value,
                         normal_weight, prepare_reference, spatial_variance_reference,
                         stratum_samples)
@@ -187,7 +187,7 @@ class _SVGFBase(T.HistoryDenoiser):
     defaults: dict[str, Any] = dict(preset="dbench", **PRESETS["dbench"], eps_var=EPS_VAR,
                                     variance_boost=False, tau_d=T.TAU_D, tau_n=T.TAU_N,
                                     normal_buffer="normal", taa=False, taa_alpha=T.TAA_ALPHA,
-                                    backend="auto")
+                                    albedo_floor=ALBEDO_FLOOR, backend="auto")
 
     def __init__(self, **params: Any) -> None:
         super().__init__(**params)
@@ -232,7 +232,7 @@ class _SVGFBase(T.HistoryDenoiser):
         albedo = check_buffer("albedo", getattr(data, "albedo", None), (h, w, 3))
         geo = T.frame_geometry(data, backend=be)
         emission = _emission(data, h, w)
-        prep = C.prepare(be, color, albedo, emission, geo.hit)
+        prep = C.prepare(be, color, albedo, emission, geo.hit, p["albedo_floor"])
         present, emitter = prep["present"], prep["emitter"]
 
         # history: feedback colour (3), moments (2), N, Σ of squared blend weights, and the

@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..temporal import to_numpy
+from .params import ALBEDO_FLOOR
 from .numba_path import (HAVE_NUMBA, adaptive_history_fast, atrous_fast, depth_gradient_fast,
                          prepare_fast, remodulate_fast, spatial_variance_fast,
                          stratum_gradients_fast)
@@ -19,14 +20,17 @@ from .torch_path import (adaptive_history_torch, atrous_torch, depth_gradient_to
                          remodulate_torch, spatial_variance_torch, stratum_gradients_torch)
 
 
-def prepare(backend: str, color, albedo, emission, hit) -> dict[str, np.ndarray]:
+def prepare(backend: str, color, albedo, emission, hit, albedo_floor: float = ALBEDO_FLOOR
+            ) -> dict[str, np.ndarray]:
     """:func:`~.reference.prepare_reference` on ``backend`` ("numba":
-    :func:`~.numba_path.prepare_fast`, "torch": :func:`~.torch_path.prepare_torch`); NumPy out."""
+    :func:`~.numba_path.prepare_fast`, "torch": :func:`~.torch_path.prepare_torch`); NumPy out.
+    ``albedo_floor``: a_eff = clip(albedo, floor, 1) (:data:`~.params.ALBEDO_FLOOR`)."""
     if backend == "torch":
-        return {k: to_numpy(v) for k, v in prepare_torch(color, albedo, emission, hit).items()}
+        return {k: to_numpy(v) for k, v in prepare_torch(color, albedo, emission, hit,
+                                                         albedo_floor=albedo_floor).items()}
     if backend == "numba" and HAVE_NUMBA:
-        return prepare_fast(color, albedo, emission, hit)
-    return prepare_reference(color, albedo, emission, hit)
+        return prepare_fast(color, albedo, emission, hit, albedo_floor)
+    return prepare_reference(color, albedo, emission, hit, albedo_floor)
 
 
 def remodulate(illum: np.ndarray, a_eff: np.ndarray, emission: np.ndarray,

@@ -12,7 +12,7 @@ import numpy as np
 from ...data import check_buffer
 from ...errors import DbenchInputError
 from ..temporal import LUMA
-from .params import ALBEDO_EPS, EPS_VAR, EPS_Z, H1, SPATIAL_RADIUS
+from .params import ALBEDO_FLOOR, EPS_VAR, EPS_Z, H1, SPATIAL_RADIUS
 
 
 try:
@@ -24,8 +24,8 @@ except ImportError:  # pragma: no cover
 
 if HAVE_NUMBA:
     @njit(cache=True, parallel=True, error_model="numpy")
-    def _prepare_nb(color, albedo, emission, hit, illum, a_eff, emis, present, emitter, mom,
-                    lum_raw):
+    def _prepare_nb(color, albedo, emission, hit, floor, illum, a_eff, emis, present, emitter,
+                    mom, lum_raw):
         h, w = color.shape[:2]
         has_e = emission.shape[0] > 0
         l0, l1, l2 = np.float32(LUMA[0]), np.float32(LUMA[1]), np.float32(LUMA[2])
@@ -38,7 +38,7 @@ if HAVE_NUMBA:
                 emax = np.float32(0.0)
                 for k in range(3):
                     a = albedo[y, x, k]
-                    a = min(a, np.float32(1.0)) if (np.isfinite(a) and a > ALBEDO_EPS) \
+                    a = min(max(a, floor), np.float32(1.0)) if np.isfinite(a) \
                         else np.float32(1.0)
                     a_eff[k, y, x] = a
                     e = np.float32(0.0)
@@ -102,7 +102,8 @@ if HAVE_NUMBA:
                 gy[y, x] = g
 
 
-def prepare_fast(color, albedo, emission, hit) -> dict[str, np.ndarray]:
+def prepare_fast(color, albedo, emission, hit, albedo_floor: float = ALBEDO_FLOOR
+                 ) -> dict[str, np.ndarray]:
     """Compiled :func:`prepare_reference` (one parallel pass)."""
     h, w = color.shape[:2]
     e_in = np.zeros((0, 0, 3), np.float32) if emission is None else \
@@ -112,7 +113,8 @@ def prepare_fast(color, albedo, emission, hit) -> dict[str, np.ndarray]:
            "emitter": np.empty((h, w), np.bool_), "moments": np.empty((2, h, w), np.float32),
            "lum_raw": np.empty((h, w), np.float32)}
     _prepare_nb(np.ascontiguousarray(color, np.float32), np.ascontiguousarray(albedo, np.float32),
-                e_in, np.ascontiguousarray(hit, np.bool_), out["illum"], out["a_eff"],
+                e_in, np.ascontiguousarray(hit, np.bool_), np.float32(albedo_floor),
+                out["illum"], out["a_eff"],
                 out["emission"], out["present"], out["emitter"], out["moments"], out["lum_raw"])
     return out
 

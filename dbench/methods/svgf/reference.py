@@ -22,14 +22,16 @@ import numpy as np
 
 from ...data import check_buffer
 from ..temporal import luminance
-from .params import ALBEDO_EPS, EPS_VAR, EPS_Z, G3, H1, SPATIAL_RADIUS
+from .params import ALBEDO_FLOOR, EPS_VAR, EPS_Z, G3, H1, SPATIAL_RADIUS
 
 
-def demodulation_albedo(albedo: np.ndarray) -> np.ndarray:
-    """a_eff (3, H, W) float32: the albedo where it is finite and > 1e-3, else 1 (spec §2);
+def demodulation_albedo(albedo: np.ndarray, floor: float = ALBEDO_FLOOR) -> np.ndarray:
+    """a_eff (3, H, W) float32: the albedo clipped to [floor, 1] where it is finite, else 1
+    ([dbench] rule of :data:`~.params.ALBEDO_FLOOR`, in place of spec §2's "> 1e-3, else 1");
     values above 1 (unphysical: e.g. Mitsuba's albedo AOV of rough conductors) count as 1."""
     a = np.asarray(albedo, np.float32)
-    return np.where(np.isfinite(a) & (a > ALBEDO_EPS), np.minimum(a, 1.0), 1.0).astype(np.float32)
+    return np.where(np.isfinite(a), np.clip(a, np.float32(floor), np.float32(1.0)),
+                    np.float32(1.0)).astype(np.float32)
 
 
 def emission_planar(emission, h: int, w: int) -> np.ndarray:
@@ -43,7 +45,8 @@ def emission_planar(emission, h: int, w: int) -> np.ndarray:
 
 
 def prepare_reference(color: np.ndarray, albedo: np.ndarray, emission: np.ndarray | None,
-                      hit: np.ndarray) -> dict[str, np.ndarray]:
+                      hit: np.ndarray, albedo_floor: float = ALBEDO_FLOOR
+                      ) -> dict[str, np.ndarray]:
     """Per-frame inputs of SVGF/BMFR from interleaved (H, W, 3) buffers (NumPy reference).
 
     Returns planar float32 ``illum`` = (C − E)/a_eff (0 where the sample is missing), ``a_eff``,
@@ -53,7 +56,7 @@ def prepare_reference(color: np.ndarray, albedo: np.ndarray, emission: np.ndarra
     c = np.ascontiguousarray(np.transpose(color, (2, 0, 1)), np.float32)
     h, w = c.shape[1:]
     present = np.isfinite(c).all(0)
-    a_eff = demodulation_albedo(np.transpose(albedo, (2, 0, 1)))
+    a_eff = demodulation_albedo(np.transpose(albedo, (2, 0, 1)), albedo_floor)
     e = emission_planar(emission, h, w)
     illum = np.where(present, (c - e) / a_eff, 0.0).astype(np.float32)
     lum = luminance(illum)

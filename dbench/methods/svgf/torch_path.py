@@ -21,7 +21,7 @@ import numpy as np
 
 from ...errors import DbenchInputError
 from ..temporal import LUMA, as_tensor, torch_device
-from .params import ALBEDO_EPS, EPS_VAR, EPS_Z, G3, H1, SPATIAL_RADIUS
+from .params import ALBEDO_FLOOR, EPS_VAR, EPS_Z, G3, H1, SPATIAL_RADIUS
 from .reference import emission_planar
 
 
@@ -51,7 +51,8 @@ def _padded(planes, pad: int):
     return F.pad(planes, (pad, pad, pad, pad))
 
 
-def prepare_torch(color, albedo, emission, hit, device=None) -> dict:
+def prepare_torch(color, albedo, emission, hit, device=None,
+                  albedo_floor: float = ALBEDO_FLOOR) -> dict:
     """:func:`~dbench.methods.svgf.reference.prepare_reference` on tensors: interleaved (H, W, 3)
     colour and albedo in, planar ``illum``, ``a_eff``, ``emission`` (3, H, W), ``moments``
     (2, H, W), ``lum_raw`` (H, W) float32 and bool ``present``, ``emitter`` (H, W) out. The
@@ -62,7 +63,7 @@ def prepare_torch(color, albedo, emission, hit, device=None) -> dict:
     h, w = c.shape[1:]
     present = torch.isfinite(c).all(0)
     a = _f32(albedo, dev).permute(2, 0, 1)
-    a_eff = torch.where(torch.isfinite(a) & (a > float(ALBEDO_EPS)), a.clamp(max=1.0), 1.0)
+    a_eff = torch.where(torch.isfinite(a), a.clamp(min=float(albedo_floor), max=1.0), 1.0)
     e = _f32(emission_planar(emission, h, w) if emission is not None
              else np.zeros((3, h, w), np.float32), dev)
     illum = torch.where(present, (c - e) / a_eff, 0.0)

@@ -121,6 +121,10 @@ class HistoryDenoiser(Denoiser):
             a = p.get("taa_alpha", TAA_ALPHA)
             if isinstance(a, bool) or not isinstance(a, (int, float)) or not 0.0 < a <= 1.0:
                 raise DbenchInputError(f"taa_alpha: expected a number in (0, 1], got {a!r}")
+        if "albedo_floor" in p:  # the demodulation's a_eff = clip(albedo, floor, 1)
+            a = p["albedo_floor"]
+            if isinstance(a, bool) or not isinstance(a, (int, float)) or not 0.0 < a <= 1.0:
+                raise DbenchInputError(f"albedo_floor: expected a number in (0, 1], got {a!r}")
 
     def reset(self) -> None:
         self.history.reset()
