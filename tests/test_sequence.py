@@ -401,7 +401,7 @@ def test_development_study_table_gives_geometric_mean_ratios_to_accumulate():
     assert "| svgf | 1.000 | 1.000 | 1.000 | 50% |" in text   # (0.5 · 2 · 0.5 · 2)^¼ = 1
     assert "4 pairs" in text and "2 seeds each" in text
     assert len({label for label, _, _ in VARIANTS}) == len(VARIANTS)
-    assert sum("(default)" in label for label, _, _ in VARIANTS) == 5
+    assert sum("(default)" in label for label, _, _ in VARIANTS) == 6
 
 
 def test_gradient_samples_cost_counts_with_the_methods_that_use_them(flicker):

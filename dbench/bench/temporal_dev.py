@@ -31,8 +31,10 @@ from ..methods.svgf.params import ALBEDO_FLOOR
 FRAMES, REF_SPP, RES = 24, 256, 64
 FLOORS = (0.02, 0.05, 0.1, 0.2, 0.3, 0.5, 1.0)
 ALPHAS = (0.2, 0.1, 0.05, 0.02)
+SIGMAS = (2.0, 4.0, 6.0, 8.0)
 #: (label, method, params): the demodulation floor of every filter (the default marked), then
-#: the temporal α floor of SVGF and A-SVGF and BMFR's two accumulation factors
+#: the temporal α floor of SVGF and A-SVGF, BMFR's two accumulation factors, the luminance
+#: weight's form and σ_l
 VARIANTS: tuple[tuple[str, str, dict[str, Any]], ...] = (
     ("accumulate", "accumulate", {}),
     *((f"{m} albedo_floor={f}" + (" (default)" if f == ALBEDO_FLOOR else ""), m,
@@ -40,6 +42,10 @@ VARIANTS: tuple[tuple[str, str, dict[str, Any]], ...] = (
     *((f"{m} alpha_min={a}" + (" (default)" if a == 0.2 else ""), m, {"alpha_min": a})
       for m in ("svgf", "asvgf") for a in ALPHAS),
     ("bmfr alpha1=0.1 alpha2=0.05", "bmfr", {"alpha1": 0.1, "alpha2": 0.05}),
+    *((f"{m} luminance_kernel=laplacian (the paper's)", m, {"luminance_kernel": "laplacian"})
+      for m in ("svgf", "asvgf")),
+    *((f"svgf sigma_l={s}" + (" (default)" if s == 4.0 else ""), "svgf", {"sigma_l": s})
+      for s in SIGMAS),
 )
 
 

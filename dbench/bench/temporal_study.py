@@ -39,6 +39,7 @@ VARIANTS: tuple[tuple[str, str, dict[str, Any]], ...] = (
     ("svgf alpha_min=0.05", "svgf", {"alpha_min": 0.05}),
     ("svgf sigma_l=2", "svgf", {"sigma_l": 2.0}),
     ("svgf sigma_l=10", "svgf", {"sigma_l": 10.0}),
+    ("svgf luminance_kernel=laplacian (the paper's)", "svgf", {"luminance_kernel": "laplacian"}),
     ("svgf normal_buffer=reflected_normal", "svgf", {"normal_buffer": "reflected_normal"}),
     ("svgf normal_buffer=geo_normal", "svgf", {"normal_buffer": "geo_normal"}),
     ("svgf taa=True", "svgf", {"taa": True}),

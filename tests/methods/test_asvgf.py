@@ -201,17 +201,25 @@ def test_torch_backend_equals_reference_over_a_hard_sequence(mode):
     a.reset()
     b.reset()
     g_max = 0.0
+    switched = 0
     for f in seq:
         oa, ob = a.denoise(f), b.denoise(f)
         assert oa.dtype == np.float32 and np.isfinite(oa).all()
-        # the tolerance of the Numba-vs-reference test: N' lands within float rounding of the
-        # spatial-variance threshold N < 4 at a few pixels, which then switch estimator
-        np.testing.assert_allclose(oa, ob, rtol=2e-3, atol=2e-4)
+        # N' can land within float rounding of the spatial-variance threshold N < 4, and such
+        # a pixel takes the other variance estimator on one backend: the output then differs
+        # over the à-trous footprint of that frame (by up to 1e-3 here), and nowhere else
+        straddle = (a.last["n"] < 4) != (b.last["n"] < 4)
+        if straddle.any():
+            switched += 1
+            np.testing.assert_allclose(a.last["n"][straddle], 4.0, rtol=1e-5)
+        else:
+            np.testing.assert_allclose(oa, ob, rtol=1e-4, atol=1e-5)
         for key in ("gradient", "alpha", "n"):
             np.testing.assert_allclose(a.last[key], b.last[key], rtol=1e-4, atol=1e-5,
                                        err_msg=key)
         g_max = max(g_max, float(a.last["gradient"].max()))
     assert g_max > 0.05  # the gradient path was exercised
+    assert switched <= 1  # and most frames were compared
 
 
 def test_torch_backend_validation_and_auto(monkeypatch):

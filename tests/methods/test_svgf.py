@@ -98,9 +98,9 @@ def test_fast_paths_equal_references():
     rng = np.random.default_rng(2)
     args = _rand_inputs(rng, 29, 41)
     for step in (1, 2, 8):
-        for use_lum in (True, False):
-            r = C.atrous_reference(*args, step, use_lum=use_lum)
-            f = C.atrous_fast(*args, step, use_lum=use_lum)
+        for use_lum, kernel in ((True, "laplacian"), (True, "gaussian"), (False, "laplacian")):
+            r = C.atrous_reference(*args, step, use_lum=use_lum, lum_kernel=kernel)
+            f = C.atrous_fast(*args, step, use_lum=use_lum, lum_kernel=kernel)
             np.testing.assert_allclose(f[0], r[0], rtol=1e-4, atol=1e-5)
             np.testing.assert_allclose(f[1], r[1], rtol=1e-4, atol=1e-6)
     r = C.atrous_reference(*args, 1, sigma_n=100.0)
@@ -239,9 +239,9 @@ def test_torch_kernels_equal_references():
     rng = np.random.default_rng(2)
     args = _rand_inputs(rng, 29, 41)
     for step in (1, 2, 8):
-        for use_lum in (True, False):
-            r = C.atrous_reference(*args, step, use_lum=use_lum)
-            t = C.atrous("torch", *args, step, use_lum=use_lum)
+        for use_lum, kernel in ((True, "laplacian"), (True, "gaussian"), (False, "laplacian")):
+            r = C.atrous_reference(*args, step, use_lum=use_lum, lum_kernel=kernel)
+            t = C.atrous("torch", *args, step, use_lum=use_lum, lum_kernel=kernel)
             assert t[0].dtype == np.float32 and t[1].dtype == np.float32
             np.testing.assert_allclose(t[0], r[0], rtol=1e-4, atol=1e-5)
             np.testing.assert_allclose(t[1], r[1], rtol=1e-4, atol=1e-6)
@@ -453,3 +453,26 @@ def test_pixels_with_zero_and_tiny_albedo_side_by_side_stay_bounded(name):
     for out, f in zip(r.outputs[4:], frames[4:]):
         assert np.isfinite(out).all()
         assert out.max() < 3.0 * f.reference.max()
+
+
+def test_gaussian_luminance_weight_is_the_square_of_the_laplacian_exponent():
+    """w_l = exp(−d²) ("gaussian", the dbench preset) against exp(−d) ("laplacian", the paper's):
+    one tap, no normal or depth difference, d = |Δl| / (σ_l √(g(Var)) + ε) = 0.5 and 2."""
+    h, w = 1, 2
+    z = np.ones((h, w), np.float32)
+    n = np.zeros((3, h, w), np.float32)
+    n[2] = 1
+    hit = np.ones((h, w), bool)
+    g0 = np.zeros((h, w), np.float32)
+    var = np.full((h, w), 1.0, np.float32)     # σ_l √(1 + ε) ≈ 4: d = Δl / 4
+    for dl in (2.0, 8.0):
+        c = np.zeros((3, h, w), np.float32)
+        c[:, 0, 1] = dl                          # luminance of grey = its value
+        for kernel, power in (("laplacian", 1), ("gaussian", 2)):
+            out, _ = C.atrous_reference(c, var, z, g0, g0, n, hit, hit, hit, 1, sigma_z=1e30,
+                                        eps_var=0.0, lum_kernel=kernel)
+            d = dl / 4.0
+            wt = C.H1[3] * C.H1[2] * np.exp(-d ** power) / (C.H1[2] * C.H1[2])
+            assert out[0, 0, 0] == pytest.approx(dl * wt / (1 + wt), rel=1e-6)
+    with pytest.raises(DbenchInputError, match="luminance_kernel"):
+        methods.get("svgf", luminance_kernel="box")

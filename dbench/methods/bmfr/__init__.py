@@ -1,7 +1,8 @@
 """``bmfr``: blockwise multi-order feature regression (Koskela et al. 2019; spec/bmfr.md).
 
 Per frame (spec §1): subtract the primary hits' emission (``emission`` buffer when present, as
-for SVGF) and demodulate by albedo; accumulation 1 of the noisy illumination Z with
+for SVGF) and demodulate by albedo (a_eff = clip(albedo, ``albedo_floor``, 1), the rule of
+:data:`dbench.methods.svgf.params.ALBEDO_FLOOR`); accumulation 1 of the noisy illumination Z with
 α1 = max(1/N, 0.2); a block grid (B = 32) with this frame's offset (16 offsets cycling, the
 first (0, 0)); per block a least-squares fit of Z' on the features
 [1, n, P, P²] (positions scaled per block, §2.1) with U(−0.01, 0.01) noise on every feature
@@ -43,7 +44,8 @@ CUDA when available, else on CPU, NumPy in and out of each kernel, history kept 
 ``params["backend"]`` holds the resolved name), preset (None | "seed": block 64, 36 samples,
 features "seed", no hand-back — the seed's implementation, spec §3.1 | "paper": no hand-back),
 handback ("wiener" | "none"), taa (False: spec §1 step 6, the BMFR code's temporal
-antialiasing of the output, :mod:`dbench.methods.temporal.taa`) and taa_alpha (0.2).
+antialiasing of the output, :mod:`dbench.methods.temporal.taa`), taa_alpha (0.2) and
+albedo_floor (0.2 [dbench]; 1 = no demodulation; docs/temporal.md §12).
 
 Fit set: pixels with a hit, no emission and a usable accumulated value; reconstructed: every
 hit pixel without emission (a pixel whose sample was non-finite gets the block's fit).
@@ -56,7 +58,7 @@ out of the fit and reconstructed from its features); non-finite features make a 
 
 Input range: finite ``color`` and ``emission`` values beyond ±1e15
 (:data:`dbench.methods.guards.RADIANCE_MAX`) are clamped to ±1e15 (NaN/±Inf stay missing), so
-the demodulated illumination (÷ albedo ≥ 1e-3) stays ≤ 1e18 in float32 and the Householder
+the demodulated illumination (÷ a_eff ≥ albedo_floor) stays ≤ 1e18 / albedo_floor in float32 and the Householder
 norms of the float64 fit stay finite (before the clamp, one pixel at 3e38 demodulated to Inf and
 the block fits, then every pixel, became NaN).
 

@@ -1,7 +1,8 @@
 """``svgf`` and ``asvgf``: spatiotemporal variance-guided filtering (spec/svgf.md).
 
 Per frame (spec §1): subtract the emission of the primary hits (``emission`` buffer, as Falcor's
-SVGFPass does; 0 when absent), demodulate by albedo (§2), reproject and accumulate the illumination and
+SVGFPass does; 0 when absent), demodulate by albedo (§2; a_eff = clip(albedo, ``albedo_floor``, 1),
+:data:`~dbench.methods.svgf.params.ALBEDO_FLOOR`, docs/temporal.md §12), reproject and accumulate the illumination and
 its luminance moments (spec/temporal.md), estimate the variance (temporal where the history has
 ≥ 4 frames, else a 7×7 spatial estimate, §4), run K à-trous iterations with normal, depth and
 luminance edge-stopping weights and variance propagation (§3, §5), store the colour history
@@ -33,7 +34,12 @@ iterations              "auto" (1-5, by size)      5              4
 feedback_tap            None (unfiltered history)  0              1
 alpha_min (moments)     0.2 (0.2)                  0.2 (0.2)      0.05 (0.2)
 variance_of             "mean"                     "sample"       "sample"
+luminance_kernel        "gaussian"                 "laplacian"    "laplacian"
 ======================  =========================  =============  ==============
+
+``luminance_kernel``: w_l = exp(−d²) ("gaussian", as Schied's A-SVGF code writes it; chosen on
+sequences outside the catalogue, docs/temporal.md §13) or exp(−d) ("laplacian", the SVGF paper's
+and Falcor's), d = |l_p − l_q| / (σ_l √(g(Var)) + ε).
 
 ``variance_of="mean"``: the luminance weights use the variance of the accumulated colour — the
 per-sample variance from the moments times Σw² of the blend weights (1/N for a running mean,
@@ -45,7 +51,8 @@ variance and the à-trous passes — the shading normal, seed 001 §1.2.1's refl
 glossy surfaces with roughness < 0.4, or the geometric normal; reprojection keeps the shading
 normal; the last two read the frame's buffers of those names, which the sequence scenes' PSR
 G-buffers provide), taa (False) and taa_alpha (0.2) [dbench] (the temporal antialiasing of
-the output that BMFR's code runs, :mod:`dbench.methods.temporal.taa`), backend ("auto" |
+the output that BMFR's code runs, :mod:`dbench.methods.temporal.taa`), albedo_floor (0.2
+[dbench]: a_eff = clip(albedo, floor, 1); 1 = no demodulation), backend ("auto" |
 "numba" | "torch" | "reference"); asvgf adds gradient_iterations (3), gradient_mode ("seed" |
 "paper"), n_max (256), alpha_floor (None: on with the dbench preset).
 
@@ -106,7 +113,7 @@ from .dispatch import (adaptive_history, atrous, depth_gradient, filter_gradient
                        remodulate, spatial_variance, stratum_gradients)
 from .numba_path import atrous_fast, fast_exp_neg, prepare_fast, spatial_variance_fast
 from .params import (ALBEDO_FLOOR, ALPHA0_PAPER, EPS_VAR, GRADIENT_MODES, H1, MAX_ITERATIONS,
-                     N_SPATIAL, PRESETS, VARIANCE_OF, auto_iterations)
+                     LUM_KERNELS, N_SPATIAL, PRESETS, VARIANCE_OF, auto_iterations)
 from .reference import (asvgf_history, atrous_reference, gradient_at_pixels, gradient_value,
                         normal_weight, prepare_reference, spatial_variance_reference,
                         stratum_samples)
@@ -209,6 +216,9 @@ class _SVGFBase(T.HistoryDenoiser):
         if p["feedback_tap"] is not None and not _integer_in(p["feedback_tap"], 0, MAX_ITERATIONS):
             raise DbenchInputError(f"feedback_tap: expected None (no feedback) or an integer in "
                                    f"[0, {MAX_ITERATIONS}], got {p['feedback_tap']!r}")
+        if p["luminance_kernel"] not in LUM_KERNELS:
+            raise DbenchInputError(f"luminance_kernel: expected one of {LUM_KERNELS}, "
+                                   f"got {p['luminance_kernel']!r}")
         if p["variance_of"] not in VARIANCE_OF:
             raise DbenchInputError(f"variance_of: expected one of {VARIANCE_OF}, "
                                    f"got {p['variance_of']!r}")
@@ -298,7 +308,8 @@ class _SVGFBase(T.HistoryDenoiser):
         for i in range(iterations):
             cur, var = C.atrous(be, cur, var, geo.depth, gx, gy, w_normal, tap,
                                 filled, gather, 2 ** i, sigma_z=p["sigma_z"],
-                                sigma_n=p["sigma_n"], sigma_l=p["sigma_l"], eps_var=p["eps_var"])
+                                sigma_n=p["sigma_n"], sigma_l=p["sigma_l"], eps_var=p["eps_var"],
+                                lum_kernel=p["luminance_kernel"])
             if i == p["feedback_tap"]:
                 feedback = cur
         if fast:

@@ -138,6 +138,7 @@ def depth_gradient_fast(z: np.ndarray, hit: np.ndarray) -> tuple[np.ndarray, np.
 _F0 = np.float32(0.0)
 _F1 = np.float32(1.0)
 _EXP_CLAMP = np.float32(30.0)
+_DL_CAP = np.float32(1e4)  # w_l's scaled luminance distance, capped before squaring
 _INV64 = np.float32(1.0 / 64.0)
 _CHUNK = 256  # pixels per chunk of the à-trous row loop
 #: Taylor coefficients of e^−y: (−1)^k / k!
@@ -167,7 +168,7 @@ if HAVE_NUMBA:
 
     @njit(cache=True, parallel=True, fastmath=True, error_model="numpy")
     def _atrous_nb(c, var, z, gx, gy, nrm, tap, centre, hitp, step, sigma_z, sigma_n, sigma_l,
-                   eps_z, eps_var, use_lum, h1, out_c, out_v):
+                   eps_z, eps_var, use_lum, gaussian, h1, out_c, out_v):
         _, h, w = c.shape
         lum = np.empty((h, w), np.float32)
         isl = np.empty((h, w), np.float32)
@@ -191,6 +192,11 @@ if HAVE_NUMBA:
         ez = np.float32(eps_z)
         sn = np.float32(sigma_n)
         is128 = sigma_n == 128.0
+        # w_l's exponent: d (laplacian) or d² (gaussian) as d·(g·d + 1 − g), branch-free so the
+        # tap loops still vectorise; d is capped at 1e4 (exp clamps above 30 anyway), so the
+        # product is never 0·inf
+        g_sq = np.float32(1.0 if gaussian else 0.0)
+        g_one = np.float32(1.0) - g_sq
         h0 = np.float32(h1[2] * h1[2])
         for y in prange(h):
             sw = np.empty(_CHUNK, np.float32)
@@ -252,7 +258,8 @@ if HAVE_NUMBA:
                                 d = d * d
                                 d = d * d
                                 den = sz * abs(a_gx[i] * fx + a_gy[i] * fy) + ez
-                                e = abs(a_z[i] - b_z[i]) / den + abs(a_l[i] - b_l[i]) * a_i[i]
+                                dl = min(abs(a_l[i] - b_l[i]) * a_i[i], _DL_CAP)
+                                e = abs(a_z[i] - b_z[i]) / den + dl * (g_sq * dl + g_one)
                                 wt = hk * d * fast_exp_neg(e) * b_t[i] * a_h[i]
                                 o_w[i] += wt
                                 o_0[i] += wt * b_0[i]
@@ -265,7 +272,8 @@ if HAVE_NUMBA:
                                         + a_nz[i] * b_nz[i], _F0)
                                 d = d ** sn
                                 den = sz * abs(a_gx[i] * fx + a_gy[i] * fy) + ez
-                                e = abs(a_z[i] - b_z[i]) / den + abs(a_l[i] - b_l[i]) * a_i[i]
+                                dl = min(abs(a_l[i] - b_l[i]) * a_i[i], _DL_CAP)
+                                e = abs(a_z[i] - b_z[i]) / den + dl * (g_sq * dl + g_one)
                                 wt = hk * d * fast_exp_neg(e) * b_t[i] * a_h[i]
                                 o_w[i] += wt
                                 o_0[i] += wt * b_0[i]
@@ -317,7 +325,8 @@ if HAVE_NUMBA:
 
 
 def atrous_fast(color, var, z, gx, gy, normal, tap, centre, hit, step, sigma_z=1.0,
-                sigma_n=128.0, sigma_l=4.0, eps_z=EPS_Z, eps_var=EPS_VAR, use_lum=True):
+                sigma_n=128.0, sigma_l=4.0, eps_z=EPS_Z, eps_var=EPS_VAR, use_lum=True,
+                lum_kernel="laplacian"):
     """Compiled :func:`atrous_reference` (same arguments), float32 outputs."""
     f32 = lambda a: np.ascontiguousarray(a, np.float32)  # noqa: E731
     c = f32(color)
@@ -325,7 +334,7 @@ def atrous_fast(color, var, z, gx, gy, normal, tap, centre, hit, step, sigma_z=1
     out_v = np.empty(c.shape[1:], np.float32)
     _atrous_nb(c, f32(var), f32(z), f32(gx), f32(gy), f32(normal), f32(tap), f32(centre),
                f32(hit), int(step), float(sigma_z), float(sigma_n), float(sigma_l), float(eps_z),
-               float(eps_var), bool(use_lum), H1, out_c, out_v)
+               float(eps_var), bool(use_lum), lum_kernel == "gaussian", H1, out_c, out_v)
     return out_c, out_v
 
 

@@ -141,7 +141,8 @@ def _shift(a: np.ndarray, dy: int, dx: int, fill=0.0) -> np.ndarray:
 
 
 def atrous_reference(color, var, z, gx, gy, normal, tap, centre, hit, step, sigma_z=1.0,
-                     sigma_n=128.0, sigma_l=4.0, eps_z=EPS_Z, eps_var=EPS_VAR, use_lum=True):
+                     sigma_n=128.0, sigma_l=4.0, eps_z=EPS_Z, eps_var=EPS_VAR, use_lum=True,
+                     lum_kernel="laplacian"):
     """One à-trous iteration (spec §5), readable NumPy in float64.
 
     Args:
@@ -151,6 +152,9 @@ def atrous_reference(color, var, z, gx, gy, normal, tap, centre, hit, step, sigm
         centre: (H, W) bool, pixel's own value usable (not empty).
         hit: (H, W) bool, pixel may gather from neighbours.
         step: tap spacing 2^i. use_lum: False turns w_l off (A-SVGF gradient filter).
+        lum_kernel: "laplacian", w_l = exp(−|l_p − l_q| / (σ_l √(g(Var)) + ε)) (spec §3, the
+        SVGF paper), or "gaussian", w_l = exp(−(|l_p − l_q| / (σ_l √(g(Var)) + ε))²) (Schied's
+        A-SVGF code; :data:`~.params.LUM_KERNELS`).
     Returns:
         (color (3, H, W), var (H, W)), float64.
     """
@@ -182,6 +186,8 @@ def atrous_reference(color, var, z, gx, gy, normal, tap, centre, hit, step, sigm
             wn = normal_weight((n * nq).sum(0), sigma_n)
             wz = np.abs(z - zq) / (sigma_z * np.abs(gx * dx + gy * dy) + eps_z)
             wl = np.abs(lum - lq) * inv_sl
+            if lum_kernel == "gaussian":
+                wl = wl * wl
             w = H1[ox + 2] * H1[oy + 2] * wn * np.exp(-(wz + wl)) * tq * hitp
             sw += w
             sc += w * _shift(c, dy, dx)

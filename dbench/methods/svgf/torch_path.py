@@ -119,7 +119,7 @@ def blur3_torch(var):
 
 def atrous_torch(color, var, z, gx, gy, normal, tap, centre, hit, step, sigma_z=1.0,
                  sigma_n=128.0, sigma_l=4.0, eps_z=EPS_Z, eps_var=EPS_VAR, use_lum=True,
-                 device=None):
+                 lum_kernel="laplacian", device=None):
     """One à-trous iteration (spec §5) — arguments and shapes of
     :func:`~dbench.methods.svgf.reference.atrous_reference`. Returns (colour (3, H, W),
     variance (H, W)) float32 tensors."""
@@ -153,6 +153,8 @@ def atrous_torch(color, var, z, gx, gy, normal, tap, centre, hit, step, sigma_z=
             wn = (n * q[0:3]).sum(0).clamp(min=0.0) ** sigma_n
             wz = (z - q[3]).abs() / (sigma_z * (gx * dx + gy * dy).abs() + eps_z)
             wl = (lum - q[4]).abs() * inv_sl
+            if lum_kernel == "gaussian":
+                wl = wl * wl
             wt = float(H1[ox + 2] * H1[oy + 2]) * wn * torch.exp(-(wz + wl)) * q[5] * hitf
             sw += wt
             sc += wt * q[6:9]
