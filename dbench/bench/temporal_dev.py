@@ -42,8 +42,8 @@ VARIANTS: tuple[tuple[str, str, dict[str, Any]], ...] = (
     *((f"{m} alpha_min={a}" + (" (default)" if a == 0.2 else ""), m, {"alpha_min": a})
       for m in ("svgf", "asvgf") for a in ALPHAS),
     ("bmfr alpha1=0.1 alpha2=0.05", "bmfr", {"alpha1": 0.1, "alpha2": 0.05}),
-    *((f"{m} luminance_kernel=laplacian (the paper's)", m, {"luminance_kernel": "laplacian"})
-      for m in ("svgf", "asvgf")),
+    ("svgf luminance_kernel=laplacian (the paper's)", "svgf", {"luminance_kernel": "laplacian"}),
+    ("asvgf luminance_kernel=gaussian", "asvgf", {"luminance_kernel": "gaussian"}),
     *((f"svgf sigma_l={s}" + (" (default)" if s == 4.0 else ""), "svgf", {"sigma_l": s})
       for s in SIGMAS),
 )

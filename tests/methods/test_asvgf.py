@@ -230,3 +230,13 @@ def test_torch_backend_validation_and_auto(monkeypatch):
     assert methods.get("asvgf").params["backend"] == "numba"  # recorded resolved
     with pytest.raises(DbenchInputError, match="backend"):
         methods.get("asvgf", backend="gpu")
+
+
+def test_luminance_kernel_defaults_per_method_and_preset():
+    """docs/temporal.md §13: the dbench preset's Gaussian w_l for svgf, the Laplacian for asvgf
+    (chosen on sequences outside the catalogue); the paper and falcor presets keep the
+    Laplacian; an explicit value wins."""
+    kernel = lambda name, **p: methods.get(name, **p).params["luminance_kernel"]  # noqa: E731
+    assert kernel("svgf") == "gaussian" and kernel("asvgf") == "laplacian"
+    assert kernel("svgf", preset="paper") == kernel("asvgf", preset="falcor") == "laplacian"
+    assert kernel("asvgf", luminance_kernel="gaussian") == "gaussian"

@@ -45,8 +45,9 @@ VARIANCE_OF = ("mean", "sample")
 #: "laplacian" as the SVGF paper and Falcor write it, "gaussian" exp(−d²) as Schied's A-SVGF
 #: code does. [dbench] "gaussian" in the ``dbench`` preset: on 8 training sequences outside the
 #: catalogue it lowered SVGF's geometric-mean relMSE ÷ accumulation from 0.472 to 0.453 (RMSE
-#: 0.913 → 0.910) with the paper's σ_l = 4 kept, the best of σ_l ∈ {2, 4, 6, 8}
-#: (docs/temporal.md §13).
+#: 0.913 → 0.910) with the paper's σ_l = 4 kept, the best of σ_l ∈ {2, 4, 6, 8}; A-SVGF keeps
+#: the Laplacian there (its relMSE rose, 0.542 → 0.594; ``ASVGF.preset_overrides``;
+#: docs/temporal.md §13).
 LUM_KERNELS = ("gaussian", "laplacian")
 MAX_ITERATIONS = 12
 
