@@ -14,8 +14,11 @@ and the share of (scene, seed) pairs where the variant's relMSE is below accumul
 Reproduce (about 2 minutes on 2 cores once the sequences are cached, 5 to render them)::
 
     python -m dbench.bench.temporal_dev --out results/temporal_study
+    python -m dbench.bench.temporal_dev --out results/temporal_study --held-out
 
-writes ``dev.json`` (every scene's and seed's numbers) and ``dev.md``.
+writes ``dev.json`` (every scene's and seed's numbers) and ``dev.md``; ``--held-out`` runs the
+defaults alone on the next 8 usable sequences, which chose nothing (``heldout.json``,
+``heldout.md``): the figures to quote for scenes a user brings.
 """
 from __future__ import annotations
 
@@ -49,29 +52,37 @@ VARIANTS: tuple[tuple[str, str, dict[str, Any]], ...] = (
 )
 
 
-def dev_sequences(n_scenes: int, min_mean: float = 0.03):
-    """The first ``n_scenes`` training sequences (:func:`~dbench.learn.scenes.
-    training_sequence`, ``FRAMES`` frames) whose scene is not nearly black."""
+#: the defaults, measured on sequences that chose nothing (``--held-out``)
+HELD_OUT_VARIANTS = (("accumulate", "accumulate", {}), ("svgf", "svgf", {}),
+                     ("asvgf", "asvgf", {}), ("bmfr", "bmfr", {}))
+
+
+def dev_sequences(n_scenes: int, skip: int = 0, min_mean: float = 0.03):
+    """Training sequences (:func:`~dbench.learn.scenes.training_sequence`, ``FRAMES`` frames)
+    whose scene is not nearly black: ``n_scenes`` of them after the first ``skip``."""
     from ..learn.dataset import probe_mean
     from ..learn.scenes import training_scene, training_sequence
 
-    out, index = [], 0
+    out, index, usable = [], 0, 0
     while len(out) < n_scenes:
         if probe_mean(training_scene(index)) >= min_mean:
-            out.append(training_sequence(index, FRAMES))
+            if usable >= skip:
+                out.append(training_sequence(index, FRAMES))
+            usable += 1
         index += 1
     return out
 
 
 def run(n_scenes: int = 8, seeds: tuple[int, ...] = (0, 1), variants=VARIANTS,
-        progress: bool = True) -> list[dict[str, Any]]:
-    """Rows ``{scene, seed, label, method, params, rmse, rmse_surface, relmse}``."""
+        progress: bool = True, skip: int = 0) -> list[dict[str, Any]]:
+    """Rows ``{scene, seed, label, method, params, rmse, rmse_surface, relmse}`` on the
+    sequences of :func:`dev_sequences`."""
     from .. import methods
     from ..datasets.sequence import load_sequence
     from .sequence import run_sequence
 
     rows = []
-    for scene in dev_sequences(n_scenes):
+    for scene in dev_sequences(n_scenes, skip):
         for seed in seeds:
             seq = load_sequence(scene, spp=1, res=RES, seed=seed, ref_spp=REF_SPP,
                                 progress=False)
@@ -117,16 +128,24 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", default="results/temporal_study")
     ap.add_argument("--scenes", type=int, default=8, help="how many training sequences")
     ap.add_argument("--seeds", default="0,1")
+    ap.add_argument("--held-out", action="store_true",
+                    help="the defaults only, on the next --scenes sequences after the ones "
+                         "that chose them (written to heldout.json / heldout.md)")
     args = ap.parse_args(argv)
     from ..io import write_json, write_text
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    rows = run(args.scenes, tuple(int(s) for s in args.seeds.split(",")))
-    write_json(out / "dev.json", {"rows": rows})
-    write_text(out / "dev.md", "# Temporal denoisers on sequences outside the catalogue\n\n"
-               + table(rows))
-    print(f"wrote {out / 'dev.md'}")
+    seeds = tuple(int(s) for s in args.seeds.split(","))
+    if args.held_out:
+        rows = run(args.scenes, seeds, HELD_OUT_VARIANTS, skip=args.scenes)
+        name, title = "heldout", "on held-out sequences (defaults only)"
+    else:
+        rows = run(args.scenes, seeds)
+        name, title = "dev", "on sequences outside the catalogue"
+    write_json(out / f"{name}.json", {"rows": rows})
+    write_text(out / f"{name}.md", f"# Temporal denoisers {title}\n\n" + table(rows))
+    print(f"wrote {out / (name + '.md')}")
     return 0
 
 
