@@ -29,10 +29,12 @@ from typing import Any
 
 import numpy as np
 
+from ..methods.bmfr.params import ALBEDO_FLOOR_BMFR
 from ..methods.svgf.params import ALBEDO_FLOOR
 
 FRAMES, REF_SPP, RES = 24, 256, 64
 FLOORS = (0.02, 0.05, 0.1, 0.2, 0.3, 0.5, 1.0)
+DEFAULT_FLOOR = {"svgf": ALBEDO_FLOOR, "asvgf": ALBEDO_FLOOR, "bmfr": ALBEDO_FLOOR_BMFR}
 ALPHAS = (0.2, 0.1, 0.05, 0.02)
 SIGMAS = (2.0, 4.0, 6.0, 8.0)
 #: (label, method, params): the demodulation floor of every filter (the default marked), then
@@ -40,7 +42,7 @@ SIGMAS = (2.0, 4.0, 6.0, 8.0)
 #: weight's form and σ_l
 VARIANTS: tuple[tuple[str, str, dict[str, Any]], ...] = (
     ("accumulate", "accumulate", {}),
-    *((f"{m} albedo_floor={f}" + (" (default)" if f == ALBEDO_FLOOR else ""), m,
+    *((f"{m} albedo_floor={f}" + (" (default)" if f == DEFAULT_FLOOR[m] else ""), m,
        {"albedo_floor": f}) for m in ("svgf", "asvgf", "bmfr") for f in FLOORS),
     *((f"{m} alpha_min={a}" + (" (default)" if a == 0.2 else ""), m, {"alpha_min": a})
       for m in ("svgf", "asvgf") for a in ALPHAS),

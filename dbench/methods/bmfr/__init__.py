@@ -2,9 +2,10 @@
 
 Per frame (spec §1): subtract the primary hits' emission (``emission`` buffer when present, as
 for SVGF) and demodulate by albedo (a_eff = clip(albedo, ``albedo_floor``, 1), the rule of
-:data:`dbench.methods.svgf.params.ALBEDO_FLOOR`); accumulation 1 of the noisy illumination Z with
-α1 = max(1/N, 0.2); a block grid (B = 32) with this frame's offset (16 offsets cycling, the
-first (0, 0)); per block a least-squares fit of Z' on the features
+:data:`dbench.methods.svgf.params.ALBEDO_FLOOR`; by default ``albedo_floor`` = 1, no
+demodulation, :data:`~dbench.methods.bmfr.params.ALBEDO_FLOOR_BMFR`); accumulation 1 of the
+noisy illumination Z with α1 = max(1/N, 0.2); a block grid (B = 32) with this frame's offset
+(16 offsets cycling, the first (0, 0)); per block a least-squares fit of Z' on the features
 [1, n, P, P²] (positions scaled per block, §2.1) with U(−0.01, 0.01) noise on every feature
 column but the constant (stochastic regularisation, §4), solved by batched Householder QR
 without Q with R shared by the three channels (§5, :func:`householder_lstsq`); reconstruction
@@ -12,14 +13,15 @@ with the noise-free features, negatives clamped to 0; accumulation 2 of the fit 
 α2 = max(1/N, 0.1); remodulation, with the emission accumulated like Z.
 
 Residual hand-back (``handback="wiener"``, default; [dbench], docs/temporal.md §9,
-:mod:`dbench.methods.bmfr.handback`): before accumulation 2 the fit y gets back the part of
-Z' − y that is not noise — its 7×7 local mean, and the rest in proportion to its window energy
-beyond the variance of Z' (accumulated per channel from Z² and the blend weights, spatial below
-4 effective samples). A block fit cannot follow a contact shadow or a highlight inside a block:
-fed the reference itself, the paper's BMFR had twice plain accumulation's error on ``orbit``,
-and that bias does not fall as frames accumulate. With the hand-back the output converges to
-the accumulated input as its variance vanishes. ``"none"`` is the paper's method (4 history
-planes fewer: 7 instead of 11, 3 more each with an ``emission`` buffer).
+:mod:`dbench.methods.bmfr.handback`): before accumulation 2 the fit y gets back the part of Z' −
+y that is not noise — its 7×7 local mean, and the rest in proportion to its window energy beyond
+the variance of Z' (accumulated per channel from Z² and the blend weights, spatial below 4
+effective samples), clamped at 0 like the fit (``clamp_negative``). A block fit cannot follow a
+contact shadow or a highlight inside a block: fed the reference itself, the paper's BMFR had
+twice plain accumulation's error on ``orbit``, and that bias does not fall as frames accumulate.
+With the hand-back the output converges to the accumulated input as its variance vanishes.
+``"none"`` is the paper's method (4 history planes fewer: 7 instead of 11, 3 more each with an
+``emission`` buffer).
 
 Temporal gradient (``temporal_gradient=True``, default; docs/temporal.md §5): when the frame has
 a ``gradient`` buffer (the re-shaded samples A-SVGF uses), both accumulations take A-SVGF's
@@ -45,7 +47,8 @@ CUDA when available, else on CPU, NumPy in and out of each kernel, history kept 
 features "seed", no hand-back — the seed's implementation, spec §3.1 | "paper": no hand-back),
 handback ("wiener" | "none"), taa (False: spec §1 step 6, the BMFR code's temporal
 antialiasing of the output, :mod:`dbench.methods.temporal.taa`), taa_alpha (0.2) and
-albedo_floor (0.2 [dbench]; 1 = no demodulation; docs/temporal.md §12).
+albedo_floor (1 [dbench]: no demodulation; 0.2 in the ``seed`` and ``paper`` presets, SVGF's;
+docs/temporal.md §12).
 
 Fit set: pixels with a hit, no emission and a usable accumulated value; reconstructed: every
 hit pixel without emission (a pixel whose sample was non-finite gets the block's fit).
@@ -58,9 +61,9 @@ out of the fit and reconstructed from its features); non-finite features make a 
 
 Input range: finite ``color`` and ``emission`` values beyond ±1e15
 (:data:`dbench.methods.guards.RADIANCE_MAX`) are clamped to ±1e15 (NaN/±Inf stay missing), so
-the demodulated illumination (÷ a_eff ≥ albedo_floor) stays ≤ 1e18 / albedo_floor in float32 and the Householder
-norms of the float64 fit stay finite (before the clamp, one pixel at 3e38 demodulated to Inf and
-the block fits, then every pixel, became NaN).
+the demodulated illumination (÷ a_eff ≥ albedo_floor) stays ≤ 1e15 / albedo_floor in float32 and
+the Householder norms of the float64 fit stay finite (before the clamp, one pixel at 3e38
+demodulated to Inf and the block fits, then every pixel, became NaN).
 
 Example:
     >>> import numpy as np
@@ -87,11 +90,11 @@ from ...registry import register
 from .. import temporal as T
 from ..svgf import _accumulate_emission, _emission, gradient_history
 from ..svgf import dispatch as SC
-from ..svgf.params import ALBEDO_FLOOR
 from . import handback as HB
 from .dispatch import bmfr_fit, householder_lstsq
 from .numba_path import bmfr_fit_fast
-from .params import FEATURE_PRESETS, N_OFFSETS, NORMAL_SOURCES, PRESETS, RCOND, normal_sources
+from .params import (ALBEDO_FLOOR_BMFR, FEATURE_PRESETS, N_OFFSETS, NORMAL_SOURCES, PRESETS,
+                     RCOND, normal_sources)
 from .reference import (block_origins, block_sample_mask, bmfr_fit_reference, feature_stack, grid_offsets,
                         householder_lstsq_reference, uniform_hash)
 from .torch_path import bmfr_fit_torch, feature_stack_torch, householder_lstsq_torch
@@ -114,7 +117,7 @@ class BMFR(T.HistoryDenoiser):
                                     clamp_negative=True, rcond=RCOND, seed=0, tau_d=T.TAU_D,
                                     tau_n=T.TAU_N, backend="auto", preset=None, samples=None,
                                     temporal_gradient=True, handback="wiener", taa=False,
-                                    taa_alpha=T.TAA_ALPHA, albedo_floor=ALBEDO_FLOOR)
+                                    taa_alpha=T.TAA_ALPHA, albedo_floor=ALBEDO_FLOOR_BMFR)
 
     def __init__(self, **params: Any) -> None:
         super().__init__(**params)
@@ -261,6 +264,8 @@ class BMFR(T.HistoryDenoiser):
                                                       p["alpha1"], T.N_MAX, a1)
             y_fit = HB.handback(z_acc, y_fit, var, handed, compiled,
                                 out=self._buffer("handback", y_fit.shape) if compiled else None)
+            if p["clamp_negative"]:  # the residual's local mean can take the fit below 0
+                np.maximum(y_fit, np.float32(0.0), out=y_fit)
         # the second history length equals the first one (same reprojection, same resets)
         y_acc, n2, _ = acc(y_fit, hist[4:7], n_hist, ok, p["alpha2"], T.N_MAX, a2,
                            filled | recon, out=(stage[4:7], None))
