@@ -50,7 +50,7 @@ VARIANTS: tuple[tuple[str, str, dict[str, Any]], ...] = (
     ("asvgf normal_buffer=reflected_normal", "asvgf", {"normal_buffer": "reflected_normal"}),
     ("asvgf taa=True", "asvgf", {"taa": True}),
     ("bmfr", "bmfr", {}),
-    ("bmfr handback=none (the paper's)", "bmfr", {"handback": "none"}),
+    ("bmfr preset=paper (no hand-back, demodulated)", "bmfr", {"preset": "paper"}),
     ("bmfr handback=none block_size=16", "bmfr", {"handback": "none", "block_size": 16}),
     ("bmfr temporal_gradient=False", "bmfr", {"temporal_gradient": False}),
     ("bmfr block_size=8", "bmfr", {"block_size": 8}),
