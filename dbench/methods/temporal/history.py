@@ -92,6 +92,13 @@ class History:
         self.frames += 1
 
 
+def _check_unit_interval(name: str, value: Any) -> None:
+    """A plain number in (0, 1] (not a bool), else DbenchInputError naming ``name``."""
+    if (isinstance(value, bool) or not isinstance(value, (int, float))
+            or not 0.0 < value <= 1.0):
+        raise DbenchInputError(f"{name}: expected a number in (0, 1], got {value!r}")
+
+
 class HistoryDenoiser(Denoiser):
     """Base of the reprojecting sequence methods (``accumulate``, ``svgf``/``asvgf``, ``bmfr``).
 
@@ -118,13 +125,9 @@ class HistoryDenoiser(Denoiser):
         if "taa" in p:
             if not isinstance(p["taa"], bool):
                 raise DbenchInputError(f"taa: expected True or False, got {p['taa']!r}")
-            a = p.get("taa_alpha", TAA_ALPHA)
-            if isinstance(a, bool) or not isinstance(a, (int, float)) or not 0.0 < a <= 1.0:
-                raise DbenchInputError(f"taa_alpha: expected a number in (0, 1], got {a!r}")
+            _check_unit_interval("taa_alpha", p.get("taa_alpha", TAA_ALPHA))
         if "albedo_floor" in p:  # the demodulation's a_eff = clip(albedo, floor, 1)
-            a = p["albedo_floor"]
-            if isinstance(a, bool) or not isinstance(a, (int, float)) or not 0.0 < a <= 1.0:
-                raise DbenchInputError(f"albedo_floor: expected a number in (0, 1], got {a!r}")
+            _check_unit_interval("albedo_floor", p["albedo_floor"])
 
     def reset(self) -> None:
         self.history.reset()
