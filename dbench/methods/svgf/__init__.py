@@ -2,12 +2,12 @@
 
 Per frame (spec §1): subtract the emission of the primary hits (``emission`` buffer, as Falcor's
 SVGFPass does; 0 when absent), demodulate by albedo (§2; a_eff = clip(albedo, ``albedo_floor``, 1),
-:data:`~dbench.methods.svgf.params.ALBEDO_FLOOR`, docs/temporal.md §12), reproject and accumulate the illumination and
-its luminance moments (spec/temporal.md), estimate the variance (temporal where the history has
-≥ 4 frames, else a 7×7 spatial estimate, §4), run K à-trous iterations with normal, depth and
-luminance edge-stopping weights and variance propagation (§3, §5), store the colour history
-(unfiltered, or the output of iteration ``feedback_tap``), remodulate and add the accumulated
-emission back.
+:data:`~dbench.methods.svgf.params.ALBEDO_FLOOR`, docs/temporal.md §12), reproject and accumulate
+the illumination and its luminance moments (spec/temporal.md), estimate the variance (temporal
+where the history has ≥ 4 frames, else a 7×7 spatial estimate, §4), run K à-trous iterations with
+normal, depth and luminance edge-stopping weights and variance propagation (§3, §5), store the
+colour history (unfiltered, or the output of iteration ``feedback_tap``), remodulate and add the
+accumulated emission back.
 
 ``svgf`` blends with α = max(α_min, 1/N) (α_min = 0.2 for colour and moments, the paper's).
 ``asvgf`` replaces α by the temporal-gradient rule of the seed (§6.1): per 3×3 stratum of the

@@ -9,10 +9,10 @@ from __future__ import annotations
 import numpy as np
 
 from ..temporal import to_numpy
-from .params import ALBEDO_FLOOR
 from .numba_path import (HAVE_NUMBA, adaptive_history_fast, atrous_fast, depth_gradient_fast,
                          prepare_fast, remodulate_fast, spatial_variance_fast,
                          stratum_gradients_fast)
+from .params import ALBEDO_FLOOR
 from .reference import (adaptive_history_reference, atrous_reference, depth_gradient_reference,
                         prepare_reference, remodulate_reference, spatial_variance_reference,
                         stratum_gradients_reference)
