@@ -7,6 +7,20 @@ import pytest
 
 os.environ.setdefault("DBENCH_REF_SPP", "256")
 
+from dbench.bench import fpenv  # noqa: E402
+
+#: the floating-point environment the test process started with (no flush-to-zero)
+_PRISTINE_FP = fpenv.snapshot()
+
+
+@pytest.fixture(autouse=True)
+def _pristine_fp_environment():
+    """Every test starts in the process's initial floating-point environment: a test that
+    builds an ONNX Runtime session directly (``nca``, ``autoencoder``) leaves flush-to-zero
+    set on the thread, which would hide subnormal cases from the tests after it."""
+    fpenv.restore(_PRISTINE_FP)
+    yield
+
 
 def _renderer_ok() -> tuple[bool, str]:
     try:

@@ -15,6 +15,7 @@ import numpy as np
 from ..metrics import judge
 from ..errors import DbenchInputError
 from ..registry import Denoiser
+from . import fpenv
 from .scoring import DEFAULT_METRICS, judge_frame
 from .sequence import WARMUP, run_sequence
 
@@ -129,7 +130,7 @@ def run_cell(method: Denoiser, frame, metric_names=DEFAULT_METRICS, repeats: int
     for i, f in enumerate(frames):
         def call(f=f):
             method.reset()
-            return method.denoise(f)
+            return fpenv.denoise(method, f)
 
         output, times = time_call(call, repeats=repeats, warmup=warmup)
         output = np.asarray(output)

@@ -21,6 +21,7 @@ from typing import Any, Callable
 
 import numpy as np
 
+from . import fpenv
 from .machine import machine_info
 from ..resolution import parse_res, size_text
 
@@ -106,7 +107,7 @@ def bench_method(name: str, height: int = 720, width: int = 1280, repeats: int =
                                    gradient=np.array(frame.color, copy=True))
         method.reset()
         for _ in range(WARMUP):
-            method.denoise(frame)
+            fpenv.denoise(method, frame)
     steady = "steady" in method.kinds
 
     def run(m):
@@ -115,7 +116,7 @@ def bench_method(name: str, height: int = 720, width: int = 1280, repeats: int =
         # first); temporal methods keep their history
         if steady:
             m.reset()
-        return m.denoise(frame)
+        return fpenv.denoise(m, frame)
 
     wrapped = getattr(type(method), "wrapped", None)
     if wrapped is not None:  # NAME+gate: the method alone, interleaved with it, for the share
@@ -127,7 +128,7 @@ def bench_method(name: str, height: int = 720, width: int = 1280, repeats: int =
     else:
         t_method = median_time(lambda: run(method), repeats)
     oidn = methods.get("oidn")
-    t_oidn = median_time(lambda: oidn.denoise(frame), repeats)
+    t_oidn = median_time(lambda: fpenv.denoise(oidn, frame), repeats)
     result: dict[str, Any] = {"benchmark": "method", "method": name, "height": height,
                               "width": width, "spp": spp, "params": method.params,
                               "settings": dict(getattr(method, "last_settings", {}) or {}),

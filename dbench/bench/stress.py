@@ -31,6 +31,7 @@ import numpy as np
 
 from ..data import Frame, SampleStats, TransientFrame
 from ..errors import DbenchInputError
+from . import fpenv
 
 TIME_LIMIT_S = 60.0
 BASE_SIZE = (24, 24)
@@ -119,6 +120,19 @@ def _constant(value: float) -> Callable[[], Frame]:
         st = SampleStats(n=f.stats.n, mean=c, var_mean=np.zeros_like(c, np.float64),
                          m3=np.zeros_like(c, np.float64), transform="identity", lam=1.0)
         return f.with_buffers(color=c, stats=st)
+    return build
+
+
+def _tiny(scale: float) -> Callable[[], Frame]:
+    """The base frame's radiance (colour, statistics, reference) times ``scale``: at 1e-20 its
+    variances (≈ 1e-42) are subnormal in float32, where 1 / x overflows to +Inf."""
+    def build() -> Frame:
+        f = base_frame()
+        st = f.stats
+        stats = SampleStats(n=st.n, mean=st.mean * scale, var_mean=st.var_mean * scale ** 2,
+                            m3=st.m3 * scale ** 3, transform=st.transform, lam=st.lam)
+        return f.with_buffers(color=(f.color * scale).astype(f.color.dtype), stats=stats,
+                              reference=(f.reference * scale).astype(np.float32))
     return build
 
 
@@ -253,6 +267,8 @@ CASES: tuple[Case, ...] = (
     Case("bright_3e38", "one pixel at 3e38, near the float32 maximum (colour and stats)",
          _bright(3e38), expect=FINITE_BOTH),
     Case("zeros", "all-zero image, zero variance", _constant(0.0), expect=FINITE),
+    Case("tiny_1e-20", "radiance × 1e-20 (colour and statistics; its variances are subnormal "
+         "in float32)", _tiny(1e-20), expect=FINITE),
     Case("constant", "constant image 0.5, zero variance", _constant(0.5), expect=FINITE),
     Case("zero_variance", "noisy color with zero-variance statistics", _zero_variance,
          expect=FINITE),
@@ -463,9 +479,9 @@ def run_case(method_name: str, case: Case) -> Outcome:
     outs = []
     try:
         method.reset()
-        outs.append(method.denoise(frame))  # first frame after reset(): no history
+        outs.append(fpenv.denoise(method, frame))  # first frame after reset(): no history
         if as_sequence:
-            outs.append(method.denoise(frame))  # second frame: the history path
+            outs.append(fpenv.denoise(method, frame))  # second frame: the history path
     except DbenchInputError as exc:
         seconds = time.perf_counter() - t0
         msg = str(exc)

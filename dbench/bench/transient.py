@@ -31,6 +31,7 @@ import pandas as pd
 
 from .. import io, metrics
 from ..data import TransientFrame
+from . import fpenv
 
 DEFAULT_METHODS = ("noisy", "statistical", "jbf-bins", "oidn-bins", "gauss3d")
 
@@ -333,7 +334,7 @@ def run_methods(frame: TransientFrame, names: Sequence[str] = DEFAULT_METHODS,
         if not ok:
             rows.append({"method": name, "skipped": why})
             continue
-        out, times = time_call(lambda: m.denoise(frame), repeats=repeats, warmup=0)
+        out, times = time_call(lambda: fpenv.denoise(m, frame), repeats=repeats, warmup=0)
         out = np.asarray(out, np.float32)
         outputs[name] = out
         rows.append({"method": name, **video_metrics(out, frame.reference, frame.meta.get("ev", 0)),

@@ -33,6 +33,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from .. import io
+from . import fpenv
 from .plots import save
 
 SCENES = ("cornell-transient", "caustic-transient", "fog-transient")
@@ -79,7 +80,7 @@ def _denoise(frame, **params) -> tuple[np.ndarray, float]:
 
     method = get("statistical", **params)
     t0 = time.perf_counter()
-    out = method.denoise(frame)
+    out = fpenv.denoise(method, frame)
     return out, time.perf_counter() - t0
 
 

@@ -32,6 +32,24 @@ def test_fast_equals_reference(seed):
     np.testing.assert_array_equal(ref[:, ~mask], y[:, ~mask])  # outside the mask: y
 
 
+def test_subnormal_variances_give_the_reference_not_nan():
+    """Dark regions: residuals near 1e-19 and variances near 1e-38 (subnormal in float32,
+    exact zeros among them). The compiled λ = excess / total divided as excess · (1 / total),
+    and 1 / a subnormal total overflowed to +Inf: 0 · Inf = NaN on about a third of the
+    pixels, where the reference gives 0."""
+    rng = np.random.default_rng(0)
+    z = (rng.random((3, 32, 32)) * 1e-19).astype(np.float32)
+    y = np.zeros_like(z)
+    var = (rng.random((3, 32, 32)) * 1e-38).astype(np.float32)
+    var[rng.random(var.shape) < 0.3] = 0.0
+    z[:, 10:20, 10:20] = 0.0
+    mask = np.ones((32, 32), bool)
+    fast = RH.residual_handback_fast(z, y, var, mask)
+    ref = RH.residual_handback_reference(z, y, var, mask)
+    assert np.isfinite(fast).all()
+    np.testing.assert_allclose(fast, ref, rtol=1e-5, atol=1e-25)
+
+
 def test_pixel_window_variance_equals_the_reference():
     z, _, _, mask = _images(2)
     need = np.random.default_rng(3).uniform(size=mask.shape) > 0.5

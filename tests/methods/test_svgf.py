@@ -124,6 +124,32 @@ def test_fast_paths_equal_references():
         np.testing.assert_allclose(pf[key], pr[key], rtol=1e-6, atol=1e-6, err_msg=key)
 
 
+@pytest.mark.parametrize("kernel", ["laplacian", "gaussian"])
+def test_a_pixel_whose_taps_all_have_subnormal_weights_stays_finite(kernel):
+    """A pixel without its own sample (centre False) gathers only neighbours at 60° to its
+    normal: w_n = 0.5^128 ≈ 3e-39 is subnormal in float32 and 1 / Σw overflowed to +Inf
+    (output NaN on a black neighbourhood, Inf on a lit one). The reference gives their mean."""
+    h = w = 9
+    z, n, hit = _planes(h, w)
+    z[:] = 1.0
+    n[:, 4, 4] = (np.sin(np.pi / 3), 0.0, np.cos(np.pi / 3))
+    tap = np.ones((h, w), bool)
+    tap[4, 4] = False
+    centre = tap.copy()
+    gx = gy = np.zeros((h, w), np.float32)
+    for value in (0.0, 1.0):
+        c = np.full((3, h, w), value, np.float32)
+        var = np.full((h, w), value, np.float32)
+        args = (c, var, z, gx, gy, n, tap, centre, hit, 1)
+        fast_c, fast_v = C.atrous_fast(*args, lum_kernel=kernel)
+        ref_c, _ = C.atrous_reference(*args, lum_kernel=kernel)
+        assert np.isfinite(fast_c).all() and np.isfinite(fast_v).all()
+        np.testing.assert_allclose(fast_c[:, 4, 4], ref_c[:, 4, 4], rtol=1e-6)
+        # the weights' squares underflow in float32, so its variance is 0 (the reference's
+        # is the weighted mean's, 0.074 here): stated in atrous_fast's docstring
+        assert 0.0 <= fast_v[4, 4] <= 1.0
+
+
 def test_fast_exp_accuracy():
     from numba import njit
 

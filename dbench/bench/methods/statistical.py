@@ -24,6 +24,7 @@ from ...data import SampleStats
 from ...methods.kernels.bilateral.guide import make_guide
 from ...methods.statistical.core import (resolve_threshold, stat_planes, statistical_fast,
                                          statistical_reference)
+from .. import fpenv
 from ..speed import median_time
 from .jbf import synthetic_frame
 
@@ -137,7 +138,7 @@ def benchmark_transient(height: int = 256, width: int = 256, bins: int = 100, ra
         for key, extra in (("method_s", {}),
                            ("seed_rule_s", dict(shrink=False, mass=False, gamma=0.05))):
             method = get("statistical", **method_params, **extra)
-            result[key] = _median_wall_cpu(lambda: method.denoise(frame), repeats)[0]
+            result[key] = _median_wall_cpu(lambda: fpenv.denoise(method, frame), repeats)[0]
     if reference_max_voxels and nonempty:
         ch, cw = height, width
         while ch * cw * bins > reference_max_voxels and ch * cw > 1:
@@ -268,7 +269,7 @@ def end_to_end(scene: str = "cornell-transient", res: int = 64,
                 out, settings = v.color, None
             else:
                 m = get(name, **params)
-                out = m.denoise(v)
+                out = fpenv.denoise(m, v)
                 settings = getattr(m, "last_settings", None)
             row = dict(scene=scene, res=int(res), spp=int(spp), bins=v.bins,
                        bin_width_opl=v.bin_width_opl, method=label, rmse=_rmse(out, ref),

@@ -121,7 +121,8 @@ def _handback_bands(z, y, var, mask, g, radius, inv_norm_x, norm_y, inv_x, inv_y
                     out):  # pragma: no cover - compiled
     """:func:`residual_handback_reference` over bands of ``band`` output rows, in float32 (the
     inputs' magnitudes are bounded by the methods' input guard,
-    :data:`dbench.methods.guards.RADIANCE_MAX`, so the 49 squares of a window stay finite).
+    :data:`dbench.methods.guards.RADIANCE_MAX`, so the 49 squares of a window stay finite;
+    λ's division is in float64, so subnormal variances cannot make it overflow).
 
     Per band and channel: the rows of r and of its x-blur G_x*r from 2R above to 2R below
     the band (``rr``, ``rx``), then from R above to R below the local mean (G_y of rx over G*1,
@@ -194,9 +195,11 @@ def _handback_bands(z, y, var, mask, g, radius, inv_norm_x, norm_y, inv_x, inv_y
                 inv_y_o = inv_y[yo]
                 for x in range(w):
                     excess = max(eh[x] - ev[x], np.float32(0.0)) * (inv_x[x] * inv_y_o)
-                    v = var[c, yo, x]
-                    total = excess + v
-                    lam = excess / total if total > 0.0 else np.float32(1.0)
+                    # λ in float64: fastmath may divide as excess · (1 / total), and 1 / a
+                    # subnormal float32 total (variances near 1e-38 in dark regions) is +Inf,
+                    # so 0 · Inf gave NaN where the reference gives 0
+                    total = np.float64(excess) + np.float64(var[c, yo, x])
+                    lam = np.float32(excess / total) if total > 0.0 else np.float32(1.0)
                     low = lo[yo - b0, x]
                     back = low + lam * (rr[yo - a0, x] - low)
                     out[c, yo, x] = y[c, yo, x] + back if mask[yo, x] else y[c, yo, x]

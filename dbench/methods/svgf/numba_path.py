@@ -283,11 +283,14 @@ if HAVE_NUMBA:
                 for x in range(x0, x1):
                     k = x - x0
                     if sw[k] > _F0:
-                        inv = _F1 / sw[k]
-                        out_c[0, y, x] = s0[k] * inv
-                        out_c[1, y, x] = s1[k] * inv
-                        out_c[2, y, x] = s2[k] * inv
-                        out_v[y, x] = sv[k] * inv * inv
+                        # in float64: a pixel without its own sample can gather only taps
+                        # whose weights are subnormal (w_n = 0.5^128 at 60°), and 1 / sw
+                        # overflows float32 to +Inf there (Inf · 0 = NaN)
+                        inv = 1.0 / np.float64(sw[k])
+                        out_c[0, y, x] = np.float32(s0[k] * inv)
+                        out_c[1, y, x] = np.float32(s1[k] * inv)
+                        out_c[2, y, x] = np.float32(s2[k] * inv)
+                        out_v[y, x] = np.float32(sv[k] * inv * inv)
                     else:
                         out_c[0, y, x] = _F0
                         out_c[1, y, x] = _F0
@@ -327,7 +330,10 @@ if HAVE_NUMBA:
 def atrous_fast(color, var, z, gx, gy, normal, tap, centre, hit, step, sigma_z=1.0,
                 sigma_n=128.0, sigma_l=4.0, eps_z=EPS_Z, eps_var=EPS_VAR, use_lum=True,
                 lum_kernel="laplacian"):
-    """Compiled :func:`atrous_reference` (same arguments), float32 outputs."""
+    """Compiled :func:`atrous_reference` (same arguments), float32 outputs. The sums are
+    float32: where every weight of a pixel is subnormal (a pixel without its own sample whose
+    taps face away, w_n = 0.5^128 at 60°) the colour is still the weighted mean, but the
+    weights' squares underflow and its variance comes out 0."""
     f32 = lambda a: np.ascontiguousarray(a, np.float32)  # noqa: E731
     c = f32(color)
     out_c = np.empty_like(c)
