@@ -120,6 +120,43 @@ def test_paper_gradient_mode_runs_and_reacts():
     assert m.last["alpha"].min() >= 0.2
 
 
+def test_filtered_gradient_dilutes_re_shades_that_diverged():
+    """docs/temporal.md §14. Static light; most re-shaded samples re-trace their path exactly
+    (δ = 0), but in a third of the pixels the path diverged (a glossy lobe sampled from a moved
+    viewpoint): δ is a fresh sample minus the stratum's brightest one. The seed's per-stratum
+    G = (δ/Δ)² keeps each such outlier near 1 in the filtered average and cuts the history;
+    the ratio of the separately filtered δ and Δ, squared after filtering, dilutes them. A real
+    change (the light off) gives G = 1 in both."""
+    rng = np.random.default_rng(5)
+    h = w = 30
+    base = _static(h, w, 12, off_at=8)
+    diverges = rng.uniform(size=(h, w, 1)) < 1 / 3
+    seq = []
+    for i, f in enumerate(base):
+        on = 0.0 if i >= 8 else 1.0
+        fresh = 0.8 * rng.exponential(1.0, (h, w, 1)).astype(np.float32) * on
+        seq.append(f.with_buffers(gradient=np.where(diverges, fresh, f.gradient)))
+    grads = {}
+    for mode in ("seed", "filtered"):
+        m = methods.get("asvgf", gradient_mode=mode)
+        m.reset()
+        for i, f in enumerate(seq):
+            m.denoise(f)
+            if i == 6:
+                grads[mode] = float(m.last["gradient"].mean())
+            if i == 8:  # the light went off: every re-shaded sample is 0
+                np.testing.assert_allclose(m.last["gradient"], 1.0, atol=1e-6)
+    assert grads["seed"] > 0.1
+    assert grads["filtered"] < 0.5 * grads["seed"]
+
+
+def test_gradient_mode_defaults_per_preset():
+    mode = lambda **p: methods.get("asvgf", **p).params["gradient_mode"]  # noqa: E731
+    assert mode() == "filtered"
+    assert mode(preset="paper") == mode(preset="falcor") == "seed"
+    assert mode(gradient_mode="seed") == "seed"
+
+
 def test_missing_gradient_is_named_once_there_is_history():
     seq = synthetic_sequence(6, 6, frames=2)
     m = methods.get("asvgf")
@@ -133,11 +170,13 @@ def test_missing_gradient_is_named_once_there_is_history():
 
 def test_fast_equals_reference_backend():
     seq = _static(14, 17, 6, off_at=3)
-    a, b = methods.get("asvgf"), methods.get("asvgf", backend="reference")
-    a.reset()
-    b.reset()
-    for f in seq:
-        np.testing.assert_allclose(a.denoise(f), b.denoise(f), rtol=2e-3, atol=2e-4)
+    for mode in ("filtered", "seed"):
+        a = methods.get("asvgf", gradient_mode=mode)
+        b = methods.get("asvgf", backend="reference", gradient_mode=mode)
+        a.reset()
+        b.reset()
+        for f in seq:
+            np.testing.assert_allclose(a.denoise(f), b.denoise(f), rtol=2e-3, atol=2e-4)
 
 
 def test_strata_fast_equals_reference():
@@ -189,7 +228,7 @@ def test_torch_strata_and_adaptive_history_equal_reference():
             np.testing.assert_allclose(y, x, rtol=1e-5, atol=1e-6)
 
 
-@pytest.mark.parametrize("mode", ["seed", "paper"])
+@pytest.mark.parametrize("mode", ["seed", "filtered", "paper"])
 def test_torch_backend_equals_reference_over_a_hard_sequence(mode):
     from test_accumulate import hard_sequence
 

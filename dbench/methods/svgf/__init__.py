@@ -13,14 +13,18 @@ accumulated emission back.
 ``asvgf`` replaces α by the temporal-gradient rule of the seed (§6.1): per 3×3 stratum of the
 previous frame, the brightest pixel is re-shaded with the previous frame's random numbers from
 the current camera under the current lights (the frame's ``gradient`` buffer,
-docs/temporal.md §2), ``G = (|L_new − L_prev| / max(L_new, L_prev))²``; G is filtered by 3
-à-trous iterations without the luminance weight, fetched at full resolution through the motion
-vectors (the gather form of the spec's forward projection — identical for a static camera), and
-``N' = min(N(1 − G)^10 + 1, 256)``, ``α = mix(1/N', 1, G)``, floored at α_min with the dbench
-preset (``alpha_floor``; the A-SVGF paper's α = (1 − λ)α₀ + λ and Q2RTX's max(α_min, 1/N) never
-go below a base α either). ``gradient_mode="paper"`` uses the original paper's
-λ = min(1, |δ̂|/Δ̂) with δ and Δ filtered separately, α = mix(0.2, 1, λ) floored at 1/N'.
-:func:`gradient_history` is that step on its own (BMFR uses it).
+docs/temporal.md §2), δ = L_new − L_prev and Δ = max(L_new, L_prev); δ and Δ are filtered
+apart by 3 à-trous iterations without the luminance weight, as the A-SVGF paper does, and
+``G = (|δ̂| / Δ̂)²`` (``gradient_mode="filtered"``, the dbench preset's; the seed's
+``"seed"``, the other presets', filters the per-stratum G = (|δ| / Δ)² instead, which keeps the
+noise of re-shaded samples that diverge from their first path: docs/temporal.md §14); G is
+fetched at full resolution through the motion vectors (the gather form of the spec's forward
+projection — identical for a static camera), and ``N' = min(N(1 − G)^10 + 1, 256)``,
+``α = mix(1/N', 1, G)``, floored at α_min with the dbench preset (``alpha_floor``; the A-SVGF
+paper's α = (1 − λ)α₀ + λ and Q2RTX's max(α_min, 1/N) never go below a base α either).
+``gradient_mode="paper"`` uses the original paper's λ = min(1, |δ̂|/Δ̂) and α = mix(0.2, 1, λ)
+floored at 1/N'. :func:`gradient_history` is that step on its own (BMFR uses it, in the
+seed's mode).
 
 Presets (``get("svgf", **params)``; a preset fills in the values not given; docs/temporal.md §3
 and results/temporal.md give the reasons and the study):
@@ -54,8 +58,9 @@ normal; the last two read the frame's buffers of those names, which the sequence
 G-buffers provide), taa (False) and taa_alpha (0.2) [dbench] (the temporal antialiasing of
 the output that BMFR's code runs, :mod:`dbench.methods.temporal.taa`), albedo_floor (0.2
 [dbench]: a_eff = clip(albedo, floor, 1); 1 = no demodulation), backend ("auto" |
-"numba" | "torch" | "reference"); asvgf adds gradient_iterations (3), gradient_mode ("seed" |
-"paper"), n_max (256), alpha_floor (None: on with the dbench preset).
+"numba" | "torch" | "reference"); asvgf adds gradient_iterations (3), gradient_mode
+("filtered" with the dbench preset, else "seed"; or "paper"), n_max (256), alpha_floor (None: on
+with the dbench preset).
 
 Backends: "auto" (default) is "torch" when ``torch.cuda.is_available()``, else "numba";
 "numba" compiled kernels; "torch" the vectorised PyTorch kernels of
@@ -160,7 +165,10 @@ def gradient_history(data, geo, prev, prev_lum, hist_n, n_max: float, iterations
     method: G per 3×3 stratum of the previous frame from the frame's ``gradient`` buffer (the
     re-shaded samples) against ``prev_lum`` (previous raw luminance, (H, W)), filtered by
     ``iterations`` à-trous passes, fetched at full resolution through the motion vectors;
-    ``N' = min(N(1 − G)^10 + 1, n_max)``, α = mix(1/N', 1, G) (``mode="paper"``: λ).
+    ``N' = min(N(1 − G)^10 + 1, n_max)``, α = mix(1/N', 1, G). ``mode`` (params.GRADIENT_MODES):
+    ``"seed"`` G is the filtered (δ/Δ)² of the strata; ``"filtered"`` G = (|δ̂| / Δ̂)² of the
+    separately filtered δ and Δ, so that the zero-mean noise of re-shaded samples averages out
+    before the ratio (docs/temporal.md §14); ``"paper"`` λ = |δ̂| / Δ̂ and the paper's α.
 
     Args: ``geo``/``prev``: this and the previous frame's Geometry; ``hist_n`` (H, W) the
     reprojected history length. Returns (G, N', α), each (H, W) float32; G = 0 without a
@@ -179,11 +187,15 @@ def gradient_history(data, geo, prev, prev_lum, hist_n, n_max: float, iterations
         filt = C.filter_gradients(strata, iterations, sigma_z, sigma_n, backend)
         if mode == "seed":
             low = filt["g"]
-        else:
+        else:  # λ = |δ̂| / Δ̂ of the separately filtered δ and Δ (the A-SVGF paper)
             with np.errstate(divide="ignore", invalid="ignore"):
                 low = np.where(filt["norm"] > 0,
                                np.minimum(1.0, np.abs(filt["delta"]) / filt["norm"]), 0.0)
-    return C.adaptive_history(low, motion, geo.hit, hist_n, n_max, mode, ALPHA0_PAPER, backend)
+            if mode == "filtered":  # squared as the seed's G, into the seed's N' and α
+                low = np.square(low).astype(np.float32)
+    history_rule = "paper" if mode == "paper" else "seed"
+    return C.adaptive_history(low, motion, geo.hit, hist_n, n_max, history_rule, ALPHA0_PAPER,
+                              backend)
 
 
 class _SVGFBase(T.HistoryDenoiser):
@@ -343,8 +355,10 @@ class ASVGF(_SVGFBase):
                                     gradient_mode="seed", n_max=T.N_MAX, alpha_floor=None)
     # [dbench] the paper's exp(−d) luminance weight: on the training sequences outside the
     # catalogue the Gaussian lowered A-SVGF's RMSE by 0.3 % but raised its geometric-mean relMSE
-    # ÷ accumulation from 0.542 to 0.594 (docs/temporal.md §13), unlike SVGF's (0.472 → 0.453)
-    preset_overrides = {"dbench": {"luminance_kernel": "laplacian"}}
+    # ÷ accumulation from 0.542 to 0.594 (docs/temporal.md §13), unlike SVGF's (0.472 → 0.453);
+    # and the gradient of the separately filtered δ and Δ: geometric-mean relMSE ÷ accumulation
+    # 0.565 → 0.500 there over 4 seeds, 0.785 → 0.720 on the held-out sequences (§14)
+    preset_overrides = {"dbench": {"luminance_kernel": "laplacian", "gradient_mode": "filtered"}}
 
     def __init__(self, **params: Any) -> None:
         super().__init__(**params)
