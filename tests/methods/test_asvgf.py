@@ -155,6 +155,12 @@ def test_gradient_mode_defaults_per_preset():
     assert mode() == "filtered"
     assert mode(preset="paper") == mode(preset="falcor") == "seed"
     assert mode(gradient_mode="seed") == "seed"
+    # what a sweep records beside the given parameters: the preset's values, resolved
+    from dbench.bench.harness import resolved_settings
+
+    settings = resolved_settings(methods.get("asvgf"))
+    assert settings["gradient_mode"] == "filtered" and settings["luminance_kernel"] == "laplacian"
+    assert settings["backend"] in ("numba", "torch", "reference") and settings["alpha_floor"]
 
 
 def test_missing_gradient_is_named_once_there_is_history():

@@ -134,6 +134,12 @@ class HistoryDenoiser(Denoiser):
         self.last = {}
         self._taa_prev = None
 
+    @property
+    def last_settings(self) -> dict[str, Any]:
+        """The parameters the method runs with, its preset's values and "auto" resolved: a
+        sweep records them beside the parameters it was given (bench/harness.py)."""
+        return dict(self.params)
+
     def _with_taa(self, out: np.ndarray, motion: np.ndarray | None, status: np.ndarray
                   ) -> np.ndarray:
         """``out`` (H, W, 3) after temporal antialiasing when the ``taa`` parameter is on
