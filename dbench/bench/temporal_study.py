@@ -46,7 +46,7 @@ VARIANTS: tuple[tuple[str, str, dict[str, Any]], ...] = (
     ("asvgf", "asvgf", {}),
     ("asvgf alpha_floor=False", "asvgf", {"alpha_floor": False}),
     ("asvgf preset=paper", "asvgf", {"preset": "paper"}),
-    ("asvgf gradient_mode=seed (the seed's G)", "asvgf", {"gradient_mode": "seed"}),
+    ("asvgf gradient_mode=filtered", "asvgf", {"gradient_mode": "filtered"}),
     ("asvgf gradient_mode=paper", "asvgf", {"gradient_mode": "paper"}),
     ("asvgf normal_buffer=reflected_normal", "asvgf", {"normal_buffer": "reflected_normal"}),
     ("asvgf taa=True", "asvgf", {"taa": True}),

@@ -150,17 +150,17 @@ def test_filtered_gradient_dilutes_re_shades_that_diverged():
     assert grads["filtered"] < 0.5 * grads["seed"]
 
 
-def test_gradient_mode_defaults_per_preset():
-    mode = lambda **p: methods.get("asvgf", **p).params["gradient_mode"]  # noqa: E731
-    assert mode() == "filtered"
-    assert mode(preset="paper") == mode(preset="falcor") == "seed"
-    assert mode(gradient_mode="seed") == "seed"
-    # what a sweep records beside the given parameters: the preset's values, resolved
+def test_resolved_settings_hold_the_presets_values():
+    """What a sweep records beside the given parameters (bench/harness.py): the values the
+    preset filled in and "auto" resolved, not the class defaults."""
     from dbench.bench.harness import resolved_settings
 
     settings = resolved_settings(methods.get("asvgf"))
-    assert settings["gradient_mode"] == "filtered" and settings["luminance_kernel"] == "laplacian"
+    assert settings["gradient_mode"] == "seed" and settings["luminance_kernel"] == "laplacian"
     assert settings["backend"] in ("numba", "torch", "reference") and settings["alpha_floor"]
+    assert resolved_settings(methods.get("asvgf", preset="falcor"))["sigma_l"] == 10.0
+    assert resolved_settings(methods.get("asvgf", gradient_mode="filtered"))["gradient_mode"] \
+        == "filtered"
 
 
 def test_missing_gradient_is_named_once_there_is_history():
@@ -176,7 +176,7 @@ def test_missing_gradient_is_named_once_there_is_history():
 
 def test_fast_equals_reference_backend():
     seq = _static(14, 17, 6, off_at=3)
-    for mode in ("filtered", "seed"):
+    for mode in ("seed", "filtered"):
         a = methods.get("asvgf", gradient_mode=mode)
         b = methods.get("asvgf", backend="reference", gradient_mode=mode)
         a.reset()

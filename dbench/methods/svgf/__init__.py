@@ -13,13 +13,14 @@ accumulated emission back.
 ``asvgf`` replaces α by the temporal-gradient rule of the seed (§6.1): per 3×3 stratum of the
 previous frame, the brightest pixel is re-shaded with the previous frame's random numbers from
 the current camera under the current lights (the frame's ``gradient`` buffer,
-docs/temporal.md §2), δ = L_new − L_prev and Δ = max(L_new, L_prev); δ and Δ are filtered
-apart by 3 à-trous iterations without the luminance weight, as the A-SVGF paper does, and
-``G = (|δ̂| / Δ̂)²`` (``gradient_mode="filtered"``, the dbench preset's; the seed's
-``"seed"``, the other presets', filters the per-stratum G = (|δ| / Δ)² instead, which keeps the
-noise of re-shaded samples that diverge from their first path: docs/temporal.md §14); G is
-fetched at full resolution through the motion vectors (the gather form of the spec's forward
-projection — identical for a static camera), and ``N' = min(N(1 − G)^10 + 1, 256)``,
+docs/temporal.md §2), ``G = (|L_new − L_prev| / max(L_new, L_prev))²``; G is filtered by 3
+à-trous iterations without the luminance weight (``gradient_mode="seed"``;
+``"filtered"`` instead filters δ = L_new − L_prev and Δ = max(L_new, L_prev) apart, as the
+A-SVGF paper does, and takes G = (|δ̂| / Δ̂)²: less noise from re-shaded samples that diverge
+from their first path under a moving camera, a later response to a light change,
+docs/temporal.md §14); G is fetched at full resolution through the motion vectors (the gather
+form of the spec's forward projection — identical for a static camera), and
+``N' = min(N(1 − G)^10 + 1, 256)``,
 ``α = mix(1/N', 1, G)``, floored at α_min with the dbench preset (``alpha_floor``; the A-SVGF
 paper's α = (1 − λ)α₀ + λ and Q2RTX's max(α_min, 1/N) never go below a base α either).
 ``gradient_mode="paper"`` uses the original paper's λ = min(1, |δ̂|/Δ̂) and α = mix(0.2, 1, λ)
@@ -59,8 +60,7 @@ G-buffers provide), taa (False) and taa_alpha (0.2) [dbench] (the temporal antia
 the output that BMFR's code runs, :mod:`dbench.methods.temporal.taa`), albedo_floor (0.2
 [dbench]: a_eff = clip(albedo, floor, 1); 1 = no demodulation), backend ("auto" |
 "numba" | "torch" | "reference"); asvgf adds gradient_iterations (3), gradient_mode
-("filtered" with the dbench preset, else "seed"; or "paper"), n_max (256), alpha_floor (None: on
-with the dbench preset).
+("seed" | "filtered" | "paper"), n_max (256), alpha_floor (None: on with the dbench preset).
 
 Backends: "auto" (default) is "torch" when ``torch.cuda.is_available()``, else "numba";
 "numba" compiled kernels; "torch" the vectorised PyTorch kernels of
@@ -355,10 +355,10 @@ class ASVGF(_SVGFBase):
                                     gradient_mode="seed", n_max=T.N_MAX, alpha_floor=None)
     # [dbench] the paper's exp(−d) luminance weight: on the training sequences outside the
     # catalogue the Gaussian lowered A-SVGF's RMSE by 0.3 % but raised its geometric-mean relMSE
-    # ÷ accumulation from 0.542 to 0.594 (docs/temporal.md §13), unlike SVGF's (0.472 → 0.453);
-    # and the gradient of the separately filtered δ and Δ: geometric-mean relMSE ÷ accumulation
-    # 0.565 → 0.500 there over 4 seeds, 0.785 → 0.720 on the held-out sequences (§14)
-    preset_overrides = {"dbench": {"luminance_kernel": "laplacian", "gradient_mode": "filtered"}}
+    # ÷ accumulation from 0.542 to 0.594 (docs/temporal.md §13), unlike SVGF's (0.472 → 0.453).
+    # The seed's gradient stays: "filtered" was better there (§14) but follows flicker's light
+    # switch later (RMSE at 128², 4 spp, 0.0432 → 0.0480)
+    preset_overrides = {"dbench": {"luminance_kernel": "laplacian"}}
 
     def __init__(self, **params: Any) -> None:
         super().__init__(**params)

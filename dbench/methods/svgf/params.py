@@ -61,8 +61,8 @@ def auto_iterations(height: int, width: int) -> int:
     side = max(1, min(int(height), int(width)))
     return int(min(5, max(1, int(np.floor(np.log2(side))) - 3)))
 #: A-SVGF's temporal gradient (spec/svgf.md §6; docs/temporal.md §14): "seed" G = filter((δ/Δ)²)
-#: per stratum as the seed writes it; "filtered" G = (|filter(δ)| / filter(Δ))², the paper's
-#: ratio of the separately filtered δ and Δ squared as the seed's G (the asvgf default);
-#: "paper" λ = |filter(δ)| / filter(Δ) with the paper's α = mix(α0, 1, λ)
+#: per stratum as the seed writes it (the default); "filtered" G = (|filter(δ)| / filter(Δ))²,
+#: the paper's ratio of the separately filtered δ and Δ squared as the seed's G; "paper"
+#: λ = |filter(δ)| / filter(Δ) with the paper's α = mix(α0, 1, λ)
 GRADIENT_MODES = ("seed", "filtered", "paper")
 ALPHA0_PAPER = 0.2
