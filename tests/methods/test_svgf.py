@@ -458,6 +458,9 @@ def test_demodulation_albedo_is_continuous_and_bounded_on_every_backend():
                                0.3, rtol=1e-6)
     with pytest.raises(DbenchInputError, match="albedo_floor"):
         methods.get("svgf", albedo_floor=0.0)
+    with pytest.raises(DbenchInputError, match=r"albedo_floor: expected a number in \[0.001, 1\]"):
+        methods.get("bmfr", albedo_floor=1e-45)  # 1 / a subnormal floor overflows float32
+    assert methods.get("asvgf", albedo_floor=1e-3).params["albedo_floor"] == 1e-3
 
 
 @pytest.mark.parametrize("name", ["svgf", "asvgf", "bmfr"])

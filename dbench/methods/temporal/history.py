@@ -92,11 +92,18 @@ class History:
         self.frames += 1
 
 
-def _check_unit_interval(name: str, value: Any) -> None:
-    """A plain number in (0, 1] (not a bool), else DbenchInputError naming ``name``."""
+#: The smallest demodulation floor: the spec's own threshold (spec/svgf.md §2), so no sample
+#: is amplified more than 1000× (a subnormal floor made 1 / a_eff overflow to Inf).
+MIN_ALBEDO_FLOOR = 1e-3
+
+
+def _check_unit_interval(name: str, value: Any, low: float = 0.0) -> None:
+    """A plain number in (0, 1] (not a bool; in [low, 1] for low > 0), else DbenchInputError
+    naming ``name``."""
     if (isinstance(value, bool) or not isinstance(value, (int, float))
-            or not 0.0 < value <= 1.0):
-        raise DbenchInputError(f"{name}: expected a number in (0, 1], got {value!r}")
+            or not (low <= value <= 1.0 if low > 0 else 0.0 < value <= 1.0)):
+        bounds = f"[{low:g}, 1]" if low > 0 else "(0, 1]"
+        raise DbenchInputError(f"{name}: expected a number in {bounds}, got {value!r}")
 
 
 class HistoryDenoiser(Denoiser):
@@ -127,7 +134,7 @@ class HistoryDenoiser(Denoiser):
                 raise DbenchInputError(f"taa: expected True or False, got {p['taa']!r}")
             _check_unit_interval("taa_alpha", p.get("taa_alpha", TAA_ALPHA))
         if "albedo_floor" in p:  # the demodulation's a_eff = clip(albedo, floor, 1)
-            _check_unit_interval("albedo_floor", p["albedo_floor"])
+            _check_unit_interval("albedo_floor", p["albedo_floor"], MIN_ALBEDO_FLOOR)
 
     def reset(self) -> None:
         self.history.reset()
