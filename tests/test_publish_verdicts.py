@@ -117,6 +117,13 @@ def test_ties_best_and_worse_than_noisy():
     assert row.loc["statistical", "rmse"].startswith("**")
     assert not row.loc["statistical-gate", "rmse"].startswith("**")
     assert row.loc["jbf", "verdict"] == "worse than noisy on relmse, rmse_surface"
+    # a method whose outputs held NaN says so in words (its metrics are NaN)
+    bad = _frame([_cell("cornell", 64, m, **({"n_nonfinite": 12, "rmse": math.nan}
+                                             if m == "jbf" else {})) for m in LABELS])
+    row = verdicts.scene_table(bad, verdicts.HEADLINE, "relmse").set_index("method")
+    assert row.loc["jbf", "verdict"] == ("worse than noisy on relmse, rmse_surface; "
+                                         "12 non-finite output values")
+    assert "non-finite" not in row.loc["oidn", "verdict"]
     # higher is better for SSIM
     d2 = d.copy()
     d2.loc[d2.method == "oidn", "ssim"] = 0.99

@@ -175,7 +175,8 @@ def ci_kind_text(d: pd.DataFrame) -> str:
 
 def scene_table(d: pd.DataFrame, columns: Sequence[str], rank_by: str) -> pd.DataFrame:
     """Rows ranked by ``rank_by``; entries ``mean ± ci``, best and tied in bold, a verdict
-    column naming where a method is worse than the noisy input."""
+    column naming where a method is worse than the noisy input and how many non-finite values
+    its outputs held (its metrics are then NaN)."""
     cols = [c for c in dict.fromkeys([*columns, rank_by]) if c in d.columns]
     bold = {c: marked(d, c, exclude=(NOISY,) if c == "time_s" else ()) for c in cols}
     flags = worse_than_noisy(d, [rank_by, "rmse_surface"])
@@ -189,7 +190,11 @@ def scene_table(d: pd.DataFrame, columns: Sequence[str], rank_by: str) -> pd.Dat
         for c in cols:
             text = fmt_value(num(r[c]), half_width(r, c))
             row[c] = f"**{text}**" if lab in bold[c] else text
-        row["verdict"] = "noisy input" if lab == NOISY else flags.get(lab, "")
+        words = ["noisy input" if lab == NOISY else flags.get(lab, "")]
+        nonfinite = num(r["n_nonfinite"]) if "n_nonfinite" in d.columns else float("nan")
+        if math.isfinite(nonfinite) and nonfinite > 0:  # its metrics are NaN: say why
+            words.append(f"{int(nonfinite)} non-finite output values")
+        row["verdict"] = "; ".join(w for w in words if w)
         rows.append(row)
     return pd.DataFrame(rows, columns=["method", *cols, "verdict"])
 
