@@ -32,6 +32,20 @@ def test_fast_equals_reference(seed):
     np.testing.assert_array_equal(ref[:, ~mask], y[:, ~mask])  # outside the mask: y
 
 
+def test_clamp_is_the_unclamped_result_at_least_zero_on_both_paths():
+    z, y, var, mask = _images(4)
+    y -= np.float32(1.5)  # the fit and its hand-back below 0 in many pixels
+    np.testing.assert_allclose(HB.handback(z, y, var, mask, True, clamp=True),
+                               HB.handback(z, y, var, mask, False, clamp=True),
+                               rtol=1e-5, atol=1e-5 * np.abs(z).max())
+    y[1, 3, 4] = np.nan  # NaN stays NaN (and spreads over its window), as np.maximum leaves it
+    for fast in (True, False):
+        plain = HB.handback(z, y, var, mask, fast)
+        clamped = HB.handback(z, y, var, mask, fast, clamp=True)
+        assert (plain < 0).any() and np.isnan(plain[1, 3, 4])
+        np.testing.assert_array_equal(clamped, np.maximum(plain, np.float32(0.0)))
+
+
 def test_subnormal_variances_give_the_reference_not_nan():
     """Dark regions: residuals near 1e-19 and variances near 1e-38 (subnormal in float32,
     exact zeros among them). The compiled λ = excess / total divided as excess · (1 / total),

@@ -262,10 +262,10 @@ class BMFR(T.HistoryDenoiser):
                 zz_acc, s, var = HB.moments_reference(be, prep["illum"], z_acc, a_used,
                                                       hist[7:11], n_hist, ok, present, handed,
                                                       p["alpha1"], T.N_MAX, a1)
+            # clamp_negative: the residual's local mean can take the fit below 0
             y_fit = HB.handback(z_acc, y_fit, var, handed, compiled,
-                                out=self._buffer("handback", y_fit.shape) if compiled else None)
-            if p["clamp_negative"]:  # the residual's local mean can take the fit below 0
-                np.maximum(y_fit, np.float32(0.0), out=y_fit)
+                                out=self._buffer("handback", y_fit.shape) if compiled else None,
+                                clamp=bool(p["clamp_negative"]))
         # the second history length equals the first one (same reprojection, same resets)
         y_acc, n2, _ = acc(y_fit, hist[4:7], n_hist, ok, p["alpha2"], T.N_MAX, a2,
                            filled | recon, out=(stage[4:7], None))

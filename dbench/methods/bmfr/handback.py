@@ -105,12 +105,12 @@ def moments_fast(illum, z_acc, alpha, hist, ok, present, fit, out_hist, var):
 
 
 def handback(z_acc: np.ndarray, y_fit: np.ndarray, var: np.ndarray, fit: np.ndarray,
-             fast: bool, out: np.ndarray | None = None) -> np.ndarray:
-    """y + low + λ·high on the fit pixels (3, H, W) float32: compiled when ``fast`` (into
-    ``out`` when given), else the readable SciPy form."""
+             fast: bool, out: np.ndarray | None = None, clamp: bool = False) -> np.ndarray:
+    """y + low + λ·high on the fit pixels (3, H, W) float32, at least 0 everywhere with
+    ``clamp``: compiled when ``fast`` (into ``out`` when given), else the readable SciPy form."""
     if fast:
-        return residual_handback_fast(z_acc, y_fit, var, fit, out=out)
-    return residual_handback_reference(z_acc, y_fit, var, fit).astype(np.float32)
+        return residual_handback_fast(z_acc, y_fit, var, fit, out=out, clamp=clamp)
+    return residual_handback_reference(z_acc, y_fit, var, fit, clamp=clamp).astype(np.float32)
 
 
 __all__ = ["EXTRA_PLANES", "HANDBACKS", "MIN_TEMPORAL_SAMPLES", "handback",

@@ -66,12 +66,15 @@ def _check(z, y, var, mask):
 
 def residual_handback_reference(z: Any, y: Any, var: Any, mask: Any,
                                 sigma: float = HANDBACK_SIGMA,
-                                radius: int = HANDBACK_RADIUS) -> np.ndarray:
+                                radius: int = HANDBACK_RADIUS,
+                                clamp: bool = False) -> np.ndarray:
     """out = y + low + λ·high of the module docstring (readable form).
 
     Args:
         z: (C, H, W) accumulated signal; y: (C, H, W) the filter's output; var: (C, H, W)
-        variance of z, ≥ 0; mask: (H, W) bool, where the residual is handed back.
+        variance of z, ≥ 0; mask: (H, W) bool, where the residual is handed back;
+        clamp: every output value below 0 becomes 0 (the residual's local mean can take a
+        non-negative y below 0; NaN stays NaN).
 
     Returns:
         (C, H, W) float64.
@@ -92,7 +95,8 @@ def residual_handback_reference(z: Any, y: Any, var: Any, mask: Any,
     # wiener_handback(hdr = y + r, den = y, α_gate = 0, α = 1) = y + low + λ·high
     cl = (lambda a: np.moveaxis(a, 0, -1))
     out = wiener_handback(cl(y + r), cl(y), 0.0, cl(low), cl(var0), 1.0, radius)
-    return np.where(mask, np.moveaxis(out, -1, 0), y)
+    out = np.where(mask, np.moveaxis(out, -1, 0), y)
+    return np.maximum(out, 0.0) if clamp else out
 
 
 def _inside_counts(n: int, radius: int) -> np.ndarray:
@@ -118,7 +122,7 @@ BAND_ROWS = 64
 
 @njit(cache=True, parallel=True, fastmath=True)
 def _handback_bands(z, y, var, mask, g, radius, inv_norm_x, norm_y, inv_x, inv_y, band,
-                    out):  # pragma: no cover - compiled
+                    clamp, out):  # pragma: no cover - compiled
     """:func:`residual_handback_reference` over bands of ``band`` output rows, in float32 (the
     inputs' magnitudes are bounded by the methods' input guard,
     :data:`dbench.methods.guards.RADIANCE_MAX`, so the 49 squares of a window stay finite;
@@ -202,14 +206,18 @@ def _handback_bands(z, y, var, mask, g, radius, inv_norm_x, norm_y, inv_x, inv_y
                     lam = np.float32(excess / total) if total > 0.0 else np.float32(1.0)
                     low = lo[yo - b0, x]
                     back = low + lam * (rr[yo - a0, x] - low)
-                    out[c, yo, x] = y[c, yo, x] + back if mask[yo, x] else y[c, yo, x]
+                    value = y[c, yo, x] + back if mask[yo, x] else y[c, yo, x]
+                    if clamp and value < 0.0:  # NaN compares False: kept, as np.maximum
+                        value = np.float32(0.0)
+                    out[c, yo, x] = value
 
 
 def residual_handback_fast(z: np.ndarray, y: np.ndarray, var: np.ndarray, mask: np.ndarray,
                            out: np.ndarray | None = None, sigma: float = HANDBACK_SIGMA,
-                           radius: int = HANDBACK_RADIUS, band: int = BAND_ROWS) -> np.ndarray:
+                           radius: int = HANDBACK_RADIUS, band: int = BAND_ROWS,
+                           clamp: bool = False) -> np.ndarray:
     """:func:`residual_handback_reference`, compiled; float32 (C, H, W) out (any ``band`` height
-    gives the same values to float32 rounding).
+    gives the same values to float32 rounding). ``clamp`` as there, in the same pass.
 
     ``out``: an optional (C, H, W) float32 array to write into (not z, y or var).
     """
@@ -225,7 +233,7 @@ def residual_handback_fast(z: np.ndarray, y: np.ndarray, var: np.ndarray, mask: 
     _handback_bands(f32(z), f32(y), f32(var), np.ascontiguousarray(mask), f32(g), radius,
                     f32(1.0 / _gauss_norm(w, g)), f32(_gauss_norm(h, g)),
                     f32(1.0 / _inside_counts(w, radius)), f32(1.0 / _inside_counts(h, radius)),
-                    max(int(band), 1), out)
+                    max(int(band), 1), bool(clamp), out)
     return out
 
 
