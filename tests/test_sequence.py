@@ -382,6 +382,10 @@ def test_temporal_study_tables_give_intervals_and_flag_variants_not_below_accumu
     text = tables(rows, 64)
     assert "| svgf | 0.8500 ± 0.1242 | 0.773 |" in text
     assert "| bmfr | 1.2000 ± 0.2484 | 1.091 (not below) |" in text
+    # paired over the seeds: svgf's interval overlaps accumulate's (1.1 ± 0.25), but seed by
+    # seed it is below every time (−0.2, −0.3, −0.25); bmfr's differences straddle 0
+    assert "| — | -0.2500 ± 0.1242 (below) |" in text
+    assert "| — | +0.1000 ± 0.2484 (tied) |" in text
     assert _interval([2.0]) == (2.0, 0.0)
     assert len({label for label, _, _ in VARIANTS}) == len(VARIANTS)
 

@@ -109,9 +109,26 @@ def run(res: int = 64, seeds: tuple[int, ...] = (0, 1, 2), scenes=tuple(SCENES),
     return rows
 
 
+def paired_difference(mine: list[dict[str, Any]], base: list[dict[str, Any]], metric: str
+                      ) -> str:
+    """``mine − base`` of ``metric`` seed by seed (the same noisy input for both), as
+    ``mean ± 95 % half-width`` and a word: "below" or "above" when the interval excludes 0,
+    else "tied" (spec/verdicts.md §3: a paired difference has a much smaller interval than
+    either method's own); "—" without common seeds."""
+    by_seed = {r["seed"]: r[metric] for r in base if metric in r}
+    diffs = [r[metric] - by_seed[r["seed"]] for r in mine
+             if r["seed"] in by_seed and metric in r]
+    if not diffs:
+        return "—"
+    mean, half = _interval(diffs)
+    word = "below" if mean + half < 0 else "above" if mean - half > 0 else "tied"
+    return f"{mean:+.4f} ± {half:.4f} ({word})"
+
+
 def tables(rows: list[dict[str, Any]], res: int) -> str:
     """Markdown: one table per scene, every variant's mean ± 95 % interval over the seeds, and
-    its RMSE relative to ``accumulate``; flags where a variant is not below accumulate."""
+    its RMSE relative to ``accumulate``; flags where a variant is not below accumulate; and
+    the paired differences to ``accumulate`` of the RMSE over surfaces and the relMSE."""
     out = []
     for scene in dict.fromkeys(r["scene"] for r in rows):
         frames, ref_spp = SCENES[scene]
@@ -119,20 +136,24 @@ def tables(rows: list[dict[str, Any]], res: int) -> str:
         n_seeds = len({r["seed"] for r in sub})
         acc = np.mean([r["rmse"] for r in sub if r["label"] == "accumulate"])
         change = all("rmse_after_change" in r for r in sub)
+        base = [r for r in sub if r["label"] == "accumulate"]
         out += [f"### {scene} ({res}², {frames} frames, {ref_spp}-spp references, "
                 f"{n_seeds} seeds, mean ± 95 % interval)", "",
-                "| variant | RMSE | ÷ accumulate | RMSE (surfaces) | relMSE | t-RMSE |"
+                "| variant | RMSE | ÷ accumulate | RMSE (surfaces) | relMSE | t-RMSE | "
+                "RMSE (surfaces) − accumulate, paired | relMSE − accumulate, paired |"
                 + (" RMSE, 5 frames after the light change |" if change else ""),
-                "|---|---|---|---|---|---|" + ("---|" if change else "")]
+                "|---|---|---|---|---|---|---|---|" + ("---|" if change else "")]
         for label in dict.fromkeys(r["label"] for r in sub):
             mine = [r for r in sub if r["label"] == label]
             cells = {m: _interval([r.get(m, r["rmse"]) for r in mine]) for m in METRICS}
             ratio = cells["rmse"][0] / acc
             flag = "" if ratio < 1 or label in ("noisy", "accumulate") else " (not below)"
+            paired = (("—", "—") if label == "accumulate" else
+                      tuple(paired_difference(mine, base, m) for m in ("rmse_surface", "relmse")))
             line = (f"| {label} | {cells['rmse'][0]:.4f} ± {cells['rmse'][1]:.4f} | "
                     f"{ratio:.3f}{flag} | {cells['rmse_surface'][0]:.4f} | "
                     f"{cells['relmse'][0]:.4f} ± {cells['relmse'][1]:.4f} | "
-                    f"{cells['t_rmse'][0]:.4f} |")
+                    f"{cells['t_rmse'][0]:.4f} | {paired[0]} | {paired[1]} |")
             if change:
                 line += f" {np.mean([r['rmse_after_change'] for r in mine]):.4f} |"
             out.append(line)
