@@ -130,6 +130,47 @@ def test_ties_best_and_worse_than_noisy():
     assert verdicts.ranking_line(d2, "ssim").startswith("ssim (higher is better): oidn > ")
 
 
+def _seeded(label, values, ci, **over):
+    """A cornell 64-spp cell whose relmse is ``values`` seed by seed (mean and ``ci`` given)."""
+    per = [{"seed": k, "relmse": v, "rmse": 0.02} for k, v in enumerate(values)]
+    return _cell("cornell", 64, label, relmse=float(np.mean(values)), relmse_ci=ci,
+                 per_seed=per, **over)
+
+
+def test_paired_differences_decide_ties_when_cells_share_seeds():
+    """spec/verdicts.md §3: both methods ran on the same noisy renders, so their difference
+    seed by seed says who is ahead where their own intervals overlap."""
+    # statistical is below oidn on every seed by 0.0001 while both vary by ±0.001 from seed
+    # to seed: the intervals overlap, the paired difference (−0.0001 ± 0) does not include 0
+    base = [0.004, 0.005, 0.006]
+    cells = [_seeded("oidn", base, 0.0025),
+             _seeded("statistical", [v - 1e-4 for v in base], 0.0025),
+             _seeded("statistical-gate", [0.0049, 0.0041, 0.0059], 0.0023),
+             _seeded("noisy", [0.0060, 0.0072, 0.0084], 0.003),
+             _seeded("jbf", [0.0061, 0.00715, 0.0086], 0.003)]
+    d = _frame(cells)
+    rows = {r["method"]: r for _, r in d.iterrows()}
+    assert verdicts.seed_values(cells[0]["per_seed"])[1]["relmse"] == 0.005
+    mean, half = verdicts.paired_interval(rows["statistical"], rows["oidn"], "relmse")
+    assert mean == pytest.approx(-1e-4) and half < 1e-9
+    assert verdicts.overlaps(rows["oidn"]["relmse"], 0.0025, rows["statistical"]["relmse"], 0.0025)
+    assert verdicts.tie(rows["statistical"], rows["oidn"], "relmse") is None
+    assert verdicts.tie(rows["statistical-gate"], rows["statistical"], "relmse") == "paired"
+    assert verdicts.marked(d, "relmse") == {"statistical", "statistical-gate"}
+    assert verdicts.ranking_line(d, "relmse").startswith(
+        "relmse (lower is better): statistical = statistical-gate (tied: paired difference "
+        "includes 0) < oidn")
+    # jbf's mean is above the noisy input's, but seed by seed it is below once: the paired
+    # interval includes 0, and "worse than noisy" says how it ties
+    flags = verdicts.worse_than_noisy(d, ["relmse"])
+    assert flags == {"jbf": "worse than noisy on relmse (paired difference includes 0)"}
+    # one seed in common is not a pairing: the intervals decide
+    lone = _frame([_seeded("oidn", [0.004], 0.0025), _seeded("statistical", [0.0039], 0.0025)])
+    r = {x["method"]: x for _, x in lone.iterrows()}
+    assert verdicts.paired_interval(r["statistical"], r["oidn"], "relmse") is None
+    assert verdicts.tie(r["statistical"], r["oidn"], "relmse") == "overlap"
+
+
 def test_reference_warning_suggests_ref_spp():
     d = _frame([_cell("cornell", 64, m) for m in LABELS])
     bad = verdicts.ref_noise_frame(d)

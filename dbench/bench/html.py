@@ -199,7 +199,8 @@ def run_page(out: str | Path, *, title: str, frame: Any, outputs: Sequence[tuple
             "tables": [metrics_table(table, columns)]}
     sections = ["<h2>Metrics</h2>", '<div data-table="0"></div>',
                 '<p class="note">Mean ± 95 % half-width; bold: the best entry of a column and '
-                "every entry whose interval overlaps it; rows in red are worse than the noisy "
+                "every entry tied with it (paired over common seeds, else overlapping "
+                "intervals); rows in red are worse than the noisy "
                 "input on relMSE or surface RMSE. Click a column to sort.</p>"]
     if skipped:
         sections += ["<h2>Skipped</h2>", _kv_table(skipped)]

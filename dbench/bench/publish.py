@@ -6,7 +6,8 @@ ran on), ``stress.md``, and optional extra Markdown files (per-issue results suc
 give the same README byte for byte (figures are written with fixed PNG metadata).
 
 Verdicts follow spec/verdicts.md: every entry is ``mean ± 95 % half-width``, methods whose
-intervals overlap the best's are tied, rankings use ``rank_by`` (relMSE by default), the
+paired difference to the best over common seeds includes 0 (without common seeds: whose
+intervals overlap the best's) are tied, rankings use ``rank_by`` (relMSE by default), the
 reference spp is read from the cells (never the config) and a reference whose own error is
 above 10 % of a method's MSE is flagged with the ``--ref-spp`` that would fix it.
 """

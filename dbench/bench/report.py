@@ -155,8 +155,9 @@ def run_report_md(table: pd.DataFrame, settings: dict[str, Any], info: dict[str,
     else:
         parts += ["(no method finished)", ""]
     absent = [c for c in cols if c not in shown]
-    parts += ["**Bold**: the best entry of a column and every entry whose interval overlaps it "
-              "(tied); entries are mean ± 95 % half-width. `verdict` names where a method is "
+    parts += ["**Bold**: the best entry of a column and every entry tied with it (the paired "
+              "difference over common seeds includes 0; without them, the intervals overlap); "
+              "entries are mean ± 95 % half-width. `verdict` names where a method is "
               f"worse than the noisy input on `{rank_by}` or `rmse_surface`. Lower is better "
               "except PSNR, tPSNR and SSIM. " + (
                   "Sequence: every frame is denoised once, in order; metrics are means and "

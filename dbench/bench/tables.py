@@ -22,7 +22,7 @@ import pandas as pd
 from ..errors import DbenchInputError
 from ..resolution import parse_res
 from .formats import markdown_table, write_csv
-from .verdicts import METRICS, fmt_value, num
+from .verdicts import METRICS, fmt_value, num, seed_values
 
 ID_COLUMNS = ["scene", "method", "base_method", "spp", "res", "n_seeds", "ci_kind", "ref_spp",
               "ref_rmse"]
@@ -67,6 +67,7 @@ def _row(c: dict) -> dict | None:
     # per frame: rendering A-SVGF's re-shaded samples for a method that uses them
     row["gradient_s"] = gradient if np.isfinite(gradient) else 0.0
     row["n_nonfinite"] = num(c.get("n_nonfinite"))
+    row["per_seed"] = seed_values(c.get("per_seed"))
     return row
 
 
@@ -105,7 +106,8 @@ def _model_render_time(df: pd.DataFrame) -> pd.DataFrame:
 
 def cells_frame(cells: list[dict]) -> pd.DataFrame:
     """One row per ``ok`` cell. Missing or malformed values are NaN; cells without a scene,
-    method label or spp are left out. ``render_s`` is the modelled rendering time of the cell's
+    method label or spp are left out; ``per_seed`` holds each cell's {seed: {metric: value}}
+    (:func:`~.verdicts.seed_values`, for paired verdicts). ``render_s`` is the modelled rendering time of the cell's
     spp, statistics collection included where the method needs it (:func:`_model_render_time`;
     ``render_measured_s`` the measured one), ``gradient_s`` the per-frame cost of the re-shaded
     gradient samples where the method uses them, and ``total_s`` = ``render_s`` + ``time_s`` +
@@ -115,9 +117,10 @@ def cells_frame(cells: list[dict]) -> pd.DataFrame:
     cols = ID_COLUMNS + [k for m in METRICS for k in (m, m + "_ci")] + TIME_COLUMNS + [
         "n_nonfinite"]
     rows = [r for c in ok if (r := _row(c)) is not None]
-    df = pd.DataFrame(rows, columns=cols + ["render_plain_s", "stats_s", "render_measured_s"])
+    df = pd.DataFrame(rows, columns=cols + ["render_plain_s", "stats_s", "render_measured_s",
+                                            "per_seed"])
     for c in df.columns:
-        if c not in ("scene", "method", "base_method", "ci_kind", "res"):
+        if c not in ("scene", "method", "base_method", "ci_kind", "res", "per_seed"):
             df[c] = df[c].astype(float) if c != "spp" else df[c].astype(int)
     df = _model_render_time(df).drop(columns=["render_plain_s", "stats_s"])
     drop = [k for m in TEMPORAL if df[m].isna().all() for k in (m, m + "_ci")]
@@ -233,7 +236,8 @@ def write_tables(df: pd.DataFrame, out: Path) -> dict[str, Path]:
     paths["reference_noise"] = out / "reference_noise.csv"
     write_csv(paths["reference_noise"], ref_noise_frame(df))
     paths["cells"] = out / "cells.csv"
-    write_csv(paths["cells"], df.sort_values(["scene", "spp", "method"]))
+    write_csv(paths["cells"], df.drop(columns=["per_seed"], errors="ignore")
+              .sort_values(["scene", "spp", "method"]))
     return paths
 
 

@@ -9,8 +9,12 @@ Conventions:
 
 * an entry is ``mean ± half-width`` of the cell's 95 % interval (``ci_kind`` says which kind);
   ``time_s`` is the median denoise time ± half its interquartile range (a spread, not a CI);
-* two methods are *tied* when their intervals overlap, |m₁ − m₂| ≤ h₁ + h₂ (a missing interval
-  counts as 0); the best entry of a column and every entry tied with it are marked in bold;
+* two methods are *tied* when the 95 % t-interval of their difference seed by seed includes 0
+  (a *paired* comparison, spec/verdicts.md §3: both ran on the same noisy renders, so the
+  difference has a far smaller interval than either method's own), when their cells share at
+  least two seeds; otherwise when their intervals overlap, |m₁ − m₂| ≤ h₁ + h₂ (a missing
+  interval counts as 0); the best entry of a column and every entry tied with it are marked in
+  bold;
 * lower is better except for PSNR, SSIM (and their surface variants) and tPSNR.
 """
 from __future__ import annotations
@@ -94,39 +98,97 @@ def overlaps(m1: float, h1: float, m2: float, h2: float) -> bool:
     return abs(m1 - m2) <= h1 + h2
 
 
+def seed_values(entries: Any) -> dict[int, dict[str, float]]:
+    """{seed: {metric: value}} of a cell's ``per_seed`` list (finite values of
+    :data:`METRICS` only; entries without an integer seed left out): what a paired comparison
+    pairs. A dict already in that form is returned as it is."""
+    if isinstance(entries, dict):
+        return entries
+    out: dict[int, dict[str, float]] = {}
+    for e in entries if isinstance(entries, list) else []:
+        seed = e.get("seed") if isinstance(e, dict) else None
+        if isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer)):
+            continue
+        vals = {m: float(e[m]) for m in METRICS if _finite(e.get(m))}
+        if vals:
+            out[int(seed)] = vals
+    return out
+
+
+def _seeds(row: Any) -> dict:
+    get = row.get if hasattr(row, "get") else (lambda k, d=None: getattr(row, k, d))
+    return seed_values(get("per_seed", None))
+
+
+def paired_interval(row_a: Any, row_b: Any, metric: str) -> tuple[float, float] | None:
+    """(mean, 95 % half-width) of ``metric`` of ``row_a`` minus ``row_b`` seed by seed over the
+    seeds both cells hold (their ``per_seed``, :func:`dbench.bench.tables.cells_frame`); None
+    with fewer than two such seeds."""
+    from ..metrics.judge import t_interval
+
+    a, b = _seeds(row_a), _seeds(row_b)
+    diffs = [a[k][metric] - b[k][metric] for k in sorted(set(a) & set(b))
+             if metric in a[k] and metric in b[k]]
+    if len(diffs) < 2:
+        return None
+    mean, half = t_interval(diffs)
+    return (mean, half) if math.isfinite(mean) and math.isfinite(half) else None
+
+
+def tie(row_a: Any, row_b: Any, metric: str) -> str | None:
+    """How two rows tie on ``metric``: "paired" (the paired interval includes 0), "overlap"
+    (no common seeds, and the intervals overlap), or None (one is ahead)."""
+    paired = paired_interval(row_a, row_b, metric)
+    if paired is not None:
+        return "paired" if abs(paired[0]) <= paired[1] else None
+    get = lambda r, k: r.get(k) if hasattr(r, "get") else getattr(r, k)  # noqa: E731
+    return "overlap" if overlaps(num(get(row_a, metric)), half_width(row_a, metric),
+                                 num(get(row_b, metric)), half_width(row_b, metric)) else None
+
+
+_TIE_WORDS = {"overlap": "intervals overlap", "paired": "paired difference includes 0"}
+
+
 def _entries(d: pd.DataFrame, metric: str, exclude: Iterable[str] = ()
-             ) -> list[tuple[float, float, str]]:
-    """(mean, half-width, label) of the rows with a finite value, best first."""
+             ) -> list[tuple[float, str, Any]]:
+    """(mean, label, row) of the rows with a finite value, best first."""
     if metric not in d.columns:
         return []
     skip = set(exclude)
-    out = [(float(r[metric]), half_width(r, metric), str(r["method"]))
+    out = [(float(r[metric]), str(r["method"]), r)
            for _, r in d.iterrows() if _finite(r[metric]) and r["method"] not in skip]
     sign = -1.0 if higher_is_better(metric) else 1.0
-    return sorted(out, key=lambda e: (sign * e[0], e[2]))
+    return sorted(out, key=lambda e: (sign * e[0], e[1]))
 
 
 def marked(d: pd.DataFrame, metric: str, exclude: Iterable[str] = ()) -> set[str]:
-    """The best label of ``metric`` and every label whose interval overlaps the best's."""
+    """The best label of ``metric`` and every label tied with it (:func:`tie`)."""
     e = _entries(d, metric, exclude)
     if not e:
         return set()
-    m0, h0, _ = e[0]
-    return {lab for m, h, lab in e if overlaps(m, h, m0, h0)}
+    best = e[0][2]
+    return {lab for _, lab, r in e if lab == e[0][1] or tie(r, best, metric)}
+
+
+def _rank(d: pd.DataFrame, metric: str) -> list[tuple[list[str], set[str]]]:
+    """Tied groups best first, each with how its members tie with its leader."""
+    groups: list[tuple[list[str], set[str]]] = []
+    leader = None
+    for _, lab, r in _entries(d, metric):
+        how = tie(r, leader, metric) if leader is not None else None
+        if how:
+            groups[-1][0].append(lab)
+            groups[-1][1].add(how)
+        else:
+            groups.append(([lab], set()))
+            leader = r
+    return groups
 
 
 def rank_groups(d: pd.DataFrame, metric: str) -> list[list[str]]:
-    """Labels best first; consecutive labels whose interval overlaps the group leader's form
+    """Labels best first; consecutive labels tied with the group leader (:func:`tie`) form
     one tied group."""
-    groups: list[list[str]] = []
-    leader = None
-    for m, h, lab in _entries(d, metric):
-        if leader is not None and overlaps(m, h, *leader):
-            groups[-1].append(lab)
-        else:
-            groups.append([lab])
-            leader = (m, h)
-    return groups
+    return [labels for labels, _ in _rank(d, metric)]
 
 
 def ranking_line(d: pd.DataFrame, metric: str) -> str:
@@ -134,8 +196,9 @@ def ranking_line(d: pd.DataFrame, metric: str) -> str:
     if metric not in d.columns:
         return f"{metric}: not recorded in these cells"
     op = " > " if higher_is_better(metric) else " < "
-    parts = [" = ".join(g) + (" (tied: intervals overlap)" if len(g) > 1 else "")
-             for g in rank_groups(d, metric)]
+    parts = [" = ".join(g) + (" (tied: " + "; ".join(_TIE_WORDS[h] for h in sorted(how)) + ")"
+                              if len(g) > 1 else "")
+             for g, how in _rank(d, metric)]
     missing = sorted(str(m) for m, v in zip(d["method"], d[metric]) if not _finite(v))
     text = (f"{metric} ({'higher' if higher_is_better(metric) else 'lower'} is better): "
             + (op.join(parts) if parts else "no values"))
@@ -152,16 +215,16 @@ def worse_than_noisy(d: pd.DataFrame, metrics: Sequence[str]) -> dict[str, str]:
     for metric in dict.fromkeys(metrics):
         if metric not in d.columns or not _finite(base[metric]):
             continue
-        b, hb = float(base[metric]), half_width(base, metric)
+        b = float(base[metric])
         sign = -1.0 if higher_is_better(metric) else 1.0
         for _, r in d.iterrows():
             if r["method"] == NOISY or not _finite(r[metric]):
                 continue
             m = float(r[metric])
             if sign * (m - b) > 0:
-                tied = overlaps(m, half_width(r, metric), b, hb)
+                how = tie(r, base, metric)
                 words.setdefault(str(r["method"]), []).append(
-                    f"{metric} (intervals overlap)" if tied else metric)
+                    f"{metric} ({_TIE_WORDS[how]})" if how else metric)
     return {lab: "worse than noisy on " + ", ".join(w) for lab, w in words.items()}
 
 
@@ -363,9 +426,11 @@ def headline_md(df: pd.DataFrame, spp: int | None, rank_by: str = "relmse",
         return ["(no finished cells at this spp)", ""]
     shown = [c for c in columns if c in d.columns and d[c].map(_finite).any()]
     absent = [c for c in columns if c not in shown]
-    parts = [("**Bold**: the best entry of a column on the scene and every entry whose interval "
-              "overlaps it (tied). Entries are mean ± 95 % half-width; `time_s` is the median "
-              "denoise time ± half its IQR (the noisy input is not a candidate for the fastest). "
+    parts = [("**Bold**: the best entry of a column on the scene and every entry tied with it "
+              "(the paired difference over the seeds both cells hold includes 0; without common "
+              "seeds, the intervals overlap). Entries are mean ± 95 % half-width; `time_s` is "
+              "the median denoise time ± half its IQR (the noisy input is not a candidate for "
+              "the fastest). "
               f"Rows ranked by `{rank_by}`; `verdict` names where a method is worse than the "
               f"noisy input on `{rank_by}` or `rmse_surface`."), ""]
     if absent:
@@ -376,8 +441,8 @@ def headline_md(df: pd.DataFrame, spp: int | None, rank_by: str = "relmse",
 
 
 __all__ = ["METRICS", "HEADLINE", "HIGHER_IS_BETTER", "DEFINITIONS", "REF_SHARE", "num",
-           "half_width", "fmt_value", "overlaps", "marked", "rank_groups", "ranking_line",
-           "worse_than_noisy", "ci_kind_text", "scene_table", "reference_text",
+           "half_width", "fmt_value", "overlaps", "seed_values", "paired_interval", "tie", "marked",
+           "rank_groups", "ranking_line", "worse_than_noisy", "ci_kind_text", "scene_table", "reference_text",
            "reference_summary", "ref_noise_frame", "ref_warnings_md", "headline_spp",
            "expected_grid", "grid_status", "grid_status_text", "missing_md", "scene_block_md",
            "headline_md", "next_pow2"]
