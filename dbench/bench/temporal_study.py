@@ -114,13 +114,14 @@ def paired_difference(mine: list[dict[str, Any]], base: list[dict[str, Any]], me
     """``mine − base`` of ``metric`` seed by seed (the same noisy input for both), as
     ``mean ± 95 % half-width`` and a word: "below" or "above" when the interval excludes 0,
     else "tied" (spec/verdicts.md §3: a paired difference has a much smaller interval than
-    either method's own); "—" without common seeds."""
-    by_seed = {r["seed"]: r[metric] for r in base if metric in r}
-    diffs = [r[metric] - by_seed[r["seed"]] for r in mine
-             if r["seed"] in by_seed and metric in r]
-    if not diffs:
+    either method's own; :func:`~dbench.bench.verdicts.paired_interval`); "—" with fewer than
+    two common seeds."""
+    from .verdicts import paired_interval
+
+    paired = paired_interval({"per_seed": mine}, {"per_seed": base}, metric)
+    if paired is None:
         return "—"
-    mean, half = _interval(diffs)
+    mean, half = paired
     word = "below" if mean + half < 0 else "above" if mean - half > 0 else "tied"
     return f"{mean:+.4f} ± {half:.4f} ({word})"
 

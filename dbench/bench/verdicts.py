@@ -55,7 +55,9 @@ DEFINITIONS = {
     "ci": ("intervals: with N > 1 seeds, Student t over seeds, mean ± t_{0.975,N−1} · s / √N "
            "(the shared reference's error is not in it; see ref_rmse); with one seed, a block "
            "bootstrap percentile interval over B × B pixel blocks; `time_s` shows the median "
-           "denoise time ± half its interquartile range"),
+           "denoise time ± half its interquartile range. Two methods tie when the t-interval "
+           "of their differences seed by seed (both ran on the same noisy renders) includes "
+           "0; without two common seeds, when their intervals overlap"),
 }
 
 
