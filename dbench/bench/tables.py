@@ -107,8 +107,9 @@ def _model_render_time(df: pd.DataFrame) -> pd.DataFrame:
 def cells_frame(cells: list[dict]) -> pd.DataFrame:
     """One row per ``ok`` cell. Missing or malformed values are NaN; cells without a scene,
     method label or spp are left out; ``per_seed`` holds each cell's {seed: {metric: value}}
-    (:func:`~.verdicts.seed_values`, for paired verdicts). ``render_s`` is the modelled rendering time of the cell's
-    spp, statistics collection included where the method needs it (:func:`_model_render_time`;
+    (:func:`~.verdicts.seed_values`, for paired verdicts). ``render_s`` is the modelled
+    rendering time of the cell's spp, statistics collection included where the method needs it
+    (:func:`_model_render_time`;
     ``render_measured_s`` the measured one), ``gradient_s`` the per-frame cost of the re-shaded
     gradient samples where the method uses them, and ``total_s`` = ``render_s`` + ``time_s`` +
     ``gradient_s``. The temporal metrics are kept only when some cell has them (sequence

@@ -77,13 +77,17 @@ def _finite(v: Any) -> bool:
     return isinstance(v, (int, float, np.integer, np.floating)) and math.isfinite(float(v))
 
 
+def _field(row: Any, key: str, default: Any = None) -> Any:
+    """``row[key]`` of a frame row or dict, or the attribute of a record; ``default`` if absent."""
+    return row.get(key, default) if hasattr(row, "get") else getattr(row, key, default)
+
+
 def half_width(row: Any, metric: str) -> float:
     """The 95 % half-width of ``metric`` in ``row`` (NaN if unknown); for ``time_s`` the
     interval when one is stored, else half the interquartile range."""
-    get = row.get if hasattr(row, "get") else (lambda k, d=None: getattr(row, k, d))
-    h = num(get(metric + "_ci", float("nan")))
+    h = num(_field(row, metric + "_ci", float("nan")))
     if metric == "time_s" and not math.isfinite(h):
-        h = num(get("time_s_iqr", float("nan"))) / 2
+        h = num(_field(row, "time_s_iqr", float("nan"))) / 2
     return h
 
 
@@ -117,18 +121,13 @@ def seed_values(entries: Any) -> dict[int, dict[str, float]]:
     return out
 
 
-def _seeds(row: Any) -> dict:
-    get = row.get if hasattr(row, "get") else (lambda k, d=None: getattr(row, k, d))
-    return seed_values(get("per_seed", None))
-
-
 def paired_interval(row_a: Any, row_b: Any, metric: str) -> tuple[float, float] | None:
     """(mean, 95 % half-width) of ``metric`` of ``row_a`` minus ``row_b`` seed by seed over the
     seeds both cells hold (their ``per_seed``, :func:`dbench.bench.tables.cells_frame`); None
     with fewer than two such seeds."""
     from ..metrics.judge import t_interval
 
-    a, b = _seeds(row_a), _seeds(row_b)
+    a, b = seed_values(_field(row_a, "per_seed")), seed_values(_field(row_b, "per_seed"))
     diffs = [a[k][metric] - b[k][metric] for k in sorted(set(a) & set(b))
              if metric in a[k] and metric in b[k]]
     if len(diffs) < 2:
@@ -143,9 +142,8 @@ def tie(row_a: Any, row_b: Any, metric: str) -> str | None:
     paired = paired_interval(row_a, row_b, metric)
     if paired is not None:
         return "paired" if abs(paired[0]) <= paired[1] else None
-    get = lambda r, k: r.get(k) if hasattr(r, "get") else getattr(r, k)  # noqa: E731
-    return "overlap" if overlaps(num(get(row_a, metric)), half_width(row_a, metric),
-                                 num(get(row_b, metric)), half_width(row_b, metric)) else None
+    return "overlap" if overlaps(num(_field(row_a, metric)), half_width(row_a, metric),
+                                 num(_field(row_b, metric)), half_width(row_b, metric)) else None
 
 
 _TIE_WORDS = {"overlap": "intervals overlap", "paired": "paired difference includes 0"}
@@ -443,8 +441,8 @@ def headline_md(df: pd.DataFrame, spp: int | None, rank_by: str = "relmse",
 
 
 __all__ = ["METRICS", "HEADLINE", "HIGHER_IS_BETTER", "DEFINITIONS", "REF_SHARE", "num",
-           "half_width", "fmt_value", "overlaps", "seed_values", "paired_interval", "tie", "marked",
-           "rank_groups", "ranking_line", "worse_than_noisy", "ci_kind_text", "scene_table", "reference_text",
-           "reference_summary", "ref_noise_frame", "ref_warnings_md", "headline_spp",
+           "half_width", "fmt_value", "overlaps", "seed_values", "paired_interval", "tie",
+           "marked", "rank_groups", "ranking_line", "worse_than_noisy", "ci_kind_text",
+           "scene_table", "reference_text", "reference_summary", "ref_noise_frame", "ref_warnings_md", "headline_spp",
            "expected_grid", "grid_status", "grid_status_text", "missing_md", "scene_block_md",
            "headline_md", "next_pow2"]
