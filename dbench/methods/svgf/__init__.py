@@ -167,8 +167,9 @@ def gradient_history(data, geo, prev, prev_lum, hist_n, n_max: float, iterations
     ``iterations`` à-trous passes, fetched at full resolution through the motion vectors;
     ``N' = min(N(1 − G)^10 + 1, n_max)``, α = mix(1/N', 1, G). ``mode`` (params.GRADIENT_MODES):
     ``"seed"`` G is the filtered (δ/Δ)² of the strata; ``"filtered"`` G = (|δ̂| / Δ̂)² of the
-    separately filtered δ and Δ, so that the zero-mean noise of re-shaded samples averages out
-    before the ratio (docs/temporal.md §14); ``"paper"`` λ = |δ̂| / Δ̂ and the paper's α.
+    separately filtered δ and Δ, so that strata whose re-shaded path re-traced exactly (δ = 0)
+    dilute those whose path diverged before the ratio is taken (docs/temporal.md §14);
+    ``"paper"`` λ = |δ̂| / Δ̂ and the paper's α.
 
     Args: ``geo``/``prev``: this and the previous frame's Geometry; ``hist_n`` (H, W) the
     reprojected history length. Returns (G, N', α), each (H, W) float32; G = 0 without a
