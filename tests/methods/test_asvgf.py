@@ -137,7 +137,7 @@ def test_filtered_gradient_dilutes_re_shades_that_diverged():
         fresh = 0.8 * rng.exponential(1.0, (h, w, 1)).astype(np.float32) * on
         seq.append(f.with_buffers(gradient=np.where(diverges, fresh, f.gradient)))
     grads = {}
-    for mode in ("seed", "filtered"):
+    for mode in ("seed", "filtered", "filtered_abs"):
         m = methods.get("asvgf", gradient_mode=mode)
         m.reset()
         for i, f in enumerate(seq):
@@ -148,6 +148,32 @@ def test_filtered_gradient_dilutes_re_shades_that_diverged():
                 np.testing.assert_allclose(m.last["gradient"], 1.0, atol=1e-6)
     assert grads["seed"] > 0.1
     assert grads["filtered"] < 0.5 * grads["seed"]
+    assert grads["filtered_abs"] < 0.5 * grads["seed"]
+
+
+def test_filtered_abs_gradient_keeps_two_lights_trading_places():
+    """docs/temporal.md §14. Two lights trade places: each re-shaded sample's next-event
+    estimate picked one of them, so its change is large with either sign (here ±0.8 of a
+    stratum's brightness, alternating) while the neighbourhood's mean changes little. The
+    separately filtered signed δ cancels ("filtered": G near 0), the filtered magnitudes do
+    not ("filtered_abs": G near the seed's)."""
+    h = w = 30
+    base = _static(h, w, 10, off_at=99)
+    yy, xx = np.mgrid[0:h, 0:w]
+    sign = np.where(((yy // 3 + xx // 3) % 2)[..., None] == 0, 1.8, 0.2).astype(np.float32)
+    seq = [f.with_buffers(gradient=f.gradient * (sign if i == 8 else 1.0))
+           for i, f in enumerate(base)]
+    grads = {}
+    for mode in ("seed", "filtered", "filtered_abs"):
+        m = methods.get("asvgf", gradient_mode=mode)
+        m.reset()
+        for i, f in enumerate(seq):
+            m.denoise(f)
+            if i == 8:
+                grads[mode] = float(m.last["gradient"].mean())
+    assert grads["seed"] > 0.3
+    assert grads["filtered"] < 0.1 * grads["seed"]
+    assert grads["filtered_abs"] > 0.5 * grads["seed"]
 
 
 def test_resolved_settings_hold_the_presets_values():
@@ -176,7 +202,7 @@ def test_missing_gradient_is_named_once_there_is_history():
 
 def test_fast_equals_reference_backend():
     seq = _static(14, 17, 6, off_at=3)
-    for mode in ("seed", "filtered"):
+    for mode in ("seed", "filtered", "filtered_abs"):
         a = methods.get("asvgf", gradient_mode=mode)
         b = methods.get("asvgf", backend="reference", gradient_mode=mode)
         a.reset()
@@ -234,7 +260,7 @@ def test_torch_strata_and_adaptive_history_equal_reference():
             np.testing.assert_allclose(y, x, rtol=1e-5, atol=1e-6)
 
 
-@pytest.mark.parametrize("mode", ["seed", "filtered", "paper"])
+@pytest.mark.parametrize("mode", ["seed", "filtered", "filtered_abs", "paper"])
 def test_torch_backend_equals_reference_over_a_hard_sequence(mode):
     from test_accumulate import hard_sequence
 

@@ -17,7 +17,8 @@ docs/temporal.md §2), ``G = (|L_new − L_prev| / max(L_new, L_prev))²``; G is
 à-trous iterations without the luminance weight (``gradient_mode="seed"``;
 ``"filtered"`` instead filters δ = L_new − L_prev and Δ = max(L_new, L_prev) apart, as the
 A-SVGF paper does, and takes G = (|δ̂| / Δ̂)²: less noise from re-shaded samples that diverge
-from their first path under a moving camera, a later response to a light change,
+from their first path under a moving camera, a later response to a light change;
+``"filtered_abs"`` filters |δ| instead, which keeps the seed's response to a light change,
 docs/temporal.md §14); G is fetched at full resolution through the motion vectors (the gather
 form of the spec's forward projection — identical for a static camera), and
 ``N' = min(N(1 − G)^10 + 1, 256)``,
@@ -60,7 +61,8 @@ G-buffers provide), taa (False) and taa_alpha (0.2) [dbench] (the temporal antia
 the output that BMFR's code runs, :mod:`dbench.methods.temporal.taa`), albedo_floor (0.2
 [dbench]: a_eff = clip(albedo, floor, 1); 1 = no demodulation), backend ("auto" |
 "numba" | "torch" | "reference"); asvgf adds gradient_iterations (3), gradient_mode
-("seed" | "filtered" | "paper"), n_max (256), alpha_floor (None: on with the dbench preset).
+("seed" | "filtered" | "filtered_abs" | "paper"), n_max (256), alpha_floor (None: on with the
+dbench preset).
 
 Backends: "auto" (default) is "torch" when ``torch.cuda.is_available()``, else "numba";
 "numba" compiled kernels; "torch" the vectorised PyTorch kernels of
@@ -169,6 +171,8 @@ def gradient_history(data, geo, prev, prev_lum, hist_n, n_max: float, iterations
     ``"seed"`` G is the filtered (δ/Δ)² of the strata; ``"filtered"`` G = (|δ̂| / Δ̂)² of the
     separately filtered δ and Δ, so that strata whose re-shaded path re-traced exactly (δ = 0)
     dilute those whose path diverged before the ratio is taken (docs/temporal.md §14);
+    ``"filtered_abs"`` the same with |δ| filtered instead of δ, so that a pixel lit by two
+    lights that trade places keeps its gradient (per-sample δ of either sign does not cancel);
     ``"paper"`` λ = |δ̂| / Δ̂ and the paper's α.
 
     Args: ``geo``/``prev``: this and the previous frame's Geometry; ``hist_n`` (H, W) the
@@ -185,6 +189,8 @@ def gradient_history(data, geo, prev, prev_lum, hist_n, n_max: float, iterations
         l_grad = grad @ T.LUMA  # (H, W) luminance of the re-shaded previous samples
         strata = C.stratum_gradients(prev_lum, l_grad, prev.hit, prev.depth, prev.normal,
                                      backend=backend)
+        if mode == "filtered_abs":  # |δ| filtered: changes of either sign add up
+            strata = dict(strata, delta=np.abs(strata["delta"]))
         filt = C.filter_gradients(strata, iterations, sigma_z, sigma_n, backend)
         if mode == "seed":
             low = filt["g"]
@@ -192,7 +198,7 @@ def gradient_history(data, geo, prev, prev_lum, hist_n, n_max: float, iterations
             with np.errstate(divide="ignore", invalid="ignore"):
                 low = np.where(filt["norm"] > 0,
                                np.minimum(1.0, np.abs(filt["delta"]) / filt["norm"]), 0.0)
-            if mode == "filtered":  # squared as the seed's G, into the seed's N' and α
+            if mode in ("filtered", "filtered_abs"):  # squared as the seed's G, into its N', α
                 low = np.square(low).astype(np.float32)
     history_rule = "paper" if mode == "paper" else "seed"
     return C.adaptive_history(low, motion, geo.hit, hist_n, n_max, history_rule, ALPHA0_PAPER,
@@ -358,7 +364,8 @@ class ASVGF(_SVGFBase):
     # catalogue the Gaussian lowered A-SVGF's RMSE by 0.3 % but raised its geometric-mean relMSE
     # ÷ accumulation from 0.542 to 0.594 (docs/temporal.md §13), unlike SVGF's (0.472 → 0.453).
     # The seed's gradient stays: "filtered" was better there (§14) but follows flicker's light
-    # switch later (RMSE at 128², 4 spp, 0.0432 → 0.0480)
+    # switch later (RMSE at 128², 4 spp, 0.0432 → 0.0480); "filtered_abs" does not, but misses
+    # mirror-pan's moving reflections (RMSE over surfaces 0.152 → 0.161 at 128², 1 spp)
     preset_overrides = {"dbench": {"luminance_kernel": "laplacian"}}
 
     def __init__(self, **params: Any) -> None:

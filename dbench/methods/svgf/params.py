@@ -63,6 +63,8 @@ def auto_iterations(height: int, width: int) -> int:
 #: A-SVGF's temporal gradient (spec/svgf.md §6; docs/temporal.md §14): "seed" G = filter((δ/Δ)²)
 #: per stratum as the seed writes it (the default); "filtered" G = (|filter(δ)| / filter(Δ))²,
 #: the paper's ratio of the separately filtered δ and Δ squared as the seed's G; "paper"
-#: λ = |filter(δ)| / filter(Δ) with the paper's α = mix(α0, 1, λ)
-GRADIENT_MODES = ("seed", "filtered", "paper")
+#: λ = |filter(δ)| / filter(Δ) with the paper's α = mix(α0, 1, λ); "filtered_abs"
+#: G = (filter(|δ|) / filter(Δ))², the magnitudes filtered, so that per-sample changes of either
+#: sign (two lights trading places) do not cancel
+GRADIENT_MODES = ("seed", "filtered", "paper", "filtered_abs")
 ALPHA0_PAPER = 0.2
