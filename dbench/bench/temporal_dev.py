@@ -53,16 +53,22 @@ VARIANTS: tuple[tuple[str, str, dict[str, Any]], ...] = (
     ("asvgf gradient_mode=filtered luminance_kernel=gaussian", "asvgf",
      {"gradient_mode": "filtered", "luminance_kernel": "gaussian"}),
     ("asvgf gradient_mode=paper", "asvgf", {"gradient_mode": "paper"}),
+    ("asvgf gradient_mode=filtered_abs", "asvgf", {"gradient_mode": "filtered_abs"}),
+    ("asvgf gradient_mode=filtered_abs luminance_kernel=gaussian", "asvgf",
+     {"gradient_mode": "filtered_abs", "luminance_kernel": "gaussian"}),
     *((f"svgf sigma_l={s}" + (" (default)" if s == 4.0 else ""), "svgf", {"sigma_l": s})
       for s in SIGMAS),
 )
 
 
 #: the defaults, measured on sequences that chose nothing (``--held-out``), and A-SVGF with
-#: the gradient of docs/temporal.md §14, which these sequences favour and flicker does not
+#: the gradients of docs/temporal.md §14, which these sequences favour and the catalogue's
+#: flicker (``"filtered"``) or mirror-pan (both) do not
 HELD_OUT_VARIANTS = (("accumulate", "accumulate", {}), ("svgf", "svgf", {}),
                      ("asvgf", "asvgf", {}), ("bmfr", "bmfr", {}),
-                     ("asvgf gradient_mode=filtered", "asvgf", {"gradient_mode": "filtered"}))
+                     ("asvgf gradient_mode=filtered", "asvgf", {"gradient_mode": "filtered"}),
+                     ("asvgf gradient_mode=filtered_abs", "asvgf",
+                      {"gradient_mode": "filtered_abs"}))
 
 
 def dev_sequences(n_scenes: int, skip: int = 0, min_mean: float = 0.03):

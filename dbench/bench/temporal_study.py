@@ -48,6 +48,7 @@ VARIANTS: tuple[tuple[str, str, dict[str, Any]], ...] = (
     ("asvgf preset=paper", "asvgf", {"preset": "paper"}),
     ("asvgf gradient_mode=filtered", "asvgf", {"gradient_mode": "filtered"}),
     ("asvgf gradient_mode=paper", "asvgf", {"gradient_mode": "paper"}),
+    ("asvgf gradient_mode=filtered_abs", "asvgf", {"gradient_mode": "filtered_abs"}),
     ("asvgf normal_buffer=reflected_normal", "asvgf", {"normal_buffer": "reflected_normal"}),
     ("asvgf taa=True", "asvgf", {"taa": True}),
     ("bmfr", "bmfr", {}),
