@@ -120,6 +120,23 @@ def test_paper_gradient_mode_runs_and_reacts():
     assert m.last["alpha"].min() >= 0.2
 
 
+def _mean_gradient_by_mode(seq, frame: int, off_at: int | None = None) -> dict[str, float]:
+    """A-SVGF's mean G at ``frame`` of ``seq`` for each of the seed's and the filtered
+    gradients; at ``off_at`` (the light went off: every re-shaded sample is 0) every mode must
+    give G = 1."""
+    grads = {}
+    for mode in ("seed", "filtered", "filtered_abs"):
+        m = methods.get("asvgf", gradient_mode=mode)
+        m.reset()
+        for i, f in enumerate(seq):
+            m.denoise(f)
+            if i == frame:
+                grads[mode] = float(m.last["gradient"].mean())
+            if i == off_at:
+                np.testing.assert_allclose(m.last["gradient"], 1.0, atol=1e-6)
+    return grads
+
+
 def test_filtered_gradient_dilutes_re_shades_that_diverged():
     """docs/temporal.md §14. Static light; most re-shaded samples re-trace their path exactly
     (δ = 0), but in a third of the pixels the path diverged (a glossy lobe sampled from a moved
@@ -136,16 +153,7 @@ def test_filtered_gradient_dilutes_re_shades_that_diverged():
         on = 0.0 if i >= 8 else 1.0
         fresh = 0.8 * rng.exponential(1.0, (h, w, 1)).astype(np.float32) * on
         seq.append(f.with_buffers(gradient=np.where(diverges, fresh, f.gradient)))
-    grads = {}
-    for mode in ("seed", "filtered", "filtered_abs"):
-        m = methods.get("asvgf", gradient_mode=mode)
-        m.reset()
-        for i, f in enumerate(seq):
-            m.denoise(f)
-            if i == 6:
-                grads[mode] = float(m.last["gradient"].mean())
-            if i == 8:  # the light went off: every re-shaded sample is 0
-                np.testing.assert_allclose(m.last["gradient"], 1.0, atol=1e-6)
+    grads = _mean_gradient_by_mode(seq, frame=6, off_at=8)
     assert grads["seed"] > 0.1
     assert grads["filtered"] < 0.5 * grads["seed"]
     assert grads["filtered_abs"] < 0.5 * grads["seed"]
@@ -163,14 +171,7 @@ def test_filtered_abs_gradient_keeps_two_lights_trading_places():
     sign = np.where(((yy // 3 + xx // 3) % 2)[..., None] == 0, 1.8, 0.2).astype(np.float32)
     seq = [f.with_buffers(gradient=f.gradient * (sign if i == 8 else 1.0))
            for i, f in enumerate(base)]
-    grads = {}
-    for mode in ("seed", "filtered", "filtered_abs"):
-        m = methods.get("asvgf", gradient_mode=mode)
-        m.reset()
-        for i, f in enumerate(seq):
-            m.denoise(f)
-            if i == 8:
-                grads[mode] = float(m.last["gradient"].mean())
+    grads = _mean_gradient_by_mode(seq, frame=8)
     assert grads["seed"] > 0.3
     assert grads["filtered"] < 0.1 * grads["seed"]
     assert grads["filtered_abs"] > 0.5 * grads["seed"]
