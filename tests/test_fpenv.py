@@ -67,9 +67,11 @@ def test_a_method_that_sets_flush_to_zero_does_not_leak_it_through_the_harness()
 @pytest.mark.skipif(platform.machine() not in ("x86_64", "AMD64"),
                     reason="the rounding-mode constants are x86's")
 def test_kept_fp_environment_restores_what_the_block_changed():
+    from dbench.methods.fpenv import _LIBM
+
     assert fpenv.snapshot() is not None  # the C library has fegetenv
     towards_zero, nearest = 0xC00, 0
     with fpenv.kept_fp_environment():
-        fpenv._LIBM.fesetround(towards_zero)
-        assert fpenv._LIBM.fegetround() == towards_zero
-    assert fpenv._LIBM.fegetround() == nearest
+        _LIBM.fesetround(towards_zero)
+        assert _LIBM.fegetround() == towards_zero
+    assert _LIBM.fegetround() == nearest

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from ..methods.fpenv import _LIBM, kept_fp_environment, restore, snapshot
+from ..methods.fpenv import kept_fp_environment, restore, snapshot
 
 
 def denoise(method: Any, data: Any) -> Any:
@@ -20,4 +20,4 @@ def denoise(method: Any, data: Any) -> Any:
         return method.denoise(data)
 
 
-__all__ = ["denoise", "kept_fp_environment", "restore", "snapshot", "_LIBM"]
+__all__ = ["denoise", "kept_fp_environment", "restore", "snapshot"]
