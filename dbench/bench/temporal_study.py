@@ -136,9 +136,9 @@ def tables(rows: list[dict[str, Any]], res: int) -> str:
         frames, ref_spp = SCENES[scene]
         sub = [r for r in rows if r["scene"] == scene]
         n_seeds = len({r["seed"] for r in sub})
-        acc = np.mean([r["rmse"] for r in sub if r["label"] == "accumulate"])
-        change = all("rmse_after_change" in r for r in sub)
         base = [r for r in sub if r["label"] == "accumulate"]
+        acc = np.mean([r["rmse"] for r in base])
+        change = all("rmse_after_change" in r for r in sub)
         out += [f"### {scene} ({res}², {frames} frames, {ref_spp}-spp references, "
                 f"{n_seeds} seeds, mean ± 95 % interval)", "",
                 "| variant | RMSE | ÷ accumulate | RMSE (surfaces) | relMSE | t-RMSE | "

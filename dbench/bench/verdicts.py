@@ -443,6 +443,6 @@ def headline_md(df: pd.DataFrame, spp: int | None, rank_by: str = "relmse",
 __all__ = ["METRICS", "HEADLINE", "HIGHER_IS_BETTER", "DEFINITIONS", "REF_SHARE", "num",
            "half_width", "fmt_value", "overlaps", "seed_values", "paired_interval", "tie",
            "marked", "rank_groups", "ranking_line", "worse_than_noisy", "ci_kind_text",
-           "scene_table", "reference_text", "reference_summary", "ref_noise_frame", "ref_warnings_md", "headline_spp",
-           "expected_grid", "grid_status", "grid_status_text", "missing_md", "scene_block_md",
-           "headline_md", "next_pow2"]
+           "scene_table", "reference_text", "reference_summary", "ref_noise_frame",
+           "ref_warnings_md", "headline_spp", "expected_grid", "grid_status",
+           "grid_status_text", "missing_md", "scene_block_md", "headline_md", "next_pow2"]
