@@ -49,6 +49,8 @@ VARIANTS: tuple[tuple[str, str, dict[str, Any]], ...] = (
     ("bmfr alpha1=0.1 alpha2=0.05", "bmfr", {"alpha1": 0.1, "alpha2": 0.05}),
     ("svgf luminance_kernel=laplacian (the paper's)", "svgf", {"luminance_kernel": "laplacian"}),
     ("asvgf luminance_kernel=gaussian", "asvgf", {"luminance_kernel": "gaussian"}),
+    ("svgf variance_boost=False (the paper's)", "svgf", {"variance_boost": False}),
+    ("asvgf variance_boost=False", "asvgf", {"variance_boost": False}),
     ("asvgf gradient_mode=filtered", "asvgf", {"gradient_mode": "filtered"}),
     ("asvgf gradient_mode=filtered luminance_kernel=gaussian", "asvgf",
      {"gradient_mode": "filtered", "luminance_kernel": "gaussian"}),
@@ -66,6 +68,8 @@ VARIANTS: tuple[tuple[str, str, dict[str, Any]], ...] = (
 #: flicker (``"filtered"``) or mirror-pan (both) do not
 HELD_OUT_VARIANTS = (("accumulate", "accumulate", {}), ("svgf", "svgf", {}),
                      ("asvgf", "asvgf", {}), ("bmfr", "bmfr", {}),
+                     ("svgf variance_boost=False", "svgf", {"variance_boost": False}),
+                     ("asvgf variance_boost=False", "asvgf", {"variance_boost": False}),
                      ("asvgf gradient_mode=filtered", "asvgf", {"gradient_mode": "filtered"}),
                      ("asvgf gradient_mode=filtered_abs", "asvgf",
                       {"gradient_mode": "filtered_abs"}))

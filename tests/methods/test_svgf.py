@@ -355,6 +355,30 @@ def test_variance_of_the_mean_follows_the_blend_weights():
     np.testing.assert_allclose(methods.get("svgf").params["alpha_min"], 0.2)
 
 
+@pytest.mark.parametrize("name", ["svgf", "asvgf"])
+def test_variance_boost_scales_the_spatial_estimate_of_short_histories(name):
+    """spec/svgf.md §4 and Falcor's SVGFFilterMoments pass: a history of N < 4 frames takes the
+    spatial estimate times 4/N (4, 2, 4/3 for N = 1, 2, 3); from N = 4 on the temporal estimate
+    is untouched. On by default (dbench and falcor presets), off in the paper preset."""
+    seq = synthetic_sequence(12, 12, frames=5, shift=0)
+    var = {}
+    for boost in (False, True):
+        m = methods.get(name, variance_boost=boost, iterations=0)
+        m.reset()
+        var[boost] = []
+        for f in seq:
+            m.denoise(f)
+            var[boost].append(m.last["variance"].copy())
+    n = np.arange(1, 6, dtype=np.float64)
+    for i, factor in enumerate(np.where(n < 4, 4.0 / n, 1.0)):
+        lit = var[False][i] > 1e-6
+        assert lit.mean() > 0.5
+        np.testing.assert_allclose(var[True][i][lit], factor * var[False][i][lit], rtol=1e-5)
+    boost = lambda **p: methods.get(name, **p).params["variance_boost"]  # noqa: E731
+    assert boost() and boost(preset="falcor") and not boost(preset="paper")
+    assert not boost(variance_boost=False)
+
+
 def test_variance_of_the_mean_blurs_less_once_converged():
     """On a converged history the luminance weights of the mean's variance keep a step that the
     per-sample variance lets the à-trous filter blur (the bias measured on orbit)."""

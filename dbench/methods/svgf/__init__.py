@@ -41,6 +41,7 @@ feedback_tap            None (unfiltered history)  0              1
 alpha_min (moments)     0.2 (0.2)                  0.2 (0.2)      0.05 (0.2)
 variance_of             "mean"                     "sample"       "sample"
 luminance_kernel        see below                  "laplacian"    "laplacian"
+variance_boost          True                       False          True
 ======================  =========================  =============  ==============
 
 ``luminance_kernel``: w_l = exp(−d²) ("gaussian", as Schied's A-SVGF code writes it) or exp(−d)
@@ -48,11 +49,15 @@ luminance_kernel        see below                  "laplacian"    "laplacian"
 method on sequences outside the catalogue by relMSE (docs/temporal.md §13): the Gaussian for
 ``svgf``, the Laplacian for ``asvgf``.
 
+``variance_boost``: where the history holds N < 4 frames the spatial variance estimate is
+multiplied by 4/N, as Falcor's SVGF pass does, so that the first frames after a disocclusion or
+A-SVGF's gradient filter harder than their 7×7 estimate says (docs/temporal.md §15).
+
 ``variance_of="mean"``: the luminance weights use the variance of the accumulated colour — the
 per-sample variance from the moments times Σw² of the blend weights (1/N for a running mean,
 α/(2 − α) for the EMA) — the quantity that is filtered, as the variance propagation of §5
 already assumes; ``"sample"`` is the paper's per-sample variance. Other parameters: eps_var
-(1e-4), variance_boost (False), tau_d (0.05), tau_n (0.9), normal_buffer ("normal" |
+(1e-4), tau_d (0.05), tau_n (0.9), normal_buffer ("normal" |
 "reflected_normal" | "geo_normal": the normal of the edge-stopping weight w_n in the spatial
 variance and the à-trous passes — the shading normal, seed 001 §1.2.1's reflected normal of
 glossy surfaces with roughness < 0.4, or the geometric normal; reprojection keeps the shading
@@ -212,7 +217,7 @@ class _SVGFBase(T.HistoryDenoiser):
     # when another method of the run needed it, so a result depended on its neighbours
     optional_needs = {"emission", "geo_normal", "reflected_normal"}
     defaults: dict[str, Any] = dict(preset="dbench", **PRESETS["dbench"], eps_var=EPS_VAR,
-                                    variance_boost=False, tau_d=T.TAU_D, tau_n=T.TAU_N,
+                                    tau_d=T.TAU_D, tau_n=T.TAU_N,
                                     normal_buffer="normal", taa=False, taa_alpha=T.TAA_ALPHA,
                                     albedo_floor=ALBEDO_FLOOR, backend="auto")
     #: per-method departures from :data:`~.params.PRESETS`, {preset: {key: value}}
@@ -318,7 +323,7 @@ class _SVGFBase(T.HistoryDenoiser):
         if spatial.any():
             sv = C.spatial_variance(be, acc_m, geo.depth, gx, gy, w_normal, tap,
                                     gather, spatial, sigma_z=p["sigma_z"], sigma_n=p["sigma_n"])
-            if p["variance_boost"]:
+            if p["variance_boost"]:  # Falcor's SVGFFilterMoments: variance *= 4 / h
                 sv = sv * 4.0 / np.maximum(n, 1.0)
             if of_mean:
                 sv = sv * weight_sq
@@ -362,7 +367,8 @@ class ASVGF(_SVGFBase):
                                     gradient_mode="seed", n_max=T.N_MAX, alpha_floor=None)
     # [dbench] the paper's exp(−d) luminance weight: on the training sequences outside the
     # catalogue the Gaussian lowered A-SVGF's RMSE by 0.3 % but raised its geometric-mean relMSE
-    # ÷ accumulation from 0.542 to 0.594 (docs/temporal.md §13), unlike SVGF's (0.472 → 0.453).
+    # ÷ accumulation from 0.542 to 0.594 (docs/temporal.md §13), unlike SVGF's (0.472 → 0.453);
+    # with the variance boost of §15 from 0.525 to 0.543 (4 seeds), so the Laplacian stays.
     # The seed's gradient stays: "filtered" was better there (§14) but follows flicker's light
     # switch later (RMSE at 128², 4 spp, 0.0432 → 0.0480); "filtered_abs" does not, but misses
     # mirror-pan's moving reflections (RMSE over surfaces 0.152 → 0.161 at 128², 1 spp)
@@ -398,8 +404,8 @@ class ASVGF(_SVGFBase):
         self._prev_lum = prep["lum_raw"]
 
 
-__all__ = ["SVGF", "ASVGF", "H1", "gradient_history", "PRESETS", "adaptive_history", "asvgf_history", "atrous",
-           "atrous_fast", "atrous_reference", "depth_gradient", "fast_exp_neg", "filter_gradients",
+__all__ = ["SVGF", "ASVGF", "H1", "gradient_history", "PRESETS", "adaptive_history",
+           "asvgf_history", "atrous", "atrous_fast", "atrous_reference", "depth_gradient", "fast_exp_neg", "filter_gradients",
            "gradient_at_pixels", "gradient_value", "normal_weight", "prepare", "prepare_fast",
            "prepare_reference", "remodulate", "spatial_variance", "spatial_variance_fast",
            "spatial_variance_reference", "stratum_gradients", "stratum_samples"]
