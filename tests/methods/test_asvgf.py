@@ -183,7 +183,8 @@ def test_resolved_settings_hold_the_presets_values():
     from dbench.bench.harness import resolved_settings
 
     settings = resolved_settings(methods.get("asvgf"))
-    assert settings["gradient_mode"] == "seed" and settings["luminance_kernel"] == "laplacian"
+    assert settings["gradient_mode"] == "seed" and settings["luminance_kernel"] == "gaussian"
+    assert settings["variance_boost"] == "asvgf"
     assert settings["backend"] in ("numba", "torch", "reference") and settings["alpha_floor"]
     assert resolved_settings(methods.get("asvgf", preset="falcor"))["sigma_l"] == 10.0
     assert resolved_settings(methods.get("asvgf", gradient_mode="filtered"))["gradient_mode"] \
@@ -305,10 +306,10 @@ def test_torch_backend_validation_and_auto(monkeypatch):
 
 
 def test_luminance_kernel_defaults_per_method_and_preset():
-    """docs/temporal.md §13: the dbench preset's Gaussian w_l for svgf, the Laplacian for asvgf
-    (chosen on sequences outside the catalogue); the paper and falcor presets keep the
-    Laplacian; an explicit value wins."""
+    """docs/temporal.md §13, §15: the dbench preset's Gaussian w_l for svgf and asvgf (chosen on
+    sequences outside the catalogue); the paper and falcor presets keep the Laplacian; an
+    explicit value wins."""
     kernel = lambda name, **p: methods.get(name, **p).params["luminance_kernel"]  # noqa: E731
-    assert kernel("svgf") == "gaussian" and kernel("asvgf") == "laplacian"
+    assert kernel("svgf") == "gaussian" and kernel("asvgf") == "gaussian"
     assert kernel("svgf", preset="paper") == kernel("asvgf", preset="falcor") == "laplacian"
-    assert kernel("asvgf", luminance_kernel="gaussian") == "gaussian"
+    assert kernel("asvgf", luminance_kernel="laplacian") == "laplacian"

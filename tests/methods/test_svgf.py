@@ -355,28 +355,39 @@ def test_variance_of_the_mean_follows_the_blend_weights():
     np.testing.assert_allclose(methods.get("svgf").params["alpha_min"], 0.2)
 
 
-@pytest.mark.parametrize("name", ["svgf", "asvgf"])
-def test_variance_boost_scales_the_spatial_estimate_of_short_histories(name):
-    """spec/svgf.md §4 and Falcor's SVGFFilterMoments pass: a history of N < 4 frames takes the
-    spatial estimate times 4/N (4, 2, 4/3 for N = 1, 2, 3); from N = 4 on the temporal estimate
-    is untouched. On by default (dbench and falcor presets), off in the paper preset."""
-    seq = synthetic_sequence(12, 12, frames=5, shift=0)
+@pytest.mark.parametrize("name,boost", [("svgf", "svgf"), ("asvgf", "svgf"), ("asvgf", "asvgf")])
+def test_variance_boost_scales_the_estimate_of_short_histories(name, boost):
+    """docs/temporal.md §15. "svgf" (Falcor's SVGFFilterMoments pass): a history of N < 4 frames
+    takes the spatial estimate times 4/N (4, 2, 4/3 for N = 1, 2, 3), from N = 4 on the temporal
+    estimate is untouched. "asvgf" (Schied's A-SVGF code): the standard deviation times
+    max(1, 8/N), the variance times 64/N² up to N = 8, temporal estimates included."""
+    seq = synthetic_sequence(12, 12, frames=10, shift=0)
     var = {}
-    for boost in (False, True):
-        m = methods.get(name, variance_boost=boost, iterations=0)
+    for b in (False, boost):
+        m = methods.get(name, variance_boost=b, iterations=0)
         m.reset()
-        var[boost] = []
+        var[b] = []
         for f in seq:
             m.denoise(f)
-            var[boost].append(m.last["variance"].copy())
-    n = np.arange(1, 6, dtype=np.float64)
-    for i, factor in enumerate(np.where(n < 4, 4.0 / n, 1.0)):
+            var[b].append(m.last["variance"].copy())
+    n = np.arange(1, 11, dtype=np.float64)  # a static scene: N = 1, 2, … (A-SVGF: G = 0)
+    factors = (np.where(n < 4, 4.0 / n, 1.0) if boost == "svgf"
+               else np.maximum(1.0, 64.0 / n ** 2))
+    for i, factor in enumerate(factors):
         lit = var[False][i] > 1e-6
         assert lit.mean() > 0.5
-        np.testing.assert_allclose(var[True][i][lit], factor * var[False][i][lit], rtol=1e-5)
-    boost = lambda **p: methods.get(name, **p).params["variance_boost"]  # noqa: E731
-    assert boost() and boost(preset="falcor") and not boost(preset="paper")
-    assert not boost(variance_boost=False)
+        np.testing.assert_allclose(var[boost][i][lit], factor * var[False][i][lit], rtol=1e-5)
+
+
+def test_variance_boost_defaults_and_values():
+    boost = lambda name, **p: methods.get(name, **p).params["variance_boost"]  # noqa: E731
+    assert boost("svgf") == boost("svgf", preset="falcor") == "svgf"
+    assert boost("asvgf") == "asvgf" and boost("asvgf", preset="falcor") == "svgf"
+    assert boost("svgf", preset="paper") is False and boost("asvgf", preset="paper") is False
+    assert boost("svgf", variance_boost=True) == "svgf"
+    for bad in ("falcor", 0, None, 1.0):
+        with pytest.raises(DbenchInputError, match="variance_boost"):
+            methods.get("svgf", variance_boost=bad)
 
 
 def test_variance_of_the_mean_blurs_less_once_converged():

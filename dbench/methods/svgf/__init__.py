@@ -41,17 +41,18 @@ feedback_tap            None (unfiltered history)  0              1
 alpha_min (moments)     0.2 (0.2)                  0.2 (0.2)      0.05 (0.2)
 variance_of             "mean"                     "sample"       "sample"
 luminance_kernel        see below                  "laplacian"    "laplacian"
-variance_boost          True                       False          True
+variance_boost          see below                  False          "svgf"
 ======================  =========================  =============  ==============
 
 ``luminance_kernel``: w_l = exp(−d²) ("gaussian", as Schied's A-SVGF code writes it) or exp(−d)
-("laplacian", the SVGF paper's and Falcor's), d = |l_p − l_q| / (σ_l √(g(Var)) + ε); chosen per
-method on sequences outside the catalogue by relMSE (docs/temporal.md §13): the Gaussian for
-``svgf``, the Laplacian for ``asvgf``.
+("laplacian", the SVGF paper's and Falcor's), d = |l_p − l_q| / (σ_l √(g(Var)) + ε); chosen on
+sequences outside the catalogue by relMSE (docs/temporal.md §13, §15): the Gaussian for both.
 
-``variance_boost``: where the history holds N < 4 frames the spatial variance estimate is
-multiplied by 4/N, as Falcor's SVGF pass does, so that the first frames after a disocclusion or
-A-SVGF's gradient filter harder than their 7×7 estimate says (docs/temporal.md §15).
+``variance_boost``: a short history is filtered harder than its variance estimate says
+(docs/temporal.md §15): "svgf" (``svgf``'s default) multiplies the 7×7 spatial estimate of a
+history of N < 4 frames by 4/N, as Falcor's SVGF pass does; "asvgf" (``asvgf``'s default)
+multiplies the standard deviation by max(1, 8/N) for every pixel, as Schied's A-SVGF code
+does, N being the history N' after the temporal gradient; False (the paper preset) neither.
 
 ``variance_of="mean"``: the luminance weights use the variance of the accumulated colour — the
 per-sample variance from the moments times Σw² of the blend weights (1/N for a running mean,
@@ -126,7 +127,8 @@ from .dispatch import (adaptive_history, atrous, depth_gradient, filter_gradient
                        remodulate, spatial_variance, stratum_gradients)
 from .numba_path import atrous_fast, fast_exp_neg, prepare_fast, spatial_variance_fast
 from .params import (ALBEDO_FLOOR, ALPHA0_PAPER, EPS_VAR, GRADIENT_MODES, H1, MAX_ITERATIONS,
-                     LUM_KERNELS, N_SPATIAL, PRESETS, VARIANCE_OF, auto_iterations)
+                     LUM_KERNELS, N_SPATIAL, PRESETS, VARIANCE_BOOSTS, VARIANCE_OF,
+                     auto_iterations)
 from .reference import (asvgf_history, atrous_reference, gradient_at_pixels, gradient_value,
                         normal_weight, prepare_reference, spatial_variance_reference,
                         stratum_samples)
@@ -246,6 +248,12 @@ class _SVGFBase(T.HistoryDenoiser):
         if p["luminance_kernel"] not in LUM_KERNELS:
             raise DbenchInputError(f"luminance_kernel: expected one of {LUM_KERNELS}, "
                                    f"got {p['luminance_kernel']!r}")
+        if p["variance_boost"] is True:
+            p["variance_boost"] = "svgf"
+        boost = p["variance_boost"]  # 0 == False: compare by identity for the booleans
+        if boost is not False and not (isinstance(boost, str) and boost in VARIANCE_BOOSTS):
+            raise DbenchInputError(f"variance_boost: expected one of {VARIANCE_BOOSTS} (True is "
+                                   f"\"svgf\"), got {p['variance_boost']!r}")
         if p["variance_of"] not in VARIANCE_OF:
             raise DbenchInputError(f"variance_of: expected one of {VARIANCE_OF}, "
                                    f"got {p['variance_of']!r}")
@@ -323,11 +331,16 @@ class _SVGFBase(T.HistoryDenoiser):
         if spatial.any():
             sv = C.spatial_variance(be, acc_m, geo.depth, gx, gy, w_normal, tap,
                                     gather, spatial, sigma_z=p["sigma_z"], sigma_n=p["sigma_n"])
-            if p["variance_boost"]:  # Falcor's SVGFFilterMoments: variance *= 4 / h
+            if p["variance_boost"] == "svgf":  # Falcor's SVGFFilterMoments: variance *= 4 / h
                 sv = sv * 4.0 / np.maximum(n, 1.0)
             if of_mean:
                 sv = sv * weight_sq
             var = np.where(spatial, sv, var).astype(np.float32)
+        if p["variance_boost"] == "asvgf":
+            # Schied's A-SVGF code (asvgf_temporal.comp): the standard deviation times
+            # max(1, 8 / N), temporal and spatial estimates alike; N is A-SVGF's N' here
+            boost = np.maximum(1.0, 64.0 / np.square(np.maximum(n, 1.0)))
+            var = np.where(filled, var * boost, var).astype(np.float32)
 
         cur, feedback = acc_c, acc_c
         iterations = (auto_iterations(h, w) if p["iterations"] == "auto"
@@ -365,14 +378,14 @@ class ASVGF(_SVGFBase):
     needs = _SVGFBase.needs | {"gradient"}
     defaults: dict[str, Any] = dict(_SVGFBase.defaults, gradient_iterations=3,
                                     gradient_mode="seed", n_max=T.N_MAX, alpha_floor=None)
-    # [dbench] the paper's exp(−d) luminance weight: on the training sequences outside the
-    # catalogue the Gaussian lowered A-SVGF's RMSE by 0.3 % but raised its geometric-mean relMSE
-    # ÷ accumulation from 0.542 to 0.594 (docs/temporal.md §13), unlike SVGF's (0.472 → 0.453);
-    # with the variance boost of §15 from 0.525 to 0.543 (4 seeds), so the Laplacian stays.
+    # Schied's A-SVGF code: its variance boost (std × max(1, 8/N)) and, with it, its Gaussian
+    # luminance weight; on the training sequences outside the catalogue (4 seeds) A-SVGF's
+    # geometric-mean relMSE ÷ accumulation 0.565 (Laplacian, no boost) → 0.473 (docs/temporal.md
+    # §15); with Falcor's boost the Laplacian was still better (0.525 against 0.543).
     # The seed's gradient stays: "filtered" was better there (§14) but follows flicker's light
     # switch later (RMSE at 128², 4 spp, 0.0432 → 0.0480); "filtered_abs" does not, but misses
     # mirror-pan's moving reflections (RMSE over surfaces 0.152 → 0.161 at 128², 1 spp)
-    preset_overrides = {"dbench": {"luminance_kernel": "laplacian"}}
+    preset_overrides = {"dbench": {"variance_boost": "asvgf"}}
 
     def __init__(self, **params: Any) -> None:
         super().__init__(**params)

@@ -29,30 +29,36 @@ SPATIAL_RADIUS = 3  # 7×7 window
 #: :func:`auto_iterations`); docs/temporal.md §3 gives the reasons, results/temporal.md the
 #: study.
 #: ``paper`` is the SVGF paper [SVGF], ``falcor`` Falcor's SVGFPass defaults [Falcor].
-#: ``variance_boost``: the spatial variance of a history of N < 4 frames times 4/N, as Falcor's
-#: SVGFFilterMoments pass does ("give the variance a boost for the first frames"); the paper does
-#: not mention it. On in ``dbench``: on 8 training sequences outside the catalogue it lowered
-#: A-SVGF's geometric-mean relMSE ÷ accumulation from 0.565 to 0.525 (4 seeds; SVGF 0.479 →
-#: 0.478), and changed no catalogue figure for the worse (docs/temporal.md §15).
+#: ``variance_boost`` (docs/temporal.md §15; the papers do not mention either form):
+#: "svgf" multiplies the spatial variance of a history of N < 4 frames by 4/N, as Falcor's
+#: SVGFFilterMoments pass does ("give the variance a boost for the first frames"); "asvgf"
+#: multiplies the standard deviation of every pixel's estimate by max(1, 8/N), as Schied's A-SVGF
+#: code does (q2vkpt's asvgf_temporal.comp), N being A-SVGF's history N' after its gradient;
+#: False none. ``svgf`` takes "svgf" (on the training sequences outside the catalogue its
+#: relMSE ratio 0.479 → 0.478 over 4 seeds, "asvgf" 0.480), ``asvgf`` takes "asvgf" with
+#: that code's Gaussian luminance weight (``ASVGF.preset_overrides``).
 PRESETS = {
     "dbench": dict(sigma_z=1.0, sigma_n=128.0, sigma_l=4.0, iterations="auto", feedback_tap=None,
                    alpha_min=0.2, alpha_min_moments=0.2, variance_of="mean",
-                   luminance_kernel="gaussian", variance_boost=True),
+                   luminance_kernel="gaussian", variance_boost="svgf"),
     "paper": dict(sigma_z=1.0, sigma_n=128.0, sigma_l=4.0, iterations=5, feedback_tap=0,
                   alpha_min=0.2, alpha_min_moments=0.2, variance_of="sample",
                   luminance_kernel="laplacian", variance_boost=False),
     "falcor": dict(sigma_z=1.0, sigma_n=128.0, sigma_l=10.0, iterations=4, feedback_tap=1,
                    alpha_min=0.05, alpha_min_moments=0.2, variance_of="sample",
-                   luminance_kernel="laplacian", variance_boost=True),
+                   luminance_kernel="laplacian", variance_boost="svgf"),
 }
 VARIANCE_OF = ("mean", "sample")
+#: ``variance_boost``: none, Falcor's SVGF pass, Schied's A-SVGF code (above); True is "svgf".
+VARIANCE_BOOSTS = (False, "svgf", "asvgf")
 #: The luminance edge-stopping weight w_l = exp(−d) with d = |l_p − l_q| / (σ_l √(g(Var)) + ε):
 #: "laplacian" as the SVGF paper and Falcor write it, "gaussian" exp(−d²) as Schied's A-SVGF
 #: code does. [dbench] "gaussian" in the ``dbench`` preset: on 8 training sequences outside the
 #: catalogue it lowered SVGF's geometric-mean relMSE ÷ accumulation from 0.472 to 0.453 (RMSE
 #: 0.913 → 0.910) with the paper's σ_l = 4 kept, the best of σ_l ∈ {2, 4, 6, 8}; A-SVGF keeps
-#: the Laplacian there (its relMSE rose, 0.542 → 0.594; with the variance boost still 0.525 →
-#: 0.543 over 4 seeds; ``ASVGF.preset_overrides``; docs/temporal.md §13, §15).
+#: the Laplacian there until it took its own code's variance boost (its relMSE rose, 0.542 →
+#: 0.594, and with Falcor's boost 0.525 → 0.543 over 4 seeds; with the "asvgf" boost it fell,
+#: 0.491 → 0.473; docs/temporal.md §13, §15).
 LUM_KERNELS = ("gaussian", "laplacian")
 MAX_ITERATIONS = 12
 
