@@ -418,7 +418,8 @@ class ASVGF(_SVGFBase):
 
 
 __all__ = ["SVGF", "ASVGF", "H1", "gradient_history", "PRESETS", "adaptive_history",
-           "asvgf_history", "atrous", "atrous_fast", "atrous_reference", "depth_gradient", "fast_exp_neg", "filter_gradients",
-           "gradient_at_pixels", "gradient_value", "normal_weight", "prepare", "prepare_fast",
-           "prepare_reference", "remodulate", "spatial_variance", "spatial_variance_fast",
-           "spatial_variance_reference", "stratum_gradients", "stratum_samples"]
+           "asvgf_history", "atrous", "atrous_fast", "atrous_reference", "depth_gradient",
+           "fast_exp_neg", "filter_gradients", "gradient_at_pixels", "gradient_value",
+           "normal_weight", "prepare", "prepare_fast", "prepare_reference", "remodulate",
+           "spatial_variance", "spatial_variance_fast", "spatial_variance_reference",
+           "stratum_gradients", "stratum_samples"]
