@@ -420,3 +420,52 @@ def test_gradient_samples_cost_counts_with_the_methods_that_use_them(flicker):
                       {**base, "method": "asvgf", "gradient_s": 0.05}]).set_index("method")
     assert df.loc["asvgf", "gradient_s"] == 0.05 and df.loc["svgf", "gradient_s"] == 0
     assert df.loc["asvgf", "total_s"] - df.loc["svgf", "total_s"] == pytest.approx(0.05)
+
+
+def test_temporal_targets_pair_seeds_and_tell_a_three_seed_tie_from_a_real_one():
+    """dbench.bench.temporal_targets: filter − accumulate seed by seed, over the first 3 seeds
+    and over all; a small steady gain is tied over 3 seeds and below over 10."""
+    from dbench.bench.temporal_targets import FILTERS, SETTINGS, paired, tables, verdict
+
+    rng = np.random.default_rng(0)
+    rows = []
+    for seed in range(10):
+        acc = 1.0 + 0.2 * rng.standard_normal()
+        values = {"noisy": acc + 5.0, "accumulate": acc, "svgf": acc - 0.01,
+                  "asvgf": acc - 0.05, "bmfr": acc + 0.05}
+        # svgf: −0.01 ± 0.02 per seed, too little to show over 3 seeds
+        values["svgf"] += 0.02 * (1 if seed % 2 else -1) * (1 if seed < 3 else 0.1)
+        for scene in ("orbit", "flicker"):
+            for name, v in values.items():
+                rows.append({"setting": "64", "scene": scene, "method": name, "seed": seed,
+                             "rmse_surface": v, "relmse": v, "t_rmse": v,
+                             **({"rmse_after_change": v} if scene == "flicker" else {})})
+    three = paired([r for r in rows if r["method"] == "svgf" and r["scene"] == "orbit"],
+                   [r for r in rows if r["method"] == "accumulate" and r["scene"] == "orbit"],
+                   "relmse", 3)
+    assert three[2] == 3 and "(tied)" in verdict(three)
+    text = tables(rows)
+    line = next(x for x in text.splitlines() if x.startswith("| orbit | svgf |"))
+    assert line.count("(tied)") == 2 and line.count("(below)") == 2, line
+    assert line.endswith("| below / below |")
+    assert "| orbit | bmfr | +0.05" in text and "(above)" in text
+    # asvgf − svgf = −0.04 − svgf's perturbation, whose mean over the 10 seeds is −0.0018
+    switch = paired([r for r in rows if r["method"] == "asvgf" and r["scene"] == "flicker"],
+                    [r for r in rows if r["method"] == "svgf" and r["scene"] == "flicker"],
+                    "rmse_after_change")
+    assert switch[0] == pytest.approx(-0.0382) and switch[2] == 10
+    assert f"light switch (RMSE), 10 seeds: {verdict(switch)}" in text
+    assert "(below)" in verdict(switch) and "`t_rmse` on `orbit`, 10 seeds: -0.03" in text
+    assert paired(rows[:1], rows[:1], "relmse") is None  # one seed: no interval
+    assert set(FILTERS) == {"svgf", "asvgf", "bmfr"} and set(SETTINGS) == {"64", "128", "128x76"}
+
+
+@pytest.mark.parametrize("args", [["--settings", "256"], ["--seeds", "2"]])
+def test_temporal_targets_refuse_bad_arguments_in_one_line(args, capsys):
+    from dbench.bench.temporal_targets import main
+
+    with pytest.raises(SystemExit) as exc:
+        main(args + ["--out", "unused"])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert ("--settings" in err and "64, 128, 128x76" in err) or "--seeds" in err

@@ -86,17 +86,19 @@ def _interval(values: list[float]) -> tuple[float, float]:
     return mean, (half if math.isfinite(half) else 0.0)
 
 
-def run(res: int = 64, seeds: tuple[int, ...] = (0, 1, 2), scenes=tuple(SCENES),
-        variants=BASELINES + VARIANTS, progress: bool = True) -> list[dict[str, Any]]:
+def run(res: Any = 64, seeds: tuple[int, ...] = (0, 1, 2), scenes=tuple(SCENES),
+        variants=BASELINES + VARIANTS, progress: bool = True,
+        settings: dict[str, tuple[int, int]] | None = None) -> list[dict[str, Any]]:
     """Rows ``{scene, label, method, params, seed, rmse, rmse_surface, relmse, t_rmse}`` (and
     ``rmse_after_change``, the 5 frames from a light change, where the scene has one) for every
-    variant, scene and seed."""
+    variant, scene and seed. ``res``: a side or (width, height), as ``datasets.load`` takes it;
+    ``settings``: {scene: (frames, reference spp)}, :data:`SCENES` by default."""
     from .. import datasets, methods
     from .sequence import run_sequence, window_mean
 
     rows = []
     for scene in scenes:
-        frames, ref_spp = SCENES[scene]
+        frames, ref_spp = (settings or SCENES)[scene]
         for seed in seeds:
             seq = datasets.load(scene, spp=1, res=res, frames=frames, ref_spp=ref_spp, seed=seed,
                                 progress=False)

@@ -238,13 +238,15 @@ if HAVE_NUMBA:
                             if square:
                                 f = f * f
                             acc[q, i] += f * coef
-                for i in range(nx):
-                    if recon[y, xa + i]:
-                        for q in range(c):
-                            out[q, y, xa + i] = max(acc[q, i], 0.0) if clamp else acc[q, i]
-                    else:
-                        for q in range(c):
-                            out[q, y, xa + i] = z[q, y, xa + i]
+                # a select per channel row, not a branch per pixel: the loops vectorise
+                # (2.5 ms of the 720p fit; the row views cost 3 reference counts per row)
+                rec = recon[y, xa:xb]
+                for q in range(c):
+                    zrow = z[q, y, xa:xb]
+                    orow = out[q, y, xa:xb]
+                    for i in range(nx):
+                        v = max(acc[q, i], 0.0) if clamp else acc[q, i]
+                        orow[i] = np.float32(v) if rec[i] else zrow[i]
 
 
 def bmfr_fit_fast(z, feats, scaled, fit, recon, block, offset, noise_amount=0.01, noise_seed=0,

@@ -140,10 +140,20 @@ if numba is not None:
                     plane = flat[k]
                     row = out[k, y]
                     for x in range(w):
-                        acc = 0.0
-                        for t in range(count[x]):
-                            acc += wt[x, t] * plane[idx[x, t]]
-                        row[x] = acc
+                        # the two common counts unrolled (one tap: integer motion; four:
+                        # bilinear), the same sum in the same order as the loop
+                        n = count[x]
+                        if n == 1:
+                            row[x] = wt[x, 0] * plane[idx[x, 0]]
+                        elif n == 4:
+                            row[x] = (((wt[x, 0] * plane[idx[x, 0]] + wt[x, 1] * plane[idx[x, 1]])
+                                       + wt[x, 2] * plane[idx[x, 2]])
+                                      + wt[x, 3] * plane[idx[x, 3]])
+                        else:
+                            acc = 0.0
+                            for t in range(n):
+                                acc += wt[x, t] * plane[idx[x, t]]
+                            row[x] = acc
 
 
 def reproject_fast(history, motion, cur_hit, cur_normal, d_exp, prev_ok, prev_depth,
