@@ -130,9 +130,17 @@ def paired_difference(mine: list[dict[str, Any]], base: list[dict[str, Any]], me
     paired = paired_interval({"per_seed": mine}, {"per_seed": base}, metric)
     if paired is None:
         return "—"
-    mean, half = paired
-    word = "below" if mean + half < 0 else "above" if mean - half > 0 else "tied"
-    return f"{mean:+.4f} ± {half:.4f} ({word})"
+    return paired_text(*paired)
+
+
+def paired_word(mean: float, half: float) -> str:
+    """"below" or "above" when the interval mean ± half excludes 0, else "tied"."""
+    return "below" if mean + half < 0 else "above" if mean - half > 0 else "tied"
+
+
+def paired_text(mean: float, half: float, digits: int = 4) -> str:
+    """``mean ± half (word)`` with ``digits`` decimals and :func:`paired_word`."""
+    return f"{mean:+.{digits}f} ± {half:.{digits}f} ({paired_word(mean, half)})"
 
 
 def tables(rows: list[dict[str, Any]], res: int) -> str:

@@ -19,8 +19,8 @@ Three settings, each with one reference per scene and frame shared by the seeds:
 * ``128`` — the sequence sweep's: 128², 24 frames, 256-spp references;
 * ``128x76`` — seed 001's Table 3.1 layout: 128×76, 24 frames, 1024-spp references.
 
-Reproduce (about 10 minutes on 2 cores once the sequences are cached; the first run renders the
-noisy frames of the new seeds)::
+Reproduce (about 4 minutes on 2 cores once the references are cached, the new seeds' 1-spp
+frames rendered included)::
 
     python -m dbench.bench.temporal_targets --seeds 10 --out results/temporal_targets
 
@@ -34,6 +34,7 @@ from pathlib import Path
 from typing import Any
 
 from .temporal_study import SCENES as STUDY_SCENES
+from .temporal_study import paired_text, paired_word
 from .temporal_study import run as study_run
 
 FILTERS = ("svgf", "asvgf", "bmfr")
@@ -66,11 +67,7 @@ def paired(rows_a: list[dict[str, Any]], rows_b: list[dict[str, Any]], metric: s
 
 def verdict(result: tuple[float, float, int] | None, digits: int = 4) -> str:
     """``mean ± half (word)`` of :func:`paired`, "—" when there is none."""
-    if result is None:
-        return "—"
-    mean, half, _ = result
-    word = "below" if mean + half < 0 else "above" if mean - half > 0 else "tied"
-    return f"{mean:+.{digits}f} ± {half:.{digits}f} ({word})"
+    return "—" if result is None else paired_text(result[0], result[1], digits)
 
 
 def run(setting: str, seeds: tuple[int, ...], progress: bool = False) -> list[dict[str, Any]]:
@@ -106,32 +103,30 @@ def tables(rows: list[dict[str, Any]]) -> str:
                 "| scene | filter | RMSE (surfaces) − acc., 3 seeds | all seeds | "
                 "relMSE − acc., 3 seeds | all seeds | below the noisy input (surfaces / relMSE) |",
                 "|---|---|---|---|---|---|---|"]
+        of = {(s, name): [r for r in sub if r["scene"] == s and r["method"] == name]
+              for s in scenes for name in ("noisy", "accumulate") + FILTERS}
         for scene in scenes:
-            of = {name: [r for r in sub if r["scene"] == scene and r["method"] == name]
-                  for name in ("noisy", "accumulate") + FILTERS}
             for name in FILTERS:
                 cells = []
                 for metric in ("rmse_surface", "relmse"):
-                    results = [paired(of[name], of["accumulate"], metric, n)
+                    results = [paired(of[scene, name], of[scene, "accumulate"], metric, n)
                                for n in (FIRST_SEEDS, None)]
                     d = _digits([x[1] for x in results if x is not None])
                     cells += [verdict(x, d) for x in results]
-                noisy = [paired(of[name], of["noisy"], m) for m in ("rmse_surface", "relmse")]
-                words = " / ".join(verdict(x).split("(")[-1].rstrip(")") for x in noisy)
+                noisy = [paired(of[scene, name], of[scene, "noisy"], m)
+                         for m in ("rmse_surface", "relmse")]
+                words = " / ".join("—" if x is None else paired_word(x[0], x[1]) for x in noisy)
                 out.append(f"| {scene} | {name} | " + " | ".join(cells) + f" | {words} |")
         out.append("")
-        asvgf = {s: [r for r in sub if r["scene"] == s and r["method"] == "asvgf"] for s in scenes}
-        svgf = {s: [r for r in sub if r["scene"] == s and r["method"] == "svgf"] for s in scenes}
-        lines = []
         if "flicker" in scenes:
-            x = paired(asvgf["flicker"], svgf["flicker"], "rmse_after_change")
-            lines.append(f"* A-SVGF − SVGF over the 5 frames from `flicker`'s light switch (RMSE), "
-                         f"{n_all} seeds: {verdict(x)}")
+            x = paired(of["flicker", "asvgf"], of["flicker", "svgf"], "rmse_after_change")
+            out.append(f"* A-SVGF − SVGF over the 5 frames from `flicker`'s light switch (RMSE), "
+                       f"{n_all} seeds: {verdict(x)}")
         if "orbit" in scenes:
-            x = paired(asvgf["orbit"], svgf["orbit"], "t_rmse")
-            lines.append(f"* A-SVGF − SVGF in `t_rmse` on `orbit`, {n_all} seeds: "
-                         f"{verdict(x, 5)}")
-        out += lines + [""]
+            x = paired(of["orbit", "asvgf"], of["orbit", "svgf"], "t_rmse")
+            out.append(f"* A-SVGF − SVGF in `t_rmse` on `orbit`, {n_all} seeds: "
+                       f"{verdict(x, 5)}")
+        out.append("")
     return "\n".join(out)
 
 
