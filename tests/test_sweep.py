@@ -20,8 +20,14 @@ def _config(tmp_path, **kw):
     return sweep.SweepConfig(**base)
 
 
+def _cell_files(out):
+    """The finished cell files: not the hidden ``.NAME.json.*.tmp.json`` of a write under way
+    (dbench.io.atomic_path), which a killed sweep leaves and the next run deletes."""
+    return [p for p in Path(out).glob("cells/*/*/*.json") if not p.name.startswith(".")]
+
+
 def _mtimes(out):
-    return {p: p.stat().st_mtime_ns for p in Path(out).glob("cells/*/*/*.json")}
+    return {p: p.stat().st_mtime_ns for p in _cell_files(out)}
 
 
 def test_sweep_writes_one_cell_per_file_and_resumes(renderer, tmp_path):
@@ -63,7 +69,7 @@ def test_killed_sweep_completes_with_exactly_one_result_per_cell(renderer, tmp_p
            "--ref-spp", "16", "--repeats", "1", "--out", str(out), "--quiet"]
     proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     deadline = time.time() + 120
-    while time.time() < deadline and len(list(out.glob("cells/*/*/*.json"))) < 3:
+    while time.time() < deadline and len(_cell_files(out)) < 3:
         time.sleep(0.05)
     proc.send_signal(signal.SIGKILL)
     proc.wait()
@@ -71,7 +77,7 @@ def test_killed_sweep_completes_with_exactly_one_result_per_cell(renderer, tmp_p
     assert 0 < len(finished) < 18
     rc = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=600)
     assert rc.returncode == 0, rc.stderr[-2000:]
-    files = list(out.glob("cells/*/*/*.json"))
+    files = _cell_files(out)
     assert len(files) == 18 and len({f for f in files}) == 18
     for p, t in finished.items():
         assert p.stat().st_mtime_ns == t  # finished cells were not recomputed
