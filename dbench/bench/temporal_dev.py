@@ -47,6 +47,7 @@ VARIANTS: tuple[tuple[str, str, dict[str, Any]], ...] = (
     *((f"{m} alpha_min={a}" + (" (default)" if a == 0.2 else ""), m, {"alpha_min": a})
       for m in ("svgf", "asvgf") for a in ALPHAS),
     ("bmfr alpha1=0.1 alpha2=0.05", "bmfr", {"alpha1": 0.1, "alpha2": 0.05}),
+    ("bmfr handback=wiener (the previous default)", "bmfr", {"handback": "wiener"}),
     ("svgf luminance_kernel=laplacian (the paper's)", "svgf", {"luminance_kernel": "laplacian"}),
     ("asvgf luminance_kernel=laplacian (the paper's)", "asvgf", {"luminance_kernel": "laplacian"}),
     ("svgf variance_boost=False (the paper's)", "svgf", {"variance_boost": False}),
@@ -69,6 +70,7 @@ VARIANTS: tuple[tuple[str, str, dict[str, Any]], ...] = (
 #: flicker (``"filtered"``) or mirror-pan (both) do not
 HELD_OUT_VARIANTS = (("accumulate", "accumulate", {}), ("svgf", "svgf", {}),
                      ("asvgf", "asvgf", {}), ("bmfr", "bmfr", {}),
+                     ("bmfr handback=wiener", "bmfr", {"handback": "wiener"}),
                      ("svgf variance_boost=False", "svgf", {"variance_boost": False}),
                      ("asvgf variance_boost=False luminance_kernel=laplacian", "asvgf",
                       {"variance_boost": False, "luminance_kernel": "laplacian"}),

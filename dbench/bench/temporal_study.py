@@ -58,6 +58,7 @@ VARIANTS: tuple[tuple[str, str, dict[str, Any]], ...] = (
     ("asvgf normal_buffer=reflected_normal", "asvgf", {"normal_buffer": "reflected_normal"}),
     ("asvgf taa=True", "asvgf", {"taa": True}),
     ("bmfr", "bmfr", {}),
+    ("bmfr handback=wiener (the previous default)", "bmfr", {"handback": "wiener"}),
     ("bmfr preset=paper (no hand-back, demodulated)", "bmfr", {"preset": "paper"}),
     ("bmfr handback=none block_size=16", "bmfr", {"handback": "none", "block_size": 16}),
     ("bmfr temporal_gradient=False", "bmfr", {"temporal_gradient": False}),

@@ -1,4 +1,4 @@
-"""bmfr's residual hand-back [dbench] (docs/temporal.md §9; kernels/residual_handback.py)."""
+"""bmfr's residual hand-back [dbench] (docs/temporal.md §9, §17; kernels/residual_handback.py)."""
 import numpy as np
 import pytest
 
@@ -19,13 +19,15 @@ def _images(seed, h=37, w=53):
     return z, y, var, mask
 
 
+@pytest.mark.parametrize("signed", [False, True])
 @pytest.mark.parametrize("seed", [0, 1])
-def test_fast_equals_reference(seed):
+def test_fast_equals_reference(seed, signed):
     z, y, var, mask = _images(seed)
-    ref = RH.residual_handback_reference(z, y, var, mask)
+    var[:, ::7, ::5] = 0.0  # pixels that do not vote in the signed rule
+    ref = RH.residual_handback_reference(z, y, var, mask, signed=signed)
     first = None
     for band in (1, 5, 16, 64):  # any band height: the same values to float32 rounding
-        fast = RH.residual_handback_fast(z, y, var, mask, band=band)
+        fast = RH.residual_handback_fast(z, y, var, mask, band=band, signed=signed)
         np.testing.assert_allclose(fast, ref, rtol=1e-5, atol=1e-5 * np.abs(ref).max())
         first = fast if first is None else first
         np.testing.assert_allclose(fast, first, rtol=1e-6, atol=1e-7)
@@ -58,10 +60,12 @@ def test_subnormal_variances_give_the_reference_not_nan():
     var[rng.random(var.shape) < 0.3] = 0.0
     z[:, 10:20, 10:20] = 0.0
     mask = np.ones((32, 32), bool)
-    fast = RH.residual_handback_fast(z, y, var, mask)
-    ref = RH.residual_handback_reference(z, y, var, mask)
-    assert np.isfinite(fast).all()
-    np.testing.assert_allclose(fast, ref, rtol=1e-5, atol=1e-25)
+    for signed in (False, True):  # the signed rule's ratios: up to 1e-38 / 1e-45, capped
+        fast = RH.residual_handback_fast(z, y - np.float32(2e-19), var, mask, signed=signed)
+        ref = RH.residual_handback_reference(z, y - np.float32(2e-19), var, mask,
+                                             signed=signed)
+        assert np.isfinite(fast).all()
+        np.testing.assert_allclose(fast, ref, rtol=1e-5, atol=1e-25)
 
 
 def test_pixel_window_variance_equals_the_reference():
@@ -79,13 +83,67 @@ def test_pixel_window_variance_equals_the_reference():
     assert RH.pixel_window_variance(z, 0, 10, 10, RH.HANDBACK_RADIUS, lone, lone) == 0.0
 
 
-def test_limits_zero_variance_gives_z_and_zero_residual_gives_y():
+@pytest.mark.parametrize("signed", [False, True])
+def test_limits_zero_variance_gives_z_and_zero_residual_gives_y(signed):
     z, y, var, mask = _images(4)
     for rule in (RH.residual_handback_reference, RH.residual_handback_fast):
-        out = rule(z, y, np.zeros_like(var), mask)  # a converged history: its own value
+        out = rule(z, y, np.zeros_like(var), mask, signed=signed)  # a converged history
         np.testing.assert_allclose(out[:, mask], z[:, mask], rtol=1e-5, atol=1e-5)
-        out = rule(z, z, var, mask)
+        out = rule(z, z, var, mask, signed=signed)
         np.testing.assert_allclose(out, z, rtol=1e-6, atol=1e-6)
+
+
+def test_signed_gain_of_a_known_window():
+    """var = 1 and high = ∓2 everywhere: the pooled λ = (4 − 1) / (3 + 1) = 0.75 on both sides;
+    below the fit the weights are equal and λ_neg = 1 − 1 / (2 · 4) = 0.875. Where every
+    negative part is within its noise λ_neg is 0 and the pooled λ stays. A pixel whose variance
+    collapsed (var = 0) votes with its weight floored at c · B(var), not an infinite one."""
+    mask = np.ones((21, 21), bool)
+    var = np.ones((3, 21, 21))
+    np.testing.assert_allclose(RH.signed_gain(np.full((3, 21, 21), 2.0), var, mask), 0.75)
+    np.testing.assert_allclose(RH.signed_gain(np.full((3, 21, 21), -2.0), var, mask), 0.875)
+    high = np.full((3, 21, 21), 0.5)
+    high[:, 10, 10] = -0.9  # the only negative part: 0.81 against Σ var / 2 = 24.5
+    lam = RH.signed_gain(high, var, mask)
+    assert lam[0, 10, 10] == pytest.approx(0.0)  # pooled: 0.25·48/49 + 0.81/49 − 1 < 0
+    var[:, 10, 11] = 0.0
+    high[:, 10, 11] = -3.0
+    # Σ w·var ≈ 48 / 1.3; Σ w·n2 ≈ 9 / (0.3 · 48/49) + 0.81 / 1.3 (B(var) = 1 or 48/49)
+    c = RH.SIGNED_NOISE_FLOOR
+    expected = 1.0 - (48 / (1 + c)) / (2 * (9 / (c * 48 / 49) + 0.81 / (1 + c)))
+    assert RH.signed_gain(high, var, mask)[0, 10, 10] == pytest.approx(expected, abs=0.01)
+    assert 0.3 < expected < 0.5
+
+
+def test_signed_rule_returns_a_dark_shadow_beside_a_noisy_floor():
+    """The case of docs/temporal.md §16-17: a 2-px shadow (truth 0.04, sd 0.03) beside a lit
+    floor (truth 0.4, sd 0.4) that the fit misses (y = 0.4 there too). The pooled test weighs the
+    shadow's residual against the floor's noise and returns little of it; the signed rule
+    returns most. Where the fit is right, with noise skewed like 1-spp radiance and a firefly,
+    it hands back no more noise than the pooled test (within 5 %)."""
+    rng = np.random.default_rng(7)
+    h, w = 48, 48
+    truth = np.full((3, h, w), 0.4, np.float32)
+    sd = np.full(truth.shape, 0.4, np.float32)
+    truth[:, :, 20:22], sd[:, :, 20:22] = 0.04, 0.03
+    z = (truth + rng.normal(0, 1, truth.shape) * sd).astype(np.float32)
+    var = (sd * sd).astype(np.float32)
+    mask = np.ones((h, w), bool)
+    fit = np.full_like(truth, 0.4)
+    shadow = (lambda a: float(np.abs(a[:, :, 20:22] - truth[:, :, 20:22]).mean()))
+    pooled = RH.residual_handback_fast(z, fit, var, mask)
+    signed = RH.residual_handback_fast(z, fit, var, mask, signed=True)
+    assert shadow(signed) < 0.75 * shadow(pooled)  # 0.055 against 0.084 (z: 0.024)
+    assert shadow(pooled) > 3 * shadow(z)
+    # the fit right, the noise a gamma of shape 0.5 (mean 1, long bright tail) and a firefly
+    z = rng.gamma(0.5, 2.0, truth.shape).astype(np.float32)
+    z[:, 10, 10] = 50.0
+    var = np.full(truth.shape, 2.0, np.float32)
+    rmse = (lambda a: float(np.sqrt(((a - 1.0) ** 2).mean())))
+    pooled = RH.residual_handback_fast(z, np.ones_like(z), var, mask)
+    signed = RH.residual_handback_fast(z, np.ones_like(z), var, mask, signed=True)
+    assert rmse(signed) < 1.05 * rmse(pooled) and rmse(pooled) < 0.7 * rmse(z)
+    assert signed[0, 10, 10] == pytest.approx(pooled[0, 10, 10], rel=1e-6)
 
 
 def test_noise_stays_out_and_bias_goes_back():
@@ -196,20 +254,27 @@ def _late_rmse(method, frames=24, skip=12):
 def test_bmfr_converges_to_its_accumulation_where_the_fit_is_biased():
     """Fed a clean image, the paper's BMFR keeps its block fit's bias; with the hand-back the
     output converges to the input (from the 4th frame its fit is handed back whole; the second
-    accumulation forgets the first frames at 0.9 a frame). With noise, the hand-back is below the paper's output and below the
-    first accumulation."""
+    accumulation forgets the first frames at 0.9 a frame). With noise, the hand-back is below
+    the paper's output and below the first accumulation."""
     err = {}
-    for rule in ("none", "wiener"):
+    for rule in ("none", "wiener", "signed"):
         m = methods.get("bmfr", handback=rule)
         m.reset()
         for f in _shadow_sequence(48, noisy=False):
             out = m.denoise(f)
         err[rule] = float(np.sqrt(((out - f.reference) ** 2).mean()))
     assert err["none"] > 0.05 and err["wiener"] < 0.01 * err["none"]
-    late = {rule: _late_rmse(methods.get("bmfr", handback=rule)) for rule in ("none", "wiener")}
+    assert err["signed"] < 0.01 * err["none"]
+    late = {rule: _late_rmse(methods.get("bmfr", handback=rule))
+            for rule in ("none", "wiener", "signed")}
     accumulated = _late_rmse(methods.get("accumulate", alpha_min=0.2))
     assert late["wiener"] < 0.8 * late["none"]
-    assert late["wiener"] < accumulated
+    # the signed rule's price (docs/temporal.md §17): with the exponential noise of this wall
+    # (a coefficient of variation of 1 everywhere) a pixel whose recent samples were low has a
+    # low z and a low variance estimate at once, and it hands part of that back in the lit part
+    assert late["signed"] < late["none"]
+    for rule in ("wiener", "signed"):
+        assert late[rule] < accumulated
 
 
 def test_backends_agree_with_the_hand_back_and_history_planes():
@@ -237,4 +302,4 @@ def test_backends_agree_with_the_hand_back_and_history_planes():
 def test_handback_parameter_is_checked():
     with pytest.raises(DbenchInputError, match="handback"):
         methods.get("bmfr", handback="pixel")
-    assert methods.get("bmfr").params["handback"] == "wiener"
+    assert methods.get("bmfr").params["handback"] == "signed"

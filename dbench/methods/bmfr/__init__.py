@@ -12,13 +12,15 @@ without Q with R shared by the three channels (§5, :func:`householder_lstsq`); 
 with the noise-free features, negatives clamped to 0; accumulation 2 of the fit with
 α2 = max(1/N, 0.1); remodulation, with the emission accumulated like Z.
 
-Residual hand-back (``handback="wiener"``, default; [dbench], docs/temporal.md §9,
+Residual hand-back (``handback="signed"``, default; [dbench], docs/temporal.md §9, §17,
 :mod:`dbench.methods.bmfr.handback`): before accumulation 2 the fit y gets back the part of Z' −
 y that is not noise — its 7×7 local mean, and the rest in proportion to its window energy beyond
 the variance of Z' (accumulated per channel from Z² and the blend weights, spatial below 4
-effective samples), clamped at 0 like the fit (``clamp_negative``). A block fit cannot follow a
-contact shadow or a highlight inside a block: fed the reference itself, the paper's BMFR had
-twice plain accumulation's error on ``orbit``, and that bias does not fall as frames accumulate.
+effective samples), clamped at 0 like the fit (``clamp_negative``); below the fit also in
+proportion to each pixel's residual beyond its own variance (``"wiener"``: without that). A
+block fit cannot follow a contact shadow or a highlight inside a block: fed the reference
+itself, the paper's BMFR had twice plain accumulation's error on ``orbit``, and that bias does
+not fall as frames accumulate.
 With the hand-back the output converges to the accumulated input as its variance vanishes.
 ``"none"`` is the paper's method (4 history planes fewer: 7 instead of 11, 3 more each with an
 ``emission`` buffer).
@@ -45,7 +47,7 @@ all blocks and the reconstruction as PyTorch kernels (:mod:`dbench.methods.bmfr.
 CUDA when available, else on CPU, NumPy in and out of each kernel, history kept as NumPy;
 ``params["backend"]`` holds the resolved name), preset (None | "seed": block 64, 36 samples,
 features "seed", no hand-back — the seed's implementation, spec §3.1 | "paper": no hand-back),
-handback ("wiener" | "none"), taa (False: spec §1 step 6, the BMFR code's temporal
+handback ("signed" | "wiener" | "none"), taa (False: spec §1 step 6, the BMFR code's temporal
 antialiasing of the output, :mod:`dbench.methods.temporal.taa`), taa_alpha (0.2) and
 albedo_floor (1 [dbench]: no demodulation; 0.2 in the ``seed`` and ``paper`` presets, SVGF's;
 docs/temporal.md §12).
@@ -116,7 +118,7 @@ class BMFR(T.HistoryDenoiser):
                                     offsets=N_OFFSETS, alpha1=0.2, alpha2=0.1,
                                     clamp_negative=True, rcond=RCOND, seed=0, tau_d=T.TAU_D,
                                     tau_n=T.TAU_N, backend="auto", preset=None, samples=None,
-                                    temporal_gradient=True, handback="wiener", taa=False,
+                                    temporal_gradient=True, handback="signed", taa=False,
                                     taa_alpha=T.TAA_ALPHA, albedo_floor=ALBEDO_FLOOR_BMFR)
 
     def __init__(self, **params: Any) -> None:
@@ -212,7 +214,7 @@ class BMFR(T.HistoryDenoiser):
         # accumulated (3) and Σ w² of the first accumulation; with an emission buffer the
         # emission accumulated (3) (without one it is 0 everywhere: nothing to reproject or
         # accumulate; a change of the buffer's presence resets the history)
-        wiener = p["handback"] == "wiener"
+        wiener = p["handback"] != "none"  # "wiener" or "signed"
         emissive = emission is not None
         base = 7 + (HB.EXTRA_PLANES if wiener else 0)  # the emission planes' start
         planes = base + (3 if emissive else 0)
@@ -265,7 +267,8 @@ class BMFR(T.HistoryDenoiser):
             # clamp_negative: the residual's local mean can take the fit below 0
             y_fit = HB.handback(z_acc, y_fit, var, handed, compiled,
                                 out=self._buffer("handback", y_fit.shape) if compiled else None,
-                                clamp=bool(p["clamp_negative"]))
+                                clamp=bool(p["clamp_negative"]),
+                                signed=p["handback"] == "signed")
         # the second history length equals the first one (same reprojection, same resets)
         y_acc, n2, _ = acc(y_fit, hist[4:7], n_hist, ok, p["alpha2"], T.N_MAX, a2,
                            filled | recon, out=(stage[4:7], None))

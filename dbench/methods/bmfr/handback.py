@@ -1,6 +1,8 @@
-"""BMFR's residual hand-back [dbench] (``handback="wiener"``, docs/temporal.md §9): the block fit
-y of the accumulated illumination z gets back the part of z − y that is not noise
-(:mod:`dbench.methods.kernels.residual_handback`), before the second accumulation.
+"""BMFR's residual hand-back [dbench] (``handback="signed"``, the default, or ``"wiener"``;
+docs/temporal.md §9, §17): the block fit y of the accumulated illumination z gets back the part
+of z − y that is not noise (:mod:`dbench.methods.kernels.residual_handback`; ``"signed"`` also
+weighs each pixel's residual below the fit against its own variance), before the second
+accumulation.
 
 The variance it weighs that residual against is the variance of z, per channel: the first
 accumulation also accumulates z² with the same α, and the sum of its squared blend weights
@@ -22,8 +24,9 @@ from ..kernels.residual_handback import (HANDBACK_RADIUS, pixel_window_variance,
                                          residual_handback_fast,
                                          residual_handback_reference, window_variance_reference)
 
-#: The rules: hand back nothing (the BMFR paper's output) or the Wiener split.
-HANDBACKS = ("none", "wiener")
+#: The rules: hand back nothing (the BMFR paper's output), the Wiener split, or the Wiener split
+#: with the signed rule below the fit (docs/temporal.md §17).
+HANDBACKS = ("none", "wiener", "signed")
 #: Below this many effective samples (1/S) the variance is the spatial one (spec/svgf.md §3).
 MIN_TEMPORAL_SAMPLES = 4.0
 #: History planes the hand-back adds: accumulated z² (3) and S (1).
@@ -105,12 +108,16 @@ def moments_fast(illum, z_acc, alpha, hist, ok, present, fit, out_hist, var):
 
 
 def handback(z_acc: np.ndarray, y_fit: np.ndarray, var: np.ndarray, fit: np.ndarray,
-             fast: bool, out: np.ndarray | None = None, clamp: bool = False) -> np.ndarray:
+             fast: bool, out: np.ndarray | None = None, clamp: bool = False,
+             signed: bool = True) -> np.ndarray:
     """y + low + λ·high on the fit pixels (3, H, W) float32, at least 0 everywhere with
-    ``clamp``: compiled when ``fast`` (into ``out`` when given), else the readable SciPy form."""
+    ``clamp``, λ of the signed rule with ``signed``: compiled when ``fast`` (into ``out`` when
+    given), else the readable SciPy form."""
     if fast:
-        return residual_handback_fast(z_acc, y_fit, var, fit, out=out, clamp=clamp)
-    return residual_handback_reference(z_acc, y_fit, var, fit, clamp=clamp).astype(np.float32)
+        return residual_handback_fast(z_acc, y_fit, var, fit, out=out, clamp=clamp,
+                                      signed=signed)
+    return residual_handback_reference(z_acc, y_fit, var, fit, clamp=clamp,
+                                       signed=signed).astype(np.float32)
 
 
 __all__ = ["EXTRA_PLANES", "HANDBACKS", "MIN_TEMPORAL_SAMPLES", "handback",

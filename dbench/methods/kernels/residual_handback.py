@@ -20,6 +20,26 @@ window's energy exceeds the noise's and λ → 1: z. As var → 0 (a converged h
 so the filter converges with its own accumulation instead of keeping its bias. The 7×7 window
 is SVGF's variance window (spec/svgf.md §3); r and var are 0 outside ``mask``.
 
+With ``signed`` (docs/temporal.md §17) a value whose high part is negative (z below the fit)
+takes the larger of that λ and one that weighs each pixel's negative part against its own
+variance:
+
+    w     = 1 / (var + c · B(var))      (each pixel's own noise, floored at a fraction c of
+                                         its window's mean noise; c = SIGNED_NOISE_FLOOR)
+    λ_neg = max(1 − Σ w·var / (2 Σ w·min(high, 0)²), 0)    (Σ over the window's mask pixels)
+    λ     = max(λ, λ_neg)               where high < 0
+
+1-spp radiance is non-negative with a long bright tail. A firefly's excess is positive and
+inflates its own pixel's variance estimate only in part, so the positive side keeps the pooled
+test above, which counts the firefly's variance across the window. Below the fit no firefly can
+reach, and there a pixel's own variance is the right scale: a dark contact shadow beside a lit,
+noisy floor has a residual far beyond its own noise and far below the floor's, which the pooled
+test takes for noise. Under symmetric noise E[min(high, 0)²] = var / 2, so λ_neg ≈ 0 where y
+is right (with w = 1 / var it is the Wiener gain of the window's mean of min(high, 0)² / var).
+The floor c keeps a pixel whose variance estimate collapsed with its z (a streak of low
+samples: both come from the same samples) from outvoting its window. Each w·min(high, 0)² is
+capped at :data:`RATIO_CAP` so that a near-zero variance keeps every sum finite.
+
 * :func:`residual_handback_reference` — the readable form (SciPy, float64; the split is
   :func:`~dbench.methods.kernels.handback.wiener_handback` with α_gate = 0).
 * :func:`residual_handback_fast` — compiled (Numba, parallel over rows, float32 images, float64
@@ -39,11 +59,22 @@ import numpy as np
 from numba import njit, prange
 
 from .handback import wiener_handback
+from .variance_floor import window_mean
 
 #: Radius of the window of the energies and of the Gaussian's support: 7×7.
 HANDBACK_RADIUS = 3
 #: σ of the Gaussian that takes the residual's local mean, in pixels.
 HANDBACK_SIGMA = 2.0
+#: Cap of one pixel's min(high, 0)² / var in the signed rule: past it λ_neg is 1 to 1e-4
+#: whatever the rest of the window holds, and every sum stays finite in float32.
+RATIO_CAP = 1e6
+#: The signed rule's weights divide by at least VAR_TINY: a normal float32, so that neither a
+#: weight nor its reciprocal overflows for a subnormal variance.
+VAR_TINY = 1e-30
+#: c of the signed rule: each pixel's variance is floored at c times its window's mean
+#: (docs/temporal.md §17: the smallest c whose RMSE on the choosing sequences is no worse than
+#: the pooled rule's).
+SIGNED_NOISE_FLOOR = 0.3
 
 
 def handback_taps(sigma: float = HANDBACK_SIGMA, radius: int = HANDBACK_RADIUS) -> np.ndarray:
@@ -67,14 +98,14 @@ def _check(z, y, var, mask):
 def residual_handback_reference(z: Any, y: Any, var: Any, mask: Any,
                                 sigma: float = HANDBACK_SIGMA,
                                 radius: int = HANDBACK_RADIUS,
-                                clamp: bool = False) -> np.ndarray:
+                                clamp: bool = False, signed: bool = False) -> np.ndarray:
     """out = y + low + λ·high of the module docstring (readable form).
 
     Args:
         z: (C, H, W) accumulated signal; y: (C, H, W) the filter's output; var: (C, H, W)
         variance of z, ≥ 0; mask: (H, W) bool, where the residual is handed back;
         clamp: every output value below 0 becomes 0 (the residual's local mean can take a
-        non-negative y below 0; NaN stays NaN).
+        non-negative y below 0; NaN stays NaN); signed: the signed rule's λ.
 
     Returns:
         (C, H, W) float64.
@@ -92,11 +123,35 @@ def residual_handback_reference(z: Any, y: Any, var: Any, mask: Any,
         return correlate1d(img, g, axis=-2, mode="constant")
 
     low = blur(r) / blur(np.ones(z.shape[1:]))
-    # wiener_handback(hdr = y + r, den = y, α_gate = 0, α = 1) = y + low + λ·high
     cl = (lambda a: np.moveaxis(a, 0, -1))
-    out = wiener_handback(cl(y + r), cl(y), 0.0, cl(low), cl(var0), 1.0, radius)
+    if not signed:
+        # wiener_handback(hdr = y + r, den = y, α_gate = 0, α = 1) = y + low + λ·high
+        out = wiener_handback(cl(y + r), cl(y), 0.0, cl(low), cl(var0), 1.0, radius)
+    else:
+        high = r - low
+        out = cl(y + low + signed_gain(high, var0, mask, radius) * high)
     out = np.where(mask, np.moveaxis(out, -1, 0), y)
     return np.maximum(out, 0.0) if clamp else out
+
+
+def signed_gain(high: Any, var: Any, mask: Any, radius: int = HANDBACK_RADIUS) -> np.ndarray:
+    """λ of the signed rule (module docstring), readable form: (C, H, W) float64 from (C, H, W)
+    ``high`` and ``var`` (0 outside ``mask``) and the (H, W) bool ``mask``."""
+    high = np.asarray(high, np.float64)
+    var = np.asarray(var, np.float64)
+    box = (lambda a: window_mean(np.moveaxis(a, 0, -1), radius).transpose(2, 0, 1))
+    noise = box(var)
+    excess = np.maximum(box(high * high) - noise, 0.0)
+    total = excess + var
+    with np.errstate(invalid="ignore", divide="ignore"):
+        lam = np.where(total > 0, excess / np.where(total > 0, total, 1.0), 1.0)
+        neg2 = np.where(mask[None], np.minimum(high, 0.0) ** 2, 0.0)
+        den = np.maximum(np.maximum(var + SIGNED_NOISE_FLOOR * noise, VAR_TINY),
+                         neg2 / RATIO_CAP)
+        energy, noise_w = box(neg2 / den), box(var / den)  # the same window count
+        lam_neg = np.where(2.0 * energy > noise_w,
+                           1.0 - noise_w / (2.0 * np.where(energy > 0, energy, 1.0)), 0.0)
+    return np.where(high < 0, np.maximum(lam, lam_neg), lam)
 
 
 def _inside_counts(n: int, radius: int) -> np.ndarray:
@@ -122,7 +177,7 @@ BAND_ROWS = 64
 
 @njit(cache=True, parallel=True, fastmath=True)
 def _handback_bands(z, y, var, mask, g, radius, inv_norm_x, norm_y, inv_x, inv_y, band,
-                    clamp, out):  # pragma: no cover - compiled
+                    clamp, signed, ratio_cap, floor_c, out):  # pragma: no cover - compiled
     """:func:`residual_handback_reference` over bands of ``band`` output rows, in float32 (the
     inputs' magnitudes are bounded by the methods' input guard,
     :data:`dbench.methods.guards.RADIANCE_MAX`, so the 49 squares of a window stay finite;
@@ -131,12 +186,18 @@ def _handback_bands(z, y, var, mask, g, radius, inv_norm_x, norm_y, inv_x, inv_y
     Per band and channel: the rows of r and of its x-blur G_x*r from 2R above to 2R below
     the band (``rr``, ``rx``), then from R above to R below the local mean (G_y of rx over G*1,
     ``lo``), the x-sums of high² and of the masked variance (``hx``, ``vx``), then the
-    band's output rows from their y-sums. Rows are padded with R zeros either side so the tap
-    loops have no branches, and run x innermost so that they vectorise."""
+    band's output rows from their y-sums; with ``signed`` the x-sums of the masked variance
+    from 2R above to 2R below (``va``), its window sums from R above to R below (``vx``, which
+    also serve the output rows), and there the x-sums of w·min(high, 0)² and w·var (``qx``,
+    ``nx``). Rows are padded with
+    R zeros either side so the tap loops have no branches, and run x innermost so that they
+    vectorise."""
     c_n, h, w = z.shape
     r = radius
     taps = 2 * r + 1
     n_bands = (h + band - 1) // band
+    inv_cap = np.float32(1.0 / ratio_cap)
+    var_tiny = np.float32(VAR_TINY)
     for b in prange(n_bands):
         y_lo = b * band
         y_hi = min(y_lo + band, h)
@@ -147,11 +208,19 @@ def _handback_bands(z, y, var, mask, g, radius, inv_norm_x, norm_y, inv_x, inv_y
         lo = np.empty((b1 - b0, w), np.float32)
         hx = np.empty((b1 - b0, w), np.float32)
         vx = np.empty((b1 - b0, w), np.float32)
+        va = np.empty((a1 - a0, w), np.float32)
+        qx = np.empty((b1 - b0, w), np.float32)
+        nx = np.empty((b1 - b0, w), np.float32)
         pr = np.zeros(w + 2 * r, np.float32)
         pv = np.zeros(w + 2 * r, np.float32)
+        pq = np.zeros(w + 2 * r, np.float32)
+        pn = np.zeros(w + 2 * r, np.float32)
         acc = np.empty(w, np.float32)
         eh = np.empty(w, np.float32)
         ev = np.empty(w, np.float32)
+        eq = np.empty(w, np.float32)
+        en = np.empty(w, np.float32)
+        lam_neg = np.empty(w, np.float32)
         for c in range(c_n):
             for ya in range(a0, a1):
                 i = ya - a0
@@ -165,6 +234,14 @@ def _handback_bands(z, y, var, mask, g, radius, inv_norm_x, norm_y, inv_x, inv_y
                     for x in range(w):
                         acc[x] += gk * pr[x + k]
                 rx[i, :] = acc
+                if signed:  # the x-sums of the masked variance, for its window means
+                    for x in range(w):
+                        pv[x + r] = var[c, ya, x] if mask[ya, x] else np.float32(0.0)
+                    acc[:] = 0.0
+                    for k in range(taps):
+                        for x in range(w):
+                            acc[x] += pv[x + k]
+                    va[i, :] = acc
             for yb in range(b0, b1):
                 j = yb - b0
                 acc[:] = 0.0
@@ -175,28 +252,77 @@ def _handback_bands(z, y, var, mask, g, radius, inv_norm_x, norm_y, inv_x, inv_y
                         for x in range(w):
                             acc[x] += gk * rx[y2 - a0, x]
                 inv_ny = np.float32(1.0) / norm_y[yb]
-                for x in range(w):
-                    low = acc[x] * (inv_ny * inv_norm_x[x])
-                    lo[j, x] = low
-                    hv = rr[yb - a0, x] - low
-                    pr[x + r] = hv * hv
-                    pv[x + r] = var[c, yb, x] if mask[yb, x] else np.float32(0.0)
-                eh[:] = 0.0
-                ev[:] = 0.0
-                for k in range(taps):
+                if signed:  # the loop twice rather than a branch inside it: it vectorises
+                    ev[:] = 0.0  # the window sum of the variance at this row (from va)
+                    for y2 in range(max(yb - r, 0), min(yb + r + 1, h)):
+                        for x in range(w):
+                            ev[x] += va[y2 - a0, x]
+                    vx[j, :] = ev  # here the window sums themselves, read at the output rows
+                    inv_y_b = inv_y[yb] * floor_c
                     for x in range(w):
-                        eh[x] += pr[x + k]
-                        ev[x] += pv[x + k]
-                hx[j, :] = eh
-                vx[j, :] = ev
+                        low = acc[x] * (inv_ny * inv_norm_x[x])
+                        lo[j, x] = low
+                        hv = rr[yb - a0, x] - low
+                        pr[x + r] = hv * hv
+                        inside = mask[yb, x]
+                        v = var[c, yb, x] if inside else np.float32(0.0)
+                        neg = min(hv, np.float32(0.0))
+                        n2 = neg * neg if inside else np.float32(0.0)
+                        # w = 1 / (v + c B(var)), w·n2 capped, no division that can overflow
+                        den = max(max(v + ev[x] * (inv_x[x] * inv_y_b), n2 * inv_cap),
+                                  var_tiny)
+                        inv_den = np.float32(1.0) / den
+                        pq[x + r] = n2 * inv_den
+                        pn[x + r] = v * inv_den
+                    eh[:] = 0.0
+                    eq[:] = 0.0
+                    en[:] = 0.0
+                    for k in range(taps):
+                        for x in range(w):
+                            eh[x] += pr[x + k]
+                            eq[x] += pq[x + k]
+                            en[x] += pn[x + k]
+                    hx[j, :] = eh
+                    qx[j, :] = eq
+                    nx[j, :] = en
+                else:
+                    for x in range(w):
+                        low = acc[x] * (inv_ny * inv_norm_x[x])
+                        lo[j, x] = low
+                        hv = rr[yb - a0, x] - low
+                        pr[x + r] = hv * hv
+                        pv[x + r] = var[c, yb, x] if mask[yb, x] else np.float32(0.0)
+                    eh[:] = 0.0
+                    ev[:] = 0.0
+                    for k in range(taps):
+                        for x in range(w):
+                            eh[x] += pr[x + k]
+                            ev[x] += pv[x + k]
+                    hx[j, :] = eh
+                    vx[j, :] = ev
             for yo in range(y_lo, y_hi):
                 eh[:] = 0.0
                 ev[:] = 0.0
+                eq[:] = 0.0
+                en[:] = 0.0
+                if signed:
+                    ev[:] = vx[yo - b0, :]
                 for y2 in range(max(yo - r, 0), min(yo + r + 1, h)):
-                    for x in range(w):
-                        eh[x] += hx[y2 - b0, x]
-                        ev[x] += vx[y2 - b0, x]
+                    if signed:
+                        for x in range(w):
+                            eh[x] += hx[y2 - b0, x]
+                            eq[x] += qx[y2 - b0, x]
+                            en[x] += nx[y2 - b0, x]
+                    else:
+                        for x in range(w):
+                            eh[x] += hx[y2 - b0, x]
+                            ev[x] += vx[y2 - b0, x]
                 inv_y_o = inv_y[yo]
+                if signed:  # λ_neg = 1 − Σ w·var / (2 Σ w·n2) where positive (float64: the
+                    for x in range(w):  # sums can be subnormal)
+                        e2 = 2.0 * np.float64(eq[x])
+                        lam_neg[x] = (np.float32(1.0 - np.float64(en[x]) / e2)
+                                      if e2 > np.float64(en[x]) else np.float32(0.0))
                 for x in range(w):
                     excess = max(eh[x] - ev[x], np.float32(0.0)) * (inv_x[x] * inv_y_o)
                     # λ in float64: fastmath may divide as excess · (1 / total), and 1 / a
@@ -205,7 +331,10 @@ def _handback_bands(z, y, var, mask, g, radius, inv_norm_x, norm_y, inv_x, inv_y
                     total = np.float64(excess) + np.float64(var[c, yo, x])
                     lam = np.float32(excess / total) if total > 0.0 else np.float32(1.0)
                     low = lo[yo - b0, x]
-                    back = low + lam * (rr[yo - a0, x] - low)
+                    high = rr[yo - a0, x] - low
+                    if signed and high < 0.0:
+                        lam = max(lam, lam_neg[x])
+                    back = low + lam * high
                     value = y[c, yo, x] + back if mask[yo, x] else y[c, yo, x]
                     if clamp and value < 0.0:  # NaN compares False: kept, as np.maximum
                         value = np.float32(0.0)
@@ -215,9 +344,10 @@ def _handback_bands(z, y, var, mask, g, radius, inv_norm_x, norm_y, inv_x, inv_y
 def residual_handback_fast(z: np.ndarray, y: np.ndarray, var: np.ndarray, mask: np.ndarray,
                            out: np.ndarray | None = None, sigma: float = HANDBACK_SIGMA,
                            radius: int = HANDBACK_RADIUS, band: int = BAND_ROWS,
-                           clamp: bool = False) -> np.ndarray:
+                           clamp: bool = False, signed: bool = False) -> np.ndarray:
     """:func:`residual_handback_reference`, compiled; float32 (C, H, W) out (any ``band`` height
-    gives the same values to float32 rounding). ``clamp`` as there, in the same pass.
+    gives the same values to float32 rounding). ``clamp`` and ``signed`` as there, in the same
+    pass.
 
     ``out``: an optional (C, H, W) float32 array to write into (not z, y or var).
     """
@@ -233,7 +363,8 @@ def residual_handback_fast(z: np.ndarray, y: np.ndarray, var: np.ndarray, mask: 
     _handback_bands(f32(z), f32(y), f32(var), np.ascontiguousarray(mask), f32(g), radius,
                     f32(1.0 / _gauss_norm(w, g)), f32(_gauss_norm(h, g)),
                     f32(1.0 / _inside_counts(w, radius)), f32(1.0 / _inside_counts(h, radius)),
-                    max(int(band), 1), bool(clamp), out)
+                    max(int(band), 1), bool(clamp), bool(signed), RATIO_CAP,
+                    np.float32(SIGNED_NOISE_FLOOR), out)
     return out
 
 
@@ -277,5 +408,6 @@ def pixel_window_variance(x, c, yy, xx, radius, valid_a, valid_b):  # pragma: no
     return max(s2 / n - m * m, 0.0)
 
 
-__all__ = ["HANDBACK_RADIUS", "HANDBACK_SIGMA", "handback_taps", "pixel_window_variance",
-           "residual_handback_fast", "residual_handback_reference", "window_variance_reference"]
+__all__ = ["HANDBACK_RADIUS", "HANDBACK_SIGMA", "RATIO_CAP", "SIGNED_NOISE_FLOOR",
+           "handback_taps", "pixel_window_variance", "residual_handback_fast",
+           "residual_handback_reference", "signed_gain", "window_variance_reference"]
