@@ -209,6 +209,7 @@ def _handback_bands(z, y, var, mask, g, radius, inv_norm_x, norm_y, inv_x, inv_y
         hx = np.empty((b1 - b0, w), np.float32)
         vx = np.empty((b1 - b0, w), np.float32)
         va = np.empty((a1 - a0, w), np.float32)
+        vr = np.empty((a1 - a0, w), np.float32)
         qx = np.empty((b1 - b0, w), np.float32)
         nx = np.empty((b1 - b0, w), np.float32)
         pr = np.zeros(w + 2 * r, np.float32)
@@ -237,6 +238,7 @@ def _handback_bands(z, y, var, mask, g, radius, inv_norm_x, norm_y, inv_x, inv_y
                 if signed:  # the x-sums of the masked variance, for its window means
                     for x in range(w):
                         pv[x + r] = var[c, ya, x] if mask[ya, x] else np.float32(0.0)
+                        vr[i, x] = pv[x + r]  # kept for the rows below: one read of var
                     acc[:] = 0.0
                     for k in range(taps):
                         for x in range(w):
@@ -265,7 +267,7 @@ def _handback_bands(z, y, var, mask, g, radius, inv_norm_x, norm_y, inv_x, inv_y
                         hv = rr[yb - a0, x] - low
                         pr[x + r] = hv * hv
                         inside = mask[yb, x]
-                        v = var[c, yb, x] if inside else np.float32(0.0)
+                        v = vr[yb - a0, x]
                         neg = min(hv, np.float32(0.0))
                         n2 = neg * neg if inside else np.float32(0.0)
                         # w = 1 / (v + c B(var)), w·n2 capped, no division that can overflow
