@@ -22,23 +22,25 @@ is SVGF's variance window (spec/svgf.md §3); r and var are 0 outside ``mask``.
 
 With ``signed`` (docs/temporal.md §17) a value whose high part is negative (z below the fit)
 takes the larger of that λ and one that weighs each pixel's negative part against its own
-variance:
+noise, the variance around it:
 
-    w     = 1 / (var + c · B(var))      (each pixel's own noise, floored at a fraction c of
-                                         its window's mean noise; c = SIGNED_NOISE_FLOOR)
-    λ_neg = max(1 − Σ w·var / (2 Σ w·min(high, 0)²), 0)    (Σ over the window's mask pixels)
+    V3    = the 3×3 mean of var around the pixel (SIGNED_NOISE_RADIUS = 1)
+    λ_neg = max(1 − n / (2 Σ min(high, 0)² / V3), 0)   (Σ over the window's n fit pixels;
+                                                      ½ for a pixel with V3 = 0)
     λ     = max(λ, λ_neg)               where high < 0
 
 1-spp radiance is non-negative with a long bright tail. A firefly's excess is positive and
 inflates its own pixel's variance estimate only in part, so the positive side keeps the pooled
 test above, which counts the firefly's variance across the window. Below the fit no firefly can
-reach, and there a pixel's own variance is the right scale: a dark contact shadow beside a lit,
+reach, and there a pixel's own noise is the right scale: a dark contact shadow beside a lit,
 noisy floor has a residual far beyond its own noise and far below the floor's, which the pooled
 test takes for noise. Under symmetric noise E[min(high, 0)²] = var / 2, so λ_neg ≈ 0 where y
-is right (with w = 1 / var it is the Wiener gain of the window's mean of min(high, 0)² / var).
-The floor c keeps a pixel whose variance estimate collapsed with its z (a streak of low
-samples: both come from the same samples) from outvoting its window. Each w·min(high, 0)² is
-capped at :data:`RATIO_CAP` so that a near-zero variance keeps every sum finite.
+is right: it is the Wiener gain of the window's mean of min(high, 0)² / V3. The noise is the
+3×3 mean rather than the pixel's own variance because z and var come from the same samples: a
+pixel whose recent samples were all low has a low z and a low variance estimate at once, which
+a per-pixel ratio takes for a bias (with noise as skewed as 1-spp radiance, on static cameras);
+its neighbours' estimates do not share that streak. Each ratio is capped at :data:`RATIO_CAP`
+so that a near-zero variance keeps every sum finite.
 
 * :func:`residual_handback_reference` — the readable form (SciPy, float64; the split is
   :func:`~dbench.methods.kernels.handback.wiener_handback` with α_gate = 0).
@@ -65,16 +67,15 @@ from .variance_floor import window_mean
 HANDBACK_RADIUS = 3
 #: σ of the Gaussian that takes the residual's local mean, in pixels.
 HANDBACK_SIGMA = 2.0
-#: Cap of one pixel's min(high, 0)² / var in the signed rule: past it λ_neg is 1 to 1e-4
+#: Cap of one pixel's min(high, 0)² / V3 in the signed rule: past it λ_neg is 1 to 1e-4
 #: whatever the rest of the window holds, and every sum stays finite in float32.
 RATIO_CAP = 1e6
-#: The signed rule's weights divide by at least VAR_TINY: a normal float32, so that neither a
-#: weight nor its reciprocal overflows for a subnormal variance.
+#: The signed rule divides by at least VAR_TINY: a normal float32, so that neither a ratio nor
+#: its reciprocal overflows for a subnormal variance.
 VAR_TINY = 1e-30
-#: c of the signed rule: each pixel's variance is floored at c times its window's mean
-#: (docs/temporal.md §17: the smallest c whose RMSE on the choosing sequences is no worse than
-#: the pooled rule's).
-SIGNED_NOISE_FLOOR = 0.3
+#: Radius of the signed rule's noise estimate: each pixel's variance is the 3×3 mean around it
+#: (docs/temporal.md §17: its own estimate shares z's streaks of low samples).
+SIGNED_NOISE_RADIUS = 1
 
 
 def handback_taps(sigma: float = HANDBACK_SIGMA, radius: int = HANDBACK_RADIUS) -> np.ndarray:
@@ -145,13 +146,32 @@ def signed_gain(high: Any, var: Any, mask: Any, radius: int = HANDBACK_RADIUS) -
     total = excess + var
     with np.errstate(invalid="ignore", divide="ignore"):
         lam = np.where(total > 0, excess / np.where(total > 0, total, 1.0), 1.0)
-        neg2 = np.where(mask[None], np.minimum(high, 0.0) ** 2, 0.0)
-        den = np.maximum(np.maximum(var + SIGNED_NOISE_FLOOR * noise, VAR_TINY),
-                         neg2 / RATIO_CAP)
-        energy, noise_w = box(neg2 / den), box(var / den)  # the same window count
-        lam_neg = np.where(2.0 * energy > noise_w,
-                           1.0 - noise_w / (2.0 * np.where(energy > 0, energy, 1.0)), 0.0)
+        inside = mask[None]
+        neg2 = np.where(inside, np.minimum(high, 0.0) ** 2, 0.0)
+        v3 = np.where(inside, noise_mean_3x3(var), 0.0)
+        ratio = np.minimum(neg2 / np.maximum(v3, VAR_TINY), RATIO_CAP)
+        ratio = np.where(inside, np.where(v3 > 0, ratio, 0.5), 0.0)  # no estimate: noise
+        energy = box(ratio)
+        voters = box(np.broadcast_to(inside, ratio.shape).astype(np.float64))
+        lam_neg = np.where(2.0 * energy > voters,
+                           1.0 - voters / (2.0 * np.where(energy > 0, energy, 1.0)), 0.0)
     return np.where(high < 0, np.maximum(lam, lam_neg), lam)
+
+
+def noise_mean_3x3(var: Any) -> np.ndarray:
+    """V3 of the signed rule: the mean of (C, H, W) ``var`` over the 3×3 window inside the image,
+    float64, by direct sums (a window of zeros gives exactly 0, as in the compiled pass; SciPy's
+    running box filter can leave a residue of rounding there)."""
+    from scipy.ndimage import correlate1d
+
+    var = np.asarray(var, np.float64)
+    taps = np.ones(2 * SIGNED_NOISE_RADIUS + 1)
+    sums = correlate1d(correlate1d(var, taps, axis=-1, mode="constant"), taps, axis=-2,
+                       mode="constant")
+    h, w = var.shape[-2:]
+    counts = np.outer(_inside_counts(h, SIGNED_NOISE_RADIUS),
+                      _inside_counts(w, SIGNED_NOISE_RADIUS))
+    return sums / counts
 
 
 def _inside_counts(n: int, radius: int) -> np.ndarray:
@@ -176,8 +196,8 @@ BAND_ROWS = 64
 
 
 @njit(cache=True, parallel=True, fastmath=True)
-def _handback_bands(z, y, var, mask, g, radius, inv_norm_x, norm_y, inv_x, inv_y, band,
-                    clamp, signed, ratio_cap, floor_c, out):  # pragma: no cover - compiled
+def _handback_bands(z, y, var, mask, g, radius, inv_norm_x, norm_y, inv_x, inv_y, inv_x3,
+                    inv_y3, band, clamp, signed, ratio_cap, out):  # pragma: no cover - compiled
     """:func:`residual_handback_reference` over bands of ``band`` output rows, in float32 (the
     inputs' magnitudes are bounded by the methods' input guard,
     :data:`dbench.methods.guards.RADIANCE_MAX`, so the 49 squares of a window stay finite;
@@ -186,12 +206,12 @@ def _handback_bands(z, y, var, mask, g, radius, inv_norm_x, norm_y, inv_x, inv_y
     Per band and channel: the rows of r and of its x-blur G_x*r from 2R above to 2R below
     the band (``rr``, ``rx``), then from R above to R below the local mean (G_y of rx over G*1,
     ``lo``), the x-sums of high² and of the masked variance (``hx``, ``vx``), then the
-    band's output rows from their y-sums; with ``signed`` the x-sums of the masked variance
-    from 2R above to 2R below (``va``), its window sums from R above to R below (``vx``, which
-    also serve the output rows), and there the x-sums of w·min(high, 0)² and w·var (``qx``,
-    ``nx``). Rows are padded with
-    R zeros either side so the tap loops have no branches, and run x innermost so that they
-    vectorise."""
+    band's output rows from their y-sums. With ``signed`` the a-rows also keep the masked
+    variance and its 3-tap x-sums (``vr``, ``v3``), the b-rows add the x-sums of
+    min(high, 0)² / V3 (``qx``; V3 the 3×3 mean of the variance), and the window's fit-pixel
+    counts at the output rows are summed once for all channels (``mc``). Rows
+    are padded with R zeros either side so the tap loops have no branches, and run x innermost
+    so that they vectorise."""
     c_n, h, w = z.shape
     r = radius
     taps = 2 * r + 1
@@ -208,20 +228,34 @@ def _handback_bands(z, y, var, mask, g, radius, inv_norm_x, norm_y, inv_x, inv_y
         lo = np.empty((b1 - b0, w), np.float32)
         hx = np.empty((b1 - b0, w), np.float32)
         vx = np.empty((b1 - b0, w), np.float32)
-        va = np.empty((a1 - a0, w), np.float32)
         vr = np.empty((a1 - a0, w), np.float32)
+        v3 = np.empty((a1 - a0, w), np.float32)
         qx = np.empty((b1 - b0, w), np.float32)
-        nx = np.empty((b1 - b0, w), np.float32)
+        mc = np.empty((y_hi - y_lo, w), np.float32)
         pr = np.zeros(w + 2 * r, np.float32)
         pv = np.zeros(w + 2 * r, np.float32)
         pq = np.zeros(w + 2 * r, np.float32)
-        pn = np.zeros(w + 2 * r, np.float32)
         acc = np.empty(w, np.float32)
         eh = np.empty(w, np.float32)
         ev = np.empty(w, np.float32)
         eq = np.empty(w, np.float32)
         en = np.empty(w, np.float32)
         lam_neg = np.empty(w, np.float32)
+        if signed:  # the window's fit-pixel counts at the output rows, shared by the channels
+            for yb in range(b0, b1):  # x-sums of the mask rows (in qx, free until then)
+                for x in range(w):
+                    pq[x + r] = np.float32(1.0) if mask[yb, x] else np.float32(0.0)
+                en[:] = 0.0
+                for k in range(taps):
+                    for x in range(w):
+                        en[x] += pq[x + k]
+                qx[yb - b0, :] = en
+            for yo in range(y_lo, y_hi):
+                en[:] = 0.0
+                for y2 in range(max(yo - r, 0), min(yo + r + 1, h)):
+                    for x in range(w):
+                        en[x] += qx[y2 - b0, x]
+                mc[yo - y_lo, :] = en
         for c in range(c_n):
             for ya in range(a0, a1):
                 i = ya - a0
@@ -235,15 +269,12 @@ def _handback_bands(z, y, var, mask, g, radius, inv_norm_x, norm_y, inv_x, inv_y
                     for x in range(w):
                         acc[x] += gk * pr[x + k]
                 rx[i, :] = acc
-                if signed:  # the x-sums of the masked variance, for its window means
+                if signed:  # the masked variance and its 3-tap x-sums, for V3
                     for x in range(w):
                         pv[x + r] = var[c, ya, x] if mask[ya, x] else np.float32(0.0)
-                        vr[i, x] = pv[x + r]  # kept for the rows below: one read of var
-                    acc[:] = 0.0
-                    for k in range(taps):
-                        for x in range(w):
-                            acc[x] += pv[x + k]
-                    va[i, :] = acc
+                        vr[i, x] = pv[x + r]
+                    for x in range(w):
+                        v3[i, x] = pv[x + r - 1] + pv[x + r] + pv[x + r + 1]
             for yb in range(b0, b1):
                 j = yb - b0
                 acc[:] = 0.0
@@ -255,38 +286,35 @@ def _handback_bands(z, y, var, mask, g, radius, inv_norm_x, norm_y, inv_x, inv_y
                             acc[x] += gk * rx[y2 - a0, x]
                 inv_ny = np.float32(1.0) / norm_y[yb]
                 if signed:  # the loop twice rather than a branch inside it: it vectorises
-                    ev[:] = 0.0  # the window sum of the variance at this row (from va)
-                    for y2 in range(max(yb - r, 0), min(yb + r + 1, h)):
+                    eq[:] = 0.0  # V3 at this row: the 3-row sum of the 3-tap x-sums
+                    for y2 in range(max(yb - 1, 0), min(yb + 2, h)):
                         for x in range(w):
-                            ev[x] += va[y2 - a0, x]
-                    vx[j, :] = ev  # here the window sums themselves, read at the output rows
-                    inv_y_b = inv_y[yb] * floor_c
+                            eq[x] += v3[y2 - a0, x]
+                    inv_y3_b = inv_y3[yb]
                     for x in range(w):
                         low = acc[x] * (inv_ny * inv_norm_x[x])
                         lo[j, x] = low
                         hv = rr[yb - a0, x] - low
                         pr[x + r] = hv * hv
                         inside = mask[yb, x]
-                        v = vr[yb - a0, x]
+                        pv[x + r] = vr[yb - a0, x]
                         neg = min(hv, np.float32(0.0))
                         n2 = neg * neg if inside else np.float32(0.0)
-                        # w = 1 / (v + c B(var)), w·n2 capped, no division that can overflow
-                        den = max(max(v + ev[x] * (inv_x[x] * inv_y_b), n2 * inv_cap),
-                                  var_tiny)
-                        inv_den = np.float32(1.0) / den
-                        pq[x + r] = n2 * inv_den
-                        pn[x + r] = v * inv_den
+                        noise = eq[x] * (inv_x3[x] * inv_y3_b)
+                        # min(n2 / V3, cap) without a division that can overflow; a pixel
+                        # without a noise estimate (V3 = 0) counts as noise: ½
+                        ratio = n2 / max(max(noise, n2 * inv_cap), var_tiny)
+                        pq[x + r] = (ratio if noise > 0.0 else np.float32(0.5)) if inside \
+                            else np.float32(0.0)
                     eh[:] = 0.0
+                    ev[:] = 0.0
                     eq[:] = 0.0
-                    en[:] = 0.0
                     for k in range(taps):
                         for x in range(w):
                             eh[x] += pr[x + k]
+                            ev[x] += pv[x + k]
                             eq[x] += pq[x + k]
-                            en[x] += pn[x + k]
-                    hx[j, :] = eh
                     qx[j, :] = eq
-                    nx[j, :] = en
                 else:
                     for x in range(w):
                         low = acc[x] * (inv_ny * inv_norm_x[x])
@@ -300,31 +328,29 @@ def _handback_bands(z, y, var, mask, g, radius, inv_norm_x, norm_y, inv_x, inv_y
                         for x in range(w):
                             eh[x] += pr[x + k]
                             ev[x] += pv[x + k]
-                    hx[j, :] = eh
-                    vx[j, :] = ev
+                hx[j, :] = eh
+                vx[j, :] = ev
             for yo in range(y_lo, y_hi):
                 eh[:] = 0.0
                 ev[:] = 0.0
                 eq[:] = 0.0
-                en[:] = 0.0
-                if signed:
-                    ev[:] = vx[yo - b0, :]
                 for y2 in range(max(yo - r, 0), min(yo + r + 1, h)):
                     if signed:
                         for x in range(w):
                             eh[x] += hx[y2 - b0, x]
+                            ev[x] += vx[y2 - b0, x]
                             eq[x] += qx[y2 - b0, x]
-                            en[x] += nx[y2 - b0, x]
                     else:
                         for x in range(w):
                             eh[x] += hx[y2 - b0, x]
                             ev[x] += vx[y2 - b0, x]
                 inv_y_o = inv_y[yo]
-                if signed:  # λ_neg = 1 − Σ w·var / (2 Σ w·n2) where positive (float64: the
-                    for x in range(w):  # sums can be subnormal)
-                        e2 = 2.0 * np.float64(eq[x])
-                        lam_neg[x] = (np.float32(1.0 - np.float64(en[x]) / e2)
-                                      if e2 > np.float64(en[x]) else np.float32(0.0))
+                if signed:  # λ_neg = 1 − n / (2 Σ n2/V3) where positive (then Σ > n/2 ≥ ½)
+                    for x in range(w):
+                        n_fit = mc[yo - y_lo, x]
+                        e2 = np.float32(2.0) * eq[x]
+                        lam_neg[x] = (np.float32(1.0) - n_fit / e2 if e2 > n_fit
+                                      else np.float32(0.0))
                 for x in range(w):
                     excess = max(eh[x] - ev[x], np.float32(0.0)) * (inv_x[x] * inv_y_o)
                     # λ in float64: fastmath may divide as excess · (1 / total), and 1 / a
@@ -365,8 +391,8 @@ def residual_handback_fast(z: np.ndarray, y: np.ndarray, var: np.ndarray, mask: 
     _handback_bands(f32(z), f32(y), f32(var), np.ascontiguousarray(mask), f32(g), radius,
                     f32(1.0 / _gauss_norm(w, g)), f32(_gauss_norm(h, g)),
                     f32(1.0 / _inside_counts(w, radius)), f32(1.0 / _inside_counts(h, radius)),
-                    max(int(band), 1), bool(clamp), bool(signed), RATIO_CAP,
-                    np.float32(SIGNED_NOISE_FLOOR), out)
+                    f32(1.0 / _inside_counts(w, 1)), f32(1.0 / _inside_counts(h, 1)),
+                    max(int(band), 1), bool(clamp), bool(signed), RATIO_CAP, out)
     return out
 
 
@@ -410,6 +436,7 @@ def pixel_window_variance(x, c, yy, xx, radius, valid_a, valid_b):  # pragma: no
     return max(s2 / n - m * m, 0.0)
 
 
-__all__ = ["HANDBACK_RADIUS", "HANDBACK_SIGMA", "RATIO_CAP", "SIGNED_NOISE_FLOOR",
+__all__ = ["HANDBACK_RADIUS", "HANDBACK_SIGMA", "RATIO_CAP", "SIGNED_NOISE_RADIUS",
            "handback_taps", "pixel_window_variance", "residual_handback_fast",
-           "residual_handback_reference", "signed_gain", "window_variance_reference"]
+           "noise_mean_3x3", "residual_handback_reference", "signed_gain",
+           "window_variance_reference"]
