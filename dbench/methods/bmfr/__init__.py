@@ -214,9 +214,9 @@ class BMFR(T.HistoryDenoiser):
         # accumulated (3) and Σ w² of the first accumulation; with an emission buffer the
         # emission accumulated (3) (without one it is 0 everywhere: nothing to reproject or
         # accumulate; a change of the buffer's presence resets the history)
-        wiener = p["handback"] != "none"  # "wiener" or "signed"
+        handing_back = p["handback"] != "none"  # "wiener" or "signed"
         emissive = emission is not None
-        base = 7 + (HB.EXTRA_PLANES if wiener else 0)  # the emission planes' start
+        base = 7 + (HB.EXTRA_PLANES if handing_back else 0)  # the emission planes' start
         planes = base + (3 if emissive else 0)
         hist, status = self.history.fetch(geo, planes)
         ok = status > 0
@@ -252,7 +252,7 @@ class BMFR(T.HistoryDenoiser):
         else:
             feats, _ = feature_stack(normals, geo.position, p["features"])
             y_fit, dropped = bmfr_fit_reference(z_acc, feats, scaled, fit, recon, *fit_args)
-        if wiener:  # the residual's hand-back before the second accumulation (handback.py)
+        if handing_back:  # the residual's hand-back before the second accumulation (handback.py)
             # the torch backend runs the hand-back's compiled CPU kernels (NumPy in and out)
             compiled = be != "reference"
             if compiled:
@@ -273,7 +273,7 @@ class BMFR(T.HistoryDenoiser):
         y_acc, n2, _ = acc(y_fit, hist[4:7], n_hist, ok, p["alpha2"], T.N_MAX, a2,
                            filled | recon, out=(stage[4:7], None))
         if not fast:  # the other backends return new arrays: gather them
-            parts = ([z_acc, n1[None], y_acc] + ([zz_acc, s[None]] if wiener else [])
+            parts = ([z_acc, n1[None], y_acc] + ([zz_acc, s[None]] if handing_back else [])
                      + ([acc_e] if emissive else []))
             stage = np.concatenate(parts)
         self.history.store(geo, stage, valid=filled | recon, finite=True)

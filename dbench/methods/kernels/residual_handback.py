@@ -306,13 +306,9 @@ def _handback_bands(z, y, var, mask, g, radius, inv_norm_x, norm_y, inv_x, inv_y
                         ratio = n2 / max(max(noise, n2 * inv_cap), var_tiny)
                         pq[x + r] = (ratio if noise > 0.0 else np.float32(0.5)) if inside \
                             else np.float32(0.0)
-                    eh[:] = 0.0
-                    ev[:] = 0.0
                     eq[:] = 0.0
                     for k in range(taps):
                         for x in range(w):
-                            eh[x] += pr[x + k]
-                            ev[x] += pv[x + k]
                             eq[x] += pq[x + k]
                     qx[j, :] = eq
                 else:
@@ -322,12 +318,12 @@ def _handback_bands(z, y, var, mask, g, radius, inv_norm_x, norm_y, inv_x, inv_y
                         hv = rr[yb - a0, x] - low
                         pr[x + r] = hv * hv
                         pv[x + r] = var[c, yb, x] if mask[yb, x] else np.float32(0.0)
-                    eh[:] = 0.0
-                    ev[:] = 0.0
-                    for k in range(taps):
-                        for x in range(w):
-                            eh[x] += pr[x + k]
-                            ev[x] += pv[x + k]
+                eh[:] = 0.0
+                ev[:] = 0.0
+                for k in range(taps):
+                    for x in range(w):
+                        eh[x] += pr[x + k]
+                        ev[x] += pv[x + k]
                 hx[j, :] = eh
                 vx[j, :] = ev
             for yo in range(y_lo, y_hi):
@@ -335,15 +331,12 @@ def _handback_bands(z, y, var, mask, g, radius, inv_norm_x, norm_y, inv_x, inv_y
                 ev[:] = 0.0
                 eq[:] = 0.0
                 for y2 in range(max(yo - r, 0), min(yo + r + 1, h)):
+                    for x in range(w):
+                        eh[x] += hx[y2 - b0, x]
+                        ev[x] += vx[y2 - b0, x]
                     if signed:
                         for x in range(w):
-                            eh[x] += hx[y2 - b0, x]
-                            ev[x] += vx[y2 - b0, x]
                             eq[x] += qx[y2 - b0, x]
-                    else:
-                        for x in range(w):
-                            eh[x] += hx[y2 - b0, x]
-                            ev[x] += vx[y2 - b0, x]
                 inv_y_o = inv_y[yo]
                 if signed:  # λ_neg = 1 − n / (2 Σ n2/V3) where positive (then Σ > n/2 ≥ ½)
                     for x in range(w):
