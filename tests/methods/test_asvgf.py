@@ -82,6 +82,56 @@ def test_static_scene_has_no_gradient_and_history_grows():
     assert np.allclose(floored.last["n"], 10) and np.allclose(floored.last["alpha"], 0.2)
 
 
+def _dimmed(h, w, frames, dim_at, seed=0):
+    """Static camera; the light drops to half at ``dim_at`` (every re-shade: δ/Δ = 1/2)."""
+    seq = _static(h, w, frames, seed=seed)
+    return Sequence([f.with_buffers(color=f.color * k, gradient=f.gradient * k,
+                                    reference=f.reference * k)
+                     for i, f in enumerate(seq) for k in [0.5 if i >= dim_at else 1.0]])
+
+
+def test_gradient_boost_follows_why_the_history_is_short():
+    """docs/temporal.md §18, variance_boost="gradient": a history the gradient shortened takes
+    Schied's max(1, 64/N'²) on every estimate (the spatial one not also Falcor's 4/N); a new
+    surface takes Falcor's 4/N on the spatial estimate of N < 4 alone. The frame count grows
+    through the change, N' drops to N·(3/4)^10 + 1 (G = 1/4)."""
+    dim_at = 8
+    seq = _dimmed(12, 12, 14, dim_at)
+    var, last = {}, []
+    for boost in (False, "gradient"):
+        m = methods.get("asvgf", variance_boost=boost, iterations=0)
+        m.reset()
+        var[boost] = []
+        for f in seq:
+            m.denoise(f)
+            var[boost].append(m.last["variance"].copy())
+            if boost:
+                last.append({k: m.last[k].copy() for k in ("n", "frames", "shortened")})
+    for i, rec in enumerate(last):
+        np.testing.assert_allclose(rec["frames"], i + 1)
+        n = rec["n"]
+        if i < dim_at:
+            assert not rec["shortened"].any()
+            factor = np.where(n < 4, 4.0 / n, 1.0)
+        else:
+            assert rec["shortened"].all()
+            factor = np.maximum(1.0, 64.0 / n ** 2)
+        if i == dim_at:
+            np.testing.assert_allclose(n, dim_at * 0.75 ** 10 + 1, rtol=1e-4)
+        lit = var[False][i] > 1e-6
+        assert lit.mean() > 0.5
+        np.testing.assert_allclose(var["gradient"][i][lit], (factor * var[False][i])[lit],
+                                   rtol=1e-5)
+    # without the frame count (SVGF) "gradient" is "svgf"
+    outs = {}
+    for boost in ("svgf", "gradient"):
+        m = methods.get("svgf", variance_boost=boost)
+        m.reset()
+        outs[boost] = [m.denoise(f) for f in seq]
+    for a, b in zip(outs["svgf"], outs["gradient"]):
+        np.testing.assert_array_equal(a, b)
+
+
 def test_light_off_drops_quickly_for_asvgf_and_slowly_for_svgf():
     seq = _static(15, 15, 26, off_at=12)
     drops = {}
@@ -184,7 +234,7 @@ def test_resolved_settings_hold_the_presets_values():
 
     settings = resolved_settings(methods.get("asvgf"))
     assert settings["gradient_mode"] == "seed" and settings["luminance_kernel"] == "gaussian"
-    assert settings["variance_boost"] == "asvgf"
+    assert settings["variance_boost"] == "gradient"
     assert settings["backend"] in ("numba", "torch", "reference") and settings["alpha_floor"]
     assert resolved_settings(methods.get("asvgf", preset="falcor"))["sigma_l"] == 10.0
     assert resolved_settings(methods.get("asvgf", gradient_mode="filtered"))["gradient_mode"] \

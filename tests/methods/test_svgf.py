@@ -355,12 +355,14 @@ def test_variance_of_the_mean_follows_the_blend_weights():
     np.testing.assert_allclose(methods.get("svgf").params["alpha_min"], 0.2)
 
 
-@pytest.mark.parametrize("name,boost", [("svgf", "svgf"), ("asvgf", "svgf"), ("asvgf", "asvgf")])
+@pytest.mark.parametrize("name,boost", [("svgf", "svgf"), ("asvgf", "svgf"), ("asvgf", "asvgf"),
+                                        ("asvgf", "gradient"), ("svgf", "gradient")])
 def test_variance_boost_scales_the_estimate_of_short_histories(name, boost):
     """docs/temporal.md §15. "svgf" (Falcor's SVGFFilterMoments pass): a history of N < 4 frames
     takes the spatial estimate times 4/N (4, 2, 4/3 for N = 1, 2, 3), from N = 4 on the temporal
     estimate is untouched. "asvgf" (Schied's A-SVGF code): the standard deviation times
-    max(1, 8/N), the variance times 64/N² up to N = 8, temporal estimates included."""
+    max(1, 8/N), the variance times 64/N² up to N = 8, temporal estimates included.
+    "gradient" (§18) on a new surface that no gradient shortens: Falcor's."""
     seq = synthetic_sequence(12, 12, frames=10, shift=0)
     var = {}
     for b in (False, boost):
@@ -371,8 +373,8 @@ def test_variance_boost_scales_the_estimate_of_short_histories(name, boost):
             m.denoise(f)
             var[b].append(m.last["variance"].copy())
     n = np.arange(1, 11, dtype=np.float64)  # a static scene: N = 1, 2, … (A-SVGF: G = 0)
-    factors = (np.where(n < 4, 4.0 / n, 1.0) if boost == "svgf"
-               else np.maximum(1.0, 64.0 / n ** 2))
+    factors = (np.maximum(1.0, 64.0 / n ** 2) if boost == "asvgf"
+               else np.where(n < 4, 4.0 / n, 1.0))
     for i, factor in enumerate(factors):
         lit = var[False][i] > 1e-6
         assert lit.mean() > 0.5
@@ -382,7 +384,7 @@ def test_variance_boost_scales_the_estimate_of_short_histories(name, boost):
 def test_variance_boost_defaults_and_values():
     boost = lambda name, **p: methods.get(name, **p).params["variance_boost"]  # noqa: E731
     assert boost("svgf") == boost("svgf", preset="falcor") == "svgf"
-    assert boost("asvgf") == "asvgf" and boost("asvgf", preset="falcor") == "svgf"
+    assert boost("asvgf") == "gradient" and boost("asvgf", preset="falcor") == "svgf"
     assert boost("svgf", preset="paper") is False and boost("asvgf", preset="paper") is False
     assert boost("svgf", variance_boost=True) == "svgf"
     for bad in ("falcor", 0, None, 1.0):

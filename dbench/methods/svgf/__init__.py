@@ -49,10 +49,12 @@ variance_boost          see below                  False          "svgf"
 sequences outside the catalogue by relMSE (docs/temporal.md §13, §15): the Gaussian for both.
 
 ``variance_boost``: a short history is filtered harder than its variance estimate says
-(docs/temporal.md §15): "svgf" (``svgf``'s default) multiplies the 7×7 spatial estimate of a
-history of N < 4 frames by 4/N, as Falcor's SVGF pass does; "asvgf" (``asvgf``'s default)
-multiplies the standard deviation by max(1, 8/N) for every pixel, as Schied's A-SVGF code
-does, N being the history N' after the temporal gradient; False (the paper preset) neither.
+(docs/temporal.md §15, :mod:`.boost`): "svgf" (``svgf``'s default) multiplies the 7×7 spatial
+estimate of a history of N < 4 frames by 4/N, as Falcor's SVGF pass does; "asvgf" multiplies
+the standard deviation by max(1, 8/N) for every pixel, as Schied's A-SVGF code does, N being
+the history N' after the temporal gradient; "gradient" (``asvgf``'s default, §18) takes
+Schied's boost where A-SVGF's gradient shortened the history and Falcor's on new surfaces
+(without a gradient, for ``svgf``, it is "svgf"); False (the paper preset) none.
 
 ``variance_of="mean"``: the luminance weights use the variance of the accumulated colour — the
 per-sample variance from the moments times Σw² of the blend weights (1/N for a running mean,
@@ -122,6 +124,7 @@ from ...errors import DbenchInputError
 from ...registry import register
 from .. import temporal as T
 from ..guards import RADIANCE_MAX
+from . import boost as B
 from . import dispatch as C
 from .dispatch import (adaptive_history, atrous, depth_gradient, filter_gradients, prepare,
                        remodulate, spatial_variance, stratum_gradients)
@@ -224,6 +227,9 @@ class _SVGFBase(T.HistoryDenoiser):
                                     albedo_floor=ALBEDO_FLOOR, backend="auto")
     #: per-method departures from :data:`~.params.PRESETS`, {preset: {key: value}}
     preset_overrides: dict[str, dict[str, Any]] = {}
+    #: keep a history plane of the frames since each surface appeared (A-SVGF's "gradient"
+    #: variance boost compares its N' with it); SVGF's N is that count already
+    counts_frames = False
 
     def __init__(self, **params: Any) -> None:
         super().__init__(**params)
@@ -284,7 +290,8 @@ class _SVGFBase(T.HistoryDenoiser):
         # emission (3) when the frame has an emission buffer (without one it is 0 everywhere:
         # nothing to reproject or accumulate; a change of the buffer's presence resets history)
         emissive = emission is not None
-        planes = 7 + (3 if emissive else 0)
+        counting = self.counts_frames  # A-SVGF's frame count (boost.py): one plane, the last
+        planes = 7 + (3 if emissive else 0) + (1 if counting else 0)
         hist, status = self.history.fetch(geo, planes)
         ok = status > 0
         hist_n, alpha, extras = self._adaptive(data, geo, hist[5], ok, prep)
@@ -313,6 +320,8 @@ class _SVGFBase(T.HistoryDenoiser):
                                       alpha, present, out=stage[7:10] if fast else None)
                  if emissive else prep["emission"])
         filled = n > 0
+        frames = (B.frame_count(hist[-1], ok, present, n_max) if counting else None)
+        shortened = B.shortened_by_gradient(n, frames)
 
         gx, gy = C.depth_gradient(geo.depth, geo.hit, backend=be)
         w_normal = T.feature_normal(data, geo, p["normal_buffer"],
@@ -331,16 +340,11 @@ class _SVGFBase(T.HistoryDenoiser):
         if spatial.any():
             sv = C.spatial_variance(be, acc_m, geo.depth, gx, gy, w_normal, tap,
                                     gather, spatial, sigma_z=p["sigma_z"], sigma_n=p["sigma_n"])
-            if p["variance_boost"] == "svgf":  # Falcor's SVGFFilterMoments: variance *= 4 / h
-                sv = sv * 4.0 / np.maximum(n, 1.0)
+            sv = B.boost_spatial(p["variance_boost"], sv, n, shortened)
             if of_mean:
                 sv = sv * weight_sq
             var = np.where(spatial, sv, var).astype(np.float32)
-        if p["variance_boost"] == "asvgf":
-            # Schied's A-SVGF code (asvgf_temporal.comp): the standard deviation times
-            # max(1, 8 / N), temporal and spatial estimates alike; N is A-SVGF's N' here
-            boost = np.maximum(1.0, 64.0 / np.square(np.maximum(n, 1.0)))
-            var = np.where(filled, var * boost, var).astype(np.float32)
+        var = B.boost_all(p["variance_boost"], var, n, filled, shortened)
 
         cur, feedback = acc_c, acc_c
         iterations = (auto_iterations(h, w) if p["iterations"] == "auto"
@@ -355,12 +359,16 @@ class _SVGFBase(T.HistoryDenoiser):
         if fast:
             stage[0:3] = feedback
             stage[6] = weight_sq
+            if counting:
+                stage[-1] = frames
         else:
             stage = np.concatenate([feedback, acc_m, n[None], weight_sq[None]]
-                                   + ([acc_e] if emissive else []))
+                                   + ([acc_e] if emissive else [])
+                                   + ([frames[None]] if counting else []))
         self.history.store(geo, stage, valid=filled, finite=True)
         self._after(geo, prep)
         self.last = {"n": n, "alpha": a_used, "variance": var, "status": status,
+                     "frames": frames, "shortened": shortened,
                      "iterations": iterations, "weight_sq": weight_sq, **extras}
         out = C.remodulate(cur, prep["a_eff"], acc_e, be)
         return self._with_taa(out, geo.motion, status)
@@ -381,11 +389,13 @@ class ASVGF(_SVGFBase):
     # Schied's A-SVGF code: its variance boost (std × max(1, 8/N)) and, with it, its Gaussian
     # luminance weight; on the training sequences outside the catalogue (4 seeds) A-SVGF's
     # geometric-mean relMSE ÷ accumulation 0.565 (Laplacian, no boost) → 0.473 (docs/temporal.md
-    # §15); with Falcor's boost the Laplacian was still better (0.525 against 0.543).
+    # §15); with Falcor's boost the Laplacian was still better (0.525 against 0.543). Schied's
+    # boost only where the gradient shortened the history, Falcor's on new surfaces
+    # ("gradient", §18): the same there (0.472), t_rmse on orbit tied with SVGF's.
     # The seed's gradient stays: "filtered" was better there (§14) but follows flicker's light
     # switch later (RMSE at 128², 4 spp, 0.0432 → 0.0480); "filtered_abs" does not, but misses
     # mirror-pan's moving reflections (RMSE over surfaces 0.152 → 0.161 at 128², 1 spp)
-    preset_overrides = {"dbench": {"variance_boost": "asvgf"}}
+    preset_overrides = {"dbench": {"variance_boost": "gradient"}}
 
     def __init__(self, **params: Any) -> None:
         super().__init__(**params)
@@ -393,6 +403,7 @@ class ASVGF(_SVGFBase):
             raise DbenchInputError(f"gradient_mode: expected one of {GRADIENT_MODES}, "
                                    f"got {self.params['gradient_mode']!r}")
         self.n_max = _positive("n_max", self.params["n_max"])
+        self.counts_frames = self.params["variance_boost"] == "gradient"
         if self.params["alpha_floor"] is None:  # on with the dbench preset, off with the others
             self.params["alpha_floor"] = self.params["preset"] == "dbench"
         if not isinstance(self.params["alpha_floor"], bool):

@@ -34,9 +34,11 @@ SPATIAL_RADIUS = 3  # 7×7 window
 #: SVGFFilterMoments pass does ("give the variance a boost for the first frames"); "asvgf"
 #: multiplies the standard deviation of every pixel's estimate by max(1, 8/N), as Schied's A-SVGF
 #: code does (q2vkpt's asvgf_temporal.comp), N being A-SVGF's history N' after its gradient;
-#: False none. ``svgf`` takes "svgf" (on the training sequences outside the catalogue its
-#: relMSE ratio 0.479 → 0.478 over 4 seeds, "asvgf" 0.480), ``asvgf`` takes "asvgf" with
-#: that code's Gaussian luminance weight (``ASVGF.preset_overrides``).
+#: "gradient" [dbench] the latter where A-SVGF's gradient shortened the history, the former on
+#: new surfaces (docs/temporal.md §18; :mod:`.boost`); False none. ``svgf`` takes "svgf" (on
+#: the training sequences outside the catalogue its relMSE ratio 0.479 → 0.478 over 4 seeds,
+#: "asvgf" 0.480), ``asvgf`` takes "gradient" with Schied's Gaussian luminance weight
+#: (``ASVGF.preset_overrides``).
 PRESETS = {
     "dbench": dict(sigma_z=1.0, sigma_n=128.0, sigma_l=4.0, iterations="auto", feedback_tap=None,
                    alpha_min=0.2, alpha_min_moments=0.2, variance_of="mean",
@@ -49,8 +51,9 @@ PRESETS = {
                    luminance_kernel="laplacian", variance_boost="svgf"),
 }
 VARIANCE_OF = ("mean", "sample")
-#: ``variance_boost``: none, Falcor's SVGF pass, Schied's A-SVGF code (above); True is "svgf".
-VARIANCE_BOOSTS = (False, "svgf", "asvgf")
+#: ``variance_boost``: none, Falcor's SVGF pass, Schied's A-SVGF code, or each of those two
+#: where it applies ("gradient", above); True is "svgf".
+VARIANCE_BOOSTS = (False, "svgf", "asvgf", "gradient")
 #: The luminance edge-stopping weight w_l = exp(−d) with d = |l_p − l_q| / (σ_l √(g(Var)) + ε):
 #: "laplacian" as the SVGF paper and Falcor write it, "gaussian" exp(−d²) as Schied's A-SVGF
 #: code does. [dbench] "gaussian" in the ``dbench`` preset: on 8 training sequences outside the
