@@ -320,7 +320,7 @@ class _SVGFBase(T.HistoryDenoiser):
                                       alpha, present, out=stage[7:10] if fast else None)
                  if emissive else prep["emission"])
         filled = n > 0
-        frames = (B.frame_count(hist[-1], ok, present, n_max) if counting else None)
+        frames = B.frame_count(hist[-1], ok, present, n_max) if counting else None
         shortened = B.shortened_by_gradient(n, frames)
 
         gx, gy = C.depth_gradient(geo.depth, geo.hit, backend=be)
@@ -403,13 +403,16 @@ class ASVGF(_SVGFBase):
             raise DbenchInputError(f"gradient_mode: expected one of {GRADIENT_MODES}, "
                                    f"got {self.params['gradient_mode']!r}")
         self.n_max = _positive("n_max", self.params["n_max"])
-        self.counts_frames = self.params["variance_boost"] == "gradient"
         if self.params["alpha_floor"] is None:  # on with the dbench preset, off with the others
             self.params["alpha_floor"] = self.params["preset"] == "dbench"
         if not isinstance(self.params["alpha_floor"], bool):
             raise DbenchInputError(f"alpha_floor: expected True or False, "
                                    f"got {self.params['alpha_floor']!r}")
         self._prev_lum: np.ndarray | None = None
+
+    @property
+    def counts_frames(self) -> bool:  # the "gradient" boost compares N' with the frame count
+        return self.params["variance_boost"] == "gradient"
 
     def reset(self) -> None:
         super().reset()

@@ -1,9 +1,10 @@
 """Variance boosts of short histories (docs/temporal.md §15, §18).
 
 A history of few frames has a noisy variance estimate, so both SVGF authors' implementations
-filter it harder than the estimate says. Each function takes the history length ``n`` (H, W)
-float32 after this frame's accumulation (A-SVGF's N' after its temporal gradient) and returns
-the factor on the variance, or None for none:
+filter it harder than the estimate says. :func:`boost_spatial` and :func:`boost_all` take the
+history length ``n`` (H, W) float32 after this frame's accumulation (A-SVGF's N' after its
+temporal gradient) and return the variance boosted by ``mode`` (unchanged where it does not
+apply):
 
 * "svgf", Falcor's SVGFFilterMoments pass: the 7×7 spatial estimate of N < 4 frames times 4/N;
 * "asvgf", Schied's A-SVGF code (q2vkpt's asvgf_temporal.comp): the standard deviation times
