@@ -46,6 +46,9 @@ class Denoiser:
     optional_needs: set[str] = set()
     defaults: dict[str, Any] = {}
     keeps_emitters: bool = False
+    #: What ``denoise_device`` runs on (``"triton"``, ``"torch"``, ``"oidn-cuda"`` …), recorded
+    #: with every result it produces; "" for a method without a device path.
+    device_backend: str = ""
 
     def __init__(self, **params: Any) -> None:
         unknown = set(params) - set(self.defaults)
@@ -60,6 +63,18 @@ class Denoiser:
 
     def denoise(self, data: Any) -> np.ndarray:  # pragma: no cover - abstract
         raise NotImplementedError
+
+    def denoise_device(self, data: Any) -> Any:  # pragma: no cover - optional
+        """The method on a :class:`dbench.device.DeviceFrame` whose buffers are tensors already
+        on a device: returns an (H, W, 3) float32 tensor on that device, the same numbers as
+        ``denoise`` within the tolerance its tests state, with no NumPy conversion inside the
+        call and any history kept on the device (docs/gpu.md)."""
+        raise NotImplementedError
+
+    @classmethod
+    def has_device_path(cls) -> bool:
+        """Whether the method implements :meth:`denoise_device`."""
+        return cls.denoise_device is not Denoiser.denoise_device
 
     def applies_to(self, kind: str, available: set[str] | None = None) -> tuple[bool, str]:
         """Whether the method can run on a dataset of ``kind`` offering ``available`` buffers.
