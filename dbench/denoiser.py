@@ -76,6 +76,12 @@ class Denoiser:
         """Whether the method implements :meth:`denoise_device`."""
         return cls.denoise_device is not Denoiser.denoise_device
 
+    def runs_on_device(self) -> bool:
+        """Whether this instance, with its parameters, runs :meth:`denoise_device` (a method
+        whose device path covers only some settings says no for the others, which then run
+        on the host and are recorded as such)."""
+        return self.has_device_path()
+
     def applies_to(self, kind: str, available: set[str] | None = None) -> tuple[bool, str]:
         """Whether the method can run on a dataset of ``kind`` offering ``available`` buffers.
 

@@ -20,4 +20,10 @@ def denoise(method: Any, data: Any) -> Any:
         return method.denoise(data)
 
 
-__all__ = ["denoise", "kept_fp_environment", "restore", "snapshot"]
+def denoise_device(method: Any, data: Any) -> Any:
+    """``method.denoise_device(data)`` inside :func:`kept_fp_environment`."""
+    with kept_fp_environment():
+        return method.denoise_device(data)
+
+
+__all__ = ["denoise", "denoise_device", "kept_fp_environment", "restore", "snapshot"]

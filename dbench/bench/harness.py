@@ -1,7 +1,12 @@
 """One benchmark cell: a method run on a dataset, timed, and scored against the reference.
 
-Timing (anchors.md §1): rendering and I/O are excluded; one warm-up call, then the median of
-``repeats`` calls measured with ``time.perf_counter``.
+Timing (docs/judging.md §timing): rendering and I/O are excluded; one warm-up call, then the
+median of ``repeats`` calls measured with ``time.perf_counter``. On a GPU (``device="cuda"``) a
+method with a device path (``Denoiser.runs_on_device``) gets its frame uploaded once, is timed
+with the device synchronised before and after each call, and its output is brought back once;
+the copies are timed apart (``transfer_s``) and never counted as the method's time. A method
+without a device path runs on the host and its cell says so (``device="cpu"``), so CPU and GPU
+figures are never mixed under one label (docs/gpu.md §3).
 """
 from __future__ import annotations
 
@@ -15,6 +20,7 @@ import numpy as np
 from ..metrics import judge
 from ..errors import DbenchInputError
 from ..registry import Denoiser
+from ..device import device_name, download, timed, upload
 from . import fpenv
 from .scoring import DEFAULT_METRICS, judge_frame
 from .sequence import WARMUP, run_sequence
@@ -43,6 +49,12 @@ class CellResult:
     #: what the method resolved on the first seed (its ``last_settings``: e.g. the statistical
     #: denoiser's γ_t, ν, base filter and automatic temporal radius), scalars only
     settings: dict[str, Any] = field(default_factory=dict)
+    #: where the method ran ("cpu" or "cuda"), that device's name and the method's backend
+    device: str = "cpu"
+    device_name: str = "cpu"
+    backend: str = ""
+    #: seconds of host→device upload plus device→host download per seed (device cells only)
+    transfer_s: list[float] = field(default_factory=list)
 
     @property
     def time_s(self) -> float:
@@ -78,17 +90,34 @@ def resolved_settings(method: Denoiser) -> dict[str, Any]:
     return out
 
 
-def time_call(fn, repeats: int = 5, warmup: int = 1) -> tuple[Any, list[float]]:
-    """Call ``fn()`` ``warmup`` times, then ``repeats`` times; return the last result and times."""
+def time_call(fn, repeats: int = 5, warmup: int = 1, device: str = "cpu"
+              ) -> tuple[Any, list[float]]:
+    """Call ``fn()`` ``warmup`` times, then ``repeats`` times; return the last result and times
+    (each call timed with ``device`` synchronised before and after it)."""
     result = None
     for _ in range(warmup):
         result = fn()
     times = []
     for _ in range(max(1, repeats)):
-        t0 = time.perf_counter()
-        result = fn()
-        times.append(time.perf_counter() - t0)
+        result, dt = timed(fn, device)
+        times.append(dt)
     return result, times
+
+
+def method_backend(method: Denoiser, on_device: bool) -> str:
+    """The backend a cell records: the device path's, or the resolved host ``backend``
+    parameter (its ``last_settings`` entry when the method resolved "auto"), else "python"."""
+    if on_device:
+        return method.device_backend or "device"
+    settings = getattr(method, "last_settings", None) or {}
+    value = settings.get("backend", method.params.get("backend", ""))
+    return str(value) if value else "python"
+
+
+def placement(method: Denoiser, device: str) -> tuple[bool, str]:
+    """(runs on the device, the device it runs on) for ``method`` asked to run on ``device``."""
+    on_device = device != "cpu" and method.runs_on_device()
+    return on_device, (device if on_device else "cpu")
 
 
 def summarise_seeds(per_seed: list[dict[str, Any]], judgements: list[list],
@@ -104,12 +133,17 @@ def summarise_seeds(per_seed: list[dict[str, Any]], judgements: list[list],
     return out, judge.ci_kind(len(per_seed))
 
 
+def _buffers(frame) -> set[str]:
+    from ..data import BUFFER_NAMES
+    return {b for b in BUFFER_NAMES if getattr(frame, b, None) is not None}
+
+
 def _as_list(frames) -> list:
     return list(frames) if isinstance(frames, (list, tuple)) else [frames]
 
 
 def run_cell(method: Denoiser, frame, metric_names=DEFAULT_METRICS, repeats: int = 5,
-             warmup: int = 1) -> CellResult:
+             warmup: int = 1, device: str = "cpu") -> CellResult:
     """Run ``method`` on ``frame`` (or a list of frames, one per seed, sharing one reference);
     skip with a reason when it does not apply.
 
@@ -125,14 +159,26 @@ def run_cell(method: Denoiser, frame, metric_names=DEFAULT_METRICS, repeats: int
     if not ok:
         return CellResult(method.name, dict(method.params), None, skipped=reason)
     columns = judge.metric_names([n for n in metric_names if n in judge.JUDGED])
-    result = CellResult(method.name, dict(method.params), None)
+    on_device, where = placement(method, device)
+    result = CellResult(method.name, dict(method.params), None, device=where,
+                        device_name=device_name(where))
     judgements = []
     for i, f in enumerate(frames):
-        def call(f=f):
-            method.reset()
-            return fpenv.denoise(method, f)
+        if on_device:
+            data, up_s = timed(lambda f=f: upload(f, where, method.wants(_buffers(f))), where)
 
-        output, times = time_call(call, repeats=repeats, warmup=warmup)
+            def call(data=data):
+                method.reset()
+                return fpenv.denoise_device(method, data)
+        else:
+            def call(f=f):
+                method.reset()
+                return fpenv.denoise(method, f)
+
+        output, times = time_call(call, repeats=repeats, warmup=warmup, device=where)
+        if on_device:
+            output, down_s = timed(lambda out=output: download(out), where)
+            result.transfer_s.append(up_s + down_s)
         output = np.asarray(output)
         if output.shape != f.color.shape:
             raise DbenchInputError(f"{method.name} output: expected shape {f.color.shape}, "
@@ -142,6 +188,7 @@ def run_cell(method: Denoiser, frame, metric_names=DEFAULT_METRICS, repeats: int
         if result.output is None:
             result.output = output.astype(np.float32)
             result.settings = resolved_settings(method)
+            result.backend = method_backend(method, on_device)
         if f.reference is not None:
             j = judge_frame(output, f, metric_names)
             judgements.append([j])
@@ -152,7 +199,7 @@ def run_cell(method: Denoiser, frame, metric_names=DEFAULT_METRICS, repeats: int
 
 
 def run_sequence_cell(method: Denoiser, seq, metric_names=DEFAULT_METRICS,
-                      warmup: int | None = None) -> CellResult:
+                      warmup: int | None = None, device: str = "cpu") -> CellResult:
     """Run a temporal ``method`` over a :class:`~dbench.data.Sequence` (or a list of them, one
     per seed): ``reset()`` once, then every frame in order, and summarise it as one cell.
 
@@ -173,16 +220,21 @@ def run_sequence_cell(method: Denoiser, seq, metric_names=DEFAULT_METRICS,
         return CellResult(method.name, dict(method.params), None, skipped=reason)
     names = [n for n in metric_names if n in judge.JUDGED]
     columns = judge.metric_names(names) + ["t_rmse", "tpsnr"]
-    result = CellResult(method.name, dict(method.params), None)
+    on_device, where = placement(method, device)
+    result = CellResult(method.name, dict(method.params), None, device=where,
+                        device_name=device_name(where))
     judgements = []
     for i, s in enumerate(seqs):
-        run = run_sequence(method, s, metric_names=names, warmup=warmup, keep_outputs=True)
+        run = run_sequence(method, s, metric_names=names, warmup=warmup, keep_outputs=True,
+                           device=where)
+        result.transfer_s.append(run.summary.get("transfer_s", 0.0))
         after = run.per_frame[warmup:] if len(run.per_frame) > warmup else run.per_frame
         result.times_s += [r["time_s"] for r in after]
         result.n_nonfinite += int(sum((~np.isfinite(o)).sum() for o in run.outputs))
         if result.sequence is None:
             result.sequence, result.output = run, run.outputs[-1]
             result.settings = resolved_settings(method)
+            result.backend = method_backend(method, on_device)
         row = {"seed": s.meta.get("seed", i)}
         row.update({c: run.summary.get(f"mean_{c}", run.summary.get(c, float("nan")))
                     for c in columns + ["ref_rmse"]})

@@ -34,6 +34,7 @@ import numpy as np
 
 from .. import metrics
 from ..data import Frame, Sequence
+from ..device import download, timed, upload
 from ..errors import DbenchInputError
 from . import fpenv
 
@@ -102,8 +103,13 @@ def temporal_stability(outputs: list[np.ndarray], references: list[np.ndarray],
 
 
 def run_sequence(method, seq: Sequence, metric_names: Iterable[str] = SEQUENCE_METRICS,
-                 warmup: int = WARMUP, keep_outputs: bool = False) -> SequenceResult:
+                 warmup: int = WARMUP, keep_outputs: bool = False,
+                 device: str = "cpu") -> SequenceResult:
     """Run ``method`` (name or Denoiser) over ``seq`` in order and score every frame.
+
+    With ``device="cuda"`` and a method with a device path, every frame is uploaded before its
+    call and the output downloaded after it, those copies timed apart (the summary's
+    ``transfer_s``, the median per frame), the call itself timed with the device synchronised.
 
     A temporal method is reset once and keeps its history; a steady (single-frame) method is
     reset before every frame (:meth:`dbench.registry.Denoiser.per_frame`). Frames without a
@@ -124,12 +130,20 @@ def run_sequence(method, seq: Sequence, metric_names: Iterable[str] = SEQUENCE_M
     m.reset()
     rows, outs, judgements = [], [], []
     stateless = m.per_frame("sequence")  # a steady method: every frame alone
+    on_device = device != "cpu" and m.runs_on_device()
+    transfers = []
     for i, frame in enumerate(seq):
         if stateless:
             m.reset()
-        t0 = time.perf_counter()
-        out = fpenv.denoise(m, frame)
-        dt = time.perf_counter() - t0
+        if on_device:
+            data, up_s = timed(lambda: upload(frame, device, m.wants(available)), device)
+            out, dt = timed(lambda: fpenv.denoise_device(m, data), device)
+            out, down_s = timed(lambda: download(out), device)
+            transfers.append(up_s + down_s)
+        else:
+            t0 = time.perf_counter()
+            out = fpenv.denoise(m, frame)
+            dt = time.perf_counter() - t0
         out = np.asarray(out)
         if out.shape != frame.color.shape:
             raise DbenchInputError(f"{m.name} output: expected shape {frame.color.shape}, "
@@ -151,6 +165,8 @@ def run_sequence(method, seq: Sequence, metric_names: Iterable[str] = SEQUENCE_M
         vals = [r[name] for r in after if name in r]
         summary[f"mean_{name}"] = float(np.mean(vals)) if vals else float("nan")
     summary["median_time_s"] = float(statistics.median(r["time_s"] for r in after))
+    if transfers:
+        summary["transfer_s"] = float(statistics.median(transfers))
     if seq.has("reference"):
         summary.update(temporal_stability(outs, [f.reference for f in seq], warmup, ev))
     res.summary = summary

@@ -28,6 +28,7 @@ from ..data import check_count
 from ..errors import DbenchInputError
 from ..resolution import MAX_SIDE, Res, parse_res
 from . import identity
+from ..device import device_name
 from .machine import machine_label
 
 DEFAULT_SPP = (4, 16, 64, 256, 1024)
@@ -69,9 +70,13 @@ class SweepConfig:
     rerun: bool = False
     #: ``$parameters`` of scene files (--scene-param NAME=VALUE)
     scene_params: dict[str, str] = field(default_factory=dict)
+    #: where methods with a device path run ("cpu" or "cuda"; docs/gpu.md §3)
+    device: str = "cpu"
 
     def validate(self) -> None:
         """Every setting checked before anything is written or rendered (DbenchInputError)."""
+        from ..device import resolve_device
+        self.device = resolve_device(self.device)
         if self.res is not None:
             self.res = parse_res(self.res, "--res").key
         for name, value in (("--seeds", self.seeds), ("--repeats", self.repeats)):
@@ -217,7 +222,12 @@ def cell_identity(config: SweepConfig, scene, spp: int, method: str, fingerprint
             "params": identity.resolved_params(method, config.params.get(method)),
             "method_version": identity.method_version(registry.method_class(method)),
             "judge_version": identity.judge_version(),
-            **datasets.feature_identity(scene, spp)}
+            **datasets.feature_identity(scene, spp),
+            # a GPU cell is another result than the CPU one (other arithmetic, other times);
+            # CPU cells keep the identity they had before devices were recorded
+            **({"device": config.device, "device_name": device_name(config.device)}
+               if config.device != "cpu" and registry.method_class(method).has_device_path()
+               else {})}
 
 
 def plan(config: SweepConfig, out: Path
@@ -311,7 +321,11 @@ def cell_record(res, frames: list, needs: set[str]) -> dict[str, Any]:
                              and first.kind == "sequence" else 0.0),
               **res.metrics, "time_s": res.time_s, "time_s_iqr": res.time_s_iqr,
               "times_s": res.times_s, "n_nonfinite": res.n_nonfinite,
-              "per_seed": res.per_seed, "machine": machine_label()}
+              "per_seed": res.per_seed, "machine": machine_label(),
+              "device": res.device, "device_name": res.device_name, "backend": res.backend}
+    if res.transfer_s:
+        # host↔device copies of a device cell, timed apart from the method (median per seed)
+        record["transfer_s"] = float(st.median(res.transfer_s))
     if res.settings:
         record["settings"] = res.settings       # what the method resolved (first seed)
     if first.kind == "sequence":
@@ -348,10 +362,11 @@ def run_group(config: SweepConfig, out: str, scene_name: str, spp: int,
                 "identity_hash": identity.digest(ident)}
         try:
             if frames[0].kind == "sequence":
-                result = run_sequence_cell(inst, frames, metric_names=config.metrics)
+                result = run_sequence_cell(inst, frames, metric_names=config.metrics,
+                                           device=config.device)
             else:
                 result = run_cell(inst, frames, metric_names=config.metrics,
-                                  repeats=config.repeats)
+                                  repeats=config.repeats, device=config.device)
             if result.skipped:
                 cell = {**base, "status": "skipped", "reason": result.skipped}
             else:

@@ -128,6 +128,8 @@ def cmd_bench(args: argparse.Namespace) -> int:
         args.width, args.height = args.res
     if args.spp is not None and args.spp < 1:
         raise DbenchInputError(f"--spp: expected an integer >= 1, got {args.spp}")
+    if args.what == "gpu":
+        return _bench_gpu(args)
     timed_method = args.what not in ("render", "scene-file", "plugins", "metrics")
     if args.param and not timed_method:
         raise DbenchInputError(f"--param: only a method's benchmark takes parameters, not "
@@ -182,7 +184,8 @@ def cmd_sweep(args: argparse.Namespace) -> int:
                                repeats=args.repeats, rerun=args.rerun,
                                transform=args.transform, lam=args.lam, frames=args.frames,
                                bins=args.bins,
-                               params={k: v for k, v in params.items() if v}, cache=args.cache)
+                               params={k: v for k, v in params.items() if v}, cache=args.cache,
+                               device=args.device)
     _writable_cache(args)
     counts = sweep.run_sweep(config, args.out, executor=args.executor, workers=args.workers,
                              progress=not args.quiet)
@@ -268,4 +271,27 @@ def cmd_train(args: argparse.Namespace) -> int:
                  ref_spp=args.ref_spp or 2048, out_dir=args.out, sequences=args.sequences,
                  cache=datasets.Cache(args.cache, enabled=not args.no_cache),
                  from_weights=args.from_weights, **overrides)
+    return 0
+
+
+def _bench_gpu(args: argparse.Namespace) -> int:
+    """``dbench bench gpu``: results/gpu/<device>.json and its table (dbench.bench.gpu)."""
+    from ..bench import gpu
+    from ..device import resolve_device
+
+    if args.device == "auto" and resolve_device("auto") != "cuda":
+        raise DbenchInputError("bench gpu: PyTorch sees no usable CUDA GPU here; run it on a GPU "
+                               "machine, or pass --device cpu for a dry run on small frames")
+    device = resolve_device(args.device)
+    if args.param:
+        raise DbenchInputError("--param: bench gpu times every method with its defaults")
+    if device == "cpu" and args.res is None:
+        args.width, args.height = 24, 16  # a dry run: the kernels through the interpreter
+    result = gpu.bench_gpu(height=args.height, width=args.width, device=device,
+                           repeats=max(args.repeats, 1))
+    print(gpu.markdown(result))
+    if device == "cuda" or args.out:
+        path = args.out or gpu.result_path(result)
+        gpu.write_result(result, path)
+        print(f"\nwritten: {path}")
     return 0

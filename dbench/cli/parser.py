@@ -59,6 +59,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--bins", type=int, default=None, help="transient scenes: time bins "
                    "(default the scene's)")
     r.add_argument("--quiet", action="store_true")
+    _device_argument(r)
     common(r)
     judged(r)
     r.set_defaults(func=cmd_run)
@@ -94,6 +95,7 @@ def build_parser() -> argparse.ArgumentParser:
     sw.add_argument("--bins", type=int, default=None, help="transient scenes: time bins "
                     "(default the scene's)")
     sw.add_argument("--quiet", action="store_true")
+    _device_argument(sw)
     sw.add_argument("--rerun", action="store_true", help="recompute finished cells whose "
                     "identity (settings, parameters, code, reference) changed instead of "
                     "refusing the sweep")
@@ -130,7 +132,9 @@ def build_parser() -> argparse.ArgumentParser:
     ex.set_defaults(func=cmd_export)
 
     bp = sub.add_parser("bench", help="speed benchmarks with ratios measured in the same run")
-    bp.add_argument("what", help="'render' (statistics cost), 'metrics' (the judge against "
+    bp.add_argument("what", help="'gpu' (every method on a GPU against numba and OIDN, "
+                    "results/gpu/<device>.json), "
+                    "'render' (statistics cost), 'metrics' (the judge against "
                     "the plain metrics), 'scene-file' (an XML scene against the catalogue's), "
                     "'plugins' (entry-point discovery time) or a method name")
     bp.add_argument("--scene", default="cornell")
@@ -146,6 +150,7 @@ def build_parser() -> argparse.ArgumentParser:
     bp.add_argument("--height", type=int, default=720)
     bp.add_argument("--width", type=int, default=1280)
     bp.add_argument("--repeats", type=int, default=3)
+    _device_argument(bp)
     bp.add_argument("--out", default=None, help="append the result to this JSON-lines file")
     bp.set_defaults(func=cmd_bench)
 
@@ -172,3 +177,9 @@ def build_parser() -> argparse.ArgumentParser:
         sp.add_argument("--plugin", action="append", metavar="MODULE_OR_FILE.py",
                         help=PLUGIN_HELP)
     return p
+
+
+def _device_argument(parser) -> None:
+    parser.add_argument("--device", default="auto", help="where methods with a GPU path run: "
+                        "cpu, cuda, or auto (default: cuda when PyTorch sees a usable GPU); "
+                        "methods without one run on the CPU and say so (docs/gpu.md)")

@@ -18,6 +18,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     from ..bench.sweep import cell_record, load_seeds
     from ..datasets import scenes
     from ..data import check_count
+    from ..device import device_name
     from ..io import ensure_writable_dir, write_exr, write_json, write_text
 
     import pandas as pd
@@ -32,6 +33,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     if args.res is None:
         args.res = datasets.default_res(scene)
     _check_common(args)
+    from ..device import resolve_device
+    device = resolve_device(args.device)
     if "noisy" not in names:
         names = ["noisy"] + names
     params = parse_params(args.param or [], names)
@@ -66,9 +69,9 @@ def cmd_run(args: argparse.Namespace) -> int:
         if not args.quiet:
             print(f"running {labels[n]} ...", flush=True)
         if is_sequence:
-            res = harness.run_sequence_cell(instances[n], frames)
+            res = harness.run_sequence_cell(instances[n], frames, device=device)
         else:
-            res = harness.run_cell(instances[n], frames, repeats=args.repeats)
+            res = harness.run_cell(instances[n], frames, repeats=args.repeats, device=device)
         if res.skipped:
             skipped[n] = res.skipped
             continue
@@ -118,6 +121,7 @@ def cmd_run(args: argparse.Namespace) -> int:
                 "transform": (f"{frame.stats.transform} (λ = {frame.stats.lam})"
                               if getattr(frame, "stats", None) is not None else "n/a"),
                 "variant": frame.meta["versions"]["variant"],
+                "device": device if device == "cpu" else f"{device} ({device_name(device)})",
                 "render_s": frame.meta.get("render_s"),
                 "cache hits": _summarise_parts(frame.meta["cache_hits"]) or "none",
                 "rendered": _summarise_parts(frame.meta["rendered"]) or "nothing",

@@ -44,6 +44,10 @@ without overflow (``log1p`` of the float64 quotient where the float32 one is Inf
 and the decoder caps the network output at expm1(80). The output is finite everywhere. Missing
 or mis-shaped buffers raise DbenchInputError naming the buffer.
 
+Device path (``denoise_device``, :mod:`.device`): the same pipeline in PyTorch on the frame's
+device, the hidden states kept there, equal to this one within the tolerance
+tests/methods/test_autoencoder_device.py states.
+
 Parameters: ``recurrent`` (carry state across frames), ``weights`` (path of another
 ``autoencoder.onnx``; None: the shipped file), ``threads`` (ONNX Runtime intra-op threads),
 ``spp`` (the input's sample count, for a model with the ``level`` input; None:
@@ -215,12 +219,16 @@ class Autoencoder(Denoiser):
     optional_needs = {"emitter"}  # lights keep the input (keep_emitters)
     keeps_emitters = True  # so NAME+gate does not apply the rule a second time
     defaults = dict(recurrent=True, weights=None, threads=None, spp=None)
+    device_backend = "torch"
 
     def __init__(self, **params):
         super().__init__(**params)
         from ..ort_session import check_weights
         check_weights(self.params["weights"], "autoencoder")
-        self._hidden: list[np.ndarray] | None = None
+        # hidden states of the previous frame: NumPy arrays after denoise, tensors on the
+        # device after denoise_device (each path takes over the other's)
+        self._hidden: list[Any] | None = None
+        self._device_nets: dict[str, Any] = {}  # the PyTorch model per device
 
     def reset(self) -> None:
         self._hidden = None
@@ -230,6 +238,9 @@ class Autoencoder(Denoiser):
             raise DbenchInputError("albedo: missing; the autoencoder needs an (H, W, 3) albedo "
                                    "buffer")
         hidden = self._hidden if self.params["recurrent"] else None
+        if hidden is not None and not isinstance(hidden[0], np.ndarray):  # left on a device
+            from ...device import download
+            hidden = [download(t) for t in hidden]
         out, new_hidden = autoencoder_denoise(
             data.color, data.albedo, getattr(data, "normal", None), getattr(data, "depth", None),
             hidden=hidden, weights=self.params["weights"], threads=self.params["threads"],
@@ -237,6 +248,14 @@ class Autoencoder(Denoiser):
         if self.params["recurrent"]:
             self._hidden = new_hidden
         return keep_emitters(data.color, out, getattr(data, "emitter", None))
+
+    def denoise_device(self, data):
+        """The same pipeline in PyTorch on the frame's device, hidden states kept there
+        (:mod:`.device`): (H, W, 3) float32 tensor; every parameter as ``denoise``,
+        ``threads`` setting PyTorch's CPU threads on a CPU device and refused on a GPU."""
+        from .device import denoise_device
+
+        return denoise_device(self, data, *_load(str(self.params["weights"] or SHIPPED_ONNX)))
 
 
 __all__ = ["Autoencoder", "autoencoder_denoise", "reference_denoise", "model_info",

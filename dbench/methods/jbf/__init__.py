@@ -87,6 +87,8 @@ class JBF(Denoiser):
         features=("xy", "albedo", "normal"), sigma_position=0.01, sigma_depth=0.01,
         hit_mask=True, preset=None, mode="jbf", alpha=0.005, beta=10.0, self_weight_min=0.5,
         eps_albedo=1e-3, use_position=False, sigma_P=0.05, backend="numba")
+    #: ``denoise_device``: the window as one Triton kernel (:mod:`.device`), ``jbf`` mode.
+    device_backend = "triton"
 
     def __init__(self, **params: Any) -> None:
         super().__init__(**params)
@@ -114,6 +116,25 @@ class JBF(Denoiser):
             raise DbenchInputError(f"self_weight_min: expected a number in [0, 1], got {swm!r}")
         #: Resolved settings of the last call (e.g. the illumination constant C), for reports.
         self.last_settings: dict[str, Any] = {}
+
+    def runs_on_device(self) -> bool:
+        # the illumination mode and the readable reference stay on the host
+        return self.params["mode"] == "jbf" and self.params["backend"] != "reference"
+
+    def denoise_device(self, data: Any):
+        """The ``jbf`` mode on a :class:`~dbench.device.DeviceFrame` (:func:`.device.jbf_device`);
+        equal to :meth:`denoise` within float32 rounding (tests/methods/test_jbf_device.py)."""
+        if not self.runs_on_device():
+            raise DbenchInputError("jbf: the device path covers mode='jbf' with a compiled "
+                                   f"backend; got mode={self.params['mode']!r}, "
+                                   f"backend={self.params['backend']!r}")
+        require_buffers(self, data)
+        from .device import jbf_device
+        if "depth" in self.params["features"] and data.depth is None:
+            require_buffers(self, data, ["depth"])
+        out, settings = jbf_device(data, self.params)
+        self.last_settings = dict(settings, backend="triton")
+        return out
 
     def denoise(self, data: Any) -> np.ndarray:
         if getattr(data, "kind", None) != "steady":

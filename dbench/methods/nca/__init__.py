@@ -21,6 +21,9 @@ everywhere. Missing or mis-shaped buffers raise DbenchInputError naming the buff
 Optional ``emitter`` buffer (coverage of lights seen directly or in smooth mirrors): those
 pixels keep the input in proportion to their coverage (:func:`keep_emitters`).
 
+Device path (``denoise_device``, :mod:`.device`): the same pipeline in PyTorch on the frame's
+device, equal to this one within the tolerance tests/methods/test_nca_device.py states.
+
 Parameters: ``iterations`` (None: the model's step count for the frame's spp, from the table
 chosen on held-out training scenes and stored in the model, :func:`default_iterations`),
 ``weights`` (path of another ``nca.onnx``; None: the shipped file), ``threads`` (ONNX Runtime
@@ -196,10 +199,13 @@ class NCADenoiser(Denoiser):
     keeps_emitters = True  # denoise ends with keep_emitters; NAME+gate does not repeat it
     defaults = dict(iterations=None, weights=None, threads=None, spp=None)
 
+    device_backend = "torch"
+
     def __init__(self, **params):
         super().__init__(**params)
         from ..ort_session import check_weights
         check_weights(self.params["weights"], "nca")
+        self._device_nets: dict[str, Any] = {}  # the PyTorch automaton per device
 
     def denoise(self, data) -> np.ndarray:
         for name in ("normal", "albedo"):
@@ -209,6 +215,18 @@ class NCADenoiser(Denoiser):
                           self.params["weights"], self.params["threads"],
                           frame_spp(data, self.params["spp"]))
         return keep_emitters(data.color, out, getattr(data, "emitter", None))
+
+    def denoise_device(self, data):
+        """The same pipeline in PyTorch on the frame's device (:mod:`.device`): (H, W, 3)
+        float32 tensor; every parameter as ``denoise``, ``threads`` setting PyTorch's CPU
+        threads on a CPU device and refused on a GPU."""
+        from .device import denoise_device
+
+        path = str(self.params["weights"] or SHIPPED_ONNX)
+        spp = frame_spp(data, self.params["spp"])
+        k = default_iterations(path, spp) if self.params["iterations"] is None \
+            else self.params["iterations"]
+        return denoise_device(self, data, _model_info(path), spp, k)
 
 
 __all__ = ["NCADenoiser", "keep_emitters", "nca_denoise", "reference_denoise",

@@ -20,6 +20,7 @@ bit for bit); ``activation="tanh"`` replaces the sigmoid.
 The fast path (:func:`folded_kernel`): perception followed by the 1x1 product with W is one
 linear map, a 3x3 convolution 9 -> 9 whose weights are the filters scaled by the rows of W. The
 ONNX model (``export.py``) runs that convolution; tests prove it equal to this module.
+:class:`FoldedNCA` runs it in PyTorch (the device path, ``device.py``).
 
 Example:
     >>> import torch
@@ -35,7 +36,6 @@ from __future__ import annotations
 
 import numpy as np
 import torch
-from kornia.filters import filter2d
 from torch import nn
 
 from .codec import decode, encode, sanitize  # noqa: F401  (re-exported)
@@ -77,6 +77,7 @@ def perceive(s: torch.Tensor) -> torch.Tensor:
 
     def filt(x: torch.Tensor, k: np.ndarray) -> torch.Tensor:
         kern = torch.as_tensor(k, dtype=x.dtype, device=x.device)[None]
+        from kornia.filters import filter2d  # here: the device path (FoldedNCA) needs no kornia
         return filter2d(x, kern, border_type="replicate")
 
     return torch.cat([s, filt(s[:, :RGB], K_GAUSS), filt(s, K_LAPLACE), filt(s, K_SOBEL_X),
@@ -127,7 +128,15 @@ class NCA(nn.Module):
         the gate. ``level=None`` with the gate means 1 spp (ℓ = 0)."""
         if not self.noise_gate:
             return 1.0
-        lv = torch.zeros(n) if level is None else torch.as_tensor(level, dtype=torch.float32)
+        # on the parameters' device: a level built on the CPU stopped the model on CUDA; a
+        # number is filled in there (no host-to-device copy)
+        dev = self.gate_u.device
+        if level is None:
+            lv = torch.zeros(n, device=dev)
+        elif isinstance(level, (int, float)):
+            lv = torch.full((), float(level), dtype=torch.float32, device=dev)
+        else:
+            lv = torch.as_tensor(level, dtype=torch.float32, device=dev)
         lv = lv.reshape(-1)[:, None, None, None] if lv.ndim else lv.reshape(1, 1, 1, 1)
         return self.gate_max * torch.sigmoid(self.gate_v + self.gate_u * lv)
 
@@ -166,3 +175,41 @@ def folded_kernel(W: np.ndarray) -> np.ndarray:
         K[:, c] += W[j][:, None, None] * kern[None].astype(np.float64)
     return K.astype(np.float32)
 
+
+
+class FoldedNCA(nn.Module):
+    """The fast path of an :class:`NCA` as a module (what ``export.py``'s ONNX Loop runs and
+    the device path uses): per step replicate padding, one 3x3 convolution with the folded
+    weights (:func:`folded_kernel`: perception followed by · W), the activation, + b, × γ, + s.
+
+    ``forward(s, iterations, level)`` as :meth:`NCA.forward`: s (N, 9, H, W) → (N, 9, H, W);
+    γ from the wrapped NCA's noise gate. The folded weights are computed once, in float64 and
+    rounded to float32 like :func:`folded_kernel`, from the NCA's W when the module is built.
+    """
+
+    def __init__(self, nca: NCA):
+        super().__init__()
+        self.nca = nca
+        basis = torch.zeros(PERCEPTION_CHANNELS, STATE_CHANNELS, 3, 3, dtype=torch.float64)
+        for j, (kern, c) in enumerate(perception_map()):
+            basis[j, c] = torch.from_numpy(kern.astype(np.float64))
+        with torch.no_grad():
+            K = torch.einsum("jo,jcyx->ocyx", nca.W.detach().to(torch.float64), basis)
+        cout = STATE_CHANNELS if nca.update_channels == "all" else RGB
+        self.register_buffer("K", K.to(torch.float32)[:cout].contiguous(), persistent=False)
+
+    def step(self, s: torch.Tensor, gamma: torch.Tensor | float = 1.0) -> torch.Tensor:
+        z = torch.nn.functional.conv2d(torch.nn.functional.pad(s, (1, 1, 1, 1),
+                                                               mode="replicate"), self.K)
+        cout = self.K.shape[0]
+        ds = gamma * (self.nca.act(z) + self.nca.b[:cout][None, :, None, None])
+        if cout == RGB:
+            return torch.cat([s[:, :RGB] + ds, s[:, RGB:]], dim=1)
+        return s + ds
+
+    def forward(self, s: torch.Tensor, iterations: int,
+                level: torch.Tensor | float | None = None) -> torch.Tensor:
+        gamma = self.nca.step_size(level, s.shape[0])
+        for _ in range(int(iterations)):
+            s = self.step(s, gamma)
+        return s

@@ -7,6 +7,10 @@ Input policy (documented finite result): OIDN needs non-negative finite HDR colo
 [0, 1] and normals in [-1, 1]. Non-finite color pixels are replaced by 0 and negative values by
 0 before the call; albedo and normal are clipped to their ranges and their non-finite values
 set to 0. The output is therefore finite everywhere, and a NaN never reaches OIDN.
+
+Device path (``denoise_device``, :mod:`.device`): the same policy with torch ops on the frame's
+device, then OIDN's CUDA device filtering the tensors in GPU memory (OIDN's CPU device for CPU
+tensors); the OIDN device and filter are kept on the instance between calls.
 """
 from __future__ import annotations
 
@@ -60,6 +64,8 @@ class OIDN(Denoiser):
     kinds = {"steady"}
     needs = {"color", "albedo", "normal"}
     defaults = dict(quality="high", features="albedo+normal", clean_aux=True)
+    #: ``denoise_device``: OIDN's own CUDA device on the tensors (:mod:`.device`).
+    device_backend = "oidn-cuda"
 
     def __init__(self, **params):
         super().__init__(**params)
@@ -69,6 +75,28 @@ class OIDN(Denoiser):
         if self.params["quality"] not in QUALITIES:
             raise DbenchInputError(f"quality: expected one of {QUALITIES}, "
                                    f"got {self.params['quality']!r}")
+        #: What the last call ran on: ``oidn_device`` ("cuda" | "cpu"), quality, features.
+        self.last_settings: dict = {}
+        self._runner = None  # the device path's cached OIDN device and filter
+
+    def __getstate__(self) -> dict:
+        state = dict(self.__dict__)
+        state["_runner"] = None  # native handles stay with the process that made them
+        return state
+
+    def denoise_device(self, data):
+        """OIDN on a :class:`~dbench.device.DeviceFrame`: CUDA tensors are filtered by OIDN's
+        CUDA device in GPU memory on the current torch stream, CPU tensors by OIDN's CPU device;
+        synchronous (the result is ready on return). Equal to :meth:`denoise` on the CPU
+        (tests/methods/test_oidn_device.py)."""
+        from .device import OIDNRunner
+
+        if self._runner is None:
+            self._runner = OIDNRunner()
+        p = self.params
+        out, self.last_settings = self._runner.run(data, p["features"], p["quality"],
+                                                   p["clean_aux"])
+        return out
 
     def denoise(self, data) -> np.ndarray:
         features = self.params["features"]
@@ -79,5 +107,8 @@ class OIDN(Denoiser):
             check_buffer("albedo", albedo, (h, w, 3))  # a missing buffer raises, naming it
         if features == "albedo+normal":
             check_buffer("normal", normal, (h, w, 3))
+        self.last_settings = dict(oidn_device="cpu", backend="pyoidn-numpy",
+                                  quality=self.params["quality"], features=features,
+                                  clean_aux=bool(self.params["clean_aux"] and albedo is not None))
         return oidn_denoise(data.color, albedo, normal, quality=self.params["quality"],
                             clean_aux=self.params["clean_aux"])

@@ -106,6 +106,9 @@ class Statistical(Denoiser):
         sigma_convention="variance", window="square", backend="auto", hit_mask=True,
         membership=True, radius_t="auto", base="auto",
         temporal_profile=None, sigma_t=1.0, skip_empty=True, shrink=True, mass=True)
+    #: ``denoise_device`` (steady images): the Welch-tested window as one Triton kernel
+    #: (:mod:`.device`).
+    device_backend = "triton"
 
     def __init__(self, **params: Any) -> None:
         super().__init__(**params)
@@ -135,6 +138,30 @@ class Statistical(Denoiser):
                 raise DbenchInputError(f"{name}: expected True or False, got {p[name]!r}")
         #: Resolved settings of the last call: γ_t, ν, transform, λ, backend, base filter.
         self.last_settings: dict[str, Any] = {}
+
+    def runs_on_device(self) -> bool:
+        # steady images on a compiled backend; the readable reference stays on the host
+        return self.params["backend"] != "reference"
+
+    def denoise_device(self, data: Any):
+        """A steady :class:`~dbench.device.DeviceFrame` (:func:`.device.statistical_device`),
+        equal to :meth:`denoise` within float32 rounding of the weights
+        (tests/methods/test_statistical_device.py); transient videos run on the host."""
+        if getattr(data, "kind", None) != "steady":
+            raise DbenchInputError("statistical: the device path takes steady frames; "
+                                   f"got {getattr(data, 'kind', type(data).__name__)} data")
+        if not self.runs_on_device():
+            raise DbenchInputError("statistical: backend='reference' runs on the host only")
+        require_buffers(self, data)
+        from .device import statistical_device
+        p = self.params
+        alpha = p["alpha"] if (p["alpha"] is not None or p["gamma"] is not None) else DEFAULT_ALPHA
+        opts = {k: p[k] for k in ("sigma", "sigma_convention", "window", "hit_mask")}
+        out, info = statistical_device(
+            data, radius=STEADY_RADIUS if p["radius"] is None else p["radius"], alpha=alpha,
+            gamma=p["gamma"], guide_options=opts, membership_on=p["membership"])
+        self.last_settings = info
+        return out
 
     def denoise(self, data: Any) -> np.ndarray:
         kind = getattr(data, "kind", None)

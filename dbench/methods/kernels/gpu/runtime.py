@@ -13,6 +13,7 @@ Kernels call no other ``@triton.jit`` functions, so both modes see one self-cont
 """
 from __future__ import annotations
 
+from contextlib import contextmanager
 from functools import lru_cache
 from typing import Any, Callable
 
@@ -52,8 +53,29 @@ class Kernel:
         def launch(*args: Any, **meta: Any) -> None:
             on_cuda = any(getattr(getattr(a, "device", None), "type", None) == "cuda"
                           for a in args)
-            self._variant(on_cuda)[grid](*args, **meta)
+            if on_cuda:
+                self._variant(True)[grid](*args, **meta)
+            else:
+                with _library_functions_as_python():
+                    self._variant(False)[grid](*args, **meta)
         return launch
+
+
+@contextmanager
+def _library_functions_as_python():
+    """Let the interpreter call Triton's own library functions that are themselves
+    ``@triton.jit`` functions (``tl.zeros``, ``tl.sum`` …): outside ``TRITON_INTERPRET=1`` they
+    refuse to be called from Python, so for the duration of an interpreted launch a call runs
+    their Python body, which the interpreter's patched ``triton.language`` then evaluates. The
+    compiled path never takes this route (it is set and restored around the CPU launch only)."""
+    from triton.runtime.jit import JITFunction
+
+    saved = JITFunction.__call__
+    JITFunction.__call__ = lambda self, *a, **k: self.fn(*a, **k)
+    try:
+        yield
+    finally:
+        JITFunction.__call__ = saved
 
 
 def kernel(fn: Callable) -> Kernel:

@@ -1,0 +1,264 @@
+"""``dbench bench gpu``: every method's device path timed on one GPU at 1280×720 against its
+numba path on the host CPU cores and against OIDN on the same GPU, its output checked against
+the numba output, its kernel launches and copies counted (docs/gpu.md §4).
+
+Timing: the frame is uploaded once; each device call is timed with ``torch.cuda.synchronize()``
+before and after it, after warm-up calls (compilation, caches; a temporal method's history
+filled by the 8 warm-up frames of :mod:`dbench.bench.sequence`), median of ``repeats``. Host
+calls: median of ``host_repeats`` after one warm-up. One further device call is profiled
+(``torch.profiler``) to count kernel launches and memory copies. Nothing here is a CPU figure
+presented as a GPU one: each row names where each of its times was measured.
+
+On a machine without a GPU, ``device="cpu"`` runs the same script on CPU tensors (the kernels
+through Triton's interpreter) at a small size: a dry run that the tests use, whose times mean
+nothing and which is never written to ``results/gpu``.
+"""
+from __future__ import annotations
+
+import json
+import re
+import statistics
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..device import download, synchronize, timed, upload
+from . import fpenv
+from .machine import machine_info
+
+#: The methods the GPU issue times, in its order, with its targets (ms per call or frame).
+TARGETS_MS: dict[str, float] = {"statistical": 10.0, "jbf": 5.0, "accumulate": 0.3,
+                                "svgf": 2.0, "asvgf": 3.0, "bmfr": 3.0, "nca": 2.0,
+                                "autoencoder": 8.0, "oidn": 1.1 * 3.15}
+#: OIDN's own benchmark on the H200 (oidnBenchmark -d cuda, 1280×720, high quality), ms.
+OIDN_OWN_MS = 3.15
+#: The synthetic frame's samples per pixel.
+SPP = 16
+
+
+def _temporal(method) -> bool:
+    return "sequence" in method.kinds and "steady" not in method.kinds
+
+
+def _frame(height: int, width: int, hostile: bool = False):
+    from .stress import base_frame
+
+    frame = base_frame(height, width, spp=SPP)
+    frame = frame.with_buffers(meta={"spp": SPP},
+                               motion=np.zeros((height, width, 2), np.float32),
+                               gradient=np.array(frame.color, copy=True))
+    if hostile:  # the finite-output contract: a block of 3e38 colour and a NaN pixel
+        color = np.array(frame.color, copy=True)
+        color[: max(height // 4, 1), : max(width // 4, 1)] = 3e38
+        color[-1, -1] = np.nan
+        frame = frame.with_buffers(color=color, gradient=color.copy())
+    return frame
+
+
+def _available(frame) -> set[str]:
+    from ..data import BUFFER_NAMES
+    return {b for b in BUFFER_NAMES if getattr(frame, b, None) is not None}
+
+
+def _host_run(name: str, frame, repeats: int) -> tuple[float, np.ndarray]:
+    """(median seconds, output) of the host path (numba where the method has it)."""
+    from .. import methods
+    from .sequence import WARMUP
+
+    m = methods.get(name)
+    if _temporal(m):
+        m.reset()
+        for _ in range(WARMUP):
+            fpenv.denoise(m, frame)
+
+    def call():
+        if not _temporal(m):
+            m.reset()
+        return fpenv.denoise(m, frame)
+
+    out = call()
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        out = call()
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times), np.asarray(out, np.float32)
+
+
+def count_device_work(fn, device: str) -> dict[str, int]:
+    """Kernel launches and memory copies of one call of ``fn`` (PyTorch profiler, CUPTI: every
+    kernel on the device is seen, Triton's and OIDN's included). {} off CUDA."""
+    if device != "cuda":
+        return {}
+    from torch.profiler import ProfilerActivity, profile
+
+    synchronize(device)
+    with profile(activities=[ProfilerActivity.CPU, ProfilerActivity.CUDA]) as prof:
+        fn()
+        synchronize(device)
+    kernels = copies = sets = 0
+    for e in prof.events():
+        if getattr(e, "device_type", None) is None or str(e.device_type) != "DeviceType.CUDA":
+            continue
+        if e.name.startswith("Memcpy"):
+            copies += 1
+        elif e.name.startswith("Memset"):
+            sets += 1
+        else:
+            kernels += 1
+    return {"kernel_launches": kernels, "memcpy": copies, "memset": sets}
+
+
+def _device_run(name: str, frame, device: str, repeats: int, params: dict | None = None
+                ) -> dict[str, Any]:
+    from .. import methods
+    from .sequence import WARMUP
+
+    m = methods.get(name, **(params or {}))
+    if not m.runs_on_device():
+        return {"device_path": False}
+    data, upload_s = timed(lambda: upload(frame, device, m.wants(_available(frame))), device)
+    temporal = _temporal(m)
+
+    def call():
+        if not temporal:
+            m.reset()
+        return fpenv.denoise_device(m, data)
+
+    m.reset()
+    for _ in range(WARMUP if temporal else 2):
+        out = call()
+    synchronize(device)
+    times = []
+    for _ in range(repeats):
+        out, dt = timed(call, device)
+        times.append(dt)
+    counts = count_device_work(call, device)
+    out, download_s = timed(lambda: download(call()), device)
+    return {"device_path": True, "backend": m.device_backend, "time_s": statistics.median(times),
+            "time_s_min": min(times), "time_s_max": max(times), "upload_s": upload_s,
+            "download_s": download_s, **counts, "output": out,
+            "settings": {k: v for k, v in (getattr(m, "last_settings", None) or {}).items()
+                         if isinstance(v, (str, int, float, bool, type(None)))}}
+
+
+def _nonfinite_on_hostile(name: str, height: int, width: int, device: str) -> int | None:
+    from .. import methods
+    from .sequence import WARMUP
+
+    m = methods.get(name)
+    if not m.runs_on_device():
+        return None
+    frame = _frame(height, width, hostile=True)
+    data = upload(frame, device, m.wants(_available(frame)))
+    m.reset()
+    out = None
+    for _ in range(WARMUP if _temporal(m) else 1):
+        out = fpenv.denoise_device(m, data)
+    return int((~np.isfinite(download(out))).sum())
+
+
+def compare(device_out: np.ndarray, host_out: np.ndarray) -> dict[str, float]:
+    """Largest absolute difference, and relative to max(|host|, 1e-3), over finite pixels."""
+    ok = np.isfinite(device_out) & np.isfinite(host_out)
+    diff = np.abs(device_out.astype(np.float64) - host_out)
+    rel = diff / np.maximum(np.abs(host_out.astype(np.float64)), 1e-3)
+    return {"max_abs_diff": float(diff[ok].max()) if ok.any() else float("nan"),
+            "max_rel_diff": float(rel[ok].max()) if ok.any() else float("nan"),
+            "mean_abs_diff": float(diff[ok].mean()) if ok.any() else float("nan"),
+            "finite_mismatch": int((np.isfinite(device_out) != np.isfinite(host_out)).sum())}
+
+
+def bench_gpu(height: int = 720, width: int = 1280, repeats: int = 10, host_repeats: int = 3,
+              device: str = "cuda", methods_: list[str] | None = None,
+              hostile_size: tuple[int, int] = (64, 96), log=print) -> dict[str, Any]:
+    """Every method of :data:`TARGETS_MS` (or ``methods_``): device time, host time, the check
+    against the host output, launches and copies; OIDN's qualities on the device."""
+    names = list(methods_ or TARGETS_MS)
+    frame = _frame(height, width)
+    rows = []
+    for name in names:
+        t0 = time.perf_counter()
+        host_s, host_out = _host_run(name, frame, host_repeats)
+        row: dict[str, Any] = {"method": name, "host_time_s": host_s,
+                               "target_ms": TARGETS_MS.get(name)}
+        dev = _device_run(name, frame, device, repeats)
+        out = dev.pop("output", None)
+        row.update(dev)
+        if out is not None:
+            row.update(compare(out, host_out))
+            row["hostile_nonfinite"] = _nonfinite_on_hostile(name, *hostile_size, device)
+            row["speedup_vs_host"] = host_s / row["time_s"]
+        row["wall_s"] = time.perf_counter() - t0
+        rows.append(row)
+        log(_row_text(row, device))
+    oidn_rows = []
+    if "oidn" in names:
+        for quality in ("high", "balanced", "fast"):
+            r = _device_run("oidn", frame, device, repeats, params={"quality": quality})
+            r.pop("output", None)
+            oidn_rows.append({"quality": quality, **r})
+    oidn_s = next((r["time_s"] for r in rows if r["method"] == "oidn" and r.get("device_path")),
+                  None)
+    for r in rows:
+        if oidn_s and r.get("device_path"):
+            r["ratio_vs_oidn_device"] = r["time_s"] / oidn_s
+    info = machine_info()
+    return {"benchmark": "gpu", "device": device, "device_name": _device_label(device),
+            "height": height, "width": width, "spp": SPP, "repeats": repeats,
+            "host_repeats": host_repeats, "host": f"{info['cpu']}, {info['cores']} cores",
+            "packages": info["packages"], "rows": rows, "oidn_qualities": oidn_rows,
+            "oidn_own_benchmark_ms": OIDN_OWN_MS,
+            "when": time.strftime("%Y-%m-%d %H:%M:%S")}
+
+
+def _device_label(device: str) -> str:
+    from ..device import device_name
+    return device_name(device)
+
+
+def _row_text(r: dict[str, Any], device: str) -> str:
+    host = f"host {r['host_time_s'] * 1e3:9.2f} ms"
+    if not r.get("device_path"):
+        return f"{r['method']:<12} {host}   no device path (runs on the host CPU)"
+    return (f"{r['method']:<12} {host}   {device} {r['time_s'] * 1e3:8.3f} ms "
+            f"(target {r['target_ms'] if r['target_ms'] is not None else '-'}) "
+            f"launches {r.get('kernel_launches', '-')} copies {r.get('memcpy', '-')} "
+            f"max rel diff {r['max_rel_diff']:.2e} non-finite on 3e38 block "
+            f"{r['hostile_nonfinite']}")
+
+
+def markdown(result: dict[str, Any]) -> str:
+    """The README's table of a :func:`bench_gpu` result."""
+    dev = result["device_name"]
+    lines = [f"| method | {dev}: device path | backend | target | numba on {result['host']} | "
+             "speed-up | launches / copies per call | max rel. diff to numba |",
+             "|---|---:|---|---:|---:|---:|---|---:|"]
+    for r in result["rows"]:
+        host = f"{r['host_time_s'] * 1e3:.1f} ms"
+        if not r.get("device_path"):
+            lines.append(f"| {r['method']} | none (host only) | | {r['target_ms']} ms | {host} "
+                         "| | | |")
+            continue
+        lines.append(f"| {r['method']} | {r['time_s'] * 1e3:.3f} ms | {r['backend']} | "
+                     f"{r['target_ms']:.2f} ms | {host} | {r['speedup_vs_host']:.0f}× | "
+                     f"{r.get('kernel_launches', '-')} / {r.get('memcpy', '-')} | "
+                     f"{r['max_rel_diff']:.1e} |")
+    return "\n".join(lines)
+
+
+def result_path(result: dict[str, Any], root: str | Path = "results/gpu") -> Path:
+    """``results/gpu/<device name>.json``, the name reduced to letters, digits and dashes."""
+    slug = re.sub(r"[^A-Za-z0-9]+", "-", result["device_name"]).strip("-").lower()
+    return Path(root) / f"{slug or 'gpu'}.json"
+
+
+def write_result(result: dict[str, Any], path: str | Path) -> None:
+    from ..io import write_text
+    write_text(Path(path), json.dumps(result, indent=1, default=str) + "\n")
+
+
+__all__ = ["OIDN_OWN_MS", "TARGETS_MS", "bench_gpu", "compare", "count_device_work",
+           "markdown", "result_path", "write_result"]
