@@ -181,24 +181,31 @@ def bench_gpu(height: int = 720, width: int = 1280, repeats: int = 10, host_repe
     rows = []
     for name in names:
         t0 = time.perf_counter()
-        host_s, host_out = _host_run(name, frame, host_repeats)
-        row: dict[str, Any] = {"method": name, "host_time_s": host_s,
-                               "target_ms": TARGETS_MS.get(name)}
-        dev = _device_run(name, frame, device, repeats)
-        out = dev.pop("output", None)
-        row.update(dev)
-        if out is not None:
-            row.update(compare(out, host_out))
-            row["hostile_nonfinite"] = _nonfinite_on_hostile(name, *hostile_size, device)
-            row["speedup_vs_host"] = host_s / row["time_s"]
+        row: dict[str, Any] = {"method": name, "target_ms": TARGETS_MS.get(name)}
+        try:
+            host_s, host_out = _host_run(name, frame, host_repeats)
+            row["host_time_s"] = host_s
+            dev = _device_run(name, frame, device, repeats)
+            out = dev.pop("output", None)
+            row.update(dev)
+            if out is not None:
+                row.update(compare(out, host_out))
+                row["hostile_nonfinite"] = _nonfinite_on_hostile(name, *hostile_size, device)
+                row["speedup_vs_host"] = host_s / row["time_s"]
+        except Exception as exc:  # noqa: BLE001 - one method's failure is its row, not the run's
+            row.update(device_path=bool(row.get("device_path")),
+                       error=f"{type(exc).__name__}: {exc}"[:500])
         row["wall_s"] = time.perf_counter() - t0
         rows.append(row)
         log(_row_text(row, device))
     oidn_rows = []
     if "oidn" in names:
         for quality in ("high", "balanced", "fast"):
-            r = _device_run("oidn", frame, device, repeats, params={"quality": quality})
-            r.pop("output", None)
+            try:
+                r = _device_run("oidn", frame, device, repeats, params={"quality": quality})
+                r.pop("output", None)
+            except Exception as exc:  # noqa: BLE001 - recorded, as for the rows
+                r = {"error": f"{type(exc).__name__}: {exc}"[:500]}
             oidn_rows.append({"quality": quality, **r})
     oidn_s = next((r["time_s"] for r in rows if r["method"] == "oidn" and r.get("device_path")),
                   None)
@@ -220,6 +227,8 @@ def _device_label(device: str) -> str:
 
 
 def _row_text(r: dict[str, Any], device: str) -> str:
+    if "error" in r:
+        return f"{r['method']:<12} failed: {r['error']}"
     host = f"host {r['host_time_s'] * 1e3:9.2f} ms"
     if not r.get("device_path"):
         return f"{r['method']:<12} {host}   no device path (runs on the host CPU)"
@@ -237,6 +246,9 @@ def markdown(result: dict[str, Any]) -> str:
              "speed-up | launches / copies per call | max rel. diff to numba |",
              "|---|---:|---|---:|---:|---:|---|---:|"]
     for r in result["rows"]:
+        if "error" in r:
+            lines.append(f"| {r['method']} | failed: {r['error'][:80]} | | | | | | |")
+            continue
         host = f"{r['host_time_s'] * 1e3:.1f} ms"
         if not r.get("device_path"):
             lines.append(f"| {r['method']} | none (host only) | | {r['target_ms']} ms | {host} "

@@ -21,7 +21,7 @@ from ..checks import check_choice
 from ..kernels.bilateral.guide import Guide, color_planes, image_shape, make_guide
 from ..kernels.bilateral.numba2d import accumulate
 from ..kernels.bilateral.reference import safe_divide
-from ..kernels.bilateral.torch_path import accumulate_torch, torch_cuda_available
+from ..kernels.bilateral.torch_path import accumulate_torch
 from .params import BACKENDS
 from .reference import jbf_reference
 
@@ -47,7 +47,7 @@ def jbf_fast(color: Any, guide: Guide, *, backend: str = "numba") -> np.ndarray:
 def resolve_backend(backend: str, *, allow_torch: bool = True) -> str:
     check_choice("backend", backend, BACKENDS)
     if backend == "auto":
-        return "torch" if allow_torch and torch_cuda_available() else "numba"
+        return "numba"  # on a GPU the harness runs the device path instead (docs/gpu.md §3)
     return backend
 
 

@@ -20,8 +20,8 @@ DbenchInputError naming it; the resolved values land in ``last_settings`` after 
     rendered scene: results/transient_statistical.md §6]; γ_t = t_{1−α/2, n_i+n_j−2} from alpha,
     γ_t² = 1/(2γ) − 1 from gamma, which wins when both are given), sigma ((10, 10, 0.02 ×3,
     0.1 ×3)), sigma_convention ("variance" | "sd"), window ("square" | "disk"), backend ("auto":
-    PyTorch on CUDA for images, Numba otherwise | "numba" | "torch" (images only) |
-    "reference"), hit_mask (True), membership (True; False = plain base filter, the ablation).
+    Numba; on a GPU the harness runs ``denoise_device``, docs/gpu.md | "numba" | "torch"
+    (images only) | "reference"), hit_mask (True), membership (True; False = plain base filter, the ablation).
     The ProDen gate of spec §12 is ``statistical+gate`` (:mod:`dbench.methods.gate`, which
     wraps any steady method; ``statistical-gate`` is the old name of the same method).
     Videos only (spec §11.3, spec/jbf.md §1.4): radius_t ("auto": follows the bin width,

@@ -51,7 +51,7 @@ from ..kernels.bilateral.guide import Guide, color_planes, image_shape, make_gui
 from ..kernels.bilateral.numba2d import accumulate
 from ..kernels.bilateral.params import SEED_SIGMA
 from ..kernels.bilateral.reference import reference_weights, safe_divide, shift_slices
-from ..kernels.bilateral.torch_path import accumulate_torch, torch_cuda_available
+from ..kernels.bilateral.torch_path import accumulate_torch
 
 DEFAULT_ALPHA = 0.005
 #: Largest ν with its own γ_t in the non-uniform table; beyond it the ν = ∞ value is used.
@@ -358,7 +358,9 @@ def statistical_fast(color: Any, sp: StatPlanes, guide: Guide, threshold: Thresh
 def resolve_backend(backend: str) -> str:
     check_choice("backend", backend, BACKENDS)
     if backend == "auto":
-        return "torch" if torch_cuda_available() else "numba"
+        # on a GPU the harness runs the device path (docs/gpu.md §3); the host-side "torch"
+        # path, which copied the frame across the bus inside every call, only on request
+        return "numba"
     return backend
 
 
@@ -381,7 +383,7 @@ def statistical_filter(color: Any, stats: SampleStats, albedo: Any, normal: Any,
         radius, sigma, sigma_convention, window, hit_mask, features: base filter ρ (spec/jbf.md).
         alpha: test level, γ_t = t_{1−α/2, n_i+n_j−2}; gamma: threshold given directly (wins).
         membership_on: False gives the plain JBF (every membership forced on; ablation).
-        backend: "auto" (PyTorch on CUDA, else Numba), "numba", "torch", "reference".
+        backend: "auto" (Numba), "numba", "torch", "reference".
         return_info: also return a dict of resolved settings (γ_t, ν, transform, backend...).
 
     Returns:

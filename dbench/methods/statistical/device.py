@@ -15,7 +15,7 @@ from .core import resolve_threshold
 
 
 def stat_planes_device(stats: Any, h: int, w: int):
-    """(theta, var, nint, bad): (3, H, W) float64, float64, int32 planes and the (H, W) bool
+    """(theta, var, nint, bad): (H, W, 4) float64, float64, int32 (4th channel 0) and the (H, W) bool
     mask of non-finite statistics (zeroed there), as :func:`.core.stat_planes` builds them."""
     import torch
 
@@ -40,8 +40,10 @@ def stat_planes_device(stats: Any, h: int, w: int):
     theta = torch.where(zero, 0.0, theta)
     var = torch.where(zero, 0.0, var)
     nint = torch.clamp(torch.round(torch.where(zero, 0.0, n)), max=2.0 ** 30).to(torch.int32)
-    planar = [t.permute(2, 0, 1).contiguous() for t in (theta, var, nint)]
-    return planar[0], planar[1], planar[2], bad
+    # (H, W, 4): each pixel's channels one wide load in the kernel; the zero 4th channel
+    # passes the test by itself (d = 0)
+    padded = [torch.nn.functional.pad(t, (0, 1)).contiguous() for t in (theta, var, nint)]
+    return padded[0], padded[1], padded[2], bad
 
 
 @lru_cache(maxsize=32)
@@ -67,10 +69,11 @@ def statistical_device(frame: Any, *, radius: int, alpha: float | None, gamma: f
     theta, var, nint, bad = stat_planes_device(frame.stats, h, w)
     guide = make_device_guide(frame.albedo, frame.normal, depth_or_hit(frame), frame.position,
                               shape=(h, w), radius=radius, isolate=bad, **guide_options)
-    valid = (~bad)[None].expand(3, h, w)
+    valid = (~bad)[..., None].expand(h, w, 3)
+    counts = nint[..., :3]
     big = torch.iinfo(torch.int32).max
-    lo, hi, n_bad = torch.stack([torch.where(valid, nint, big).amin(),
-                                 torch.where(valid, nint, -1).amax(),
+    lo, hi, n_bad = torch.stack([torch.where(valid, counts, big).amin(),
+                                 torch.where(valid, counts, -1).amax(),
                                  bad.sum().to(torch.int32)]).tolist()
     if hi < 0:  # no valid pixel: the host takes the counts {0}
         lo = hi = 0

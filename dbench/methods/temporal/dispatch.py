@@ -1,5 +1,5 @@
 """Reprojection and accumulation on a chosen backend, NumPy in and out: ``"reference"``,
-``"numba"``, ``"torch"`` or ``"auto"`` (torch on CUDA when available, else numba)."""
+``"numba"``, ``"torch"`` or ``"auto"`` (numba: the GPU runs the device path, docs/gpu.md)."""
 from __future__ import annotations
 
 import numpy as np
@@ -9,16 +9,18 @@ from .geometry import Geometry, expected_distance
 from .numba_path import accumulate_fast, numba, reproject_fast
 from .params import BACKENDS, EPS_F, N_MAX, TAU_D, TAU_N
 from .reference import accumulate, reproject_reference
-from .torch_path import accumulate_torch, reproject_torch, to_numpy, torch_cuda_available
+from .torch_path import accumulate_torch, reproject_torch, to_numpy
 
 
 def resolve_backend(backend: str) -> str:
-    """``"auto"`` → ``"torch"`` when CUDA is available, else ``"numba"``; other names pass
-    through after validation (DbenchInputError naming ``backend``)."""
+    """``"auto"`` → ``"numba"``, the host's compiled path (on a GPU the harness runs the method's
+    device path instead, docs/gpu.md §3; the host ``"torch"`` path copied every frame across the
+    bus and is kept only on request); other names pass through after validation
+    (DbenchInputError naming ``backend``)."""
     if backend not in BACKENDS:
         raise DbenchInputError(f"backend: expected one of {BACKENDS}, got {backend!r}")
     if backend == "auto":
-        return "torch" if torch_cuda_available() else "numba"
+        return "numba"
     return backend
 
 

@@ -16,7 +16,7 @@ FALLBACK_KERNEL = np.array([[0.0778, 0.1233, 0.0778],
                             [0.0778, 0.1233, 0.0778]])
 #: reprojection status codes
 RESET, BILINEAR, FALLBACK = 0, 1, 2
-#: "auto" resolves to "torch" when CUDA is available, else "numba" (:func:`resolve_backend`).
+#: "auto" resolves to "numba" (:func:`resolve_backend`; on a GPU the device path runs, docs/gpu.md).
 BACKENDS = ("auto", "numba", "torch", "reference")
 
 

@@ -30,35 +30,33 @@ TILE_H, TILE_W = 8, 32
 @kernel
 def window_kernel(feat_ptr, lab_ptr, plane_ptr, scale_ptr, theta_ptr, var_ptr, nint_ptr,
                   table_ptr, out_ptr, H, W, ix, iy, g2, table_last, e_cut,
-                  R: tl.constexpr, K: tl.constexpr, KP: tl.constexpr, DISK: tl.constexpr, TEST: tl.constexpr,
+                  R: tl.constexpr, KP: tl.constexpr, DISK: tl.constexpr, TEST: tl.constexpr,
                   TH: tl.constexpr, TW: tl.constexpr):
-    """feat (K, H, W) f32; lab (H, W) i32; planes (4, H, W) f32 (r·v, g·v, b·v, v); scale (4,)
-    f32; theta, var (3, H, W) f64; nint (3, H, W) i32; table (L,) f64; out (H, W, 3) f32.
-    TEST: 0 no membership, 1 one γ_t² (g2), 2 γ_t² looked up by ν = n_i + n_j − 2. The radius R
-    is a compile-time constant: one compiled kernel per radius, a plain loop bound (no unrolling)."""
+    """feat (H, W, KP) f32, zero-padded; lab (H, W) i32; planes (H, W, 4) f32 (r·v, g·v, b·v, v);
+    scale (4,) f32; theta, var (H, W, 4) f64 and nint (H, W, 4) i32, the 4th channel zero;
+    table (L,) f64; out (H, W, 3) f32. Every pixel's features, planes and statistics are one
+    contiguous vector, read with one wide load per neighbour; the zero padding makes the padded
+    channels drop out by themselves (a zero difference adds nothing to the exponent and passes the
+    test as d = 0). TEST: 0 no membership, 1 one γ_t² (g2), 2 γ_t² looked up by
+    ν = n_i + n_j − 2. The radius R is a compile-time constant: one compiled kernel per radius,
+    a plain loop bound (no unrolling)."""
     pid_y = tl.program_id(0)
     pid_x = tl.program_id(1)
     i = tl.arange(0, TH * TW)
     y = pid_y * TH + i // TW
     x = pid_x * TW + i % TW
     inside = (y < H) & (x < W)
-    hw = H * W
     idx = y * W + x
     k = tl.arange(0, KP)
-    kmask = k < K
     c4 = tl.arange(0, 4)
-    cmask = c4 < 3
-    fc = tl.load(feat_ptr + k[None, :] * hw + idx[:, None],
-                 mask=inside[:, None] & kmask[None, :], other=0.0)
+    fc = tl.load(feat_ptr + idx[:, None] * KP + k[None, :], mask=inside[:, None], other=0.0)
     lc = tl.load(lab_ptr + idx, mask=inside, other=-1)
     if TEST > 0:
-        tc = tl.load(theta_ptr + c4[None, :] * hw + idx[:, None],
-                     mask=inside[:, None] & cmask[None, :], other=0.0)
-        vc = tl.load(var_ptr + c4[None, :] * hw + idx[:, None],
-                     mask=inside[:, None] & cmask[None, :], other=0.0)
+        tc = tl.load(theta_ptr + idx[:, None] * 4 + c4[None, :], mask=inside[:, None], other=0.0)
+        vc = tl.load(var_ptr + idx[:, None] * 4 + c4[None, :], mask=inside[:, None], other=0.0)
         if TEST == 2:
-            nc = tl.load(nint_ptr + c4[None, :] * hw + idx[:, None],
-                         mask=inside[:, None] & cmask[None, :], other=0)
+            nc = tl.load(nint_ptr + idx[:, None] * 4 + c4[None, :], mask=inside[:, None],
+                         other=0)
     acc = tl.zeros((TH * TW, 4), dtype=tl.float32)
     for dy in range(-R, R + 1):
         yy = y + dy
@@ -73,38 +71,37 @@ def window_kernel(feat_ptr, lab_ptr, plane_ptr, scale_ptr, theta_ptr, var_ptr, n
                 nb = row_ok & (xx >= 0) & (xx < W)
                 nidx = yy * W + xx
                 ln = tl.load(lab_ptr + nidx, mask=nb, other=-2)
-                fn = tl.load(feat_ptr + k[None, :] * hw + nidx[:, None],
-                             mask=nb[:, None] & kmask[None, :], other=0.0)
+                fn = tl.load(feat_ptr + nidx[:, None] * KP + k[None, :], mask=nb[:, None],
+                             other=0.0)
                 d = fc - fn
                 w = tl.exp(-(tl.sum(d * d, axis=1) + e))
                 w = tl.where(nb & (ln == lc), w, 0.0)
                 if TEST > 0:
-                    tn = tl.load(theta_ptr + c4[None, :] * hw + nidx[:, None],
-                                 mask=nb[:, None] & cmask[None, :], other=0.0)
-                    vn = tl.load(var_ptr + c4[None, :] * hw + nidx[:, None],
-                                 mask=nb[:, None] & cmask[None, :], other=0.0)
+                    tn = tl.load(theta_ptr + nidx[:, None] * 4 + c4[None, :], mask=nb[:, None],
+                                 other=0.0)
+                    vn = tl.load(var_ptr + nidx[:, None] * 4 + c4[None, :], mask=nb[:, None],
+                                 other=0.0)
                     dd = tc - tn
                     s = vc + vn
                     if TEST == 1:
                         ok = (dd * dd < g2 * s) | (dd == 0.0)
                     else:
-                        nn = tl.load(nint_ptr + c4[None, :] * hw + nidx[:, None],
-                                     mask=nb[:, None] & cmask[None, :], other=0)
+                        nn = tl.load(nint_ptr + nidx[:, None] * 4 + c4[None, :],
+                                     mask=nb[:, None], other=0)
                         nu = tl.minimum(tl.maximum(nc + nn - 2, 0), table_last)
-                        gt = tl.load(table_ptr + nu, mask=nb[:, None] & cmask[None, :],
-                                     other=0.0)
+                        gt = tl.load(table_ptr + nu, mask=nb[:, None], other=0.0)
                         ok = (dd * dd < gt * s) | (dd == 0.0)
-                    fails = tl.sum(tl.where(ok | (c4[None, :] >= 3), 0, 1), axis=1)
+                    fails = tl.sum(tl.where(ok, 0, 1), axis=1)
                     w = tl.where(fails == 0, w, 0.0)
-                pn = tl.load(plane_ptr + c4[None, :] * hw + nidx[:, None],
-                             mask=nb[:, None], other=0.0)
+                pn = tl.load(plane_ptr + nidx[:, None] * 4 + c4[None, :], mask=nb[:, None],
+                             other=0.0)
                 acc += w[:, None] * pn
     scale = tl.load(scale_ptr + c4)
     den = tl.sum(tl.where(c4[None, :] == 3, acc, 0.0), axis=1)
     safe = tl.where(den > 0, den, 1.0)
     val = tl.where(den[:, None] > 0, (acc / safe[:, None]) * scale[None, :], 0.0)
     tl.store(out_ptr + idx[:, None] * 3 + c4[None, :], val,
-             mask=inside[:, None] & cmask[None, :])
+             mask=inside[:, None] & (c4[None, :] < 3))
 
 
 def window_filter(feat, labels, planes, scale, out, *, radius: int, inv_x: float, inv_y: float,
@@ -113,13 +110,14 @@ def window_filter(feat, labels, planes, scale, out, *, radius: int, inv_x: float
     """Launch :func:`window_kernel` once over the image (tensors on one device, contiguous).
 
     Args:
-        feat: (K, H, W) float32 pre-scaled features; labels: (H, W) int32.
-        planes: (4, H, W) float32; scale: (4,) float32 factors the sums are multiplied by.
+        feat: (H, W, KP) float32 pre-scaled features, KP a power of two, zero-padded;
+            labels: (H, W) int32.
+        planes: (H, W, 4) float32; scale: (4,) float32 factors the sums are multiplied by.
         out: (H, W, 3) float32, written.
-        theta, var: (3, H, W) float64 (None: no membership test); nint: (3, H, W) int32 and
-            ``table`` (L,) float64 when γ_t² depends on ν, else ``g2``.
+        theta, var: (H, W, 4) float64 (None: no membership test); nint: (H, W, 4) int32 and
+            ``table`` (L,) float64 when γ_t² depends on ν, else ``g2``; 4th channels zero.
     """
-    k_feat, h, w = feat.shape
+    h, w, kp = feat.shape
     test = 0 if theta is None else (1 if table is None else 2)
     dummy_f64 = theta if theta is not None else scale.new_zeros(1, dtype=_f64())
     dummy_i32 = nint if nint is not None else labels
@@ -129,8 +127,7 @@ def window_filter(feat, labels, planes, scale, out, *, radius: int, inv_x: float
         feat, labels, planes, scale, dummy_f64, var if var is not None else dummy_f64,
         dummy_i32, tab, out, h, w, float(inv_x), float(inv_y), float(g2),
         int(tab.shape[0] - 1), float(e_cut), R=int(radius),
-        K=max(int(k_feat), 1), KP=max(triton.next_power_of_2(max(int(k_feat), 1)), 2),
-        DISK=bool(disk), TEST=test, TH=TILE_H, TW=TILE_W)
+        KP=int(kp), DISK=bool(disk), TEST=test, TH=TILE_H, TW=TILE_W)
 
 
 def _f64():

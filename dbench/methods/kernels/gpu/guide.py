@@ -22,7 +22,7 @@ from ..bilateral.params import (EXP_CUTOFF, LABEL_BACKGROUND, LABEL_EMITTER, LAB
 
 @dataclass
 class DeviceGuide:
-    """feat (K ≥ 1, H, W) float32 scaled features (a zero plane when there are none); labels
+    """feat (H, W, KP) float32 scaled features, zero-padded to KP = a power of two ≥ 2; labels
     (H, W) int32; the spatial inverse variances of x and y (0 switches them off); the window."""
 
     feat: Any
@@ -110,7 +110,11 @@ def make_device_guide(albedo, normal, depth, position, *, shape, radius: int = 2
     # centred per plane (float32 precision of the differences), scaled by sqrt(½Σ⁻¹)
     scaled = [(feats[i] - feats[i].mean()) * math.sqrt(0.5 * iv)
               for i, iv in enumerate(inv) if iv > 0]
-    feat = (torch.stack(scaled) if scaled else torch.zeros((1, h, w), device=dev))
+    # interleaved (H, W, KP), zero-padded to a power of two ≥ 2: one wide load per pixel
+    kp = max(2, 1 << max(len(scaled) - 1, 0).bit_length())
+    feat = torch.zeros((h, w, kp), device=dev)
+    if scaled:
+        feat[..., :len(scaled)] = torch.stack(scaled, -1)
     ix = iy = 0.0
     if "xy" in features:
         ix = inverse_variance(sigma[0], sigma_convention)
@@ -124,7 +128,7 @@ def make_device_guide(albedo, normal, depth, position, *, shape, radius: int = 2
 
 
 def color_planes(color):
-    """(4, H, W) float32 planes (r·v, g·v, b·v, v) of an (H, W, 3) colour tensor, v = all
+    """(H, W, 4) float32 planes (r·v, g·v, b·v, v) of an (H, W, 3) colour tensor, v = all
     channels finite, and the (4,) factors that keep huge planes finite in the float32 window sums:
     a plane whose largest finite |value| exceeds :data:`PLANE_MAX` is divided by a power of two
     (exact), as :func:`~dbench.methods.kernels.bilateral.numba2d.accumulate` does."""
@@ -136,8 +140,8 @@ def color_planes(color):
     exps = torch.where(peak > PLANE_MAX, torch.ceil(torch.log2(peak.double() / PLANE_MAX)),
                        torch.zeros_like(peak, dtype=torch.float64))
     scale = torch.exp2(exps).to(torch.float32)
-    planes = torch.cat([col / scale[:, None, None], valid[None].to(torch.float32)]).contiguous()
-    return planes, torch.cat([scale, scale.new_ones(1)]).contiguous()
+    planes = torch.cat([col / scale[:, None, None], valid[None].to(torch.float32)])
+    return planes.permute(1, 2, 0).contiguous(), torch.cat([scale, scale.new_ones(1)]).contiguous()
 
 
 #: Offsets whose spatial exponent reaches this give weight exactly 0 and are skipped.

@@ -1,0 +1,85 @@
+"""The stress cases against each method's device path (docs/gpu.md §2), in its CPU-testable
+form: the frame uploaded as CPU tensors, ``denoise_device`` called (Triton kernels through the
+interpreter, PyTorch ops, OIDN's CPU device), the output downloaded and judged by the same rules
+as the host path (:mod:`dbench.bench.stress`): finite output wherever the input is finite, or a
+DbenchInputError naming the buffer.
+
+``jbf`` and ``statistical`` run with radius 2 here: the interpreter's time grows with the
+window (about 27 s a call at radius 20 on a 16 × 24 frame), and the kernel's code is the same
+for every radius (a compile-time loop bound).
+"""
+from __future__ import annotations
+
+import time
+import traceback
+
+import numpy as np
+
+from ..device import download, upload
+from ..errors import DbenchInputError
+from . import fpenv
+from .stress import Case, Outcome, _as_sequence_frame, _judge
+
+#: Parameters of the device forms that differ from the defaults, with the reason above.
+DEVICE_FORM_PARAMS: dict[str, dict] = {"jbf": {"radius": 2}, "statistical": {"radius": 2}}
+#: The suffix of a device form's row in the stress matrix.
+SUFFIX = " [device form]"
+
+
+def device_methods() -> list[str]:
+    """Registered methods with a device path, sorted."""
+    from .. import methods
+    return sorted(n for n in methods.available() if methods.method_class(n).has_device_path())
+
+
+def run_device_case(method_name: str, case: Case) -> Outcome:
+    """:func:`dbench.bench.stress.run_case` for the device path of ``method_name`` on CPU
+    tensors (sequence methods: two calls after ``reset()``, both judged)."""
+    from .. import methods
+
+    method = methods.get(method_name, **DEVICE_FORM_PARAMS.get(method_name, {}))
+    used = set(method.needs) | set(getattr(method, "optional_needs", ()))
+    if case.needs_buffer is not None and case.needs_buffer not in used and not case.all_methods:
+        return Outcome("n/a", f"{method_name} does not use {case.needs_buffer}")
+    if case.kind == "transient" or not method.runs_on_device():
+        return Outcome("n/a", f"{method_name} has no device path for this input")
+    try:
+        frame = case.build()
+        as_sequence = "sequence" in method.kinds
+        if as_sequence:
+            frame = _as_sequence_frame(frame, case)
+    except DbenchInputError as exc:
+        return Outcome("pass", f"rejected on construction: {exc}")
+    needed = case.needs_buffer is not None and case.needs_buffer in method.needs
+    t0 = time.perf_counter()
+    outs = []
+    try:
+        data = upload(frame, "cpu")
+        method.reset()
+        outs.append(download(fpenv.denoise_device(method, data)))
+        if as_sequence:
+            outs.append(download(fpenv.denoise_device(method, data)))
+    except DbenchInputError as exc:
+        msg = str(exc)
+        may_refuse = case.error_ok and (needed or not case.all_methods)
+        if may_refuse and any(b in msg for b in case.error_ok) and (
+                "expected" in msg or "(H, W" in msg):
+            return Outcome("pass", f"DbenchInputError: {msg}", time.perf_counter() - t0)
+        return Outcome("fail", f"unexpected DbenchInputError on frame {len(outs) + 1}: {msg}",
+                       time.perf_counter() - t0)
+    except Exception as exc:  # noqa: BLE001
+        return Outcome("fail", f"{type(exc).__name__} on frame {len(outs) + 1}: {exc} "
+                       f"[{traceback.format_exc(limit=2).splitlines()[-1]}]",
+                       time.perf_counter() - t0)
+    seconds = time.perf_counter() - t0
+    if case.error_ok and needed and case.strict:
+        return Outcome("fail", f"missing {case.needs_buffer} accepted silently", seconds)
+    verdicts = [_judge(frame, np.asarray(o), seconds) for o in outs]
+    if len(verdicts) == 1:
+        return verdicts[0]
+    status = "fail" if any(v.status == "fail" for v in verdicts) else "pass"
+    return Outcome(status, "; ".join(f"frame {i + 1}: {v.why}" for i, v in enumerate(verdicts)),
+                   seconds)
+
+
+__all__ = ["DEVICE_FORM_PARAMS", "SUFFIX", "device_methods", "run_device_case"]
