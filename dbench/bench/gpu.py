@@ -198,6 +198,9 @@ def bench_gpu(height: int = 720, width: int = 1280, repeats: int = 10, host_repe
         row["wall_s"] = time.perf_counter() - t0
         rows.append(row)
         log(_row_text(row, device))
+    if "statistical" in names and device == "cuda":
+        rows.append(_transient_row(host_repeats))
+        log(_row_text(rows[-1], device))
     oidn_rows = []
     if "oidn" in names:
         for quality in ("high", "balanced", "fast"):
@@ -219,6 +222,21 @@ def bench_gpu(height: int = 720, width: int = 1280, repeats: int = 10, host_repe
             "packages": info["packages"], "rows": rows, "oidn_qualities": oidn_rows,
             "oidn_own_benchmark_ms": OIDN_OWN_MS,
             "when": time.strftime("%Y-%m-%d %H:%M:%S")}
+
+
+def _transient_row(repeats: int) -> dict[str, Any]:
+    """The transient statistical denoiser on a 256²×100-bin video: no device path yet, so its
+    host (numba) time only, named as such."""
+    from .methods.statistical import benchmark_transient
+
+    row: dict[str, Any] = {"method": "statistical (transient 256x256x100)", "target_ms": 30.0,
+                           "device_path": False}
+    try:
+        r = benchmark_transient(256, 256, 100, repeats=repeats, reference_max_voxels=8 * 8 * 100)
+        row["host_time_s"] = r["fast_s"]
+    except Exception as exc:  # noqa: BLE001 - recorded as the row
+        row["error"] = f"{type(exc).__name__}: {exc}"[:500]
+    return row
 
 
 def _device_label(device: str) -> str:

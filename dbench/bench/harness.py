@@ -22,6 +22,7 @@ from ..errors import DbenchInputError
 from ..registry import Denoiser
 from ..device import device_name, download, timed, upload
 from . import fpenv
+from .inputs import check_unchanged, input_guard, private_copy
 from .scoring import DEFAULT_METRICS, judge_frame
 from .sequence import WARMUP, run_sequence
 
@@ -164,18 +165,21 @@ def run_cell(method: Denoiser, frame, metric_names=DEFAULT_METRICS, repeats: int
                         device_name=device_name(where))
     judgements = []
     for i, f in enumerate(frames):
+        mine = private_copy(f)  # read-only; compared with f after the calls (bench/inputs.py)
         if on_device:
-            data, up_s = timed(lambda f=f: upload(f, where, method.wants(_buffers(f))), where)
+            data, up_s = timed(lambda: upload(mine, where, method.wants(_buffers(mine))), where)
 
             def call(data=data):
                 method.reset()
                 return fpenv.denoise_device(method, data)
         else:
-            def call(f=f):
+            def call(mine=mine):
                 method.reset()
-                return fpenv.denoise(method, f)
+                return fpenv.denoise(method, mine)
 
-        output, times = time_call(call, repeats=repeats, warmup=warmup, device=where)
+        with input_guard(method.name):
+            output, times = time_call(call, repeats=repeats, warmup=warmup, device=where)
+        check_unchanged(method.name, mine, f)
         if on_device:
             output, down_s = timed(lambda out=output: download(out), where)
             result.transfer_s.append(up_s + down_s)

@@ -134,7 +134,7 @@ def comparison_grid(path: str | Path, images: Sequence[tuple[str, np.ndarray]],
 
 def run_report_md(table: pd.DataFrame, settings: dict[str, Any], info: dict[str, Any],
                   skipped: dict[str, str], notes: Sequence[str] = (),
-                  rank_by: str = "relmse") -> str:
+                  rank_by: str = "relmse", failed: dict[str, str] | None = None) -> str:
     """The Markdown report of one ``dbench run``.
 
     ``table``: one row per method label with the columns of
@@ -172,6 +172,10 @@ def run_report_md(table: pd.DataFrame, settings: dict[str, Any], info: dict[str,
     warn = verdicts.ref_warnings_md(d) if len(d) else []
     if warn:
         parts += ["## Reference noise", ""] + warn + [""]
+    if failed:
+        parts += ["## Failed", "", "These methods raised an error or broke the method contract; "
+                  "they have no row above, and the run exits with code 4.", ""]
+        parts += [f"- **{m}**: {why}" for m, why in failed.items()] + [""]
     if skipped:
         parts += ["## Skipped", ""] + [f"- {m}: {why}" for m, why in skipped.items()] + [""]
     parts += ["## Settings", ""]

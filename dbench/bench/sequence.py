@@ -37,6 +37,7 @@ from ..data import Frame, Sequence
 from ..device import download, timed, upload
 from ..errors import DbenchInputError
 from . import fpenv
+from .inputs import check_unchanged, input_guard, private_copy
 
 WARMUP = 8
 SEQUENCE_METRICS = ("rmse", "ssim")
@@ -132,18 +133,21 @@ def run_sequence(method, seq: Sequence, metric_names: Iterable[str] = SEQUENCE_M
     stateless = m.per_frame("sequence")  # a steady method: every frame alone
     on_device = device != "cpu" and m.runs_on_device()
     transfers = []
+    mine = private_copy(seq)  # read-only; compared with seq after the run (bench/inputs.py)
     for i, frame in enumerate(seq):
+        given = mine[i]
         if stateless:
             m.reset()
-        if on_device:
-            data, up_s = timed(lambda: upload(frame, device, m.wants(available)), device)
-            out, dt = timed(lambda: fpenv.denoise_device(m, data), device)
-            out, down_s = timed(lambda: download(out), device)
-            transfers.append(up_s + down_s)
-        else:
-            t0 = time.perf_counter()
-            out = fpenv.denoise(m, frame)
-            dt = time.perf_counter() - t0
+        with input_guard(m.name):
+            if on_device:
+                data, up_s = timed(lambda: upload(given, device, m.wants(available)), device)
+                out, dt = timed(lambda: fpenv.denoise_device(m, data), device)
+                out, down_s = timed(lambda: download(out), device)
+                transfers.append(up_s + down_s)
+            else:
+                t0 = time.perf_counter()
+                out = fpenv.denoise(m, given)
+                dt = time.perf_counter() - t0
         out = np.asarray(out)
         if out.shape != frame.color.shape:
             raise DbenchInputError(f"{m.name} output: expected shape {frame.color.shape}, "
@@ -155,6 +159,7 @@ def run_sequence(method, seq: Sequence, metric_names: Iterable[str] = SEQUENCE_M
             judgements.append(j)
         rows.append(row)
         outs.append(out.astype(np.float32))
+    check_unchanged(m.name, mine, seq)
     res = SequenceResult(m.name, dict(m.params), rows, outputs=outs if keep_outputs else None,
                          judgements=judgements[warmup:] if len(judgements) > warmup
                          else judgements)

@@ -375,7 +375,8 @@ def run_group(config: SweepConfig, out: str, scene_name: str, spp: int,
                 if frames[0].kind == "sequence":
                     cell["sequence_mode"] = ("frame by frame" if inst.per_frame("sequence")
                                              else "temporal")
-        except Exception as exc:  # noqa: BLE001 - one failing method must not stop the sweep
+        except (Exception, SystemExit) as exc:  # noqa: BLE001 - one failing method (or a
+            # plugin's sys.exit) must not stop the sweep nor lend it its exit code
             cell = {**base, "status": "error", "error": f"{type(exc).__name__}: {exc}",
                     "traceback": traceback.format_exc(limit=5)}
         io.write_json(cell_path(out_path, scene.name, spp, labels[m]), cell)

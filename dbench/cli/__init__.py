@@ -2,7 +2,8 @@
 
 Exit codes: 0 success, 2 unknown names or bad arguments (the valid names are listed) or a
 plugin asked for that failed to load (named, with the reason),
-3 renderer unavailable.
+3 renderer unavailable, 4 (``run``) some methods failed: each is named on stderr and in the
+report's "Failed" section, and every other method's results are written.
 """
 from __future__ import annotations
 

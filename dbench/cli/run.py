@@ -4,6 +4,7 @@ from __future__ import annotations
 import argparse
 import datetime as _dt
 import json
+import sys
 from pathlib import Path
 
 from .args import (_check_common, _default_spp, _scene_of, _sequence_window, _split,
@@ -65,13 +66,21 @@ def cmd_run(args: argparse.Namespace) -> int:
     is_sequence = frame.kind == "sequence"
 
     rows, per_seed, outputs = [], [], []
+    failed: dict[str, str] = {}
     for n in runnable:
         if not args.quiet:
             print(f"running {labels[n]} ...", flush=True)
-        if is_sequence:
-            res = harness.run_sequence_cell(instances[n], frames, device=device)
-        else:
-            res = harness.run_cell(instances[n], frames, repeats=args.repeats, device=device)
+        try:
+            if is_sequence:
+                res = harness.run_sequence_cell(instances[n], frames, device=device)
+            else:
+                res = harness.run_cell(instances[n], frames, repeats=args.repeats, device=device)
+        except (Exception, SystemExit) as exc:  # noqa: BLE001 - a method's failure is its row
+            # one method's error (or a plugin's sys.exit) never ends the run nor lends the
+            # process its exit code: it is named here and in the report (exit code 4)
+            failed[labels[n]] = method_failure(exc)
+            print(f"error: {labels[n]} failed: {failed[labels[n]]}", file=sys.stderr)
+            continue
         if res.skipped:
             skipped[n] = res.skipped
             continue
@@ -132,14 +141,30 @@ def cmd_run(args: argparse.Namespace) -> int:
         settings["resolved settings"] = "; ".join(
             f"{m}: {json.dumps(v, sort_keys=True, default=str)}" for m, v in resolved.items())
     write_text(out / "report.md", report.run_report_md(table, settings, info, skipped,
-                                                       rank_by=args.rank_by))
-    write_json(out / "run.json", {"settings": settings, "machine": info, "skipped": skipped})
+                                                       rank_by=args.rank_by, failed=failed))
+    write_json(out / "run.json", {"settings": settings, "machine": info, "skipped": skipped,
+                                  "failed": failed})
     _write_run_page(out, scene, frame, outputs, table, settings, info, skipped, args)
     print()
     shown = [c for c in report.RUN_COLUMNS if c in table.columns]
     print(markdown_table(table[shown]))
     print(f"\nreport: {out / 'report.md'}")
+    if failed:
+        print(f"{len(failed)} method(s) failed: {', '.join(failed)} (see the report)",
+              file=sys.stderr)
+        return 4
     return 0
+
+
+def method_failure(exc: BaseException) -> str:
+    """One line for a method's failure: the harness's own message for a broken contract
+    (bench/inputs.py), else the exception's type and message."""
+    from ..bench.inputs import MethodError
+    if isinstance(exc, MethodError):
+        return str(exc)
+    if isinstance(exc, SystemExit):
+        return f"called sys.exit({exc.code!r}) inside the method"
+    return f"{type(exc).__name__}: {exc}"
 
 
 def _write_run_page(out: Path, scene, frame, outputs, table, settings, info, skipped,

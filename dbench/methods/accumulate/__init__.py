@@ -69,11 +69,31 @@ class Accumulate(T.HistoryDenoiser):
     needs = {"color", "normal", "depth", "position", "motion"}
     defaults: dict[str, Any] = dict(alpha_min=0.0, n_max=T.N_MAX, tau_d=T.TAU_D, tau_n=T.TAU_N,
                                     taa=False, taa_alpha=T.TAA_ALPHA, backend="auto")
+    #: ``denoise_device``: Triton kernels, the history kept on the device (:mod:`.device`).
+    device_backend = "triton"
 
     def __init__(self, **params: Any) -> None:
         super().__init__(**params)
         _check_params(self.params)
         self._start()
+
+    def reset(self) -> None:
+        super().reset()
+        if getattr(self, "_device_history", None) is not None:
+            self._device_history.reset()
+
+    def runs_on_device(self) -> bool:
+        return self.params["backend"] != "reference"  # the readable form stays on the host
+
+    def denoise_device(self, data):
+        """One frame on a :class:`~dbench.device.DeviceFrame` (:func:`.device.accumulate_device`):
+        an (H, W, 3) tensor on its device, equal to :meth:`denoise` within the tolerance of
+        tests/methods/test_accumulate_device.py."""
+        if not self.runs_on_device():
+            raise DbenchInputError("backend: the device path runs Triton kernels; "
+                                   "backend='reference' stays on the host")
+        from .device import accumulate_device
+        return accumulate_device(self, data)
 
     def _denoise(self, data, color: np.ndarray) -> np.ndarray:
         geo = T.frame_geometry(data)

@@ -230,6 +230,8 @@ class _SVGFBase(T.HistoryDenoiser):
     #: keep a history plane of the frames since each surface appeared (A-SVGF's "gradient"
     #: variance boost compares its N' with it); SVGF's N is that count already
     counts_frames = False
+    #: ``denoise_device``: Triton kernels, the history kept on the device (:mod:`.device`).
+    device_backend = "triton"
 
     def __init__(self, **params: Any) -> None:
         super().__init__(**params)
@@ -269,6 +271,24 @@ class _SVGFBase(T.HistoryDenoiser):
         # another normal buffer is needed, not optional: scenes without it are skipped
         self.needs = set(self.needs) | {p["normal_buffer"]}
         self._start()
+
+    def reset(self) -> None:
+        super().reset()
+        if getattr(self, "_device_history", None) is not None:
+            self._device_history.reset()
+
+    def runs_on_device(self) -> bool:
+        return self.params["backend"] != "reference"  # the readable form stays on the host
+
+    def denoise_device(self, data):
+        """One frame on a :class:`~dbench.device.DeviceFrame` (:func:`.device.svgf_device`): an
+        (H, W, 3) tensor on its device, equal to :meth:`denoise` within the tolerances of
+        tests/methods/test_svgf_device.py and test_asvgf_device.py."""
+        if not self.runs_on_device():
+            raise DbenchInputError("backend: the device path runs Triton kernels; "
+                                   "backend='reference' stays on the host")
+        from .device import svgf_device
+        return svgf_device(self, data)
 
     # hook for A-SVGF: (n_hist_for_accumulate, alpha or None, extras)
     def _adaptive(self, data, geo, hist_n, ok, prep):

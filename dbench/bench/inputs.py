@@ -1,0 +1,110 @@
+"""The frame a method receives: its own read-only copy, compared with the original after the
+method's calls (README "Add your own denoiser": ``denoise`` must not modify its input).
+
+A method that writes to its input (``data.color *= 0``) would otherwise change the numbers of
+every method after it, the noisy baseline included. Each method therefore gets a private copy
+whose arrays are read-only (a NumPy write raises at once), and after its calls the copy is
+compared byte for byte with the original (a write through another route, e.g. a tensor made
+from the array with ``torch.from_numpy``, is caught there). Either way the method fails with a
+:class:`MethodError` naming it and the buffer, and the other methods still receive the pristine
+frame. The copy is made outside the timed calls.
+"""
+from __future__ import annotations
+
+import copy
+from contextlib import contextmanager
+from typing import Any
+
+import numpy as np
+
+#: Array attributes of Frame / TransientFrame (``stats`` is handled apart).
+_SKIP = {"meta", "kind"}
+_STATS = ("n", "mean", "var_mean", "m3")
+
+
+class MethodError(Exception):
+    """A method failed or broke the method contract; the message names the method."""
+
+
+def _arrays(obj: Any) -> dict[str, np.ndarray]:
+    return {k: v for k, v in vars(obj).items() if isinstance(v, np.ndarray) and k not in _SKIP}
+
+
+def _frozen(a: np.ndarray) -> np.ndarray:
+    c = np.array(a, copy=True)
+    c.flags.writeable = False
+    return c
+
+
+def private_copy(frame: Any) -> Any:
+    """A shallow copy of ``frame`` (a Frame or TransientFrame; a Sequence frame by frame) whose
+    arrays, the statistics' included, are read-only copies."""
+    if hasattr(frame, "frames"):
+        out = copy.copy(frame)
+        out.frames = [private_copy(f) for f in frame.frames]
+        return out
+    out = copy.copy(frame)
+    for k, v in _arrays(frame).items():
+        setattr(out, k, _frozen(v))
+    st = getattr(frame, "stats", None)
+    if st is not None:
+        st2 = copy.copy(st)
+        for k in _STATS:
+            setattr(st2, k, _frozen(getattr(st, k)))
+        out.stats = st2
+    return out
+
+
+def _same(a: np.ndarray, b: np.ndarray) -> bool:
+    return a.shape == b.shape and a.dtype == b.dtype and (
+        np.ascontiguousarray(a).tobytes() == np.ascontiguousarray(b).tobytes())
+
+
+def first_changed(copied: Any, original: Any) -> str | None:
+    """The name of the first buffer whose bytes differ between ``copied`` and ``original``
+    (``stats.mean`` for statistics; ``frame 3: color`` in a sequence), else None."""
+    if hasattr(original, "frames"):
+        for i, (a, b) in enumerate(zip(copied.frames, original.frames)):
+            name = first_changed(a, b)
+            if name:
+                return f"frame {i}: {name}"
+        return None
+    for k, v in _arrays(original).items():
+        if not _same(getattr(copied, k), v):
+            return k
+    st = getattr(original, "stats", None)
+    if st is not None:
+        for k in _STATS:
+            if not _same(getattr(copied.stats, k), getattr(st, k)):
+                return f"stats.{k}"
+    return None
+
+
+def check_unchanged(method_name: str, copied: Any, original: Any) -> None:
+    """Raise :class:`MethodError` when ``method_name`` changed its copy of the input."""
+    name = first_changed(copied, original)
+    if name:
+        raise MethodError(f"{method_name}: modified its input buffer {name} (a method must "
+                          "not write to its input; the other methods got the unmodified frame)")
+
+
+def is_write_to_input(exc: BaseException) -> bool:
+    """Whether ``exc`` is NumPy's refusal to write to a read-only array."""
+    return isinstance(exc, ValueError) and "read-only" in str(exc)
+
+
+@contextmanager
+def input_guard(method_name: str):
+    """Turn NumPy's refusal to write to the read-only input into a :class:`MethodError` naming
+    the method; every other exception passes unchanged."""
+    try:
+        yield
+    except ValueError as exc:
+        if is_write_to_input(exc):
+            raise MethodError(f"{method_name}: modified its input (wrote to a read-only input "
+                              f"array: {exc}); a method must not write to its input") from exc
+        raise
+
+
+__all__ = ["MethodError", "check_unchanged", "first_changed", "input_guard",
+           "is_write_to_input", "private_copy"]

@@ -1,0 +1,96 @@
+"""A method that writes to its input, raises, or calls sys.exit: the harness names it, the other
+methods get the pristine frame and finish, and ``dbench run`` exits with code 4
+(dbench/bench/inputs.py; issue: a user's plugin can never corrupt a verdict)."""
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from dbench.bench import stress
+from dbench.bench.inputs import first_changed, private_copy
+from dbench.cli import main
+
+PLUGIN = '''
+import numpy as np
+from dbench.registry import Denoiser, register
+
+@register("test-mutates")
+class Mutates(Denoiser):
+    kinds = {"steady"}
+    needs = {"color"}
+    def denoise(self, data):
+        data.color *= 0
+        data.color += 1
+        return data.color
+
+@register("test-torch-mutates")
+class TorchMutates(Denoiser):
+    kinds = {"steady"}
+    needs = {"color"}
+    def denoise(self, data):
+        import torch, warnings
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            torch.from_numpy(data.color).mul_(0)
+        return np.zeros_like(data.color)
+
+@register("test-raises")
+class Raises(Denoiser):
+    kinds = {"steady"}
+    needs = {"color"}
+    def denoise(self, data):
+        raise RuntimeError("plugin exploded")
+
+@register("test-exits")
+class Exits(Denoiser):
+    kinds = {"steady"}
+    needs = {"color"}
+    def denoise(self, data):
+        raise SystemExit(3)
+'''
+
+
+@pytest.fixture(scope="module")
+def plugin(tmp_path_factory):
+    path = tmp_path_factory.mktemp("plugins") / "bad_methods.py"
+    path.write_text(PLUGIN)
+    return path
+
+
+def test_private_copy_is_read_only_and_compared():
+    f = stress.base_frame(5, 6)
+    mine = private_copy(f)
+    assert not mine.color.flags.writeable and not mine.stats.mean.flags.writeable
+    with pytest.raises(ValueError, match="read-only"):
+        mine.color[0, 0, 0] = 1
+    assert first_changed(mine, f) is None
+    mine.stats.mean.flags.writeable = True  # an owning copy: a determined method can do this
+    mine.stats.mean[0, 0, 0] += 1
+    assert first_changed(mine, f) == "stats.mean"
+
+
+@pytest.mark.mitsuba
+def test_run_names_failing_methods_and_keeps_the_others(plugin, tmp_path, capsys, renderer):
+    out = tmp_path / "run"
+    code = main(["--plugin", str(plugin), "run", "--method",
+                 "test-mutates,test-torch-mutates,test-raises,test-exits,noisy,jbf",
+                 "--scene", "cornell", "--spp", "4", "--res", "16", "--ref-spp", "64",
+                 "--quiet", "--out", str(out)])
+    err = capsys.readouterr().err
+    assert code == 4
+    assert "test-mutates: modified its input" in err
+    assert "test-torch-mutates: modified its input buffer color" in err
+    assert "plugin exploded" in err and "sys.exit(3)" in err
+    report = (out / "report.md").read_text(encoding="utf-8")
+    assert "## Failed" in report and "test-raises" in report
+    import pandas as pd
+    table = pd.read_csv(out / "metrics.csv")
+    assert set(table["method"]) == {"noisy", "jbf"}
+    clean = main(["run", "--method", "noisy", "--scene", "cornell", "--spp", "4", "--res", "16",
+                  "--ref-spp", "64", "--quiet", "--out", str(tmp_path / "clean")])
+    assert clean == 0
+    again = pd.read_csv(tmp_path / "clean" / "metrics.csv")
+    assert table.set_index("method").loc["noisy", "rmse"] == pytest.approx(
+        again.set_index("method").loc["noisy", "rmse"])
+    assert json.loads((out / "run.json").read_text())["failed"]
