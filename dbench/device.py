@@ -148,12 +148,14 @@ def upload(frame: Any, device: str, names: Any = None) -> DeviceFrame:
     for name in FRAME_BUFFERS:
         arr = getattr(frame, name, None)
         if name in wanted and arr is not None:
-            bufs[name] = torch.from_numpy(np.ascontiguousarray(arr, np.float32)).to(device)
+            # a copy, never a view: the harness hands read-only arrays, and a tensor sharing
+            # their memory would let a method write to its input (bench/inputs.py)
+            bufs[name] = torch.tensor(np.asarray(arr, np.float32), device=device)
     stats = None
     st = getattr(frame, "stats", None)
     if st is not None and (names is None or "stats" in wanted):
         def f64(a):
-            return torch.from_numpy(np.ascontiguousarray(a, np.float64)).to(device)
+            return torch.tensor(np.asarray(a, np.float64), device=device)
         stats = DeviceStats(f64(st.n), f64(st.mean), f64(st.var_mean), f64(st.m3),
                             str(st.transform), float(st.lam))
     return DeviceFrame(getattr(frame, "kind", "steady"), device, bufs, stats,

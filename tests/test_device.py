@@ -89,3 +89,12 @@ def test_bench_gpu_dry_run_on_cpu_tensors():
     assert not rows["bmfr"]["device_path"] and "error" not in rows["bmfr"]
     assert [q["quality"] for q in r["oidn_qualities"]] == ["high", "balanced", "fast"]
     assert "| nca |" in gpu.markdown(r)
+
+
+def test_bench_method_names_its_device_route():
+    from dbench.bench import speed
+    r = speed._bench_method_device("nca", 8, 12, 1, 16, {}, "cpu")
+    assert r["backend"] == "torch" and r["device"] == "cpu" and r["oidn_time_s"] > 0
+    assert "nca on cpu" in speed.format_result(r)
+    with pytest.raises(DbenchInputError, match="no device path"):
+        speed._bench_method_device("bmfr", 8, 12, 1, 16, {}, "cpu")

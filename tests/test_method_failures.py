@@ -94,3 +94,11 @@ def test_run_names_failing_methods_and_keeps_the_others(plugin, tmp_path, capsys
     assert table.set_index("method").loc["noisy", "rmse"] == pytest.approx(
         again.set_index("method").loc["noisy", "rmse"])
     assert json.loads((out / "run.json").read_text())["failed"]
+
+
+@pytest.mark.parametrize("case", [c[0] for c in __import__(
+    "dbench.bench.stress_contract", fromlist=["CONTRACT_CASES"]).CONTRACT_CASES])
+def test_stress_contract_cases(case):
+    from dbench.bench.stress_contract import run_contract_case
+    outcome = run_contract_case(case)
+    assert outcome.status == "pass", outcome.why

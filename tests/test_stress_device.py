@@ -1,11 +1,25 @@
 """The stress cases against every method's device path in its CPU-testable form
-(dbench/bench/stress_device.py; docs/gpu.md §2): the same policy as the host paths."""
+(dbench/bench/stress_device.py; docs/gpu.md §2): the same policy as the host paths.
+
+The interpreter makes a case cost 0.1-3 s, so the default run covers the cases that reach each
+kernel's distinct branches (non-finite, huge and tiny values, degenerate statistics, odd sizes,
+rank-deficient and missing buffers); the whole matrix is marked slow (``scripts/test.sh -m
+slow``) and runs in ``dbench stress``, which writes it to results/stress.md."""
 import pytest
 
 from dbench.bench import stress, stress_device
 
+CORE = {"nan", "inf", "bright_3e38", "bright_1e20", "tiny_1e-20", "zeros", "stats_n1",
+        "stats_huge_var", "size_1x1", "size_prime", "flat_wall", "nan_albedo", "zero_normals",
+        "missing_albedo", "missing_stats", "missing_motion", "missing_depth"}
 
-@pytest.mark.parametrize("case", stress.CASES, ids=lambda c: c.name)
+
+def _cases():
+    return [c if c.name in CORE else pytest.param(c, marks=pytest.mark.slow)
+            for c in stress.CASES]
+
+
+@pytest.mark.parametrize("case", _cases(), ids=lambda c: c.name)
 @pytest.mark.parametrize("method", stress_device.device_methods())
 def test_device_form_stress_case(method, case):
     outcome = stress_device.run_device_case(method, case)

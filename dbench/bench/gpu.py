@@ -42,11 +42,13 @@ def _temporal(method) -> bool:
     return "sequence" in method.kinds and "steady" not in method.kinds
 
 
-def _frame(height: int, width: int, hostile: bool = False):
+def synthetic_frame(height: int, width: int, hostile: bool = False, spp: int = SPP):
+    """The benchmark frame (:func:`dbench.bench.stress.base_frame` with a static camera's
+    motion and gradient); ``hostile`` adds a 3e38 block and a NaN pixel."""
     from .stress import base_frame
 
-    frame = base_frame(height, width, spp=SPP)
-    frame = frame.with_buffers(meta={"spp": SPP},
+    frame = base_frame(height, width, spp=spp)
+    frame = frame.with_buffers(meta={"spp": spp},
                                motion=np.zeros((height, width, 2), np.float32),
                                gradient=np.array(frame.color, copy=True))
     if hostile:  # the finite-output contract: a block of 3e38 colour and a NaN pixel
@@ -111,8 +113,11 @@ def count_device_work(fn, device: str) -> dict[str, int]:
     return {"kernel_launches": kernels, "memcpy": copies, "memset": sets}
 
 
-def _device_run(name: str, frame, device: str, repeats: int, params: dict | None = None
-                ) -> dict[str, Any]:
+def device_run(name: str, frame, device: str, repeats: int, params: dict | None = None
+               ) -> dict[str, Any]:
+    """A method's device path on ``frame``: median synchronised time after warm-up, the
+    copies, launches and copies per call (CUDA), its output; ``{"device_path": False}`` when
+    the method (with ``params``) has none."""
     from .. import methods
     from .sequence import WARMUP
 
@@ -151,7 +156,7 @@ def _nonfinite_on_hostile(name: str, height: int, width: int, device: str) -> in
     m = methods.get(name)
     if not m.runs_on_device():
         return None
-    frame = _frame(height, width, hostile=True)
+    frame = synthetic_frame(height, width, hostile=True)
     data = upload(frame, device, m.wants(_available(frame)))
     m.reset()
     out = None
@@ -177,7 +182,7 @@ def bench_gpu(height: int = 720, width: int = 1280, repeats: int = 10, host_repe
     """Every method of :data:`TARGETS_MS` (or ``methods_``): device time, host time, the check
     against the host output, launches and copies; OIDN's qualities on the device."""
     names = list(methods_ or TARGETS_MS)
-    frame = _frame(height, width)
+    frame = synthetic_frame(height, width)
     rows = []
     for name in names:
         t0 = time.perf_counter()
@@ -185,7 +190,7 @@ def bench_gpu(height: int = 720, width: int = 1280, repeats: int = 10, host_repe
         try:
             host_s, host_out = _host_run(name, frame, host_repeats)
             row["host_time_s"] = host_s
-            dev = _device_run(name, frame, device, repeats)
+            dev = device_run(name, frame, device, repeats)
             out = dev.pop("output", None)
             row.update(dev)
             if out is not None:
@@ -205,7 +210,7 @@ def bench_gpu(height: int = 720, width: int = 1280, repeats: int = 10, host_repe
     if "oidn" in names:
         for quality in ("high", "balanced", "fast"):
             try:
-                r = _device_run("oidn", frame, device, repeats, params={"quality": quality})
+                r = device_run("oidn", frame, device, repeats, params={"quality": quality})
                 r.pop("output", None)
             except Exception as exc:  # noqa: BLE001 - recorded, as for the rows
                 r = {"error": f"{type(exc).__name__}: {exc}"[:500]}
@@ -290,5 +295,6 @@ def write_result(result: dict[str, Any], path: str | Path) -> None:
     write_text(Path(path), json.dumps(result, indent=1, default=str) + "\n")
 
 
-__all__ = ["OIDN_OWN_MS", "TARGETS_MS", "bench_gpu", "compare", "count_device_work",
+__all__ = ["OIDN_OWN_MS", "TARGETS_MS", "bench_gpu", "compare", "count_device_work", "device_run",
+           "synthetic_frame",
            "markdown", "result_path", "write_result"]

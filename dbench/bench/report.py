@@ -17,7 +17,7 @@ from . import verdicts
 from .tables import cells_frame
 
 RUN_COLUMNS = ["scene", "method", "spp", "res", "rmse", "relmse", "smape", "psnr", "ssim", "flip",
-               "t_rmse", "tpsnr", "time_s"]
+               "t_rmse", "tpsnr", "time_s", "device", "backend"]
 
 
 def metric_definitions_md() -> str:

@@ -86,11 +86,15 @@ GATE_SHARE_ROUNDS = 15
 
 
 def bench_method(name: str, height: int = 720, width: int = 1280, repeats: int = 3,
-                 spp: int = METHOD_SPP, params: dict[str, Any] | None = None
-                 ) -> dict[str, Any]:
+                 spp: int = METHOD_SPP, params: dict[str, Any] | None = None,
+                 device: str = "cpu") -> dict[str, Any]:
     """A method's time per frame on a synthetic (height, width) frame whose statistics are of
     ``spp`` samples (a method whose settings follow the spp, like ``nca``'s step count, takes
-    them from it), built with ``params``; OIDN timed in the same run."""
+    them from it), built with ``params``; OIDN timed in the same run. With ``device="cuda"``
+    the method and OIDN run their device paths on the GPU (frame uploaded once, synchronised
+    calls; :mod:`dbench.bench.gpu`), and the result names the device."""
+    if device != "cpu":
+        return _bench_method_device(name, height, width, repeats, spp, params or {}, device)
     from .. import methods
     from .stress import base_frame
 
@@ -154,6 +158,29 @@ def bench_method(name: str, height: int = 720, width: int = 1280, repeats: int =
     return result
 
 
+def _bench_method_device(name: str, height: int, width: int, repeats: int, spp: int,
+                         params: dict[str, Any], device: str) -> dict[str, Any]:
+    """:func:`bench_method` on a GPU: the device paths of the method and of OIDN."""
+    from ..device import device_name
+    from .gpu import device_run, synthetic_frame
+
+    frame = synthetic_frame(height, width, spp=spp)
+    mine = device_run(name, frame, device, max(repeats, 5), params=params)
+    if not mine.get("device_path"):
+        from ..errors import DbenchInputError
+        raise DbenchInputError(f"--device {device}: {name} has no device path with these "
+                               "parameters; run it with --device cpu")
+    oidn = device_run("oidn", frame, device, max(repeats, 5))
+    t, t_oidn = mine["time_s"], oidn["time_s"]
+    return {"benchmark": "method", "method": name, "height": height, "width": width,
+            "spp": spp, "params": params, "settings": mine.get("settings", {}),
+            "time_s": t, "oidn_time_s": t_oidn, "ratio_vs_oidn": t / t_oidn,
+            "mpix_per_s": height * width / t / 1e6, "device": device,
+            "backend": mine["backend"], "machine": f"{device_name(device)} ({device})",
+            "upload_s": mine["upload_s"], "download_s": mine["download_s"],
+            "when": time.strftime("%Y-%m-%d %H:%M:%S")}
+
+
 def bench_metrics(height: int = 256, width: int = 256, repeats: int = 5) -> dict[str, Any]:
     """Metric time of one output, old (plain metrics) against new (the judge), same run."""
     from .. import metrics
@@ -195,7 +222,8 @@ def format_result(result: dict[str, Any]) -> str:
                 f"({result['ratio_samples_vs_plain']:.2f}x plain)\n"
                 f"  samples + statistics   {result['samples_stats_s']:.3f} s "
                 f"({result['ratio_stats_vs_plain']:.2f}x plain)")
-    lines = [f"{result['method']} at {result['width']}x{result['height']}"
+    where = (f" on {result['machine']}, {result['backend']}" if result.get("device") else "")
+    lines = [f"{result['method']}{where} at {result['width']}x{result['height']}"
              f"{', %s spp' % result['spp'] if 'spp' in result else ''}: "
              f"{result['time_s'] * 1e3:.1f} ms ({result['mpix_per_s']:.2f} Mpix/s); "
              f"oidn {result['oidn_time_s'] * 1e3:.1f} ms; ratio {result['ratio_vs_oidn']:.2f}x oidn"]

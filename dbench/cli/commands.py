@@ -155,10 +155,11 @@ def cmd_bench(args: argparse.Namespace) -> int:
                                      repeats=args.repeats)
     else:
         params = parse_params(args.param or [], [args.what]).get(args.what, {})
+        from ..device import resolve_device
         result = speed.bench_method(args.what, height=args.height, width=args.width,
                                     repeats=args.repeats,
                                     spp=speed.METHOD_SPP if args.spp is None else args.spp,
-                                    params=params)
+                                    params=params, device=resolve_device(args.device))
     print(speed.format_result(result))
     if args.out:
         speed.append_result(args.out, result)
@@ -211,7 +212,8 @@ def cmd_stress(args: argparse.Namespace) -> int:
         out = out / "stress.md"  # a folder: the matrix goes into it
     ensure_writable_dir(out.parent, "--out")
     results = stress.run_all(names, progress=not args.quiet)
-    text = stress.stress_markdown(results)
+    from ..bench.stress_contract import contract_markdown
+    text = stress.stress_markdown(results) + "\n" + contract_markdown()
     write_text(out, text)
     print("\n".join(text.splitlines()[:3 + len(results) + 4]))
     print(f"written: {out}")

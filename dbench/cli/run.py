@@ -134,7 +134,13 @@ def cmd_run(args: argparse.Namespace) -> int:
                 "render_s": frame.meta.get("render_s"),
                 "cache hits": _summarise_parts(frame.meta["cache_hits"]) or "none",
                 "rendered": _summarise_parts(frame.meta["rendered"]) or "nothing",
-                "method parameters": "; ".join(f"{r['method']}: {r['params']}" for r in rows)}
+                "method parameters": "; ".join(f"{r['method']}: {r['params']}" for r in rows),
+                # where each method ran and on what: CPU and GPU times are never compared unnamed
+                "method devices": "; ".join(
+                    f"{r['method']}: {r['device_name'] if r['device'] != 'cpu' else 'cpu'} "
+                    f"({r['backend']}"
+                    + (f", copies {r['transfer_s'] * 1e3:.2f} ms timed apart"
+                       if r.get("transfer_s") else "") + ")" for r in rows)}
     resolved = {r["method"]: r["settings"] for r in rows if r.get("settings")}
     if resolved:
         # what the methods resolved from "auto"/None defaults on this frame (first seed)

@@ -20,13 +20,15 @@ was Inf).
 
 Parameters: alpha_min (0), n_max (256), tau_d (0.05), tau_n (0.9), taa (False) and taa_alpha (0.2)
 (the temporal antialiasing the filters offer, :mod:`dbench.methods.temporal.taa`), backend ("auto"
-(default): PyTorch on CUDA when ``torch.cuda.is_available()``, else Numba; "numba": compiled
+(default): Numba; "numba": compiled
 reprojection and the accumulation fused into one pass (:func:`.fast.accumulate_frame`); "torch":
 vectorised PyTorch reprojection and accumulation (:func:`~dbench.methods.temporal.reproject_torch`,
 :func:`~dbench.methods.temporal.accumulate_torch`) on CUDA when available, else on CPU;
 "reference": readable NumPy). Every backend takes and returns NumPy at the method boundary and
 keeps its history as NumPy (:class:`~dbench.methods.temporal.History`). ``params["backend"]`` holds
-the resolved name after construction ("auto" becomes "torch" or "numba").
+the resolved name after construction ("auto" becomes "numba"). On a GPU the harness runs
+``denoise_device`` instead: two Triton kernels a frame with the history on the device
+(:mod:`.device`, docs/gpu.md).
 
 Example:
     >>> import numpy as np

@@ -41,7 +41,7 @@ samples (None: every pixel of a block; an integer W: W pixels drawn per block an
 seed's 36, :func:`block_sample_mask`), noise_amount (0.01), offsets (16), alpha1 (0.2),
 alpha2 (0.1), clamp_negative (True), rcond (1e-10), seed (0: noise, offsets and samples),
 temporal_gradient (True), tau_d, tau_n, backend ("auto" | "numba" | "torch" | "reference";
-"auto", the default, is "torch" when ``torch.cuda.is_available()``, else "numba"; "torch" runs
+"auto", the default, is "numba" (BMFR has no device path yet, docs/gpu.md §2); "torch" runs
 reprojection, accumulation, demodulation, feature construction, the batched Householder fit of
 all blocks and the reconstruction as PyTorch kernels (:mod:`dbench.methods.bmfr.torch_path`) on
 CUDA when available, else on CPU, NumPy in and out of each kernel, history kept as NumPy;

@@ -72,7 +72,8 @@ the output that BMFR's code runs, :mod:`dbench.methods.temporal.taa`), albedo_fl
 ("seed" | "filtered" | "filtered_abs" | "paper"), n_max (256), alpha_floor (None: on with the
 dbench preset).
 
-Backends: "auto" (default) is "torch" when ``torch.cuda.is_available()``, else "numba";
+Backends: "auto" (default) is "numba" (on a GPU the harness runs ``denoise_device``, the
+Triton kernels of :mod:`.device`; docs/gpu.md);
 "numba" compiled kernels; "torch" the vectorised PyTorch kernels of
 :mod:`dbench.methods.svgf.torch_path` and :mod:`dbench.methods.temporal` (reprojection,
 accumulation, demodulation, variance, à-trous, A-SVGF strata/gradient filter/adaptive history) on

@@ -28,8 +28,8 @@ without camera metadata it falls back to this frame's depth (exact for a static 
 Backends (``backend=``): ``"numba"`` (compiled, parallel over rows), ``"reference"`` (readable
 per-pixel NumPy, float64), ``"torch"`` (vectorised PyTorch: index-tensor gathers and masks, on
 the device of the inputs or CUDA when available, :func:`reproject_torch`,
-:func:`accumulate_torch`) and ``"auto"`` (torch on CUDA when ``torch.cuda.is_available()``, else
-numba; :func:`resolve_backend`). The torch functions take and return tensors; the
+:func:`accumulate_torch`) and ``"auto"`` (numba; on a GPU the methods' device paths run instead,
+docs/gpu.md; :func:`resolve_backend`). The torch functions take and return tensors; the
 NumPy-facing dispatchers (:func:`reproject`, :func:`accumulate_any`) convert at their boundary, and
 :class:`History` keeps its state as NumPy arrays for every backend.
 
