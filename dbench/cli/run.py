@@ -125,7 +125,7 @@ def cmd_run(args: argparse.Namespace) -> int:
                 "seeds": ", ".join(map(str, seeds)),
                 "ref_spp": frame.meta.get("ref_spp"),
                 "reference seed": frame.meta.get("ref_seed"),
-                "reference RMSE (estimated)": frame.meta.get("ref_rmse"),
+                "reference RMSE (estimated)": _ref_rmse_text(frame.meta.get("ref_rmse")),
                 "repeats": (_sequence_window(len(frame)) if is_sequence else args.repeats),
                 "transform": (f"{frame.stats.transform} (λ = {frame.stats.lam})"
                               if getattr(frame, "stats", None) is not None else "n/a"),
@@ -160,6 +160,15 @@ def cmd_run(args: argparse.Namespace) -> int:
               file=sys.stderr)
         return 4
     return 0
+
+
+def _ref_rmse_text(value):
+    """The reference's estimated RMSE, or "unknown" where nothing gives its noise (a folder's
+    external reference without a variance image or statistics): never a made-up 0."""
+    import math
+    if value is None or (isinstance(value, float) and math.isnan(value)):
+        return "unknown (no variance or statistics of the reference were given)"
+    return value
 
 
 def method_failure(exc: BaseException) -> str:

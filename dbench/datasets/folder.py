@@ -29,7 +29,8 @@ A folder holds one or more *views*; every file name starts with the view name (s
 Reference: the named one; without one the highest spp serves and is not offered as a noisy spp
 (``reference_from == "highest-spp"``); a single spp and no reference is an error. The
 reference's variance of the mean is its ``var`` image / ``Variance`` divided by ``ref_spp``
-(or an identity-transform ``.stats.npz``'s ``var_mean``); when unknown it is zero and
+(or an identity-transform ``.stats.npz``'s ``var_mean``); when unknown the frame has no
+``reference_var``, ``meta["ref_rmse"]`` is NaN (reports say "unknown", never 0) and
 ``meta["ref_var_known"]`` is False. Features missing for an spp are taken from the reference's
 files (OIDN training sets may store clean features once). Normals stored as n·0.5 + 0.5 are
 detected at scan time on the first normal image and decoded to [-1, 1] for the whole view;
@@ -435,11 +436,13 @@ def load_folder(info_or_path: FolderInfo | str | os.PathLike, spp: int,
         if not np.isfinite(buffers["reference"]).all():
             raise DbenchInputError(f"{ref['color'].file}: reference contains NaN or Inf; "
                                    "expected finite values")
-        buffers["reference_var"], known = _reference_var(ref, info.ref_spp, read, files,
-                                                         buffers["reference"].shape)
-        mean_var = float(np.mean(buffers["reference_var"], dtype=np.float64))
-        meta.update(ref_var_known=known, ref_seed=None, ref_rmse=float(np.sqrt(max(mean_var,
-                                                                                   0.0))))
+        var, known = _reference_var(ref, info.ref_spp, read, files, buffers["reference"].shape)
+        # an external reference whose noise the folder does not give is "unknown", never 0:
+        # no reference_var (the judge's unbiased figures equal the raw ones) and ref_rmse NaN
+        buffers["reference_var"] = var if known else None
+        ref_rmse = (float(np.sqrt(max(float(np.mean(var, dtype=np.float64)), 0.0))) if known
+                    else float("nan"))
+        meta.update(ref_var_known=known, ref_seed=None, ref_rmse=ref_rmse)
     return Frame(color=color, stats=stats, meta=meta, **buffers)
 
 

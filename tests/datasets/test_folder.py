@@ -115,7 +115,8 @@ def test_hand_written_oidn_folder(tmp_path):
     np.testing.assert_array_equal(f.albedo, alb)
     np.testing.assert_array_equal(f.normal, nrm)
     np.testing.assert_array_equal(f.reference, ref)
-    assert not f.reference_var.any() and f.meta["ref_var_known"] is False
+    assert f.reference_var is None and f.meta["ref_var_known"] is False
+    assert np.isnan(f.meta["ref_rmse"])  # unknown, never reported as 0
     assert f.meta["scene"] == f"{tmp_path.name}/view"
     with pytest.raises(DbenchInputError, match=r"no depth buffer; available: albedo, color"):
         load_folder(info, 4, needs={"depth"})
