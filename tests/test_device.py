@@ -98,3 +98,31 @@ def test_bench_method_names_its_device_route():
     assert "nca on cpu" in speed.format_result(r)
     with pytest.raises(DbenchInputError, match="no device path"):
         speed._bench_method_device("bmfr", 8, 12, 1, 16, {}, "cpu")
+
+
+@pytest.mark.parametrize("name", __import__("dbench.bench.stress_device",
+                                            fromlist=["device_methods"]).device_methods())
+def test_no_device_path_converts_to_numpy_inside_a_call(name, monkeypatch):
+    """Every method with a device path, called twice (a temporal method's second call uses its
+    history), with every way out to NumPy or the host refused during the calls."""
+    from dbench.bench import stress_device
+    from dbench.bench.gpu import synthetic_frame
+    frame = synthetic_frame(8, 12)
+    m = get(name, **stress_device.DEVICE_FORM_PARAMS.get(name, {}))
+    data = dev.upload(frame, "cpu", m.wants(harness._buffers(frame)))
+    m.reset()
+
+    def refuse(*_a, **_k):
+        raise AssertionError(f"{name}: a NumPy conversion inside the device call")
+    small_tolist = torch.Tensor.tolist
+
+    def tolist(t):  # a few scalars read back (a sync) are allowed; image data is not
+        if t.numel() > 8:
+            refuse()
+        return small_tolist(t)
+    for attr in ("numpy", "__array__"):
+        monkeypatch.setattr(torch.Tensor, attr, refuse)
+    monkeypatch.setattr(torch.Tensor, "tolist", tolist)
+    outs = [m.denoise_device(data) for _ in range(2)]
+    monkeypatch.undo()
+    assert all(isinstance(o, torch.Tensor) and o.shape == (8, 12, 3) for o in outs)

@@ -15,8 +15,10 @@ from .core import resolve_threshold
 
 
 def stat_planes_device(stats: Any, h: int, w: int):
-    """(theta, var, nint, bad): (H, W, 4) float64, float64, int32 (4th channel 0) and the (H, W) bool
-    mask of non-finite statistics (zeroed there), as :func:`.core.stat_planes` builds them."""
+    """(theta, var, nint, bad, negative): (H, W, 4) float64, float64, int32 (4th channel 0), the
+    (H, W) bool mask of non-finite statistics (zeroed there), as :func:`.core.stat_planes` builds
+    them, and a (2,) bool tensor: any negative variance, any negative count (read back by the
+    caller with the sample-count range, in one synchronisation)."""
     import torch
 
     if stats is None:
@@ -28,12 +30,6 @@ def stat_planes_device(stats: Any, h: int, w: int):
             raise DbenchInputError(f"stats.{name}: expected shape ({h}, {w}, 3), "
                                    f"got {tuple(t.shape)}")
     theta, var, n = stats.theta, stats.var_mean, stats.n
-    # one read-back for both refusals (a sync, no image data leaves the device)
-    neg_var, neg_n = torch.stack([(var < 0).any(), (n < 0).any()]).tolist()
-    if neg_var:
-        raise DbenchInputError("stats.var_mean: negative values; expected Var(θ̂) ≥ 0")
-    if neg_n:
-        raise DbenchInputError("stats.n: negative sample counts")
     bad = ~(torch.isfinite(theta).all(-1) & torch.isfinite(var).all(-1)
             & torch.isfinite(n).all(-1))
     zero = bad[..., None]
@@ -43,7 +39,15 @@ def stat_planes_device(stats: Any, h: int, w: int):
     # (H, W, 4): each pixel's channels one wide load in the kernel; the zero 4th channel
     # passes the test by itself (d = 0)
     padded = [torch.nn.functional.pad(t, (0, 1)).contiguous() for t in (theta, var, nint)]
-    return padded[0], padded[1], padded[2], bad
+    return padded[0], padded[1], padded[2], bad, torch.stack([(var < 0).any(), (n < 0).any()])
+
+
+def refuse_negative(flags: tuple[bool, bool]) -> None:
+    """The host's refusals of negative variances or counts, from the flags read back."""
+    if flags[0]:
+        raise DbenchInputError("stats.var_mean: negative values; expected Var(θ̂) ≥ 0")
+    if flags[1]:
+        raise DbenchInputError("stats.n: negative sample counts")
 
 
 @lru_cache(maxsize=32)
@@ -66,15 +70,20 @@ def statistical_device(frame: Any, *, radius: int, alpha: float | None, gamma: f
 
     h, w = frame.shape
     color = check_tensor("color", frame.color, h, w, 3)
-    theta, var, nint, bad = stat_planes_device(frame.stats, h, w)
+    theta, var, nint, bad, negative = stat_planes_device(frame.stats, h, w)
     guide = make_device_guide(frame.albedo, frame.normal, depth_or_hit(frame), frame.position,
                               shape=(h, w), radius=radius, isolate=bad, **guide_options)
     valid = (~bad)[..., None].expand(h, w, 3)
     counts = nint[..., :3]
     big = torch.iinfo(torch.int32).max
-    lo, hi, n_bad = torch.stack([torch.where(valid, counts, big).amin(),
-                                 torch.where(valid, counts, -1).amax(),
-                                 bad.sum().to(torch.int32)]).tolist()
+    # the one read-back of the call (five integers, no image data): the refusals and the
+    # sample-count range that decides the threshold, as the host decides it
+    neg_var, neg_n, lo, hi, n_bad = torch.cat([
+        negative.to(torch.int64), torch.stack([torch.where(valid, counts, big).amin(),
+                                               torch.where(valid, counts, -1).amax(),
+                                               bad.sum().to(torch.int32)]).to(torch.int64)
+    ]).tolist()
+    refuse_negative((bool(neg_var), bool(neg_n)))
     if hi < 0:  # no valid pixel: the host takes the counts {0}
         lo = hi = 0
     thr, table = _threshold(int(lo), int(hi), alpha, gamma, str(color.device))
