@@ -93,11 +93,12 @@ def test_bench_gpu_dry_run_on_cpu_tensors():
 
 def test_bench_method_names_its_device_route():
     from dbench.bench import speed
-    r = speed._bench_method_device("nca", 8, 12, 1, 16, {}, "cpu")
+    from dbench.bench.gpu import bench_method_device
+    r = bench_method_device("nca", 8, 12, 1, 16, {}, "cpu")
     assert r["backend"] == "torch" and r["device"] == "cpu" and r["oidn_time_s"] > 0
     assert "nca on cpu" in speed.format_result(r)
     with pytest.raises(DbenchInputError, match="no device path"):
-        speed._bench_method_device("bmfr", 8, 12, 1, 16, {}, "cpu")
+        bench_method_device("bmfr", 8, 12, 1, 16, {}, "cpu")
 
 
 @pytest.mark.parametrize("name", __import__("dbench.bench.stress_device",

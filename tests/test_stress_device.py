@@ -28,5 +28,6 @@ def test_device_form_stress_case(method, case):
 
 def test_device_forms_are_rows_of_the_matrix():
     res = stress.run_all(["nca"], progress=False)
+    res.update(stress_device.run_device_forms(["nca"], progress=False))
     assert "nca" in res and "nca" + stress_device.SUFFIX in res
     assert "| nca [device form] |" in stress.stress_markdown(res)

@@ -244,6 +244,30 @@ def _transient_row(repeats: int) -> dict[str, Any]:
     return row
 
 
+def bench_method_device(name: str, height: int, width: int, repeats: int, spp: int,
+                         params: dict[str, Any], device: str) -> dict[str, Any]:
+    """:func:`dbench.bench.speed.bench_method` on a device (``dbench bench METHOD --device
+    cuda``): the device paths of the method and of OIDN, the frame uploaded once, synchronised
+    calls; the result names the device and backend (printed by ``speed.format_result``)."""
+    from ..device import device_name
+
+    frame = synthetic_frame(height, width, spp=spp)
+    mine = device_run(name, frame, device, max(repeats, 5), params=params)
+    if not mine.get("device_path"):
+        from ..errors import DbenchInputError
+        raise DbenchInputError(f"--device {device}: {name} has no device path with these "
+                               "parameters; run it with --device cpu")
+    oidn = device_run("oidn", frame, device, max(repeats, 5))
+    t, t_oidn = mine["time_s"], oidn["time_s"]
+    return {"benchmark": "method", "method": name, "height": height, "width": width,
+            "spp": spp, "params": params, "settings": mine.get("settings", {}),
+            "time_s": t, "oidn_time_s": t_oidn, "ratio_vs_oidn": t / t_oidn,
+            "mpix_per_s": height * width / t / 1e6, "device": device,
+            "backend": mine["backend"], "machine": f"{device_name(device)} ({device})",
+            "upload_s": mine["upload_s"], "download_s": mine["download_s"],
+            "when": time.strftime("%Y-%m-%d %H:%M:%S")}
+
+
 def _device_label(device: str) -> str:
     from ..device import device_name
     return device_name(device)
@@ -295,6 +319,7 @@ def write_result(result: dict[str, Any], path: str | Path) -> None:
     write_text(Path(path), json.dumps(result, indent=1, default=str) + "\n")
 
 
-__all__ = ["OIDN_OWN_MS", "TARGETS_MS", "bench_gpu", "compare", "count_device_work", "device_run",
+__all__ = ["OIDN_OWN_MS", "TARGETS_MS", "bench_gpu", "bench_method_device", "compare",
+           "count_device_work", "device_run",
            "synthetic_frame",
            "markdown", "result_path", "write_result"]

@@ -86,15 +86,12 @@ GATE_SHARE_ROUNDS = 15
 
 
 def bench_method(name: str, height: int = 720, width: int = 1280, repeats: int = 3,
-                 spp: int = METHOD_SPP, params: dict[str, Any] | None = None,
-                 device: str = "cpu") -> dict[str, Any]:
+                 spp: int = METHOD_SPP, params: dict[str, Any] | None = None
+                 ) -> dict[str, Any]:
     """A method's time per frame on a synthetic (height, width) frame whose statistics are of
     ``spp`` samples (a method whose settings follow the spp, like ``nca``'s step count, takes
-    them from it), built with ``params``; OIDN timed in the same run. With ``device="cuda"``
-    the method and OIDN run their device paths on the GPU (frame uploaded once, synchronised
-    calls; :mod:`dbench.bench.gpu`), and the result names the device."""
-    if device != "cpu":
-        return _bench_method_device(name, height, width, repeats, spp, params or {}, device)
+    them from it), built with ``params``; OIDN timed in the same run. On a GPU:
+    :func:`dbench.bench.gpu.bench_method_device`."""
     from .. import methods
     from .stress import base_frame
 
@@ -156,29 +153,6 @@ def bench_method(name: str, height: int = 720, width: int = 1280, repeats: int =
                                                       repeats=repeats,
                                                       **({"spp": spp} if takes_spp else {}))
     return result
-
-
-def _bench_method_device(name: str, height: int, width: int, repeats: int, spp: int,
-                         params: dict[str, Any], device: str) -> dict[str, Any]:
-    """:func:`bench_method` on a GPU: the device paths of the method and of OIDN."""
-    from ..device import device_name
-    from .gpu import device_run, synthetic_frame
-
-    frame = synthetic_frame(height, width, spp=spp)
-    mine = device_run(name, frame, device, max(repeats, 5), params=params)
-    if not mine.get("device_path"):
-        from ..errors import DbenchInputError
-        raise DbenchInputError(f"--device {device}: {name} has no device path with these "
-                               "parameters; run it with --device cpu")
-    oidn = device_run("oidn", frame, device, max(repeats, 5))
-    t, t_oidn = mine["time_s"], oidn["time_s"]
-    return {"benchmark": "method", "method": name, "height": height, "width": width,
-            "spp": spp, "params": params, "settings": mine.get("settings", {}),
-            "time_s": t, "oidn_time_s": t_oidn, "ratio_vs_oidn": t / t_oidn,
-            "mpix_per_s": height * width / t / 1e6, "device": device,
-            "backend": mine["backend"], "machine": f"{device_name(device)} ({device})",
-            "upload_s": mine["upload_s"], "download_s": mine["download_s"],
-            "when": time.strftime("%Y-%m-%d %H:%M:%S")}
 
 
 def bench_metrics(height: int = 256, width: int = 256, repeats: int = 5) -> dict[str, Any]:

@@ -542,23 +542,13 @@ def run_all(method_names: list[str] | None = None, progress: bool = True
             ) -> dict[str, dict[str, Outcome]]:
     from tqdm.auto import tqdm
 
-    from .stress_device import SUFFIX, device_methods, run_device_case
-
     names = method_names or default_methods()
-    # each device path in its CPU-testable form, as a row of its own (docs/gpu.md §2)
-    forms = [m for m in device_methods() if m in names]
     results: dict[str, dict[str, Outcome]] = {}
-    with tqdm(total=(len(names) + len(forms)) * len(CASES), desc="stress",
-              disable=not progress) as bar:
+    with tqdm(total=len(names) * len(CASES), desc="stress", disable=not progress) as bar:
         for m in names:
             results[m] = {}
             for case in CASES:
                 results[m][case.name] = run_case(m, case)
-                bar.update()
-        for m in forms:
-            results[m + SUFFIX] = {}
-            for case in CASES:
-                results[m + SUFFIX][case.name] = run_device_case(m, case)
                 bar.update()
     return results
 

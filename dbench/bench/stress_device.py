@@ -82,4 +82,25 @@ def run_device_case(method_name: str, case: Case) -> Outcome:
                    seconds)
 
 
-__all__ = ["DEVICE_FORM_PARAMS", "SUFFIX", "device_methods", "run_device_case"]
+def run_device_forms(method_names: list[str] | None = None, progress: bool = True
+                     ) -> dict[str, dict[str, Outcome]]:
+    """Every case against the device form of each of ``method_names`` (default: every method
+    with a device path), as rows ``NAME [device form]`` of the stress matrix."""
+    from tqdm.auto import tqdm
+
+    from .stress import CASES
+
+    forms = [m for m in device_methods() if method_names is None or m in method_names]
+    results: dict[str, dict[str, Outcome]] = {}
+    with tqdm(total=len(forms) * len(CASES), desc="stress (device forms)",
+              disable=not progress) as bar:
+        for m in forms:
+            results[m + SUFFIX] = {}
+            for case in CASES:
+                results[m + SUFFIX][case.name] = run_device_case(m, case)
+                bar.update()
+    return results
+
+
+__all__ = ["DEVICE_FORM_PARAMS", "SUFFIX", "device_methods", "run_device_case",
+           "run_device_forms"]

@@ -12,6 +12,10 @@ method once over the frames in order and reports the means after the warm-up fra
 Work is grouped by (scene, spp): one group loads the frame once (renders are cached and shared)
 and runs every method on it. References are rendered once per scene before the groups are
 dispatched, so parallel workers never render the same reference twice.
+
+``<scene>`` is the scene's label (:func:`scene_labels`): its name, unless another scene of the
+sweep has that name (``a/cbox.xml`` and ``b/cbox.xml``); a scene's identity is its fingerprint,
+never its name (README.md, the ``dbench sweep`` paragraph).
 """
 from __future__ import annotations
 
@@ -28,6 +32,7 @@ from ..data import check_count
 from ..errors import DbenchInputError
 from ..resolution import MAX_SIDE, Res, parse_res
 from . import identity
+from .sweep_names import scene_labels
 from ..device import device_name
 from .machine import machine_label
 
@@ -117,7 +122,10 @@ MAX_RES = MAX_SIDE
 
 
 def cell_path(out: Path, scene: str, spp: int, label: str) -> Path:
-    return out / "cells" / scene / f"{spp:05d}spp" / f"{identity.file_stem(label)}.json"
+    """The cell file of (scene label, spp, method label). A label of a scene whose name another
+    scene of the sweep has (``b/cbox.xml``) makes a folder name of its own."""
+    folder = scene if "/" not in scene else identity.file_stem(scene)
+    return out / "cells" / folder / f"{spp:05d}spp" / f"{identity.file_stem(label)}.json"
 
 
 def read_cell(path: Path) -> dict | None:
@@ -208,13 +216,14 @@ def resolved_ref_spp(config: SweepConfig, scene, spp: int) -> int | None:
     return int(config.ref_spp or datasets.reference_spp())
 
 
-def cell_identity(config: SweepConfig, scene, spp: int, method: str, fingerprint: str
-                  ) -> dict[str, Any]:
-    """Everything that changes a cell's numbers (module docstring of bench/identity.py)."""
+def cell_identity(config: SweepConfig, scene, spp: int, method: str, fingerprint: str,
+                  label: str | None = None) -> dict[str, Any]:
+    """Everything that changes a cell's numbers (module docstring of bench/identity.py);
+    ``label``: the scene's label when it is not its name (:func:`scene_labels`)."""
     from .. import datasets, methods as registry
 
     transform = config.transform or ("identity" if scene.kind == "transient" else "box-cox")
-    return {"scene": scene.name, "scene_fingerprint": fingerprint, "kind": scene.kind,
+    return {"scene": label or scene.name, "scene_fingerprint": fingerprint, "kind": scene.kind,
             "res": config.res_for(scene).key, "spp": int(spp), "seeds": config.seed_list,
             "ref_spp": resolved_ref_spp(config, scene, spp), "ref_seed": config.seed,
             "transform": transform, "lam": float(config.lam), "frames": config.frames,
@@ -245,14 +254,20 @@ def plan(config: SweepConfig, out: Path
     labels = config.labels()
     groups, done, skipped, conflicts = [], 0, 0, []
     pending_skips = []
+    scene_label = scene_labels(config, out)
+    planned = set()
     for scene_name in config.scenes:
         scene = config.scene(scene_name)
+        if scene_label[scene_name] in planned:  # the same scene given twice
+            continue
+        planned.add(scene_label[scene_name])
         fingerprint = datasets.scene_fingerprint(scene, config.res_for(scene))
         for spp in config.spp:
             todo = []
             for m in config.methods:
-                path = cell_path(out, scene.name, spp, labels[m])
-                ident = cell_identity(config, scene, spp, m, fingerprint)
+                path = cell_path(out, scene_label[scene_name], spp, labels[m])
+                ident = cell_identity(config, scene, spp, m, fingerprint,
+                                      scene_label[scene_name])
                 key = identity.digest(ident)
                 cell = read_cell(path)
                 if cell is not None and not cell_problem(cell) and \
@@ -269,7 +284,7 @@ def plan(config: SweepConfig, out: Path
                 ok, why = method.applies_to(scene.kind, set(scene.provides))
                 if not ok:
                     pending_skips.append((path, {
-                        "status": "skipped", "reason": why, "scene": scene.name,
+                        "status": "skipped", "reason": why, "scene": scene_label[scene_name],
                         "method": labels[m], "base_method": m, "spp": spp,
                         "res": config.res_for(scene).key,
                         "identity": ident, "identity_hash": key}))
@@ -346,6 +361,7 @@ def run_group(config: SweepConfig, out: str, scene_name: str, spp: int,
     res = config.res_for(scene)
     fingerprint = datasets.scene_fingerprint(scene, res)
     labels = config.labels()
+    scene_label = scene_labels(config, out_path)[scene_name]
     needs = {"reference"} | ({"emitter"} & set(scene.provides))
     instances = {m: registry.get(m, **config.params.get(m, {})) for m in method_names}
     for inst in instances.values():
@@ -356,8 +372,8 @@ def run_group(config: SweepConfig, out: str, scene_name: str, spp: int,
                         frames=config.frames, bins=config.bins)
     written = []
     for m, inst in instances.items():
-        ident = cell_identity(config, scene, spp, m, fingerprint)
-        base = {"scene": scene.name, "method": labels[m], "base_method": m, "spp": spp,
+        ident = cell_identity(config, scene, spp, m, fingerprint, scene_label)
+        base = {"scene": scene_label, "method": labels[m], "base_method": m, "spp": spp,
                 "res": res.key, "params": ident["params"], "identity": ident,
                 "identity_hash": identity.digest(ident)}
         try:
@@ -379,7 +395,7 @@ def run_group(config: SweepConfig, out: str, scene_name: str, spp: int,
             # plugin's sys.exit) must not stop the sweep nor lend it its exit code
             cell = {**base, "status": "error", "error": f"{type(exc).__name__}: {exc}",
                     "traceback": traceback.format_exc(limit=5)}
-        io.write_json(cell_path(out_path, scene.name, spp, labels[m]), cell)
+        io.write_json(cell_path(out_path, scene_label, spp, labels[m]), cell)
         written.append(m)
     return written
 

@@ -156,10 +156,15 @@ def cmd_bench(args: argparse.Namespace) -> int:
     else:
         params = parse_params(args.param or [], [args.what]).get(args.what, {})
         from ..device import resolve_device
-        result = speed.bench_method(args.what, height=args.height, width=args.width,
-                                    repeats=args.repeats,
-                                    spp=speed.METHOD_SPP if args.spp is None else args.spp,
-                                    params=params, device=resolve_device(args.device))
+        device = resolve_device(args.device)
+        spp = speed.METHOD_SPP if args.spp is None else args.spp
+        if device != "cpu":
+            from ..bench.gpu import bench_method_device
+            result = bench_method_device(args.what, args.height, args.width, args.repeats, spp,
+                                         params, device)
+        else:
+            result = speed.bench_method(args.what, height=args.height, width=args.width,
+                                        repeats=args.repeats, spp=spp, params=params)
     print(speed.format_result(result))
     if args.out:
         speed.append_result(args.out, result)
@@ -212,6 +217,9 @@ def cmd_stress(args: argparse.Namespace) -> int:
         out = out / "stress.md"  # a folder: the matrix goes into it
     ensure_writable_dir(out.parent, "--out")
     results = stress.run_all(names, progress=not args.quiet)
+    # each device path in its CPU-testable form, as a row of its own (docs/gpu.md §2)
+    from ..bench.stress_device import run_device_forms
+    results.update(run_device_forms(names, progress=not args.quiet))
     from ..bench.stress_contract import contract_markdown
     text = stress.stress_markdown(results) + "\n" + contract_markdown()
     write_text(out, text)

@@ -16,9 +16,12 @@ loaded objects themselves) and takes over what it must control:
   emitter passes are dbench's own.
 
 The cache key covers the file's bytes, the bytes of every file it references (``filename``
-strings and ``<include>`` files, resolved against its folder, after ``$parameter``
-substitution), the parameters and the requested size, so editing the scene or a texture
-invalidates exactly its entries.
+strings, ``<include>`` fragments and ``<spectrum filename>``s, found as Mitsuba finds them:
+after ``<path>`` elements and ``$parameter`` substitution, fragments' names relative to the
+scene's folder; :mod:`dbench.datasets.scene_assets`), the parameters and the requested size,
+so editing the scene or a texture invalidates exactly its entries (README.md, "Your scene,
+your renders, any size"). A referenced file that cannot be found is refused before anything
+renders, naming it and the folders searched.
 
 **Python files**. ``build(mi, width, height) -> dict`` returns a ``mi.load_dict`` dictionary
 with a sensor (dbench replaces its film and sampler as for XML; a ``fov`` is read along x as in
@@ -59,6 +62,7 @@ from ..errors import DbenchInputError
 from ..resolution import Res, parse_res
 from .mitsuba_env import mitsuba
 from .scene import STEADY_BUFFERS, Scene
+from .scene_assets import asset_hashes as _sources
 from .scene_parts import _film
 
 #: Part of every file scene's cache key; change it when the translation above changes.
@@ -173,12 +177,10 @@ def _no_build(mi, res):  # pragma: no cover - XmlScene overrides scene_dict
 
 @lru_cache(maxsize=8)
 def _loaded_xml(path: str, params: tuple, variant: str, digest: str):
-    """``mi.load_file`` of the file (``digest`` keys the cache on its content)."""
+    """``mi.load_file`` of the file (``digest`` keys the cache on its content). Mitsuba puts
+    the file's folder first in the resolver of this load itself; the process's resolver is left
+    as it is, so one scene's folder never supplies another scene's assets."""
     mi = mitsuba()
-    resolver = mi.file_resolver() if hasattr(mi, "file_resolver") \
-        else mi.Thread.thread().file_resolver()
-    folder = str(Path(path).parent)
-    resolver.prepend(folder)
     try:
         return mi.load_file(path, **dict(params))
     except Exception as exc:  # Mitsuba raises RuntimeError with its parser's message
@@ -199,50 +201,6 @@ def _file_max_depth(path: str, loaded) -> tuple[int, bool]:
         return DEFAULT_MAX_DEPTH, False
     m = re.search(r"max_depth\s*=\s*(-?\d+)", str(loaded.integrator()))
     return (int(m.group(1)), True) if m else (DEFAULT_MAX_DEPTH, False)
-
-
-def _sources(path: str, params: dict[str, str]) -> dict[str, str]:
-    """{file relative to the scene's folder (or absolute): sha256} of the scene file and every
-    file it references: ``<string name="filename">`` values and ``<include filename>``
-    files, read recursively, ``$name`` substituted from ``params`` and ``<default>``s."""
-    folder = Path(path).parent
-    out: dict[str, str] = {}
-    pending = [Path(path)]
-    while pending:
-        f = pending.pop()
-        rel = _relative(f, folder)
-        if rel in out or not f.is_file():
-            continue
-        data = f.read_bytes()
-        out[rel] = _sha256(data)
-        if f.suffix.lower() != ".xml":
-            continue
-        try:
-            root = ET.fromstring(data)
-        except ET.ParseError:
-            continue
-        values = {el.get("name"): el.get("value", "") for el in root.iter("default")}
-        values.update(params)
-        for el in root.iter():
-            ref = el.get("value") if (el.tag == "string" and el.get("name") == "filename") \
-                else el.get("filename") if el.tag == "include" else None
-            if not ref:
-                continue
-            ref = re.sub(r"\$([A-Za-z_][A-Za-z0-9_]*)",
-                         lambda m: values.get(m.group(1), m.group(0)), ref)
-            target = Path(ref) if Path(ref).is_absolute() else f.parent / ref
-            if target.is_file():
-                pending.append(target)
-            else:
-                out[_relative(target, folder)] = "missing"
-    return dict(sorted(out.items()))
-
-
-def _relative(f: Path, folder: Path) -> str:
-    try:
-        return str(f.resolve().relative_to(folder.resolve()))
-    except ValueError:
-        return str(f.resolve())
 
 
 def _sensor_dict(mi, loaded, res: Res, path: str) -> dict:
