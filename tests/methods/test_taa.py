@@ -114,3 +114,19 @@ def test_methods_run_taa_as_an_option(name):
     for bad in ({"taa": 1}, {"taa": True, "taa_alpha": 0.0}, {"taa_alpha": 1.5}):
         with pytest.raises(DbenchInputError, match="taa"):
             methods.get(name, **bad)
+
+
+def test_a_missing_pixels_history_never_spreads():
+    """A non-finite previous output (a missing pixel with no history) is no tap of the bilinear
+    fetch: pixels whose own input is finite stay finite, in both forms."""
+    rng = np.random.default_rng(4)
+    h, w = 6, 7
+    cur = rng.random((h, w, 3)).astype(np.float32)
+    hist = rng.random((h, w, 3)).astype(np.float32)
+    hist[2, 3] = np.nan
+    motion = np.full((2, h, w), 0.5, np.float32)  # every fetch straddles four pixels
+    for fn in (taa_reference, taa_fast):
+        out = fn(cur, hist, motion, 0.2)
+        assert np.isfinite(out).all(), fn.__name__
+    np.testing.assert_allclose(taa_fast(cur, hist, motion, 0.2),
+                               taa_reference(cur, hist, motion, 0.2), rtol=1e-5, atol=1e-6)

@@ -11,7 +11,9 @@ Per pixel p of the current output C (H, W, 3) and the previous TAA output H (H, 
     out    = α C(p) + (1 − α) RGB(clamp(YCoCg(h), lo, hi))
 
 and out = C(p) where there is no history, C(p) or the motion is not finite, floor(q) lies outside
-[−1, W) × [−1, H) (the rule of the BMFR code), or no tap of q is inside the image. The history
+[−1, W) × [−1, H) (the rule of the BMFR code), or no tap of q is inside the image with a finite
+history value ([dbench]: a missing pixel's non-finite previous output is no tap, so it never
+spreads to a pixel whose input is finite). The history
 is clamped to the colours around p in the current frame, so what moved away (a disocclusion,
 a light switched off) cannot ghost; what stays keeps averaging (a running mean of α).
 
@@ -113,7 +115,9 @@ def taa_reference(current, history, motion, alpha: float = TAA_ALPHA) -> np.ndar
             total = 0.0
             for ty, wy in ((y0, 1.0 - fy), (y0 + 1, fy)):
                 for tx, wx in ((x0, 1.0 - fx), (x0 + 1, fx)):
-                    if 0 <= tx < w and 0 <= ty < h:
+                    # a non-finite history value (a missing pixel's previous output) is no
+                    # tap: it would carry NaN into a pixel whose own input is finite
+                    if 0 <= tx < w and 0 <= ty < h and np.isfinite(hist[ty, tx]).all():
                         acc += wx * wy * hist[ty, tx]
                         total += wx * wy
             if not total > 0.0:
@@ -202,6 +206,9 @@ if HAVE_NUMBA:
                     ty = y0 + (t >> 1)
                     if tx < 0 or ty < 0 or tx >= w or ty >= h:
                         continue
+                    if not (np.isfinite(hist[ty, tx, 0]) and np.isfinite(hist[ty, tx, 1])
+                            and np.isfinite(hist[ty, tx, 2])):
+                        continue  # a missing pixel's previous output: no tap (reference)
                     wt = (fx if t & 1 else 1.0 - fx) * (fy if t >> 1 else 1.0 - fy)
                     a0 += wt * hist[ty, tx, 0]
                     a1 += wt * hist[ty, tx, 1]

@@ -282,12 +282,16 @@ def taa_kernel(cur_ptr, hist_ptr, motion_ptr, flag_ptr, out_ptr, keep_ptr, alpha
         wt = wxx * wyy
         inb = ok & (tx >= 0) & (ty >= 0) & (tx < W) & (ty < H)
         q = 3 * (ty * W + tx)
-        # a tap of weight 0 still adds 0 · value, as the host's loop does (NaN stays NaN)
-        a0 += tl.where(inb, wt * tl.load(hist_ptr + q, mask=inb, other=0.0).to(tl.float64), 0.0)
-        a1 += tl.where(inb, wt * tl.load(hist_ptr + q + 1, mask=inb, other=0.0).to(tl.float64),
-                       0.0)
-        a2 += tl.where(inb, wt * tl.load(hist_ptr + q + 2, mask=inb, other=0.0).to(tl.float64),
-                       0.0)
+        v0 = tl.load(hist_ptr + q, mask=inb, other=0.0).to(tl.float64)
+        v1 = tl.load(hist_ptr + q + 1, mask=inb, other=0.0).to(tl.float64)
+        v2 = tl.load(hist_ptr + q + 2, mask=inb, other=0.0).to(tl.float64)
+        # a non-finite history value (a missing pixel's previous output) is no tap, as on the
+        # host: it would carry NaN into a pixel whose own input is finite
+        inb = inb & (v0 == v0) & (v1 == v1) & (v2 == v2) & (tl.abs(v0) < float("inf")) \
+            & (tl.abs(v1) < float("inf")) & (tl.abs(v2) < float("inf"))
+        a0 += tl.where(inb, wt * v0, 0.0)
+        a1 += tl.where(inb, wt * v1, 0.0)
+        a2 += tl.where(inb, wt * v2, 0.0)
         total += tl.where(inb, wt, 0.0)
     ok = ok & (total > 0)
     tot = tl.where(ok, total, 1.0)
