@@ -82,11 +82,11 @@ def test_sweep_identity_names_a_gpu_device_only(monkeypatch):
 def test_bench_gpu_dry_run_on_cpu_tensors():
     from dbench.bench import gpu
     r = gpu.bench_gpu(height=8, width=12, device="cpu", repeats=1, host_repeats=1,
-                      methods_=["nca", "oidn", "bmfr"], hostile_size=(8, 12), log=lambda s: None)
+                      methods_=["nca", "oidn", "noisy"], hostile_size=(8, 12), log=lambda s: None)
     rows = {x["method"]: x for x in r["rows"]}
     assert rows["nca"]["device_path"] and rows["nca"]["max_rel_diff"] < 1e-4
     assert rows["oidn"]["hostile_nonfinite"] == 0
-    assert not rows["bmfr"]["device_path"] and "error" not in rows["bmfr"]
+    assert not rows["noisy"]["device_path"] and "error" not in rows["noisy"]
     assert [q["quality"] for q in r["oidn_qualities"]] == ["high", "balanced", "fast"]
     assert "| nca |" in gpu.markdown(r)
 
@@ -98,7 +98,7 @@ def test_bench_method_names_its_device_route():
     assert r["backend"] == "torch" and r["device"] == "cpu" and r["oidn_time_s"] > 0
     assert "nca on cpu" in speed.format_result(r)
     with pytest.raises(DbenchInputError, match="no device path"):
-        bench_method_device("bmfr", 8, 12, 1, 16, {}, "cpu")
+        bench_method_device("jbf", 8, 12, 1, 16, {"mode": "illumination"}, "cpu")
 
 
 @pytest.mark.parametrize("name", __import__("dbench.bench.stress_device",

@@ -10,6 +10,7 @@ import pytest
 from dbench.bench import stress
 from dbench.bench.inputs import first_changed, private_copy
 from dbench.cli import main
+from test_plugins import isolated  # noqa: F401 - the fixture: plugin records restored after
 
 PLUGIN = '''
 import numpy as np
@@ -71,7 +72,8 @@ def test_private_copy_is_read_only_and_compared():
 
 
 @pytest.mark.mitsuba
-def test_run_names_failing_methods_and_keeps_the_others(plugin, tmp_path, capsys, renderer):
+def test_run_names_failing_methods_and_keeps_the_others(plugin, tmp_path, capsys, renderer,
+                                                        isolated):
     out = tmp_path / "run"
     code = main(["--plugin", str(plugin), "run", "--method",
                  "test-mutates,test-torch-mutates,test-raises,test-exits,noisy,jbf",

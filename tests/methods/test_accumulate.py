@@ -364,8 +364,10 @@ def test_auto_backend_is_numba_without_cuda(monkeypatch):
     assert T.resolve_backend("auto") == "numba"
     assert methods.get("accumulate").backend == "numba"
     assert methods.get("accumulate", backend="auto").params["backend"] == "numba"
+    # with a GPU too: "auto" is the host's compiled path; the GPU runs the device path
+    # (denoise_device, docs/gpu.md), not the host-side torch backend
     monkeypatch.setattr(torch.cuda, "is_available", lambda: True)
-    assert T.resolve_backend("auto") == "torch"
+    assert T.resolve_backend("auto") == "numba"
     with pytest.raises(DbenchInputError, match="backend"):
         T.resolve_backend("cuda")
     with pytest.raises(DbenchInputError, match="backend"):

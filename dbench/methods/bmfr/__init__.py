@@ -41,7 +41,10 @@ samples (None: every pixel of a block; an integer W: W pixels drawn per block an
 seed's 36, :func:`block_sample_mask`), noise_amount (0.01), offsets (16), alpha1 (0.2),
 alpha2 (0.1), clamp_negative (True), rcond (1e-10), seed (0: noise, offsets and samples),
 temporal_gradient (True), tau_d, tau_n, backend ("auto" | "numba" | "torch" | "reference";
-"auto", the default, is "numba" (BMFR has no device path yet, docs/gpu.md §2); "torch" runs
+"auto", the default, is "numba"; on a GPU the harness runs ``denoise_device``, the Triton kernels
+of :mod:`.device`, which cover every setting but ``samples`` (preset "seed"), the features
+reading ``reflected_normal``/``geo_normal`` and blocks above 64 px: those stay on the host,
+docs/gpu.md §2; "torch" runs
 reprojection, accumulation, demodulation, feature construction, the batched Householder fit of
 all blocks and the reconstruction as PyTorch kernels (:mod:`dbench.methods.bmfr.torch_path`) on
 CUDA when available, else on CPU, NumPy in and out of each kernel, history kept as NumPy;
@@ -112,6 +115,8 @@ class BMFR(T.HistoryDenoiser):
     """Blockwise multi-order feature regression with two temporal accumulations."""
 
     kinds = {"sequence"}
+    #: ``denoise_device``: Triton kernels, the history kept on the device (:mod:`.device`).
+    device_backend = "triton"
     needs = {"color", "albedo", "normal", "depth", "position", "motion"}
     optional_needs = {"emission", "gradient", "geo_normal", "reflected_normal"}
     defaults: dict[str, Any] = dict(features="paper", block_size=32, noise_amount=0.01,
@@ -169,6 +174,26 @@ class BMFR(T.HistoryDenoiser):
         super().reset()
         self.frame_index = 0
         self._prev_lum = None
+        if getattr(self, "_device_history", None) is not None:
+            self._device_history.reset()
+
+    def runs_on_device(self) -> bool:
+        from .device import device_refusal
+        return self.params["backend"] != "reference" and not device_refusal(self.params)
+
+    def denoise_device(self, data):
+        """One frame on a :class:`~dbench.device.DeviceFrame` (:func:`.device.bmfr_device`): an
+        (H, W, 3) tensor on its device, equal to :meth:`denoise` on the numba backend within
+        the tolerance of tests/methods/test_bmfr_device.py. Settings without a device path
+        (:func:`.device.device_refusal`) raise DbenchInputError naming them."""
+        from .device import bmfr_device, device_refusal
+        why = device_refusal(self.params)
+        if self.params["backend"] == "reference":
+            why = "backend='reference'"
+        if why:
+            raise DbenchInputError(f"bmfr: {why} has no device path (runs_on_device() is "
+                                   f"False); run it on the host with denoise()")
+        return bmfr_device(self, data)
 
     def _normals(self, data, geo) -> np.ndarray:
         """The planar (3·k, H, W) normals the feature preset reads (params.normal_sources):
