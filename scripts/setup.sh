@@ -55,8 +55,10 @@ PIP=("$VENV/bin/pip" install -q --disable-pip-version-check)
 "${PIP[@]}" --retries 1 --timeout 30 --extra-index-url https://download.pytorch.org/whl/cpu \
   "torch==2.13.0" 2>&1 | grep -v "^WARNING" || true
 "$VENV/bin/python" -c "import torch" 2>/dev/null || "${PIP[@]}" "torch==2.13.0"
-"${PIP[@]}" -e ".[test]" 2>&1 | grep -v "^WARNING" || true
-"$VENV/bin/python" -c "import importlib.util as u, dbench, mitsuba, torch, pyoidn, flip_evaluator, numba, OpenEXR, kornia, onnxruntime, skimage, pandas, matplotlib, selenium; assert u.find_spec('mitransient')" \
+# Triton: the version the GPU machines carry (3.6.0, with torch 2.11) and whose interpreter the
+# kernel tests run on these CPU machines; pyproject allows any 3.x for GPU installs of torch.
+"${PIP[@]}" -e ".[test]" "triton==3.6.0" 2>&1 | grep -v "^WARNING" || true
+"$VENV/bin/python" -c "import importlib.util as u, dbench, mitsuba, torch, pyoidn, flip_evaluator, numba, OpenEXR, kornia, onnxruntime, skimage, pandas, matplotlib, selenium, triton; assert u.find_spec('mitransient')" \
   || { echo "setup: package installation failed" >&2; exit 1; }
 echo "$want" > "$stamp"
 echo "setup: done ($("$VENV/bin/python" -c 'import torch, mitsuba; print("torch", torch.__version__, "| mitsuba", mitsuba.__version__)'))"
