@@ -474,14 +474,21 @@ def run_case(method_name: str, case: Case) -> Outcome:
             frame = _as_sequence_frame(frame, case)
         except DbenchInputError as exc:
             return Outcome("pass", f"rejected on construction: {exc}")
+    return judged_calls(method, case, frame, as_sequence, lambda f: fpenv.denoise(method, f))
+
+
+def judged_calls(method, case: Case, frame, as_sequence: bool, call) -> Outcome:
+    """``reset()``, then ``call(frame)`` once (twice for a sequence method: the first frame
+    after ``reset()``, then the history path), judged by the policy of the module docstring.
+    ``call`` is the host ``denoise`` or a device form's (:mod:`dbench.bench.stress_device`)."""
     needed = case.needs_buffer is not None and case.needs_buffer in method.needs
     t0 = time.perf_counter()
     outs = []
     try:
         method.reset()
-        outs.append(fpenv.denoise(method, frame))  # first frame after reset(): no history
+        outs.append(call(frame))  # first frame after reset(): no history
         if as_sequence:
-            outs.append(fpenv.denoise(method, frame))  # second frame: the history path
+            outs.append(call(frame))  # second frame: the history path
     except DbenchInputError as exc:
         seconds = time.perf_counter() - t0
         msg = str(exc)

@@ -10,15 +10,10 @@ for every radius (a compile-time loop bound).
 """
 from __future__ import annotations
 
-import time
-import traceback
-
-import numpy as np
-
 from ..device import download, upload
 from ..errors import DbenchInputError
 from . import fpenv
-from .stress import Case, Outcome, _as_sequence_frame, _judge
+from .stress import Case, Outcome, _as_sequence_frame, judged_calls
 
 #: Parameters of the device forms that differ from the defaults, with the reason above.
 DEVICE_FORM_PARAMS: dict[str, dict] = {"jbf": {"radius": 2}, "statistical": {"radius": 2}}
@@ -50,36 +45,9 @@ def run_device_case(method_name: str, case: Case) -> Outcome:
             frame = _as_sequence_frame(frame, case)
     except DbenchInputError as exc:
         return Outcome("pass", f"rejected on construction: {exc}")
-    needed = case.needs_buffer is not None and case.needs_buffer in method.needs
-    t0 = time.perf_counter()
-    outs = []
-    try:
-        data = upload(frame, "cpu")
-        method.reset()
-        outs.append(download(fpenv.denoise_device(method, data)))
-        if as_sequence:
-            outs.append(download(fpenv.denoise_device(method, data)))
-    except DbenchInputError as exc:
-        msg = str(exc)
-        may_refuse = case.error_ok and (needed or not case.all_methods)
-        if may_refuse and any(b in msg for b in case.error_ok) and (
-                "expected" in msg or "(H, W" in msg):
-            return Outcome("pass", f"DbenchInputError: {msg}", time.perf_counter() - t0)
-        return Outcome("fail", f"unexpected DbenchInputError on frame {len(outs) + 1}: {msg}",
-                       time.perf_counter() - t0)
-    except Exception as exc:  # noqa: BLE001
-        return Outcome("fail", f"{type(exc).__name__} on frame {len(outs) + 1}: {exc} "
-                       f"[{traceback.format_exc(limit=2).splitlines()[-1]}]",
-                       time.perf_counter() - t0)
-    seconds = time.perf_counter() - t0
-    if case.error_ok and needed and case.strict:
-        return Outcome("fail", f"missing {case.needs_buffer} accepted silently", seconds)
-    verdicts = [_judge(frame, np.asarray(o), seconds) for o in outs]
-    if len(verdicts) == 1:
-        return verdicts[0]
-    status = "fail" if any(v.status == "fail" for v in verdicts) else "pass"
-    return Outcome(status, "; ".join(f"frame {i + 1}: {v.why}" for i, v in enumerate(verdicts)),
-                   seconds)
+    # the upload copies (never views) the frame, as the harness's does
+    return judged_calls(method, case, frame, as_sequence,
+                        lambda f: download(fpenv.denoise_device(method, upload(f, "cpu"))))
 
 
 def run_device_forms(method_names: list[str] | None = None, progress: bool = True
