@@ -11,15 +11,23 @@ from dbench.bench import stress, stress_device
 
 CORE = {"nan", "bright_3e38", "tiny_1e-20", "stats_n1", "size_1x1", "size_prime", "flat_wall",
         "missing_albedo", "missing_motion"}
+#: the temporal device forms take 2-6 s a case through the interpreter (their own test files
+#: cover their hostile inputs frame by frame): three cases each in the default run
+TEMPORAL_CORE = {"nan", "bright_3e38", "missing_motion"}
+SLOW_FORMS = {"svgf", "asvgf", "bmfr"}
 
 
-def _cases():
-    return [c if c.name in CORE else pytest.param(c, marks=pytest.mark.slow)
-            for c in stress.CASES]
+def _pairs():
+    out = []
+    for m in stress_device.device_methods():
+        core = TEMPORAL_CORE if m in SLOW_FORMS else CORE
+        out += [pytest.param(m, c, id=f"{m}-{c.name}",
+                             marks=() if c.name in core else pytest.mark.slow)
+                for c in stress.CASES]
+    return out
 
 
-@pytest.mark.parametrize("case", _cases(), ids=lambda c: c.name)
-@pytest.mark.parametrize("method", stress_device.device_methods())
+@pytest.mark.parametrize("method, case", _pairs())
 def test_device_form_stress_case(method, case):
     outcome = stress_device.run_device_case(method, case)
     assert outcome.status in ("pass", "n/a"), f"{method} [device] / {case.name}: {outcome.why}"

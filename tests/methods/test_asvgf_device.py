@@ -25,8 +25,11 @@ G_ATOL = 1e-6
 
 @pytest.mark.parametrize("params,seq", [
     ({}, "rich"),  # dbench preset: "gradient" boost (frame count), Gaussian w_l, α floor
-    (dict(gradient_mode="filtered", normal_buffer="geo_normal"), "rich"),
-    (dict(gradient_mode="filtered_abs", preset="paper", iterations=2), "rich"),
+    # two more gradient modes: marked slow (the interpreter takes 6-8 s each)
+    pytest.param(dict(gradient_mode="filtered", normal_buffer="geo_normal"), "rich",
+                 marks=pytest.mark.slow),
+    pytest.param(dict(gradient_mode="filtered_abs", preset="paper", iterations=2), "rich",
+                 marks=pytest.mark.slow),
     (dict(gradient_mode="paper", variance_boost="asvgf", alpha_floor=False, n_max=20.0,
           gradient_iterations=1, taa=True), "dimmed"),
 ])

@@ -67,8 +67,8 @@ def test_defaults_equal_host_with_emission_gradient_and_layout_change():
 
 @pytest.mark.parametrize("params", [
     dict(handback="wiener", taa=True, features="seed", temporal_gradient=False, seed=5000),
-    dict(preset="paper", features="positions", clamp_negative=False, noise_amount=0.0,
-         block_size=5, alpha1=0.5),
+    pytest.param(dict(preset="paper", features="positions", clamp_negative=False,
+                      noise_amount=0.0, block_size=5, alpha1=0.5), marks=pytest.mark.slow),
 ])
 def test_settings_equal_host(params):
     for oh, od, host, dev in run_both(hard_sequence(12, 16, frames=4, fractional=True),
