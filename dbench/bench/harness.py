@@ -1,6 +1,6 @@
 """One benchmark cell: a method run on a dataset, timed, and scored against the reference.
 
-Timing (docs/judging.md §timing): rendering and I/O are excluded; one warm-up call, then the
+Timing (README "Usage"): rendering and I/O are excluded; one warm-up call, then the
 median of ``repeats`` calls measured with ``time.perf_counter``. On a GPU (``device="cuda"``) a
 method with a device path (``Denoiser.runs_on_device``) gets its frame uploaded once, is timed
 with the device synchronised before and after each call, and its output is brought back once;
