@@ -14,7 +14,7 @@ from typing import Any
 
 from ..kernels.gpu.runtime import cdiv
 from ..kernels.gpu.temporal import BASE, accumulate_kernel, block_for
-from ..temporal.device import DeviceHistory, camera_origin, device_buffer
+from ..temporal.device import DeviceHistory, camera_origin, sequence_buffers
 
 #: the history's planes: colour (3), moments (2), N
 PLANES = 6
@@ -25,19 +25,10 @@ def accumulate_device(method: Any, frame: Any):
     ``method._device_history``) on a :class:`~dbench.device.DeviceFrame`: (H, W, 3) tensor."""
     import torch
 
-    from ...errors import DbenchInputError
-
     p = method.params
-    color = frame.buffers.get("color")
-    if color is None or color.dim() != 3 or color.shape[2] != 3:
-        raise DbenchInputError("color: expected shape (H, W, 3), got "
-                               f"{None if color is None else tuple(color.shape)}")
-    h, w = int(color.shape[0]), int(color.shape[1])
-    color = device_buffer(frame, "color", h, w, 3)
-    depth = device_buffer(frame, "depth", h, w, 1)
-    normal = device_buffer(frame, "normal", h, w, 3)
-    position = device_buffer(frame, "position", h, w, 3)
-    motion = device_buffer(frame, "motion", h, w, 2, required=False)
+    h, w, b = sequence_buffers(frame, ("color", "depth", "normal", "position", "motion"))
+    color, depth, normal, position, motion = (b["color"], b["depth"], b["normal"],
+                                              b["position"], b["motion"])
     origin = camera_origin(frame.meta)
 
     hist = getattr(method, "_device_history", None)

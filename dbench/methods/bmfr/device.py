@@ -44,7 +44,7 @@ from ..kernels.gpu.bmfr import (PLANES, VALID_PLANE, bmfr_accumulate_kernel, bmf
 from ..kernels.gpu.handback import handback_energy_kernel, handback_low_kernel
 from ..kernels.gpu.runtime import cdiv
 from ..kernels.gpu.temporal import BASE, block_for, reproject_kernel
-from ..temporal.device import DeviceHistory, camera_origin, device_buffer
+from ..temporal.device import DeviceHistory, camera_origin, device_buffer, sequence_buffers
 
 #: Feature presets the fit kernel builds (columns 1, n, p, p² present or not).
 DEVICE_FEATURES = {"paper": (1, 1, 1), "seed": (1, 1, 0), "normals": (1, 0, 0),
@@ -82,18 +82,11 @@ def bmfr_device(method: Any, frame: Any):
     why = device_refusal(p)
     if why:
         raise DbenchInputError(f"bmfr: {why} has no device path; run it on the host (denoise)")
-    color = frame.buffers.get("color")
-    if color is None or color.dim() != 3 or color.shape[2] != 3:
-        raise DbenchInputError("color: expected shape (H, W, 3), got "
-                               f"{None if color is None else tuple(color.shape)}")
-    h, w = int(color.shape[0]), int(color.shape[1])
-    color = device_buffer(frame, "color", h, w, 3)
-    albedo = device_buffer(frame, "albedo", h, w, 3)
-    depth = device_buffer(frame, "depth", h, w, 1)
-    normal = device_buffer(frame, "normal", h, w, 3)
-    position = device_buffer(frame, "position", h, w, 3)
-    motion = device_buffer(frame, "motion", h, w, 2, required=False)
-    emission = device_buffer(frame, "emission", h, w, 3, required=False)
+    h, w, b = sequence_buffers(frame, ("color", "albedo", "depth", "normal", "position",
+                                       "motion", "emission"))
+    color, albedo, depth, normal, position, motion, emission = (
+        b["color"], b["albedo"], b["depth"], b["normal"], b["position"], b["motion"],
+        b["emission"])
     origin = camera_origin(frame.meta)
     dev = color.device
     emissive = emission is not None

@@ -31,7 +31,7 @@ from ..kernels.gpu.asvgf import gradient_strata
 from ..kernels.gpu.runtime import cdiv
 from ..kernels.gpu.svgf import atrous_kernel, temporal_kernel, variance_kernel
 from ..kernels.gpu.temporal import BASE, block_for
-from ..temporal.device import DeviceHistory, camera_origin, device_buffer
+from ..temporal.device import DeviceHistory, camera_origin, device_buffer, sequence_buffers
 from .params import ALPHA0_PAPER, EPS_Z, auto_iterations
 
 #: history planes after the base: colour 3, moments 2, N, Σw², emission 3, frame count
@@ -55,22 +55,13 @@ def svgf_device(method: Any, frame: Any):
     ``method._device_history``) on a :class:`~dbench.device.DeviceFrame`: (H, W, 3) tensor."""
     import torch
 
-    from ...errors import DbenchInputError
-
     p = method.params
     asvgf = hasattr(method, "n_max")
-    color = frame.buffers.get("color")
-    if color is None or color.dim() != 3 or color.shape[2] != 3:
-        raise DbenchInputError("color: expected shape (H, W, 3), got "
-                               f"{None if color is None else tuple(color.shape)}")
-    h, w = int(color.shape[0]), int(color.shape[1])
-    color = device_buffer(frame, "color", h, w, 3)
-    albedo = device_buffer(frame, "albedo", h, w, 3)
-    depth = device_buffer(frame, "depth", h, w, 1)
-    normal = device_buffer(frame, "normal", h, w, 3)
-    position = device_buffer(frame, "position", h, w, 3)
-    motion = device_buffer(frame, "motion", h, w, 2, required=False)
-    emission = device_buffer(frame, "emission", h, w, 3, required=False)
+    h, w, b = sequence_buffers(frame, ("color", "albedo", "depth", "normal", "position",
+                                       "motion", "emission"))
+    color, albedo, depth, normal, position, motion, emission = (
+        b["color"], b["albedo"], b["depth"], b["normal"], b["position"], b["motion"],
+        b["emission"])
     nb = p["normal_buffer"]
     wsrc = None if nb == "normal" else device_buffer(
         frame, nb, h, w, 3, why=f", and normal_buffer={nb!r} needs it; the sequence scenes' PSR "

@@ -39,6 +39,26 @@ def device_buffer(frame: Any, name: str, h: int, w: int, c: int, required: bool 
     return t.to(torch.float32).contiguous()
 
 
+#: The buffers the temporal methods' device paths read: {name: (channels, required)}.
+SEQUENCE_BUFFERS = {"color": (3, True), "albedo": (3, True), "depth": (1, True),
+                    "normal": (3, True), "position": (3, True), "motion": (2, False),
+                    "emission": (3, False)}
+
+
+def sequence_buffers(frame: Any, names) -> tuple[int, int, dict[str, Any]]:
+    """(H, W, {name: tensor or None}) for ``names`` of :data:`SEQUENCE_BUFFERS`, each checked
+    by :func:`device_buffer`; H and W are the colour's, which must be (H, W, 3)."""
+    from ...errors import DbenchInputError
+
+    color = frame.buffers.get("color")
+    if color is None or color.dim() != 3 or color.shape[2] != 3:
+        raise DbenchInputError("color: expected shape (H, W, 3), got "
+                               f"{None if color is None else tuple(color.shape)}")
+    h, w = int(color.shape[0]), int(color.shape[1])
+    return h, w, {n: device_buffer(frame, n, h, w, SEQUENCE_BUFFERS[n][0],
+                                   required=SEQUENCE_BUFFERS[n][1]) for n in names}
+
+
 def camera_origin(meta: Any) -> tuple[float, float, float] | None:
     """``meta["camera"]["origin"]`` as three Python floats (host metadata, as ``frame_geometry``
     reads it), None when absent or not finite."""
