@@ -14,6 +14,7 @@ from dbench.bench.stress import base_frame
 from dbench.cli import main
 from dbench.errors import DbenchInputError
 from dbench.registry import get
+from methods.device_checks import host_conversions_refused  # tests/ is on sys.path
 
 
 def test_device_choices_are_checked():
@@ -113,17 +114,8 @@ def test_no_device_path_converts_to_numpy_inside_a_call(name, monkeypatch):
     data = dev.upload(frame, "cpu", m.wants(harness._buffers(frame)))
     m.reset()
 
-    def refuse(*_a, **_k):
-        raise AssertionError(f"{name}: a NumPy conversion inside the device call")
-    small_tolist = torch.Tensor.tolist
-
-    def tolist(t):  # a few scalars read back (a sync) are allowed; image data is not
-        if t.numel() > 8:
-            refuse()
-        return small_tolist(t)
-    for attr in ("numpy", "__array__"):
-        monkeypatch.setattr(torch.Tensor, attr, refuse)
-    monkeypatch.setattr(torch.Tensor, "tolist", tolist)
-    outs = [m.denoise_device(data) for _ in range(2)]
-    monkeypatch.undo()
+    # a few scalars read back (a synchronisation) are allowed; image data is not
+    with host_conversions_refused(monkeypatch, ("numpy", "__array__"), small_tolist=8,
+                                  what=f"{name}: a NumPy conversion inside the device call"):
+        outs = [m.denoise_device(data) for _ in range(2)]
     assert all(isinstance(o, torch.Tensor) and o.shape == (8, 12, 3) for o in outs)

@@ -16,6 +16,7 @@ from dbench.data import Frame, SampleStats
 from dbench.device import download, upload
 from dbench.errors import DbenchInputError
 from dbench.registry import get
+from device_checks import host_conversions_refused  # pytest puts this folder on sys.path
 
 from test_jbf import random_gbuffers, rel_err  # pytest puts this folder on sys.path
 
@@ -93,12 +94,8 @@ def test_no_numpy_inside_a_device_call(monkeypatch):
         m = get(name, radius=1)
         data = upload(f, "cpu")
 
-        def refuse(*_a, **_k):
-            raise AssertionError("a NumPy conversion inside the device call")
-        monkeypatch.setattr(torch.Tensor, "numpy", refuse)
-        monkeypatch.setattr(torch.Tensor, "__array__", refuse)
-        out = m.denoise_device(data)
-        monkeypatch.undo()
+        with host_conversions_refused(monkeypatch, ("numpy", "__array__")):
+            out = m.denoise_device(data)
         assert isinstance(out, torch.Tensor) and out.shape == (6, 9, 3)
 
 
