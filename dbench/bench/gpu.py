@@ -26,6 +26,7 @@ import numpy as np
 
 from ..device import download, synchronize, timed, upload
 from . import fpenv
+from .harness import time_call
 from .machine import machine_info
 
 #: The methods the GPU issue times, in its order, with its targets (ms per call or frame).
@@ -133,13 +134,7 @@ def device_run(name: str, frame, device: str, repeats: int, params: dict | None 
         return fpenv.denoise_device(m, data)
 
     m.reset()
-    for _ in range(WARMUP if temporal else 2):
-        out = call()
-    synchronize(device)
-    times = []
-    for _ in range(repeats):
-        out, dt = timed(call, device)
-        times.append(dt)
+    _, times = time_call(call, repeats=repeats, warmup=WARMUP if temporal else 2, device=device)
     counts = count_device_work(call, device)
     out, download_s = timed(lambda: download(call()), device)
     return {"device_path": True, "backend": m.device_backend, "time_s": statistics.median(times),

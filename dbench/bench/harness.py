@@ -11,7 +11,6 @@ figures are never mixed under one label (docs/gpu.md §3).
 from __future__ import annotations
 
 import statistics
-import time
 from dataclasses import dataclass, field
 from typing import Any, Sequence
 
@@ -153,9 +152,7 @@ def run_cell(method: Denoiser, frame, metric_names=DEFAULT_METRICS, repeats: int
     """
     frames = _as_list(frame)
     first = frames[0]
-    from ..data import BUFFER_NAMES
-
-    available = {b for b in BUFFER_NAMES if getattr(first, b, None) is not None}
+    available = _buffers(first)
     ok, reason = method.applies_to(getattr(first, "kind", "steady"), available)
     if not ok:
         return CellResult(method.name, dict(method.params), None, skipped=reason)

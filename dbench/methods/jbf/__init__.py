@@ -66,7 +66,8 @@ from ..kernels.bilateral.torch_path import accumulate_torch
 from .fast import jbf_fast, joint_bilateral_filter, resolve_backend
 from .illumination import (IlluminationSetup, illumination_fast, illumination_filter,
                            illumination_reference, make_illumination_setup)
-from .params import BACKENDS, FEATURES, MODES, PRESETS, SEED_SIGMA, SIGMA_CONVENTIONS, WINDOWS
+from .params import (BACKENDS, FEATURES, GUIDE_OPTIONS, MODES, PRESETS, SEED_SIGMA,
+                     SIGMA_CONVENTIONS, WINDOWS)
 from .reference import jbf_reference
 
 __all__ = ["JBF", "Guide", "IlluminationSetup", "SEED_SIGMA", "PRESETS", "accumulate",
@@ -152,8 +153,7 @@ class JBF(Denoiser):
             if p["backend"] == "reference":
                 return illumination_reference(data.color, setup).astype(np.float32)
             return illumination_fast(data.color, setup)
-        opts = {k: p[k] for k in ("radius", "sigma", "sigma_convention", "window", "features",
-                                  "sigma_position", "sigma_depth", "hit_mask")}
+        opts = {k: p[k] for k in GUIDE_OPTIONS}
         if "depth" in opts["features"] and data.depth is None:
             require_buffers(self, data, ["depth"])
         guide = make_guide(data.albedo, data.normal, depth, data.position,

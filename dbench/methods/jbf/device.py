@@ -7,11 +7,7 @@ from typing import Any
 
 from ..kernels.gpu.bilateral import window_filter
 from ..kernels.gpu.guide import E_CUT, color_planes, depth_or_hit, make_device_guide
-
-#: The options of ``make_guide`` the method passes through.
-GUIDE_OPTIONS = ("radius", "sigma", "sigma_convention", "window", "features", "sigma_position",
-                 "sigma_depth", "hit_mask")
-
+from .params import GUIDE_OPTIONS
 
 def jbf_device(frame: Any, params: dict) -> tuple[Any, dict]:
     """The JBF of a :class:`~dbench.device.DeviceFrame`: ((H, W, 3) float32 tensor, settings)."""

@@ -14,6 +14,9 @@ PRESETS: dict[str, dict[str, Any]] = {
 }
 BACKENDS = ("auto", "numba", "torch", "reference")
 MODES = ("jbf", "illumination")
+#: The options of ``make_guide`` the method passes through (host and device paths).
+GUIDE_OPTIONS = ("radius", "sigma", "sigma_convention", "window", "features", "sigma_position",
+                 "sigma_depth", "hit_mask")
 
-__all__ = ["BACKENDS", "FEATURES", "MODES", "PRESETS", "SEED_SIGMA", "SIGMA_CONVENTIONS",
-           "WINDOWS"]
+__all__ = ["BACKENDS", "FEATURES", "GUIDE_OPTIONS", "MODES", "PRESETS", "SEED_SIGMA",
+           "SIGMA_CONVENTIONS", "WINDOWS"]
