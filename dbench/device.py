@@ -116,6 +116,8 @@ class DeviceFrame:
         buffers: {name: (H, W, C) float32 tensor} for the buffers that were uploaded.
         stats: :class:`DeviceStats` or None.
         meta: the host frame's ``meta`` (plain Python data, never copied to the device).
+        total_var: a transient frame's (H, W, 3) float64 variance of its time-integrated image
+            (:class:`dbench.data.TransientFrame`), uploaded with its statistics; else None.
     """
 
     kind: str
@@ -123,6 +125,7 @@ class DeviceFrame:
     buffers: dict[str, Any]
     stats: DeviceStats | None = None
     meta: dict[str, Any] = field(default_factory=dict)
+    total_var: Any = None
 
     def __getattr__(self, name: str) -> Any:
         if name in FRAME_BUFFERS:
@@ -140,7 +143,9 @@ class DeviceFrame:
 def upload(frame: Any, device: str, names: Any = None) -> DeviceFrame:
     """The buffers ``names`` of a host :class:`~dbench.data.Frame` (default: every one it has
     except ``reference`` and ``reference_var``, which only the judge reads) as tensors on
-    ``device``: pixel buffers float32, statistics float64, each contiguous."""
+    ``device``: pixel buffers float32, statistics float64, each contiguous. A transient
+    frame's colour and statistics are (H, W, T, 3); its ``total_var`` travels with the
+    statistics (it comes from the same samples)."""
     import torch
 
     wanted = set(FRAME_BUFFERS) - {"reference"} if names is None else set(names)
@@ -158,8 +163,10 @@ def upload(frame: Any, device: str, names: Any = None) -> DeviceFrame:
             return torch.tensor(np.asarray(a, np.float64), device=device)
         stats = DeviceStats(f64(st.n), f64(st.mean), f64(st.var_mean), f64(st.m3),
                             str(st.transform), float(st.lam))
+    total_var = getattr(frame, "total_var", None)
     return DeviceFrame(getattr(frame, "kind", "steady"), device, bufs, stats,
-                       dict(getattr(frame, "meta", {}) or {}))
+                       dict(getattr(frame, "meta", {}) or {}),
+                       None if stats is None or total_var is None else f64(total_var))
 
 
 def download(tensor: Any) -> np.ndarray:

@@ -106,8 +106,9 @@ class Statistical(Denoiser):
         sigma_convention="variance", window="square", backend="auto", hit_mask=True,
         membership=True, radius_t="auto", base="auto",
         temporal_profile=None, sigma_t=1.0, skip_empty=True, shrink=True, mass=True)
-    #: ``denoise_device`` (steady images): the Welch-tested window as one Triton kernel
-    #: (:mod:`.device`).
+    #: ``denoise_device``: the Welch-tested window as one Triton kernel, over space for steady
+    #: images (:mod:`.device`), over space and time bins for transient videos
+    #: (:mod:`.transient_device`).
     device_backend = "triton"
 
     def __init__(self, **params: Any) -> None:
@@ -140,18 +141,23 @@ class Statistical(Denoiser):
         self.last_settings: dict[str, Any] = {}
 
     def runs_on_device(self) -> bool:
-        # steady images on a compiled backend; the readable reference stays on the host
+        # images and videos on a compiled backend; the readable reference stays on the host
         return self.params["backend"] != "reference"
 
     def denoise_device(self, data: Any):
-        """A steady :class:`~dbench.device.DeviceFrame` (:func:`.device.statistical_device`),
-        equal to :meth:`denoise` within float32 rounding of the weights
-        (tests/methods/test_statistical_device.py); transient videos run on the host."""
-        if getattr(data, "kind", None) != "steady":
-            raise DbenchInputError("statistical: the device path takes steady frames; "
-                                   f"got {getattr(data, 'kind', type(data).__name__)} data")
+        """A steady :class:`~dbench.device.DeviceFrame` (:func:`.device.statistical_device`) or
+        a transient one (:func:`.transient_device.statistical_video_device`, then the
+        pixel-total rule on the device), equal to :meth:`denoise` within float32 rounding of
+        the weights (tests/methods/test_gpu_bilateral.py,
+        tests/methods/test_statistical_transient_device.py)."""
+        kind = getattr(data, "kind", None)
+        if kind not in ("steady", "transient"):
+            raise DbenchInputError("statistical: the device path takes steady or transient "
+                                   f"frames; got {kind or type(data).__name__} data")
         if not self.runs_on_device():
             raise DbenchInputError("statistical: backend='reference' runs on the host only")
+        if kind == "transient":
+            return self._denoise_video_device(data)
         require_buffers(self, data)
         from .device import statistical_device
         p = self.params
@@ -182,22 +188,52 @@ class Statistical(Denoiser):
         self.last_settings = info
         return out
 
-    def _denoise_video(self, data: Any) -> np.ndarray:
-        """Spatio-temporal denoiser on a TransientFrame (spec §11.3)."""
+    def _video_radii(self, data: Any) -> tuple[int, int, float | None]:
+        """(r_s, r_t, bin width in metres or None) of a video (spec §7, §11.3)."""
         p = self.params
         if p["backend"] == "torch":
             raise DbenchInputError("backend: 'torch' is not available for transient videos; "
                                    "use 'auto', 'numba' or 'reference'")
         radius = VIDEO_RADIUS if p["radius"] is None else p["radius"]
-        backend = "reference" if p["backend"] == "reference" else "numba"
         meta = getattr(data, "meta", None) or {}
-        radius_t = p["radius_t"]
         # a bin width in metres of path (rendered or declared); a frame without a window has
         # the placeholder width 1 in units of "bins", which says nothing about the signal
         width_m = (meta.get("bin_width_opl") if str(meta.get("units", "")).startswith("m")
                    else None)
-        if radius_t == "auto":
-            radius_t = auto_radius_t(width_m)
+        radius_t = auto_radius_t(width_m) if p["radius_t"] == "auto" else p["radius_t"]
+        return radius, radius_t, width_m
+
+    def _denoise_video_device(self, data: Any):
+        """:meth:`_denoise_video` on a transient DeviceFrame: the filter and the pixel-total
+        rule as tensor operations and one Triton launch; ``mass_beta_mean`` is then a 0-d
+        tensor on the device (reading it inside the call would wait for the device)."""
+        from .transient_device import mass_shrink_device, statistical_video_device
+        p = self.params
+        radius, radius_t, width_m = self._video_radii(data)
+        opts = {k: p[k] for k in ("sigma", "sigma_convention", "window", "hit_mask")}
+        out, info = statistical_video_device(
+            data, radius=radius, radius_t=radius_t, alpha=p["alpha"], gamma=p["gamma"],
+            base=p["base"], temporal_profile=p["temporal_profile"], sigma_t=p["sigma_t"],
+            guide_options=opts, membership_on=p["membership"], skip_empty=p["skip_empty"],
+            shrink=p["shrink"])
+        info.update(kind="transient", mass="off",
+                    radius_t_source=("auto" if p["radius_t"] == "auto" else "given"),
+                    bin_width_m=width_m)
+        if p["mass"] and p["membership"]:
+            if data.total_var is None:
+                info["mass"] = "skipped: the frame has no total_var"
+            else:
+                h, w = data.shape
+                out, beta = mass_shrink_device(out, data.color, data.total_var, h, w)
+                info.update(mass="on", mass_beta_mean=beta.mean())
+        self.last_settings = info
+        return out
+
+    def _denoise_video(self, data: Any) -> np.ndarray:
+        """Spatio-temporal denoiser on a TransientFrame (spec §11.3)."""
+        p = self.params
+        radius, radius_t, width_m = self._video_radii(data)
+        backend = "reference" if p["backend"] == "reference" else "numba"
         out, info = statistical_filter_video(
             data.color, data.stats, data.albedo, data.normal, getattr(data, "depth", None),
             radius=radius, radius_t=radius_t, alpha=p["alpha"], gamma=p["gamma"],

@@ -45,7 +45,9 @@ Implementations: :func:`statistical_video_reference` (readable NumPy float64, lo
 offsets on whole shifted videos) and :func:`statistical_video_fast` (the shared Numba kernel
 :func:`dbench.methods.kernels.bilateral.numba3d.accumulate3d`: float32 weights, float64 Welch
 test identical to the reference's, symmetric pairs, spatial weights computed once per row and
-reused by every bin). They agree to 1e-5 relative (tests). There is no PyTorch/CUDA path for videos.
+reused by every bin). They agree to 1e-5 relative (tests). On a GPU the method runs
+:mod:`dbench.methods.statistical.transient_device` (docs/gpu.md §2), equal to the Numba path
+within the same tolerance.
 
 Shapes: colour and statistics (H, W, T, 3); G-buffers (H, W, ·); outputs (H, W, T, 3) float32.
 
