@@ -29,6 +29,10 @@ class Denoiser:
     Class attributes a method sets:
         kinds: the Dataset kinds it accepts (``steady``, ``sequence``, ``transient``).
         needs: the buffers it cannot run without (names from :data:`dbench.data.BUFFER_NAMES`).
+            Where they depend on parameters, ``__init__`` sets ``self.needs`` from the
+            resolved ones (``oidn`` with ``features=none`` needs the colour alone), and
+            :meth:`applies_to` and :meth:`wants` read the instance's; the class attribute is
+            the default parameters' needs, the one ``dbench list`` shows.
         optional_needs: buffers it uses when the data has them and runs without otherwise
             (its docstring says what changes); loaded wherever the scene provides them.
         defaults: parameter defaults; ``get(name, **params)`` overrides them.

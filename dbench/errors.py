@@ -23,3 +23,18 @@ class UnknownNameError(DbenchError, KeyError):
 
 class RendererUnavailableError(DbenchError, RuntimeError):
     """Mitsuba (or the variant a request needs) cannot run on this machine."""
+
+
+class OutputError(DbenchInputError):
+    """A result cannot be written where the user asked (full disk, quota, read-only or
+    unwritable folder): the message names the path and the system's reason, e.g.
+    ``cannot write results/run/metrics.csv: No space left on device`` (README.md, "dbench run").
+    """
+
+    def __init__(self, path: object, reason: str) -> None:
+        super().__init__(path, reason)  # both in args, so the error survives pickling
+        self.path = path
+        self.reason = reason
+
+    def __str__(self) -> str:
+        return f"cannot write {self.path}: {self.reason}"

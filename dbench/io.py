@@ -6,6 +6,7 @@ channels ``albedo.R``, ``albedo.G``, ``albedo.B``; a one-channel buffer ``depth`
 """
 from __future__ import annotations
 
+import errno
 import json
 import os
 import tempfile
@@ -15,9 +16,29 @@ from typing import Any, Iterator
 
 import numpy as np
 
-from .errors import DbenchInputError
+from .errors import DbenchInputError, OutputError
 
 _RGB = ("R", "G", "B")
+
+#: errors of the user's situation rather than of dbench: the write becomes an OutputError
+#: (one line naming the path, exit 2) instead of an internal error
+WRITE_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM,
+                          errno.EFBIG, errno.ENAMETOOLONG})
+
+
+def output_error(exc: BaseException, path: str | os.PathLike) -> OutputError | None:
+    """The OutputError naming ``path`` for a failed write of the user's situation (full disk,
+    quota, read-only or unwritable folder), else None. OpenEXR reports these as a RuntimeError
+    quoting the system's message, so that message is recognised too."""
+    if isinstance(exc, OutputError):
+        return exc
+    if isinstance(exc, OSError) and exc.errno in WRITE_ERRNOS:
+        return OutputError(path, exc.strerror or str(exc))
+    if isinstance(exc, RuntimeError):
+        for code in WRITE_ERRNOS:
+            if os.strerror(code) in str(exc):
+                return OutputError(path, os.strerror(code))
+    return None
 
 
 @contextmanager
@@ -25,18 +46,31 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
     """Yield a temporary path beside ``path``; rename it onto ``path`` only if the block succeeds.
 
     A killed process leaves at most a ``.tmp`` file that no reader mistakes for the real one.
+    A full disk or an unwritable folder raises an OutputError naming ``path`` (and leaves no
+    ``.tmp`` file).
     """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix or f".tmp{path.suffix}",
-                               dir=path.parent)
-    os.close(fd)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.",
+                                   suffix=suffix or f".tmp{path.suffix}", dir=path.parent)
+        os.close(fd)
+    except OSError as exc:
+        error = output_error(exc, path)
+        if error is None:
+            raise
+        raise error from None
     tmp_path = Path(tmp)
     try:
         yield tmp_path
         # mkstemp creates 0600; a result file gets the mode the umask gives any new file.
         os.chmod(tmp_path, 0o666 & ~_umask())
         os.replace(tmp_path, path)
+    except (OSError, RuntimeError) as exc:
+        error = output_error(exc, path)
+        if error is None:
+            raise
+        raise error from None
     finally:
         if tmp_path.exists():
             tmp_path.unlink()
@@ -66,8 +100,9 @@ def ensure_writable_dir(path: str | os.PathLike, what: str) -> Path:
 
 
 def write_text(path: str | os.PathLike, text: str) -> None:
+    """Write ``text`` as UTF-8 whatever the locale (a C/ASCII locale must not fail on "×")."""
     with atomic_path(path) as tmp:
-        tmp.write_text(text)
+        tmp.write_text(text, encoding="utf-8")
 
 
 def write_json(path: str | os.PathLike, obj: Any) -> None:
@@ -75,7 +110,7 @@ def write_json(path: str | os.PathLike, obj: Any) -> None:
 
 
 def read_json(path: str | os.PathLike) -> Any:
-    return json.loads(Path(path).read_text())
+    return json.loads(Path(path).read_text(encoding="utf-8"))
 
 
 def _json_default(obj: Any) -> Any:

@@ -9,6 +9,7 @@ Three ways in, all loaded the same way and idempotent (loading twice registers o
       [project.entry-points."dbench.scenes"]
       my-room = "my_pkg.scenes:my_room"            # a Scene, a function returning one,
                                                    # or build(mi, res) -> dict
+                                                   # (or build(mi, width, height))
 * ``--plugin MODULE_OR_FILE.py`` on the command line (repeatable, before or after the
   subcommand);
 * ``DBENCH_PLUGINS``: an ``os.pathsep``-separated list of modules or ``.py`` files.
@@ -86,6 +87,11 @@ _STATE = {"discovered": False, "loading": False}
 
 
 def _one_line(exc: BaseException) -> str:
+    if isinstance(exc, SystemExit):
+        from .datasets.scene_build import exit_message
+
+        return (f"called {exit_message(exc)} while loading; a plugin module registers methods "
+                f"or scenes and returns")
     text = " ".join(str(exc).split())
     return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
 
@@ -156,9 +162,11 @@ def _register_scene_object(name: str, obj: Any) -> None:
         params = [p for p in inspect.signature(obj).parameters.values()
                   if p.default is p.empty and p.kind in (p.POSITIONAL_ONLY,
                                                          p.POSITIONAL_OR_KEYWORD)]
-        if len(params) >= 2:  # build(mi, res) -> dict
+        if len(params) >= 2:  # build(mi, res) or build(mi, width, height) -> dict
+            from .datasets.scene_build import plugin_build
+
             doc = (inspect.getdoc(obj) or "").strip().splitlines()
-            scene = Scene(name=name, kind="steady", build=obj,
+            scene = Scene(name=name, kind="steady", build=plugin_build(obj, name),
                           description=doc[0] if doc else f"plugin scene {name}")
         else:
             scene = obj()
@@ -228,7 +236,9 @@ def load(spec: str, origin: str = "--plugin", strict: bool = True) -> Plugin:
             try:
                 _import_target(key)
                 plugin.ok = True
-            except Exception as exc:  # noqa: BLE001 - any failure makes the plugin broken
+            # any failure makes the plugin broken; sys.exit too: a plugin never ends dbench
+            # nor lends it its exit code
+            except (Exception, SystemExit) as exc:  # noqa: BLE001
                 plugin.error = _one_line(exc)
             _record(plugin, before)
     if strict and not plugin.ok:
@@ -265,7 +275,7 @@ def _load_entry_point(ep: Any, group: str) -> Plugin:
         else:
             _register_scene_object(ep.name, obj)
         plugin.ok = True
-    except Exception as exc:  # noqa: BLE001
+    except (Exception, SystemExit) as exc:  # noqa: BLE001 - as in load()
         plugin.error = _one_line(exc)
     return _record(plugin, before)
 

@@ -63,6 +63,77 @@ class Res(NamedTuple):
         return str(self.key)
 
 
+class Resolution(int):
+    """The size a scene's ``build(mi, res)`` receives (README.md, "Python scene files"): an
+    ``int`` equal to the width, so code written when ``res`` was one side (``"width": res,
+    "height": res``) still gives square films, with ``width`` and ``height`` attributes, and it
+    unpacks as ``width, height = res``.
+
+        >>> r = Resolution(160, 90)
+        >>> int(r), r.width, r.height, tuple(r), str(r)
+        (160, 160, 90, (160, 90), '160x90')
+    """
+
+    def __new__(cls, width: int, height: int) -> "Resolution":
+        obj = super().__new__(cls, int(width))
+        obj._height = int(height)
+        return obj
+
+    @property
+    def width(self) -> int:
+        return int(self)
+
+    @property
+    def height(self) -> int:
+        return self._height
+
+    @property
+    def res(self) -> Res:
+        return Res(int(self), self._height)
+
+    # the Res properties, so code written for a Res keeps working
+    square = property(lambda self: self.res.square)
+    key = property(lambda self: self.res.key)
+    pixels = property(lambda self: self.res.pixels)
+    fov_axis = property(lambda self: self.res.fov_axis)
+    text = property(lambda self: self.res.text)
+
+    def __iter__(self):
+        return iter(self.res)
+
+    def __len__(self) -> int:
+        return 2
+
+    def __getitem__(self, i):
+        return self.res[i]
+
+    def __eq__(self, other: object) -> bool:
+        if isinstance(other, Resolution):
+            return self.res == other.res
+        return int.__eq__(self, other)
+
+    def __ne__(self, other: object) -> bool:
+        eq = self.__eq__(other)
+        return eq if eq is NotImplemented else not eq
+
+    __hash__ = int.__hash__
+
+    def __repr__(self) -> str:
+        return f"Resolution(width={int(self)}, height={self._height})"
+
+    def __str__(self) -> str:
+        return str(self.key)
+
+    def __reduce__(self):
+        return (Resolution, (int(self), self._height))
+
+    @classmethod
+    def of(cls, value: Any) -> "Resolution":
+        """``value`` (any form :func:`parse_res` takes) as a Resolution."""
+        r = parse_res(value)
+        return cls(r.width, r.height)
+
+
 def size_text(value: Any) -> str:
     """``"W×H"`` of a size in any form :func:`parse_res` takes (e.g. a table's ``res`` cell);
     the value itself as text when it is not one."""
@@ -80,7 +151,9 @@ def parse_res(value: Any, name: str = "res") -> Res:
     height) pair or a Res. Anything else, a side < 1 or > MAX_SIDE: a DbenchInputError naming
     ``name`` and the valid forms."""
     valid = "an integer side such as 256, or WIDTHxHEIGHT such as 1280x720"
-    if isinstance(value, Res):
+    if isinstance(value, Resolution):  # before the int branch: it is an int (the width)
+        w, h = value.width, value.height
+    elif isinstance(value, Res):
         w, h = value
     elif isinstance(value, (bool, np.bool_)):
         raise DbenchInputError(f"{name}: expected {valid}, got {value!r}")
@@ -108,4 +181,4 @@ def parse_res(value: Any, name: str = "res") -> Res:
     return Res(int(w), int(h))
 
 
-__all__ = ["Res", "parse_res", "size_text", "MAX_SIDE"]
+__all__ = ["Res", "Resolution", "parse_res", "size_text", "MAX_SIDE"]

@@ -1,4 +1,4 @@
-"""Cache integrity (reliability audit, item 3): a swapped, truncated or deleted file, a broken
+"""Cache integrity: a swapped, truncated or deleted file, a broken
 meta.json or a folder copied under another key is a miss with one warning, and the entry is
 rendered again and replaced; stale temporary folders are removed."""
 import os
@@ -45,14 +45,14 @@ def test_damaged_entries_are_misses_and_get_replaced(tmp_path, capsys, damage):
     assert cache.get("noisy", {"what": "b"}).images()["color"].mean() == 2.0
 
 
-def test_entries_without_checksums_are_adopted_when_they_read(tmp_path):
+def test_entries_without_checksums_are_misses_even_when_they_read(tmp_path):
     cache = Cache(tmp_path)
     a = _put(cache, "a", 1.0)
     meta = io.read_json(a / "meta.json")
     del meta["files"]
     io.write_json(a / "meta.json", meta)
-    assert cache.get("noisy", {"what": "a"}) is not None
-    assert "files" in io.read_json(a / "meta.json")
+    assert cache.get("noisy", {"what": "a"}) is None  # never adopted on trust
+    assert "files" not in io.read_json(a / "meta.json")
 
 
 def test_stale_temporary_folders_are_removed_but_fresh_ones_kept(tmp_path):

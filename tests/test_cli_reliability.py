@@ -1,5 +1,5 @@
-"""User mistakes get one line and exit 2 before anything renders; odd but valid requests work
-(reliability audit, items 6, 9 and 10)."""
+"""User mistakes get one line and exit 2 before anything renders; odd but valid requests
+work."""
 import os
 import signal
 import subprocess

@@ -32,7 +32,7 @@ def test_markdown_matrix_lists_every_method_and_case():
     assert all(c.expect in text for c in stress.CASES)
 
 
-# --- reliability audit: one huge finite pixel, missing depth (tiny 16×16 frames) -------------
+# --- one huge finite pixel, missing depth (tiny 16×16 frames) -------------
 
 def _bright_frame(value, sequence):
     import numpy as np

@@ -1,4 +1,4 @@
-"""Sweep integrity (reliability audit, item 1, 4, 5, 8): a cell is reused only when its whole
+"""Sweep integrity: a cell is reused only when its whole
 identity matches; other parameters make another labelled series; a changed default, code or
 reference is refused (exit 2) unless --rerun; refused sweeps write nothing; temporary and
 malformed files are never read as cells."""

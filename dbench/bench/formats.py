@@ -12,7 +12,7 @@ from .. import io
 
 def write_csv(path: str | Path, table: pd.DataFrame) -> None:
     with io.atomic_path(path, suffix=".tmp.csv") as tmp:
-        table.to_csv(tmp, index=False, float_format="%.6g")
+        table.to_csv(tmp, index=False, float_format="%.6g", encoding="utf-8")
 
 
 def markdown_table(table: pd.DataFrame, floatfmt: str = ".4g") -> str:

@@ -62,8 +62,9 @@ class CellResult:
 
     @property
     def time_s_iqr(self) -> float:
-        """Interquartile range of the timed calls (0 with one call)."""
-        if not self.times_s:
+        """Interquartile range of the timed calls; NaN with fewer than two (one call gives no
+        spread, and a "± 0" would read as an exact time)."""
+        if len(self.times_s) < 2:
             return float("nan")
         q1, q3 = np.percentile(self.times_s, [25, 75])
         return float(q3 - q1)
@@ -130,7 +131,9 @@ def summarise_seeds(per_seed: list[dict[str, Any]], judgements: list[list],
         out = {c: per_seed[0].get(c, float("nan")) for c in columns}
         out.update(judge.bootstrap_interval(judgements[0], columns))
     out["ref_rmse"] = per_seed[0].get("ref_rmse", float("nan"))
-    return out, judge.ci_kind(len(per_seed))
+    out["ref_relmse_surface"] = per_seed[0].get("ref_relmse_surface", float("nan"))
+    block = judge.block_of(judgements[0]) if judgements else None
+    return out, judge.ci_kind(len(per_seed), block)
 
 
 def _buffers(frame) -> set[str]:

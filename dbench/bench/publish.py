@@ -150,10 +150,10 @@ def reference_md(df, rel_csv: str | None = None) -> list[str]:
                 "is not checked here.", ""]
     warn = verdicts.ref_warnings_md(df)
     if not warn:
-        return ["No cell's reference error exceeds 10 % of the method's MSE "
-                "(ref_rmse² ≤ 0.1 · rmse² everywhere).", ""]
-    return (["Reference too noisy for these cells (ref_rmse² > 0.1 · rmse²; the reference's "
-             "variance scales as 1 / ref_spp):", ""] + warn + [""]
+        return ["No cell's reference error exceeds 10 % of the method's.", ""]
+    return (["Reference too noisy for these cells (its relMSE over surface pixels above "
+             "0.1 · relmse_surface, or ref_rmse² > 0.1 · rmse² where a cell lacks it; the "
+             "reference's variance scales as 1 / ref_spp):", ""] + warn + [""]
             + ([f"Every flagged cell: [{rel_csv}]({rel_csv}).", ""] if rel_csv else []))
 
 
@@ -240,7 +240,7 @@ def build_readme(results: Path, sweep_dir: Path, headline_spp: int = 64,
 
     stress = results / "stress.md"
     if stress.exists():
-        text = stress.read_text().splitlines()
+        text = stress.read_text(encoding="utf-8").splitlines()
         body = [ln for ln in text[2:] if not ln.startswith("## Details")]
         cut = body.index("## Details") if "## Details" in body else len(body)
         parts += ["## Stress test", ""] + body[:cut] + ["Details: [stress.md](stress.md)", ""]
@@ -391,7 +391,7 @@ def speed_md(results: Path, method: str | None = None) -> str:
 
     rows_render, rows_method, rows_metrics, rows_files = [], [], [], []
     for path in sorted(results.glob("bench_*.jsonl")):
-        for line in path.read_text().splitlines():
+        for line in path.read_text(encoding="utf-8").splitlines():
             if not line.strip():
                 continue
             r = json.loads(line)

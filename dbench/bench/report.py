@@ -37,8 +37,14 @@ def machine_md(info: dict[str, Any]) -> str:
 
 
 def error_map(output: np.ndarray, reference: np.ndarray) -> np.ndarray:
-    """Per-pixel relative error |x − r| / (|r| + 0.01), channel mean, (H, W)."""
-    err = np.abs(np.nan_to_num(output, nan=1e6) - reference) / (np.abs(reference) + 1e-2)
+    """Per-pixel relative error |x − r| / (|r| + 0.01), channel mean, (H, W), in float64: an
+    output of 3e38 (allowed by the method contract, README.md "Add your own denoiser") would
+    overflow float32 here and in the plot's colour mapping."""
+    # inf stays inf (nan_to_num's default, the largest float, overflows the division)
+    out = np.nan_to_num(np.asarray(output, dtype=np.float64), nan=1e6, posinf=np.inf,
+                        neginf=-np.inf)
+    ref = np.asarray(reference, dtype=np.float64)
+    err = np.abs(out - ref) / (np.abs(ref) + 1e-2)
     return err.mean(axis=-1)
 
 
@@ -156,7 +162,8 @@ def run_report_md(table: pd.DataFrame, settings: dict[str, Any], info: dict[str,
         parts += ["(no method finished)", ""]
     absent = [c for c in cols if c not in shown]
     parts += ["**Bold**: the best entry of a column and every entry tied with it (the paired "
-              "difference over common seeds includes 0; without them, the intervals overlap); "
+              "difference over common seeds includes 0; without them, the intervals overlap or one "
+              "is missing, shown `± n/a`); "
               "entries are mean ± 95 % half-width. `verdict` names where a method is "
               f"worse than the noisy input on `{rank_by}` or `rmse_surface`. Lower is better "
               "except PSNR, tPSNR and SSIM. " + (

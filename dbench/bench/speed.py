@@ -217,5 +217,5 @@ def append_result(path: str | Path, result: dict[str, Any]) -> None:
     from ..io import write_text
 
     path = Path(path)
-    old = path.read_text() if path.exists() else ""
+    old = path.read_text(encoding="utf-8") if path.exists() else ""
     write_text(path, old + json.dumps(result, default=str) + "\n")

@@ -78,7 +78,7 @@ def bench_scene_file(res=256, spp: int = 64, repeats: int = 3) -> dict[str, Any]
     catalogue = scenes.get("cornell")
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "cornell.xml"
-        path.write_text(cornell_xml(mi))
+        path.write_text(cornell_xml(mi), encoding="utf-8")
         from_file = scenes.get(str(path))
         t_cat = median_time(lambda: render.render_passes(catalogue, res, spp, progress=False),
                             repeats)

@@ -19,10 +19,8 @@ never its name (README.md, the ``dbench sweep`` paragraph).
 """
 from __future__ import annotations
 
-import json
 import time
 import traceback
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterable, Sequence
@@ -31,17 +29,16 @@ from .. import io
 from ..data import check_count
 from ..errors import DbenchInputError
 from ..resolution import MAX_SIDE, Res, parse_res
-from . import identity
+from . import identity, sweep_history, sweep_lock, sweep_pool
+from .sweep_cells import (NUMERIC_KEYS, cell_problem, load_cells,  # noqa: F401 - the
+                          load_cells_checked, read_cell)  # module's interface, as before
+from .sweep_history import SETTINGS, stored_config  # noqa: F401 - the module's interface
 from .sweep_names import scene_labels
+from .sweep_pool import worker_start as _worker_start  # noqa: F401 - the pool initializer
 from ..device import device_name
 from .machine import machine_label
 
 DEFAULT_SPP = (4, 16, 64, 256, 1024)
-#: Settings every cell of one sweep folder shares; methods, scenes and spp may be extended.
-SETTINGS = ("res", "ref_spp", "seed", "seeds", "repeats", "transform", "lam", "metrics",
-            "frames", "bins")
-#: Numbers an "ok" cell must carry as numbers (or null) to be read.
-NUMERIC_KEYS = ("spp", "rmse", "relmse", "time_s")
 
 
 @dataclass
@@ -69,6 +66,8 @@ class SweepConfig:
     bins: int | None = None
     params: dict[str, dict[str, Any]] = field(default_factory=dict)
     cache: str | None = None
+    #: --no-cache: render everything afresh and write nothing to the cache
+    no_cache: bool = False
     metrics: list[str] = field(default_factory=lambda: ["rmse", "relmse", "smape", "psnr",
                                                         "ssim", "flip"])
     #: recompute cells whose identity changed (otherwise such a sweep is refused)
@@ -126,61 +125,6 @@ def cell_path(out: Path, scene: str, spp: int, label: str) -> Path:
     scene of the sweep has (``b/cbox.xml``) makes a folder name of its own."""
     folder = scene if "/" not in scene else identity.file_stem(scene)
     return out / "cells" / folder / f"{spp:05d}spp" / f"{identity.file_stem(label)}.json"
-
-
-def read_cell(path: Path) -> dict | None:
-    try:
-        value = io.read_json(path)
-    except (OSError, ValueError):
-        return None
-    return value if isinstance(value, dict) else None
-
-
-def cell_problem(cell: Any) -> str:
-    """Why a cell file cannot be used ('' when it can)."""
-    if not isinstance(cell, dict):
-        return f"not a JSON object ({type(cell).__name__})"
-    if cell.get("status") not in ("ok", "skipped", "error"):
-        return f"status {cell.get('status')!r} is not ok, skipped or error"
-    for key in ("scene", "method"):
-        if not isinstance(cell.get(key), str):
-            return f"{key} missing or not a string"
-    if cell["status"] == "ok":
-        for key in NUMERIC_KEYS:
-            v = cell.get(key)
-            if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float))):
-                return f"{key} is {v!r}, not a number"
-        if not isinstance(cell.get("spp"), int):
-            return "spp missing or not an integer"
-    return ""
-
-
-def load_cells_checked(out: str | Path) -> tuple[list[dict], list[str]]:
-    """(cells, problems): every readable cell file of a sweep folder, sorted by scene, spp,
-    method, and one line per file that could not be used. Temporary files of an interrupted
-    write (names starting with a dot) are not cells."""
-    cells, problems = [], []
-    root = Path(out)
-    for p in sorted(root.glob("cells/*/*/*.json")):
-        if p.name.startswith("."):
-            continue
-        try:
-            cell = io.read_json(p)
-        except (OSError, ValueError) as exc:
-            problems.append(f"{p.relative_to(root).as_posix()}: unreadable ({type(exc).__name__})")
-            continue
-        why = cell_problem(cell)
-        if why:
-            problems.append(f"{p.relative_to(root).as_posix()}: {why}")
-            continue
-        cells.append(cell)
-    cells.sort(key=lambda c: (c["scene"], c.get("spp") or 0, c["method"]))
-    return cells, problems
-
-
-def load_cells(out: str | Path) -> list[dict]:
-    """Every usable cell file of a sweep folder, sorted by scene, spp, method."""
-    return load_cells_checked(out)[0]
 
 
 def resolve_names(methods: str | Sequence[str], scenes: str | Sequence[str],
@@ -356,7 +300,7 @@ def run_group(config: SweepConfig, out: str, scene_name: str, spp: int,
     from .harness import run_cell, run_sequence_cell
 
     out_path = Path(out)
-    cache = datasets.Cache(config.cache)
+    cache = datasets.Cache(config.cache, enabled=not config.no_cache)
     scene = config.scene(scene_name)
     res = config.res_for(scene)
     fingerprint = datasets.scene_fingerprint(scene, res)
@@ -403,6 +347,8 @@ def run_group(config: SweepConfig, out: str, scene_name: str, spp: int,
 def _prerender_references(config: SweepConfig, scenes: Iterable[str]) -> None:
     from .. import datasets
 
+    if config.no_cache:  # nothing would keep the references for the groups
+        return
     cache = datasets.Cache(config.cache)
     for name in scenes:
         s = config.scene(name)
@@ -414,27 +360,6 @@ def _prerender_references(config: SweepConfig, scenes: Iterable[str]) -> None:
                       frames=config.frames, bins=config.bins)
 
 
-def _die_with_parent() -> None:
-    """Worker initializer: the worker is killed when the sweep process dies (Linux
-    PR_SET_PDEATHSIG), so ``kill -9`` of a sweep never leaves workers behind."""
-    import signal
-    try:
-        import ctypes
-        libc = ctypes.CDLL("libc.so.6", use_errno=True)
-        libc.prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
-    except (OSError, AttributeError):  # pragma: no cover - not Linux
-        pass
-
-
-def _worker_start(plugin_specs: Sequence[str] = ()) -> None:
-    """Process-pool initializer: die with the parent, then load the parent's plugins (entry
-    points, $DBENCH_PLUGINS and every --plugin), so the worker can build plugin methods."""
-    from .. import plugins
-
-    _die_with_parent()
-    plugins.worker_init(plugin_specs)
-
-
 def run_group_with_plugins(plugin_specs: Sequence[str], config: SweepConfig, out: str,
                            scene_name: str, spp: int, method_names: list[str]) -> list[str]:
     """:func:`run_group` after loading the parent's plugins (a Ray task's start-up)."""
@@ -442,34 +367,6 @@ def run_group_with_plugins(plugin_specs: Sequence[str], config: SweepConfig, out
 
     plugins.worker_init(plugin_specs)
     return run_group(config, out, scene_name, spp, method_names)
-
-
-def stored_config(out: Path, config: SweepConfig) -> tuple[dict | None, dict]:
-    """(what to write to sweep.json or None, the stored record); refuses other settings."""
-    from .machine import machine_info
-
-    config_file = out / "sweep.json"
-    stored = read_cell(config_file) if config_file.exists() else None
-    new = _config_dict(config)
-    if stored is None:
-        return {"config": new, "machine": machine_info()}, {}
-    old = stored.get("config", {})
-    old.setdefault("seeds", 1)
-    differ = [k for k in SETTINGS if old.get(k) != new.get(k)]
-    if differ:
-        raise DbenchInputError(
-            f"--out {out}: holds a sweep with other settings ("
-            + ", ".join(f"{k}: {old.get(k)!r} there, {new.get(k)!r} now" for k in differ)
-            + "); use another --out or the same settings to resume or extend it")
-    # Extending a sweep with more methods, scenes, spp or parameter sets keeps every cell.
-    for key in ("methods", "scenes", "spp", "labels"):
-        new[key] = old.get(key, []) + [v for v in new[key] if v not in old.get(key, [])]
-    series = {**old.get("series", {}), **new["series"]}
-    new["series"] = series
-    new.pop("params", None)
-    if new != old:
-        return {**stored, "config": new}, stored
-    return None, stored
 
 
 def remove_interrupted_writes(out: Path) -> int:
@@ -488,29 +385,56 @@ def run_sweep(config: SweepConfig, out: str | Path, executor: str = "local", wor
     """Run (or resume) a sweep; returns counts of computed, already finished and failed cells.
 
     Every setting is validated and every finished cell's identity checked before anything is
-    written or rendered."""
-    from tqdm.auto import tqdm
+    written or rendered. The folder is locked for the run (:mod:`.sweep_lock`) and the run is
+    recorded in sweep.json's history (:mod:`.sweep_history`)."""
+    from .. import datasets
 
     config.validate()
     check_count("--workers", workers)
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise DbenchInputError(f"--out {out}: exists and is not a folder")
-    to_write, _ = stored_config(out, config)
-    io.ensure_writable_dir(out, "--out")
-    remove_interrupted_writes(out)
-    groups, done, skipped = plan(config, out)
-    if to_write is not None:
-        io.write_json(out / "sweep.json", to_write)
+    with sweep_lock.hold(out):
+        to_write = stored_config(out, config, sweep_history.read(out))
+        remove_interrupted_writes(out)
+        groups, done, skipped = plan(config, out)
+        if groups and not config.no_cache:  # created only once nothing refused the sweep
+            io.ensure_writable_dir(datasets.Cache(config.cache).root, "--cache")
+        run = sweep_history.RunRecord(out, to_write, config, executor, workers, done, skipped)
+        computed = [0]
+        try:
+            t_refs = _execute(config, out, groups, executor, workers, progress, computed)
+        except BaseException as exc:
+            try:
+                run.end("interrupted" if isinstance(exc, KeyboardInterrupt) else "failed",
+                        computed[0], error=f"{type(exc).__name__}: {exc}")
+            except Exception:  # noqa: BLE001 - the first error is the one to report
+                pass
+            raise
+        run.end("finished", computed[0], t_refs)
+    return {"computed": computed[0], "skipped": skipped, "finished_before": done,
+            "errors": _count_errors(out)}
+
+
+def _execute(config: SweepConfig, out: Path, groups: list, executor: str, workers: int,
+             progress: bool, computed: list[int]) -> float:
+    """Render the references, then run the groups; ``computed[0]`` counts the cells written
+    so far (also when interrupted). Returns the seconds the references took."""
+    from tqdm.auto import tqdm
+
+    from .. import plugins
+
     if not groups:
-        return {"computed": 0, "skipped": skipped, "finished_before": done,
-                "errors": _count_errors(out)}
+        return 0.0
     t_start = time.perf_counter()
     _prerender_references(config, sorted({g[0] for g in groups}))
     t_refs = time.perf_counter() - t_start
-    n_cells = sum(len(g[2]) for g in groups)
-    bar = tqdm(total=n_cells, desc="sweep", unit="cell", disable=not progress)
-    from .. import plugins
+    bar = tqdm(total=sum(len(g[2]) for g in groups), desc="sweep", unit="cell",
+               disable=not progress)
+
+    def done(written: list) -> None:
+        computed[0] += len(written)
+        bar.update(len(written))
 
     plugin_specs = plugins.requested()  # workers load the same plugins as this process
     if executor == "ray":
@@ -522,42 +446,16 @@ def run_sweep(config: SweepConfig, out: str | Path, executor: str = "local", wor
         pending = [remote.remote(plugin_specs, config, str(out), *g) for g in groups]
         while pending:
             ready, pending = ray.wait(pending, num_returns=1)
-            bar.update(len(ray.get(ready[0])))
+            done(ray.get(ready[0]))
     elif workers > 1:
-        with ProcessPoolExecutor(max_workers=workers, initializer=_worker_start,
-                                 initargs=(plugin_specs,)) as pool:
-            futures = [pool.submit(run_group, config, str(out), *g) for g in groups]
-            for f in as_completed(futures):
-                bar.update(len(f.result()))
+        sweep_pool.run_groups(run_group, (config, str(out)), groups, workers, plugin_specs,
+                              done)
     else:
         for g in groups:
-            bar.update(len(run_group(config, str(out), *g)))
+            done(run_group(config, str(out), *g))
     bar.close()
-    _record_run(out, {"cells": n_cells, "wall_s": round(time.perf_counter() - t_start, 1),
-                      "references_s": round(t_refs, 1), "workers": workers,
-                      "executor": executor, "machine": machine_label()})
-    return {"computed": n_cells, "skipped": skipped, "finished_before": done,
-            "errors": _count_errors(out)}
-
-
-def _record_run(out: Path, run: dict[str, Any]) -> None:
-    """Append one run's wall time (references included, and apart) to sweep.json."""
-    stored = read_cell(out / "sweep.json") or {}
-    stored.setdefault("runs", []).append(run)
-    io.write_json(out / "sweep.json", stored)
+    return t_refs
 
 
 def _count_errors(out: Path) -> int:
     return sum(1 for c in load_cells(out) if c.get("status") == "error")
-
-
-def _config_dict(config: SweepConfig) -> dict:
-    d = dict(config.__dict__)
-    d.pop("cache", None)  # where renders are cached does not change results
-    d.pop("rerun", None)
-    d["ref_spp"] = config.ref_spp  # the resolved value is in every cell's identity
-    labels = config.labels()
-    d["labels"] = [labels[m] for m in config.methods]
-    d["series"] = {labels[m]: {"method": m, "params": config.params.get(m, {})}
-                   for m in config.methods}
-    return json.loads(json.dumps(d, default=str))

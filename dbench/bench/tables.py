@@ -25,7 +25,7 @@ from .formats import markdown_table, write_csv
 from .verdicts import METRICS, fmt_value, num, seed_values
 
 ID_COLUMNS = ["scene", "method", "base_method", "spp", "res", "n_seeds", "ci_kind", "ref_spp",
-              "ref_rmse"]
+              "ref_rmse", "ref_relmse_surface"]
 TIME_COLUMNS = ["time_s", "time_s_iqr", "render_s", "gradient_s", "total_s"]
 TEMPORAL = ("t_rmse", "tpsnr")
 EQUAL_TIME_METRICS = ("rmse", "relmse", "rmse_surface")
@@ -52,7 +52,8 @@ def _row(c: dict) -> dict | None:
            "base_method": _label(c.get("base_method")) or method.split("[")[0],
            "spp": int(spp), "res": _res_key(c.get("res")), "n_seeds": num(c.get("n_seeds")),
            "ci_kind": _label(c.get("ci_kind")) or "", "ref_spp": num(c.get("ref_spp")),
-           "ref_rmse": num(c.get("ref_rmse"))}
+           "ref_rmse": num(c.get("ref_rmse")),
+           "ref_relmse_surface": num(c.get("ref_relmse_surface"))}
     for m in METRICS:
         row[m] = num(c.get(m))
         row[m + "_ci"] = num(c.get(m + "_ci"))

@@ -12,9 +12,10 @@ Conventions:
 * two methods are *tied* when the 95 % t-interval of their difference seed by seed includes 0
   (a *paired* comparison, spec/verdicts.md §3: both ran on the same noisy renders, so the
   difference has a far smaller interval than either method's own), when their cells share at
-  least two seeds; otherwise when their intervals overlap, |m₁ − m₂| ≤ h₁ + h₂ (a missing
-  interval counts as 0); the best entry of a column and every entry tied with it are marked in
-  bold;
+  least two seeds; otherwise when their intervals overlap, |m₁ − m₂| ≤ h₁ + h₂; a missing
+  interval (one seed on an image too small for the block bootstrap, README.md "Metrics")
+  cannot tell two means apart, so it ties ("no interval") and is shown as ``± n/a``; the best
+  entry of a column and every entry tied with it are marked in bold;
 * lower is better except for PSNR, SSIM (and their surface variants) and tPSNR.
 """
 from __future__ import annotations
@@ -51,13 +52,18 @@ DEFINITIONS = {
     "relmse_unbiased": ("relmse_unbiased = relMSE − mean(v_r / (r² + ε)): first-order "
                         "correction (r is in the denominator; accurate when v_r ≪ r² + ε)"),
     "ref_rmse": ("ref_rmse = sqrt(mean v_r), the estimated RMSE of the reference itself; a "
-                 "warning is printed when ref_rmse² > 0.1 · MSE of a method"),
+                 "warning is printed when the reference's relMSE over surface pixels, "
+                 "mean(v_r / (r² + ε)), exceeds 0.1 · relmse_surface of a method (cells "
+                 "without it: ref_rmse² > 0.1 · MSE)"),
     "ci": ("intervals: with N > 1 seeds, Student t over seeds, mean ± t_{0.975,N−1} · s / √N "
            "(the shared reference's error is not in it; see ref_rmse); with one seed, a block "
-           "bootstrap percentile interval over B × B pixel blocks; `time_s` shows the median "
+           "bootstrap percentile interval over B × B pixel blocks (B = 16 where 16 such "
+           "blocks fit, else the largest B ≥ 4 that gives 16; on smaller images no interval, "
+           "shown as ± n/a); `time_s` shows the median "
            "denoise time ± half its interquartile range. Two methods tie when the t-interval "
            "of their differences seed by seed (both ran on the same noisy renders) includes "
-           "0; without two common seeds, when their intervals overlap"),
+           "0; without two common seeds, when their intervals overlap, or when either has "
+           "no interval (a missing interval never makes a method better)"),
 }
 
 
@@ -94,13 +100,15 @@ def half_width(row: Any, metric: str) -> float:
 def fmt_value(mean: float, ci: float = float("nan"), fmt: str = ".4g") -> str:
     if not _finite(mean):
         return "—"
+    # a missing interval is said, not dropped: a bare mean would read as exact
     return (f"{format(float(mean), fmt)} ± {float(ci):.2g}" if _finite(ci)
-            else format(float(mean), fmt))
+            else f"{format(float(mean), fmt)} ± n/a")
 
 
 def overlaps(m1: float, h1: float, m2: float, h2: float) -> bool:
-    h1 = h1 if _finite(h1) else 0.0
-    h2 = h2 if _finite(h2) else 0.0
+    """|m₁ − m₂| ≤ h₁ + h₂; True when either interval is missing (nothing tells them apart)."""
+    if not (_finite(h1) and _finite(h2)):
+        return True
     return abs(m1 - m2) <= h1 + h2
 
 
@@ -138,15 +146,20 @@ def paired_interval(row_a: Any, row_b: Any, metric: str) -> tuple[float, float] 
 
 def tie(row_a: Any, row_b: Any, metric: str) -> str | None:
     """How two rows tie on ``metric``: "paired" (the paired interval includes 0), "overlap"
-    (no common seeds, and the intervals overlap), or None (one is ahead)."""
+    (no common seeds, and the intervals overlap), "none" (no common seeds, and one of them has
+    no interval: nothing says which is ahead), or None (one is ahead)."""
     paired = paired_interval(row_a, row_b, metric)
     if paired is not None:
         return "paired" if abs(paired[0]) <= paired[1] else None
-    return "overlap" if overlaps(num(_field(row_a, metric)), half_width(row_a, metric),
-                                 num(_field(row_b, metric)), half_width(row_b, metric)) else None
+    ha, hb = half_width(row_a, metric), half_width(row_b, metric)
+    if not (_finite(ha) and _finite(hb)):
+        return "none"
+    return "overlap" if overlaps(num(_field(row_a, metric)), ha,
+                                 num(_field(row_b, metric)), hb) else None
 
 
-_TIE_WORDS = {"overlap": "intervals overlap", "paired": "paired difference includes 0"}
+_TIE_WORDS = {"overlap": "intervals overlap", "paired": "paired difference includes 0",
+              "none": "no interval"}
 
 
 def _entries(d: pd.DataFrame, metric: str, exclude: Iterable[str] = ()
@@ -310,24 +323,33 @@ def next_pow2(x: float) -> int:
 
 
 def ref_noise_frame(df: pd.DataFrame) -> pd.DataFrame:
-    """Cells whose reference MSE exceeds :data:`REF_SHARE` of the method's MSE, with the
-    ``--ref-spp`` that would bring it under: ref_spp · ref_rmse² / (0.1 · rmse²), rounded up to
-    a power of two (the reference variance scales as 1 / ref_spp)."""
+    """Cells whose reference error exceeds :data:`REF_SHARE` of the method's, with the
+    ``--ref-spp`` that would bring it under: ref_spp · share / 0.1, rounded up to a power of two
+    (the reference variance scales as 1 / ref_spp).
+
+    The share is on the ranked metric over surface pixels, ref_relmse_surface /
+    relmse_surface (``share_on`` "relmse_surface"): lights seen directly hold most of a
+    method's squared error and hide a noisy reference from ref_rmse² / rmse². Cells without
+    those two figures (older cells, sequences) keep ref_rmse² / rmse² (``share_on`` "rmse")."""
     cols = ["scene", "spp", "method", "ref_spp", "ref_rmse", "rmse", "ref_mse_share",
-            "needed_ref_spp"]
-    if df.empty or "ref_rmse" not in df.columns:
+            "share_on", "needed_ref_spp"]
+    if df.empty or not {"ref_rmse", "ref_relmse_surface"} & set(df.columns):
         return pd.DataFrame(columns=cols)
     rows = []
     for _, r in df.iterrows():
-        ref, err, n = num(r["ref_rmse"]), num(r["rmse"]), num(r.get("ref_spp"))
-        if not (math.isfinite(ref) and math.isfinite(err)) or err <= 0:
+        ref, err, n = num(r.get("ref_rmse")), num(r.get("rmse")), num(r.get("ref_spp"))
+        ref_rel, rel = num(r.get("ref_relmse_surface")), num(r.get("relmse_surface"))
+        if math.isfinite(ref_rel) and math.isfinite(rel) and rel > 0:
+            share, on = ref_rel / rel, "relmse_surface"
+        elif math.isfinite(ref) and math.isfinite(err) and err > 0:
+            share, on = ref * ref / (err * err), "rmse"
+        else:
             continue
-        share = ref * ref / (err * err)
         if share > REF_SHARE:
             need = next_pow2(n * share / REF_SHARE) if math.isfinite(n) and n > 0 else np.nan
             rows.append({"scene": r["scene"], "spp": int(r["spp"]), "method": r["method"],
                          "ref_spp": n, "ref_rmse": ref, "rmse": err, "ref_mse_share": share,
-                         "needed_ref_spp": need})
+                         "share_on": on, "needed_ref_spp": need})
     out = pd.DataFrame(rows, columns=cols)
     return out.sort_values(["scene", "spp", "method"]).reset_index(drop=True)
 
@@ -341,9 +363,12 @@ def ref_warnings_md(df: pd.DataFrame) -> list[str]:
         refs = sorted({int(v) for v in g["ref_spp"] if _finite(v)})
         fix = (f"`--ref-spp {int(need)}` would bring it under 10 %" if _finite(need)
                else "a reference with more samples would fix it")
+        on = " and ".join(
+            {"relmse_surface": "relMSE over surface pixels", "rmse": "MSE"}[o]
+            for o in sorted(set(g["share_on"]), reverse=True))
         lines.append(
             f"- ⚠ {scene}, {spp} spp: the reference's error is above 10 % of the method's "
-            f"(ref MSE / MSE up to {g['ref_mse_share'].max():.2g}) for "
+            f"(reference / method on {on}, up to {g['ref_mse_share'].max():.2g}) for "
             f"{', '.join(map(str, g['method']))}"
             + (f"; reference {', '.join(map(str, refs))} spp" if refs else "") + f"; {fix}.")
     return lines
@@ -361,8 +386,9 @@ def headline_spp(spps: Iterable[Any], preferred: int = 64) -> int | None:
 
 def expected_grid(config: dict) -> list[tuple[str, int, str]]:
     labels = config.get("labels") or config.get("methods") or []
-    try:
-        return [(str(s), int(p), str(m)) for s in config.get("scenes") or []
+    names = config.get("scene_labels") if isinstance(config.get("scene_labels"), dict) else {}
+    try:  # cells are filed under the scene's label (a scene file's name, not its path)
+        return [(str(names.get(s, s)), int(p), str(m)) for s in config.get("scenes") or []
                 for p in config.get("spp") or [] for m in labels]
     except (TypeError, ValueError):
         return []
@@ -376,25 +402,34 @@ def cell_key(c: dict) -> tuple[str, int, str] | None:
 
 
 def grid_status(config: dict, cells: Sequence[dict]) -> dict[str, Any]:
-    """Counts of ok / skipped / error cells and the (scene, spp, label) cells the config
-    expects that no file holds."""
+    """Counts of the (scene, spp, label) cells the config expects by status (ok / skipped /
+    error / other), the expected cells no file holds (``missing``) and the cells outside that
+    grid (``outside``), so that expected = ok + skipped + error + other + missing. A config
+    that names no grid (an old or missing sweep.json) expects the cells there are."""
     counts = {"ok": 0, "skipped": 0, "error": 0, "other": 0}
-    present = set()
-    for c in cells:
+    grid = dict.fromkeys(expected_grid(config))
+    keys = [cell_key(c) for c in cells]
+    if not grid:
+        grid = dict.fromkeys(k for k in keys if k is not None)
+    seen, outside = set(), 0
+    for c, k in zip(cells, keys):
+        if k not in grid or k in seen:  # another grid's cell, or a second file of one cell
+            outside += 1
+            continue
+        seen.add(k)
         st = c.get("status")
         counts[st if st in counts else "other"] += 1
-        k = cell_key(c)
-        if k is not None:
-            present.add(k)
-    expected = expected_grid(config)
-    missing = sorted(k for k in dict.fromkeys(expected) if k not in present)
-    return {**counts, "expected": len(set(expected)), "missing": missing}
+    missing = sorted(k for k in grid if k not in seen)
+    return {**counts, "expected": len(grid), "missing": missing, "outside": outside}
 
 
 def grid_status_text(status: dict[str, Any]) -> str:
     text = (f"cells: {status['expected']} expected, {status['ok']} ok, {status['skipped']} "
             f"skipped, {status['error']} error, {len(status['missing'])} missing")
-    return text + (f", {status['other']} of unknown status" if status["other"] else "")
+    text += f", {status['other']} of unknown status" if status["other"] else ""
+    outside = status.get("outside", 0)
+    return text + (f"; {outside} more cell{'s' if outside != 1 else ''} outside the sweep's "
+                   f"settings (not counted)" if outside else "")
 
 
 def missing_md(missing: Sequence[tuple[str, int, str]]) -> list[str]:
@@ -428,7 +463,8 @@ def headline_md(df: pd.DataFrame, spp: int | None, rank_by: str = "relmse",
     absent = [c for c in columns if c not in shown]
     parts = [("**Bold**: the best entry of a column on the scene and every entry tied with it "
               "(the paired difference over the seeds both cells hold includes 0; without common "
-              "seeds, the intervals overlap). Entries are mean ± 95 % half-width; `time_s` is "
+              "seeds, the intervals overlap or one is missing, `± n/a`). Entries are mean ± 95 % "
+              "half-width; `time_s` is "
               "the median denoise time ± half its IQR (the noisy input is not a candidate for "
               "the fastest). "
               f"Rows ranked by `{rank_by}`; `verdict` names where a method is worse than the "

@@ -1,9 +1,17 @@
 """Command line: ``dbench run | sweep | stress | report | list | render | export | bench | train``.
 
-Exit codes: 0 success, 2 unknown names or bad arguments (the valid names are listed) or a
-plugin asked for that failed to load (named, with the reason),
-3 renderer unavailable, 4 (``run``) some methods failed: each is named on stderr and in the
-report's "Failed" section, and every other method's results are written.
+Exit codes: 0 success, also when the reader of standard output goes away early
+(``dbench run ... | head -1``: the files are written, the rest of the printed text is dropped);
+2 unknown names or bad arguments (the valid names are listed), a plugin asked for that failed
+to load (named, with the reason), a result that cannot be written (full disk, quota, read-only
+or unwritable folder: one line ``dbench: cannot write <path>: <reason>``; ``run`` then leaves
+no ``--out`` behind and an earlier run's folder there untouched) or a standard output that
+cannot be written (``> /dev/full``: the files are written, one line on stderr);
+3 renderer unavailable; 4 (``run``) some methods failed: each is named on stderr and in the
+report's "Failed" section, and every other method's results are written; 130 interrupted
+(Ctrl-C, or SIGTERM during ``run``: ``run`` removes its temporary folder, so no partial
+``--out`` is left); 1 an internal error (one line; ``--debug`` shows the traceback).
+README.md, "dbench run", says where ``run`` writes and how it replaces an earlier run's folder.
 """
 from __future__ import annotations
 
@@ -12,6 +20,7 @@ import sys
 from typing import Sequence
 
 from ..errors import DbenchInputError, RendererUnavailableError, UnknownNameError
+from . import streams
 from .args import parse_params
 from .parser import PLUGIN_HELP, build_parser
 
@@ -49,6 +58,21 @@ def _load_plugins(args: argparse.Namespace, specs: Sequence[str]) -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """Run one command; its exit code (the module docstring lists them)."""
+    with streams.guarded() as (out, _err):
+        code = _main(argv)
+        out.flush()
+    if out.lost is None or streams.reader_gone(out.lost):
+        return code
+    try:
+        print(f"dbench: cannot write standard output: {out.lost.strerror or out.lost}",
+              file=sys.stderr)
+    except OSError:
+        pass  # stderr is gone too: the exit code says it
+    return code or 2
+
+
+def _main(argv: Sequence[str] | None) -> int:
     parser = build_parser()
     parser.add_argument("--debug", action="store_true", help="show tracebacks (for bug reports)")
     parser.add_argument("--plugin", action="append", metavar="MODULE_OR_FILE.py",

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import ast
+import os
 from typing import Any, Sequence
 
 from ..errors import DbenchInputError
@@ -51,6 +52,26 @@ def parse_params(items: Sequence[str], method_names: Sequence[str]) -> dict[str,
     return out
 
 
+def seed_arg(text: str):
+    """argparse ``type`` of ``--seed``: an integer in [0, MAX_SEED]
+    (:func:`dbench.datasets.references.seed_problem`); anything else comes back as a
+    :class:`dbench.cli.bounds.BadCount`, refused in one line before the command does anything
+    (argparse's own refusal would print its usage too)."""
+    from ..datasets.references import seed_problem
+    from .bounds import BadCount
+
+    try:
+        value = int(str(text).strip())
+    except ValueError:
+        value = text
+    problem = seed_problem(value)
+    if problem:
+        bad = BadCount(text)
+        bad.why = problem
+        return bad
+    return value
+
+
 def _split(text: str) -> list[str]:
     return [t.strip() for t in text.split(",") if t.strip()]
 
@@ -70,14 +91,17 @@ MAX_PARAM_CHARS = 1000
 
 
 def _ints(text: str, name: str) -> list[int]:
-    """``"4,16"`` → [4, 16]; a DbenchInputError naming ``name`` for anything else."""
+    """``"4,16"`` → [4, 16]; a DbenchInputError naming ``name`` and the valid range
+    (dbench.cli.bounds) for anything else."""
+    from .bounds import MAX_COUNT, parse_count
+
     out = []
     for t in _split(text):
         try:
-            out.append(int(t))
+            out.append(parse_count(t))
         except ValueError:
-            raise DbenchInputError(f"{name}: expected a comma list of integers >= 1, got "
-                                   f"{t!r} in {text!r}") from None
+            raise DbenchInputError(f"{name}: expected a comma list of integers in "
+                                   f"[1, {MAX_COUNT}], got {t!r} in {text!r}") from None
     return out
 
 
@@ -92,8 +116,19 @@ def _check_common(args: argparse.Namespace) -> None:
     args.res = parse_res(args.res, "--res")
     for name in ("repeats", "seeds"):
         check_count(f"--{name}", getattr(args, name))
+    from ..datasets.references import check_seed
+
+    check_seed(args.seed, args.seeds)  # the last noisy seed is --seed + --seeds − 1
     if args.ref_spp is not None:
         check_count("--ref-spp", args.ref_spp)
+    else:
+        from ..datasets.references import reference_spp
+
+        reference_spp()  # a bad DBENCH_REF_SPP is refused here, before anything renders
+    if getattr(args, "bins", None) is not None:  # the transient film's memory at this size
+        from ..datasets.transient_scene import check_bins
+
+        check_bins(args.bins, args.res, "--bins")
     if args.rank_by not in RANKABLE:
         raise DbenchInputError(f"--rank-by: {args.rank_by!r}; valid: {', '.join(RANKABLE)}")
     from ..data import check_transform
@@ -114,13 +149,33 @@ def _sequence_window(n_frames: int) -> str:
 
 
 def _writable_cache(args: argparse.Namespace):
-    """The run's cache, checked for writing before anything renders."""
+    """The run's cache, checked for writing before anything renders. ``--cache DIR`` that
+    cannot be written is refused (exit 2): the user named it. The cache only saves time, so
+    when the folder comes from the environment (``$DBENCH_CACHE`` naming a file, a read-only
+    home's ``~/.cache/dbench``) the command carries on without it, after one warning line, and
+    renders everything; a sweep, whose workers share renders through the cache, refuses."""
+    import sys
+
     from .. import datasets
     from ..io import ensure_writable_dir
 
     cache = datasets.Cache(args.cache, enabled=not args.no_cache)
-    if cache.enabled:
+    if not cache.enabled:
+        return cache
+    if args.cache is not None:
         ensure_writable_dir(cache.root, "--cache")
+        return cache
+    what = "$DBENCH_CACHE" if os.environ.get("DBENCH_CACHE") else "the cache folder"
+    try:
+        ensure_writable_dir(cache.root, what)
+    except DbenchInputError as exc:
+        if getattr(args, "command", None) == "sweep":
+            raise DbenchInputError(f"{exc}; a sweep's workers share renders through the "
+                                   f"cache: give --cache a writable folder") from None
+        print(f"dbench: warning: {exc}; carrying on without the cache (nothing is read from "
+              f"it or saved; --cache DIR names another)", file=sys.stderr)
+        args.no_cache = True
+        return datasets.Cache(cache.root, enabled=False)
     return cache
 
 

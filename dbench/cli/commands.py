@@ -191,8 +191,8 @@ def cmd_sweep(args: argparse.Namespace) -> int:
                                transform=args.transform, lam=args.lam, frames=args.frames,
                                bins=args.bins,
                                params={k: v for k, v in params.items() if v}, cache=args.cache,
-                               device=args.device)
-    _writable_cache(args)
+                               no_cache=args.no_cache, device=args.device)
+    # the cache is checked (and created) by run_sweep once nothing refused the sweep
     counts = sweep.run_sweep(config, args.out, executor=args.executor, workers=args.workers,
                              progress=not args.quiet)
     print(f"sweep {args.out}: {counts['computed']} cells computed, "

@@ -3,8 +3,11 @@ from __future__ import annotations
 
 import argparse
 
+from .args import seed_arg
+from .bounds import count
 from .commands import (cmd_bench, cmd_export, cmd_list, cmd_render, cmd_report, cmd_stress,
                        cmd_sweep, cmd_train)
+from .guard import command
 from .run import cmd_run
 
 #: The first line of ``dbench --help`` (the first line of the package's docstring).
@@ -23,8 +26,9 @@ def build_parser() -> argparse.ArgumentParser:
         sp.add_argument("--cache", default=None, help="cache folder (default $DBENCH_CACHE or "
                         "~/.cache/dbench)")
         sp.add_argument("--no-cache", action="store_true", help="render everything afresh")
-        sp.add_argument("--seed", type=int, default=0)
-        sp.add_argument("--ref-spp", type=int, default=None,
+        sp.add_argument("--seed", type=seed_arg, default=0, help="base seed of the noisy "
+                        "renders and of the reference, in [0, 4294967295]")
+        sp.add_argument("--ref-spp", type=count, default=None,
                         help="reference spp (default $DBENCH_REF_SPP or 4096)")
         sp.add_argument("--scene-param", action="append", metavar="NAME=VALUE",
                         help="a $parameter of a Mitsuba scene file, or a parameter a "
@@ -32,7 +36,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "emission=step on the transient scenes) (repeatable)")
 
     def judged(sp: argparse.ArgumentParser) -> None:
-        sp.add_argument("--seeds", type=int, default=1, help="independent noisy renders "
+        sp.add_argument("--seeds", type=count, default=1, help="independent noisy renders "
                         "(seeds --seed ... --seed+N-1) scored against one reference; metrics "
                         "are their mean with a 95 %% Student-t interval (one seed: a block "
                         "bootstrap interval)")
@@ -43,20 +47,22 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--method", required=True, help="NAME[,NAME...] or all (those that do not "
                    "apply to the scene are skipped with the reason)")
     r.add_argument("--scene", required=True)
-    r.add_argument("--spp", type=int, default=None, help="samples per pixel (default 16; a "
+    r.add_argument("--spp", type=count, default=None, help="samples per pixel (default 16; a "
                    "folder of renders: its only spp)")
     r.add_argument("--res", default=None, help="image size: N (N×N) or WIDTHxHEIGHT, e.g. "
                    "1280x720 (default 128×128; a scene file: its film's aspect ratio with the "
                    "longer side 128; a folder: its images' size)")
-    r.add_argument("--out", default=None, help="output folder (default results/runs/<new>)")
+    r.add_argument("--out", default=None, help="output folder (default results/runs/<new>); "
+                   "written whole or not at all, and a folder that is not an earlier run's is "
+                   "refused")
     r.add_argument("--param", action="append", metavar="[METHOD.]KEY=VALUE")
-    r.add_argument("--repeats", type=int, default=5, help="timed calls after one warm-up")
+    r.add_argument("--repeats", type=count, default=5, help="timed calls after one warm-up")
     r.add_argument("--transform", default=None, help="sample transform of the statistics "
                    "(default: box-cox for steady scenes, identity for transient ones)")
     r.add_argument("--lam", type=float, default=0.5)
-    r.add_argument("--frames", type=int, default=None, help="sequence scenes: frames from the "
+    r.add_argument("--frames", type=count, default=None, help="sequence scenes: frames from the "
                    "start (default all)")
-    r.add_argument("--bins", type=int, default=None, help="transient scenes: time bins "
+    r.add_argument("--bins", type=count, default=None, help="transient scenes: time bins "
                    "(default the scene's)")
     r.add_argument("--quiet", action="store_true")
     _device_argument(r)
@@ -70,7 +76,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     rp = sub.add_parser("render", help="render or find cached buffers of scenes")
     rp.add_argument("--scene", default="all")
-    rp.add_argument("--spp", type=int, default=16)
+    rp.add_argument("--spp", type=count, default=16)
     rp.add_argument("--res", default=None, help="image size: N (N×N) or WIDTHxHEIGHT "
                     "(default: as for run)")
     common(rp)
@@ -82,17 +88,18 @@ def build_parser() -> argparse.ArgumentParser:
     sw.add_argument("--spp", default="4,16,64,256,1024")
     sw.add_argument("--res", default=None, help="image size: N (N×N) or WIDTHxHEIGHT "
                     "(default: each scene's, as for run)")
-    sw.add_argument("--out", default="results/sweep")
+    sw.add_argument("--out", default="results/sweep", help="the sweep's folder: its cells "
+                    "are reused where their identity matches; one sweep at a time holds it")
     sw.add_argument("--executor", choices=("local", "ray"), default="local")
     sw.add_argument("--workers", type=int, default=1, help="local process-pool size")
-    sw.add_argument("--repeats", type=int, default=5)
+    sw.add_argument("--repeats", type=count, default=5)
     sw.add_argument("--param", action="append", metavar="[METHOD.]KEY=VALUE")
     sw.add_argument("--transform", default=None, help="sample transform of the statistics "
                     "(default: box-cox for steady scenes, identity for transient ones)")
     sw.add_argument("--lam", type=float, default=0.5)
-    sw.add_argument("--frames", type=int, default=None, help="sequence scenes: frames from the "
+    sw.add_argument("--frames", type=count, default=None, help="sequence scenes: frames from the "
                     "start (default all)")
-    sw.add_argument("--bins", type=int, default=None, help="transient scenes: time bins "
+    sw.add_argument("--bins", type=count, default=None, help="transient scenes: time bins "
                     "(default the scene's)")
     sw.add_argument("--quiet", action="store_true")
     _device_argument(sw)
@@ -125,7 +132,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "for run)")
     ex.add_argument("--name", default=None, help="file name prefix (default: the scene's "
                     "name)")
-    ex.add_argument("--frames", type=int, default=None, help="sequence scenes: frames from "
+    ex.add_argument("--frames", type=count, default=None, help="sequence scenes: frames from "
                     "the start (default all)")
     ex.add_argument("--quiet", action="store_true")
     common(ex)
@@ -141,7 +148,7 @@ def build_parser() -> argparse.ArgumentParser:
     bp.add_argument("--res", default=None, help="image size: N (N×N) or WIDTHxHEIGHT, "
                     "e.g. 1280x720 (render: default 256; methods, metrics: default --width "
                     "× --height)")
-    bp.add_argument("--spp", type=int, default=None, help="samples per pixel: of the render "
+    bp.add_argument("--spp", type=count, default=None, help="samples per pixel: of the render "
                     "(render, scene-file: default 64) or of the synthetic frame's statistics "
                     "a method is timed on (default 16; a method whose settings follow the spp, "
                     "like nca's steps, takes them from it)")
@@ -149,7 +156,7 @@ def build_parser() -> argparse.ArgumentParser:
                     help="a parameter of the method timed (repeatable)")
     bp.add_argument("--height", type=int, default=720)
     bp.add_argument("--width", type=int, default=1280)
-    bp.add_argument("--repeats", type=int, default=3)
+    bp.add_argument("--repeats", type=count, default=3)
     _device_argument(bp)
     bp.add_argument("--out", default=None, help="append the result to this JSON-lines file")
     bp.set_defaults(func=cmd_bench)
@@ -173,6 +180,9 @@ def build_parser() -> argparse.ArgumentParser:
                     "folder, replacing the shipped weights)")
     common(tp)
     tp.set_defaults(func=cmd_train)
+    for sp in sub.choices.values():
+        # counts checked first; no sys.exit of a plugin ends the command (dbench.cli.guard)
+        sp.set_defaults(func=command(sp.get_default("func")))
     for sp in sub.choices.values():  # taken out of argv by main() wherever it stands; shown here
         sp.add_argument("--plugin", action="append", metavar="MODULE_OR_FILE.py",
                         help=PLUGIN_HELP)

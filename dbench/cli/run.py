@@ -1,4 +1,9 @@
-"""``dbench run``: every method on one scene, its table, report, comparison grid and outputs."""
+"""``dbench run``: every method on one scene, its table, report, comparison grid and outputs.
+
+The outputs are written into a temporary folder that takes the place of ``--out`` only once
+all of them are written, and only then is the table printed (README.md, "dbench run";
+dbench/bench/run_output.py).
+"""
 from __future__ import annotations
 
 import argparse
@@ -13,16 +18,9 @@ from .args import (_check_common, _default_spp, _scene_of, _sequence_window, _sp
 
 def cmd_run(args: argparse.Namespace) -> int:
     from .. import datasets, methods, registry
-    from ..bench import harness, identity, report
-    from ..bench.formats import markdown_table, write_csv
-    from ..bench.machine import machine_info
-    from ..bench.sweep import cell_record, load_seeds
-    from ..datasets import scenes
+    from ..bench import identity, report, run_output
+    from ..bench.formats import markdown_table
     from ..data import check_count
-    from ..device import device_name
-    from ..io import ensure_writable_dir, write_exr, write_json, write_text
-
-    import pandas as pd
 
     names = (methods.available() if args.method == "all"
              else [registry.canonical(n) for n in _split(args.method)])
@@ -55,7 +53,35 @@ def cmd_run(args: argparse.Namespace) -> int:
         f"{scene.name}_{args.spp}spp_{args.res}px_"
         f"{_dt.datetime.now().strftime('%Y%m%d-%H%M%S')}")
     cache = _writable_cache(args)
-    ensure_writable_dir(out, "--out")
+    # a failure or Ctrl-C inside the block removes the temporary folder: no partial --out
+    with run_output.staged(out) as stage:
+        table, failed = _run_into(stage, args, scene, instances, labels, runnable, skipped,
+                                  device, cache)
+    # printed only now: a reader that goes away (| head) can no longer cost any file
+    print()
+    shown = [c for c in report.RUN_COLUMNS if c in table.columns]
+    print(markdown_table(table[shown]))
+    print(f"\nreport: {out / 'report.md'}")
+    if failed:
+        print(f"{len(failed)} method(s) failed: {', '.join(failed)} (see the report)",
+              file=sys.stderr)
+        return 4
+    return 0
+
+
+def _run_into(out: Path, args: argparse.Namespace, scene, instances, labels, runnable,
+              skipped, device, cache):
+    """Render, run every runnable method and write every output into folder ``out``; the
+    (metrics table, failed methods)."""
+    from ..bench import harness, identity, report
+    from ..bench.formats import write_csv
+    from ..bench.machine import machine_info
+    from ..bench.sweep import cell_record, load_seeds
+    from ..device import device_name
+    from ..io import write_exr, write_json, write_text
+
+    import pandas as pd
+
     needs = set().union(*(instances[n].wants(scene.provides) for n in runnable)) | {
         "reference"} | ({"emitter"} & set(scene.provides))
     frames = load_seeds(scene, args.seed, args.seeds, spp=args.spp, res=args.res, needs=needs,
@@ -116,16 +142,20 @@ def cmd_run(args: argparse.Namespace) -> int:
         report.comparison_grid(out / "comparison.png", outputs, frame.reference, ev=scene.ev,
                                title=f"{scene.name}, {args.spp} spp, {args.res.text} px")
     info = machine_info()
+    first = frame[0] if is_sequence else frame  # a folder's input facts live on its frames
     seeds = [args.seed + k for k in range(args.seeds)]
     settings = {"scene": scene.name, "kind": scene.kind,
                 **({"scene parameters": ", ".join(f"{k}={v}" for k, v in
                                                   frame.meta["scene_params"].items())}
                    if frame.meta.get("scene_params") else {}),
+                # what a scene file's render kept and changed (integrator, depth, filter)
+                **frame.meta.get("scene_file_settings", {}),
                 "spp": args.spp, "res": args.res.key,
                 "seeds": ", ".join(map(str, seeds)),
                 "ref_spp": frame.meta.get("ref_spp"),
                 "reference seed": frame.meta.get("ref_seed"),
-                "reference RMSE (estimated)": _ref_rmse_text(frame.meta.get("ref_rmse")),
+                "reference RMSE (estimated)": _ref_rmse_text(frame.meta.get("ref_rmse"),
+                                                             first.meta.get("ref_noise_source")),
                 "repeats": (_sequence_window(len(frame)) if is_sequence else args.repeats),
                 "transform": (f"{frame.stats.transform} (λ = {frame.stats.lam})"
                               if getattr(frame, "stats", None) is not None else "n/a"),
@@ -141,34 +171,50 @@ def cmd_run(args: argparse.Namespace) -> int:
                     f"({r['backend']}"
                     + (f", copies {r['transfer_s'] * 1e3:.2f} ms timed apart"
                        if r.get("transfer_s") else "") + ")" for r in rows)}
+    notes = _input_notes(first.meta, settings)
     resolved = {r["method"]: r["settings"] for r in rows if r.get("settings")}
     if resolved:
         # what the methods resolved from "auto"/None defaults on this frame (first seed)
         settings["resolved settings"] = "; ".join(
             f"{m}: {json.dumps(v, sort_keys=True, default=str)}" for m, v in resolved.items())
     write_text(out / "report.md", report.run_report_md(table, settings, info, skipped,
-                                                       rank_by=args.rank_by, failed=failed))
+                                                       notes=notes, rank_by=args.rank_by,
+                                                       failed=failed))
     write_json(out / "run.json", {"settings": settings, "machine": info, "skipped": skipped,
                                   "failed": failed})
     _write_run_page(out, scene, frame, outputs, table, settings, info, skipped, args)
-    print()
-    shown = [c for c in report.RUN_COLUMNS if c in table.columns]
-    print(markdown_table(table[shown]))
-    print(f"\nreport: {out / 'report.md'}")
-    if failed:
-        print(f"{len(failed)} method(s) failed: {', '.join(failed)} (see the report)",
-              file=sys.stderr)
-        return 4
-    return 0
+    return table, failed
 
 
-def _ref_rmse_text(value):
+def _ref_rmse_text(value, source: str | None = None):
     """The reference's estimated RMSE, or "unknown" where nothing gives its noise (a folder's
-    external reference without a variance image or statistics): never a made-up 0."""
+    external reference without a variance image or statistics): never a made-up 0. ``source``
+    (dbench/datasets/folder_reference.py) says where the estimate came from, or why none."""
     import math
     if value is None or (isinstance(value, float) and math.isnan(value)):
-        return "unknown (no variance or statistics of the reference were given)"
-    return value
+        return f"unknown ({source or 'no variance or statistics of the reference were given'})"
+    return f"{value} ({source})" if source else value
+
+
+#: input facts a folder load reports (dbench/datasets/folder.py): {meta key: settings label}
+_INPUT_FACTS = {"ref_noise_source": "reference noise from", "surface_pixels": "surface pixels",
+                "normal_encoding": "normal encoding", "layers_read": "layers read",
+                "layers_ignored": "layers ignored"}
+#: doubts about the input: printed at once and listed in the report's notes
+_INPUT_WARNINGS = ("reference_warning", "normal_warning")
+
+
+def _input_notes(meta: dict, settings: dict) -> list[str]:
+    """Adds a loaded input's facts to ``settings`` and returns its warnings, each also printed
+    to stderr now: a doubtful reference or normal buffer is said where the user looks."""
+    for key, label in _INPUT_FACTS.items():
+        value = meta.get(key)
+        if value:
+            settings[label] = "; ".join(value) if isinstance(value, (list, tuple)) else value
+    notes = [meta[k] for k in _INPUT_WARNINGS if meta.get(k)]
+    for note in notes:
+        print(f"warning: {note}", file=sys.stderr)
+    return notes
 
 
 def method_failure(exc: BaseException) -> str:

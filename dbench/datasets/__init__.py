@@ -155,7 +155,9 @@ def load(scene: str | Scene, spp: int, res, needs: Iterable[str] | None = None,
     base = _base_description(sc, res)
     meta: dict = {"scene": sc.name, "kind": sc.kind, "spp": int(spp), "res": res.key,
                   "seed": int(seed), "ev": sc.ev, "versions": base["versions"], "cache_hits": [],
-                  "rendered": []}
+                  "rendered": [],
+                  # a scene file's render as it differs from the file (datasets.scene_fidelity)
+                  **getattr(sc, "frame_meta", {})}
 
     noisy_desc = {**base, "what": "noisy", "spp": int(spp), "seed": int(seed),
                   "copies": _render.batch_size(res, spp)}

@@ -20,8 +20,10 @@ size and sha256 of each of its files. :meth:`Cache.get` checks both (a cheap rea
 are about to be read anyway); an entry whose description differs (a folder copied under another
 key), whose files are missing, truncated or replaced, or whose ``meta.json`` is unreadable is a
 miss: one warning line names it, the caller renders again, and :meth:`Cache.put` replaces the
-damaged folder atomically. Entries written before checksums existed are read in full once;
-when every file loads they are adopted (checksums added), otherwise they are a miss.
+damaged folder atomically. An entry whose ``meta.json`` records no checksums (written before
+they existed) is a miss too, rendered again and replaced: that its files load says nothing
+about whether they are the pixels its key stands for (another scene's ``buffers.exr`` copied
+in loads just as well), and adopting it would seal whatever it holds with a checksum.
 
 Location: ``--cache DIR`` or ``DBENCH_CACHE``, default ``~/.cache/dbench``.
 """
@@ -104,6 +106,8 @@ class Entry:
 
 #: Files an entry may hold besides meta.json.
 DATA_FILES = ("buffers.exr", "arrays.npz")
+#: Why :func:`verify` refuses an entry whose meta.json records no checksums.
+UNCHECKED = "no file checksums, so its contents cannot be checked"
 #: Leftover temporary folders older than this are removed (seconds).
 STALE_TMP_S = 24 * 3600
 
@@ -114,25 +118,19 @@ def file_record(path: Path) -> dict[str, Any]:
     return {"size": len(data), "sha256": hashlib.sha256(data).hexdigest()}
 
 
-def _loads(path: Path) -> str:
-    """'' when every data file of the entry at ``path`` reads completely, else why not."""
-    entry = Entry(path, {})
-    try:
-        entry.images()
-        entry.arrays()
-    except Exception as exc:  # noqa: BLE001 - any failure to read means a damaged entry
-        return f"unreadable ({type(exc).__name__})"
-    return ""
-
-
 def verify(path: Path, meta: dict, description: dict) -> str:
     """'' when the entry at ``path`` is intact and was built from ``description``, else why."""
     if meta.get("description") != json.loads(json.dumps(canonical(description))):
         return "built from another description"
     files = meta.get("files")
-    if files is None:
-        return _loads(path)
+    if not isinstance(files, dict):
+        return UNCHECKED
+    for name in DATA_FILES:  # a file the checksums leave out would be read unchecked
+        if name not in files and (path / name).exists():
+            return f"{name} has no checksum"
     for name, record in files.items():
+        if not isinstance(record, dict):
+            return f"checksum of {name} unreadable"
         f = path / name
         if not f.is_file():
             return f"{name} missing"
@@ -155,7 +153,8 @@ class Cache:
         return self.root / kind / key
 
     def _warn(self, kind: str, key: str, why: str) -> None:
-        print(f"dbench: cache entry {kind}/{key} is damaged ({why}); rendering it again",
+        state = "cannot be trusted" if why == UNCHECKED else "is damaged"
+        print(f"dbench: cache entry {kind}/{key} {state} ({why}); rendering it again",
               file=sys.stderr)
 
     def get(self, kind: str, description: dict) -> Entry | None:
@@ -180,13 +179,6 @@ class Cache:
         if why:
             self._warn(kind, key, why)
             return None
-        if "files" not in meta:  # adopt an entry written before checksums existed
-            meta["files"] = {n: file_record(path / n) for n in DATA_FILES
-                             if (path / n).is_file()}
-            try:
-                io.write_json(meta_file, meta)
-            except OSError:
-                pass
         return Entry(path, meta)
 
     def put(self, kind: str, description: dict, images: dict[str, np.ndarray] | None = None,

@@ -243,23 +243,12 @@ def stack(channels: dict[str, np.ndarray], layer: Layer) -> np.ndarray:
 
 
 def detect_normal_encoding(normal: np.ndarray) -> str:
-    """``"unsigned"`` when (H, W, 3) normals look stored as n·0.5 + 0.5, else ``"signed"``.
+    """``"unsigned"`` when (H, W, 3) normals look stored as n·0.5 + 0.5, else ``"signed"``
+    (also when undecided): :func:`dbench.datasets.normals.decide`, whose texts and warning
+    the folder loader records."""
+    from .normals import decide
 
-    Unsigned: every finite component ≥ 0, and over the non-zero pixels 2n − 1 has unit length
-    (mean |‖2n − 1‖ − 1| ≤ 0.1) while n itself is farther from unit length (spec/formats.md §2).
-    The deviation is taken per pixel, not of the mean length: encoded normals spread over the
-    sphere have a mean ‖n‖ of 0.96, yet single pixels range over [0.37, 1.37]; signed normals
-    that happen to face one octant have ‖n‖ = 1 and stay signed.
-    """
-    n = np.asarray(normal, np.float64)
-    finite = np.isfinite(n).all(axis=-1)
-    hit = finite & np.any(n != 0, axis=-1)
-    if not hit.any() or np.any(n[finite] < 0):
-        return "signed"
-    v = n[hit]
-    decoded = np.abs(np.linalg.norm(2.0 * v - 1.0, axis=-1) - 1.0).mean()
-    plain = np.abs(np.linalg.norm(v, axis=-1) - 1.0).mean()
-    return "unsigned" if decoded <= 0.1 and decoded < plain else "signed"
+    return decide(normal, "normal image").encoding
 
 
 def decode_normals(normal: np.ndarray, encoding: str) -> np.ndarray:
@@ -269,3 +258,25 @@ def decode_normals(normal: np.ndarray, encoding: str) -> np.ndarray:
         return normal
     hit = np.any(normal != 0, axis=-1, keepdims=True)
     return np.where(hit, 2.0 * normal - 1.0, 0.0).astype(np.float32)
+
+
+def layers_report(read: list[Layer], folder: Path, ignored_files: tuple[str, ...] = ()
+                  ) -> dict[str, list[str]]:
+    """``meta["layers_read"]`` and ``meta["layers_ignored"]``: one line per file and buffer read
+    (``"v_0004.exr: albedo (albedo.R, albedo.G, albedo.B)"``), and per file read the raw
+    channels no buffer took (``"v_0004.exr: A, _arg_0.R, _arg_0.G, _arg_0.B"``), plus the
+    view's files left unread (``ldr``, ``sh1x/y/z`` and unknown EXR files)."""
+    lines, used, files = [], {}, []
+    for layer in read:
+        lines.append(f"{layer.file.name}: {layer.buffer} ({', '.join(layer.channels)})")
+        if layer.file not in used:
+            files.append(layer.file)
+        used.setdefault(layer.file, set()).update(layer.channels)
+    ignored = []
+    for path in files:
+        left = [c for c in exr_header(path)[1] if c not in used[path]]
+        if left:
+            ignored.append(f"{path.name}: {', '.join(sorted(left))}")
+    ignored += [f"{name}: whole file (not a buffer dbench reads)" for name in ignored_files
+                if (Path(folder) / name).exists()]
+    return {"layers_read": lines, "layers_ignored": ignored}

@@ -23,18 +23,23 @@ A folder holds one or more *views*; every file name starts with the view name (s
     Numbered frames of a sequence (``walk_f0003_0004.hdr.exr``, motion in ``.mv.exr``); every
     frame must have the files the others have.
 ``dataset.json`` (optional)
-    ``{"ref_spp": int, "ev": float, "normals": "signed"|"unsigned", "description": str,
-    "scene": str}``, written by :mod:`dbench.datasets.export`.
+    ``{"ref_spp": int, "ev": float, "normal_encoding": "signed"|"unsigned", "description":
+    str, "scene": str}`` (``"normals"``, as :mod:`dbench.datasets.export` writes it, is read
+    as ``"normal_encoding"``).
 
 Reference: the named one; without one the highest spp serves and is not offered as a noisy spp
-(``reference_from == "highest-spp"``); a single spp and no reference is an error. The
-reference's variance of the mean is its ``var`` image / ``Variance`` divided by ``ref_spp``
-(or an identity-transform ``.stats.npz``'s ``var_mean``); when unknown the frame has no
-``reference_var``, ``meta["ref_rmse"]`` is NaN (reports say "unknown", never 0) and
-``meta["ref_var_known"]`` is False. Features missing for an spp are taken from the reference's
-files (OIDN training sets may store clean features once). Normals stored as n·0.5 + 0.5 are
-detected at scan time on the first normal image and decoded to [-1, 1] for the whole view;
-``dataset.json`` "normals" overrides the detection.
+(``reference_from == "highest-spp"``); a single spp and no reference is an error. It is judged,
+not trusted (:mod:`dbench.datasets.folder_reference`): its variance of the mean comes from its
+``var`` image / ``Variance`` divided by ``ref_spp`` (or an identity-transform ``.stats.npz``'s
+``var_mean``), else is estimated from its spp and the noisy series, or from the series'
+convergence; when nothing gives it the frame has no ``reference_var``, ``meta["ref_rmse"]`` is
+NaN (reports say "unknown", never 0) and ``meta["ref_var_known"]`` is False. A reference no
+better than the noisy input gets ``meta["reference_warning"]``. Features missing for an spp are
+taken from the reference's files (OIDN training sets may store clean features once). Normals
+stored as n·0.5 + 0.5 are detected at scan time on the first normal image
+(:mod:`dbench.datasets.normals`) and decoded to [-1, 1] for the whole view; ``dataset.json``
+"normal_encoding" overrides the detection. ``meta["layers_read"]`` and
+``meta["layers_ignored"]`` list the files and channels a load read and those it left.
 
 A folder with several views is selected by ``DIR/NAME`` (a path whose parent is the folder and
 whose last part is the view name).
@@ -62,6 +67,8 @@ from ..errors import DbenchInputError
 from ..resolution import Res
 from . import exr_layers as xl
 from .export import read_stats_npz
+from .folder_reference import folder_reference
+from .normals import resolve as resolve_normals
 
 TAGS = {"hdr": "color", "alb": "albedo", "nrm": "normal", "depth": "depth", "pos": "position",
         "emitter": "emitter", "var": "variance", "mv": "motion"}
@@ -155,20 +162,25 @@ def _read_dataset_json(folder: Path) -> dict:
     if not path.exists():
         return {}
     try:
-        data = json.loads(path.read_text())
+        data = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, ValueError) as exc:
         raise DbenchInputError(f"{path}: not readable JSON ({exc})") from None
-    kinds = {"ref_spp": int, "ev": (int, float), "normals": str, "description": str,
-             "scene": str}
+    kinds = {"ref_spp": int, "ev": (int, float), "normal_encoding": str, "normals": str,
+             "description": str, "scene": str}
     if not isinstance(data, dict):
         raise DbenchInputError(f"{path}: expected a JSON object with keys {sorted(kinds)}")
     for key, value in data.items():
         if key in kinds and value is not None and (not isinstance(value, kinds[key])
                                                    or isinstance(value, bool)):
             raise DbenchInputError(f"{path}: {key!r} has the wrong type ({value!r})")
-    if data.get("normals") not in (None, "signed", "unsigned"):
-        raise DbenchInputError(f"{path}: normals {data['normals']!r}; expected \"signed\" or "
-                               "\"unsigned\"")
+    for key in ("normal_encoding", "normals"):  # "normals": the exporter's spelling
+        if data.get(key) not in (None, "signed", "unsigned"):
+            raise DbenchInputError(f"{path}: {key} {data[key]!r}; expected \"signed\" or "
+                                   "\"unsigned\"")
+    if None not in (data.get("normal_encoding"), data.get("normals")) \
+            and data["normal_encoding"] != data["normals"]:
+        raise DbenchInputError(f"{path}: normal_encoding {data['normal_encoding']!r} and "
+                               f"normals {data['normals']!r} disagree; expected one")
     if data.get("ref_spp") is not None and data["ref_spp"] < 1:
         raise DbenchInputError(f"{path}: ref_spp {data['ref_spp']}; expected an integer >= 1")
     return data
@@ -313,23 +325,25 @@ def scan_folder(path: str | os.PathLike) -> FolderInfo:
         stats_source = (next(iter(parts)) if len(parts) == 1 else
                         "; ".join(f"{d} for spp {', '.join(map(str, v))}"
                                   for d, v in parts.items()))
-    normals = info_json.get("normals")
-    if normals is None:
-        normals = "signed"
-        layer = next((s["normal"] for s in slots + [ref] if "normal" in s), None)
-        if layer is not None:
-            normals = xl.detect_normal_encoding(xl.stack(xl.read_channels(layer.file), layer))
+    layer = next((s["normal"] for s in slots + [ref] if "normal" in s), None)
+    encoding = resolve_normals(
+        info_json.get("normal_encoding") or info_json.get("normals"),
+        None if layer is None else xl.stack(xl.read_channels(layer.file), layer),
+        "" if layer is None else f"{layer.file.name} ({', '.join(layer.channels)})")
     used = [n for n in files if n not in ignored]
     if (folder / "dataset.json").exists():
         used.append("dataset.json")
     return FolderInfo(
         path=folder, name=view, width=w, height=h, spps=tuple(spps), ref_spp=ref_spp,
         reference_from=reference_from, buffers=frozenset(buffers), stats_source=stats_source,
-        frames=frames, ev=float(info_json.get("ev", 0.0) or 0.0), normals=normals,
+        frames=frames, ev=float(info_json.get("ev", 0.0) or 0.0),
+        normals=encoding.encoding if encoding else "signed",
         fingerprint=_fingerprint(folder, used), ignored=tuple(sorted(ignored + unknown)),
         _plan=plan, _meta={"unused_channels": unused, "description":
                            info_json.get("description", ""), "declared_scene":
-                           info_json.get("scene", "")})
+                           info_json.get("scene", ""),
+                           "normal_encoding": encoding.text if encoding else "",
+                           "normal_warning": encoding.warning if encoding else ""})
 
 
 def is_folder_scene(text: str) -> bool:
@@ -352,10 +366,13 @@ class _Reader:
 
     def __init__(self) -> None:
         self.cache: dict[Path, dict[str, np.ndarray]] = {}
+        self.layers: list[xl.Layer] = []
 
     def __call__(self, layer: xl.Layer) -> np.ndarray:
         if layer.file not in self.cache:
             self.cache[layer.file] = xl.read_channels(layer.file)
+        if layer not in self.layers:
+            self.layers.append(layer)  # meta["layers_read"]
         arr = xl.stack(self.cache[layer.file], layer)
         # Motion is NaN wherever there is no previous position, everywhere on a first frame.
         if layer.buffer != "motion" and np.isnan(arr).all():
@@ -436,26 +453,13 @@ def load_folder(info_or_path: FolderInfo | str | os.PathLike, spp: int,
         if not np.isfinite(buffers["reference"]).all():
             raise DbenchInputError(f"{ref['color'].file}: reference contains NaN or Inf; "
                                    "expected finite values")
-        var, known = _reference_var(ref, info.ref_spp, read, files, buffers["reference"].shape)
-        # an external reference whose noise the folder does not give is "unknown", never 0:
-        # no reference_var (the judge's unbiased figures equal the raw ones) and ref_rmse NaN
-        buffers["reference_var"] = var if known else None
-        ref_rmse = (float(np.sqrt(max(float(np.mean(var, dtype=np.float64)), 0.0))) if known
-                    else float("nan"))
-        meta.update(ref_var_known=known, ref_seed=None, ref_rmse=ref_rmse)
+        # judged, not trusted: its noise estimated from what the folder holds ("unknown",
+        # never 0, when nothing does) and a warning when it is no better than the input
+        buffers["reference_var"], ref_meta = folder_reference(
+            info, frame, spp, read, files, buffers["reference"], buffers)
+        meta.update(ref_seed=None, **ref_meta)
+    if "normal" not in buffers:
+        meta.pop("normal_warning", None)  # a doubt about normals no method here reads
+    meta.update(xl.layers_report(read.layers, info.path, info.ignored))
     return Frame(color=color, stats=stats, meta=meta, **buffers)
 
-
-def _reference_var(ref: dict, ref_spp: int | None, read: _Reader, files: dict,
-                   shape: tuple[int, ...]) -> tuple[np.ndarray, bool]:
-    """(H, W, 3) variance of the reference mean and whether it is known (else zeros)."""
-    if "variance" in ref and ref_spp:
-        sigma2 = read(ref["variance"]).astype(np.float64)
-        files["reference_var"] = ref["variance"].file.name
-        return (sigma2 / ref_spp).astype(np.float32), True
-    if "stats" in ref:
-        stats = read_stats_npz(ref["stats"], shape)
-        if stats.transform == "identity":  # var_mean of untransformed samples is the answer
-            files["reference_var"] = ref["stats"].name
-            return stats.var_mean.astype(np.float32), True
-    return np.zeros(shape, np.float32), False

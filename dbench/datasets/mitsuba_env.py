@@ -64,7 +64,7 @@ def llvm_usable() -> tuple[bool, str]:
     key = _probe_key()
     state = _state_file()
     try:
-        cached = json.loads(state.read_text())
+        cached = json.loads(state.read_text(encoding="utf-8"))
         if cached.get("key") == key:
             return bool(cached["ok"]), str(cached["reason"])
     except (OSError, ValueError, KeyError):
@@ -87,7 +87,7 @@ def llvm_usable() -> tuple[bool, str]:
     try:
         state.parent.mkdir(parents=True, exist_ok=True)
         tmp = state.with_suffix(f".{os.getpid()}.tmp")
-        tmp.write_text(json.dumps({"key": key, "ok": ok, "reason": reason}))
+        tmp.write_text(json.dumps({"key": key, "ok": ok, "reason": reason}), encoding="utf-8")
         os.replace(tmp, state)
     except OSError:
         pass

@@ -9,20 +9,56 @@ import numpy as np
 from ..errors import DbenchInputError
 
 DEFAULT_REFERENCE_SPP = 4096
+#: Largest seed: Mitsuba takes a render's seed as an unsigned 32-bit integer (``mi.render``
+#: refuses -1 and 2**32), so a seed outside [0, MAX_SEED] is not a seed a render could have used.
+MAX_SEED = 2**32 - 1
+
+
+def seed_problem(seed, n_seeds: int = 1) -> str:
+    """'' when ``seed`` … ``seed + n_seeds − 1`` all lie in [0, :data:`MAX_SEED`], else the
+    words that say the valid range."""
+    top = MAX_SEED - max(int(n_seeds), 1) + 1
+    if isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer)) \
+            or not 0 <= seed <= top:
+        extra = f" with --seeds {n_seeds}" if n_seeds > 1 else ""
+        return (f"expected an integer in [0, {top}]{extra} (render seeds are unsigned 32-bit), "
+                f"got {seed!r}")
+    return ""
+
+
+def check_seed(seed, n_seeds: int = 1, name: str = "--seed") -> int:
+    """``seed`` as an int (:func:`seed_problem`); DbenchInputError naming ``name`` and the valid
+    range otherwise."""
+    problem = seed_problem(seed, n_seeds)
+    if problem:
+        raise DbenchInputError(f"{name}: {problem}")
+    return int(seed)
 
 
 def reference_spp() -> int:
-    return int(os.environ.get("DBENCH_REF_SPP", DEFAULT_REFERENCE_SPP))
+    """``DBENCH_REF_SPP`` (an integer in [1, 2³¹ − 1], the range of ``--ref-spp``), else
+    :data:`DEFAULT_REFERENCE_SPP`; DbenchInputError naming the variable otherwise, so a bad
+    value is one line and exit 2 before anything renders."""
+    text = os.environ.get("DBENCH_REF_SPP", "").strip()
+    if not text:
+        return DEFAULT_REFERENCE_SPP
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if not 1 <= value <= 2**31 - 1:
+        raise DbenchInputError(f"DBENCH_REF_SPP: expected an integer in [1, {2**31 - 1}] "
+                               f"(the reference spp), got {text!r}; unset it for "
+                               f"{DEFAULT_REFERENCE_SPP}")
+    return value
 
 
 def check_ref_seed(ref_seed: int | None) -> int:
-    """The reference seed: 0 for None, else a non-negative integer (DbenchInputError)."""
+    """The reference seed: 0 for None, else an integer in [0, :data:`MAX_SEED`]
+    (DbenchInputError)."""
     if ref_seed is None:
         return 0
-    if isinstance(ref_seed, (bool, np.bool_)) or not isinstance(ref_seed, (int, np.integer)) \
-            or ref_seed < 0:
-        raise DbenchInputError(f"ref_seed: expected an integer >= 0 or None, got {ref_seed!r}")
-    return int(ref_seed)
+    return check_seed(ref_seed, name="ref_seed")
 
 
 def reference_meta(ref_spp: int, ref_seed: int, reference_var) -> dict:

@@ -6,7 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
-from ..resolution import parse_res
+from .scene_build import call_build, check_film
 
 STEADY_BUFFERS = frozenset({"color", "albedo", "normal", "depth", "position", "emitter",
                             "stats", "reference"})
@@ -20,8 +20,11 @@ class Scene:
         name: catalogue name, used on the command line and in cache keys.
         kind: ``steady`` (``sequence`` and ``transient`` come with their datasets).
         description: one line for ``dbench list`` and reports.
-        build: ``build(mi, res) -> dict`` for ``mi.load_dict``; ``res`` is a
-            :class:`~dbench.resolution.Res` (width, height) in px (the film's size).
+        build: ``build(mi, res) -> dict`` for ``mi.load_dict``, ``res`` a
+            :class:`~dbench.resolution.Resolution` (an int equal to the width, with ``width``
+            and ``height``, unpacking as (width, height)), or ``build(mi, width, height)``
+            (:mod:`dbench.datasets.scene_build`; README.md, "Python scene files"). The
+            dictionary's film must have the requested size.
         max_depth: path length of the integrator (part of the cache key through the dict).
         provides: buffers this scene can render.
         params: anything else that changes the pixels (goes into the cache key); for a scene
@@ -45,7 +48,8 @@ class Scene:
     variant: Callable[["Scene", dict], "Scene"] | None = None
 
     def scene_dict(self, mi, res) -> dict:
-        d = self.build(mi, parse_res(res))
+        d = call_build(self.build, mi, res, f"scene {self.name}")
+        check_film(d, res, f"scene {self.name}")
         d["integrator"] = {"type": "path", "max_depth": self.max_depth}
         return d
 

@@ -1,31 +1,43 @@
 """Scenes from files: ``--scene PATH.xml`` (Mitsuba 3) and ``--scene PATH.py`` (Python).
 
-**Mitsuba XML** (spec/formats.md §3). The file is loaded once with ``mi.load_file(path,
-**params)`` (``$name`` parameters from ``--scene-param name=value``; relative asset paths resolve
-against the file's folder). dbench keeps the scene's shapes, materials, media and emitters (the
-loaded objects themselves) and takes over what it must control:
+**Mitsuba XML** (README.md, "Mitsuba scene files"). The file is read with Mitsuba's own
+parser and loaded once as ``mi.load_file(path, **params)`` loads it (``$name`` parameters from
+``--scene-param name=value``; relative asset paths resolve against the file's folder;
+:mod:`dbench.datasets.scene_xml`). dbench keeps the scene's shapes (``shapegroup``s with their
+``instance``s), materials, media and emitters (the loaded objects themselves) and takes over
+what it must control:
 
 - the film: ``hdrfilm`` of the requested size, box reconstruction filter (every 1-spp pass puts
-  one sample in each pixel, spec/mitsuba.md §4);
+  one sample in each pixel);
 - the camera: a ``perspective`` (or ``thinlens``) camera with the file's ``to_world``, clip
   planes and principal point; the file's field of view is kept along the smaller image side, so
   the file's own film size reproduces its view exactly and any other size widens it along the
   longer side (dbench.resolution);
-- the sampler (``independent``, dbench's seeds) and the integrator: ``path`` with the file's
-  ``max_depth`` when its ``<integrator>`` sets one, else dbench's default (8); the AOV and
-  emitter passes are dbench's own.
+- the sampler (``independent``, dbench's seeds); the integrator is the file's with its settings
+  wherever they are set (``-1``: unlimited), wrappers (``moment``, ``aov``, ``stokes``)
+  unwrapped, replaced by ``path`` only where it cannot give one sample per pixel and pass
+  (:mod:`dbench.datasets.scene_integrator`); the AOV and emitter passes are dbench's own.
+
+Spectral and polarized files render in the RGB variant with their conversions stated, or are
+refused naming the construct (:mod:`dbench.datasets.scene_rgb`). Every steady frame of a file
+carries how its render differs from the file in ``frame.meta["scene_file"]`` and, as report
+lines, ``frame.meta["scene_file_settings"]`` (:mod:`dbench.datasets.scene_fidelity`).
 
 The cache key covers the file's bytes, the bytes of every file it references (``filename``
 strings, ``<include>`` fragments and ``<spectrum filename>``s, found as Mitsuba finds them:
 after ``<path>`` elements and ``$parameter`` substitution, fragments' names relative to the
-scene's folder; :mod:`dbench.datasets.scene_assets`), the parameters and the requested size,
-so editing the scene or a texture invalidates exactly its entries (README.md, "Your scene,
-your renders, any size"). A referenced file that cannot be found is refused before anything
-renders, naming it and the folders searched.
+scene's folder; :mod:`dbench.datasets.scene_assets`), the parameters, the integrator dbench
+renders with (its type and settings) and the requested size, so editing the scene, a fragment
+or a texture invalidates exactly its entries (README.md, "Your scene, your renders, any size").
+A referenced file that cannot be found is refused before anything renders, naming it and the
+folders searched.
 
-**Python files**. ``build(mi, width, height) -> dict`` returns a ``mi.load_dict`` dictionary
-with a sensor (dbench replaces its film and sampler as for XML; a ``fov`` is read along x as in
-Mitsuba's default). Optional module attributes:
+**Python files**. ``build(mi, width, height) -> dict`` (or ``build(mi, res)``,
+:mod:`dbench.datasets.scene_build`) returns a ``mi.load_dict`` dictionary with a sensor (dbench
+replaces its film and sampler as for XML; a ``fov`` is read along x as in Mitsuba's default).
+The dictionary is loaded once at 8 px when the file is resolved, so a type Mitsuba has no
+plugin for is refused before anything renders; ``sys.exit`` in the file or in ``build`` is
+refused too (exit 2), never the file's own exit code. Optional module attributes:
 
 - ``kind``: ``"steady"`` (default), ``"sequence"`` or ``"transient"``;
 - ``max_depth`` (else the dictionary integrator's, else 8), ``ev`` (exposure of the tone map),
@@ -50,8 +62,8 @@ import hashlib
 import importlib.util
 import math
 import re
-import xml.etree.ElementTree as ET
-from dataclasses import dataclass
+from copy import deepcopy
+from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
 from typing import Any
@@ -62,13 +74,18 @@ from ..errors import DbenchInputError
 from ..resolution import Res, parse_res
 from .mitsuba_env import mitsuba
 from .scene import STEADY_BUFFERS, Scene
+from .scene_build import call_build, exit_message
+from .scene_build import own_camera as _own_camera
 from .scene_assets import asset_hashes as _sources
 from .scene_parts import _film
+from .scene_fidelity import FILTER, record, report_lines
+from .scene_integrator import DEFAULT_MAX_DEPTH, IntegratorPlan, plan as _integrator_plan
+from .scene_rgb import rgb_notes
+from .scene_xml import load as _load_xml, parse as _parse_xml, shape_groups
 
 #: Part of every file scene's cache key; change it when the translation above changes.
-FILE_SCENE_VERSION = "file-scene-1"
+FILE_SCENE_VERSION = "file-scene-2"
 SUFFIXES = (".xml", ".py")
-DEFAULT_MAX_DEPTH = 8
 _CAMERAS = {"PerspectiveCamera": "perspective", "ThinLensCamera": "thinlens"}
 
 
@@ -127,18 +144,25 @@ class XmlScene(Scene):
 
     path: str = ""
     file_params: tuple = ()
-    max_depth_from_file: bool = False
+    #: the integrator that renders the colour (dbench.datasets.scene_integrator)
+    integrator_plan: IntegratorPlan | None = None
+    #: what every steady frame of the file adds to its meta (dbench.datasets.scene_fidelity)
+    frame_meta: dict = field(default_factory=dict)
 
     def key_dict(self, mi, res) -> dict:
         return {"file": self.path, "loader": FILE_SCENE_VERSION, "res": parse_res(res).key,
                 "sources": _sources(self.path, dict(self.file_params)),
-                "params": dict(self.file_params), "max_depth": self.max_depth}
+                "params": dict(self.file_params), "max_depth": self.max_depth,
+                "integrator": self.integrator_plan.render, "filter": FILTER}
 
     def scene_dict(self, mi, res) -> dict:
         res = parse_res(res)
         loaded = _loaded_xml(self.path, self.file_params, mi.variant(), self.params["sha256"])
         d: dict[str, Any] = {"type": "scene", "sensor": _sensor_dict(mi, loaded, res, self.path),
-                             "integrator": {"type": "path", "max_depth": self.max_depth}}
+                             "integrator": deepcopy(self.integrator_plan.render)}
+        # the instances' groups go in too: without them Mitsuba cannot build the instances
+        for i, group in enumerate(shape_groups(loaded)):
+            d[f"group{i:05d}"] = group
         for i, shape in enumerate(loaded.shapes()):
             d[f"shape{i:05d}"] = shape
         # area lights come with their shapes; environment, point, spot and directional
@@ -152,15 +176,19 @@ class XmlScene(Scene):
 @lru_cache(maxsize=32)
 def _xml_scene(path: str, params: tuple, digest: str) -> XmlScene:
     mi = mitsuba()
+    state = _parse_xml(path, dict(params))
+    # constructs with no RGB form are refused before any object of the file exists
+    conversions = rgb_notes(state, path)
+    integrator = _integrator_plan(state, path)
     loaded = _loaded_xml(path, params, mi.variant(), digest)
-    max_depth, from_file = _file_max_depth(path, loaded)
+    sensor = _sensor_dict(mi, loaded, parse_res(8), path)  # refuses unsupported cameras
+    rec = record(integrator, state, sensor["type"], conversions)
     name = Path(path).name
-    scene = XmlScene(name=name, kind="steady", description=f"Mitsuba scene file {path}",
-                     build=_no_build, max_depth=max_depth, provides=STEADY_BUFFERS,
-                     params={"sha256": digest, "file_params": dict(params)}, path=path,
-                     file_params=params, max_depth_from_file=from_file)
-    _sensor_dict(mi, loaded, parse_res(8), path)  # refuse unsupported cameras before rendering
-    return scene
+    return XmlScene(name=name, kind="steady", description=f"Mitsuba scene file {path}",
+                    build=_no_build, max_depth=integrator.max_depth, provides=STEADY_BUFFERS,
+                    params={"sha256": digest, "file_params": dict(params)}, path=path,
+                    file_params=params, integrator_plan=integrator,
+                    frame_meta={"scene_file": rec, "scene_file_settings": report_lines(rec)})
 
 
 def file_film_size(scene: XmlScene) -> tuple[int, int]:
@@ -177,30 +205,11 @@ def _no_build(mi, res):  # pragma: no cover - XmlScene overrides scene_dict
 
 @lru_cache(maxsize=8)
 def _loaded_xml(path: str, params: tuple, variant: str, digest: str):
-    """``mi.load_file`` of the file (``digest`` keys the cache on its content). Mitsuba puts
-    the file's folder first in the resolver of this load itself; the process's resolver is left
-    as it is, so one scene's folder never supplies another scene's assets."""
-    mi = mitsuba()
-    try:
-        return mi.load_file(path, **dict(params))
-    except Exception as exc:  # Mitsuba raises RuntimeError with its parser's message
-        message = " ".join(str(exc).split())
-        raise DbenchInputError(f"--scene {path}: Mitsuba could not load it: {message}") from None
-
-
-def _file_max_depth(path: str, loaded) -> tuple[int, bool]:
-    """(max_depth, whether the file set it): the loaded integrator's ``max_depth`` when the
-    file's ``<integrator>`` names one (``$parameters`` resolved by Mitsuba), else the default."""
-    try:
-        root = ET.parse(path).getroot()
-    except ET.ParseError:
-        return DEFAULT_MAX_DEPTH, False
-    sets = any(el.get("name") == "max_depth"
-               for integ in root.iter("integrator") for el in integ.iter())
-    if not sets:
-        return DEFAULT_MAX_DEPTH, False
-    m = re.search(r"max_depth\s*=\s*(-?\d+)", str(loaded.integrator()))
-    return (int(m.group(1)), True) if m else (DEFAULT_MAX_DEPTH, False)
+    """The file's objects, loaded as ``mi.load_file`` loads them but for its integrator
+    (dbench.datasets.scene_xml; ``digest`` keys the cache on its content). Mitsuba puts the
+    file's folder first in the resolver of this load itself; the process's resolver is left as
+    it is, so one scene's folder never supplies another scene's assets."""
+    return _load_xml(path, dict(params))
 
 
 def _sensor_dict(mi, loaded, res: Res, path: str) -> dict:
@@ -247,6 +256,10 @@ def _module(path: str, digest: str):
     module = importlib.util.module_from_spec(spec)
     try:
         spec.loader.exec_module(module)
+    except SystemExit as exc:  # a scene file never ends dbench, nor lends it its exit code
+        raise DbenchInputError(f"--scene {path}: the file called {exit_message(exc)} while "
+                               f"loading; a scene file defines build(mi, width, height) -> dict "
+                               f"and returns") from None
     except Exception as exc:
         raise DbenchInputError(f"--scene {path}: the file failed to run: "
                                f"{type(exc).__name__}: {exc}") from None
@@ -258,7 +271,10 @@ def _module(path: str, digest: str):
 def _built(module, path: str, mi, res) -> dict:
     res = parse_res(res)
     try:
-        d = module.build(mi, res.width, res.height)
+        # either signature (dbench.datasets.scene_build); sys.exit becomes a DbenchInputError
+        d = call_build(module.build, mi, res, f"--scene {path}")
+    except DbenchInputError:
+        raise
     except Exception as exc:
         raise DbenchInputError(f"--scene {path}: build(mi, {res.width}, {res.height}) failed: "
                                f"{type(exc).__name__}: {exc}") from None
@@ -268,16 +284,27 @@ def _built(module, path: str, mi, res) -> dict:
     return d
 
 
-def _own_camera(d: dict, res) -> dict:
-    """``d`` with dbench's film, sampler and field-of-view axis on its sensor (the ``fov`` it
-    states is read along x, Mitsuba's default, and kept along the smaller side)."""
-    d = dict(d)
-    sensor = dict(d["sensor"])
-    sensor["film"] = _film(res)
-    sensor["sampler"] = {"type": "independent"}
-    sensor["fov_axis"] = parse_res(res).fov_axis
-    d["sensor"] = sensor
-    return d
+#: Mitsuba's message for a ``"type"`` it has no plugin of (mi.load_dict raises RuntimeError).
+_UNKNOWN_PLUGIN = re.compile(r'node "([^"]*)".*?Plugin "([^"]+)" not found')
+
+
+def _load_probe(mi, probe: dict, path: str) -> None:
+    """Load the small dictionary ``build`` gave once, so a name Mitsuba does not know (an
+    unknown plugin type, a misspelt property) is refused here, naming the file, before
+    anything renders. The integrator is dbench's (set when rendering), so it is left out."""
+    d = {k: v for k, v in _own_camera(probe, 8).items() if k != "integrator"}
+    try:
+        mi.load_dict(d)
+    except Exception as exc:  # Mitsuba raises RuntimeError with its parser's message
+        message = " ".join(str(exc).split())
+        m = _UNKNOWN_PLUGIN.search(message)
+        if m:
+            raise DbenchInputError(
+                f"--scene {path}: Mitsuba ({mi.variant()}) has no plugin \"{m.group(2)}\" "
+                f"(dictionary entry \"{m.group(1)}\"); use a Mitsuba plugin type such as "
+                f"sphere, rectangle, diffuse, area") from None
+        raise DbenchInputError(f"--scene {path}: Mitsuba could not load build()'s dictionary: "
+                               f"{message}") from None
 
 
 @lru_cache(maxsize=32)
@@ -286,6 +313,7 @@ def _python_scene(path: str, params: tuple, digest: str) -> Scene:
     module = _module(path, digest)
     kind = getattr(module, "kind", "steady")
     probe = _built(module, path, mi, 8)
+    _load_probe(mi, probe, path)
     depth = getattr(module, "max_depth", None) or (probe.get("integrator") or {}).get(
         "max_depth") or DEFAULT_MAX_DEPTH
     common = dict(name=Path(path).name, kind=kind,

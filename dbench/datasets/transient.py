@@ -66,7 +66,7 @@ from .stats import ZERO_VARIANCE_RTOL, PowerSums, stats_from_sums, variance_of_m
 from .transient_render import (DEFAULT_REFERENCE_CHUNK, _mitransient, batch_copies,
                                loaded_transient, render_plain, render_reference, render_signal)
 from .transient_scene import (SPEED_OF_LIGHT, TRANSIENT_BUFFERS, TransientScene, Window,
-                              transient_film)
+                              check_bins, transient_film)
 from .transient_window import (direct_arrival_dict, direct_arrivals, expected_direct_bins,
                                size_window)
 
@@ -379,9 +379,10 @@ def load_transient(scene: str | TransientScene, spp: int, res,
     if "reference" in wanted:
         wanted.add("emitter")
     ref_seed = check_ref_seed(ref_seed)
+    window = sc.window(bins)
+    check_bins(window.bins, res)  # memory of the film, before anything renders
     _mitransient()
     mi = mitsuba()
-    window = sc.window(bins)
     which = _resolve_collector(sc, collector)
     cache = cache or Cache()
     base = {"scene": sc.name, "res": res.key, "dict": sc.transient_dict(mi, res, window),

@@ -14,6 +14,7 @@ from ..data import check_count
 from ..errors import DbenchInputError
 from ..resolution import parse_res
 from .scene import Scene
+from .scene_build import call_build, check_film
 
 #: Speed of light in m/s (time = OPL / c).
 SPEED_OF_LIGHT = 299792458.0
@@ -56,7 +57,8 @@ class Window:
 class TransientScene(Scene):
     """A catalogue entry of kind ``transient``.
 
-    ``build(mi, res)`` returns the steady scene dictionary (hdrfilm, box filter);
+    ``build(mi, res)`` (or ``build(mi, width, height)``, :mod:`dbench.datasets.scene_build`)
+    returns the steady scene dictionary (hdrfilm, box filter);
     :meth:`transient_dict` swaps in the transient film and integrator.
 
     Attributes (beyond :class:`~dbench.datasets.scene.Scene`):
@@ -99,13 +101,16 @@ class TransientScene(Scene):
 
     def scene_dict(self, mi, res) -> dict:
         """The steady scene (hdrfilm) with the steady integrator."""
-        d = self.build(mi, parse_res(res))
+        d = call_build(self.build, mi, res, f"scene {self.name}")
+        check_film(d, res, f"scene {self.name}")
         d["integrator"] = {"type": self.steady_integrator, "max_depth": self.max_depth}
         return d
 
     def transient_dict(self, mi, res, window: Window) -> dict:
         res = parse_res(res)
-        d = self.build(mi, res)
+        d = call_build(self.build, mi, res, f"scene {self.name}")
+        # the steady renders use the build's film: refuse a wrong size here, before any
+        check_film(d, res, f"scene {self.name}")
         d["sensor"]["film"] = transient_film(res.width, res.height, window)
         d["integrator"] = {"type": self.integrator, "max_depth": self.max_depth,
                            "rr_depth": self.rr_depth, "camera_unwarp": self.camera_unwarp}
@@ -139,6 +144,38 @@ class TransientScene(Scene):
 def _feature_scene(sc: TransientScene) -> Scene:
     return Scene(name=f"{sc.name}:features", kind="steady", description="AOVs",
                  build=sc.feature_build or sc.build, max_depth=sc.max_depth)
+
+
+#: Largest transient film (W × H × bins RGB float32 values) dbench renders. A run holds many
+#: arrays of this size (float64 statistics, the reference's chunks, the methods' outputs,
+#: figures): measured with ``dbench run --method noisy --scene cornell-transient --res 16``,
+#: 8000 bins (a 25 MB film) took 0.88 GB more peak memory than 100 bins, about 36× the film,
+#: so this limit keeps a run near 9 GiB.
+MAX_TRANSIENT_FILM_BYTES = 256 * 2**20
+
+
+def max_bins(res) -> int:
+    """The most time bins a transient film of size ``res`` may have
+    (:data:`MAX_TRANSIENT_FILM_BYTES`)."""
+    return max(1, MAX_TRANSIENT_FILM_BYTES // (parse_res(res).pixels * 3 * 4))
+
+
+def check_bins(bins, res, name: str = "bins") -> int:
+    """``bins`` as an int when it is an integer in [1, :func:`max_bins` (res)], else a
+    DbenchInputError naming ``name``, the film's size and the valid range (before rendering)."""
+    res = parse_res(res)
+    top = max_bins(res)
+    if isinstance(bins, (bool, np.bool_)) or not isinstance(bins, (int, np.integer)) \
+            or not 1 <= bins <= top:
+        need = ""
+        if isinstance(bins, (int, np.integer)) and not isinstance(bins, (bool, np.bool_)) \
+                and bins > top:
+            need = (f" (a {res.text} film of {int(bins)} bins needs "
+                    f"{res.pixels * 3 * 4 * int(bins) / 1e9:.3g} GB as RGB float32; at most "
+                    f"{MAX_TRANSIENT_FILM_BYTES // 2**20} MiB)")
+        raise DbenchInputError(f"{name}: expected an integer in [1, {top}] at {res.text}, got "
+                               f"{bins!r}{need}")
+    return int(bins)
 
 
 def transient_film(width: int, height: int, window: Window) -> dict:

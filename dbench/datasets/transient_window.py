@@ -10,6 +10,7 @@ import numpy as np
 
 from . import render as _render
 from .mitsuba_env import mitsuba
+from .scene_build import call_build
 from .scene_parts import _diffuse
 from .transient_render import render_reference
 from .transient_scene import TransientScene, Window, transient_film
@@ -105,7 +106,7 @@ def direct_arrivals(scene: TransientScene, res: int = 32, seed: int = 0) -> np.n
     # one sample per pixel: with the box filter the AOVs are then single hits, not averages
     # of a hit and the background at silhouettes
     feats, _ = _render.render_features(scene.feature_scene, res, spp=1, seed=seed)
-    sc = mi.load_dict(scene.build(mi, res))
+    sc = mi.load_dict(call_build(scene.build, mi, res, f"scene {scene.name}"))
     depth = feats["depth"][..., 0].astype(np.float64)
     pos = feats["position"].astype(np.float64)
     best = np.full(depth.shape, np.inf)

@@ -217,7 +217,7 @@ def _training_section() -> str:
     lines = ["| | nca | autoencoder |", "|---|---|---|"]
     infos = {}
     for name, path in (("nca", NCA_JSON), ("autoencoder", AE_JSON)):
-        infos[name] = json.loads(Path(path).read_text()) if Path(path).exists() else {}
+        infos[name] = json.loads(Path(path).read_text(encoding="utf-8")) if Path(path).exists() else {}
 
     def get(info, *keys, default="-"):
         for k in keys:
@@ -331,7 +331,7 @@ def render_markdown(rows: list[dict], missing: list[str], spd: dict | None,
 def _existing_notes(path: Path) -> str:
     if not path.exists():
         return ""
-    text = path.read_text()
+    text = path.read_text(encoding="utf-8")
     if NOTES_OPEN in text and NOTES_CLOSE in text:
         return text.split(NOTES_OPEN, 1)[1].split(NOTES_CLOSE, 1)[0]
     return ""

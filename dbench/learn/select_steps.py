@@ -75,7 +75,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = p.parse_args(argv)
     onnx_path = Path(args.weights)
     json_path = onnx_path.with_suffix(".json") if onnx_path != SHIPPED_ONNX else SHIPPED_JSON
-    info = json.loads(json_path.read_text())
+    info = json.loads(json_path.read_text(encoding="utf-8"))
     cfg = dataclasses.replace(NCAConfig(), **{k: v for k, v in info["training_config"].items()
                                               if k in NCAConfig.__dataclass_fields__
                                               and not k.startswith("select_")})

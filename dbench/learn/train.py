@@ -87,7 +87,7 @@ def resume_autoencoder(weights: str | Path) -> TrainResult:
     if not weights.is_file() or not record.is_file():
         raise DbenchInputError(f"--from-weights: expected an autoencoder .onnx with its .json "
                                f"beside it, got {weights}")
-    prev = json.loads(record.read_text())
+    prev = json.loads(record.read_text(encoding="utf-8"))
     fields = {f.name for f in dataclasses.fields(AEConfig)}
     cfg = AEConfig(**{k: tuple(v) if isinstance(v, list) else v
                       for k, v in prev["training_config"].items() if k in fields})

@@ -1,5 +1,5 @@
 """The judge: per-pixel error maps → whole-image and surface metrics, error concentration, the
-reference's own noise removed, and confidence intervals (spec/verdicts.md §1–3).
+reference's own noise removed, and confidence intervals (README.md, "Metrics").
 
 Every metric dbench reports is the mean of a per-pixel map over a set of pixels, followed by a
 scalar function (``rmse = sqrt(mean(sq))``, ``psnr = 10·log10(1 / mean(ldr_sq))``, ...). Keeping
@@ -7,12 +7,14 @@ the maps makes three things cheap and exact:
 
 * **surface metrics** (``<metric>_surface``): the same means over the pixels whose emitter
   fraction is 0, so directly visible lights (which hold 89–99 % of the squared error on
-  ``cornell``) do not decide the verdict (verdicts.md §1);
-* **reference noise** (verdicts.md §2): ``E[(x − r)²] = E[(x − t)²] + v_r``, so
+  ``cornell``) do not decide the verdict;
+* **reference noise**: ``E[(x − r)²] = E[(x − t)²] + v_r``, so
   ``rmse_unbiased = sqrt(max(0, MSE − mean(v_r)))`` and, to first order in v_r/(r² + ε),
   ``relmse_unbiased = max(0, relMSE − mean(v_r / (r² + ε)))``; ``ref_rmse = sqrt(mean(v_r))``;
-* **block bootstrap** (verdicts.md §3, one seed): per-block sums of every map, resampled with
-  replacement (percentile interval), so B resamples cost one (B × blocks) matrix product.
+* **block bootstrap** (one seed; README.md, "Metrics"): per-block sums of every map, resampled
+  with replacement (percentile interval), so B resamples cost one (B × blocks) matrix product;
+  the block side adapts to small images (:func:`bootstrap_block`), and with too few blocks
+  there is no interval (NaN), never a "± 0".
 
 Maps are (H, W) float64: colour channels (and the time bins of transient videos) are averaged
 into the pixel, which leaves every whole-image mean unchanged because each pixel holds the same
@@ -42,9 +44,19 @@ JUDGED = ("rmse", "relmse", "smape", "psnr", "ssim", "flip")
 #: Extra per-output figures.
 EXTRA = ("top1_share", "rmse_unbiased", "relmse_unbiased")
 HIGHER_IS_BETTER_JUDGED = frozenset({"psnr", "ssim", "psnr_surface", "ssim_surface", "tpsnr"})
-#: Side of the square pixel blocks of the bootstrap (≥ 8: a denoiser's spatial correlation
-#: stays inside blocks, verdicts.md §3).
+#: Side of the square pixel blocks of the bootstrap wherever BOOTSTRAP_MIN_BLOCKS of them fit
+#: (64 × 64 px and up): large enough that a denoiser's spatial correlation stays mostly inside
+#: a block, so blocks can be resampled as if independent.
 BOOTSTRAP_BLOCK = 16
+#: Fewest blocks a bootstrap interval is computed from. With one block every resample is the
+#: image itself and the interval is exactly 0; with a handful, the resampled means take a
+#: handful of values and the percentile interval is too narrow to decide a ranking.
+BOOTSTRAP_MIN_BLOCKS = 16
+#: Smallest block side on small images. Blocks narrower than a denoiser's footprint split its
+#: correlated errors between blocks the bootstrap treats as independent, and the interval comes
+#: out too narrow: on a 16-px image under a 5-px box filter, 4-px blocks cover the true RMSE
+#: 94 % of the time, 2-px blocks 79 % (tests/test_intervals_small.py).
+BOOTSTRAP_MIN_SIDE = 4
 BOOTSTRAP_RESAMPLES = 1000
 CONFIDENCE = 0.95
 
@@ -65,8 +77,9 @@ class Judgement:
     """One output judged against one reference.
 
     Attributes:
-        values: {column: value} for :func:`metric_names` plus ``ref_rmse`` (NaN without a
-            reference variance).
+        values: {column: value} for :func:`metric_names` plus ``ref_rmse`` and
+            ``ref_relmse_surface`` = mean over surface pixels of v_r / (r² + ε) (both NaN
+            without a reference variance).
         sums: (blocks, maps) per-block sums of every map over all pixels and over surface
             pixels: ``{"all": (sums, counts), "surface": (sums, counts)}``.
         map_names: the order of the maps in ``sums``.
@@ -75,6 +88,9 @@ class Judgement:
     values: dict[str, float]
     sums: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
     map_names: tuple[str, ...] = ()
+    #: side of the blocks in ``sums``; None: the image is too small for the bootstrap
+    #: (:func:`bootstrap_block`) and ``sums`` holds one block, the whole image
+    block: int | None = None
 
 
 def _pixel_mean(x: np.ndarray) -> np.ndarray:
@@ -177,6 +193,19 @@ def top1_share(sq_map: np.ndarray, fraction: float = 0.01) -> float:
     return float(top.sum() / total)
 
 
+def bootstrap_block(h: int, w: int) -> int | None:
+    """Side of the square blocks the one-seed bootstrap resamples on an ``h`` × ``w`` image
+    (README.md, "Metrics"): :data:`BOOTSTRAP_BLOCK` (16 px) wherever
+    :data:`BOOTSTRAP_MIN_BLOCKS` (16) whole blocks of it fit, so 64 × 64 px and larger keep the
+    16-px blocks; on smaller images the largest side of at least :data:`BOOTSTRAP_MIN_SIDE`
+    (4) px that fits 16 whole blocks (48 px → 12, 32 → 8, 24 → 6, 16 → 4); None where even
+    4-px blocks are fewer than 16 (a square image under 16 px): no interval."""
+    for side in range(BOOTSTRAP_BLOCK, BOOTSTRAP_MIN_SIDE - 1, -1):
+        if (h // side) * (w // side) >= BOOTSTRAP_MIN_BLOCKS:
+            return side
+    return None
+
+
 def _block_sums(maps: dict[str, np.ndarray], weights: dict[str, np.ndarray], select: np.ndarray,
                 block: int) -> tuple[np.ndarray, np.ndarray]:
     """(blocks, maps) sums of map·weight·select and of weight·select over square blocks."""
@@ -207,8 +236,8 @@ def _block_sums(maps: dict[str, np.ndarray], weights: dict[str, np.ndarray], sel
 
 def judge(output: Any, reference: Any, *, emitter: Any = None, reference_var: Any = None,
           ev: float = 0.0, names: Iterable[str] | None = None,
-          block: int = BOOTSTRAP_BLOCK) -> Judgement:
-    """Score ``output`` against ``reference`` (spec/verdicts.md §1–2).
+          block: int | None = None) -> Judgement:
+    """Score ``output`` against ``reference`` (README.md, "Metrics").
 
     Args:
         output, reference: (H, W, C) images or (H, W, T, C) videos of the same shape.
@@ -218,6 +247,7 @@ def judge(output: Any, reference: Any, *, emitter: Any = None, reference_var: An
             (then the unbiased figures equal the raw ones and ``ref_rmse`` is NaN).
         ev: tone-map exposure (stops) of the LDR metrics.
         names: subset of :data:`JUDGED` (default all).
+        block: side of the bootstrap's blocks; None: :func:`bootstrap_block` of the image.
     Returns:
         :class:`Judgement`; every value is NaN when ``output`` holds NaN or Inf.
     """
@@ -244,18 +274,30 @@ def judge(output: Any, reference: Any, *, emitter: Any = None, reference_var: An
         if var.shape != r.shape:
             raise DbenchInputError(f"reference_var: expected shape {tuple(r.shape)}, got "
                                    f"{tuple(var.shape)}")
+    if block is None:
+        block = bootstrap_block(h, w)
+    elif isinstance(block, bool) or not isinstance(block, (int, np.integer)) or block < 1:
+        raise DbenchInputError(f"block: expected a whole number of pixels ≥ 1, got {block!r}")
     columns = metric_names(names)
     ref_rmse = float(np.sqrt(var.mean())) if var is not None else float("nan")
+    # the reference's own relMSE over surface pixels, set against a method's relmse_surface by
+    # the reference-noise warning (dbench.bench.verdicts.ref_noise_frame): lights seen
+    # directly hold most of the squared error and would hide it
+    ref = {"ref_rmse": ref_rmse, "ref_relmse_surface": float(
+        _pixel_mean(var / (np.asarray(r, np.float64) ** 2 + RELMSE_EPS))[surface].mean())
+        if var is not None and surface.any() else float("nan")}
     if not np.isfinite(o).all():
-        return Judgement({**{c: float("nan") for c in columns}, "ref_rmse": ref_rmse})
+        return Judgement({**{c: float("nan") for c in columns}, **ref}, block=block)
     maps, weights = pixel_maps(o, r, names + ["rmse", "relmse"], var, ev)
     if var is None:
         maps["refvar"] = np.zeros((h, w))
         maps["refvar_rel"] = np.zeros((h, w))
         weights["refvar"] = weights["refvar_rel"] = np.ones((h, w))
     values: dict[str, float] = {}
-    sums = {"all": _block_sums(maps, weights, np.ones((h, w), bool), block),
-            "surface": _block_sums(maps, weights, surface, block)}
+    # too small for the bootstrap: one block holding the whole image still gives the means
+    side = block if block is not None else max(h, w)
+    sums = {"all": _block_sums(maps, weights, np.ones((h, w), bool), side),
+            "surface": _block_sums(maps, weights, surface, side)}
     map_names = tuple(maps)
     for where, suffix in (("all", ""), ("surface", "_surface")):
         total, count = sums[where][0].sum(0), sums[where][1].sum(0)
@@ -268,7 +310,7 @@ def judge(output: Any, reference: Any, *, emitter: Any = None, reference_var: An
             values["relmse_unbiased"] = float(_from_means("relmse_unbiased", mean))
     values["top1_share"] = top1_share(maps["sq"])
     values["ref_rmse"] = ref_rmse
-    return Judgement({c: values[c] for c in columns} | {"ref_rmse": ref_rmse}, sums, map_names)
+    return Judgement({c: values[c] for c in columns} | ref, sums, map_names, block)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -293,12 +335,18 @@ def t_interval(values: Sequence[float], confidence: float = CONFIDENCE) -> tuple
 
 def interval_over_seeds(per_seed: Sequence[dict[str, float]], columns: Iterable[str]
                         ) -> dict[str, float]:
-    """{column: mean, column + "_ci": t half-width} over seeds (verdicts.md §3)."""
+    """{column: mean, column + "_ci": t half-width} over seeds."""
     out: dict[str, float] = {}
     for c in columns:
         mean, half = t_interval([row.get(c, float("nan")) for row in per_seed])
         out[c], out[c + "_ci"] = mean, half
     return out
+
+
+def _blocks_with_pixels(frames: Sequence[Judgement], where: str, maps: Sequence[str]) -> int:
+    """Fewest blocks, over ``frames`` and ``maps``, that hold a pixel of weight > 0."""
+    return min(int((f.sums[where][1][:, f.map_names.index(m)] > 0).sum())
+               for f in frames for m in maps)
 
 
 def bootstrap_interval(frames: Sequence[Judgement], columns: Iterable[str],
@@ -310,6 +358,11 @@ def bootstrap_interval(frames: Sequence[Judgement], columns: Iterable[str],
     sequence: the same resampled blocks are used in every frame, and the metric is the mean
     over frames, as in the cell). ``top1_share`` is not a mean of blocks and gets NaN.
     Deterministic (fixed generator seed) so that reports are reproducible.
+
+    A column whose pixels fall in fewer than :data:`BOOTSTRAP_MIN_BLOCKS` blocks (an image too
+    small for :func:`bootstrap_block`, or surface pixels in only a few blocks) gets NaN, "no
+    interval", never 0: resampling so few blocks says nothing about the spread (README.md,
+    "Metrics").
     """
     columns = list(columns)
     out = {c + "_ci": float("nan") for c in columns}
@@ -317,6 +370,8 @@ def bootstrap_interval(frames: Sequence[Judgement], columns: Iterable[str],
     if not frames:
         return out
     nb = frames[0].sums["all"][0].shape[0]
+    if nb < BOOTSTRAP_MIN_BLOCKS:
+        return out
     rng = np.random.default_rng(seed)
     picks = rng.integers(0, nb, size=(resamples, nb))
     weights = np.zeros((resamples, nb))
@@ -338,6 +393,8 @@ def bootstrap_interval(frames: Sequence[Judgement], columns: Iterable[str],
                 continue
             if any(m not in per_frame[0] for m in _needs(base)):
                 continue
+            if _blocks_with_pixels(frames, where, _needs(base)) < BOOTSTRAP_MIN_BLOCKS:
+                continue
             boot = np.mean([np.asarray(_from_means(base, pf), np.float64) for pf in per_frame],
                            axis=0)
             boot = boot[np.isfinite(boot)]
@@ -347,13 +404,24 @@ def bootstrap_interval(frames: Sequence[Judgement], columns: Iterable[str],
     return out
 
 
-def ci_kind(n_seeds: int, block: int = BOOTSTRAP_BLOCK,
+def block_of(frames: Sequence[Judgement]) -> int | None:
+    """The bootstrap block side of one output's judgements (None: too small, or none)."""
+    return frames[0].block if len(frames) else None
+
+
+def ci_kind(n_seeds: int, block: int | None = BOOTSTRAP_BLOCK,
             resamples: int = BOOTSTRAP_RESAMPLES) -> str:
-    """The words that say which interval a cell carries."""
+    """The words that say which interval a cell carries; ``block`` None: one seed on an image
+    too small for the block bootstrap (:func:`bootstrap_block`), so no interval."""
     if n_seeds >= 2:
         return f"t 95 % over {n_seeds} seeds"
+    if block is None:
+        return (f"no interval (one seed, and the image holds fewer than {BOOTSTRAP_MIN_BLOCKS} "
+                f"blocks of {BOOTSTRAP_MIN_SIDE} px for a block bootstrap; use --seeds 2 or "
+                f"more)")
     return f"block bootstrap 95 % ({block}-px blocks, {resamples} resamples, one seed)"
 
 
 __all__ = ["JUDGED", "EXTRA", "Judgement", "judge", "metric_names", "top1_share", "t_interval",
-           "interval_over_seeds", "bootstrap_interval", "ci_kind", "pixel_maps"]
+           "interval_over_seeds", "bootstrap_interval", "bootstrap_block", "block_of", "ci_kind",
+           "pixel_maps", "BOOTSTRAP_BLOCK", "BOOTSTRAP_MIN_BLOCKS", "BOOTSTRAP_MIN_SIDE"]

@@ -341,7 +341,7 @@ def main(argv: list[str] | None = None) -> None:
         for path, fn in ((a.e2e, end_to_end), (a.rt_study, radius_t_study)):
             if path:
                 rows = fn()
-                with open(path, "w") as fh:
+                with open(path, "w", encoding="utf-8") as fh:
                     json.dump(rows, fh, indent=1)
                 print(f"{len(rows)} rows -> {path}")
         return

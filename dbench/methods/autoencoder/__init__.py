@@ -207,7 +207,7 @@ def reference_denoise(color, albedo, normal=None, depth=None, hidden=None, weigh
 
 def training_info(path: str | Path = SHIPPED_JSON) -> dict[str, Any]:
     """The JSON written beside the shipped weights (training configuration, losses, ...)."""
-    return json.loads(Path(path).read_text())
+    return json.loads(Path(path).read_text(encoding="utf-8"))
 
 
 @register("autoencoder")

@@ -185,6 +185,8 @@ def gated_class(base: type[Denoiser]) -> type[Denoiser]:
                 raise DbenchInputError(f"gate_emitters: expected True or False, "
                                        f"got {p['gate_emitters']!r}")
             self.inner = base(**{k: v for k, v in p.items() if k not in GATE_DEFAULTS})
+            # the method's needs follow its parameters (oidn with features=none: colour)
+            self.needs = set(self.inner.needs) | {"stats"}
             self.last_settings: dict[str, Any] = {}
 
         def reset(self) -> None:

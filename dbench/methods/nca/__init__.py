@@ -185,7 +185,7 @@ def reference_denoise(color: np.ndarray, normal: np.ndarray, albedo: np.ndarray,
 
 def training_info(path: str | Path = SHIPPED_JSON) -> dict[str, Any]:
     """The JSON written beside the shipped weights (training configuration, losses, ...)."""
-    return json.loads(Path(path).read_text())
+    return json.loads(Path(path).read_text(encoding="utf-8"))
 
 
 @register("nca")

@@ -22,6 +22,9 @@ from ...registry import Denoiser, register
 
 QUALITIES = ("high", "balanced", "fast")
 FEATURE_SETS = ("albedo+normal", "albedo", "none")
+#: The buffers each feature set reads besides the colour: an instance needs what its
+#: ``features`` read, so ``features=none`` runs on colour-only renders.
+FEATURE_NEEDS = {"albedo+normal": {"albedo", "normal"}, "albedo": {"albedo"}, "none": set()}
 
 
 def oidn_denoise(color: np.ndarray, albedo: np.ndarray | None = None,
@@ -58,7 +61,8 @@ class OIDN(Denoiser):
     """Intel Open Image Denoise, RT filter in HDR mode.
 
     Parameters: ``quality`` (high | balanced | fast), ``features`` (albedo+normal | albedo |
-    none), ``clean_aux`` (features are noise-free).
+    none), ``clean_aux`` (features are noise-free). An instance needs the colour and the
+    buffers its ``features`` read (``needs`` below is the default's).
     """
 
     kinds = {"steady"}
@@ -75,6 +79,7 @@ class OIDN(Denoiser):
         if self.params["quality"] not in QUALITIES:
             raise DbenchInputError(f"quality: expected one of {QUALITIES}, "
                                    f"got {self.params['quality']!r}")
+        self.needs = {"color"} | FEATURE_NEEDS[self.params["features"]]
         #: What the last call ran on: ``oidn_device`` ("cuda" | "cpu"), quality, features.
         self.last_settings: dict = {}
         self._runner = None  # the device path's cached OIDN device and filter

@@ -47,7 +47,7 @@ from ..checks import check_choice, check_positive, check_radius
 from ..kernels.bilateral.guide import check_sigma, make_guide
 from ..kernels.bilateral.numba2d import accumulate
 from ..kernels.bilateral.params import SEED_SIGMA, SIGMA_CONVENTIONS, WINDOWS
-from ..oidn import FEATURE_SETS, QUALITIES, oidn_denoise
+from ..oidn import FEATURE_NEEDS, FEATURE_SETS, QUALITIES, oidn_denoise
 
 TEMPORAL_PROFILES = ("box", "gaussian")
 
@@ -238,6 +238,7 @@ class OIDNBins(Denoiser):
         super().__init__(**params)
         check_choice("features", self.params["features"], FEATURE_SETS)
         check_choice("quality", self.params["quality"], QUALITIES)
+        self.needs = {"color"} | FEATURE_NEEDS[self.params["features"]]  # as oidn's
 
     def denoise(self, data: Any) -> np.ndarray:
         video = check_video(data, self.name)

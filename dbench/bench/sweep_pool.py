@@ -1,0 +1,73 @@
+"""``dbench sweep --workers N``: the sweep's groups on a local process pool, and how it stops.
+
+Ctrl-C (SIGINT to the terminal's process group) reaches the sweep and its workers alike. The
+workers ignore it, so that none of them reports the interrupt as its group's result and goes on
+to the next group; the sweep process cancels the groups not started, terminates the workers (a
+cell being written by one is left as a temporary file, removed by the next run, and is computed
+again then) and exits with code 130, keeping every finished cell (README.md, the ``dbench sweep``
+paragraph). A worker also dies with the sweep process (Linux ``PR_SET_PDEATHSIG``), so
+``kill -9`` of a sweep never leaves workers behind.
+"""
+from __future__ import annotations
+
+import signal
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from typing import Callable, Sequence
+
+#: seconds a terminated worker is given to exit before it is killed
+STOP_GRACE_S = 3.0
+
+
+def _die_with_parent() -> None:
+    """The worker is killed when the sweep process dies (Linux PR_SET_PDEATHSIG)."""
+    try:
+        import ctypes
+        libc = ctypes.CDLL("libc.so.6", use_errno=True)
+        libc.prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):  # pragma: no cover - not Linux
+        pass
+
+
+def worker_start(plugin_specs: Sequence[str] = ()) -> None:
+    """Process-pool initializer: ignore Ctrl-C (the sweep process stops the pool), die with
+    the parent, then load the parent's plugins (entry points, $DBENCH_PLUGINS and every
+    --plugin), so the worker can build plugin methods."""
+    from .. import plugins
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _die_with_parent()
+    plugins.worker_init(plugin_specs)
+
+
+def stop(pool: ProcessPoolExecutor) -> None:
+    """Cancel the groups not started and end the workers now (SIGTERM, then SIGKILL)."""
+    processes = list((getattr(pool, "_processes", None) or {}).values())
+    pool.shutdown(wait=False, cancel_futures=True)
+    for p in processes:
+        if p.is_alive():
+            p.terminate()
+    for p in processes:
+        p.join(STOP_GRACE_S)
+        if p.is_alive():
+            p.kill()
+            p.join(1.0)
+
+
+def run_groups(fn: Callable, args: Sequence, groups: Sequence[tuple], workers: int,
+               plugin_specs: Sequence[str], done: Callable[[list], None]) -> None:
+    """Run ``fn(*args, *group)`` for every group on ``workers`` processes, calling ``done``
+    with each group's result as it finishes; any exception or interrupt stops the pool
+    before it propagates."""
+    pool = ProcessPoolExecutor(max_workers=workers, initializer=worker_start,
+                               initargs=(tuple(plugin_specs),))
+    try:
+        futures = [pool.submit(fn, *args, *g) for g in groups]
+        for f in as_completed(futures):
+            done(f.result())
+    except BaseException:
+        stop(pool)
+        raise
+    pool.shutdown(wait=True)
+
+
+__all__ = ["STOP_GRACE_S", "run_groups", "stop", "worker_start"]

@@ -1,0 +1,45 @@
+"""What every command runs inside (set by :func:`dbench.cli.parser.build_parser`): the count
+options checked first (:mod:`dbench.cli.bounds`), and no exit code but dbench's own.
+
+A plugin's method, a scene file or a plugin scene is code from outside dbench; where dbench
+calls it, a ``sys.exit`` becomes a failure it reports itself (the method's row of a run, a
+broken plugin, a scene file that does not load). Anywhere else the command stops with one line
+naming the file and line that called it, exit 2 (README.md, "Python scene files"), never the
+caller's own code: a ``sys.exit(0)`` must not look like a finished run.
+"""
+from __future__ import annotations
+
+import argparse
+import functools
+import traceback
+from typing import Callable
+
+from ..errors import DbenchInputError
+from .bounds import check_counts
+
+
+def _caller(exc: BaseException) -> str:
+    """``file:line`` of the innermost frame of ``exc``'s traceback: the code that called
+    ``sys.exit`` (or raised SystemExit)."""
+    frames = traceback.extract_tb(exc.__traceback__)
+    return f"{frames[-1].filename}:{frames[-1].lineno}" if frames else "unknown code"
+
+
+def command(func: Callable[[argparse.Namespace], int]) -> Callable[[argparse.Namespace], int]:
+    """``func`` (a command) with the module docstring's checks."""
+    @functools.wraps(func)
+    def run(args: argparse.Namespace) -> int:
+        check_counts(args)
+        try:
+            return func(args)
+        except SystemExit as exc:
+            from ..datasets.scene_build import exit_message
+
+            raise DbenchInputError(
+                f"{_caller(exc)} called {exit_message(exc)} during dbench {args.command}; "
+                f"plugins and scene files cannot end dbench (their errors are reported)"
+            ) from None
+    return run
+
+
+__all__ = ["command"]

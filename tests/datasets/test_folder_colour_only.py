@@ -1,0 +1,68 @@
+"""Colour-only renders: a method's needs follow its resolved parameters, so ``oidn`` with
+``features=none`` runs where the default ``oidn`` is skipped with its reason."""
+import json
+
+import numpy as np
+import OpenEXR
+import pandas as pd
+
+from dbench import registry
+from dbench.cli import main
+
+H, W = 24, 40
+
+
+def _rgb(path, img):
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    data = {c: np.ascontiguousarray(img[..., i], np.float32) for i, c in enumerate("RGB")}
+    with OpenEXR.File(header, data) as f:
+        f.write(str(path))
+
+
+def _colour_only(folder):
+    folder.mkdir()
+    rng = np.random.default_rng(0)
+    truth = rng.uniform(0.2, 1.0, (H, W, 3))
+    _rgb(folder / "v_0004.hdr.exr", truth + rng.normal(0, 0.1, truth.shape))
+    _rgb(folder / "v_ref.hdr.exr", truth)
+    return folder
+
+
+def test_needs_follow_the_features_parameter():
+    colour = {"color", "reference"}
+    oidn = registry.get("oidn", features="none")
+    assert oidn.applies_to("steady", colour) == (True, "")
+    assert oidn.wants(colour) == {"color"}
+    assert registry.get("oidn", features="albedo").needs == {"color", "albedo"}
+    assert registry.get("oidn").applies_to("steady", colour) == (
+        False, "oidn needs ['albedo', 'normal'], which the scene cannot provide")
+    # the gate passes its method's needs on, plus the statistics
+    assert registry.get("oidn+gate", features="none").needs == {"color", "stats"}
+    assert registry.get("oidn-bins", features="none").needs == {"color"}
+    assert registry.method_class("oidn").needs == {"color", "albedo", "normal"}  # the default
+
+
+def test_colour_only_folder_runs_what_needs_no_features(tmp_path, capsys):
+    folder = _colour_only(tmp_path / "renders")
+    out = tmp_path / "run"
+    assert main(["run", "--method", "all", "--param", "oidn.features=none", "--scene",
+                 str(folder), "--spp", "4", "--repeats", "1", "--out", str(out)]) == 0
+    table = pd.read_csv(out / "metrics.csv")
+    assert sorted(table.base_method) == ["noisy", "oidn"]
+    printed = capsys.readouterr().out
+    assert "skipping oidn:" not in printed
+    assert "skipping jbf: jbf needs ['albedo', 'normal'], which the scene cannot provide" \
+        in printed
+    skipped = json.loads((out / "run.json").read_text(encoding="utf-8"))["skipped"]
+    assert "oidn" not in skipped and "which the scene cannot provide" in skipped["nca"]
+    assert np.isfinite(table.loc[table.base_method == "oidn", "rmse"]).all()
+
+
+def test_colour_only_folder_skips_default_oidn_with_its_reason(tmp_path, capsys):
+    folder = _colour_only(tmp_path / "renders")
+    out = tmp_path / "run"
+    assert main(["run", "--method", "oidn", "--scene", str(folder), "--spp", "4",
+                 "--repeats", "1", "--quiet", "--out", str(out)]) == 0
+    assert "skipping oidn: oidn needs ['albedo', 'normal'], which the scene cannot provide" \
+        in capsys.readouterr().out
+    assert list(pd.read_csv(out / "metrics.csv").base_method) == ["noisy"]

@@ -1,0 +1,258 @@
+"""The scene build contract as README.md states it ("Python scene files"): the README's example
+scenes are taken from the README itself and rendered, steady and transient, at a square and a
+non-square size, as scene files and as an entry-point plugin; ``build(mi, res)`` written for
+square images (``"width": res, "height": res``) keeps working, and a Scene object whose film
+has another size than the request is refused in one line saying what to write."""
+from __future__ import annotations
+
+import os
+import pickle
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from dbench import plugins
+from dbench.errors import DbenchInputError
+from dbench.resolution import Res, Resolution, parse_res
+
+ROOT = Path(__file__).resolve().parents[1]
+README = (ROOT / "README.md").read_text(encoding="utf-8")
+
+
+def readme_examples() -> dict[str, str]:
+    """{file name: code} of the README's Python blocks whose first line names a file
+    (``# my_scene.py: ...``)."""
+    out = {}
+    for block in re.findall(r"```python\n(.*?)```", README, flags=re.S):
+        m = re.match(r"#\s*([\w/]+\.py)\b", block)
+        if m:
+            out[m.group(1)] = block
+    return out
+
+
+EXAMPLES = readme_examples()
+
+
+def _entry_point() -> tuple[str, str]:
+    """(name, target) of the README's ``dbench.scenes`` entry point (the TOML block)."""
+    m = re.search(r'\[project\.entry-points\."dbench\.scenes"\]\s*\n\s*([\w-]+)\s*=\s*'
+                  r'"([\w.]+:\w+)"', README)
+    assert m, "README: no dbench.scenes entry point"
+    return m.group(1), m.group(2)
+
+
+def _old_form(code: str) -> str:
+    """A README example rewritten as a scene written when ``res`` was one side."""
+    code = code.replace("def build(mi, width, height):", "def build(mi, res):")
+    code = re.sub(r"width=width, height=height", "width=res, height=res", code)
+    return re.sub(r'"width": width, "height": height', '"width": res, "height": res', code)
+
+
+def _load(scene, res, tmp_path, **kw):
+    from dbench import datasets
+
+    return datasets.load(scene, spp=2, res=res, ref_spp=16, cache=datasets.Cache(
+        tmp_path / "cache"), needs={"color", "reference"}, progress=False, **kw)
+
+
+SIZES = [8, "12x8"]
+
+
+# ---------------------------------------------------------------------------------------------
+# no rendering
+
+
+def test_the_readme_shows_both_signatures_and_the_examples():
+    assert {"my_scene.py", "my_pulse.py", "my_package/scenes.py"} <= set(EXAMPLES)
+    assert "def build(mi, width, height):" in EXAMPLES["my_scene.py"]
+    assert 'kind = "transient"' in EXAMPLES["my_pulse.py"]
+    assert "def my_room(mi, res):" in EXAMPLES["my_package/scenes.py"]
+    assert _entry_point() == ("my-room", "my_package.scenes:my_room")
+    text = " ".join(README.split())
+    assert "`build(mi, width, height)` (two ints), or `build(mi, res)`" in text
+    assert "unpacks as `width, height = res`" in text
+
+
+def test_resolution_is_the_width_and_unpacks_as_the_size():
+    r = Resolution(12, 8)
+    assert int(r) == 12 and r == 12 and r.width == 12 and r.height == 8
+    assert tuple(r) == (12, 8) and r[1] == 8 and len(r) == 2
+    w, h = r
+    assert (w, h) == (12, 8) and str(r) == "12x8" and r.key == "12x8" and r.pixels == 96
+    assert parse_res(r) == Res(12, 8)  # dbench's helpers keep the height
+    assert pickle.loads(pickle.dumps(r)) == r and pickle.loads(pickle.dumps(r)).height == 8
+    assert r != Resolution(12, 12) and Resolution(8, 8) == 8 and str(Resolution(8, 8)) == "8"
+    assert {"width": Resolution(8, 8)}["width"] + 1 == 9
+
+
+def test_the_signature_decides_the_form():
+    from dbench.datasets.scene_build import takes_width_height
+
+    def a(mi, width, height): ...
+    def b(mi, res): ...
+    def c(mi, res, extra=None): ...
+    def d(mi, width, height=None): ...
+    def e(mi, w, h): ...
+    assert takes_width_height(a) and takes_width_height(d) and takes_width_height(e)
+    assert not takes_width_height(b) and not takes_width_height(c)
+
+
+# ---------------------------------------------------------------------------------------------
+# the README's scene files, rendered
+
+
+@pytest.mark.mitsuba
+@pytest.mark.parametrize("form", ["readme", "build(mi, res)"])
+@pytest.mark.parametrize("res", SIZES)
+def test_the_readme_steady_scene_file_renders(renderer, tmp_path, form, res):
+    from dbench.datasets import scene_files
+
+    code = EXAMPLES["my_scene.py"]
+    path = tmp_path / "my_scene.py"
+    path.write_text(code if form == "readme" else _old_form(code))
+    assert ("def build(mi, res)" in path.read_text()) == (form != "readme")
+    frame = _load(scene_files.resolve(path), res, tmp_path)
+    size = parse_res(res)
+    assert frame.color.shape == (size.height, size.width, 3)
+    assert np.isfinite(frame.color).all() and frame.reference.mean() > 0
+
+
+@pytest.mark.mitsuba
+@pytest.mark.parametrize("form", ["readme", "build(mi, res)"])
+@pytest.mark.parametrize("res", SIZES)
+def test_the_readme_transient_scene_file_renders(tr, tmp_path, form, res):
+    from dbench.datasets import scene_files
+
+    code = EXAMPLES["my_pulse.py"]
+    path = tmp_path / "my_pulse.py"
+    path.write_text(code if form == "readme" else _old_form(code))
+    sc = scene_files.resolve(path)
+    assert sc.kind == "transient" and sc.default_bins == 100
+    frame = _load(sc, res, tmp_path, bins=6)
+    size = parse_res(res)
+    assert frame.color.shape == (size.height, size.width, 6, 3)
+    assert frame.reference.sum() > 0
+
+
+# ---------------------------------------------------------------------------------------------
+# the README's entry-point plugin, installed the way pip would
+
+
+def _install(site: Path, code: str) -> dict:
+    """The README's my_package and a dist-info folder declaring its entry point, on
+    PYTHONPATH."""
+    name, target = _entry_point()
+    pkg = site / "my_package"
+    pkg.mkdir(parents=True)
+    (pkg / "__init__.py").write_text("")
+    (pkg / "scenes.py").write_text(code)
+    info = site / "my_package-0.1.dist-info"
+    info.mkdir()
+    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: my-package\nVersion: 0.1\n")
+    (info / "entry_points.txt").write_text(f"[dbench.scenes]\n{name} = {target}\n")
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
+        [str(site)] + [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p])}
+    env.pop(plugins.ENV_VAR, None)
+    return env
+
+
+@pytest.mark.mitsuba
+def test_the_readme_entry_point_scene_runs_at_any_size(renderer, tmp_path):
+    env = _install(tmp_path / "site", EXAMPLES["my_package/scenes.py"])
+    env["DBENCH_CACHE"] = str(tmp_path / "cache")
+
+    def dbench(*args):
+        return subprocess.run([sys.executable, "-m", "dbench.cli", *args], env=env,
+                              cwd=tmp_path, capture_output=True, text=True, timeout=600)
+
+    listed = dbench("list")
+    assert listed.returncode == 0, listed.stderr
+    assert any(ln.split()[:2] == ["my-room", "steady"] and "Mitsuba's Cornell box" in ln
+               for ln in listed.stdout.splitlines()), listed.stdout
+    for res in ("8", "12x8"):
+        out = tmp_path / f"run-{res}"
+        ran = dbench("run", "--method", "noisy", "--scene", "my-room", "--res", res, "--spp",
+                     "2", "--ref-spp", "16", "--repeats", "1", "--quiet", "--out", str(out))
+        assert ran.returncode == 0, ran.stderr
+        row = (out / "metrics.csv").read_text().splitlines()[1].split(",")
+        assert row[:2] == ["my-room", "noisy"] and res in row, row
+
+
+@pytest.mark.mitsuba
+@pytest.mark.parametrize("res", SIZES)
+def test_entry_point_builds_in_both_forms_render(renderer, tmp_path, res):
+    """What an entry point registers: the README's function, the same written with
+    ``"width": res, "height": res`` (a scene from before non-square sizes) and the three-int
+    form."""
+    from dbench.datasets import scenes
+
+    namespace: dict = {}
+    exec(EXAMPLES["my_package/scenes.py"], namespace)
+
+    def square_style(mi, res):
+        d = mi.cornell_box()
+        d["sensor"]["film"].update({"width": res, "height": res})
+        return d
+
+    def three_ints(mi, width, height):
+        d = mi.cornell_box()
+        d["sensor"]["film"].update(width=width, height=height)
+        return d
+
+    before = dict(scenes._CATALOGUE)
+    try:
+        size = parse_res(res)
+        for name, fn in (("readme-room", namespace["my_room"]),
+                         ("square-style-room", square_style), ("three-int-room", three_ints)):
+            plugins._register_scene_object(name, fn)
+            plugins._register_scene_object(name, fn)  # twice: once
+            frame = _load(scenes.get(name), res, tmp_path)
+            assert frame.color.shape == (size.height, size.width, 3), name
+    finally:
+        scenes._CATALOGUE.clear()
+        scenes._CATALOGUE.update(before)
+
+
+# ---------------------------------------------------------------------------------------------
+# Scene objects render their dictionary as it is: the film must have the requested size
+
+
+@pytest.mark.mitsuba
+def test_a_scene_object_with_a_square_film_for_a_wide_request_is_refused(renderer, tmp_path):
+    from dbench.datasets.scene import Scene
+    from dbench.datasets.scenes import cornell
+
+    def build(mi, res):
+        d = cornell(mi, 8)
+        d["sensor"]["film"].update({"width": res, "height": res})
+        return d
+
+    sc = Scene(name="square-only", kind="steady", description="x", build=build)
+    assert _load(sc, 8, tmp_path).color.shape == (8, 8, 3)  # square sizes: as before
+    with pytest.raises(DbenchInputError) as exc:
+        _load(sc, "12x8", tmp_path)
+    message = str(exc.value)
+    assert "\n" not in message and "square-only" in message and "12×12 film" in message
+    assert '"width": res.width, "height": res.height' in message
+
+
+@pytest.mark.mitsuba
+def test_a_transient_scene_object_in_the_square_form_renders(tr, tmp_path):
+    from dbench.datasets.scenes import cornell
+    from dbench.datasets.transient_scene import TransientScene
+
+    def build(mi, res):
+        d = cornell(mi, 8)
+        d["sensor"]["film"].update({"width": res, "height": res})
+        return d
+
+    sc = TransientScene(name="my-square-pulse", kind="transient", description="x",
+                        build=build, window_start=3.8, window_end=11.5, default_bins=6)
+    frame = _load(sc, 8, tmp_path)
+    assert frame.color.shape == (8, 8, 6, 3) and frame.reference.sum() > 0
+    with pytest.raises(DbenchInputError, match="res.width"):
+        _load(sc, "12x8", tmp_path)
