@@ -256,3 +256,30 @@ def test_a_transient_scene_object_in_the_square_form_renders(tr, tmp_path):
     assert frame.color.shape == (8, 8, 6, 3) and frame.reference.sum() > 0
     with pytest.raises(DbenchInputError, match="res.width"):
         _load(sc, "12x8", tmp_path)
+
+
+@pytest.mark.mitsuba
+def test_a_plugin_scene_naming_an_unknown_mitsuba_type_is_refused_before_rendering(
+        renderer, tmp_path):
+    """A plugin's scene is loaded once at 8 px before its first render: a type Mitsuba has no
+    plugin for is one line naming the scene, the entry and the type, and no cache entry."""
+    from dbench.datasets import scenes
+
+    def blob_room(mi, res):
+        d = mi.cornell_box()
+        d["sensor"]["film"].update(width=res.width, height=res.height)
+        d["blob"] = {"type": "spherez"}
+        return d
+
+    before = dict(scenes._CATALOGUE)
+    try:
+        plugins._register_scene_object("blob-room", blob_room)
+        with pytest.raises(DbenchInputError) as exc:
+            _load(scenes.get("blob-room"), 8, tmp_path)
+    finally:
+        scenes._CATALOGUE.clear()
+        scenes._CATALOGUE.update(before)
+    message = str(exc.value)
+    assert "\n" not in message and message.startswith("scene blob-room: ")
+    assert '"spherez"' in message and '"blob"' in message
+    assert not any(p.is_dir() for p in (tmp_path / "cache").glob("*/*"))

@@ -32,6 +32,7 @@ from .cache import Cache, make_key
 from .mitsuba_env import mitsuba, versions
 from .references import check_ref_seed, reference_meta, reference_spp
 from .scenes import Scene
+from .scene_build import check_plugin_scene
 from .stats import stats_from_arrays, stats_to_arrays
 
 FEATURES = ("albedo", "normal", "depth", "position")
@@ -140,6 +141,7 @@ def load(scene: str | Scene, spp: int, res, needs: Iterable[str] | None = None,
     transform = "box-cox" if transform is None else transform
     check_count("spp", spp)
     res = parse_res(res)
+    check_plugin_scene(sc)  # a plugin's unknown Mitsuba type: exit 2 before anything renders
     wanted = set(sc.provides if needs is None else needs) | {"color"}
     unknown = wanted - set(sc.provides)
     if unknown:

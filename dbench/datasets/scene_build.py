@@ -19,6 +19,7 @@ non-square request) is refused with the line to write instead of rendering the w
 from __future__ import annotations
 
 import inspect
+import re
 from functools import lru_cache
 from typing import Any, Callable
 
@@ -119,5 +120,52 @@ def _plugin_build(fn: Callable, name: str) -> Callable[[Any, Any], dict]:
     return build
 
 
-__all__ = ["call_build", "check_film", "own_camera", "plugin_build", "takes_width_height",
+#: Mitsuba's message for a ``"type"`` it has no plugin of (mi.load_dict raises RuntimeError).
+_UNKNOWN_PLUGIN = re.compile(r'node "([^"]*)".*?Plugin "([^"]+)" not found')
+
+
+def probe_load(mi, d: dict, what: str, source: str = "the scene's dictionary") -> None:
+    """Load ``d`` (a build's dictionary) once at 8 px with dbench's camera, so a name Mitsuba
+    does not know (an unknown plugin type, a misspelt property) is refused naming ``what``
+    before anything renders, rather than failing inside a render as an internal error. The
+    integrator is dbench's (set when rendering), so it is left out."""
+    probe = {k: v for k, v in own_camera(d, 8).items() if k != "integrator"}
+    try:
+        mi.load_dict(probe)
+    except Exception as exc:  # Mitsuba raises RuntimeError with its parser's message
+        message = " ".join(str(exc).split())
+        m = _UNKNOWN_PLUGIN.search(message)
+        if m:
+            raise DbenchInputError(
+                f"{what}: Mitsuba ({mi.variant()}) has no plugin \"{m.group(2)}\" "
+                f"(dictionary entry \"{m.group(1)}\"); use a Mitsuba plugin type such as "
+                f"sphere, rectangle, diffuse, area") from None
+        raise DbenchInputError(f"{what}: Mitsuba could not load {source}: {message}") from None
+
+
+_PROBED: set = set()
+
+
+def check_plugin_scene(scene: Any) -> None:
+    """:func:`probe_load` of a steady scene whose ``build`` comes from outside dbench (a
+    plugin's or an entry point's), once per scene and variant in a process; dbench's own
+    catalogue is trusted and costs nothing here."""
+    from .mitsuba_env import mitsuba
+
+    fn = getattr(scene.build, "wrapped", scene.build)
+    if str(getattr(fn, "__module__", "")).startswith("dbench."):
+        return
+    mi = mitsuba()
+    key = (id(scene), mi.variant())
+    if key in _PROBED:
+        return
+    d = call_build(scene.build, mi, 8, f"scene {scene.name}")
+    if not isinstance(d, dict) or not isinstance(d.get("sensor"), dict):
+        raise DbenchInputError(f"scene {scene.name}: build must return a mi.load_dict "
+                               f"dictionary with a 'sensor' dictionary")
+    probe_load(mi, d, f"scene {scene.name}")
+    _PROBED.add(key)
+
+
+__all__ = ["call_build", "check_film", "check_plugin_scene", "probe_load", "check_film", "own_camera", "plugin_build", "takes_width_height",
            "exit_message"]

@@ -74,7 +74,7 @@ from ..errors import DbenchInputError
 from ..resolution import Res, parse_res
 from .mitsuba_env import mitsuba
 from .scene import STEADY_BUFFERS, Scene
-from .scene_build import call_build, exit_message
+from .scene_build import call_build, exit_message, probe_load
 from .scene_build import own_camera as _own_camera
 from .scene_assets import asset_hashes as _sources
 from .scene_parts import _film
@@ -284,36 +284,13 @@ def _built(module, path: str, mi, res) -> dict:
     return d
 
 
-#: Mitsuba's message for a ``"type"`` it has no plugin of (mi.load_dict raises RuntimeError).
-_UNKNOWN_PLUGIN = re.compile(r'node "([^"]*)".*?Plugin "([^"]+)" not found')
-
-
-def _load_probe(mi, probe: dict, path: str) -> None:
-    """Load the small dictionary ``build`` gave once, so a name Mitsuba does not know (an
-    unknown plugin type, a misspelt property) is refused here, naming the file, before
-    anything renders. The integrator is dbench's (set when rendering), so it is left out."""
-    d = {k: v for k, v in _own_camera(probe, 8).items() if k != "integrator"}
-    try:
-        mi.load_dict(d)
-    except Exception as exc:  # Mitsuba raises RuntimeError with its parser's message
-        message = " ".join(str(exc).split())
-        m = _UNKNOWN_PLUGIN.search(message)
-        if m:
-            raise DbenchInputError(
-                f"--scene {path}: Mitsuba ({mi.variant()}) has no plugin \"{m.group(2)}\" "
-                f"(dictionary entry \"{m.group(1)}\"); use a Mitsuba plugin type such as "
-                f"sphere, rectangle, diffuse, area") from None
-        raise DbenchInputError(f"--scene {path}: Mitsuba could not load build()'s dictionary: "
-                               f"{message}") from None
-
-
 @lru_cache(maxsize=32)
 def _python_scene(path: str, params: tuple, digest: str) -> Scene:
     mi = mitsuba()
     module = _module(path, digest)
     kind = getattr(module, "kind", "steady")
     probe = _built(module, path, mi, 8)
-    _load_probe(mi, probe, path)
+    probe_load(mi, probe, f"--scene {path}", "build()'s dictionary")
     depth = getattr(module, "max_depth", None) or (probe.get("integrator") or {}).get(
         "max_depth") or DEFAULT_MAX_DEPTH
     common = dict(name=Path(path).name, kind=kind,
