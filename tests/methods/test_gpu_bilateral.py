@@ -113,3 +113,56 @@ def test_device_path_refusals_name_the_problem():
     assert not m.runs_on_device()
     with pytest.raises(DbenchInputError, match="mode"):
         m.denoise_device(upload(f, "cpu"))
+
+
+def test_welch_threshold_is_compared_in_float64():
+    """γ = 0.3 gives γ_t² = 2/3, whose float32 rounding is larger: a pair whose d² lies between
+    γ_t²·S and float32(γ_t²)·S fails the float64 test (each pixel keeps its own colour, as on
+    the host) but would pass against a threshold rounded to float32."""
+    g2 = 1.0 / (2.0 * 0.3) - 1.0
+    g2_32 = float(np.float32(g2))
+    assert g2_32 > g2
+    s = 2.0                                   # Var(θ̂) = 1 at both pixels
+    d = np.sqrt(s * 0.5 * (g2 + g2_32))
+    assert g2 * s < d * d < g2_32 * s
+    mean = np.zeros((1, 2, 3))
+    mean[0, 0] = 1.0 + d
+    mean[0, 1] = 1.0
+    st = SampleStats(n=np.full((1, 2, 3), 16.0), mean=mean, var_mean=np.ones((1, 2, 3)),
+                     m3=np.zeros((1, 2, 3)), transform="identity")
+    normal = np.zeros((1, 2, 3))
+    normal[..., 2] = 1.0
+    f = Frame(color=mean, albedo=np.full((1, 2, 3), 0.5), normal=normal,
+              depth=np.ones((1, 2, 1)), stats=st)
+    host = get("statistical", radius=1, gamma=0.3, backend="numba").denoise(f)
+    np.testing.assert_array_equal(host, mean.astype(np.float32))
+    out = device_out(get("statistical", radius=1, gamma=0.3), f)
+    np.testing.assert_array_equal(out, host)
+
+
+def test_welch_threshold_reaches_the_kernel_as_float64(monkeypatch):
+    """Triton compiles a float argument as float32 (the interpreter above keeps it a Python
+    float, so only the launch arguments show it): γ_t² must reach the kernel in a float64
+    tensor, unrounded, and not as a float argument."""
+    import triton
+
+    from dbench.methods.kernels.gpu import bilateral
+
+    g2 = 1.0 / (2.0 * 0.3) - 1.0
+    assert triton.runtime.jit.mangle_type(g2) == "fp32"
+    seen = []
+    real = bilateral.window_kernel
+
+    class Recorder:
+        def __getitem__(self, grid):
+            def launch(*args, **meta):
+                seen.append(args)
+                return real[grid](*args, **meta)
+            return launch
+
+    monkeypatch.setattr(bilateral, "window_kernel", Recorder())
+    device_out(get("statistical", radius=1, gamma=0.3), frame(h=4, w=5))
+    (args,) = seen
+    assert not any(isinstance(a, float) and a == g2 for a in args)
+    assert any(isinstance(a, torch.Tensor) and a.dtype == torch.float64 and a.numel() == 1
+               and a.item() == g2 for a in args)

@@ -116,6 +116,71 @@ def test_nonfinite_colour_and_bad_statistics():
     assert info["n_bad_stats"] == 2
 
 
+@pytest.mark.parametrize("shrink", [True, False])
+@pytest.mark.parametrize("membership_on", [True, False])
+def test_bright_block_is_finite_and_equals_reference(shrink, membership_on):
+    """A block of colours near the float32 maximum (statistics unchanged, so it passes the test
+    against its neighbours): float32 sums of several 3e38 terms would overflow to Inf; the
+    planes are scaled by a power of two for the kernel and the sums multiplied back."""
+    color, stats, albedo, normal, depth = synthetic_video(10, 11, 8, seed=6)
+    color = color.copy()
+    color[2:6, 2:6, 2:5] = 3e38
+    case = (color, stats, albedo, normal, depth)
+    kw = dict(radius=2, radius_t=1, shrink=shrink, membership_on=membership_on)
+    ref = run(case, "reference", **kw)
+    fast = run(case, "numba", **kw)
+    assert np.all(np.isfinite(ref)) and np.all(np.isfinite(fast))
+    assert np.max(fast) > 1e38
+    assert rel_err(fast, ref) < FAST_RTOL
+
+
+def test_ordinary_planes_are_not_scaled():
+    """Planes up to PLANE_MAX enter the kernel unchanged (same array, no factors), so every
+    ordinary output is bit for bit what it was without the scaling."""
+    from dbench.methods.kernels.bilateral.numba2d import _scaled_planes
+
+    planes = np.random.default_rng(1).random((3, 4, 5, 6)).astype(np.float32)
+    planes[1, 2, 3, 4] = np.nextafter(np.float32(jc.PLANE_MAX), np.float32(0))  # unscaled
+    planes[0, 1, 0, 0] = np.inf                           # non-finite values do not count
+    for axis in (0, 1):
+        same, scale = _scaled_planes(planes, axis=axis)
+        assert scale is None and same is planes
+    planes[2, 1, 1, 1] = 3e38
+    scaled, scale = _scaled_planes(planes, axis=1)
+    assert scale.tolist() == [1.0, 2.0 ** 29, 1.0, 1.0]   # only the bright plane
+    np.testing.assert_array_equal(scaled * scale[:, None, None].astype(np.float32), planes)
+
+
+def test_huge_planes_are_summed_scaled_exactly():
+    """Sums of a plane above PLANE_MAX are the kernel's sums of the plane divided by 2^k, times
+    2^k, bit for bit, in all three outputs (plain sums, normalised video, band accumulators)."""
+    rng = np.random.default_rng(5)
+    h, w, k = 9, 8, 3
+    guide = jc.make_guide(rng.random((h, w, 3)), rng.normal(size=(h, w, 3)),
+                          rng.random((h, w, 1)), radius=2)
+    small = rng.random((k, 4, h, w)).astype(np.float32)
+    small[:, 3] = 1.0
+    small[:, 0] *= np.float32(jc.PLANE_MAX)               # peak in (PLANE_MAX / 2, PLANE_MAX]
+    big = small.copy()
+    big[:, 0] *= np.float32(2.0 ** 20)                    # above: scaled back by 2^20
+    tfac, bins = np.ones(3), np.arange(k)
+    s_small = jc.accumulate3d(guide, small, tfac, bins)
+    s_big = jc.accumulate3d(guide, big, tfac, bins)
+    np.testing.assert_array_equal(s_big[:, 0], s_small[:, 0] * 2.0 ** 20)
+    np.testing.assert_array_equal(s_big[:, 1:], s_small[:, 1:])
+    v_small, v_big = (np.zeros((h, w, k, 3), np.float32) for _ in range(2))
+    jc.accumulate3d(guide, small, tfac, bins, normalise_into=v_small)
+    jc.accumulate3d(guide, big, tfac, bins, normalise_into=v_big)
+    assert np.all(np.isfinite(v_big))
+    np.testing.assert_array_equal(v_big[..., 0], (v_small[..., 0].astype(np.float64)
+                                                  * 2.0 ** 20).astype(np.float32))
+    acc_small, rows, f_small = jc.accumulate3d(guide, small, tfac, bins, bands=True)
+    acc_big, rows_big, f_big = jc.accumulate3d(guide, big, tfac, bins, bands=True)
+    assert rows == rows_big and f_small.tolist() == [1.0] * 4
+    assert f_big.tolist() == [2.0 ** 20, 1.0, 1.0, 1.0]
+    np.testing.assert_array_equal(acc_big, acc_small)
+
+
 # ------------------------------------------------------------------ spec §13 checks 14-16
 
 @pytest.mark.parametrize("transform,lam", [("identity", 0.5), ("yeo-johnson", 0.5),

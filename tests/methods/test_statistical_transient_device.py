@@ -126,6 +126,22 @@ def test_non_finite_inputs_follow_the_host(params):
         np.testing.assert_allclose(od[6, 1, 2], f.color[6, 1, 2], rtol=1e-6)
 
 
+@pytest.mark.parametrize("params", [dict(radius=1, radius_t=1),
+                                    dict(radius=1, radius_t=1, mass=False, shrink=False),
+                                    dict(radius=1, radius_t=1, membership=False)])
+def test_bright_block_is_finite_and_follows_the_host(params):
+    """A block of colours near the float32 maximum mixes with its neighbours (its statistics
+    are ordinary): the planes enter the float32 sums divided by a power of two and the epilogue
+    multiplies them back, as on the host."""
+    f = video(6, 9, 5, seed=3)
+    color = f.color.copy()
+    color[1:4, 2:6, 1:4] = 3e38
+    oh, od, host, dev = both(f.with_buffers(color=color), **params)
+    assert np.isfinite(oh).all() and np.isfinite(od).all()
+    assert od.max() > 1e38
+    assert rel_err(od, oh) < TOL
+
+
 @pytest.mark.parametrize("make", [
     lambda: video(4, 5, 1),                                          # T = 1
     lambda: video(1, 1, 4),                                          # one pixel

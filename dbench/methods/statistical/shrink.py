@@ -85,12 +85,15 @@ def shrink_beta(theta_i, var_i, a, theta_sum, var2_sum, w2_sum):
 
 
 @njit(parallel=True, cache=True)
-def merge_shrink3d(acc, band, planes, active, bins, theta_plane, out):
+def merge_shrink3d(acc, band, scale, planes, active, bins, theta_plane, out):
     """Shrunk outputs of the active bins written into ``out`` (H, W, T, 3) float32.
 
     ``acc`` (nbands, K, P, band + halo, W) float32 are the band accumulators of the 3D kernel
-    (neighbour sums without the centre term), summed here in float64 per voxel; ``band`` rows
-    per band. ``theta_plane`` is the θ̄ plane, or −1 when θ̄ is the colour's channel mean.
+    (neighbour sums without the centre term), summed here in float64 per voxel and multiplied
+    by ``scale`` (P,) float64, the factors the kernel's planes were divided by (1 for ordinary
+    planes; a colour near the float32 maximum is scaled down so that its float32 sums stay
+    finite); ``band`` rows per band. ``planes`` are the unscaled (K, P, H, W) values, the centre
+    terms. ``theta_plane`` is the θ̄ plane, or −1 when θ̄ is the colour's channel mean.
     """
     K = planes.shape[0]
     P = planes.shape[1]
@@ -104,6 +107,10 @@ def merge_shrink3d(acc, band, planes, active, bins, theta_plane, out):
                 continue
             s[:] = 0.0
             add_band_rows(acc, k, y, band, s)
+            for p in range(P):
+                if scale[p] != 1.0:
+                    for x in range(W):
+                        s[p, x] *= scale[p]
             t = bins[k]
             for x in range(W):
                 v = planes[k, 3, y, x]

@@ -307,9 +307,9 @@ def statistical_video_fast(color: Any, stats: Any, guide: Guide, tfac: np.ndarra
             theta = vs.theta * 0.0
             test = dict(theta=theta, var=np.zeros_like(theta), g2=0.0)
         if shrink:
-            acc, band = accumulate3d(guide, planes, tfac, idx, keep[idx], n_bins=t,
-                                     squared_from=squared_from, bands=True, **test)
-            merge_shrink3d(acc, band, planes, keep[idx], idx, theta_plane, out)
+            acc, band, scale = accumulate3d(guide, planes, tfac, idx, keep[idx], n_bins=t,
+                                            squared_from=squared_from, bands=True, **test)
+            merge_shrink3d(acc, band, scale, planes, keep[idx], idx, theta_plane, out)
         else:
             accumulate3d(guide, planes, tfac, idx, keep[idx], n_bins=t, normalise_into=out,
                          **test)

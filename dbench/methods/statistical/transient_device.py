@@ -29,16 +29,18 @@ from typing import Any
 
 from ...errors import DbenchInputError
 from ..kernels.bilateral.guide import temporal_factors
-from ..kernels.bilateral.params import TEMPORAL_PROFILES
+from ..kernels.bilateral.params import PLANE_MAX, TEMPORAL_PROFILES
 from ..kernels.gpu.guide import E_CUT, make_device_guide
+from ..kernels.gpu.bilateral import g2_tensor
 from ..kernels.gpu.window3d import window3d_filter
 from ..checks import check_choice, check_positive, check_radius
 from .device import refuse_negative, _threshold
 from .shrink import bias_from_colour, shrink_layout
 from .transient import VIDEO_GAMMA, resolve_base, window_size
 
-__all__ = ["bins_in_play_device", "mass_shrink_device", "statistical_video_device",
-           "video_planes_device", "video_shape_device", "video_stats_device"]
+__all__ = ["bins_in_play_device", "mass_shrink_device", "scale_planes_device",
+           "statistical_video_device", "video_planes_device", "video_shape_device",
+           "video_stats_device"]
 
 
 def video_shape_device(color: Any) -> tuple[int, int, int]:
@@ -112,21 +114,35 @@ def video_planes_device(color: Any, theta: Any, var: Any, bad: Any, n_planes: in
     return torch.nn.functional.pad(out, (0, pp - out.shape[-1])).contiguous()
 
 
+def scale_planes_device(planes: Any, in_play: Any):
+    """Divide the (T, H, W, PP) ``planes`` in place by per-plane powers of two and return the
+    (PP,) float64 factors: a plane whose largest finite |value| over the bins in play exceeds
+    :data:`~dbench.methods.kernels.bilateral.params.PLANE_MAX` (a block of colours near the
+    float32 maximum, whose float32 window sums would overflow to Inf) is scaled down, the others
+    are divided by 1 (unchanged); the factors the host's
+    :func:`~dbench.methods.kernels.bilateral.numba3d.accumulate3d` takes for the same planes.
+    No read-back: the factors stay on the device."""
+    import torch
+
+    peaks = []
+    for p in range(planes.shape[-1]):       # one (T, H, W) temporary at a time, not a copy
+        a = planes[..., p].abs()
+        keep = torch.isfinite(a) & in_play[:, None, None]
+        peaks.append(torch.where(keep, a, 0.0).amax())
+    peak = torch.stack(peaks).to(torch.float64)
+    exps = torch.where(peak > PLANE_MAX, torch.ceil(torch.log2(peak / PLANE_MAX)),
+                       torch.zeros_like(peak))
+    scale = torch.exp2(exps)
+    planes.div_(scale.to(torch.float32))    # exact: powers of two, and 1 for ordinary planes
+    return scale.contiguous()
+
+
 @lru_cache(maxsize=16)
 def _tfac(radius_t: int, profile: str, sigma_t: float, device: str):
     """The host's temporal factors (float32, as its kernel takes them) on ``device``, once."""
     import torch
     return torch.as_tensor(temporal_factors(radius_t, profile, sigma_t), dtype=torch.float32,
                            device=device)
-
-
-@lru_cache(maxsize=16)
-def _one_g2(g2: float, device: str):
-    """The one γ_t² as a (1,) float64 tensor on ``device``: the kernel reads it from memory so
-    that its test uses the host's float64 value (a float argument would be rounded to
-    float32)."""
-    import torch
-    return torch.tensor([float(g2)], dtype=torch.float64, device=device)
 
 
 def mass_shrink_device(video: Any, color: Any, total_var: Any, h: int, w: int):
@@ -213,15 +229,16 @@ def statistical_video_device(frame: Any, *, radius: int, radius_t: int, alpha: f
         if membership_on:
             test = dict(theta=_pad4(theta), var=_pad4(var))
             if thr.table is None:
-                test["table"] = _one_g2(thr.g2, str(dev))
+                test["table"] = g2_tensor(float(thr.g2), str(dev))
             else:
                 test.update(nint=_pad4(nint), table=table)
         elif n_bad:
             # plain base filter, bad voxels still isolated: θ NaN there, 0 elsewhere, γ_t = 0
             test = dict(theta=_pad4(theta * 0.0), var=_pad4(torch.zeros_like(var)),
-                        table=_one_g2(0.0, str(dev)))
+                        table=g2_tensor(0.0, str(dev)))
         planes = video_planes_device(color, theta, var, bad, n_planes)
-        window3d_filter(guide.feat, guide.labels, planes,
+        scale = scale_planes_device(planes, in_play)
+        window3d_filter(guide.feat, guide.labels, planes, scale,
                         _tfac(radius_t, profile, float(sigma_t), str(dev)), bins.contiguous(),
                         out, radius=guide.radius, radius_t=radius_t, inv_x=guide.inv_x,
                         inv_y=guide.inv_y, disk=guide.disk, e_cut=E_CUT,

@@ -233,19 +233,43 @@ def accumulate(guide: Guide, planes: np.ndarray, *, dot_normal: np.ndarray | Non
     return sums
 
 
-def _scaled_planes(planes: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
-    """(P, H, W) planes as float32 for the kernel, and the per-plane factors to multiply the
-    (float64) sums by, or None. A plane whose largest finite |value| exceeds :data:`PLANE_MAX`
-    (a demodulated colour near the float32 maximum: 3e38 / 1e-3 is Inf in float32) is divided
-    by a power of two (exact) first, so its float32 sums stay finite; other planes, i.e. every
-    ordinary input, are passed unchanged bit for bit."""
-    p64 = np.asarray(planes, np.float64)
-    with np.errstate(invalid="ignore"):
-        peak = np.max(np.where(np.isfinite(p64), np.abs(p64), 0.0),
-                      axis=tuple(range(1, p64.ndim))) if p64.size else np.zeros(len(p64))
+def _scaled_planes(planes: np.ndarray, axis: int = 0) -> tuple[np.ndarray, np.ndarray | None]:
+    """``planes`` as C-contiguous float32 for the kernels, and the per-plane factors (one per
+    index along ``axis``, float64) to multiply their float64 sums by, or None.
+
+    A plane whose largest finite |value| exceeds :data:`PLANE_MAX` (a demodulated colour near
+    the float32 maximum: 3e38 / 1e-3 is Inf in float32; a block of 3e38 colours, whose float32
+    sums overflow) is divided by a power of two (exact) first, so its float32 sums stay finite;
+    other planes, i.e. every ordinary input, are passed unchanged bit for bit (None then).
+    """
+    arr = np.asarray(planes)
+    # float32 is divided in float32 (exact for a power of two); anything else in float64, whose
+    # finite values may lie beyond the float32 range
+    arr = np.ascontiguousarray(arr, dtype=np.float32 if arr.dtype == np.float32 else np.float64)
+    shape = arr.shape
+    lead = int(np.prod(shape[:axis], dtype=np.int64))
+    tail = int(np.prod(shape[axis + 1:], dtype=np.int64))
+    peak = _finite_peaks(arr.reshape(lead, shape[axis], tail))
     if not np.any(peak > PLANE_MAX):
-        return np.ascontiguousarray(planes, dtype=np.float32), None
+        return np.ascontiguousarray(arr, dtype=np.float32), None
     exps = np.where(peak > PLANE_MAX, np.ceil(np.log2(peak / PLANE_MAX)), 0.0)
     scale = np.exp2(exps)
-    scaled = p64 / scale.reshape((-1,) + (1,) * (p64.ndim - 1))
-    return np.ascontiguousarray(scaled, dtype=np.float32), scale
+    factor = scale.reshape((-1,) + (1,) * (arr.ndim - axis - 1)).astype(arr.dtype)
+    return np.ascontiguousarray(arr / factor, dtype=np.float32), scale
+
+
+@njit(parallel=True, cache=True)
+def _finite_peaks(arr):
+    """(P,) float64 largest finite |value| of arr[:, p, :] (0 where none): one pass, no
+    temporary copy of a video's planes."""
+    P = arr.shape[1]
+    peak = np.zeros(P, np.float64)
+    for p in prange(P):
+        m = 0.0
+        for a in range(arr.shape[0]):
+            for i in range(arr.shape[2]):
+                v = abs(np.float64(arr[a, p, i]))
+                if v > m and v < np.inf:
+                    m = v
+        peak[p] = m
+    return peak

@@ -12,8 +12,8 @@ from numba import njit, prange
 from ....errors import DbenchInputError
 from ..welch import row_welch_pair, row_welch_pair_table
 from .guide import Guide
-from .numba2d import (EMPTY_TABLE, half_window, num_bands, row_exp, row_exponent,
-                      scaled_feature_groups)
+from .numba2d import (EMPTY_TABLE, _scaled_planes, half_window, num_bands, row_exp,
+                      row_exponent, scaled_feature_groups)
 from .vexp import F0, F_CUT
 
 
@@ -139,12 +139,13 @@ def _merge_bands3d(acc, active, H):
 
 
 @njit(parallel=True, cache=True)
-def _merge_normalise3d(acc, planes, active, bins, out):
+def _merge_normalise3d(acc, planes, active, bins, ratio, out):
     """Band sums + centre term, normalised by the last plane, written as a video.
 
     For every active bin k: out[y, x, bins[k], c] = (Σ_b acc[c] + planes[k, c]) / (Σ_b acc[P−1]
-    + planes[k, P−1]) in float64 (0 where the denominator is 0), c < P − 1; ``out`` is
-    (H, W, T, P − 1) float32.
+    + planes[k, P−1]) · ratio[c] in float64 (0 where the denominator is 0), c < P − 1, where
+    ratio[c] = scale[c] / scale[P−1] undoes the planes' scaling (all 1 for ordinary inputs, an
+    exact product); ``out`` is (H, W, T, P − 1) float32.
     """
     nbands, K, P, BH, W = acc.shape
     H = planes.shape[2]
@@ -163,7 +164,7 @@ def _merge_normalise3d(acc, planes, active, bins, out):
             for x in range(W):
                 d = s[C, x]
                 for c in range(C):
-                    out[y, x, t, c] = s[c, x] / d if d > 0 else 0.0
+                    out[y, x, t, c] = s[c, x] / d * ratio[c] if d > 0 else 0.0
 
 
 _EMPTY_F64_4D = np.zeros((1, 3, 1, 1), np.float64)
@@ -212,20 +213,29 @@ def accumulate3d(guide: Guide, planes: np.ndarray, tfac: np.ndarray, bins: np.nd
             written there as (sums + planes)[:P−1] / (sums + planes)[P−1] (the centre term
             added, 0 where the denominator is 0) and the video is returned instead of the sums.
         bands: return the kernel's band accumulators unmerged, for a caller that merges them
-            in its own pass: (acc (nbands, K, P, rows + halo, W) float32, rows per band); row
-            y of band b is acc[b, :, :, y − b·rows] where 0 ≤ y − b·rows < rows + halo.
+            in its own pass: (acc (nbands, K, P, rows + halo, W) float32, rows per band,
+            scale (P,) float64); row y of band b is acc[b, :, :, y − b·rows] where
+            0 ≤ y − b·rows < rows + halo, and the merged float64 sum of plane p is to be
+            multiplied by scale[p] (1 for every ordinary plane, see below).
 
     Returns:
         (K, P, H, W) float64 sums without the centre term (the caller adds it),
         ``normalise_into``, or the bands.
 
     Precision as :func:`accumulate`: float32 weights and band sums, float64 Welch test and merge.
+    A plane whose largest finite |value| exceeds
+    :data:`~dbench.methods.kernels.bilateral.params.PLANE_MAX` (a block of colours near the
+    float32 maximum, whose float32 sums would overflow to Inf) enters the kernel divided by a
+    power of two (:func:`~.numba2d._scaled_planes`, exact) and its float64 sums are multiplied
+    back; ordinary planes enter unchanged, so their results are bit for bit those without it.
     """
-    planes = np.ascontiguousarray(planes, dtype=np.float32)
-    k_, _, h, w = planes.shape
-    if (h, w) != guide.shape:
+    planes = np.asarray(planes)
+    if planes.ndim != 4 or planes.shape[2:] != guide.shape:
         raise DbenchInputError(f"planes: expected shape (K, P, {guide.shape[0]}, "
                                f"{guide.shape[1]}), got {planes.shape}")
+    planes, scale = _scaled_planes(planes, axis=1)
+    k_, p_, h, w = planes.shape
+    factors = np.ones(p_, np.float64) if scale is None else scale
     bins = np.asarray(bins, np.int64)
     if bins.shape != (k_,) or (k_ > 1 and np.any(np.diff(bins) <= 0)) or (k_ and bins[0] < 0):
         raise DbenchInputError(f"bins: expected {k_} increasing indices ≥ 0, got {bins!r}")
@@ -263,7 +273,7 @@ def accumulate3d(guide: Guide, planes: np.ndarray, tfac: np.ndarray, bins: np.nd
     nbands = num_bands(h)
     if k_ == 0:
         if bands:
-            return np.zeros((nbands, 0) + planes.shape[1:2] + (1, w), np.float32), h
+            return np.zeros((nbands, 0) + planes.shape[1:2] + (1, w), np.float32), h, factors
         return np.zeros(planes.shape, np.float64) if normalise_into is None else normalise_into
     acc = _accumulate3d_kernel(fsq, np.zeros((0, 1, 1), np.float32), planes, dys, dxs, es,
                                dt_first, tfac.astype(np.float32), np.ascontiguousarray(nbr),
@@ -271,8 +281,11 @@ def accumulate3d(guide: Guide, planes: np.ndarray, tfac: np.ndarray, bins: np.nd
                                nbands, int(guide.radius),
                                int(planes.shape[1] if squared_from is None else squared_from))
     if bands:
-        return acc, (h + nbands - 1) // nbands
+        return acc, (h + nbands - 1) // nbands, factors
     if normalise_into is None:
-        return _merge_bands3d(acc, active, h)
-    _merge_normalise3d(acc, planes, active, bins, normalise_into)
+        sums = _merge_bands3d(acc, active, h)
+        if scale is not None:
+            sums *= scale[None, :, None, None]
+        return sums
+    _merge_normalise3d(acc, planes, active, bins, factors[:-1] / factors[-1], normalise_into)
     return normalise_into

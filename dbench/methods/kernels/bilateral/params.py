@@ -21,6 +21,7 @@ LABEL_SCALE = 16.0
 EXP_CUTOFF = 87.0
 
 #: Largest |value| a plane may hold in the float32 band sums of
-#: :func:`~dbench.methods.kernels.bilateral.numba2d.accumulate`: a window of (2·20 + 1)² = 1681
-#: taps of weight ≤ 1 then sums to ≤ 1.7e33, far below the float32 maximum.
+#: :func:`~dbench.methods.kernels.bilateral.numba2d.accumulate` (and ``numba3d.accumulate3d``,
+#: the Triton window kernels): a window of (2·20 + 1)² = 1681 taps of weight ≤ 1 then sums to
+#: ≤ 1.7e33, far below the float32 maximum (a 3-D window of 1681 × 7 bins to ≤ 1.2e34).
 PLANE_MAX = 1e30

@@ -17,6 +17,8 @@ with the hardware ``exp``; the tests bound the difference to the float64 referen
 """
 from __future__ import annotations
 
+from functools import lru_cache
+
 import triton
 import triton.language as tl
 from triton.language import core as tl_core  # noqa: F401 - patched by the interpreter (runtime)
@@ -30,7 +32,7 @@ TILE_H, TILE_W = 8, 32
 
 @kernel
 def window_kernel(feat_ptr, lab_ptr, plane_ptr, scale_ptr, theta_ptr, var_ptr, nint_ptr,
-                  table_ptr, out_ptr, H, W, ix, iy, g2, table_last, e_cut,
+                  table_ptr, out_ptr, H, W, ix, iy, table_last, e_cut,
                   R: tl.constexpr, KP: tl.constexpr, DISK: tl.constexpr, TEST: tl.constexpr,
                   TH: tl.constexpr, TW: tl.constexpr):
     """feat (H, W, KP) f32, zero-padded; lab (H, W) i32; planes (H, W, 4) f32 (r·v, g·v, b·v, v);
@@ -38,8 +40,10 @@ def window_kernel(feat_ptr, lab_ptr, plane_ptr, scale_ptr, theta_ptr, var_ptr, n
     table (L,) f64; out (H, W, 3) f32. Every pixel's features, planes and statistics are one
     contiguous vector, read with one wide load per neighbour; the zero padding makes the padded
     channels drop out by themselves (a zero difference adds nothing to the exponent and passes the
-    test as d = 0). TEST: 0 no membership, 1 one γ_t² (g2), 2 γ_t² looked up by
-    ν = n_i + n_j − 2. The radius R is a compile-time constant: one compiled kernel per radius,
+    test as d = 0). TEST: 0 no membership, 1 one γ_t², table[0], 2 γ_t² looked up by
+    ν = n_i + n_j − 2. γ_t² is read from the float64 table in both, so the float64 test compares
+    with the host's value (a float scalar argument is compiled as float32 and would move the
+    threshold by up to 3e-8 relative). The radius R is a compile-time constant: one compiled kernel per radius,
     a plain loop bound (no unrolling)."""
     pid_y = tl.program_id(0)
     pid_x = tl.program_id(1)
@@ -53,6 +57,8 @@ def window_kernel(feat_ptr, lab_ptr, plane_ptr, scale_ptr, theta_ptr, var_ptr, n
     fc = tl.load(feat_ptr + idx[:, None] * KP + k[None, :], mask=inside[:, None], other=0.0)
     lc = tl.load(lab_ptr + idx, mask=inside, other=-1)
     if TEST > 0:
+        if TEST == 1:
+            g2 = tl.load(table_ptr)
         tc = tl.load(theta_ptr + idx[:, None] * 4 + c4[None, :], mask=inside[:, None], other=0.0)
         vc = tl.load(var_ptr + idx[:, None] * 4 + c4[None, :], mask=inside[:, None], other=0.0)
         if TEST == 2:
@@ -116,19 +122,30 @@ def window_filter(feat, labels, planes, scale, out, *, radius: int, inv_x: float
         planes: (H, W, 4) float32; scale: (4,) float32 factors the sums are multiplied by.
         out: (H, W, 3) float32, written.
         theta, var: (H, W, 4) float64 (None: no membership test); nint: (H, W, 4) int32 and
-            ``table`` (L,) float64 when γ_t² depends on ν, else ``g2``; 4th channels zero.
+            ``table`` (L,) float64 when γ_t² depends on ν, else ``g2`` (handed to the kernel
+            as a (1,) float64 table, :func:`g2_tensor`); 4th channels zero.
     """
     h, w, kp = feat.shape
-    test = 0 if theta is None else (1 if table is None else 2)
+    test = 0 if theta is None else (1 if nint is None else 2)
+    if test == 1:
+        table = g2_tensor(float(g2), str(theta.device))
     dummy_f64 = theta if theta is not None else scale.new_zeros(1, dtype=_f64())
     dummy_i32 = nint if nint is not None else labels
     tab = table if table is not None else dummy_f64
     grid = (cdiv(h, TILE_H), cdiv(w, TILE_W))
     window_kernel[grid](
         feat, labels, planes, scale, dummy_f64, var if var is not None else dummy_f64,
-        dummy_i32, tab, out, h, w, float(inv_x), float(inv_y), float(g2),
-        int(tab.shape[0] - 1), float(e_cut), R=int(radius),
+        dummy_i32, tab, out, h, w, float(inv_x), float(inv_y), int(tab.shape[0] - 1), float(e_cut), R=int(radius),
         KP=int(kp), DISK=bool(disk), TEST=test, TH=TILE_H, TW=TILE_W)
+
+
+@lru_cache(maxsize=16)
+def g2_tensor(g2: float, device: str):
+    """The one γ_t² as a (1,) float64 tensor on ``device``, made once: the window kernels read it
+    from memory so that their float64 Welch test uses the host's value (a float argument would
+    be compiled as float32)."""
+    import torch
+    return torch.tensor([g2], dtype=torch.float64, device=device)
 
 
 def _f64():
@@ -136,4 +153,4 @@ def _f64():
     return torch.float64
 
 
-__all__ = ["TILE_H", "TILE_W", "window_filter", "window_kernel"]
+__all__ = ["TILE_H", "TILE_W", "g2_tensor", "window_filter", "window_kernel"]

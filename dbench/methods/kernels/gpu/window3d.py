@@ -36,12 +36,14 @@ from .runtime import cdiv, kernel
 
 
 @kernel
-def window3d_kernel(feat_ptr, lab_ptr, plane_ptr, theta_ptr, var_ptr, nint_ptr, table_ptr,
-                    tfac_ptr, bins_ptr, out_ptr, H, W, T, ix, iy, table_last, e_cut,
+def window3d_kernel(feat_ptr, lab_ptr, plane_ptr, scale_ptr, theta_ptr, var_ptr, nint_ptr,
+                    table_ptr, tfac_ptr, bins_ptr, out_ptr, H, W, T, ix, iy, table_last, e_cut,
                     R: tl.constexpr, RT: tl.constexpr, KP: tl.constexpr, PP: tl.constexpr,
                     SQ: tl.constexpr, SHRINK: tl.constexpr, DISK: tl.constexpr,
                     TEST: tl.constexpr, TH: tl.constexpr, TW: tl.constexpr):
-    """feat (H, W, KP) f32 zero-padded; lab (H, W) i32; planes (T, H, W, PP) f32; theta, var
+    """feat (H, W, KP) f32 zero-padded; lab (H, W) i32; planes (T, H, W, PP) f32 and scale
+    (PP,) f64, the factors the planes were divided by (the epilogue multiplies the centre values
+    and the float32 sums back in float64; 1 for ordinary planes, an exact product); theta, var
     (T, H, W, 4) f64 and nint (T, H, W, 4) i32, the 4th channel zero; table (L,) f64; tfac
     (2·RT+1,) f32; bins (K,) i64, the bin of each program along axis 0; out (H, W, T, 3) f32.
     TEST: 0 no membership, 1 one γ_t², table[0], 2 γ_t² looked up by ν = n_i + n_j − 2 (γ_t²
@@ -120,10 +122,12 @@ def window3d_kernel(feat_ptr, lab_ptr, plane_ptr, theta_ptr, var_ptr, nint_ptr, 
                                  mask=nbt[:, None], other=0.0)
                     wm = tl.where(cp[None, :] >= SQ, (w * w)[:, None], w[:, None])
                     acc += wm * pn
-    # epilogue in float64, per voxel (the host merges its float32 band sums in float64)
+    # epilogue in float64, per voxel (the host merges its float32 band sums in float64), on the
+    # unscaled values: a colour near the float32 maximum is only scaled down for the sums
+    sc = tl.load(scale_ptr + cp)
     pc = tl.load(plane_ptr + vox[:, None] * PP + cp[None, :], mask=inside[:, None],
-                 other=0.0).to(tl.float64)
-    sums = acc.to(tl.float64)
+                 other=0.0).to(tl.float64) * sc[None, :]
+    sums = acc.to(tl.float64) * sc[None, :]
     v = tl.sum(tl.where(cp[None, :] == 3, pc, 0.0), axis=1)
     a = tl.sum(tl.where(cp[None, :] == 3, sums, 0.0), axis=1)
     den = v + a
@@ -159,7 +163,8 @@ def window3d_kernel(feat_ptr, lab_ptr, plane_ptr, theta_ptr, var_ptr, nint_ptr, 
     tl.store(out_ptr + at, val.to(tl.float32), mask=inside[:, None] & (cp[None, :] < 3))
 
 
-def window3d_filter(feat, labels, planes, tfac, bins, out, *, radius: int, radius_t: int,
+def window3d_filter(feat, labels, planes, scale, tfac, bins, out, *, radius: int,
+                    radius_t: int,
                     inv_x: float, inv_y: float, disk: bool, e_cut: float, shrink: int = 0,
                     squared_from: int | None = None, theta=None, var=None, nint=None,
                     table=None) -> None:
@@ -168,7 +173,10 @@ def window3d_filter(feat, labels, planes, tfac, bins, out, *, radius: int, radiu
 
     Args:
         feat: (H, W, KP) float32 pre-scaled features, KP a power of two; labels (H, W) int32.
-        planes: (T, H, W, PP) float32, PP = 4 or 8 (zero-padded).
+        planes: (T, H, W, PP) float32, PP = 4 or 8 (zero-padded); scale: (PP,) float64
+            factors the planes were divided by (a power of two where a plane's finite peak
+            exceeds PLANE_MAX, dbench/methods/statistical/transient_device.py), all 1 for
+            ordinary inputs.
         tfac: (2r_t+1,) float32 temporal factors; bins: (K,) int64 bins to write, K ≥ 1.
         out: (H, W, T, 3) float32, written at the bins ``bins`` only.
         shrink: 0 normalised sum, 1 / 2 the shrinkage with θ̄ from the colour / plane 4;
@@ -185,7 +193,7 @@ def window3d_filter(feat, labels, planes, tfac, bins, out, *, radius: int, radiu
     tab = table if table is not None else dummy_f64
     grid = (int(bins.shape[0]), cdiv(h, TILE_H), cdiv(w, TILE_W))
     window3d_kernel[grid](
-        feat, labels, planes, dummy_f64, var if var is not None else dummy_f64, dummy_i32, tab,
+        feat, labels, planes, scale, dummy_f64, var if var is not None else dummy_f64, dummy_i32, tab,
         tfac, bins, out, h, w, t_, float(inv_x), float(inv_y), int(tab.shape[0] - 1),
         float(e_cut), R=int(radius), RT=int(radius_t), KP=int(kp), PP=int(pp),
         SQ=int(pp if squared_from is None else squared_from), SHRINK=int(shrink),
