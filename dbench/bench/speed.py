@@ -1,7 +1,8 @@
 """Speed benchmarks that print ratios measured in the same run.
 
-* ``bench_render``: statistics collection (1-spp samples + float64 power sums) against one plain
-  render of the same spp, and the sample passes without statistics.
+* ``bench_render``: statistics collection (individual samples + float64 power sums) against one
+  plain render of the same spp, and the samples without statistics; on JIT variants also the
+  host path the one-pass kernel replaced, in the same interleaved rounds.
 * ``bench_method``: a method on a synthetic frame of a given size, against OIDN in the same run;
   a module of :mod:`dbench.bench.methods` named after the method adds its
   fast-path-versus-reference figures (``benchmark()``).
@@ -63,20 +64,47 @@ def paired_share(times_a: list[float], times_b: list[float]) -> dict[str, float]
     return {"median": float(q50), "q25": float(q25), "q75": float(q75), "rounds": len(shares)}
 
 
+#: The ratio to the plain render that each timed way of rendering the samples is reported as.
+_RENDER_RATIOS = {"samples": "ratio_samples_vs_plain", "samples_stats": "ratio_stats_vs_plain",
+                  "host_samples": "ratio_host_samples_vs_plain",
+                  "host_samples_stats": "ratio_host_stats_vs_plain"}
+
+
 def bench_render(scene: str = "cornell", res=256, spp: int = 64, repeats: int = 3,
                  transform: str = "box-cox", lam: float = 0.5) -> dict[str, Any]:
+    """Statistics cost against one plain ``spp``-spp render, same run: the samples with and
+    without statistics on the path dbench renders with (the one-pass kernel on JIT variants,
+    :mod:`dbench.datasets.render_moments`) and, on JIT variants, on the host path it replaced
+    (``batch`` sensor films to NumPy + compiled power sums). All are timed in interleaved rounds
+    (:func:`interleaved_times`); the ratios are medians of the per-round ratios to the plain
+    render, so a slow spell of a shared machine falls on both sides of each ratio."""
     from ..datasets import render, scenes
+    from ..datasets.mitsuba_env import mitsuba
 
     sc = scenes.get(scene)
-    plain = median_time(lambda: render.render_plain(sc, res, spp), repeats)
-    passes = median_time(lambda: render.render_passes(sc, res, spp, progress=False), repeats)
-    with_stats = median_time(lambda: render.render_passes(sc, res, spp, stats=(transform, lam),
-                                                           progress=False), repeats)
-    return {"benchmark": "render", "scene": scene, "res": parse_res(res).key, "spp": spp,
-            "copies_per_call": render.batch_size(res, spp), "transform": transform,
-            "plain_s": plain, "samples_s": passes, "samples_stats_s": with_stats,
-            "ratio_stats_vs_plain": with_stats / plain, "ratio_samples_vs_plain": passes / plain,
-            "machine": machine_info()["cpu"], "when": time.strftime("%Y-%m-%d %H:%M:%S")}
+    variant = mitsuba().variant()
+    kernel = render.jit_variant(variant)
+    st = (transform, lam)
+    fns = {"plain": lambda: render.render_plain(sc, res, spp),
+           "samples": lambda: render.render_passes(sc, res, spp, progress=False),
+           "samples_stats": lambda: render.render_passes(sc, res, spp, stats=st,
+                                                         progress=False)}
+    if kernel:
+        fns["host_samples"] = lambda: render.render_passes(sc, res, spp, progress=False,
+                                                           kernel=False)
+        fns["host_samples_stats"] = lambda: render.render_passes(sc, res, spp, stats=st,
+                                                                 progress=False, kernel=False)
+    times = dict(zip(fns, interleaved_times(list(fns.values()), repeats)))
+    out: dict[str, Any] = {"benchmark": "render", "scene": scene, "res": parse_res(res).key,
+                           "spp": spp, "copies_per_call": render.batch_size(res, spp),
+                           "transform": transform, "variant": variant, "rounds": repeats,
+                           "path": "kernel" if kernel else "host"}
+    for name, t in times.items():
+        out[f"{name}_s"] = statistics.median(t)
+        if name in _RENDER_RATIOS:
+            out[_RENDER_RATIOS[name]] = statistics.median(np.array(t) / np.array(times["plain"]))
+    out.update(machine=machine_info()["cpu"], when=time.strftime("%Y-%m-%d %H:%M:%S"))
+    return out
 
 
 #: Samples per pixel of the synthetic frame a method is timed on (``dbench bench METHOD``).
@@ -188,14 +216,21 @@ def format_result(result: dict[str, Any]) -> str:
                 f"  judge + one-seed bootstrap   {(result['judge_s'] + result['bootstrap_s']) * 1e3:.1f} ms "
                 f"({result['ratio_judge_bootstrap_vs_plain']:.2f}x plain)")
     if result["benchmark"] == "render":
-        return (f"render benchmark: {result['scene']} {size_text(result['res'])} at "
-                f"{result['spp']} spp "
-                f"({result['copies_per_call']} samples per pixel per call)\n"
-                f"  plain render           {result['plain_s']:.3f} s\n"
-                f"  samples, no statistics {result['samples_s']:.3f} s "
-                f"({result['ratio_samples_vs_plain']:.2f}x plain)\n"
-                f"  samples + statistics   {result['samples_stats_s']:.3f} s "
-                f"({result['ratio_stats_vs_plain']:.2f}x plain)")
+        lines = [f"render benchmark: {result['scene']} {size_text(result['res'])} at "
+                 f"{result['spp']} spp, {result.get('variant', '?')} "
+                 f"({result['copies_per_call']} samples per pixel per batch; ratios: medians "
+                 f"over {result.get('rounds', '?')} interleaved rounds)",
+                 f"  plain render           {result['plain_s']:.3f} s",
+                 f"  samples, no statistics {result['samples_s']:.3f} s "
+                 f"({result['ratio_samples_vs_plain']:.2f}x plain)",
+                 f"  samples + statistics   {result['samples_stats_s']:.3f} s "
+                 f"({result['ratio_stats_vs_plain']:.2f}x plain)"]
+        if "host_samples_s" in result:
+            lines += [f"  host path, no statistics {result['host_samples_s']:.3f} s "
+                      f"({result['ratio_host_samples_vs_plain']:.2f}x plain)",
+                      f"  host path + statistics   {result['host_samples_stats_s']:.3f} s "
+                      f"({result['ratio_host_stats_vs_plain']:.2f}x plain)"]
+        return "\n".join(lines)
     where = (f" on {result['machine']}, {result['backend']}" if result.get("device") else "")
     lines = [f"{result['method']}{where} at {result['width']}x{result['height']}"
              f"{', %s spp' % result['spp'] if 'spp' in result else ''}: "

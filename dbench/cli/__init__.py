@@ -16,6 +16,7 @@ README.md, "dbench run", says where ``run`` writes and how it replaces an earlie
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from typing import Sequence
 
@@ -86,6 +87,12 @@ def _main(argv: Sequence[str] | None) -> int:
         print(f"dbench: {exc}", file=sys.stderr)
         return 2
     args = parser.parse_args(argv)
+    # --device cpu|cuda also chooses where Mitsuba renders (the variant, part of every render's
+    # cache key: dbench/datasets/mitsuba_env.py); sweep workers inherit it from the environment
+    render_device = getattr(args, "device", None)
+    saved = os.environ.get("DBENCH_RENDER_DEVICE")
+    if render_device in ("cpu", "cuda"):
+        os.environ["DBENCH_RENDER_DEVICE"] = render_device
     try:
         _load_plugins(args, plugin_specs)
         return args.func(args)
@@ -107,6 +114,11 @@ def _main(argv: Sequence[str] | None) -> int:
         print(f"dbench: internal error: {type(exc).__name__}: {exc} (run again with --debug "
               "for the traceback)", file=sys.stderr)
         return 1
+    finally:  # a command run in-process (tests, notebooks) leaves the environment as it was
+        if saved is None:
+            os.environ.pop("DBENCH_RENDER_DEVICE", None)
+        else:
+            os.environ["DBENCH_RENDER_DEVICE"] = saved
 
 
 __all__ = ["build_parser", "main", "parse_params", "split_plugin_args"]

@@ -190,6 +190,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _device_argument(parser) -> None:
-    parser.add_argument("--device", default="auto", help="where methods with a GPU path run: "
-                        "cpu, cuda, or auto (default: cuda when PyTorch sees a usable GPU); "
-                        "methods without one run on the CPU and say so (docs/gpu.md)")
+    parser.add_argument("--device", default="auto", help="where methods with a GPU path run "
+                        "and where Mitsuba renders: cpu, cuda, or auto (default: cuda when "
+                        "PyTorch sees a usable GPU, rendering on cuda_ad_rgb where its probe "
+                        "passes); methods without one run on the CPU and say so (docs/gpu.md)")

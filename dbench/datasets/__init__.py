@@ -162,7 +162,7 @@ def load(scene: str | Scene, spp: int, res, needs: Iterable[str] | None = None,
                   **getattr(sc, "frame_meta", {})}
 
     noisy_desc = {**base, "what": "noisy", "spp": int(spp), "seed": int(seed),
-                  "copies": _render.batch_size(res, spp)}
+                  "copies": _render.batch_size(res, spp), "samples": _render.SAMPLES_VERSION}
     stats_desc = {**noisy_desc, "what": "stats", "transform": transform, "lam": float(lam)}
     color_entry = cache.get("noisy", noisy_desc)
     stats_entry = cache.get("stats", stats_desc) if "stats" in wanted else None
@@ -202,7 +202,7 @@ def load(scene: str | Scene, spp: int, res, needs: Iterable[str] | None = None,
     if "reference" in wanted:
         ref_desc = {**base, "what": "reference", "spp": int(ref_spp), "seed": ref_seed,
                     "chunk": _render.DEFAULT_REFERENCE_CHUNK,
-                    "var": _render.REFERENCE_VAR_VERSION}
+                    "var": _render.REFERENCE_VAR_VERSION, "samples": _render.SAMPLES_VERSION}
         entry = cache.get("reference", ref_desc)
         images = entry.images() if entry is not None else {}
         if "reference" in images and "reference_var" in images:

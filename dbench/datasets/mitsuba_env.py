@@ -5,23 +5,35 @@ With only libLLVM 15 on the machine, Mitsuba's ``llvm_ad_rgb`` variant aborts th
 Python, so the LLVM check runs a tiny render in a child process; the verdict is remembered in a
 small file keyed by the interpreter, Mitsuba version and ``DRJIT_LIBLLVM_PATH``.
 
-``DBENCH_VARIANT`` forces a variant (``scalar_rgb`` to simulate a machine without LLVM).
+With an NVIDIA GPU (a driver the process can see), ``cuda_ad_rgb`` is checked the same way, in
+a child process with a tiny render (:func:`cuda_usable`); where no driver is visible the answer is
+"no" at once, without a child. The one-pass render kernel (:mod:`dbench.datasets.render_moments`)
+keeps the samples on the device and brings back only per-pixel sums, so the GPU pays no per-pass
+host round trips.
+
+``DBENCH_VARIANT`` forces a variant (``scalar_rgb`` to simulate a machine without LLVM);
+``DBENCH_RENDER_DEVICE`` (``cpu`` or ``cuda``) picks the device when no variant is forced
+(:func:`choose_variant`). The variant is part of every render's cache key (:func:`versions`).
 """
 from __future__ import annotations
 
 import hashlib
 import json
 import os
+import platform
 import subprocess
 import sys
 import warnings
 from functools import lru_cache
 from pathlib import Path
 
-from ..errors import RendererUnavailableError
+from ..errors import DbenchInputError, RendererUnavailableError
 
 LLVM_VARIANT = "llvm_ad_rgb"
+CUDA_VARIANT = "cuda_ad_rgb"
 SCALAR_VARIANT = "scalar_rgb"
+#: Devices :func:`choose_variant` accepts (None: CUDA when usable, else the CPU).
+DEVICES = ("cpu", "cuda")
 
 _PROBE = r"""
 import mitsuba as mi, drjit as dr
@@ -40,9 +52,29 @@ print("ok")
 """
 
 
-def _state_file() -> Path:
+_CUDA_PROBE = r"""
+import drjit as dr
+if not dr.has_backend(dr.JitBackend.CUDA):
+    raise SystemExit(3)
+import mitsuba as mi
+mi.set_variant("cuda_ad_rgb")
+scene = mi.load_dict({
+    "type": "scene", "integrator": {"type": "path", "max_depth": 3},
+    "sensor": {"type": "perspective", "film": {"type": "hdrfilm", "width": 4, "height": 4,
+               "rfilter": {"type": "box"}}},
+    "light": {"type": "constant"}, "s": {"type": "sphere", "center": [0, 0, 5]},
+})
+img = mi.render(scene, spp=2)
+assert img.shape == (4, 4, 3)
+print("ok")
+"""
+#: Where a visible NVIDIA driver shows itself; none of them: no CUDA, and no child is started.
+_NVIDIA_MARKERS = ("/proc/driver/nvidia/version", "/dev/nvidiactl", "/dev/nvidia0")
+
+
+def _state_file(name: str = "llvm") -> Path:
     base = Path(os.environ.get("DBENCH_CACHE", Path.home() / ".cache" / "dbench"))
-    return base / "llvm_probe.json"
+    return base / f"{name}_probe.json"
 
 
 def _probe_key() -> str:
@@ -55,14 +87,12 @@ def _probe_key() -> str:
     return hashlib.sha1(raw.encode()).hexdigest()[:16]
 
 
-@lru_cache(maxsize=1)
-def llvm_usable() -> tuple[bool, str]:
-    """Whether ``llvm_ad_rgb`` renders on this machine, and a one-line reason if not.
-
-    The answer comes from a child process, so an LLVM abort only kills the child.
-    """
-    key = _probe_key()
-    state = _state_file()
+def _probe(name: str, code: str, key: str, describe, timeout: float = 300
+           ) -> tuple[bool, str]:
+    """Run ``code`` in a child process once per ``key``; ``describe(exit code or None when
+    it did not finish, last output line)`` words a failure. The verdict (ok, reason) is kept in
+    ``_state_file(name)`` so later processes skip the child."""
+    state = _state_file(name)
     try:
         cached = json.loads(state.read_text(encoding="utf-8"))
         if cached.get("key") == key:
@@ -70,20 +100,13 @@ def llvm_usable() -> tuple[bool, str]:
     except (OSError, ValueError, KeyError):
         pass
     try:
-        proc = subprocess.run([sys.executable, "-c", _PROBE], capture_output=True, text=True,
-                              timeout=300)
+        proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                              timeout=timeout)
         ok = proc.returncode == 0 and "ok" in proc.stdout
-        if ok:
-            reason = ""
-        elif proc.returncode == 3:
-            reason = "Dr.Jit found no libLLVM"
-        else:
-            tail = (proc.stderr or proc.stdout).strip().splitlines()[-1:] or ["no output"]
-            reason = f"LLVM test render failed (exit {proc.returncode}: {tail[0][:160]})"
-    except subprocess.TimeoutExpired:
-        ok, reason = False, "LLVM test render timed out"
-    if not ok:
-        reason += "; install libllvm19 (apt-get install libllvm19) or set DRJIT_LIBLLVM_PATH"
+        tail = (proc.stderr or proc.stdout).strip().splitlines()[-1:] or ["no output"]
+        reason = "" if ok else describe(proc.returncode, tail[0][:160])
+    except (subprocess.TimeoutExpired, OSError) as exc:
+        ok, reason = False, describe(None, type(exc).__name__)
     try:
         state.parent.mkdir(parents=True, exist_ok=True)
         tmp = state.with_suffix(f".{os.getpid()}.tmp")
@@ -94,19 +117,90 @@ def llvm_usable() -> tuple[bool, str]:
     return ok, reason
 
 
+def _llvm_failure(code: int | None, last: str) -> str:
+    reason = ("LLVM test render timed out" if code is None
+              else "Dr.Jit found no libLLVM" if code == 3
+              else f"LLVM test render failed (exit {code}: {last})")
+    return reason + "; install libllvm19 (apt-get install libllvm19) or set DRJIT_LIBLLVM_PATH"
+
+
 @lru_cache(maxsize=1)
-def choose_variant() -> str:
-    """The variant dbench renders with: ``llvm_ad_rgb`` when usable, else ``scalar_rgb``
-    with a one-line warning. ``DBENCH_VARIANT`` overrides the choice."""
+def llvm_usable() -> tuple[bool, str]:
+    """Whether ``llvm_ad_rgb`` renders on this machine, and a one-line reason if not.
+
+    The answer comes from a child process, so an LLVM abort only kills the child.
+    """
+    return _probe("llvm", _PROBE, _probe_key(), _llvm_failure)
+
+
+def _cuda_failure(code: int | None, last: str) -> str:
+    return ("CUDA test render timed out" if code is None
+            else "Dr.Jit found no CUDA device" if code == 3
+            else f"CUDA test render failed (exit {code}: {last})")
+
+
+def _nvidia_driver() -> str | None:
+    """The visible NVIDIA driver's version line ("" when only its device files show), or None
+    when none is visible (``CUDA_VISIBLE_DEVICES`` empty or ``-1`` hides every GPU)."""
+    visible = os.environ.get("CUDA_VISIBLE_DEVICES")
+    if visible is not None and visible.strip() in ("", "-1"):
+        return None
+    for marker in _NVIDIA_MARKERS:
+        if os.path.exists(marker):
+            try:
+                return Path(_NVIDIA_MARKERS[0]).read_text(encoding="utf-8").splitlines()[0]
+            except (OSError, IndexError):
+                return ""
+    return None
+
+
+@lru_cache(maxsize=1)
+def cuda_usable() -> tuple[bool, str]:
+    """Whether ``cuda_ad_rgb`` renders here, and a one-line reason if not.
+
+    No visible NVIDIA driver: "no" at once. Otherwise a child process renders a tiny scene
+    (a CUDA or OptiX failure only ends the child); the verdict is remembered per interpreter,
+    Mitsuba version, host, driver and ``CUDA_VISIBLE_DEVICES``."""
+    driver = _nvidia_driver()
+    if driver is None:
+        return False, "no NVIDIA driver visible"
+    raw = "|".join([_probe_key(), platform.node(), driver,
+                    os.environ.get("CUDA_VISIBLE_DEVICES", "")])
+    key = hashlib.sha1(raw.encode()).hexdigest()[:16]
+    return _probe("cuda", _CUDA_PROBE, key, _cuda_failure, timeout=120)
+
+
+@lru_cache(maxsize=4)
+def choose_variant(device: str | None = None) -> str:
+    """The variant dbench renders with on ``device``.
+
+    ``DBENCH_VARIANT`` overrides everything. ``"cuda"``: ``cuda_ad_rgb``, or
+    RendererUnavailableError with the probe's reason. ``"cpu"``: ``llvm_ad_rgb`` when usable,
+    else ``scalar_rgb`` with a one-line warning. None: ``cuda_ad_rgb`` where :func:`cuda_usable`
+    says yes, else as ``"cpu"``."""
     forced = os.environ.get("DBENCH_VARIANT")
     if forced:
         return forced
+    if device is not None and device not in DEVICES:
+        raise DbenchInputError(f"render device: expected one of {DEVICES}, got {device!r}")
+    if device in (None, "cuda"):
+        ok, reason = cuda_usable()
+        if ok:
+            return CUDA_VARIANT
+        if device == "cuda":
+            raise RendererUnavailableError(f"cannot render on cuda: {reason}")
     ok, reason = llvm_usable()
     if ok:
         return LLVM_VARIANT
     warnings.warn(f"dbench: falling back to {SCALAR_VARIANT} for steady renders ({reason}); "
                   "transient rendering needs LLVM", RuntimeWarning, stacklevel=2)
     return SCALAR_VARIANT
+
+
+def current_variant() -> str:
+    """:func:`choose_variant` for ``DBENCH_RENDER_DEVICE`` (unset: the default device), the
+    variant :func:`mitsuba` sets and :func:`versions` records."""
+    return choose_variant(os.environ.get("DBENCH_RENDER_DEVICE") or None)
 
 
 @lru_cache(maxsize=1)
@@ -117,7 +211,7 @@ def mitsuba():
         import mitsuba as mi
     except ImportError as exc:  # pragma: no cover - install problem
         raise RendererUnavailableError(f"Mitsuba is not installed: {exc}") from exc
-    variant = choose_variant()
+    variant = current_variant()
     if mi.variant() != variant:
         try:
             mi.set_variant(variant)
@@ -152,5 +246,5 @@ def versions() -> dict[str, str]:
             out[mod] = version(mod)
         except PackageNotFoundError:
             out[mod] = "missing"
-    out["variant"] = choose_variant()
+    out["variant"] = current_variant()
     return out

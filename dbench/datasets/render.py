@@ -1,10 +1,13 @@
 """Steady renders: noisy color with exact per-pixel sample statistics, AOV features, reference.
 
-The noisy color at n spp is always the mean of n passes of 1 spp with a box filter and distinct
-seeds (spec/mitsuba.md §4): every pass puts exactly one sample in every pixel, so the passes are
-the individual samples. Statistics, when asked for, are accumulated from those same passes
-(float64 power sums, :mod:`dbench.datasets.stats`), which makes the color identical whether or
-not statistics were collected, and runs of different methods see the same input.
+The noisy color at n spp is always the mean of n individual samples per pixel, each inside its
+own pixel (box filter), in batches of ``copies`` samples per pixel with distinct seeds. On JIT
+variants a batch is one Dr.Jit kernel that adds each sample to per-pixel float64 sums where it
+is made (:mod:`dbench.datasets.render_moments`; README.md, "How renders work"); on scalar
+variants it is a 1-spp render of a ``batch`` sensor of camera copies, summed on the host.
+Statistics, when asked for, are the power sums of those same samples
+(:mod:`dbench.datasets.stats`), which makes the color identical whether or not statistics were
+collected, and runs of different methods see the same input.
 
 Features come from a separate pass of Mitsuba's ``aov`` integrator (no nested integrator:
 cheaper, spec/mitsuba.md §3); the ``emitter`` buffer (:mod:`dbench.datasets.emitter`) from
@@ -26,6 +29,7 @@ import numpy as np
 
 from .mitsuba_env import mitsuba
 from .scene import Scene
+from .render_moments import batch_sums, jit_variant
 from .stats import PowerSums
 from ..data import SampleStats
 from ..resolution import Res, parse_res
@@ -39,6 +43,11 @@ DEFAULT_REFERENCE_CHUNK = 256
 MIN_REFERENCE_CHUNKS = 16
 #: Marker in the cache key of reference entries that hold ``reference_var`` (chunk variance).
 REFERENCE_VAR_VERSION = "chunk-var-1"
+#: How the steady noisy samples and reference chunks are drawn (part of their cache keys):
+#: since "kernel-1", in the one-pass kernel of render_moments on JIT variants (pixel-major
+#: wavefronts of an ``independent`` sampler), whose random numbers differ from the ``batch``
+#: sensor's before it; entries made before are never mixed with new ones.
+SAMPLES_VERSION = "kernel-1"
 
 
 def feature_spp(spp: int) -> int:
@@ -109,9 +118,23 @@ def loaded_batch_scene(scene: Scene, res: Res, copies: int):
 
 def sample_batches(scene: Scene, res: Res, spp: int, seed: int = 0):
     """Yield the individual samples: arrays (H, copies, W, 3), ``copies`` samples per pixel
-    each, ``spp`` in all. The only place the noisy samples are drawn."""
-    mi = mitsuba()
+    each, ``spp`` in all; the values :func:`render_passes` sums for the same seed (from the
+    same kernel on JIT variants, :func:`dbench.datasets.render_moments.batch_sums` with
+    ``keep_samples``; from the batch sensor on scalar ones)."""
     res = parse_res(res)
+    copies = batch_size(res, spp)
+    if not _kernel_path():
+        yield from _host_sample_batches(scene, res, spp, seed)
+        return
+    sc = loaded_scene(scene, res)
+    for k in range(spp // copies):
+        b = batch_sums(sc, copies, pass_seed("noisy", seed, k), keep_samples=True)
+        yield np.moveaxis(b.samples, 2, 1)
+
+
+def _host_sample_batches(scene: Scene, res: Res, spp: int, seed: int = 0):
+    """The samples of scalar variants: 1-spp renders of the ``batch`` sensor, films to NumPy."""
+    mi = mitsuba()
     copies = batch_size(res, spp)
     sc = loaded_batch_scene(scene, res, copies)
     for k in range(spp // copies):
@@ -119,33 +142,50 @@ def sample_batches(scene: Scene, res: Res, spp: int, seed: int = 0):
         yield film.reshape(res.height, copies, res.width, 3)
 
 
+def _kernel_path() -> bool:
+    return jit_variant(mitsuba().variant())
+
+
 _WARM: set[tuple] = set()
 
 
-def _warm_up(scene: Scene, res: Res, copies: int) -> None:
-    """One untimed 1-spp batch the first time a (scene, res, copies) is rendered in this
-    process: scene loading and Dr.Jit's kernel compilation stay out of ``render_s``, as a
-    method's warm-up call stays out of its time (its samples are not used)."""
-    key = (scene.name, id(scene), res, copies, mitsuba().variant())
+def _warm_up(scene: Scene, res: Res, copies: int, stats=None, kernel: bool = True) -> None:
+    """One untimed batch the first time a (scene, res, kernel) is rendered in this process:
+    scene loading and Dr.Jit's kernel compilation stay out of ``render_s``, as a method's
+    warm-up call stays out of its time (its samples are not used). The one-pass kernel is the
+    same for every batch size (the count per pixel is an opaque value), so 1 spp warms it."""
+    key = (scene.name, id(scene), res, mitsuba().variant(),
+           ("kernel", stats) if kernel else ("host", copies))
     if key in _WARM:
         return
-    mitsuba().render(loaded_batch_scene(scene, res, copies), spp=1,
-                     seed=pass_seed("warmup", 0, 0))
+    if kernel:
+        batch_sums(loaded_scene(scene, res), 1, pass_seed("warmup", 0, 0), stats)
+    else:
+        mitsuba().render(loaded_batch_scene(scene, res, copies), spp=1,
+                         seed=pass_seed("warmup", 0, 0))
     _WARM.add(key)
 
 
 def render_passes(scene: Scene, res: Res, spp: int, seed: int = 0,
-                  stats: tuple[str, float] | None = None, progress: bool = True
+                  stats: tuple[str, float] | None = None, progress: bool = True,
+                  kernel: bool | None = None
                   ) -> tuple[np.ndarray, SampleStats | None, dict]:
     """Render ``spp`` independent samples per pixel; return the mean color, optional statistics
     of the individual samples, and timings.
 
     Args:
         stats: ``(transform, lam)`` to accumulate sample statistics, or None.
+        kernel: True for the one-pass kernel (:mod:`dbench.datasets.render_moments`), False
+            for the host path (``batch`` sensor films to NumPy, :class:`PowerSums` there: the
+            readable reference, and the only path of scalar variants); None picks the kernel
+            wherever the variant compiles wavefronts. The two draw different random numbers.
     Returns:
         color (H, W, 3) float32, SampleStats of shape (H, W, 3) or None, and a dict with
-        ``render_s`` (rendering only, after an untimed warm-up render the first time the scene
-        is rendered in the process), ``stats_s`` (host-side accumulation) and ``copies``.
+        ``render_s`` (the batches, after an untimed warm-up render the first time the scene
+        is rendered in the process; on JIT variants the statistics are made in the same
+        kernel and counted here), ``stats_s`` (host-side work for the statistics: adding the
+        batches' sums and the moments, or on scalar variants the whole accumulation) and
+        ``copies`` (samples per pixel per batch).
     """
     if spp < 1:
         raise ValueError(f"spp must be >= 1, got {spp}")
@@ -154,25 +194,49 @@ def render_passes(scene: Scene, res: Res, spp: int, seed: int = 0,
     total = np.zeros((res.height, res.width, 3), np.float64)
     acc = PowerSums((res.height, res.width, 3), *stats) if stats else None
     render_s = stats_s = 0.0
-    _warm_up(scene, res, copies)
-    batches = sample_batches(scene, res, spp, seed)
+    kernel = _kernel_path() if kernel is None else bool(kernel)
+    if kernel and not _kernel_path():
+        raise ValueError(f"the one-pass kernel needs a JIT variant, not {mitsuba().variant()}")
+    _warm_up(scene, res, copies, stats, kernel)
+    batches = (_kernel_batches(scene, res, spp, seed, stats) if kernel
+               else _host_sample_batches(scene, res, spp, seed))
     with _progress(spp, f"{scene.name} {spp} spp", progress) as bar:
         while True:
             t0 = time.perf_counter()
-            samples = next(batches, None)
-            if samples is None:
+            batch = next(batches, None)
+            if batch is None:
                 break
             t1 = time.perf_counter()
-            if acc is not None:
-                total += acc.add_batch(samples, axis=1)
+            if kernel:
+                total += batch.plain
+                if acc is not None:
+                    acc.add_sums(batch.m, batch.s1, batch.s2, batch.s3, batch.n_nonfinite,
+                                 batch.n_clamped)
+            elif acc is not None:
+                total += acc.add_batch(batch, axis=1)
             else:
-                total += samples.sum(axis=1, dtype=np.float64)
+                part = batch.sum(axis=1, dtype=np.float64)
+                if not np.isfinite(part).all():
+                    # non-finite samples count as 0, as the statistics count them (PowerSums)
+                    part = np.where(np.isfinite(batch), batch, 0.0).sum(axis=1,
+                                                                      dtype=np.float64)
+                total += part
             render_s += t1 - t0
             stats_s += time.perf_counter() - t1
             bar.update(copies)
+    t1 = time.perf_counter()
     color = (total / spp).astype(np.float32)
-    return color, (acc.finalize() if acc else None), {"render_s": render_s, "stats_s": stats_s,
-                                                      "copies": copies}
+    out = acc.finalize() if acc else None
+    stats_s += time.perf_counter() - t1
+    return color, out, {"render_s": render_s, "stats_s": stats_s, "copies": copies}
+
+
+def _kernel_batches(scene: Scene, res: Res, spp: int, seed: int, stats):
+    """The per-pixel sums of each batch (:class:`~dbench.datasets.render_moments.BatchSums`)."""
+    copies = batch_size(res, spp)
+    sc = loaded_scene(scene, res)
+    for k in range(spp // copies):
+        yield batch_sums(sc, copies, pass_seed("noisy", seed, k), stats)
 
 
 def render_plain(scene: Scene, res: Res, spp: int, seed: int = 0) -> tuple[np.ndarray, float]:
@@ -292,22 +356,44 @@ def render_reference(scene: Scene, res: Res, spp: int, seed: int = 0,
                      chunk: int = DEFAULT_REFERENCE_CHUNK, progress: bool = True
                      ) -> tuple[np.ndarray, np.ndarray, float]:
     """A high-spp reference, rendered as :func:`reference_chunks` with independent seeds
-    (stream ``reference``, ``seed`` = the reference seed).
+    (stream ``reference``, ``seed`` = the reference seed): on JIT variants each chunk is the
+    mean of one-pass kernel batches (:mod:`dbench.datasets.render_moments`, at most
+    MAX_BATCH_PIXELS lanes each, which bounds memory at any chunk size), elsewhere one
+    ``mi.render`` call per chunk.
 
     Returns (reference (H, W, 3) float32, reference_var (H, W, 3) float32: variance of
     the reference mean from the chunk spread, seconds)."""
-    mi = mitsuba()
     res = parse_res(res)
-    sc = loaded_scene(scene, res)
     acc = ChunkMoments((res.height, res.width, 3))
     t0 = time.perf_counter()
     from tqdm.auto import tqdm
 
     with tqdm(total=spp, desc=f"{scene.name} reference {spp} spp", unit="spp", leave=False,
               disable=not progress, mininterval=0.5) as bar:
-        for i, n in enumerate(reference_chunks(spp, chunk)):
-            acc.add(np.array(mi.render(sc, spp=n, seed=pass_seed("reference", seed, i)),
-                             dtype=np.float64), n)
+        for n, mean in _reference_chunk_means(scene, res, spp, seed, chunk):
+            acc.add(mean, n)
             bar.update(n)
     return (acc.mean().astype(np.float32), acc.var_mean().astype(np.float32),
             time.perf_counter() - t0)
+
+
+def _reference_chunk_means(scene: Scene, res: Res, spp: int, seed: int, chunk: int):
+    """Yield (n_i, chunk mean (H, W, 3) float64) for each chunk of :func:`reference_chunks`.
+    Kernel batches take seeds pass_seed("reference", seed, k) for k = 0, 1, ... across all
+    chunks; ``mi.render`` chunks take pass_seed("reference", seed, i)."""
+    sc = loaded_scene(scene, res)
+    chunks = reference_chunks(spp, chunk)
+    if not _kernel_path():
+        mi = mitsuba()
+        for i, n in enumerate(chunks):
+            yield n, np.array(mi.render(sc, spp=n, seed=pass_seed("reference", seed, i)),
+                              dtype=np.float64)
+        return
+    k = 0
+    for n in chunks:
+        copies = batch_size(res, n)
+        total = np.zeros((res.height, res.width, 3), np.float64)
+        for _ in range(n // copies):
+            total += batch_sums(sc, copies, pass_seed("reference", seed, k)).plain
+            k += 1
+        yield n, total / n

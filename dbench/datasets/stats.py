@@ -115,6 +115,20 @@ class PowerSums:
         self.n_clamped += int(n_clamped)
         return plain.reshape(self.shape)
 
+    def add_sums(self, m: int, s1: np.ndarray, s2: np.ndarray, s3: np.ndarray,
+                 n_nonfinite: int = 0, n_clamped: int = 0) -> None:
+        """Add the power sums of ``m`` samples per element made elsewhere (the render kernel of
+        :mod:`dbench.datasets.render_moments`), with the same shift, edge rules and counts."""
+        for a in (s1, s2, s3):
+            if np.shape(a) != self.shape:
+                raise DbenchInputError(f"sums: expected shape {self.shape}, got {np.shape(a)}")
+        self.s1 += s1
+        self.s2 += s2
+        self.s3 += s3
+        self.n += int(m)
+        self.n_nonfinite += int(n_nonfinite)
+        self.n_clamped += int(n_clamped)
+
     def merge(self, other: "PowerSums") -> None:
         if (other.shape, other.transform, other.lam) != (self.shape, self.transform, self.lam):
             raise DbenchInputError("PowerSums.merge: accumulators differ in shape or transform")
