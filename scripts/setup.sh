@@ -58,7 +58,13 @@ PIP=("$VENV/bin/pip" install -q --disable-pip-version-check)
 # Triton: the version the GPU machines carry (3.6.0, with torch 2.11) and whose interpreter the
 # kernel tests run on these CPU machines; pyproject allows any 3.x for GPU installs of torch.
 "${PIP[@]}" -e ".[test]" "triton==3.6.0" 2>&1 | grep -v "^WARNING" || true
-"$VENV/bin/python" -c "import importlib.util as u, dbench, mitsuba, torch, pyoidn, flip_evaluator, numba, OpenEXR, kornia, onnxruntime, skimage, pandas, matplotlib, selenium, triton; assert u.find_spec('mitransient')" \
+# ColorVideoVDP (the sequences' cvvdp column) without its declared dependencies: they would
+# replace torch 2.13.0+cpu (any torchvision after 0.16 is a CUDA build for another torch, and
+# 0.17-0.28 do not even import without their compiled operators, which need CUDA's libtorch).
+# torchvision 0.16.2 imports on this torch without its compiled parts, and the metric uses only
+# its Gaussian blur, written in PyTorch. The rest of what cvvdp imports is in pyproject.toml.
+"${PIP[@]}" --no-deps "cvvdp==0.5.7" "torchvision==0.16.2" 2>&1 | grep -v "^WARNING" || true
+"$VENV/bin/python" -W ignore -c "import importlib.util as u, dbench, mitsuba, torch, pyoidn, flip_evaluator, numba, OpenEXR, kornia, onnxruntime, skimage, pandas, matplotlib, selenium, triton, pycvvdp; assert u.find_spec('mitransient'); assert torch.__version__.startswith('2.13.0')" \
   || { echo "setup: package installation failed" >&2; exit 1; }
 echo "$want" > "$stamp"
 echo "setup: done ($("$VENV/bin/python" -c 'import torch, mitsuba; print("torch", torch.__version__, "| mitsuba", mitsuba.__version__)'))"

@@ -9,7 +9,7 @@ import pandas as pd
 import pytest
 from scipy.ndimage import uniform_filter
 
-from dbench.bench import harness, refcompare, verdicts
+from dbench.bench import harness, headline, refcompare, verdicts
 from dbench.data import Frame
 from dbench.metrics import judge as J
 from dbench.registry import Denoiser
@@ -150,15 +150,15 @@ def test_a_missing_interval_never_declares_a_winner():
     line = verdicts.ranking_line(d, "relmse")
     assert " < " not in line and "(tied: no interval)" in line
     assert verdicts.marked(d, "relmse") == {"jbf", "statistical", "noisy"}
-    table = verdicts.scene_table(d, verdicts.HEADLINE, "relmse").set_index("method")
+    table = headline.scene_table(d, verdicts.HEADLINE, "relmse").set_index("method")
     assert table.loc["jbf", "relmse"] == "**0.03799 ± n/a**"
     assert all("± 0 " not in v and not v.endswith("± 0") and not v.endswith("± 0**")
                for v in table["relmse"])
     assert refcompare._order(rows["jbf"], rows["statistical"], "relmse") == 0
     worse = d.copy()
     worse.loc[worse.method == "jbf", "relmse"] = 0.2  # above the noisy input's 0.1676
-    assert verdicts.worse_than_noisy(worse, ["relmse"]) == {
-        "jbf": "worse than noisy on relmse (no interval)"}
+    assert headline.worse_than_noisy(worse, ["relmse"]) == {
+        "jbf": "worse than noisy on relmse 1.2× (tied: no interval)"}
 
 
 def test_real_intervals_still_rank():

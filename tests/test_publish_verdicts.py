@@ -11,7 +11,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from dbench.bench import plots, publish, report, tables, verdicts
+from dbench.bench import headline, plots, publish, report, tables, verdicts
 
 LABELS = ["noisy", "jbf", "jbf[radius=3]", "oidn", "statistical", "statistical-gate"]
 SCENES = ["cornell", "mirrors"]
@@ -105,24 +105,28 @@ def test_ties_best_and_worse_than_noisy():
                     "(tied: intervals overlap) < noisy < jbf < jbf[radius=3]")
     assert verdicts.marked(d, "rmse") == {"oidn", "statistical"}
     assert verdicts.marked(d, "ssim") == set(LABELS)  # equal means: everyone tied
-    flags = verdicts.worse_than_noisy(d, ["relmse", "rmse_surface"])
-    assert flags["jbf"] == "worse than noisy on relmse, rmse_surface"
-    assert flags["jbf[radius=3]"] == "worse than noisy on relmse, rmse_surface"
+    flags = headline.worse_than_noisy(d, ["relmse", "rmse_surface"])
+    # the size of each loss, and beside it the other half of the picture: relMSE loses on
+    # surfaces too; rmse_surface loses where the whole-image rmse hides it
+    assert flags["jbf"] == ("worse than noisy on relmse 1.2× (surfaces 1.2×); "
+                            "rmse_surface 1.5× (whole image 0.8×)")
+    assert flags["jbf[radius=3]"] == ("worse than noisy on relmse 1.6× (surfaces 1.6×); "
+                                      "rmse_surface 1.7× (whole image 0.9×)")
     assert "oidn" not in flags and "noisy" not in flags
-    t = verdicts.scene_table(d, verdicts.HEADLINE, "relmse")
+    t = headline.scene_table(d, verdicts.HEADLINE, "relmse")
     assert list(t.method) == ["oidn", "statistical", "statistical-gate", "noisy", "jbf",
                               "jbf[radius=3]"]
     row = t.set_index("method")
     assert row.loc["oidn", "rmse"] == "**0.02 ± 0.002**"
     assert row.loc["statistical", "rmse"].startswith("**")
     assert not row.loc["statistical-gate", "rmse"].startswith("**")
-    assert row.loc["jbf", "verdict"] == "worse than noisy on relmse, rmse_surface"
+    assert row.loc["jbf", "verdict"] == flags["jbf"]
     # a method whose outputs held NaN says so in words (its metrics are NaN)
     bad = _frame([_cell("cornell", 64, m, **({"n_nonfinite": 12, "rmse": math.nan}
                                              if m == "jbf" else {})) for m in LABELS])
-    row = verdicts.scene_table(bad, verdicts.HEADLINE, "relmse").set_index("method")
-    assert row.loc["jbf", "verdict"] == ("worse than noisy on relmse, rmse_surface; "
-                                         "12 non-finite output values")
+    row = headline.scene_table(bad, verdicts.HEADLINE, "relmse").set_index("method")
+    assert row.loc["jbf", "verdict"] == ("worse than noisy on relmse 1.2× (surfaces 1.2×); "
+                                         "rmse_surface 1.5×; 12 non-finite output values")
     assert "non-finite" not in row.loc["oidn", "verdict"]
     # higher is better for SSIM
     d2 = d.copy()
@@ -162,8 +166,9 @@ def test_paired_differences_decide_ties_when_cells_share_seeds():
         "includes 0) < oidn")
     # jbf's mean is above the noisy input's, but seed by seed it is below once: the paired
     # interval includes 0, and "worse than noisy" says how it ties
-    flags = verdicts.worse_than_noisy(d, ["relmse"])
-    assert flags == {"jbf": "worse than noisy on relmse (paired difference includes 0)"}
+    flags = headline.worse_than_noisy(d, ["relmse"])
+    assert flags == {"jbf": "worse than noisy on relmse 1.01× (surfaces 1.2×) (tied: paired "
+                            "difference includes 0)"}
     # one seed in common is not a pairing: the intervals decide
     lone = _frame([_seeded("oidn", [0.004], 0.0025), _seeded("statistical", [0.0039], 0.0025)])
     r = {x["method"]: x for _, x in lone.iterrows()}
@@ -194,7 +199,8 @@ def test_readme_verdicts(results):
            "(tied: intervals overlap) < noisy < jbf < jbf[radius=3]" in head
     assert "Intervals: t 95 % over 3 seeds" in head
     assert "| oidn | **0.02 ± 0.002** |" in head
-    assert "worse than noisy on relmse, rmse_surface" in head
+    assert ("worse than noisy on relmse 1.2× (surfaces 1.2×); rmse_surface 1.5× (whole image "
+            "0.8×)") in head
     # the reference spp actually used, per scene, never the config's (null) value
     assert "cornell: reference 256 spp" in text and "mirrors: reference 4096 spp" in text
     assert "4096 spp in every scene" not in text
@@ -325,7 +331,8 @@ def test_run_report_md_verdicts():
     assert "estimated reference RMSE 0.01" in md
     assert "## Reference noise" in md and "--ref-spp" in md
     assert "| oidn | **0.02 ± 0.002** |" in md
-    assert "worse than noisy on relmse, rmse_surface" in md
+    assert ("worse than noisy on relmse 1.2× (surfaces 1.2×); rmse_surface 1.5× (whole image "
+            "0.8×)") in md
     assert "## Settings" in md and "## Machine" in md and "- nca: needs weights" in md
     assert "rmse_unbiased" in md
     # a table of the old kind (no intervals, no ref columns) still renders

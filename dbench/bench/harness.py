@@ -203,16 +203,19 @@ def run_cell(method: Denoiser, frame, metric_names=DEFAULT_METRICS, repeats: int
 
 
 def run_sequence_cell(method: Denoiser, seq, metric_names=DEFAULT_METRICS,
-                      warmup: int | None = None, device: str = "cpu") -> CellResult:
+                      warmup: int | None = None, device: str = "cpu",
+                      cvvdp: bool | None = None) -> CellResult:
     """Run a temporal ``method`` over a :class:`~dbench.data.Sequence` (or a list of them, one
     per seed): ``reset()`` once, then every frame in order, and summarise it as one cell.
 
     A recurrent method cannot be re-run on a frame, so each frame is timed once:
     ``times_s`` are the per-frame times after the warm-up (``time_s`` is their median) and the
     metrics are means over those frames (dbench.bench.sequence, spec/temporal.md §8), plus the
-    temporal stability ``t_rmse`` and ``tpsnr``; intervals as in :func:`run_cell` (the
-    bootstrap resamples the same pixel blocks in every frame). ``output`` is the last frame's
-    output of the first seed.
+    temporal stability ``t_rmse`` and ``tpsnr`` and ColorVideoVDP's ``cvvdp`` (JOD, higher is
+    better; ``cvvdp`` True/False forces it on or off, None scores it on small sequences only:
+    :func:`dbench.metrics.video_quality.use_cvvdp`); intervals as in :func:`run_cell` (the
+    bootstrap resamples the same pixel blocks in every frame; ``cvvdp``, like the temporal
+    figures, gets one only over seeds). ``output`` is the last frame's output of the first seed.
     """
     from ..data import BUFFER_NAMES
 
@@ -223,14 +226,14 @@ def run_sequence_cell(method: Denoiser, seq, metric_names=DEFAULT_METRICS,
     if not ok:
         return CellResult(method.name, dict(method.params), None, skipped=reason)
     names = [n for n in metric_names if n in judge.JUDGED]
-    columns = judge.metric_names(names) + ["t_rmse", "tpsnr"]
+    columns = judge.metric_names(names) + ["t_rmse", "tpsnr", "cvvdp"]
     on_device, where = placement(method, device)
     result = CellResult(method.name, dict(method.params), None, device=where,
                         device_name=device_name(where))
     judgements = []
     for i, s in enumerate(seqs):
         run = run_sequence(method, s, metric_names=names, warmup=warmup, keep_outputs=True,
-                           device=where)
+                           device=where, cvvdp=cvvdp)
         result.transfer_s.append(run.summary.get("transfer_s", 0.0))
         after = run.per_frame[warmup:] if len(run.per_frame) > warmup else run.per_frame
         result.times_s += [r["time_s"] for r in after]

@@ -31,7 +31,7 @@ import numpy as np
 import pandas as pd
 
 from .. import io
-from . import verdicts
+from . import headline, verdicts
 
 ASSETS = Path(__file__).with_name("viewer")
 HALF_MAX = 65504.0
@@ -69,13 +69,15 @@ def metrics_table(d: pd.DataFrame, columns: Sequence[str]) -> dict[str, Any]:
     interval overlaps it, and the rows worse than the noisy input (flagged) with the words."""
     cols = [c for c in columns if c in d.columns and d[c].notna().any()]
     best = {c: verdicts.marked(d, c, exclude=("noisy",) if c == "time_s" else ()) for c in cols}
-    flags = verdicts.worse_than_noisy(d, ["relmse", "rmse_surface"])
+    # the report's words (dbench/bench/headline.py) over the report's headline metrics
+    words = headline.verdict_words(d, [c for c in cols if c in verdicts.HEADLINE], "relmse")
+    flags = {lab: w for lab, w in words.items() if w.startswith("worse")}
     rows, text, flagged = [], [], []
     bold: dict[int, list[int]] = {j + 1: [] for j in range(len(cols))}
     for i, (_, r) in enumerate(d.iterrows()):
         label = str(r["method"])
         values = [float(r[c]) if np.isfinite(verdicts.num(r[c])) else None for c in cols]
-        verdict = "noisy input" if label == "noisy" else flags.get(label, "")
+        verdict = words.get(label, "")
         rows.append([label, *values, verdict])
         text.append([label] + [verdicts.fmt_value(verdicts.num(r[c]), verdicts.half_width(r, c))
                                for c in cols] + [verdict])
@@ -234,7 +236,7 @@ def grid_table(df: pd.DataFrame, metric: str) -> dict[str, Any]:
             values.append(v if np.isfinite(v) else None)
             words.append(verdicts.fmt_value(v, ci) if np.isfinite(v) else "")
         at = df[(df.scene == scene) & (df.spp == head)]
-        if method in verdicts.worse_than_noisy(at, [metric]):
+        if method in headline.worse_than_noisy(at, [metric]):
             flagged.append(len(rows))
         rows.append([scene, method, *values])
         text.append([scene, method, *words])

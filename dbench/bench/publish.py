@@ -19,14 +19,15 @@ import pandas as pd
 
 from .. import io
 from ..resolution import size_text
-from . import plots, tables, verdicts
+from . import headline, plots, tables, verdicts
 from .formats import markdown_table
 from .report import machine_md, metric_definitions_md
 from .sweep import read_cell
 
 #: Metrics shown as Markdown convergence tables in the README (others: CSV links).
 README_CONVERGENCE = ("rmse", "relmse", "rmse_surface")
-SEQUENCE_HEADLINE = ("rmse", "rmse_surface", "relmse", "ssim", "t_rmse", "tpsnr", "time_s")
+SEQUENCE_HEADLINE = ("rmse", "rmse_surface", "relmse", "ssim", "t_rmse", "tpsnr", "cvvdp",
+                     "time_s")
 TRANSIENT_HEADLINE = ("rmse", "rmse_surface", "relmse", "ssim", "time_s")
 
 
@@ -187,7 +188,7 @@ def build_readme(results: Path, sweep_dir: Path, headline_spp: int = 64,
     parts += [f"## Headline: every method × every scene at {spp} spp", ""]
     if rank != rank_by:
         parts += [f"(`{rank_by}` is not recorded in these cells: ranked by `{rank}`.)", ""]
-    parts += verdicts.headline_md(df, spp, rank)
+    parts += headline.headline_md(df, spp, rank)
     parts += ["### Reference noise", ""] + reference_md(df, rel(paths["reference_noise"]))
 
     lines = problems_md(cells, problems, status["missing"])
@@ -311,11 +312,11 @@ def other_sweep_md(results: Path, sweep_dir: Path, rank_by: str = "relmse") -> l
         cols = SEQUENCE_HEADLINE if sequence else (
             TRANSIENT_HEADLINE if transient else verdicts.HEADLINE)
         parts += [f"### Headline at {spp} spp", ""]
-        parts += verdicts.headline_md(df, spp, rank, columns=cols, level="####")
+        parts += headline.headline_md(df, spp, rank, columns=cols, level="####")
         parts += reference_md(df)
     if sequence:
         parts += table31_md(df, cells)
-    shown = ("rmse", "ssim", "t_rmse", "tpsnr", "time_s") if sequence else (
+    shown = ("rmse", "ssim", "t_rmse", "tpsnr", "cvvdp", "time_s") if sequence else (
         "rmse", "relmse", "ssim", "time_s")
     for metric in shown:
         if metric in df.columns and df[metric].notna().any():

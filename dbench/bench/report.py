@@ -13,11 +13,12 @@ import pandas as pd
 
 from .. import io, metrics
 from ..resolution import size_text
-from . import verdicts
+from . import headline, verdicts
 from .tables import cells_frame
 
-RUN_COLUMNS = ["scene", "method", "spp", "res", "rmse", "relmse", "smape", "psnr", "ssim", "flip",
-               "t_rmse", "tpsnr", "time_s", "device", "backend"]
+#: Headline columns of a sequence run (steady and transient runs: verdicts.HEADLINE).
+SEQUENCE_COLUMNS = ("rmse", "rmse_surface", "relmse", "ssim", "t_rmse", "tpsnr", "cvvdp",
+                    "time_s")
 
 
 def metric_definitions_md() -> str:
@@ -80,14 +81,30 @@ def error_map_title(output: np.ndarray, reference: np.ndarray) -> str:
         return "relative error map\n(non-finite output)"
     rel = metrics.compute("relmse", output, reference)
     rmae = float(error_map(output, reference).mean())
-    return f"relative error map\nrelMSE {rel:.3g}, map mean {rmae:.3g}"
+    # one figure a line: side by side they are wider than a panel of the grid
+    return f"relative error map\nrelMSE {rel:.3g}\nmap mean {rmae:.3g}"
 
 
 def comparison_grid(path: str | Path, images: Sequence[tuple[str, np.ndarray]],
                     reference: np.ndarray | None, ev: float = 0.0,
                     title: str = "") -> None:
     """PNG grid: the tone-mapped images (the zoomed window outlined), the zoomed inset of each
-    (:func:`zoom_window`), and their relative error maps."""
+    (:func:`zoom_window`), and their relative error maps (:func:`comparison_figure`)."""
+    import matplotlib.pyplot as plt
+
+    fig = comparison_figure(images, reference, ev, title)
+    with io.atomic_path(path, suffix=".tmp.png") as tmp:
+        fig.savefig(tmp, dpi=GRID_DPI, format="png", metadata={"Software": None})
+    plt.close(fig)
+
+
+#: Resolution the comparison grid is saved at (its text is laid out for it).
+GRID_DPI = 110
+
+
+def comparison_figure(images: Sequence[tuple[str, np.ndarray]], reference: np.ndarray | None,
+                      ev: float = 0.0, title: str = ""):
+    """The matplotlib figure of :func:`comparison_grid`, not yet saved."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -102,7 +119,9 @@ def comparison_grid(path: str | Path, images: Sequence[tuple[str, np.ndarray]],
     heights = [h / w, 1.0, h / w][:rows]
     fig, axes = plt.subplots(rows, len(cols), squeeze=False,
                              figsize=(size * len(cols), size * sum(heights) + 0.4 * rows),
-                             gridspec_kw={"height_ratios": heights})
+                             gridspec_kw={"height_ratios": heights},
+                             # titles, captions and the colour bar get their own room
+                             layout="constrained")
     vmax = 1.0
     denoised = [img for label, img in images if label != "noisy"] or [img for _, img in images]
     zoom = zoom_window(reference, denoised, ev) if reference is not None else None
@@ -133,44 +152,40 @@ def comparison_grid(path: str | Path, images: Sequence[tuple[str, np.ndarray]],
                      label="relative error |x−r|/(|r|+0.01)")
     if title:
         fig.suptitle(title, fontsize=10)
-    with io.atomic_path(path, suffix=".tmp.png") as tmp:
-        fig.savefig(tmp, dpi=110, format="png", metadata={"Software": None})
-    plt.close(fig)
+    return fig
 
 
 def run_report_md(table: pd.DataFrame, settings: dict[str, Any], info: dict[str, Any],
                   skipped: dict[str, str], notes: Sequence[str] = (),
-                  rank_by: str = "relmse", failed: dict[str, str] | None = None) -> str:
+                  rank_by: str = "relmse", failed: dict[str, str] | None = None,
+                  library_warnings: int | None = None) -> str:
     """The Markdown report of one ``dbench run``.
 
     ``table``: one row per method label with the columns of
     :func:`dbench.bench.tables.cells_frame` (``<metric>_ci``, ``ci_kind``, ``n_seeds``,
     ``ref_spp``, ``ref_rmse``); missing columns are shown as missing, not guessed.
+    ``library_warnings``: how many warnings the libraries raised (kept in ``run.log``).
     """
-    d = _run_frame(table, settings)
-    if rank_by not in d.columns or not d[rank_by].notna().any():
-        rank_by = "rmse"
+    d, rank_by, cols, shown = _headline(table, settings, rank_by)
     sequence = settings.get("kind") == "sequence"
-    cols = (("rmse", "rmse_surface", "relmse", "ssim", "t_rmse", "tpsnr", "time_s") if sequence
-            else verdicts.HEADLINE)
-    shown = [c for c in cols if c in d.columns and d[c].notna().any()]
     parts = [f"# dbench run: {settings['scene']} at {settings['spp']} spp, "
              f"{size_text(settings['res'])} px", ""]
     if len(d):
-        parts += verdicts.scene_block_md(d, rank_by, shown)
+        parts += headline.scene_block_md(d, rank_by, shown)
     else:
         parts += ["(no method finished)", ""]
     absent = [c for c in cols if c not in shown]
     parts += ["**Bold**: the best entry of a column and every entry tied with it (the paired "
               "difference over common seeds includes 0; without them, the intervals overlap or one "
               "is missing, shown `± n/a`); "
-              "entries are mean ± 95 % half-width. `verdict` names where a method is "
-              f"worse than the noisy input on `{rank_by}` or `rmse_surface`. Lower is better "
-              "except PSNR, tPSNR and SSIM. " + (
+              "entries are mean ± 95 % half-width. " + headline.VERDICT_NOTE + " Lower is "
+              "better except PSNR, tPSNR, SSIM and cvvdp. " + (
                   "Sequence: every frame is denoised once, in order; metrics are means and "
                   "`time_s` the median per-frame time over the frames after the warm-up "
                   f"({settings['repeats']}); `t_rmse`/`tpsnr` score the frame-to-frame "
-                  "differences against the reference's (rendering excluded)."
+                  "differences against the reference's (rendering excluded); `cvvdp` is ColorVideoVDP's "
+                  "quality in JOD (10: no visible difference; README.md, Metrics), empty where "
+                  "the video is too large for its default."
                   if sequence else
                   "`time_s` is the median denoise time "
                   f"of {settings['repeats']} calls after one warm-up (rendering excluded), ± "
@@ -185,6 +200,11 @@ def run_report_md(table: pd.DataFrame, settings: dict[str, Any], info: dict[str,
         parts += [f"- **{m}**: {why}" for m, why in failed.items()] + [""]
     if skipped:
         parts += ["## Skipped", ""] + [f"- {m}: {why}" for m, why in skipped.items()] + [""]
+    if library_warnings is not None:
+        n = library_warnings
+        parts += ["## Library warnings", "",
+                  f"{n} library warning{'s' if n != 1 else ''}, see run.log." if n else
+                  "No library warnings (run.log).", ""]
     parts += ["## Settings", ""]
     parts += [f"- {k}: {v}" for k, v in settings.items()]
     parts += ["", "## Metric definitions", "", metric_definitions_md(), "",
@@ -199,6 +219,29 @@ def run_report_md(table: pd.DataFrame, settings: dict[str, Any], info: dict[str,
         parts += ["Files: `metrics.csv`, `comparison.png`, one EXR per output in `images/`.",
                   ""]
     return "\n".join(parts)
+
+
+def _headline(table: pd.DataFrame, settings: dict[str, Any], rank_by: str
+              ) -> tuple[pd.DataFrame, str, Sequence[str], list[str]]:
+    """The run's cells frame, the ranking metric in effect (``rmse`` where ``rank_by`` has no
+    value), the kind's headline columns and those of them with a value."""
+    d = _run_frame(table, settings)
+    if rank_by not in d.columns or not d[rank_by].notna().any():
+        rank_by = "rmse"
+    cols = SEQUENCE_COLUMNS if settings.get("kind") == "sequence" else verdicts.HEADLINE
+    return d, rank_by, cols, [c for c in cols if c in d.columns and d[c].notna().any()]
+
+
+def run_summary(table: pd.DataFrame, settings: dict[str, Any], rank_by: str = "relmse"
+                ) -> list[str]:
+    """The lines ``dbench run`` prints: the report's ranking, intervals and verdicts laid out
+    for a terminal (dbench/bench/terminal.py), each time with the device it ran on."""
+    from .terminal import run_summary as summary
+
+    d, rank_by, _, shown = _headline(table, settings, rank_by)
+    devices = ({str(m): str(v) for m, v in zip(table["method"], table["device"])
+                if isinstance(v, str)} if {"method", "device"} <= set(table.columns) else {})
+    return summary(d, settings, rank_by, shown, devices)
 
 
 def _run_frame(table: pd.DataFrame, settings: dict[str, Any]) -> pd.DataFrame:

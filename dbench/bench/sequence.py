@@ -11,7 +11,8 @@ warm-up, temporal stability, plots, strip comparisons and the 720p speed benchma
   against the reference's, ``d_i = out_i − out_{i−1}`` vs ``r_i = ref_i − ref_{i−1}``:
   ``t_rmse`` on linear values, and ``tpsnr`` = PSNR of the tone-mapped differences
   ``T(out_i) − T(out_{i−1})`` vs ``T(ref_i) − T(ref_{i−1})`` (peak 1, T = dbench tone map),
-  both over frames i ≥ max(warmup, 1).
+  both over frames i ≥ max(warmup, 1); ``cvvdp``, ColorVideoVDP's JOD of the frames after the
+  warm-up (dbench/metrics/video_quality.py), on small sequences unless asked for.
 * :func:`plot_errors`, :func:`strip` — matplotlib figures; :func:`benchmark` — per-frame time at
   1280×720 on a synthetic moving sequence; :func:`main` writes results/temporal figures.
 
@@ -36,6 +37,7 @@ from .. import metrics
 from ..data import Frame, Sequence
 from ..device import download, timed, upload
 from ..errors import DbenchInputError
+from ..metrics import video_quality
 from . import fpenv
 from .inputs import check_unchanged, input_guard, private_copy
 
@@ -105,8 +107,12 @@ def temporal_stability(outputs: list[np.ndarray], references: list[np.ndarray],
 
 def run_sequence(method, seq: Sequence, metric_names: Iterable[str] = SEQUENCE_METRICS,
                  warmup: int = WARMUP, keep_outputs: bool = False,
-                 device: str = "cpu") -> SequenceResult:
+                 device: str = "cpu", cvvdp: bool | None = None) -> SequenceResult:
     """Run ``method`` (name or Denoiser) over ``seq`` in order and score every frame.
+
+    ``cvvdp``: score the frames after the warm-up with ColorVideoVDP (summary ``cvvdp``, JOD;
+    dbench/metrics/video_quality.py) at ``seq.meta["fps"]`` (default 30); None: only when
+    scored frames × pixels is at most 24 × 128² (README.md, "Metrics").
 
     With ``device="cuda"`` and a method with a device path, every frame is uploaded before its
     call and the output downloaded after it, those copies timed apart (the summary's
@@ -173,7 +179,10 @@ def run_sequence(method, seq: Sequence, metric_names: Iterable[str] = SEQUENCE_M
     if transfers:
         summary["transfer_s"] = float(statistics.median(transfers))
     if seq.has("reference"):
-        summary.update(temporal_stability(outs, [f.reference for f in seq], warmup, ev))
+        refs = [f.reference for f in seq]
+        summary.update(temporal_stability(outs, refs, warmup, ev))
+        summary.update(video_quality.sequence_cvvdp(
+            outs, refs, warmup, ev, seq.meta.get("fps", video_quality.DEFAULT_FPS), cvvdp))
     res.summary = summary
     return res
 

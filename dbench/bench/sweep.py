@@ -344,7 +344,8 @@ def run_group(config: SweepConfig, out: str, scene_name: str, spp: int,
     return written
 
 
-def _prerender_references(config: SweepConfig, scenes: Iterable[str]) -> None:
+def _prerender_references(config: SweepConfig, scenes: Iterable[str],
+                          progress: bool = True) -> None:
     from .. import datasets
 
     if config.no_cache:  # nothing would keep the references for the groups
@@ -357,7 +358,7 @@ def _prerender_references(config: SweepConfig, scenes: Iterable[str]) -> None:
         datasets.load(s, spp=1, res=config.res_for(s), needs={"reference", "albedo"},
                       seed=config.seed,
                       ref_seed=config.seed, ref_spp=config.ref_spp, cache=cache,
-                      frames=config.frames, bins=config.bins)
+                      frames=config.frames, bins=config.bins, progress=progress)
 
 
 def run_group_with_plugins(plugin_specs: Sequence[str], config: SweepConfig, out: str,
@@ -427,7 +428,7 @@ def _execute(config: SweepConfig, out: Path, groups: list, executor: str, worker
     if not groups:
         return 0.0
     t_start = time.perf_counter()
-    _prerender_references(config, sorted({g[0] for g in groups}))
+    _prerender_references(config, sorted({g[0] for g in groups}), progress)
     t_refs = time.perf_counter() - t_start
     bar = tqdm(total=sum(len(g[2]) for g in groups), desc="sweep", unit="cell",
                disable=not progress)

@@ -27,7 +27,9 @@ from .verdicts import METRICS, fmt_value, num, seed_values
 ID_COLUMNS = ["scene", "method", "base_method", "spp", "res", "n_seeds", "ci_kind", "ref_spp",
               "ref_rmse", "ref_relmse_surface"]
 TIME_COLUMNS = ["time_s", "time_s_iqr", "render_s", "gradient_s", "total_s"]
-TEMPORAL = ("t_rmse", "tpsnr")
+TEMPORAL = ("t_rmse", "tpsnr", "cvvdp")
+#: Every metric column of a cell: the verdicts' metrics and the sequence-only ones they lack.
+COLUMNS = METRICS + tuple(m for m in TEMPORAL if m not in METRICS)
 EQUAL_TIME_METRICS = ("rmse", "relmse", "rmse_surface")
 
 
@@ -54,7 +56,7 @@ def _row(c: dict) -> dict | None:
            "ci_kind": _label(c.get("ci_kind")) or "", "ref_spp": num(c.get("ref_spp")),
            "ref_rmse": num(c.get("ref_rmse")),
            "ref_relmse_surface": num(c.get("ref_relmse_surface"))}
-    for m in METRICS:
+    for m in COLUMNS:
         row[m] = num(c.get(m))
         row[m + "_ci"] = num(c.get(m + "_ci"))
     stats = num(c.get("stats_s"))
@@ -116,7 +118,7 @@ def cells_frame(cells: list[dict]) -> pd.DataFrame:
     ``gradient_s``. The temporal metrics are kept only when some cell has them (sequence
     scenes)."""
     ok = [c for c in cells if isinstance(c, dict) and c.get("status") == "ok"]
-    cols = ID_COLUMNS + [k for m in METRICS for k in (m, m + "_ci")] + TIME_COLUMNS + [
+    cols = ID_COLUMNS + [k for m in COLUMNS for k in (m, m + "_ci")] + TIME_COLUMNS + [
         "n_nonfinite"]
     rows = [r for c in ok if (r := _row(c)) is not None]
     df = pd.DataFrame(rows, columns=cols + ["render_plain_s", "stats_s", "render_measured_s",
@@ -227,7 +229,7 @@ def write_tables(df: pd.DataFrame, out: Path) -> dict[str, Path]:
     from .verdicts import ref_noise_frame
 
     paths = {}
-    for metric in METRICS:
+    for metric in COLUMNS:
         if metric in df.columns and (df[metric].notna().any() or metric in (
                 "rmse", "relmse", "smape", "psnr", "ssim", "flip")):
             p = out / f"convergence_{metric}.csv"

@@ -17,6 +17,9 @@ Conventions:
   cannot tell two means apart, so it ties ("no interval") and is shown as ``± n/a``; the best
   entry of a column and every entry tied with it are marked in bold;
 * lower is better except for PSNR, SSIM (and their surface variants) and tPSNR.
+
+The ranked tables and the verdict words built on these (report.md, the README, the terminal)
+are in dbench/bench/headline.py.
 """
 from __future__ import annotations
 
@@ -26,13 +29,16 @@ from typing import Any, Iterable, Sequence
 import numpy as np
 import pandas as pd
 
-from .formats import markdown_table
+from ..metrics.video_quality import CVVDP_DEFINITION
+
 
 #: Metric columns of a cell (each with a ``_ci`` half-width column).
 METRICS = ("rmse", "relmse", "smape", "psnr", "ssim", "flip",
            "rmse_surface", "relmse_surface", "smape_surface", "psnr_surface", "ssim_surface",
-           "flip_surface", "top1_share", "rmse_unbiased", "relmse_unbiased", "t_rmse", "tpsnr")
-HIGHER_IS_BETTER = frozenset({"psnr", "ssim", "psnr_surface", "ssim_surface", "tpsnr"})
+           "flip_surface", "top1_share", "rmse_unbiased", "relmse_unbiased", "t_rmse", "tpsnr",
+           "cvvdp")
+HIGHER_IS_BETTER = frozenset({"psnr", "ssim", "psnr_surface", "ssim_surface", "tpsnr",
+                              "cvvdp"})
 #: Columns of the headline table.
 HEADLINE = ("rmse", "rmse_surface", "relmse", "ssim", "flip", "time_s")
 #: Warn when the reference's MSE exceeds this share of a method's MSE.
@@ -55,6 +61,7 @@ DEFINITIONS = {
                  "warning is printed when the reference's relMSE over surface pixels, "
                  "mean(v_r / (r² + ε)), exceeds 0.1 · relmse_surface of a method (cells "
                  "without it: ref_rmse² > 0.1 · MSE)"),
+    "cvvdp": CVVDP_DEFINITION,
     "ci": ("intervals: with N > 1 seeds, Student t over seeds, mean ± t_{0.975,N−1} · s / √N "
            "(the shared reference's error is not in it; see ref_rmse); with one seed, a block "
            "bootstrap percentile interval over B × B pixel blocks (B = 16 where 16 such "
@@ -81,6 +88,9 @@ def num(v: Any) -> float:
 
 def _finite(v: Any) -> bool:
     return isinstance(v, (int, float, np.integer, np.floating)) and math.isfinite(float(v))
+
+
+finite = _finite
 
 
 def _field(row: Any, key: str, default: Any = None) -> Any:
@@ -158,7 +168,7 @@ def tie(row_a: Any, row_b: Any, metric: str) -> str | None:
                                  num(_field(row_b, metric)), hb) else None
 
 
-_TIE_WORDS = {"overlap": "intervals overlap", "paired": "paired difference includes 0",
+TIE_WORDS = {"overlap": "intervals overlap", "paired": "paired difference includes 0",
               "none": "no interval"}
 
 
@@ -209,7 +219,7 @@ def ranking_line(d: pd.DataFrame, metric: str) -> str:
     if metric not in d.columns:
         return f"{metric}: not recorded in these cells"
     op = " > " if higher_is_better(metric) else " < "
-    parts = [" = ".join(g) + (" (tied: " + "; ".join(_TIE_WORDS[h] for h in sorted(how)) + ")"
+    parts = [" = ".join(g) + (" (tied: " + "; ".join(TIE_WORDS[h] for h in sorted(how)) + ")"
                               if len(g) > 1 else "")
              for g, how in _rank(d, metric)]
     missing = sorted(str(m) for m, v in zip(d["method"], d[metric]) if not _finite(v))
@@ -218,61 +228,12 @@ def ranking_line(d: pd.DataFrame, metric: str) -> str:
     return text + (f"; no value: {', '.join(missing)}" if missing else "")
 
 
-def worse_than_noisy(d: pd.DataFrame, metrics: Sequence[str]) -> dict[str, str]:
-    """label → words for each method whose mean is worse than the noisy input's."""
-    noisy = d[d["method"] == NOISY]
-    if noisy.empty:
-        return {}
-    base = noisy.iloc[0]
-    words: dict[str, list[str]] = {}
-    for metric in dict.fromkeys(metrics):
-        if metric not in d.columns or not _finite(base[metric]):
-            continue
-        b = float(base[metric])
-        sign = -1.0 if higher_is_better(metric) else 1.0
-        for _, r in d.iterrows():
-            if r["method"] == NOISY or not _finite(r[metric]):
-                continue
-            m = float(r[metric])
-            if sign * (m - b) > 0:
-                how = tie(r, base, metric)
-                words.setdefault(str(r["method"]), []).append(
-                    f"{metric} ({_TIE_WORDS[how]})" if how else metric)
-    return {lab: "worse than noisy on " + ", ".join(w) for lab, w in words.items()}
-
-
 def ci_kind_text(d: pd.DataFrame) -> str:
     kinds = sorted({str(k) for k in d.get("ci_kind", pd.Series(dtype=object))
                     if isinstance(k, str) and k})
     if not kinds:
         return "no confidence intervals in these cells (one render, no interval stored)"
     return "intervals: " + "; ".join(kinds)
-
-
-def scene_table(d: pd.DataFrame, columns: Sequence[str], rank_by: str) -> pd.DataFrame:
-    """Rows ranked by ``rank_by``; entries ``mean ± ci``, best and tied in bold, a verdict
-    column naming where a method is worse than the noisy input and how many non-finite values
-    its outputs held (its metrics are then NaN)."""
-    cols = [c for c in dict.fromkeys([*columns, rank_by]) if c in d.columns]
-    bold = {c: marked(d, c, exclude=(NOISY,) if c == "time_s" else ()) for c in cols}
-    flags = worse_than_noisy(d, [rank_by, "rmse_surface"])
-    order = [lab for g in rank_groups(d, rank_by) for lab in g]
-    rest = sorted(set(map(str, d["method"])) - set(order))
-    by_label = {str(r["method"]): r for _, r in d.iterrows()}
-    rows = []
-    for lab in order + rest:
-        r = by_label[lab]
-        row = {"method": lab}
-        for c in cols:
-            text = fmt_value(num(r[c]), half_width(r, c))
-            row[c] = f"**{text}**" if lab in bold[c] else text
-        words = ["noisy input" if lab == NOISY else flags.get(lab, "")]
-        nonfinite = num(r["n_nonfinite"]) if "n_nonfinite" in d.columns else float("nan")
-        if math.isfinite(nonfinite) and nonfinite > 0:  # its metrics are NaN: say why
-            words.append(f"{int(nonfinite)} non-finite output values")
-        row["verdict"] = "; ".join(w for w in words if w)
-        rows.append(row)
-    return pd.DataFrame(rows, columns=["method", *cols, "verdict"])
 
 
 def _cells_text(g: pd.DataFrame, all_methods: set[str]) -> str:
@@ -441,44 +402,9 @@ def missing_md(missing: Sequence[tuple[str, int, str]]) -> list[str]:
             for (scene, label), s in sorted(by.items())]
 
 
-def scene_block_md(d: pd.DataFrame, rank_by: str, columns: Sequence[str] = HEADLINE,
-                   heading: str | None = None) -> list[str]:
-    """Markdown for one scene at one spp: ranking line, intervals, reference, table."""
-
-    parts = [heading, ""] if heading else []
-    parts += [f"Ranking by {ranking_line(d, rank_by)}.", "",
-              f"{ci_kind_text(d).capitalize()}; {reference_text(d)}.", "",
-              markdown_table(scene_table(d, columns, rank_by)), ""]
-    return parts
-
-
-def headline_md(df: pd.DataFrame, spp: int | None, rank_by: str = "relmse",
-                columns: Sequence[str] = HEADLINE, level: str = "###") -> list[str]:
-    """Per scene at ``spp``: the ranking line and the ``mean ± ci`` table (columns that no
-    cell records are left out and named)."""
-    d = df[df["spp"] == spp] if spp is not None else df.iloc[0:0]
-    if d.empty:
-        return ["(no finished cells at this spp)", ""]
-    shown = [c for c in columns if c in d.columns and d[c].map(_finite).any()]
-    absent = [c for c in columns if c not in shown]
-    parts = [("**Bold**: the best entry of a column on the scene and every entry tied with it "
-              "(the paired difference over the seeds both cells hold includes 0; without common "
-              "seeds, the intervals overlap or one is missing, `± n/a`). Entries are mean ± 95 % "
-              "half-width; `time_s` is "
-              "the median denoise time ± half its IQR (the noisy input is not a candidate for "
-              "the fastest). "
-              f"Rows ranked by `{rank_by}`; `verdict` names where a method is worse than the "
-              f"noisy input on `{rank_by}` or `rmse_surface`."), ""]
-    if absent:
-        parts += [f"Not recorded in these cells: {', '.join(absent)}.", ""]
-    for scene, g in d.groupby("scene", sort=True):
-        parts += scene_block_md(g, rank_by, shown, heading=f"{level} {scene}")
-    return parts
-
-
-__all__ = ["METRICS", "HEADLINE", "HIGHER_IS_BETTER", "DEFINITIONS", "REF_SHARE", "num",
+__all__ = ["METRICS", "HEADLINE", "HIGHER_IS_BETTER", "DEFINITIONS", "REF_SHARE", "NOISY", "num",
            "half_width", "fmt_value", "overlaps", "seed_values", "paired_interval", "tie",
-           "marked", "rank_groups", "ranking_line", "worse_than_noisy", "ci_kind_text",
-           "scene_table", "reference_text", "reference_summary", "ref_noise_frame",
+           "TIE_WORDS", "marked", "rank_groups", "ranking_line", "ci_kind_text",
+           "reference_text", "reference_summary", "ref_noise_frame",
            "ref_warnings_md", "headline_spp", "expected_grid", "grid_status",
-           "grid_status_text", "missing_md", "scene_block_md", "headline_md", "next_pow2"]
+           "grid_status_text", "missing_md", "next_pow2", "finite"]

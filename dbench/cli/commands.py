@@ -130,7 +130,8 @@ def cmd_bench(args: argparse.Namespace) -> int:
         raise DbenchInputError(f"--spp: expected an integer >= 1, got {args.spp}")
     if args.what == "gpu":
         return _bench_gpu(args)
-    timed_method = args.what not in ("render", "scene-file", "plugins", "metrics")
+    timed_method = args.what not in ("render", "scene-file", "plugins", "metrics",
+                                     "video-metrics")
     if args.param and not timed_method:
         raise DbenchInputError(f"--param: only a method's benchmark takes parameters, not "
                                f"{args.what!r}")
@@ -153,6 +154,14 @@ def cmd_bench(args: argparse.Namespace) -> int:
     elif args.what == "metrics":
         result = speed.bench_metrics(height=args.height, width=args.width,
                                      repeats=args.repeats)
+    elif args.what == "video-metrics":
+        from ..bench import speed_video
+        result = speed_video.bench_video_metrics(height=args.height, width=args.width,
+                                                 repeats=args.repeats)
+        print(speed_video.format_result(result))
+        if args.out:
+            speed.append_result(args.out, result)
+        return 0
     else:
         params = parse_params(args.param or [], [args.what]).get(args.what, {})
         from ..device import resolve_device
@@ -192,13 +201,36 @@ def cmd_sweep(args: argparse.Namespace) -> int:
                                bins=args.bins,
                                params={k: v for k, v in params.items() if v}, cache=args.cache,
                                no_cache=args.no_cache, device=args.device)
+    from .capture import count_text, library_warnings, log_text
     # the cache is checked (and created) by run_sweep once nothing refused the sweep
-    counts = sweep.run_sweep(config, args.out, executor=args.executor, workers=args.workers,
-                             progress=not args.quiet)
+    with library_warnings() as caught:
+        counts = sweep.run_sweep(config, args.out, executor=args.executor,
+                                 workers=args.workers, progress=not args.quiet)
+    print(_sweep_summary(args.out, config, args.rank_by, quiet=args.quiet))
     print(f"sweep {args.out}: {counts['computed']} cells computed, "
-          f"{counts['skipped']} not applicable (skipped with the reason), "
+          f"{counts['skipped']} not applicable, "
           f"{counts['finished_before']} already finished, {counts['errors']} errors")
+    if caught:
+        from ..io import write_text
+        write_text(Path(args.out) / "sweep.log", log_text(caught))
+        if not args.quiet:
+            print(count_text(caught).replace("run.log", "sweep.log"))
     return 0 if counts["errors"] == 0 else 1
+
+
+def _sweep_summary(out: str, config, rank_by: str, quiet: bool) -> str:
+    """The sweep's headline: per scene, the ranking and the verdicts of its README at the
+    headline spp, and (unless ``quiet``) the skipped methods grouped by reason, over this
+    sweep's grid only (dbench/bench/terminal.py)."""
+    from ..bench import sweep_cells, terminal
+    from ..bench.sweep_names import scene_labels
+
+    labels = set(config.labels().values())
+    scenes = set(scene_labels(config, out).values())
+    cells = [c for c in sweep_cells.load_cells(out) if isinstance(c, dict)
+             and c.get("method") in labels and c.get("spp") in config.spp
+             and c.get("scene") in scenes]
+    return "\n".join(terminal.sweep_summary(cells, rank_by, skips=not quiet))
 
 
 def cmd_stress(args: argparse.Namespace) -> int:

@@ -142,7 +142,8 @@ def build_parser() -> argparse.ArgumentParser:
     bp.add_argument("what", help="'gpu' (every method on a GPU against numba and OIDN, "
                     "results/gpu/<device>.json), "
                     "'render' (statistics cost), 'metrics' (the judge against "
-                    "the plain metrics), 'scene-file' (an XML scene against the catalogue's), "
+                    "the plain metrics), 'video-metrics' (ColorVideoVDP against the "
+                    "per-frame and temporal metrics on a sequence), 'scene-file' (an XML scene against the catalogue's), "
                     "'plugins' (entry-point discovery time) or a method name")
     bp.add_argument("--scene", default="cornell")
     bp.add_argument("--res", default=None, help="image size: N (N×N) or WIDTHxHEIGHT, "

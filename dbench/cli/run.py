@@ -18,9 +18,9 @@ from .args import (_check_common, _default_spp, _scene_of, _sequence_window, _sp
 
 def cmd_run(args: argparse.Namespace) -> int:
     from .. import datasets, methods, registry
-    from ..bench import identity, report, run_output
-    from ..bench.formats import markdown_table
+    from ..bench import identity, run_output
     from ..data import check_count
+    from .capture import library_warnings
 
     names = (methods.available() if args.method == "all"
              else [registry.canonical(n) for n in _split(args.method)])
@@ -48,20 +48,25 @@ def cmd_run(args: argparse.Namespace) -> int:
             runnable.append(n)
         else:
             skipped[n] = why
-            print(f"skipping {n}: {why}")
     out = Path(args.out) if args.out else Path("results/runs") / (
         f"{scene.name}_{args.spp}spp_{args.res}px_"
         f"{_dt.datetime.now().strftime('%Y%m%d-%H%M%S')}")
     cache = _writable_cache(args)
     # a failure or Ctrl-C inside the block removes the temporary folder: no partial --out
-    with run_output.staged(out) as stage:
-        table, failed = _run_into(stage, args, scene, instances, labels, runnable, skipped,
-                                  device, cache)
+    with run_output.staged(out) as stage, library_warnings() as caught:
+        table, failed, summary = _run_into(stage, args, scene, instances, labels, runnable,
+                                           skipped, device, cache, caught)
     # printed only now: a reader that goes away (| head) can no longer cost any file
     print()
-    shown = [c for c in report.RUN_COLUMNS if c in table.columns]
-    print(markdown_table(table[shown]))
-    print(f"\nreport: {out / 'report.md'}")
+    print("\n".join(summary))
+    if not args.quiet:  # --quiet: the headline alone
+        from ..bench.terminal import skipped_line
+        from .capture import count_text
+        for line in (skipped_line({labels.get(n, n): why for n, why in skipped.items()}),
+                     count_text(caught) if caught else ""):
+            if line:
+                print(line)
+    print(f"report: {out / 'report.md'}")
     if failed:
         print(f"{len(failed)} method(s) failed: {', '.join(failed)} (see the report)",
               file=sys.stderr)
@@ -70,9 +75,11 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 
 def _run_into(out: Path, args: argparse.Namespace, scene, instances, labels, runnable,
-              skipped, device, cache):
+              skipped, device, cache, caught: list[str]):
     """Render, run every runnable method and write every output into folder ``out``; the
-    (metrics table, failed methods)."""
+    (metrics table, failed methods, the headline's lines for the terminal). ``caught``: the
+    library warnings so far (dbench/cli/capture.py), written to ``run.log`` and counted in the
+    report, which is written last so that the count covers every other output."""
     from ..bench import harness, identity, report
     from ..bench.formats import write_csv
     from ..bench.machine import machine_info
@@ -177,13 +184,16 @@ def _run_into(out: Path, args: argparse.Namespace, scene, instances, labels, run
         # what the methods resolved from "auto"/None defaults on this frame (first seed)
         settings["resolved settings"] = "; ".join(
             f"{m}: {json.dumps(v, sort_keys=True, default=str)}" for m, v in resolved.items())
-    write_text(out / "report.md", report.run_report_md(table, settings, info, skipped,
-                                                       notes=notes, rank_by=args.rank_by,
-                                                       failed=failed))
     write_json(out / "run.json", {"settings": settings, "machine": info, "skipped": skipped,
                                   "failed": failed})
     _write_run_page(out, scene, frame, outputs, table, settings, info, skipped, args)
-    return table, failed
+    from .capture import log_text
+    write_text(out / "run.log", log_text(caught))
+    write_text(out / "report.md", report.run_report_md(table, settings, info, skipped,
+                                                       notes=notes, rank_by=args.rank_by,
+                                                       failed=failed,
+                                                       library_warnings=len(caught)))
+    return table, failed, report.run_summary(table, settings, args.rank_by)
 
 
 def _ref_rmse_text(value, source: str | None = None):
@@ -234,7 +244,7 @@ def _write_run_page(out: Path, scene, frame, outputs, table, settings, info, ski
     from ..bench import html, report, verdicts
 
     kind = frame.kind
-    columns = (("rmse", "rmse_surface", "relmse", "ssim", "t_rmse", "tpsnr", "time_s")
+    columns = (("rmse", "rmse_surface", "relmse", "ssim", "t_rmse", "tpsnr", "cvvdp", "time_s")
                if kind == "sequence" else (*verdicts.HEADLINE[:-1], "psnr", "time_s"))
     plots = {"sequence": [("error per frame", "error_per_frame.png"),
                           ("frames", "comparison.png")],

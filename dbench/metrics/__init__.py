@@ -9,6 +9,8 @@ Plain functions on NumPy arrays. ``output`` and ``reference`` are (H, W, C) imag
   :func:`tonemap` (``clip(x·2^EV, 0, 1)`` then the sRGB transfer function).
 * ``hdrflip``: HDR-FLIP on linear values clipped to >= 0, exposures fixed once per reference.
 * Transient inputs: psnr, ssim, flip and hdrflip run on the time-integrated image (sum over T).
+* Sequences: :func:`dbench.metrics.video_quality.cvvdp_jod`, ColorVideoVDP in JOD on
+  (T, H, W, 3) videos (imported on use; it loads PyTorch and the ``cvvdp`` package).
 * Non-finite policy: a NaN/Inf anywhere in ``output`` makes the metric NaN (never an exception,
   never silently dropped); ``reference`` must be finite (DbenchInputError otherwise).
 

@@ -43,7 +43,8 @@ from .tonemapping import check_ev, tonemap
 JUDGED = ("rmse", "relmse", "smape", "psnr", "ssim", "flip")
 #: Extra per-output figures.
 EXTRA = ("top1_share", "rmse_unbiased", "relmse_unbiased")
-HIGHER_IS_BETTER_JUDGED = frozenset({"psnr", "ssim", "psnr_surface", "ssim_surface", "tpsnr"})
+HIGHER_IS_BETTER_JUDGED = frozenset({"psnr", "ssim", "psnr_surface", "ssim_surface", "tpsnr",
+                                     "cvvdp"})
 #: Side of the square pixel blocks of the bootstrap wherever BOOTSTRAP_MIN_BLOCKS of them fit
 #: (64 × 64 px and up): large enough that a denoiser's spatial correlation stays mostly inside
 #: a block, so blocks can be resampled as if independent.
