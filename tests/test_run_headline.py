@@ -234,3 +234,12 @@ def test_run_summary_fits_and_says_an_unknown_reference():
     assert "± n/a" in text and "12.5 s cuda" in text and "10 µs cpu" in text
     header = next(ln for ln in lines if ln.startswith("#"))
     assert header.split()[2] == "relmse" and "rmse_surface" in header
+
+
+def test_a_small_flagged_loss_never_reads_as_one():
+    """A loss the verdict flags is written with the digits that show it: 1.0025× is not 1×."""
+    from dbench.bench.headline import loss_size
+
+    assert loss_size(1.0025, 1.0, "flip") == "1.002×"
+    assert loss_size(0.04017, 0.04, "rmse") == "1.004×"
+    assert loss_size(12.3, 1.0, "rmse") == "12.3×" and loss_size(1.04, 1.0, "rmse") == "1.04×"

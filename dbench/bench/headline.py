@@ -58,9 +58,13 @@ def loss_size(value: float, noisy: float, metric: str) -> str:
     if noisy == 0:
         return f"{value:.3g} (noisy 0)"
     ratio = value / noisy
-    # two figures say the size; a third only where two would round a loss to "1×"
+    # two figures say the size; more only where fewer would round a loss to "1×" (a flagged
+    # loss of 0.25 % reads 1.0025×, never 1×)
     text = f"{ratio:.2g}" if 0.1 <= ratio < 10 else f"{ratio:.3g}"
-    return f"{f'{ratio:.3g}' if float(text) == 1 != ratio else text}×"
+    digits = 3
+    while float(text) == 1 != ratio and digits <= 6:
+        text, digits = f"{ratio:.{digits}g}", digits + 1
+    return f"{text}×"
 
 
 def _worse(r: Any, base: Any, metric: str) -> bool | None:

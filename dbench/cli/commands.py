@@ -248,15 +248,22 @@ def cmd_stress(args: argparse.Namespace) -> int:
     if out.is_dir() or args.out.endswith("/"):
         out = out / "stress.md"  # a folder: the matrix goes into it
     ensure_writable_dir(out.parent, "--out")
-    results = stress.run_all(names, progress=not args.quiet)
-    # each device path in its CPU-testable form, as a row of its own (docs/gpu.md §2)
+    import contextlib
+
     from ..bench.stress_device import run_device_forms
-    results.update(run_device_forms(names, progress=not args.quiet))
+    from .capture import library_warnings
+    # the hostile cases make libraries warn (NaN, Inf, 3e38 inputs): --quiet counts them
+    with (library_warnings() if args.quiet else contextlib.nullcontext([])) as caught:
+        results = stress.run_all(names, progress=not args.quiet)
+        # each device path in its CPU-testable form, as a row of its own (docs/gpu.md §2)
+        results.update(run_device_forms(names, progress=not args.quiet))
     from ..bench.stress_contract import contract_markdown
     text = stress.stress_markdown(results) + "\n" + contract_markdown()
     write_text(out, text)
     print("\n".join(text.splitlines()[:3 + len(results) + 4]))
     print(f"written: {out}")
+    if caught:
+        print(f"{len(caught)} library warnings on the hostile inputs (not shown: --quiet)")
     failed = sum(o.status == "fail" for r in results.values() for o in r.values())
     return 0 if failed == 0 else 1
 
