@@ -63,14 +63,16 @@ def image_entry(label: str, role: str, frames: Sequence[np.ndarray]) -> dict[str
     return {"label": label, "role": role, "frames": [encode_half(f) for f in frames]}
 
 
-def metrics_table(d: pd.DataFrame, columns: Sequence[str]) -> dict[str, Any]:
+def metrics_table(d: pd.DataFrame, columns: Sequence[str],
+                  rank_by: str = "relmse") -> dict[str, Any]:
     """A sortable table for the viewer from a cells frame (dbench.bench.tables.cells_frame):
     raw values for sorting, ``mean ± ci`` text, the best entry of each column and those whose
-    interval overlaps it, and the rows worse than the noisy input (flagged) with the words."""
+    interval overlaps it, and the rows worse than the noisy input (flagged) with the words,
+    ranked by ``rank_by`` as the run's report is."""
     cols = [c for c in columns if c in d.columns and d[c].notna().any()]
     best = {c: verdicts.marked(d, c, exclude=("noisy",) if c == "time_s" else ()) for c in cols}
     # the report's words (dbench/bench/headline.py) over the report's headline metrics
-    words = headline.verdict_words(d, [c for c in cols if c in verdicts.HEADLINE], "relmse")
+    words = headline.verdict_words(d, [c for c in cols if c in verdicts.HEADLINE], rank_by)
     flags = {lab: w for lab, w in words.items() if w.startswith("worse")}
     rows, text, flagged = [], [], []
     bold: dict[int, list[int]] = {j + 1: [] for j in range(len(cols))}
@@ -157,7 +159,7 @@ def write_page(out: str | Path, *, title: str, data: dict[str, Any], sections: S
 def run_page(out: str | Path, *, title: str, frame: Any, outputs: Sequence[tuple[str, Any]],
              table: pd.DataFrame, columns: Sequence[str], settings: dict[str, Any],
              machine: dict[str, Any], skipped: dict[str, str], ev: float = 0.0,
-             plots: Sequence[tuple[str, str]] = ()) -> Path:
+             plots: Sequence[tuple[str, str]] = (), rank_by: str = "relmse") -> Path:
     """The page of one ``dbench run`` (steady image, sequence or transient video).
 
     ``frame``: the run's first-seed Frame, Sequence or TransientFrame; ``outputs``: (label,
@@ -198,7 +200,7 @@ def run_page(out: str | Path, *, title: str, frame: Any, outputs: Sequence[tuple
     data = {"width": int(w), "height": int(h), "ev": float(ev), "images": images,
             "frame_labels": labels, "start_frame": show,
             "zoom": {"x0": int(x0), "y0": int(y0), "side": int(side)},
-            "tables": [metrics_table(table, columns)]}
+            "tables": [metrics_table(table, columns, rank_by)]}
     sections = ["<h2>Metrics</h2>", '<div data-table="0"></div>',
                 '<p class="note">Mean ± 95 % half-width; bold: the best entry of a column and '
                 "every entry tied with it (paired over common seeds, else overlapping "

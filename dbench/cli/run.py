@@ -254,4 +254,4 @@ def _write_run_page(out: Path, scene, frame, outputs, table, settings, info, ski
     html.run_page(out, title=title, frame=frame, outputs=outputs,
                   table=report._run_frame(table, settings), columns=columns,
                   settings=settings, machine=info, skipped=skipped, ev=scene.ev,
-                  plots=[(t, f) for t, f in plots if (out / f).exists()])
+                  plots=[(t, f) for t, f in plots if (out / f).exists()], rank_by=args.rank_by)
