@@ -181,3 +181,13 @@ def test_several_batches_add_up_to_the_samples_of_all(jit, monkeypatch):
     want = ref.finalize()
     np.testing.assert_allclose(st.mean, want.mean, rtol=1e-9)
     np.testing.assert_allclose(st.var_mean, want.var_mean, rtol=1e-6, atol=1e-15)
+
+
+def test_the_sampling_version_is_part_of_a_steady_cells_identity(renderer, monkeypatch):
+    """How the noisy samples are drawn changes every number of a cell, so it is in the scene
+    fingerprint a sweep cell carries (and in the noisy and reference cache keys)."""
+    from dbench import datasets
+
+    before = datasets.scene_fingerprint("cornell", 8)
+    monkeypatch.setattr(render, "SAMPLES_VERSION", render.SAMPLES_VERSION + "-other")
+    assert datasets.scene_fingerprint("cornell", 8) != before

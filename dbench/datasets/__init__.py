@@ -86,7 +86,10 @@ def scene_fingerprint(scene: str | Scene, res) -> str:
                 "dict": sc.transient_dict(mi, res, window), "window": window.meta(),
                 "params": sc.params, "versions": versions()}
     else:
-        desc = {**_base_description(sc, res), "kind": sc.kind}
+        # how the noisy samples are drawn (the one-pass kernel, datasets/render_moments.py)
+        # changes every noisy image, so a cell made before it is another result
+        desc = {**_base_description(sc, res), "kind": sc.kind,
+                "samples": _render.SAMPLES_VERSION}
     # the emitter buffer feeds the surface metrics and the methods that keep lights
     desc["emitter"] = _emitter.EMITTER_VERSION
     return make_key(desc)[:16]
