@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import os
+import sys
 
 import pytest
 
@@ -55,3 +56,34 @@ def tr(renderer):
 def tmp_cache(tmp_path):
     from dbench.datasets import Cache
     return Cache(tmp_path / "cache")
+
+
+@pytest.fixture()
+def isolated():
+    """Restore the method and scene registries, the plugin records, sys.modules and sys.path
+    after a test that loads plugins (tests/test_plugins.py, tests/test_exit_codes.py)."""
+    import dbench.methods  # noqa: F401 - built-ins in the snapshot
+    from dbench import plugins, registry
+    from dbench.datasets import scenes
+
+    plugins.ensure_loaded()
+    methods_before = dict(registry._REGISTRY)
+    scenes_before = dict(scenes._CATALOGUE)
+    plugins_before = dict(plugins._PLUGINS)
+    requested_before = list(plugins._REQUESTED)
+    state_before = dict(plugins._STATE)
+    modules_before = set(sys.modules)
+    path_before = list(sys.path)
+    yield
+    registry._REGISTRY.clear()
+    registry._REGISTRY.update(methods_before)
+    scenes._CATALOGUE.clear()
+    scenes._CATALOGUE.update(scenes_before)
+    plugins._PLUGINS.clear()
+    plugins._PLUGINS.update(plugins_before)
+    plugins._REQUESTED[:] = requested_before
+    plugins._STATE.update(state_before)
+    for name in set(sys.modules) - modules_before:
+        if name.startswith(("dbench_plugin_", "dbench_example_plugin", "tiny_scene_plugin")):
+            del sys.modules[name]
+    sys.path[:] = path_before

@@ -38,31 +38,6 @@ def _one_line(err: str) -> str:
     return lines[0]
 
 
-@pytest.fixture()
-def isolated():
-    """Restore the method and scene registries and the plugin records after the test."""
-    import dbench.methods  # noqa: F401 - built-ins in the snapshot
-    from dbench.datasets import scenes
-
-    plugins.ensure_loaded()
-    methods_before = dict(registry._REGISTRY)
-    scenes_before = dict(scenes._CATALOGUE)
-    plugins_before = dict(plugins._PLUGINS)
-    requested_before = list(plugins._REQUESTED)
-    state_before = dict(plugins._STATE)
-    yield
-    plugins._STATE.update(state_before)
-    registry._REGISTRY.clear()
-    registry._REGISTRY.update(methods_before)
-    scenes._CATALOGUE.clear()
-    scenes._CATALOGUE.update(scenes_before)
-    plugins._PLUGINS.clear()
-    plugins._PLUGINS.update(plugins_before)
-    plugins._REQUESTED[:] = requested_before
-    for name in [m for m in sys.modules if m.startswith("dbench_plugin_")]:
-        del sys.modules[name]
-
-
 # ---------------------------------------------------------------------------------------------
 # code from outside dbench calling sys.exit
 

@@ -35,39 +35,26 @@ SCALAR_VARIANT = "scalar_rgb"
 #: Devices :func:`choose_variant` accepts (None: CUDA when usable, else the CPU).
 DEVICES = ("cpu", "cuda")
 
-_PROBE = r"""
-import mitsuba as mi, drjit as dr
-if not dr.has_backend(dr.JitBackend.LLVM):
-    raise SystemExit(3)
-mi.set_variant("llvm_ad_rgb")
-scene = mi.load_dict({
-    "type": "scene", "integrator": {"type": "path", "max_depth": 3},
-    "sensor": {"type": "perspective", "film": {"type": "hdrfilm", "width": 4, "height": 4,
-               "rfilter": {"type": "box"}}},
-    "light": {"type": "constant"}, "s": {"type": "sphere", "center": [0, 0, 5]},
-})
-img = mi.render(scene, spp=2)
-assert img.shape == (4, 4, 3)
-print("ok")
-"""
-
-
-_CUDA_PROBE = r"""
+#: A tiny render in a child process: a backend that aborts the process (LLVM 15's "Cannot
+#: select", a broken CUDA driver) takes the child down, never dbench. Exit 3: no such backend.
+_PROBE_TEMPLATE = r"""
 import drjit as dr
-if not dr.has_backend(dr.JitBackend.CUDA):
+if not dr.has_backend(dr.JitBackend.{backend}):
     raise SystemExit(3)
 import mitsuba as mi
-mi.set_variant("cuda_ad_rgb")
-scene = mi.load_dict({
-    "type": "scene", "integrator": {"type": "path", "max_depth": 3},
-    "sensor": {"type": "perspective", "film": {"type": "hdrfilm", "width": 4, "height": 4,
-               "rfilter": {"type": "box"}}},
-    "light": {"type": "constant"}, "s": {"type": "sphere", "center": [0, 0, 5]},
-})
+mi.set_variant("{variant}")
+scene = mi.load_dict({{
+    "type": "scene", "integrator": {{"type": "path", "max_depth": 3}},
+    "sensor": {{"type": "perspective", "film": {{"type": "hdrfilm", "width": 4, "height": 4,
+               "rfilter": {{"type": "box"}}}}}},
+    "light": {{"type": "constant"}}, "s": {{"type": "sphere", "center": [0, 0, 5]}},
+}})
 img = mi.render(scene, spp=2)
 assert img.shape == (4, 4, 3)
 print("ok")
 """
+_PROBE = _PROBE_TEMPLATE.format(backend="LLVM", variant=LLVM_VARIANT)
+_CUDA_PROBE = _PROBE_TEMPLATE.format(backend="CUDA", variant=CUDA_VARIANT)
 #: Where a visible NVIDIA driver shows itself; none of them: no CUDA, and no child is started.
 _NVIDIA_MARKERS = ("/proc/driver/nvidia/version", "/dev/nvidiactl", "/dev/nvidia0")
 
