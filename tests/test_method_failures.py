@@ -10,7 +10,6 @@ import pytest
 from dbench.bench import stress
 from dbench.bench.inputs import first_changed, private_copy
 from dbench.cli import main
-from test_plugins import isolated  # noqa: F401 - the fixture: plugin records restored after
 
 PLUGIN = '''
 import numpy as np
