@@ -350,3 +350,31 @@ def test_error_map_title_names_the_map_and_its_figure(tmp_path):
     assert f"relMSE {rel:.3g}" in title and "RMSE" not in title.replace("relMSE", "")
     report.comparison_grid(tmp_path / "grid.png", [("noisy", out), ("oidn", ref)], ref)
     assert (tmp_path / "grid.png").stat().st_size > 1000
+
+
+def test_reference_warning_states_its_cost():
+    """The suggested --ref-spp comes with its render time: the cells' ref_render_s scaled
+    linearly with spp, on the machine the cells name (no other machine is mentioned)."""
+    cells = [_cell("cornell", 64, m, ref_render_s=3.0, ref_seed=7, res=32,
+                   machine="Test CPU, 2 cores") for m in LABELS]
+    d = _frame(cells)
+    need = int(verdicts.ref_noise_frame(d).needed_ref_spp.max())
+    line = verdicts.ref_warnings_md(d, cells)[0]
+    # 3 s at 256 spp → need / 256 × 3 s
+    cost = verdicts.seconds_text(3.0 * need / 256)
+    assert (f"`--ref-spp {need}` would bring it under 10 %, about {cost} to render "
+            f"({need / 256:g}× the 256-spp reference's 3 s measured on Test CPU, 2 cores, "
+            f"scaled linearly with spp)") in line
+    assert "GPU" not in line
+    # without the raw cells, or without a recorded time, the line names no cost
+    assert "to render" not in verdicts.ref_warnings_md(d)[0]
+    bare = [{**c, "ref_render_s": None} for c in cells]
+    assert "to render" not in verdicts.ref_warnings_md(_frame(bare), bare)[0]
+    # cells of another size or reference spp do not lend their time
+    other = [{**c, "res": 64} for c in cells]
+    assert "to render" not in verdicts.ref_warnings_md(d, other)[0]
+    assert "on a machine the cells do not record" in verdicts.ref_warnings_md(
+        d, [{k: v for k, v in c.items() if k != "machine"} for c in cells])[0]
+    assert publish.reference_md(d, None, cells)[2] == line
+    assert [verdicts.seconds_text(s) for s in (2.5, 45, 600, 9000)] == [
+        "2.5 s", "45 s", "10 min", "2.5 h"]

@@ -144,18 +144,18 @@ def problems_md(cells: list[dict], problems: list[str], missing) -> list[str]:
     return lines
 
 
-def reference_md(df, rel_csv: str | None = None) -> list[str]:
-    """The reference-noise warnings (one line per scene and spp), or why there are none."""
+def reference_md(df, rel_csv: str | None = None, cells: list | None = None) -> list[str]:
+    """The reference-noise warnings (with ``cells``, their cost), or why there are none."""
     if "ref_rmse" not in df.columns or not df["ref_rmse"].notna().any():
         return ["The cells do not record `ref_rmse` (older format): the reference's own noise "
                 "is not checked here.", ""]
-    warn = verdicts.ref_warnings_md(df)
+    warn = verdicts.ref_warnings_md(df, cells)
     if not warn:
         return ["No cell's reference error exceeds 10 % of the method's.", ""]
     return (["Reference too noisy for these cells (its relMSE over surface pixels above "
              "0.1 · relmse_surface, or ref_rmse² > 0.1 · rmse² where a cell lacks it; the "
-             "reference's variance scales as 1 / ref_spp):", ""] + warn + [""]
-            + ([f"Every flagged cell: [{rel_csv}]({rel_csv}).", ""] if rel_csv else []))
+             "reference's variance scales as 1 / ref_spp, its cost as ref_spp):", ""] + warn
+            + [""] + ([f"Every flagged cell: [{rel_csv}]({rel_csv}).", ""] if rel_csv else []))
 
 
 def build_readme(results: Path, sweep_dir: Path, headline_spp: int = 64,
@@ -189,7 +189,7 @@ def build_readme(results: Path, sweep_dir: Path, headline_spp: int = 64,
     if rank != rank_by:
         parts += [f"(`{rank_by}` is not recorded in these cells: ranked by `{rank}`.)", ""]
     parts += headline.headline_md(df, spp, rank)
-    parts += ["### Reference noise", ""] + reference_md(df, rel(paths["reference_noise"]))
+    parts += ["### Reference noise", ""] + reference_md(df, rel(paths["reference_noise"]), cells)
 
     lines = problems_md(cells, problems, status["missing"])
     if lines:

@@ -293,7 +293,7 @@ def ref_noise_frame(df: pd.DataFrame) -> pd.DataFrame:
     method's squared error and hide a noisy reference from ref_rmse² / rmse². Cells without
     those two figures (older cells, sequences) keep ref_rmse² / rmse² (``share_on`` "rmse")."""
     cols = ["scene", "spp", "method", "ref_spp", "ref_rmse", "rmse", "ref_mse_share",
-            "share_on", "needed_ref_spp"]
+            "share_on", "needed_ref_spp", "res"]
     if df.empty or not {"ref_rmse", "ref_relmse_surface"} & set(df.columns):
         return pd.DataFrame(columns=cols)
     rows = []
@@ -310,20 +310,70 @@ def ref_noise_frame(df: pd.DataFrame) -> pd.DataFrame:
             need = next_pow2(n * share / REF_SHARE) if math.isfinite(n) and n > 0 else np.nan
             rows.append({"scene": r["scene"], "spp": int(r["spp"]), "method": r["method"],
                          "ref_spp": n, "ref_rmse": ref, "rmse": err, "ref_mse_share": share,
-                         "share_on": on, "needed_ref_spp": need})
+                         "share_on": on, "needed_ref_spp": need, "res": r.get("res")})
     out = pd.DataFrame(rows, columns=cols)
     return out.sort_values(["scene", "spp", "method"]).reset_index(drop=True)
 
 
-def ref_warnings_md(df: pd.DataFrame) -> list[str]:
-    """One line per (scene, spp) with a too-noisy reference, listing the methods."""
+def seconds_text(s: float) -> str:
+    """``45 s``, ``12 min``, ``3.5 h``: a duration for a sentence."""
+    if s < 120:
+        return f"{s:.2g} s" if s < 10 else f"{s:.0f} s"
+    return f"{s / 60:.0f} min" if s < 7200 else f"{s / 3600:.1f} h"
+
+
+def ref_cost_text(cells: Iterable[dict], scene: str, res: Any, ref_spp: float,
+                  need: float) -> str:
+    """What a ``need``-spp reference of ``scene`` at ``res`` would take to render, from the
+    ``ref_render_s`` the cells record for their ``ref_spp`` reference, scaled linearly with spp
+    (a reference is ``ref_spp`` independent samples per pixel: README.md, "How renders work"),
+    and the machine those cells name; '' when no cell records the time. Cached references
+    keep the time of their first render."""
+    from ..errors import DbenchInputError
+    from ..resolution import parse_res
+
+    def key(v: Any):
+        try:
+            return parse_res(v).key
+        except (DbenchInputError, TypeError, ValueError):  # unreadable: not this reference's
+            return None
+
+    times: dict[Any, float] = {}
+    machines: set[str] = set()
+    for c in cells:
+        if (not isinstance(c, dict) or c.get("status", "ok") != "ok" or c.get("scene") != scene
+                or num(c.get("ref_spp")) != ref_spp or key(c.get("res")) != res):
+            continue
+        t = num(c.get("ref_render_s"))
+        if math.isfinite(t) and t > 0:
+            times[repr(c.get("ref_seed"))] = t  # one time per distinct reference
+            if isinstance(c.get("machine"), str) and c["machine"]:
+                machines.add(c["machine"])
+    if not times or not (math.isfinite(ref_spp) and ref_spp > 0 and math.isfinite(need)):
+        return ""
+    t = float(np.median(list(times.values())))
+    where = ("on " + "; ".join(sorted(machines)) if machines
+             else "on a machine the cells do not record")
+    return (f"about {seconds_text(t * need / ref_spp)} to render "
+            f"({need / ref_spp:g}× the {int(ref_spp)}-spp reference's {seconds_text(t)} "
+            f"measured {where}, scaled linearly with spp)")
+
+
+def ref_warnings_md(df: pd.DataFrame, cells: Iterable[dict] | None = None) -> list[str]:
+    """One line per (scene, spp) with a too-noisy reference, listing the methods; with the raw
+    ``cells``, what the suggested reference would cost (:func:`ref_cost_text`)."""
     bad = ref_noise_frame(df)
+    cells = list(cells or [])
     lines = []
     for (scene, spp), g in bad.groupby(["scene", "spp"], sort=True):
         need = g["needed_ref_spp"].max()
         refs = sorted({int(v) for v in g["ref_spp"] if _finite(v)})
         fix = (f"`--ref-spp {int(need)}` would bring it under 10 %" if _finite(need)
                else "a reference with more samples would fix it")
+        if _finite(need) and cells:
+            worst = g.loc[g["needed_ref_spp"].idxmax()]
+            cost = ref_cost_text(cells, scene, worst["res"], num(worst["ref_spp"]), need)
+            fix += f", {cost}" if cost else ""
         on = " and ".join(
             {"relmse_surface": "relMSE over surface pixels", "rmse": "MSE"}[o]
             for o in sorted(set(g["share_on"]), reverse=True))
@@ -406,5 +456,6 @@ __all__ = ["METRICS", "HEADLINE", "HIGHER_IS_BETTER", "DEFINITIONS", "REF_SHARE"
            "half_width", "fmt_value", "overlaps", "seed_values", "paired_interval", "tie",
            "TIE_WORDS", "marked", "rank_groups", "ranking_line", "ci_kind_text",
            "reference_text", "reference_summary", "ref_noise_frame",
-           "ref_warnings_md", "headline_spp", "expected_grid", "grid_status",
+           "ref_warnings_md", "ref_cost_text", "seconds_text", "headline_spp",
+           "expected_grid", "grid_status",
            "grid_status_text", "missing_md", "next_pow2", "finite"]

@@ -138,6 +138,19 @@ def cmd_bench(args: argparse.Namespace) -> int:
     if not timed_method:
         args.spp = 64 if args.spp is None else args.spp
     if args.what == "render":
+        from ..bench import speed_transient
+        if speed_transient.is_transient(args.scene):
+            # transient: a plain mitransient render against dbench's load, 48² by default
+            result = speed_transient.bench_render_transient(
+                scene=args.scene, res=args.res or parse_res(48), spp=args.spp,
+                bins=args.bins or 100, repeats=args.repeats)
+            print(speed_transient.format_result(result))
+            if args.out:
+                speed.append_result(args.out, result)
+            return 0
+        if args.bins is not None:
+            raise DbenchInputError(f"--bins: only a transient scene has time bins, not "
+                                   f"{args.scene!r}")
         result = speed.bench_render(scene=args.scene, res=args.res or parse_res(256),
                                     spp=args.spp,
                                     repeats=args.repeats)

@@ -153,6 +153,8 @@ def build_parser() -> argparse.ArgumentParser:
                     "(render, scene-file: default 64) or of the synthetic frame's statistics "
                     "a method is timed on (default 16; a method whose settings follow the spp, "
                     "like nca's steps, takes them from it)")
+    bp.add_argument("--bins", type=count, default=None, help="render on a transient scene: "
+                    "time bins (default 100; the window stays the scene's)")
     bp.add_argument("--param", action="append", metavar="KEY=VALUE",
                     help="a parameter of the method timed (repeatable)")
     bp.add_argument("--height", type=int, default=720)

@@ -79,7 +79,9 @@ def scene_fingerprint(scene: str | Scene, res) -> str:
                 # how the G-buffer and the A-SVGF gradient samples are made changes the inputs
                 "gbuffer": f"psr-{_sequence.PSR_VERSION}",
                 "gradient": f"reshade-{_sequence.RESHADE_VERSION}",
-                "motion": _sequence.MOTION_VERSION}
+                "motion": _sequence.MOTION_VERSION,
+                # how the passes of a noisy frame are summed (datasets/sequence_frames.py)
+                "samples": _sequence.SAMPLES_VERSION}
     elif sc.kind == "transient":
         window = sc.window()
         desc = {"scene": sc.name, "kind": sc.kind, "res": res.key,

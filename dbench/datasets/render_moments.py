@@ -86,8 +86,10 @@ def _log1p(dr, t, one_plus_t):
     return dr.select(u1 == 0.0, t, dr.log(one_plus_t) * (t / dr.select(u1 == 0.0, 1.0, u1)))
 
 
-def _radiance(mi, dr, scene, sensor, sampler, m: int):
-    """Per-lane RGB radiance (Color3f) of W·H·m lanes, pixel-major; the pixel index (UInt32).
+def _radiance(mi, dr, scene, sensor, sampler, m: int, integrator=None):
+    """Per-lane RGB radiance (Color3f) of W·H·m lanes, pixel-major; the pixel index (UInt32);
+    (W, H); the integrator's AOVs (a list of Float, unweighted as the film stores them; empty
+    for differentiable integrators). ``integrator``: the scene's own when None.
 
     The same steps as Mitsuba's ``sample_rays`` (common.py) for one sample inside its pixel."""
     film = sensor.film()
@@ -109,13 +111,15 @@ def _radiance(mi, dr, scene, sensor, sampler, m: int):
         time += sampler.next_1d() * sensor.shutter_open_time()
     wavelength = sampler.next_1d() if mi.is_spectral else mi.Float(0.0)
     ray, weight = sensor.sample_ray_differential(time, wavelength, pos, aperture)
-    integrator = scene.integrator()
+    integrator = scene.integrator() if integrator is None else integrator
+    aovs = []
     if isinstance(integrator, mi.ad.integrators.common.ADIntegrator):
         value = integrator.sample(mode=dr.ADMode.Primal, scene=scene, sampler=sampler, ray=ray,
                                   depth=mi.UInt32(0), δL=None, δaovs=None, state_in=None,
                                   active=mi.Bool(True))[0]
     else:
-        value = integrator.sample(scene, sampler, ray, sensor.get_medium(), mi.Bool(True))[0]
+        value, _, aovs = integrator.sample(scene, sampler, ray, sensor.get_medium(),
+                                           mi.Bool(True))
     value = value * weight
     if mi.is_spectral:
         value = mi.spectrum_to_srgb(mi.unpolarized_spectrum(value), ray.wavelengths)
@@ -123,7 +127,7 @@ def _radiance(mi, dr, scene, sensor, sampler, m: int):
         value = mi.Color3f(mi.unpolarized_spectrum(value).x)
     else:
         value = mi.unpolarized_spectrum(value)
-    return mi.Color3f(value), pixel, (w, h)
+    return mi.Color3f(value), pixel, (w, h), list(aovs)
 
 
 #: Largest per-thread copy set (bytes) the sums may be expanded to on the CPU (ReduceMode.Expand:
@@ -209,7 +213,7 @@ def batch_sums(scene, m: int, seed: int, stats: tuple[str, float] | None = None,
         film = sensor.film()
         w, h = (int(v) for v in film.crop_size())
         sampler.seed(dr.opaque(mi.UInt32, seed), w * h * m)
-        rgb, pixel, _ = _radiance(mi, dr, scene, sensor, sampler, m)
+        rgb, pixel, _, _ = _radiance(mi, dr, scene, sensor, sampler, m)
         sums, counts = accumulate(rgb, pixel, w * h, stats)
         kept = mi.Color3f(rgb) if keep_samples else None
         # one kernel: the kept samples are the very values the sums were made of
@@ -221,3 +225,65 @@ def batch_sums(scene, m: int, seed: int, stats: tuple[str, float] | None = None,
             samples = np.stack([kept.x.numpy(), kept.y.numpy(), kept.z.numpy()],
                                axis=-1).reshape(h, w, m, 3)
     return BatchSums(m=m, n_nonfinite=nbad, n_clamped=nclamp, samples=samples, **out)
+
+
+@dataclass
+class PassSums:
+    """What :func:`pass_sums` leaves on the host: ``channels`` (H, W, C) float64, the sum over
+    the passes of every channel the film of ``mi.render`` would hold (non-finite values
+    included), and ``colour``, the :class:`BatchSums` of the first three (m = the pass count;
+    non-finite samples count as 0 in its sums and are counted)."""
+
+    channels: np.ndarray
+    colour: BatchSums
+
+
+def pass_sums(scene, integrator, seeds, channels, stats: tuple[str, float] | None = None
+              ) -> PassSums:
+    """One 1-spp wavefront of ``integrator`` on the loaded ``scene`` per seed of ``seeds``,
+    summed on the device (float64) and copied to the host once.
+
+    At 1 spp lane ``k`` is pixel ``k`` and draws the random numbers of ``mi.render(scene,
+    spp=1, seed=s, integrator=integrator)``'s lane ``k``, so each pass is that render, channel
+    for channel (tests/test_sequence_kernel.py) and a later render with the same seed replays
+    it (the re-shaded gradient samples, :mod:`dbench.datasets.reshade`).
+
+    Args:
+        channels: ``channels(spec, aovs, names)`` → the film's channels (a list of Float: the
+            colour first) from the weighted spectrum (Color3f), the AOVs and their names.
+        stats: ``(transform, lam)`` for the power sums of the colour, or None.
+    """
+    mi = mitsuba()
+    import drjit as dr
+
+    if stats is not None:
+        check_transform(*stats)
+    names = list(integrator.aov_names())
+    with dr.suspend_grad():
+        sensor = scene.sensors()[0]
+        w, h = (int(v) for v in sensor.film().crop_size())
+        total = colour = counts = None
+        for s in seeds:
+            sampler = _sampler_prototype().clone()
+            sampler.set_sample_count(1)
+            sampler.set_samples_per_wavefront(1)
+            sampler.seed(dr.opaque(mi.UInt32, int(s)), w * h)
+            rgb, pixel, _, aovs = _radiance(mi, dr, scene, sensor, sampler, 1, integrator)
+            chans = channels(rgb, aovs, names)
+            sums, cnt = accumulate(mi.Color3f(chans[0], chans[1], chans[2]), pixel, w * h,
+                                   stats)
+            # lane k is pixel k: the channel sums need no scatter
+            lanes = [mi.Float64(c) for c in chans]
+            if total is None:
+                total, colour, counts = lanes, sums, cnt
+            else:
+                total = [a + b for a, b in zip(total, lanes)]
+                colour = {k: colour[k] + v for k, v in sums.items()}
+                counts = counts + cnt
+            # one kernel per pass, as mi.render: the sums stay on the device between passes
+            dr.eval(total, colour, counts)
+        host = np.stack([c.numpy() for c in total], axis=-1).reshape(h, w, len(total))
+        out = {k: v.numpy().reshape(h, w, 3) for k, v in colour.items()}
+        nbad, nclamp = (int(v) for v in counts.numpy())
+    return PassSums(channels=host, colour=BatchSums(m=len(seeds), n_nonfinite=nbad,
+                                                    n_clamped=nclamp, **out))

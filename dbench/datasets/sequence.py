@@ -89,19 +89,17 @@ from .scene_parts import _diffuse, _mirror_objects, _rect, _room
 from .sequence_scene import (GBUFFER_PARAM, GBUFFERS, PSR_ONLY_BUFFERS, SEQUENCE_BUFFERS,
                              SequenceScene, camera_info, gbuffer_variant, look_at_matrix,
                              motion_vectors, project)
-from . import psr as _psr
-from .psr import psr_integrator
 from .reshade import reshade_frame
+from .sequence_frames import (MATCHED_LAYOUT, PSR_GLOSSY_ALPHA, SAMPLES_VERSION,
+                              _matched_integrator, _render_dict, frame_seed, pass_seeds,
+                              render_frame, render_gbuffer)
 from .sequence_render import render_emitter, render_reference
 from .references import check_ref_seed, reference_meta, reference_spp
-from .stats import PowerSums, stats_from_arrays, stats_to_arrays
+from .stats import stats_from_arrays, stats_to_arrays
 
 FEATURES = ("albedo", "normal", "depth", "position")
 REFERENCE_CHUNK = _render.DEFAULT_REFERENCE_CHUNK
 GBUFFER_SPP = _render.DEFAULT_FEATURE_SPP
-#: the PSR G-buffers and the roughness below which glossy surfaces get their reflection's normal
-#: (0: the rule off)
-PSR_GLOSSY_ALPHA = {"psr": 0.0, "psr-glossy": _psr.GLOSSY_ALPHA}
 #: 3: the render adds ``geo_normal`` and ``reflected_normal`` (psr.py); 4: the lobe at glass
 #: drawn from a hash of the camera ray, not the sampler (psr.replayable_draw)
 PSR_VERSION = 4
@@ -216,105 +214,7 @@ def mirror_pan(mi) -> dict:
 
 
 # ---------------------------------------------------------------------------------------------
-# rendering
-
-
-def frame_seed(seed: int, i: int) -> int:
-    """Seed of the noisy render of frame ``i`` (the gradient frame of i+1 reuses it)."""
-    return _render.pass_seed("seq-noisy", seed, i)
-
-
-#: The noisy colour and its G-buffer come from one render of Mitsuba's ``aov`` integrator with a
-#: nested ``path`` integrator: the nested RGB equals a plain path render with the same seed bit
-#: for bit (spec/mitsuba.md §5) and the AOVs describe exactly the primary hits of those samples.
-#: A second nested ``path`` with max_depth 1 gives the emission of the same primary hits.
-#: Nested integrators come out in the order given (keys also sorted alike: color < emission).
-def _matched_integrator(path: dict) -> dict:
-    return {"type": "aov", "aovs": _render.AOV_STRING, "color": dict(path),
-            "emission": {"type": "path", "max_depth": 1}}
-
-
-#: (buffer, first channel, channel count) of the matched render: colour, emission, the AOVs.
-MATCHED_LAYOUT = (("color", 0, 3), ("emission", 3, 3)) + tuple(
-    (n, c0 + 6, nc) for n, c0, nc in _render.AOV_LAYOUT)
-
-
-def _render_dict(d: dict, spp: int, seed: int, integrator=None) -> np.ndarray:
-    mi = mitsuba()
-    # optimize=False keeps the shapes and emitters in dictionary order. With the default, the
-    # order of emitters changes from one load to the next (measured with Mitsuba 3.9.1), which
-    # changes which light a random number selects: two renders with the same seed would then
-    # differ in scenes with several emitters, and the gradient frames would be wrong.
-    scene = mi.load_dict(d, optimize=False)
-    kw = {"integrator": integrator} if integrator is not None else {}
-    return np.array(mi.render(scene, spp=spp, seed=seed, **kw), dtype=np.float32)
-
-
-def pass_seeds(seed: int, seed_frame: int, spp: int) -> list[int]:
-    """The seeds of the ``spp`` 1-spp passes of a noisy frame: the first is
-    :func:`frame_seed` (so a 1-spp frame is one render with the frame's seed), the others come
-    from a stream of their own per frame."""
-    return [frame_seed(seed, seed_frame)] + [
-        _render.pass_seed(f"seq-noisy-{seed_frame}", seed, k) for k in range(1, spp)]
-
-
-def render_frame(scene: SequenceScene, res, spp: int, seed: int, camera_frame: int,
-                 light_frame: int, seed_frame: int, stats: tuple[str, float] | None = None,
-                 gbuffer: str = "psr") -> dict[str, np.ndarray]:
-    """Noisy colour and matched G-buffer: ``color``, ``emission``, ``albedo``, ``normal``,
-    ``depth``, ``position`` (H, W, C), the means of ``spp`` 1-spp passes
-    (:func:`pass_seeds`) with the camera of ``camera_frame``, the lights of ``light_frame`` and
-    the seeds of ``seed_frame``. With ``stats`` = (transform, lam), the key ``stats`` holds the
-    SampleStats of the colour samples (the passes are the individual samples, as for steady
-    images, so the colour is the same with or without them).
-
-    The G-buffer is the box-filtered mean over the same samples as the colour: at 1 spp it is
-    the G-buffer of the very primary hit each colour sample started from, as a rasteriser
-    feeding a real-time path tracer provides it. (A G-buffer supersampled independently mixes
-    surfaces at silhouettes while the 1-spp colour sample sees only one of them; dividing such
-    a sample by the mixed albedo, e.g. a light's edge or a black conductor's silhouette,
-    amplifies it by orders of magnitude — so sequence datasets use the matched G-buffer.)
-    With ``gbuffer="psr"`` (default) that G-buffer sees through mirrors and glass
-    (:mod:`dbench.datasets.psr`), with ``"psr-glossy"`` glossy surfaces of roughness < 0.4 also
-    get their reflection's normal; otherwise it is Mitsuba's AOVs of the primary hit.
-    """
-    mi = mitsuba()
-    d = scene.frame_dict(mi, res, camera_frame, light_frame)
-    integ = mi.load_dict(psr_integrator(d["integrator"], PSR_GLOSSY_ALPHA[gbuffer])
-                         if gbuffer in PSR_GLOSSY_ALPHA
-                         else _matched_integrator(d["integrator"]), optimize=False)
-    # optimize=False: see _render_dict
-    loaded = mi.load_dict(d, optimize=False)
-    total = None
-    acc = None
-    for k, pass_seed in enumerate(pass_seeds(seed, seed_frame, spp)):
-        out = np.array(mi.render(loaded, spp=1, seed=pass_seed, integrator=integ),
-                       dtype=np.float64)
-        if stats is not None:
-            if acc is None:
-                acc = PowerSums(out.shape[:2] + (3,), *stats)
-            acc.add(out[..., 0:3])
-        total = out if total is None else total + out
-    mean = (total / spp).astype(np.float32)
-    layout = MATCHED_LAYOUT + (_psr.PSR_EXTRA_LAYOUT if gbuffer in PSR_GLOSSY_ALPHA else ())
-    buffers = {name: np.ascontiguousarray(mean[..., c0:c0 + nc]) for name, c0, nc in layout}
-    if acc is not None:
-        buffers["stats"] = acc.finalize()
-    return buffers
-
-
-def render_gbuffer(scene: SequenceScene, res, i: int, seed: int,
-                   spp: int = GBUFFER_SPP) -> dict[str, np.ndarray]:
-    """Supersampled G-buffer of frame ``i``: ``emission``, ``albedo``, ``normal``, ``depth``,
-    ``position`` as box-filtered means of ``spp`` samples (noise-free inside surfaces,
-    footprint averages at silhouettes; spec/temporal.md §1), independent of the colour samples."""
-    mi = mitsuba()
-    d = scene.frame_dict(mi, res, i)
-    integ = mi.load_dict({"type": "aov", "aovs": _render.AOV_STRING,
-                          "emission": {"type": "path", "max_depth": 1}}, optimize=False)
-    out = _render_dict(d, spp, _render.pass_seed("seq-aov", seed, i), integrator=integ)
-    return {name: np.ascontiguousarray(out[..., c0 - 3:c0 - 3 + nc])
-            for name, c0, nc in MATCHED_LAYOUT[1:]}
+# rendering: the noisy frames are in sequence_frames.py
 
 
 def _cached_entry(cache: Cache, kind: str, desc: dict, render: Callable[[], dict[str, np.ndarray]],
@@ -436,9 +336,10 @@ def load_sequence(scene: str | SequenceScene, spp: int = 1, res=64,
     ref_seed = check_ref_seed(ref_seed)
     cache = cache or Cache()
     ref_spp = int(ref_spp or reference_spp())
-    # frames above 1 spp are the means of 1-spp passes (render_frame); the marker keeps them
-    # apart from entries rendered as one call of spp samples
-    samples = {"samples": "1-spp passes"} if spp > 1 else {}
+    # frames are the means of 1-spp passes (render_frame), summed as SAMPLES_VERSION says; the
+    # marker keeps them apart from entries rendered as one call of spp samples or summed on
+    # the host before non-finite colour samples counted as 0
+    samples = {"samples": f"1-spp passes, {SAMPLES_VERSION}"}
     psr = {}
     if gbuffer in PSR_GLOSSY_ALPHA:  # with the glossy rule, other cache entries than the default's
         psr = {"psr": PSR_VERSION}
