@@ -8,7 +8,7 @@ Buffer names (used in code, files and reports): ``color``, ``albedo``, ``normal`
 ``geo_normal``, ``reflected_normal``.
 ``reference_var`` (the variance of the reference mean) rides along with ``reference`` for the
 judge; methods never ask for it. A :class:`Sequence` is a list of Frames of one animated scene
-(spec/temporal.md §1).
+(docs/methods/temporal.md §1).
 
 Example:
     >>> import numpy as np
@@ -95,7 +95,7 @@ def _fmt(shape: tuple[int | None, ...]) -> str:
     return "(" + ", ".join("*" if s is None else str(s) for s in shape) + ")"
 
 
-#: Sample transforms of the statistics (spec/statistical.md §3), checked by :func:`check_transform`.
+#: Sample transforms of the statistics (docs/methods/statistical.md §3), checked by :func:`check_transform`.
 TRANSFORMS = ("identity", "box-cox", "yeo-johnson")
 
 #: λ accepted by the transforms. The spec's sweep range is [0.25, 1.5]; beyond |λ| = 3 the cubes
@@ -121,7 +121,7 @@ def check_transform(transform: str, lam: float) -> None:
 
 @dataclass
 class SampleStats:
-    """Per-pixel, per-channel statistics of the transformed samples (spec/statistical.md §4).
+    """Per-pixel, per-channel statistics of the transformed samples (docs/methods/statistical.md §4).
 
     Attributes:
         n: (H, W, C) sample count per pixel and channel.
@@ -183,13 +183,13 @@ class Frame:
         reference: (H, W, 3) float32 high-spp image or None.
         meta: scene, spp, seed, render timings and other settings; sequence frames add
             ``frame`` (index) and ``camera`` (``to_world`` 4×4 camera→world, ``origin``, ``fov``,
-            ``fov_axis``, ``width``, ``height``; spec/temporal.md §1).
+            ``fov_axis``, ``width``, ``height``; docs/methods/temporal.md §1).
         motion: (H, W, 2) float32 sequence frames only: offset in pixels (x right, y down) from
-            each pixel to where its surface point was in the previous frame (spec/temporal.md
+            each pixel to where its surface point was in the previous frame (docs/methods/temporal.md
             §3.1); NaN where there is no previous position (no hit, behind the previous camera).
         gradient: (H, W, 3) float32 sequence frames only (A-SVGF): the scene state of this frame
             rendered from the previous camera with the previous frame's random numbers
-            (spec/svgf.md §6.4); equal to ``color`` on the first frame.
+            (docs/methods/svgf.md §6.4); equal to ``color`` on the first frame.
         emission: (H, W, 3) float32 sequence frames only: radiance emitted by the surfaces the
             colour samples' primary rays hit (0 off lights), so filters can keep lights out of
             the demodulated illumination.
@@ -200,7 +200,7 @@ class Frame:
             (dbench.datasets.emitter). Or None.
         reference_var: (H, W, 3) float32 ≥ 0, the variance of ``reference`` (the mean) per pixel
             and channel, estimated from K independent chunks of the reference render
-            (spec/verdicts.md §2), or None. Comes with ``reference``; ``meta["ref_rmse"]`` =
+            (docs/judging.md §2), or None. Comes with ``reference``; ``meta["ref_rmse"]`` =
             sqrt(mean(reference_var)).
         geo_normal: (H, W, 3) float32 sequence frames only (PSR G-buffers): the world-space
             geometric (face) normal of the surface ``normal`` describes, or None.
@@ -254,7 +254,7 @@ class Frame:
 
 @dataclass
 class Sequence:
-    """Frames of one animated scene, in order (spec/temporal.md §1).
+    """Frames of one animated scene, in order (docs/methods/temporal.md §1).
 
     Every frame is a :class:`Frame` of the same (H, W) carrying the same buffers; sequence
     buffers (``motion``, ``gradient``, ``emission``) and the camera (``meta["camera"]``) live on
@@ -315,7 +315,7 @@ TRANSIENT_VIDEO_BUFFERS = ("color", "reference", "reference_var")
 
 @dataclass
 class TransientFrame:
-    """One time-resolved render: a video of T time bins (spec/transient.md §6).
+    """One time-resolved render: a video of T time bins (docs/transient.md §6).
 
     The time axis is optical path length (OPL, scene units, metres): bin t covers
     ``[start_opl + t·bin_width_opl, start_opl + (t+1)·bin_width_opl)``; time = OPL / c.
@@ -326,7 +326,7 @@ class TransientFrame:
             inside the window).
         stats: SampleStats of shape (H, W, T, 3): per-bin statistics, each path's summed
             contribution to a bin being one sample (bins a path never reaches are samples of
-            g(0)); spec/statistical.md §11.1. Or None.
+            g(0)); docs/methods/statistical.md §11.1. Or None.
         albedo, normal: (H, W, 3) float32 from a steady AOV render of the same camera, or None.
         depth: (H, W, 1) float32 camera distance (0 where nothing is hit) or None.
         position: (H, W, 3) float32 world position or None.
@@ -342,7 +342,7 @@ class TransientFrame:
             sees an emitter with radiance > 0 toward the camera (steady render of the same
             camera, as for the features; :class:`Frame`), or None.
         reference_var: (H, W, T, 3) float32 ≥ 0, the variance of ``reference`` (the mean) per
-            pixel, bin and channel from K independent chunks (spec/verdicts.md §2), or None.
+            pixel, bin and channel from K independent chunks (docs/judging.md §2), or None.
         total_var: (H, W, 3) float64 ≥ 0, the variance of the mean of the per-path sums over
             the window's bins (the noisy time-integrated image's own variance, from the same
             samples as ``stats``; below Σ_t Var because a path's bins are anti-correlated), or

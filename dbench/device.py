@@ -67,7 +67,7 @@ def resolve_device(name: Any) -> str:
 @lru_cache(maxsize=4)
 def device_name(device: str) -> str:
     """The GPU's name for ``"cuda"`` (``torch.cuda.get_device_name``); ``"cpu"`` for the host,
-    whose model the harness records with every result (:mod:`dbench.bench.machine`)."""
+    whose model the harness records with every result (:mod:`dbench.run.machine`)."""
     if device == "cuda":
         import torch
         return torch.cuda.get_device_name(0)
@@ -154,7 +154,7 @@ def upload(frame: Any, device: str, names: Any = None) -> DeviceFrame:
         arr = getattr(frame, name, None)
         if name in wanted and arr is not None:
             # a copy, never a view: the harness hands read-only arrays, and a tensor sharing
-            # their memory would let a method write to its input (bench/inputs.py)
+            # their memory would let a method write to its input (run/inputs.py)
             bufs[name] = torch.tensor(np.asarray(arr, np.float32), device=device)
     stats = None
     st = getattr(frame, "stats", None)

@@ -8,7 +8,7 @@ import pytest
 
 os.environ.setdefault("DBENCH_REF_SPP", "256")
 
-from dbench.bench import fpenv  # noqa: E402
+from dbench.run import fpenv  # noqa: E402
 
 #: the floating-point environment the test process started with (no flush-to-zero)
 _PRISTINE_FP = fpenv.snapshot()

@@ -22,11 +22,45 @@ def test_no_import_cycles():
     assert tool.cycles(graph) == []
 
 
-def test_methods_do_not_import_the_harness():
+#: The rooms of the package, top to bottom (docs/architecture.md, "Rooms"): a module may import
+#: its own room and the rooms below its layer, never a room above it or beside it.
+LAYERS = (("cli",), ("studies",), ("speed", "stress", "learn"), ("run",), ("report",),
+          ("synthetic", "datasets"), ("methods", "metrics"),
+          ("registry", "plugins", "denoiser", "device", "data", "io", "resolution", "errors"))
+#: edges against the flow that are known and named (the registry finds the built-in methods
+#: and the gate; plugins check a scene plugin's class)
+KNOWN = {("registry", "methods"), ("plugins", "datasets")}
+
+
+def _room(module: str) -> str:
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 else "dbench"
+
+
+def test_imports_flow_down_the_rooms():
     _, graph = _import_graph()
-    bad = sorted((m, t) for m, targets in graph.items() if m.startswith("dbench.methods")
-                 for t in targets if t == "dbench.bench" or t.startswith("dbench.bench."))
-    assert bad == []
+    layer = {room: i for i, rooms in enumerate(LAYERS) for room in rooms}
+    bad = []
+    for m, targets in graph.items():
+        a = _room(m)
+        for t in targets:
+            b = _room(t)
+            if a == b or a == "dbench" or (a, b) in KNOWN:
+                continue
+            assert a in layer and b in layer, f"{m} -> {t}: a room no layer names"
+            base = len(LAYERS) - 1  # the core modules import one another (no cycles, above)
+            if layer[a] > layer[b] or (layer[a] == layer[b] != base):
+                bad.append((m, t))
+    assert sorted(bad) == []
+
+
+def test_rooms_hold_at_most_15_modules_side_by_side():
+    for folder in [ROOT / "dbench"] + sorted(p for p in (ROOT / "dbench").rglob("*")
+                                               if p.is_dir() and p.name != "__pycache__"):
+        mods = [p for p in folder.glob("*.py") if p.name != "__init__.py"]
+        if folder.parts[-2:] == ("dbench", "datasets"):
+            continue  # its subpackages are the next reshaping step (docs/architecture.md)
+        assert len(mods) <= 15, (folder, len(mods))
 
 
 def test_every_package_has_a_docstring():

@@ -1,4 +1,4 @@
-"""``dbench bench render`` on transient scenes (dbench/bench/speed_transient.py) and the
+"""``dbench bench render`` on transient scenes (dbench/speed/transient_render.py) and the
 uncompressed transient cache entries it measures (README.md, "How renders work")."""
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import numpy as np
 def test_bench_render_transient_shape(tr, tmp_path, monkeypatch):
     import tempfile
 
-    from dbench.bench.speed_transient import RATIOS, bench_render_transient, format_result
+    from dbench.speed.transient_render import RATIOS, bench_render_transient, format_result
 
     monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))  # its fresh caches go here
     r = bench_render_transient("cornell-transient", res=8, spp=4, bins=10, repeats=1)
@@ -26,7 +26,7 @@ def test_bench_render_transient_shape(tr, tmp_path, monkeypatch):
 
 def test_bench_render_cli_transient_and_bins_refused_on_steady(tr, tmp_path, capsys):
     from dbench.cli import main
-    from dbench.bench.speed_transient import is_transient
+    from dbench.speed.transient_render import is_transient
 
     assert is_transient("fog-transient") and not is_transient("cornell")
     out = tmp_path / "bench.jsonl"

@@ -1,5 +1,4 @@
 """Dataset loading and the content-addressed cache."""
-import os
 
 import numpy as np
 import pytest

@@ -113,7 +113,7 @@ def test_bench_times_a_method_at_the_spp_and_parameters_given(tmp_path, capsys):
 def test_bench_frame_says_its_spp_to_the_method():
     """The timed method sees a frame of --spp samples as a rendered one: statistics of that
     count and meta["spp"] (which nca's step count and noise gate read), with its parameters."""
-    from dbench.bench.speed import bench_method
+    from dbench.speed.timing import bench_method
     from dbench.denoiser import _REGISTRY, Denoiser, register
     from dbench.methods.kernels.hdr_input import frame_spp
 
@@ -142,7 +142,7 @@ def test_gate_share_is_paired_per_round_with_the_order_alternating():
     """The gate's share of its method's time: the two are timed in turn in each round, the order
     reversed every other round (ABBA), and the share is the median of the per-round ratios
     with its quartiles; ``dbench bench NAME+gate`` reports it so."""
-    from dbench.bench.speed import bench_method, interleaved_times, paired_share
+    from dbench.speed.timing import bench_method, interleaved_times, paired_share
 
     calls = []
     times = interleaved_times([lambda: calls.append("a"), lambda: calls.append("b")], 4)

@@ -9,8 +9,8 @@ import pytest
 import torch
 
 from dbench import device as dev
-from dbench.bench import harness, sweep
-from dbench.bench.stress import base_frame
+from dbench.run import harness, sweep
+from dbench.synthetic import base_frame
 from dbench.cli import main
 from dbench.errors import DbenchInputError
 from dbench.registry import get
@@ -81,7 +81,7 @@ def test_sweep_identity_names_a_gpu_device_only(monkeypatch):
 
 
 def test_bench_gpu_dry_run_on_cpu_tensors():
-    from dbench.bench import gpu
+    from dbench.speed import gpu
     r = gpu.bench_gpu(height=8, width=12, device="cpu", repeats=1, host_repeats=1,
                       methods_=["nca", "oidn", "noisy"], hostile_size=(8, 12), log=lambda s: None)
     rows = {x["method"]: x for x in r["rows"]}
@@ -93,8 +93,8 @@ def test_bench_gpu_dry_run_on_cpu_tensors():
 
 
 def test_bench_method_names_its_device_route():
-    from dbench.bench import speed
-    from dbench.bench.gpu import bench_method_device
+    from dbench.speed import timing as speed
+    from dbench.speed.gpu import bench_method_device
     r = bench_method_device("nca", 8, 12, 1, 16, {}, "cpu")
     assert r["backend"] == "torch" and r["device"] == "cpu" and r["oidn_time_s"] > 0
     assert "nca on cpu" in speed.format_result(r)
@@ -102,13 +102,13 @@ def test_bench_method_names_its_device_route():
         bench_method_device("jbf", 8, 12, 1, 16, {"mode": "illumination"}, "cpu")
 
 
-@pytest.mark.parametrize("name", __import__("dbench.bench.stress_device",
+@pytest.mark.parametrize("name", __import__("dbench.stress.device",
                                             fromlist=["device_methods"]).device_methods())
 def test_no_device_path_converts_to_numpy_inside_a_call(name, monkeypatch):
     """Every method with a device path, called twice (a temporal method's second call uses its
     history), with every way out to NumPy or the host refused during the calls."""
-    from dbench.bench import stress_device
-    from dbench.bench.gpu import synthetic_frame
+    from dbench.stress import device as stress_device
+    from dbench.speed.gpu import synthetic_frame
     frame = synthetic_frame(8, 12)
     m = get(name, **stress_device.DEVICE_FORM_PARAMS.get(name, {}))
     data = dev.upload(frame, "cpu", m.wants(harness._buffers(frame)))

@@ -1,5 +1,5 @@
 """The ``emitter`` buffer, the reference's own variance (``reference_var``), references shared
-across noisy seeds (``ref_seed``) and ``scene_fingerprint`` (spec/verdicts.md §1-2)."""
+across noisy seeds (``ref_seed``) and ``scene_fingerprint`` (docs/judging.md §1-2)."""
 from __future__ import annotations
 
 import os
@@ -235,7 +235,7 @@ def test_noisy_seeds_share_one_reference(renderer, cache, cornell):
 
 
 def test_reference_noise_is_removed_from_the_mse(renderer, cache):
-    """spec/verdicts.md §2: the 16-spp input against a 64-spp and a 4096-spp reference. Raw
+    """docs/judging.md §2: the 16-spp input against a 64-spp and a 4096-spp reference. Raw
     RMSE differ by ≈ √1.25 ≈ 1.12; sqrt(MSE − mean(reference_var)) agrees within 5 %. Surface
     pixels (emitter = 0; the few light pixels alias and dominate a single render's MSE), mean
     over 8 noisy seeds, each against its own 64-spp reference (ref_seed = seed)."""

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from dbench import cli, plugins, registry
+from dbench import cli, plugins
 
 ROOT = Path(__file__).resolve().parents[1]
 TINY = ["--res", "8", "--spp", "2", "--ref-spp", "16", "--repeats", "1", "--quiet"]

@@ -1,4 +1,4 @@
-"""The harness runs every method in the floating-point environment it found (bench/fpenv.py),
+"""The harness runs every method in the floating-point environment it found (run/fpenv.py),
 and the shipped ONNX sessions leave it as they found it (methods/fpenv.py, ort_session.py)."""
 import platform
 import subprocess
@@ -6,14 +6,14 @@ import sys
 
 import pytest
 
-from dbench.bench import fpenv
+from dbench.run import fpenv
 
 _CHILD = """
 import sys
 import numpy as np
 from dbench import methods
-from dbench.bench import fpenv
-from dbench.bench.stress import base_frame
+from dbench.run import fpenv
+from dbench.synthetic import base_frame
 
 frame = base_frame()
 way, name = sys.argv[1], sys.argv[2]

@@ -1,10 +1,11 @@
-"""Timing harness and convergence sanity (anchors.md §6 checks 7 and 8)."""
+"""Timing harness and convergence sanity (docs/metrics.md §6 checks 7 and 8)."""
 import time
 
 import numpy as np
 import pytest
 
-from dbench.bench import harness, tables
+from dbench.run import harness
+from dbench.report import tables
 from dbench.data import Frame
 from dbench.registry import Denoiser
 
@@ -79,7 +80,7 @@ def test_noisy_rmse_converges_like_inverse_sqrt_spp(renderer, tmp_cache):
 
 
 def test_zoom_window_finds_where_outputs_go_wrong():
-    from dbench.bench.report import zoom_window
+    from dbench.report.run_report import zoom_window
 
     ref = np.full((40, 60, 3), 0.3, np.float32)
     out = ref.copy()

@@ -9,7 +9,8 @@ import pandas as pd
 import pytest
 from scipy.ndimage import uniform_filter
 
-from dbench.bench import harness, headline, refcompare, verdicts
+from dbench.run import harness
+from dbench.report import headline, refcompare, verdicts
 from dbench.data import Frame
 from dbench.metrics import judge as J
 from dbench.registry import Denoiser
@@ -138,7 +139,7 @@ def _cells(ci):
                      "res": 16, "n_seeds": 1, "seeds": [0], "ci_kind": "x", "relmse": rel,
                      "relmse_ci": ci, "rmse": rel, "rmse_ci": ci, "time_s": 0.01,
                      "time_s_iqr": 0.001, "per_seed": [{"seed": 0, "relmse": rel}]})
-    from dbench.bench import tables
+    from dbench.report import tables
     return tables.cells_frame(rows)
 
 

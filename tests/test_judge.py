@@ -1,10 +1,10 @@
-"""The judge (spec/verdicts.md §1–3): surface metrics, error concentration, the reference's noise
+"""The judge (docs/judging.md §1–3): surface metrics, error concentration, the reference's noise
 removed, and intervals that cover the truth at the stated rate."""
 import numpy as np
 import pytest
 
 from dbench import metrics
-from dbench.bench import harness
+from dbench.run import harness
 from dbench.data import Frame
 from dbench.metrics import judge as J
 from dbench.registry import Denoiser

@@ -12,7 +12,7 @@ torch.set_num_threads(1)
 
 
 # ---------------------------------------------------------------------------------------------
-# losses (spec/autoencoder.md §6.4)
+# losses (docs/methods/autoencoder.md §6.4)
 
 
 def test_losses_vanish_for_equal_images():
@@ -120,7 +120,7 @@ def test_autoencoder_training_is_reproducible():
 
 
 def test_autoencoder_training_reduces_the_loss():
-    """spec/autoencoder.md §6.5: 20 steps on a synthetic set reduce the loss by >= 20 %."""
+    """docs/methods/autoencoder.md §6.5: 20 steps on a synthetic set reduce the loss by >= 20 %."""
     ts = synthetic_training_set(4, 32, (1,))
     r = T.train_autoencoder(ts, _ae_cfg(steps=20, batch=4, lr=3e-3, lr_decay_at=(),
                                         residual=False))

@@ -126,7 +126,7 @@ def test_from_weights_is_refused_where_it_does_not_apply(tmp_path):
 
 def test_feature_spp_follows_the_colour_and_enters_the_identity_above_the_default():
     from dbench import datasets
-    from dbench.bench import sweep as S
+    from dbench.run import sweep as S
     from dbench.datasets.render import DEFAULT_FEATURE_SPP, feature_spp
 
     assert [feature_spp(n) for n in (1, 64, 65, 1024)] == [64, 64, 65, 1024]

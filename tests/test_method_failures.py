@@ -1,14 +1,14 @@
 """A method that writes to its input, raises, or calls sys.exit: the harness names it, the other
 methods get the pristine frame and finish, and ``dbench run`` exits with code 4
-(dbench/bench/inputs.py; issue: a user's plugin can never corrupt a verdict)."""
+(dbench/run/inputs.py; issue: a user's plugin can never corrupt a verdict)."""
 from __future__ import annotations
 
 import json
 
 import pytest
 
-from dbench.bench import stress
-from dbench.bench.inputs import first_changed, private_copy
+from dbench.synthetic import base_frame
+from dbench.run.inputs import first_changed, private_copy
 from dbench.cli import main
 
 PLUGIN = '''
@@ -59,7 +59,7 @@ def plugin(tmp_path_factory):
 
 
 def test_private_copy_is_read_only_and_compared():
-    f = stress.base_frame(5, 6)
+    f = base_frame(5, 6)
     mine = private_copy(f)
     assert not mine.color.flags.writeable and not mine.stats.mean.flags.writeable
     with pytest.raises(ValueError, match="read-only"):
@@ -98,8 +98,8 @@ def test_run_names_failing_methods_and_keeps_the_others(plugin, tmp_path, capsys
 
 
 @pytest.mark.parametrize("case", [c[0] for c in __import__(
-    "dbench.bench.stress_contract", fromlist=["CONTRACT_CASES"]).CONTRACT_CASES])
+    "dbench.stress.contract", fromlist=["CONTRACT_CASES"]).CONTRACT_CASES])
 def test_stress_contract_cases(case):
-    from dbench.bench.stress_contract import run_contract_case
+    from dbench.stress.contract import run_contract_case
     outcome = run_contract_case(case)
     assert outcome.status == "pass", outcome.why

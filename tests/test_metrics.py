@@ -1,4 +1,4 @@
-"""Tests of dbench.metrics: spec anchors.md §6 checks 1-6, hand-computed values, agreement with
+"""Tests of dbench.metrics: spec docs/metrics.md §6 checks 1-6, hand-computed values, agreement with
 scikit-image, input errors, the non-finite policy, transient shapes, tiny images, HDR-FLIP exposures.
 """
 from __future__ import annotations

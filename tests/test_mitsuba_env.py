@@ -1,4 +1,4 @@
-"""Variant choice never takes the process down; scalar fallback works (spec/mitsuba.md §10)."""
+"""Variant choice never takes the process down; scalar fallback works (docs/mitsuba.md §10)."""
 import os
 import subprocess
 import sys

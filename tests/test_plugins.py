@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 
 from dbench import cli, plugins, registry
-from dbench.bench import identity
+from dbench.run import identity
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "examples" / "dbench-example-plugin"
@@ -161,7 +161,7 @@ def test_worker_start_loads_the_parent_plugins_in_a_fresh_process(isolated, tmp_
     import multiprocessing as mp
     from concurrent.futures import ProcessPoolExecutor
 
-    from dbench.bench import sweep
+    from dbench.run import sweep
 
     path = _method_file(tmp_path / "w", name="worker-half")
     plugins.load(str(path))
@@ -204,7 +204,7 @@ def test_file_plugin_through_run_sweep_and_report(renderer, isolated, tmp_path, 
          "outside-half", "--scenes", "cornell", "--spp", "2,4", "--workers", "2", "--out",
          str(results / "sweep"), *tiny], env=env, capture_output=True, text=True, timeout=300)
     assert swept.returncode == 0, swept.stderr
-    from dbench.bench import sweep
+    from dbench.run import sweep
 
     cells = [c for c in sweep.load_cells(results / "sweep") if c["method"] == "outside-half"]
     assert len(cells) == 2 and all(c["status"] == "ok" for c in cells)

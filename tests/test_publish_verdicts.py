@@ -11,7 +11,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from dbench.bench import headline, plots, publish, report, tables, verdicts
+from dbench.report import headline, plots, publish, run_report as report, tables, verdicts
 
 LABELS = ["noisy", "jbf", "jbf[radius=3]", "oidn", "statistical", "statistical-gate"]
 SCENES = ["cornell", "mirrors"]
@@ -142,7 +142,7 @@ def _seeded(label, values, ci, **over):
 
 
 def test_paired_differences_decide_ties_when_cells_share_seeds():
-    """spec/verdicts.md §3: both methods ran on the same noisy renders, so their difference
+    """docs/judging.md §3: both methods ran on the same noisy renders, so their difference
     seed by seed says who is ahead where their own intervals overlap."""
     # statistical is below oidn on every seed by 0.0001 while both vary by ±0.001 from seed
     # to seed: the intervals overlap, the paired difference (−0.0001 ± 0) does not include 0

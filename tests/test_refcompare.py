@@ -1,7 +1,7 @@
-"""Comparing the verdicts of two references (dbench.bench.refcompare)."""
+"""Comparing the verdicts of two references (dbench.report.refcompare)."""
 import pandas as pd
 
-from dbench.bench import refcompare
+from dbench.report import refcompare
 
 
 def _frame(values, ci=0.01, ref=4096):

@@ -1,5 +1,5 @@
 """Steady renders: exact per-pixel statistics, box-filter samples, features, determinism
-(spec/mitsuba.md §10, issue checks for the foundation)."""
+(docs/mitsuba.md §10, issue checks for the foundation)."""
 import numpy as np
 import pytest
 from scipy import stats as sps
@@ -39,7 +39,7 @@ def test_renderer_statistics_equal_numpy_on_the_same_samples(renderer, transform
 
 def test_each_sample_lands_in_exactly_one_pixel(renderer):
     # An emitter seen directly with max_depth 1: every sample is 0 or the emitter radiance,
-    # never a filtered mixture of the two (spec/mitsuba.md §10 check 3).
+    # never a filtered mixture of the two (docs/mitsuba.md §10 check 3).
     from dbench.datasets.scenes import Scene
 
     def build(mi, res):

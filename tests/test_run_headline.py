@@ -11,7 +11,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from dbench.bench import headline, report, terminal, verdicts
+from dbench.report import headline, run_report as report, terminal, verdicts
 from dbench.cli import main
 
 TINY = ["--scene", "cornell", "--res", "16", "--spp", "4", "--ref-spp", "64", "--repeats", "1"]
@@ -238,7 +238,7 @@ def test_run_summary_fits_and_says_an_unknown_reference():
 
 def test_a_small_flagged_loss_never_reads_as_one():
     """A loss the verdict flags is written with the digits that show it: 1.0025× is not 1×."""
-    from dbench.bench.headline import loss_size
+    from dbench.report.headline import loss_size
 
     assert loss_size(1.0025, 1.0, "flip") == "1.002×"
     assert loss_size(0.04017, 0.04, "rmse") == "1.004×"

@@ -5,7 +5,10 @@ import numpy as np
 import pytest
 
 from dbench import datasets
-from dbench.bench import sequence as BS
+from dbench import synthetic
+from dbench.report import sequence_figures
+from dbench.run import sequence_run as BS
+from dbench.speed import sequence as speed_sequence
 from dbench.data import Frame, Sequence
 from dbench.datasets import scenes
 from dbench.datasets import sequence as S
@@ -240,7 +243,7 @@ def test_cache_is_reused(renderer, seq_cache, flicker):
 # -- the sequence runner -----------------------------------------------------------------------------
 
 def test_run_sequence_and_temporal_stability():
-    seq = BS.synthetic_sequence(12, 16, frames=10)
+    seq = synthetic.synthetic_sequence(12, 16, frames=10)
     r = BS.run_sequence("accumulate", seq, warmup=3, keep_outputs=True)
     assert len(r.per_frame) == 10 and {"rmse", "ssim", "time_s"} <= set(r.per_frame[0])
     assert r.summary["mean_rmse"] == pytest.approx(np.mean(r.series("rmse")[3:]))
@@ -254,15 +257,15 @@ def test_run_sequence_and_temporal_stability():
 
 
 def test_plots_and_strip(tmp_path):
-    seq = BS.synthetic_sequence(12, 16, frames=9)
+    seq = synthetic.synthetic_sequence(12, 16, frames=9)
     res = BS.compare(seq, ["noisy", "accumulate"], warmup=2)
-    p1 = BS.plot_errors(res, tmp_path / "err.png", events={"change": 4})
-    p2 = BS.strip(seq, res, tmp_path / "strip.png", frames=[0, 4, 8])
+    p1 = sequence_figures.plot_errors(res, tmp_path / "err.png", events={"change": 4})
+    p2 = sequence_figures.strip(seq, res, tmp_path / "strip.png", frames=[0, 4, 8])
     assert p1.stat().st_size > 0 and p2.stat().st_size > 0
 
 
 def test_speed_benchmark_runs_small():
-    out = BS.benchmark(24, 32, repeats=2, method_names=("accumulate", "bmfr"))
+    out = speed_sequence.benchmark(24, 32, repeats=2, method_names=("accumulate", "bmfr"))
     assert set(out["methods"]) == {"accumulate", "bmfr"}
     assert all(v["median_ms"] > 0 for v in out["methods"].values())
 
@@ -308,7 +311,8 @@ def test_quality_128(renderer, seq_cache):
 
 def test_steady_methods_run_on_sequences_frame_by_frame():
     from dbench import methods
-    from dbench.bench.sequence import run_sequence, synthetic_sequence
+    from dbench.run.sequence_run import run_sequence
+    from dbench.synthetic import synthetic_sequence
     from dbench.registry import Denoiser
 
     class Counting(Denoiser):
@@ -349,7 +353,7 @@ def test_sequence_frames_carry_the_statistics_of_their_own_samples(renderer, tmp
     mean of 1-spp passes whether or not statistics are asked for, a 1-spp frame is one render
     with the frame's seed, and single-frame statistical methods run on the frames."""
     from dbench import datasets, methods
-    from dbench.bench.harness import run_sequence_cell
+    from dbench.run.harness import run_sequence_cell
     from dbench.datasets import sequence as S
     from dbench.datasets.mitsuba_env import mitsuba
 
@@ -372,7 +376,7 @@ def test_sequence_frames_carry_the_statistics_of_their_own_samples(renderer, tmp
 
 
 def test_temporal_study_tables_give_intervals_and_flag_variants_not_below_accumulate():
-    from dbench.bench.temporal_study import VARIANTS, _interval, tables
+    from dbench.studies.temporal_study import VARIANTS, _interval, tables
 
     rows = []
     for seed, (acc, good, bad) in enumerate([(1.0, 0.8, 1.2), (1.2, 0.9, 1.3), (1.1, 0.85, 1.1)]):
@@ -391,9 +395,9 @@ def test_temporal_study_tables_give_intervals_and_flag_variants_not_below_accumu
 
 
 def test_development_study_table_gives_geometric_mean_ratios_to_accumulate():
-    """dbench.bench.temporal_dev: ratios to accumulate on the same scene and seed, geometric
+    """dbench.studies.temporal_dev: ratios to accumulate on the same scene and seed, geometric
     mean over the pairs, and the share of pairs where relMSE is below accumulate's."""
-    from dbench.bench.temporal_dev import VARIANTS, table
+    from dbench.studies.temporal_dev import VARIANTS, table
 
     rows = []
     for scene, seed, acc, svgf in (("a", 0, 1.0, 0.5), ("a", 1, 2.0, 4.0), ("b", 0, 1.0, 0.5),
@@ -411,7 +415,7 @@ def test_development_study_table_gives_geometric_mean_ratios_to_accumulate():
 def test_gradient_samples_cost_counts_with_the_methods_that_use_them(flicker):
     """docs/temporal.md §2: the per-frame seconds of the re-shaded samples (cached or not) are in
     the sequence's meta, and the tables add them to the total time of a cell that used them."""
-    from dbench.bench.tables import cells_frame
+    from dbench.report.tables import cells_frame
 
     assert flicker.meta["gradient_per_frame_s"] > 0
     base = {"status": "ok", "scene": "flicker", "spp": 1, "res": 32, "rmse": 0.1,
@@ -423,9 +427,9 @@ def test_gradient_samples_cost_counts_with_the_methods_that_use_them(flicker):
 
 
 def test_temporal_targets_pair_seeds_and_tell_a_three_seed_tie_from_a_real_one():
-    """dbench.bench.temporal_targets: filter − accumulate seed by seed, over the first 3 seeds
+    """dbench.studies.temporal_targets: filter − accumulate seed by seed, over the first 3 seeds
     and over all; a small steady gain is tied over 3 seeds and below over 10."""
-    from dbench.bench.temporal_targets import FILTERS, SETTINGS, paired, tables, verdict
+    from dbench.studies.temporal_targets import FILTERS, SETTINGS, paired, tables, verdict
 
     rng = np.random.default_rng(0)
     rows = []
@@ -462,7 +466,7 @@ def test_temporal_targets_pair_seeds_and_tell_a_three_seed_tie_from_a_real_one()
 
 @pytest.mark.parametrize("args", [["--settings", "256"], ["--seeds", "2"]])
 def test_temporal_targets_refuse_bad_arguments_in_one_line(args, capsys):
-    from dbench.bench.temporal_targets import main
+    from dbench.studies.temporal_targets import main
 
     with pytest.raises(SystemExit) as exc:
         main(args + ["--out", "unused"])

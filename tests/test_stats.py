@@ -1,4 +1,4 @@
-"""Sample transforms and moments: spec/statistical.md §3, §4 and §13 checks 1-4."""
+"""Sample transforms and moments: docs/methods/statistical.md §3, §4 and §13 checks 1-4."""
 import numpy as np
 import pytest
 from scipy import stats as sps

@@ -3,43 +3,44 @@ import numpy as np
 import pytest
 
 from dbench import methods
-from dbench.bench import stress
+from dbench.stress import cases, runner
+from dbench.synthetic import base_frame
 
 
-@pytest.mark.parametrize("case", stress.CASES, ids=lambda c: c.name)
+@pytest.mark.parametrize("case", cases.CASES, ids=lambda c: c.name)
 @pytest.mark.parametrize("method", methods.available()
                          + ["statistical+gate", "jbf+gate", "nca+gate"])
 def test_stress_case(method, case):
-    outcome = stress.run_case(method, case)
+    outcome = runner.run_case(method, case)
     assert outcome.status in ("pass", "n/a"), f"{method} / {case.name}: {outcome.why}"
 
 
 def test_judge_detects_spread_and_shape():
     import numpy as np
-    frame = stress.base_frame(6, 6)
+    frame = base_frame(6, 6)
     out = np.array(frame.color, copy=True)
     out[0, 0] = np.nan
-    assert stress._judge(frame, out, 0.0).status == "fail"
-    assert stress._judge(frame, out[:5], 0.0).status == "fail"
-    assert stress._judge(frame, frame.color.astype(np.float64), 0.0).status == "fail"
-    assert stress._judge(frame, frame.color, 0.0).status == "pass"
+    assert runner._judge(frame, out, 0.0).status == "fail"
+    assert runner._judge(frame, out[:5], 0.0).status == "fail"
+    assert runner._judge(frame, frame.color.astype(np.float64), 0.0).status == "fail"
+    assert runner._judge(frame, frame.color, 0.0).status == "pass"
 
 
 def test_markdown_matrix_lists_every_method_and_case():
-    res = stress.run_all(["noisy"], progress=False)
-    text = stress.stress_markdown(res)
-    assert "| noisy |" in text and all(c.name in text for c in stress.CASES)
-    assert all(c.expect in text for c in stress.CASES)
+    res = runner.run_all(["noisy"], progress=False)
+    text = runner.stress_markdown(res)
+    assert "| noisy |" in text and all(c.name in text for c in cases.CASES)
+    assert all(c.expect in text for c in cases.CASES)
 
 
 # --- one huge finite pixel, missing depth (tiny 16×16 frames) -------------
 
 def _bright_frame(value, sequence):
     import numpy as np
-    f = stress.base_frame(16, 16)
+    f = base_frame(16, 16)
     c = f.color.copy()
     c[5, 7] = value
-    f = stress._with_color(f, c)
+    f = cases._with_color(f, c)
     if sequence:
         f = f.with_buffers(motion=np.zeros((16, 16, 2), np.float32), gradient=f.color.copy())
     return f
@@ -74,7 +75,7 @@ def test_missing_depth_runs_with_the_hit_mask_from_normals(method):
     """Depth is optional (renders from files lack it): without it the output is finite and
     equals the run with a depth that is 1 where the normal is non-zero."""
     import numpy as np
-    frame = stress.base_frame(16, 16)
+    frame = base_frame(16, 16)
     hit = np.any(frame.normal != 0, axis=-1, keepdims=True).astype(np.float32)
     out = methods.get(method).denoise(frame.with_buffers(depth=None))
     assert np.isfinite(out).all()
@@ -131,16 +132,15 @@ def test_quiet_stress_prints_no_library_warnings(tmp_path, capfd, monkeypatch):
     """The hostile inputs make NumPy and Triton's interpreter warn (here: a NumPy warning
     raised inside the matrix); under --quiet the matrix is printed with a count of them, not
     the warnings themselves."""
-    from dbench.bench import stress
     from dbench.cli import main
 
-    run_all = stress.run_all
+    run_all = runner.run_all
 
     def warning_run_all(*args, **kwargs):
         np.log(np.zeros(2))  # RuntimeWarning: divide by zero, as a NaN/Inf case raises
         return run_all(*args, **kwargs)
 
-    monkeypatch.setattr(stress, "run_all", warning_run_all)
+    monkeypatch.setattr(runner, "run_all", warning_run_all)
     assert main(["stress", "--methods", "jbf", "--quiet", "--out", str(tmp_path)]) == 0
     captured = capfd.readouterr()
     assert "Warning" not in captured.err + captured.out

@@ -1,5 +1,5 @@
 """The stress cases against every method's device path in its CPU-testable form
-(dbench/bench/stress_device.py; docs/gpu.md §2): the same policy as the host paths.
+(dbench/stress/device.py; docs/gpu.md §2): the same policy as the host paths.
 
 The interpreter makes a case cost 0.1-3 s, so the default run covers the cases that reach each
 kernel's distinct branches (non-finite, huge and tiny values, degenerate statistics, odd sizes,
@@ -7,7 +7,7 @@ rank-deficient and missing buffers); the whole matrix is marked slow (``scripts/
 slow``) and runs in ``dbench stress``, which writes it to results/stress.md."""
 import pytest
 
-from dbench.bench import stress, stress_device
+from dbench.stress import cases, device as stress_device, runner
 
 CORE = {"nan", "bright_3e38", "tiny_1e-20", "stats_n1", "size_1x1", "size_prime", "flat_wall",
         "missing_albedo", "missing_motion"}
@@ -23,7 +23,7 @@ def _pairs():
         core = TEMPORAL_CORE if m in SLOW_FORMS else CORE
         out += [pytest.param(m, c, id=f"{m}-{c.name}",
                              marks=() if c.name in core else pytest.mark.slow)
-                for c in stress.CASES]
+                for c in cases.CASES]
     return out
 
 
@@ -34,7 +34,7 @@ def test_device_form_stress_case(method, case):
 
 
 def test_device_forms_are_rows_of_the_matrix():
-    res = stress.run_all(["nca"], progress=False)
+    res = runner.run_all(["nca"], progress=False)
     res.update(stress_device.run_device_forms(["nca"], progress=False))
     assert "nca" in res and "nca" + stress_device.SUFFIX in res
-    assert "| nca [device form] |" in stress.stress_markdown(res)
+    assert "| nca [device form] |" in runner.stress_markdown(res)

@@ -8,7 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from dbench.bench import publish, sweep
+from dbench.report import publish
+from dbench.run import sweep
 
 pytestmark = pytest.mark.mitsuba
 
@@ -37,8 +38,8 @@ def test_sweep_writes_one_cell_per_file_and_resumes(renderer, tmp_path):
     assert counts == {"computed": 8, "skipped": 0, "finished_before": 0, "errors": 0}
     cells = sweep.load_cells(out)
     assert len(cells) == 8 and all(c["status"] == "ok" for c in cells)
-    from dbench.bench.machine import machine_label
-    from dbench.bench.publish import machines_text
+    from dbench.run.machine import machine_label
+    from dbench.report.publish import machines_text
 
     # every cell and run records where it was timed
     assert all(c["machine"] == machine_label() for c in cells)

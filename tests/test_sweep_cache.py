@@ -8,7 +8,8 @@ import sys
 import pytest
 
 from dbench import cli
-from dbench.bench import sweep, sweep_history, verdicts
+from dbench.run import sweep, sweep_history
+from dbench.report import verdicts
 
 
 def _args(out, cache, *extra):

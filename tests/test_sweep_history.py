@@ -5,7 +5,7 @@ import json
 import pytest
 
 from dbench import cli
-from dbench.bench import sweep, sweep_history
+from dbench.run import sweep, sweep_history
 from dbench.errors import DbenchInputError
 
 

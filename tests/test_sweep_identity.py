@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from dbench import cli
-from dbench.bench import identity, sweep
+from dbench.run import identity, sweep
 from dbench.errors import DbenchInputError
 
 

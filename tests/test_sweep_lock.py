@@ -9,7 +9,7 @@ import sys
 import pytest
 
 from dbench import cli
-from dbench.bench import sweep_lock
+from dbench.run import sweep_lock
 from dbench.errors import DbenchInputError
 
 

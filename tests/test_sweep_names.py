@@ -6,8 +6,8 @@ from pathlib import Path
 
 import pytest
 
-from dbench.bench import sweep
-from dbench.bench.sweep_names import scene_labels
+from dbench.run import sweep
+from dbench.run.sweep_names import scene_labels
 
 SCENE = """<scene version="3.0.0">
   <sensor type="perspective">

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from dbench.bench import sweep, sweep_lock
+from dbench.run import sweep, sweep_lock
 
 pytestmark = pytest.mark.mitsuba
 

@@ -1,5 +1,5 @@
 """Transient datasets: TransientFrame, scenes, windows, energy, direct arrival, and the two
-collectors of per-bin statistics (spec/transient.md §7, spec/statistical.md §11, §13.14)."""
+collectors of per-bin statistics (docs/transient.md §7, docs/methods/statistical.md §11, §13.14)."""
 from __future__ import annotations
 
 import numpy as np
@@ -130,7 +130,7 @@ def test_load_errors(tr, tmp_cache):
 
 
 # ---------------------------------------------------------------------------------------------
-# spec/transient.md §7: energy and direct arrival
+# docs/transient.md §7: energy and direct arrival
 
 
 def test_energy_sum_over_bins_equals_steady_with_a_covering_window(tr):
@@ -210,7 +210,7 @@ def test_collector_a_equals_numpy_on_stacked_passes(tr, transform):
     nz = (stack > 0 if transform == "box-cox" else stack != 0).sum(axis=0)
     np.testing.assert_array_equal(out.non_zero, nz)
     assert out.non_zero.max() <= SPP and out.non_zero.min() >= 0
-    # bins no path reached: θ̂ = g(0), Var = 0 (spec/statistical.md §13.14)
+    # bins no path reached: θ̂ = g(0), Var = 0 (docs/methods/statistical.md §13.14)
     empty = nz == 0
     assert empty.any()
     np.testing.assert_array_equal(out.stats.theta[empty], transform_of_zero(transform, 0.5))
@@ -343,7 +343,8 @@ def test_fused_moments_equal_stats_from_power_sums(transform):
 
 def test_bench_metrics_and_figures(tmp_path):
     """Per-bin curves, whole-video figures and the three plots on a synthetic video."""
-    from dbench.bench import transient as bt
+    from dbench.report import transient_figures as bt
+    from dbench.studies import transient_report
     rng = np.random.default_rng(1)
     ref = rng.random((6, 7, 9, 3)).astype(np.float32)
     noisy = ref + 0.1 * rng.standard_normal(ref.shape).astype(np.float32)
@@ -353,7 +354,7 @@ def test_bench_metrics_and_figures(tmp_path):
     assert list(table.columns) == ["bin", "opl", "noisy"] and len(table) == 9
     expect = np.sqrt(((noisy.astype(np.float64) - ref) ** 2).mean(axis=(0, 1, 3)))
     np.testing.assert_allclose(table["noisy"], expect, rtol=1e-6)
-    m = bt.video_metrics(noisy, ref)
+    m = transient_report.video_metrics(noisy, ref)
     assert m["rmse"] == pytest.approx(float(np.sqrt(((noisy.astype(np.float64) - ref) ** 2)
                                                     .mean())), rel=1e-6)
     assert 0 < m["ssim_integrated"] <= 1

@@ -1,6 +1,6 @@
 """Media and signals of the transient catalogue (dbench.datasets.transient_media): scene
 parameters (``--scene-param``) and their identity, the layered cloud, unwarped fog, step
-emission (spec/transient.md §7 check 5) and the single/multiple scattering split.
+emission (docs/transient.md §7 check 5) and the single/multiple scattering split.
 
 Range windows measured with size_window(coverage=0.99, res=16, spp=128): the latest 99 % end
 over the corners σ_s ∈ {0, max}, σ_a ∈ {0, max}, g = ±0.95 and scattering single/multiple is
@@ -141,7 +141,7 @@ def test_hg_g_changes_the_render_and_the_cache_entry(tr, tmp_cache):
 
 
 def test_step_is_the_cumsum_of_the_pulse_colour_statistics_and_reference(tr):
-    """spec/transient.md §7 check 5, and collector (a)'s per-bin statistics of a step scene are
+    """docs/transient.md §7 check 5, and collector (a)'s per-bin statistics of a step scene are
     those of the cumsum'd 1-spp passes (each path's cumulative contributions)."""
     from dbench.datasets import scenes
     from dbench.datasets.stats import stats_from_samples

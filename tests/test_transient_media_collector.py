@@ -1,6 +1,6 @@
 """Collector (b) for participating media (``transient_prbvolpath_stats``) against collector (a):
 bit-identical statistics, state independent of spp, no overflow with the default slots, the
-overflow guard, and the loader's choice (spec/statistical.md §11.1-11.2, spec/transient.md §5)."""
+overflow guard, and the loader's choice (docs/methods/statistical.md §11.1-11.2, docs/transient.md §5)."""
 from __future__ import annotations
 
 import numpy as np

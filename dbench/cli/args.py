@@ -140,7 +140,7 @@ def _check_common(args: argparse.Namespace) -> None:
 
 
 def _sequence_window(n_frames: int) -> str:
-    from ..bench.sequence import WARMUP
+    from ..run.sequence_run import WARMUP
 
     if n_frames > WARMUP:
         return f"1 per frame; metrics and time over frames {WARMUP}-{n_frames - 1} of {n_frames}"

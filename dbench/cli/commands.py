@@ -118,7 +118,7 @@ def cmd_export(args: argparse.Namespace) -> int:
 
 
 def cmd_bench(args: argparse.Namespace) -> int:
-    from ..bench import speed
+    from ..speed import timing as speed
     from ..resolution import parse_res
 
     # --res sets the render benchmark's size (default 256) and, when given, the image size of
@@ -138,7 +138,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
     if not timed_method:
         args.spp = 64 if args.spp is None else args.spp
     if args.what == "render":
-        from ..bench import speed_transient
+        from ..speed import transient_render as speed_transient
         if speed_transient.is_transient(args.scene):
             # transient: a plain mitransient render against dbench's load, 48² by default
             result = speed_transient.bench_render_transient(
@@ -155,7 +155,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
                                     spp=args.spp,
                                     repeats=args.repeats)
     elif args.what in ("scene-file", "plugins"):
-        from ..bench import speed_files
+        from ..speed import files as speed_files
         result = (speed_files.bench_plugin_discovery(repeats=max(args.repeats, 3))
                   if args.what == "plugins" else
                   speed_files.bench_scene_file(res=args.res or parse_res(256), spp=args.spp,
@@ -168,7 +168,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
         result = speed.bench_metrics(height=args.height, width=args.width,
                                      repeats=args.repeats)
     elif args.what == "video-metrics":
-        from ..bench import speed_video
+        from ..speed import video_metrics as speed_video
         result = speed_video.bench_video_metrics(height=args.height, width=args.width,
                                                  repeats=args.repeats)
         print(speed_video.format_result(result))
@@ -181,7 +181,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
         device = resolve_device(args.device)
         spp = speed.METHOD_SPP if args.spp is None else args.spp
         if device != "cpu":
-            from ..bench.gpu import bench_method_device
+            from ..speed.gpu import bench_method_device
             result = bench_method_device(args.what, args.height, args.width, args.repeats, spp,
                                          params, device)
         else:
@@ -194,7 +194,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:
-    from ..bench import sweep
+    from ..run import sweep
 
     from ..datasets import scene_files
 
@@ -234,9 +234,9 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 def _sweep_summary(out: str, config, rank_by: str, quiet: bool) -> str:
     """The sweep's headline: per scene, the ranking and the verdicts of its README at the
     headline spp, and (unless ``quiet``) the skipped methods grouped by reason, over this
-    sweep's grid only (dbench/bench/terminal.py)."""
-    from ..bench import sweep_cells, terminal
-    from ..bench.sweep_names import scene_labels
+    sweep's grid only (dbench/report/terminal.py)."""
+    from ..report import cells as sweep_cells, terminal
+    from ..run.sweep_names import scene_labels
 
     labels = set(config.labels().values())
     scenes = set(scene_labels(config, out).values())
@@ -247,7 +247,7 @@ def _sweep_summary(out: str, config, rank_by: str, quiet: bool) -> str:
 
 
 def cmd_stress(args: argparse.Namespace) -> int:
-    from ..bench import stress
+    from ..stress import runner as stress
     from ..io import write_text
 
     from .. import methods, registry
@@ -263,14 +263,14 @@ def cmd_stress(args: argparse.Namespace) -> int:
     ensure_writable_dir(out.parent, "--out")
     import contextlib
 
-    from ..bench.stress_device import run_device_forms
+    from ..stress.device import run_device_forms
     from .capture import library_warnings
     # the hostile cases make libraries warn (NaN, Inf, 3e38 inputs): --quiet counts them
     with (library_warnings() if args.quiet else contextlib.nullcontext([])) as caught:
         results = stress.run_all(names, progress=not args.quiet)
         # each device path in its CPU-testable form, as a row of its own (docs/gpu.md §2)
         results.update(run_device_forms(names, progress=not args.quiet))
-    from ..bench.stress_contract import contract_markdown
+    from ..stress.contract import contract_markdown
     text = stress.stress_markdown(results) + "\n" + contract_markdown()
     write_text(out, text)
     print("\n".join(text.splitlines()[:3 + len(results) + 4]))
@@ -282,7 +282,7 @@ def cmd_stress(args: argparse.Namespace) -> int:
 
 
 def cmd_report(args: argparse.Namespace) -> int:
-    from ..bench import publish
+    from ..report import publish
 
     if args.rank_by not in RANKABLE:
         raise DbenchInputError(f"--rank-by: {args.rank_by!r}; valid: {', '.join(RANKABLE)}")
@@ -337,8 +337,8 @@ def cmd_train(args: argparse.Namespace) -> int:
 
 
 def _bench_gpu(args: argparse.Namespace) -> int:
-    """``dbench bench gpu``: results/gpu/<device>.json and its table (dbench.bench.gpu)."""
-    from ..bench import gpu
+    """``dbench bench gpu``: results/gpu/<device>.json and its table (dbench.speed.gpu)."""
+    from ..speed import gpu
     from ..device import resolve_device
 
     if args.device == "auto" and resolve_device("auto") != "cuda":

@@ -2,7 +2,7 @@
 
 The outputs are written into a temporary folder that takes the place of ``--out`` only once
 all of them are written, and only then is the table printed (README.md, "dbench run";
-dbench/bench/run_output.py).
+dbench/report/run_output.py).
 """
 from __future__ import annotations
 
@@ -18,7 +18,8 @@ from .args import (_check_common, _default_spp, _scene_of, _sequence_window, _sp
 
 def cmd_run(args: argparse.Namespace) -> int:
     from .. import datasets, methods, registry
-    from ..bench import identity, run_output
+    from ..run import identity
+    from ..report import run_output
     from ..data import check_count
     from .capture import library_warnings
 
@@ -60,7 +61,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     print()
     print("\n".join(summary))
     if not args.quiet:  # --quiet: the headline alone
-        from ..bench.terminal import skipped_line
+        from ..report.terminal import skipped_line
         from .capture import count_text
         for line in (skipped_line({labels.get(n, n): why for n, why in skipped.items()}),
                      count_text(caught) if caught else ""):
@@ -80,10 +81,11 @@ def _run_into(out: Path, args: argparse.Namespace, scene, instances, labels, run
     (metrics table, failed methods, the headline's lines for the terminal). ``caught``: the
     library warnings so far (dbench/cli/capture.py), written to ``run.log`` and counted in the
     report, which is written last so that the count covers every other output."""
-    from ..bench import harness, identity, report
-    from ..bench.formats import write_csv
-    from ..bench.machine import machine_info
-    from ..bench.sweep import cell_record, load_seeds
+    from ..run import harness, identity
+    from ..report import run_report as report
+    from ..report.formats import write_csv
+    from ..run.machine import machine_info
+    from ..run.sweep import cell_record, load_seeds
     from ..device import device_name
     from ..io import write_exr, write_json, write_text
 
@@ -134,7 +136,7 @@ def _run_into(out: Path, args: argparse.Namespace, scene, instances, labels, run
     write_csv(out / "metrics.csv", csv_table)
     write_csv(out / "metrics_per_seed.csv", pd.DataFrame(per_seed))
     if is_sequence:
-        from ..bench.sequence import plot_errors, strip
+        from ..report.sequence_figures import plot_errors, strip
         runs = dict(outputs)
         title = f"{scene.name}, {args.spp} spp, {args.res.text} px, {len(frame)} frames"
         plot_errors(runs, out / "error_per_frame.png", title=title,
@@ -143,7 +145,7 @@ def _run_into(out: Path, args: argparse.Namespace, scene, instances, labels, run
         for n, run in runs.items():
             write_csv(out / f"per_frame_{identity.file_stem(n)}.csv", pd.DataFrame(run.per_frame))
     elif frame.kind == "transient":
-        from ..bench.transient import write_figures
+        from ..report.transient_figures import write_figures
         write_figures(out, frame, dict(outputs), title=f"{scene.name}, {args.spp} spp")
     else:
         report.comparison_grid(out / "comparison.png", outputs, frame.reference, ev=scene.ev,
@@ -229,8 +231,8 @@ def _input_notes(meta: dict, settings: dict) -> list[str]:
 
 def method_failure(exc: BaseException) -> str:
     """One line for a method's failure: the harness's own message for a broken contract
-    (bench/inputs.py), else the exception's type and message."""
-    from ..bench.inputs import MethodError
+    (run/inputs.py), else the exception's type and message."""
+    from ..run.inputs import MethodError
     if isinstance(exc, MethodError):
         return str(exc)
     if isinstance(exc, SystemExit):
@@ -240,8 +242,8 @@ def method_failure(exc: BaseException) -> str:
 
 def _write_run_page(out: Path, scene, frame, outputs, table, settings, info, skipped,
                     args: argparse.Namespace) -> None:
-    """``index.html``: the run's interactive viewer and tables (dbench.bench.html)."""
-    from ..bench import html, report, verdicts
+    """``index.html``: the run's interactive viewer and tables (dbench.report.html)."""
+    from ..report import html, run_report as report, verdicts
 
     kind = frame.kind
     columns = (("rmse", "rmse_surface", "relmse", "ssim", "t_rmse", "tpsnr", "cvvdp", "time_s")

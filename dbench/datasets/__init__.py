@@ -117,7 +117,7 @@ def load(scene: str | Scene, spp: int, res, needs: Iterable[str] | None = None,
         res: image size: a side in pixels (square), ``"WxH"`` or (width, height)
             (:func:`dbench.resolution.parse_res`).
         needs: buffer names (``color`` always comes); None means every buffer the scene provides.
-        transform, lam: sample transform of the statistics (spec/statistical.md §3); None
+        transform, lam: sample transform of the statistics (docs/methods/statistical.md §3); None
             means the kind's default: Box-Cox for steady scenes, identity for transient ones.
         seed: base seed of the noisy passes and the features (disjoint seed streams).
         ref_spp: reference spp (default ``DBENCH_REF_SPP`` or 4096).

@@ -1,6 +1,6 @@
 """Write dbench frames as a folder that :mod:`dbench.datasets.folder` (and OIDN's tools) read.
 
-The layout is OIDN's training-set layout with dbench's extra tags (spec/formats.md §1):
+The layout is OIDN's training-set layout with dbench's extra tags (docs/formats.md §1):
 
 =================================  =========================================================
 file                               content

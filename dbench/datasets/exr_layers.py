@@ -1,6 +1,6 @@
 """Raw EXR channels and the alias table that maps other tools' channel names to dbench buffers.
 
-:mod:`dbench.io` reads files dbench wrote; folders users bring (spec/formats.md §1-2) name
+:mod:`dbench.io` reads files dbench wrote; folders users bring (docs/formats.md §1-2) name
 their channels in several conventions, so this module reads channels by their raw names
 (``separate_channels=True``: the binding would otherwise merge ``R,G,B,A`` into one ``RGBA``
 array and ``X.R/G/B`` into ``X``) and resolves them through one small table.

@@ -1,6 +1,6 @@
 """Renders from a folder of EXR files: the OIDN training-set layout and multi-layer EXR files.
 
-A folder holds one or more *views*; every file name starts with the view name (spec/formats.md
+A folder holds one or more *views*; every file name starts with the view name (docs/formats.md
 §1-2):
 
 ``<view>_<spp>.<tag>.exr``

@@ -1,4 +1,4 @@
-"""Choosing a Mitsuba variant without ever taking the process down (spec/mitsuba.md §1).
+"""Choosing a Mitsuba variant without ever taking the process down (docs/mitsuba.md §1).
 
 With only libLLVM 15 on the machine, Mitsuba's ``llvm_ad_rgb`` variant aborts the whole process
 (``LLVM ERROR: Cannot select ... fminimum``) on its first kernel. That abort cannot be caught in

@@ -5,7 +5,7 @@ Mitsuba's ``albedo`` AOV is 0 on smooth conductors and dielectrics, and their no
 position describe the mirror, not what it shows. Demodulating a reflection by that albedo
 amplifies it (or, with the fallback a_eff = 1, leaves the reflected texture in the signal), and
 the flat mirror's normal and depth let every filter blur the reflected scene across the mirror.
-The seed's answer (reflected normals for surfaces with roughness < 0.4, spec/temporal.md §1) and
+The seed's answer (reflected normals for surfaces with roughness < 0.4, docs/methods/temporal.md §1) and
 production's (NVIDIA's primary surface replacement) is the same: describe the pixel by the first
 surface along the specular chain that is not a delta (perfectly specular) BSDF.
 
@@ -25,7 +25,7 @@ integrator so that the colour is the very same sample, bit for bit):
 * ``normal`` = that surface's shading normal (the reflected normal);
 * ``depth`` = length of the whole chain and ``position`` = camera origin + primary direction ×
   depth: the virtual image point, which is static while the camera moves in front of a planar
-  mirror, so the motion vectors of spec/temporal.md §3.1 reproject reflections correctly.
+  mirror, so the motion vectors of docs/methods/temporal.md §3.1 reproject reflections correctly.
 
 With ``glossy_alpha`` > 0 (the ``"psr-glossy"`` G-buffer of :func:`~dbench.datasets.sequence.
 load_sequence`, α < 0.4 as seed 001 §1.2.1 says), a pixel whose surface (after the delta chain)

@@ -10,12 +10,12 @@ Statistics, when asked for, are the power sums of those same samples
 collected, and runs of different methods see the same input.
 
 Features come from a separate pass of Mitsuba's ``aov`` integrator (no nested integrator:
-cheaper, spec/mitsuba.md §3); the ``emitter`` buffer (:mod:`dbench.datasets.emitter`) from
+cheaper, docs/mitsuba.md §3); the ``emitter`` buffer (:mod:`dbench.datasets.emitter`) from
 another pass at the same spp, stored in the same cache entry.
 
 References are rendered in K independent chunks (:func:`reference_chunks`: K ≥ 16 whenever
 spp ≥ 16), which bounds memory and gives the variance of the reference mean from the spread of
-the chunk means (:class:`ChunkMoments`, spec/verdicts.md §2): with chunk means m_i of n_i spp,
+the chunk means (:class:`ChunkMoments`, docs/judging.md §2): with chunk means m_i of n_i spp,
 N = Σ n_i, m = Σ n_i m_i / N, the per-sample variance is σ² ≈ Σ n_i (m_i − m)² / (K − 1) and
 the variance of the mean v_r = σ² / N (0 where K < 2).
 """
@@ -319,7 +319,7 @@ def reference_chunks(spp: int, chunk: int = DEFAULT_REFERENCE_CHUNK) -> list[int
 
 class ChunkMoments:
     """Weighted mean and spread of chunk means (float64), for ``reference_var``
-    (spec/verdicts.md §2).
+    (docs/judging.md §2).
 
     ``add(m_i, n_i)`` takes a chunk mean of n_i samples; :meth:`mean` is Σ n_i m_i / N (the same
     sum as a plain chunked render, so the pixels do not depend on the variance being computed)

@@ -1,4 +1,4 @@
-"""A-SVGF's temporal-gradient samples as the seed describes them (spec/svgf.md §6.1;
+"""A-SVGF's temporal-gradient samples as the seed describes them (docs/methods/svgf.md §6.1;
 docs/temporal.md §2):
 the brightest sample of every 3×3 stratum of frame i−1 is re-shaded from frame i's camera,
 under frame i's lights, with frame i−1's random numbers.

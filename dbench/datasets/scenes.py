@@ -2,7 +2,7 @@
 
 No asset is downloaded: every shape, material and texture is built here. Every film uses a box
 reconstruction filter, so each 1-spp pass puts exactly one sample in every pixel
-(spec/mitsuba.md §4) and the AOVs are plain pixel-footprint averages.
+(docs/mitsuba.md §4) and the AOVs are plain pixel-footprint averages.
 
 Emitters get a black BSDF everywhere (the built-in Cornell light included), so the albedo buffer
 is 0 on light sources and separates them from the surfaces around them; without that, feature-

@@ -1,7 +1,7 @@
 """Animated sequence datasets: moving cameras, switching lights, motion vectors, gradient frames.
 
 Sequence scenes (kind ``sequence``) are static geometry seen by an animated camera and/or lit by
-animated lights (spec/temporal.md §1: object motion is out of scope). Frame ``i`` of a scene is a
+animated lights (docs/methods/temporal.md §1: object motion is out of scope). Frame ``i`` of a scene is a
 Mitsuba dictionary built from the camera state of one frame and the light state of another
 (:meth:`SequenceScene.frame_dict`), which is what the A-SVGF gradient frame needs.
 
@@ -21,25 +21,25 @@ emitter      (H, W, 1)   fraction of the footprint whose primary ray sees an emi
                          ``seq-emitter``); comes with ``reference``
 motion       (H, W, 2)   :func:`motion_vectors`: the world position seen by the previous camera
                          minus the same point seen by this frame's (no sub-pixel jitter)
-gradient     (H, W, 3)   lights of frame i, camera of frame i−1, seed of frame i−1 (spec/svgf.md
+gradient     (H, W, 3)   lights of frame i, camera of frame i−1, seed of frame i−1 (docs/methods/svgf.md
                          §6.4): every pixel re-traces the path of frame i−1 under the new
                          lighting. Frame 0: equal to ``color``.
 reference    (H, W, 3)   ``ref_spp`` samples per frame in K ≥ 16 chunks (at most 256 spp each),
                          seed ``ref_seed`` (not ``seed``: noisy seeds share one reference)
 reference_   (H, W, 3)   variance of the reference mean from the chunk spread
-var                      (spec/verdicts.md §2), in the reference's cache entry
+var                      (docs/judging.md §2), in the reference's cache entry
 camera       meta        ``frame.meta["camera"]``: ``to_world`` (4×4 camera→world), ``origin``,
                          ``fov``, ``fov_axis``, ``width``, ``height``
 ===========  ==========  ====================================================================
 
-The gradient frame is the spec's emulation of A-SVGF's seed reuse (spec/svgf.md §6.4): with a
+The gradient frame is the spec's emulation of A-SVGF's seed reuse (docs/methods/svgf.md §6.4): with a
 static camera it is exactly "the current frame shaded with the previous frame's random numbers";
 with a moving camera the re-traced paths start at the previous camera, so view-dependent changes
 caused by the camera motion are not seen (stated limitation). The mapping of the chosen samples
 into the current frame is done by the method (dbench/methods/svgf: gathered through the motion
 vectors, identical to the forward projection for a static camera).
 
-Deviation from spec/temporal.md §1 (G-buffer at ≥ 16 spp): by default the G-buffer is *matched*
+Deviation from docs/methods/temporal.md §1 (G-buffer at ≥ 16 spp): by default the G-buffer is *matched*
 to the colour samples (``gbuffer="matched"``: the albedo, normal, depth and position of the very
 primary hits the colour samples started from, as a rasteriser feeding a real-time path tracer
 gives them). A supersampled G-buffer mixes surfaces at silhouettes while a 1-spp colour sample
@@ -90,9 +90,9 @@ from .sequence_scene import (GBUFFER_PARAM, GBUFFERS, PSR_ONLY_BUFFERS, SEQUENCE
                              SequenceScene, camera_info, gbuffer_variant, look_at_matrix,
                              motion_vectors, project)
 from .reshade import reshade_frame
-from .sequence_frames import (MATCHED_LAYOUT, PSR_GLOSSY_ALPHA, SAMPLES_VERSION,
-                              _matched_integrator, _render_dict, frame_seed, pass_seeds,
-                              render_frame, render_gbuffer)
+from .sequence_frames import (MATCHED_LAYOUT, PSR_GLOSSY_ALPHA,  # noqa: F401 - re-exported
+                              SAMPLES_VERSION, _matched_integrator, _render_dict, frame_seed,
+                              pass_seeds, render_frame, render_gbuffer)
 from .sequence_render import render_emitter, render_reference
 from .references import check_ref_seed, reference_meta, reference_spp
 from .stats import stats_from_arrays, stats_to_arrays
@@ -282,7 +282,7 @@ def load_sequence(scene: str | SequenceScene, spp: int = 1, res=64,
         ref_spp: reference spp per frame (default ``DBENCH_REF_SPP`` or 4096).
         frames: how many frames from the start (default: the whole sequence).
         transform, lam: sample transform of the per-frame statistics (``stats`` in ``needs``;
-            spec/statistical.md §3), Box-Cox by default as for steady images.
+            docs/methods/statistical.md §3), Box-Cox by default as for steady images.
         gbuffer: None (default): the scene's ``gbuffer`` parameter (``--scene-param
             gbuffer=…``; "psr" unless set). ``"psr"``: the G-buffer and emission of the colour
             samples themselves, seen through mirrors and glass (primary surface replacement,

@@ -31,7 +31,7 @@ def frame_seed(seed: int, i: int) -> int:
 
 #: The noisy colour and its G-buffer come from one render of Mitsuba's ``aov`` integrator with a
 #: nested ``path`` integrator: the nested RGB equals a plain path render with the same seed bit
-#: for bit (spec/mitsuba.md §5) and the AOVs describe exactly the primary hits of those samples.
+#: for bit (docs/mitsuba.md §5) and the AOVs describe exactly the primary hits of those samples.
 #: A second nested ``path`` with max_depth 1 gives the emission of the same primary hits.
 #: Nested integrators come out in the order given (keys also sorted alike: color < emission).
 def _matched_integrator(path: dict) -> dict:
@@ -147,7 +147,7 @@ def render_gbuffer(scene: SequenceScene, res, i: int, seed: int,
                    spp: int = GBUFFER_SPP) -> dict[str, np.ndarray]:
     """Supersampled G-buffer of frame ``i``: ``emission``, ``albedo``, ``normal``, ``depth``,
     ``position`` as box-filtered means of ``spp`` samples (noise-free inside surfaces,
-    footprint averages at silhouettes; spec/temporal.md §1), independent of the colour samples."""
+    footprint averages at silhouettes; docs/methods/temporal.md §1), independent of the colour samples."""
     mi = mitsuba()
     d = scene.frame_dict(mi, res, i)
     integ = mi.load_dict({"type": "aov", "aovs": _render.AOV_STRING,

@@ -1,5 +1,5 @@
 """The sequence scene record (:class:`SequenceScene`: static geometry, a camera and lights per
-frame) and its camera geometry (spec/mitsuba.md §9, spec/temporal.md §3.1): Mitsuba's
+frame) and its camera geometry (docs/mitsuba.md §9, docs/methods/temporal.md §3.1): Mitsuba's
 ``look_at`` matrix, projection to pixels and motion vectors. The catalogue and the loader are in
 :mod:`dbench.datasets.sequence`."""
 from __future__ import annotations
@@ -134,7 +134,7 @@ def project(points: np.ndarray, camera: dict) -> tuple[np.ndarray, np.ndarray]:
 def motion_vectors(position: np.ndarray, depth: np.ndarray, prev_camera: dict, camera: dict
                    ) -> np.ndarray:
     """Offsets (H, W, 2) float32 from every pixel to where its surface point was in the frame
-    seen by ``prev_camera`` (spec/temporal.md §3.1), exact for static geometry.
+    seen by ``prev_camera`` (docs/methods/temporal.md §3.1), exact for static geometry.
 
     ``motion[y, x] = project(P, prev_camera) − project(P, camera)`` in pixels (x right, y down),
     P the pixel's world position: the motion of the surface point, without the sub-pixel jitter

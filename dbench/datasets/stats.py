@@ -1,4 +1,4 @@
-"""Sample transforms and moment accumulation (spec/statistical.md §3-4).
+"""Sample transforms and moment accumulation (docs/methods/statistical.md §3-4).
 
 Shared by steady and transient renders: every 1-spp pass yields the exact per-pixel (or
 per-pixel-bin) sample values, which are transformed and added to float64 power sums of the
@@ -268,7 +268,7 @@ def stats_from_sums(n: int, s1: np.ndarray, s2: np.ndarray, s3: np.ndarray, tran
                     lam: float, diagnostics: dict | None = None,
                     shape: tuple[int, ...] | None = None) -> SampleStats:
     """SampleStats from float64 power sums of u = g(x) − g(0) with one count ``n`` for every
-    voxel: the formulas of spec/statistical.md §4.1 exactly as
+    voxel: the formulas of docs/methods/statistical.md §4.1 exactly as
     :func:`~dbench.datasets.stats.stats_from_power_sums` (tests compare them), fused into one
     parallel pass (the numpy version costs about as much as the render at 64²×200 voxels).
     1-D inputs (strided views allowed) are read in place; ``shape`` is then the output shape."""
@@ -285,7 +285,7 @@ def stats_from_sums(n: int, s1: np.ndarray, s2: np.ndarray, s3: np.ndarray, tran
 
 def variance_of_mean(n: int, s1: np.ndarray, s2: np.ndarray) -> np.ndarray | None:
     """Var of the mean of ``n`` plain (identity) samples from their float64 sums Σx and Σx², with
-    the rules of :func:`stats_from_sums` (spec/statistical.md §4.1: zero-variance tolerance, the
+    the rules of :func:`stats_from_sums` (docs/methods/statistical.md §4.1: zero-variance tolerance, the
     n/(n−1) factor), or None below 2 samples (the spread is unknown, not zero). Used for the
     transient noisy totals (``TransientFrame.total_var``) of both collectors."""
     if n < 2:

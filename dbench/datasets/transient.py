@@ -1,4 +1,4 @@
-"""Transient (time-resolved) datasets through mitransient (spec/transient.md, spec/mitsuba.md).
+"""Transient (time-resolved) datasets through mitransient (docs/transient.md, docs/mitsuba.md).
 
 Scenes of kind ``transient``: ``cornell-transient`` and ``caustic-transient`` (``transient_path``)
 and ``fog-transient`` (a homogeneous participating medium, ``transient_prbvolpath``; the setting of
@@ -9,7 +9,7 @@ included, as a real ultrafast sensor records it); each scene carries a window
 direct arrival) and a pilot render (the OPL below which ``coverage`` of the steady energy
 arrives). ``bins`` splits the window; ``bin_width_opl = (end − start)/bins``.
 
-Collectors of the per-bin statistics (spec/statistical.md §11):
+Collectors of the per-bin statistics (docs/methods/statistical.md §11):
 
 * (a) :func:`collect_passes`: 1-spp passes with a box filter; the film histogram of a pass holds,
   per pixel and bin, exactly the sum of that pixel's one path contributions in the bin, which is
@@ -29,7 +29,7 @@ the same camera; for the fog scene, of the surfaces behind the fog), ``emitter``
 fraction of the footprint whose primary ray sees a light, from the same feature render, fog
 ignored), ``reference`` (H, W, T, 3, plain transient render at ref_spp ≥ 16·spp, same window,
 seed ``ref_seed``, in K ≥ 16 chunks) and ``reference_var`` (H, W, T, 3, the variance of the
-reference mean per bin from the chunk spread, spec/verdicts.md §2). ``meta`` holds the window
+reference mean per bin from the chunk spread, docs/judging.md §2). ``meta`` holds the window
 (``start_opl``, ``bin_width_opl``, ``bins``, ``end_opl``, ``units``), ``energy_fraction``
 (Σ color / Σ steady: the share of the steady energy inside the window; a step's last bin over
 Σ steady), ``emitter`` (pulse or step), ``scene_params`` (the ``--scene-param`` values, empty
@@ -71,7 +71,7 @@ from .transient_window import (direct_arrival_dict, direct_arrivals, expected_di
                                size_window)
 
 COLLECTORS = ("auto", "a", "b")
-DEFAULT_TRANSFORM = "identity"   # spec/statistical.md §3: transient default
+DEFAULT_TRANSFORM = "identity"   # docs/methods/statistical.md §3: transient default
 #: Version of the ``total_var`` array stored with the statistics (the noisy total's variance).
 TOTAL_VAR_VERSION = 2
 
@@ -246,7 +246,7 @@ def collect_in_integrator(scene: TransientScene, res, spp: int, seed: int = 0,
                           lam: float = 0.5, per_pass: bool = False, slots: int = 0
                           ) -> TransientRender:
     """Collector (b): running per-path sums inside the scene's integrator, flushed into float64
-    power sums with atomics (spec/statistical.md §11.2 mode B; ``transient_path``:
+    power sums with atomics (docs/methods/statistical.md §11.2 mode B; ``transient_path``:
     :mod:`dbench.datasets.transient_collector`, ``transient_prbvolpath``:
     :mod:`dbench.datasets.transient_collector_media`).
 

@@ -1,6 +1,6 @@
 """Collector (b): per-bin sample statistics gathered inside the integrator (seed Alg. 4).
 
-spec/statistical.md §11.1-11.2, mode B. A subclass of mitransient's ``transient_path``
+docs/methods/statistical.md §11.1-11.2, mode B. A subclass of mitransient's ``transient_path``
 integrator (:class:`TransientPathStats`, plugin ``transient_path_stats``) that, instead of
 adding each path contribution to the film histogram, keeps a small running state per path:
 
@@ -191,7 +191,7 @@ class StatsCollector:
     Args:
         scene: a loaded Mitsuba scene with a ``transient_hdr_film`` (its window and size are read
             from the film).
-        transform, lam: the sample transform (spec/statistical.md §3; transient default identity).
+        transform, lam: the sample transform (docs/methods/statistical.md §3; transient default identity).
         max_depth, rr_depth, camera_unwarp: integrator settings (same meaning as
             ``transient_path`` / ``transient_prbvolpath``).
         slots: per-path slots (0 = 2·max_depth, exact).
@@ -408,7 +408,7 @@ class StatsCollector:
         the device from the power sums.
 
         The arithmetic is that of :func:`dbench.datasets.stats.stats_from_sums` operation
-        for operation (spec/statistical.md §4.1), so the results are bit-identical to it (tested):
+        for operation (docs/methods/statistical.md §4.1), so the results are bit-identical to it (tested):
         the divisors are opaque so Dr.Jit does not turn a division by a constant into a
         multiplication by its reciprocal, and it contracts nothing into FMAs. Done here rather
         than on the host because the host pass wrote 80 MB of freshly allocated arrays per

@@ -1,6 +1,6 @@
 """Collector (b) for participating media: per-bin statistics inside ``transient_prbvolpath``.
 
-spec/statistical.md §11.1-11.2 (mode B), spec/transient.md §5. :class:`TransientPRBVolpathStats`
+docs/methods/statistical.md §11.1-11.2 (mode B), docs/transient.md §5. :class:`TransientPRBVolpathStats`
 (plugin ``transient_prbvolpath_stats``) re-implements the primal path of mitransient 1.3.1's
 ``transient_prbvolpath`` (delta tracking, next-event estimation at surface and medium scatter
 vertices, Russian roulette) operation for operation and with the same random numbers, but where

@@ -1,4 +1,4 @@
-"""Participating media of the transient catalogue (spec/transient.md §3, §5, §7; seed 004) and
+"""Participating media of the transient catalogue (docs/transient.md §3, §5, §7; seed 004) and
 the parameters the transient scenes declare (``--scene-param``, dbench.datasets.scene_params).
 
 Scenes (all ``transient_prbvolpath``, features from the room without the medium):

@@ -19,7 +19,7 @@ DEFAULT_REFERENCE_CHUNK = 64
 
 
 def _mitransient():
-    """Mitsuba with the variant set, then mitransient (import order: spec/transient.md §4)."""
+    """Mitsuba with the variant set, then mitransient (import order: docs/transient.md §4)."""
     require_llvm("transient rendering (mitransient)")
     mi = mitsuba()
     import mitransient  # noqa: F401

@@ -72,7 +72,7 @@ class TransientScene(Scene):
         medium: description of the participating medium (metadata), or None.
         emission: ``"pulse"`` (a Dirac delta at OPL 0, what mitransient renders) or ``"step"``
             (a Heaviside step switched on at OPL 0): the step response is the cumulative sum
-            along T of the pulse response (spec/transient.md §7 check 5), taken per rendered
+            along T of the pulse response (docs/transient.md §7 check 5), taken per rendered
             pass (:meth:`signal`), so per-bin statistics of a step scene are those of each
             path's cumulative contributions. The window (and its energy check: the last bin
             against the steady image) is the pulse's.

@@ -1,4 +1,4 @@
-"""Per-path slots of the in-integrator collectors (spec/statistical.md §11.2, mode B).
+"""Per-path slots of the in-integrator collectors (docs/methods/statistical.md §11.2, mode B).
 
 :class:`SlotIntegrator` is a mixin for mitransient integrators: ``transient_path``
 (:mod:`dbench.datasets.transient_collector`) and ``transient_prbvolpath``

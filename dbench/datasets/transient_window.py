@@ -1,6 +1,6 @@
 """The time window of a transient scene: :func:`size_window` (start at the earliest direct
 arrival from the geometry, end where a pilot render has gathered ``coverage`` of the steady
-energy) and the direct-arrival test scene of spec/transient.md §7 with its expected bins."""
+energy) and the direct-arrival test scene of docs/transient.md §7 with its expected bins."""
 from __future__ import annotations
 
 import dataclasses
@@ -22,7 +22,7 @@ DIRECT_NEAR_CLIP = 1e-4
 def direct_arrival_dict(mi, res: int = 33, window: Window | None = None, unwarp: bool = False,
                         plane_z: float = 2.0, fov: float = 20.0,
                         near_clip: float = DIRECT_NEAR_CLIP) -> dict:
-    """spec/transient.md §7 check 2: camera and point light at the origin looking down +z, a
+    """docs/transient.md §7 check 2: camera and point light at the origin looking down +z, a
     diffuse plane facing the camera at ``plane_z``, ``transient_path`` max_depth 2.
 
     **Note (measured):** Mitsuba's perspective sensor starts camera rays on the near-clip
@@ -61,7 +61,7 @@ def expected_direct_bins(res: int, window: Window, unwarp: bool, plane_z: float 
                          fov: float = 20.0, near_clip: float = DIRECT_NEAR_CLIP
                          ) -> tuple[np.ndarray, np.ndarray]:
     """(lowest, highest) direct-arrival bin per pixel of :func:`direct_arrival_dict`
-    (spec/transient.md §7 checks 2-3), from the OPL range over each pixel's footprint."""
+    (docs/transient.md §7 checks 2-3), from the OPL range over each pixel's footprint."""
     t = math.tan(math.radians(fov) / 2.0)
     edges = (1.0 - 2.0 * np.arange(res + 1) / res) * t      # tan-plane coordinate of pixel edges
     ex, ey = np.meshgrid(edges, edges)                        # (res+1, res+1)

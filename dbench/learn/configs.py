@@ -1,4 +1,4 @@
-"""Configurations and results of the training runs (spec/nca.md §4-5, spec/autoencoder.md
+"""Configurations and results of the training runs (docs/methods/nca.md §4-5, docs/methods/autoencoder.md
 §3-4; [dbench] marks choices made here)."""
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ from . import losses as L
 
 @dataclass
 class NCAConfig:
-    """Training settings of the NCA (spec/nca.md §4-5; dbench values where the seed is silent)."""
+    """Training settings of the NCA (docs/methods/nca.md §4-5; dbench values where the seed is silent)."""
 
     seed: int = 0
     steps: int = 2000
@@ -21,7 +21,7 @@ class NCAConfig:
     crop: int = 64
     lr: float = 1e-3
     lr_decay_at: tuple[float, ...] = (0.5, 0.8)  # fractions of ``steps``; lr × 0.3 at each
-    # spec/nca.md §4 suggests k ~ U{8..32} and 16 at inference. dbench trains k ~ U{1..6} and
+    # docs/methods/nca.md §4 suggests k ~ U{8..32} and 16 at inference. dbench trains k ~ U{1..6} and
     # picks the inference step count from ``select_from`` on the held-out scenes, worst case
     # first (:func:`select_iterations`), per sample count (below): few steps where the input
     # is nearly converged keep the cost and the darkening of visible-light edges (log-space
@@ -79,7 +79,7 @@ class NCAConfig:
 
 @dataclass
 class AEConfig:
-    """Training settings of the recurrent autoencoder (spec/autoencoder.md §4)."""
+    """Training settings of the recurrent autoencoder (docs/methods/autoencoder.md §4)."""
 
     seed: int = 0
     steps: int = 6000
@@ -125,7 +125,7 @@ class AEConfig:
 
 @dataclass
 class AESequenceConfig:
-    """Second training stage of the autoencoder (spec/autoencoder.md §3-4): 7-frame sequences
+    """Second training stage of the autoencoder (docs/methods/autoencoder.md §3-4): 7-frame sequences
     with the state carried, per-frame weights and the temporal loss, interleaved with
     single-frame steady batches so the state-reset quality is kept."""
 

@@ -27,7 +27,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from ..bench import fpenv
+from ..run import fpenv
 
 EVAL_SCENES = ("cornell", "mirrors", "caustic", "textured", "fireflies")
 XML_SCENE = Path(__file__).resolve().parents[2] / "examples" / "scenes" / "gold-glass-lamp.xml"

@@ -10,7 +10,7 @@ Arrays of a :class:`TrainingSet` (S scenes, P sample counts, square H = W = res)
 
 * ``noisy`` (S, P, H, W, 3) linear radiance; ``spp`` (P,) the sample counts;
 * ``reference`` (S, H, W, 3); ``albedo`` (S, H, W, 3); ``normal`` (S, H, W, 3);
-* ``depth`` (S, H, W, 1), already divided by the frame's largest depth (spec/autoencoder.md §1).
+* ``depth`` (S, H, W, 1), already divided by the frame's largest depth (docs/methods/autoencoder.md §1).
 
 ``TrainingSet.hash`` is a SHA-256 of every array and the settings: the "data hash" written beside
 the shipped weights.

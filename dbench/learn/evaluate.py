@@ -9,7 +9,7 @@ rendered (or read from the cache) by :func:`dbench.datasets.load`, metrics from
 :mod:`dbench.metrics` (RMSE, relMSE ε = 1e-2, SSIM on the tone-mapped image). Methods that are
 not registered (e.g. ``jbf`` before it exists) are left out and named in the report.
 
-Speed: :func:`dbench.bench.stress.base_frame` (the frame ``dbench bench`` uses) at 1280x720;
+Speed: :func:`dbench.synthetic.base_frame` (the frame ``dbench bench`` uses) at 1280x720;
 ``nca`` (trained default steps), ``autoencoder`` and ``oidn`` timed in the same process,
 interleaved round by round (one warm-up each), median of ``repeats``; the load average is printed
 with the figures because the machine is shared.
@@ -26,7 +26,7 @@ import time
 from pathlib import Path
 from typing import Any, Sequence
 
-from ..bench import fpenv
+from ..run import fpenv
 
 EVAL_SCENES = ("cornell", "mirrors", "caustic", "textured", "fireflies")
 METHODS = ("noisy", "jbf", "oidn", "nca", "autoencoder")
@@ -125,8 +125,8 @@ def speed(height: int = 720, width: int = 1280, repeats: int = 5,
           methods: Sequence[str] = ("nca", "autoencoder", "oidn")) -> dict[str, Any]:
     """Median seconds per method on one synthetic frame, measured interleaved in one run."""
     from .. import methods as registry
-    from ..bench.machine import machine_info
-    from ..bench.stress import base_frame
+    from ..run.machine import machine_info
+    from ..synthetic import base_frame
 
     frame = base_frame(height, width)
     insts = {m: registry.get(m) for m in methods}
@@ -313,7 +313,7 @@ def render_markdown(rows: list[dict], missing: list[str], spd: dict | None,
         med = spd["median_s"]
         out += ["## Speed (1280x720, same run)", "",
                 f"{spd['width']}x{spd['height']}, synthetic frame "
-                "(`dbench.bench.stress.base_frame`), one warm-up then the median of "
+                "(`dbench.synthetic.base_frame`), one warm-up then the median of "
                 f"{spd['repeats']} interleaved rounds; {spd['cpu']}, {spd['cores']} cores shared "
                 f"with other jobs (load average {spd['loadavg_before'][0]:.2f} before, "
                 f"{spd['loadavg_after'][0]:.2f} after); {spd['when']}.", "",

@@ -1,4 +1,4 @@
-"""Training losses (spec/autoencoder.md §3, spec/nca.md §5), on (N, 3, H, W) tensors.
+"""Training losses (docs/methods/autoencoder.md §3, docs/methods/nca.md §5), on (N, 3, H, W) tensors.
 
 All losses are means over pixels and channels and are computed by the callers on log1p-encoded
 RGB (spec: "losses are computed on the log1p-encoded, remodulated RGB").
@@ -6,7 +6,7 @@ RGB (spec: "losses are computed on the log1p-encoded, remodulated RGB").
 * ``l1`` L_s = mean |P - T|;  ``mse`` mean (P - T)².
 * ``gradient_loss`` (seed form, "sobel_of_gaussian"): L_g = mean |Sx(g*T) - Sx(g*P)| +
   mean |Sy(g*T) - Sy(g*P)|, g the 3x3 Gaussian (1,2,1)ᵀ(1,2,1)/16 and Sx, Sy the Sobel kernels /8
-  of spec/nca.md §2, replicate padding.
+  of docs/methods/nca.md §2, replicate padding.
 * ``hfen`` (the RAE's HFEN form, "log"): mean |LoG * P - LoG * T| with a 9x9
   Laplacian-of-Gaussian, σ = 1.5, shifted to sum 0 (an L1 form of the high-frequency error norm).
 * ``temporal_loss`` L_t = mean |(T_i - T_{i-1}) - (P_i - P_{i-1})| over a sequence (N, F, 3, H, W).
@@ -29,8 +29,8 @@ import torch
 from kornia.filters import filter2d
 
 FRAME_WEIGHTS = (0.011, 0.044, 0.135, 0.325, 0.607, 0.882, 1.0)
-AE_WEIGHTS = {"l1": 0.8, "hfen": 0.1, "temporal": 0.1}  # spec/autoencoder.md §3 [RAE]
-NCA_WEIGHTS = {"mse": 1.0, "grad": 0.5}  # spec/nca.md §5 [dbench]
+AE_WEIGHTS = {"l1": 0.8, "hfen": 0.1, "temporal": 0.1}  # docs/methods/autoencoder.md §3 [RAE]
+NCA_WEIGHTS = {"mse": 1.0, "grad": 0.5}  # docs/methods/nca.md §5 [dbench]
 
 _GAUSS = np.outer([1, 2, 1], [1, 2, 1]).astype(np.float32) / 16.0
 _SOBEL_X = np.array([[-1, 0, 1], [-2, 0, 2], [-1, 0, 1]], np.float32) / 8.0
@@ -153,7 +153,7 @@ def autoencoder_loss(p: torch.Tensor, t: torch.Tensor, weights: dict | None = No
 
 def nca_loss(p: torch.Tensor, t: torch.Tensor, weights: dict | None = None
              ) -> tuple[torch.Tensor, dict[str, float]]:
-    """MSE + 0.5 L_g (spec/nca.md §5) on (N, 3, H, W)."""
+    """MSE + 0.5 L_g (docs/methods/nca.md §5) on (N, 3, H, W)."""
     w = {**NCA_WEIGHTS, **(weights or {})}
     lm, lg = mse(p, t), gradient_loss(p, t)
     return w["mse"] * lm + w["grad"] * lg, {"mse": lm.item(), "grad": lg.item()}

@@ -14,7 +14,7 @@ and the evaluation catalogue (cornell, mirrors, caustic, textured, fireflies) is
 training. Textures are made here (NumPy), never the catalogue's ``texture_pattern``.
 
 Every film is square with a box filter (as in the catalogue), so noisy images, AOVs and
-references are pixel-aligned averages over the same footprint (spec/nca.md §5 note).
+references are pixel-aligned averages over the same footprint (docs/methods/nca.md §5 note).
 
 Example:
     >>> sc = training_scene(3)

@@ -24,7 +24,7 @@ PACKAGE_METHODS = Path(__file__).resolve().parent.parent / "methods"
 def machine_record() -> dict[str, Any]:
     """The CPU, cores, GPU and torch's thread count of this process (a training record's
     ``machine``)."""
-    from ..bench.machine import machine_info
+    from ..run.machine import machine_info
 
     info = machine_info()
     return {"cpu": info["cpu"], "cores": info["cores"], "gpu": info["gpu"],

@@ -2,12 +2,12 @@
 ``dbench train`` (:func:`run_training`) on the pieces of ``configs.py``, ``loop.py``,
 ``train_nca.py``, ``train_autoencoder.py`` and ``ship.py``, all exposed here.
 
-* :func:`train_nca` — spec/nca.md §4-5: random iteration count per batch (loss only after the
+* :func:`train_nca` — docs/methods/nca.md §4-5: random iteration count per batch (loss only after the
   last step), loss MSE + 0.5 L_g on log1p RGB plus [dbench] 1.0 x the relative linear MSE
   (:func:`losses.relative_linear_mse`), Adam, per-parameter gradient normalisation; the
   inference step count is chosen on held-out scenes, worst case first
   (:func:`select_iterations`).
-* :func:`train_autoencoder` — spec/autoencoder.md §3-4, stage 1: single frames (state reset,
+* :func:`train_autoencoder` — docs/methods/autoencoder.md §3-4, stage 1: single frames (state reset,
   L_t = 0), loss 0.8 L1 + 0.1 HFEN on the log1p of the remodulated RGB plus [dbench] 0.5 x the
   relative linear MSE, Adam (β = 0.9, 0.99).
 * :func:`finetune_autoencoder_sequences` — stage 2: 7-frame crops of camera-animated training

@@ -1,4 +1,4 @@
-"""Training the ``autoencoder`` denoiser (spec/autoencoder.md §3-4): stage 1 on single frames
+"""Training the ``autoencoder`` denoiser (docs/methods/autoencoder.md §3-4): stage 1 on single frames
 (:func:`train_autoencoder`), stage 2 on 7-frame crops of camera-animated sequences with the
 hidden state carried (:func:`finetune_autoencoder_sequences`), and their validations."""
 from __future__ import annotations

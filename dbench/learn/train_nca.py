@@ -1,4 +1,4 @@
-"""Training the ``nca`` denoiser (spec/nca.md §4-5): random iteration count per batch (loss only
+"""Training the ``nca`` denoiser (docs/methods/nca.md §4-5): random iteration count per batch (loss only
 after the last step), MSE + 0.5 L_g on log1p RGB plus [dbench] 1.0 x the relative linear MSE,
 Adam, per-parameter gradient normalisation; the inference step count chosen on held-out scenes,
 worst case first (:func:`select_iterations`)."""
@@ -21,7 +21,7 @@ def _a_eff(albedo: torch.Tensor) -> torch.Tensor:
 
 
 def nca_state(batch: dict[str, np.ndarray], encoding: str = "log1p") -> torch.Tensor:
-    """(B, 9, h, w) initial state from a batch: encoded colour, normal, albedo (spec/nca.md §1;
+    """(B, 9, h, w) initial state from a batch: encoded colour, normal, albedo (docs/methods/nca.md §1;
     encodings as in ``methods/nca/codec.py``)."""
     color = to_tensor(batch["noisy"])
     if encoding == "log1p_demodulated":

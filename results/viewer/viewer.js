@@ -1,5 +1,5 @@
 // dbench result viewer: plain JavaScript, no network, works from file://.
-// Reads window.DBENCH (data.js, written by dbench/bench/html.py): images as little-endian
+// Reads window.DBENCH (data.js, written by dbench/report/html.py): images as little-endian
 // half floats (base64), one entry per frame (sequences) or time bin (transient videos).
 // Tone map as the report's LDR metrics: y = clip(x * 2^ev, 0, 1), then the sRGB curve.
 (function () {

@@ -8,7 +8,7 @@ import OpenEXR
 import pandas as pd
 import pytest
 
-from dbench.bench import tables, verdicts
+from dbench.report import tables, verdicts
 from dbench.cli import main
 from dbench.datasets.folder import load_folder, scan_folder
 from dbench.datasets.folder_reference import judge_reference, light_mask

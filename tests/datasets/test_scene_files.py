@@ -225,7 +225,7 @@ def test_export_round_trip_reproduces_the_direct_run(renderer, tmp_path):
 def test_sweep_over_a_scene_file_and_a_folder(renderer, tmp_path):
     """File scenes and folders are first-class in sweeps: cells under the file's name, the
     scene's own size when --res is not given, and a finished sweep resumes."""
-    from dbench.bench.sweep import load_cells
+    from dbench.run.sweep import load_cells
     path = _write_xml(tmp_path)
     folder = _oidn_folder(tmp_path / "renders", tmp_path)
     out = tmp_path / "sweep"
@@ -243,7 +243,7 @@ def test_sweep_over_a_scene_file_and_a_folder(renderer, tmp_path):
 
 def test_exported_sequence_reads_back_as_a_sequence(renderer, tmp_path):
     from dbench import datasets, methods
-    from dbench.bench.harness import run_sequence_cell
+    from dbench.run.harness import run_sequence_cell
     from dbench.datasets import scenes
     folder = tmp_path / "seq"
     assert main(["export", "orbit", "--out", str(folder), "--spp", "4", "--res", "24x16",
@@ -268,7 +268,7 @@ def test_exported_sequence_reads_back_as_a_sequence(renderer, tmp_path):
 def test_cornell_written_as_xml_renders_the_catalogue_cornell(renderer, tmp_path):
     """The scene-file benchmark's XML Cornell box is the catalogue's scene: same image up to
     Monte Carlo noise (independent samples), through the same sample loop."""
-    from dbench.bench.speed_files import cornell_xml
+    from dbench.speed.files import cornell_xml
     from dbench.datasets import render, scenes
     path = tmp_path / "cornell.xml"
     path.write_text(cornell_xml(renderer))

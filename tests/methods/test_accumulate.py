@@ -1,4 +1,4 @@
-"""accumulate and the shared temporal module (spec/temporal.md §6 checks)."""
+"""accumulate and the shared temporal module (docs/methods/temporal.md §6 checks)."""
 import numpy as np
 import pytest
 
@@ -296,7 +296,7 @@ def hard_sequence(h=20, w=26, frames=5, seed=0, fractional=True):
     (history lengths stay integers, so thresholds on N such as SVGF's N < 4 cannot flip on
     float rounding) —, a block without hit in frame 1 and a 30 % depth jump in frame 3
     (disocclusion: resets and 3×3 fallbacks), NaN/Inf colour pixels and NaN motion."""
-    from dbench.bench.sequence import synthetic_sequence
+    from dbench.synthetic import synthetic_sequence
 
     rng = np.random.default_rng(seed)
     out = []

@@ -1,9 +1,9 @@
-"""asvgf: temporal gradients and adaptive history (spec/svgf.md §6, §9 checks 6-8)."""
+"""asvgf: temporal gradients and adaptive history (docs/methods/svgf.md §6, §9 checks 6-8)."""
 import numpy as np
 import pytest
 
 from dbench import methods
-from dbench.bench.sequence import synthetic_sequence
+from dbench.synthetic import synthetic_sequence
 from dbench.data import Frame, Sequence
 from dbench.errors import DbenchInputError
 from dbench.methods import svgf as C
@@ -228,9 +228,9 @@ def test_filtered_abs_gradient_keeps_two_lights_trading_places():
 
 
 def test_resolved_settings_hold_the_presets_values():
-    """What a sweep records beside the given parameters (bench/harness.py): the values the
+    """What a sweep records beside the given parameters (run/harness.py): the values the
     preset filled in and "auto" resolved, not the class defaults."""
-    from dbench.bench.harness import resolved_settings
+    from dbench.run.harness import resolved_settings
 
     settings = resolved_settings(methods.get("asvgf"))
     assert settings["gradient_mode"] == "seed" and settings["luminance_kernel"] == "gaussian"

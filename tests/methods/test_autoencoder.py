@@ -1,4 +1,4 @@
-"""autoencoder (spec/autoencoder.md): parameter count, shapes and padding, recurrence, ONNX
+"""autoencoder (docs/methods/autoencoder.md): parameter count, shapes and padding, recurrence, ONNX
 Runtime = PyTorch, shipped weights, input policy, sizes."""
 import json
 import subprocess

@@ -1,9 +1,10 @@
-"""bmfr: Householder least squares and the blockwise fit (spec/bmfr.md §8 checks)."""
+"""bmfr: Householder least squares and the blockwise fit (docs/methods/bmfr.md §8 checks)."""
 import numpy as np
 import pytest
 
 from dbench import methods
-from dbench.bench.sequence import run_sequence, synthetic_sequence
+from dbench.run.sequence_run import run_sequence
+from dbench.synthetic import synthetic_sequence
 from dbench.errors import DbenchInputError
 from dbench.methods import bmfr as B
 from dbench.methods.bmfr import householder_lstsq
@@ -336,7 +337,7 @@ def test_seed_preset_fits_from_36_samples_and_still_beats_noisy():
 
 
 def test_temporal_gradient_drops_the_history_at_a_light_change():
-    """With the re-shaded gradient samples (spec/svgf.md §6) BMFR's two accumulations restart
+    """With the re-shaded gradient samples (docs/methods/svgf.md §6) BMFR's two accumulations restart
     where the light changed (α ≥ 0.99), and keep the BMFR code's α otherwise."""
     from tests.methods.test_asvgf import _static
 

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from dbench import methods
-from dbench.bench.sequence import synthetic_sequence
+from dbench.synthetic import synthetic_sequence
 from dbench.data import Frame
 from dbench.errors import DbenchInputError
 from dbench.methods.bmfr import handback as HB

@@ -1,5 +1,5 @@
 """Tests of ``NAME+gate``: any steady method followed by ProDen's t-test gate
-(spec/statistical.md §12, check 17; dbench/methods/gate)."""
+(docs/methods/statistical.md §12, check 17; dbench/methods/gate)."""
 from __future__ import annotations
 
 import numpy as np

@@ -1,4 +1,4 @@
-"""``gauss3d``: the plain 3D Gaussian of spec/jbf.md §1.4 (participating media baseline)."""
+"""``gauss3d``: the plain 3D Gaussian of docs/methods/jbf.md §1.4 (participating media baseline)."""
 from __future__ import annotations
 
 import math

@@ -1,4 +1,4 @@
-"""Tests of the joint bilateral filter and the illumination filter (spec/jbf.md §3, checks 1-9).
+"""Tests of the joint bilateral filter and the illumination filter (docs/methods/jbf.md §3, checks 1-9).
 
 Checks 10-12 need renders and live with the dataset tests; check 6 (3D/transient) comes with the
 transient variant. Fast-path tolerance: max relative difference 1e-5 against the float64
@@ -83,7 +83,7 @@ def test_illumination_fast_equals_reference():
         assert rel_err(core.illumination_fast(color, setup), ref) < FAST_RTOL
 
 
-# ------------------------------------------------------------------ spec/jbf.md §3
+# ------------------------------------------------------------------ docs/methods/jbf.md §3
 
 def test_check1_box_mean_when_rho_is_one():
     rng = np.random.default_rng(1)

@@ -1,4 +1,4 @@
-"""nca (TNND, spec/nca.md): filters, parameter count, identity, ONNX Runtime = PyTorch, shipped
+"""nca (TNND, docs/methods/nca.md): filters, parameter count, identity, ONNX Runtime = PyTorch, shipped
 weights, input policy, sizes."""
 import json
 import subprocess

@@ -1,4 +1,4 @@
-"""Tests of the Welch-test statistical denoiser (spec/statistical.md §5, §6, §13).
+"""Tests of the Welch-test statistical denoiser (docs/methods/statistical.md §5, §6, §13).
 
 Statistics are built here from NumPy samples (identity transform unless stated), as the
 renderer's accumulation would: mean, var_mean = var(ddof=1)/n, m3 = mean((y − μ)³).

@@ -1,4 +1,4 @@
-"""Tests of the spatio-temporal statistical denoiser (spec/statistical.md §11.3, §13 checks 14-16).
+"""Tests of the spatio-temporal statistical denoiser (docs/methods/statistical.md §11.3, §13 checks 14-16).
 
 Synthetic (H, W, T, 3) videos with statistics built from NumPy samples as the renderer's
 accumulation would (mean, var_mean = var(ddof=1)/n, m3 = mean((y − μ)³)), with zero-variance

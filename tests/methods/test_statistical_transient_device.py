@@ -206,8 +206,8 @@ def test_upload_carries_the_total_variance_with_the_statistics():
 
 
 def test_stress_device_form_runs_the_transient_cases():
-    from dbench.bench.stress import CASES
-    from dbench.bench.stress_device import run_device_case
+    from dbench.stress.cases import CASES
+    from dbench.stress.device import run_device_case
 
     case = next(c for c in CASES if c.name == "tr_nan_voxel")
     outcome = run_device_case("statistical", case)
@@ -217,7 +217,7 @@ def test_stress_device_form_runs_the_transient_cases():
 def test_the_harness_runs_a_transient_video_on_the_device(monkeypatch):
     """The harness's device route (upload of what the method wants, the total's variance with
     the statistics; synchronised calls; download) on CPU tensors."""
-    from dbench.bench import harness
+    from dbench.run import harness
 
     monkeypatch.setattr(harness, "placement",
                         lambda m, d: (d != "cpu" and m.runs_on_device(), "cpu"))
@@ -234,7 +234,7 @@ def test_the_harness_runs_a_transient_video_on_the_device(monkeypatch):
 def test_bench_gpu_transient_row_dry_run():
     """``dbench bench gpu``'s transient row on CPU tensors (about 45 s through the
     interpreter: the default 11² × 3 window)."""
-    from dbench.bench import gpu
+    from dbench.speed import gpu
 
     row = gpu._transient_row("cpu", 1, 1, 2, 3)
     assert "error" not in row, row.get("error")

@@ -1,12 +1,12 @@
-"""svgf (spec/svgf.md §9 checks, fast path vs reference, policies)."""
+"""svgf (docs/methods/svgf.md §9 checks, fast path vs reference, policies)."""
 import numpy as np
 import pytest
 
 from dbench import methods
-from dbench.bench.sequence import run_sequence, synthetic_sequence
+from dbench.run.sequence_run import run_sequence
+from dbench.synthetic import synthetic_sequence
 from dbench.data import Frame
 from dbench.errors import DbenchInputError
-from dbench.methods import temporal as T
 from dbench.methods import svgf as C
 
 
@@ -68,7 +68,6 @@ def test_constant_image_stays_constant(backend):
     cur, var = args[0], args[1]
     for i in range(5):
         cur, var = C.atrous(backend, cur, var, *args[2:], 2 ** i)
-        used = (args[7] | args[8])  # centre or gather: something contributed
         tol = 1e-12 if backend == "reference" else 1e-6
         assert np.abs(cur[:, args[7]] - 0.37).max() < tol
         assert (var >= 0).all()
@@ -436,7 +435,7 @@ def test_normal_buffer_chooses_the_edge_stopping_normal():
     """``normal_buffer``: the à-trous and spatial-variance weights read the chosen buffer (seed
     001 §1.2.1's reflected or geometric normal); reprojection keeps the shading normal. Equal
     buffers give equal output, a different one changes the filtering, a missing one is refused."""
-    from dbench.bench.sequence import synthetic_sequence
+    from dbench.synthetic import synthetic_sequence
     from dbench.errors import DbenchInputError
 
     seq = synthetic_sequence(24, 32, frames=3)

@@ -1,5 +1,5 @@
 """Temporal antialiasing after the temporal denoisers (dbench/methods/temporal/taa.py;
-spec/bmfr.md §1 step 6 and §6 ``taa``)."""
+docs/methods/bmfr.md §1 step 6 and §6 ``taa``)."""
 import numpy as np
 import pytest
 
@@ -99,7 +99,7 @@ def test_methods_run_taa_as_an_option(name):
     """``taa=True`` on the temporal methods: frame 0 equals the method without it (no history),
     later frames differ, ``reset`` restarts it, and bad values are refused with their name."""
     from dbench import methods
-    from dbench.bench.sequence import synthetic_sequence
+    from dbench.synthetic import synthetic_sequence
     from dbench.errors import DbenchInputError
 
     seq = synthetic_sequence(24, 32, frames=3, shift=1, seed=0)

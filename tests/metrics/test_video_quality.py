@@ -127,7 +127,8 @@ def test_runs_with_the_network_blocked(tmp_path):
 
 
 def test_auto_rule_and_sequence_column():
-    from dbench.bench.sequence import run_sequence, synthetic_sequence
+    from dbench.run.sequence_run import run_sequence
+    from dbench.synthetic import synthetic_sequence
 
     assert vq.use_cvvdp(24, 128, 128) and not vq.use_cvvdp(25, 128, 128)
     assert vq.use_cvvdp(10**6, 720, 1280, wanted=True) and not vq.use_cvvdp(1, 2, 2, False)
@@ -147,8 +148,9 @@ def test_auto_rule_and_sequence_column():
 
 def test_sequence_cell_and_sweep_table_carry_the_column():
     from dbench import methods
-    from dbench.bench import harness, tables
-    from dbench.bench.sequence import synthetic_sequence
+    from dbench.run import harness
+    from dbench.report import tables
+    from dbench.synthetic import synthetic_sequence
 
     cell = harness.run_sequence_cell(methods.get("accumulate"), synthetic_sequence(16, 24, 10))
     assert 0 < cell.metrics["cvvdp"] < 10 and "cvvdp_ci" in cell.metrics

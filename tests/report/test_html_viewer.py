@@ -71,7 +71,7 @@ def _expected(image: np.ndarray, i: int, j: int, ev: float = 0.0) -> np.ndarray:
 def test_half_float_packing_round_trips():
     """What the page decodes equals the image cast to float16 (NaN shown as 0, values beyond
     the half range clipped)."""
-    from dbench.bench.html import decode_half, encode_half
+    from dbench.report.html import decode_half, encode_half
     rng = np.random.default_rng(0)
     img = (rng.lognormal(-1, 2, (7, 5, 3))).astype(np.float32)
     img[0, 0] = [np.nan, 1e6, -1e6]
@@ -214,7 +214,7 @@ def test_transient_bin_slider(browser, transient_run):
 def test_sweep_page_sorts_the_grid(browser, tmp_path):
     """`dbench report`'s results/index.html: the grid of a sweep, sortable, offline."""
     import json
-    from dbench.bench.html import sweep_page
+    from dbench.report.html import sweep_page
     from dbench import io
     sweep = tmp_path / "sweep"
     io.write_json(sweep / "sweep.json", {"config": {"spp": [4, 16], "res": 32}})
@@ -226,7 +226,7 @@ def test_sweep_page_sorts_the_grid(browser, tmp_path):
                               {"status": "ok", "scene": scene, "method": method, "spp": spp,
                                "res": 32, "relmse": v, "relmse_ci": 0.01, "rmse": v,
                                "time_s": 0.01})
-    from dbench.bench.sweep import load_cells
+    from dbench.run.sweep import load_cells
     sweep_page(tmp_path, [(sweep, load_cells(sweep))])
     _open(browser, tmp_path)
     assert not _errors(browser)

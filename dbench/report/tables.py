@@ -1,0 +1,256 @@
+"""Tables from sweep cells (pandas → CSV / Markdown).
+
+* :func:`cells_frame`: one row per finished cell, every metric with its 95 % half-width
+  (``<metric>_ci``), the interval kind, the reference actually used and the times;
+* convergence: for each metric, scene × spp with a row per method label (ProDen's layout); the
+  CSV keeps numbers with separate ``<spp> spp_ci`` columns, Markdown shows ``mean ± ci``;
+* equal time: for rmse, relmse and rmse_surface, the spp at which plain rendering reaches the
+  method's error (log-log fit of the noisy input's metric against spp on the same scene) and the
+  time saved (positive) or lost (negative) against rendering that many samples instead.
+
+Plots live in :mod:`dbench.report.plots`; verdicts (ties, rankings) in
+:mod:`dbench.report.verdicts`.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from ..errors import DbenchInputError
+from ..resolution import parse_res
+from .formats import markdown_table, write_csv
+from .verdicts import METRICS, fmt_value, num, seed_values
+
+ID_COLUMNS = ["scene", "method", "base_method", "spp", "res", "n_seeds", "ci_kind", "ref_spp",
+              "ref_rmse", "ref_relmse_surface"]
+TIME_COLUMNS = ["time_s", "time_s_iqr", "render_s", "gradient_s", "total_s"]
+TEMPORAL = ("t_rmse", "tpsnr", "cvvdp")
+#: Every metric column of a cell: the verdicts' metrics and the sequence-only ones they lack.
+COLUMNS = METRICS + tuple(m for m in TEMPORAL if m not in METRICS)
+EQUAL_TIME_METRICS = ("rmse", "relmse", "rmse_surface")
+
+
+def _label(v) -> str | None:
+    return v if isinstance(v, str) and v else None
+
+
+def _res_key(value: Any) -> int | str | float:
+    """A cell's ``res`` in its key form (256 or "160x90"), NaN when it is not a size."""
+    try:
+        return parse_res(value).key
+    except DbenchInputError:
+        return float("nan")
+
+
+def _row(c: dict) -> dict | None:
+    scene, method = _label(c.get("scene")), _label(c.get("method"))
+    spp = num(c.get("spp"))
+    if scene is None or method is None or not np.isfinite(spp):
+        return None
+    row = {"scene": scene, "method": method,
+           "base_method": _label(c.get("base_method")) or method.split("[")[0],
+           "spp": int(spp), "res": _res_key(c.get("res")), "n_seeds": num(c.get("n_seeds")),
+           "ci_kind": _label(c.get("ci_kind")) or "", "ref_spp": num(c.get("ref_spp")),
+           "ref_rmse": num(c.get("ref_rmse")),
+           "ref_relmse_surface": num(c.get("ref_relmse_surface"))}
+    for m in COLUMNS:
+        row[m] = num(c.get(m))
+        row[m + "_ci"] = num(c.get(m + "_ci"))
+    stats = num(c.get("stats_s"))
+    render = num(c.get("render_s"))
+    row["time_s"] = num(c.get("time_s"))
+    row["time_s_iqr"] = num(c.get("time_s_iqr"))
+    row["render_plain_s"] = render
+    row["stats_s"] = stats if np.isfinite(stats) else 0.0
+    row["render_measured_s"] = render + row["stats_s"]
+    gradient = num(c.get("gradient_s"))
+    # per frame: rendering A-SVGF's re-shaded samples for a method that uses them
+    row["gradient_s"] = gradient if np.isfinite(gradient) else 0.0
+    row["n_nonfinite"] = num(c.get("n_nonfinite"))
+    row["per_seed"] = seed_values(c.get("per_seed"))
+    return row
+
+
+def _per_spp_cost(values: pd.Series, spp: pd.Series) -> float:
+    """Median seconds per spp over a scene's ladder, its lowest spp left out when there are
+    others (the first render of a scene in a process carries one-time JIT compilation)."""
+    keep = spp > spp.min() if spp.nunique() > 1 else spp > 0
+    per = (values[keep] / spp[keep]).replace([np.inf, -np.inf], np.nan).dropna()
+    return float(per.median()) if len(per) else float("nan")
+
+
+def _model_render_time(df: pd.DataFrame) -> pd.DataFrame:
+    """``render_s`` = the scene's rendering cost per spp × spp, plus its statistics cost per
+    spp × spp for cells that collect statistics (costs: :func:`_per_spp_cost` over the scene's
+    cells); ``total_s`` = ``render_s`` + ``time_s`` + ``gradient_s`` (the per-frame cost of
+    the re-shaded gradient samples, for the methods that use them). A single render's wall time carries
+    compilation and whatever else ran on the machine; the per-spp model does not, and makes the
+    error-against-time curves comparable along the ladder. ``render_measured_s`` keeps the
+    measured seconds."""
+    df = df.copy()
+    df["render_s"] = df["render_measured_s"]
+    for scene, g in df.groupby("scene"):
+        per_spp = g.drop_duplicates("spp")
+        render_cost = _per_spp_cost(per_spp["render_plain_s"], per_spp["spp"])
+        with_stats = g[g["stats_s"] > 0].drop_duplicates("spp")
+        stats_cost = (_per_spp_cost(with_stats["stats_s"], with_stats["spp"])
+                      if len(with_stats) else 0.0)
+        if not np.isfinite(render_cost):
+            continue
+        idx = g.index
+        df.loc[idx, "render_s"] = render_cost * g["spp"] + np.where(
+            g["stats_s"] > 0, stats_cost * g["spp"], 0.0)
+    df["total_s"] = df["render_s"] + df["time_s"] + df["gradient_s"]
+    return df
+
+
+def cells_frame(cells: list[dict]) -> pd.DataFrame:
+    """One row per ``ok`` cell. Missing or malformed values are NaN; cells without a scene,
+    method label or spp are left out; ``per_seed`` holds each cell's {seed: {metric: value}}
+    (:func:`~.verdicts.seed_values`, for paired verdicts). ``render_s`` is the modelled
+    rendering time of the cell's spp, statistics collection included where the method needs it
+    (:func:`_model_render_time`;
+    ``render_measured_s`` the measured one), ``gradient_s`` the per-frame cost of the re-shaded
+    gradient samples where the method uses them, and ``total_s`` = ``render_s`` + ``time_s`` +
+    ``gradient_s``. The temporal metrics are kept only when some cell has them (sequence
+    scenes)."""
+    ok = [c for c in cells if isinstance(c, dict) and c.get("status") == "ok"]
+    cols = ID_COLUMNS + [k for m in COLUMNS for k in (m, m + "_ci")] + TIME_COLUMNS + [
+        "n_nonfinite"]
+    rows = [r for c in ok if (r := _row(c)) is not None]
+    df = pd.DataFrame(rows, columns=cols + ["render_plain_s", "stats_s", "render_measured_s",
+                                            "per_seed"])
+    for c in df.columns:
+        if c not in ("scene", "method", "base_method", "ci_kind", "res", "per_seed"):
+            df[c] = df[c].astype(float) if c != "spp" else df[c].astype(int)
+    df = _model_render_time(df).drop(columns=["render_plain_s", "stats_s"])
+    drop = [k for m in TEMPORAL if df[m].isna().all() for k in (m, m + "_ci")]
+    df = df.drop(columns=drop)
+    return df.sort_values(["scene", "spp", "method"], kind="stable").reset_index(drop=True)
+
+
+def convergence_table(df: pd.DataFrame, metric: str, ci: bool = True) -> pd.DataFrame:
+    """Rows (scene, method), columns ``<spp> spp`` and (``ci``) ``<spp> spp_ci``."""
+    cols = [metric] + ([metric + "_ci"] if ci and metric + "_ci" in df.columns else [])
+    if df.empty:
+        return pd.DataFrame(columns=["scene", "method"])
+    t = df.pivot_table(index=["scene", "method"], columns="spp", values=cols,
+                       aggfunc="first", dropna=False)
+    out = pd.DataFrame(index=t.index)
+    for spp in sorted(df.spp.unique()):
+        out[f"{spp} spp"] = t[(metric, spp)] if (metric, spp) in t.columns else np.nan
+        if len(cols) > 1:
+            out[f"{spp} spp_ci"] = t[(cols[1], spp)] if (cols[1], spp) in t.columns else np.nan
+    return out.reset_index()
+
+
+def convergence_table_md(df: pd.DataFrame, metric: str) -> pd.DataFrame:
+    """Like :func:`convergence_table` with ``mean ± ci`` strings (``—`` where no cell)."""
+    t = convergence_table(df, metric)
+    spps = [c for c in t.columns if c.endswith(" spp")]
+    out = t[["scene", "method"]].copy()
+    for c in spps:
+        cis = t[c + "_ci"] if c + "_ci" in t.columns else [np.nan] * len(t)
+        out[c] = [fmt_value(m, h) for m, h in zip(t[c], cis)]
+    return out
+
+
+def noisy_fit(df: pd.DataFrame, scene: str, metric: str = "rmse") -> tuple[float, float] | None:
+    """Least-squares fit log metric = a + b log spp of the noisy input on ``scene``."""
+    if metric not in df.columns:
+        return None
+    d = df[(df.scene == scene) & (df.method == "noisy")].dropna(subset=[metric])
+    d = d[d[metric] > 0]
+    if len(d) < 2 or d.spp.nunique() < 2:
+        return None
+    b, a = np.polyfit(np.log(d.spp.astype(float)), np.log(d[metric].astype(float)), 1)
+    return float(a), float(b)
+
+
+def render_cost_per_spp(df: pd.DataFrame, scene: str) -> float:
+    """Seconds per spp of plain sample rendering on ``scene`` (the noisy input's modelled
+    render time per spp)."""
+    d = df[(df.scene == scene) & (df.method == "noisy")]
+    per = (d.render_s / d.spp).replace([np.inf, -np.inf], np.nan).dropna()
+    return float(per.median()) if len(per) else float("nan")
+
+
+def equal_time_table(df: pd.DataFrame, metrics: tuple[str, ...] = EQUAL_TIME_METRICS
+                     ) -> pd.DataFrame:
+    """Per (scene, method, spp) and metric: ``equal_<m>_spp`` (plain rendering's spp at the
+    method's error), ``equal_<m>_render_s`` and ``<m>_time_saved_s``."""
+    metrics = tuple(m for m in metrics if m in df.columns)
+    rows = []
+    for scene in sorted(df.scene.unique()):
+        cost = render_cost_per_spp(df, scene)
+        fits = {m: noisy_fit(df, scene, m) for m in metrics}
+        d = df[(df.scene == scene) & (df.method != "noisy")].sort_values(["method", "spp"])
+        for _, r in d.iterrows():
+            row = {"scene": scene, "method": r.method, "spp": r.spp, "render_s": r.render_s,
+                   "denoise_s": r.time_s, "total_s": r.total_s}
+            for m in metrics:
+                fit, v = fits[m], r[m]
+                eq = np.nan
+                if fit is not None and np.isfinite(v) and v > 0 and fit[1] < 0:
+                    eq = float(np.exp((np.log(v) - fit[0]) / fit[1]))
+                row.update({m: v, f"equal_{m}_spp": eq, f"equal_{m}_render_s": eq * cost,
+                            f"{m}_time_saved_s": eq * cost - r.total_s})
+            rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def equal_time_md(df: pd.DataFrame, spp: int) -> pd.DataFrame:
+    """The equal-time table at one spp, compact: the equal spp and time saved per metric."""
+    eq = equal_time_table(df)
+    if eq.empty:
+        return eq
+    eq = eq[eq.spp == spp]
+    cols = ["scene", "method", "total_s"] + [c for m in EQUAL_TIME_METRICS
+                                             for c in (f"equal_{m}_spp", f"{m}_time_saved_s")
+                                             if c in eq.columns and eq[c].notna().any()]
+    return eq[cols].reset_index(drop=True)
+
+
+def headline_table(df: pd.DataFrame, spp: int) -> pd.DataFrame:
+    d = df[df.spp == spp]
+    if d.empty:
+        return d
+    cols = [c for c in ("scene", "method", "rmse", "rmse_surface", "relmse", "ssim", "flip",
+                        "time_s") if c in d.columns]
+    return d[cols].sort_values(["scene", "method"]).reset_index(drop=True)
+
+
+def write_tables(df: pd.DataFrame, out: Path) -> dict[str, Path]:
+    """CSV files of every table under ``out``; returns their paths. A convergence CSV is
+    written for each metric some cell records (numbers, with ``_ci`` columns)."""
+    from .verdicts import ref_noise_frame
+
+    paths = {}
+    for metric in COLUMNS:
+        if metric in df.columns and (df[metric].notna().any() or metric in (
+                "rmse", "relmse", "smape", "psnr", "ssim", "flip")):
+            p = out / f"convergence_{metric}.csv"
+            write_csv(p, convergence_table(df, metric))
+            paths[f"convergence_{metric}"] = p
+    paths["equal_time"] = out / "equal_time.csv"
+    write_csv(paths["equal_time"], equal_time_table(df))
+    paths["reference_noise"] = out / "reference_noise.csv"
+    write_csv(paths["reference_noise"], ref_noise_frame(df))
+    paths["cells"] = out / "cells.csv"
+    write_csv(paths["cells"], df.drop(columns=["per_seed"], errors="ignore")
+              .sort_values(["scene", "spp", "method"]))
+    return paths
+
+
+def convergence_plot(df: pd.DataFrame, path: Path) -> None:  # kept for callers of tables
+    from .plots import convergence_plot as plot
+
+    plot(df, path)
+
+
+__all__ = ["cells_frame", "convergence_table", "convergence_table_md", "noisy_fit",
+           "render_cost_per_spp", "equal_time_table", "equal_time_md", "headline_table",
+           "write_tables", "convergence_plot", "markdown_table"]

@@ -1,0 +1,175 @@
+"""What ``dbench run`` and ``dbench sweep`` print: the headline a researcher reads first
+(README.md, "dbench run"), in plain text at most :data:`WIDTH` columns wide.
+
+The rows, their order, the ranking sentence and the verdict words are those of ``report.md``
+and the README (dbench/report/headline.py, dbench/report/verdicts.py); this module only lays them
+out for a terminal. Skipped methods are grouped by the kind of their reason (one line, not one
+per method).
+"""
+from __future__ import annotations
+
+import re
+import textwrap
+from typing import Any, Iterable, Mapping, Sequence
+
+import pandas as pd
+
+from . import headline
+from .verdicts import (NOISY, ci_kind_text, finite, fmt_value, half_width, headline_spp, num,
+                       ranking_line, reference_text)
+
+WIDTH = 100
+
+_WORKS_ON = re.compile(r"works on \[([^\]]*)\], not on (\w+) data")
+_NEEDS = re.compile(r"needs \[([^\]]*)\], which the scene cannot provide")
+
+
+def skip_kind(reason: str) -> str:
+    """The kind of a skip reason (dbench/denoiser.py ``applies_to``): ``sequence only``,
+    ``needs albedo, normal``; any other reason as it stands."""
+    m = _WORKS_ON.search(reason)
+    if m:
+        kinds = [k.strip().strip("'\"") for k in m.group(1).split(",") if k.strip()]
+        return " or ".join(kinds) + " only"
+    m = _NEEDS.search(reason)
+    if m:
+        return "needs " + ", ".join(k.strip().strip("'\"") for k in m.group(1).split(","))
+    return reason.strip()
+
+
+def skipped_line(skipped: Mapping[str, str] | Iterable[tuple[str, str]]) -> str:
+    """``skipped: bmfr, svgf (sequence only); gauss3d (transient only)``: the methods grouped by
+    :func:`skip_kind`, in the order given; "" when nothing was skipped."""
+    pairs = skipped.items() if isinstance(skipped, Mapping) else skipped
+    groups: dict[str, list[str]] = {}
+    for label, why in pairs:
+        names = groups.setdefault(skip_kind(str(why)), [])
+        if label not in names:
+            names.append(str(label))
+    if not groups:
+        return ""
+    text = "skipped: " + "; ".join(f"{', '.join(ms)} ({k})" for k, ms in groups.items())
+    return textwrap.fill(text, WIDTH, subsequent_indent="  ", break_on_hyphens=False)
+
+
+def time_text(seconds: Any, device: str | None = None) -> str:
+    """``1.84 ms cpu``: the median denoise time with where it ran."""
+    s = num(seconds)
+    t = ("—" if not finite(s) else f"{s:.3g} s" if s >= 1 else
+         f"{s * 1e3:.3g} ms" if s >= 1e-3 else f"{s * 1e6:.3g} µs")
+    return f"{t} {device}" if device else t
+
+
+def _metric_columns(d: pd.DataFrame, rank_by: str) -> list[str]:
+    surface = [] if rank_by.endswith(headline.SURFACE) else [rank_by + headline.SURFACE]
+    cols = [rank_by, *surface, "rmse", "rmse_surface"]
+    return [c for c in dict.fromkeys(cols) if c in d.columns and d[c].map(finite).any()]
+
+
+def _layout(rows: list[list[str]], header: list[str], right: Sequence[bool]) -> list[str]:
+    widths = [max(len(r[j]) for r in [header, *rows]) for j in range(len(header))]
+    return ["  ".join(c.rjust(w) if ra else c.ljust(w) for c, w, ra in zip(r, widths, right))
+            .rstrip() for r in [header, *rows]]
+
+
+def headline_table(d: pd.DataFrame, rank_by: str, devices: Mapping[str, str] | None = None,
+                   max_label: int = 24) -> list[str]:
+    """The ranked rows: place (tied rows share it), method, ``mean ± interval`` of the ranking
+    metric, its surface variant, rmse and rmse_surface, and the time with its device."""
+    cols = _metric_columns(d, rank_by)
+    by_label = {str(r["method"]): r for _, r in d.iterrows()}
+    ranked = headline.ranked_labels(d, rank_by)
+    devices = devices or {}
+
+    def short(label: str) -> str:
+        return label if len(label) <= max_label else label[:max_label - 1] + "…"
+
+    while True:
+        header = ["#", "method", *cols, "time"]
+        rows = [[str(p) if p is not None else "—", short(lab),
+                 *(fmt_value(num(by_label[lab][c]), half_width(by_label[lab], c), ".3g")
+                   for c in cols),
+                 time_text(by_label[lab].get("time_s"), devices.get(lab))]
+                for p, lab in ranked]
+        lines = _layout(rows, header, [True, False, *([False] * len(cols)), False])
+        # too wide: the whole-image rmse goes first, then the ranking metric's surface form
+        drop = [c for c in ("rmse", rank_by + headline.SURFACE) if c in cols[1:]]
+        if max(map(len, lines)) <= WIDTH or not drop:
+            return lines
+        cols.remove(drop[0])
+
+
+def verdict_lines(d: pd.DataFrame, columns: Sequence[str], rank_by: str) -> list[str]:
+    """``  jbf: worse than noisy on …`` for every row with something to say (the report's
+    words, :func:`dbench.report.headline.verdict_words`), wrapped at :data:`WIDTH`."""
+    words = headline.verdict_words(d, columns, rank_by)
+    out = []
+    for _, lab in headline.ranked_labels(d, rank_by):
+        if words.get(lab) and lab != NOISY:
+            out += textwrap.wrap(f"{lab}: {words[lab]}", WIDTH, initial_indent="  ",
+                                 subsequent_indent="      ", break_on_hyphens=False)
+    return out
+
+
+def _wrap(text: str, indent: str = "") -> list[str]:
+    return textwrap.wrap(text, WIDTH, initial_indent=indent, subsequent_indent=indent + "  ",
+                         break_on_hyphens=False)
+
+
+def run_summary(d: pd.DataFrame, settings: Mapping[str, Any], rank_by: str,
+                columns: Sequence[str], devices: Mapping[str, str] | None = None) -> list[str]:
+    """The headline of one run: what was run, the reference, the ranked table with intervals,
+    the ranking sentence and the verdicts of ``report.md``. ``d``: the report's cells frame
+    (dbench/report/run_report.py ``_run_frame``); ``columns``: the report's headline columns."""
+    from ..resolution import size_text
+
+    seeds = str(settings.get("seeds", "")).split(", ")
+    lines = _wrap(f"{settings.get('scene')} at {settings.get('spp')} spp, "
+                  f"{size_text(settings.get('res'))} px, {len(seeds)} seed"
+                  f"{'s' if len(seeds) != 1 else ''}; device {settings.get('device', 'cpu')}")
+    lines += _wrap(f"reference: {settings.get('ref_spp') or 'unknown'} spp, estimated RMSE "
+                   f"{_ref_error(settings.get('reference RMSE (estimated)'))}")
+    if not len(d):
+        return lines + ["(no method finished)"]
+    lines += _wrap(f"{ci_kind_text(d).capitalize()}; entries are mean ± 95 % half-width.")
+    lines += [""] + headline_table(d, rank_by, devices) + [""]
+    lines += _wrap(f"ranking by {ranking_line(d, rank_by)}")
+    verdicts = verdict_lines(d, columns, rank_by)
+    if verdicts:
+        lines += ["verdicts (size of the loss: mean / noisy's; PSNR: dB):"] + verdicts
+    return lines
+
+
+def _ref_error(value: Any) -> str:
+    """The reference's estimated RMSE as the settings hold it: a number, "value (source)" or
+    "unknown (why)"."""
+    if finite(value):
+        return f"{float(value):.3g}"
+    text = str(value) if value is not None else ""
+    return text if text.startswith("unknown") else (text or "unknown")
+
+
+def sweep_summary(cells: Sequence[dict], rank_by: str = "relmse",
+                  columns: Sequence[str] = (), skips: bool = True) -> list[str]:
+    """Per scene at its headline spp (the README's, :func:`headline_spp`): the ranking sentence
+    and the verdicts, then (``skips``) the skipped methods grouped by reason kind, one line."""
+    from .tables import cells_frame
+
+    df = cells_frame(list(cells))
+    lines: list[str] = []
+    for scene, g in (df.groupby("scene", sort=True) if len(df) else []):
+        spp = headline_spp(g["spp"].unique())
+        at = g[g["spp"] == spp]
+        rank = rank_by if rank_by in at.columns and at[rank_by].map(finite).any() else "rmse"
+        cols = columns or [c for c in headline.HEADLINE if c in at.columns]
+        lines += _wrap(f"{scene} at {spp} spp ({reference_text(at)}): "
+                       f"ranking by {ranking_line(at, rank)}")
+        lines += verdict_lines(at, cols, rank)
+    skipped = [(str(c.get("method")), str(c.get("reason", "")))
+               for c in cells if isinstance(c, dict) and c.get("status") == "skipped"]
+    line = skipped_line(skipped) if skips else ""
+    return lines + ([line] if line else [])
+
+
+__all__ = ["WIDTH", "skip_kind", "skipped_line", "time_text", "headline_table",
+           "verdict_lines", "run_summary", "sweep_summary"]

@@ -1,0 +1,252 @@
+"""One benchmark cell: a method run on a dataset, timed, and scored against the reference.
+
+Timing (README "Usage"): rendering and I/O are excluded; one warm-up call, then the
+median of ``repeats`` calls measured with ``time.perf_counter``. On a GPU (``device="cuda"``) a
+method with a device path (``Denoiser.runs_on_device``) gets its frame uploaded once, is timed
+with the device synchronised before and after each call, and its output is brought back once;
+the copies are timed apart (``transfer_s``) and never counted as the method's time. A method
+without a device path runs on the host and its cell says so (``device="cpu"``), so CPU and GPU
+figures are never mixed under one label (docs/gpu.md §3).
+"""
+from __future__ import annotations
+
+import statistics
+from dataclasses import dataclass, field
+from typing import Any, Sequence
+
+import numpy as np
+
+from ..metrics import judge
+from ..errors import DbenchInputError
+from ..registry import Denoiser
+from ..device import device_name, download, timed, upload
+from . import fpenv
+from .inputs import check_unchanged, input_guard, private_copy
+from .scoring import DEFAULT_METRICS, judge_frame
+from .sequence_run import WARMUP, run_sequence
+
+
+@dataclass
+class CellResult:
+    """Outcome of one (method, dataset) cell, over one or several seeds.
+
+    ``metrics`` holds, for every judged column (:func:`dbench.metrics.judge.metric_names`), the
+    mean over seeds and ``<column>_ci``, the half-width of its 95 % interval (Student t over
+    seeds, or a block bootstrap with one seed: ``ci_kind`` says which), plus ``ref_rmse``.
+    ``per_seed`` holds one row of values per seed; ``output`` is the first seed's output.
+    """
+
+    method: str
+    params: dict[str, Any]
+    output: np.ndarray | None
+    metrics: dict[str, float] = field(default_factory=dict)
+    times_s: list[float] = field(default_factory=list)
+    skipped: str = ""
+    n_nonfinite: int = 0
+    sequence: Any = None  # the SequenceResult of a sequence cell (first seed)
+    per_seed: list[dict[str, Any]] = field(default_factory=list)
+    ci_kind: str = ""
+    #: what the method resolved on the first seed (its ``last_settings``: e.g. the statistical
+    #: denoiser's γ_t, ν, base filter and automatic temporal radius), scalars only
+    settings: dict[str, Any] = field(default_factory=dict)
+    #: where the method ran ("cpu" or "cuda"), that device's name and the method's backend
+    device: str = "cpu"
+    device_name: str = "cpu"
+    backend: str = ""
+    #: seconds of host→device upload plus device→host download per seed (device cells only)
+    transfer_s: list[float] = field(default_factory=list)
+
+    @property
+    def time_s(self) -> float:
+        return statistics.median(self.times_s) if self.times_s else float("nan")
+
+    @property
+    def time_s_iqr(self) -> float:
+        """Interquartile range of the timed calls; NaN with fewer than two (one call gives no
+        spread, and a "± 0" would read as an exact time)."""
+        if len(self.times_s) < 2:
+            return float("nan")
+        q1, q3 = np.percentile(self.times_s, [25, 75])
+        return float(q3 - q1)
+
+    @property
+    def n_seeds(self) -> int:
+        return max(1, len(self.per_seed))
+
+
+def resolved_settings(method: Denoiser) -> dict[str, Any]:
+    """The scalar entries of a method's ``last_settings`` after a call (numbers, strings,
+    booleans, None, and short lists or tuples of them), as plain Python values; arrays and
+    nested objects are left out. {} for a method that records none."""
+    out: dict[str, Any] = {}
+    for key, value in (getattr(method, "last_settings", None) or {}).items():
+        if isinstance(value, np.generic):
+            value = value.item()
+        if isinstance(value, (list, tuple)) and len(value) <= 16 and all(
+                isinstance(v, (bool, int, float, str, type(None), np.generic)) for v in value):
+            value = [v.item() if isinstance(v, np.generic) else v for v in value]
+        elif not isinstance(value, (bool, int, float, str, type(None))):
+            continue
+        out[str(key)] = value
+    return out
+
+
+def time_call(fn, repeats: int = 5, warmup: int = 1, device: str = "cpu"
+              ) -> tuple[Any, list[float]]:
+    """Call ``fn()`` ``warmup`` times, then ``repeats`` times; return the last result and times
+    (each call timed with ``device`` synchronised before and after it)."""
+    result = None
+    for _ in range(warmup):
+        result = fn()
+    times = []
+    for _ in range(max(1, repeats)):
+        result, dt = timed(fn, device)
+        times.append(dt)
+    return result, times
+
+
+def method_backend(method: Denoiser, on_device: bool) -> str:
+    """The backend a cell records: the device path's, or the resolved host ``backend``
+    parameter (its ``last_settings`` entry when the method resolved "auto"), else "python"."""
+    if on_device:
+        return method.device_backend or "device"
+    settings = getattr(method, "last_settings", None) or {}
+    value = settings.get("backend", method.params.get("backend", ""))
+    return str(value) if value else "python"
+
+
+def placement(method: Denoiser, device: str) -> tuple[bool, str]:
+    """(runs on the device, the device it runs on) for ``method`` asked to run on ``device``."""
+    on_device = device != "cpu" and method.runs_on_device()
+    return on_device, (device if on_device else "cpu")
+
+
+def summarise_seeds(per_seed: list[dict[str, Any]], judgements: list[list],
+                    columns: Sequence[str]) -> tuple[dict[str, float], str]:
+    """(metrics with ``_ci``, ci_kind): Student t over seeds, or with one seed the block
+    bootstrap of its judgements (a list of per-frame Judgements for that seed)."""
+    if len(per_seed) >= 2:
+        out = judge.interval_over_seeds(per_seed, columns)
+    else:
+        out = {c: per_seed[0].get(c, float("nan")) for c in columns}
+        out.update(judge.bootstrap_interval(judgements[0], columns))
+    out["ref_rmse"] = per_seed[0].get("ref_rmse", float("nan"))
+    out["ref_relmse_surface"] = per_seed[0].get("ref_relmse_surface", float("nan"))
+    block = judge.block_of(judgements[0]) if judgements else None
+    return out, judge.ci_kind(len(per_seed), block)
+
+
+def _buffers(frame) -> set[str]:
+    from ..data import BUFFER_NAMES
+    return {b for b in BUFFER_NAMES if getattr(frame, b, None) is not None}
+
+
+def _as_list(frames) -> list:
+    return list(frames) if isinstance(frames, (list, tuple)) else [frames]
+
+
+def run_cell(method: Denoiser, frame, metric_names=DEFAULT_METRICS, repeats: int = 5,
+             warmup: int = 1, device: str = "cpu") -> CellResult:
+    """Run ``method`` on ``frame`` (or a list of frames, one per seed, sharing one reference);
+    skip with a reason when it does not apply.
+
+    Each seed is timed alone (``warmup`` calls, then ``repeats``); ``times_s`` pools the timed
+    calls of every seed. Metrics: see :class:`CellResult`.
+    """
+    frames = _as_list(frame)
+    first = frames[0]
+    available = _buffers(first)
+    ok, reason = method.applies_to(getattr(first, "kind", "steady"), available)
+    if not ok:
+        return CellResult(method.name, dict(method.params), None, skipped=reason)
+    columns = judge.metric_names([n for n in metric_names if n in judge.JUDGED])
+    on_device, where = placement(method, device)
+    result = CellResult(method.name, dict(method.params), None, device=where,
+                        device_name=device_name(where))
+    judgements = []
+    for i, f in enumerate(frames):
+        mine = private_copy(f)  # read-only; compared with f after the calls (run/inputs.py)
+        if on_device:
+            data, up_s = timed(lambda: upload(mine, where, method.wants(_buffers(mine))), where)
+
+            def call(data=data):
+                method.reset()
+                return fpenv.denoise_device(method, data)
+        else:
+            def call(mine=mine):
+                method.reset()
+                return fpenv.denoise(method, mine)
+
+        with input_guard(method.name):
+            output, times = time_call(call, repeats=repeats, warmup=warmup, device=where)
+        check_unchanged(method.name, mine, f)
+        if on_device:
+            output, down_s = timed(lambda out=output: download(out), where)
+            result.transfer_s.append(up_s + down_s)
+        output = np.asarray(output)
+        if output.shape != f.color.shape:
+            raise DbenchInputError(f"{method.name} output: expected shape {f.color.shape}, "
+                                   f"got {output.shape}")
+        result.times_s += times
+        result.n_nonfinite += int((~np.isfinite(output)).sum())
+        if result.output is None:
+            result.output = output.astype(np.float32)
+            result.settings = resolved_settings(method)
+            result.backend = method_backend(method, on_device)
+        if f.reference is not None:
+            j = judge_frame(output, f, metric_names)
+            judgements.append([j])
+            result.per_seed.append({"seed": f.meta.get("seed", i), **j.values})
+    if result.per_seed:
+        result.metrics, result.ci_kind = summarise_seeds(result.per_seed, judgements, columns)
+    return result
+
+
+def run_sequence_cell(method: Denoiser, seq, metric_names=DEFAULT_METRICS,
+                      warmup: int | None = None, device: str = "cpu",
+                      cvvdp: bool | None = None) -> CellResult:
+    """Run a temporal ``method`` over a :class:`~dbench.data.Sequence` (or a list of them, one
+    per seed): ``reset()`` once, then every frame in order, and summarise it as one cell.
+
+    A recurrent method cannot be re-run on a frame, so each frame is timed once:
+    ``times_s`` are the per-frame times after the warm-up (``time_s`` is their median) and the
+    metrics are means over those frames (dbench.run.sequence_run, docs/methods/svgf.md §8), plus the
+    temporal stability ``t_rmse`` and ``tpsnr`` and ColorVideoVDP's ``cvvdp`` (JOD, higher is
+    better; ``cvvdp`` True/False forces it on or off, None scores it on small sequences only:
+    :func:`dbench.metrics.video_quality.use_cvvdp`); intervals as in :func:`run_cell` (the
+    bootstrap resamples the same pixel blocks in every frame; ``cvvdp``, like the temporal
+    figures, gets one only over seeds). ``output`` is the last frame's output of the first seed.
+    """
+    from ..data import BUFFER_NAMES
+
+    warmup = WARMUP if warmup is None else int(warmup)
+    seqs = _as_list(seq)
+    available = {b for b in BUFFER_NAMES if seqs[0].has(b)}
+    ok, reason = method.applies_to("sequence", available)
+    if not ok:
+        return CellResult(method.name, dict(method.params), None, skipped=reason)
+    names = [n for n in metric_names if n in judge.JUDGED]
+    columns = judge.metric_names(names) + ["t_rmse", "tpsnr", "cvvdp"]
+    on_device, where = placement(method, device)
+    result = CellResult(method.name, dict(method.params), None, device=where,
+                        device_name=device_name(where))
+    judgements = []
+    for i, s in enumerate(seqs):
+        run = run_sequence(method, s, metric_names=names, warmup=warmup, keep_outputs=True,
+                           device=where, cvvdp=cvvdp)
+        result.transfer_s.append(run.summary.get("transfer_s", 0.0))
+        after = run.per_frame[warmup:] if len(run.per_frame) > warmup else run.per_frame
+        result.times_s += [r["time_s"] for r in after]
+        result.n_nonfinite += int(sum((~np.isfinite(o)).sum() for o in run.outputs))
+        if result.sequence is None:
+            result.sequence, result.output = run, run.outputs[-1]
+            result.settings = resolved_settings(method)
+            result.backend = method_backend(method, on_device)
+        row = {"seed": s.meta.get("seed", i)}
+        row.update({c: run.summary.get(f"mean_{c}", run.summary.get(c, float("nan")))
+                    for c in columns + ["ref_rmse"]})
+        result.per_seed.append(row)
+        judgements.append(run.judgements)
+    if any(result.per_seed[0].get(c) == result.per_seed[0].get(c) for c in names):
+        result.metrics, result.ci_kind = summarise_seeds(result.per_seed, judgements, columns)
+    return result

@@ -1,0 +1,191 @@
+"""What makes a result: a cell's identity, its label, and the code versions behind it.
+
+A benchmark cell is reused only when everything that changes its numbers matches (issue
+"results that cannot be silently wrong"): the scene (its description's fingerprint), resolution,
+spp, seeds, the reference spp actually used and its seed, the feature buffers' spp where it is
+not the default 64 (:func:`dbench.datasets.feature_identity`), the sample transform, the frames or
+bins, the method, its *resolved* parameters (defaults included, so changing a default in code
+changes the identity), the method's code version and the judge's code version.
+
+Labels: a method run with its defaults is labelled by its name (``jbf``); with other parameters
+by its name and the parameters that differ from the defaults (``jbf[radius=3]``), so two
+parameter sets are two series in every table and never merged under one name.
+"""
+from __future__ import annotations
+
+import ast
+import hashlib
+import inspect
+import json
+import re
+from functools import lru_cache
+from pathlib import Path
+from typing import Any
+
+#: the ``dbench`` package folder (this file is dbench/run/identity.py)
+_PACKAGE_ROOT = Path(__file__).resolve().parents[1]
+_SAFE_FILE = re.compile(r"[A-Za-z0-9_.,=+\-\[\]]{1,96}")
+
+
+def _jsonable(value: Any) -> Any:
+    return json.loads(json.dumps(value, sort_keys=True, default=str))
+
+
+def digest(obj: Any, length: int = 16) -> str:
+    """Short sha256 of a JSON-able object (sorted keys)."""
+    text = json.dumps(_jsonable(obj), sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(text.encode()).hexdigest()[:length]
+
+
+def _hash_files(paths: list[Path]) -> str:
+    h = hashlib.sha256()
+    for p in sorted(paths):
+        h.update(p.name.encode())
+        h.update(p.read_bytes())
+    return h.hexdigest()[:12]
+
+
+def _module_file(root: Path, name: str) -> Path | None:
+    """The file of module ``name`` (dotted, under the package folder ``root``), or None."""
+    parts = name.split(".")[1:]
+    base = root.joinpath(*parts)
+    for candidate in (base.with_suffix(".py"), base / "__init__.py"):
+        if parts and candidate.is_file():
+            return candidate.resolve()
+    return None
+
+
+def _imported_files(path: Path, root: Path) -> set[Path]:
+    """The files of the ``dbench`` modules that the Python file ``path`` imports (every import
+    statement, those inside functions included), with the ``__init__.py`` of each package on
+    the way, since importing a module runs them."""
+    rel = path.relative_to(root.parent).with_suffix("").parts
+    package = list(rel[:-1])
+    names: set[str] = set()
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"), str(path))):
+        if isinstance(node, ast.Import):
+            names.update(a.name for a in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            base = package[:len(package) - node.level + 1] if node.level else []
+            mod = ".".join(base + ([node.module] if node.module else []))
+            names.add(mod)
+            names.update(f"{mod}.{a.name}" for a in node.names)
+    out: set[Path] = set()
+    for name in names:
+        if name.split(".")[0] != root.name:
+            continue
+        parts = name.split(".")
+        for i in range(2, len(parts) + 1):
+            f = _module_file(root, ".".join(parts[:i]))
+            if f is not None:
+                out.add(f)
+    return out
+
+
+def method_files(cls: type) -> list[Path]:
+    """The files behind a method's numbers, sorted: every .py, .onnx and .json file of its
+    package folder (weights included), the top-level modules of ``dbench.methods`` it may share
+    (``guards.py``, ``checks.py``, ...) and every module of ``dbench.methods`` those files
+    import, directly or through one another (shared kernels such as
+    ``dbench/methods/kernels/``, or the steps of another method it reuses). A class defined in a
+    plugin package gives that package's folder; one in a stand-alone file or top-level module
+    (``--plugin my_method.py``) that file only."""
+    wrapped = getattr(cls, "wrapped", None)  # NAME+gate: the gate's files and the method's
+    if wrapped is not None:
+        return sorted(set(method_files(wrapped)) | set(_package_files(inspect.getfile(cls))))
+    return _package_files(inspect.getfile(cls))
+
+
+def _package_files(source_file: str) -> list[Path]:
+    """:func:`method_files` of the class defined in ``source_file``."""
+    import dbench.methods as pkg
+
+    source = Path(source_file).resolve()
+    shared = Path(pkg.__file__).resolve().parent
+    files = [source]
+    outside_package = (shared not in source.parents and source.name != "__init__.py"
+                       and not (source.parent / "__init__.py").is_file())
+    if outside_package:
+        pass  # a plugin file or top-level module (dbench --plugin x.py): that file alone
+    elif source.name == "__init__.py" or source.parent.name != "methods":
+        folder = source.parent
+        files = [p for p in folder.rglob("*") if p.suffix in (".py", ".onnx", ".json")
+                 and "__pycache__" not in p.parts]
+    if shared in source.parents:
+        files += [p for p in shared.glob("*.py")]
+        root = _PACKAGE_ROOT
+        todo = [p.resolve() for p in files if p.suffix == ".py"]
+        seen = set(todo)
+        while todo:
+            for f in _imported_files(todo.pop(), root):
+                if shared in f.parents and f not in seen:
+                    seen.add(f)
+                    todo.append(f)
+                    files.append(f)
+    return sorted(dict.fromkeys(p.resolve() for p in files))
+
+
+@lru_cache(maxsize=None)
+def method_version(cls: type) -> str:
+    """The code version of a method class: its declared ``version`` (if any) joined with a hash
+    of :func:`method_files` (its package folder, the shared top-level modules of
+    ``dbench.methods`` and every module of ``dbench.methods`` they import)."""
+    declared = getattr(cls, "version", None)
+    code = _hash_files(method_files(cls))
+    return f"{declared}+{code}" if declared else code
+
+
+@lru_cache(maxsize=1)
+def judge_version() -> str:
+    """Hash of the metric code (dbench/metrics/*.py): changing how a number is computed changes
+    every cell's identity."""
+    import dbench.metrics as pkg
+
+    return _hash_files(list(Path(pkg.__file__).parent.glob("*.py")))
+
+
+def resolved_params(name: str, overrides: dict[str, Any] | None = None) -> dict[str, Any]:
+    """The method's defaults with ``overrides`` applied (JSON-normalised)."""
+    from .. import methods
+
+    cls = methods.method_class(name)
+    return _jsonable({**cls.defaults, **(overrides or {})})
+
+
+def label(name: str, overrides: dict[str, Any] | None = None) -> str:
+    """``name`` when the resolved parameters equal the defaults, else
+    ``name[key=value,...]`` listing the parameters that differ (sorted by key)."""
+    from .. import methods
+
+    defaults = _jsonable(methods.method_class(name).defaults)
+    params = resolved_params(name, overrides)
+    diff = {k: v for k, v in params.items() if defaults.get(k, object()) != v}
+    if not diff:
+        return name
+    return f"{name}[" + ",".join(f"{k}={json.dumps(v, sort_keys=True) if not isinstance(v, str) else v}"
+                                 for k, v in sorted(diff.items())) + "]"
+
+
+def file_stem(label_: str) -> str:
+    """A file name for a label: the label itself when it is made of safe characters, else the
+    method name and a hash of the label."""
+    if _SAFE_FILE.fullmatch(label_) and not label_.startswith("."):
+        return label_
+    base = re.sub(r"[^A-Za-z0-9_\-]", "_", label_.split("[", 1)[0])[:40] or "method"
+    return f"{base}@{digest(label_, 10)}"
+
+
+def differences(old: dict[str, Any], new: dict[str, Any], prefix: str = "") -> list[str]:
+    """Dotted keys whose values differ between two identity dicts."""
+    out = []
+    for k in sorted(set(old) | set(new)):
+        a, b = old.get(k), new.get(k)
+        if isinstance(a, dict) and isinstance(b, dict):
+            out += differences(a, b, f"{prefix}{k}.")
+        elif _jsonable(a) != _jsonable(b):
+            out.append(f"{prefix}{k}")
+    return out
+
+
+__all__ = ["digest", "method_files", "method_version", "judge_version", "resolved_params", "label",
+           "file_stem", "differences"]

@@ -1,0 +1,461 @@
+"""The benchmark grid: methods × scenes × spp, resumable, on a local process pool or Ray.
+
+Each cell's result is its own JSON file, written atomically:
+``<out>/cells/<scene>/<spp:05d>spp/<method>.json`` with ``status`` ``ok``, ``skipped`` (with the
+reason) or ``error`` (with the message). A sweep run again reads the finished cells and computes
+only the missing ones, so a killed sweep loses at most the cells in flight.
+
+Steady and transient cells time ``repeats`` calls after a warm-up; a sequence cell runs the
+method once over the frames in order and reports the means after the warm-up frames
+(:func:`dbench.run.harness.run_sequence_cell`).
+
+Work is grouped by (scene, spp): one group loads the frame once (renders are cached and shared)
+and runs every method on it. References are rendered once per scene before the groups are
+dispatched, so parallel workers never render the same reference twice.
+
+``<scene>`` is the scene's label (:func:`scene_labels`): its name, unless another scene of the
+sweep has that name (``a/cbox.xml`` and ``b/cbox.xml``); a scene's identity is its fingerprint,
+never its name (README.md, the ``dbench sweep`` paragraph).
+"""
+from __future__ import annotations
+
+import time
+import traceback
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Iterable, Sequence
+
+from .. import io
+from ..data import check_count
+from ..errors import DbenchInputError
+from ..resolution import MAX_SIDE, Res, parse_res
+from . import identity, sweep_history, sweep_lock, sweep_pool
+from ..report.cells import (NUMERIC_KEYS, cell_problem, load_cells,  # noqa: F401 - the module's
+                            load_cells_checked, read_cell)  # interface, as before
+from .sweep_history import SETTINGS, stored_config  # noqa: F401 - the module's interface
+from .sweep_names import scene_labels
+from .sweep_pool import worker_start as _worker_start  # noqa: F401 - the pool initializer
+from ..device import device_name
+from .machine import machine_label
+
+DEFAULT_SPP = (4, 16, 64, 256, 1024)
+
+
+@dataclass
+class SweepConfig:
+    """Everything that defines a sweep (stored as ``<out>/sweep.json``)."""
+
+    methods: list[str]
+    scenes: list[str]
+    spp: list[int]
+    #: image size: a side (square) or "WxH" (dbench.resolution; stored in its key form);
+    #: None: each scene's default (dbench.datasets.default_res)
+    res: int | str | None = 128
+    ref_spp: int | None = None
+    seed: int = 0
+    #: independent noisy renders per cell (seeds ``seed`` … ``seed + seeds − 1``), all scored
+    #: against one reference rendered with ``seed``.
+    seeds: int = 1
+    repeats: int = 5
+    #: None: each kind's default (Box-Cox for steady scenes, identity for transient ones).
+    transform: str | None = None
+    lam: float = 0.5
+    #: sequence scenes: frames from the start (None: all); transient scenes: time bins (None:
+    #: the scene's default).
+    frames: int | None = None
+    bins: int | None = None
+    params: dict[str, dict[str, Any]] = field(default_factory=dict)
+    cache: str | None = None
+    #: --no-cache: render everything afresh and write nothing to the cache
+    no_cache: bool = False
+    metrics: list[str] = field(default_factory=lambda: ["rmse", "relmse", "smape", "psnr",
+                                                        "ssim", "flip"])
+    #: recompute cells whose identity changed (otherwise such a sweep is refused)
+    rerun: bool = False
+    #: ``$parameters`` of scene files (--scene-param NAME=VALUE)
+    scene_params: dict[str, str] = field(default_factory=dict)
+    #: where methods with a device path run ("cpu" or "cuda"; docs/gpu.md §3)
+    device: str = "cpu"
+
+    def validate(self) -> None:
+        """Every setting checked before anything is written or rendered (DbenchInputError)."""
+        from ..device import resolve_device
+        self.device = resolve_device(self.device)
+        if self.res is not None:
+            self.res = parse_res(self.res, "--res").key
+        for name, value in (("--seeds", self.seeds), ("--repeats", self.repeats)):
+            check_count(name, value)
+        for value in self.spp:
+            check_count("--spp", value)
+        if not self.spp:
+            raise DbenchInputError("--spp: expected a comma list of integers >= 1, got none")
+        if self.ref_spp is not None:
+            check_count("--ref-spp", self.ref_spp)
+        for name, value in (("--frames", self.frames), ("--bins", self.bins)):
+            if value is not None:
+                check_count(name, value)
+
+    def scene(self, name: str):
+        """The Scene of a catalogue name, scene file or folder (with ``scene_params``)."""
+        from ..datasets import scenes as catalogue
+
+        return catalogue.get(name, self.scene_params or None)
+
+    def res_for(self, scene) -> Res:
+        """The size ``scene`` is rendered at: ``res``, or the scene's default when None."""
+        from .. import datasets
+
+        return parse_res(self.res) if self.res is not None else datasets.default_res(scene)
+
+    @property
+    def seed_list(self) -> list[int]:
+        return [self.seed + k for k in range(self.seeds)]
+
+    def labels(self) -> dict[str, str]:
+        """{method name: label} (``jbf`` or ``jbf[radius=3]``)."""
+        return {m: identity.label(m, self.params.get(m)) for m in self.methods}
+
+
+#: Largest image side a sweep or run accepts (a 4096² float64 statistics buffer is ~1.2 GB).
+MAX_RES = MAX_SIDE
+
+
+def cell_path(out: Path, scene: str, spp: int, label: str) -> Path:
+    """The cell file of (scene label, spp, method label). A label of a scene whose name another
+    scene of the sweep has (``b/cbox.xml``) makes a folder name of its own."""
+    folder = scene if "/" not in scene else identity.file_stem(scene)
+    return out / "cells" / folder / f"{spp:05d}spp" / f"{identity.file_stem(label)}.json"
+
+
+def resolve_names(methods: str | Sequence[str], scenes: str | Sequence[str],
+                  scene_params: dict[str, str] | None = None) -> tuple[list[str], list[str]]:
+    """``all`` or comma lists → validated names (UnknownNameError lists the valid ones)."""
+    from .. import registry
+    from ..datasets import scenes as catalogue
+
+    def split(v):
+        return [s.strip() for s in v.split(",") if s.strip()] if isinstance(v, str) else list(v)
+
+    m = registry.available() if methods == "all" else [registry.canonical(n)
+                                                          for n in split(methods)]
+    s = catalogue.available() if scenes == "all" else split(scenes)
+    for name in m:
+        registry.method_class(name)
+    for name in s:
+        catalogue.get(name, scene_params)
+    if "noisy" not in m:
+        m = ["noisy"] + m
+    return m, s
+
+
+def resolved_ref_spp(config: SweepConfig, scene, spp: int) -> int | None:
+    """The reference spp a cell will use (the kind's rule for a missing --ref-spp)."""
+    from .. import datasets
+
+    if not scene.renders:  # a folder of renders: its reference, whatever was asked
+        return scene.info.ref_spp
+    if scene.kind == "transient":
+        from ..datasets import transient
+        return transient.reference_spp(spp, config.ref_spp)
+    return int(config.ref_spp or datasets.reference_spp())
+
+
+def cell_identity(config: SweepConfig, scene, spp: int, method: str, fingerprint: str,
+                  label: str | None = None) -> dict[str, Any]:
+    """Everything that changes a cell's numbers (module docstring of run/identity.py);
+    ``label``: the scene's label when it is not its name (:func:`scene_labels`)."""
+    from .. import datasets, methods as registry
+
+    transform = config.transform or ("identity" if scene.kind == "transient" else "box-cox")
+    return {"scene": label or scene.name, "scene_fingerprint": fingerprint, "kind": scene.kind,
+            "res": config.res_for(scene).key, "spp": int(spp), "seeds": config.seed_list,
+            "ref_spp": resolved_ref_spp(config, scene, spp), "ref_seed": config.seed,
+            "transform": transform, "lam": float(config.lam), "frames": config.frames,
+            "bins": config.bins, "metrics": list(config.metrics), "method": method,
+            "params": identity.resolved_params(method, config.params.get(method)),
+            "method_version": identity.method_version(registry.method_class(method)),
+            "judge_version": identity.judge_version(),
+            **datasets.feature_identity(scene, spp),
+            # a GPU cell is another result than the CPU one (other arithmetic, other times);
+            # CPU cells keep the identity they had before devices were recorded
+            **({"device": config.device, "device_name": device_name(config.device)}
+               if config.device != "cpu" and registry.method_class(method).has_device_path()
+               else {})}
+
+
+def plan(config: SweepConfig, out: Path
+         ) -> tuple[list[tuple[str, int, list[str]]], int, int]:
+    """Groups still to compute: (scene, spp, [methods]); newly skipped cells are written here.
+
+    Returns the groups, the number of cells finished (or skipped) by an earlier run with the
+    same identity, and the number of cells skipped now because the method does not apply.
+    Raises DbenchInputError, before anything is rendered, when a finished cell under the same
+    label was computed with another identity (changed defaults, code, reference spp...) and
+    ``config.rerun`` is false.
+    """
+    from .. import datasets, methods as registry
+
+    labels = config.labels()
+    groups, done, skipped, conflicts = [], 0, 0, []
+    pending_skips = []
+    scene_label = scene_labels(config, out)
+    planned = set()
+    for scene_name in config.scenes:
+        scene = config.scene(scene_name)
+        if scene_label[scene_name] in planned:  # the same scene given twice
+            continue
+        planned.add(scene_label[scene_name])
+        fingerprint = datasets.scene_fingerprint(scene, config.res_for(scene))
+        for spp in config.spp:
+            todo = []
+            for m in config.methods:
+                path = cell_path(out, scene_label[scene_name], spp, labels[m])
+                ident = cell_identity(config, scene, spp, m, fingerprint,
+                                      scene_label[scene_name])
+                key = identity.digest(ident)
+                cell = read_cell(path)
+                if cell is not None and not cell_problem(cell) and \
+                        cell.get("status") in ("ok", "skipped"):
+                    if cell.get("identity_hash") == key:
+                        done += 1
+                        continue
+                    if not config.rerun:
+                        diff = identity.differences(cell.get("identity") or {}, ident)
+                        conflicts.append(f"{path.relative_to(out).as_posix()} "
+                                         f"(differs in {', '.join(diff[:6]) or 'identity'})")
+                        continue
+                method = registry.get(m, **config.params.get(m, {}))
+                ok, why = method.applies_to(scene.kind, set(scene.provides))
+                if not ok:
+                    pending_skips.append((path, {
+                        "status": "skipped", "reason": why, "scene": scene_label[scene_name],
+                        "method": labels[m], "base_method": m, "spp": spp,
+                        "res": config.res_for(scene).key,
+                        "identity": ident, "identity_hash": key}))
+                    skipped += 1
+                    continue
+                todo.append(m)
+            if todo:
+                groups.append((scene_name, spp, todo))
+    if conflicts:
+        raise DbenchInputError(
+            f"{len(conflicts)} finished cell(s) under the same label were computed with other "
+            f"settings or code: {'; '.join(conflicts[:3])}"
+            + (f" and {len(conflicts) - 3} more" if len(conflicts) > 3 else "")
+            + "; use --rerun to recompute them, or another --out")
+    for path, cell in pending_skips:
+        io.write_json(path, cell)
+    return groups, done, skipped
+
+
+def load_seeds(scene, seed: int, n_seeds: int, **load_kwargs) -> list:
+    """One frame (or sequence) per seed ``seed`` … ``seed + n_seeds − 1``, all scored against
+    the one reference of ``seed`` (shared by ``run`` and ``sweep``); ``load_kwargs`` go to
+    :func:`dbench.datasets.load`."""
+    from .. import datasets
+
+    return [datasets.load(scene, seed=seed + k, ref_seed=seed, **load_kwargs)
+            for k in range(n_seeds)]
+
+
+def cell_record(res, frames: list, needs: set[str]) -> dict[str, Any]:
+    """The numbers of one finished cell (shared by ``run`` and ``sweep``); ``needs``: the
+    buffers the method used (its ``wants``)."""
+    import statistics as st
+
+    def median_meta(key: str) -> float:
+        vals = [f.meta.get(key) for f in frames if f.meta.get(key) is not None]
+        return float(st.median(vals)) if vals else float("nan")
+
+    first = frames[0]
+    record = {"n_seeds": res.n_seeds, "seeds": [f.meta.get("seed") for f in frames],
+              "ci_kind": res.ci_kind, "ref_spp": first.meta.get("ref_spp"),
+              "ref_seed": first.meta.get("ref_seed"),
+              "ref_render_s": first.meta.get("ref_render_s"),
+              "render_s": median_meta("render_s"),
+              "stats_s": median_meta("stats_s") if "stats" in needs else 0.0,
+              # A-SVGF's re-shaded samples are rendered for the methods that use them: their
+              # cost per frame counts with the method (docs/temporal.md §2)
+              "gradient_s": (median_meta("gradient_per_frame_s") if "gradient" in needs
+                             and first.kind == "sequence" else 0.0),
+              **res.metrics, "time_s": res.time_s, "time_s_iqr": res.time_s_iqr,
+              "times_s": res.times_s, "n_nonfinite": res.n_nonfinite,
+              "per_seed": res.per_seed, "machine": machine_label(),
+              "device": res.device, "device_name": res.device_name, "backend": res.backend}
+    if res.transfer_s:
+        # host↔device copies of a device cell, timed apart from the method (median per seed)
+        record["transfer_s"] = float(st.median(res.transfer_s))
+    if res.settings:
+        record["settings"] = res.settings       # what the method resolved (first seed)
+    if first.kind == "sequence":
+        record.update(frames=len(first), warmup=res.sequence.summary["warmup"])
+    return record
+
+
+def run_group(config: SweepConfig, out: str, scene_name: str, spp: int,
+              method_names: list[str]) -> list[str]:
+    """Load one frame per seed and run the given methods on them, writing one cell file each."""
+    from .. import datasets, methods as registry
+    from .harness import run_cell, run_sequence_cell
+
+    out_path = Path(out)
+    cache = datasets.Cache(config.cache, enabled=not config.no_cache)
+    scene = config.scene(scene_name)
+    res = config.res_for(scene)
+    fingerprint = datasets.scene_fingerprint(scene, res)
+    labels = config.labels()
+    scene_label = scene_labels(config, out_path)[scene_name]
+    needs = {"reference"} | ({"emitter"} & set(scene.provides))
+    instances = {m: registry.get(m, **config.params.get(m, {})) for m in method_names}
+    for inst in instances.values():
+        needs |= inst.wants(scene.provides)
+    frames = load_seeds(scene, config.seed, config.seeds, spp=spp, res=res,
+                        needs=needs, transform=config.transform, lam=config.lam,
+                        ref_spp=config.ref_spp, cache=cache, progress=False,
+                        frames=config.frames, bins=config.bins)
+    written = []
+    for m, inst in instances.items():
+        ident = cell_identity(config, scene, spp, m, fingerprint, scene_label)
+        base = {"scene": scene_label, "method": labels[m], "base_method": m, "spp": spp,
+                "res": res.key, "params": ident["params"], "identity": ident,
+                "identity_hash": identity.digest(ident)}
+        try:
+            if frames[0].kind == "sequence":
+                result = run_sequence_cell(inst, frames, metric_names=config.metrics,
+                                           device=config.device)
+            else:
+                result = run_cell(inst, frames, metric_names=config.metrics,
+                                  repeats=config.repeats, device=config.device)
+            if result.skipped:
+                cell = {**base, "status": "skipped", "reason": result.skipped}
+            else:
+                cell = {**base, "status": "ok",
+                        **cell_record(result, frames, inst.wants(scene.provides))}
+                if frames[0].kind == "sequence":
+                    cell["sequence_mode"] = ("frame by frame" if inst.per_frame("sequence")
+                                             else "temporal")
+        except (Exception, SystemExit) as exc:  # noqa: BLE001 - one failing method (or a
+            # plugin's sys.exit) must not stop the sweep nor lend it its exit code
+            cell = {**base, "status": "error", "error": f"{type(exc).__name__}: {exc}",
+                    "traceback": traceback.format_exc(limit=5)}
+        io.write_json(cell_path(out_path, scene_label, spp, labels[m]), cell)
+        written.append(m)
+    return written
+
+
+def _prerender_references(config: SweepConfig, scenes: Iterable[str],
+                          progress: bool = True) -> None:
+    from .. import datasets
+
+    if config.no_cache:  # nothing would keep the references for the groups
+        return
+    cache = datasets.Cache(config.cache)
+    for name in scenes:
+        s = config.scene(name)
+        if not s.renders:
+            continue
+        datasets.load(s, spp=1, res=config.res_for(s), needs={"reference", "albedo"},
+                      seed=config.seed,
+                      ref_seed=config.seed, ref_spp=config.ref_spp, cache=cache,
+                      frames=config.frames, bins=config.bins, progress=progress)
+
+
+def run_group_with_plugins(plugin_specs: Sequence[str], config: SweepConfig, out: str,
+                           scene_name: str, spp: int, method_names: list[str]) -> list[str]:
+    """:func:`run_group` after loading the parent's plugins (a Ray task's start-up)."""
+    from .. import plugins
+
+    plugins.worker_init(plugin_specs)
+    return run_group(config, out, scene_name, spp, method_names)
+
+
+def remove_interrupted_writes(out: Path) -> int:
+    """Delete the temporary cell files (``.NAME.json.*.tmp.json``, :func:`dbench.io.atomic_path`)
+    that a killed run left in the sweep folder ``out``; returns how many. Readers already skip
+    them (their names start with a dot); a resumed sweep removes them so that the folder holds
+    exactly one file per cell. One sweep writes to a folder at a time."""
+    stale = list(Path(out).glob("cells/*/*/.*.tmp.json"))
+    for p in stale:
+        p.unlink(missing_ok=True)
+    return len(stale)
+
+
+def run_sweep(config: SweepConfig, out: str | Path, executor: str = "local", workers: int = 1,
+              progress: bool = True) -> dict[str, int]:
+    """Run (or resume) a sweep; returns counts of computed, already finished and failed cells.
+
+    Every setting is validated and every finished cell's identity checked before anything is
+    written or rendered. The folder is locked for the run (:mod:`.sweep_lock`) and the run is
+    recorded in sweep.json's history (:mod:`.sweep_history`)."""
+    from .. import datasets
+
+    config.validate()
+    check_count("--workers", workers)
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise DbenchInputError(f"--out {out}: exists and is not a folder")
+    with sweep_lock.hold(out):
+        to_write = stored_config(out, config, sweep_history.read(out))
+        remove_interrupted_writes(out)
+        groups, done, skipped = plan(config, out)
+        if groups and not config.no_cache:  # created only once nothing refused the sweep
+            io.ensure_writable_dir(datasets.Cache(config.cache).root, "--cache")
+        run = sweep_history.RunRecord(out, to_write, config, executor, workers, done, skipped)
+        computed = [0]
+        try:
+            t_refs = _execute(config, out, groups, executor, workers, progress, computed)
+        except BaseException as exc:
+            try:
+                run.end("interrupted" if isinstance(exc, KeyboardInterrupt) else "failed",
+                        computed[0], error=f"{type(exc).__name__}: {exc}")
+            except Exception:  # noqa: BLE001 - the first error is the one to report
+                pass
+            raise
+        run.end("finished", computed[0], t_refs)
+    return {"computed": computed[0], "skipped": skipped, "finished_before": done,
+            "errors": _count_errors(out)}
+
+
+def _execute(config: SweepConfig, out: Path, groups: list, executor: str, workers: int,
+             progress: bool, computed: list[int]) -> float:
+    """Render the references, then run the groups; ``computed[0]`` counts the cells written
+    so far (also when interrupted). Returns the seconds the references took."""
+    from tqdm.auto import tqdm
+
+    from .. import plugins
+
+    if not groups:
+        return 0.0
+    t_start = time.perf_counter()
+    _prerender_references(config, sorted({g[0] for g in groups}), progress)
+    t_refs = time.perf_counter() - t_start
+    bar = tqdm(total=sum(len(g[2]) for g in groups), desc="sweep", unit="cell",
+               disable=not progress)
+
+    def done(written: list) -> None:
+        computed[0] += len(written)
+        bar.update(len(written))
+
+    plugin_specs = plugins.requested()  # workers load the same plugins as this process
+    if executor == "ray":
+        import ray
+
+        if not ray.is_initialized():
+            ray.init(ignore_reinit_error=True, include_dashboard=False, log_to_driver=False)
+        remote = ray.remote(run_group_with_plugins)
+        pending = [remote.remote(plugin_specs, config, str(out), *g) for g in groups]
+        while pending:
+            ready, pending = ray.wait(pending, num_returns=1)
+            done(ray.get(ready[0]))
+    elif workers > 1:
+        sweep_pool.run_groups(run_group, (config, str(out)), groups, workers, plugin_specs,
+                              done)
+    else:
+        for g in groups:
+            done(run_group(config, str(out), *g))
+    bar.close()
+    return t_refs
+
+
+def _count_errors(out: Path) -> int:
+    return sum(1 for c in load_cells(out) if c.get("status") == "error")

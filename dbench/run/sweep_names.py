@@ -1,0 +1,83 @@
+"""Labels of a sweep's scenes: the names their cells are filed and tabled under.
+
+A sweep writes one cell file per (scene, spp, method label) (dbench/run/sweep.py; README.md,
+the ``dbench sweep`` paragraph). A scene's identity in a cell is its fingerprint
+(:func:`dbench.datasets.scene_fingerprint`), never its name; the label only has to keep two
+scenes' cells apart when their names are the same, as two scene files ``a/cbox.xml`` and
+``b/cbox.xml`` or two folders holding views of one name are.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+from .. import io
+
+
+def scene_labels(config, out: str | Path | None = None) -> dict[str, str]:
+    """{scene as given: label}, the name a scene's cells are filed and tabled under.
+
+    A scene keeps its name (so catalogue scenes and every scene file, folder or plugin scene
+    whose name no other scene of the sweep has keep the cells and identities they always had).
+    Scenes of one name from different places (``a/cbox.xml``, ``b/cbox.xml``; folders holding
+    views of one name) share it out: a catalogue scene keeps the name, else the first of them in
+    the sweep's order (``sweep.json``'s scenes, then this run's new ones; an extended sweep never
+    renames a label); each other one is labelled with the shortest end of its path that no
+    other of them shares (``b/cbox.xml``). The same place given twice is one scene, one label.
+    """
+    before: list = []
+    if out is not None:
+        try:
+            stored = io.read_json(Path(out) / "sweep.json")
+        except (OSError, ValueError):
+            stored = {}
+        stored = stored if isinstance(stored, dict) else {}
+        before = [s for s in ((stored.get("config") or {}).get("scenes") or [])
+                  if isinstance(s, str)]
+    specs = before + [s for s in dict.fromkeys(config.scenes) if s not in before]
+    groups: dict[str, list[tuple[str, Path | None]]] = {}
+    for spec in specs:
+        place = _scene_place(config, spec)
+        if place is not None:
+            groups.setdefault(place[0], []).append((spec, place[1]))
+    labels = {spec: spec for spec in config.scenes}  # unresolvable: refused by config.scene
+    for name, members in groups.items():
+        places = list(dict.fromkeys(p for _, p in members))
+        owner = None if None in places else places[0]
+        for spec, place in members:
+            labels[spec] = name if place == owner else _distinct_end(place, places)
+    return {spec: labels[spec] for spec in config.scenes}
+
+
+def _scene_place(config, spec: str) -> tuple[str, Path | None] | None:
+    """(name, where it lives) of a scene as given: (name, None) for a catalogue scene, the
+    resolved path of a scene file, folder/view of a folder of renders; None when it does not
+    resolve (a scene of an earlier run that is gone)."""
+    from ..datasets import scene_files
+    from ..datasets import scenes as catalogue
+
+    if spec in catalogue.available():
+        return spec, None
+    try:
+        if scene_files.is_scene_file(spec):
+            p = Path(spec).expanduser().resolve()
+            return p.name, p
+        sc = config.scene(spec)
+    except Exception:  # noqa: BLE001 - a stored scene that no longer loads names nothing
+        return None
+    info = getattr(sc, "info", None)
+    return (sc.name, Path(info.path).resolve() / sc.name) if info is not None else (sc.name, None)
+
+
+def _distinct_end(place: Path | None, places: list) -> str:
+    """The shortest end of ``place`` (2 parts or more) that no other place ends in."""
+    if place is None:
+        return "?"
+    parts = place.parts
+    for k in range(2, len(parts) + 1):
+        end = parts[-k:]
+        if all(other is None or other == place or other.parts[-k:] != end for other in places):
+            return Path(*end).as_posix()
+    return place.as_posix()
+
+
+__all__ = ["scene_labels"]

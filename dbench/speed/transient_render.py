@@ -1,0 +1,110 @@
+"""``dbench bench render`` on a transient scene: per-bin statistics against a plain mitransient
+render, in the same interleaved rounds (:func:`dbench.speed.timing.interleaved_times`).
+
+Timed, each of ``spp`` samples per pixel at the same size and bins (README.md, "How renders
+work"; docs/architecture.md):
+
+* ``plain``: one ``mi.render`` of the scene's transient dictionary (its ``transient_hdr_film``
+  and the scene's own integrator, ``transient_path`` or ``transient_prbvolpath``), the streak
+  film and steady image brought to NumPy (:func:`dbench.datasets.transient_render.render_signal`):
+  what mitransient alone costs, with no statistics.
+* ``color``: the colour alone through :func:`dbench.datasets.transient.load_transient`
+  (``needs={"color"}``) into a fresh, empty cache, as a user waits for it.
+* ``color_stats``: colour and per-bin statistics through the same call, fresh cache.
+* ``color_stats_nocache``: the same with the cache off (rendering and collecting only), which
+  separates what the collector costs from what storing its arrays costs.
+
+The ratios are medians of the per-round ratios to ``plain``.
+"""
+from __future__ import annotations
+
+import shutil
+import statistics
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..run.machine import machine_info
+from .timing import interleaved_times
+from ..resolution import parse_res, size_text
+
+#: what each timed way is reported as, against the plain mitransient render
+RATIOS = {"color": "ratio_color_vs_plain", "color_stats": "ratio_stats_vs_plain",
+          "color_stats_nocache": "ratio_stats_nocache_vs_plain"}
+
+
+def is_transient(scene: str) -> bool:
+    """Whether the catalogue scene ``scene`` is a transient one (``dbench bench render``
+    then times :func:`bench_render_transient`)."""
+    from ..datasets import scenes
+    from ..datasets.transient_scene import TransientScene
+
+    return isinstance(scenes.get(scene), TransientScene)
+
+
+def bench_render_transient(scene: str = "fog-transient", res=48, spp: int = 64,
+                           bins: int | None = 100, repeats: int = 3,
+                           transform: str = "identity", lam: float = 0.5) -> dict[str, Any]:
+    """Per-bin statistics cost of the transient scene ``scene`` against a plain mitransient
+    render of the same spp, size and bins, all timed in interleaved rounds after one warm-up
+    round (JIT compilation and scene loading are not part of the figures)."""
+    from ..datasets import scenes
+    from ..datasets import transient as tr
+    from ..datasets.cache import Cache
+    from ..datasets.mitsuba_env import mitsuba
+    from ..datasets.transient_render import render_signal
+
+    sc = scenes.get(scene)
+    res = parse_res(res)
+    window = sc.window(bins)
+    tr._mitransient()
+    variant = mitsuba().variant()
+    root = Path(tempfile.mkdtemp(prefix="dbench-bench-transient-"))
+    calls = [0]
+
+    def fresh_cache() -> Cache:
+        # a new empty folder per call: every call renders and stores, as on a first run
+        calls[0] += 1
+        return Cache(root / f"c{calls[0]}")
+
+    def load(needs: set[str], cache: Cache):
+        return tr.load_transient(sc, spp, res, needs=needs, transform=transform, lam=lam,
+                                 bins=window.bins, cache=cache, progress=False)
+
+    fns = {"plain": lambda: render_signal(sc, res, window, 1, spp, 0),
+           "color": lambda: load({"color"}, fresh_cache()),
+           "color_stats": lambda: load({"color", "stats"}, fresh_cache()),
+           "color_stats_nocache": lambda: load({"color", "stats"}, Cache(enabled=False))}
+    try:
+        times = dict(zip(fns, interleaved_times(list(fns.values()), repeats)))
+        frame = load({"color", "stats"}, Cache(enabled=False))
+    finally:
+        shutil.rmtree(root, ignore_errors=True)
+    out: dict[str, Any] = {"benchmark": "render-transient", "scene": scene, "res": res.key,
+                           "spp": int(spp), "bins": window.bins,
+                           "integrator": sc.integrator, "collector": frame.meta["collector"],
+                           "transform": transform, "variant": variant, "rounds": repeats}
+    for name, t in times.items():
+        out[f"{name}_s"] = statistics.median(t)
+        if name in RATIOS:
+            out[RATIOS[name]] = statistics.median(np.array(t) / np.array(times["plain"]))
+    out.update(machine=machine_info()["cpu"], when=time.strftime("%Y-%m-%d %H:%M:%S"))
+    return out
+
+
+def format_result(result: dict[str, Any]) -> str:
+    r = result
+    return "\n".join([
+        f"transient render benchmark: {r['scene']} {size_text(r['res'])} × {r['bins']} bins at "
+        f"{r['spp']} spp, {r['integrator']}, collector {r['collector']}, {r['variant']} "
+        f"(ratios: medians over {r['rounds']} interleaved rounds)",
+        f"  plain mitransient render         {r['plain_s']:.3f} s",
+        f"  colour (load, fresh cache)       {r['color_s']:.3f} s "
+        f"({r['ratio_color_vs_plain']:.2f}x plain)",
+        f"  colour + statistics (load)       {r['color_stats_s']:.3f} s "
+        f"({r['ratio_stats_vs_plain']:.2f}x plain)",
+        f"  colour + statistics, no cache    {r['color_stats_nocache_s']:.3f} s "
+        f"({r['ratio_stats_nocache_vs_plain']:.2f}x plain)"])

@@ -1,0 +1,50 @@
+"""Citations resolve: every ``docs/...`` file named in the package, the tests, README.md,
+CONTRIBUTING.md and docs/ exists, every section ``§N`` cited with it is a heading of that file,
+and every registered method has its page docs/methods/<name>.md."""
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+from dbench import methods
+
+ROOT = Path(__file__).resolve().parent.parent
+CITE = re.compile(r"(?<![A-Za-z0-9_/.])(docs/[A-Za-z0-9_./-]+?\.md)(?:,? ?§ ?(\d+))?")
+
+
+def _texts():
+    files = [*ROOT.joinpath("dbench").rglob("*.py"), *ROOT.joinpath("tests").rglob("*.py"),
+             ROOT / "README.md", ROOT / "CONTRIBUTING.md", *ROOT.joinpath("docs").rglob("*.md")]
+    for f in files:
+        if "__pycache__" not in f.parts:
+            yield f, f.read_text(encoding="utf-8")
+
+
+def _sections(doc: Path) -> set[str]:
+    """The top-level section numbers of a page: ``## 3. Title`` or ``## 3 Title`` → "3"."""
+    heads = re.findall(r"^#{2,3} (?:§ ?)?(\d+)[.\s]", doc.read_text(encoding="utf-8"), re.M)
+    return set(heads)
+
+
+def test_every_cited_docs_file_and_section_exists():
+    missing, no_section = [], []
+    for f, text in _texts():
+        for m in CITE.finditer(text):
+            path, sec = m.group(1), m.group(2)
+            doc = ROOT / path
+            where = f"{f.relative_to(ROOT)}: {m.group(0)}"
+            if not doc.is_file():
+                missing.append(where)
+            elif sec is not None and sec not in _sections(doc):
+                no_section.append(where)
+    assert missing == [] and no_section == []
+
+
+def test_every_method_has_its_page():
+    assert [n for n in methods.available()
+            if not (ROOT / "docs" / "methods" / f"{n}.md").is_file()] == []
+
+
+def test_the_package_cites_no_file_outside_the_repository():
+    outside = re.compile(r"\.\./" + "shared|/work/" + "shared")
+    assert [str(f.relative_to(ROOT)) for f, text in _texts() if outside.search(text)] == []
