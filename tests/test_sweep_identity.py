@@ -61,6 +61,25 @@ def test_method_version_covers_the_code_a_method_uses():
                     assert Path(path).resolve() in files, (name, module.__name__, path)
 
 
+def test_code_version_ignores_documentation_but_not_code(tmp_path):
+    """A docstring, a comment or reformatting keeps a method's code version (docs can be edited
+    without recomputing published cells); a changed constant or statement changes it."""
+    base = 'def f(x):\n    """Doc."""\n    return x * 2  # why\n'
+    same = ('def f(x):\n    """Other words, docs/methods/jbf.md §2."""\n\n'
+            '    return (x *\n            2)\n')
+    other = 'def f(x):\n    """Doc."""\n    return x * 3\n'
+    texts = {}
+    for name, text in (("base", base), ("same", same), ("other", other)):
+        f = tmp_path / name / "m.py"
+        f.parent.mkdir()
+        f.write_text(text)
+        texts[name] = identity._hash_files([f])
+    assert texts["base"] == texts["same"] != texts["other"]
+    onnx = tmp_path / "w.onnx"
+    onnx.write_bytes(b"\x00\x01")
+    assert identity.code_text(onnx) == b"\x00\x01"
+
+
 def _write(path: Path, obj) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(obj if isinstance(obj, str) else json.dumps(obj))

@@ -37,11 +37,28 @@ def digest(obj: Any, length: int = 16) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:length]
 
 
+def code_text(path: Path) -> bytes:
+    """What of a file decides the numbers: a Python file's syntax tree without its docstrings
+    (``ast.dump``: comments, formatting and line numbers are not in it), any other file's
+    bytes (ONNX weights, JSON metadata). So documentation and formatting edits keep a method's
+    identity, and any change to what runs changes it."""
+    if path.suffix != ".py":
+        return path.read_bytes()
+    tree = ast.parse(path.read_text(encoding="utf-8"), str(path))
+    for node in ast.walk(tree):
+        body = getattr(node, "body", None)
+        if (isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef))
+                and body and isinstance(body[0], ast.Expr)
+                and isinstance(body[0].value, ast.Constant) and isinstance(body[0].value.value, str)):
+            node.body = body[1:] or [ast.Pass()]
+    return ast.dump(tree).encode()
+
+
 def _hash_files(paths: list[Path]) -> str:
     h = hashlib.sha256()
     for p in sorted(paths):
         h.update(p.name.encode())
-        h.update(p.read_bytes())
+        h.update(code_text(p))
     return h.hexdigest()[:12]
 
 
@@ -129,7 +146,8 @@ def _package_files(source_file: str) -> list[Path]:
 def method_version(cls: type) -> str:
     """The code version of a method class: its declared ``version`` (if any) joined with a hash
     of :func:`method_files` (its package folder, the shared top-level modules of
-    ``dbench.methods`` and every module of ``dbench.methods`` they import)."""
+    ``dbench.methods`` and every module of ``dbench.methods`` they import), each as
+    :func:`code_text` reads it."""
     declared = getattr(cls, "version", None)
     code = _hash_files(method_files(cls))
     return f"{declared}+{code}" if declared else code
@@ -137,8 +155,8 @@ def method_version(cls: type) -> str:
 
 @lru_cache(maxsize=1)
 def judge_version() -> str:
-    """Hash of the metric code (dbench/metrics/*.py): changing how a number is computed changes
-    every cell's identity."""
+    """Hash of the metric code (dbench/metrics/*.py, as :func:`code_text` reads it): changing how
+    a number is computed changes every cell's identity; a docstring or a comment does not."""
     import dbench.metrics as pkg
 
     return _hash_files(list(Path(pkg.__file__).parent.glob("*.py")))
@@ -187,5 +205,5 @@ def differences(old: dict[str, Any], new: dict[str, Any], prefix: str = "") -> l
     return out
 
 
-__all__ = ["digest", "method_files", "method_version", "judge_version", "resolved_params", "label",
+__all__ = ["digest", "code_text", "method_files", "method_version", "judge_version", "resolved_params", "label",
            "file_stem", "differences"]
