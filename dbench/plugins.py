@@ -19,8 +19,10 @@ A ``.py`` file is imported under a unique, deterministic module name
 worker processes give the same classes the same names.
 
 Discovery is lazy: the registry calls :func:`ensure_loaded` on its first lookup (after the
-built-in methods), so ``dbench.methods.available()`` includes plugins in any process, sweep
-workers included. A plugin that fails to import is recorded as *broken* with the reason:
+built-in methods, which importing :mod:`dbench.registry` registers), so
+``dbench.registry.available()`` includes plugins in any process, sweep workers included.
+Callers import :mod:`dbench.registry` before loading a plugin, so the built-in names are
+taken first (this module never imports the methods itself). A plugin that fails to import is recorded as *broken* with the reason:
 ``dbench list`` shows it, asking for it (``--method NAME``, ``--plugin FILE``) raises
 :class:`PluginError` (exit 2 on the command line), and every other method keeps working.
 
@@ -221,9 +223,8 @@ def load(spec: str, origin: str = "--plugin", strict: bool = True) -> Plugin:
     """Load a module or ``.py`` file once; returns its :class:`Plugin` record.
 
     With ``strict`` a failure raises :class:`PluginError` naming the plugin and the reason;
-    otherwise it is recorded as broken. Built-in methods are imported first, so a plugin can
-    never take a built-in name."""
-    _ensure_builtins()
+    otherwise it is recorded as broken. The caller has imported :mod:`dbench.registry` (and with
+    it the built-in methods), so a plugin can never take a built-in name."""
     key = normalise(spec)
     with _LOCK:
         if key not in _REQUESTED:
@@ -296,15 +297,6 @@ def discover_entry_points() -> list[Plugin]:
     return out
 
 
-_BUILTINS = {"done": False}
-
-
-def _ensure_builtins() -> None:
-    if not _BUILTINS["done"]:
-        _BUILTINS["done"] = True
-        importlib.import_module("dbench.methods")
-
-
 def ensure_loaded() -> None:
     """Discover entry points and ``DBENCH_PLUGINS`` once per process (cheap afterwards).
 
@@ -316,7 +308,6 @@ def ensure_loaded() -> None:
             return
         _STATE["loading"] = True
         try:
-            _ensure_builtins()
             discover_entry_points()
             for s in env_specs():
                 load(s, origin=ENV_VAR, strict=False)

@@ -1,7 +1,10 @@
 """The denoiser registry: look methods up by name (built-in methods and plugins).
 
 :class:`~dbench.denoiser.Denoiser` and :func:`~dbench.denoiser.register` (the dictionary and the
-decorator) live in :mod:`dbench.denoiser`, below :mod:`dbench.plugins`; they are re-exported here.
+decorator) live in :mod:`dbench.denoiser`, below :mod:`dbench.methods` and :mod:`dbench.plugins`;
+they are re-exported here. Importing this module imports :mod:`dbench.methods`, so the built-in
+methods are registered before any lookup and before any plugin (a plugin can never take a
+built-in name: :func:`~dbench.denoiser.register` refuses a second class under one name).
 
 Example:
     >>> from dbench.registry import register, Denoiser
@@ -16,13 +19,16 @@ from __future__ import annotations
 
 from typing import Any
 
+from . import methods  # noqa: F401 - registers the built-in methods
 from . import plugins
 from .denoiser import _REGISTRY, Denoiser, register
 from .errors import UnknownNameError
+from .methods.gate import SUFFIX, gated_class
 
 
 def _load_plugins() -> None:
-    """Built-in methods, then plugins (entry points, ``DBENCH_PLUGINS``), once per process."""
+    """Plugins (entry points, ``DBENCH_PLUGINS``), once per process, after the built-in
+    methods (imported with this module)."""
     plugins.ensure_loaded()
 
 
@@ -49,10 +55,7 @@ def method_class(name: str) -> type[Denoiser]:
     name = canonical(name)
     if name not in _REGISTRY:
         _load_plugins()
-    if name.endswith("+gate") and name not in _REGISTRY:
-        # imported here: dbench.methods (the package) imports this module
-        from .methods.gate import SUFFIX, gated_class
-
+    if name.endswith(SUFFIX) and name not in _REGISTRY:
         try:
             base = method_class(name[:-len(SUFFIX)])
         except UnknownNameError as e:

@@ -2,7 +2,8 @@
 
     python scripts/import_cycles.py            # prints the cycles; exit status 1 when there are any
 
-Every ``import`` / ``from ... import`` statement counts, those inside functions included (a
+Every ``import`` / ``from ... import`` statement counts, and every ``importlib.import_module``
+or ``__import__`` of a module named by a string constant, those inside functions included (a
 function-level import that breaks a circle at run time is still a circle in the design); only
 imports under ``if TYPE_CHECKING:`` are left out. An edge goes to the deepest module of the
 package that the statement names (``from .x import y`` with ``y`` a submodule: ``x.y``). A cycle
@@ -69,7 +70,20 @@ def imports(name: str, path: Path, mods: dict[str, Path]) -> set[str]:
             for alias in node.names:
                 sub = f"{mod}.{alias.name}"
                 add(sub if sub in mods else mod)
+        elif isinstance(node, ast.Call) and _dynamic_import(node):
+            # importlib.import_module("dbench.x") / __import__("dbench.x"): an import all the
+            # same, which a cycle through it must not hide behind
+            add(node.args[0].value)
     return out
+
+
+def _dynamic_import(node: ast.Call) -> bool:
+    """A call importing a module named by a string constant: ``importlib.import_module(...)``,
+    ``import_module(...)`` or ``__import__(...)``."""
+    f = node.func
+    name = f.attr if isinstance(f, ast.Attribute) else f.id if isinstance(f, ast.Name) else ""
+    return (name in ("import_module", "__import__") and bool(node.args)
+            and isinstance(node.args[0], ast.Constant) and isinstance(node.args[0].value, str))
 
 
 def graph(root: Path, package: str = "dbench") -> dict[str, set[str]]:

@@ -61,7 +61,7 @@ def tmp_cache(tmp_path):
 @pytest.fixture()
 def isolated():
     """Restore the method and scene registries, the plugin records, sys.modules and sys.path
-    after a test that loads plugins (tests/test_plugins.py, tests/test_exit_codes.py)."""
+    after a test that loads plugins (tests/test_plugins.py, tests/cli/test_exit_codes.py)."""
     import dbench.methods  # noqa: F401 - built-ins in the snapshot
     from dbench import plugins, registry
     from dbench.datasets import scenes

@@ -25,14 +25,11 @@ def test_no_import_cycles():
 #: The rooms of the package, top to bottom (docs/architecture.md, "Rooms"): a module may import
 #: its own room and the rooms below its layer, never a room above it or beside it.
 LAYERS = (("cli",), ("studies",), ("speed", "stress", "learn"), ("run",), ("report",),
-          ("synthetic", "datasets"), ("methods", "metrics"),
-          ("registry", "plugins", "denoiser", "device", "data", "io", "resolution", "errors"))
-#: edges against the flow that are known and named (the registry finds the built-in methods
-#: and the gate; plugins check a scene plugin's class)
-KNOWN = {("registry", "methods"), ("plugins", "datasets")}
+          ("registry",), ("plugins",), ("synthetic", "datasets"), ("methods", "metrics"),
+          ("denoiser", "device", "data", "io", "resolution", "errors"))
 
 
-def _room(module: str) -> str:
+def room_shapes(module: str) -> str:
     parts = module.split(".")
     return parts[1] if len(parts) > 1 else "dbench"
 
@@ -42,10 +39,10 @@ def test_imports_flow_down_the_rooms():
     layer = {room: i for i, rooms in enumerate(LAYERS) for room in rooms}
     bad = []
     for m, targets in graph.items():
-        a = _room(m)
+        a = room_shapes(m)
         for t in targets:
-            b = _room(t)
-            if a == b or a == "dbench" or (a, b) in KNOWN:
+            b = room_shapes(t)
+            if a == b or a == "dbench":
                 continue
             assert a in layer and b in layer, f"{m} -> {t}: a room no layer names"
             base = len(LAYERS) - 1  # the core modules import one another (no cycles, above)
@@ -66,3 +63,32 @@ def test_rooms_hold_at_most_15_modules_side_by_side():
 def test_every_package_has_a_docstring():
     for init in sorted((ROOT / "dbench").rglob("__init__.py")):
         assert ast.get_docstring(ast.parse(init.read_text(encoding="utf-8"))), init
+
+
+def test_no_file_over_500_lines():
+    long = [(str(p.relative_to(ROOT)), n) for base in ("dbench", "tests", "scripts")
+            for p in sorted((ROOT / base).rglob("*.py"))
+            if (n := len(p.read_text(encoding="utf-8").splitlines())) > 500]
+    assert long == []
+
+
+def test_no_module_imports_another_packages_private_name():
+    """``from X import _name`` only inside X's own package (dbench/ and its subpackages)."""
+    import ast
+    bad = []
+    for p in sorted((ROOT / "dbench").rglob("*.py")):
+        here = p.relative_to(ROOT).with_suffix("").parts
+        package = here[:-1] if here[-1] != "__init__" else here[:-1]
+        for node in ast.walk(ast.parse(p.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.ImportFrom) and any(a.name.startswith("_") and
+                                                        not a.name.startswith("__")
+                                                        for a in node.names):
+                if node.level:
+                    base = package[:len(package) - node.level + 1]
+                    target = base + tuple((node.module or "").split(".")) if node.module else base
+                else:
+                    target = tuple((node.module or "").split("."))
+                # the target's package (the module itself when it is a package)
+                if target[:len(package)] != package:
+                    bad.append(f"{p.relative_to(ROOT)}: {ast.unparse(node)}")
+    assert bad == [], "\n".join(bad)

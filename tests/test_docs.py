@@ -6,7 +6,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from dbench import methods
+from dbench import registry
 
 ROOT = Path(__file__).resolve().parent.parent
 CITE = re.compile(r"(?<![A-Za-z0-9_/.])(docs/[A-Za-z0-9_./-]+?\.md)(?:,? ?§ ?(\d+))?")
@@ -40,8 +40,27 @@ def test_every_cited_docs_file_and_section_exists():
     assert missing == [] and no_section == []
 
 
+#: a repository file named in the text: dbench/..., tests/..., scripts/... ending in .py
+FILE = re.compile(r"(?<![A-Za-z0-9_/.<])((?:dbench|tests|scripts)/[A-Za-z0-9_/.-]+?\.py)\b")
+
+
+def _names_other_code(text: str, at: int) -> bool:
+    """A path of another project's code (``ProDen `scripts/analysis.py```), not this one's."""
+    before = text[max(0, at - 40):at]
+    return any(k in before for k in ("ProDen", "Falcor", "noisebase", "OIDN's", "Mitsuba's"))
+
+
+def test_every_cited_source_file_exists():
+    """Module and test paths named in docstrings, comments and docs exist (a moved file leaves
+    no stale path behind)."""
+    stale = sorted({f"{f.relative_to(ROOT)}: {m.group(1)}" for f, text in _texts()
+                    for m in FILE.finditer(text) if not (ROOT / m.group(1)).is_file()
+                    and not _names_other_code(text, m.start())})
+    assert stale == []
+
+
 def test_every_method_has_its_page():
-    assert [n for n in methods.available()
+    assert [n for n in registry.available()
             if not (ROOT / "docs" / "methods" / f"{n}.md").is_file()] == []
 
 

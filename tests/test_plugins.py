@@ -94,7 +94,7 @@ def test_loading_twice_registers_once(isolated, tmp_path, monkeypatch):
     assert registry.method_class("outside-half") is cls
     # A method defined in a stand-alone file is versioned by that file alone.
     (tmp_path / "plug" / "unrelated.py").write_text("x = 1\n")
-    h = hashlib.sha256(path.name.encode() + path.read_bytes()).hexdigest()[:12]
+    h = hashlib.sha256(path.name.encode() + identity.code_text(path)).hexdigest()[:12]
     assert identity.method_version(cls) == h
 
 

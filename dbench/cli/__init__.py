@@ -53,7 +53,7 @@ def split_plugin_args(argv: Sequence[str]) -> tuple[list[str], list[str]]:
 def _load_plugins(args: argparse.Namespace, specs: Sequence[str]) -> None:
     """Entry points, $DBENCH_PLUGINS and --plugin, before the command runs. A --plugin or
     $DBENCH_PLUGINS entry that fails is an error (exit 2) except for ``list``, which shows it."""
-    from .. import plugins
+    from .. import plugins, registry  # noqa: F401 - the built-in methods before the plugins
 
     plugins.load_all(specs, strict=args.command != "list")
 

@@ -5,15 +5,42 @@ from __future__ import annotations
 import argparse
 import ast
 import os
+from collections.abc import Sequence as _Sequence
 from typing import Any, Sequence
 
 from ..errors import DbenchInputError
 
 
-#: Columns ``--rank-by`` accepts.
-RANKABLE = ("relmse", "rmse", "rmse_surface", "relmse_surface", "smape", "smape_surface",
-            "psnr", "psnr_surface", "ssim", "ssim_surface", "flip", "flip_surface",
-            "rmse_unbiased", "relmse_unbiased")
+def rankable() -> tuple[str, ...]:
+    """Columns ``--rank-by`` accepts: the metric records marked rankable
+    (dbench/metrics/records.py)."""
+    from ..metrics import records  # on use: the command line starts without NumPy
+
+    return records.rankable()
+
+
+class _Rankable(_Sequence):
+    """:func:`rankable` as a sequence, read from the records each time it is used."""
+
+    def __getitem__(self, i):
+        return rankable()[i]
+
+    def __len__(self) -> int:
+        return len(rankable())
+
+    def __repr__(self) -> str:
+        return repr(rankable())
+
+
+#: Columns ``--rank-by`` accepts (the metric records marked rankable, read on use).
+RANKABLE = _Rankable()
+
+
+def check_rank_by(name: str) -> None:
+    """Refuse a ``--rank-by`` that no rankable metric record names (one line, the choices)."""
+    choices = rankable()
+    if name not in choices:
+        raise DbenchInputError(f"--rank-by: {name!r}; valid: {', '.join(choices)}")
 
 
 def _parse_value(text: str) -> Any:
@@ -25,7 +52,7 @@ def _parse_value(text: str) -> Any:
 
 def parse_params(items: Sequence[str], method_names: Sequence[str]) -> dict[str, dict[str, Any]]:
     """``key=value`` (every method that has ``key``) or ``method.key=value`` (one method)."""
-    from .. import methods
+    from .. import registry
 
     out: dict[str, dict[str, Any]] = {m: {} for m in method_names}
     for item in items:
@@ -38,12 +65,12 @@ def parse_params(items: Sequence[str], method_names: Sequence[str]) -> dict[str,
             if target not in out:
                 raise DbenchInputError(f"--param {item}: method {target!r} is not in this run "
                                        f"({', '.join(method_names)})")
-            if name not in methods.method_class(target).defaults:
+            if name not in registry.method_class(target).defaults:
                 raise DbenchInputError(f"--param {item}: {target} has no parameter {name!r}; "
-                                       f"valid: {sorted(methods.method_class(target).defaults)}")
+                                       f"valid: {sorted(registry.method_class(target).defaults)}")
             out[target][name] = value
         else:
-            takers = [m for m in method_names if name in methods.method_class(m).defaults]
+            takers = [m for m in method_names if name in registry.method_class(m).defaults]
             if not takers:
                 raise DbenchInputError(f"--param {item}: no method of this run has a parameter "
                                        f"{name!r}")
@@ -129,8 +156,7 @@ def _check_common(args: argparse.Namespace) -> None:
         from ..datasets.transient_scene import check_bins
 
         check_bins(args.bins, args.res, "--bins")
-    if args.rank_by not in RANKABLE:
-        raise DbenchInputError(f"--rank-by: {args.rank_by!r}; valid: {', '.join(RANKABLE)}")
+    check_rank_by(args.rank_by)
     from ..data import check_transform
 
     try:

@@ -11,14 +11,14 @@ from .args import (RANKABLE, _check_common, _ints, _scene_of, _split, _writable_
 
 
 def cmd_list(args: argparse.Namespace) -> int:
-    from .. import methods
+    from .. import registry
     from ..datasets import scenes
     from ..datasets.scene_params import describe_all
 
     from .. import plugins
 
     if args.methods_only:
-        print("\n".join(methods.available()))
+        print("\n".join(registry.available()))
         return 0
     origin = {}
     for p in plugins.all_plugins():
@@ -34,8 +34,8 @@ def cmd_list(args: argparse.Namespace) -> int:
     print("  (or --scene PATH: a Mitsuba scene file .xml, a Python scene file .py, or a "
           "folder of EXR renders in OIDN's layout)")
     print("\nMethods:")
-    for name in methods.available():
-        cls = methods.method_class(name)
+    for name in registry.available():
+        cls = registry.method_class(name)
         kinds = ",".join(sorted(cls.kinds)) + (
             "(+sequence per frame)" if "steady" in cls.kinds and "sequence" not in cls.kinds
             else "")
@@ -250,13 +250,13 @@ def cmd_stress(args: argparse.Namespace) -> int:
     from ..stress import runner as stress
     from ..io import write_text
 
-    from .. import methods, registry
+    from .. import registry
     from ..io import ensure_writable_dir
 
     names = ([registry.canonical(n) for n in _split(args.methods)] if args.methods != "all"
              else None)
     for n in names or []:
-        methods.method_class(n)
+        registry.method_class(n)
     out = Path(args.out)
     if out.is_dir() or args.out.endswith("/"):
         out = out / "stress.md"  # a folder: the matrix goes into it

@@ -17,16 +17,16 @@ from .args import (_check_common, _default_spp, _scene_of, _sequence_window, _sp
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    from .. import datasets, methods, registry
+    from .. import datasets, registry
     from ..run import identity
     from ..report import run_output
     from ..data import check_count
     from .capture import library_warnings
 
-    names = (methods.available() if args.method == "all"
+    names = (registry.available() if args.method == "all"
              else [registry.canonical(n) for n in _split(args.method)])
     for n in names:
-        methods.method_class(n)  # raises UnknownNameError listing valid names
+        registry.method_class(n)  # raises UnknownNameError listing valid names
     scene = _scene_of(args)
     args.spp = _default_spp(scene) if args.spp is None else args.spp
     check_count("--spp", args.spp)
@@ -38,7 +38,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     if "noisy" not in names:
         names = ["noisy"] + names
     params = parse_params(args.param or [], names)
-    instances = {n: methods.get(n, **params[n]) for n in names}
+    instances = {n: registry.get(n, **params[n]) for n in names}
     labels = {n: identity.label(n, params[n]) for n in names}
 
     skipped: dict[str, str] = {}

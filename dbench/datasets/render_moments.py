@@ -14,7 +14,7 @@ per-sample values never cross the bus. Each sample lands in exactly one pixel by
 
 The transforms are written here in Dr.Jit float64 with the same edge rules as
 :func:`dbench.datasets.stats.transform_samples` (non-finite samples count as 0 and are counted,
-Box-Cox clamps negatives to 0 and counts them); tests/test_render_moments.py proves the sums
+Box-Cox clamps negatives to 0 and counts them); tests/datasets/test_render_moments.py proves the sums
 equal a per-sample float64 computation on the samples of the same kernel (``keep_samples``).
 """
 from __future__ import annotations
@@ -245,7 +245,7 @@ def pass_sums(scene, integrator, seeds, channels, stats: tuple[str, float] | Non
 
     At 1 spp lane ``k`` is pixel ``k`` and draws the random numbers of ``mi.render(scene,
     spp=1, seed=s, integrator=integrator)``'s lane ``k``, so each pass is that render, channel
-    for channel (tests/test_sequence_kernel.py) and a later render with the same seed replays
+    for channel (tests/datasets/test_sequence_kernel.py) and a later render with the same seed replays
     it (the re-shaded gradient samples, :mod:`dbench.datasets.reshade`).
 
     Args:

@@ -25,7 +25,7 @@ from typing import Any, Callable
 
 from ..errors import DbenchInputError
 from ..resolution import Resolution, parse_res
-from .scene_parts import _film
+from .scene_parts import film_dict
 
 
 @lru_cache(maxsize=512)
@@ -90,7 +90,7 @@ def own_camera(d: dict, res) -> dict:
     files and plugins' build functions render with (dbench.datasets.scene_files)."""
     d = dict(d)
     sensor = dict(d["sensor"])
-    sensor["film"] = _film(res)
+    sensor["film"] = film_dict(res)
     sensor["sampler"] = {"type": "independent"}
     sensor["fov_axis"] = parse_res(res).fov_axis
     d["sensor"] = sensor

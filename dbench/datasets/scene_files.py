@@ -77,7 +77,7 @@ from .scene import STEADY_BUFFERS, Scene
 from .scene_build import call_build, exit_message, probe_load
 from .scene_build import own_camera as _own_camera
 from .scene_assets import asset_hashes as _sources
-from .scene_parts import _film
+from .scene_parts import film_dict
 from .scene_fidelity import FILTER, record, report_lines
 from .scene_integrator import DEFAULT_MAX_DEPTH, IntegratorPlan, plan as _integrator_plan
 from .scene_rgb import rgb_notes
@@ -236,7 +236,7 @@ def _sensor_dict(mi, loaded, res: Res, path: str) -> dict:
                          "to_world": mi.ScalarTransform4f(matrix),
                          "near_clip": float(np.ravel(p["near_clip"])[0]),
                          "far_clip": float(np.ravel(p["far_clip"])[0]),
-                         "film": _film(res), "sampler": {"type": "independent"}}
+                         "film": film_dict(res), "sampler": {"type": "independent"}}
     for key in ("principal_point_offset_x", "principal_point_offset_y", "aperture_radius",
                 "focus_distance"):
         if key in p:

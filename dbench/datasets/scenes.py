@@ -23,8 +23,8 @@ import numpy as np
 
 from ..errors import DbenchInputError, UnknownNameError
 from .scene import _CATALOGUE, Scene, available
-from .scene_parts import (_camera, _ceiling_light, _diffuse, _film, _mirror_objects, _rect,
-                          _room)
+from .scene_parts import (camera_dict, ceiling_light, diffuse_bsdf, film_dict, mirror_objects, rect_shape,
+                          room_shapes)
 
 
 def _scene(name: str, description: str, **kw: Any):
@@ -105,8 +105,8 @@ class FolderScene(Scene):
 @_scene("cornell", "diffuse Cornell box lit by a ceiling area light (Mitsuba's built-in)")
 def cornell(mi, res: int) -> dict:
     d = mi.cornell_box()
-    d["light"]["bsdf"] = _diffuse((0.0, 0.0, 0.0))
-    d["sensor"]["film"] = _film(res)
+    d["light"]["bsdf"] = diffuse_bsdf((0.0, 0.0, 0.0))
+    d["sensor"]["film"] = film_dict(res)
     d["sensor"]["sampler"] = {"type": "independent"}
     return d
 
@@ -114,12 +114,12 @@ def cornell(mi, res: int) -> dict:
 @_scene("mirrors", "spheres and a box in front of a mirror back wall and a glossy side wall")
 def mirrors(mi, res: int) -> dict:
     d = {"type": "scene",
-         "sensor": _camera(mi, res, origin=[0, 0, 3.9], target=[0, 0, 0])}
-    d.update(_room(mi,
+         "sensor": camera_dict(mi, res, origin=[0, 0, 3.9], target=[0, 0, 0])}
+    d.update(room_shapes(mi,
                    back_bsdf={"type": "conductor", "material": "Ag"},
                    right_bsdf={"type": "roughconductor", "material": "Cu", "alpha": 0.08}))
-    d["light"] = _ceiling_light(mi, 0.3)
-    d.update(_mirror_objects(mi))
+    d["light"] = ceiling_light(mi, 0.3)
+    d.update(mirror_objects(mi))
     return d
 
 
@@ -128,16 +128,16 @@ def mirrors(mi, res: int) -> dict:
 def caustic(mi, res: int) -> dict:
     T = mi.ScalarTransform4f
     d = {"type": "scene",
-         "sensor": _camera(mi, res, origin=[0, 0.9, 3.6], target=[0, -0.55, 0])}
-    d.update(_room(mi))
-    d["light"] = _rect(mi, T().translate([-0.45, 0.99, 0.1]).rotate([1, 0, 0], 90).scale(0.12),
-                       _diffuse((0, 0, 0)),
+         "sensor": camera_dict(mi, res, origin=[0, 0.9, 3.6], target=[0, -0.55, 0])}
+    d.update(room_shapes(mi))
+    d["light"] = rect_shape(mi, T().translate([-0.45, 0.99, 0.1]).rotate([1, 0, 0], 90).scale(0.12),
+                       diffuse_bsdf((0, 0, 0)),
                        {"type": "area", "radiance": {"type": "rgb", "value": [80.0, 72.0, 60.0]}})
     d["glass"] = {"type": "sphere", "center": [0.05, -0.6, 0.1], "radius": 0.4,
                   "bsdf": {"type": "dielectric", "int_ior": 1.5, "ext_ior": 1.0}}
     d["pedestal"] = {"type": "cube",
                      "to_world": T().translate([-0.6, -0.8, -0.5]).scale(0.2),
-                     "bsdf": _diffuse((0.3, 0.5, 0.8))}
+                     "bsdf": diffuse_bsdf((0.3, 0.5, 0.8))}
     return d
 
 
@@ -189,16 +189,16 @@ def textured(mi, res: int) -> dict:
     tex = {"type": "bitmap", "bitmap": mi.Bitmap(texture_pattern()), "filter_type": "nearest",
            "raw": True}
     d = {"type": "scene",
-         "sensor": _camera(mi, res, origin=[0, 1.6, 2.4], target=[0, -0.6, 0], fov=45)}
-    d["floor"] = _rect(mi, T().translate([0, -1, 0]).rotate([1, 0, 0], -90).scale(1.6),
+         "sensor": camera_dict(mi, res, origin=[0, 1.6, 2.4], target=[0, -0.6, 0], fov=45)}
+    d["floor"] = rect_shape(mi, T().translate([0, -1, 0]).rotate([1, 0, 0], -90).scale(1.6),
                        {"type": "diffuse", "reflectance": tex})
-    d["wall"] = _rect(mi, T().translate([0, 0.6, -1.6]).scale([1.6, 1.6, 1]),
+    d["wall"] = rect_shape(mi, T().translate([0, 0.6, -1.6]).scale([1.6, 1.6, 1]),
                       {"type": "diffuse", "reflectance": tex})
     d["ball"] = {"type": "sphere", "center": [0.5, -0.6, 0.2], "radius": 0.4,
-                 "bsdf": _diffuse((0.7, 0.7, 0.7))}
+                 "bsdf": diffuse_bsdf((0.7, 0.7, 0.7))}
     d["sky"] = {"type": "constant", "radiance": {"type": "rgb", "value": [0.25, 0.27, 0.3]}}
-    d["light"] = _rect(mi, T().translate([-0.5, 1.4, 0.6]).rotate([1, 0, 0], 70).scale(0.8),
-                       _diffuse((0, 0, 0)),
+    d["light"] = rect_shape(mi, T().translate([-0.5, 1.4, 0.6]).rotate([1, 0, 0], 70).scale(0.8),
+                       diffuse_bsdf((0, 0, 0)),
                        {"type": "area", "radiance": {"type": "rgb", "value": [3.0, 2.9, 2.7]}})
     return d
 
@@ -208,8 +208,8 @@ def textured(mi, res: int) -> dict:
 def fireflies(mi, res: int) -> dict:
     T = mi.ScalarTransform4f
     d = {"type": "scene",
-         "sensor": _camera(mi, res, origin=[0, 0, 3.9], target=[0, -0.1, 0])}
-    d.update(_room(mi))
+         "sensor": camera_dict(mi, res, origin=[0, 0, 3.9], target=[0, -0.1, 0])}
+    d.update(room_shapes(mi))
     # A tiny sphere light above a baffle: it can only reach the room after a bounce on the
     # ceiling, so most paths miss it and the few that find it carry huge radiance. The lamp hangs
     # 0.4 below the ceiling: closer (0.2), the ceiling above it formed a 2-pixel hotspot (100×
@@ -220,11 +220,11 @@ def fireflies(mi, res: int) -> dict:
                                                           "value": [1500.0, 1300.0, 1000.0]}}}
     d["baffle"] = {"type": "cube",
                    "to_world": T().translate([0, 0.53, -0.4]).scale([0.5, 0.03, 0.5]),
-                   "bsdf": _diffuse((0.6, 0.6, 0.6))}
+                   "bsdf": diffuse_bsdf((0.6, 0.6, 0.6))}
     d["ball"] = {"type": "sphere", "center": [-0.4, -0.65, 0.1], "radius": 0.35,
-                 "bsdf": _diffuse((0.8, 0.8, 0.8))}
+                 "bsdf": diffuse_bsdf((0.8, 0.8, 0.8))}
     d["block"] = {"type": "cube",
                   "to_world": T().translate([0.45, -0.7, -0.3]).rotate([0, 1, 0], -20)
                   .scale([0.25, 0.3, 0.25]),
-                  "bsdf": _diffuse((0.7, 0.7, 0.75))}
+                  "bsdf": diffuse_bsdf((0.7, 0.7, 0.75))}
     return d

@@ -85,7 +85,7 @@ from . import scenes as _scenes
 from .cache import Cache
 from .mitsuba_env import mitsuba, versions
 from .scene import Scene, register_scene
-from .scene_parts import _diffuse, _mirror_objects, _rect, _room
+from .scene_parts import diffuse_bsdf, mirror_objects, rect_shape, room_shapes
 from .sequence_scene import (GBUFFER_PARAM, GBUFFERS, PSR_ONLY_BUFFERS, SEQUENCE_BUFFERS,
                              SequenceScene, camera_info, gbuffer_variant, look_at_matrix,
                              motion_vectors, project)
@@ -136,13 +136,13 @@ def _objects(mi) -> dict:
         "tall_box": {"type": "cube",
                      "to_world": T().translate([-0.38, -0.45, -0.3]).rotate([0, 1, 0], 20)
                      .scale([0.25, 0.55, 0.25]),
-                     "bsdf": _diffuse((0.75, 0.75, 0.72))},
+                     "bsdf": diffuse_bsdf((0.75, 0.75, 0.72))},
         "glossy_ball": {"type": "sphere", "center": [0.42, -0.65, 0.2], "radius": 0.35,
                         "bsdf": {"type": "roughplastic", "distribution": "ggx", "alpha": 0.08,
                                  "diffuse_reflectance": {"type": "rgb",
                                                          "value": [0.55, 0.5, 0.45]}}},
         "blue_ball": {"type": "sphere", "center": [-0.05, -0.82, 0.55], "radius": 0.18,
-                      "bsdf": _diffuse((0.1, 0.2, 0.65))},
+                      "bsdf": diffuse_bsdf((0.1, 0.2, 0.65))},
     }
 
 
@@ -152,8 +152,8 @@ def _light_shape(mi, x: float, size: float = 0.2, z: float = 0.74) -> dict:
     their average), an error no denoiser can remove and which would dominate every RMSE.
     The lights still appear in reflections."""
     T = mi.ScalarTransform4f
-    return _rect(mi, T().translate([x, 0.99, z]).rotate([1, 0, 0], 90).scale(size),
-                 _diffuse((0, 0, 0)))
+    return rect_shape(mi, T().translate([x, 0.99, z]).rotate([1, 0, 0], 90).scale(size),
+                 diffuse_bsdf((0, 0, 0)))
 
 
 def _orbit_camera(i: int) -> tuple:
@@ -167,7 +167,7 @@ def _orbit_camera(i: int) -> tuple:
                  camera=_orbit_camera, lights=lambda i: {"light": (50.0, 36.0, 12.0)},
                  max_depth=6)
 def orbit(mi) -> dict:
-    d = _room(mi)
+    d = room_shapes(mi)
     d.update(_objects(mi))
     d["light"] = _light_shape(mi, 0.0, 0.25, z=0.74)
     return d
@@ -187,7 +187,7 @@ def _flicker_lights(i: int) -> dict:
                  camera=lambda i: ((0.0, -0.1, 3.9), (0.0, -0.3, 0.0)), lights=_flicker_lights,
                  events={"light_change": FLICKER_SWITCH}, max_depth=6)
 def flicker(mi) -> dict:
-    d = _room(mi)
+    d = room_shapes(mi)
     d.update(_objects(mi))
     d["light_left"] = _light_shape(mi, -0.5)
     d["light_right"] = _light_shape(mi, 0.5)
@@ -204,12 +204,12 @@ def _pan_camera(i: int) -> tuple:
                  n_frames=48, camera=_pan_camera,
                  lights=lambda i: {"light": (50.0, 36.0, 12.0)}, max_depth=8)
 def mirror_pan(mi) -> dict:
-    d = _room(mi, back_bsdf={"type": "conductor", "material": "Ag"},
+    d = room_shapes(mi, back_bsdf={"type": "conductor", "material": "Ag"},
               right_bsdf={"type": "roughplastic", "distribution": "ggx", "alpha": 0.05,
                           "diffuse_reflectance": {"type": "rgb",
                                                   "value": [0.45, 0.25, 0.12]}})
     d["light"] = _light_shape(mi, 0.0, 0.3)
-    d.update(_mirror_objects(mi))
+    d.update(mirror_objects(mi))
     return d
 
 

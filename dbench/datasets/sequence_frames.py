@@ -135,7 +135,7 @@ def _host_passes(mi, loaded, integ, seeds, stats):
 
 def _film_channels(spec, aovs, names):
     """The channels of ``mi.render``'s output for the frame integrators (checked channel for
-    channel in tests/test_sequence_kernel.py): the ``aov`` integrator's film holds its AOVs
+    channel in tests/datasets/test_sequence_kernel.py): the ``aov`` integrator's film holds its AOVs
     without the nested integrators' alpha (its own RGB is not in it); the PSR integrator's
     holds its weighted colour, then its AOVs."""
     if names and names[0] == "color.R":

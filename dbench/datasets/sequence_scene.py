@@ -15,7 +15,7 @@ from ..resolution import parse_res
 from .psr import PSR_EXTRA_LAYOUT
 from .scene import Scene
 from .scene_params import Param, non_default
-from .scene_parts import _camera
+from .scene_parts import camera_dict
 
 SEQUENCE_BUFFERS = frozenset({"color", "albedo", "normal", "depth", "position", "motion",
                               "gradient", "emission", "emitter", "stats", "reference",
@@ -72,7 +72,7 @@ class SequenceScene(Scene):
         light_frame = camera_frame if light_frame is None else light_frame
         origin, target = self.camera(camera_frame)
         d = {"type": "scene",
-             "sensor": _camera(mi, res, origin=list(origin), target=list(target),
+             "sensor": camera_dict(mi, res, origin=list(origin), target=list(target),
                                fov=self.fov),
              "integrator": {"type": "path", "max_depth": self.max_depth}}
         d.update(self.geometry(mi))

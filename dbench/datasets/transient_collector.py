@@ -32,7 +32,7 @@ loop, never stored per sample (:meth:`StatsCollector.nbytes`).
 The float32 running sums are added in path order, exactly as the film histogram adds them in a
 1-spp pass, and the transform and power sums run in float64 with the same operations as the host
 side :class:`~dbench.datasets.stats.PowerSums`, so for the same seeds (1-spp passes) the result is
-bit-for-bit that of collector (a) (tests/test_transient.py). Rendering all spp in one call gives
+bit-for-bit that of collector (a) (tests/datasets/test_transient.py). Rendering all spp in one call gives
 the same statistics up to the order of the float64 atomic additions.
 
 Only primal rendering is supported (no AD). The slot logic itself lives in

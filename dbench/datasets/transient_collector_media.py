@@ -25,7 +25,7 @@ surface hits only add η·t), so slots of bins before it are final.
 
 For the same seeds in 1-spp passes the float64 sums, ``non_zero`` counts, colour and moments are
 bit-identical to collector (a) on ``transient_prbvolpath``, homogeneous and heterogeneous media,
-warped and unwarped (tests/test_transient_media_collector.py).
+warped and unwarped (tests/datasets/test_transient_media_collector.py).
 
 Memory: that of :class:`StatsCollector`, (H, W, T, 3) × 3 float64 (+1 for non-identity
 transforms) + (H, W, T) uint64, whatever the spp; per path 4·slots registers (bin + RGB sum).

@@ -53,7 +53,7 @@ that changes the medium or the scattering orders gets the scene's range window
 (``range_window``): start as the catalogue's (the camera-to-light distance 3.88 bounds every
 warped path from below, and −1.105 every unwarped one, whatever the medium) and an end that holds ≥ 0.99 of the steady energy at
 every corner of the declared ranges (measured with :func:`size_window`; tests/
-test_transient_media.py checks them). ``emission`` keeps the window: the step is the pulse's
+tests/datasets/test_transient_media.py checks them). ``emission`` keeps the window: the step is the pulse's
 cumsum over the same bins.
 """
 from __future__ import annotations
@@ -66,7 +66,7 @@ import numpy as np
 
 from .scene import register_scene
 from .scene_params import Param, non_default
-from .scene_parts import _camera, _ceiling_light, _diffuse, _room
+from .scene_parts import camera_dict, ceiling_light, diffuse_bsdf, room_shapes
 from .transient_scene import TRANSIENT_BUFFERS, TransientScene
 
 #: seed 004 §8.2 (units not stated there; dbench reads them as 1/m)
@@ -115,11 +115,11 @@ def homogeneous(m: dict) -> dict:
 
 def _room_with_ball(mi, res) -> dict:
     d = {"type": "scene",
-         "sensor": _camera(mi, res, origin=[0, 0, 3.9], target=[0, 0, 0])}
-    d.update(_room(mi))
-    d["light"] = _ceiling_light(mi, 0.15, radiance=(60.0, 50.0, 36.0))
+         "sensor": camera_dict(mi, res, origin=[0, 0, 3.9], target=[0, 0, 0])}
+    d.update(room_shapes(mi))
+    d["light"] = ceiling_light(mi, 0.15, radiance=(60.0, 50.0, 36.0))
     d["ball"] = {"type": "sphere", "center": [0.3, -0.55, -0.1], "radius": 0.35,
-                 "bsdf": _diffuse((0.7, 0.7, 0.7))}
+                 "bsdf": diffuse_bsdf((0.7, 0.7, 0.7))}
     return d
 
 
@@ -275,7 +275,7 @@ def _register(name: str, description: str, build: Callable, **kw: Any) -> Transi
 
 # Windows from size_window(scene, coverage=0.99, res=24, spp=256), as for the rest of the
 # catalogue: 0.9908 (cloud) and 0.9926 (fog-unwarped) of the pilot's steady energy inside, none
-# before (tests/test_transient_media.py repeats the sizing).
+# before (tests/datasets/test_transient_media.py repeats the sizing).
 _register("cloud-transient", "a heterogeneous cloud (nested bumpy shells of density 0.2-1; σs 6, "
           "σa 0.4 /m at density 1, HG g 0.3) in the lit room: transient_prbvolpath",
           lambda mi, res: _cloud_room(mi, res, True), window_start=3.8, window_end=10.5,

@@ -11,7 +11,7 @@ import numpy as np
 from . import render as _render
 from .mitsuba_env import mitsuba
 from .scene_build import call_build
-from .scene_parts import _diffuse
+from .scene_parts import diffuse_bsdf
 from .transient_render import render_reference
 from .transient_scene import TransientScene, Window, transient_film
 
@@ -43,7 +43,7 @@ def direct_arrival_dict(mi, res: int = 33, window: Window | None = None, unwarp:
                   "intensity": {"type": "rgb", "value": [1.0, 1.0, 1.0]}},
         "plane": {"type": "rectangle",
                   "to_world": T().translate([0, 0, plane_z]).rotate([0, 1, 0], 180).scale(5.0),
-                  "bsdf": _diffuse((0.5, 0.5, 0.5))},
+                  "bsdf": diffuse_bsdf((0.5, 0.5, 0.5))},
     }
 
 

@@ -61,7 +61,7 @@ def rows(scenes: Sequence[Any], spps: Sequence[int] = SPPS, res: int = 64,
     """{scene, spp, method, relmse, rmse, ref_share} per scene, spp and method label;
     ``methods`` maps labels to (registered name, parameters)."""
     from .. import datasets, metrics
-    from .. import methods as registry
+    from .. import registry
 
     methods = methods or {m: (m, {}) for m in METHODS}
     out = []

@@ -39,7 +39,7 @@ def quality(scenes: Sequence[str] = EVAL_SCENES, spps: Sequence[int] = (1, 2, 4)
             cache=None, seed: int = 0) -> tuple[list[dict[str, Any]], list[str]]:
     """Rows {scene, spp, method, rmse, relmse, ssim, time_s}; and the methods left out."""
     from .. import datasets, metrics
-    from .. import methods as registry
+    from .. import registry
 
     present = [m for m in methods if m in registry.available()]
     missing = [m for m in methods if m not in present]
@@ -76,7 +76,7 @@ def sequence_quality(scenes: Sequence[str] = SEQ_SCENES, spps: Sequence[int] = (
     import numpy as np
 
     from .. import datasets
-    from .. import methods as registry
+    from .. import registry
     from ..methods.autoencoder import autoencoder_denoise
     from ..metrics import rmse
 
@@ -124,7 +124,7 @@ def _sequence_table(rows: list[dict]) -> str:
 def speed(height: int = 720, width: int = 1280, repeats: int = 5,
           methods: Sequence[str] = ("nca", "autoencoder", "oidn")) -> dict[str, Any]:
     """Median seconds per method on one synthetic frame, measured interleaved in one run."""
-    from .. import methods as registry
+    from .. import registry
     from ..run.machine import machine_info
     from ..synthetic import base_frame
 
@@ -158,7 +158,9 @@ def _table(rows: list[dict], spp: int, metric: str, methods: list[str], fmt: str
     scenes = list(dict.fromkeys(r["scene"] for r in rows))
     lines = ["| scene | " + " | ".join(methods) + " |",
              "|---|" + "---:|" * len(methods)]
-    better = "max" if metric == "ssim" else "min"
+    from ..metrics import higher_is_better
+
+    better = "max" if higher_is_better(metric) else "min"
     for s in scenes:
         vals = {r["method"]: r[metric] for r in rows if r["scene"] == s and r["spp"] == spp}
         best = (max if better == "max" else min)(vals.values())

@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from ..datasets.scenes import Scene, _camera, _diffuse, _rect
+from ..datasets.scenes import Scene, camera_dict, diffuse_bsdf, rect_shape
 
 EVALUATION_SCENES = ("cornell", "mirrors", "caustic", "textured", "fireflies")
 METALS = ("Ag", "Al", "Au", "Cu", "Cr")
@@ -145,7 +145,7 @@ def _light(mi, rng, enclosed: bool) -> dict:
     """A random light. Emitters get a black BSDF, as in the evaluation catalogue, so a visible
     light has albedo 0 in the AOV (the convention the networks learn from)."""
     T = mi.ScalarTransform4f
-    black = _diffuse((0, 0, 0))
+    black = diffuse_bsdf((0, 0, 0))
     color = np.array([1.0, 1.0, 1.0]) + rng.uniform(-0.35, 0.35, 3)
     r = rng.random()
     if r < 0.6:  # area rectangle under the ceiling, facing down (tilted a little)
@@ -153,7 +153,7 @@ def _light(mi, rng, enclosed: bool) -> dict:
         power = float(rng.uniform(6, 25))
         x, z = float(rng.uniform(-0.6, 0.6)), float(rng.uniform(-0.7, 0.4))
         tilt = 90.0 + float(rng.uniform(-20, 20))
-        return _rect(mi, T().translate([x, 0.98, z]).rotate([1, 0, 0], tilt)
+        return rect_shape(mi, T().translate([x, 0.98, z]).rotate([1, 0, 0], tilt)
                      .scale([size, float(size * rng.uniform(0.5, 1.5)), 1]), black,
                      {"type": "area", "radiance": {"type": "rgb",
                                                    "value": list(color * power)}})
@@ -203,7 +203,7 @@ def build_training_dict(mi, res: int, index: int, family_seed: int = 0) -> dict:
     kind, origin, target, fov = _layout(rng)
     enclosed = kind != "ground"
     d: dict[str, Any] = {"type": "scene"}
-    d["sensor"] = _camera(mi, res, origin=origin, target=target, fov=fov)
+    d["sensor"] = camera_dict(mi, res, origin=origin, target=target, fov=fov)
     if enclosed:
         walls = {"floor": T().translate([0, -1, 0]).rotate([1, 0, 0], -90),
                  "ceiling": T().translate([0, 1, 0]).rotate([1, 0, 0], 90),
@@ -219,9 +219,9 @@ def build_training_dict(mi, res: int, index: int, family_seed: int = 0) -> dict:
                 bsdf = {"type": "diffuse", "reflectance": (
                     _reflectance(mi, rng) if rng.random() < 0.4 else
                     {"type": "rgb", "value": _rgb(rng, 0.1, 0.85)})}
-            d[f"wall_{name}"] = _rect(mi, tw.scale(1.0), bsdf)
+            d[f"wall_{name}"] = rect_shape(mi, tw.scale(1.0), bsdf)
     else:
-        d["ground"] = _rect(mi, T().translate([0, -1, 0]).rotate([1, 0, 0], -90).scale(4.0),
+        d["ground"] = rect_shape(mi, T().translate([0, -1, 0]).rotate([1, 0, 0], -90).scale(4.0),
                             {"type": "diffuse", "reflectance": _reflectance(mi, rng)})
         sky = np.array([0.5, 0.6, 0.8]) * float(rng.uniform(0.1, 1.0))
         d["sky"] = {"type": "constant", "radiance": {"type": "rgb", "value": list(sky)}}

@@ -9,7 +9,7 @@ Every later computation on that thread then rounds subnormal values to 0, so a m
 depended on which methods had run before it in the same process (measured: after ``nca`` a
 float32 product of 1e-40 gave 0, and a hand-back whose 1 / subnormal overflowed to NaN on its
 own came out finite after it). The ONNX sessions are built and run inside
-:func:`kept_fp_environment`, and the harness (:mod:`dbench.bench.fpenv`) calls every method,
+:func:`kept_fp_environment`, and the harness (:mod:`dbench.run.fpenv`) calls every method,
 plug-ins included, inside it too.
 """
 from __future__ import annotations

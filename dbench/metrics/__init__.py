@@ -14,7 +14,9 @@ Plain functions on NumPy arrays. ``output`` and ``reference`` are (H, W, C) imag
 * Non-finite policy: a NaN/Inf anywhere in ``output`` makes the metric NaN (never an exception,
   never silently dropped); ``reference`` must be finite (DbenchInputError otherwise).
 
-:data:`DEFINITIONS` states each metric with its constants in one line, for reports.
+:data:`DEFINITIONS` states each metric with its constants in one line, for reports; every
+metric's record (formula, direction, definition, variants) is in
+:data:`dbench.metrics.records.METRICS`, which every module that names metrics reads.
 
 Example:
     >>> import numpy as np
@@ -31,12 +33,13 @@ from .checks import check_pair
 from .hdr import clear_exposure_cache, hdrflip, hdrflip_exposures
 from .image import PER_BIN_METRICS, available, compute, compute_all, per_bin
 from .ldr import flip, flip_ldr, psnr, psnr_ldr, ssim, ssim_ldr
-from .params import DEFINITIONS, HIGHER_IS_BETTER
 from .pixel import mse, relmse, rmae, rmse, smape
+from .records import DEFINITIONS, HIGHER_IS_BETTER, higher_is_better
 from .tonemapping import TONEMAP_DEFINITION, srgb_decode, srgb_encode, tonemap
 
 __all__ = [
-    "DEFINITIONS", "HIGHER_IS_BETTER", "PER_BIN_METRICS", "TONEMAP_DEFINITION",
+    "DEFINITIONS", "HIGHER_IS_BETTER", "higher_is_better",
+    "PER_BIN_METRICS", "TONEMAP_DEFINITION",
     "available", "compute", "compute_all", "per_bin",
     "tonemap", "srgb_encode", "srgb_decode",
     "mse", "rmse", "relmse", "smape", "rmae", "psnr", "ssim", "flip", "hdrflip",

@@ -97,6 +97,12 @@ def _hdrflip_eval(test32: np.ndarray, ref32: np.ndarray) -> tuple[float, dict[st
     return float(mean), dict(used)
 
 
+def _hdrflip_value(o: np.ndarray, r: np.ndarray) -> float:
+    """HDR-FLIP of checked linear arrays (transient: the sum over T)."""
+    return _hdrflip_eval(_hdr_image("output", _integrate(o)),
+                         _hdr_image("reference", _integrate(r)))[0]
+
+
 def hdrflip(output: Any, reference: Any, *, return_params: bool = False
             ) -> float | tuple[float, dict[str, Any]]:
     """HDR-FLIP on linear values with exposures fixed per reference (anchors.md §1, §5).

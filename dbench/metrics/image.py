@@ -5,7 +5,8 @@ the tests of §6. Each metric is a plain function ``metric(output, reference, **
 on NumPy arrays (scikit-image style); :func:`compute` picks one by name and :func:`compute_all`
 computes several, tone-mapping each image once. The metrics live in ``pixel.py`` (linear),
 ``ldr.py`` (PSNR, SSIM, LDR-FLIP) and ``hdr.py``, with ``tonemapping.py``, ``params.py``
-(constants, :data:`DEFINITIONS`) and ``checks.py`` (inputs); this module names them.
+(constants), ``records.py`` (one record per metric: its formula, direction and definition)
+and ``checks.py`` (inputs); this module calls them by name through the records.
 
 Shapes:
     ``output`` and ``reference`` are (H, W, C) images or (H, W, T, C) transient videos of the
@@ -36,82 +37,80 @@ Example:
 """
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable
-from dataclasses import dataclass
+from collections.abc import Iterable
 from typing import Any
 
 import numpy as np
 
 from ..errors import DbenchInputError, UnknownNameError
 from .checks import _check_eps, _finite, _integrate, check_pair
-from .hdr import _hdr_image, _hdrflip_eval
-from .ldr import _check_flip_channels, flip_ldr, psnr_ldr, ssim_ldr
-from .pixel import _pixel_map, _pixel_value
+from .ldr import _check_flip_channels
+from .records import METRICS, Metric, image_metrics
 from .tonemapping import check_ev, tonemap
 
 
-@dataclass(frozen=True)
-class _Metric:
-    kind: str                     # "pixel", "ldr" or "hdr"
-    options: tuple[str, ...]      # accepted keyword options
+def _pixel_wise(m: Metric) -> bool:
+    """The mean of a per-value error map over linear values (per_bin can split it by bin)."""
+    return m.domain == "hdr" and m.error_map is not None
 
 
-_METRICS: dict[str, _Metric] = {
-    "mse": _Metric("pixel", ()),
-    "rmse": _Metric("pixel", ()),
-    "relmse": _Metric("pixel", ("eps",)),
-    "smape": _Metric("pixel", ("eps",)),
-    "rmae": _Metric("pixel", ("eps",)),
-    "psnr": _Metric("ldr", ("ev",)),
-    "ssim": _Metric("ldr", ("ev",)),
-    "flip": _Metric("ldr", ("ev",)),
-    "hdrflip": _Metric("hdr", ()),
-}
-_LDR_FUNCS: dict[str, Callable[[np.ndarray, np.ndarray], float]] = {
-    "psnr": psnr_ldr, "ssim": ssim_ldr, "flip": flip_ldr,
-}
+def _options(m: Metric) -> tuple[str, ...]:
+    """The keyword options ``compute`` accepts for ``m``."""
+    if m.domain == "ldr":
+        return ("ev",)
+    return ("eps",) if m.eps is not None and _pixel_wise(m) else ()
+
+
 #: Metrics :func:`per_bin` can compute (the pixel-wise ones).
-PER_BIN_METRICS = tuple(n for n, m in _METRICS.items() if m.kind == "pixel")
+PER_BIN_METRICS = tuple(n for n in image_metrics() if _pixel_wise(METRICS[n]))
 
 
 def available() -> list[str]:
     """Names of every metric, in report order."""
-    return list(_METRICS)
+    return list(image_metrics())
 
 
-def _lookup(name: Any) -> _Metric:
+def _lookup(name: Any) -> Metric:
     key = str(name).lower() if isinstance(name, str) else name
-    if key not in _METRICS:
-        raise UnknownNameError(f"unknown metric {name!r}; valid names: {', '.join(_METRICS)}")
-    return _METRICS[key]
+    names = image_metrics()
+    if key not in names:
+        raise UnknownNameError(f"unknown metric {name!r}; valid names: {', '.join(names)}")
+    return METRICS[key]
 
 
-def _check_options(name: str, metric: _Metric, options: dict[str, Any]) -> None:
-    bad = [k for k in options if k not in metric.options]
+def _check_options(name: str, metric: Metric, options: dict[str, Any]) -> None:
+    valid = _options(metric)
+    bad = [k for k in options if k not in valid]
     if bad:
-        valid = ", ".join(metric.options) if metric.options else "none"
+        valid_text = ", ".join(valid) if valid else "none"
         raise UnknownNameError(f"metric {name!r}: unknown option(s) {', '.join(map(repr, bad))}; "
-                               f"valid options: {valid}")
+                               f"valid options: {valid_text}")
+
+
+def _check_channels(m: Metric, r: np.ndarray) -> None:
+    if m.channels:
+        _check_flip_channels(r)
 
 
 def _from_checked(name: str, o: np.ndarray, r: np.ndarray, options: dict[str, Any],
                   ldr: tuple[np.ndarray, np.ndarray] | None = None) -> float:
     """Metric ``name`` on validated arrays; ``ldr`` optionally holds the tone-mapped pair."""
-    metric = _METRICS[name]
-    if metric.kind == "pixel":
+    metric = METRICS[name]
+    if _pixel_wise(metric):
         eps = _check_eps(options["eps"]) if "eps" in options else None
-        return _pixel_value(name, o, r, eps)
-    if name in ("flip", "hdrflip"):
-        _check_flip_channels(r)
+        if not _finite(o):
+            return float("nan")
+        value = float(np.mean(metric.errors(o, r, eps)))
+        return value if metric.from_mean is None else float(metric.from_mean(value))
+    _check_channels(metric, r)
     if not _finite(o):
         return float("nan")
-    if metric.kind == "hdr":
-        return _hdrflip_eval(_hdr_image("output", _integrate(o)),
-                             _hdr_image("reference", _integrate(r)))[0]
+    if metric.domain == "hdr":
+        return metric.image_fn(o, r)
     if ldr is None:
         ev = check_ev(options.get("ev", 0.0))
         ldr = (tonemap(_integrate(o), ev), tonemap(_integrate(r), ev))
-    return _LDR_FUNCS[name](*ldr)
+    return metric.image_fn(*ldr)
 
 
 def compute(name: str, output: Any, reference: Any, **options: Any) -> float:
@@ -155,12 +154,12 @@ def compute_all(output: Any, reference: Any, names: Iterable[str] | None = None,
     names = [n.lower() for n in names]
     ev = check_ev(ev)
     o, r = check_pair(output, reference)
-    if any(n in ("flip", "hdrflip") for n in names):
-        _check_flip_channels(r)
+    for n in names:
+        _check_channels(METRICS[n], r)
     ldr = None
-    if _finite(o) and any(_METRICS[n].kind == "ldr" for n in names):
+    if _finite(o) and any(METRICS[n].domain == "ldr" for n in names):
         ldr = (tonemap(_integrate(o), ev), tonemap(_integrate(r), ev))
-    return {n: _from_checked(n, o, r, {"ev": ev} if _METRICS[n].kind == "ldr" else {}, ldr)
+    return {n: _from_checked(n, o, r, {"ev": ev} if METRICS[n].domain == "ldr" else {}, ldr)
             for n in names}
 
 
@@ -178,7 +177,7 @@ def per_bin(name: str, output: Any, reference: Any, **options: Any) -> np.ndarra
     """
     metric = _lookup(name)
     name = str(name).lower()
-    if metric.kind != "pixel":
+    if not _pixel_wise(metric):
         raise UnknownNameError(f"per_bin: metric {name!r} is not pixel-wise; valid names: "
                                f"{', '.join(PER_BIN_METRICS)}")
     _check_options(name, metric, options)
@@ -189,8 +188,8 @@ def per_bin(name: str, output: Any, reference: Any, **options: Any) -> np.ndarra
     eps = _check_eps(options["eps"]) if "eps" in options else None
     bad = ~np.isfinite(o).all(axis=(0, 1, 3))
     with np.errstate(invalid="ignore", over="ignore"):
-        values = _pixel_map(name, o, r, eps).mean(axis=(0, 1, 3))
-    if name == "rmse":
-        values = np.sqrt(values)
+        values = metric.errors(o, r, eps).mean(axis=(0, 1, 3))
+    if metric.from_mean is not None:
+        values = metric.from_mean(values)
     values[bad] = np.nan
     return values

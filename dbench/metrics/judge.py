@@ -35,16 +35,21 @@ import numpy as np
 
 from ..errors import DbenchInputError
 from .checks import _integrate, check_pair
-from .ldr import _flip_input, _ssim_global
-from .params import PSNR_CAP_DB, RELMSE_EPS, SMAPE_EPS, SSIM_K1, SSIM_K2, SSIM_SIGMA, SSIM_WIN
+from .pixel import pixel_mean as _pixel_mean
+from .records import METRICS, judge_figures, judged
 from .tonemapping import check_ev, tonemap
 
-#: Metrics the judge scores over every pixel and over surface pixels.
-JUDGED = ("rmse", "relmse", "smape", "psnr", "ssim", "flip")
-#: Extra per-output figures.
-EXTRA = ("top1_share", "rmse_unbiased", "relmse_unbiased")
-HIGHER_IS_BETTER_JUDGED = frozenset({"psnr", "ssim", "psnr_surface", "ssim_surface", "tpsnr",
-                                     "cvvdp"})
+#: Metrics the judge scores over every pixel and over surface pixels (their records'
+#: ``has_surface_variant``; records.py holds each one's per-pixel map).
+JUDGED = judged()
+#: Extra per-output figures: top1_share and the unbiased forms (records.py).
+EXTRA = judge_figures()
+#: The metrics whose reference-variance corrected forms the judge writes.
+_UNBIASED = tuple(METRICS[n].variant_of for n in EXTRA if METRICS[n].variant == "unbiased")
+#: The maps every judgement needs, whatever it scores: those of the figures' base metrics.
+_ALWAYS = tuple(dict.fromkeys(METRICS[n].variant_of for n in EXTRA))
+#: The relMSE record, whose variance map gives ``ref_relmse_surface``.
+_RELMSE = METRICS["relmse"]
 #: Side of the square pixel blocks of the bootstrap wherever BOOTSTRAP_MIN_BLOCKS of them fit
 #: (64 × 64 px and up): large enough that a denoiser's spatial correlation stays mostly inside
 #: a block, so blocks can be resampled as if independent.
@@ -56,14 +61,15 @@ BOOTSTRAP_MIN_BLOCKS = 16
 #: Smallest block side on small images. Blocks narrower than a denoiser's footprint split its
 #: correlated errors between blocks the bootstrap treats as independent, and the interval comes
 #: out too narrow: on a 16-px image under a 5-px box filter, 4-px blocks cover the true RMSE
-#: 94 % of the time, 2-px blocks 79 % (tests/test_intervals_small.py).
+#: 94 % of the time, 2-px blocks 79 % (tests/run/test_intervals_small.py).
 BOOTSTRAP_MIN_SIDE = 4
 BOOTSTRAP_RESAMPLES = 1000
 CONFIDENCE = 0.95
 
-#: Map each metric is the mean of.
-_MAP_OF = {"rmse": "sq", "relmse": "relsq", "smape": "smape", "psnr": "ldr_sq", "ssim": "ssim",
-           "flip": "flip"}
+
+def _refvar(name: str) -> str:
+    """Key of the map of what the reference's variance adds to ``name``'s map."""
+    return f"{name}:refvar"
 
 
 def metric_names(names: Iterable[str] | None = None) -> list[str]:
@@ -94,91 +100,53 @@ class Judgement:
     block: int | None = None
 
 
-def _pixel_mean(x: np.ndarray) -> np.ndarray:
-    """(H, W, C) or (H, W, T, C) → (H, W) mean over the trailing axes."""
-    return x.reshape(x.shape[0], x.shape[1], -1).mean(axis=-1)
-
-
-def _ssim_map(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(map, weight): skimage's SSIM map averaged over channels, weight 0 on the border it
-    crops; images smaller than the window get the global SSIM everywhere (ldr.ssim_ldr)."""
-    h, w = a.shape[:2]
-    if min(h, w) < SSIM_WIN:
-        return np.full((h, w), _ssim_global(a, b)), np.ones((h, w))
-    from skimage.metrics import structural_similarity
-
-    _, s = structural_similarity(a, b, gaussian_weights=True, sigma=SSIM_SIGMA,
-                                 use_sample_covariance=False, data_range=1.0, channel_axis=-1,
-                                 K1=SSIM_K1, K2=SSIM_K2, full=True)
-    pad = (SSIM_WIN - 1) // 2
-    weight = np.zeros((h, w))
-    weight[pad:h - pad, pad:w - pad] = 1.0
-    return s.mean(axis=-1).astype(np.float64), weight
-
-
-def _flip_map(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    import flip_evaluator
-
-    m, _, _ = flip_evaluator.evaluate(_flip_input("reference", b), _flip_input("output", a),
-                                      "LDR", inputsRGB=True, applyMagma=False,
-                                      computeMeanError=True, parameters={})
-    return np.asarray(m, np.float64).reshape(a.shape[:2])
-
-
 def pixel_maps(output: np.ndarray, reference: np.ndarray, names: Sequence[str],
                reference_var: np.ndarray | None, ev: float
                ) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
-    """({map: (H, W)}, {map: (H, W) weight}) of everything ``names`` need (finite ``output``)."""
+    """({map: (H, W)}, {map: (H, W) weight}) of everything ``names`` need (finite ``output``):
+    each judged metric's per-pixel map (its record's, keyed by its name) on linear values or
+    on the tone-mapped pair, and with ``reference_var`` what the reference's variance adds to
+    the maps of the metrics with an unbiased form (keys ``<name>:refvar``)."""
     maps: dict[str, np.ndarray] = {}
     weights: dict[str, np.ndarray] = {}
-    d2 = (output - reference) ** 2
-    if "rmse" in names:
-        maps["sq"] = _pixel_mean(d2)
-    if "relmse" in names:
-        maps["relsq"] = _pixel_mean(d2 / (reference * reference + RELMSE_EPS))
-    if "smape" in names:
-        maps["smape"] = _pixel_mean(np.abs(output - reference)
-                                    / (np.abs(output) + np.abs(reference) + SMAPE_EPS))
-    ldr_names = [n for n in ("psnr", "ssim", "flip") if n in names]
-    if ldr_names:
-        a, b = tonemap(_integrate(output), ev), tonemap(_integrate(reference), ev)
-        if "psnr" in names:
-            maps["ldr_sq"] = _pixel_mean((a - b) ** 2)
-        if "ssim" in names:
-            maps["ssim"], weights["ssim"] = _ssim_map(a, b)
-        if "flip" in names:
-            maps["flip"] = _flip_map(a, b)
+    ldr = None
+    for n in JUDGED:
+        if n not in names:
+            continue
+        m = METRICS[n]
+        if m.domain == "ldr":
+            if ldr is None:
+                ldr = tonemap(_integrate(output), ev), tonemap(_integrate(reference), ev)
+            maps[n], weight = m.per_pixel_map(*ldr)
+        else:
+            maps[n], weight = m.per_pixel_map(output, reference)
+        if weight is not None:
+            weights[n] = weight
     if reference_var is not None:
         v = np.asarray(reference_var, np.float64)
-        maps["refvar"] = _pixel_mean(v)
-        maps["refvar_rel"] = _pixel_mean(v / (reference * reference + RELMSE_EPS))
+        for n in _UNBIASED:
+            maps[_refvar(n)] = _pixel_mean(METRICS[n].variance(v, reference))
     ones = np.ones(output.shape[:2])
     return maps, {k: weights.get(k, ones) for k in maps}
 
 
 def _from_means(name: str, mean: dict[str, Any]) -> Any:
     """Metric ``name`` from the means of its maps (scalars or arrays of resamples)."""
+    m = METRICS[name]
     with np.errstate(divide="ignore", invalid="ignore"):
-        if name == "rmse":
-            return np.sqrt(mean["sq"])
-        if name == "psnr":
-            m = np.asarray(mean["ldr_sq"], np.float64)
-            out = np.where(m > 0, np.minimum(PSNR_CAP_DB, 10.0 * np.log10(1.0 / np.where(
-                m > 0, m, 1.0))), PSNR_CAP_DB)
-            return out if out.ndim else float(out)
-        if name == "rmse_unbiased":
-            return np.sqrt(np.maximum(0.0, mean["sq"] - mean["refvar"]))
-        if name == "relmse_unbiased":
-            return np.maximum(0.0, mean["relsq"] - mean["refvar_rel"])
-        return mean[_MAP_OF[name]]
+        if m.variant == "unbiased":
+            base = m.variant_of
+            value = np.maximum(0.0, mean[base] - mean[_refvar(base)])
+        else:
+            value = mean[name]
+        return value if m.from_mean is None else m.from_mean(value)
 
 
 def _needs(name: str) -> tuple[str, ...]:
-    if name == "rmse_unbiased":
-        return ("sq", "refvar")
-    if name == "relmse_unbiased":
-        return ("relsq", "refvar_rel")
-    return (_MAP_OF[name],)
+    m = METRICS[name]
+    if m.variant == "unbiased":
+        return (m.variant_of, _refvar(m.variant_of))
+    return (name,)
 
 
 def top1_share(sq_map: np.ndarray, fraction: float = 0.01) -> float:
@@ -282,18 +250,19 @@ def judge(output: Any, reference: Any, *, emitter: Any = None, reference_var: An
     columns = metric_names(names)
     ref_rmse = float(np.sqrt(var.mean())) if var is not None else float("nan")
     # the reference's own relMSE over surface pixels, set against a method's relmse_surface by
-    # the reference-noise warning (dbench.bench.verdicts.ref_noise_frame): lights seen
+    # the reference-noise warning (dbench.report.verdicts.ref_noise_frame): lights seen
     # directly hold most of the squared error and would hide it
     ref = {"ref_rmse": ref_rmse, "ref_relmse_surface": float(
-        _pixel_mean(var / (np.asarray(r, np.float64) ** 2 + RELMSE_EPS))[surface].mean())
+        _pixel_mean(_RELMSE.variance(var, r))[surface].mean())
         if var is not None and surface.any() else float("nan")}
     if not np.isfinite(o).all():
         return Judgement({**{c: float("nan") for c in columns}, **ref}, block=block)
-    maps, weights = pixel_maps(o, r, names + ["rmse", "relmse"], var, ev)
+    maps, weights = pixel_maps(o, r, names + list(_ALWAYS), var, ev)
     if var is None:
-        maps["refvar"] = np.zeros((h, w))
-        maps["refvar_rel"] = np.zeros((h, w))
-        weights["refvar"] = weights["refvar_rel"] = np.ones((h, w))
+        ones = np.ones((h, w))
+        for n in _UNBIASED:
+            maps[_refvar(n)] = np.zeros((h, w))
+            weights[_refvar(n)] = ones
     values: dict[str, float] = {}
     # too small for the bootstrap: one block holding the whole image still gives the means
     side = block if block is not None else max(h, w)
@@ -307,9 +276,12 @@ def judge(output: Any, reference: Any, *, emitter: Any = None, reference_var: An
         for n in names:
             values[n + suffix] = float(_from_means(n, mean))
         if where == "all":
-            values["rmse_unbiased"] = float(_from_means("rmse_unbiased", mean))
-            values["relmse_unbiased"] = float(_from_means("relmse_unbiased", mean))
-    values["top1_share"] = top1_share(maps["sq"])
+            for n in EXTRA:
+                if METRICS[n].variant == "unbiased":
+                    values[n] = float(_from_means(n, mean))
+    for n in EXTRA:
+        if METRICS[n].variant == "share":
+            values[n] = top1_share(maps[METRICS[n].variant_of])
     values["ref_rmse"] = ref_rmse
     return Judgement({c: values[c] for c in columns} | ref, sums, map_names, block)
 
@@ -390,7 +362,7 @@ def bootstrap_interval(frames: Sequence[Judgement], columns: Iterable[str],
                 continue
             if not suffix and col.endswith("_surface"):
                 continue
-            if base not in _MAP_OF and base not in ("rmse_unbiased", "relmse_unbiased"):
+            if base not in JUDGED and getattr(METRICS.get(base), "variant", None) != "unbiased":
                 continue
             if any(m not in per_frame[0] for m in _needs(base)):
                 continue

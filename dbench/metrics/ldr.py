@@ -64,6 +64,42 @@ def _ssim_global(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.mean(s))
 
 
+def _psnr_from_mean(m: Any) -> Any:
+    """PSNR from the mean squared LDR error ``m`` (a scalar or an array of bootstrap
+    resamples), as the judge takes it: capped at 100 dB, 100 dB where ``m`` is 0."""
+    m = np.asarray(m, np.float64)
+    out = np.where(m > 0, np.minimum(PSNR_CAP_DB, 10.0 * np.log10(1.0 / np.where(
+        m > 0, m, 1.0))), PSNR_CAP_DB)
+    return out if out.ndim else float(out)
+
+
+def _ssim_map(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(map, weight): skimage's SSIM map averaged over channels, weight 0 on the border it
+    crops; images smaller than the window get the global SSIM everywhere (:func:`ssim_ldr`)."""
+    h, w = a.shape[:2]
+    if min(h, w) < SSIM_WIN:
+        return np.full((h, w), _ssim_global(a, b)), np.ones((h, w))
+    from skimage.metrics import structural_similarity
+
+    _, s = structural_similarity(a, b, gaussian_weights=True, sigma=SSIM_SIGMA,
+                                 use_sample_covariance=False, data_range=1.0, channel_axis=-1,
+                                 K1=SSIM_K1, K2=SSIM_K2, full=True)
+    pad = (SSIM_WIN - 1) // 2
+    weight = np.zeros((h, w))
+    weight[pad:h - pad, pad:w - pad] = 1.0
+    return s.mean(axis=-1).astype(np.float64), weight
+
+
+def _flip_map(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, None]:
+    """(map, None): flip_evaluator's per-pixel LDR-FLIP error of ``a`` against ``b``."""
+    import flip_evaluator
+
+    m, _, _ = flip_evaluator.evaluate(_flip_input("reference", b), _flip_input("output", a),
+                                      "LDR", inputsRGB=True, applyMagma=False,
+                                      computeMeanError=True, parameters={})
+    return np.asarray(m, np.float64).reshape(a.shape[:2]), None
+
+
 def _flip_input(name: str, x: np.ndarray) -> np.ndarray:
     """(H, W, 1 or 3) -> C-contiguous float32 (H, W, 3), the layout flip_evaluator takes."""
     if x.shape[-1] not in (1, 3):

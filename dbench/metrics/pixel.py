@@ -2,13 +2,22 @@
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
 from .checks import _check_eps, _finite, check_pair
 from .params import RELMSE_EPS, RMAE_EPS, SMAPE_EPS
 
+
+def pixel_mean(x: np.ndarray) -> np.ndarray:
+    """(H, W, C) or (H, W, T, C) → (H, W) mean over the trailing axes: a per-value map made a
+    per-pixel one (every pixel holds the same number of values, so whole-image means stay)."""
+    return x.reshape(x.shape[0], x.shape[1], -1).mean(axis=-1)
+
+
+# Per-value error maps (float64, the shape of the inputs): each metric's formula, written once
+# and read through its record in records.py (metrics.compute, per_bin and the judge's maps).
 
 def _err_sq(o: np.ndarray, r: np.ndarray) -> np.ndarray:
     d = o - r
@@ -28,23 +37,24 @@ def _err_rmae(o: np.ndarray, r: np.ndarray, eps: float) -> np.ndarray:
     return np.abs(o - r) / (np.abs(r) + eps)
 
 
-def _pixel_map(name: str, o: np.ndarray, r: np.ndarray, eps: float | None) -> np.ndarray:
-    if name in ("mse", "rmse"):
-        return _err_sq(o, r)
-    if name == "relmse":
-        return _err_rel_sq(o, r, RELMSE_EPS if eps is None else eps)
-    if name == "smape":
-        return _err_smape(o, r, SMAPE_EPS if eps is None else eps)
-    if name == "rmae":
-        return _err_rmae(o, r, RMAE_EPS if eps is None else eps)
-    raise AssertionError(name)
+# Per-value variance of an error map's estimate that the reference's own noise adds (v_r, the
+# variance of the reference mean): E[(x − r)²] = E[(x − t)²] + v_r, and to first order in
+# v_r/(r² + ε) the same over r² + ε (README.md, "Metrics").
+
+def _var_sq(v: np.ndarray, r: np.ndarray) -> np.ndarray:
+    return v
 
 
-def _pixel_value(name: str, o: np.ndarray, r: np.ndarray, eps: float | None = None) -> float:
+def _var_rel_sq(v: np.ndarray, r: np.ndarray, eps: float) -> np.ndarray:
+    return v / (r * r + eps)
+
+
+def _mean_error(o: np.ndarray, r: np.ndarray, error_map: Callable[..., np.ndarray],
+                *eps: float) -> float:
+    """mean of ``error_map(o, r, *eps)`` over every value; NaN when ``o`` is not finite."""
     if not _finite(o):
         return float("nan")
-    value = float(np.mean(_pixel_map(name, o, r, eps)))
-    return math.sqrt(value) if name == "rmse" else value
+    return float(np.mean(error_map(o, r, *eps)))
 
 
 def mse(output: Any, reference: Any) -> float:
@@ -57,7 +67,7 @@ def mse(output: Any, reference: Any) -> float:
         float (NaN if ``output`` holds NaN/Inf).
     """
     o, r = check_pair(output, reference)
-    return _pixel_value("mse", o, r)
+    return _mean_error(o, r, _err_sq)
 
 
 def rmse(output: Any, reference: Any) -> float:
@@ -66,7 +76,7 @@ def rmse(output: Any, reference: Any) -> float:
     Shapes as :func:`mse`. The only metric of seed 000 (per inset, linear).
     """
     o, r = check_pair(output, reference)
-    return _pixel_value("rmse", o, r)
+    return math.sqrt(_mean_error(o, r, _err_sq))
 
 
 def relmse(output: Any, reference: Any, eps: float = RELMSE_EPS) -> float:
@@ -75,7 +85,7 @@ def relmse(output: Any, reference: Any, eps: float = RELMSE_EPS) -> float:
     Shapes as :func:`mse`.
     """
     o, r = check_pair(output, reference)
-    return _pixel_value("relmse", o, r, _check_eps(eps))
+    return _mean_error(o, r, _err_rel_sq, _check_eps(eps))
 
 
 def smape(output: Any, reference: Any, eps: float = SMAPE_EPS) -> float:
@@ -84,7 +94,7 @@ def smape(output: Any, reference: Any, eps: float = SMAPE_EPS) -> float:
     Shapes as :func:`mse`.
     """
     o, r = check_pair(output, reference)
-    return _pixel_value("smape", o, r, _check_eps(eps))
+    return _mean_error(o, r, _err_smape, _check_eps(eps))
 
 
 def rmae(output: Any, reference: Any, eps: float = RMAE_EPS) -> float:
@@ -93,4 +103,4 @@ def rmae(output: Any, reference: Any, eps: float = RMAE_EPS) -> float:
     noisebase divides this by 3 for no stated reason; dbench does not. Shapes as :func:`mse`.
     """
     o, r = check_pair(output, reference)
-    return _pixel_value("rmae", o, r, _check_eps(eps))
+    return _mean_error(o, r, _err_rmae, _check_eps(eps))

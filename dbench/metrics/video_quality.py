@@ -173,7 +173,7 @@ def cvvdp_jod(output: Any, reference: Any, fps: float = DEFAULT_FPS,
 
 def scored_frames(n_frames: int, warmup: int) -> slice:
     """The frames a sequence's ``cvvdp`` covers: those after the warm-up, as the sequence's
-    other means (dbench/bench/sequence.py); all of them when there are no more than that."""
+    other means (dbench/run/sequence_run.py); all of them when there are no more than that."""
     return slice(int(warmup), None) if n_frames > warmup else slice(0, None)
 
 

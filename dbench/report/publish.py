@@ -25,9 +25,9 @@ from .table31 import table31_md
 
 #: Metrics shown as Markdown convergence tables in the README (others: CSV links).
 README_CONVERGENCE = ("rmse", "relmse", "rmse_surface")
-SEQUENCE_HEADLINE = ("rmse", "rmse_surface", "relmse", "ssim", "t_rmse", "tpsnr", "cvvdp",
-                     "time_s")
-TRANSIENT_HEADLINE = ("rmse", "rmse_surface", "relmse", "ssim", "time_s")
+#: Headline columns of published sequence and transient sweeps (steady: verdicts.HEADLINE).
+SEQUENCE_HEADLINE = verdicts.headline_columns("sequence")
+TRANSIENT_HEADLINE = verdicts.headline_columns("transient")
 
 
 def load_sweep(sweep_dir: Path) -> tuple[dict, list[dict], list[str]]:

@@ -17,16 +17,13 @@ from . import headline, verdicts
 from .tables import cells_frame
 
 #: Headline columns of a sequence run (steady and transient runs: verdicts.HEADLINE).
-SEQUENCE_COLUMNS = ("rmse", "rmse_surface", "relmse", "ssim", "t_rmse", "tpsnr", "cvvdp",
-                    "time_s")
+SEQUENCE_COLUMNS = verdicts.headline_columns("sequence")
 
 
 def metric_definitions_md() -> str:
-    """The metric definitions, plus the verdict quantities (surface metrics, top1_share,
-    rmse_unbiased, ref_rmse, interval kinds) that :data:`dbench.metrics.DEFINITIONS` lacks."""
-    lines = [f"- **{name}**: {text}" for name, text in metrics.DEFINITIONS.items()]
-    lines += [f"- **{name}**: {text}" for name, text in verdicts.DEFINITIONS.items()
-              if name not in metrics.DEFINITIONS]
+    """The metric definitions from the metric records, then the verdicts' own quantities
+    (ref_rmse, interval kinds) and the tone map (:func:`dbench.report.verdicts.definitions`)."""
+    lines = [f"- **{name}**: {text}" for name, text in verdicts.definitions().items()]
     lines.append(f"- Tone map: {metrics.TONEMAP_DEFINITION}")
     return "\n".join(lines)
 

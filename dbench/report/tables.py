@@ -20,14 +20,16 @@ import numpy as np
 import pandas as pd
 
 from ..errors import DbenchInputError
+from ..metrics import records
 from ..resolution import parse_res
 from .formats import markdown_table, write_csv
-from .verdicts import METRICS, fmt_value, num, seed_values
+from .verdicts import HEADLINE, METRICS, fmt_value, num, seed_values
 
 ID_COLUMNS = ["scene", "method", "base_method", "spp", "res", "n_seeds", "ci_kind", "ref_spp",
               "ref_rmse", "ref_relmse_surface"]
 TIME_COLUMNS = ["time_s", "time_s_iqr", "render_s", "gradient_s", "total_s"]
-TEMPORAL = ("t_rmse", "tpsnr", "cvvdp")
+#: The sequence-only metrics (temporal and video records).
+TEMPORAL = records.sequence_metrics()
 #: Every metric column of a cell: the verdicts' metrics and the sequence-only ones they lack.
 COLUMNS = METRICS + tuple(m for m in TEMPORAL if m not in METRICS)
 EQUAL_TIME_METRICS = ("rmse", "relmse", "rmse_surface")
@@ -218,8 +220,7 @@ def headline_table(df: pd.DataFrame, spp: int) -> pd.DataFrame:
     d = df[df.spp == spp]
     if d.empty:
         return d
-    cols = [c for c in ("scene", "method", "rmse", "rmse_surface", "relmse", "ssim", "flip",
-                        "time_s") if c in d.columns]
+    cols = [c for c in ("scene", "method", *HEADLINE) if c in d.columns]
     return d[cols].sort_values(["scene", "method"]).reset_index(drop=True)
 
 
@@ -229,9 +230,9 @@ def write_tables(df: pd.DataFrame, out: Path) -> dict[str, Path]:
     from .verdicts import ref_noise_frame
 
     paths = {}
+    every_cell = records.judged()  # written even when no cell has a value
     for metric in COLUMNS:
-        if metric in df.columns and (df[metric].notna().any() or metric in (
-                "rmse", "relmse", "smape", "psnr", "ssim", "flip")):
+        if metric in df.columns and (df[metric].notna().any() or metric in every_cell):
             p = out / f"convergence_{metric}.csv"
             write_csv(p, convergence_table(df, metric))
             paths[f"convergence_{metric}"] = p

@@ -16,7 +16,8 @@ Conventions:
   interval (one seed on an image too small for the block bootstrap, README.md "Metrics")
   cannot tell two means apart, so it ties ("no interval") and is shown as ``± n/a``; the best
   entry of a column and every entry tied with it are marked in bold;
-* lower is better except for PSNR, SSIM (and their surface variants) and tPSNR.
+* lower is better except where the metric's record says higher (dbench/metrics/records.py:
+  PSNR, SSIM and their surface forms, tPSNR, ColorVideoVDP's JOD).
 
 The ranked tables and the verdict words built on these (report.md, the README, the terminal)
 are in dbench/report/headline.py.
@@ -29,53 +30,62 @@ from typing import Any, Iterable, Sequence
 import numpy as np
 import pandas as pd
 
-from ..metrics.video_quality import CVVDP_DEFINITION
+from ..metrics import records
+
+#: Metric columns of a cell (each with a ``_ci`` half-width column), from the metric records.
+METRICS = records.cell_columns()
+#: Every metric where a larger value is better, from the metric records.
+HIGHER_IS_BETTER = records.higher_is_better_names()
+#: The time column every headline table ends with (not a metric: no record).
+TIME = "time_s"
 
 
-#: Metric columns of a cell (each with a ``_ci`` half-width column).
-METRICS = ("rmse", "relmse", "smape", "psnr", "ssim", "flip",
-           "rmse_surface", "relmse_surface", "smape_surface", "psnr_surface", "ssim_surface",
-           "flip_surface", "top1_share", "rmse_unbiased", "relmse_unbiased", "t_rmse", "tpsnr",
-           "cvvdp")
-HIGHER_IS_BETTER = frozenset({"psnr", "ssim", "psnr_surface", "ssim_surface", "tpsnr",
-                              "cvvdp"})
+def headline_columns(run: str) -> tuple[str, ...]:
+    """Columns of the headline table of a ``run`` ("steady", "sequence", "transient"): the
+    metrics whose records name that run, then :data:`TIME`."""
+    return records.headline(run) + (TIME,)
+
+
 #: Columns of the headline table.
-HEADLINE = ("rmse", "rmse_surface", "relmse", "ssim", "flip", "time_s")
+HEADLINE = headline_columns("steady")
 #: Warn when the reference's MSE exceeds this share of a method's MSE.
 REF_SHARE = 0.1
 NOISY = "noisy"
 
-#: One line per quantity the verdicts use that :data:`dbench.metrics.DEFINITIONS` may lack.
-DEFINITIONS = {
-    "surface": ("`<metric>_surface` (rmse_surface, relmse_surface, smape_surface, psnr_surface, "
-                "ssim_surface, flip_surface): the metric over surface pixels only, pixels whose "
-                "emitter fraction is 0 (lights seen directly or in smooth mirrors excluded)"),
-    "top1_share": ("top1_share = Σ of the largest 1 % of per-pixel squared errors / Σ of all; "
-                   "near 1: a few pixels decide the MSE"),
-    "rmse_unbiased": ("rmse_unbiased = sqrt(max(0, MSE − mean v_r)), v_r the per-pixel variance "
-                      "of the reference mean: the error against the converged image with the "
-                      "reference's own noise removed"),
-    "relmse_unbiased": ("relmse_unbiased = relMSE − mean(v_r / (r² + ε)): first-order "
-                        "correction (r is in the denominator; accurate when v_r ≪ r² + ε)"),
-    "ref_rmse": ("ref_rmse = sqrt(mean v_r), the estimated RMSE of the reference itself; a "
-                 "warning is printed when the reference's relMSE over surface pixels, "
-                 "mean(v_r / (r² + ε)), exceeds 0.1 · relmse_surface of a method (cells "
-                 "without it: ref_rmse² > 0.1 · MSE)"),
-    "cvvdp": CVVDP_DEFINITION,
-    "ci": ("intervals: with N > 1 seeds, Student t over seeds, mean ± t_{0.975,N−1} · s / √N "
-           "(the shared reference's error is not in it; see ref_rmse); with one seed, a block "
-           "bootstrap percentile interval over B × B pixel blocks (B = 16 where 16 such "
-           "blocks fit, else the largest B ≥ 4 that gives 16; on smaller images no interval, "
-           "shown as ± n/a); `time_s` shows the median "
-           "denoise time ± half its interquartile range. Two methods tie when the t-interval "
-           "of their differences seed by seed (both ran on the same noisy renders) includes "
-           "0; without two common seeds, when their intervals overlap, or when either has "
-           "no interval (a missing interval never makes a method better)"),
-}
+#: The verdicts' own quantities that are not metrics: the reference's estimated error and the
+#: intervals.
+REF_RMSE_DEFINITION = (
+    "ref_rmse = sqrt(mean v_r), the estimated RMSE of the reference itself; a warning is "
+    "printed when the reference's relMSE over surface pixels, mean(v_r / (r² + ε)), exceeds "
+    "0.1 · relmse_surface of a method (cells without it: ref_rmse² > 0.1 · MSE)")
+CI_DEFINITION = (
+    "intervals: with N > 1 seeds, Student t over seeds, mean ± t_{0.975,N−1} · s / √N "
+    "(the shared reference's error is not in it; see ref_rmse); with one seed, a block "
+    "bootstrap percentile interval over B × B pixel blocks (B = 16 where 16 such "
+    "blocks fit, else the largest B ≥ 4 that gives 16; on smaller images no interval, "
+    "shown as ± n/a); `time_s` shows the median "
+    "denoise time ± half its interquartile range. Two methods tie when the t-interval "
+    "of their differences seed by seed (both ran on the same noisy renders) includes "
+    "0; without two common seeds, when their intervals overlap, or when either has "
+    "no interval (a missing interval never makes a method better)")
+
+
+def definitions() -> dict[str, str]:
+    """One line per quantity the reports define, in order: every metric record's (the image
+    metrics, ``surface`` for their surface forms, the judge's figures), ``ref_rmse``, the
+    sequence metrics', ``ci``."""
+    image = records.definitions(("image",))
+    rest = {k: v for k, v in records.definitions().items() if k not in image}
+    return {**image, "ref_rmse": REF_RMSE_DEFINITION, **rest, "ci": CI_DEFINITION}
+
+
+#: :func:`definitions` when the package was loaded.
+DEFINITIONS = definitions()
 
 
 def higher_is_better(metric: str) -> bool:
-    return metric in HIGHER_IS_BETTER
+    """The direction of ``metric`` from its record (unknown names, ``time_s``: lower)."""
+    return records.higher_is_better(metric)
 
 
 def num(v: Any) -> float:
@@ -452,7 +462,8 @@ def missing_md(missing: Sequence[tuple[str, int, str]]) -> list[str]:
             for (scene, label), s in sorted(by.items())]
 
 
-__all__ = ["METRICS", "HEADLINE", "HIGHER_IS_BETTER", "DEFINITIONS", "REF_SHARE", "NOISY", "num",
+__all__ = ["METRICS", "HEADLINE", "HIGHER_IS_BETTER", "DEFINITIONS", "TIME", "headline_columns",
+           "definitions", "REF_RMSE_DEFINITION", "CI_DEFINITION", "REF_SHARE", "NOISY", "num",
            "half_width", "fmt_value", "overlaps", "seed_values", "paired_interval", "tie",
            "TIE_WORDS", "marked", "rank_groups", "ranking_line", "ci_kind_text",
            "reference_text", "reference_summary", "ref_noise_frame",

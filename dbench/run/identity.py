@@ -164,18 +164,18 @@ def judge_version() -> str:
 
 def resolved_params(name: str, overrides: dict[str, Any] | None = None) -> dict[str, Any]:
     """The method's defaults with ``overrides`` applied (JSON-normalised)."""
-    from .. import methods
+    from .. import registry
 
-    cls = methods.method_class(name)
+    cls = registry.method_class(name)
     return _jsonable({**cls.defaults, **(overrides or {})})
 
 
 def label(name: str, overrides: dict[str, Any] | None = None) -> str:
     """``name`` when the resolved parameters equal the defaults, else
     ``name[key=value,...]`` listing the parameters that differ (sorted by key)."""
-    from .. import methods
+    from .. import registry
 
-    defaults = _jsonable(methods.method_class(name).defaults)
+    defaults = _jsonable(registry.method_class(name).defaults)
     params = resolved_params(name, overrides)
     diff = {k: v for k, v in params.items() if defaults.get(k, object()) != v}
     if not diff:

@@ -6,9 +6,11 @@ from typing import Sequence
 
 import numpy as np
 
-from ..metrics import judge
+from ..metrics import judge, records
 
-DEFAULT_METRICS = ("rmse", "relmse", "smape", "psnr", "ssim", "flip")
+#: The metrics a cell scores by default: every metric the judge scores (the metric records
+#: with a surface form).
+DEFAULT_METRICS = records.judged()
 
 
 def judge_frame(output: np.ndarray, frame, names: Sequence[str] = DEFAULT_METRICS):

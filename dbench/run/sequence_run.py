@@ -72,8 +72,8 @@ class SequenceResult:
 
 def _method(method) -> Any:
     if isinstance(method, str):
-        from .. import methods
-        return methods.get(method)
+        from .. import registry
+        return registry.get(method)
     return method
 
 
@@ -191,10 +191,10 @@ def compare(seq: Sequence, method_names: Iterable[str] = TEMPORAL_METHODS,
             params: dict[str, dict] | None = None, warmup: int = WARMUP,
             keep_outputs: bool = True) -> dict[str, SequenceResult]:
     """Run several methods on one sequence; returns {name: SequenceResult}."""
-    from .. import methods
+    from .. import registry
 
     params = params or {}
-    return {n: run_sequence(methods.get(n, **params.get(n, {})), seq, warmup=warmup,
+    return {n: run_sequence(registry.get(n, **params.get(n, {})), seq, warmup=warmup,
                             keep_outputs=keep_outputs) for n in method_names}
 
 

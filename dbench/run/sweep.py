@@ -164,7 +164,7 @@ def cell_identity(config: SweepConfig, scene, spp: int, method: str, fingerprint
                   label: str | None = None) -> dict[str, Any]:
     """Everything that changes a cell's numbers (module docstring of run/identity.py);
     ``label``: the scene's label when it is not its name (:func:`scene_labels`)."""
-    from .. import datasets, methods as registry
+    from .. import datasets, registry
 
     transform = config.transform or ("identity" if scene.kind == "transient" else "box-cox")
     return {"scene": label or scene.name, "scene_fingerprint": fingerprint, "kind": scene.kind,
@@ -193,7 +193,7 @@ def plan(config: SweepConfig, out: Path
     label was computed with another identity (changed defaults, code, reference spp...) and
     ``config.rerun`` is false.
     """
-    from .. import datasets, methods as registry
+    from .. import datasets, registry
 
     labels = config.labels()
     groups, done, skipped, conflicts = [], 0, 0, []
@@ -295,7 +295,7 @@ def cell_record(res, frames: list, needs: set[str]) -> dict[str, Any]:
 def run_group(config: SweepConfig, out: str, scene_name: str, spp: int,
               method_names: list[str]) -> list[str]:
     """Load one frame per seed and run the given methods on them, writing one cell file each."""
-    from .. import datasets, methods as registry
+    from .. import datasets, registry
     from .harness import run_cell, run_sequence_cell
 
     out_path = Path(out)
@@ -363,7 +363,7 @@ def _prerender_references(config: SweepConfig, scenes: Iterable[str],
 def run_group_with_plugins(plugin_specs: Sequence[str], config: SweepConfig, out: str,
                            scene_name: str, spp: int, method_names: list[str]) -> list[str]:
     """:func:`run_group` after loading the parent's plugins (a Ray task's start-up)."""
-    from .. import plugins
+    from .. import plugins, registry  # noqa: F401 - the built-in methods before the plugins
 
     plugins.worker_init(plugin_specs)
     return run_group(config, out, scene_name, spp, method_names)

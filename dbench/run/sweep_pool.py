@@ -32,7 +32,7 @@ def worker_start(plugin_specs: Sequence[str] = ()) -> None:
     """Process-pool initializer: ignore Ctrl-C (the sweep process stops the pool), die with
     the parent, then load the parent's plugins (entry points, $DBENCH_PLUGINS and every
     --plugin), so the worker can build plugin methods."""
-    from .. import plugins
+    from .. import plugins, registry  # noqa: F401 - the built-in methods before the plugins
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     _die_with_parent()

@@ -75,10 +75,10 @@ def _available(frame) -> set[str]:
 
 def _host_run(name: str, frame, repeats: int) -> tuple[float, np.ndarray]:
     """(median seconds, output) of the host path (numba where the method has it)."""
-    from .. import methods
+    from .. import registry
     from ..run.sequence_run import WARMUP
 
-    m = methods.get(name)
+    m = registry.get(name)
     if _temporal(m):
         m.reset()
         for _ in range(WARMUP):
@@ -127,10 +127,10 @@ def device_run(name: str, frame, device: str, repeats: int, params: dict | None 
     """A method's device path on ``frame``: median synchronised time after warm-up, the
     copies, launches and copies per call (CUDA), its output; ``{"device_path": False}`` when
     the method (with ``params``) has none."""
-    from .. import methods
+    from .. import registry
     from ..run.sequence_run import WARMUP
 
-    m = methods.get(name, **(params or {}))
+    m = registry.get(name, **(params or {}))
     if not m.runs_on_device():
         return {"device_path": False}
     data, upload_s = timed(lambda: upload(frame, device, m.wants(_available(frame))), device)
@@ -156,10 +156,10 @@ def _nonfinite_on_hostile(name: str, height: int, width: int, device: str,
                           frame=None) -> int | None:
     """Non-finite output values of the device path on ``frame`` (default: the hostile
     :func:`synthetic_frame` of that size)."""
-    from .. import methods
+    from .. import registry
     from ..run.sequence_run import WARMUP
 
-    m = methods.get(name)
+    m = registry.get(name)
     if not m.runs_on_device():
         return None
     frame = synthetic_frame(height, width, hostile=True) if frame is None else frame
@@ -259,7 +259,7 @@ def _transient_row(device: str, repeats: int, host_repeats: int, height: int, wi
     """The transient statistical denoiser (its defaults: r_s = 5, r_t = 1) on a
     :data:`TRANSIENT_SIZE` video, timed and checked as the other rows, against
     :data:`TRANSIENT_TARGET_MS` on a GPU (none for a dry run's tiny video)."""
-    from .. import methods
+    from .. import registry
 
     h, w, t = TRANSIENT_SIZE if device == "cuda" else (min(height, 8), min(width, 12), 2)
     row: dict[str, Any] = {"method": f"statistical (transient {h}x{w}x{t})",
@@ -279,7 +279,7 @@ def _transient_row(device: str, repeats: int, host_repeats: int, height: int, wi
                                                              frame=hostile)
             # the host path's own count on the same video, so a device count is read against
             # what the host does (both rescale huge planes: only the NaN voxel should remain)
-            host_hostile = fpenv.denoise(methods.get("statistical"), hostile)
+            host_hostile = fpenv.denoise(registry.get("statistical"), hostile)
             row["hostile_nonfinite_host"] = int((~np.isfinite(np.asarray(host_hostile))).sum())
             row["speedup_vs_host"] = host_s / row["time_s"]
     except Exception as exc:  # noqa: BLE001 - recorded as the row

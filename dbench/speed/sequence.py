@@ -27,7 +27,7 @@ def benchmark(height: int = 720, width: int = 1280, repeats: int = 6,
     import os
     import resource
 
-    from .. import methods
+    from .. import registry
     from ..run.machine import machine_info
 
     params = params or {}
@@ -47,7 +47,7 @@ def benchmark(height: int = 720, width: int = 1280, repeats: int = 6,
     except ImportError:  # pragma: no cover
         pass
     try:
-        _bench_methods(out, seq, method_names, params, methods, resource)
+        _bench_methods(out, seq, method_names, params, registry, resource)
     finally:
         if old_threads is not None:
             import numba
@@ -56,9 +56,9 @@ def benchmark(height: int = 720, width: int = 1280, repeats: int = 6,
     return out
 
 
-def _bench_methods(out, seq, method_names, params, methods, resource) -> None:
+def _bench_methods(out, seq, method_names, params, registry, resource) -> None:
     for name in method_names:
-        m = methods.get(name, **params.get(name, {}))
+        m = registry.get(name, **params.get(name, {}))
         m.reset()
         walls, cpus = [], []
         for i, frame in enumerate(seq):

@@ -22,8 +22,9 @@ import numpy as np
 
 from ..data import SampleStats
 from ..methods.kernels.bilateral.guide import make_guide
-from ..methods.statistical.core import (resolve_threshold, stat_planes, statistical_fast,
-                                        statistical_reference)
+from ..methods.statistical.fast import statistical_fast
+from ..methods.statistical.params import resolve_threshold
+from ..methods.statistical.reference import stat_planes, statistical_reference
 from ..run import fpenv
 from .timing import median_time
 from ..synthetic import synthetic_frame
@@ -251,7 +252,7 @@ def end_to_end(scene: str = "cornell-transient", res: int = 64,
     Renders through :func:`dbench.datasets.load` (cached; set DBENCH_CACHE). Methods that are not
     registered are skipped.
     """
-    from .. import datasets, methods as _methods  # noqa: F401  (registers every method)
+    from .. import datasets  # noqa: F401  (the catalogue; dbench.registry registers the methods)
     from ..registry import available, get
 
     rows = []

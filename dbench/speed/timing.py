@@ -120,12 +120,12 @@ def bench_method(name: str, height: int = 720, width: int = 1280, repeats: int =
     ``spp`` samples (a method whose settings follow the spp, like ``nca``'s step count, takes
     them from it), built with ``params``; OIDN timed in the same run. On a GPU:
     :func:`dbench.speed.gpu.bench_method_device`."""
-    from .. import methods
+    from .. import registry
     from ..synthetic import base_frame
 
     # the frame says its spp as a rendered frame does (meta), for methods that follow it
     frame = base_frame(height, width, spp=spp).with_buffers(meta={"spp": spp})
-    method = methods.get(name, **(params or {}))
+    method = registry.get(name, **(params or {}))
     if "steady" not in method.kinds and "sequence" in method.kinds:
         # A temporal method is timed per frame in steady state: zero motion (static camera) and
         # an unchanged-light gradient frame, so every call reprojects history, after the
@@ -156,7 +156,7 @@ def bench_method(name: str, height: int = 720, width: int = 1280, repeats: int =
         share = paired_share(*rounds)
     else:
         t_method = median_time(lambda: run(method), repeats)
-    oidn = methods.get("oidn")
+    oidn = registry.get("oidn")
     t_oidn = median_time(lambda: fpenv.denoise(oidn, frame), repeats)
     result: dict[str, Any] = {"benchmark": "method", "method": name, "height": height,
                               "width": width, "spp": spp, "params": method.params,

@@ -18,7 +18,7 @@ history) are judged separately and must both pass.
 
 Anything else fails: another exception, a wrong shape or dtype, NaN spread, or more than
 ``TIME_LIMIT_S`` seconds on a tiny image. ``dbench stress`` writes ``results/stress.md``; the same
-cases run in pytest (tests/test_stress.py).
+cases run in pytest (tests/stress/test_stress.py).
 """
 from __future__ import annotations
 

@@ -25,16 +25,16 @@ SUFFIX = " [device form]"
 
 def device_methods() -> list[str]:
     """Registered methods with a device path, sorted."""
-    from .. import methods
-    return sorted(n for n in methods.available() if methods.method_class(n).has_device_path())
+    from .. import registry
+    return sorted(n for n in registry.available() if registry.method_class(n).has_device_path())
 
 
 def run_device_case(method_name: str, case: Case) -> Outcome:
     """:func:`dbench.stress.runner.run_case` for the device path of ``method_name`` on CPU
     tensors (sequence methods: two calls after ``reset()``, both judged)."""
-    from .. import methods
+    from .. import registry
 
-    method = methods.get(method_name, **DEVICE_FORM_PARAMS.get(method_name, {}))
+    method = registry.get(method_name, **DEVICE_FORM_PARAMS.get(method_name, {}))
     used = set(method.needs) | set(getattr(method, "optional_needs", ()))
     if case.needs_buffer is not None and case.needs_buffer not in used and not case.all_methods:
         return Outcome("n/a", f"{method_name} does not use {case.needs_buffer}")

@@ -26,9 +26,9 @@ def run_case(method_name: str, case: Case) -> Outcome:
     """Run ``case`` on a fresh ``method_name``. Sequence methods get ``reset()`` and then the
     frame twice: the first call (empty history: spatial estimates, first-frame paths) and the
     second (reprojected history) are judged separately; both must pass."""
-    from .. import methods
+    from .. import registry
 
-    method = methods.get(method_name)
+    method = registry.get(method_name)
     used = set(method.needs) | set(getattr(method, "optional_needs", ()))
     if case.needs_buffer is not None and case.needs_buffer not in used \
             and not case.all_methods:
@@ -111,11 +111,11 @@ def _judge(frame: Frame, out: np.ndarray, seconds: float) -> Outcome:
 def default_methods() -> list[str]:
     """Every registered method and the ``NAME+gate`` variant of each steady one (``noisy``
     aside: its gate is the identity), sorted."""
-    from .. import methods
+    from .. import registry
 
-    names = methods.available()
+    names = registry.available()
     gated = [f"{n}+gate" for n in names
-             if n != "noisy" and "steady" in methods.method_class(n).kinds]
+             if n != "noisy" and "steady" in registry.method_class(n).kinds]
     return sorted(names + gated)
 
 

@@ -104,7 +104,7 @@ def run(n_scenes: int = 8, seeds: tuple[int, ...] = (0, 1), variants=VARIANTS,
         progress: bool = True, skip: int = 0) -> list[dict[str, Any]]:
     """Rows ``{scene, seed, label, method, params, rmse, rmse_surface, relmse}`` on the
     sequences of :func:`dev_sequences`."""
-    from .. import methods
+    from .. import registry
     from ..datasets.sequence import load_sequence
     from ..run.sequence_run import run_sequence
 
@@ -114,7 +114,7 @@ def run(n_scenes: int = 8, seeds: tuple[int, ...] = (0, 1), variants=VARIANTS,
             seq = load_sequence(scene, spp=1, res=RES, seed=seed, ref_spp=REF_SPP,
                                 progress=False)
             for label, name, params in variants:
-                s = run_sequence(methods.get(name, **params), seq,
+                s = run_sequence(registry.get(name, **params), seq,
                                  metric_names=("rmse", "rmse_surface", "relmse")).summary
                 rows.append({"scene": scene.name, "seed": seed, "label": label, "method": name,
                              "params": params, "rmse": s["mean_rmse"],

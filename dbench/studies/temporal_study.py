@@ -96,7 +96,7 @@ def run(res: Any = 64, seeds: tuple[int, ...] = (0, 1, 2), scenes=tuple(SCENES),
     ``rmse_after_change``, the 5 frames from a light change, where the scene has one) for every
     variant, scene and seed. ``res``: a side or (width, height), as ``datasets.load`` takes it;
     ``settings``: {scene: (frames, reference spp)}, :data:`SCENES` by default."""
-    from .. import datasets, methods
+    from .. import datasets, registry
     from ..run.sequence_run import run_sequence, window_mean
 
     rows = []
@@ -106,7 +106,7 @@ def run(res: Any = 64, seeds: tuple[int, ...] = (0, 1, 2), scenes=tuple(SCENES),
             seq = datasets.load(scene, spp=1, res=res, frames=frames, ref_spp=ref_spp, seed=seed,
                                 progress=False)
             for label, name, params in variants:
-                r = run_sequence(methods.get(name, **params), seq,
+                r = run_sequence(registry.get(name, **params), seq,
                                  metric_names=("rmse", "rmse_surface", "relmse"))
                 row = {"scene": scene, "label": label, "method": name, "params": params,
                        "seed": seed, "rmse": r.summary["mean_rmse"],

@@ -41,7 +41,7 @@ NOTES = [
     "- Exactness: with the same seeds (1-spp passes, one camera per call) collector (b) gives "
     "bit-identical float64 power sums, `non_zero` counts, colour and moments to collector (a), "
     "for the identity and Box-Cox transforms, also on a corridor scene where next-event "
-    "estimation makes paths leave a bin and come back (tests/test_transient.py). The seed's "
+    "estimation makes paths leave a bin and come back (tests/datasets/test_transient.py). The seed's "
     "Alg. 4 as printed (flush on every bin change, `slots=1`) double-counts those paths there "
     "(`non_zero` can exceed spp).",
     "- Collector (b) keeps 2·max_depth slots per path (an emitter hit and a next-event estimate "
@@ -54,7 +54,7 @@ NOTES = [
     "vertices 1…max_depth−1). Emitters on null-BSDF shapes could exceed that: such a "
     "contribution is flushed on its own and counted in `n_overflow` (a guard that costs about "
     "5 % of a plain render). Bit-identical to collector (a) for the same seeds "
-    "(tests/test_transient_media_collector.py).",
+    "(tests/datasets/test_transient_media_collector.py).",
     "- Rendering all spp in one call (the default of `load(..., collector='b')`) gives the same "
     "statistics up to the order of the float64 atomic additions; its paths differ from (a)'s "
     "(different sample streams), which is why the cache key holds the collector.",
@@ -149,12 +149,12 @@ def video_metrics(output: np.ndarray, reference: np.ndarray, ev: float = 0.0) ->
 def run_methods(frame: TransientFrame, names: Sequence[str] = DEFAULT_METHODS,
                 repeats: int = 1) -> tuple[list[dict[str, Any]], dict[str, np.ndarray]]:
     """Run each method on ``frame``: rows of metrics + time, and the outputs."""
-    from .. import methods
+    from .. import registry
     from ..run.harness import time_call
 
     rows, outputs = [], {}
     for name in names:
-        m = methods.get(name)
+        m = registry.get(name)
         ok, why = m.applies_to(frame.kind, {b for b in ("color", "albedo", "normal", "depth",
                                                          "stats") if frame.has(b)})
         if not ok:

@@ -282,7 +282,7 @@ def test_methods_needing_the_psr_normals_are_skipped_on_other_gbuffers():
     """``geo_normal`` and ``reflected_normal`` come with the PSR render only: a BMFR preset or an
     SVGF ``normal_buffer`` that reads them needs them, and is skipped on `matched` and
     `supersampled` scenes before anything is rendered; the default PSR scene provides them."""
-    from dbench import datasets, methods
+    from dbench import datasets, registry
 
     psr = datasets.get_scene("orbit")
     assert {"geo_normal", "reflected_normal"} <= set(psr.provides)
@@ -294,11 +294,11 @@ def test_methods_needing_the_psr_normals_are_skipped_on_other_gbuffers():
                                      ("svgf", {"normal_buffer": "geo_normal"}, "geo_normal"),
                                      ("asvgf", {"normal_buffer": "reflected_normal"},
                                       "reflected_normal")):
-            m = methods.get(name, **params)
+            m = registry.get(name, **params)
             ok, why = m.applies_to(other.kind, set(other.provides))
             assert not ok and buffer in why
             assert m.applies_to(psr.kind, set(psr.provides))[0]
-        assert methods.get("bmfr").applies_to(other.kind, set(other.provides))[0]
+        assert registry.get("bmfr").applies_to(other.kind, set(other.provides))[0]
     assert datasets.get_scene("orbit", {"gbuffer": "psr-glossy"}).provides == psr.provides
 
 

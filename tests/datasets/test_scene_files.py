@@ -111,7 +111,7 @@ def test_xml_scene_keeps_its_view_and_max_depth_and_keys_its_assets(renderer, tm
 
 
 def test_xml_scene_runs_every_steady_method_at_a_non_square_size(renderer, tmp_path):
-    from dbench import io, methods
+    from dbench import io, registry
     from dbench.registry import method_class
     path = _write_xml(tmp_path)
     out = tmp_path / "run"
@@ -119,7 +119,7 @@ def test_xml_scene_runs_every_steady_method_at_a_non_square_size(renderer, tmp_p
                  "--spp", "4", "--res", "40x24", "--ref-spp", "32", "--repeats", "1",
                  "--quiet", "--cache", str(tmp_path / "c"), "--out", str(out)]) == 0
     table = pd.read_csv(out / "metrics.csv")
-    steady = [m for m in methods.available() if "steady" in method_class(m).kinds]
+    steady = [m for m in registry.available() if "steady" in method_class(m).kinds]
     assert set(steady) <= set(table["base_method"])
     assert set(table["res"].astype(str)) == {"40x24"}
     for m in table["method"]:
@@ -242,7 +242,7 @@ def test_sweep_over_a_scene_file_and_a_folder(renderer, tmp_path):
 
 
 def test_exported_sequence_reads_back_as_a_sequence(renderer, tmp_path):
-    from dbench import datasets, methods
+    from dbench import datasets, registry
     from dbench.run.harness import run_sequence_cell
     from dbench.datasets import scenes
     folder = tmp_path / "seq"
@@ -261,7 +261,7 @@ def test_exported_sequence_reads_back_as_a_sequence(renderer, tmp_path):
         np.testing.assert_array_equal(a.color, b.color)
         np.testing.assert_array_equal(a.reference, b.reference)
         np.testing.assert_array_equal(a.motion, b.motion)
-    result = run_sequence_cell(methods.get("accumulate"), [seq], warmup=1)
+    result = run_sequence_cell(registry.get("accumulate"), [seq], warmup=1)
     assert not result.skipped and np.isfinite(result.metrics["rmse"])
 
 

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from dbench import methods
+from dbench import registry
 from dbench.data import Frame
 from dbench.errors import DbenchInputError
 from dbench.methods import temporal as T
@@ -33,7 +33,7 @@ def _random_geometry(rng, h, w, motion_scale=1.5):
 def test_static_accumulation_is_the_arithmetic_mean_and_population_variance():
     rng = np.random.default_rng(0)
     frames = [_flat(6, 7, rng.random((6, 7, 3)) * 3) for _ in range(20)]
-    m = methods.get("accumulate")
+    m = registry.get("accumulate")
     m.reset()
     for f in frames:
         out = m.denoise(f)
@@ -50,7 +50,7 @@ def test_history_cap_256():
     for i in range(300):  # 300 static frames through the accumulation kernel
         acc, n, a = T.accumulate_fast(np.ones((3, 2, 2), np.float32), acc, n, ok if i else ~ok)
     assert (n == 256).all() and np.allclose(a, 1 / 256)
-    m = methods.get("accumulate", n_max=4)  # the method honours its cap
+    m = registry.get("accumulate", n_max=4)  # the method honours its cap
     m.reset()
     f = _flat(2, 2, np.ones((2, 2, 3)))
     for _ in range(6):
@@ -176,7 +176,7 @@ def test_fallback_kernel_and_normalised_fallback():
 
 def test_disocclusion_resets_history():
     h, w = 6, 7
-    m = methods.get("accumulate")
+    m = registry.get("accumulate")
     m.reset()
     first = _flat(h, w, np.ones((h, w, 3)))
     first.depth[:4, :4] = 0  # background in frame 0 (a block larger than the 3×3 search)
@@ -222,7 +222,7 @@ def test_behind_previous_camera_is_never_valid():
     pos[0, 0] = (0.0, 0.0, 3.0)
     mot = motion_vectors(pos, np.ones((4, 4)), cam, cam)
     assert np.isnan(mot[1:, :]).all() and np.isfinite(mot[0, 0]).all()
-    m = methods.get("accumulate")
+    m = registry.get("accumulate")
     m.reset()
     m.denoise(_flat(4, 4, np.ones((4, 4, 3))))
     f = _flat(4, 4, np.full((4, 4, 3), 3.0))
@@ -235,7 +235,7 @@ def test_behind_previous_camera_is_never_valid():
 # -- policies and errors -----------------------------------------------------------------------
 
 def test_non_finite_pixels_are_missing_and_never_spread():
-    m = methods.get("accumulate")
+    m = registry.get("accumulate")
     m.reset()
     c = np.ones((5, 5, 3), np.float32)
     c[2, 2] = np.nan
@@ -255,7 +255,7 @@ def test_non_finite_pixels_are_missing_and_never_spread():
 
 
 def test_without_motion_every_frame_is_a_first_frame():
-    m = methods.get("accumulate")
+    m = registry.get("accumulate")
     m.reset()
     f = Frame(color=np.ones((3, 3, 3)), depth=np.ones((3, 3, 1)),
               normal=np.tile([0, 0, 1.0], (3, 3, 1)), position=np.zeros((3, 3, 3)))
@@ -271,21 +271,21 @@ def test_bad_shapes_name_the_buffer(buffer, bad):
     f = _flat(4, 4, np.ones((4, 4, 3)))
     object.__setattr__(f, buffer, bad)
     with pytest.raises(DbenchInputError, match=buffer):
-        methods.get("accumulate").denoise(f)
+        registry.get("accumulate").denoise(f)
 
 
 def test_missing_position_is_named():
     f = Frame(color=np.ones((3, 3, 3)), depth=np.ones((3, 3, 1)),
               normal=np.tile([0, 0, 1.0], (3, 3, 1)))
     with pytest.raises(DbenchInputError, match="position"):
-        methods.get("accumulate").denoise(f)
+        registry.get("accumulate").denoise(f)
 
 
 def test_bad_parameters():
     with pytest.raises(DbenchInputError, match="alpha_min"):
-        methods.get("accumulate", alpha_min=2)
+        registry.get("accumulate", alpha_min=2)
     with pytest.raises(DbenchInputError, match="backend"):
-        methods.get("accumulate", backend="cuda-please")
+        registry.get("accumulate", backend="cuda-please")
 
 
 # -- the PyTorch backend (CPU tensors here; CUDA when present) ---------------------------------
@@ -343,8 +343,8 @@ def test_torch_reproject_and_accumulate_equal_reference():
 
 
 def test_torch_backend_equals_reference_over_a_hard_sequence():
-    a = methods.get("accumulate", backend="torch")
-    b = methods.get("accumulate", backend="reference")
+    a = registry.get("accumulate", backend="torch")
+    b = registry.get("accumulate", backend="reference")
     a.reset()
     b.reset()
     seen = set()
@@ -362,8 +362,8 @@ def test_auto_backend_is_numba_without_cuda(monkeypatch):
 
     monkeypatch.setattr(torch.cuda, "is_available", lambda: False)
     assert T.resolve_backend("auto") == "numba"
-    assert methods.get("accumulate").backend == "numba"
-    assert methods.get("accumulate", backend="auto").params["backend"] == "numba"
+    assert registry.get("accumulate").backend == "numba"
+    assert registry.get("accumulate", backend="auto").params["backend"] == "numba"
     # with a GPU too: "auto" is the host's compiled path; the GPU runs the device path
     # (denoise_device, docs/gpu.md), not the host-side torch backend
     monkeypatch.setattr(torch.cuda, "is_available", lambda: True)
@@ -371,15 +371,15 @@ def test_auto_backend_is_numba_without_cuda(monkeypatch):
     with pytest.raises(DbenchInputError, match="backend"):
         T.resolve_backend("cuda")
     with pytest.raises(DbenchInputError, match="backend"):
-        methods.get("accumulate", backend="torch-cuda")
+        registry.get("accumulate", backend="torch-cuda")
 
 
 def test_fused_numba_frame_equals_reference_over_a_hard_sequence():
     """The Numba backend's fused accumulation (accumulate/fast.py) against the readable chain:
     outputs (NaN where both are missing), N, status and variance over disocclusions, missing
     samples and the 3×3 fallback."""
-    a = methods.get("accumulate", backend="numba")
-    b = methods.get("accumulate", backend="reference")
+    a = registry.get("accumulate", backend="numba")
+    b = registry.get("accumulate", backend="reference")
     a.reset()
     b.reset()
     for f in hard_sequence():

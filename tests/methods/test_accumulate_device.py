@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 import torch
 
-from dbench import methods
+from dbench import registry
 from dbench.device import download, upload
 from dbench.errors import DbenchInputError
 from device_checks import host_conversions_refused  # pytest puts this folder on sys.path
@@ -30,8 +30,8 @@ def _with_camera(seq):
 
 def _run_both(frames, **params):
     """Yields (host output, device output as NumPy, host method, device method) per frame."""
-    host = methods.get("accumulate", backend="numba", **params)
-    dev = methods.get("accumulate", **params)
+    host = registry.get("accumulate", backend="numba", **params)
+    dev = registry.get("accumulate", **params)
     host.reset()
     dev.reset()
     for f in frames:
@@ -87,13 +87,13 @@ def test_hostile_inputs_finite_where_the_host_is(taa):
 
 def test_reset_clears_the_device_history():
     seq = hard_sequence(12, 16, frames=3, fractional=False)
-    dev = methods.get("accumulate")
+    dev = registry.get("accumulate")
     dev.reset()
     for f in seq:
         dev.denoise_device(upload(f, "cpu"))
     dev.reset()
     again = download(dev.denoise_device(upload(seq[1], "cpu")))
-    fresh = methods.get("accumulate")
+    fresh = registry.get("accumulate")
     fresh.reset()
     first = download(fresh.denoise_device(upload(seq[1], "cpu")))
     np.testing.assert_array_equal(again, first)
@@ -102,7 +102,7 @@ def test_reset_clears_the_device_history():
 
 def test_no_numpy_conversion_inside_a_call(monkeypatch):
     frames = [upload(f, "cpu") for f in hard_sequence(12, 16, frames=3)]
-    dev = methods.get("accumulate", taa=True)
+    dev = registry.get("accumulate", taa=True)
     dev.reset()
 
     with host_conversions_refused(monkeypatch):
@@ -112,13 +112,13 @@ def test_no_numpy_conversion_inside_a_call(monkeypatch):
 
 
 def test_device_path_declared_and_reference_refused():
-    cls = type(methods.get("accumulate"))
+    cls = type(registry.get("accumulate"))
     assert cls.device_backend == "triton" and cls.has_device_path()
-    m = methods.get("accumulate", backend="reference")
+    m = registry.get("accumulate", backend="reference")
     assert not m.runs_on_device()
     with pytest.raises(DbenchInputError, match="backend"):
         m.denoise_device(upload(hard_sequence(4, 4, frames=1)[0], "cpu"))
     f = upload(hard_sequence(4, 4, frames=1)[0], "cpu")
     del f.buffers["position"]
     with pytest.raises(DbenchInputError, match="position"):
-        methods.get("accumulate").denoise_device(f)
+        registry.get("accumulate").denoise_device(f)

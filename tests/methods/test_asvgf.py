@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from dbench import methods
+from dbench import registry
 from dbench.synthetic import synthetic_sequence
 from dbench.data import Frame, Sequence
 from dbench.errors import DbenchInputError
@@ -68,14 +68,14 @@ def _static(h, w, frames, off_at=None, seed=0):
 
 def test_static_scene_has_no_gradient_and_history_grows():
     seq = _static(12, 12, 10)
-    m = methods.get("asvgf", alpha_floor=False)  # the seed's rule: α = 1/N'
+    m = registry.get("asvgf", alpha_floor=False)  # the seed's rule: α = 1/N'
     m.reset()
     for i, f in enumerate(seq):
         m.denoise(f)
         if i >= 1:
             assert m.last["gradient"].mean() < 0.05
     assert np.allclose(m.last["n"], 10) and np.allclose(m.last["alpha"], 0.1)
-    floored = methods.get("asvgf")  # dbench preset: α never below SVGF's α_min = 0.2
+    floored = registry.get("asvgf")  # dbench preset: α never below SVGF's α_min = 0.2
     floored.reset()
     for f in seq:
         floored.denoise(f)
@@ -99,7 +99,7 @@ def test_gradient_boost_follows_why_the_history_is_short():
     seq = _dimmed(12, 12, 14, dim_at)
     var, last = {}, []
     for boost in (False, "gradient"):
-        m = methods.get("asvgf", variance_boost=boost, iterations=0)
+        m = registry.get("asvgf", variance_boost=boost, iterations=0)
         m.reset()
         var[boost] = []
         for f in seq:
@@ -125,7 +125,7 @@ def test_gradient_boost_follows_why_the_history_is_short():
     # without the frame count (SVGF) "gradient" is "svgf"
     outs = {}
     for boost in ("svgf", "gradient"):
-        m = methods.get("svgf", variance_boost=boost)
+        m = registry.get("svgf", variance_boost=boost)
         m.reset()
         outs[boost] = [m.denoise(f) for f in seq]
     for a, b in zip(outs["svgf"], outs["gradient"]):
@@ -136,7 +136,7 @@ def test_light_off_drops_quickly_for_asvgf_and_slowly_for_svgf():
     seq = _static(15, 15, 26, off_at=12)
     drops = {}
     for name in ("asvgf", "svgf"):
-        m = methods.get(name)
+        m = registry.get(name)
         m.reset()
         means = []
         for i, f in enumerate(seq):
@@ -154,7 +154,7 @@ def test_asvgf_beats_svgf_after_a_light_change():
     seq = _static(16, 16, 20, off_at=10)
     err = {}
     for name in ("asvgf", "svgf"):
-        m = methods.get(name)
+        m = registry.get(name)
         m.reset()
         errs = [np.sqrt(((m.denoise(f) - f.reference) ** 2).mean()) for f in seq]
         err[name] = np.mean(errs[10:15])
@@ -163,7 +163,7 @@ def test_asvgf_beats_svgf_after_a_light_change():
 
 def test_paper_gradient_mode_runs_and_reacts():
     seq = _static(12, 12, 8, off_at=5)
-    m = methods.get("asvgf", gradient_mode="paper")
+    m = registry.get("asvgf", gradient_mode="paper")
     m.reset()
     for f in seq:
         m.denoise(f)
@@ -176,7 +176,7 @@ def _mean_gradient_by_mode(seq, frame: int, off_at: int | None = None) -> dict[s
     give G = 1."""
     grads = {}
     for mode in ("seed", "filtered", "filtered_abs"):
-        m = methods.get("asvgf", gradient_mode=mode)
+        m = registry.get("asvgf", gradient_mode=mode)
         m.reset()
         for i, f in enumerate(seq):
             m.denoise(f)
@@ -232,31 +232,31 @@ def test_resolved_settings_hold_the_presets_values():
     preset filled in and "auto" resolved, not the class defaults."""
     from dbench.run.harness import resolved_settings
 
-    settings = resolved_settings(methods.get("asvgf"))
+    settings = resolved_settings(registry.get("asvgf"))
     assert settings["gradient_mode"] == "seed" and settings["luminance_kernel"] == "gaussian"
     assert settings["variance_boost"] == "gradient"
     assert settings["backend"] in ("numba", "torch", "reference") and settings["alpha_floor"]
-    assert resolved_settings(methods.get("asvgf", preset="falcor"))["sigma_l"] == 10.0
-    assert resolved_settings(methods.get("asvgf", gradient_mode="filtered"))["gradient_mode"] \
+    assert resolved_settings(registry.get("asvgf", preset="falcor"))["sigma_l"] == 10.0
+    assert resolved_settings(registry.get("asvgf", gradient_mode="filtered"))["gradient_mode"] \
         == "filtered"
 
 
 def test_missing_gradient_is_named_once_there_is_history():
     seq = synthetic_sequence(6, 6, frames=2)
-    m = methods.get("asvgf")
+    m = registry.get("asvgf")
     m.reset()
     m.denoise(seq[0].with_buffers(gradient=None))  # first frame: no gradient needed
     with pytest.raises(DbenchInputError, match="gradient"):
         m.denoise(seq[1].with_buffers(gradient=None))
     with pytest.raises(DbenchInputError, match="gradient_mode"):
-        methods.get("asvgf", gradient_mode="magic")
+        registry.get("asvgf", gradient_mode="magic")
 
 
 def test_fast_equals_reference_backend():
     seq = _static(14, 17, 6, off_at=3)
     for mode in ("seed", "filtered", "filtered_abs"):
-        a = methods.get("asvgf", gradient_mode=mode)
-        b = methods.get("asvgf", backend="reference", gradient_mode=mode)
+        a = registry.get("asvgf", gradient_mode=mode)
+        b = registry.get("asvgf", backend="reference", gradient_mode=mode)
         a.reset()
         b.reset()
         for f in seq:
@@ -319,8 +319,8 @@ def test_torch_backend_equals_reference_over_a_hard_sequence(mode):
     seq = hard_sequence(frames=6, fractional=False)
     seq = [f.with_buffers(gradient=f.gradient * (1.6 if i == 4 else 1.0))  # a light change
            for i, f in enumerate(seq)]
-    a = methods.get("asvgf", backend="torch", gradient_mode=mode)
-    b = methods.get("asvgf", backend="reference", gradient_mode=mode)
+    a = registry.get("asvgf", backend="torch", gradient_mode=mode)
+    b = registry.get("asvgf", backend="reference", gradient_mode=mode)
     a.reset()
     b.reset()
     g_max = 0.0
@@ -349,17 +349,17 @@ def test_torch_backend_validation_and_auto(monkeypatch):
     import torch
 
     monkeypatch.setattr(torch.cuda, "is_available", lambda: False)
-    assert methods.get("asvgf").backend == "numba"
-    assert methods.get("asvgf").params["backend"] == "numba"  # recorded resolved
+    assert registry.get("asvgf").backend == "numba"
+    assert registry.get("asvgf").params["backend"] == "numba"  # recorded resolved
     with pytest.raises(DbenchInputError, match="backend"):
-        methods.get("asvgf", backend="gpu")
+        registry.get("asvgf", backend="gpu")
 
 
 def test_luminance_kernel_defaults_per_method_and_preset():
     """docs/temporal.md §13, §15: the dbench preset's Gaussian w_l for svgf and asvgf (chosen on
     sequences outside the catalogue); the paper and falcor presets keep the Laplacian; an
     explicit value wins."""
-    kernel = lambda name, **p: methods.get(name, **p).params["luminance_kernel"]  # noqa: E731
+    kernel = lambda name, **p: registry.get(name, **p).params["luminance_kernel"]  # noqa: E731
     assert kernel("svgf") == "gaussian" and kernel("asvgf") == "gaussian"
     assert kernel("svgf", preset="paper") == kernel("asvgf", preset="falcor") == "laplacian"
     assert kernel("asvgf", luminance_kernel="laplacian") == "laplacian"

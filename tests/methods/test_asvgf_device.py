@@ -4,7 +4,7 @@ the adaptive history and the rest of SVGF equal the host's numba backend frame b
 import numpy as np
 import pytest
 
-from dbench import methods
+from dbench import registry
 from dbench.device import download, upload
 from dbench.errors import DbenchInputError
 from device_checks import host_conversions_refused  # pytest puts this folder on sys.path
@@ -67,7 +67,7 @@ def test_hostile_inputs_give_finite_output_where_the_input_is_finite():
 
 def test_reset_clears_the_device_history_and_the_gradient():
     seq = list(_dimmed(12, 16, 3, dim_at=2))
-    dev = methods.get("asvgf")
+    dev = registry.get("asvgf")
     dev.reset()
     g_max = 0.0
     for f in seq:
@@ -76,7 +76,7 @@ def test_reset_clears_the_device_history_and_the_gradient():
     assert g_max > 0.2
     dev.reset()
     again = download(dev.denoise_device(upload(seq[2], "cpu")))
-    fresh = methods.get("asvgf")
+    fresh = registry.get("asvgf")
     fresh.reset()
     np.testing.assert_array_equal(again, download(fresh.denoise_device(upload(seq[2], "cpu"))))
     assert (dev.last["gradient"].numpy() == 0).all() and (dev.last["n"].numpy() <= 1).all()
@@ -84,7 +84,7 @@ def test_reset_clears_the_device_history_and_the_gradient():
 
 def test_no_numpy_conversion_inside_a_call(monkeypatch):
     frames = [upload(f, "cpu") for f in rich_sequence(frames=3)]
-    dev = methods.get("asvgf", taa=True, gradient_mode="filtered")
+    dev = registry.get("asvgf", taa=True, gradient_mode="filtered")
     dev.reset()
 
     with host_conversions_refused(monkeypatch):
@@ -95,7 +95,7 @@ def test_no_numpy_conversion_inside_a_call(monkeypatch):
 
 def test_a_missing_gradient_buffer_is_named_when_it_is_needed():
     seq = hard_sequence(6, 6, frames=2)
-    dev = methods.get("asvgf")
+    dev = registry.get("asvgf")
     dev.reset()
     first = upload(seq[0], "cpu")
     del first.buffers["gradient"]

@@ -9,7 +9,7 @@ import onnxruntime as ort
 import pytest
 import torch
 
-from dbench import methods
+from dbench import registry
 from dbench.data import Frame
 from dbench.errors import DbenchInputError
 from dbench.methods.autoencoder import (SHIPPED_JSON, autoencoder_denoise, model_info,
@@ -53,7 +53,7 @@ def test_shapes_and_padding():
     xp, hh, ww = pad_to_multiple(np.zeros((9, 100, 75), np.float32))
     assert xp.shape == (9, 128, 96) and (hh, ww) == (100, 75)
     f = _frame(100, 75)
-    assert methods.get("autoencoder").denoise(f).shape == (100, 75, 3)
+    assert registry.get("autoencoder").denoise(f).shape == (100, 75, 3)
 
 
 def test_recurrence_torch():
@@ -108,13 +108,13 @@ def test_shipped_weights_onnx_equals_pytorch_over_two_frames():
 
 def test_method_state_and_reset():
     f = _frame(32, 32)
-    m = methods.get("autoencoder")
+    m = registry.get("autoencoder")
     m.reset()
     a = m.denoise(f)
     m.denoise(f)
     m.reset()
     assert np.array_equal(m.denoise(f), a)
-    flat = methods.get("autoencoder", recurrent=False)
+    flat = registry.get("autoencoder", recurrent=False)
     assert np.array_equal(flat.denoise(f), flat.denoise(f))
     with pytest.raises(DbenchInputError, match="reset"):
         m.denoise(_frame(64, 64))  # state of a 32x32 frame
@@ -124,10 +124,10 @@ def test_shipped_files_load_in_a_fresh_process():
     info = json.loads(SHIPPED_JSON.read_text())
     assert "hash" in info["data"] and "final_train_loss" in info["losses"]
     assert info["enc_widths"] == list(model_info()["enc_widths"])
-    code = ("import numpy as np; from dbench import methods; from dbench.data import Frame; "
+    code = ("import numpy as np; from dbench import registry; from dbench.data import Frame; "
             "f = Frame(color=np.ones((6, 9, 3)), albedo=np.full((6, 9, 3), .5), "
             "normal=np.ones((6, 9, 3)), depth=np.ones((6, 9, 1))); "
-            "o = methods.get('autoencoder').denoise(f); print(o.shape, bool(np.isfinite(o).all()))")
+            "o = registry.get('autoencoder').denoise(f); print(o.shape, bool(np.isfinite(o).all()))")
     res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          timeout=120)
     assert res.returncode == 0, res.stderr
@@ -136,7 +136,7 @@ def test_shipped_files_load_in_a_fresh_process():
 
 def test_denoises_a_noisy_image():
     f = _frame(64, 64)
-    out = methods.get("autoencoder").denoise(f)
+    out = registry.get("autoencoder").denoise(f)
     err = lambda a: np.sqrt(((a - f.reference) ** 2).mean())
     assert err(out) < err(f.color)
 
@@ -144,7 +144,7 @@ def test_denoises_a_noisy_image():
 @pytest.mark.parametrize("shape", [(1, 1), (1, 17), (13, 7), (33, 2)])
 def test_tiny_and_odd_sizes(shape):
     f = _frame(*shape)
-    out = methods.get("autoencoder").denoise(f)
+    out = registry.get("autoencoder").denoise(f)
     assert out.shape == (*shape, 3) and out.dtype == np.float32 and np.all(np.isfinite(out))
 
 
@@ -158,7 +158,7 @@ def test_non_finite_inputs_give_finite_output():
     normal[3, 3] = np.nan
     albedo[9, 9] = np.inf
     depth[2, 2] = np.nan
-    out = methods.get("autoencoder").denoise(f.with_buffers(color=color, normal=normal,
+    out = registry.get("autoencoder").denoise(f.with_buffers(color=color, normal=normal,
                                                             albedo=albedo, depth=depth))
     assert np.all(np.isfinite(out))
 
@@ -166,10 +166,10 @@ def test_non_finite_inputs_give_finite_output():
 def test_bad_shapes_and_missing_buffers_name_the_buffer():
     f = _frame(8, 8)
     with pytest.raises(DbenchInputError, match="depth"):
-        methods.get("autoencoder").denoise(Frame(color=f.color, albedo=f.albedo,
+        registry.get("autoencoder").denoise(Frame(color=f.color, albedo=f.albedo,
                                                  normal=f.normal))
     with pytest.raises(DbenchInputError, match="albedo"):
-        methods.get("autoencoder").denoise(Frame(color=f.color))
+        registry.get("autoencoder").denoise(Frame(color=f.color))
     with pytest.raises(DbenchInputError, match="normal"):
         autoencoder_denoise(f.color, f.albedo, f.normal[:4], f.depth)
     with pytest.raises(DbenchInputError, match="color"):
@@ -182,7 +182,7 @@ def test_shipped_model_converges_on_a_synthetic_image():
     meta). Before the consistency stage it was worse than its input at 1024 spp here."""
     from learned_checks import assert_converges
 
-    assert_converges(methods.get("autoencoder").denoise, spps=(4, 64, 256, 1024))
+    assert_converges(registry.get("autoencoder").denoise, spps=(4, 64, 256, 1024))
 
 
 def test_directly_seen_lights_keep_the_input():
@@ -195,8 +195,8 @@ def test_directly_seen_lights_keep_the_input():
     e = np.zeros((h, w, 1), np.float32)
     e[2:4, 3:6] = 1.0
     e[5, 5] = 0.25
-    plain = methods.get("autoencoder").denoise(f)
-    lit = methods.get("autoencoder").denoise(f.with_buffers(emitter=e))
+    plain = registry.get("autoencoder").denoise(f)
+    lit = registry.get("autoencoder").denoise(f.with_buffers(emitter=e))
     np.testing.assert_array_equal(lit[2:4, 3:6], f.color[2:4, 3:6].astype(np.float32))
     np.testing.assert_allclose(lit[5, 5], plain[5, 5] + 0.25 * (f.color[5, 5] - plain[5, 5]),
                                rtol=1e-5)
@@ -208,12 +208,12 @@ def test_exposure_invariance_and_spp_from_meta():
     from learned_checks import synthetic_frame
 
     f, _ = synthetic_frame(16)
-    a = methods.get("autoencoder").denoise(f)
-    b = methods.get("autoencoder").denoise(f.with_buffers(color=f.color * 1000.0))
+    a = registry.get("autoencoder").denoise(f)
+    b = registry.get("autoencoder").denoise(f.with_buffers(color=f.color * 1000.0))
     np.testing.assert_allclose(b, a * 1000.0, rtol=1e-3, atol=1e-5)
-    same = methods.get("autoencoder", spp=16).denoise(f.with_buffers(meta={}))
+    same = registry.get("autoencoder", spp=16).denoise(f.with_buffers(meta={}))
     np.testing.assert_allclose(same, a, rtol=1e-6)
-    assert not np.array_equal(methods.get("autoencoder", spp=1024).denoise(f), a)
+    assert not np.array_equal(registry.get("autoencoder", spp=1024).denoise(f), a)
 
 
 @pytest.mark.parametrize("h,w,exposure", [(37, 45, 1.0), (64, 32, 3.7), (33, 70, 0.01)])

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import torch
 
-from dbench import methods
+from dbench import registry
 from dbench.device import download, upload
 from dbench.errors import DbenchInputError
 from dbench.methods.autoencoder import SHIPPED_ONNX
@@ -54,7 +54,7 @@ def _run(method, frames, device=True):
 
 @pytest.mark.parametrize("spp", [None, 1, 1024])
 def test_sequence_equals_host_and_reset(spp):
-    host_m, dev_m = methods.get("autoencoder"), methods.get("autoencoder")
+    host_m, dev_m = registry.get("autoencoder"), registry.get("autoencoder")
     assert dev_m.device_backend == "torch" and dev_m.has_device_path()
     frames = _sequence(spp=spp)
     host, dev = _run(host_m, frames, False), _run(dev_m, frames)
@@ -64,7 +64,7 @@ def test_sequence_equals_host_and_reset(spp):
     assert all(isinstance(s, torch.Tensor) and s.device.type == "cpu" for s in dev_m._hidden)
     assert [tuple(s.shape[2:]) for s in dev_m._hidden] == [(32, 64), (16, 32), (8, 16),
                                                            (4, 8), (2, 4)]
-    assert np.abs(dev[2] - _run(methods.get("autoencoder"), frames[2:3])[0]).max() > 1e-6
+    assert np.abs(dev[2] - _run(registry.get("autoencoder"), frames[2:3])[0]).max() > 1e-6
     dev_m.reset()
     assert dev_m._hidden is None
     again = _run(dev_m, frames[:2])
@@ -74,8 +74,8 @@ def test_sequence_equals_host_and_reset(spp):
 
 def test_state_passes_between_host_and_device_paths():
     frames = _sequence(3)
-    host = _run(methods.get("autoencoder"), frames, False)
-    m = methods.get("autoencoder")
+    host = _run(registry.get("autoencoder"), frames, False)
+    m = registry.get("autoencoder")
     a = m.denoise(frames[0])
     b = download(m.denoise_device(upload(frames[1], "cpu")))
     c = m.denoise(frames[2])
@@ -87,24 +87,24 @@ def test_parameters_honoured():
     frames = _sequence(2, spp=16)
     for params in (dict(recurrent=False), dict(spp=1), dict(weights=str(SHIPPED_ONNX)),
                    dict(threads=1)):
-        host = _run(methods.get("autoencoder", **params), frames, False)
-        dev = _run(methods.get("autoencoder", **params), frames)
+        host = _run(registry.get("autoencoder", **params), frames, False)
+        dev = _run(registry.get("autoencoder", **params), frames)
         for h, d in zip(host, dev):
             np.testing.assert_allclose(d, h, rtol=RTOL, atol=ATOL, err_msg=str(params))
-    flat = methods.get("autoencoder", recurrent=False)
+    flat = registry.get("autoencoder", recurrent=False)
     _run(flat, frames)
     assert flat._hidden is None
     before = torch.get_num_threads()
-    _run(methods.get("autoencoder", threads=2), frames[:1])
+    _run(registry.get("autoencoder", threads=2), frames[:1])
     assert torch.get_num_threads() == before  # set for the call only
     # a GPU has no CPU threads to set: refused before anything runs ("meta": shapes only)
     with pytest.raises(DbenchInputError, match="threads"):
-        methods.get("autoencoder", threads=2).denoise_device(upload(frames[0], "meta"))
+        registry.get("autoencoder", threads=2).denoise_device(upload(frames[0], "meta"))
 
 
 def test_bad_input_names_the_buffer_or_the_state():
     f = _frame(8, 9)
-    m = methods.get("autoencoder")
+    m = registry.get("autoencoder")
     for missing in ("albedo", "depth", "normal"):
         names = {"color", "albedo", "normal", "depth"} - {missing}
         with pytest.raises(DbenchInputError, match=missing):
@@ -122,8 +122,8 @@ def test_huge_and_non_finite_colour_finite_where_host_is():
         color[20, 20], color[21, 21], color[22, 22] = np.nan, np.inf, -np.inf
         g = f.with_buffers(color=color)
         with np.errstate(over="ignore"):
-            host = methods.get("autoencoder").denoise(g)
-        dev = download(methods.get("autoencoder").denoise_device(upload(g, "cpu")))
+            host = registry.get("autoencoder").denoise(g)
+        dev = download(registry.get("autoencoder").denoise_device(upload(g, "cpu")))
         ok = np.isfinite(host)
         # the host path overflows where expm1(80) · a_eff is divided by the tiny exposure the
         # block causes (measured: 0.35-0.69 % of the values); the device path matches it
@@ -133,7 +133,7 @@ def test_huge_and_non_finite_colour_finite_where_host_is():
 def test_no_numpy_or_host_sync_inside_the_call(monkeypatch):
     from test_nca_device import _forbid_host_reads
 
-    m = methods.get("autoencoder")
+    m = registry.get("autoencoder")
     frames = [upload(f, "cpu") for f in _sequence(2)]
     m.denoise_device(frames[0])  # builds and caches the model (reads the .onnx) first
     assert list(m._device_nets) == ["cpu"]

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from dbench import methods
+from dbench import registry
 from dbench.run.sequence_run import run_sequence
 from dbench.synthetic import synthetic_sequence
 from dbench.errors import DbenchInputError
@@ -126,7 +126,7 @@ def test_offsets_cycle_and_cover_every_pixel():
     offs = B.grid_offsets(32, 16, seed=0)
     assert len({tuple(o) for o in offs}) == 16 and tuple(offs[0]) == (0, 0)
     assert (offs >= -16).all() and (offs < 16).all()
-    m = methods.get("bmfr")
+    m = registry.get("bmfr")
     m.reset()
     seq = synthetic_sequence(8, 8, frames=18)
     seen = []
@@ -168,7 +168,7 @@ def test_fit_fast_equals_reference_and_noise_streams_agree():
 
 def test_whole_method_backends_agree_and_output_is_non_negative():
     seq = synthetic_sequence(24, 40, frames=4)
-    a, b = methods.get("bmfr"), methods.get("bmfr", backend="reference")
+    a, b = registry.get("bmfr"), registry.get("bmfr", backend="reference")
     a.reset()
     b.reset()
     for f in seq:
@@ -187,7 +187,7 @@ def test_block_seams_fade_with_the_moving_grid():
     g = dict(albedo=np.ones((h, w, 3)), depth=np.ones((h, w, 1)),
              normal=np.tile([0, 0, 1.0], (h, w, 1)),
              position=np.dstack([x / w, y / h, np.zeros((h, w))]), motion=np.zeros((h, w, 2)))
-    m = methods.get("bmfr")
+    m = registry.get("bmfr")
     m.reset()
     outs = [m.denoise(Frame(color=clean * rng.exponential(1.0, (h, w, 1)), **g))
             for _ in range(17)]
@@ -212,11 +212,11 @@ def test_errors_and_parameters():
     for bad in (dict(features="all"), dict(block_size=1), dict(alpha1=2), dict(backend="x"),
                 dict(preset="paper-ish")):
         with pytest.raises(DbenchInputError, match=list(bad)[0]):
-            methods.get("bmfr", **bad)
-    assert methods.get("bmfr", preset="seed").params["block_size"] == 64
+            registry.get("bmfr", **bad)
+    assert registry.get("bmfr", preset="seed").params["block_size"] == 64
     f = synthetic_sequence(6, 6, frames=1)[0]
     with pytest.raises(DbenchInputError, match="position"):
-        methods.get("bmfr").denoise(f.with_buffers(position=None))
+        registry.get("bmfr").denoise(f.with_buffers(position=None))
 
 
 def test_fit_reading_normals_and_positions_directly_equals_the_stack():
@@ -281,7 +281,7 @@ def test_torch_lstsq_safeguard_and_fit_equal_reference():
 def test_whole_method_torch_equals_reference_over_a_hard_sequence():
     from test_accumulate import hard_sequence
 
-    a, b = methods.get("bmfr", backend="torch"), methods.get("bmfr", backend="reference")
+    a, b = registry.get("bmfr", backend="torch"), registry.get("bmfr", backend="reference")
     a.reset()
     b.reset()
     seen = set()
@@ -298,11 +298,11 @@ def test_torch_backend_validation_and_auto(monkeypatch):
     import torch
 
     monkeypatch.setattr(torch.cuda, "is_available", lambda: False)
-    assert methods.get("bmfr").backend == "numba"
-    assert methods.get("bmfr").params["backend"] == "numba"  # recorded resolved
-    assert methods.get("bmfr", backend="torch").backend == "torch"
+    assert registry.get("bmfr").backend == "numba"
+    assert registry.get("bmfr").params["backend"] == "numba"  # recorded resolved
+    assert registry.get("bmfr", backend="torch").backend == "torch"
     with pytest.raises(DbenchInputError, match="backend"):
-        methods.get("bmfr", backend="cuda")
+        registry.get("bmfr", backend="cuda")
     with pytest.raises(DbenchInputError, match="backend"):
         householder_lstsq(np.ones((1, 5, 2)), np.ones((1, 5, 1)), backend="cuda")
 
@@ -326,14 +326,14 @@ def test_block_sample_mask_draws_w_pixels_per_block():
 
 
 def test_seed_preset_fits_from_36_samples_and_still_beats_noisy():
-    m = methods.get("bmfr", preset="seed")
+    m = registry.get("bmfr", preset="seed")
     assert (m.params["block_size"], m.params["samples"], m.params["features"]) == (64, 36, "seed")
     seq = synthetic_sequence(64, 64, frames=10)
-    r = {n: run_sequence(methods.get(n, **kw), seq, warmup=4).summary["mean_rmse"]
+    r = {n: run_sequence(registry.get(n, **kw), seq, warmup=4).summary["mean_rmse"]
          for n, kw in (("noisy", {}), ("bmfr", dict(preset="seed")))}
     assert r["bmfr"] < r["noisy"]
     with pytest.raises(DbenchInputError, match="samples"):
-        methods.get("bmfr", samples=0)
+        registry.get("bmfr", samples=0)
 
 
 def test_temporal_gradient_drops_the_history_at_a_light_change():
@@ -343,7 +343,7 @@ def test_temporal_gradient_drops_the_history_at_a_light_change():
 
     seq = _static(16, 16, 14, off_at=10)
     for flag in (True, False):
-        m = methods.get("bmfr", temporal_gradient=flag, block_size=8)
+        m = registry.get("bmfr", temporal_gradient=flag, block_size=8)
         m.reset()
         means = []
         for i, f in enumerate(seq):
@@ -354,7 +354,7 @@ def test_temporal_gradient_drops_the_history_at_a_light_change():
             assert means[11] < 0.05 * np.mean(means[5:10])
         else:
             assert means[11] > 0.5 * np.mean(means[5:10])
-    assert "gradient" in methods.get("bmfr").optional_needs
+    assert "gradient" in registry.get("bmfr").optional_needs
 
 
 def test_reflection_feature_presets_read_their_buffers():
@@ -386,12 +386,12 @@ def test_reflection_feature_presets_read_their_buffers():
     f = synthetic_sequence(16, 16, frames=1)[0]
     for preset, buffer in (("reflected", "reflected_normal"), ("paper+geo", "geo_normal")):
         with pytest.raises(DbenchInputError, match=buffer):
-            methods.get("bmfr", features=preset).denoise(f)
+            registry.get("bmfr", features=preset).denoise(f)
     # with the buffers equal to the shading normal, "reflected" is "paper"
     g = f.with_buffers(reflected_normal=f.normal, geo_normal=f.normal)
-    outs = [methods.get("bmfr", features=p).denoise(g) for p in ("paper", "reflected")]
+    outs = [registry.get("bmfr", features=p).denoise(g) for p in ("paper", "reflected")]
     np.testing.assert_array_equal(outs[0], outs[1])
-    assert np.isfinite(methods.get("bmfr", features="reflected+geo").denoise(g)).all()
+    assert np.isfinite(registry.get("bmfr", features="reflected+geo").denoise(g)).all()
 
 
 @pytest.mark.parametrize("backend", ["numba", "reference"])
@@ -401,7 +401,7 @@ def test_without_an_emission_buffer_the_emission_history_is_left_out(backend):
     seq = synthetic_sequence(24, 40, frames=4)
     zero = np.zeros((24, 40, 3), np.float32)
     for handback in ("wiener", "none"):
-        a, b = (methods.get("bmfr", backend=backend, handback=handback) for _ in range(2))
+        a, b = (registry.get("bmfr", backend=backend, handback=handback) for _ in range(2))
         a.reset()
         b.reset()
         for f in seq:

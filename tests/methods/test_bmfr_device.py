@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 import torch
 
-from dbench import methods
+from dbench import registry
 from dbench.device import download, upload
 from dbench.errors import DbenchInputError
 from device_checks import host_conversions_refused  # pytest puts this folder on sys.path
@@ -29,8 +29,8 @@ BLOCK = 8  # 12×16 frames: 2×2 … 3×3 blocks
 def run_both(frames, **params):
     """Yields (host output, device output as NumPy, host method, device method) per frame."""
     params.setdefault("block_size", BLOCK)
-    host = methods.get("bmfr", backend="numba", **params)
-    dev = methods.get("bmfr", **params)
+    host = registry.get("bmfr", backend="numba", **params)
+    dev = registry.get("bmfr", **params)
     assert dev.runs_on_device() and dev.device_backend == "triton"
     host.reset()
     dev.reset()
@@ -103,7 +103,7 @@ def test_hostile_frames_finite_where_host_is():
 
 def test_reset_clears_device_history():
     frames = hard_sequence(12, 16, frames=2)
-    m = methods.get("bmfr", block_size=BLOCK)
+    m = registry.get("bmfr", block_size=BLOCK)
     m.reset()
     first = download(m.denoise_device(upload(frames[0], "cpu")))
     m.denoise_device(upload(frames[1], "cpu"))
@@ -116,7 +116,7 @@ def test_reset_clears_device_history():
 
 def test_no_numpy_inside_a_call(monkeypatch):
     frames = rich_sequence(2)
-    m = methods.get("bmfr", block_size=BLOCK, taa=True)
+    m = registry.get("bmfr", block_size=BLOCK, taa=True)
     m.reset()
     ups = [upload(f, "cpu") for f in frames]
 
@@ -131,7 +131,7 @@ def test_no_numpy_inside_a_call(monkeypatch):
     (dict(backend="reference"), "backend"),
 ])
 def test_unported_settings_stay_on_host(params, name):
-    m = methods.get("bmfr", **params)
+    m = registry.get("bmfr", **params)
     assert not m.runs_on_device()
     frame = hard_sequence(12, 16, frames=1)[0]
     with pytest.raises(DbenchInputError, match=name):

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from dbench import methods
+from dbench import registry
 from dbench.synthetic import synthetic_sequence
 from dbench.data import Frame
 from dbench.errors import DbenchInputError
@@ -258,16 +258,16 @@ def test_bmfr_converges_to_its_accumulation_where_the_fit_is_biased():
     the paper's output and below the first accumulation."""
     err = {}
     for rule in ("none", "wiener", "signed"):
-        m = methods.get("bmfr", handback=rule)
+        m = registry.get("bmfr", handback=rule)
         m.reset()
         for f in _shadow_sequence(48, noisy=False):
             out = m.denoise(f)
         err[rule] = float(np.sqrt(((out - f.reference) ** 2).mean()))
     assert err["none"] > 0.05 and err["wiener"] < 0.01 * err["none"]
     assert err["signed"] < 0.01 * err["none"]
-    late = {rule: _late_rmse(methods.get("bmfr", handback=rule))
+    late = {rule: _late_rmse(registry.get("bmfr", handback=rule))
             for rule in ("none", "wiener", "signed")}
-    accumulated = _late_rmse(methods.get("accumulate", alpha_min=0.2))
+    accumulated = _late_rmse(registry.get("accumulate", alpha_min=0.2))
     # with this wall's exponential noise a pixel whose recent samples were low has a low z and
     # a low variance estimate at once; the signed rule's 3×3 noise does not share that streak
     # (docs/temporal.md §17: with each pixel's own variance the lit part's error rose by half)
@@ -280,7 +280,7 @@ def test_bmfr_converges_to_its_accumulation_where_the_fit_is_biased():
 def test_backends_agree_with_the_hand_back_and_history_planes():
     from test_accumulate import hard_sequence
 
-    ms = {b: methods.get("bmfr", backend=b) for b in ("numba", "reference", "torch")}
+    ms = {b: registry.get("bmfr", backend=b) for b in ("numba", "reference", "torch")}
     for m in ms.values():
         m.reset()
     for f in hard_sequence(24, 40, frames=5):  # disocclusion, NaN/Inf colour and motion
@@ -293,7 +293,7 @@ def test_backends_agree_with_the_hand_back_and_history_planes():
     assert ms["numba"].history.buffers.shape[0] == 7 + HB.EXTRA_PLANES + 3 * emissive
     frame = synthetic_sequence(8, 8, frames=1)[0]
     for emission, planes in ((None, 7), (np.zeros((8, 8, 3), np.float32), 10)):
-        plain = methods.get("bmfr", handback="none")
+        plain = registry.get("bmfr", handback="none")
         plain.reset()
         plain.denoise(frame.with_buffers(emission=emission) if emission is not None else frame)
         assert plain.history.buffers.shape[0] == planes
@@ -301,5 +301,5 @@ def test_backends_agree_with_the_hand_back_and_history_planes():
 
 def test_handback_parameter_is_checked():
     with pytest.raises(DbenchInputError, match="handback"):
-        methods.get("bmfr", handback="pixel")
-    assert methods.get("bmfr").params["handback"] == "signed"
+        registry.get("bmfr", handback="pixel")
+    assert registry.get("bmfr").params["handback"] == "signed"

@@ -9,6 +9,8 @@ from dbench.data import Frame, SampleStats
 from dbench.denoiser import _REGISTRY, Denoiser, register
 from dbench.errors import DbenchInputError, UnknownNameError
 from dbench.methods.kernels import gate as kg
+from dbench.methods.kernels import gate_reference as kr
+from dbench.methods.kernels.variance_floor import linear_variance
 from dbench.registry import available, canonical, get, method_class
 
 from test_statistical import synthetic_case  # pytest puts this folder on sys.path
@@ -21,12 +23,12 @@ def _frame(seed=0, h=14, w=15):
 
 
 def test_gate_factor_and_check_17():
-    np.testing.assert_allclose(kg.proden_gate_factor([4.2, 3.2, 5.2]),
+    np.testing.assert_allclose(kr.proden_gate_factor([4.2, 3.2, 5.2]),
                                [0.5, 0.97725, 0.02275], atol=1e-5)
     rng = np.random.default_rng(14)
     hdr = rng.random((16, 16, 3))
     den = hdr + 0.3
-    for gate in (kg.proden_gate, kg.proden_gate_fast):
+    for gate in (kr.proden_gate, kg.proden_gate_fast):
         np.testing.assert_allclose(gate(hdr, den, np.zeros_like(hdr)), hdr, atol=1e-6)
         np.testing.assert_allclose(gate(hdr, den, np.full_like(hdr, 100.0)), den, atol=1e-6)
 
@@ -40,7 +42,7 @@ def test_fast_gate_equals_reference(shape, alpha):
     hdr = rng.gamma(1.0, 1.0, (*shape, 3)).astype(np.float32)
     den = (hdr * rng.uniform(0.7, 1.3, hdr.shape)).astype(np.float32)
     var = rng.gamma(1.0, 1.0, hdr.shape) * 10.0 ** rng.uniform(-6, -2, hdr.shape)
-    ref = kg.proden_gate(hdr, den, var, alpha=alpha)
+    ref = kr.proden_gate(hdr, den, var, alpha=alpha)
     fast = kg.proden_gate_fast(hdr, den, var, alpha=alpha)
     assert fast.dtype == np.float32 and fast.shape == hdr.shape
     np.testing.assert_allclose(fast, ref, rtol=1e-6, atol=1e-7)
@@ -54,7 +56,7 @@ def test_gate_table_error_bound():
     u = np.minimum(t / kg.LUT_T_MAX * kg.LUT_SIZE, kg.LUT_SIZE - 1.0)
     m = u.astype(int)
     interp = table[m] + (u - m) * (table[m + 1] - table[m])
-    assert np.max(np.abs(interp - kg.proden_gate_factor(t))) < 2e-7
+    assert np.max(np.abs(interp - kr.proden_gate_factor(t))) < 2e-7
 
 
 def test_wrapper_equals_method_then_reference_gate():
@@ -62,11 +64,11 @@ def test_wrapper_equals_method_then_reference_gate():
     over 11x11 windows); gate_pool=0 is the spec's gate on the raw variance."""
     frame = _frame(seed=3)
     den = get("jbf", radius=3).denoise(frame)
-    var = kg.linear_variance(frame.stats, frame.color)
+    var = linear_variance(frame.stats, frame.color)
     for pool in (5, 0, 2):
         params = {} if pool == 5 else {"gate_pool": pool}
         out = get("jbf+gate", radius=3, **params).denoise(frame)
-        expected = kg.proden_gate(frame.color, den, var, pool_radius=pool)
+        expected = kr.proden_gate(frame.color, den, var, pool_radius=pool)
         np.testing.assert_allclose(out, expected, rtol=1e-6, atol=1e-7)
         ref = get("jbf+gate", radius=3, gate_backend="reference", **params).denoise(frame)
         np.testing.assert_allclose(out, ref, rtol=1e-6, atol=1e-7)
@@ -178,8 +180,8 @@ def test_plugin_method_takes_the_gate():
         assert m.needs == {"color", "stats"}
         out = m.denoise(frame)
         plain = get("test-gate-plugin-box", passes=2).denoise(frame)
-        var = kg.linear_variance(frame.stats, frame.color)
-        np.testing.assert_allclose(out, kg.proden_gate(frame.color, plain, var, pool_radius=5),
+        var = linear_variance(frame.stats, frame.color)
+        np.testing.assert_allclose(out, kr.proden_gate(frame.color, plain, var, pool_radius=5),
                                    rtol=1e-6, atol=1e-7)
     finally:  # leave the registry as the other tests expect it
         _REGISTRY.pop("test-gate-plugin-box", None)
@@ -270,7 +272,7 @@ def test_gate_from_statistics_equals_the_composed_fast_gate(transform, lam):
                         m3=np.zeros(color.shape), transform=transform, lam=lam)
     hdr = np.where(np.isfinite(color), color, den)
     den_fixed = np.where(np.isfinite(den), den, hdr)
-    expected = kg.proden_gate_fast(hdr, den_fixed, kg.linear_variance(stats, color))
+    expected = kg.proden_gate_fast(hdr, den_fixed, linear_variance(stats, color))
     got = kg.proden_gate_stats(color, den, stats)
     assert got.dtype == np.float32 and np.isfinite(got[np.isfinite(expected)]).all()
     np.testing.assert_allclose(got, expected, rtol=1e-6, atol=1e-7)
@@ -321,7 +323,7 @@ def test_a_method_that_keeps_emitters_gets_the_rule_once():
         e[8, 9] = 0.4
         lit = frame.with_buffers(emitter=e)
         inner = KeepsLights().denoise(lit)
-        expected = kg.proden_gate(frame.color, inner, kg.linear_variance(frame.stats, frame.color),
+        expected = kr.proden_gate(frame.color, inner, linear_variance(frame.stats, frame.color),
                                   pool_radius=5)
         got = get("test-gate-keeps-emitters+gate").denoise(lit)
         np.testing.assert_allclose(got, expected, rtol=1e-6, atol=1e-7)
@@ -346,11 +348,11 @@ def test_pooled_gate_from_statistics_equals_the_reference(transform):
                         m3=np.zeros(color.shape), transform=transform, lam=0.5)
     hdr = np.where(np.isfinite(color), color, den)
     fixed = np.where(np.isfinite(den), den, hdr)
-    expected = kg.proden_gate(hdr, fixed, kg.linear_variance(stats, color), pool_radius=4)
+    expected = kr.proden_gate(hdr, fixed, linear_variance(stats, color), pool_radius=4)
     got = kg.proden_gate_stats(color, den, stats, pool_radius=4)
     ok = np.isfinite(expected)
     np.testing.assert_allclose(got[ok], expected[ok], rtol=1e-6, atol=1e-7)
-    np.testing.assert_allclose(kg.proden_gate_fast(hdr, fixed, kg.linear_variance(stats, color),
+    np.testing.assert_allclose(kg.proden_gate_fast(hdr, fixed, linear_variance(stats, color),
                                                    pool_radius=4), expected, rtol=1e-6, atol=1e-7)
 
 
@@ -366,12 +368,12 @@ def test_variance_floor_keeps_a_good_denoiser_at_few_samples():
     var_mean = draws.var(0, ddof=1) / n
     truth = np.full((h, w, 3), 1.0 + big * p)
     off = lambda out: np.mean(np.abs(out - truth) > 0.5 * np.abs(color - truth) + 1e-9)
-    plain = kg.proden_gate(color, truth, var_mean)
-    floored = kg.proden_gate(color, truth, var_mean, pool_radius=5)
+    plain = kr.proden_gate(color, truth, var_mean)
+    floored = kr.proden_gate(color, truth, var_mean, pool_radius=5)
     assert np.mean((truth - floored) ** 2) < 0.5 * np.mean((truth - plain) ** 2)
     assert off(floored) < off(plain)
     zero = np.zeros_like(color)
-    np.testing.assert_allclose(kg.proden_gate(color, truth, zero, pool_radius=5), color)
+    np.testing.assert_allclose(kr.proden_gate(color, truth, zero, pool_radius=5), color)
 
 
 @pytest.mark.parametrize("shape,pool", [((1, 1), 5), ((3, 17), 2), ((37, 29), 5), ((12, 40), 7)])
@@ -382,7 +384,7 @@ def test_pooled_fast_gate_equals_reference(shape, pool):
     hdr = rng.gamma(1.0, 1.0, (*shape, 3)).astype(np.float32)
     den = (hdr * rng.uniform(0.7, 1.3, hdr.shape)).astype(np.float32)
     var = rng.lognormal(0.0, 3.0, hdr.shape) * 1e-4
-    ref = kg.proden_gate(hdr, den, var, pool_radius=pool)
+    ref = kr.proden_gate(hdr, den, var, pool_radius=pool)
     np.testing.assert_allclose(kg.proden_gate_fast(hdr, den, var, pool_radius=pool), ref,
                                rtol=1e-6, atol=1e-7)
 
@@ -397,11 +399,11 @@ def test_fast_gate_does_not_depend_on_the_rows_per_task(pool):
     den = (hdr * rng.uniform(0.7, 1.3, hdr.shape)).astype(np.float32)
     var = rng.lognormal(0.0, 3.0, hdr.shape) * 1e-4
     var[60:64] *= 1e6  # a burst of huge variances that the sliding sums carry, then drop
-    outs = [kg._gate_passes(hdr, den, var, None, False, False, 1.0, kg.GATE_K, kg.GATE_T0,
+    outs = [kg._gate_passes(hdr, den, var, None, False, False, 1.0, kr.GATE_K, kr.GATE_T0,
                             pool, band) for band in (11, 12, 31, 64, 157)]
     for out in outs[1:]:
         np.testing.assert_array_equal(out, outs[0])
-    ref = kg.proden_gate(hdr, den, var, pool_radius=pool)
+    ref = kr.proden_gate(hdr, den, var, pool_radius=pool)
     np.testing.assert_allclose(outs[0], ref, rtol=1e-6, atol=1e-7)
 
 
@@ -418,13 +420,13 @@ def test_wiener_handback_fast_equals_reference(shape, pool, alpha):
     hdr = rng.gamma(1.0, 1.0, (*shape, 3)).astype(np.float32)
     den = (hdr * rng.uniform(0.7, 1.3, hdr.shape)).astype(np.float32)
     var = rng.lognormal(0.0, 3.0, hdr.shape) * 1e-3
-    ref = kg.proden_gate(hdr, den, var, alpha=alpha, pool_radius=pool, handback="wiener")
-    outs = [kg._gate_passes(hdr, den, var, None, False, False, alpha, kg.GATE_K, kg.GATE_T0,
+    ref = kr.proden_gate(hdr, den, var, alpha=alpha, pool_radius=pool, handback="wiener")
+    outs = [kg._gate_passes(hdr, den, var, None, False, False, alpha, kr.GATE_K, kr.GATE_T0,
                             pool, band, handback="wiener") for band in (None, 11, 40, 157)]
     for out in outs[1:]:
         np.testing.assert_array_equal(out, outs[0])
     np.testing.assert_allclose(outs[0], ref, rtol=1e-6, atol=1e-6 * np.abs(ref).max())
-    spec = kg.proden_gate(hdr, den, var, alpha=alpha, pool_radius=pool)
+    spec = kr.proden_gate(hdr, den, var, alpha=alpha, pool_radius=pool)
     if shape[0] > 3 and alpha == 1.0:
         assert np.abs(ref - spec).max() > 1e-3  # the two rules differ here
 
@@ -435,7 +437,7 @@ def test_wiener_handback_limits():
     rng = np.random.default_rng(14)
     hdr = rng.random((16, 16, 3))
     den = hdr + 0.3 * rng.random(hdr.shape)
-    for gate in (kg.proden_gate, kg.proden_gate_fast):
+    for gate in (kr.proden_gate, kg.proden_gate_fast):
         np.testing.assert_allclose(gate(hdr, den, np.zeros_like(hdr), handback="wiener"), hdr,
                                    atol=1e-6)
         np.testing.assert_allclose(gate(hdr, den, np.full_like(hdr, 100.0), handback="wiener"),
@@ -457,13 +459,13 @@ def test_wiener_handback_returns_the_bias_without_the_noise():
     var = np.full(truth.shape, sd * sd)
     off = truth + 0.5  # biased everywhere by 10 standard errors
     err = lambda out: float(np.sqrt(np.mean((out - truth) ** 2)))
-    spec = kg.proden_gate(hdr, off, var)
-    wiener = kg.proden_gate(hdr, off, var, handback="wiener")
+    spec = kr.proden_gate(hdr, off, var)
+    wiener = kr.proden_gate(hdr, off, var, handback="wiener")
     assert err(spec) > 0.9 * sd and err(wiener) < 0.5 * sd
     stripes = truth + 0.5 * (np.arange(w) % 2)[None, :, None]  # a 2-pixel pattern: no local mean
     truth_hdr = stripes + sd * rng.standard_normal(truth.shape)
-    spec = kg.proden_gate(truth_hdr, truth, var)
-    wiener = kg.proden_gate(truth_hdr, truth, var, handback="wiener")
+    spec = kr.proden_gate(truth_hdr, truth, var)
+    wiener = kr.proden_gate(truth_hdr, truth, var, handback="wiener")
     assert np.abs(wiener - spec).max() < 0.1 * 0.5
 
 

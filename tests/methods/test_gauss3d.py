@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from dbench import methods
+from dbench import registry
 from dbench.data import Frame, TransientFrame
 from dbench.errors import DbenchInputError
 from dbench.methods.transient_baselines import gauss3d, gauss3d_reference
@@ -20,7 +20,7 @@ def _video(h=9, w=11, t=8, seed=0):
 
 
 def test_defaults_follow_the_spec():
-    m = methods.get("gauss3d")
+    m = registry.get("gauss3d")
     assert m.kinds == {"transient"} and m.needs == {"color"}
     assert (m.params["radius"], m.params["temporal_radius"], m.params["sigma_s2"],
             m.params["sigma_t"]) == (5, 1, 10.0, 1.0)
@@ -54,7 +54,7 @@ def test_impulse_weights_and_borders():
 
 def test_empty_bins_and_nan():
     v = _video()
-    out = methods.get("gauss3d").denoise(TransientFrame(color=v))
+    out = registry.get("gauss3d").denoise(TransientFrame(color=v))
     assert out.dtype == np.float32 and np.all(out[:, :, [0, 6]] == 0)
     assert np.all(gauss3d(np.zeros((4, 4, 5, 3))) == 0)
     v2 = v.copy()
@@ -69,8 +69,8 @@ def test_empty_bins_and_nan():
 
 def test_bad_inputs():
     with pytest.raises(DbenchInputError, match="TransientFrame"):
-        methods.get("gauss3d").denoise(Frame(color=np.zeros((4, 4, 3))))
+        registry.get("gauss3d").denoise(Frame(color=np.zeros((4, 4, 3))))
     with pytest.raises(DbenchInputError, match="radius"):
-        methods.get("gauss3d", radius=-2)
+        registry.get("gauss3d", radius=-2)
     with pytest.raises(DbenchInputError, match="sigma_t"):
-        methods.get("gauss3d", sigma_t=0.0)
+        registry.get("gauss3d", sigma_t=0.0)

@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dbench import methods
+from dbench import registry
 from dbench.data import Frame, TransientFrame
 from dbench.errors import DbenchInputError
 from dbench.methods.jbf import jbf_reference, make_guide
@@ -26,7 +26,7 @@ def _video(h=10, w=12, t=7, seed=0):
 
 
 def test_registered_for_transient_only():
-    m = methods.get("jbf-bins")
+    m = registry.get("jbf-bins")
     assert m.kinds == {"transient"}
     assert m.applies_to("transient", {"color", "albedo", "normal", "depth"})[0]
     assert not m.applies_to("steady", {"color", "albedo", "normal", "depth"})[0]
@@ -34,7 +34,7 @@ def test_registered_for_transient_only():
 
 def test_equals_the_jbf_reference_bin_by_bin():
     v = _video()
-    out = methods.get("jbf-bins", radius=3).denoise(v)
+    out = registry.get("jbf-bins", radius=3).denoise(v)
     assert out.shape == v.color.shape and out.dtype == np.float32
     guide = make_guide(v.albedo, v.normal, v.depth, shape=v.shape, radius=3)
     for t in range(v.bins):
@@ -79,12 +79,12 @@ def test_empty_bins_cost_nothing(monkeypatch):
 
     monkeypatch.setattr(tb, "accumulate", spy)
     v = _video(t=9)
-    out = methods.get("jbf-bins", radius=2).denoise(v)
+    out = registry.get("jbf-bins", radius=2).denoise(v)
     assert seen == [4 * 7]                       # 7 non-empty bins, 4 planes each
     assert np.all(out[:, :, [0, 4]] == 0)
     seen.clear()
     empty = v.with_buffers(color=np.zeros_like(v.color))
-    assert np.all(methods.get("jbf-bins").denoise(empty) == 0) and seen == []
+    assert np.all(registry.get("jbf-bins").denoise(empty) == 0) and seen == []
 
 
 def test_nan_voxels_do_not_spread():
@@ -92,19 +92,19 @@ def test_nan_voxels_do_not_spread():
     c = v.color.copy()
     c[3, 4, 2, 1] = np.nan
     c[5, 5, 3] = np.inf
-    out = methods.get("jbf-bins", radius=2).denoise(v.with_buffers(color=c))
+    out = registry.get("jbf-bins", radius=2).denoise(v.with_buffers(color=c))
     assert np.isfinite(out).all()
-    clean = methods.get("jbf-bins", radius=2).denoise(v)
+    clean = registry.get("jbf-bins", radius=2).denoise(v)
     np.testing.assert_allclose(out[:, :, [1, 5, 6]], clean[:, :, [1, 5, 6]], rtol=1e-6)
 
 
 def test_bad_inputs_name_the_buffer():
     v = _video()
     with pytest.raises(DbenchInputError, match="TransientFrame"):
-        methods.get("jbf-bins").denoise(Frame(color=np.zeros((4, 4, 3))))
+        registry.get("jbf-bins").denoise(Frame(color=np.zeros((4, 4, 3))))
     with pytest.raises(DbenchInputError, match="albedo"):
-        methods.get("jbf-bins").denoise(v.with_buffers(albedo=None))
+        registry.get("jbf-bins").denoise(v.with_buffers(albedo=None))
     with pytest.raises(DbenchInputError, match="temporal_radius"):
-        methods.get("jbf-bins", temporal_radius=-1)
+        registry.get("jbf-bins", temporal_radius=-1)
     with pytest.raises(DbenchInputError, match="temporal_profile"):
-        methods.get("jbf-bins", temporal_profile="tent")
+        registry.get("jbf-bins", temporal_profile="tent")

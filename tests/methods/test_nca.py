@@ -9,7 +9,7 @@ import onnxruntime as ort
 import pytest
 import torch
 
-from dbench import methods
+from dbench import registry
 from dbench.data import Frame
 from dbench.errors import DbenchInputError
 from dbench.methods.nca import SHIPPED_JSON, SHIPPED_ONNX, nca_denoise, reference_denoise
@@ -121,9 +121,9 @@ def test_shipped_files_load_in_a_fresh_process():
     info = json.loads(SHIPPED_JSON.read_text())
     assert info["parameters"] == 362 and "hash" in info["data"]  # 360 + the step size's 2
     assert "final_train_loss" in info["losses"]
-    code = ("import numpy as np; from dbench import methods; from dbench.data import Frame; "
+    code = ("import numpy as np; from dbench import registry; from dbench.data import Frame; "
             "f = Frame(color=np.ones((6, 9, 3)), albedo=np.full((6, 9, 3), .5), "
-            "normal=np.ones((6, 9, 3))); o = methods.get('nca').denoise(f); "
+            "normal=np.ones((6, 9, 3))); o = registry.get('nca').denoise(f); "
             "print(o.shape, bool(np.isfinite(o).all()))")
     res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          timeout=120)
@@ -133,21 +133,21 @@ def test_shipped_files_load_in_a_fresh_process():
 
 def test_denoises_a_noisy_image():
     f = _frame(48, 48)
-    out = methods.get("nca").denoise(f)
+    out = registry.get("nca").denoise(f)
     err = lambda a: np.sqrt(((a - f.reference) ** 2).mean())
     assert err(out) < err(f.color)
 
 
 def test_deterministic():
     f = _frame()
-    m = methods.get("nca")
+    m = registry.get("nca")
     assert np.array_equal(m.denoise(f), m.denoise(f))
 
 
 @pytest.mark.parametrize("shape", [(1, 1), (1, 17), (13, 7), (2, 3)])
 def test_tiny_and_odd_sizes(shape):
     f = _frame(*shape)
-    out = methods.get("nca").denoise(f)
+    out = registry.get("nca").denoise(f)
     assert out.shape == (*shape, 3) and np.all(np.isfinite(out))
 
 
@@ -159,30 +159,30 @@ def test_non_finite_inputs_give_finite_output():
     color[7, 7] = -np.inf
     normal[3, 3] = np.nan
     albedo[9, 9] = np.inf
-    out = methods.get("nca").denoise(f.with_buffers(color=color, normal=normal, albedo=albedo))
+    out = registry.get("nca").denoise(f.with_buffers(color=color, normal=normal, albedo=albedo))
     assert np.all(np.isfinite(out))
-    clean = methods.get("nca").denoise(f)
+    clean = registry.get("nca").denoise(f)
     assert np.abs(out - clean)[15:, 15:].max() < 1e-3  # far from the bad pixels: unchanged
 
 
 def test_iterations_parameter():
     f = _frame()
-    zero = methods.get("nca", iterations=0).denoise(f)
+    zero = registry.get("nca", iterations=0).denoise(f)
     np.testing.assert_allclose(zero, np.maximum(f.color, 0), rtol=1e-5, atol=1e-6)
     with pytest.raises(DbenchInputError, match="iterations"):
-        methods.get("nca", iterations=-1).denoise(f)
+        registry.get("nca", iterations=-1).denoise(f)
 
 
 def test_bad_shapes_and_missing_buffers_name_the_buffer():
     f = _frame(8, 8)
     with pytest.raises(DbenchInputError, match="normal"):
-        methods.get("nca").denoise(Frame(color=f.color, albedo=f.albedo))
+        registry.get("nca").denoise(Frame(color=f.color, albedo=f.albedo))
     with pytest.raises(DbenchInputError, match="albedo"):
         nca_denoise(f.color, f.normal, f.albedo[:, :4])
     with pytest.raises(DbenchInputError, match="color"):
         nca_denoise(f.color[..., :2], f.normal, f.albedo)
     with pytest.raises(DbenchInputError, match="weights"):
-        methods.get("nca", weights="/nonexistent/nca.onnx").denoise(f)
+        registry.get("nca", weights="/nonexistent/nca.onnx").denoise(f)
 
 
 def test_shipped_model_converges_on_a_synthetic_image():
@@ -190,7 +190,7 @@ def test_shipped_model_converges_on_a_synthetic_image():
     64 and 1024 spp and its error falls with the noise (it reads spp from the frame's meta)."""
     from learned_checks import assert_converges
 
-    assert_converges(methods.get("nca").denoise)
+    assert_converges(registry.get("nca").denoise)
 
 
 def test_exposure_invariance_and_spp_from_meta():
@@ -200,12 +200,12 @@ def test_exposure_invariance_and_spp_from_meta():
 
     f, _ = synthetic_frame(16)
     g, _ = synthetic_frame(16, scale=1000.0)
-    a = methods.get("nca").denoise(f)
-    b = methods.get("nca").denoise(g.with_buffers(color=f.color * 1000.0))
+    a = registry.get("nca").denoise(f)
+    b = registry.get("nca").denoise(g.with_buffers(color=f.color * 1000.0))
     np.testing.assert_allclose(b, a * 1000.0, rtol=1e-4, atol=1e-6)
-    same = methods.get("nca", spp=16).denoise(f.with_buffers(meta={}))
+    same = registry.get("nca", spp=16).denoise(f.with_buffers(meta={}))
     np.testing.assert_array_equal(same, a)
-    assert not np.array_equal(methods.get("nca", spp=1024).denoise(f), a)
+    assert not np.array_equal(registry.get("nca", spp=1024).denoise(f), a)
 
 
 def test_directly_seen_lights_keep_the_input():
@@ -227,7 +227,7 @@ def test_directly_seen_lights_keep_the_input():
     mask[[0, 1, 3], [0, 2, 3]] = False
     np.testing.assert_array_equal(got[mask], out[mask])
     assert keep_emitters(color, out, None) is out
-    assert "emitter" in methods.get("nca").optional_needs
+    assert "emitter" in registry.get("nca").optional_needs
 
 
 @pytest.mark.parametrize("encoding", ["log1p", "log1p_demodulated"])

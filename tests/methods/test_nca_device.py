@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import torch
 
-from dbench import methods
+from dbench import registry
 from dbench.device import download, upload
 from dbench.errors import DbenchInputError
 from dbench.methods.kernels import learned_torch as lt
@@ -55,7 +55,7 @@ def _both(method, frame):
 
 @pytest.mark.parametrize("spp", [None, 1, 4, 64, 1024])
 def test_device_equals_host(spp):
-    m = methods.get("nca")
+    m = registry.get("nca")
     assert m.device_backend == "torch" and m.has_device_path()
     for seed in range(2):
         host, dev = _both(m, _frame(seed=seed, spp=spp, emitter=seed == 1))
@@ -66,26 +66,26 @@ def test_parameters_honoured():
     f = _frame(17, 23, spp=16)
     for params in (dict(iterations=0), dict(iterations=7), dict(spp=1),
                    dict(weights=str(SHIPPED_ONNX)), dict(threads=1)):
-        host, dev = _both(methods.get("nca", **params), f)
+        host, dev = _both(registry.get("nca", **params), f)
         np.testing.assert_allclose(dev, host, rtol=RTOL, atol=ATOL, err_msg=str(params))
     before = torch.get_num_threads()
-    methods.get("nca", threads=2).denoise_device(upload(f, "cpu"))
+    registry.get("nca", threads=2).denoise_device(upload(f, "cpu"))
     assert torch.get_num_threads() == before  # set for the call only
     with pytest.raises(DbenchInputError, match="iterations"):
-        methods.get("nca", iterations=-1).denoise_device(upload(f, "cpu"))
+        registry.get("nca", iterations=-1).denoise_device(upload(f, "cpu"))
     # a GPU has no CPU threads to set: refused before anything runs ("meta": shapes only)
     with pytest.raises(DbenchInputError, match="threads"):
-        methods.get("nca", threads=2).denoise_device(upload(f, "meta"))
+        registry.get("nca", threads=2).denoise_device(upload(f, "meta"))
 
 
 def test_missing_and_misshaped_buffers_name_the_buffer():
     f = _frame(8, 9)
     with pytest.raises(DbenchInputError, match="normal"):
-        methods.get("nca").denoise_device(upload(f, "cpu", names=("color", "albedo")))
+        registry.get("nca").denoise_device(upload(f, "cpu", names=("color", "albedo")))
     bad = upload(f, "cpu")
     bad.buffers["albedo"] = bad.buffers["albedo"][:, :5]
     with pytest.raises(DbenchInputError, match="albedo"):
-        methods.get("nca").denoise_device(bad)
+        registry.get("nca").denoise_device(bad)
 
 
 def test_huge_and_non_finite_colour_finite_where_host_is():
@@ -96,7 +96,7 @@ def test_huge_and_non_finite_colour_finite_where_host_is():
         color[20, 20], color[21, 21], color[22, 22] = np.nan, np.inf, -np.inf
         g = f.with_buffers(color=color)
         with np.errstate(over="ignore"):
-            host, dev = _both(methods.get("nca"), g)
+            host, dev = _both(registry.get("nca"), g)
         ok = np.isfinite(host)
         assert ok.mean() > 0.99 and np.isfinite(dev[ok]).all()
         # far from the block the numbers still agree (at 1 spp the block's exposure drives
@@ -105,7 +105,7 @@ def test_huge_and_non_finite_colour_finite_where_host_is():
 
 
 def test_no_numpy_or_host_sync_inside_the_call(monkeypatch):
-    m = methods.get("nca")
+    m = registry.get("nca")
     f = upload(_frame(spp=4, emitter=True), "cpu")
     m.denoise_device(f)  # builds and caches the model (reads the .onnx) first
     assert list(m._device_nets) == ["cpu"]

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from dbench import methods
+from dbench import registry
 from dbench.data import Frame
 from dbench.errors import DbenchInputError
 
@@ -21,7 +21,7 @@ def _frame(h=48, w=48, seed=0, noise=0.2):
 
 def test_reduces_error_on_noisy_smooth_image():
     f = _frame()
-    out = methods.get("oidn").denoise(f)
+    out = registry.get("oidn").denoise(f)
     assert out.dtype == np.float32 and out.shape == f.color.shape
     err = lambda a: np.sqrt(((a - f.reference) ** 2).mean())
     assert err(out) < 0.5 * err(f.color)
@@ -30,15 +30,15 @@ def test_reduces_error_on_noisy_smooth_image():
 @pytest.mark.parametrize("features", ["albedo+normal", "albedo", "none"])
 @pytest.mark.parametrize("quality", ["high", "fast"])
 def test_options(features, quality):
-    out = methods.get("oidn", features=features, quality=quality).denoise(_frame(16, 24))
+    out = registry.get("oidn", features=features, quality=quality).denoise(_frame(16, 24))
     assert out.shape == (16, 24, 3) and np.all(np.isfinite(out))
 
 
 def test_bad_options_and_missing_buffers():
     with pytest.raises(DbenchInputError, match="quality"):
-        methods.get("oidn", quality="ultra")
+        registry.get("oidn", quality="ultra")
     with pytest.raises(DbenchInputError, match="albedo"):
-        methods.get("oidn").denoise(Frame(color=np.zeros((8, 8, 3))))
+        registry.get("oidn").denoise(Frame(color=np.zeros((8, 8, 3))))
 
 
 def test_non_finite_and_negative_input_give_finite_output():
@@ -47,7 +47,7 @@ def test_non_finite_and_negative_input_give_finite_output():
     color[5, 5] = np.nan
     color[6, 6] = np.inf
     color[7, 7] = -3
-    out = methods.get("oidn").denoise(f.with_buffers(color=color))
+    out = registry.get("oidn").denoise(f.with_buffers(color=color))
     assert np.all(np.isfinite(out))
     # the NaN pixel does not poison its neighbourhood
     assert np.abs(out[3:9, 3:9] - f.reference[3:9, 3:9]).max() < 1.0
@@ -56,5 +56,5 @@ def test_non_finite_and_negative_input_give_finite_output():
 @pytest.mark.parametrize("shape", [(1, 1), (1, 17), (13, 7)])
 def test_tiny_and_odd_sizes(shape):
     f = _frame(*shape)
-    out = methods.get("oidn").denoise(f)
+    out = registry.get("oidn").denoise(f)
     assert out.shape == f.color.shape and np.all(np.isfinite(out))

@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dbench import methods
+from dbench import registry
 from dbench.data import Frame, TransientFrame
 from dbench.errors import DbenchInputError
 from dbench.methods.oidn import oidn_denoise
@@ -25,13 +25,13 @@ def _video(t=5, seed=0):
 
 
 def test_registered_for_transient_only():
-    m = methods.get("oidn-bins")
+    m = registry.get("oidn-bins")
     assert m.kinds == {"transient"} and m.needs == {"color", "albedo", "normal"}
 
 
 def test_each_bin_is_oidn_on_that_image():
     v = _video()
-    out = methods.get("oidn-bins").denoise(v)
+    out = registry.get("oidn-bins").denoise(v)
     assert out.shape == v.color.shape and out.dtype == np.float32 and np.isfinite(out).all()
     for t in (0, 3):
         np.testing.assert_allclose(out[:, :, t], oidn_denoise(v.color[:, :, t], v.albedo,
@@ -45,10 +45,10 @@ def test_empty_bins_are_skipped(monkeypatch):
     real = tb.oidn_denoise
     monkeypatch.setattr(tb, "oidn_denoise", lambda *a, **k: calls.append(1) or real(*a, **k))
     v = _video(t=6)
-    methods.get("oidn-bins").denoise(v)
+    registry.get("oidn-bins").denoise(v)
     assert len(calls) == 5
     calls.clear()
-    methods.get("oidn-bins", skip_empty=False).denoise(v)
+    registry.get("oidn-bins", skip_empty=False).denoise(v)
     assert len(calls) == 6
 
 
@@ -56,14 +56,14 @@ def test_nan_and_bad_inputs():
     v = _video()
     c = v.color.copy()
     c[2, 3, 2] = np.nan
-    out = methods.get("oidn-bins").denoise(v.with_buffers(color=c))
+    out = registry.get("oidn-bins").denoise(v.with_buffers(color=c))
     assert np.isfinite(out).all()
     with pytest.raises(DbenchInputError, match="TransientFrame"):
-        methods.get("oidn-bins").denoise(Frame(color=np.zeros((4, 4, 3))))
+        registry.get("oidn-bins").denoise(Frame(color=np.zeros((4, 4, 3))))
     with pytest.raises(DbenchInputError, match="normal"):
-        methods.get("oidn-bins").denoise(v.with_buffers(normal=None))
+        registry.get("oidn-bins").denoise(v.with_buffers(normal=None))
     with pytest.raises(DbenchInputError, match="features"):
-        methods.get("oidn-bins", features="depth")
-    out = methods.get("oidn-bins", features="none").denoise(v.with_buffers(albedo=None,
+        registry.get("oidn-bins", features="depth")
+    out = registry.get("oidn-bins", features="none").denoise(v.with_buffers(albedo=None,
                                                                            normal=None))
     assert out.shape == v.color.shape

@@ -17,7 +17,7 @@ import pytest
 torch = pytest.importorskip("torch")
 pytest.importorskip("pyoidn")
 
-from dbench import methods  # noqa: E402
+from dbench import registry  # noqa: E402
 from dbench.data import Frame  # noqa: E402
 from dbench.device import cuda_usable, upload  # noqa: E402
 from dbench.errors import DbenchInputError  # noqa: E402
@@ -36,7 +36,7 @@ def _frame(h=32, w=48, seed=0, noise=0.2):
 
 
 def test_registered_device_backend():
-    m = methods.get("oidn")
+    m = registry.get("oidn")
     assert m.has_device_path() and m.device_backend == "oidn-cuda"
 
 
@@ -44,7 +44,7 @@ def test_registered_device_backend():
 @pytest.mark.parametrize("quality", ["high", "balanced", "fast"])
 def test_cpu_tensors_equal_host_path(features, quality):
     f = _frame()
-    m = methods.get("oidn", features=features, quality=quality)
+    m = registry.get("oidn", features=features, quality=quality)
     out = m.denoise_device(upload(f, "cpu"))
     assert isinstance(out, torch.Tensor) and out.dtype == torch.float32
     assert tuple(out.shape) == f.color.shape and out.device.type == "cpu"
@@ -56,7 +56,7 @@ def test_cpu_tensors_equal_host_path(features, quality):
 
 def test_quality_features_and_clean_aux_change_the_result():
     d = upload(_frame(), "cpu")
-    outs = {key: methods.get("oidn", **dict(key)).denoise_device(d).numpy()
+    outs = {key: registry.get("oidn", **dict(key)).denoise_device(d).numpy()
             for key in [(), (("quality", "fast"),), (("features", "none"),),
                         (("clean_aux", False),)]}
     base = outs[()]
@@ -69,7 +69,7 @@ def test_reduces_error_and_leaves_inputs_alone():
     f = _frame()
     d = upload(f, "cpu")
     before = {k: v.clone() for k, v in d.buffers.items()}
-    out = methods.get("oidn").denoise_device(d).numpy()
+    out = registry.get("oidn").denoise_device(d).numpy()
     err = lambda a: np.sqrt(((a - f.reference) ** 2).mean())  # noqa: E731
     assert err(out) < 0.5 * err(f.color)
     for k, v in d.buffers.items():
@@ -90,7 +90,7 @@ def test_huge_and_non_finite_inputs_give_finite_output_like_the_host():
     normal[5, 5] = np.nan
     normal[5, 6] = -np.inf
     g = f.with_buffers(color=color, albedo=albedo, normal=normal)
-    m = methods.get("oidn")
+    m = registry.get("oidn")
     out = m.denoise_device(upload(g, "cpu")).numpy()
     assert np.isfinite(out).all()
     np.testing.assert_array_equal(out, m.denoise(g))
@@ -101,7 +101,7 @@ def test_huge_and_non_finite_inputs_give_finite_output_like_the_host():
 
 
 def test_filter_kept_across_calls_and_rebuilt_on_size_change():
-    m = methods.get("oidn")
+    m = registry.get("oidn")
     d = upload(_frame(), "cpu")
     a = m.denoise_device(d)
     runner = m._runner
@@ -124,7 +124,7 @@ def test_filter_kept_across_calls_and_rebuilt_on_size_change():
 
 
 def test_odd_sizes_missing_buffers_and_pickling():
-    m = methods.get("oidn")
+    m = registry.get("oidn")
     for shape in [(1, 1), (13, 7)]:
         out = m.denoise_device(upload(_frame(*shape), "cpu"))
         assert tuple(out.shape) == (*shape, 3) and torch.isfinite(out).all()
@@ -132,9 +132,9 @@ def test_odd_sizes_missing_buffers_and_pickling():
     with pytest.raises(DbenchInputError, match="normal"):
         m.denoise_device(upload(f.with_buffers(normal=None), "cpu"))
     with pytest.raises(DbenchInputError, match="albedo"):
-        methods.get("oidn", features="albedo").denoise_device(
+        registry.get("oidn", features="albedo").denoise_device(
             upload(f.with_buffers(albedo=None), "cpu"))
-    out = methods.get("oidn", features="none").denoise_device(
+    out = registry.get("oidn", features="none").denoise_device(
         upload(f.with_buffers(albedo=None, normal=None), "cpu"))
     assert torch.isfinite(out).all()
     clone = pickle.loads(pickle.dumps(m))
@@ -147,7 +147,7 @@ def test_cuda_tensors_on_oidn_cuda_device():
     # host (CPU device) result on this 64x96 frame (values about 0.1-0.6), max |diff| 2.3e-3
     # (high, albedo+normal), at most 6.9e-3 over every quality and feature set; 1e-2 allowed
     f = _frame(64, 96)
-    m = methods.get("oidn")
+    m = registry.get("oidn")
     d = upload(f, "cuda")
     out = m.denoise_device(d)
     torch.cuda.synchronize()

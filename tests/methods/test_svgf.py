@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from dbench import methods
+from dbench import registry
 from dbench.run.sequence_run import run_sequence
 from dbench.synthetic import synthetic_sequence
 from dbench.data import Frame
@@ -166,7 +166,7 @@ def test_fast_exp_accuracy():
 
 def test_whole_method_fast_equals_reference():
     seq = synthetic_sequence(20, 26, frames=5)
-    a, b = methods.get("svgf"), methods.get("svgf", backend="reference")
+    a, b = registry.get("svgf"), registry.get("svgf", backend="reference")
     a.reset()
     b.reset()
     for f in seq:
@@ -202,7 +202,7 @@ def test_svgf_beats_accumulate_and_noisy_on_a_synthetic_sequence():
 
 def test_non_finite_colour_does_not_spread():
     seq = synthetic_sequence(16, 16, frames=3)
-    m = methods.get("svgf")
+    m = registry.get("svgf")
     m.reset()
     for i, f in enumerate(seq):
         c = f.color.copy()
@@ -220,7 +220,7 @@ def test_emitters_are_not_filtered():
     emi[3:5, 3:5] = 50.0
     col = f.color.copy()
     col[3:5, 3:5] = 50.0
-    m = methods.get("svgf")
+    m = registry.get("svgf")
     m.reset()
     out = m.denoise(f.with_buffers(color=col, emission=emi))
     np.testing.assert_allclose(out[3:5, 3:5], 50.0, rtol=1e-5)
@@ -233,23 +233,23 @@ def test_bad_shapes_name_the_buffer(buffer, bad):
     f = synthetic_sequence(4, 4, frames=1)[0]
     object.__setattr__(f, buffer, bad)
     with pytest.raises(DbenchInputError, match=buffer):
-        methods.get("svgf").denoise(f)
+        registry.get("svgf").denoise(f)
 
 
 def test_parameters_and_presets():
-    m = methods.get("svgf", preset="falcor")
+    m = registry.get("svgf", preset="falcor")
     assert m.params["sigma_l"] == 10 and m.params["iterations"] == 4
-    assert methods.get("svgf", preset="falcor", sigma_l=3).params["sigma_l"] == 3
+    assert registry.get("svgf", preset="falcor", sigma_l=3).params["sigma_l"] == 3
     for bad in (dict(preset="nope"), dict(sigma_l=-1), dict(iterations=1.5),
                 dict(alpha_min=3), dict(backend="gpu")):
         with pytest.raises(DbenchInputError, match=list(bad)[0]):
-            methods.get("svgf", **bad)
+            registry.get("svgf", **bad)
 
 
 def test_single_image_runs_without_motion():
     f = synthetic_sequence(12, 12, frames=1)[0]
     f = f.with_buffers(motion=None)
-    m = methods.get("svgf")
+    m = registry.get("svgf")
     m.reset()
     for _ in range(2):
         out = m.denoise(f)
@@ -295,7 +295,7 @@ def test_torch_kernels_equal_references():
 def test_whole_method_torch_equals_reference_over_a_hard_sequence():
     from test_accumulate import hard_sequence
 
-    a, b = methods.get("svgf", backend="torch"), methods.get("svgf", backend="reference")
+    a, b = registry.get("svgf", backend="torch"), registry.get("svgf", backend="reference")
     a.reset()
     b.reset()
     seen = set()
@@ -313,12 +313,12 @@ def test_torch_backend_validation_and_auto(monkeypatch):
     import torch
 
     monkeypatch.setattr(torch.cuda, "is_available", lambda: False)
-    assert methods.get("svgf").backend == "numba"
-    assert methods.get("svgf").params["backend"] == "numba"  # recorded resolved
-    assert methods.get("svgf", backend="auto").backend == "numba"
-    assert methods.get("svgf", backend="torch").backend == "torch"
+    assert registry.get("svgf").backend == "numba"
+    assert registry.get("svgf").params["backend"] == "numba"  # recorded resolved
+    assert registry.get("svgf", backend="auto").backend == "numba"
+    assert registry.get("svgf", backend="torch").backend == "torch"
     with pytest.raises(DbenchInputError, match="backend"):
-        methods.get("svgf", backend="cuda")
+        registry.get("svgf", backend="cuda")
 
 
 # -- dbench preset: variance of the mean, no filtered feedback, footprint, emission (issue 16) --
@@ -326,23 +326,23 @@ def test_torch_backend_validation_and_auto(monkeypatch):
 def test_dbench_preset_and_auto_iterations():
     from dbench.methods.svgf.params import auto_iterations
 
-    p = methods.get("svgf").params
+    p = registry.get("svgf").params
     assert (p["preset"], p["variance_of"], p["feedback_tap"], p["iterations"]) == (
         "dbench", "mean", None, "auto")
-    paper = methods.get("svgf", preset="paper").params
+    paper = registry.get("svgf", preset="paper").params
     assert (paper["variance_of"], paper["feedback_tap"], paper["iterations"]) == ("sample", 0, 5)
     assert [auto_iterations(s, s) for s in (16, 32, 64, 128, 256, 720)] == [1, 2, 3, 4, 5, 5]
     assert auto_iterations(64, 1280) == 3
     for bad in (dict(variance_of="pixel"), dict(feedback_tap=-1), dict(iterations="many")):
         with pytest.raises(DbenchInputError, match=list(bad)[0]):
-            methods.get("svgf", **bad)
+            registry.get("svgf", **bad)
 
 
 def test_variance_of_the_mean_follows_the_blend_weights():
     """Σw² of the accumulation: 1/N for the running mean up to 1/α_min = 5 frames, then the
     EMA recursion w² = α² + (1 − α)² w²← towards α/(2 − α) = 1/9."""
     seq = synthetic_sequence(8, 8, frames=30, shift=0)
-    m = methods.get("svgf")
+    m = registry.get("svgf")
     m.reset()
     expected = None
     for i, f in enumerate(seq):
@@ -351,7 +351,7 @@ def test_variance_of_the_mean_follows_the_blend_weights():
         expected = 1.0 if i == 0 else a * a + (1 - a) ** 2 * expected
         np.testing.assert_allclose(m.last["weight_sq"], expected, rtol=1e-5)
     assert abs(expected - 0.2 / 1.8) < 1e-3
-    np.testing.assert_allclose(methods.get("svgf").params["alpha_min"], 0.2)
+    np.testing.assert_allclose(registry.get("svgf").params["alpha_min"], 0.2)
 
 
 @pytest.mark.parametrize("name,boost", [("svgf", "svgf"), ("asvgf", "svgf"), ("asvgf", "asvgf"),
@@ -365,7 +365,7 @@ def test_variance_boost_scales_the_estimate_of_short_histories(name, boost):
     seq = synthetic_sequence(12, 12, frames=10, shift=0)
     var = {}
     for b in (False, boost):
-        m = methods.get(name, variance_boost=b, iterations=0)
+        m = registry.get(name, variance_boost=b, iterations=0)
         m.reset()
         var[b] = []
         for f in seq:
@@ -381,14 +381,14 @@ def test_variance_boost_scales_the_estimate_of_short_histories(name, boost):
 
 
 def test_variance_boost_defaults_and_values():
-    boost = lambda name, **p: methods.get(name, **p).params["variance_boost"]  # noqa: E731
+    boost = lambda name, **p: registry.get(name, **p).params["variance_boost"]  # noqa: E731
     assert boost("svgf") == boost("svgf", preset="falcor") == "svgf"
     assert boost("asvgf") == "gradient" and boost("asvgf", preset="falcor") == "svgf"
     assert boost("svgf", preset="paper") is False and boost("asvgf", preset="paper") is False
     assert boost("svgf", variance_boost=True) == "svgf"
     for bad in ("falcor", 0, None, 1.0):
         with pytest.raises(DbenchInputError, match="variance_boost"):
-            methods.get("svgf", variance_boost=bad)
+            registry.get("svgf", variance_boost=bad)
 
 
 def test_variance_of_the_mean_blurs_less_once_converged():
@@ -405,139 +405,10 @@ def test_variance_of_the_mean_blurs_less_once_converged():
                     reference=clean, **g) for _ in range(n)]
     err = {}
     for v in ("sample", "mean"):
-        m = methods.get("svgf", variance_of=v, iterations=5)
+        m = registry.get("svgf", variance_of=v, iterations=5)
         m.reset()
         outs = [m.denoise(f) for f in frames]
         err[v] = np.sqrt(np.mean([(o - clean) ** 2 for o in outs[-5:]]))
     assert err["mean"] < err["sample"]
 
 
-def test_emission_is_accumulated_not_added_raw():
-    """An aliased emitter edge (a 1-spp sample sees the lamp in one frame, not in the next):
-    the output's emission converges to the coverage instead of flickering with the sample."""
-    h, w = 8, 8
-    seq = synthetic_sequence(h, w, frames=12, shift=0)
-    m = methods.get("svgf")
-    m.reset()
-    outs = []
-    for i, f in enumerate(seq):
-        emi = np.zeros((h, w, 3), np.float32)
-        if i % 2 == 0:
-            emi[2:4, 2:4] = 40.0
-        outs.append(m.denoise(f.with_buffers(color=f.color + emi, emission=emi)))
-    lamp = np.array([o[2:4, 2:4].mean() for o in outs[6:]])
-    assert np.all(np.abs(np.diff(lamp)) < 10.0)          # raw emission would jump by 40
-    assert 10.0 < lamp.mean() < 30.0                     # about the coverage 20
-    assert "emission" in methods.get("svgf").optional_needs
-
-
-def test_normal_buffer_chooses_the_edge_stopping_normal():
-    """``normal_buffer``: the à-trous and spatial-variance weights read the chosen buffer (seed
-    001 §1.2.1's reflected or geometric normal); reprojection keeps the shading normal. Equal
-    buffers give equal output, a different one changes the filtering, a missing one is refused."""
-    from dbench.synthetic import synthetic_sequence
-    from dbench.errors import DbenchInputError
-
-    seq = synthetic_sequence(24, 32, frames=3)
-    rng = np.random.default_rng(2)
-    other = rng.normal(size=seq[0].normal.shape).astype(np.float32)
-    other /= np.linalg.norm(other, axis=-1, keepdims=True)
-    outs = {}
-    for label, buffer, value in (("default", "normal", None), ("same", "reflected_normal", "n"),
-                                 ("other", "geo_normal", other)):
-        m = methods.get("svgf", normal_buffer=buffer)
-        m.reset()
-        for f in seq:
-            extra = {} if value is None else {buffer: f.normal if isinstance(value, str) else value}
-            out = m.denoise(f.with_buffers(**extra))
-        outs[label] = out
-    np.testing.assert_array_equal(outs["default"], outs["same"])
-    assert np.abs(outs["other"] - outs["default"]).max() > 1e-3
-    with pytest.raises(DbenchInputError, match="geo_normal"):
-        methods.get("asvgf", normal_buffer="geo_normal").denoise(seq[0])
-    with pytest.raises(DbenchInputError, match="normal_buffer"):
-        methods.get("svgf", normal_buffer="mirror")
-
-
-@pytest.mark.parametrize("name", ["svgf", "asvgf"])
-@pytest.mark.parametrize("backend", ["numba", "reference"])
-def test_without_an_emission_buffer_the_emission_history_is_left_out(name, backend):
-    """No ``emission`` buffer: the emission is 0 everywhere, so its three history planes are
-    neither reprojected nor accumulated; the output equals the one with a zero buffer."""
-    seq = synthetic_sequence(24, 40, frames=4)
-    zero = np.zeros((24, 40, 3), np.float32)
-    a, b = (methods.get(name, backend=backend) for _ in range(2))
-    a.reset()
-    b.reset()
-    for f in seq:
-        np.testing.assert_array_equal(a.denoise(f), b.denoise(f.with_buffers(emission=zero)))
-    assert b.history.buffers.shape[0] == a.history.buffers.shape[0] + 3
-
-
-def test_demodulation_albedo_is_continuous_and_bounded_on_every_backend():
-    """a_eff = clip(albedo, ALBEDO_FLOOR, 1) where finite, else 1 (docs/temporal.md §12): no
-    jump between albedo 0 and albedo just above 1e-3 (the spec's rule gave 1 and 0.001)."""
-    from dbench.methods.svgf.params import ALBEDO_FLOOR
-
-    values = np.array([0.0, 1e-4, 2e-3, 0.05, ALBEDO_FLOOR, 0.5, 1.5, np.nan, np.inf, -0.2],
-                      np.float32)
-    albedo = np.repeat(values[None, :, None], 3, axis=2)          # (1, 10, 3)
-    want = np.array([ALBEDO_FLOOR] * 5 + [0.5, 1.0, 1.0, 1.0, ALBEDO_FLOOR], np.float32)
-    color = np.ones((1, values.size, 3), np.float32)
-    hit = np.ones((1, values.size), bool)
-    for backend in ("reference", "numba", "torch"):
-        pr = C.prepare(backend, color, albedo, None, hit)
-        np.testing.assert_allclose(pr["a_eff"][:, 0], np.tile(want, (3, 1)), rtol=1e-6,
-                                   err_msg=backend)
-        assert pr["illum"].max() <= 1.0 / ALBEDO_FLOOR + 1e-4
-    np.testing.assert_allclose(C.prepare("numba", color, albedo, None, hit, 0.3)["a_eff"][:, 0, :5],
-                               0.3, rtol=1e-6)
-    with pytest.raises(DbenchInputError, match="albedo_floor"):
-        methods.get("svgf", albedo_floor=0.0)
-    with pytest.raises(DbenchInputError, match=r"albedo_floor: expected a number in \[0.001, 1\]"):
-        methods.get("bmfr", albedo_floor=1e-45)  # 1 / a subnormal floor overflows float32
-    assert methods.get("asvgf", albedo_floor=1e-3).params["albedo_floor"] == 1e-3
-
-
-@pytest.mark.parametrize("name", ["svgf", "asvgf", "bmfr"])
-def test_pixels_with_zero_and_tiny_albedo_side_by_side_stay_bounded(name):
-    """A surface whose 1-spp albedo samples are 0 (a conductor's AOV) in some pixels and 0.002
-    (a dark reflection's PSR albedo) in others, changing from frame to frame: the spec's rule
-    demodulated them by 1 and by 0.002, the filters mixed illumination 500x apart, and pixels
-    came out hundreds of times too bright (found on the autoencoder's training sequences)."""
-    from dbench.data import Sequence
-
-    seq = synthetic_sequence(32, 40, frames=10)
-    rng = np.random.default_rng(3)
-    frames = []
-    for f in seq:
-        albedo = np.where(rng.random(f.albedo.shape[:2])[..., None] < 0.5, 0.0, 0.002)
-        frames.append(f.with_buffers(albedo=np.broadcast_to(albedo, f.albedo.shape)
-                                     .astype(np.float32), emission=None))
-    r = run_sequence(name, Sequence(frames), warmup=4, keep_outputs=True)
-    for out, f in zip(r.outputs[4:], frames[4:]):
-        assert np.isfinite(out).all()
-        assert out.max() < 3.0 * f.reference.max()
-
-
-def test_gaussian_luminance_weight_is_the_square_of_the_laplacian_exponent():
-    """w_l = exp(−d²) ("gaussian", the dbench preset) against exp(−d) ("laplacian", the paper's):
-    one tap, no normal or depth difference, d = |Δl| / (σ_l √(g(Var)) + ε) = 0.5 and 2."""
-    h, w = 1, 2
-    z = np.ones((h, w), np.float32)
-    n = np.zeros((3, h, w), np.float32)
-    n[2] = 1
-    hit = np.ones((h, w), bool)
-    g0 = np.zeros((h, w), np.float32)
-    var = np.full((h, w), 1.0, np.float32)     # σ_l √(1 + ε) ≈ 4: d = Δl / 4
-    for dl in (2.0, 8.0):
-        c = np.zeros((3, h, w), np.float32)
-        c[:, 0, 1] = dl                          # luminance of grey = its value
-        for kernel, power in (("laplacian", 1), ("gaussian", 2)):
-            out, _ = C.atrous_reference(c, var, z, g0, g0, n, hit, hit, hit, 1, sigma_z=1e30,
-                                        eps_var=0.0, lum_kernel=kernel)
-            d = dl / 4.0
-            wt = C.H1[3] * C.H1[2] * np.exp(-d ** power) / (C.H1[2] * C.H1[2])
-            assert out[0, 0, 0] == pytest.approx(dl * wt / (1 + wt), rel=1e-6)
-    with pytest.raises(DbenchInputError, match="luminance_kernel"):
-        methods.get("svgf", luminance_kernel="box")

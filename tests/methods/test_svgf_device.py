@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 import torch
 
-from dbench import methods
+from dbench import registry
 from dbench.device import download, upload
 from dbench.errors import DbenchInputError
 from device_checks import host_conversions_refused  # pytest puts this folder on sys.path
@@ -59,8 +59,8 @@ def rich_sequence(frames=5, fractional=False, seed=5):
 
 def run_both(name, frames, **params):
     """Yields (host output, device output as NumPy, host method, device method) per frame."""
-    host = methods.get(name, backend="numba", **params)
-    dev = methods.get(name, **params)
+    host = registry.get(name, backend="numba", **params)
+    dev = registry.get(name, **params)
     host.reset()
     dev.reset()
     for f in frames:
@@ -116,13 +116,13 @@ def test_hostile_inputs_give_finite_output_where_the_input_is_finite():
 
 def test_reset_clears_the_device_history():
     seq = hard_sequence(12, 16, frames=3, fractional=False)
-    dev = methods.get("svgf")
+    dev = registry.get("svgf")
     dev.reset()
     for f in seq:
         dev.denoise_device(upload(f, "cpu"))
     dev.reset()
     again = download(dev.denoise_device(upload(seq[1], "cpu")))
-    fresh = methods.get("svgf")
+    fresh = registry.get("svgf")
     fresh.reset()
     np.testing.assert_array_equal(again, download(fresh.denoise_device(upload(seq[1], "cpu"))))
     assert (dev.last["status"].numpy() == 0).all() and (dev.last["n"].numpy() <= 1).all()
@@ -130,7 +130,7 @@ def test_reset_clears_the_device_history():
 
 def test_no_numpy_conversion_inside_a_call(monkeypatch):
     frames = [upload(f, "cpu") for f in rich_sequence(frames=3)]
-    dev = methods.get("svgf", taa=True, normal_buffer="geo_normal")
+    dev = registry.get("svgf", taa=True, normal_buffer="geo_normal")
     dev.reset()
 
     with host_conversions_refused(monkeypatch):
@@ -140,14 +140,14 @@ def test_no_numpy_conversion_inside_a_call(monkeypatch):
 
 
 def test_device_path_declared_and_inputs_checked():
-    cls = type(methods.get("svgf"))
+    cls = type(registry.get("svgf"))
     assert cls.device_backend == "triton" and cls.has_device_path()
     f = hard_sequence(4, 4, frames=1)[0]
     with pytest.raises(DbenchInputError, match="backend"):
-        methods.get("svgf", backend="reference").denoise_device(upload(f, "cpu"))
+        registry.get("svgf", backend="reference").denoise_device(upload(f, "cpu"))
     with pytest.raises(DbenchInputError, match="geo_normal"):
-        methods.get("svgf", normal_buffer="geo_normal").denoise_device(upload(f, "cpu"))
+        registry.get("svgf", normal_buffer="geo_normal").denoise_device(upload(f, "cpu"))
     d = upload(f, "cpu")
     d.buffers["albedo"] = d.buffers["albedo"][:, :2]
     with pytest.raises(DbenchInputError, match="albedo"):
-        methods.get("svgf").denoise_device(d)
+        registry.get("svgf").denoise_device(d)

@@ -98,12 +98,12 @@ def test_the_history_follows_the_motion_vectors():
 def test_methods_run_taa_as_an_option(name):
     """``taa=True`` on the temporal methods: frame 0 equals the method without it (no history),
     later frames differ, ``reset`` restarts it, and bad values are refused with their name."""
-    from dbench import methods
+    from dbench import registry
     from dbench.synthetic import synthetic_sequence
     from dbench.errors import DbenchInputError
 
     seq = synthetic_sequence(24, 32, frames=3, shift=1, seed=0)
-    plain, with_taa = methods.get(name), methods.get(name, taa=True)
+    plain, with_taa = registry.get(name), registry.get(name, taa=True)
     first = [m.denoise(seq.frames[0]) for m in (plain, with_taa)]
     np.testing.assert_array_equal(first[0], first[1])
     second = [m.denoise(seq.frames[1]) for m in (plain, with_taa)]
@@ -113,7 +113,7 @@ def test_methods_run_taa_as_an_option(name):
     np.testing.assert_array_equal(with_taa.denoise(seq.frames[0]), plain.denoise(seq.frames[0]))
     for bad in ({"taa": 1}, {"taa": True, "taa_alpha": 0.0}, {"taa_alpha": 1.5}):
         with pytest.raises(DbenchInputError, match="taa"):
-            methods.get(name, **bad)
+            registry.get(name, **bad)
 
 
 def test_a_missing_pixels_history_never_spreads():

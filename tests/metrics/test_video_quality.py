@@ -147,12 +147,12 @@ def test_auto_rule_and_sequence_column():
 
 
 def test_sequence_cell_and_sweep_table_carry_the_column():
-    from dbench import methods
+    from dbench import registry
     from dbench.run import harness
     from dbench.report import tables
     from dbench.synthetic import synthetic_sequence
 
-    cell = harness.run_sequence_cell(methods.get("accumulate"), synthetic_sequence(16, 24, 10))
+    cell = harness.run_sequence_cell(registry.get("accumulate"), synthetic_sequence(16, 24, 10))
     assert 0 < cell.metrics["cvvdp"] < 10 and "cvvdp_ci" in cell.metrics
     base = {"status": "ok", "scene": "s", "method": "m", "spp": 1, "rmse": 0.1}
     df = tables.cells_frame([{**base, "cvvdp": 8.5, "cvvdp_ci": 0.2}])

@@ -1,4 +1,4 @@
-"""``accumulate``: temporal accumulation alone (spec/temporal.md §2-§3), the baseline every
+"""``accumulate``: temporal accumulation alone (docs/methods/temporal.md §2-§3), the baseline every
 sequence denoiser must beat.
 
 Per frame: reproject the previous accumulated colour, luminance moments and history length
@@ -50,7 +50,7 @@ from typing import Any
 import numpy as np
 
 from ...errors import DbenchInputError
-from ...registry import register
+from ...denoiser import register
 from .. import temporal as T
 from . import fast as _fast
 
@@ -65,7 +65,7 @@ def _check_params(p: dict[str, Any]) -> None:
 
 @register("accumulate")
 class Accumulate(T.HistoryDenoiser):
-    """Reprojected temporal accumulation with luminance moments (spec/temporal.md)."""
+    """Reprojected temporal accumulation with luminance moments (docs/methods/temporal.md)."""
 
     kinds = {"sequence"}
     needs = {"color", "normal", "depth", "position", "motion"}

@@ -1,5 +1,5 @@
 """``autoencoder``: the recurrent denoising autoencoder of Chaitanya et al. 2017
-(spec/autoencoder.md), served with ONNX Runtime from the shipped ``autoencoder.onnx`` (trained by
+(docs/methods/autoencoder.md), served with ONNX Runtime from the shipped ``autoencoder.onnx`` (trained by
 ``dbench train autoencoder``; ``autoencoder.json`` beside it holds the training configuration,
 data hash, losses and widths).
 
@@ -78,7 +78,7 @@ import numpy as np
 
 from ...data import check_buffer
 from ...errors import DbenchInputError
-from ...registry import Denoiser, register
+from ...denoiser import Denoiser, register
 from ..kernels.emitters import keep_emitters
 from ..kernels.hdr_input import autoexposure, frame_spp, noise_level
 from ..kernels.learned_input import encode_planar
@@ -212,7 +212,7 @@ def training_info(path: str | Path = SHIPPED_JSON) -> dict[str, Any]:
 
 @register("autoencoder")
 class Autoencoder(Denoiser):
-    """Recurrent denoising autoencoder (spec/autoencoder.md); ``reset()`` between sequences."""
+    """Recurrent denoising autoencoder (docs/methods/autoencoder.md); ``reset()`` between sequences."""
 
     kinds = {"steady", "sequence"}
     needs = {"color", "albedo", "normal", "depth"}

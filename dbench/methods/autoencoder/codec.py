@@ -1,4 +1,4 @@
-"""Input encoding of the autoencoder (spec/autoencoder.md §1) and the architecture constants,
+"""Input encoding of the autoencoder (docs/methods/autoencoder.md §1) and the architecture constants,
 NumPy only (no torch import), shared by training and ONNX Runtime inference."""
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The recurrent denoising autoencoder in PyTorch: the readable reference (spec/autoencoder.md).
+"""The recurrent denoising autoencoder in PyTorch: the readable reference (docs/methods/autoencoder.md).
 
 Architecture (spec §2, dbench's exact definition), for encoder widths e = (32, 43, 57, 76, 101)
 scaled by ``width_scale`` and decoder widths d = (76, 57, 43, 32, 32) scaled alike::
@@ -22,7 +22,7 @@ upsampling. With 9 input channels and ``width_scale=1`` the model has 1,454,924 
 Input encoding (spec §1, dbench): channel order ``log1p(color / a_eff)`` (3), then the feature
 buffers in ``FEATURE_ORDER`` order: normal (3, in [-1, 1]), albedo (3, in [0, 1]) and optionally
 depth (1, divided by the frame's largest finite depth). ``a_eff`` is the albedo where it exceeds
-1e-3 (per channel) and 1 elsewhere (spec/svgf.md §2). The network predicts the demodulated
+1e-3 (per channel) and 1 elsewhere (docs/methods/svgf.md §2). The network predicts the demodulated
 illumination in log1p space; :func:`decode` remodulates: ``out = max(expm1(y), 0) * a_eff``.
 
 Example:
@@ -59,7 +59,7 @@ def _conv(cin: int, cout: int) -> nn.Conv2d:
 
 
 class RecurrentAE(nn.Module):
-    """U-Net with a recurrent block per encoder level (spec/autoencoder.md §2).
+    """U-Net with a recurrent block per encoder level (docs/methods/autoencoder.md §2).
 
     Args:
         in_channels: input channels (9 for colour + normal + albedo).
@@ -76,7 +76,7 @@ class RecurrentAE(nn.Module):
         level_gate: [dbench option, with ``residual``] the index of the input's noise-level
             plane ℓ = log2(spp)/10; the correction is scaled by γ(ℓ) = gate_max ·
             sigmoid(v + u ℓ) (two trained numbers, ``self.level_gate`` = (u, v)), the NCA's
-            step size (spec/nca.md, dbench), so that one scalar can pass a converged input
+            step size (docs/methods/nca.md, dbench), so that one scalar can pass a converged input
             (ℓ → 1) through. Tried against the shipped model's gap at 256-1024 spp and worse
             (results/learned.md); not used by the shipped model.
         gate_max, gate_init: γ's upper bound and the initial (u, v).

@@ -1,7 +1,8 @@
-"""``bmfr``: blockwise multi-order feature regression (Koskela et al. 2019; spec/bmfr.md).
+"""``bmfr``: blockwise multi-order feature regression (Koskela et al. 2019; docs/methods/bmfr.md).
 
-Per frame (spec §1): subtract the primary hits' emission (``emission`` buffer when present, as
-for SVGF) and demodulate by albedo (a_eff = clip(albedo, ``albedo_floor``, 1), the rule of
+Per frame (spec §1; the demodulation and emission steps are SVGF's,
+:func:`dbench.methods.svgf.dispatch.prepare` and :mod:`dbench.methods.svgf.steps`): subtract the
+primary hits' emission (``emission`` buffer when present, as for SVGF) and demodulate by albedo (a_eff = clip(albedo, ``albedo_floor``, 1), the rule of
 :data:`dbench.methods.svgf.params.ALBEDO_FLOOR`; by default ``albedo_floor`` = 1, no
 demodulation, :data:`~dbench.methods.bmfr.params.ALBEDO_FLOOR_BMFR`); accumulation 1 of the
 noisy illumination Z with α1 = max(1/N, 0.2); a block grid (B = 32) with this frame's offset
@@ -27,10 +28,10 @@ With the hand-back the output converges to the accumulated input as its variance
 
 Temporal gradient (``temporal_gradient=True``, default; docs/temporal.md §5): when the frame has
 a ``gradient`` buffer (the re-shaded samples A-SVGF uses), both accumulations take A-SVGF's
-adaptive history (:func:`dbench.methods.svgf.gradient_history`): N' = min(N(1 − G)^10 + 1, 256),
-α_k = max(mix(1/N', 1, G), α_k). The BMFR code's fixed α lags ~10 frames behind a light change
-(it was 1.05× plain accumulation on ``flicker``); A-SVGF's authors present the gradient as usable
-by any temporal filter. ``False`` (or a frame without the buffer) gives the fixed rule.
+adaptive history (:func:`dbench.methods.svgf.steps.gradient_history`):
+N' = min(N(1 − G)^10 + 1, 256), α_k = max(mix(1/N', 1, G), α_k). The BMFR code's fixed α lags
+~10 frames behind a light change (it was 1.05× plain accumulation on ``flicker``); A-SVGF's
+authors present the gradient as usable by any temporal filter. ``False`` (or a frame without the buffer) gives the fixed rule.
 
 Public: :func:`householder_lstsq` (A (K, m, n), B (K, m, c)) -> X (K, n, c).
 
@@ -91,10 +92,10 @@ import numpy as np
 
 from ...data import check_buffer
 from ...errors import DbenchInputError
-from ...registry import register
+from ...denoiser import register
 from .. import temporal as T
-from ..svgf import _accumulate_emission, _emission, gradient_history
-from ..svgf import dispatch as SC
+from ..svgf.dispatch import prepare, remodulate
+from ..svgf.steps import accumulate_emission, emission_buffer, gradient_history
 from . import handback as HB
 from .dispatch import bmfr_fit, householder_lstsq
 from .numba_path import bmfr_fit_fast
@@ -213,7 +214,7 @@ class BMFR(T.HistoryDenoiser):
     def _alphas(self, data, geo, n_hist, prep):
         """(history length to accumulate on, α1, α2, G): the fixed rule of the BMFR code, or,
         with ``temporal_gradient`` and a ``gradient`` buffer on the frame, A-SVGF's adaptive
-        history (spec/svgf.md §6; Schied et al. 2018 present the gradient as usable by any
+        history (docs/methods/svgf.md §6; Schied et al. 2018 present the gradient as usable by any
         temporal filter): N' = min(N(1 − G)^10 + 1, 256), α_k = max(mix(1/N', 1, G), α_k)."""
         p = self.params
         if not p["temporal_gradient"] or getattr(data, "gradient", None) is None:
@@ -231,8 +232,8 @@ class BMFR(T.HistoryDenoiser):
         h, w = color.shape[:2]
         albedo = check_buffer("albedo", getattr(data, "albedo", None), (h, w, 3))
         geo = T.frame_geometry(data, backend=be)
-        emission = _emission(data, h, w)
-        prep = SC.prepare(be, color, albedo, emission, geo.hit, p["albedo_floor"])
+        emission = emission_buffer(data, h, w)
+        prep = prepare(be, color, albedo, emission, geo.hit, p["albedo_floor"])
         present = prep["present"]
 
         # history: Z accumulated (3), N, the fit accumulated (3); with the hand-back Z²
@@ -251,8 +252,8 @@ class BMFR(T.HistoryDenoiser):
         stage = self.history.staging(planes, h, w)
         z_acc, n1, a_used = acc(prep["illum"], hist[0:3], n_hist, ok, p["alpha1"], T.N_MAX, a1,
                                 present, out=(stage[0:3], stage[3]))
-        acc_e = (_accumulate_emission(be, prep, hist[base:], n_hist, ok, p["alpha1"], T.N_MAX,
-                                      a1, present, out=stage[base:])
+        acc_e = (accumulate_emission(be, prep, hist[base:], n_hist, ok, p["alpha1"], T.N_MAX,
+                                     a1, present, out=stage[base:])
                  if emissive else prep["emission"])
         filled = n1 > 0
         recon = geo.hit & ~prep["emitter"]
@@ -306,5 +307,5 @@ class BMFR(T.HistoryDenoiser):
         self._prev_lum = prep["lum_raw"]
         self.last = {"gradient": g, "dropped": dropped, "offset": tuple(int(v) for v in offset), "n1": n1,
                      "n2": n2, "status": status}
-        out = SC.remodulate(y_acc, prep["a_eff"], acc_e, be)
+        out = remodulate(y_acc, prep["a_eff"], acc_e, be)
         return self._with_taa(out, geo.motion, status)

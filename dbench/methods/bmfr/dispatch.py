@@ -16,7 +16,7 @@ from .torch_path import bmfr_fit_torch, householder_lstsq_torch
 def householder_lstsq(A: np.ndarray, B: np.ndarray, rcond: float = RCOND,
                       backend: str = "numba", return_dropped: bool = False):
     """Solve min ‖A X − B‖ for batches A (K, m, n), B (K, m, c) by Householder QR without
-    forming Q, R shared by the c right-hand sides (spec/bmfr.md §5) on ``backend`` ("numba",
+    forming Q, R shared by the c right-hand sides (docs/methods/bmfr.md §5) on ``backend`` ("numba",
     "torch" or "reference"). Returns X (K, n, c)
     float64 (and the per-batch count of columns zeroed by the rank safeguard when
     ``return_dropped``). 2-D inputs (m, n), (m, c) are treated as one batch.

@@ -27,7 +27,8 @@ from ..kernels.residual_handback import (HANDBACK_RADIUS, pixel_window_variance,
 #: The rules: hand back nothing (the BMFR paper's output), the Wiener split, or the Wiener split
 #: with the signed rule below the fit (docs/temporal.md §17).
 HANDBACKS = ("none", "wiener", "signed")
-#: Below this many effective samples (1/S) the variance is the spatial one (spec/svgf.md §3).
+#: Below this many effective samples (1/S) the variance is the spatial one
+#: (docs/methods/svgf.md §3).
 MIN_TEMPORAL_SAMPLES = 4.0
 #: History planes the hand-back adds: accumulated z² (3) and S (1).
 EXTRA_PLANES = 4

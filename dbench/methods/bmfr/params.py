@@ -1,6 +1,6 @@
-"""Constants of ``bmfr`` with their sources (spec/bmfr.md; [dbench] marks values chosen here,
-[BMFR code] values of the authors' implementation), and the constants of the counter-based hash
-behind the feature noise (splitmix64) that the reference, Numba and PyTorch paths share."""
+"""Constants of ``bmfr`` with their sources (docs/methods/bmfr.md; [dbench] marks values chosen
+here, [BMFR code] values of the authors' implementation), and the constants of the counter-based
+hash behind the feature noise (splitmix64) that the reference, Numba and PyTorch paths share."""
 from __future__ import annotations
 
 import numpy as np

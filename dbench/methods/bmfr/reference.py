@@ -1,7 +1,7 @@
-"""BMFR, readable NumPy reference (spec/bmfr.md): batched Householder least squares without Q,
-the feature columns, the block grids and their offsets, the feature noise, and the per-block fit
-and reconstruction. Shapes: planar images (C, H, W); features (M, H, W) raw (unscaled,
-noise-free); least-squares batches A (K, m, n), B (K, m, c)."""
+"""BMFR, readable NumPy reference (docs/methods/bmfr.md): batched Householder least squares without
+Q, the feature columns, the block grids and their offsets, the feature noise, and the per-block fit
+and reconstruction. Shapes: planar images (C, H, W); features (M, H, W) raw (unscaled, noise-free);
+least-squares batches A (K, m, n), B (K, m, c)."""
 from __future__ import annotations
 
 import numpy as np

@@ -1,5 +1,5 @@
-"""PyTorch backend of the BMFR core (spec/bmfr.md): features, the batched least-squares fit of
-every block at once, and the reconstruction.
+"""PyTorch backend of the BMFR core (docs/methods/bmfr.md): features, the batched least-squares
+fit of every block at once, and the reconstruction.
 
 All blocks of a grid become one batch: block k's pixels are the rows of a (K, B², ·) tensor
 gathered with flat index tensors; rows outside the image or outside the fit set are zero rows,

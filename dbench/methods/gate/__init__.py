@@ -1,8 +1,8 @@
-"""``NAME+gate``: any steady method followed by ProDen's t-test gate (spec/statistical.md §12).
+"""``NAME+gate``: any steady method followed by ProDen's t-test gate (docs/methods/statistical.md §12).
 
 The gate mixes the method's output back towards the noisy mean wherever the two differ by many
 standard errors of that mean, using dbench's exact per-pixel variance of the mean
-(:func:`~dbench.methods.kernels.gate.linear_variance` of ``Frame.stats``). As the variance of
+(:func:`~dbench.methods.kernels.variance_floor.linear_variance` of ``Frame.stats``). As the variance of
 the mean falls with spp, every pixel the method got wrong is handed back to the input, so the
 output converges to the noisy input's limit: a consistent variant of a biased method.
 
@@ -62,7 +62,9 @@ from ...denoiser import Denoiser
 from ...errors import DbenchInputError
 from ..checks import check_choice
 from ..kernels.emitters import keep_emitters
-from ..kernels.gate import GATE_K, GATE_T0, linear_variance, proden_gate, proden_gate_stats
+from ..kernels.gate import proden_gate_stats
+from ..kernels.gate_reference import GATE_K, GATE_T0, proden_gate
+from ..kernels.variance_floor import linear_variance
 from ..kernels.handback import HANDBACKS
 from ..kernels.variance_floor import POOL_RADIUS
 
@@ -161,7 +163,7 @@ def gated_class(base: type[Denoiser]) -> type[Denoiser]:
                                f"({sorted(clash)})")
 
     class Gated(Denoiser):
-        __doc__ = (f"``{base.name}`` followed by ProDen's t-test gate (spec/statistical.md "
+        __doc__ = (f"``{base.name}`` followed by ProDen's t-test gate (docs/methods/statistical.md "
                    f"§12; :mod:`dbench.methods.gate`).")
         wrapped = base
         kinds = {"steady"}

@@ -1,12 +1,12 @@
-"""``jbf``: joint (cross) bilateral filter on noise-free G-buffers (spec/jbf.md).
+"""``jbf``: joint (cross) bilateral filter on noise-free G-buffers (docs/methods/jbf.md).
 
 Two modes of one method:
 
 * ``mode="jbf"`` (default): ρ_ij = exp(−½ Σ_k (p_j,k − p_i,k)² Σ⁻¹_kk) over pixel position,
   albedo and normal (optionally position/depth), hit mask, no colour term, normalised per pixel
-  (spec/jbf.md §1). It is also the base filter of ``statistical``.
+  (docs/methods/jbf.md §1). It is also the base filter of ``statistical``.
 * ``mode="illumination"``: the seed-002 "effective illumination" filter as a post-process
-  (spec/jbf.md §2.2, simplified): demodulate by albedo, filter with C·exp(−α|o|²)·exp(−β(1−n·n'))
+  (docs/methods/jbf.md §2.2, simplified): demodulate by albedo, filter with C·exp(−α|o|²)·exp(−β(1−n·n'))
   ·H(n·n') so that the self-weight stays ≥ ``self_weight_min``, remodulate. There is no
   direct/indirect split (the whole colour is filtered); the BDF-lobe factor and ``lobe_key``
   are not implemented.
@@ -56,7 +56,7 @@ from typing import Any
 import numpy as np
 
 from ...errors import DbenchInputError
-from ...registry import Denoiser, register
+from ...denoiser import Denoiser, register
 from ..checks import check_choice, check_positive, check_radius
 from ..guards import depth_or_hit, require_buffers
 from ..kernels.bilateral.guide import Guide, check_sigma, make_guide, window_offsets
@@ -78,7 +78,7 @@ __all__ = ["JBF", "Guide", "IlluminationSetup", "SEED_SIGMA", "PRESETS", "accumu
 
 @register("jbf")
 class JBF(Denoiser):
-    """Joint bilateral filter (spec/jbf.md §1) and the seed-002 illumination filter (§2.2)."""
+    """Joint bilateral filter (docs/methods/jbf.md §1) and the seed-002 illumination filter (§2.2)."""
 
     kinds = {"steady"}
     needs = {"color", "albedo", "normal"}
@@ -124,7 +124,7 @@ class JBF(Denoiser):
 
     def denoise_device(self, data: Any):
         """The ``jbf`` mode on a :class:`~dbench.device.DeviceFrame` (:func:`.device.jbf_device`);
-        equal to :meth:`denoise` within float32 rounding (tests/methods/test_jbf_device.py)."""
+        equal to :meth:`denoise` within float32 rounding (tests/methods/test_gpu_bilateral.py)."""
         if not self.runs_on_device():
             raise DbenchInputError("jbf: the device path covers mode='jbf' with a compiled "
                                    f"backend; got mode={self.params['mode']!r}, "

@@ -54,7 +54,7 @@ def resolve_backend(backend: str, *, allow_torch: bool = True) -> str:
 def joint_bilateral_filter(color: Any, albedo: Any, normal: Any, depth: Any = None,
                            position: Any = None, *, backend: str = "numba",
                            **options: Any) -> np.ndarray:
-    """Joint bilateral filter of spec/jbf.md §1 on an (H, W, 3) image.
+    """Joint bilateral filter of docs/methods/jbf.md §1 on an (H, W, 3) image.
 
     Args:
         color: (H, W, 3) linear noisy radiance.

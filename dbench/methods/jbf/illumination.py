@@ -1,4 +1,4 @@
-"""Filtering effective illumination: the seed-002 filter as a post-process (spec/jbf.md §2.2,
+"""Filtering effective illumination: the seed-002 filter as a post-process (docs/methods/jbf.md §2.2,
 simplified), its readable reference and its fast path on the shared Numba kernel."""
 from __future__ import annotations
 
@@ -42,7 +42,7 @@ def make_illumination_setup(albedo: Any, normal: Any, depth: Any = None, positio
                             eps_albedo: float = 1e-3, use_position: bool = False,
                             sigma_P: float = 0.05, hit_mask: bool = True,
                             shape: tuple[int, int] | None = None) -> IlluminationSetup:
-    """Check inputs and parameters of the illumination filter (spec/jbf.md §2.2)."""
+    """Check inputs and parameters of the illumination filter (docs/methods/jbf.md §2.2)."""
     radius = check_radius(radius)
     alpha = check_positive("alpha", alpha, allow_zero=True)
     beta = check_positive("beta", beta, allow_zero=True)
@@ -96,7 +96,7 @@ def _illumination_combine(col, valid, usable, e, v, setup, num, den):
 
 
 def illumination_reference(color: Any, setup: IlluminationSetup, *, return_weights: bool = False):
-    """Readable illumination filter (spec/jbf.md §2.2 steps 2-5, float64).
+    """Readable illumination filter (docs/methods/jbf.md §2.2 steps 2-5, float64).
 
     The whole colour is filtered: there is no direct/indirect split in this post-process
     variant (L_dir = 0, L_ind = color).
@@ -155,7 +155,7 @@ def illumination_fast(color: Any, setup: IlluminationSetup) -> np.ndarray:
 def illumination_filter(color: Any, albedo: Any, normal: Any, depth: Any = None,
                         position: Any = None, *, backend: str = "numba",
                         **options: Any) -> np.ndarray:
-    """Seed-002 effective-illumination filter as a post-process (spec/jbf.md §2.2, simplified).
+    """Seed-002 effective-illumination filter as a post-process (docs/methods/jbf.md §2.2, simplified).
 
     E = color/albedo per channel (channels with albedo ≤ eps_albedo pass through unfiltered and
     are not neighbours), weights C·exp(−α|o|²)·exp(−β(1 − n·n'))·[exp(−|ΔP|²/2σ_P²)]·H(n·n')

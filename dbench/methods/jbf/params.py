@@ -1,5 +1,5 @@
 """Constants of the ``jbf`` method with their sources: the seed's Σ and the guide's choices
-(spec/jbf.md §1.1-1.2, defined with the shared kernel), the named presets, the modes and the
+(docs/methods/jbf.md §1.1-1.2, defined with the shared kernel), the named presets, the modes and the
 backends."""
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ from typing import Any
 
 from ..kernels.bilateral.params import FEATURES, SEED_SIGMA, SIGMA_CONVENTIONS, WINDOWS
 
-#: Named parameter sets (spec/jbf.md §1.2).
+#: Named parameter sets (docs/methods/jbf.md §1.2).
 PRESETS: dict[str, dict[str, Any]] = {
     "seed": dict(sigma_convention="variance", window="square", radius=20),
     "statmc": dict(sigma_convention="sd", window="disk", radius=20),

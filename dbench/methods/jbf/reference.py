@@ -1,4 +1,4 @@
-"""The readable JBF (spec/jbf.md §1.1): a loop over the window offsets accumulating shifted whole
+"""The readable JBF (docs/methods/jbf.md §1.1): a loop over the window offsets accumulating shifted whole
 images in float64, on the shared base weights."""
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ from ..kernels.bilateral.reference import reference_weights, shift_slices
 def jbf_reference(color: Any, guide: Guide, *, return_weights: bool = False):
     """Readable JBF: loop over offsets, accumulate shifted whole images (float64).
 
-    out_i = Σ_j ρ_ij h_ij v_j L_j / Σ_j ρ_ij h_ij v_j with v_j = colour finite (spec/jbf.md §1.1).
+    out_i = Σ_j ρ_ij h_ij v_j L_j / Σ_j ρ_ij h_ij v_j with v_j = colour finite (docs/methods/jbf.md §1.1).
 
     Returns:
         (H, W, 3) float64; with ``return_weights`` also the (O, H, W) normalised weights w_ij

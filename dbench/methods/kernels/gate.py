@@ -1,4 +1,4 @@
-"""ProDen's t-test gate (spec/statistical.md §12): mix a denoised image back towards the noisy one
+"""ProDen's t-test gate (docs/methods/statistical.md §12): mix a denoised image back towards the noisy one
 where they differ by many standard errors of the noisy mean, so any denoiser's output converges
 to the noisy input's limit as the variance of the mean vanishes.
 
@@ -8,9 +8,11 @@ to the noisy input's limit as the variance of the mean vanishes.
     out    = hdr + α_gate (den − hdr)
 
 Shapes: ``hdr``, ``den`` and ``var`` are (H, W, 3); ``var`` is the variance of the *linear*
-noisy mean (:func:`linear_variance` derives it from dbench's statistics). Zero-padded borders.
+noisy mean (:func:`~dbench.methods.kernels.variance_floor.linear_variance` derives it from
+dbench's statistics). Zero-padded borders.
 
-* :func:`proden_gate` — the readable reference (SciPy 2-D correlation, float64).
+* :func:`~dbench.methods.kernels.gate_reference.proden_gate` — the readable reference (SciPy
+  2-D correlation, float64; its own module).
 * :func:`proden_gate_fast` — the same numbers in one compiled pass over bands of rows: G is
   separable (G = g gᵀ, G² = g² g²ᵀ) and G*(hdr + α(den − hdr)) − G*hdr = α G*(den − hdr), so
   two separable blurs replace three 2-D ones; each band blurs its rows along x into a ring of
@@ -25,12 +27,6 @@ noisy mean (:func:`linear_variance` derives it from dbench's statistics). Zero-p
   the reason there), which ``NAME+gate`` does with r = 5.
 
 A kernel imports no method and nothing of the harness.
-
-Example:
-    >>> import numpy as np
-    >>> hdr = np.ones((8, 8, 3)); den = np.full((8, 8, 3), 2.0)
-    >>> float(proden_gate(hdr, den, np.zeros_like(hdr))[0, 0, 0])   # no variance: keep the input
-    1.0
 """
 from __future__ import annotations
 
@@ -42,85 +38,16 @@ import numpy as np
 from numba import get_num_threads, njit, prange
 
 from ..checks import check_choice
-from .handback import HANDBACKS, WIENER_RADIUS, wiener_handback, wiener_row
-from .variance_floor import (SUM_ANCHOR, advance_column_sums, floor_row, floored_variance,
-                             linear_value, window_mean_row)
+from .gate_reference import (GATE_K, GATE_T0, GATE_TAPS, gate_taps, proden_gate_factor,
+                             sigma_from_mean)
+from .handback import HANDBACKS, WIENER_RADIUS, wiener_row
+from .variance_floor import (SUM_ANCHOR, advance_column_sums, floor_row, linear_value,
+                             linear_variance, window_mean_row)
 
-#: Defaults of spec §12.
-GATE_K = 2.0
-GATE_T0 = 4.2
-GATE_TAPS = 11
 #: The compiled passes' radius, a constant so that their tap loops are unrolled (the column
 #: pass is written out for it: :func:`_column_gate`).
 _RADIUS = GATE_TAPS // 2
 assert _RADIUS == 5, "_column_gate's two passes are written for 11 taps"
-
-
-def proden_gate_factor(t: Any, k: float = GATE_K, t0: float = GATE_T0) -> np.ndarray:
-    """g(t) = ½(1 − erf(k(t − t0)/√2)) = Φ(−k(t − t0)): 0.5 at 4.2, 0.97725 at 3.2 (spec §12)."""
-    from scipy.special import erf
-
-    return 0.5 * (1.0 - erf(k * (np.asarray(t, np.float64) - t0) / math.sqrt(2.0)))
-
-
-def gate_sigma(var: np.ndarray) -> float:
-    """σ_b = max(100 · sqrt(clamp(mean(var), 0, 1)), 1e-3) (spec §12)."""
-    return sigma_from_mean(float(np.mean(var)))
-
-
-def sigma_from_mean(mean_var: float) -> float:
-    """σ_b of :func:`gate_sigma` from the mean variance itself."""
-    return max(100.0 * math.sqrt(min(max(mean_var, 0.0), 1.0)), 1e-3)
-
-
-def gate_taps(sigma: float, taps: int = GATE_TAPS) -> np.ndarray:
-    """The normalised 1-D Gaussian g (taps,) whose outer product is the spec's 2-D kernel."""
-    ax = np.arange(-(taps // 2), taps // 2 + 1, dtype=np.float64)
-    g = np.exp(-0.5 * (ax / sigma) ** 2)
-    return g / g.sum()
-
-
-def proden_gate(hdr: Any, den: Any, var: Any, *, alpha: float = 1.0, k: float = GATE_K,
-                t0: float = GATE_T0, pool_radius: int = 0, handback: str = "pixel"
-                ) -> np.ndarray:
-    """ProDen t-test gate (spec §12, without the ``proden_exact`` terms), the readable form.
-
-    Args:
-        hdr: (H, W, 3) noisy image; den: (H, W, 3) denoised image; var: (H, W, 3) per-pixel
-            variance of the mean in linear space.
-
-    Returns:
-        (H, W, 3) float64 out = hdr + α_gate (den − hdr), α_gate = α·g(t) per channel with
-        t = |G*(hdr + α(den − hdr)) − G*hdr| / (sqrt(G²*var) + 1e-6), G an 11×11 Gaussian with
-        σ_b = max(100·sqrt(clamp(mean(var), 0, 1)), 1e-3), zero-padded borders; with
-        ``pool_radius`` r > 0, the t-test's var is :func:`floored_variance` (var, r) [dbench]
-        (σ_b still from the mean of var); with ``handback="wiener"`` [dbench] the residual
-        handed back is split (:func:`~dbench.methods.kernels.handback.wiener_handback`, with
-        the unfloored var).
-    """
-    from scipy.ndimage import correlate
-
-    hdr = np.asarray(hdr, np.float64)
-    den = np.asarray(den, np.float64)
-    var = raw_var = np.asarray(var, np.float64)
-    check_choice("handback", handback, HANDBACKS)
-    g1 = gate_taps(gate_sigma(var))  # σ_b from the variance itself, floored or not
-    if pool_radius:
-        var = floored_variance(var, pool_radius)
-    kern = np.outer(g1, g1)
-    kern /= kern.sum()
-
-    def blur(img, kk):
-        return np.stack([correlate(img[..., c], kk, mode="constant") for c in range(img.shape[-1])],
-                        axis=-1)
-
-    mixed = hdr + alpha * (den - hdr)
-    t = np.abs(blur(mixed, kern) - blur(hdr, kern)) / (np.sqrt(blur(var, kern * kern)) + 1e-6)
-    a_gate = alpha * proden_gate_factor(t, k, t0)
-    if handback == "pixel":
-        return hdr + a_gate * (den - hdr)
-    low = blur(hdr - den, kern) / blur(np.ones_like(hdr[..., :1]), kern)
-    return wiener_handback(hdr, den, a_gate, low, raw_var, alpha)
 
 
 #: The gate factor is read from a table of Φ(−k(t − t0)) on [0, LUT_T_MAX] with linear
@@ -503,28 +430,4 @@ def proden_gate_stats(color: Any, den: Any, stats: Any, *, alpha: float = 1.0,
                         k, t0, pool_radius, **rule)
 
 
-def linear_variance(stats: Any, color: np.ndarray) -> np.ndarray:
-    """Variance of the linear mean for the ProDen gate, (H, W, 3) float64.
-
-    Exact for the identity transform; otherwise the delta method Var(x̄) ≈ Var(ȳ)/g'(x̄)² with
-    g'(x) = x^(λ−1) (Box-Cox) or (1 + x)^(λ−1) (Yeo-Johnson, x ≥ 0), an approximation
-    [dbench]; 0 where g' is infinite or the colour is not finite. Box-Cox with λ = ½ (dbench's
-    default statistics) is the product var · x, computed as such.
-    """
-    var = np.asarray(stats.var_mean, np.float64)
-    transform = getattr(stats, "transform", "identity")
-    if transform == "identity":
-        return np.where(np.isfinite(var), var, 0.0)
-    lam = float(stats.lam)
-    x = np.where(np.isfinite(color), np.maximum(np.asarray(color, np.float64), 0.0), 0.0)
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        if transform == "box-cox" and lam == 0.5:
-            out = var * x
-        else:
-            deriv = x ** (lam - 1.0) if transform == "box-cox" else (1.0 + x) ** (lam - 1.0)
-            out = var / (deriv * deriv)
-    return np.where(np.isfinite(out), out, 0.0)
-
-
-__all__ = ["GATE_K", "GATE_T0", "gate_sigma", "gate_taps", "linear_variance", "proden_gate",
-           "proden_gate_factor", "proden_gate_fast", "proden_gate_stats"]
+__all__ = ["gate_table", "proden_gate_fast", "proden_gate_stats"]

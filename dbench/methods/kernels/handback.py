@@ -1,4 +1,4 @@
-"""What the ProDen gate hands back [dbench]: the spec's gate (spec/statistical.md §12) returns a
+"""What the ProDen gate hands back [dbench]: the spec's gate (docs/methods/statistical.md §12) returns a
 fraction 1 − α_gate of the whole residual r = hdr − den to each pixel whose neighbourhood
 fails the t-test, which is exact on average but hands back the pixel's noise with it. The
 Wiener hand-back splits r into its local mean and the rest:
@@ -23,12 +23,12 @@ seed). The first form is the spec's output less the part of
 the noise the spec hands back: with λ = 1 it is the spec's gate, and with α = 0 the input, as
 in the spec (α_gate = α Φ(−k(t − t0)) ≤ α). As the variance vanishes σ_b → 0
 (G*r → r) and λ → 1 wherever r ≠ 0, so the gate still converges to the input. var is the
-linear variance of the mean (:func:`dbench.methods.kernels.gate.linear_variance`).
+linear variance of the mean (:func:`dbench.methods.kernels.variance_floor.linear_variance`).
 
 Its effect on the verdicts is measured in results/learned.md.
 
 * :func:`wiener_handback` — the readable form (SciPy box filters, float64), used by
-  :func:`dbench.methods.kernels.gate.proden_gate`.
+  :func:`dbench.methods.kernels.gate_reference.proden_gate`.
 * :func:`wiener_row` — one output row of the compiled form, fused into the gate's band pass
   (:mod:`dbench.methods.kernels.gate`); equal to the reference within 1e-6 (tests).
 

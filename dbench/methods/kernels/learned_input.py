@@ -1,4 +1,4 @@
-"""The learned models' input in one compiled pass (spec/autoencoder.md §1, spec/nca.md §1):
+"""The learned models' input in one compiled pass (docs/methods/autoencoder.md §1, docs/methods/nca.md §1):
 :func:`encode_planar` equals the NumPy encoders of the autoencoder
 (:func:`dbench.methods.autoencoder.codec.encode` followed by ``pad_to_multiple``) and of the NCA
 (:func:`dbench.methods.nca.codec.encode`) within 1e-6 relative (tests).
@@ -25,7 +25,7 @@ from typing import Sequence
 import numpy as np
 from numba import njit, prange
 
-#: a_eff's threshold (spec/svgf.md §2) and the feature planes, as in the codecs of both models
+#: a_eff's threshold (docs/methods/svgf.md §2) and the feature planes, as in the codecs of both models
 ALBEDO_EPS = 1e-3
 FEATURE_CHANNELS = {"normal": 3, "albedo": 3, "depth": 1, "level": 1}
 

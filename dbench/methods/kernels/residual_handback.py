@@ -18,7 +18,7 @@ with the split of :mod:`dbench.methods.kernels.handback` (the ProDen gate's Wien
 is z's noise: λ ≈ 0 and only its local mean goes back. Where y errs at the pixel scale the
 window's energy exceeds the noise's and λ → 1: z. As var → 0 (a converged history) out → z,
 so the filter converges with its own accumulation instead of keeping its bias. The 7×7 window
-is SVGF's variance window (spec/svgf.md §3); r and var are 0 outside ``mask``.
+is SVGF's variance window (docs/methods/svgf.md §3); r and var are 0 outside ``mask``.
 
 With ``signed`` (docs/temporal.md §17) a value whose high part is negative (z below the fit)
 takes the larger of that λ and one that weighs each pixel's negative part against its own

@@ -2,7 +2,7 @@
 raised to the mean of its channel over the (2r + 1)² window around the pixel (the part of it
 inside the image).
 
-Why: the gate's t-test (spec/statistical.md §12) trusts each pixel's variance estimate, but at a
+Why: the gate's t-test (docs/methods/statistical.md §12) trusts each pixel's variance estimate, but at a
 few samples per pixel that estimate is itself noisy, and for heavy-tailed radiance (fireflies,
 caustics) it is low exactly where the rare bright samples were missed. There the test declares
 a good denoiser's output "significantly different" from the noisy mean and hands the pixel back
@@ -157,5 +157,28 @@ def floor_row(lin_row, sums_row, rows_in, r, c, inv_cols, prefix, mean_row):  # 
         lin_row[i] = max(lin_row[i], mean_row[i])
 
 
+def linear_variance(stats: Any, color: np.ndarray) -> np.ndarray:
+    """Variance of the linear mean for the ProDen gate, (H, W, 3) float64.
+
+    Exact for the identity transform; otherwise the delta method Var(x̄) ≈ Var(ȳ)/g'(x̄)² with
+    g'(x) = x^(λ−1) (Box-Cox) or (1 + x)^(λ−1) (Yeo-Johnson, x ≥ 0), an approximation
+    [dbench]; 0 where g' is infinite or the colour is not finite. Box-Cox with λ = ½ (dbench's
+    default statistics) is the product var · x, computed as such.
+    """
+    var = np.asarray(stats.var_mean, np.float64)
+    transform = getattr(stats, "transform", "identity")
+    if transform == "identity":
+        return np.where(np.isfinite(var), var, 0.0)
+    lam = float(stats.lam)
+    x = np.where(np.isfinite(color), np.maximum(np.asarray(color, np.float64), 0.0), 0.0)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        if transform == "box-cox" and lam == 0.5:
+            out = var * x
+        else:
+            deriv = x ** (lam - 1.0) if transform == "box-cox" else (1.0 + x) ** (lam - 1.0)
+            out = var / (deriv * deriv)
+    return np.where(np.isfinite(out), out, 0.0)
+
+
 __all__ = ["POOL_RADIUS", "SUM_ANCHOR", "advance_column_sums", "floor_row", "floored_variance",
-           "linear_value", "window_column_sums", "window_mean", "window_mean_row"]
+           "linear_value", "linear_variance", "window_column_sums", "window_mean", "window_mean_row"]

@@ -1,4 +1,4 @@
-"""The Welch pair tests of spec/statistical.md §5.2 as inlined Numba row kernels: zero a row of
+"""The Welch pair tests of docs/methods/statistical.md §5.2 as inlined Numba row kernels: zero a row of
 weights where the test fails in any channel. pass_c = (d² < γ_t² S) or (d == 0), computed in
 float64 exactly as the NumPy reference does, so decisions are identical to it. Used inside the
 bilateral accumulation loops (2-D and 3-D) by ``statistical``."""
@@ -15,7 +15,7 @@ def row_welch(theta, var, g2, y, yy, x0, x1, dx, w):
     """Zero w where the Welch test fails in any channel (constant threshold γ_t² = g2).
 
     pass_c = (d² < γ_t² S) or (d == 0), computed in float64 exactly as the reference does
-    (spec/statistical.md §5.2), so decisions are identical to it.
+    (docs/methods/statistical.md §5.2), so decisions are identical to it.
     """
     # the 3D kernel's pair form with both ends in the same planes; w·1.0 == w exactly
     row_welch_pair(theta, var, theta, var, g2, y, yy, x0, x1, dx, w, 1.0, w)

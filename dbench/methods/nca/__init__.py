@@ -1,4 +1,4 @@
-"""``nca``: TNND, the tiny neural cellular automaton denoiser (spec/nca.md), served with ONNX
+"""``nca``: TNND, the tiny neural cellular automaton denoiser (docs/methods/nca.md), served with ONNX
 Runtime from the shipped ``nca.onnx`` (trained by ``dbench train nca``; ``nca.json`` beside it
 holds the training configuration, data hash, losses, W and b).
 
@@ -56,7 +56,7 @@ import numpy as np
 
 from ...data import check_buffer
 from ...errors import DbenchInputError
-from ...registry import Denoiser, register
+from ...denoiser import Denoiser, register
 from ..kernels.emitters import keep_emitters
 from ..kernels.hdr_input import autoexposure, frame_spp, noise_level
 from ..kernels.learned_input import decode_planar, encode_planar
@@ -134,7 +134,7 @@ def nca_denoise(color: np.ndarray, normal: np.ndarray, albedo: np.ndarray,
                 iterations: int | None = None, weights: str | Path | None = None,
                 threads: int | None = None, spp: float | None = None) -> np.ndarray:
     """Denoise (H, W, 3) linear colour with (H, W, 3) normal and albedo; returns (H, W, 3)
-    float32 (spec/nca.md; input policy in the module docstring). ``spp``: the colour's sample
+    float32 (docs/methods/nca.md; input policy in the module docstring). ``spp``: the colour's sample
     count, for the noise gate (None counts as 1 spp)."""
     color = check_buffer("color", color, (None, None, 3))
     h, w = color.shape[:2]
@@ -190,7 +190,7 @@ def training_info(path: str | Path = SHIPPED_JSON) -> dict[str, Any]:
 
 @register("nca")
 class NCADenoiser(Denoiser):
-    """TNND (spec/nca.md): 360 trained numbers (362 with the noise gate), ``iterations``
+    """TNND (docs/methods/nca.md): 360 trained numbers (362 with the noise gate), ``iterations``
     automaton steps."""
 
     kinds = {"steady"}

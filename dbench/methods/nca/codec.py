@@ -1,11 +1,11 @@
-"""State encoding of the NCA (spec/nca.md §1, §3 colour scaling), NumPy only (no torch import),
+"""State encoding of the NCA (docs/methods/nca.md §1, §3 colour scaling), NumPy only (no torch import),
 shared by training and ONNX Runtime inference.
 
-Colour encodings (an open choice of spec/nca.md §7, recorded in the model's metadata):
+Colour encodings (an open choice of docs/methods/nca.md §7, recorded in the model's metadata):
 
 * ``"log1p"`` (spec §3): RGB = log1p(color); output max(expm1(RGB), 0).
 * ``"log1p_demodulated"``: RGB = log1p(color / a_eff) with a_eff = albedo where it exceeds 1e-3
-  (per channel) and 1 elsewhere (spec/svgf.md §2); output max(expm1(RGB), 0) · a_eff. The
+  (per channel) and 1 elsewhere (docs/methods/svgf.md §2); output max(expm1(RGB), 0) · a_eff. The
   automaton then diffuses illumination, not texture.
 """
 from __future__ import annotations

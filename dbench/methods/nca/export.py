@@ -1,4 +1,4 @@
-"""ONNX graph of the NCA (spec/nca.md), written node by node from W and b.
+"""ONNX graph of the NCA (docs/methods/nca.md), written node by node from W and b.
 
 ``torch.onnx.export``'s default (dynamo) exporter needs ``onnxscript``, which dbench does not
 depend on; the automaton is small enough to write directly with ``onnx.helper``. The graph runs

@@ -1,5 +1,5 @@
 """TNND, the tiny neural cellular automaton denoiser, in PyTorch: the readable reference
-(spec/nca.md).
+(docs/methods/nca.md).
 
 State (spec §1): per pixel s = [R, G, B, N_x, N_y, N_z, A_x, A_y, A_z], shape (N, 9, H, W), with
 RGB as ``log1p`` of linear radiance, normals in [-1, 1], albedo in [0, 1] (spec §3, colour

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...registry import Denoiser, register
+from ...denoiser import Denoiser, register
 
 
 @register("noisy")

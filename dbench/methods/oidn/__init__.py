@@ -1,7 +1,7 @@
 """``oidn``: Intel Open Image Denoise (RT filter, HDR) through the pyoidn binding.
 
-The professional baseline every other method is measured against (spec/autoencoder.md, the
-OIDN section; anchors.md §2.5 for CPU timings). Inputs: color + albedo + normal by default.
+The professional baseline every other method is measured against (docs/methods/oidn.md;
+docs/metrics.md §2.5 for CPU timings). Inputs: color + albedo + normal by default.
 
 Input policy (documented finite result): OIDN needs non-negative finite HDR color, albedo in
 [0, 1] and normals in [-1, 1]. Non-finite color pixels are replaced by 0 and negative values by
@@ -18,7 +18,7 @@ import numpy as np
 
 from ...data import check_buffer
 from ...errors import DbenchInputError
-from ...registry import Denoiser, register
+from ...denoiser import Denoiser, register
 
 QUALITIES = ("high", "balanced", "fast")
 FEATURE_SETS = ("albedo+normal", "albedo", "none")

@@ -1,13 +1,21 @@
-"""``statistical``: the Welch-test statistical denoiser (spec/statistical.md, Sakai et al. 2024).
+"""``statistical``: the Welch-test statistical denoiser (docs/methods/statistical.md, Sakai et
+al. 2024).
 
 The joint bilateral filter of ``jbf`` (shared code) gives the base weights ρ; a neighbour is a
 member only if every colour channel passes Welch's test on the skew-corrected means θ̂ of the
 transformed samples (Frame.stats); the normalised weights are applied to the linear noisy
-colour (Frame.color). See :mod:`dbench.methods.statistical.core` for the maths and the policies
-(non-finite pixels, zero variance, out-of-image neighbours).
+colour (Frame.color). See :mod:`dbench.methods.statistical.reference` for the maths and the
+policies (non-finite pixels, zero variance, out-of-image neighbours).
 
-Transient videos (spec/statistical.md §11.3): given a :class:`~dbench.data.TransientFrame`, the
-same method runs the spatio-temporal denoiser of :mod:`dbench.methods.statistical.transient`: a
+Files: ``params.py`` (defaults, constants and the test's threshold γ_t), ``reference.py`` (the
+Welch test and the readable NumPy filter), ``fast.py`` (the filter on the JBF's shared Numba and
+PyTorch kernels), ``dispatch.py`` (:func:`statistical_filter`: one image on the chosen backend),
+``device.py`` (the device path of images); for videos ``transient.py`` (the spatio-temporal
+filter), ``transient_inputs.py`` (its per-voxel statistics), ``shrink.py`` (the
+centre-versus-neighbourhood shrinkage and the pixel-total rule) and ``transient_device.py``
+(the device path of videos).
+Transient videos (docs/methods/statistical.md §11.3): given a :class:`~dbench.data.TransientFrame`,
+the same method runs the spatio-temporal denoiser of :mod:`dbench.methods.statistical.transient`: a
 (2r_s+1)² × (2r_t+1) voxel window, the JBF replicated along time (or a plain 3D Gaussian for
 participating media) as base filter, the Welch test per voxel pair on the per-bin statistics, and
 empty bins skipped (they cost nothing and return 0).
@@ -24,7 +32,7 @@ DbenchInputError naming it; the resolved values land in ``last_settings`` after 
     (images only) | "reference"), hit_mask (True), membership (True; False = plain base filter, the ablation).
     The ProDen gate of spec §12 is ``statistical+gate`` (:mod:`dbench.methods.gate`, which
     wraps any steady method; ``statistical-gate`` is the old name of the same method).
-    Videos only (spec §11.3, spec/jbf.md §1.4): radius_t ("auto": follows the bin width,
+    Videos only (spec §11.3, docs/methods/jbf.md §1.4): radius_t ("auto": follows the bin width,
     min(3, ⌊20 mm / bin width⌋) from the frame's ``meta["bin_width_opl"]`` in metres, 1 when
     the frame has no window in metres;
     :func:`~dbench.methods.statistical.transient.auto_radius_t` | an integer), base ("auto":
@@ -65,17 +73,20 @@ from typing import Any
 import numpy as np
 
 from ...errors import DbenchInputError
-from ...registry import Denoiser, register
+from ...denoiser import Denoiser, register
 from ..guards import depth_or_hit, require_buffers
 from ..checks import check_choice, check_positive, check_radius
 from ..kernels.bilateral.guide import check_sigma, make_guide
 from ..kernels.bilateral.params import SEED_SIGMA, SIGMA_CONVENTIONS, TEMPORAL_PROFILES, WINDOWS
-from .core import (BACKENDS, DEFAULT_ALPHA, StatPlanes, Threshold, _check_alpha, _g2_from_gamma,
-                   gamma_from_gamma_t, gamma_t_from_gamma, membership, resolve_backend,
-                   resolve_threshold, stat_planes,
-                   statistical_fast, statistical_filter, statistical_reference, student_gamma_t,
-                   welch_pass, welch_t, welch_t_from_weight, welch_weight)
-from ..kernels.gate import linear_variance, proden_gate, proden_gate_factor
+from ..kernels.gate_reference import proden_gate, proden_gate_factor
+from ..kernels.variance_floor import linear_variance
+from .dispatch import statistical_filter
+from .fast import statistical_fast
+from .params import (BACKENDS, DEFAULT_ALPHA, STEADY_RADIUS, Threshold, check_alpha,
+                     g2_from_gamma, gamma_from_gamma_t, gamma_t_from_gamma, resolve_threshold,
+                     student_gamma_t)
+from .reference import (StatPlanes, membership, stat_planes, statistical_reference, welch_pass,
+                        welch_t, welch_t_from_weight, welch_weight)
 from .shrink import mass_shrink
 from .transient import (BASES, VIDEO_RADIUS, auto_radius_t, statistical_filter_video,
                         statistical_video_fast,
@@ -89,13 +100,9 @@ __all__ = ["Statistical", "StatPlanes", "Threshold", "gamma_from_gamma_t", "gamm
            "welch_t_from_weight", "welch_weight"]
 
 
-#: Steady spatial radius (spec §7).
-STEADY_RADIUS = 20
-
-
 @register("statistical")
 class Statistical(Denoiser):
-    """Welch-test statistical denoiser with the JBF as base filter (spec/statistical.md), on
+    """Welch-test statistical denoiser with the JBF as base filter (docs/methods/statistical.md), on
     images (§1-§8) and on transient videos (§11.3)."""
 
     kinds = {"steady", "transient"}
@@ -123,9 +130,9 @@ class Statistical(Denoiser):
                 raise DbenchInputError(f"radius_t: expected 'auto' or an integer ≥ 0, got "
                                        f"{p['radius_t']!r}") from None
         if p["alpha"] is not None:
-            _check_alpha(p["alpha"])
+            check_alpha(p["alpha"])
         if p["gamma"] is not None:
-            _g2_from_gamma(p["gamma"])
+            g2_from_gamma(p["gamma"])
         check_sigma(p["sigma"])
         check_choice("sigma_convention", p["sigma_convention"], SIGMA_CONVENTIONS)
         check_choice("window", p["window"], WINDOWS)

@@ -1,8 +1,8 @@
 """The steady statistical denoiser on a device (docs/gpu.md §2): statistics checked and turned
 into planes there, the threshold resolved from two integers read back (the smallest and largest
 sample count), and the Welch-tested window as one Triton launch (:mod:`dbench.methods.kernels.gpu`).
-The same rules as :func:`.core.statistical_filter`: pixels with non-finite θ̂, Var(θ̂) or n are
-isolated (their output is their own colour), negative variances or counts are refused."""
+The same rules as :func:`.dispatch.statistical_filter`: pixels with non-finite θ̂, Var(θ̂) or n
+are isolated (their output is their own colour), negative variances or counts are refused."""
 from __future__ import annotations
 
 from functools import lru_cache
@@ -11,14 +11,15 @@ from typing import Any
 from ...errors import DbenchInputError
 from ..kernels.gpu.bilateral import window_filter
 from ..kernels.gpu.guide import E_CUT, check_tensor, color_planes, depth_or_hit, make_device_guide
-from .core import resolve_threshold
+from .params import resolve_threshold
 
 
 def stat_planes_device(stats: Any, h: int, w: int):
     """(theta, var, nint, bad, negative): (H, W, 4) float64, float64, int32 (4th channel 0), the
-    (H, W) bool mask of non-finite statistics (zeroed there), as :func:`.core.stat_planes` builds
-    them, and a (2,) bool tensor: any negative variance, any negative count (read back by the
-    caller with the sample-count range, in one synchronisation)."""
+    (H, W) bool mask of non-finite statistics (zeroed there), as
+    :func:`.reference.stat_planes` builds them, and a (2,) bool tensor: any negative variance,
+    any negative count (read back by the caller with the sample-count range, in one
+    synchronisation)."""
     import torch
 
     if stats is None:
@@ -52,7 +53,7 @@ def refuse_negative(flags: tuple[bool, bool]) -> None:
 
 @lru_cache(maxsize=32)
 def _threshold(lo: int, hi: int, alpha: float | None, gamma: float | None, device: str):
-    """The host's :func:`.core.resolve_threshold` for counts ranging over [lo, hi] (it reads
+    """The host's :func:`.params.resolve_threshold` for counts ranging over [lo, hi] (it reads
     nothing else of them), with its γ_t² table uploaded to ``device`` once."""
     import numpy as np
     import torch

@@ -1,4 +1,4 @@
-"""Spatio-temporal statistical denoiser for transient videos (spec/statistical.md §11.3).
+"""Spatio-temporal statistical denoiser for transient videos (docs/methods/statistical.md §11.3).
 
 θ~_i = Σ_j w_ij L_j,  w_ij = ρ_ij m_ij v_j / Σ_k ρ_ik m_ik v_k,   i, j voxels (y, x, t)
 
@@ -7,7 +7,7 @@
   bin) always counts; the other bins of the same pixel are ordinary neighbours that must pass
   the test. Bins outside [0, T) are not neighbours (masked like padded pixels), as are pixels
   outside the image.
-* Base filter ρ (spec §11.3, spec/jbf.md §1.4), two choices:
+* Base filter ρ (spec §11.3, docs/methods/jbf.md §1.4), two choices:
   ``"jbf"``: the joint bilateral filter of the ``jbf`` method with its G-buffers replicated along
   time (they are per pixel), times a temporal factor (``temporal_profile`` ``"box"``, the default:
   1 for |τ| ≤ r_t; or ``"gaussian"``: exp(−½τ²/σ_t²));
@@ -75,7 +75,8 @@ from ..kernels.bilateral.guide import Guide, make_guide, temporal_factors, windo
 from ..kernels.bilateral.numba3d import accumulate3d
 from ..kernels.bilateral.params import SEED_SIGMA, TEMPORAL_PROFILES
 from ..kernels.bilateral.reference import reference_weights, shift_slices
-from .core import Threshold, resolve_threshold, welch_pass
+from .params import Threshold, resolve_threshold
+from .reference import welch_pass
 from .shrink import bias_from_colour, merge_shrink3d, shrink_layout, shrink_reference
 from .transient_inputs import (VideoStats, bins_in_play, nonempty_bins, prepare_video,
                                video_shape, video_stats)
@@ -149,7 +150,7 @@ def make_video_guide(base: str, shape: tuple[int, int], albedo: Any = None, norm
                      features: Sequence[str] = ("xy", "albedo", "normal")) -> Guide:
     """The spatial part of the base filter: the JBF guide (``"jbf"``) or, for ``"gauss3d"``,
     a guide with the ``"xy"`` feature only (σ_s² = sigma[0], sigma[1] in ``sigma_convention``)
-    and no hit mask (spec/jbf.md §1.4)."""
+    and no hit mask (docs/methods/jbf.md §1.4)."""
     check_choice("base", base, BASES)
     if base == "gauss3d":
         return make_guide(None, None, None, radius=radius, sigma=sigma,
@@ -335,7 +336,7 @@ def statistical_filter_video(color: Any, stats: Any, albedo: Any = None, normal:
                              shrink: bool = True,
                              backend: str = "auto",
                              return_info: bool = False):
-    """Statistical denoiser of spec/statistical.md §11.3 on an (H, W, T, 3) video.
+    """Statistical denoiser of docs/methods/statistical.md §11.3 on an (H, W, T, 3) video.
 
     Args:
         color: (H, W, T, 3) linear noisy video (the values that are filtered).
@@ -349,9 +350,9 @@ def statistical_filter_video(color: Any, stats: Any, albedo: Any = None, normal:
         base: ``"jbf"`` (G-buffers replicated along time), ``"gauss3d"`` (plain 3D Gaussian,
             media) or ``"auto"`` (:func:`resolve_base` from the G-buffers).
         temporal_profile: ``"box"`` or ``"gaussian"`` (σ_t = ``sigma_t`` bins); None = box for
-            the jbf base, gaussian for gauss3d (spec/jbf.md §1.4).
+            the jbf base, gaussian for gauss3d (docs/methods/jbf.md §1.4).
         sigma, sigma_convention, window, hit_mask, features: the spatial base filter as in
-            spec/jbf.md (gauss3d uses the spatial Σ entries only).
+            docs/methods/jbf.md (gauss3d uses the spatial Σ entries only).
         membership_on: False gives the plain 3D base filter (ablation).
         skip_empty: bins without energy cost nothing and return 0 (module docstring).
         shrink: the centre-versus-neighbourhood shrinkage of

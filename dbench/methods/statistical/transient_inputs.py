@@ -1,7 +1,7 @@
-"""Inputs of the spatio-temporal statistical denoiser (spec/statistical.md §11.1, §11.3): the
-per-voxel statistics θ̂, Var(θ̂), n of the bins in play (:class:`VideoStats`, :func:`video_stats`
-for the readable reference, :func:`prepare_video` for the kernel in one parallel pass), the
-non-empty bins and the bins their temporal window reaches.
+"""Inputs of the spatio-temporal statistical denoiser (docs/methods/statistical.md §11.1, §11.3):
+the per-voxel statistics θ̂, Var(θ̂), n of the bins in play (:class:`VideoStats`,
+:func:`video_stats` for the readable reference, :func:`prepare_video` for the kernel in one parallel
+pass), the non-empty bins and the bins their temporal window reaches.
 
 Shapes: colour and statistics (H, W, T, 3); kernel layout (K, 3, H, W) for the K bins in play.
 """

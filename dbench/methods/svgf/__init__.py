@@ -1,13 +1,13 @@
-"""``svgf`` and ``asvgf``: spatiotemporal variance-guided filtering (spec/svgf.md).
+"""``svgf`` and ``asvgf``: spatiotemporal variance-guided filtering (docs/methods/svgf.md).
 
 Per frame (spec §1): subtract the emission of the primary hits (``emission`` buffer, as Falcor's
 SVGFPass does; 0 when absent), demodulate by albedo (§2; a_eff = clip(albedo, ``albedo_floor``, 1),
 :data:`~dbench.methods.svgf.params.ALBEDO_FLOOR`, docs/temporal.md §12), reproject and accumulate
-the illumination and its luminance moments (spec/temporal.md), estimate the variance (temporal
-where the history has ≥ 4 frames, else a 7×7 spatial estimate, §4), run K à-trous iterations with
-normal, depth and luminance edge-stopping weights and variance propagation (§3, §5), store the
-colour history (unfiltered, or the output of iteration ``feedback_tap``), remodulate and add the
-accumulated emission back.
+the illumination and its luminance moments (docs/methods/temporal.md), estimate the variance
+(temporal where the history has ≥ 4 frames, else a 7×7 spatial estimate, §4), run K à-trous
+iterations with normal, depth and luminance edge-stopping weights and variance propagation (§3, §5),
+store the colour history (unfiltered, or the output of iteration ``feedback_tap``), remodulate and
+add the accumulated emission back.
 
 ``svgf`` blends with α = max(α_min, 1/N) (α_min = 0.2 for colour and moments, the paper's).
 ``asvgf`` replaces α by the temporal-gradient rule of the seed (§6.1): per 3×3 stratum of the
@@ -25,8 +25,8 @@ form of the spec's forward projection — identical for a static camera), and
 ``α = mix(1/N', 1, G)``, floored at α_min with the dbench preset (``alpha_floor``; the A-SVGF
 paper's α = (1 − λ)α₀ + λ and Q2RTX's max(α_min, 1/N) never go below a base α either).
 ``gradient_mode="paper"`` uses the original paper's λ = min(1, |δ̂|/Δ̂) and α = mix(0.2, 1, λ)
-floored at 1/N'. :func:`gradient_history` is that step on its own (BMFR uses it, in the
-seed's mode).
+floored at 1/N'. :func:`.steps.gradient_history` is that step on its own (BMFR uses it, in
+the seed's mode).
 
 Presets (``get("svgf", **params)``; a preset fills in the values not given; docs/temporal.md §3
 and results/temporal.md give the reasons and the study):
@@ -122,20 +122,19 @@ import numpy as np
 
 from ...data import check_buffer
 from ...errors import DbenchInputError
-from ...registry import register
+from ...denoiser import register
 from .. import temporal as T
-from ..guards import RADIANCE_MAX
 from . import boost as B
 from . import dispatch as C
 from .dispatch import (adaptive_history, atrous, depth_gradient, filter_gradients, prepare,
                        remodulate, spatial_variance, stratum_gradients)
 from .numba_path import atrous_fast, fast_exp_neg, prepare_fast, spatial_variance_fast
-from .params import (ALBEDO_FLOOR, ALPHA0_PAPER, EPS_VAR, GRADIENT_MODES, H1, MAX_ITERATIONS,
-                     LUM_KERNELS, N_SPATIAL, PRESETS, VARIANCE_BOOSTS, VARIANCE_OF,
-                     auto_iterations)
+from .params import (ALBEDO_FLOOR, EPS_VAR, GRADIENT_MODES, H1, MAX_ITERATIONS, LUM_KERNELS,
+                     N_SPATIAL, PRESETS, VARIANCE_BOOSTS, VARIANCE_OF, auto_iterations)
 from .reference import (asvgf_history, atrous_reference, gradient_at_pixels, gradient_value,
                         normal_weight, prepare_reference, spatial_variance_reference,
                         stratum_samples)
+from .steps import accumulate_emission, emission_buffer, gradient_history
 
 
 def _positive(name: str, value: Any, allow_zero: bool = False) -> float:
@@ -148,72 +147,9 @@ def _positive(name: str, value: Any, allow_zero: bool = False) -> float:
     return v
 
 
-def _accumulate_emission(backend: str, prep: dict, history: np.ndarray, n_hist, ok, alpha_min,
-                         n_max, alpha, present, out: np.ndarray | None = None) -> np.ndarray:
-    """(3, H, W) float32 emission of the primary hits accumulated like the colour (the same
-    reprojection, history length and α); 0 where the pixel has no emission history. ``out``:
-    an optional (3, H, W) array for the compiled kernel to write into."""
-    acc, _, _ = T.accumulate_any(backend, prep["emission"], history, n_hist, ok, alpha_min,
-                                 n_max, alpha, present, out=None if out is None else (out, None))
-    return acc
-
-
 def _integer_in(value: Any, low: int, high: int) -> bool:
     return (isinstance(value, (int, np.integer)) and not isinstance(value, bool)
             and low <= value <= high)
-
-
-def _emission(data, h: int, w: int) -> np.ndarray | None:
-    """The optional ``emission`` buffer, checked and clamped to ±RADIANCE_MAX like the colour."""
-    emission = getattr(data, "emission", None)
-    if emission is None:
-        return None
-    return T.clamp_radiance(check_buffer("emission", emission, (h, w, 3)), RADIANCE_MAX)
-
-
-def gradient_history(data, geo, prev, prev_lum, hist_n, n_max: float, iterations: int = 3,
-                     mode: str = "seed", sigma_z: float = 1.0, sigma_n: float = 128.0,
-                     backend: str = "numba") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """A-SVGF's temporal gradient and adaptive history (spec/svgf.md §6) for any reprojecting
-    method: G per 3×3 stratum of the previous frame from the frame's ``gradient`` buffer (the
-    re-shaded samples) against ``prev_lum`` (previous raw luminance, (H, W)), filtered by
-    ``iterations`` à-trous passes, fetched at full resolution through the motion vectors;
-    ``N' = min(N(1 − G)^10 + 1, n_max)``, α = mix(1/N', 1, G). ``mode`` (params.GRADIENT_MODES):
-    ``"seed"`` G is the filtered (δ/Δ)² of the strata; ``"filtered"`` G = (|δ̂| / Δ̂)² of the
-    separately filtered δ and Δ, so that strata whose re-shaded path re-traced exactly (δ = 0)
-    dilute those whose path diverged before the ratio is taken (docs/temporal.md §14);
-    ``"filtered_abs"`` the same with |δ| filtered instead of δ, so that a pixel lit by two
-    lights that trade places keeps its gradient (per-sample δ of either sign does not cancel);
-    ``"paper"`` λ = |δ̂| / Δ̂ and the paper's α.
-
-    Args: ``geo``/``prev``: this and the previous frame's Geometry; ``hist_n`` (H, W) the
-    reprojected history length. Returns (G, N', α), each (H, W) float32; G = 0 without a
-    previous frame or motion.
-    """
-    h, w = geo.shape
-    low = np.zeros((-(-h // 3), -(-w // 3)), np.float32)  # no gradient without history
-    motion = geo.motion if geo.motion is not None else np.full((2, h, w), np.nan, np.float32)
-    if (prev_lum is not None and prev is not None and prev.shape == geo.shape
-            and geo.motion is not None):
-        grad = T.clamp_radiance(check_buffer("gradient", getattr(data, "gradient", None),
-                                             (h, w, 3)), RADIANCE_MAX)
-        l_grad = grad @ T.LUMA  # (H, W) luminance of the re-shaded previous samples
-        strata = C.stratum_gradients(prev_lum, l_grad, prev.hit, prev.depth, prev.normal,
-                                     backend=backend)
-        if mode == "filtered_abs":  # |δ| filtered: changes of either sign add up
-            strata = dict(strata, delta=np.abs(strata["delta"]))
-        filt = C.filter_gradients(strata, iterations, sigma_z, sigma_n, backend)
-        if mode == "seed":
-            low = filt["g"]
-        else:  # λ = |δ̂| / Δ̂ of the separately filtered δ and Δ (the A-SVGF paper)
-            with np.errstate(divide="ignore", invalid="ignore"):
-                low = np.where(filt["norm"] > 0,
-                               np.minimum(1.0, np.abs(filt["delta"]) / filt["norm"]), 0.0)
-            if mode in ("filtered", "filtered_abs"):  # squared as the seed's G, into its N', α
-                low = np.square(low).astype(np.float32)
-    history_rule = "paper" if mode == "paper" else "seed"
-    return C.adaptive_history(low, motion, geo.hit, hist_n, n_max, history_rule, ALPHA0_PAPER,
-                              backend)
 
 
 class _SVGFBase(T.HistoryDenoiser):
@@ -303,7 +239,7 @@ class _SVGFBase(T.HistoryDenoiser):
         h, w = color.shape[:2]
         albedo = check_buffer("albedo", getattr(data, "albedo", None), (h, w, 3))
         geo = T.frame_geometry(data, backend=be)
-        emission = _emission(data, h, w)
+        emission = emission_buffer(data, h, w)
         prep = C.prepare(be, color, albedo, emission, geo.hit, p["albedo_floor"])
         present, emitter = prep["present"], prep["emitter"]
 
@@ -337,8 +273,8 @@ class _SVGFBase(T.HistoryDenoiser):
         # the emission of 1-spp primary hits is exact but aliased (a jittered sample sees the
         # lamp or not): accumulated with the colour's α it converges to the pixel's coverage,
         # as TAA would; adding the raw sample back made every lamp edge flicker
-        acc_e = (_accumulate_emission(be, prep, hist[7:10], hist_n, ok, p["alpha_min"], n_max,
-                                      alpha, present, out=stage[7:10] if fast else None)
+        acc_e = (accumulate_emission(be, prep, hist[7:10], hist_n, ok, p["alpha_min"], n_max,
+                                     alpha, present, out=stage[7:10] if fast else None)
                  if emissive else prep["emission"])
         filled = n > 0
         frames = B.frame_count(hist[-1], ok, present, n_max) if counting else None
@@ -397,12 +333,12 @@ class _SVGFBase(T.HistoryDenoiser):
 
 @register("svgf")
 class SVGF(_SVGFBase):
-    """Spatiotemporal variance-guided filtering (Schied et al. 2017; spec/svgf.md)."""
+    """Spatiotemporal variance-guided filtering (Schied et al. 2017; docs/methods/svgf.md)."""
 
 
 @register("asvgf")
 class ASVGF(_SVGFBase):
-    """A-SVGF: SVGF with temporal-gradient-driven history (spec/svgf.md §6)."""
+    """A-SVGF: SVGF with temporal-gradient-driven history (docs/methods/svgf.md §6)."""
 
     needs = _SVGFBase.needs | {"gradient"}
     defaults: dict[str, Any] = dict(_SVGFBase.defaults, gradient_iterations=3,

@@ -51,7 +51,7 @@ def depth_gradient(z: np.ndarray, hit: np.ndarray, backend: str = "reference"
     (equal to the central difference on planes, where both agree; at a depth discontinuity it is
     the difference on the pixel's own side — the spec's central difference would put half the
     step into the gradient there and let the depth weight pass taps across the step, failing
-    spec/svgf.md §9 check 5). One-sided next to borders and pixels without hit, 0 where
+    docs/methods/svgf.md §9 check 5). One-sided next to borders and pixels without hit, 0 where
     neither neighbour is usable or the pixel itself has no hit.
     """
     if backend == "torch":

@@ -1,4 +1,4 @@
-"""Constants of ``svgf`` / ``asvgf`` with their sources (spec/svgf.md; [dbench] marks values
+"""Constants of ``svgf`` / ``asvgf`` with their sources (docs/methods/svgf.md; [dbench] marks values
 chosen here, [Falcor] values taken from Falcor's SVGF pass), and the named presets."""
 from __future__ import annotations
 
@@ -74,11 +74,11 @@ def auto_iterations(height: int, width: int) -> int:
     the whole image and blurs the illumination across it (results/temporal.md)."""
     side = max(1, min(int(height), int(width)))
     return int(min(5, max(1, int(np.floor(np.log2(side))) - 3)))
-#: A-SVGF's temporal gradient (spec/svgf.md §6; docs/temporal.md §14): "seed" G = filter((δ/Δ)²)
-#: per stratum as the seed writes it (the default); "filtered" G = (|filter(δ)| / filter(Δ))²,
-#: the paper's ratio of the separately filtered δ and Δ squared as the seed's G; "paper"
-#: λ = |filter(δ)| / filter(Δ) with the paper's α = mix(α0, 1, λ); "filtered_abs"
-#: G = (filter(|δ|) / filter(Δ))², the magnitudes filtered, so that per-sample changes of either
-#: sign (two lights trading places) do not cancel
+#: A-SVGF's temporal gradient (docs/methods/svgf.md §6; docs/temporal.md §14): "seed"
+#: G = filter((δ/Δ)²) per stratum as the seed writes it (the default); "filtered"
+#: G = (|filter(δ)| / filter(Δ))², the paper's ratio of the separately filtered δ and Δ squared
+#: as the seed's G; "paper" λ = |filter(δ)| / filter(Δ) with the paper's α = mix(α0, 1, λ);
+#: "filtered_abs" G = (filter(|δ|) / filter(Δ))², the magnitudes filtered, so that per-sample
+#: changes of either sign (two lights trading places) do not cancel
 GRADIENT_MODES = ("seed", "filtered", "paper", "filtered_abs")
 ALPHA0_PAPER = 0.2

@@ -1,4 +1,4 @@
-"""SVGF / A-SVGF, readable NumPy reference (float64, exact ``exp``; spec/svgf.md): albedo
+"""SVGF / A-SVGF, readable NumPy reference (float64, exact ``exp``; docs/methods/svgf.md): albedo
 demodulation, depth gradients, the edge-stopping à-trous iteration, the spatial variance
 estimate, A-SVGF temporal gradients and adaptive history.
 

@@ -1,4 +1,4 @@
-"""PyTorch backend of the SVGF / A-SVGF core (spec/svgf.md): the same filters as
+"""PyTorch backend of the SVGF / A-SVGF core (docs/methods/svgf.md): the same filters as
 :mod:`dbench.methods.svgf.reference`, vectorised over whole images.
 
 Every function takes NumPy arrays or tensors and returns float32 (bool for masks) tensors on the

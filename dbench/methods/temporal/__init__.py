@@ -1,4 +1,4 @@
-"""Temporal accumulation, luminance moments and reprojection (spec/temporal.md).
+"""Temporal accumulation, luminance moments and reprojection (docs/methods/temporal.md).
 
 Shared by ``accumulate``, ``svgf``/``asvgf`` and ``bmfr``. Functional core on planar float32
 arrays — images are (C, H, W) here, so that every colour channel is one contiguous plane for the

@@ -1,5 +1,5 @@
 """Colour helpers on planar (3, H, W) images: Rec. 709 luminance, luminance moments [l, l²]
-(spec/temporal.md §2), planar/interleaved conversion, the variance from accumulated moments and
+(docs/methods/temporal.md §2), planar/interleaved conversion, the variance from accumulated moments and
 the mask of finite samples."""
 from __future__ import annotations
 

@@ -1,6 +1,6 @@
 """One frame's G-buffer in the planar layout of the temporal methods (:class:`Geometry`), built
 and checked from a Frame (:func:`frame_geometry`), and the expected distance of a pixel from the
-previous camera (spec/temporal.md §3.1)."""
+previous camera (docs/methods/temporal.md §3.1)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -21,7 +21,7 @@ except ImportError:  # pragma: no cover
 
 @dataclass
 class Geometry:
-    """One frame's G-buffer in the planar layout of this module (spec/temporal.md §1).
+    """One frame's G-buffer in the planar layout of this module (docs/methods/temporal.md §1).
 
     Attributes:
         hit: (H, W) bool, a surface was hit (depth > 0, everything finite).

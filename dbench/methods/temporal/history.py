@@ -9,7 +9,7 @@ import numpy as np
 
 from ...data import check_buffer
 from ...errors import DbenchInputError
-from ...registry import Denoiser
+from ...denoiser import Denoiser
 from ..guards import RADIANCE_MAX
 from .dispatch import reproject, resolve_backend
 from .geometry import Geometry
@@ -92,7 +92,7 @@ class History:
         self.frames += 1
 
 
-#: The smallest demodulation floor: the spec's own threshold (spec/svgf.md §2), so no sample
+#: The smallest demodulation floor: the spec's own threshold (docs/methods/svgf.md §2), so no sample
 #: is amplified more than 1000× (a subnormal floor made 1 / a_eff overflow to Inf).
 MIN_ALBEDO_FLOOR = 1e-3
 

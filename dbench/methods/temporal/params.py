@@ -1,4 +1,4 @@
-"""Constants of the temporal machinery with their sources (spec/temporal.md; [dbench] marks values
+"""Constants of the temporal machinery with their sources (docs/methods/temporal.md; [dbench] marks values
 chosen here, [S001] values of seed 001), the reprojection status codes and the backends."""
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Readable reprojection (spec/temporal.md §3.3-3.5, per pixel, float64) and accumulation (§2)."""
+"""Readable reprojection (docs/methods/temporal.md §3.3-3.5, per pixel, float64) and accumulation (§2)."""
 from __future__ import annotations
 
 import math

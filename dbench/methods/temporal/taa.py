@@ -1,5 +1,5 @@
 """Temporal antialiasing (TAA) of a temporal denoiser's output: the last, optional step of BMFR's
-pipeline (spec/bmfr.md §1 step 6 and §6 ``taa``: off by default, α = 0.2 when on; [BMFR code]),
+pipeline (docs/methods/bmfr.md §1 step 6 and §6 ``taa``: off by default, α = 0.2 when on; [BMFR code]),
 offered to SVGF and A-SVGF as well [dbench].
 
 Per pixel p of the current output C (H, W, 3) and the previous TAA output H (H, W, 3):
@@ -20,7 +20,7 @@ a light switched off) cannot ghost; what stays keeps averaging (a running mean o
 [dbench] The BMFR code runs it on tone-mapped, gamma-encoded values in [0, 1]; dbench's outputs
 are linear HDR radiance, and the pass runs on them as they are (YCoCg is linear, so the clamp
 and the blend are the same operations). Motion vectors point from a pixel to its position in
-the previous frame (spec/temporal.md §3.1), planar (2, H, W).
+the previous frame (docs/methods/temporal.md §3.1), planar (2, H, W).
 
 * :func:`taa_reference` — the readable form (NumPy, float64 inside).
 * :func:`taa_fast` — compiled (Numba, parallel over rows): one pass for each value's YCoCg and

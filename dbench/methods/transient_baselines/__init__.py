@@ -1,7 +1,7 @@
 """Baselines on transient (H, W, T, 3) videos: ``jbf-bins``, ``oidn-bins`` and ``gauss3d``.
 
 * ``jbf-bins``: the joint bilateral filter of :mod:`dbench.methods.jbf` on every time bin, with
-  the G-buffers (constant along time) shared by all bins (spec/jbf.md §1.4). The weights of a
+  the G-buffers (constant along time) shared by all bins (docs/methods/jbf.md §1.4). The weights of a
   pixel pair do not depend on the bin, so all bins go through one call of the JBF's compiled
   accumulation kernel (:func:`dbench.methods.kernels.bilateral.numba2d.accumulate`) with 4 planes per bin (colour
   × validity, validity): the same result as calling the JBF bin by bin (tests prove it), at a
@@ -10,7 +10,7 @@
   outside [0, T) get no weight).
 * ``oidn-bins``: Intel Open Image Denoise on every bin as an image (albedo and normal shared),
   through :func:`dbench.methods.oidn.oidn_denoise`.
-* ``gauss3d``: the plain 3D Gaussian of spec/jbf.md §1.4 for participating media:
+* ``gauss3d``: the plain 3D Gaussian of docs/methods/jbf.md §1.4 for participating media:
   ρ = exp(−½(Δx² + Δy²)/σ_s² − ½Δt²/σ_t²) over a (2r_s+1)² × (2r_t+1) window, normalised per
   voxel; out-of-image and out-of-range neighbours get no weight. Defaults σ_s² = 10 px²,
   σ_t = 1 bin, r_s = 5, r_t = 1. The kernel is separable and so are the masks, so the fast path
@@ -42,7 +42,7 @@ import numpy as np
 
 from ...data import check_buffer
 from ...errors import DbenchInputError
-from ...registry import Denoiser, register
+from ...denoiser import Denoiser, register
 from ..checks import check_choice, check_positive, check_radius
 from ..kernels.bilateral.guide import check_sigma, make_guide
 from ..kernels.bilateral.numba2d import accumulate
@@ -125,7 +125,7 @@ def _expand_keep(keep: np.ndarray, radius: int) -> np.ndarray:
 def jbf_bins(video: Any, albedo: Any, normal: Any, depth: Any = None, position: Any = None, *,
              temporal_radius: int = 0, temporal_profile: str = "box", sigma_t: float = 1.0,
              skip_empty: bool = True, **options: Any) -> np.ndarray:
-    """JBF of every bin of an (H, W, T, 3) video with shared G-buffers (spec/jbf.md §1, §1.4).
+    """JBF of every bin of an (H, W, T, 3) video with shared G-buffers (docs/methods/jbf.md §1, §1.4).
 
     Args:
         video: (H, W, T, 3) linear noisy radiance per bin.
@@ -272,7 +272,7 @@ def _check_gauss(r_s, r_t, sigma_s2, sigma_t):
 
 def gauss3d(video: Any, *, radius: int = 5, temporal_radius: int = 1, sigma_s2: float = 10.0,
             sigma_t: float = 1.0, skip_empty: bool = True) -> np.ndarray:
-    """Plain 3D Gaussian filter of an (H, W, T, 3) video (spec/jbf.md §1.4), float32.
+    """Plain 3D Gaussian filter of an (H, W, T, 3) video (docs/methods/jbf.md §1.4), float32.
 
     Separable: out = G∗(c·v) / G∗v with G = g_y ⊗ g_x ⊗ g_t truncated to the window and zero
     outside the video (no weight there); v is the validity of each voxel.
@@ -330,7 +330,7 @@ def gauss3d_reference(video: Any, *, radius: int = 5, temporal_radius: int = 1,
 
 @register("gauss3d")
 class Gauss3D(Denoiser):
-    """Plain 3D Gaussian (x, y, t) without G-buffer terms: the media baseline (spec/jbf.md §1.4)."""
+    """Plain 3D Gaussian (x, y, t) without G-buffer terms: the media baseline (docs/methods/jbf.md §1.4)."""
 
     kinds = {"transient"}
     needs = {"color"}

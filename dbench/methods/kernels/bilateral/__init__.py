@@ -1,9 +1,9 @@
-"""The joint bilateral filter's base weights ρ (spec/jbf.md §1), shared by every method built on
+"""The joint bilateral filter's base weights ρ (docs/methods/jbf.md §1), shared by every method built on
 them: constants (``params``), the guide built once per frame from the G-buffers (``guide``), the
 readable float64 weights (``reference``), a float32 vector ``exp`` (``vexp``), the Numba sums
 over a 2-D window (``numba2d``) and over (x, y, t) (``numba3d``), and the PyTorch sums
 (``torch_path``). ``jbf`` normalises these sums; ``statistical`` multiplies the weights by its
-Welch membership first (spec/statistical.md §7).
+Welch membership first (docs/methods/statistical.md §7).
 
 Non-finite input policy: a colour pixel with a NaN/Inf channel is *missing* (no weight as a
 neighbour; its own output is the filtered value of its valid neighbours, or 0), so NaN never

@@ -1,6 +1,6 @@
 """The guide of the base filter ρ: G-buffers checked and turned into feature planes, the
 diagonal Σ⁻¹, the window offsets with their spatial exponent and the mask labels (hit /
-background / emitter / isolated, spec/jbf.md §1.3), computed once per frame; also the colour
+background / emitter / isolated, docs/methods/jbf.md §1.3), computed once per frame; also the colour
 as float64 planes with its validity, shared by every filter on this guide.
 
 Shapes: images are (H, W, 3), ``depth`` is (H, W, 1) or (H, W)."""
@@ -36,7 +36,7 @@ def check_sigma(sigma: Any) -> tuple[float, ...]:
 
 
 def inverse_variance(sigma: float, convention: str) -> float:
-    """Σ⁻¹ entry for one Σ entry: 1/σ for ``"variance"``, 1/σ² for ``"sd"`` (spec/jbf.md §1.2)."""
+    """Σ⁻¹ entry for one Σ entry: 1/σ for ``"variance"``, 1/σ² for ``"sd"`` (docs/methods/jbf.md §1.2)."""
     var = sigma if convention == "variance" else sigma * sigma
     return 0.0 if math.isinf(var) else 1.0 / var
 
@@ -44,7 +44,7 @@ def inverse_variance(sigma: float, convention: str) -> float:
 def window_offsets(radius: int, window: str = "square") -> tuple[np.ndarray, np.ndarray]:
     """Offsets (dy, dx) of the window, row-major, including (0, 0).
 
-    ``square``: |dx|, |dy| ≤ r, (2r+1)² taps; ``disk``: dx² + dy² ≤ r² (spec/jbf.md §1.2).
+    ``square``: |dx|, |dy| ≤ r, (2r+1)² taps; ``disk``: dx² + dy² ≤ r² (docs/methods/jbf.md §1.2).
     """
     radius = check_radius(radius)
     check_choice("window", window, WINDOWS)
@@ -55,7 +55,7 @@ def window_offsets(radius: int, window: str = "square") -> tuple[np.ndarray, np.
 
 @dataclass(frozen=True)
 class Guide:
-    """Noise-free guide data of the base filter ρ (spec/jbf.md §1, spec/statistical.md §7).
+    """Noise-free guide data of the base filter ρ (docs/methods/jbf.md §1, docs/methods/statistical.md §7).
 
     Attributes:
         features: (K, H, W) float64 feature values p_k (albedo, normal, optional position/depth),
@@ -124,7 +124,7 @@ def make_guide(albedo: Any, normal: Any, depth: Any = None, position: Any = None
                sigma_position: float = 0.01, sigma_depth: float = 0.01,
                hit_mask: bool = True, shape: tuple[int, int] | None = None,
                emitter: Any = None) -> Guide:
-    """Check the G-buffers and build the :class:`Guide` of the JBF (spec/jbf.md §1).
+    """Check the G-buffers and build the :class:`Guide` of the JBF (docs/methods/jbf.md §1).
 
     Args:
         albedo: (H, W, 3) linear albedo (needed when ``"albedo"`` is a feature).
@@ -138,7 +138,7 @@ def make_guide(albedo: Any, normal: Any, depth: Any = None, position: Any = None
         features: subset of ("xy", "albedo", "normal", "position", "depth").
         sigma_position, sigma_depth: Σ entry of each position coordinate / of depth (same
             convention), defaults 0.01 [dbench].
-        hit_mask: h_ij = 0 when exactly one of i, j is a hit (depth > 0) (spec/jbf.md §1.3).
+        hit_mask: h_ij = 0 when exactly one of i, j is a hit (depth > 0) (docs/methods/jbf.md §1.3).
         shape: (H, W) expected; taken from the first buffer given otherwise.
         emitter: (H, W, 1) emitter coverage in [0, 1] or None: pixels with coverage ≥ 0.5
             form their own label (a light never mixes with the surfaces around it, whatever
@@ -229,7 +229,7 @@ def color_planes(color: Any, shape: tuple[int, int] | None = None) -> tuple[np.n
 
 
 def temporal_factors(radius_t: int, profile: str = "box", sigma_t: float = 1.0) -> np.ndarray:
-    """(2r_t+1,) float64 temporal factor of the offsets τ = −r_t..r_t (spec/jbf.md §1.4):
+    """(2r_t+1,) float64 temporal factor of the offsets τ = −r_t..r_t (docs/methods/jbf.md §1.4):
     1 for ``"box"``, exp(−½τ²/σ_t²) for ``"gaussian"`` (σ_t in bins; ∞ gives the box)."""
     radius_t = check_radius(radius_t, "radius_t")
     check_choice("temporal_profile", profile, TEMPORAL_PROFILES)

@@ -1,5 +1,5 @@
-"""Numba fast path of the base filter over (x, y, t): transient videos (spec/jbf.md §1.4,
-spec/statistical.md §11.3). The spatial JBF weights replicated along time times a temporal factor
+"""Numba fast path of the base filter over (x, y, t): transient videos (docs/methods/jbf.md §1.4,
+docs/methods/statistical.md §11.3). The spatial JBF weights replicated along time times a temporal factor
 (:func:`~.guide.temporal_factors`, box or Gaussian), an optional float64 Welch test between bins,
 half of the 3-D window evaluated, spatial weights computed once per row and reused by every bin,
 bins outside the video (or not handed in) absent. A guide of the ``"xy"`` feature only is the
@@ -190,7 +190,7 @@ def accumulate3d(guide: Guide, planes: np.ndarray, tfac: np.ndarray, bins: np.nd
     """Numba fast path in 3D: Σ_{j ≠ i} W_ij · planes_j over a (2r+1)² × (2r_t+1) window.
 
     The base weight is the JBF of ``guide`` replicated along time (its G-buffers are per pixel)
-    times a temporal factor, W_ij = ρ_ij · tfac[τ] (spec/jbf.md §1.4); with a guide of the
+    times a temporal factor, W_ij = ρ_ij · tfac[τ] (docs/methods/jbf.md §1.4); with a guide of the
     ``"xy"`` feature only and no hit mask this is the plain 3D Gaussian of ``gauss3d`` when
     ``tfac`` is Gaussian. Bins outside the video get no weight.
 

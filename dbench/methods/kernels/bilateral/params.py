@@ -1,12 +1,12 @@
-"""Constants of the joint bilateral base filter, with their sources (spec/jbf.md)."""
+"""Constants of the joint bilateral base filter, with their sources (docs/methods/jbf.md)."""
 from __future__ import annotations
 
-#: Σ of the seed (spec/jbf.md §1.1): (x, y, albedo r, g, b, normal x, y, z), a covariance.
+#: Σ of the seed (docs/methods/jbf.md §1.1): (x, y, albedo r, g, b, normal x, y, z), a covariance.
 SEED_SIGMA: tuple[float, ...] = (10.0, 10.0, 0.02, 0.02, 0.02, 0.1, 0.1, 0.1)
 FEATURES = ("xy", "albedo", "normal", "position", "depth")
 SIGMA_CONVENTIONS = ("variance", "sd")
 WINDOWS = ("square", "disk")
-#: Temporal profiles of the 3D base filter (spec/jbf.md §1.4).
+#: Temporal profiles of the 3D base filter (docs/methods/jbf.md §1.4).
 TEMPORAL_PROFILES = ("box", "gaussian")
 
 #: Mask labels: pixels mix only with pixels of the same label. 0 = background (depth ≤ 0),

@@ -11,7 +11,7 @@ def shift_slices(dy: int, dx: int, h: int, w: int):
     """Slices (centre, neighbour) such that ``a[centre]`` pairs pixel i with ``b[neighbour]`` = i + o.
 
     Only centres whose neighbour lies inside the image appear: out-of-image neighbours simply
-    do not exist (no padding enters any sum, spec/jbf.md §1.3).
+    do not exist (no padding enters any sum, docs/methods/jbf.md §1.3).
     """
     ny = max(0, h - abs(dy))
     nx = max(0, w - abs(dx))
@@ -25,7 +25,7 @@ def reference_weights(guide: Guide, k: int) -> np.ndarray:
     """ρ_ij · h_ij for offset ``k`` of the guide, for every centre i: (H, W) float64.
 
     ρ_ij = exp(−½ Σ_k (p_j,k − p_i,k)² Σ⁻¹_kk) with the spatial part precomputed per offset
-    (spec/jbf.md §1.1); h_ij = [label_i == label_j]; 0 where j = i + o lies outside the image.
+    (docs/methods/jbf.md §1.1); h_ij = [label_i == label_j]; 0 where j = i + o lies outside the image.
     """
     h, w = guide.shape
     dy, dx = int(guide.dy[k]), int(guide.dx[k])

@@ -1,6 +1,6 @@
 """The joint bilateral window of ``jbf`` and ``statistical`` as one Triton kernel launch
 (docs/gpu.md §2; the maths in the docstrings of :mod:`dbench.methods.jbf` and
-:mod:`dbench.methods.statistical.core`, the readable references the tests hold it to).
+:mod:`dbench.methods.statistical.reference`, the readable references the tests hold it to).
 
 For every pixel i the kernel sums, over the whole (2r+1)² window including the centre,
 W_ij · planes_j with W_ij = exp(−(e_o + Σ_k (F_i,k − F_j,k)²)) · [label_i = label_j] · m_ij,

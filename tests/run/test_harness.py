@@ -37,8 +37,8 @@ def test_noop_is_under_a_millisecond_and_median_of_five_is_reported():
 
 
 def test_cell_is_skipped_with_reason_when_buffers_are_missing():
-    from dbench import methods
-    res = harness.run_cell(methods.get("oidn"), Frame(color=np.zeros((4, 4, 3))))
+    from dbench import registry
+    res = harness.run_cell(registry.get("oidn"), Frame(color=np.zeros((4, 4, 3))))
     assert res.output is None and "albedo" in res.skipped
 
 

@@ -11,7 +11,7 @@ from dbench.run import fpenv
 _CHILD = """
 import sys
 import numpy as np
-from dbench import methods
+from dbench import methods, registry
 from dbench.run import fpenv
 from dbench.synthetic import base_frame
 
@@ -31,7 +31,7 @@ if name == "flushing-plugin":  # a plug-in that switches its thread to flush-to-
 
     method = Flushing()
 else:
-    method = methods.get(name)
+    method = registry.get(name)
 if way == "harness":
     fpenv.denoise(method, frame)
 else:

@@ -2,7 +2,7 @@
 its in-kernel power sums equal a per-sample float64 computation on the very samples it summed,
 for every transform; each sample stays in its own pixel; its colour and its references agree
 with the host path within their Monte Carlo error (against Mitsuba's own render:
-tests/test_render.py)."""
+tests/datasets/test_render.py)."""
 import numpy as np
 import pytest
 
@@ -17,7 +17,7 @@ TRANSFORMS = [("identity", 1.0), ("box-cox", 0.5), ("box-cox", 0.25), ("box-cox"
               ("yeo-johnson", -1.5)]
 #: Float64 sums of the same samples in another order and with Dr.Jit's own pow/log/sqrt:
 #: measured ≤ 3e-14 relative; 1e-12 leaves room and is still 6 orders below the 1e-6 the
-#: statistics are held to (tests/test_render.py).
+#: statistics are held to (tests/datasets/test_render.py).
 RTOL = 1e-12
 #: Rounding of one transformed sample in ulps: PowerSums forms u = g(x) − g(0) as a difference
 #: ((x^λ − 1)/λ + 1/λ for Box-Cox), which costs a few ulps of |g(0)| where u is small; the kernel
@@ -109,7 +109,7 @@ def _edge_scene(mi, res):
     # line of an even-width image): a sample that strayed into a neighbouring pixel, or a
     # position drawn outside its pixel, would mix 0 and 2 in the two middle columns
     return {"type": "scene",
-            "sensor": scenes._camera(mi, res, origin=[0, 0, 4], target=[0, 0, 0]),
+            "sensor": scenes.camera_dict(mi, res, origin=[0, 0, 4], target=[0, 0, 0]),
             "lamp": {"type": "rectangle",
                      "to_world": mi.ScalarTransform4f().translate([-50.0, 0.0, 0.0])
                      @ mi.ScalarTransform4f().scale([50.0, 50.0, 1.0]),

@@ -50,22 +50,22 @@ def test_transient_frame_validation_names_the_buffer(kwargs, name):
 def _corridor(mi, res):
     """A narrow corridor lit by its far end: along the corridor OPL + distance to the light is
     nearly constant, so next-event estimates of later vertices fall back into earlier bins."""
-    from dbench.datasets.scenes import _camera, _diffuse, _rect
+    from dbench.datasets.scenes import camera_dict, diffuse_bsdf, rect_shape
     T = mi.ScalarTransform4f
-    white = _diffuse((0.8, 0.8, 0.8))
+    white = diffuse_bsdf((0.8, 0.8, 0.8))
     length, hw = 4.0, 0.4
     d = {"type": "scene",
-         "sensor": _camera(mi, res, origin=[0, 0, 0.3], target=[0, 0, -length], fov=50)}
+         "sensor": camera_dict(mi, res, origin=[0, 0, 0.3], target=[0, 0, -length], fov=50)}
     half = [hw, length / 2, 1]
-    d["floor"] = _rect(mi, T().translate([0, -hw, -length / 2]).rotate([1, 0, 0], -90)
+    d["floor"] = rect_shape(mi, T().translate([0, -hw, -length / 2]).rotate([1, 0, 0], -90)
                        .scale(half), white)
-    d["ceiling"] = _rect(mi, T().translate([0, hw, -length / 2]).rotate([1, 0, 0], 90)
+    d["ceiling"] = rect_shape(mi, T().translate([0, hw, -length / 2]).rotate([1, 0, 0], 90)
                          .scale(half), white)
-    d["left"] = _rect(mi, T().translate([-hw, 0, -length / 2]).rotate([0, 1, 0], 90)
+    d["left"] = rect_shape(mi, T().translate([-hw, 0, -length / 2]).rotate([0, 1, 0], 90)
                       .scale([length / 2, hw, 1]), white)
-    d["right"] = _rect(mi, T().translate([hw, 0, -length / 2]).rotate([0, 1, 0], -90)
+    d["right"] = rect_shape(mi, T().translate([hw, 0, -length / 2]).rotate([0, 1, 0], -90)
                        .scale([length / 2, hw, 1]), white)
-    d["light"] = _rect(mi, T().translate([0, 0, -length]).scale(hw), _diffuse((0, 0, 0)),
+    d["light"] = rect_shape(mi, T().translate([0, 0, -length]).scale(hw), diffuse_bsdf((0, 0, 0)),
                        {"type": "area", "radiance": {"type": "rgb", "value": [5.0, 4.0, 3.0]}})
     return d
 
@@ -312,7 +312,7 @@ def test_collector_b_matches_the_plain_render_in_expectation(tr):
 
 
 def test_fog_scene_collector_a(tr):
-    """Collector (a) on the media scene; (b) there: tests/test_transient_media_collector.py."""
+    """Collector (a) on the media scene; (b) there: tests/datasets/test_transient_media_collector.py."""
     from dbench.datasets import scenes
     sc = scenes.get("fog-transient")
     out = tr.collect_passes(sc, 8, 4, seed=0, bins=20, stats=("identity", 0.5))

@@ -19,7 +19,7 @@ from dbench import plugins
 from dbench.errors import DbenchInputError
 from dbench.resolution import Res, Resolution, parse_res
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 README = (ROOT / "README.md").read_text(encoding="utf-8")
 
 

@@ -15,7 +15,7 @@ import pytest
 
 from dbench import cli, plugins
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 TINY = ["--res", "8", "--spp", "2", "--ref-spp", "16", "--repeats", "1", "--quiet"]
 
 

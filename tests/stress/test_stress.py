@@ -2,13 +2,13 @@
 import numpy as np
 import pytest
 
-from dbench import methods
+from dbench import registry
 from dbench.stress import cases, runner
 from dbench.synthetic import base_frame
 
 
 @pytest.mark.parametrize("case", cases.CASES, ids=lambda c: c.name)
-@pytest.mark.parametrize("method", methods.available()
+@pytest.mark.parametrize("method", registry.available()
                          + ["statistical+gate", "jbf+gate", "nca+gate"])
 def test_stress_case(method, case):
     outcome = runner.run_case(method, case)
@@ -46,8 +46,8 @@ def _bright_frame(value, sequence):
     return f
 
 
-_IMAGE_METHODS = [m for m in methods.available()
-                  if methods.get(m).kinds & {"steady", "sequence"}]
+_IMAGE_METHODS = [m for m in registry.available()
+                  if registry.get(m).kinds & {"steady", "sequence"}]
 
 
 @pytest.mark.parametrize("value", [5e18, 1e30, 3e38])
@@ -57,7 +57,7 @@ def test_one_huge_finite_pixel_stays_finite(method, value):
     moments l² overflowed in the first frame's spatial variance; bmfr and the autoencoder at
     3e38: demodulation / log1p(color / a) overflowed). First AND second frame after reset()."""
     import numpy as np
-    m = methods.get(method)
+    m = registry.get(method)
     seq = "sequence" in m.kinds
     frame = _bright_frame(value, seq)
     m.reset()
@@ -77,9 +77,9 @@ def test_missing_depth_runs_with_the_hit_mask_from_normals(method):
     import numpy as np
     frame = base_frame(16, 16)
     hit = np.any(frame.normal != 0, axis=-1, keepdims=True).astype(np.float32)
-    out = methods.get(method).denoise(frame.with_buffers(depth=None))
+    out = registry.get(method).denoise(frame.with_buffers(depth=None))
     assert np.isfinite(out).all()
-    np.testing.assert_array_equal(out, methods.get(method).denoise(frame.with_buffers(depth=hit)))
+    np.testing.assert_array_equal(out, registry.get(method).denoise(frame.with_buffers(depth=hit)))
 
 
 def test_jbf_illumination_huge_pixel_matches_reference():
@@ -87,8 +87,8 @@ def test_jbf_illumination_huge_pixel_matches_reference():
     the float64 reference for colours whose demodulated value overflows float32."""
     import numpy as np
     f = _bright_frame(3e38, False)
-    fast = methods.get("jbf", mode="illumination", radius=3).denoise(f)
-    ref = methods.get("jbf", mode="illumination", radius=3, backend="reference").denoise(f)
+    fast = registry.get("jbf", mode="illumination", radius=3).denoise(f)
+    ref = registry.get("jbf", mode="illumination", radius=3, backend="reference").denoise(f)
     assert np.isfinite(fast).all()
     np.testing.assert_allclose(fast, ref, rtol=1e-4, atol=1e-6)
 

@@ -43,7 +43,7 @@ def test_a_broken_sweep_json_is_refused_and_left_unchanged(tmp_path, capsys, tex
 
 def test_the_results_sweep_files_are_readable():
     from pathlib import Path
-    for path in Path(__file__).resolve().parent.parent.glob("results/*/sweep.json"):
+    for path in Path(__file__).resolve().parents[2].glob("results/*/sweep.json"):
         assert sweep_history.problem(json.loads(path.read_text())) == "", path
 
 

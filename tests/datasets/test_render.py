@@ -44,7 +44,7 @@ def test_each_sample_lands_in_exactly_one_pixel(renderer):
 
     def build(mi, res):
         return {"type": "scene",
-                "sensor": scenes._camera(mi, res, origin=[0, 0, 4], target=[0, 0, 0]),
+                "sensor": scenes.camera_dict(mi, res, origin=[0, 0, 4], target=[0, 0, 0]),
                 "lamp": {"type": "sphere", "radius": 0.8,
                          "emitter": {"type": "area", "radiance": {"type": "rgb",
                                                                   "value": [2.0, 2.0, 2.0]}}}}

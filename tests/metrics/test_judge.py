@@ -136,7 +136,7 @@ def test_one_seed_gets_a_bootstrap_interval_and_says_so():
 def test_on_cornell_surface_pixels_rank_oidn_and_statistical_below_the_noisy_input(
         renderer, tmp_cache):
     """verdicts.md §1: with the visible light left out, both denoisers beat the noisy input."""
-    from dbench import datasets, methods
+    from dbench import datasets, registry
 
     frame = datasets.load("cornell", spp=64, res=64, ref_spp=1024, cache=tmp_cache,
                           needs={"albedo", "normal", "depth", "stats", "reference", "emitter"},
@@ -144,7 +144,7 @@ def test_on_cornell_surface_pixels_rank_oidn_and_statistical_below_the_noisy_inp
     assert frame.emitter.max() == 1.0 and (frame.emitter == 0).mean() > 0.9
     scores = {}
     for name in ("noisy", "oidn", "statistical"):
-        scores[name] = harness.run_cell(methods.get(name), frame, repeats=1).metrics
+        scores[name] = harness.run_cell(registry.get(name), frame, repeats=1).metrics
     for name in ("oidn", "statistical"):
         assert scores[name]["rmse_surface"] < scores["noisy"]["rmse_surface"], name
     for s in scores.values():

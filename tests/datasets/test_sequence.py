@@ -310,7 +310,7 @@ def test_quality_128(renderer, seq_cache):
 
 
 def test_steady_methods_run_on_sequences_frame_by_frame():
-    from dbench import methods
+    from dbench import registry
     from dbench.run.sequence_run import run_sequence
     from dbench.synthetic import synthetic_sequence
     from dbench.registry import Denoiser
@@ -340,19 +340,19 @@ def test_steady_methods_run_on_sequences_frame_by_frame():
     assert m.per_frame("sequence") and not m.per_frame("steady")
     run_sequence(m, seq, warmup=2)
     assert m.seen == [1] * 6  # reset before every frame: no history
-    jbf = methods.get("jbf")
+    jbf = registry.get("jbf")
     ok, why = jbf.applies_to("sequence", {"color", "albedo", "normal", "depth"})
     assert ok, why
-    assert not methods.get("statistical").applies_to("sequence", {"color", "albedo", "normal",
+    assert not registry.get("statistical").applies_to("sequence", {"color", "albedo", "normal",
                                                                   "depth"})[0]
-    assert not methods.get("svgf").per_frame("sequence")
+    assert not registry.get("svgf").per_frame("sequence")
 
 
 def test_sequence_frames_carry_the_statistics_of_their_own_samples(renderer, tmp_cache):
     """Per-frame sample statistics (issue: every method on every kind): the colour is the
     mean of 1-spp passes whether or not statistics are asked for, a 1-spp frame is one render
     with the frame's seed, and single-frame statistical methods run on the frames."""
-    from dbench import datasets, methods
+    from dbench import datasets, registry
     from dbench.run.harness import run_sequence_cell
     from dbench.datasets import sequence as S
     from dbench.datasets.mitsuba_env import mitsuba
@@ -371,7 +371,7 @@ def test_sequence_frames_carry_the_statistics_of_their_own_samples(renderer, tmp
     integ = mi.load_dict(S._matched_integrator(d["integrator"]), optimize=False)
     one = S._render_dict(d, 1, S.frame_seed(0, 2), integrator=integ)[..., :3]
     np.testing.assert_array_equal(S.render_frame(sc, 16, 1, 0, 2, 2, 2)["color"], one)
-    result = run_sequence_cell(methods.get("statistical"), [with_stats], warmup=1)
+    result = run_sequence_cell(registry.get("statistical"), [with_stats], warmup=1)
     assert not result.skipped and np.isfinite(result.metrics["rmse"])
 
 

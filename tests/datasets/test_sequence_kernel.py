@@ -2,7 +2,7 @@
 render_moments.pass_sums; README.md, "How renders work") against the readable reference, the
 same 1-spp passes filmed by ``mi.render`` and summed on the host: the same samples, so the
 colour and every G-buffer channel are equal bit for bit; the colour statistics agree within
-the float64 rounding of the two transforms (tests/test_render_moments.py: RTOL, ULPS)."""
+the float64 rounding of the two transforms (tests/datasets/test_render_moments.py: RTOL, ULPS)."""
 import numpy as np
 import pytest
 

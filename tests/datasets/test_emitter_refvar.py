@@ -191,16 +191,16 @@ def test_emitter_integrator_in_scalar_rgb(renderer):
         import numpy as np
         from dbench.datasets import emitter as E
         from dbench.datasets.mitsuba_env import mitsuba
-        from tests.test_emitter_refvar import _facing_rect_scene
+        from tests.datasets.test_emitter_refvar import _facing_rect_scene
         mi = mitsuba()
         assert mi.variant() == "scalar_rgb", mi.variant()
         e = E.render_emitter_dict(_facing_rect_scene(mi, 8, env=0.5), 4, seed=1)
         f = E.render_emitter_dict(_facing_rect_scene(mi, 8, facing=False), 4, seed=1)
-        from tests.test_emitter_refvar import _mirror_scene
+        from tests.datasets.test_emitter_refvar import _mirror_scene
         g = E.render_emitter_dict(_mirror_scene(mi, 8, {"type": "conductor"}), 4, seed=1)
         print("OK", e.shape, float(e.min()), float(f.max()), float(g[3:5, 3:5].min() > 0), float(g[0, 0, 0]))
     """)
-    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
     env = {**os.environ, "DBENCH_VARIANT": "scalar_rgb", "PYTHONPATH": root}
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env,
                          cwd=root, timeout=300)

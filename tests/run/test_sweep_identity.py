@@ -26,10 +26,10 @@ def test_labels_name_the_parameters_that_differ_from_the_defaults():
 
 
 def test_method_version_changes_with_its_code_and_is_stable():
-    from dbench import methods
-    cls = methods.method_class("jbf")
+    from dbench import registry
+    cls = registry.method_class("jbf")
     assert identity.method_version(cls) == identity.method_version(cls)
-    assert identity.method_version(cls) != identity.method_version(methods.method_class("oidn"))
+    assert identity.method_version(cls) != identity.method_version(registry.method_class("oidn"))
 
 
 def test_method_version_covers_the_code_a_method_uses():
@@ -39,10 +39,10 @@ def test_method_version_covers_the_code_a_method_uses():
     import inspect
     import sys
 
-    from dbench import methods
+    from dbench import methods, registry
     root = Path(methods.__file__).resolve().parent
     for name in ("jbf", "statistical", "jbf-bins", "svgf", "bmfr", "accumulate"):
-        cls = methods.method_class(name)
+        cls = registry.method_class(name)
         files = set(identity.method_files(cls))
         package = cls.__module__
         modules = [m for n, m in list(sys.modules.items())
@@ -158,12 +158,12 @@ def test_changed_parameters_make_a_second_labelled_series(renderer, tmp_path):
 
 @pytest.mark.mitsuba
 def test_a_changed_default_is_refused_and_rerun_recomputes(renderer, tmp_path, monkeypatch):
-    from dbench import methods
+    from dbench import registry
     cfg = dict(methods=["noisy", "jbf"], scenes=["cornell"], spp=[4], res=12, ref_spp=16,
                repeats=1, cache=str(tmp_path / "cache"))
     out = tmp_path / "S"
     sweep.run_sweep(sweep.SweepConfig(**cfg), out, progress=False)
-    cls = methods.method_class("jbf")
+    cls = registry.method_class("jbf")
     monkeypatch.setattr(cls, "defaults", {**cls.defaults, "radius": 2})
     with pytest.raises(DbenchInputError, match="params.radius"):
         sweep.run_sweep(sweep.SweepConfig(**cfg), out, progress=False)

@@ -64,13 +64,13 @@ def test_media_default_slots_never_overflow(tr, fog):
 def _null_emitters(mi, res):
     """Two emitting null-BSDF rectangles in front of an emitting diffuse one: a camera ray picks
     up three emitter hits before its first real vertex, more than 2·max_depth = 2 slots."""
-    from dbench.datasets.scene_parts import _camera, _diffuse, _rect
+    from dbench.datasets.scene_parts import camera_dict, diffuse_bsdf, rect_shape
     T = mi.ScalarTransform4f
     d = {"type": "scene",
-         "sensor": _camera(mi, res, origin=[0, 0, 3], target=[0, 0, 0], fov=20)}
+         "sensor": camera_dict(mi, res, origin=[0, 0, 3], target=[0, 0, 0], fov=20)}
     for i, (z, value) in enumerate(((1.0, 1.0), (0.0, 2.0), (-1.0, 3.0))):
-        bsdf = _diffuse((0.5, 0.5, 0.5)) if i == 2 else {"type": "null"}
-        d[f"plane{i}"] = _rect(mi, T().translate([0, 0, z]).scale(2.0), bsdf,
+        bsdf = diffuse_bsdf((0.5, 0.5, 0.5)) if i == 2 else {"type": "null"}
+        d[f"plane{i}"] = rect_shape(mi, T().translate([0, 0, z]).scale(2.0), bsdf,
                                {"type": "area", "radiance": {"type": "rgb", "value": [value] * 3}})
     return d
 

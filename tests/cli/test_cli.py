@@ -68,7 +68,7 @@ def test_run_on_a_sequence_scene_writes_per_frame_results(renderer, tmp_path):
 
 @pytest.mark.mitsuba
 def test_run_all_methods_skips_those_that_do_not_apply(renderer, tmp_path, capsys):
-    from dbench import methods
+    from dbench import registry
 
     out = tmp_path / "all"
     code = main(["run", "--method", "all", "--scene", "textured", "--spp", "2", "--res", "12",
@@ -76,7 +76,7 @@ def test_run_all_methods_skips_those_that_do_not_apply(renderer, tmp_path, capsy
                  "--cache", str(tmp_path / "cache")])
     assert code == 0
     table = pd.read_csv(out / "metrics.csv")
-    steady = {m for m in methods.available() if "steady" in methods.method_class(m).kinds}
+    steady = {m for m in registry.available() if "steady" in registry.method_class(m).kinds}
     assert set(table.method) == steady
     printed = capsys.readouterr().out
     # one line for every skipped method, grouped by the kind of reason
