@@ -162,7 +162,7 @@ class SampleStats:
     def theta(self) -> np.ndarray:
         """Skew-corrected mean θ̂ = μ + M3 / (6 σ² n), with the correction 0 where σ² = 0.
 
-        σ² n = var_mean · n², so the correction is M3 / (6 var_mean n²) (spec §4).
+        σ² n = var_mean · n², so the correction is M3 / (6 var_mean n²) (docs/methods/statistical.md §4).
         """
         denom = 6.0 * self.var_mean * self.n * self.n
         corr = np.divide(self.m3, denom, out=np.zeros_like(self.m3), where=denom > 0)

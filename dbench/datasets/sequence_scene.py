@@ -112,7 +112,7 @@ def camera_info(scene: SequenceScene, res, i: int) -> dict:
 
 
 def project(points: np.ndarray, camera: dict) -> tuple[np.ndarray, np.ndarray]:
-    """Continuous pixel coordinates of world ``points`` (…, 3) seen by ``camera`` (spec §3.1).
+    """Continuous pixel coordinates of world ``points`` (…, 3) seen by ``camera`` (docs/methods/temporal.md §3.1).
 
     Returns ``(p, c_z)``: p (…, 2) with (x, y), integer values at pixel centres (pixel (i, j)
     spans [i − 0.5, i + 0.5)); c_z (…) the camera-space depth, the point being in front of the

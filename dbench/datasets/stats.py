@@ -25,7 +25,7 @@ ZERO_VARIANCE_RTOL = 1e-10
 
 
 def transform_samples(x: np.ndarray, transform: str, lam: float = 0.5) -> np.ndarray:
-    """g(x) elementwise in float64 (spec §3). Box-Cox clamps negative x to 0 before
+    """g(x) elementwise in float64 (docs/methods/statistical.md §3). Box-Cox clamps negative x to 0 before
     transforming; non-finite x are the caller's business (see :class:`PowerSums`)."""
     check_transform(transform, lam)
     x = np.asarray(x, dtype=np.float64)
@@ -53,7 +53,7 @@ class PowerSums:
     ``add(x)`` takes one sample per element (one 1-spp pass); the sums merge by addition, so
     partial accumulators of several processes combine with :meth:`merge`.
     Non-finite samples are replaced by 0 and counted in ``n_nonfinite``; negative samples under
-    Box-Cox are clamped to 0 and counted in ``n_clamped`` (spec §3 edge cases).
+    Box-Cox are clamped to 0 and counted in ``n_clamped`` (docs/methods/statistical.md §3 edge cases).
     """
 
     def __init__(self, shape: tuple[int, ...], transform: str = "box-cox", lam: float = 0.5):
@@ -159,10 +159,10 @@ def stats_from_arrays(arrays: dict[str, np.ndarray], transform: str, lam: float)
 def stats_from_power_sums(n: int | np.ndarray, s1: np.ndarray, s2: np.ndarray, s3: np.ndarray,
                           k: float, transform: str, lam: float,
                           diagnostics: dict | None = None) -> SampleStats:
-    """Moments from shifted power sums (spec §4.1).
+    """Moments from shifted power sums (docs/methods/statistical.md §4.1).
 
     a = S1/n, m2b = S2/n − a², σ² = m2b·n/(n−1), M3 = S3/n − 3a·m2b − a³ (biased m2b inside M3),
-    σ² := 0 when m2b ≤ 1e-10·S2/n; n < 2 gives σ² = 0 and Var = 0 (spec §4.1 rules).
+    σ² := 0 when m2b ≤ 1e-10·S2/n; n < 2 gives σ² = 0 and Var = 0 (docs/methods/statistical.md §4.1 rules).
     """
     n_arr = np.broadcast_to(np.asarray(n, dtype=np.float64), np.shape(s1))
     safe_n = np.maximum(n_arr, 1.0)
@@ -187,7 +187,7 @@ def stats_from_power_sums(n: int | np.ndarray, s1: np.ndarray, s2: np.ndarray, s
 
 def stats_from_samples(samples: np.ndarray, transform: str = "box-cox", lam: float = 0.5,
                        axis: int = 0) -> SampleStats:
-    """Two-pass statistics from stacked samples (the slow, obvious definition, spec §4).
+    """Two-pass statistics from stacked samples (the slow, obvious definition, docs/methods/statistical.md §4).
 
     ``samples`` has the sample axis at ``axis``; used by tests and small synthetic data.
     """

@@ -75,7 +75,7 @@ DEFAULT_TRANSFORM = "identity"   # docs/methods/statistical.md §3: transient de
 #: Version of the ``total_var`` array stored with the statistics (the noisy total's variance).
 TOTAL_VAR_VERSION = 2
 
-#: Σ color ≥ this share of Σ steady counts as a window covering all contributions (spec §6).
+#: Σ color ≥ this share of Σ steady counts as a window covering all contributions (docs/transient.md §6).
 COVERS_ALL = 0.999
 
 
@@ -349,7 +349,7 @@ def load_transient(scene: str | TransientScene, spp: int, res,
         spp: samples per pixel (paths per pixel; each is one sample of every bin).
         res: image size (a side in pixels, ``"WxH"`` or (width, height)).
         needs: buffers (``color`` always comes; ``stats`` adds ``non_zero``); None = all.
-        transform, lam: sample transform of the statistics (default identity, spec §3).
+        transform, lam: sample transform of the statistics (default identity, docs/methods/statistical.md §3).
         seed: base seed of the noisy samples and features (disjoint streams).
         ref_spp: reference spp (default max(DBENCH_REF_SPP or 4096, 16·spp)).
         ref_seed: seed of the reference and ``reference_var`` (None means 0), independent of

@@ -17,7 +17,7 @@ Scenes (all ``transient_prbvolpath``, features from the room without the medium)
   ``test_gridvolume_media_lose_null_collision_steps``). Homogeneous media have no null
   collisions, and the shells' null surfaces add their segments, so the layered cloud's OPLs are
   exact.
-* ``fog-unwarped``: ``fog-transient`` with ``camera_unwarp=True`` (spec §3). **Note
+* ``fog-unwarped``: ``fog-transient`` with ``camera_unwarp=True`` (docs/transient.md §3). **Note
   (mitransient 1.3.1, read and measured):** ``transient_prbvolpath`` unwarps by subtracting the
   distance from the camera to the first *surface* along the primary ray (null interfaces such
   as the fog's box skipped), not to the first scattering event. Light scattered by the medium
@@ -33,7 +33,7 @@ Parameters (``--scene-param NAME=VALUE``; one line naming the valid values other
 * media scenes: ``sigma_s``, ``sigma_a`` (1/m; the cloud's at density 1; fog ≤ 2 and ≤ 1,
   cloud ≤ 12 and ≤ 2) and ``g`` (−1 < g < 1; seed 004 uses −0.6 … 0.6);
 * every transient scene: ``emission=pulse|step`` (:attr:`TransientScene.emission`: the step
-  response is the cumsum along T of the pulse response, spec §7 check 5, taken on every
+  response is the cumsum along T of the pulse response, docs/transient.md §7 check 5, taken on every
   rendered pass, so the per-bin statistics are those of each path's cumulative contributions;
   collector (a) only);
 * media scenes: ``scattering=all|single|multiple``. ``transient_prbvolpath`` counts scattering

@@ -42,7 +42,7 @@ class NCAConfig:
     select_tolerance: float = 0.01
     update_channels: str = "all"
     activation: str = "sigmoid"
-    # spec §3 says log1p; [dbench] the albedo-demodulated form lets the automaton smooth
+    # docs/methods/nca.md §3 says log1p; [dbench] the albedo-demodulated form lets the automaton smooth
     # illumination, not texture: with the spp range it was the only variant below the noisy
     # input on `textured` at 16-1024 spp (results/learned.md)
     color_encoding: str = "log1p_demodulated"

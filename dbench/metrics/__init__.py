@@ -1,4 +1,4 @@
-"""Image metrics for denoiser outputs (spec anchors.md §1, §5, §6).
+"""Image metrics for denoiser outputs (docs/metrics.md §1, §5, §6).
 
 Plain functions on NumPy arrays. ``output`` and ``reference`` are (H, W, C) images or
 (H, W, T, C) transient videos of the same shape, any real dtype, computed in float64.

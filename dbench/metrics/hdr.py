@@ -1,4 +1,4 @@
-"""HDR-FLIP with exposures fixed once per reference (spec anchors.md §5), remembered for the
+"""HDR-FLIP with exposures fixed once per reference (docs/metrics.md §5), remembered for the
 ``HDRFLIP_CACHE_SIZE`` most recent references."""
 from __future__ import annotations
 
@@ -105,7 +105,7 @@ def _hdrflip_value(o: np.ndarray, r: np.ndarray) -> float:
 
 def hdrflip(output: Any, reference: Any, *, return_params: bool = False
             ) -> float | tuple[float, dict[str, Any]]:
-    """HDR-FLIP on linear values with exposures fixed per reference (anchors.md §1, §5).
+    """HDR-FLIP on linear values with exposures fixed per reference (docs/metrics.md §1, §5).
 
     Negative values of both images are clipped to 0 (HDR-FLIP is defined on non-negative
     radiance); one channel is replicated to three. The start/stop exposures (and their count)

@@ -1,6 +1,6 @@
 """Image metrics: MSE, RMSE, relMSE, SMAPE, rMAE, PSNR, SSIM, LDR-FLIP and HDR-FLIP.
 
-Definitions and constants follow spec anchors.md §1 (metrics), §5 (FLIP usage) and are checked by
+Definitions and constants follow docs/metrics.md §1 (metrics), §5 (FLIP usage) and are checked by
 the tests of §6. Each metric is a plain function ``metric(output, reference, **options) -> float``
 on NumPy arrays (scikit-image style); :func:`compute` picks one by name and :func:`compute_all`
 computes several, tone-mapping each image once. The metrics live in ``pixel.py`` (linear),

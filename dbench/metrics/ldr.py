@@ -1,4 +1,4 @@
-"""LDR metrics on tone-mapped images: PSNR, SSIM, LDR-FLIP (spec anchors.md §1)."""
+"""LDR metrics on tone-mapped images: PSNR, SSIM, LDR-FLIP (docs/metrics.md §1)."""
 from __future__ import annotations
 
 import math
@@ -28,7 +28,7 @@ def psnr_ldr(a: np.ndarray, b: np.ndarray) -> float:
 
 
 def ssim_ldr(a: np.ndarray, b: np.ndarray) -> float:
-    """SSIM between two tone-mapped (H, W, C) images in [0, 1] (anchors.md §1).
+    """SSIM between two tone-mapped (H, W, C) images in [0, 1] (docs/metrics.md §1).
 
     Images at least 11 px on both sides: ``skimage.metrics.structural_similarity(a, b,
     gaussian_weights=True, sigma=1.5, use_sample_covariance=False, data_range=1,
@@ -129,7 +129,7 @@ def flip_ldr(a: np.ndarray, b: np.ndarray) -> float:
 
 
 def psnr(output: Any, reference: Any, ev: float = 0.0) -> float:
-    """PSNR in dB on tone-mapped images (anchors.md §1), capped at 100 dB.
+    """PSNR in dB on tone-mapped images (docs/metrics.md §1), capped at 100 dB.
 
     Args:
         output, reference: (H, W, C) or (H, W, T, C), same shape; transient: the sum over T.
@@ -143,7 +143,7 @@ def psnr(output: Any, reference: Any, ev: float = 0.0) -> float:
 
 
 def ssim(output: Any, reference: Any, ev: float = 0.0) -> float:
-    """SSIM on tone-mapped images (anchors.md §1); see :func:`ssim_ldr` for the small-image rule.
+    """SSIM on tone-mapped images (docs/metrics.md §1); see :func:`ssim_ldr` for the small-image rule.
 
     Args:
         output, reference: (H, W, C) or (H, W, T, C), same shape; transient: the sum over T.
@@ -157,7 +157,7 @@ def ssim(output: Any, reference: Any, ev: float = 0.0) -> float:
 
 
 def flip(output: Any, reference: Any, ev: float = 0.0) -> float:
-    """LDR-FLIP on tone-mapped sRGB images (anchors.md §1, §5).
+    """LDR-FLIP on tone-mapped sRGB images (docs/metrics.md §1, §5).
 
     Args:
         output, reference: (H, W, C) or (H, W, T, C) with C = 1 or 3, same shape; transient:

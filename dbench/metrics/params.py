@@ -1,4 +1,4 @@
-"""Constants of the metrics (spec anchors.md §1); their definitions and directions are in
+"""Constants of the metrics (docs/metrics.md §1); their definitions and directions are in
 the metric records (records.py)."""
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Pixel-wise metrics on linear HDR values: MSE, RMSE, relMSE, SMAPE, rMAE (spec anchors.md §1)."""
+"""Pixel-wise metrics on linear HDR values: MSE, RMSE, relMSE, SMAPE, rMAE (docs/metrics.md §1)."""
 from __future__ import annotations
 
 import math
@@ -58,7 +58,7 @@ def _mean_error(o: np.ndarray, r: np.ndarray, error_map: Callable[..., np.ndarra
 
 
 def mse(output: Any, reference: Any) -> float:
-    """Mean squared error, mean((x − r)²), on linear values (spec anchors.md §1).
+    """Mean squared error, mean((x − r)²), on linear values (docs/metrics.md §1).
 
     Args:
         output, reference: (H, W, C) or (H, W, T, C), same shape; transient: the whole tensor.
@@ -71,7 +71,7 @@ def mse(output: Any, reference: Any) -> float:
 
 
 def rmse(output: Any, reference: Any) -> float:
-    """Root mean squared error, sqrt(mean((x − r)²)), on linear values (anchors.md §1).
+    """Root mean squared error, sqrt(mean((x − r)²)), on linear values (docs/metrics.md §1).
 
     Shapes as :func:`mse`. The only metric of seed 000 (per inset, linear).
     """
@@ -80,7 +80,7 @@ def rmse(output: Any, reference: Any) -> float:
 
 
 def relmse(output: Any, reference: Any, eps: float = RELMSE_EPS) -> float:
-    """Relative MSE, mean((x − r)² / (r² + ε)), ε = 1e-2 by default (anchors.md §1).
+    """Relative MSE, mean((x − r)² / (r² + ε)), ε = 1e-2 by default (docs/metrics.md §1).
 
     Shapes as :func:`mse`.
     """
@@ -89,7 +89,7 @@ def relmse(output: Any, reference: Any, eps: float = RELMSE_EPS) -> float:
 
 
 def smape(output: Any, reference: Any, eps: float = SMAPE_EPS) -> float:
-    """SMAPE, mean(|x − r| / (|x| + |r| + ε)), ε = 1e-2, no factor 2 (anchors.md §1, as ProDen).
+    """SMAPE, mean(|x − r| / (|x| + |r| + ε)), ε = 1e-2, no factor 2 (docs/metrics.md §1, as ProDen).
 
     Shapes as :func:`mse`.
     """
@@ -98,7 +98,7 @@ def smape(output: Any, reference: Any, eps: float = SMAPE_EPS) -> float:
 
 
 def rmae(output: Any, reference: Any, eps: float = RMAE_EPS) -> float:
-    """Relative mean absolute error, mean(|x − r| / (|r| + 0.01)) (anchors.md §1).
+    """Relative mean absolute error, mean(|x − r| / (|r| + 0.01)) (docs/metrics.md §1).
 
     noisebase divides this by 3 for no stated reason; dbench does not. Shapes as :func:`mse`.
     """

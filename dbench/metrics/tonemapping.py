@@ -1,4 +1,4 @@
-"""Tone mapping for the LDR metrics (spec anchors.md §1): T(x) = srgb_encode(clip(x·2^EV, 0, 1))."""
+"""Tone mapping for the LDR metrics (docs/metrics.md §1): T(x) = srgb_encode(clip(x·2^EV, 0, 1))."""
 from __future__ import annotations
 
 import math
@@ -61,7 +61,7 @@ def srgb_decode(s: Any) -> np.ndarray:
 
 
 def tonemap(x: Any, ev: float = 0.0) -> np.ndarray:
-    """Tone-map linear HDR values to sRGB-encoded values in [0, 1] (spec anchors.md §1).
+    """Tone-map linear HDR values to sRGB-encoded values in [0, 1] (docs/metrics.md §1).
 
     ``y = clip(x · 2^ev, 0, 1)``, then :func:`srgb_encode`.
 

@@ -88,7 +88,7 @@ def benchmark_transient(height: int = 256, width: int = 256, bins: int = 100, ra
                         radius_t: int = 1, nonempty_fraction: float = 1.0, repeats: int = 3,
                         reference_max_voxels: int = 24 * 24 * 100, base: str = "jbf",
                         threads: int | None = None, method_too: bool = False) -> dict[str, Any]:
-    """Median seconds per video of the spatio-temporal statistical denoiser (spec §11.3).
+    """Median seconds per video of the spatio-temporal statistical denoiser (docs/methods/statistical.md §11.3).
 
     The whole public call is timed (:func:`~dbench.methods.statistical.transient.statistical_filter_video`:
     empty-bin detection, the one-pass preparation of the statistics, the 3D kernel, the
@@ -291,7 +291,7 @@ def radius_t_study(scene: str = "cornell-transient", res: int = 64, spp: int = 2
                    profiles: tuple[str, ...] = ("box", "gaussian")) -> list[dict[str, Any]]:
     """Whole-video RMSE of ``statistical`` (r_s = 5, γ = 0.05, jbf base) relative to the noisy
     input for each temporal radius, temporal profile and number of bins over the scene's fixed
-    window (so the bin width changes): the seed's study of r_t against bin width (spec §11.3,
+    window (so the bin width changes): the seed's study of r_t against bin width (docs/methods/statistical.md §11.3,
     [S000 Fig. 5.4-5.5]; its 8 / 83 / 833 ps ≈ 3080 / 308 / 31 bins of cornell-transient)."""
     from .. import datasets
     from ..methods.statistical.transient import statistical_filter_video

@@ -6,7 +6,7 @@ Per frame: reproject the previous accumulated colour, luminance moments and hist
 ``C' = α C + (1 − α) C'←`` with ``α = max(alpha_min, 1/N)``, ``N = min(N← + 1, n_max)``.
 With the defaults (``alpha_min = 0``, ``n_max = 256``) this is the running mean of every frame
 that saw the same surface point, capped at 256 frames. ``last`` holds the diagnostics of the
-latest frame: ``variance`` (H, W) of luminance (spec §2), ``n`` (H, W) and ``status`` (H, W)
+latest frame: ``variance`` (H, W) of luminance (docs/methods/temporal.md §2), ``n`` (H, W) and ``status`` (H, W)
 (0 reset, 1 bilinear, 2 fallback).
 
 Non-finite policy: a non-finite colour pixel keeps its reprojected history; without history its

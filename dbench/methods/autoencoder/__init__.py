@@ -34,7 +34,7 @@ whose loss asks every crop, the nearly converged ones included, to beat its inpu
 (``dbench.learn.configs.AEConsistencyConfig``; results/learned.md).
 
 Inputs (documented choice): albedo-demodulated colour ``log1p(color / a_eff)``, world-space
-normal, albedo and depth divided by the frame's largest depth (spec §1, the ``seed`` variant plus
+normal, albedo and depth divided by the frame's largest depth (docs/methods/autoencoder.md §1, the ``seed`` variant plus
 depth).
 
 Input policy (documented finite result): non-finite or negative colour values are treated as

@@ -10,7 +10,7 @@ from ..guards import log_demodulated  # noqa: F401 (part of this module's API)
 # a_eff's threshold and the feature planes, shared with the compiled encoder
 from ..kernels.learned_input import ALBEDO_EPS, FEATURE_CHANNELS
 
-#: Architecture constants shared with the ONNX builder (spec §2).
+#: Architecture constants shared with the ONNX builder (docs/methods/autoencoder.md §2).
 LEVELS = 5
 SLOPE = 0.1
 #: Spatial sizes must be multiples of this (five 2x2 poolings).

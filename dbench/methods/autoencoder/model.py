@@ -1,6 +1,6 @@
 """The recurrent denoising autoencoder in PyTorch: the readable reference (docs/methods/autoencoder.md).
 
-Architecture (spec §2, dbench's exact definition), for encoder widths e = (32, 43, 57, 76, 101)
+Architecture (docs/methods/autoencoder.md §2, dbench's exact definition), for encoder widths e = (32, 43, 57, 76, 101)
 scaled by ``width_scale`` and decoder widths d = (76, 57, 43, 32, 32) scaled alike::
 
     encoder level l = 1..5:
@@ -17,9 +17,9 @@ scaled by ``width_scale`` and decoder widths d = (76, 57, 43, 32, 32) scaled ali
 
 LeakyReLU slope 0.1, 3x3 convolutions with zero "same" padding, 2x2 max pooling, nearest
 upsampling. With 9 input channels and ``width_scale=1`` the model has 1,454,924 parameters
-(spec §6.1).
+(docs/methods/autoencoder.md §6.1).
 
-Input encoding (spec §1, dbench): channel order ``log1p(color / a_eff)`` (3), then the feature
+Input encoding (docs/methods/autoencoder.md §1, dbench): channel order ``log1p(color / a_eff)`` (3), then the feature
 buffers in ``FEATURE_ORDER`` order: normal (3, in [-1, 1]), albedo (3, in [0, 1]) and optionally
 depth (1, divided by the frame's largest finite depth). ``a_eff`` is the albedo where it exceeds
 1e-3 (per channel) and 1 elsewhere (docs/methods/svgf.md §2). The network predicts the demodulated

@@ -1,6 +1,6 @@
 """``bmfr``: blockwise multi-order feature regression (Koskela et al. 2019; docs/methods/bmfr.md).
 
-Per frame (spec §1; the demodulation and emission steps are SVGF's,
+Per frame (docs/methods/bmfr.md §1; the demodulation and emission steps are SVGF's,
 :func:`dbench.methods.svgf.dispatch.prepare` and :mod:`dbench.methods.svgf.steps`): subtract the
 primary hits' emission (``emission`` buffer when present, as for SVGF) and demodulate by albedo (a_eff = clip(albedo, ``albedo_floor``, 1), the rule of
 :data:`dbench.methods.svgf.params.ALBEDO_FLOOR`; by default ``albedo_floor`` = 1, no
@@ -50,8 +50,8 @@ reprojection, accumulation, demodulation, feature construction, the batched Hous
 all blocks and the reconstruction as PyTorch kernels (:mod:`dbench.methods.bmfr.torch_path`) on
 CUDA when available, else on CPU, NumPy in and out of each kernel, history kept as NumPy;
 ``params["backend"]`` holds the resolved name), preset (None | "seed": block 64, 36 samples,
-features "seed", no hand-back — the seed's implementation, spec §3.1 | "paper": no hand-back),
-handback ("signed" | "wiener" | "none"), taa (False: spec §1 step 6, the BMFR code's temporal
+features "seed", no hand-back — the seed's implementation, docs/methods/bmfr.md §3.1 | "paper": no hand-back),
+handback ("signed" | "wiener" | "none"), taa (False: docs/methods/bmfr.md §1 step 6, the BMFR code's temporal
 antialiasing of the output, :mod:`dbench.methods.temporal.taa`), taa_alpha (0.2) and
 albedo_floor (1 [dbench]: no demodulation; 0.2 in the ``seed`` and ``paper`` presets, SVGF's;
 docs/temporal.md §12).
@@ -263,7 +263,7 @@ class BMFR(T.HistoryDenoiser):
         noise_seed = (int(p["seed"]) * 1_000_003 + k) & 0x7FFFFFFFFFFFFFFF
         fit_args = (int(p["block_size"]), offset, float(p["noise_amount"]), noise_seed,
                     float(p["rcond"]), bool(p["clamp_negative"]))
-        if p["samples"] is not None:  # the seed's W random pixels per block (spec §3.1)
+        if p["samples"] is not None:  # the seed's W random pixels per block (docs/methods/bmfr.md §3.1)
             fit = fit & block_sample_mask(fit, int(p["block_size"]), offset, int(p["samples"]),
                                           noise_seed)
         scaled = self.scaled

@@ -10,7 +10,7 @@ from ..svgf.params import ALBEDO_FLOOR
 
 _P = ("px", "py", "pz")
 _P2 = ("px2", "py2", "pz2")
-#: Feature presets (spec §2): names of the columns, constant first. Normal columns name their
+#: Feature presets (docs/methods/bmfr.md §2): names of the columns, constant first. Normal columns name their
 #: buffer by their first letter (NORMAL_SOURCES): n the shading normal, g the geometric normal,
 #: r the glossy reflected normal (seed 001 §1.2.1's feature buffers; docs/temporal.md §10).
 FEATURE_PRESETS = {
@@ -36,7 +36,7 @@ def normal_sources(preset: str) -> tuple[str, ...]:
 def normal_column(preset: str, name: str) -> int:
     """The channel of the stacked normals a normal column ``name`` ("nx", "gy", …) reads."""
     return 3 * normal_sources(preset).index(name[0]) + "xyz".index(name[1])
-RCOND = 1e-10      # rank safeguard |R_kk| < rcond · max |R_jj| (spec §5) [dbench]
+RCOND = 1e-10      # rank safeguard |R_kk| < rcond · max |R_jj| (docs/methods/bmfr.md §5) [dbench]
 N_OFFSETS = 16     # per-frame grid offsets, cycling [BMFR code]
 #: [dbench] BMFR fits the illumination without demodulating it (a_eff = clip(albedo, 1, 1) = 1):
 #: on the 8 training sequences that chose the demodulation floor it was better than every

@@ -82,7 +82,7 @@ def feature_stack(normal: np.ndarray, position: np.ndarray, preset: str = "paper
 
 def grid_offsets(block: int, count: int = N_OFFSETS, seed: int = 0) -> np.ndarray:
     """``count`` distinct integer offsets (count, 2) as (x, y) in [−B/2, B/2)², the first (0, 0)
-    (spec §3.1), from a seeded generator."""
+    (docs/methods/bmfr.md §3.1), from a seeded generator."""
     rng = np.random.default_rng(seed)
     half = max(block // 2, 1)
     out = [(0, 0)]
@@ -172,7 +172,7 @@ def bmfr_fit_reference(z: np.ndarray, feats: np.ndarray, scaled: np.ndarray, fit
 def block_sample_mask(fit: np.ndarray, block: int, offset, samples: int, seed: int
                       ) -> np.ndarray:
     """(H, W) bool: ``samples`` pixels of ``fit`` drawn uniformly without replacement in every
-    block of the grid with ``offset`` (x, y) (spec §3.1, the seed's 36 random coordinates per
+    block of the grid with ``offset`` (x, y) (docs/methods/bmfr.md §3.1, the seed's 36 random coordinates per
     block); every fit pixel of a block that has no more than ``samples`` of them. The draw is the
     order of counter-based uniforms (:func:`uniform_hash`, column 63 so that it is independent of
     the feature noise), so it is reproducible and changes with ``seed`` (per frame)."""

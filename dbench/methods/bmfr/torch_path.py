@@ -6,7 +6,7 @@ gathered with flat index tensors; rows outside the image or outside the fit set 
 which leave the least-squares solution — and |R_kk| of the rank safeguard — unchanged, so every
 block has the same m = B² and no Python loop runs over blocks or pixels. The QR is LAPACK's /
 cuSOLVER's Householder (``torch.linalg.qr(mode="r")``) of the augmented matrix [A | B]: Q is
-never formed and the first n rows of R's right part are Qᵀ B (spec §5), as in
+never formed and the first n rows of R's right part are Qᵀ B (docs/methods/bmfr.md §5), as in
 :func:`~dbench.methods.bmfr.reference.householder_lstsq_reference`. The fit is float64 like the
 other backends; images are float32.
 
@@ -49,7 +49,7 @@ def householder_lstsq_torch(A, B, rcond: float = RCOND, device=None):
 
 def back_substitute_torch(Rt, r, rcond: float = RCOND):
     """Solve the upper-triangular Rt (K, n, n) X = r (K, n, c) with the rank safeguard of
-    spec §5 (dropped columns get X_k = 0); loops over the n ≤ 10 columns, batched over K."""
+    docs/methods/bmfr.md §5 (dropped columns get X_k = 0); loops over the n ≤ 10 columns, batched over K."""
     import torch
     k_, n, _ = Rt.shape
     diag = Rt.diagonal(dim1=1, dim2=2).abs()

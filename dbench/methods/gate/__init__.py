@@ -12,7 +12,7 @@ variants are never listed one by one. The wrapper:
 
 * works where its method works on steady frames (and frame by frame on sequences);
 * needs what the method needs plus ``stats``, and passes its optional needs on;
-* takes the method's parameters plus ``gate_alpha`` (α of spec §12, in [0, 1], default 1),
+* takes the method's parameters plus ``gate_alpha`` (α of docs/methods/statistical.md §12, in [0, 1], default 1),
   ``gate_k`` (2.0) and ``gate_t0`` (4.2); ``gate_alpha = 0`` returns the input;
 * pixels whose noisy colour is not finite keep the method's output (there is nothing to mix
   back to), and so do pixels with fewer than 2 samples (their variance of the mean is unknown,
@@ -25,22 +25,22 @@ variants are never listed one by one. The wrapper:
   of the mean, so the t-test rarely rejects a filter's blur there, and on ``cornell`` at 256²,
   1024 spp those 108 pixels held 89 % of ``oidn+gate``'s squared error (RMSE over all pixels
   1.63x the noisy input's; 0.97x with the rule). ``gate_emitters=False`` is the gate of
-  spec §12 alone. A method that applies the rule itself (``keeps_emitters``: ``nca``,
+  docs/methods/statistical.md §12 alone. A method that applies the rule itself (``keeps_emitters``: ``nca``,
   ``autoencoder``) is not given it twice: a second pass would hand a lamp's edge pixel of
   coverage e back by 1 − (1 − e)² instead of e;
-* [dbench] with ``gate_pool`` r (default 5, the gate's 11×11 footprint; 0 for spec §12
+* [dbench] with ``gate_pool`` r (default 5, the gate's 11×11 footprint; 0 for docs/methods/statistical.md §12
   alone) the per-pixel variance of the mean is floored at its mean over the (2r + 1)² window
   (:mod:`~dbench.methods.kernels.variance_floor`): at a few spp a pixel's own variance
   estimate is noisy and, for heavy-tailed radiance, low exactly where rare bright samples were
   missed, so the test handed good pixels back to the noise (``oidn+gate`` on ``fireflies``,
   256², 16 spp: relMSE 2.2x plain OIDN's, 1.07x with the floor; results/learned.md);
-* [dbench] with ``gate_handback="wiener"`` (the default; ``"pixel"`` for spec §12) the gate
+* [dbench] with ``gate_handback="wiener"`` (the default; ``"pixel"`` for docs/methods/statistical.md §12) the gate
   hands back the local mean of the residual where the t-test fails, and the rest of it only in
   proportion to how far its window energy exceeds the noise's
   (:mod:`~dbench.methods.kernels.handback`): the spec's gate hands back the pixel's whole
   residual, noise included, which made ``oidn+gate`` 2-10x plain OIDN's relMSE at 64-256 spp
   on ``fireflies`` and ``caustic`` (results/learned.md). ``gate_pool=0, gate_handback="pixel"``
-  is the gate of spec §12;
+  is the gate of docs/methods/statistical.md §12;
 * runs the compiled gate (:func:`~dbench.methods.kernels.gate.proden_gate_stats`, the passes
   of :func:`~dbench.methods.kernels.gate.proden_gate_fast` fed from the statistics);
   ``gate_backend="reference"`` runs the readable SciPy form.

@@ -98,7 +98,7 @@ def _inputs(color, den, var, x, box_cox_half, fix, y, i):  # pragma: no cover - 
 @njit(parallel=True, cache=True, fastmath=_FASTMATH)
 def _mean_variance(color, den, var, x, box_cox_half, fix, positive
                    ):  # pragma: no cover - compiled
-    """Mean of the linear variance over the image (σ_b of spec §12), float64; ``positive[y]``
+    """Mean of the linear variance over the image (σ_b of docs/methods/statistical.md §12), float64; ``positive[y]``
     is True where every value of ``var``'s row y is > 0 (NaN is not), counted as it is read."""
     h, wc = var.shape
     sums = np.zeros(h, np.float64)

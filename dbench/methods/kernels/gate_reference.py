@@ -27,14 +27,14 @@ GATE_TAPS = 11
 
 
 def proden_gate_factor(t: Any, k: float = GATE_K, t0: float = GATE_T0) -> np.ndarray:
-    """g(t) = ½(1 − erf(k(t − t0)/√2)) = Φ(−k(t − t0)): 0.5 at 4.2, 0.97725 at 3.2 (spec §12)."""
+    """g(t) = ½(1 − erf(k(t − t0)/√2)) = Φ(−k(t − t0)): 0.5 at 4.2, 0.97725 at 3.2 (docs/methods/statistical.md §12)."""
     from scipy.special import erf
 
     return 0.5 * (1.0 - erf(k * (np.asarray(t, np.float64) - t0) / math.sqrt(2.0)))
 
 
 def gate_sigma(var: np.ndarray) -> float:
-    """σ_b = max(100 · sqrt(clamp(mean(var), 0, 1)), 1e-3) (spec §12)."""
+    """σ_b = max(100 · sqrt(clamp(mean(var), 0, 1)), 1e-3) (docs/methods/statistical.md §12)."""
     return sigma_from_mean(float(np.mean(var)))
 
 
@@ -53,7 +53,7 @@ def gate_taps(sigma: float, taps: int = GATE_TAPS) -> np.ndarray:
 def proden_gate(hdr: Any, den: Any, var: Any, *, alpha: float = 1.0, k: float = GATE_K,
                 t0: float = GATE_T0, pool_radius: int = 0, handback: str = "pixel"
                 ) -> np.ndarray:
-    """ProDen t-test gate (spec §12, without the ``proden_exact`` terms), the readable form.
+    """ProDen t-test gate (docs/methods/statistical.md §12, without the ``proden_exact`` terms), the readable form.
 
     Args:
         hdr: (H, W, 3) noisy image; den: (H, W, 3) denoised image; var: (H, W, 3) per-pixel

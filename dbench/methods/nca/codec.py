@@ -3,7 +3,7 @@ shared by training and ONNX Runtime inference.
 
 Colour encodings (an open choice of docs/methods/nca.md §7, recorded in the model's metadata):
 
-* ``"log1p"`` (spec §3): RGB = log1p(color); output max(expm1(RGB), 0).
+* ``"log1p"`` (docs/methods/nca.md §3): RGB = log1p(color); output max(expm1(RGB), 0).
 * ``"log1p_demodulated"``: RGB = log1p(color / a_eff) with a_eff = albedo where it exceeds 1e-3
   (per channel) and 1 elsewhere (docs/methods/svgf.md §2); output max(expm1(RGB), 0) · a_eff. The
   automaton then diffuses illumination, not texture.

@@ -1,15 +1,15 @@
 """TNND, the tiny neural cellular automaton denoiser, in PyTorch: the readable reference
 (docs/methods/nca.md).
 
-State (spec §1): per pixel s = [R, G, B, N_x, N_y, N_z, A_x, A_y, A_z], shape (N, 9, H, W), with
-RGB as ``log1p`` of linear radiance, normals in [-1, 1], albedo in [0, 1] (spec §3, colour
+State (docs/methods/nca.md §1): per pixel s = [R, G, B, N_x, N_y, N_z, A_x, A_y, A_z], shape (N, 9, H, W), with
+RGB as ``log1p`` of linear radiance, normals in [-1, 1], albedo in [0, 1] (docs/methods/nca.md §3, colour
 scaling).
 
-Perception (spec §2): 39 channels, in this order: identity (9), Gaussian K_g on RGB (3),
+Perception (docs/methods/nca.md §2): 39 channels, in this order: identity (9), Gaussian K_g on RGB (3),
 Laplacian K_l (9), Sobel-x K_sx (9), Sobel-y K_sy (9); fixed 3x3 kernels applied with kornia's
 ``filter2d`` (cross-correlation) and replicate padding.
 
-Update (spec §3): s <- s + sigmoid(p · W) + b, W (39, 9), b (9,): 351 + 9 = 360 trainable
+Update (docs/methods/nca.md §3): s <- s + sigmoid(p · W) + b, W (39, 9), b (9,): 351 + 9 = 360 trainable
 parameters. [dbench] ``noise_gate=True`` scales every update by a step size that depends on the
 input's noise level ℓ = log2(spp)/10 (:func:`dbench.methods.hdr_input.noise_level`):
 s <- s + γ(ℓ) (sigmoid(p · W) + b), γ(ℓ) = γ_max sigmoid(v + u ℓ), two more trained numbers
@@ -46,7 +46,7 @@ PERCEPTION_CHANNELS = 39
 UPDATE_CHANNELS = ("all", "rgb")
 ACTIVATIONS = ("sigmoid", "tanh")
 
-#: The fixed filters of spec §2 (cross-correlation kernels; +x right, +y down).
+#: The fixed filters of docs/methods/nca.md §2 (cross-correlation kernels; +x right, +y down).
 K_GAUSS = np.outer([1, 2, 1], [1, 2, 1]).astype(np.float32) / 16.0
 K_SOBEL_X = np.array([[-1, 0, 1], [-2, 0, 2], [-1, 0, 1]], np.float32) / 8.0
 K_SOBEL_Y = K_SOBEL_X.T.copy()
@@ -70,7 +70,7 @@ def perception_map() -> list[tuple[np.ndarray, int]]:
 
 
 def perceive(s: torch.Tensor) -> torch.Tensor:
-    """(N, 9, H, W) state -> (N, 39, H, W) perception vector (spec §2), kornia filters,
+    """(N, 9, H, W) state -> (N, 39, H, W) perception vector (docs/methods/nca.md §2), kornia filters,
     replicate padding."""
     if s.ndim != 4 or s.shape[1] != STATE_CHANNELS:
         raise ValueError(f"state: expected (N, 9, H, W), got {tuple(s.shape)}")

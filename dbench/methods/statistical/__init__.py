@@ -22,17 +22,17 @@ empty bins skipped (they cost nothing and return 0).
 
 Parameters (``get("statistical", **params)``; every value is checked, a bad one raises
 DbenchInputError naming it; the resolved values land in ``last_settings`` after each call):
-    radius (None: 20 for images [spec §7], 5 for videos [spec §7, §11.3]; an integer applies to
-    both), alpha / gamma (both None: α = 0.005 for images [spec §5.1 steady default], γ = 0.1
-    for videos [the upper end of spec §5.1's transient range 0.05-0.1, measured best on every
+    radius (None: 20 for images [docs/methods/statistical.md §7], 5 for videos [docs/methods/statistical.md §7, §11.3]; an integer applies to
+    both), alpha / gamma (both None: α = 0.005 for images [docs/methods/statistical.md §5.1 steady default], γ = 0.1
+    for videos [the upper end of docs/methods/statistical.md §5.1's transient range 0.05-0.1, measured best on every
     rendered scene: results/transient_statistical.md §6]; γ_t = t_{1−α/2, n_i+n_j−2} from alpha,
     γ_t² = 1/(2γ) − 1 from gamma, which wins when both are given), sigma ((10, 10, 0.02 ×3,
     0.1 ×3)), sigma_convention ("variance" | "sd"), window ("square" | "disk"), backend ("auto":
     Numba; on a GPU the harness runs ``denoise_device``, docs/gpu.md | "numba" | "torch"
     (images only) | "reference"), hit_mask (True), membership (True; False = plain base filter, the ablation).
-    The ProDen gate of spec §12 is ``statistical+gate`` (:mod:`dbench.methods.gate`, which
+    The ProDen gate of docs/methods/statistical.md §12 is ``statistical+gate`` (:mod:`dbench.methods.gate`, which
     wraps any steady method; ``statistical-gate`` is the old name of the same method).
-    Videos only (spec §11.3, docs/methods/jbf.md §1.4): radius_t ("auto": follows the bin width,
+    Videos only (docs/methods/statistical.md §11.3, docs/methods/jbf.md §1.4): radius_t ("auto": follows the bin width,
     min(3, ⌊20 mm / bin width⌋) from the frame's ``meta["bin_width_opl"]`` in metres, 1 when
     the frame has no window in metres;
     :func:`~dbench.methods.statistical.transient.auto_radius_t` | an integer), base ("auto":
@@ -52,7 +52,7 @@ mask, and without it pixels with an all-zero normal count as background
 fallback (media have no albedo/normal/depth).
 The sample transform (identity / Box-Cox / Yeo-Johnson and λ) is a property of the statistics
 (SampleStats.transform, .lam) and is recorded, not chosen here; transient datasets default to
-identity (spec §3, §11.3: identity or Yeo-Johnson; Box-Cox distorts near-zero bins).
+identity (docs/methods/statistical.md §3, §11.3: identity or Yeo-Johnson; Box-Cox distorts near-zero bins).
 
 Example:
     >>> import numpy as np
@@ -196,7 +196,7 @@ class Statistical(Denoiser):
         return out
 
     def _video_radii(self, data: Any) -> tuple[int, int, float | None]:
-        """(r_s, r_t, bin width in metres or None) of a video (spec §7, §11.3)."""
+        """(r_s, r_t, bin width in metres or None) of a video (docs/methods/statistical.md §7, §11.3)."""
         p = self.params
         if p["backend"] == "torch":
             raise DbenchInputError("backend: 'torch' is not available for transient videos; "
@@ -237,7 +237,7 @@ class Statistical(Denoiser):
         return out
 
     def _denoise_video(self, data: Any) -> np.ndarray:
-        """Spatio-temporal denoiser on a TransientFrame (spec §11.3)."""
+        """Spatio-temporal denoiser on a TransientFrame (docs/methods/statistical.md §11.3)."""
         p = self.params
         radius, radius_t, width_m = self._video_radii(data)
         backend = "reference" if p["backend"] == "reference" else "numba"

@@ -1,7 +1,7 @@
 """Constants of the ``statistical`` method with their sources (docs/methods/statistical.md, the
 "spec" of the section numbers; [dbench] marks choices made here), and the threshold of its test.
 
-Threshold (spec §5.1): γ given directly wins (γ_t² = 1/(2γ) − 1);
+Threshold (docs/methods/statistical.md §5.1): γ given directly wins (γ_t² = 1/(2γ) − 1);
 otherwise γ_t = t_{1−α/2, ν} (SciPy) with ν = n_i + n_j − 2; one value when n is uniform, a table
 indexed by ν otherwise (ν ≤ 0, i.e. n_i = n_j = 1, gives γ_t = 0: only d == 0 passes).
 :func:`resolve_threshold` gives the :class:`Threshold` every backend uses (the readable
@@ -25,9 +25,9 @@ import numpy as np
 
 from ...errors import DbenchInputError
 
-#: Test level α of the steady default (spec §5.1 "steady default").
+#: Test level α of the steady default (docs/methods/statistical.md §5.1 "steady default").
 DEFAULT_ALPHA = 0.005
-#: Steady spatial radius (spec §7).
+#: Steady spatial radius (docs/methods/statistical.md §7).
 STEADY_RADIUS = 20
 #: Largest ν with its own γ_t in the non-uniform table; beyond it the ν = ∞ value is used.
 NU_CAP = 1 << 20
@@ -41,12 +41,12 @@ __all__ = ["BACKENDS", "DEFAULT_ALPHA", "G2_MAX", "NU_CAP", "STEADY_RADIUS", "Th
 
 
 def gamma_t_from_gamma(gamma: float) -> float:
-    """γ_t = sqrt(1/(2γ) − 1), γ in (0, 0.5] (spec §5): 0.05 → 3, 0.01 → 7, 0.1 → 2."""
+    """γ_t = sqrt(1/(2γ) − 1), γ in (0, 0.5] (docs/methods/statistical.md §5): 0.05 → 3, 0.01 → 7, 0.1 → 2."""
     return math.sqrt(g2_from_gamma(gamma))
 
 
 def gamma_from_gamma_t(gamma_t: float) -> float:
-    """γ = 1 / (2(γ_t² + 1)) (spec §5)."""
+    """γ = 1 / (2(γ_t² + 1)) (docs/methods/statistical.md §5)."""
     return 1.0 / (2.0 * (float(gamma_t) ** 2 + 1.0))
 
 
@@ -116,7 +116,7 @@ class Threshold:
 
 def resolve_threshold(nint: np.ndarray, alpha: float | None = DEFAULT_ALPHA,
                       gamma: float | None = None, valid: np.ndarray | None = None) -> Threshold:
-    """γ_t from ``gamma`` (wins) or from α and ν = n_i + n_j − 2 (spec §5.1).
+    """γ_t from ``gamma`` (wins) or from α and ν = n_i + n_j − 2 (docs/methods/statistical.md §5.1).
 
     Args:
         nint: integer sample counts, any shape (channel-first planes in practice).

@@ -2,7 +2,7 @@
 the "spec" of the section numbers): the pairwise test, the statistics as channel-first planes,
 and the dense filter every fast path is tested against.
 
-w_ij = ρ_ij m_ij v_j / Σ_k ρ_ik m_ik v_k, out_i = Σ_j w_ij L_j          (spec §1, §8)
+w_ij = ρ_ij m_ij v_j / Σ_k ρ_ik m_ik v_k, out_i = Σ_j w_ij L_j          (docs/methods/statistical.md §1, §8)
 
 * ρ is the joint bilateral filter of docs/methods/jbf.md, built by
   :func:`dbench.methods.kernels.bilateral.guide.make_guide` and evaluated by the same code as the
@@ -11,12 +11,12 @@ w_ij = ρ_ij m_ij v_j / Σ_k ρ_ik m_ik v_k, out_i = Σ_j w_ij L_j          (spe
   :func:`~dbench.methods.kernels.bilateral.torch_path.accumulate_torch` in the fast paths of
   :mod:`.fast`). Nothing is copied.
 * m_ij = AND over the channels c of pass_c = (d² < γ_t² S) or (d == 0), with d = θ̂_i − θ̂_j and
-  S = Var(θ̂_i) + Var(θ̂_j) of the transformed samples (spec §5, §5.2, §6); m_ii = 1. The
-  threshold γ_t is :func:`.params.resolve_threshold`'s (spec §5.1).
+  S = Var(θ̂_i) + Var(θ̂_j) of the transformed samples (docs/methods/statistical.md §5, §5.2, §6); m_ii = 1. The
+  threshold γ_t is :func:`.params.resolve_threshold`'s (docs/methods/statistical.md §5.1).
 * L is the linear noisy colour (Frame.color); v_j = 1 when L_j is finite (missing pixels get no
   weight, and their own output is the filtered value of their valid neighbours, or 0).
 * A pixel whose θ̂, Var(θ̂) or n is not finite has no neighbours and is nobody's neighbour
-  (spec §5.2 "[dbench] fails unless it is the centre"); its output is its own colour.
+  (docs/methods/statistical.md §5.2 "[dbench] fails unless it is the centre"); its output is its own colour.
 
 Shapes: colour and statistics are (H, W, 3); the kernels use channel-first (3, H, W) planes.
 
@@ -44,11 +44,11 @@ __all__ = ["StatPlanes", "membership", "stat_planes", "statistical_reference", "
 
 
 # ---------------------------------------------------------------------------------------------
-# The pairwise test (spec §5)
+# The pairwise test (docs/methods/statistical.md §5)
 # ---------------------------------------------------------------------------------------------
 
 def welch_weight(d: Any, s: Any) -> np.ndarray:
-    """Optimal symmetric pair weight w* = (2d² + S) / (2(d² + S)) (spec §5), without NaN.
+    """Optimal symmetric pair weight w* = (2d² + S) / (2(d² + S)) (docs/methods/statistical.md §5), without NaN.
 
     d = 0 and S = 0 gives 0.5; S = 0 and d ≠ 0 gives 1; |d| = ∞ gives 1.
     """
@@ -72,7 +72,7 @@ def welch_t(d: Any, s: Any) -> np.ndarray:
 
 
 def welch_t_from_weight(w: Any) -> np.ndarray:
-    """t = sqrt(1/(2(1 − w*)) − 1) (spec §5); w* = 1 gives ∞."""
+    """t = sqrt(1/(2(1 − w*)) − 1) (docs/methods/statistical.md §5); w* = 1 gives ∞."""
     w = np.asarray(w, np.float64)
     with np.errstate(divide="ignore"):
         x = np.where(w < 1, 1.0 / (2.0 * (1.0 - np.minimum(w, 1.0))) - 1.0, np.inf)
@@ -80,14 +80,14 @@ def welch_t_from_weight(w: Any) -> np.ndarray:
 
 
 def welch_pass(d: Any, s: Any, g2: Any) -> np.ndarray:
-    """Per-channel predicate pass = (d² < γ_t² S) or (d == 0) (spec §5.2), float64, no NaN."""
+    """Per-channel predicate pass = (d² < γ_t² S) or (d == 0) (docs/methods/statistical.md §5.2), float64, no NaN."""
     d = np.asarray(d, np.float64)
     return (d * d < np.asarray(g2, np.float64) * np.asarray(s, np.float64)) | (d == 0.0)
 
 
 def membership(theta_i: Any, var_i: Any, theta_j: Any, var_j: Any, gamma_t: float,
                axis: int = -1) -> np.ndarray:
-    """m_ij: every channel (along ``axis``) must pass the Welch test at threshold γ_t (spec §6)."""
+    """m_ij: every channel (along ``axis``) must pass the Welch test at threshold γ_t (docs/methods/statistical.md §6)."""
     g2 = min(float(gamma_t) ** 2, G2_MAX)
     d = np.asarray(theta_i, np.float64) - np.asarray(theta_j, np.float64)
     s = np.asarray(var_i, np.float64) + np.asarray(var_j, np.float64)
@@ -100,7 +100,7 @@ def membership(theta_i: Any, var_i: Any, theta_j: Any, var_j: Any, gamma_t: floa
 
 @dataclass(frozen=True)
 class StatPlanes:
-    """Channel-first statistics for the kernels (spec §2, §4).
+    """Channel-first statistics for the kernels (docs/methods/statistical.md §2, §4).
 
     theta: (3, H, W) float64 θ̂; var: (3, H, W) float64 Var(θ̂); nint: (3, H, W) int32 n;
     bad: (H, W) bool pixels with non-finite statistics (values there are zeroed);
@@ -154,7 +154,7 @@ def stat_planes(stats: Any, shape: tuple[int, int] | None = None) -> StatPlanes:
 
 def statistical_reference(color: Any, sp: StatPlanes, guide: Guide, threshold: Threshold, *,
                           membership_on: bool = True, return_weights: bool = False):
-    """Readable statistical denoiser: loop over offsets, whole shifted images (spec §8).
+    """Readable statistical denoiser: loop over offsets, whole shifted images (docs/methods/statistical.md §8).
 
     For each offset o: ρ from
     :func:`~dbench.methods.kernels.bilateral.reference.reference_weights` (the JBF's own code),

@@ -1,6 +1,6 @@
 """Centre-versus-neighbourhood shrinkage of the spatio-temporal statistical denoiser [dbench].
 
-Why (results/transient_statistical.md §6): the Welch test of spec §5 is pairwise, but the
+Why (results/transient_statistical.md §6): the Welch test of docs/methods/statistical.md §5 is pairwise, but the
 output is a normalised sum over every neighbour that passed. A voxel whose own variance is
 large, such as a directly seen light in a time bin reached by a few paths (its samples are
 0 or L_e), passes the test against almost any dim neighbour (t = |d|/√S ≈ √hits < γ_t), so
@@ -9,7 +9,7 @@ fog-transient light voxel of 2.81 (reference 5.23) came out at 0.39. Spec §5's 
 pairwise weight says such a neighbour deserves 1 − w* = 1/(2(t² + 1)) ≈ 0.07, not a share of
 1 − 1/N.
 
-The rule applies spec §5's MSE argument once more, between the centre voxel i and the
+The rule applies docs/methods/statistical.md §5's MSE argument once more, between the centre voxel i and the
 combination of the neighbours its test accepted. With the seed's weights w_j = ρ_ij m_ij v_j
 (j ≠ i, centre weight 1), V̄ = mean_c Var(θ̂_c) and θ̄ the channel mean of the values whose
 bias is measured (one β per voxel: the channels of a rendered sample move together, and one β
@@ -27,7 +27,7 @@ keeps the kernel at 6-7 planes instead of 13, which halved its speed):
 Which θ̄ (:func:`bias_from_colour`): the MSE above is that of the mixed linear colour L, so its
 bias is measured on L wherever the variances are those of L, i.e. for the identity transform
 (transient data's default: Var(θ̂) is then the variance of the sample mean L; θ̂ only adds the
-skewness correction of spec §4, which is not in the output). The kernel then needs no θ̄
+skewness correction of docs/methods/statistical.md §4, which is not in the output). The kernel then needs no θ̄
 plane (Σ w θ̄ is the channel mean of the colour sums), which saves one of seven planes. For
 the other transforms the variances are those of the transformed θ̂, and θ̄ is θ̂'s channel
 mean, as the test sees it.

@@ -3,20 +3,20 @@
 θ~_i = Σ_j w_ij L_j,  w_ij = ρ_ij m_ij v_j / Σ_k ρ_ik m_ik v_k,   i, j voxels (y, x, t)
 
 * Window: the full non-separable box of (2r_s+1)² × (2r_t+1) voxels (r_s = 5, r_t = 1 → 363),
-  square or disk in space (spec §11.3; :func:`window_size`). The centre voxel (same pixel, same
+  square or disk in space (docs/methods/statistical.md §11.3; :func:`window_size`). The centre voxel (same pixel, same
   bin) always counts; the other bins of the same pixel are ordinary neighbours that must pass
   the test. Bins outside [0, T) are not neighbours (masked like padded pixels), as are pixels
   outside the image.
-* Base filter ρ (spec §11.3, docs/methods/jbf.md §1.4), two choices:
+* Base filter ρ (docs/methods/statistical.md §11.3, docs/methods/jbf.md §1.4), two choices:
   ``"jbf"``: the joint bilateral filter of the ``jbf`` method with its G-buffers replicated along
   time (they are per pixel), times a temporal factor (``temporal_profile`` ``"box"``, the default:
   1 for |τ| ≤ r_t; or ``"gaussian"``: exp(−½τ²/σ_t²));
   ``"gauss3d"``: the plain 3D Gaussian for participating media, ρ = exp(−½(Δx² + Δy²)/σ_s²
   − ½τ²/σ_t²) without G-buffer terms or hit mask, σ_s² from the spatial Σ entries of ``sigma``
   (10 px² by default, the JBF's spatial term) and σ_t = 1 bin (default profile ``"gaussian"``).
-* m_ij: the per-channel Welch test of spec §5 on the per-bin statistics, AND over channels (§6).
+* m_ij: the per-channel Welch test of docs/methods/statistical.md §5 on the per-bin statistics, AND over channels (§6).
   Default threshold for videos: γ = 0.1 given directly (γ_t = 2; the upper end of the range
-  spec §5.1 / §11.3 recommends, 0.05-0.1: measured better on every rendered scene,
+  docs/methods/statistical.md §5.1 / §11.3 recommends, 0.05-0.1: measured better on every rendered scene,
   results/transient_statistical.md §6); ``alpha``
   gives γ_t = t_{1−α/2, ν}, ν = n_i + n_j − 2 (= 2·spp − 2 for rendered videos).
 * v_j = 1 where the colour is finite. A voxel whose θ̂, Var(θ̂) or n is not finite has no
@@ -25,13 +25,13 @@
   the G-buffer terms of a pixel with itself are 0 [dbench].
 * Centre-versus-neighbourhood shrinkage (``shrink=True``, the default; [dbench],
   :mod:`dbench.methods.statistical.shrink`): after the seed's weights are summed, the centre
-  and the combination of its accepted neighbours are mixed by spec §5's MSE rule once more, so
+  and the combination of its accepted neighbours are mixed by docs/methods/statistical.md §5's MSE rule once more, so
   a high-variance voxel (a light reached by a few paths) that passed the test against dim
   neighbours keeps the weight its precision earns instead of collapsing onto them.
   ``shrink=False`` is the seed's normalised sum. The inputs (statistics of the bins in play)
   are prepared by :mod:`dbench.methods.statistical.transient_inputs`.
 * The sample transform (identity by default for transient data, Yeo-Johnson the alternative;
-  spec §3, §11.3) is a property of the statistics, recorded in the info, not chosen here.
+  docs/methods/statistical.md §3, §11.3) is a property of the statistics, recorded in the info, not chosen here.
 
 Skipping empty bins (``skip_empty=True``, the default) [dbench]: a bin whose colour is exactly
 0 at every pixel and channel (no path reached it; NaN counts as energy) comes back as 0 and costs
@@ -81,7 +81,7 @@ from .shrink import bias_from_colour, merge_shrink3d, shrink_layout, shrink_refe
 from .transient_inputs import (VideoStats, bins_in_play, nonempty_bins, prepare_video,
                                video_shape, video_stats)
 
-#: Defaults for videos (spec §7 "Radius defaults", §5.1 "Transient default", §11.3).
+#: Defaults for videos (docs/methods/statistical.md §7 "Radius defaults", §5.1 "Transient default", §11.3).
 VIDEO_RADIUS = 5
 VIDEO_RADIUS_T = 1
 VIDEO_GAMMA = 0.1
@@ -101,7 +101,7 @@ __all__ = ["auto_radius_t", "AUTO_RT_OPL", "VideoStats", "video_stats", "nonempt
 
 def window_size(radius: int, radius_t: int, window: str = "square") -> int:
     """Voxels in the 3D window, centre included: (2r_s+1)²(2r_t+1) for the square window
-    (spec §11.3 / §13 check 15: r_s = 5, r_t = 1 → 363; r_s = 20, r_t = 1 → 5043)."""
+    (docs/methods/statistical.md §11.3 / §13 check 15: r_s = 5, r_t = 1 → 363; r_s = 20, r_t = 1 → 5043)."""
     dy, _ = window_offsets(radius, window)
     return int(dy.size) * (2 * check_radius(radius_t, "radius_t") + 1)
 
@@ -110,7 +110,7 @@ def auto_radius_t(bin_width_opl: float | None) -> int:
     """The temporal radius that follows the bin width: r_t = min(3, ⌊20 mm / Δ⌋) for bins of
     optical path length Δ (m); the spec default 1 when Δ is unknown.
 
-    Why (results/transient_statistical.md §6.5, seed Fig. 5.5 and spec §11.3 "the temporal
+    Why (results/transient_statistical.md §6.5, seed Fig. 5.5 and docs/methods/statistical.md §11.3 "the temporal
     radius matters most for narrow bins (8 ps), little at 83 ps and not at 833 ps"): on
     cornell-transient at 256 spp, r_t = 0 was the best or within 0.003 of it for bins of 248,
     77 and 25 mm, and r_t = 2-3 the best for 7.7 mm bins. At the catalogue's 200-bin windows
@@ -131,7 +131,7 @@ def auto_radius_t(bin_width_opl: float | None) -> int:
 def resolve_base(base: str, normal: Any = None, albedo: Any = None) -> str:
     """``"auto"`` → ``"jbf"`` when the frame has albedo and normal G-buffers, else ``"gauss3d"``.
 
-    The seed uses the plain 3D Gaussian for participating media (spec §11.3). dbench's media
+    The seed uses the plain 3D Gaussian for participating media (docs/methods/statistical.md §11.3). dbench's media
     scenes are rooms with fog or a cloud in front of surfaces whose G-buffers (rendered without
     the medium) still mark the geometric edges, and there the JBF base is better at every spp
     (results/transient_statistical.md §6: fog-transient, whole-video RMSE 0.61-0.75× the
@@ -169,7 +169,7 @@ def statistical_video_reference(color: Any, vs: VideoStats, guide: Guide, tfac: 
                                 threshold: Threshold, *, membership_on: bool = True,
                                 keep: np.ndarray | None = None, shrink: bool = False,
                                 return_weights: bool = False):
-    """Readable spatio-temporal statistical denoiser (spec §11.3), float64.
+    """Readable spatio-temporal statistical denoiser (docs/methods/statistical.md §11.3), float64.
 
     Loops over the (spatial offset o, temporal offset τ) of the window and accumulates whole
     shifted videos: ρ from
@@ -258,7 +258,7 @@ def statistical_video_reference(color: Any, vs: VideoStats, guide: Guide, tfac: 
 def _threshold_for(alpha: float | None, gamma: float | None, n_range: tuple[int, int],
                    vs: VideoStats | None) -> Threshold:
     """γ_t from γ (wins; both None → γ = VIDEO_GAMMA) or from α and ν = n_i + n_j − 2
-    (spec §5.1)."""
+    (docs/methods/statistical.md §5.1)."""
     if alpha is None and gamma is None:
         gamma = VIDEO_GAMMA
     if gamma is not None:
@@ -341,12 +341,12 @@ def statistical_filter_video(color: Any, stats: Any, albedo: Any = None, normal:
     Args:
         color: (H, W, T, 3) linear noisy video (the values that are filtered).
         stats: SampleStats of shape (H, W, T, 3): per-bin statistics of the transformed per-path
-            bin sums (spec §11.1).
+            bin sums (docs/methods/statistical.md §11.1).
         albedo, normal, depth, position: (H, W, ·) G-buffers of the ``"jbf"`` base (ignored by
             ``"gauss3d"``).
         radius, radius_t: r_s (default 5) and r_t (default 1) of the (2r_s+1)²(2r_t+1) window.
         alpha, gamma: test level (γ_t = t_{1−α/2, n_i+n_j−2}) or threshold given directly
-            (``gamma`` wins when both are given; both None: γ = 0.1, γ_t = 2; spec §5.1).
+            (``gamma`` wins when both are given; both None: γ = 0.1, γ_t = 2; docs/methods/statistical.md §5.1).
         base: ``"jbf"`` (G-buffers replicated along time), ``"gauss3d"`` (plain 3D Gaussian,
             media) or ``"auto"`` (:func:`resolve_base` from the G-buffers).
         temporal_profile: ``"box"`` or ``"gaussian"`` (σ_t = ``sigma_t`` bins); None = box for

@@ -23,7 +23,7 @@ __all__ = ["VideoStats", "video_stats", "nonempty_bins", "prepare_video", "bins_
 
 @dataclass(frozen=True)
 class VideoStats:
-    """Per-voxel statistics of some bins (spec §11.1).
+    """Per-voxel statistics of some bins (docs/methods/statistical.md §11.1).
 
     theta, var: θ̂ and Var(θ̂), float64; nint: int32 n (None when not needed); bad: voxels with
     non-finite statistics; bins: (K,) time indices; transform, lam: as recorded in the
@@ -54,7 +54,7 @@ def video_stats(stats: Any, shape: tuple[int, int, int], bins: Sequence[int] | N
                 channel_first: bool = True) -> VideoStats:
     """Check (H, W, T, 3) SampleStats and return θ̂, Var(θ̂), n of the chosen ``bins``.
 
-    θ̂ = μ + M3/(6σ²n) (spec §4, correction 0 where σ² = 0), computed for those bins only.
+    θ̂ = μ + M3/(6σ²n) (docs/methods/statistical.md §4, correction 0 where σ² = 0), computed for those bins only.
     With ``channel_first`` the arrays are (K, 3, H, W) (the kernel's layout), else (H, W, K, 3).
 
     Raises:

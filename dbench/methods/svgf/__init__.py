@@ -1,6 +1,6 @@
 """``svgf`` and ``asvgf``: spatiotemporal variance-guided filtering (docs/methods/svgf.md).
 
-Per frame (spec §1): subtract the emission of the primary hits (``emission`` buffer, as Falcor's
+Per frame (docs/methods/svgf.md §1): subtract the emission of the primary hits (``emission`` buffer, as Falcor's
 SVGFPass does; 0 when absent), demodulate by albedo (§2; a_eff = clip(albedo, ``albedo_floor``, 1),
 :data:`~dbench.methods.svgf.params.ALBEDO_FLOOR`, docs/temporal.md §12), reproject and accumulate
 the illumination and its luminance moments (docs/methods/temporal.md), estimate the variance

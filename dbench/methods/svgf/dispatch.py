@@ -74,7 +74,7 @@ def atrous(backend: str, *args, **kw):
 
 
 def spatial_variance(backend: str, mom, z, gx, gy, normal, tap, hit, select, **kw):
-    """Spatial variance (spec §4) on ``backend`` where ``select``, 0 elsewhere: (H, W) float32."""
+    """Spatial variance (docs/methods/svgf.md §4) on ``backend`` where ``select``, 0 elsewhere: (H, W) float32."""
     if backend == "torch":
         return to_numpy(spatial_variance_torch(mom, z, gx, gy, normal, tap, hit, select, **kw))
     if backend == "reference" or not HAVE_NUMBA:
@@ -85,7 +85,7 @@ def spatial_variance(backend: str, mom, z, gx, gy, normal, tap, hit, select, **k
 
 def stratum_gradients(l_prev, l_grad, prev_hit, prev_depth, prev_normal, size=3,
                       backend="reference"):
-    """Per-stratum temporal gradient of spec §6.1/§6.4 at 1/size resolution.
+    """Per-stratum temporal gradient of docs/methods/svgf.md §6.1/§6.4 at 1/size resolution.
 
     Args:
         l_prev: (H, W) luminance of frame i−1's noisy colour.
@@ -105,7 +105,7 @@ def stratum_gradients(l_prev, l_grad, prev_hit, prev_depth, prev_normal, size=3,
 
 def filter_gradients(strata: dict, iterations: int = 3, sigma_z: float = 1.0,
                      sigma_n: float = 128.0, backend: str = "numba") -> dict:
-    """À-trous (spec §5, w_l off) over the stratum image of [δ, Δ, G], ``iterations`` steps
+    """À-trous (docs/methods/svgf.md §5, w_l off) over the stratum image of [δ, Δ, G], ``iterations`` steps
     1, 2, 4 …; returns filtered ``delta``, ``norm``, ``g`` (hs, ws) float32."""
     img = np.stack([strata["delta"], strata["norm"], strata["g"]]).astype(np.float32)
     has = strata["has"]

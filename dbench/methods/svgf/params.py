@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 
-#: B3-spline taps h1 (spec §5).
+#: B3-spline taps h1 (docs/methods/svgf.md §5).
 H1 = np.array([1 / 16, 1 / 4, 3 / 8, 1 / 4, 1 / 16])
-#: 3×3 Gaussian (1,2,1)ᵀ(1,2,1)/16 that blurs the variance before each iteration (spec §3).
+#: 3×3 Gaussian (1,2,1)ᵀ(1,2,1)/16 that blurs the variance before each iteration (docs/methods/svgf.md §3).
 G3 = np.array([0.25, 0.5, 0.25])
 EPS_Z = 1e-6       # [dbench]
 EPS_VAR = 1e-4     # [Falcor varianceEpsilon]
-#: [dbench] a_eff = clip(albedo, ALBEDO_FLOOR, 1) per channel, in place of spec §2's "the
+#: [dbench] a_eff = clip(albedo, ALBEDO_FLOOR, 1) per channel, in place of docs/methods/svgf.md §2's "the
 #: albedo where > 1e-3, else 1". The spec's switch jumps from a_eff = 1 (albedo 0: a
 #: conductor's AOV) to a_eff = 0.001 (albedo just above it: a dark reflection's PSR albedo),
 #: so neighbouring pixels and frames carried illumination up to 1000x apart, the filters mixed
@@ -20,7 +20,7 @@ EPS_VAR = 1e-4     # [Falcor varianceEpsilon]
 #: geometric-mean relMSE of SVGF and A-SVGF on 8 of those training sequences (disjoint from
 #: the catalogue; docs/temporal.md §12); 1 means no demodulation.
 ALBEDO_FLOOR = 0.2
-N_SPATIAL = 4      # history below this: spatial variance (spec §4)
+N_SPATIAL = 4      # history below this: spatial variance (docs/methods/svgf.md §4)
 SPATIAL_RADIUS = 3  # 7×7 window
 
 #: ``dbench`` (the default) keeps the paper's weights and α but filters with the variance of

@@ -4,7 +4,7 @@ estimate, A-SVGF temporal gradients and adaptive history.
 
 Layout: planar images, colour (3, H, W), scalars (H, W), normals (3, H, W).
 
-À-trous iteration with step s (spec §3, §5), for centre p and tap q = p + s·o, o ∈ {−2..2}²::
+À-trous iteration with step s (docs/methods/svgf.md §3, §5), for centre p and tap q = p + s·o, o ∈ {−2..2}²::
 
     w_n = max(0, n_p·n_q)^σ_n
     w_z = exp(−|z_p − z_q| / (σ_z·|∇z_p·(s·o)| + ε_z))
@@ -27,7 +27,7 @@ from .params import ALBEDO_FLOOR, EPS_VAR, EPS_Z, G3, H1, SPATIAL_RADIUS
 
 def demodulation_albedo(albedo: np.ndarray, floor: float = ALBEDO_FLOOR) -> np.ndarray:
     """a_eff (3, H, W) float32: the albedo clipped to [floor, 1] where it is finite, else 1
-    ([dbench] rule of :data:`~.params.ALBEDO_FLOOR`, in place of spec §2's "> 1e-3, else 1");
+    ([dbench] rule of :data:`~.params.ALBEDO_FLOOR`, in place of docs/methods/svgf.md §2's "> 1e-3, else 1");
     values above 1 (unphysical: e.g. Mitsuba's albedo AOV of rough conductors) count as 1."""
     a = np.asarray(albedo, np.float32)
     return np.where(np.isfinite(a), np.clip(a, np.float32(floor), np.float32(1.0)),
@@ -102,12 +102,12 @@ def blur3(var: np.ndarray) -> np.ndarray:
 
 
 def normal_weight(dot: np.ndarray, sigma_n: float) -> np.ndarray:
-    """w_n = max(0, n·n')^σ_n (spec §3)."""
+    """w_n = max(0, n·n')^σ_n (docs/methods/svgf.md §3)."""
     return np.maximum(0.0, dot) ** sigma_n
 
 
 def asvgf_history(n: np.ndarray | float, g: np.ndarray | float, n_max: float = 256.0):
-    """A-SVGF adaptive history and blend (spec §6.1): returns (N', α) with
+    """A-SVGF adaptive history and blend (docs/methods/svgf.md §6.1): returns (N', α) with
     ``N' = min(N·(1 − G)^10 + 1, n_max)`` and ``α = mix(1/N', 1, G) = (1 − G)/N' + G``.
 
     >>> [round(float(v), 5) for v in asvgf_history(45, 0.01)]
@@ -120,7 +120,7 @@ def asvgf_history(n: np.ndarray | float, g: np.ndarray | float, n_max: float = 2
 
 
 def gradient_value(l_prev: np.ndarray, l_new: np.ndarray) -> np.ndarray:
-    """G = (|L_new − L_prev| / max(L_prev, L_new))², 0 where the max is ≤ 0 (spec §6.1)."""
+    """G = (|L_new − L_prev| / max(L_prev, L_new))², 0 where the max is ≤ 0 (docs/methods/svgf.md §6.1)."""
     l_prev = np.asarray(l_prev, np.float64)
     l_new = np.asarray(l_new, np.float64)
     d = np.maximum(l_prev, l_new)
@@ -143,7 +143,7 @@ def _shift(a: np.ndarray, dy: int, dx: int, fill=0.0) -> np.ndarray:
 def atrous_reference(color, var, z, gx, gy, normal, tap, centre, hit, step, sigma_z=1.0,
                      sigma_n=128.0, sigma_l=4.0, eps_z=EPS_Z, eps_var=EPS_VAR, use_lum=True,
                      lum_kernel="laplacian"):
-    """One à-trous iteration (spec §5), readable NumPy in float64.
+    """One à-trous iteration (docs/methods/svgf.md §5), readable NumPy in float64.
 
     Args:
         color: (3, H, W) demodulated colour I_i; var (H, W) its variance Var_i.
@@ -152,7 +152,7 @@ def atrous_reference(color, var, z, gx, gy, normal, tap, centre, hit, step, sigm
         centre: (H, W) bool, pixel's own value usable (not empty).
         hit: (H, W) bool, pixel may gather from neighbours.
         step: tap spacing 2^i. use_lum: False turns w_l off (A-SVGF gradient filter).
-        lum_kernel: "laplacian", w_l = exp(−|l_p − l_q| / (σ_l √(g(Var)) + ε)) (spec §3, the
+        lum_kernel: "laplacian", w_l = exp(−|l_p − l_q| / (σ_l √(g(Var)) + ε)) (docs/methods/svgf.md §3, the
         SVGF paper), or "gaussian", w_l = exp(−(|l_p − l_q| / (σ_l √(g(Var)) + ε))²) (Schied's
         A-SVGF code; :data:`~.params.LUM_KERNELS`).
     Returns:
@@ -200,7 +200,7 @@ def atrous_reference(color, var, z, gx, gy, normal, tap, centre, hit, step, sigm
 
 def spatial_variance_reference(mom, z, gx, gy, normal, tap, hit, sigma_z=1.0, sigma_n=128.0,
                                eps_z=EPS_Z, radius=SPATIAL_RADIUS):
-    """Spatial variance estimate (spec §4) for every pixel: weights w_z·w_n over a
+    """Spatial variance estimate (docs/methods/svgf.md §4) for every pixel: weights w_z·w_n over a
     (2r+1)² window of the moments (2, H, W); Var = max(0, m2 − m1²). (H, W) float64.
 
     The centre always counts (weight 1); neighbours need ``tap`` and the centre ``hit``.
@@ -265,7 +265,7 @@ def gradient_at_pixels(low: np.ndarray, motion: np.ndarray, hit: np.ndarray, siz
     vectors of frame i: pixel p reads the stratum holding round(p + motion(p)); 0 where the
     motion is unknown, the pixel has no hit or p← falls outside the image.
 
-    This is the gather form of the spec's forward projection (spec §6.4); with a static camera
+    This is the gather form of the spec's forward projection (docs/methods/svgf.md §6.4); with a static camera
     (motion 0) both are the nearest-neighbour upsampling of the stratum image.
     """
     h, w = hit.shape

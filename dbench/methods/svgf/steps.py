@@ -2,7 +2,7 @@
 :mod:`.dispatch` (docs/methods/svgf.md, the "spec" of the section numbers): the optional
 ``emission`` buffer of the primary hits, read and clamped like the colour
 (:func:`emission_buffer`), that emission accumulated like the colour (:func:`accumulate_emission`),
-and A-SVGF's temporal gradient with its adaptive history (:func:`gradient_history`, spec §6).
+and A-SVGF's temporal gradient with its adaptive history (:func:`gradient_history`, docs/methods/svgf.md §6).
 
 Layout: planar images as in :mod:`.reference`, colour (3, H, W), scalars (H, W); the ``emission``
 buffer (H, W, 3) as the frame holds it.

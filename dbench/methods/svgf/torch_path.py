@@ -120,7 +120,7 @@ def blur3_torch(var):
 def atrous_torch(color, var, z, gx, gy, normal, tap, centre, hit, step, sigma_z=1.0,
                  sigma_n=128.0, sigma_l=4.0, eps_z=EPS_Z, eps_var=EPS_VAR, use_lum=True,
                  lum_kernel="laplacian", device=None):
-    """One à-trous iteration (spec §5) — arguments and shapes of
+    """One à-trous iteration (docs/methods/svgf.md §5) — arguments and shapes of
     :func:`~dbench.methods.svgf.reference.atrous_reference`. Returns (colour (3, H, W),
     variance (H, W)) float32 tensors."""
     import torch
@@ -166,7 +166,7 @@ def atrous_torch(color, var, z, gx, gy, normal, tap, centre, hit, step, sigma_z=
 
 def spatial_variance_torch(mom, z, gx, gy, normal, tap, hit, select=None, sigma_z=1.0,
                            sigma_n=128.0, eps_z=EPS_Z, radius=SPATIAL_RADIUS, device=None):
-    """Spatial variance (spec §4) of
+    """Spatial variance (docs/methods/svgf.md §4) of
     :func:`~dbench.methods.svgf.reference.spatial_variance_reference` over the (2r+1)² window, 0 where ``select`` (H, W) is False: (H, W) float32 tensor. The
     window sums are float64 (m₂ − m₁² cancels)."""
     import torch
@@ -200,7 +200,7 @@ def spatial_variance_torch(mom, z, gx, gy, normal, tap, hit, select=None, sigma_
 
 
 # ---------------------------------------------------------------------------------------------
-# A-SVGF temporal gradients (spec §6)
+# A-SVGF temporal gradients (docs/methods/svgf.md §6)
 
 
 def stratum_gradients_torch(l_prev, l_grad, prev_hit, prev_depth, prev_normal, size=3,
@@ -239,7 +239,7 @@ def stratum_gradients_torch(l_prev, l_grad, prev_hit, prev_depth, prev_normal, s
 def adaptive_history_torch(low, motion, hit, n_hist, n_max=256.0, mode="seed", alpha0=0.2,
                            size=3, device=None):
     """:func:`~dbench.methods.svgf.reference.adaptive_history_reference` on tensors: G gathered at
-    round(p + motion) from the stratum image ``low`` (hs, ws), N' and α (spec §6.1). Returns
+    round(p + motion) from the stratum image ``low`` (hs, ws), N' and α (docs/methods/svgf.md §6.1). Returns
     three (H, W) float32 tensors."""
     import torch
     dev = _dev(low, motion, device=device)

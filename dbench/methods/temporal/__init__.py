@@ -9,13 +9,13 @@ Files: ``params.py`` (constants, status codes, backends), ``geometry.py`` (:clas
 (reprojection and accumulation), ``dispatch.py`` (the backend choice) and ``history.py``
 (:class:`History`, :class:`HistoryDenoiser`); this package exposes all of them.
 
-Per frame (spec §5): build the frame's :class:`Geometry` (:func:`frame_geometry`), reproject the
+Per frame (docs/methods/temporal.md §5): build the frame's :class:`Geometry` (:func:`frame_geometry`), reproject the
 previous frame's history buffers (:func:`reproject`: 2×2 bilinear with validity §3.3, normalised
 3×3 fallback §3.4, reset on disocclusion §3.5), then :func:`accumulate` the new sample
 (§2: ``C' = α C + (1 − α) C'←``, ``N = min(N← + 1, N_max)``, ``α = max(α_min, 1/N)``) and its
 luminance :func:`moments` ``[l, l²]`` (Rec. 709 luminance).
 
-Validity of a previous-frame tap q for pixel p (spec §3.2)::
+Validity of a previous-frame tap q for pixel p (docs/methods/temporal.md §3.2)::
 
     inside(q) and prev_ok(q) and hit(p)
     and |D←(q) − d_exp(p)| <= τ_d · d_exp(p)         τ_d = 0.05

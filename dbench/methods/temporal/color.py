@@ -14,7 +14,7 @@ def luminance(color: np.ndarray) -> np.ndarray:
 
 
 def moments(color: np.ndarray) -> np.ndarray:
-    """Luminance moments [l, l²] (2, H, W) of a planar (3, H, W) image (spec §2)."""
+    """Luminance moments [l, l²] (2, H, W) of a planar (3, H, W) image (docs/methods/temporal.md §2)."""
     lum = luminance(color)
     return np.stack([lum, lum * lum])
 
@@ -28,7 +28,7 @@ def to_interleaved(image: np.ndarray) -> np.ndarray:
 
 
 def variance_from_moments(m: np.ndarray) -> np.ndarray:
-    """Var = max(0, M'2 − M'1²) for (2, H, W) accumulated moments (spec §2)."""
+    """Var = max(0, M'2 − M'1²) for (2, H, W) accumulated moments (docs/methods/temporal.md §2)."""
     return np.maximum(0.0, m[1] - m[0] * m[0]).astype(np.float32)
 
 

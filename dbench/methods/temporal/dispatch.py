@@ -35,7 +35,7 @@ def reproject(history: np.ndarray, cur: Geometry, prev: Geometry, prev_ok: np.nd
 
     Args:
         history: (C, H, W) buffers of frame i−1 (colour, moments, history length, …).
-        cur, prev: geometry of frames i and i−1; ``cur.motion`` gives p← (spec §3.1).
+        cur, prev: geometry of frames i and i−1; ``cur.motion`` gives p← (docs/methods/temporal.md §3.1).
         prev_ok: (H, W) bool, which previous pixels may be read (hit, finite, not empty).
         out: an optional (C, H, W) float32 array the compiled kernel writes into (and returns)
             instead of a new one; the other backends ignore it.

@@ -169,7 +169,7 @@ if numba is not None:
 
 
 def expected_distance(cur: Geometry, prev_origin: np.ndarray | None) -> np.ndarray:
-    """d_exp (H, W) float32 = ‖P(p) − o←‖ (spec §3.1); this frame's depth without the data."""
+    """d_exp (H, W) float32 = ‖P(p) − o←‖ (docs/methods/temporal.md §3.1); this frame's depth without the data."""
     if cur.position is None or prev_origin is None:
         return cur.depth
     o = np.asarray(prev_origin, np.float32).reshape(3, 1, 1)

@@ -63,7 +63,7 @@ if numba is not None:
                  tau_d, tau_n, eps_f, kernel, h, w, idx, wt):
         """Pixel (y, x)'s reprojection taps: (count, status), with the flat indices of the
         previous pixels read in idx[x, :count] and their normalised weights in wt[x, :count]
-        (bilinear, else the 3×3 fallback; spec §3.3-3.5). The scratch rows are indexed, not
+        (bilinear, else the 3×3 fallback; docs/methods/temporal.md §3.3-3.5). The scratch rows are indexed, not
         sliced: a slice per pixel costs two atomic reference counts."""
         mx = motion[0, y, x]
         my = motion[1, y, x]

@@ -24,7 +24,7 @@ def reproject_reference(history: np.ndarray, motion: np.ndarray, cur_hit: np.nda
                         prev_depth: np.ndarray, prev_normal: np.ndarray, tau_d: float = TAU_D,
                         tau_n: float = TAU_N, eps_f: float = EPS_F
                         ) -> tuple[np.ndarray, np.ndarray]:
-    """Readable per-pixel transcription of spec §3.3-3.5 (float64 arithmetic).
+    """Readable per-pixel transcription of docs/methods/temporal.md §3.3-3.5 (float64 arithmetic).
 
     Shapes: history (C, H, W); motion (2, H, W); cur_hit, prev_ok, d_exp, prev_depth (H, W);
     cur_normal, prev_normal (3, H, W). Returns (reprojected (C, H, W) in history's dtype,
@@ -74,7 +74,7 @@ def accumulate(sample: np.ndarray, history: np.ndarray, n_hist: np.ndarray, ok: 
                alpha_min: float = 0.0, n_max: float = N_MAX, alpha: np.ndarray | None = None,
                sample_ok: np.ndarray | None = None
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """One accumulation step: ``C' = α·C + (1 − α)·C'←`` (spec §2).
+    """One accumulation step: ``C' = α·C + (1 − α)·C'←`` (docs/methods/temporal.md §2).
 
     Args:
         sample: (C, H, W) this frame's values.

@@ -43,7 +43,7 @@ def to_numpy(t: Any) -> np.ndarray:
 
 def reproject_torch(history, motion, cur_hit, cur_normal, d_exp, prev_ok, prev_depth,
                     prev_normal, tau_d=TAU_D, tau_n=TAU_N, eps_f=EPS_F, device=None):
-    """Vectorised PyTorch :func:`reproject_reference` (spec §3.3-3.5): the four bilinear taps
+    """Vectorised PyTorch :func:`reproject_reference` (docs/methods/temporal.md §3.3-3.5): the four bilinear taps
     and the nine fallback taps of every pixel are gathers with (H, W) index tensors and masks.
 
     Same arguments and shapes as :func:`reproject_reference` (arrays or tensors); the device is

@@ -118,7 +118,7 @@ def reproject_kernel(depth_ptr, normal_ptr, pos_ptr, motion_ptr, prev_ptr, new_p
         y0 = fy0.to(tl.int32)
         cx = tl.floor(px + 0.5).to(tl.int32)
         cy = tl.floor(py + 0.5).to(tl.int32)
-        # pass 1: the bilinear taps' total weight f (spec §3.3)
+        # pass 1: the bilinear taps' total weight f (docs/methods/temporal.md §3.3)
         f = tl.zeros((BLOCK,), tl.float64)
         for t in tl.static_range(4):
             qx = x0 + (t % 2)
