@@ -130,6 +130,8 @@ def cmd_bench(args: argparse.Namespace) -> int:
         raise DbenchInputError(f"--spp: expected an integer >= 1, got {args.spp}")
     if args.what == "gpu":
         return _bench_gpu(args)
+    if args.what == "kernels":
+        return _bench_kernels(args)
     timed_method = args.what not in ("render", "scene-file", "plugins", "metrics",
                                      "video-metrics")
     if args.param and not timed_method:
@@ -336,6 +338,21 @@ def cmd_train(args: argparse.Namespace) -> int:
     return 0
 
 
+def _bench_kernels(args: argparse.Namespace) -> int:
+    """``dbench bench kernels``: every Triton kernel variant compiled for a CUDA target, here
+    (dbench.speed.kernels; no GPU needed)."""
+    from ..speed import kernels
+    from ..speed import timing as speed
+
+    if args.param:
+        raise DbenchInputError("--param: bench kernels compiles every method with its defaults")
+    result = kernels.precompile(arch=args.arch, jobs=args.jobs, log=print)
+    print(kernels.format_result(result))
+    if args.out:
+        speed.append_result(args.out, result)
+    return 1 if result["errors"] else 0
+
+
 def _bench_gpu(args: argparse.Namespace) -> int:
     """``dbench bench gpu``: results/gpu/<device>.json and its table (dbench.speed.gpu)."""
     from ..speed import gpu
@@ -349,8 +366,14 @@ def _bench_gpu(args: argparse.Namespace) -> int:
         raise DbenchInputError("--param: bench gpu times every method with its defaults")
     if device == "cpu" and args.res is None:
         args.width, args.height = 24, 16  # a dry run: the kernels through the interpreter
+    pre = None
+    if device == "cuda":  # every kernel compiled side by side first (docs/gpu.md §6)
+        from ..speed.kernels import precompile
+        pre = precompile(jobs=args.jobs, log=print)
+        print(f"compiled {pre['variants']} kernel variants in {pre['compile_wall_s']:.1f} s "
+              f"({pre['jobs']} at a time, {pre['errors']} failed)")
     result = gpu.bench_gpu(height=args.height, width=args.width, device=device,
-                           repeats=max(args.repeats, 1))
+                           repeats=max(args.repeats, 1), precompiled=pre)
     print(gpu.markdown(result))
     if device == "cuda" or args.out:
         path = args.out or gpu.result_path(result)

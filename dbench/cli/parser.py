@@ -140,7 +140,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     bp = sub.add_parser("bench", help="speed benchmarks with ratios measured in the same run")
     bp.add_argument("what", help="'gpu' (every method on a GPU against numba and OIDN, "
-                    "results/gpu/<device>.json), "
+                    "results/gpu/<device>.json), 'kernels' (every GPU kernel variant compiled "
+                    "for a CUDA target here, no GPU needed: --arch, --jobs), "
                     "'render' (statistics cost), 'metrics' (the judge against "
                     "the plain metrics), 'video-metrics' (ColorVideoVDP against the "
                     "per-frame and temporal metrics on a sequence), 'scene-file' (an XML scene against the catalogue's), "
@@ -160,6 +161,10 @@ def build_parser() -> argparse.ArgumentParser:
     bp.add_argument("--height", type=int, default=720)
     bp.add_argument("--width", type=int, default=1280)
     bp.add_argument("--repeats", type=count, default=3)
+    bp.add_argument("--arch", type=count, default=None, help="kernels: the CUDA compute "
+                    "capability to compile for, e.g. 90 (default: the GPU here, else 90)")
+    bp.add_argument("--jobs", type=count, default=None, help="kernels, gpu: compilations run "
+                    "side by side (default: one per core)")
     _device_argument(bp)
     bp.add_argument("--out", default=None, help="append the result to this JSON-lines file")
     bp.set_defaults(func=cmd_bench)

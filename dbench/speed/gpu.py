@@ -184,10 +184,15 @@ def compare(device_out: np.ndarray, host_out: np.ndarray) -> dict[str, float]:
 
 def bench_gpu(height: int = 720, width: int = 1280, repeats: int = 10, host_repeats: int = 3,
               device: str = "cuda", methods_: list[str] | None = None,
-              hostile_size: tuple[int, int] = (64, 96), log=print) -> dict[str, Any]:
+              hostile_size: tuple[int, int] = (64, 96), log=print,
+              precompiled: dict[str, Any] | None = None) -> dict[str, Any]:
     """Every method of :data:`TARGETS_MS` (or ``methods_``): device time, host time, the check
-    against the host output, launches and copies; OIDN's qualities on the device."""
+    against the host output, launches and copies; OIDN's qualities on the device.
+    ``precompiled``: the result of :func:`dbench.speed.kernels.precompile` run just before (the
+    kernels compiled side by side into Triton's cache, so that the timed warm-up reads them),
+    recorded as the entry ``precompile``."""
     names = list(methods_ or TARGETS_MS)
+    pre = precompiled
     frame = synthetic_frame(height, width)
     rows = []
     for name in names:
@@ -232,6 +237,7 @@ def bench_gpu(height: int = 720, width: int = 1280, repeats: int = 10, host_repe
             "host_repeats": host_repeats, "host": f"{info['cpu']}, {info['cores']} cores",
             "packages": info["packages"], "rows": rows, "oidn_qualities": oidn_rows,
             "oidn_own_benchmark_ms": OIDN_OWN_MS,
+            "precompile": pre,
             "when": time.strftime("%Y-%m-%d %H:%M:%S")}
 
 

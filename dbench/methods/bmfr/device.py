@@ -42,7 +42,7 @@ import triton
 from ..kernels.gpu.bmfr import (PLANES, VALID_PLANE, bmfr_accumulate_kernel, bmfr_finish_kernel,
                                 bmfr_fit_kernel)
 from ..kernels.gpu.handback import handback_energy_kernel, handback_low_kernel
-from ..kernels.gpu.runtime import cdiv
+from ..kernels.gpu.runtime import cdiv, on_gpu_layout
 from ..kernels.gpu.temporal import BASE, block_for, reproject_kernel
 from ..temporal.device import DeviceHistory, camera_origin, device_buffer, sequence_buffers
 
@@ -151,7 +151,7 @@ def bmfr_device(method: Any, frame: Any):
     z_acc = new[BASE:BASE + 3]
     meta = dict(B=block, BP=triton.next_power_of_2(block * block), NN=nn, NP=npos, NP2=nsq,
                 NOISE=float(p["noise_amount"]) > 0, CLAMP=bool(p["clamp_negative"]))
-    if dev.type == "cuda":
+    if on_gpu_layout(dev):
         meta["num_warps"] = 16 if block > 16 else 4
     bmfr_fit_kernel[(nby * nbx,)](
         z_acc, normal, position, flags, y_fit, dropped, h, w, y0, x0, nbx,

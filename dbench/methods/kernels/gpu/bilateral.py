@@ -30,7 +30,7 @@ from .runtime import cdiv, kernel
 TILE_H, TILE_W = 8, 32
 
 
-@kernel
+@kernel(do_not_specialize=("table_last",))
 def window_kernel(feat_ptr, lab_ptr, plane_ptr, scale_ptr, theta_ptr, var_ptr, nint_ptr,
                   table_ptr, out_ptr, H, W, ix, iy, table_last, e_cut,
                   R: tl.constexpr, KP: tl.constexpr, DISK: tl.constexpr, TEST: tl.constexpr,

@@ -159,7 +159,7 @@ def bmfr_accumulate_kernel(color_ptr, albedo_ptr, emis_ptr, motion_ptr, fetched_
     tl.store(flags_ptr + idx, fl.to(tl.uint8), mask=inside)
 
 
-@kernel
+@kernel(do_not_specialize=("Y0", "X0", "NBX", "seed_lo", "seed_hi"))
 def bmfr_fit_kernel(z_ptr, normal_ptr, pos_ptr, flags_ptr, out_ptr, dropped_ptr, H, W, Y0, X0,
                     NBX, seed_lo, seed_hi, amp, rcond, B: tl.constexpr, BP: tl.constexpr,
                     NN: tl.constexpr, NP: tl.constexpr, NP2: tl.constexpr,
@@ -335,7 +335,7 @@ def bmfr_finish_kernel(fit_ptr, z_ptr, var_ptr, low_ptr, hh_ptr, q_ptr, flags_pt
                     fq = tl.load(flags_ptr + yy * W + xx, mask=inb, other=0).to(tl.int32)
                     mx += tl.where(inb & ((fq & 1) != 0), 1.0, 0.0)
                 mc += tl.where(rowin, mx, 0.0)
-    for c in tl.static_range(3):
+    for c in range(3):  # a loop, not unrolled: compile time (docs/gpu.md §6)
         yv = tl.load(fit_ptr + c * hw + idx, mask=inside, other=0.0)
         if HB:  # residual_handback's last pass: window sums, λ, y + low + λ·high
             eh = tl.zeros((BLOCK,), tl.float32)

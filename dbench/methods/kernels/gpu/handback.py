@@ -46,7 +46,9 @@ def handback_low_kernel(illum_ptr, z_ptr, zz_ptr, s_ptr, y_ptr, flags_ptr, g_ptr
         ny += tl.where((y + (k - 3) >= 0) & (y + (k - 3) < H), gk, 0.0)
     inv_norm_x = (1.0 / nx).to(tl.float32)
     inv_ny = 1.0 / ny.to(tl.float32)
-    for c in tl.static_range(3):
+    # channels and the rare 49-tap variance as loops, not unrolled: each unrolled copy cost
+    # the GPU compiler seconds (docs/gpu.md §6), and the order of the sums is the same
+    for c in range(3):
         zc = tl.load(z_ptr + c * hw + idx, mask=inside, other=0.0)
         zz = tl.load(zz_ptr + c * hw + idx, mask=inside, other=0.0)
         v = zz - zc * zc
@@ -56,7 +58,7 @@ def handback_low_kernel(illum_ptr, z_ptr, zz_ptr, s_ptr, y_ptr, flags_ptr, g_ptr
             n = tl.zeros((BLOCK,), tl.int32)
             s1 = tl.zeros((BLOCK,), tl.float64)
             s2 = tl.zeros((BLOCK,), tl.float64)
-            for t in tl.static_range(49):
+            for t in range(49):
                 yy = y + (t // 7 - 3)
                 xx = x + (t % 7 - 3)
                 inb = short & (yy >= 0) & (yy < H) & (xx >= 0) & (xx < W)

@@ -10,12 +10,22 @@ match the compiled kernel's up to the order of floating-point operations and the
 implementation; the tests' tolerances cover both.
 
 Kernels call no other ``@triton.jit`` functions, so both modes see one self-contained body.
+
+Two aids for compiling without a GPU (docs/gpu.md §6): :func:`recording` collects every launch
+(kernel, arguments, meta-parameters) while the interpreter runs it, and :func:`gpu_layout` makes
+the launch choices that differ between the interpreter and the GPU (pixels per program, warps)
+take the GPU's values on CPU tensors, so that a recording made here has the launches a GPU
+makes; :mod:`dbench.methods.kernels.gpu.aot` compiles them for a CUDA target.
 """
 from __future__ import annotations
 
 from contextlib import contextmanager
+from dataclasses import dataclass
 from functools import lru_cache
 from typing import Any, Callable
+
+#: Set inside :func:`gpu_layout`; the list of :func:`recording`, when one is open.
+_STATE: dict[str, Any] = {"gpu_layout": False, "recording": None, "execute": True}
 
 
 @lru_cache(maxsize=1)
@@ -28,22 +38,75 @@ def triton_available() -> bool:
         return False
 
 
-class Kernel:
-    """A Triton kernel runnable on CUDA tensors (compiled) and CPU tensors (interpreted)."""
+@dataclass(frozen=True)
+class Launch:
+    """One launch seen by :func:`recording`: the kernel, its positional arguments (tensors as
+    passed) and its keyword meta-parameters (constexprs and launch options such as
+    ``num_warps``)."""
+    kernel: "Kernel"
+    args: tuple
+    meta: dict
 
-    def __init__(self, fn: Callable) -> None:
+
+def on_gpu_layout(device: Any) -> bool:
+    """Whether launches for ``device`` (a torch device or its type) take the GPU's choices of
+    block size and warps: on CUDA, and on any device inside :func:`gpu_layout`."""
+    return getattr(device, "type", device) == "cuda" or _STATE["gpu_layout"]
+
+
+@contextmanager
+def gpu_layout():
+    """Inside the block, launch choices follow the GPU (:func:`on_gpu_layout`) on CPU tensors
+    too; the interpreter runs them unchanged (it ignores ``num_warps``), more slowly."""
+    saved = _STATE["gpu_layout"]
+    _STATE["gpu_layout"] = True
+    try:
+        yield
+    finally:
+        _STATE["gpu_layout"] = saved
+
+
+@contextmanager
+def recording(execute: bool = True):
+    """Yields a list to which every kernel launch inside the block is appended as a
+    :class:`Launch`. With ``execute`` False the launches are recorded and not run, so the
+    outputs hold whatever their buffers held: for learning which kernels a device path launches
+    (no device path steers its launches by a kernel's output), not for its numbers."""
+    saved = _STATE["recording"], _STATE["execute"]
+    launches: list[Launch] = []
+    _STATE["recording"], _STATE["execute"] = launches, bool(execute)
+    try:
+        yield launches
+    finally:
+        _STATE["recording"], _STATE["execute"] = saved
+
+
+class Kernel:
+    """A Triton kernel runnable on CUDA tensors (compiled) and CPU tensors (interpreted).
+
+    ``do_not_specialize`` names scalar arguments whose values must not give the compiled kernel
+    variants of its own (Triton compiles one for an integer equal to 1 and one for a multiple of
+    16 by default): each variant costs a compilation of many seconds on a fresh machine."""
+
+    def __init__(self, fn: Callable, do_not_specialize: tuple[str, ...] = ()) -> None:
         self.fn = fn
         self.__doc__ = fn.__doc__
         self.__name__ = fn.__name__
+        self.__module__ = fn.__module__
+        self.do_not_specialize = tuple(do_not_specialize)
         self._compiled = None
         self._interpreted = None
 
+    def jit(self):
+        """The ``triton.jit`` form of the kernel (made once), which CUDA launches compile."""
+        if self._compiled is None:
+            import triton
+            self._compiled = triton.jit(self.fn, do_not_specialize=list(self.do_not_specialize))
+        return self._compiled
+
     def _variant(self, on_cuda: bool):
         if on_cuda:
-            if self._compiled is None:
-                import triton
-                self._compiled = triton.jit(self.fn)
-            return self._compiled
+            return self.jit()
         if self._interpreted is None:
             from triton.runtime.interpreter import InterpretedFunction
             self._interpreted = InterpretedFunction(self.fn)
@@ -51,6 +114,10 @@ class Kernel:
 
     def __getitem__(self, grid: Any):
         def launch(*args: Any, **meta: Any) -> None:
+            if _STATE["recording"] is not None:
+                _STATE["recording"].append(Launch(self, args, dict(meta)))
+                if not _STATE["execute"]:
+                    return
             on_cuda = any(getattr(getattr(a, "device", None), "type", None) == "cuda"
                           for a in args)
             if on_cuda:
@@ -78,8 +145,11 @@ def _library_functions_as_python():
         JITFunction.__call__ = saved
 
 
-def kernel(fn: Callable) -> Kernel:
-    """Decorator: ``fn`` (a Triton kernel body) as a :class:`Kernel`."""
+def kernel(fn: Callable | None = None, *, do_not_specialize: tuple[str, ...] = ()):
+    """Decorator: ``fn`` (a Triton kernel body) as a :class:`Kernel`; ``@kernel(
+    do_not_specialize=("step",))`` passes the names on (:class:`Kernel`)."""
+    if fn is None:
+        return lambda f: Kernel(f, do_not_specialize)
     return Kernel(fn)
 
 
@@ -87,4 +157,5 @@ def cdiv(a: int, b: int) -> int:
     return -(-int(a) // int(b))
 
 
-__all__ = ["Kernel", "cdiv", "kernel", "triton_available"]
+__all__ = ["Kernel", "Launch", "cdiv", "gpu_layout", "kernel", "on_gpu_layout", "recording",
+           "triton_available"]

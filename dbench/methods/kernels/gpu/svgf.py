@@ -250,7 +250,7 @@ def variance_kernel(hist_ptr, wn_ptr, flags_ptr, var_ptr, H, W, sz, sn, ez,
         sw = tl.full((BLOCK,), 1.0, tl.float64)
         s1 = tl.load(hist_ptr + 8 * hw + idx, mask=inside, other=0.0).to(tl.float64)
         s2 = tl.load(hist_ptr + 9 * hw + idx, mask=inside, other=0.0).to(tl.float64)
-        for j in tl.static_range(49):
+        for j in range(49):  # a loop, not unrolled: compile time (docs/gpu.md §6)
             if j != 24:
                 dy = j // 7 - 3
                 dx = j % 7 - 3
@@ -290,7 +290,7 @@ def variance_kernel(hist_ptr, wn_ptr, flags_ptr, var_ptr, H, W, sz, sn, ez,
     tl.store(var_ptr + idx, var, mask=inside)
 
 
-@kernel
+@kernel(do_not_specialize=("step",))
 def atrous_kernel(cin_ptr, vin_ptr, z_ptr, nrm_ptr, flags_ptr, cout_ptr, vout_ptr, fb_ptr,
                   albedo_ptr, emis_ptr, out_ptr, H, W, step, sz, sn, sl, ez, eps_var, floor,
                   USE_LUM: tl.constexpr, GAUSS: tl.constexpr, SN128: tl.constexpr,

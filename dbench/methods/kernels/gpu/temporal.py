@@ -35,7 +35,7 @@ import triton
 import triton.language as tl
 from triton.language import core as tl_core  # noqa: F401 - patched by the interpreter (runtime)
 
-from .runtime import kernel
+from .runtime import kernel, on_gpu_layout
 
 #: Planes before a method's history: depth, normal (3), raw luminance.
 BASE = 5
@@ -47,8 +47,9 @@ RADIANCE = 1e15  # dbench.methods.guards.RADIANCE_MAX, as float32 in the kernels
 
 
 def block_for(n: int, device: Any) -> int:
-    """Pixels per program: :data:`GPU_BLOCK` on CUDA, else the image up to 4096 (interpreter)."""
-    if getattr(device, "type", device) == "cuda":
+    """Pixels per program: :data:`GPU_BLOCK` on CUDA (or inside ``runtime.gpu_layout``), else
+    the image up to 4096 (interpreter)."""
+    if on_gpu_layout(device):
         return GPU_BLOCK
     return min(CPU_BLOCK_MAX, triton.next_power_of_2(max(int(n), 16)))
 

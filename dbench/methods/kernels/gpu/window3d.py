@@ -35,7 +35,7 @@ from .bilateral import TILE_H, TILE_W
 from .runtime import cdiv, kernel
 
 
-@kernel
+@kernel(do_not_specialize=("table_last",))
 def window3d_kernel(feat_ptr, lab_ptr, plane_ptr, scale_ptr, theta_ptr, var_ptr, nint_ptr,
                     table_ptr, tfac_ptr, bins_ptr, out_ptr, H, W, T, ix, iy, table_last, e_cut,
                     R: tl.constexpr, RT: tl.constexpr, KP: tl.constexpr, PP: tl.constexpr,
