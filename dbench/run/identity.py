@@ -142,14 +142,33 @@ def _package_files(source_file: str) -> list[Path]:
     return sorted(dict.fromkeys(p.resolve() for p in files))
 
 
+def device_only(path: Path) -> bool:
+    """Whether a method file runs only on a device (docs/gpu.md §2): the GPU kernels
+    (``dbench/methods/kernels/gpu/``) and the device paths (``device.py``, ``*_device.py``).
+    A host call never executes them, so they are no part of a CPU result. Only dbench's own
+    methods are split so; a plugin's files all count."""
+    import dbench.methods as pkg
+
+    if Path(pkg.__file__).resolve().parent not in Path(path).resolve().parents:
+        return False
+    parts = Path(path).parts
+    in_gpu_kernels = any(parts[i:i + 3] == ("methods", "kernels", "gpu")
+                         for i in range(len(parts) - 2))
+    return in_gpu_kernels or path.name == "device.py" or path.name.endswith("_device.py")
+
+
 @lru_cache(maxsize=None)
-def method_version(cls: type) -> str:
-    """The code version of a method class: its declared ``version`` (if any) joined with a hash
-    of :func:`method_files` (its package folder, the shared top-level modules of
-    ``dbench.methods`` and every module of ``dbench.methods`` they import), each as
-    :func:`code_text` reads it."""
+def method_version(cls: type, device: str = "cpu") -> str:
+    """The code version of a method class on ``device``: its declared ``version`` (if any)
+    joined with a hash of :func:`method_files` (its package folder, the shared top-level modules
+    of ``dbench.methods`` and every module of ``dbench.methods`` they import), each as
+    :func:`code_text` reads it. On the CPU the :func:`device_only` files are left out: a change
+    to a GPU kernel is no change to a CPU cell's numbers; on a device they count."""
     declared = getattr(cls, "version", None)
-    code = _hash_files(method_files(cls))
+    files = method_files(cls)
+    if device == "cpu":
+        files = [f for f in files if not device_only(f)]
+    code = _hash_files(files)
     return f"{declared}+{code}" if declared else code
 
 

@@ -173,7 +173,9 @@ def cell_identity(config: SweepConfig, scene, spp: int, method: str, fingerprint
             "transform": transform, "lam": float(config.lam), "frames": config.frames,
             "bins": config.bins, "metrics": list(config.metrics), "method": method,
             "params": identity.resolved_params(method, config.params.get(method)),
-            "method_version": identity.method_version(registry.method_class(method)),
+            "method_version": identity.method_version(
+                registry.method_class(method),
+                config.device if registry.method_class(method).has_device_path() else "cpu"),
             "judge_version": identity.judge_version(),
             **datasets.feature_identity(scene, spp),
             # a GPU cell is another result than the CPU one (other arithmetic, other times);

@@ -61,6 +61,50 @@ def test_method_version_covers_the_code_a_method_uses():
                     assert Path(path).resolve() in files, (name, module.__name__, path)
 
 
+def test_gpu_code_is_part_of_a_device_cell_only(tmp_path):
+    """A CPU cell's method version leaves out the files that only a device runs (the Triton
+    kernels, the device paths): editing a GPU kernel changes no CPU number. A device cell's
+    version counts them. A plugin's files always count."""
+    from dbench import methods, registry
+    root = Path(methods.__file__).resolve().parent
+    assert identity.device_only(root / "kernels" / "gpu" / "svgf.py")
+    assert identity.device_only(root / "svgf" / "device.py")
+    assert identity.device_only(root / "statistical" / "transient_device.py")
+    assert not identity.device_only(root / "svgf" / "__init__.py")
+    assert not identity.device_only(root / "kernels" / "bilateral" / "numba2d.py")
+    (tmp_path / "device.py").write_text("x = 1\n")
+    assert not identity.device_only(tmp_path / "device.py")
+    for name in ("svgf", "statistical", "bmfr", "oidn"):
+        cls = registry.method_class(name)
+        files = identity.method_files(cls)
+        gpu = [f for f in files if identity.device_only(f)]
+        assert gpu and len(gpu) < len(files), name
+        assert identity.method_version(cls) != identity.method_version(cls, "cuda"), name
+    noisy = registry.method_class("noisy")
+    assert identity.method_version(noisy) == identity.method_version(noisy, "cuda")
+
+
+def test_host_modules_do_not_import_device_code_at_load():
+    """What a host call runs is in the CPU version: no host module of a method imports a
+    device-only file at module level (device paths are imported inside denoise_device)."""
+    import ast
+
+    from dbench import registry
+    for name in registry.available():
+        for f in identity.method_files(registry.method_class(name)):
+            if f.suffix != ".py" or identity.device_only(f):
+                continue
+            tree = ast.parse(f.read_text(encoding="utf-8"))
+            for node in tree.body:
+                if isinstance(node, ast.ImportFrom) and node.level:
+                    base = f.parent
+                    for _ in range(node.level - 1):
+                        base = base.parent
+                    target = base.joinpath(*(node.module or "").split("."))
+                    for cand in (target.with_suffix(".py"), target / "__init__.py"):
+                        assert not (cand.exists() and identity.device_only(cand)), (f, cand)
+
+
 def test_code_version_ignores_documentation_but_not_code(tmp_path):
     """A docstring, a comment or reformatting keeps a method's code version (docs can be edited
     without recomputing published cells); a changed constant or statement changes it."""
