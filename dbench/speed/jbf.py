@@ -16,7 +16,7 @@ from ..methods.jbf.illumination import illumination_fast, make_illumination_setu
 from ..methods.jbf.reference import jbf_reference
 from ..methods.kernels.bilateral.guide import make_guide
 from ..synthetic import synthetic_frame
-from .timing import median_time
+from .timing import median_time, reference_crop
 
 
 def benchmark(height: int = 720, width: int = 1280, radius: int = 20, repeats: int = 3,
@@ -34,9 +34,7 @@ def benchmark(height: int = 720, width: int = 1280, radius: int = 20, repeats: i
     setup = make_illumination_setup(f["albedo"], f["normal"], f["depth"], radius=radius)
     illum_s = median_time(lambda: illumination_fast(f["color"], setup), repeats)
 
-    ch, cw = height, width
-    while ch * cw > reference_max_pixels:
-        ch, cw = max(1, ch // 2), max(1, cw // 2)
+    ch, cw = reference_crop(height, width, reference_max_pixels)
     crop = {k: v[:ch, :cw] for k, v in f.items()}
     cguide = make_guide(crop["albedo"], crop["normal"], crop["depth"], radius=radius)
     ref_crop_s = median_time(lambda: jbf_reference(crop["color"], cguide), max(1, repeats // 3))

@@ -26,7 +26,7 @@ from ..methods.statistical.fast import statistical_fast
 from ..methods.statistical.params import resolve_threshold
 from ..methods.statistical.reference import stat_planes, statistical_reference
 from ..run import fpenv
-from .timing import median_time
+from .timing import median_time, reference_crop
 from ..synthetic import synthetic_frame
 
 
@@ -191,9 +191,7 @@ def benchmark(height: int = 720, width: int = 1280, radius: int = 20, repeats: i
         result["torch_s"] = median_time(
             lambda: statistical_fast(color, sp, guide, thr, backend="torch"), repeats)
 
-    ch, cw = height, width
-    while ch * cw > reference_max_pixels:
-        ch, cw = max(1, ch // 2), max(1, cw // 2)
+    ch, cw = reference_crop(height, width, reference_max_pixels)
     cguide = make_guide(f["albedo"][:ch, :cw], f["normal"][:ch, :cw], f["depth"][:ch, :cw],
                         radius=radius)
     csp = stat_planes(SampleStats(n=stats.n[:ch, :cw], mean=stats.mean[:ch, :cw],

@@ -56,6 +56,30 @@ def interleaved_times(fns: list[Callable[[], Any]], repeats: int) -> list[list[f
     return times
 
 
+def round_medians(times: dict[str, list[float]], ratios: dict[str, str],
+                  base: str = "plain") -> dict[str, Any]:
+    """``<name>_s``: the median of each timing's rounds (:func:`interleaved_times`), and for each
+    name in ``ratios`` the median of its per-round ratio to ``base`` under ``ratios[name]``;
+    the machine and the time of day."""
+    out: dict[str, Any] = {}
+    for name, t in times.items():
+        out[f"{name}_s"] = statistics.median(t)
+        if name in ratios:
+            out[ratios[name]] = statistics.median(np.array(t) / np.array(times[base]))
+    out.update(machine=machine_info()["cpu"], when=time.strftime("%Y-%m-%d %H:%M:%S"))
+    return out
+
+
+def reference_crop(height: int, width: int, max_pixels: int) -> tuple[int, int]:
+    """The (height, width) of the crop a slow reference is timed on: the frame halved until it
+    holds at most ``max_pixels`` pixels (its time is then scaled by the pixel count: a reference
+    costs the same per pixel)."""
+    ch, cw = height, width
+    while ch * cw > max_pixels:
+        ch, cw = max(1, ch // 2), max(1, cw // 2)
+    return ch, cw
+
+
 def paired_share(times_a: list[float], times_b: list[float]) -> dict[str, float]:
     """What A adds to B, from their times in the same rounds (:func:`interleaved_times`): the
     median of the per-round ratios A/B − 1, with their quartiles as its spread."""
@@ -99,11 +123,7 @@ def bench_render(scene: str = "cornell", res=256, spp: int = 64, repeats: int = 
                            "spp": spp, "copies_per_call": render.batch_size(res, spp),
                            "transform": transform, "variant": variant, "rounds": repeats,
                            "path": "kernel" if kernel else "host"}
-    for name, t in times.items():
-        out[f"{name}_s"] = statistics.median(t)
-        if name in _RENDER_RATIOS:
-            out[_RENDER_RATIOS[name]] = statistics.median(np.array(t) / np.array(times["plain"]))
-    out.update(machine=machine_info()["cpu"], when=time.strftime("%Y-%m-%d %H:%M:%S"))
+    out.update(round_medians(times, _RENDER_RATIOS))
     return out
 
 

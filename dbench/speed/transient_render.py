@@ -19,16 +19,12 @@ The ratios are medians of the per-round ratios to ``plain``.
 from __future__ import annotations
 
 import shutil
-import statistics
 import tempfile
-import time
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 
-from ..run.machine import machine_info
-from .timing import interleaved_times
+from .timing import interleaved_times, round_medians
 from ..resolution import parse_res, size_text
 
 #: what each timed way is reported as, against the plain mitransient render
@@ -87,11 +83,7 @@ def bench_render_transient(scene: str = "fog-transient", res=48, spp: int = 64,
                            "spp": int(spp), "bins": window.bins,
                            "integrator": sc.integrator, "collector": frame.meta["collector"],
                            "transform": transform, "variant": variant, "rounds": repeats}
-    for name, t in times.items():
-        out[f"{name}_s"] = statistics.median(t)
-        if name in RATIOS:
-            out[RATIOS[name]] = statistics.median(np.array(t) / np.array(times["plain"]))
-    out.update(machine=machine_info()["cpu"], when=time.strftime("%Y-%m-%d %H:%M:%S"))
+    out.update(round_medians(times, RATIOS))
     return out
 
 

@@ -7,7 +7,7 @@ from dbench import metrics
 from dbench.run import harness
 from dbench.data import Frame
 from dbench.metrics import judge as J
-from dbench.registry import Denoiser
+from denoisers import Blur  # tests/denoisers.py
 
 
 def _pair(h=48, w=40, sigma=0.1, seed=0):
@@ -94,17 +94,6 @@ def test_block_bootstrap_covers_the_true_rmse():
     assert 0.90 <= hits / trials <= 0.99
 
 
-class _Blur(Denoiser):
-    name = "blur"
-    kinds = {"steady"}
-    needs = {"color"}
-    defaults = {}
-
-    def denoise(self, data):
-        from scipy.ndimage import uniform_filter
-        return uniform_filter(data.color, size=(3, 3, 1))
-
-
 def _frames(n_seeds):
     rng = np.random.default_rng(0)
     ref = rng.random((32, 32, 3))
@@ -116,7 +105,7 @@ def _frames(n_seeds):
 
 
 def test_three_seeds_give_finite_positive_intervals_for_every_column():
-    res = harness.run_cell(_Blur(), _frames(3), repeats=2)
+    res = harness.run_cell(Blur(), _frames(3), repeats=2)
     assert res.n_seeds == 3 and res.ci_kind.startswith("t 95 % over 3 seeds")
     for c in J.metric_names():
         assert np.isfinite(res.metrics[c]) and res.metrics[c + "_ci"] > 0, c
@@ -126,7 +115,7 @@ def test_three_seeds_give_finite_positive_intervals_for_every_column():
 
 
 def test_one_seed_gets_a_bootstrap_interval_and_says_so():
-    res = harness.run_cell(_Blur(), _frames(1), repeats=1)
+    res = harness.run_cell(Blur(), _frames(1), repeats=1)
     assert "bootstrap" in res.ci_kind
     assert res.metrics["rmse_ci"] > 0 and res.metrics["rmse_surface_ci"] > 0
     assert np.isnan(res.metrics["top1_share_ci"])

@@ -13,7 +13,7 @@ from dbench.run import harness
 from dbench.report import headline, refcompare, verdicts
 from dbench.data import Frame
 from dbench.metrics import judge as J
-from dbench.registry import Denoiser
+from denoisers import Blur  # tests/denoisers.py
 
 
 def _pair(h, w=None, sigma=0.1, seed=0):
@@ -103,16 +103,6 @@ def test_four_px_blocks_cover_better_than_two_px_blocks_on_a_blurred_output():
     assert cover[4] > cover[2] + 0.05 and cover[4] >= 0.8, cover
 
 
-class _Blur(Denoiser):
-    name = "blur"
-    kinds = {"steady"}
-    needs = {"color"}
-    defaults = {}
-
-    def denoise(self, data):
-        return uniform_filter(data.color, size=(3, 3, 1))
-
-
 def _frame(size):
     rng = np.random.default_rng(0)
     ref = rng.random((size, size, 3))
@@ -122,7 +112,7 @@ def _frame(size):
 
 @pytest.mark.parametrize("size", [8, 12, 16, 64])
 def test_a_one_seed_cell_says_which_interval_it_has(size):
-    res = harness.run_cell(_Blur(), [_frame(size)], repeats=1)
+    res = harness.run_cell(Blur(), [_frame(size)], repeats=1)
     if size < 16:
         assert res.ci_kind.startswith("no interval") and "--seeds" in res.ci_kind
         assert math.isnan(res.metrics["rmse_ci"]) and math.isnan(res.metrics["relmse_ci"])
