@@ -90,9 +90,16 @@ def _main(argv: Sequence[str] | None) -> int:
     # --device cpu|cuda also chooses where Mitsuba renders (the variant, part of every render's
     # cache key: dbench/datasets/mitsuba_env.py); sweep workers inherit it from the environment
     render_device = getattr(args, "device", None)
-    saved = os.environ.get("DBENCH_RENDER_DEVICE")
+    # the renderer probes keep their verdict in the command's cache folder, and nowhere under
+    # --no-cache (dbench/datasets/mitsuba_env.py); sweep workers inherit both
+    from ..datasets.mitsuba_env import PROBE_STORE_ENV
+
+    probe_store = ("none" if getattr(args, "no_cache", False) else getattr(args, "cache", None))
+    saved = {k: os.environ.get(k) for k in ("DBENCH_RENDER_DEVICE", PROBE_STORE_ENV)}
     if render_device in ("cpu", "cuda"):
         os.environ["DBENCH_RENDER_DEVICE"] = render_device
+    if probe_store:
+        os.environ[PROBE_STORE_ENV] = str(probe_store)
     try:
         _load_plugins(args, plugin_specs)
         return args.func(args)
@@ -115,10 +122,11 @@ def _main(argv: Sequence[str] | None) -> int:
               "for the traceback)", file=sys.stderr)
         return 1
     finally:  # a command run in-process (tests, notebooks) leaves the environment as it was
-        if saved is None:
-            os.environ.pop("DBENCH_RENDER_DEVICE", None)
-        else:
-            os.environ["DBENCH_RENDER_DEVICE"] = saved
+        for key, value in saved.items():
+            if value is None:
+                os.environ.pop(key, None)
+            else:
+                os.environ[key] = value
 
 
 __all__ = ["build_parser", "main", "parse_params", "split_plugin_args"]

@@ -59,8 +59,19 @@ _CUDA_PROBE = _PROBE_TEMPLATE.format(backend="CUDA", variant=CUDA_VARIANT)
 _NVIDIA_MARKERS = ("/proc/driver/nvidia/version", "/dev/nvidiactl", "/dev/nvidia0")
 
 
-def _state_file(name: str = "llvm") -> Path:
-    base = Path(os.environ.get("DBENCH_CACHE", Path.home() / ".cache" / "dbench"))
+#: Set by the command line for the duration of a command: the folder its ``--cache`` names, or
+#: "none" under ``--no-cache`` (the probe's verdict is then kept in this process only).
+PROBE_STORE_ENV = "DBENCH_PROBE_STORE"
+
+
+def _state_file(name: str = "llvm") -> Path | None:
+    """Where a probe's verdict is kept between processes: the command's cache folder
+    (:data:`PROBE_STORE_ENV`), else ``DBENCH_CACHE`` or ``~/.cache/dbench``; None under
+    ``--no-cache``, which writes nothing to disk."""
+    store = os.environ.get(PROBE_STORE_ENV)
+    if store == "none":
+        return None
+    base = Path(store or os.environ.get("DBENCH_CACHE", Path.home() / ".cache" / "dbench"))
     return base / f"{name}_probe.json"
 
 
@@ -81,6 +92,8 @@ def _probe(name: str, code: str, key: str, describe, timeout: float = 300
     ``_state_file(name)`` so later processes skip the child."""
     state = _state_file(name)
     try:
+        if state is None:
+            raise OSError("no store")
         cached = json.loads(state.read_text(encoding="utf-8"))
         if cached.get("key") == key:
             return bool(cached["ok"]), str(cached["reason"])
@@ -94,6 +107,8 @@ def _probe(name: str, code: str, key: str, describe, timeout: float = 300
         reason = "" if ok else describe(proc.returncode, tail[0][:160])
     except (subprocess.TimeoutExpired, OSError) as exc:
         ok, reason = False, describe(None, type(exc).__name__)
+    if state is None:
+        return ok, reason
     try:
         state.parent.mkdir(parents=True, exist_ok=True)
         tmp = state.with_suffix(f".{os.getpid()}.tmp")

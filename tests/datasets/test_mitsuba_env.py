@@ -32,3 +32,51 @@ def test_scalar_fallback_renders_and_refuses_transient(tmp_path):
                           timeout=300)
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert "refused" in proc.stdout
+
+
+def test_the_probe_verdict_is_kept_where_the_command_says(tmp_path, monkeypatch):
+    """``--cache DIR`` keeps the renderer probe's verdict in DIR, ``--no-cache`` nowhere on disk
+    (the CLI sets PROBE_STORE_ENV for the command), else beside the default cache."""
+    from dbench.datasets import mitsuba_env as env
+
+    monkeypatch.setenv("DBENCH_CACHE", str(tmp_path / "default"))
+    monkeypatch.delenv(env.PROBE_STORE_ENV, raising=False)
+    assert env._state_file() == tmp_path / "default" / "llvm_probe.json"
+    monkeypatch.setenv(env.PROBE_STORE_ENV, str(tmp_path / "mine"))
+    assert env._state_file("cuda") == tmp_path / "mine" / "cuda_probe.json"
+    monkeypatch.setenv(env.PROBE_STORE_ENV, "none")
+    assert env._state_file() is None
+    ok, reason = env._probe("test", "print('ok')", "k", lambda code, last: f"{code} {last}")
+    assert ok and reason == "" and not any(tmp_path.rglob("*_probe.json"))
+
+
+def test_the_cli_sets_the_probe_store_for_the_command_only(tmp_path, monkeypatch):
+    import os
+
+    from dbench import cli
+    from dbench.datasets import mitsuba_env as env
+
+    monkeypatch.delenv(env.PROBE_STORE_ENV, raising=False)
+    seen = {}
+
+    def fake(args):
+        seen["store"] = os.environ.get(env.PROBE_STORE_ENV)
+        return 0
+    monkeypatch.setattr(cli, "build_parser", _parser_with(fake))
+    assert cli.main(["x", "--no-cache"]) == 0 and seen["store"] == "none"
+    assert cli.main(["x", "--cache", str(tmp_path)]) == 0 and seen["store"] == str(tmp_path)
+    assert env.PROBE_STORE_ENV not in os.environ
+
+
+def _parser_with(func):
+    import argparse
+
+    def build():
+        p = argparse.ArgumentParser()
+        sub = p.add_subparsers()
+        x = sub.add_parser("x")
+        x.add_argument("--cache")
+        x.add_argument("--no-cache", action="store_true")
+        x.set_defaults(func=func, command="x")
+        return p
+    return build
