@@ -216,15 +216,18 @@ def cmd_sweep(args: argparse.Namespace) -> int:
                                bins=args.bins,
                                params={k: v for k, v in params.items() if v}, cache=args.cache,
                                no_cache=args.no_cache, device=args.device)
-    from .capture import count_text, library_warnings, log_text
+    from ..run.capture import count_text, library_warnings, log_text
     # the cache is checked (and created) by run_sweep once nothing refused the sweep
+    from_groups: list[str] = []  # the groups' warnings, every worker's included
     with library_warnings() as caught:
         counts = sweep.run_sweep(config, args.out, executor=args.executor,
-                                 workers=args.workers, progress=not args.quiet)
+                                 workers=args.workers, progress=not args.quiet,
+                                 warnings_out=from_groups)
     print(_sweep_summary(args.out, config, args.rank_by, quiet=args.quiet))
     print(f"sweep {args.out}: {counts['computed']} cells computed, "
           f"{counts['skipped']} not applicable, "
           f"{counts['finished_before']} already finished, {counts['errors']} errors")
+    caught = list(caught) + from_groups
     if caught:
         from ..io import write_text
         write_text(Path(args.out) / "sweep.log", log_text(caught))
@@ -266,7 +269,7 @@ def cmd_stress(args: argparse.Namespace) -> int:
     import contextlib
 
     from ..stress.device import run_device_forms
-    from .capture import library_warnings
+    from ..run.capture import library_warnings
     # the hostile cases make libraries warn (NaN, Inf, 3e38 inputs): --quiet counts them
     with (library_warnings() if args.quiet else contextlib.nullcontext([])) as caught:
         results = stress.run_all(names, progress=not args.quiet)

@@ -21,7 +21,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     from ..run import identity
     from ..report import run_output
     from ..data import check_count
-    from .capture import library_warnings
+    from ..run.capture import library_warnings
 
     names = (registry.available() if args.method == "all"
              else [registry.canonical(n) for n in _split(args.method)])
@@ -62,7 +62,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     print("\n".join(summary))
     if not args.quiet:  # --quiet: the headline alone
         from ..report.terminal import skipped_line
-        from .capture import count_text
+        from ..run.capture import count_text
         for line in (skipped_line({labels.get(n, n): why for n, why in skipped.items()}),
                      count_text(caught) if caught else ""):
             if line:
@@ -79,7 +79,7 @@ def _run_into(out: Path, args: argparse.Namespace, scene, instances, labels, run
               skipped, device, cache, caught: list[str]):
     """Render, run every runnable method and write every output into folder ``out``; the
     (metrics table, failed methods, the headline's lines for the terminal). ``caught``: the
-    library warnings so far (dbench/cli/capture.py), written to ``run.log`` and counted in the
+    library warnings so far (dbench/run/capture.py), written to ``run.log`` and counted in the
     report, which is written last so that the count covers every other output."""
     from ..run import harness, identity
     from ..report import run_report as report
@@ -189,7 +189,7 @@ def _run_into(out: Path, args: argparse.Namespace, scene, instances, labels, run
     write_json(out / "run.json", {"settings": settings, "machine": info, "skipped": skipped,
                                   "failed": failed})
     _write_run_page(out, scene, frame, outputs, table, settings, info, skipped, args)
-    from .capture import log_text
+    from ..run.capture import log_text
     write_text(out / "run.log", log_text(caught))
     write_text(out / "report.md", report.run_report_md(table, settings, info, skipped,
                                                        notes=notes, rank_by=args.rank_by,

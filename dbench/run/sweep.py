@@ -362,13 +362,26 @@ def _prerender_references(config: SweepConfig, scenes: Iterable[str],
                       frames=config.frames, bins=config.bins, progress=progress)
 
 
+def run_group_captured(config: SweepConfig, out: str, scene_name: str, spp: int,
+                       method_names: list[str]) -> dict[str, list[str]]:
+    """:func:`run_group` with the library warnings raised meanwhile kept as lines
+    (:mod:`.capture`), so that a worker process's warnings reach the sweep's ``sweep.log``
+    instead of the terminal: ``{"written": cell paths, "warnings": lines}``."""
+    from .capture import library_warnings
+
+    with library_warnings() as caught:
+        written = run_group(config, out, scene_name, spp, method_names)
+    return {"written": written, "warnings": list(caught)}
+
+
 def run_group_with_plugins(plugin_specs: Sequence[str], config: SweepConfig, out: str,
-                           scene_name: str, spp: int, method_names: list[str]) -> list[str]:
-    """:func:`run_group` after loading the parent's plugins (a Ray task's start-up)."""
+                           scene_name: str, spp: int, method_names: list[str]
+                           ) -> dict[str, list[str]]:
+    """:func:`run_group_captured` after loading the parent's plugins (a Ray task's start-up)."""
     from .. import plugins, registry  # noqa: F401 - the built-in methods before the plugins
 
     plugins.worker_init(plugin_specs)
-    return run_group(config, out, scene_name, spp, method_names)
+    return run_group_captured(config, out, scene_name, spp, method_names)
 
 
 def remove_interrupted_writes(out: Path) -> int:
@@ -383,8 +396,10 @@ def remove_interrupted_writes(out: Path) -> int:
 
 
 def run_sweep(config: SweepConfig, out: str | Path, executor: str = "local", workers: int = 1,
-              progress: bool = True) -> dict[str, int]:
+              progress: bool = True, warnings_out: list[str] | None = None) -> dict[str, int]:
     """Run (or resume) a sweep; returns counts of computed, already finished and failed cells.
+    The library warnings raised while the groups ran, in this process or a worker's, are
+    appended to ``warnings_out`` as lines (:mod:`.capture`).
 
     Every setting is validated and every finished cell's identity checked before anything is
     written or rendered. The folder is locked for the run (:mod:`.sweep_lock`) and the run is
@@ -404,8 +419,10 @@ def run_sweep(config: SweepConfig, out: str | Path, executor: str = "local", wor
             io.ensure_writable_dir(datasets.Cache(config.cache).root, "--cache")
         run = sweep_history.RunRecord(out, to_write, config, executor, workers, done, skipped)
         computed = [0]
+        warned = warnings_out if warnings_out is not None else []
         try:
-            t_refs = _execute(config, out, groups, executor, workers, progress, computed)
+            t_refs = _execute(config, out, groups, executor, workers, progress, computed,
+                              warned)
         except BaseException as exc:
             try:
                 run.end("interrupted" if isinstance(exc, KeyboardInterrupt) else "failed",
@@ -419,9 +436,10 @@ def run_sweep(config: SweepConfig, out: str | Path, executor: str = "local", wor
 
 
 def _execute(config: SweepConfig, out: Path, groups: list, executor: str, workers: int,
-             progress: bool, computed: list[int]) -> float:
+             progress: bool, computed: list[int], warned: list[str]) -> float:
     """Render the references, then run the groups; ``computed[0]`` counts the cells written
-    so far (also when interrupted). Returns the seconds the references took."""
+    so far (also when interrupted), ``warned`` gathers the groups' library warnings, from
+    every worker. Returns the seconds the references took."""
     from tqdm.auto import tqdm
 
     from .. import plugins
@@ -434,9 +452,10 @@ def _execute(config: SweepConfig, out: Path, groups: list, executor: str, worker
     bar = tqdm(total=sum(len(g[2]) for g in groups), desc="sweep", unit="cell",
                disable=not progress)
 
-    def done(written: list) -> None:
-        computed[0] += len(written)
-        bar.update(len(written))
+    def done(result: dict[str, list[str]]) -> None:
+        computed[0] += len(result["written"])
+        warned.extend(result["warnings"])
+        bar.update(len(result["written"]))
 
     plugin_specs = plugins.requested()  # workers load the same plugins as this process
     if executor == "ray":
@@ -450,11 +469,11 @@ def _execute(config: SweepConfig, out: Path, groups: list, executor: str, worker
             ready, pending = ray.wait(pending, num_returns=1)
             done(ray.get(ready[0]))
     elif workers > 1:
-        sweep_pool.run_groups(run_group, (config, str(out)), groups, workers, plugin_specs,
-                              done)
+        sweep_pool.run_groups(run_group_captured, (config, str(out)), groups, workers,
+                              plugin_specs, done)
     else:
         for g in groups:
-            done(run_group(config, str(out), *g))
+            done(run_group_captured(config, str(out), *g))
     bar.close()
     return t_refs
 

@@ -77,3 +77,32 @@ def test_grid_counts_add_up_with_cells_outside_the_grid():
     status = verdicts.grid_status({}, cells[:2])
     assert (status["expected"], status["ok"], status["error"], status["missing"]) == (
         2, 1, 1, [])
+
+
+@pytest.mark.mitsuba
+def test_worker_warnings_go_to_the_sweep_log_not_the_terminal(renderer, tmp_path):
+    """A method's library warnings inside a worker process (``--workers 2``) are written to
+    ``sweep.log`` and counted, as a serial sweep's are; nothing of them reaches stderr."""
+    plugin = tmp_path / "warns.py"
+    plugin.write_text(
+        "import warnings\n"
+        "from dbench.denoiser import Denoiser, register\n"
+        "@register('warns')\n"
+        "class Warns(Denoiser):\n"
+        "    name = 'warns'\n"
+        "    kinds = {'steady'}\n"
+        "    needs = {'color'}\n"
+        "    defaults = {}\n"
+        "    def denoise(self, data):\n"
+        "        warnings.warn('from inside a worker', RuntimeWarning)\n"
+        "        return data.color.copy()\n")
+    cmd = [sys.executable, "-m", "dbench.cli", "sweep", "--plugin", str(plugin), "--methods",
+           "noisy,warns", "--scenes", "cornell", "--spp", "2,4", "--res", "8", "--ref-spp", "16",
+           "--repeats", "1", "--workers", "2", "--out", str(tmp_path / "S"),
+           "--cache", str(tmp_path / "c")]
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert "from inside a worker" not in proc.stderr + proc.stdout
+    log = (tmp_path / "S" / "sweep.log").read_text(encoding="utf-8")
+    assert log.count("from inside a worker") >= 2  # both groups, each in its worker
+    assert "see sweep.log" in proc.stdout
