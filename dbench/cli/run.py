@@ -180,7 +180,7 @@ def _run_into(out: Path, args: argparse.Namespace, scene, instances, labels, run
                     f"({r['backend']}"
                     + (f", copies {r['transfer_s'] * 1e3:.2f} ms timed apart"
                        if r.get("transfer_s") else "") + ")" for r in rows)}
-    notes = _input_notes(first.meta, settings)
+    notes = _input_notes([f.meta for f in frame] if is_sequence else [frame.meta], settings)
     resolved = {r["method"]: r["settings"] for r in rows if r.get("settings")}
     if resolved:
         # what the methods resolved from "auto"/None defaults on this frame (first seed)
@@ -216,17 +216,45 @@ _INPUT_FACTS = {"ref_noise_source": "reference noise from", "surface_pixels": "s
 _INPUT_WARNINGS = ("reference_warning", "normal_warning")
 
 
-def _input_notes(meta: dict, settings: dict) -> list[str]:
+def _input_notes(metas: list[dict], settings: dict) -> list[str]:
     """Adds a loaded input's facts to ``settings`` and returns its warnings, each also printed
-    to stderr now: a doubtful reference or normal buffer is said where the user looks."""
+    to stderr now: a doubtful reference or normal buffer is said where the user looks.
+    ``metas``: one frame's meta, or every frame's of a sequence (a folder's facts are found
+    frame by frame): a fact or warning that differs between frames is given with the frames
+    it holds for ("frames 0-3: …; frame 4: …"), one the frames share once."""
+    def text(value) -> str:
+        return "; ".join(value) if isinstance(value, (list, tuple)) else str(value)
+
+    def by_value(key: str) -> list[tuple[str, list[int]]]:
+        found: dict[str, list[int]] = {}
+        for k, meta in enumerate(metas):
+            if meta.get(key):
+                found.setdefault(text(meta[key]), []).append(k)
+        return list(found.items())
+
+    whole = len(metas)
     for key, label in _INPUT_FACTS.items():
-        value = meta.get(key)
-        if value:
-            settings[label] = "; ".join(value) if isinstance(value, (list, tuple)) else value
-    notes = [meta[k] for k in _INPUT_WARNINGS if meta.get(k)]
+        values = by_value(key)
+        if len(values) == 1 and len(values[0][1]) == whole:
+            settings[label] = values[0][0]
+        elif values:
+            settings[label] = "; ".join(f"{_frames_text(ks)}: {v}" for v, ks in values)
+    notes = []
+    for key in _INPUT_WARNINGS:
+        for value, ks in by_value(key):
+            notes.append(value if len(ks) == whole else f"{_frames_text(ks)}: {value}")
     for note in notes:
         print(f"warning: {note}", file=sys.stderr)
     return notes
+
+
+def _frames_text(ks: list[int]) -> str:
+    """``frame 4``, ``frames 0-3``, ``frames 0, 2, 5``."""
+    if len(ks) == 1:
+        return f"frame {ks[0]}"
+    if ks == list(range(ks[0], ks[-1] + 1)):
+        return f"frames {ks[0]}-{ks[-1]}"
+    return "frames " + ", ".join(map(str, ks))
 
 
 def method_failure(exc: BaseException) -> str:
