@@ -23,6 +23,7 @@ from __future__ import annotations
 import triton.language as tl
 from triton.language import core as tl_core  # noqa: F401 - patched by the interpreter (runtime)
 
+from .common import demodulate
 from .runtime import kernel
 
 FIT, RECON, PRESENT, OK = 1, 2, 4, 8
@@ -51,33 +52,8 @@ def bmfr_accumulate_kernel(color_ptr, albedo_ptr, emis_ptr, motion_ptr, fetched_
     x = idx - y * W
     big = 3.4028234663852886e38
     hit = inside & (tl.load(new_ptr + idx, mask=inside, other=0.0) > 0)
-    c0 = tl.load(color_ptr + 3 * idx, mask=inside, other=0.0)
-    c1 = tl.load(color_ptr + 3 * idx + 1, mask=inside, other=0.0)
-    c2 = tl.load(color_ptr + 3 * idx + 2, mask=inside, other=0.0)
-    c0 = tl.where((tl.abs(c0) > 1e15) & (tl.abs(c0) <= big), tl.where(c0 > 0, 1e15, -1e15), c0)
-    c1 = tl.where((tl.abs(c1) > 1e15) & (tl.abs(c1) <= big), tl.where(c1 > 0, 1e15, -1e15), c1)
-    c2 = tl.where((tl.abs(c2) > 1e15) & (tl.abs(c2) <= big), tl.where(c2 > 0, 1e15, -1e15), c2)
-    present = inside & (tl.abs(c0) <= big) & (tl.abs(c1) <= big) & (tl.abs(c2) <= big)
-    a0 = tl.load(albedo_ptr + 3 * idx, mask=inside, other=1.0)
-    a1 = tl.load(albedo_ptr + 3 * idx + 1, mask=inside, other=1.0)
-    a2 = tl.load(albedo_ptr + 3 * idx + 2, mask=inside, other=1.0)
-    a0 = tl.where(tl.abs(a0) <= big, tl.where(a0 < floor, floor, tl.where(a0 > 1.0, 1.0, a0)), 1.0)
-    a1 = tl.where(tl.abs(a1) <= big, tl.where(a1 < floor, floor, tl.where(a1 > 1.0, 1.0, a1)), 1.0)
-    a2 = tl.where(tl.abs(a2) <= big, tl.where(a2 < floor, floor, tl.where(a2 > 1.0, 1.0, a2)), 1.0)
-    e0 = tl.zeros((BLOCK,), tl.float32)
-    e1 = e0
-    e2 = e0
-    if EMISSIVE:  # clamped like the colour; non-finite or ≤ 0 counts as 0
-        e0 = tl.load(emis_ptr + 3 * idx, mask=inside, other=0.0)
-        e1 = tl.load(emis_ptr + 3 * idx + 1, mask=inside, other=0.0)
-        e2 = tl.load(emis_ptr + 3 * idx + 2, mask=inside, other=0.0)
-        e0 = tl.where((tl.abs(e0) <= big) & (e0 > 0), tl.where(e0 > 1e15, 1e15, e0), 0.0)
-        e1 = tl.where((tl.abs(e1) <= big) & (e1 > 0), tl.where(e1 > 1e15, 1e15, e1), 0.0)
-        e2 = tl.where((tl.abs(e2) <= big) & (e2 > 0), tl.where(e2 > 1e15, 1e15, e2), 0.0)
-    emitter = hit & ((e0 > 0) | (e1 > 0) | (e2 > 0))
-    i0 = tl.where(present, tl.div_rn(c0 - e0, a0), 0.0)
-    i1 = tl.where(present, tl.div_rn(c1 - e1, a1), 0.0)
-    i2 = tl.where(present, tl.div_rn(c2 - e2, a2), 0.0)
+    c0, c1, c2, present, e0, e1, e2, emitter, i0, i1, i2 = demodulate(
+        color_ptr, albedo_ptr, emis_ptr, idx, inside, hit, floor, EMISSIVE, BLOCK)
     # the raw luminance the next frame's gradient strata compare with (-FLT_MAX: missing)
     lr = 0.2126 * c0 + 0.7152 * c1 + 0.0722 * c2
     tl.store(new_ptr + 4 * hw + idx, tl.where(present, lr, -big), mask=inside)

@@ -9,7 +9,8 @@ operations with NumPy in the kernel's own dtypes (float32 stays float32), so the
 match the compiled kernel's up to the order of floating-point operations and the ``exp``
 implementation; the tests' tolerances cover both.
 
-Kernels call no other ``@triton.jit`` functions, so both modes see one self-contained body.
+Kernels may call the ``@triton.jit`` device functions of ``common.py``: compiled, Triton inlines
+them; interpreted, their Python bodies run (see ``_library_functions_as_python``).
 
 Two aids for compiling without a GPU (docs/gpu.md §6): :func:`recording` collects every launch
 (kernel, arguments, meta-parameters) while the interpreter runs it, and :func:`gpu_layout` makes

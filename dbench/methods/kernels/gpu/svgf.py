@@ -29,6 +29,7 @@ from __future__ import annotations
 import triton.language as tl
 from triton.language import core as tl_core  # noqa: F401 - patched by the interpreter (runtime)
 
+from .common import demodulate, depth_gradient
 from .runtime import kernel
 
 TAP, CENTRE, GATHER, SHORT, SPATIAL = 1, 2, 4, 8, 16
@@ -54,33 +55,8 @@ def temporal_kernel(color_ptr, albedo_ptr, emis_ptr, wsrc_ptr, motion_ptr, fetch
     x = idx - y * W
     big = 3.4028234663852886e38
     hit = inside & (tl.load(new_ptr + idx, mask=inside, other=0.0) > 0)
-    c0 = tl.load(color_ptr + 3 * idx, mask=inside, other=0.0)
-    c1 = tl.load(color_ptr + 3 * idx + 1, mask=inside, other=0.0)
-    c2 = tl.load(color_ptr + 3 * idx + 2, mask=inside, other=0.0)
-    c0 = tl.where((tl.abs(c0) > 1e15) & (tl.abs(c0) <= big), tl.where(c0 > 0, 1e15, -1e15), c0)
-    c1 = tl.where((tl.abs(c1) > 1e15) & (tl.abs(c1) <= big), tl.where(c1 > 0, 1e15, -1e15), c1)
-    c2 = tl.where((tl.abs(c2) > 1e15) & (tl.abs(c2) <= big), tl.where(c2 > 0, 1e15, -1e15), c2)
-    present = inside & (tl.abs(c0) <= big) & (tl.abs(c1) <= big) & (tl.abs(c2) <= big)
-    a0 = tl.load(albedo_ptr + 3 * idx, mask=inside, other=1.0)
-    a1 = tl.load(albedo_ptr + 3 * idx + 1, mask=inside, other=1.0)
-    a2 = tl.load(albedo_ptr + 3 * idx + 2, mask=inside, other=1.0)
-    a0 = tl.where(tl.abs(a0) <= big, tl.where(a0 < floor, floor, tl.where(a0 > 1.0, 1.0, a0)), 1.0)
-    a1 = tl.where(tl.abs(a1) <= big, tl.where(a1 < floor, floor, tl.where(a1 > 1.0, 1.0, a1)), 1.0)
-    a2 = tl.where(tl.abs(a2) <= big, tl.where(a2 < floor, floor, tl.where(a2 > 1.0, 1.0, a2)), 1.0)
-    e0 = tl.zeros((BLOCK,), tl.float32)
-    e1 = e0
-    e2 = e0
-    if EMISSIVE:  # clamped like the colour; non-finite or ≤ 0 counts as 0
-        e0 = tl.load(emis_ptr + 3 * idx, mask=inside, other=0.0)
-        e1 = tl.load(emis_ptr + 3 * idx + 1, mask=inside, other=0.0)
-        e2 = tl.load(emis_ptr + 3 * idx + 2, mask=inside, other=0.0)
-        e0 = tl.where((tl.abs(e0) <= big) & (e0 > 0), tl.where(e0 > 1e15, 1e15, e0), 0.0)
-        e1 = tl.where((tl.abs(e1) <= big) & (e1 > 0), tl.where(e1 > 1e15, 1e15, e1), 0.0)
-        e2 = tl.where((tl.abs(e2) <= big) & (e2 > 0), tl.where(e2 > 1e15, 1e15, e2), 0.0)
-    emitter = hit & ((e0 > 0) | (e1 > 0) | (e2 > 0))
-    i0 = tl.where(present, tl.div_rn(c0 - e0, a0), 0.0)
-    i1 = tl.where(present, tl.div_rn(c1 - e1, a1), 0.0)
-    i2 = tl.where(present, tl.div_rn(c2 - e2, a2), 0.0)
+    c0, c1, c2, present, e0, e1, e2, emitter, i0, i1, i2 = demodulate(
+        color_ptr, albedo_ptr, emis_ptr, idx, inside, hit, floor, EMISSIVE, BLOCK)
     lum = 0.2126 * i0 + 0.7152 * i1 + 0.0722 * i2
     if GRAD > 0:  # the raw luminance the next frame's strata compare with (-FLT_MAX: missing)
         lr = 0.2126 * c0 + 0.7152 * c1 + 0.0722 * c2
@@ -227,22 +203,7 @@ def variance_kernel(hist_ptr, wn_ptr, flags_ptr, var_ptr, H, W, sz, sn, ez,
     var = tl.load(var_ptr + idx, mask=inside, other=0.0)
     sv = tl.zeros((BLOCK,), tl.float32)
     if tl.max(tl.where(spatial, 1, 0), axis=0) > 0:  # the 7×7 estimate only near short histories
-        z = tl.load(hist_ptr + idx, mask=inside, other=0.0)
-        hit = z > 0
-        zr = tl.load(hist_ptr + idx + 1, mask=inside & (x + 1 < W), other=0.0)
-        zl = tl.load(hist_ptr + idx - 1, mask=inside & (x > 0), other=0.0)
-        zd = tl.load(hist_ptr + idx + W, mask=inside & (y + 1 < H), other=0.0)
-        zu = tl.load(hist_ptr + idx - W, mask=inside & (y > 0), other=0.0)
-        fw = zr - z
-        bw = z - zl
-        gx = tl.where((zr > 0) & (zl > 0), tl.where(tl.abs(fw) <= tl.abs(bw), fw, bw),
-                      tl.where(zr > 0, fw, tl.where(zl > 0, bw, 0.0)))
-        gx = tl.where(hit, gx, 0.0)
-        fw = zd - z
-        bw = z - zu
-        gy = tl.where((zd > 0) & (zu > 0), tl.where(tl.abs(fw) <= tl.abs(bw), fw, bw),
-                      tl.where(zd > 0, fw, tl.where(zu > 0, bw, 0.0)))
-        gy = tl.where(hit, gy, 0.0)
+        z, gx, gy = depth_gradient(hist_ptr, idx, x, y, H, W, inside)
         n0 = tl.load(wn_ptr + idx, mask=inside, other=0.0)
         n1 = tl.load(wn_ptr + hw + idx, mask=inside, other=0.0)
         n2 = tl.load(wn_ptr + 2 * hw + idx, mask=inside, other=0.0)
@@ -314,22 +275,7 @@ def atrous_kernel(cin_ptr, vin_ptr, z_ptr, nrm_ptr, flags_ptr, cout_ptr, vout_pt
         vc = tl.load(vin_ptr + idx, mask=inside, other=0.0)
     if TAPS:
         fl = tl.load(flags_ptr + idx, mask=inside, other=0).to(tl.int32)
-        z = tl.load(z_ptr + idx, mask=inside, other=0.0)
-        hit = z > 0
-        zr = tl.load(z_ptr + idx + 1, mask=inside & (x + 1 < W), other=0.0)
-        zl = tl.load(z_ptr + idx - 1, mask=inside & (x > 0), other=0.0)
-        zd = tl.load(z_ptr + idx + W, mask=inside & (y + 1 < H), other=0.0)
-        zu = tl.load(z_ptr + idx - W, mask=inside & (y > 0), other=0.0)
-        fw = zr - z
-        bw = z - zl
-        gx = tl.where((zr > 0) & (zl > 0), tl.where(tl.abs(fw) <= tl.abs(bw), fw, bw),
-                      tl.where(zr > 0, fw, tl.where(zl > 0, bw, 0.0)))
-        gx = tl.where(hit, gx, 0.0)
-        fw = zd - z
-        bw = z - zu
-        gy = tl.where((zd > 0) & (zu > 0), tl.where(tl.abs(fw) <= tl.abs(bw), fw, bw),
-                      tl.where(zd > 0, fw, tl.where(zu > 0, bw, 0.0)))
-        gy = tl.where(hit, gy, 0.0)
+        z, gx, gy = depth_gradient(z_ptr, idx, x, y, H, W, inside)
         n0 = tl.load(nrm_ptr + idx, mask=inside, other=0.0)
         n1 = tl.load(nrm_ptr + hw + idx, mask=inside, other=0.0)
         n2 = tl.load(nrm_ptr + 2 * hw + idx, mask=inside, other=0.0)
