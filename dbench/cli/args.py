@@ -103,17 +103,6 @@ def _split(text: str) -> list[str]:
     return [t.strip() for t in text.split(",") if t.strip()]
 
 
-def _summarise_parts(parts: Sequence[str]) -> str:
-    """``frame0, frame1, reference0`` → ``frame ×2, reference ×1`` (sequence renders are cached
-    per frame); names without a frame number are listed as they are."""
-    import re
-    from collections import Counter
-
-    counts = Counter(re.sub(r"\d+$", "", p) if re.search(r"\d+$", p) else p for p in parts)
-    numbered = {re.sub(r"\d+$", "", p) for p in parts if re.search(r"\d+$", p)}
-    return ", ".join(f"{k} ×{v}" if k in numbered else k for k, v in counts.items())
-
-
 MAX_PARAM_CHARS = 1000
 
 
@@ -163,15 +152,6 @@ def _check_common(args: argparse.Namespace) -> None:
         check_transform(args.transform or "box-cox", args.lam)
     except DbenchInputError as exc:
         raise DbenchInputError(f"--transform/--lam: {exc}") from None
-
-
-def _sequence_window(n_frames: int) -> str:
-    from ..run.sequence_run import WARMUP
-
-    if n_frames > WARMUP:
-        return f"1 per frame; metrics and time over frames {WARMUP}-{n_frames - 1} of {n_frames}"
-    return (f"1 per frame; metrics and time over all {n_frames} frame(s) (no more frames than "
-            f"the {WARMUP}-frame warm-up)")
 
 
 def _writable_cache(args: argparse.Namespace):

@@ -4,7 +4,7 @@ facts the frames share are said once."""
 import numpy as np
 
 from dbench.cli import main
-from dbench.cli.run import _input_notes
+from dbench.run.scene_run import input_notes as _input_notes
 from dbench.data import Frame
 from dbench.datasets.export import export_frame
 

@@ -1,0 +1,271 @@
+"""``dbench run``'s work on one scene once the command line is parsed: the frames loaded over
+the seeds, every runnable method run on them (a failing one named, not fatal), and every output
+written into the run's folder: images, metrics, per-seed and per-frame tables, figures,
+``run.json``, ``index.html``, ``run.log`` and ``report.md`` last (README.md, "dbench run";
+dbench/report/run_output.py stages the folder). The CLI (dbench/cli/run.py) parses, builds the
+:class:`RunRequest` and prints the headline this returns.
+"""
+from __future__ import annotations
+
+import json
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Sequence
+
+
+@dataclass
+class RunRequest:
+    """What ``dbench run`` was asked for, checked: samples per pixel, the resolution (a
+    :class:`dbench.resolution.Res`), the first seed and the number of seeds, the sample
+    transform and its λ, the reference's spp (None: the scene's default), the frames of a
+    sequence and the bins of a transient video (None: the scene's), timed calls per method,
+    whether to stay quiet, and the metric the rows are ranked by."""
+    spp: int
+    res: Any
+    seed: int
+    seeds: int
+    transform: str | None
+    lam: float
+    ref_spp: int | None
+    frames: int | None
+    bins: int | None
+    repeats: int
+    quiet: bool
+    rank_by: str
+
+
+def run_scene(out: Path, req: RunRequest, scene, instances, labels, runnable,
+              skipped, device, cache, caught: list[str]):
+    """Render, run every runnable method and write every output into folder ``out``; the
+    (metrics table, failed methods, the headline's lines for the terminal). ``caught``: the
+    library warnings so far (dbench/run/capture.py), written to ``run.log`` and counted in the
+    report, which is written last so that the count covers every other output."""
+    from . import harness, identity
+    from ..report import run_report as report
+    from ..report.formats import write_csv
+    from .machine import machine_info
+    from .sweep import cell_record, load_seeds
+    from ..device import device_name
+    from ..io import write_exr, write_json, write_text
+
+    import pandas as pd
+
+    needs = set().union(*(instances[n].wants(scene.provides) for n in runnable)) | {
+        "reference"} | ({"emitter"} & set(scene.provides))
+    frames = load_seeds(scene, req.seed, req.seeds, spp=req.spp, res=req.res, needs=needs,
+                        transform=req.transform, lam=req.lam, ref_spp=req.ref_spp,
+                        cache=cache, progress=not req.quiet, frames=req.frames,
+                        bins=req.bins)
+    frame = frames[0]
+    is_sequence = frame.kind == "sequence"
+
+    rows, per_seed, outputs = [], [], []
+    failed: dict[str, str] = {}
+    for n in runnable:
+        if not req.quiet:
+            print(f"running {labels[n]} ...", flush=True)
+        try:
+            if is_sequence:
+                res = harness.run_sequence_cell(instances[n], frames, device=device)
+            else:
+                res = harness.run_cell(instances[n], frames, repeats=req.repeats, device=device)
+        except (Exception, SystemExit) as exc:  # noqa: BLE001 - a method's failure is its row
+            # one method's error (or a plugin's sys.exit) never ends the run nor lends the
+            # process its exit code: it is named here and in the report (exit code 4)
+            failed[labels[n]] = method_failure(exc)
+            print(f"error: {labels[n]} failed: {failed[labels[n]]}", file=sys.stderr)
+            continue
+        if res.skipped:
+            skipped[n] = res.skipped
+            continue
+        record = cell_record(res, frames, instances[n].wants(scene.provides))
+        rows.append({"scene": scene.name, "method": labels[n], "base_method": n,
+                     "spp": req.spp, "res": req.res.key, **record,
+                     "params": json.dumps(res.params, sort_keys=True, default=str)})
+        per_seed += [{"scene": scene.name, "method": labels[n], "spp": req.spp, **r}
+                     for r in res.per_seed]
+        outputs.append((labels[n], res.sequence if is_sequence else res.output))
+        write_exr(out / "images" / f"{identity.file_stem(labels[n])}.exr", {"color": res.output})
+    last = frame[len(frame) - 1] if is_sequence else frame
+    write_exr(out / "images" / "reference.exr", {"color": last.reference})
+
+    table = pd.DataFrame(rows)
+    csv_table = table.drop(columns=[c for c in ("seeds", "times_s", "per_seed", "settings")
+                                    if c in table.columns])
+    write_csv(out / "metrics.csv", csv_table)
+    write_csv(out / "metrics_per_seed.csv", pd.DataFrame(per_seed))
+    if is_sequence:
+        from ..report.sequence_figures import plot_errors, strip
+        runs = dict(outputs)
+        title = f"{scene.name}, {req.spp} spp, {req.res.text} px, {len(frame)} frames"
+        plot_errors(runs, out / "error_per_frame.png", title=title,
+                    events=frame.meta.get("events"))
+        strip(frame, runs, out / "comparison.png", title=title)
+        for n, run in runs.items():
+            write_csv(out / f"per_frame_{identity.file_stem(n)}.csv", pd.DataFrame(run.per_frame))
+    elif frame.kind == "transient":
+        from ..report.transient_figures import write_figures
+        write_figures(out, frame, dict(outputs), title=f"{scene.name}, {req.spp} spp")
+    else:
+        report.comparison_grid(out / "comparison.png", outputs, frame.reference, ev=scene.ev,
+                               title=f"{scene.name}, {req.spp} spp, {req.res.text} px")
+    info = machine_info()
+    first = frame[0] if is_sequence else frame  # a folder's input facts live on its frames
+    seeds = [req.seed + k for k in range(req.seeds)]
+    settings = {"scene": scene.name, "kind": scene.kind,
+                **({"scene parameters": ", ".join(f"{k}={v}" for k, v in
+                                                  frame.meta["scene_params"].items())}
+                   if frame.meta.get("scene_params") else {}),
+                # what a scene file's render kept and changed (integrator, depth, filter)
+                **frame.meta.get("scene_file_settings", {}),
+                "spp": req.spp, "res": req.res.key,
+                "seeds": ", ".join(map(str, seeds)),
+                "ref_spp": frame.meta.get("ref_spp"),
+                "reference seed": frame.meta.get("ref_seed"),
+                "reference RMSE (estimated)": ref_rmse_text(frame.meta.get("ref_rmse"),
+                                                             first.meta.get("ref_noise_source")),
+                "repeats": (sequence_window(len(frame)) if is_sequence else req.repeats),
+                "transform": (f"{frame.stats.transform} (λ = {frame.stats.lam})"
+                              if getattr(frame, "stats", None) is not None else "n/a"),
+                "variant": frame.meta["versions"]["variant"],
+                "device": device if device == "cpu" else f"{device} ({device_name(device)})",
+                "render_s": frame.meta.get("render_s"),
+                "cache hits": summarise_parts(frame.meta["cache_hits"]) or "none",
+                "rendered": summarise_parts(frame.meta["rendered"]) or "nothing",
+                "method parameters": "; ".join(f"{r['method']}: {r['params']}" for r in rows),
+                # where each method ran and on what: CPU and GPU times are never compared unnamed
+                "method devices": "; ".join(
+                    f"{r['method']}: {r['device_name'] if r['device'] != 'cpu' else 'cpu'} "
+                    f"({r['backend']}"
+                    + (f", copies {r['transfer_s'] * 1e3:.2f} ms timed apart"
+                       if r.get("transfer_s") else "") + ")" for r in rows)}
+    notes = input_notes([f.meta for f in frame] if is_sequence else [frame.meta], settings)
+    resolved = {r["method"]: r["settings"] for r in rows if r.get("settings")}
+    if resolved:
+        # what the methods resolved from "auto"/None defaults on this frame (first seed)
+        settings["resolved settings"] = "; ".join(
+            f"{m}: {json.dumps(v, sort_keys=True, default=str)}" for m, v in resolved.items())
+    write_json(out / "run.json", {"settings": settings, "machine": info, "skipped": skipped,
+                                  "failed": failed})
+    write_run_page(out, scene, frame, outputs, table, settings, info, skipped, req)
+    from .capture import log_text
+    write_text(out / "run.log", log_text(caught))
+    write_text(out / "report.md", report.run_report_md(table, settings, info, skipped,
+                                                       notes=notes, rank_by=req.rank_by,
+                                                       failed=failed,
+                                                       library_warnings=len(caught)))
+    return table, failed, report.run_summary(table, settings, req.rank_by)
+
+
+def ref_rmse_text(value, source: str | None = None):
+    """The reference's estimated RMSE, or "unknown" where nothing gives its noise (a folder's
+    external reference without a variance image or statistics): never a made-up 0. ``source``
+    (dbench/datasets/folder_reference.py) says where the estimate came from, or why none."""
+    import math
+    if value is None or (isinstance(value, float) and math.isnan(value)):
+        return f"unknown ({source or 'no variance or statistics of the reference were given'})"
+    return f"{value} ({source})" if source else value
+
+
+#: input facts a folder load reports (dbench/datasets/folder.py): {meta key: settings label}
+INPUT_FACTS = {"ref_noise_source": "reference noise from", "surface_pixels": "surface pixels",
+                "normal_encoding": "normal encoding", "layers_read": "layers read",
+                "layers_ignored": "layers ignored"}
+#: doubts about the input: printed at once and listed in the report's notes
+INPUT_WARNINGS = ("reference_warning", "normal_warning")
+
+
+def input_notes(metas: list[dict], settings: dict) -> list[str]:
+    """Adds a loaded input's facts to ``settings`` and returns its warnings, each also printed
+    to stderr now: a doubtful reference or normal buffer is said where the user looks.
+    ``metas``: one frame's meta, or every frame's of a sequence (a folder's facts are found
+    frame by frame): a fact or warning that differs between frames is given with the frames
+    it holds for ("frames 0-3: …; frame 4: …"), one the frames share once."""
+    def text(value) -> str:
+        return "; ".join(value) if isinstance(value, (list, tuple)) else str(value)
+
+    def by_value(key: str) -> list[tuple[str, list[int]]]:
+        found: dict[str, list[int]] = {}
+        for k, meta in enumerate(metas):
+            if meta.get(key):
+                found.setdefault(text(meta[key]), []).append(k)
+        return list(found.items())
+
+    whole = len(metas)
+    for key, label in INPUT_FACTS.items():
+        values = by_value(key)
+        if len(values) == 1 and len(values[0][1]) == whole:
+            settings[label] = values[0][0]
+        elif values:
+            settings[label] = "; ".join(f"{frames_text(ks)}: {v}" for v, ks in values)
+    notes = []
+    for key in INPUT_WARNINGS:
+        for value, ks in by_value(key):
+            notes.append(value if len(ks) == whole else f"{frames_text(ks)}: {value}")
+    for note in notes:
+        print(f"warning: {note}", file=sys.stderr)
+    return notes
+
+
+def frames_text(ks: list[int]) -> str:
+    """``frame 4``, ``frames 0-3``, ``frames 0, 2, 5``."""
+    if len(ks) == 1:
+        return f"frame {ks[0]}"
+    if ks == list(range(ks[0], ks[-1] + 1)):
+        return f"frames {ks[0]}-{ks[-1]}"
+    return "frames " + ", ".join(map(str, ks))
+
+
+def method_failure(exc: BaseException) -> str:
+    """One line for a method's failure: the harness's own message for a broken contract
+    (run/inputs.py), else the exception's type and message."""
+    from .inputs import MethodError
+    if isinstance(exc, MethodError):
+        return str(exc)
+    if isinstance(exc, SystemExit):
+        return f"called sys.exit({exc.code!r}) inside the method"
+    return f"{type(exc).__name__}: {exc}"
+
+
+def write_run_page(out: Path, scene, frame, outputs, table, settings, info, skipped,
+                    req: RunRequest) -> None:
+    """``index.html``: the run's interactive viewer and tables (dbench.report.html)."""
+    from ..report import html, run_report as report, verdicts
+
+    kind = frame.kind
+    columns = (("rmse", "rmse_surface", "relmse", "ssim", "t_rmse", "tpsnr", "cvvdp", "time_s")
+               if kind == "sequence" else (*verdicts.HEADLINE[:-1], "psnr", "time_s"))
+    plots = {"sequence": [("error per frame", "error_per_frame.png"),
+                          ("frames", "comparison.png")],
+             "transient": [("streak image", "streak.png"), ("RMSE per bin", "rmse_per_bin.png"),
+                           ("bins", "bins.png")]}.get(kind, [("comparison", "comparison.png")])
+    title = f"{scene.name}, {req.spp} spp, {req.res.text} px"
+    html.run_page(out, title=title, frame=frame, outputs=outputs,
+                  table=report._run_frame(table, settings), columns=columns,
+                  settings=settings, machine=info, skipped=skipped, ev=scene.ev,
+                  plots=[(t, f) for t, f in plots if (out / f).exists()], rank_by=req.rank_by)
+
+
+def summarise_parts(parts: Sequence[str]) -> str:
+    """``frame0, frame1, reference0`` → ``frame ×2, reference ×1`` (sequence renders are cached
+    per frame); names without a frame number are listed as they are."""
+    import re
+    from collections import Counter
+
+    counts = Counter(re.sub(r"\d+$", "", p) if re.search(r"\d+$", p) else p for p in parts)
+    numbered = {re.sub(r"\d+$", "", p) for p in parts if re.search(r"\d+$", p)}
+    return ", ".join(f"{k} ×{v}" if k in numbered else k for k, v in counts.items())
+
+
+def sequence_window(n_frames: int) -> str:
+    from .sequence_run import WARMUP
+
+    if n_frames > WARMUP:
+        return f"1 per frame; metrics and time over frames {WARMUP}-{n_frames - 1} of {n_frames}"
+    return (f"1 per frame; metrics and time over all {n_frames} frame(s) (no more frames than "
+            f"the {WARMUP}-frame warm-up)")
+
+
+__all__ = ["INPUT_FACTS", "INPUT_WARNINGS", "RunRequest", "input_notes", "method_failure",
+           "ref_rmse_text", "run_scene", "sequence_window", "summarise_parts", "write_run_page"]
