@@ -90,7 +90,7 @@ _STATE = {"discovered": False, "loading": False}
 
 def _one_line(exc: BaseException) -> str:
     if isinstance(exc, SystemExit):
-        from .datasets.scene_build import exit_message
+        from .datasets.scenes.build import exit_message
 
         return (f"called {exit_message(exc)} while loading; a plugin module registers methods "
                 f"or scenes and returns")
@@ -136,7 +136,7 @@ def _method_names() -> set[str]:
 
 
 def _scene_names() -> set[str]:
-    mod = sys.modules.get("dbench.datasets.scenes")
+    mod = sys.modules.get("dbench.datasets.scenes.catalogue")
     return set(mod._CATALOGUE) if mod is not None else set()
 
 
@@ -154,7 +154,7 @@ def _register_method_object(name: str, obj: Any) -> None:
 
 
 def _register_scene_object(name: str, obj: Any) -> None:
-    from .datasets.scene import _CATALOGUE, Scene, register_scene
+    from .datasets.scenes.record import _CATALOGUE, Scene, register_scene
 
     if inspect.ismodule(obj):
         return
@@ -165,7 +165,7 @@ def _register_scene_object(name: str, obj: Any) -> None:
                   if p.default is p.empty and p.kind in (p.POSITIONAL_ONLY,
                                                          p.POSITIONAL_OR_KEYWORD)]
         if len(params) >= 2:  # build(mi, res) or build(mi, width, height) -> dict
-            from .datasets.scene_build import plugin_build
+            from .datasets.scenes.build import plugin_build
 
             doc = (inspect.getdoc(obj) or "").strip().splitlines()
             scene = Scene(name=name, kind="steady", build=plugin_build(obj, name),
@@ -174,7 +174,7 @@ def _register_scene_object(name: str, obj: Any) -> None:
             scene = obj()
             if not isinstance(scene, Scene):
                 raise TypeError(f"{obj.__qualname__}() returned {type(scene).__name__}, "
-                                "not a dbench.datasets.scenes.Scene")
+                                "not a dbench.datasets.scenes.catalogue.Scene")
     else:
         raise TypeError(f"{obj!r} is not a Scene, a function returning one or build(mi, res)")
     if scene.name in _CATALOGUE and _CATALOGUE[scene.name] is not scene:

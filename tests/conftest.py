@@ -43,11 +43,11 @@ def renderer():
 
 @pytest.fixture(scope="module")
 def tr(renderer):
-    """dbench.datasets.transient with mitransient imported (transient tests; needs LLVM)."""
+    """dbench.datasets.transient.load with mitransient imported (transient tests; needs LLVM)."""
     from dbench.datasets import mitsuba_env
     if not mitsuba_env.mitsuba().variant().startswith(("llvm", "cuda")):
         pytest.skip("transient rendering needs the llvm_ad_rgb variant")
-    from dbench.datasets import transient
+    from dbench.datasets.transient import load as transient
     transient._mitransient()
     return transient
 
@@ -64,7 +64,7 @@ def isolated():
     after a test that loads plugins (tests/test_plugins.py, tests/cli/test_exit_codes.py)."""
     import dbench.methods  # noqa: F401 - built-ins in the snapshot
     from dbench import plugins, registry
-    from dbench.datasets import scenes
+    from dbench.datasets.scenes import catalogue as scenes
 
     plugins.ensure_loaded()
     methods_before = dict(registry._REGISTRY)

@@ -55,8 +55,6 @@ def test_rooms_hold_at_most_15_modules_side_by_side():
     for folder in [ROOT / "dbench"] + sorted(p for p in (ROOT / "dbench").rglob("*")
                                                if p.is_dir() and p.name != "__pycache__"):
         mods = [p for p in folder.glob("*.py") if p.name != "__init__.py"]
-        if folder.parts[-2:] == ("dbench", "datasets"):
-            continue  # its subpackages are the next reshaping step (docs/architecture.md)
         assert len(mods) <= 15, (folder, len(mods))
 
 

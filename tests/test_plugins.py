@@ -139,7 +139,7 @@ def test_entry_points_found_in_process(isolated, tmp_path):
 
 
 def test_scene_entry_point_objects(isolated):
-    from dbench.datasets import scenes
+    from dbench.datasets.scenes import catalogue as scenes
 
     def build(mi, res):
         """A one-line description from the docstring."""

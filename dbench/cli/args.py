@@ -142,7 +142,7 @@ def _check_common(args: argparse.Namespace) -> None:
 
         reference_spp()  # a bad DBENCH_REF_SPP is refused here, before anything renders
     if getattr(args, "bins", None) is not None:  # the transient film's memory at this size
-        from ..datasets.transient_scene import check_bins
+        from ..datasets.transient.scene import check_bins
 
         check_bins(args.bins, args.res, "--bins")
     check_rank_by(args.rank_by)
@@ -187,7 +187,8 @@ def _writable_cache(args: argparse.Namespace):
 
 def _scene_of(args: argparse.Namespace):
     """The Scene of ``--scene`` (catalogue name, scene file or folder) with ``--scene-param``."""
-    from ..datasets import scene_files, scenes
+    from ..datasets.scene_files import load as scene_files
+    from ..datasets.scenes import catalogue as scenes
 
     return scenes.get(args.scene, scene_files.parse_scene_params(args.scene_param))
 

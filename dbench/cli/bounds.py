@@ -5,7 +5,7 @@ integers in [1, :data:`MAX_COUNT`]; ``1e3`` is read as 1000. Anything else (``--
 ``--spp 0``, ``--bins many``) is refused before the command resolves a scene or renders, with
 one line naming the option and the valid range, exit 2, as every other bad input
 (dbench/cli/__init__.py). ``--bins`` is further bounded by the memory of the transient film at
-the run's size (:func:`dbench.datasets.transient_scene.check_bins`, called by
+the run's size (:func:`dbench.datasets.transient.scene.check_bins`, called by
 :func:`dbench.cli.args._check_common`); sizes are checked by :func:`dbench.resolution.parse_res`.
 
 argparse's own refusal of a ``type`` is a usage line and an error line raised as SystemExit, so

@@ -12,8 +12,8 @@ from .args import (RANKABLE, _check_common, _ints, _scene_of, _split, _writable_
 
 def cmd_list(args: argparse.Namespace) -> int:
     from .. import registry
-    from ..datasets import scenes
-    from ..datasets.scene_params import describe_all
+    from ..datasets.scenes import catalogue as scenes
+    from ..datasets.scenes.params import describe_all
 
     from .. import plugins
 
@@ -55,7 +55,8 @@ def cmd_list(args: argparse.Namespace) -> int:
 def cmd_render(args: argparse.Namespace) -> int:
     """Render (or find cached) every buffer of the given scenes, e.g. to warm the cache."""
     from .. import datasets
-    from ..datasets import scene_files, scenes
+    from ..datasets.scene_files import load as scene_files
+    from ..datasets.scenes import catalogue as scenes
     from ..resolution import parse_res
 
     params = scene_files.parse_scene_params(args.scene_param)
@@ -74,12 +75,12 @@ def cmd_render(args: argparse.Namespace) -> int:
 
 def cmd_export(args: argparse.Namespace) -> int:
     """Write a scene's renders (noisy at each spp, features, emitter, statistics, reference)
-    in the OIDN folder layout that ``--scene DIR`` reads (dbench.datasets.export)."""
+    in the OIDN folder layout that ``--scene DIR`` reads (dbench.datasets.folders.export)."""
     import re
 
     from .. import datasets
     from ..data import check_count
-    from ..datasets.export import export_frame, write_dataset_json
+    from ..datasets.folders.export import export_frame, write_dataset_json
     from ..io import ensure_writable_dir
     from ..resolution import parse_res
 
@@ -198,7 +199,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
 def cmd_sweep(args: argparse.Namespace) -> int:
     from ..run import sweep
 
-    from ..datasets import scene_files
+    from ..datasets.scene_files import load as scene_files
 
     scene_params = scene_files.parse_scene_params(args.scene_param)
     methods_, scenes_ = sweep.resolve_names(args.methods, args.scenes, scene_params)

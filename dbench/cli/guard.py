@@ -33,7 +33,7 @@ def command(func: Callable[[argparse.Namespace], int]) -> Callable[[argparse.Nam
         try:
             return func(args)
         except SystemExit as exc:
-            from ..datasets.scene_build import exit_message
+            from ..datasets.scenes.build import exit_message
 
             raise DbenchInputError(
                 f"{_caller(exc)} called {exit_message(exc)} during dbench {args.command}; "

@@ -25,14 +25,14 @@ from ..errors import DbenchInputError
 from ..resolution import Res, parse_res
 from . import emitter as _emitter
 from . import render as _render
-from . import scenes as _scenes
-from . import sequence as _sequence  # registers the sequence scenes
-from . import transient as _transient  # registers the transient scenes
+from .scenes import catalogue as _scenes
+from .sequence import load as _sequence  # registers the sequence scenes
+from .transient import load as _transient  # registers the transient scenes
 from .cache import Cache, make_key
 from .mitsuba_env import mitsuba, versions
 from .references import check_ref_seed, reference_meta, reference_spp
-from .scenes import Scene
-from .scene_build import check_plugin_scene
+from .scenes.catalogue import Scene
+from .scenes.build import check_plugin_scene
 from .stats import stats_from_arrays, stats_to_arrays
 
 FEATURES = ("albedo", "normal", "depth", "position")
@@ -80,7 +80,7 @@ def scene_fingerprint(scene: str | Scene, res) -> str:
                 "gbuffer": f"psr-{_sequence.PSR_VERSION}",
                 "gradient": f"reshade-{_sequence.RESHADE_VERSION}",
                 "motion": _sequence.MOTION_VERSION,
-                # how the passes of a noisy frame are summed (datasets/sequence_frames.py)
+                # how the passes of a noisy frame are summed (datasets/sequence/frames.py)
                 "samples": _sequence.SAMPLES_VERSION}
     elif sc.kind == "transient":
         window = sc.window()
@@ -106,9 +106,9 @@ def load(scene: str | Scene, spp: int, res, needs: Iterable[str] | None = None,
     """Return a :class:`~dbench.data.Frame` of ``scene`` with exactly the buffers in ``needs``.
 
     Sequence scenes (kind ``sequence``) return a :class:`~dbench.data.Sequence` instead, built by
-    :func:`dbench.datasets.sequence.load_sequence` (``frames`` limits the frame count).
+    :func:`dbench.datasets.sequence.load.load_sequence` (``frames`` limits the frame count).
     Transient scenes (kind ``transient``) return a :class:`~dbench.data.TransientFrame` built by
-    :func:`dbench.datasets.transient.load_transient` (``bins``: time bins T; ``collector``:
+    :func:`dbench.datasets.transient.load.load_transient` (``bins``: time bins T; ``collector``:
     ``"a"``, ``"b"`` or ``"auto"``, see that module); both options apply to them only.
 
     Args:
@@ -239,7 +239,7 @@ def default_res(scene: str | Scene, side: int = DEFAULT_SIDE) -> Res:
     sc = _scenes.get(scene)
     if isinstance(sc, _scenes.FolderScene):
         return Res(sc.info.width, sc.info.height)
-    from .scene_files import XmlScene, file_film_size
+    from .scene_files.load import XmlScene, file_film_size
 
     if isinstance(sc, XmlScene):
         w, h = file_film_size(sc)
@@ -251,10 +251,10 @@ def default_res(scene: str | Scene, side: int = DEFAULT_SIDE) -> Res:
 def _load_folder_scene(sc: Scene, spp: int, res, needs, seed: int, ref_spp: int | None,
                        frames: int | None) -> Frame | Sequence:
     """A frame (or, for numbered frames, a sequence) read from a folder of renders
-    (dbench.datasets.folder). Settings that cannot apply to files are refused: another size,
+    (dbench.datasets.folders.load). Settings that cannot apply to files are refused: another size,
     another reference spp, a seed other than the first (a folder holds one noisy image per
     spp)."""
-    from .folder import load_folder
+    from .folders.load import load_folder
 
     info = sc.info
     where = f"{info.path}/{info.name}"

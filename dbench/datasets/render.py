@@ -28,7 +28,7 @@ from functools import lru_cache
 import numpy as np
 
 from .mitsuba_env import mitsuba
-from .scene import Scene
+from .scenes.record import Scene
 from .render_moments import batch_sums, jit_variant
 from .stats import PowerSums
 from ..data import SampleStats

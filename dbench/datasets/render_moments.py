@@ -246,7 +246,7 @@ def pass_sums(scene, integrator, seeds, channels, stats: tuple[str, float] | Non
     At 1 spp lane ``k`` is pixel ``k`` and draws the random numbers of ``mi.render(scene,
     spp=1, seed=s, integrator=integrator)``'s lane ``k``, so each pass is that render, channel
     for channel (tests/datasets/test_sequence_kernel.py) and a later render with the same seed replays
-    it (the re-shaded gradient samples, :mod:`dbench.datasets.reshade`).
+    it (the re-shaded gradient samples, :mod:`dbench.datasets.sequence.reshade`).
 
     Args:
         channels: ``channels(spec, aovs, names)`` → the film's channels (a list of Float: the

@@ -39,7 +39,7 @@ METHODS = ("noisy", "nca", "autoencoder", "nca+gate", "autoencoder+gate", "oidn"
 def outside_scenes() -> list[Any]:
     """Scenes outside the catalogue and the training family: the XML scene (when the source
     tree is there) and two procedural scenes of family 1."""
-    from ..datasets.scenes import get
+    from ..datasets.scenes.catalogue import get
     from .scenes import training_scene
 
     family, indices = OUTSIDE_FAMILY

@@ -330,11 +330,11 @@ def build_sequence_set(n_sequences: int = 16, n_frames: int = 8, res: int = 96,
                        cache=None, min_mean: float = 0.03, progress: bool = True
                        ) -> SequenceSet:
     """Render (or read from the cache) ``n_sequences`` training sequences through
-    :func:`dbench.datasets.sequence.load_sequence` (noisy frames at each spp with seed = its
+    :func:`dbench.datasets.sequence.load.load_sequence` (noisy frames at each spp with seed = its
     index, matched G-buffer, references at ``ref_spp``); nearly black scenes are skipped as in
     :func:`build_training_set`."""
     from .. import datasets
-    from ..datasets.sequence import load_sequence
+    from ..datasets.sequence.load import load_sequence
     from .scenes import training_sequence
 
     cache = cache or datasets.Cache()

@@ -9,7 +9,7 @@ and 1 to 3 lights (area rectangles facing down, small sphere emitters, spot ligh
 emitter with a black BSDF as in the catalogue. Mirrors and glass are deliberately common: they are the learned methods' weak
 spots on the evaluation scenes (seed 001 §3.5).
 
-None of these scenes is registered in :mod:`dbench.datasets.scenes`; names are ``train-NNN``,
+None of these scenes is registered in :mod:`dbench.datasets.scenes.catalogue`; names are ``train-NNN``,
 and the evaluation catalogue (cornell, mirrors, caustic, textured, fireflies) is never used for
 training. Textures are made here (NumPy), never the catalogue's ``texture_pattern``.
 
@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from ..datasets.scenes import Scene, camera_dict, diffuse_bsdf, rect_shape
+from ..datasets.scenes.catalogue import Scene, camera_dict, diffuse_bsdf, rect_shape
 
 EVALUATION_SCENES = ("cornell", "mirrors", "caustic", "textured", "fireflies")
 METALS = ("Ag", "Al", "Au", "Cu", "Cr")
@@ -249,7 +249,7 @@ def training_scene(index: int, family_seed: int = 0) -> Scene:
 
 
 def training_sequence(index: int, n_frames: int = 8, family_seed: int = 0):
-    """Training scene ``index`` as a camera animation (a :class:`~dbench.datasets.sequence.
+    """Training scene ``index`` as a camera animation (a :class:`~dbench.datasets.sequence.load.
     SequenceScene` named ``train-seq-NNN``, not registered): the geometry and lights of
     :func:`training_scene`, the camera turning about its target by a random 0.5-1.5 degrees per
     frame (either way) and drifting up or down a little, so the recurrent autoencoder sees
@@ -260,7 +260,7 @@ def training_sequence(index: int, n_frames: int = 8, family_seed: int = 0):
         >>> seq.name, seq.kind, seq.n_frames
         ('train-seq-003', 'sequence', 8)
     """
-    from ..datasets.sequence_scene import SEQUENCE_BUFFERS, SequenceScene
+    from ..datasets.sequence.scene import SEQUENCE_BUFFERS, SequenceScene
 
     kind, origin, target, fov = _layout(np.random.default_rng([family_seed, index, 1234]))
     motion = np.random.default_rng([family_seed, index, 777])

@@ -256,7 +256,7 @@ def extra_sweeps(results: Path, main: Path) -> list[Path]:
 
 def _is_transient(scene: str) -> bool:
     try:
-        from ..datasets import scenes as catalogue
+        from ..datasets.scenes import catalogue
 
         return catalogue.get(scene).kind == "transient"
     except Exception:  # noqa: BLE001 - an unknown scene name is not a transient one

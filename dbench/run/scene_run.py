@@ -161,14 +161,14 @@ def run_scene(out: Path, req: RunRequest, scene, instances, labels, runnable,
 def ref_rmse_text(value, source: str | None = None):
     """The reference's estimated RMSE, or "unknown" where nothing gives its noise (a folder's
     external reference without a variance image or statistics): never a made-up 0. ``source``
-    (dbench/datasets/folder_reference.py) says where the estimate came from, or why none."""
+    (dbench/datasets/folders/reference.py) says where the estimate came from, or why none."""
     import math
     if value is None or (isinstance(value, float) and math.isnan(value)):
         return f"unknown ({source or 'no variance or statistics of the reference were given'})"
     return f"{value} ({source})" if source else value
 
 
-#: input facts a folder load reports (dbench/datasets/folder.py): {meta key: settings label}
+#: input facts a folder load reports (dbench/datasets/folders/load.py): {meta key: settings label}
 INPUT_FACTS = {"ref_noise_source": "reference noise from", "surface_pixels": "surface pixels",
                 "normal_encoding": "normal encoding", "layers_read": "layers read",
                 "layers_ignored": "layers ignored"}

@@ -97,7 +97,7 @@ class SweepConfig:
 
     def scene(self, name: str):
         """The Scene of a catalogue name, scene file or folder (with ``scene_params``)."""
-        from ..datasets import scenes as catalogue
+        from ..datasets.scenes import catalogue
 
         return catalogue.get(name, self.scene_params or None)
 
@@ -131,7 +131,7 @@ def resolve_names(methods: str | Sequence[str], scenes: str | Sequence[str],
                   scene_params: dict[str, str] | None = None) -> tuple[list[str], list[str]]:
     """``all`` or comma lists → validated names (UnknownNameError lists the valid ones)."""
     from .. import registry
-    from ..datasets import scenes as catalogue
+    from ..datasets.scenes import catalogue
 
     def split(v):
         return [s.strip() for s in v.split(",") if s.strip()] if isinstance(v, str) else list(v)
@@ -155,7 +155,7 @@ def resolved_ref_spp(config: SweepConfig, scene, spp: int) -> int | None:
     if not scene.renders:  # a folder of renders: its reference, whatever was asked
         return scene.info.ref_spp
     if scene.kind == "transient":
-        from ..datasets import transient
+        from ..datasets.transient import load as transient
         return transient.reference_spp(spp, config.ref_spp)
     return int(config.ref_spp or datasets.reference_spp())
 

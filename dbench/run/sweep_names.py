@@ -52,8 +52,8 @@ def _scene_place(config, spec: str) -> tuple[str, Path | None] | None:
     """(name, where it lives) of a scene as given: (name, None) for a catalogue scene, the
     resolved path of a scene file, folder/view of a folder of renders; None when it does not
     resolve (a scene of an earlier run that is gone)."""
-    from ..datasets import scene_files
-    from ..datasets import scenes as catalogue
+    from ..datasets.scene_files import load as scene_files
+    from ..datasets.scenes import catalogue
 
     if spec in catalogue.available():
         return spec, None

@@ -1,7 +1,7 @@
 """Speed of the "bring your own" paths, as same-run ratios (issue: open dbench).
 
 - :func:`bench_scene_file`: the Cornell box written as a Mitsuba XML file and rendered through
-  :mod:`dbench.datasets.scene_files`, against the catalogue's ``cornell`` (the same scene, the
+  :mod:`dbench.datasets.scene_files.load`, against the catalogue's ``cornell`` (the same scene, the
   same batch-sensor sample loop), same size and spp, in one process: time ratio and the
   difference of the two images' means (the same scene, independent samples).
 - :func:`bench_plugin_discovery`: what scanning the installed distributions for ``dbench.*``
@@ -70,7 +70,8 @@ def cornell_xml(mi) -> str:
 
 def bench_scene_file(res=256, spp: int = 64, repeats: int = 3) -> dict[str, Any]:
     """Render time of the Cornell box from an XML file against the catalogue's, same run."""
-    from ..datasets import render, scenes
+    from ..datasets import render
+    from ..datasets.scenes import catalogue as scenes
     from ..datasets.mitsuba_env import mitsuba
 
     res = parse_res(res)

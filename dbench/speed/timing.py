@@ -102,7 +102,8 @@ def bench_render(scene: str = "cornell", res=256, spp: int = 64, repeats: int = 
     (``batch`` sensor films to NumPy + compiled power sums). All are timed in interleaved rounds
     (:func:`interleaved_times`); the ratios are medians of the per-round ratios to the plain
     render, so a slow spell of a shared machine falls on both sides of each ratio."""
-    from ..datasets import render, scenes
+    from ..datasets import render
+    from ..datasets.scenes import catalogue as scenes
     from ..datasets.mitsuba_env import mitsuba
 
     sc = scenes.get(scene)

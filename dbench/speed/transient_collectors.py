@@ -24,8 +24,8 @@ def bench_collectors(scene: str = "cornell-transient", res: int = 64, spp: int =
     """
     import drjit as dr
 
-    from ..datasets import scenes
-    from ..datasets import transient as tr
+    from ..datasets.scenes import catalogue as scenes
+    from ..datasets.transient import load as tr
 
     sc = scenes.get(scene)
     stats = (transform, lam)
@@ -72,8 +72,8 @@ def state_bytes_vs_spp(scene: str = "cornell-transient", res: int = 32, bins: in
                        spp_list: Sequence[int] = (1, 16, 256), transform: str = "identity"
                        ) -> list[dict[str, Any]]:
     """Collector (b)'s statistics state (bytes) after rendering each spp: independent of spp."""
-    from ..datasets import scenes
-    from ..datasets import transient as tr
+    from ..datasets.scenes import catalogue as scenes
+    from ..datasets.transient import load as tr
 
     sc = scenes.get(scene)
     rows = []

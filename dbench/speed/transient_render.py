@@ -6,9 +6,9 @@ work"; docs/architecture.md):
 
 * ``plain``: one ``mi.render`` of the scene's transient dictionary (its ``transient_hdr_film``
   and the scene's own integrator, ``transient_path`` or ``transient_prbvolpath``), the streak
-  film and steady image brought to NumPy (:func:`dbench.datasets.transient_render.render_signal`):
+  film and steady image brought to NumPy (:func:`dbench.datasets.transient.render.render_signal`):
   what mitransient alone costs, with no statistics.
-* ``color``: the colour alone through :func:`dbench.datasets.transient.load_transient`
+* ``color``: the colour alone through :func:`dbench.datasets.transient.load.load_transient`
   (``needs={"color"}``) into a fresh, empty cache, as a user waits for it.
 * ``color_stats``: colour and per-bin statistics through the same call, fresh cache.
 * ``color_stats_nocache``: the same with the cache off (rendering and collecting only), which
@@ -35,8 +35,8 @@ RATIOS = {"color": "ratio_color_vs_plain", "color_stats": "ratio_stats_vs_plain"
 def is_transient(scene: str) -> bool:
     """Whether the catalogue scene ``scene`` is a transient one (``dbench bench render``
     then times :func:`bench_render_transient`)."""
-    from ..datasets import scenes
-    from ..datasets.transient_scene import TransientScene
+    from ..datasets.scenes import catalogue as scenes
+    from ..datasets.transient.scene import TransientScene
 
     return isinstance(scenes.get(scene), TransientScene)
 
@@ -47,11 +47,11 @@ def bench_render_transient(scene: str = "fog-transient", res=48, spp: int = 64,
     """Per-bin statistics cost of the transient scene ``scene`` against a plain mitransient
     render of the same spp, size and bins, all timed in interleaved rounds after one warm-up
     round (JIT compilation and scene loading are not part of the figures)."""
-    from ..datasets import scenes
-    from ..datasets import transient as tr
+    from ..datasets.scenes import catalogue as scenes
+    from ..datasets.transient import load as tr
     from ..datasets.cache import Cache
     from ..datasets.mitsuba_env import mitsuba
-    from ..datasets.transient_render import render_signal
+    from ..datasets.transient.render import render_signal
 
     sc = scenes.get(scene)
     res = parse_res(res)

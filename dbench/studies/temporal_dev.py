@@ -105,7 +105,7 @@ def run(n_scenes: int = 8, seeds: tuple[int, ...] = (0, 1), variants=VARIANTS,
     """Rows ``{scene, seed, label, method, params, rmse, rmse_surface, relmse}`` on the
     sequences of :func:`dev_sequences`."""
     from .. import registry
-    from ..datasets.sequence import load_sequence
+    from ..datasets.sequence.load import load_sequence
     from ..run.sequence_run import run_sequence
 
     rows = []

@@ -47,7 +47,7 @@ NOTES = [
     "- Collector (b) keeps 2·max_depth slots per path (an emitter hit and a next-event estimate "
     "per vertex), so it can never run out; `slots < 2·max_depth` frees slots of bins the path "
     "has passed and counts forced early flushes in `n_overflow` (exact iff 0).",
-    "- Media (`transient_prbvolpath_stats`, dbench/datasets/transient_collector_media.py): the "
+    "- Media (`transient_prbvolpath_stats`, dbench/datasets/transient/collector_media.py): the "
     "primal path of mitransient's `transient_prbvolpath` with the film histogram replaced by the "
     "same slots; volume scatter vertices do next-event estimation too, and a path still adds at "
     "most 2·max_depth contributions (emitter hits at depth 0…max_depth, next-event estimates at "
@@ -86,8 +86,8 @@ def collector_section(scenes: Sequence[str], res: int = 64, spp: int = 64, bins:
     """The Markdown lines of the collector benchmark: one row per scene that has collector (b)
     (:func:`bench_collectors`; media scenes at ``media_res``/``media_bins``), and the state size
     against spp for a surface and a media scene."""
-    from ..datasets import scenes as catalogue
-    from ..datasets import transient as tr
+    from ..datasets.scenes import catalogue
+    from ..datasets.transient import load as tr
     from ..report.formats import markdown_table
 
     lines = ["## Per-bin statistics: collectors", "",
@@ -180,8 +180,8 @@ def run_report(out_dir: str | Path = "results", scenes: Sequence[str] = (
     ``media_res``, ``media_bins``: the collector benchmark's size for participating-media scenes
     (a media path costs about 10× a surface path, so they are timed smaller)."""
     from .. import datasets
-    from ..datasets import scenes as catalogue
-    from ..datasets import transient as tr
+    from ..datasets.scenes import catalogue
+    from ..datasets.transient import load as tr
     from ..report.formats import markdown_table
     from ..run.machine import machine_info
 

@@ -111,7 +111,8 @@ def fig55(scene: str = "cornell-transient", res: int = 64, spp: int = 256, ref_s
           bins_list: Sequence[int] = BINS, radii_t: Sequence[int] = RADII_T,
           radii_s: Sequence[int] = RADII_S, seed: int = 0) -> list[dict[str, Any]]:
     """Temporal radius × bin width × spatial radius (seed Fig. 5.5)."""
-    from ..datasets import load, scenes as catalogue
+    from ..datasets import load
+    from ..datasets.scenes import catalogue
     from ..methods.statistical.transient import auto_radius_t
 
     sc = catalogue.get(scene)
@@ -160,7 +161,8 @@ def fig56(out: Path, scenes: Sequence[str] = SCENES, res: int = 64,
 def ablation(scenes: Sequence[str] = SCENES, res: int = 64, spp: Sequence[int] = FIG56_SPP,
              seed: int = 0) -> list[dict[str, Any]]:
     """One row per (scene, spp, rule set, base filter); media scenes run both bases."""
-    from ..datasets import load, scenes as catalogue
+    from ..datasets import load
+    from ..datasets.scenes import catalogue
 
     rows = []
     for scene in scenes:

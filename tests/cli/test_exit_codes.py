@@ -110,7 +110,7 @@ def test_sys_exit_anywhere_else_in_a_command_exits_2_naming_the_caller(isolated,
 
 
 def test_a_plugin_scene_build_calling_sys_exit_is_an_input_error(isolated, renderer):
-    from dbench.datasets import scenes
+    from dbench.datasets.scenes import catalogue as scenes
     from dbench.errors import DbenchInputError
 
     def quitting(mi, res):
@@ -231,7 +231,7 @@ def test_sweep_spp_lists_are_bounded_too(tmp_path, capsys):
 @pytest.mark.mitsuba
 def test_the_transient_loader_refuses_a_film_too_large_before_rendering(tr, tmp_path):
     from dbench.datasets import Cache
-    from dbench.datasets.transient_scene import MAX_TRANSIENT_FILM_BYTES, check_bins, max_bins
+    from dbench.datasets.transient.scene import MAX_TRANSIENT_FILM_BYTES, check_bins, max_bins
     from dbench.errors import DbenchInputError
 
     assert max_bins(16) * 16 * 16 * 3 * 4 <= MAX_TRANSIENT_FILM_BYTES

@@ -6,7 +6,7 @@ import numpy as np
 from dbench.cli import main
 from dbench.run.scene_run import input_notes as _input_notes
 from dbench.data import Frame
-from dbench.datasets.export import export_frame
+from dbench.datasets.folders.export import export_frame
 
 
 def test_notes_name_the_frames_they_hold_for(capsys):

@@ -1,4 +1,4 @@
-"""Folders of EXR renders (dbench.datasets.folder) and the exporter writing them (export)."""
+"""Folders of EXR renders (dbench.datasets.folders.load) and the exporter writing them (export)."""
 import json
 from pathlib import Path
 
@@ -7,9 +7,9 @@ import OpenEXR
 import pytest
 
 from dbench.data import Frame, SampleStats
-from dbench.datasets.export import export_frame, write_dataset_json
-from dbench.datasets.exr_layers import detect_normal_encoding, layers_of
-from dbench.datasets.folder import (STATS_FROM_VARIANCE, is_folder_scene, load_folder,
+from dbench.datasets.folders.export import export_frame, write_dataset_json
+from dbench.datasets.folders.exr_layers import detect_normal_encoding, layers_of
+from dbench.datasets.folders.load import (STATS_FROM_VARIANCE, is_folder_scene, load_folder,
                                     scan_folder)
 from dbench.datasets.stats import PowerSums
 from dbench.errors import DbenchInputError

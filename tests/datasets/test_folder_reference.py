@@ -1,4 +1,4 @@
-"""A folder's reference judged, not trusted (dbench.datasets.folder_reference): its noise
+"""A folder's reference judged, not trusted (dbench.datasets.folders.reference): its noise
 estimated from what the folder holds or "unknown", never 0; a reference no better than the
 noisy input flagged; the reference-noise warning on relMSE over surface pixels."""
 import json
@@ -10,8 +10,8 @@ import pytest
 
 from dbench.report import tables, verdicts
 from dbench.cli import main
-from dbench.datasets.folder import load_folder, scan_folder
-from dbench.datasets.folder_reference import judge_reference, light_mask
+from dbench.datasets.folders.load import load_folder, scan_folder
+from dbench.datasets.folders.reference import judge_reference, light_mask
 
 H, W = 24, 40
 SIGMA = 0.5  # per-sample standard deviation, relative to the true radiance

@@ -17,7 +17,8 @@ def test_probe_answers_without_crashing():
 def test_scalar_fallback_renders_and_refuses_transient(tmp_path):
     code = (
         "import numpy as np\n"
-        "from dbench.datasets import render, scenes, mitsuba_env\n"
+        "from dbench.datasets import render, mitsuba_env\n"
+        "from dbench.datasets.scenes import catalogue as scenes\n"
         "from dbench.errors import RendererUnavailableError\n"
         "assert mitsuba_env.mitsuba().variant() == 'scalar_rgb'\n"
         "c, st, _ = render.render_passes(scenes.get('cornell'), 8, 2, stats=('box-cox', 0.5),"

@@ -1,4 +1,4 @@
-"""How a folder's normals are encoded (dbench.datasets.normals): both hypotheses tested against
+"""How a folder's normals are encoded (dbench.datasets.folders.normals): both hypotheses tested against
 unit length by their median, the dataset.json declaration winning, a warning where neither
 fits; and the record of the files and EXR channels a load read and left."""
 import json
@@ -7,8 +7,8 @@ import numpy as np
 import OpenEXR
 import pytest
 
-from dbench.datasets.folder import load_folder, scan_folder
-from dbench.datasets.normals import decide, deviations
+from dbench.datasets.folders.load import load_folder, scan_folder
+from dbench.datasets.folders.normals import decide, deviations
 from dbench.errors import DbenchInputError
 
 H, W = 24, 40

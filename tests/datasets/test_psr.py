@@ -1,4 +1,4 @@
-"""The PSR G-buffer (dbench/datasets/psr.py, docs/temporal.md §1): mirrors and glass described by
+"""The PSR G-buffer (dbench/datasets/sequence/psr.py, docs/temporal.md §1): mirrors and glass described by
 what they show; everything else exactly Mitsuba's AOVs; the colour untouched."""
 import numpy as np
 import pytest
@@ -33,14 +33,14 @@ def _render(mi, d, integrator, seed=3):
 
 
 def _buffers(img):
-    from dbench.datasets.psr import PSR_EXTRA_LAYOUT
-    from dbench.datasets.sequence import MATCHED_LAYOUT
+    from dbench.datasets.sequence.psr import PSR_EXTRA_LAYOUT
+    from dbench.datasets.sequence.frames import MATCHED_LAYOUT
     layout = MATCHED_LAYOUT + (PSR_EXTRA_LAYOUT if img.shape[-1] > 16 else ())
     return {name: img[..., c0:c0 + nc] for name, c0, nc in layout}
 
 
 def test_mirror_pixels_see_the_reflected_wall(renderer):
-    from dbench.datasets.psr import psr_integrator
+    from dbench.datasets.sequence.psr import psr_integrator
 
     mi = renderer
     d = _scene(mi, {"type": "conductor", "material": "none"})
@@ -57,8 +57,8 @@ def test_mirror_pixels_see_the_reflected_wall(renderer):
 
 
 def test_colour_equals_a_plain_render_and_diffuse_pixels_equal_mitsubas_aovs(renderer):
-    from dbench.datasets.psr import psr_integrator
-    from dbench.datasets.sequence import _matched_integrator
+    from dbench.datasets.sequence.psr import psr_integrator
+    from dbench.datasets.sequence.frames import _matched_integrator
 
     mi = renderer
     path = {"type": "path", "max_depth": 4}
@@ -79,7 +79,7 @@ def test_colour_equals_a_plain_render_and_diffuse_pixels_equal_mitsubas_aovs(ren
 def test_geo_normal_is_the_face_normal_of_a_smooth_shaded_mesh(renderer, tmp_path):
     """A quad facing +z whose vertex normals lean towards +x: ``normal`` is the interpolated
     (shading) normal, ``geo_normal`` the face's own +z (seed 001 §1.2.1's geometry normal)."""
-    from dbench.datasets.psr import psr_integrator
+    from dbench.datasets.sequence.psr import psr_integrator
 
     mi = renderer
     lean = np.array([0.3, 0.0, 1.0]) / np.linalg.norm([0.3, 0.0, 1.0])
@@ -103,8 +103,8 @@ def test_conductor_demodulation_stays_bounded_and_glass_is_seen_through(renderer
     a_eff = 1 keeps the wall's texture, and any small albedo amplifies it. The PSR albedo is the
     Fresnel reflectance × the wall's albedo, so the demodulated mirror pixels carry the wall's
     illumination, the same range as the wall seen directly."""
-    from dbench.datasets.psr import psr_integrator
-    from dbench.datasets.sequence import _matched_integrator
+    from dbench.datasets.sequence.psr import psr_integrator
+    from dbench.datasets.sequence.frames import _matched_integrator
 
     mi = renderer
     path = {"type": "path", "max_depth": 4}
@@ -132,7 +132,7 @@ def test_conductor_demodulation_stays_bounded_and_glass_is_seen_through(renderer
 
 
 def test_a_lamp_in_a_mirror_is_an_emitter_pixel(renderer):
-    from dbench.datasets.psr import psr_integrator
+    from dbench.datasets.sequence.psr import psr_integrator
 
     mi = renderer
     T = mi.ScalarTransform4f
@@ -152,7 +152,7 @@ def test_chrome_sphere_albedo_is_never_near_zero_and_normals_are_reflected(rende
     1e-3 cut-off amplify a reflection up to 1000×. With PSR every sphere pixel has albedo
     Fresnel(Cr) × 0.5 ≥ 0.2 (at most 5× amplification), the normal of the wall it reflects
     (axis-aligned), and a demodulated illumination of the order of the walls' own."""
-    from dbench.datasets.psr import psr_integrator
+    from dbench.datasets.sequence.psr import psr_integrator
 
     mi = renderer
     T = mi.ScalarTransform4f
@@ -198,7 +198,7 @@ def test_glossy_rule_gives_low_roughness_surfaces_the_reflected_normal(renderer,
     mirror direction hits, when its roughness (isotropic α or the mean of α_u, α_v) is below
     0.4; rougher or diffuse surfaces keep their own normal; the colour and the other buffers are
     those of the plain PSR render."""
-    from dbench.datasets.psr import GLOSSY_ALPHA, psr_integrator
+    from dbench.datasets.sequence.psr import GLOSSY_ALPHA, psr_integrator
 
     mi = renderer
     path = {"type": "path", "max_depth": 4}
@@ -226,7 +226,7 @@ def test_sequences_offer_the_glossy_rule_as_a_gbuffer(renderer, tmp_path):
     sphere only, and its own cache entries."""
     from dbench import datasets
     from dbench.datasets.cache import Cache
-    from dbench.datasets.sequence import load_sequence
+    from dbench.datasets.sequence.load import load_sequence
 
     cache = Cache(tmp_path)
     kw = dict(spp=1, res=24, seed=0, frames=2, cache=cache, progress=False,
@@ -250,7 +250,7 @@ def test_the_gbuffer_is_a_scene_parameter_of_every_sequence(renderer, tmp_path):
     refused naming the parameter."""
     from dbench import datasets
     from dbench.datasets.cache import Cache
-    from dbench.datasets.sequence import load_sequence
+    from dbench.datasets.sequence.load import load_sequence
     from dbench.errors import DbenchInputError
 
     for name in ("orbit", "flicker", "mirror-pan"):
@@ -307,7 +307,7 @@ def test_reshaded_mirror_passes_aim_at_their_own_virtual_points(renderer):
     (docs/temporal.md §2): from an unchanged camera, under unchanged lights, the re-shaded
     passes are the frame's own passes, whatever position the G-buffer holds (here zeros, where
     the mean over the passes used to be the target)."""
-    from dbench.datasets.reshade import render_reshade
+    from dbench.datasets.sequence.reshade import render_reshade
 
     mi = renderer
     d = _scene(mi, {"type": "conductor", "material": "none"})
@@ -345,7 +345,7 @@ def test_psr_lobe_at_glass_is_a_function_of_the_camera_ray(renderer):
     is the same whatever the colour integrator consumed (here path depths 2 and 8; it differed
     when the draws followed the colour's), while another seed (other rays) draws otherwise on
     some pixels, and both lobes occur."""
-    from dbench.datasets.psr import psr_integrator
+    from dbench.datasets.sequence.psr import psr_integrator
 
     mi = renderer
     d = _glass_scene(mi)
@@ -374,7 +374,7 @@ def test_reshaded_glass_passes_aim_at_their_own_virtual_points(renderer):
     4, RESHADE_VERSION 6): from an unchanged camera, under unchanged lights, the re-shaded
     passes equal the frame's own passes whatever position the G-buffer holds (zeros here;
     before, glass pixels aimed at that position)."""
-    from dbench.datasets.reshade import render_reshade
+    from dbench.datasets.sequence.reshade import render_reshade
 
     mi = renderer
     d = _glass_scene(mi)

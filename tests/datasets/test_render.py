@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 from scipy import stats as sps
 
-from dbench.datasets import render, scenes
+from dbench.datasets import render
+from dbench.datasets.scenes import catalogue as scenes
 from dbench.datasets.stats import transform_samples
 
 pytestmark = pytest.mark.mitsuba
@@ -40,7 +41,7 @@ def test_renderer_statistics_equal_numpy_on_the_same_samples(renderer, transform
 def test_each_sample_lands_in_exactly_one_pixel(renderer):
     # An emitter seen directly with max_depth 1: every sample is 0 or the emitter radiance,
     # never a filtered mixture of the two (docs/mitsuba.md §10 check 3).
-    from dbench.datasets.scenes import Scene
+    from dbench.datasets.scenes.catalogue import Scene
 
     def build(mi, res):
         return {"type": "scene",

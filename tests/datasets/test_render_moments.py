@@ -6,8 +6,9 @@ tests/datasets/test_render.py)."""
 import numpy as np
 import pytest
 
-from dbench.datasets import render, render_moments, scenes
-from dbench.datasets.scene import Scene
+from dbench.datasets import render, render_moments
+from dbench.datasets.scenes import catalogue as scenes
+from dbench.datasets.scenes.record import Scene
 from dbench.datasets.stats import PowerSums, transform_of_zero, transform_samples
 
 pytestmark = pytest.mark.mitsuba

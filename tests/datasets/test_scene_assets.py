@@ -67,12 +67,12 @@ def _project(root: Path) -> Path:
 
 def _fingerprint(path: Path) -> str:
     from dbench import datasets
-    from dbench.datasets import scenes
+    from dbench.datasets.scenes import catalogue as scenes
     return datasets.scene_fingerprint(scenes.get(str(path)), 8)
 
 
 def test_key_covers_every_file_mitsuba_reads_and_nothing_else(renderer, tmp_path):
-    from dbench.datasets.scene_assets import asset_hashes
+    from dbench.datasets.scene_files.assets import asset_hashes
     mi = renderer
     path = _project(tmp_path)
     root = tmp_path.resolve()
@@ -100,7 +100,7 @@ def test_key_covers_every_file_mitsuba_reads_and_nothing_else(renderer, tmp_path
 def test_an_edited_texture_renders_again(renderer, tmp_path):
     """The issue's case: a texture replaced by solid blue is a cache miss, not old numbers."""
     from dbench import datasets
-    from dbench.datasets import scenes
+    from dbench.datasets.scenes import catalogue as scenes
     path = _project(tmp_path)
     cache = datasets.Cache(tmp_path / "cache")
 
@@ -117,7 +117,7 @@ def test_an_edited_texture_renders_again(renderer, tmp_path):
 
 
 def test_a_missing_asset_is_refused_before_rendering(renderer, tmp_path, capsys):
-    from dbench.datasets import scenes
+    from dbench.datasets.scenes import catalogue as scenes
     path = _project(tmp_path)
     (tmp_path / "assets" / "textures" / "wood.png").unlink()
     with pytest.raises(DbenchInputError) as err:
@@ -146,8 +146,8 @@ def test_resolution_follows_mitsuba(renderer, tmp_path):
     """Rules checked against mi.load_file: a <path> further down still applies to filename
     strings; a fragment's own <path> and folder do not; a nested include is found next to the
     fragment that includes it; one scene's folder never supplies another's assets."""
-    from dbench.datasets import scenes
-    from dbench.datasets.scene_assets import asset_hashes
+    from dbench.datasets.scenes import catalogue as scenes
+    from dbench.datasets.scene_files.assets import asset_hashes
     mi = renderer
     root = tmp_path.resolve()
     path = _project(root)

@@ -64,7 +64,7 @@ def _write_xml(folder: Path) -> Path:
 
 
 def _write_rgb(path: Path, rgb: np.ndarray) -> None:
-    from dbench.datasets import exr_layers
+    from dbench.datasets.folders import exr_layers
     exr_layers.write_channels(path, {c: rgb[..., i].astype(np.float32)
                                      for i, c in enumerate("RGB")})
 
@@ -79,7 +79,7 @@ def test_parse_res_forms_and_refusals():
 
 
 def test_catalogue_keeps_square_keys_and_widens_non_square_views(renderer):
-    from dbench.datasets import scenes
+    from dbench.datasets.scenes import catalogue as scenes
     mi = renderer
     square = scenes.get("mirrors").scene_dict(mi, 32)["sensor"]
     assert square["fov_axis"] == "x" and square["film"]["width"] == 32
@@ -90,7 +90,7 @@ def test_catalogue_keeps_square_keys_and_widens_non_square_views(renderer):
 
 def test_xml_scene_keeps_its_view_and_max_depth_and_keys_its_assets(renderer, tmp_path):
     from dbench import datasets
-    from dbench.datasets import scenes
+    from dbench.datasets.scenes import catalogue as scenes
     mi = renderer
     path = _write_xml(tmp_path)
     sc = scenes.get(str(path), {"light": "6"})
@@ -144,7 +144,7 @@ def test_bad_scene_files_exit_2_naming_the_file(renderer, tmp_path, capsys):
 
 def test_python_scene_files_steady_and_sequence(renderer, tmp_path):
     from dbench import datasets
-    from dbench.datasets import scenes
+    from dbench.datasets.scenes import catalogue as scenes
     steady = tmp_path / "lamp.py"
     steady.write_text(PY_SCENE)
     sc = scenes.get(str(steady))
@@ -244,7 +244,7 @@ def test_sweep_over_a_scene_file_and_a_folder(renderer, tmp_path):
 def test_exported_sequence_reads_back_as_a_sequence(renderer, tmp_path):
     from dbench import datasets, registry
     from dbench.run.harness import run_sequence_cell
-    from dbench.datasets import scenes
+    from dbench.datasets.scenes import catalogue as scenes
     folder = tmp_path / "seq"
     assert main(["export", "orbit", "--out", str(folder), "--spp", "4", "--res", "24x16",
                  "--frames", "3", "--ref-spp", "16", "--quiet",
@@ -269,7 +269,8 @@ def test_cornell_written_as_xml_renders_the_catalogue_cornell(renderer, tmp_path
     """The scene-file benchmark's XML Cornell box is the catalogue's scene: same image up to
     Monte Carlo noise (independent samples), through the same sample loop."""
     from dbench.speed.files import cornell_xml
-    from dbench.datasets import render, scenes
+    from dbench.datasets import render
+    from dbench.datasets.scenes import catalogue as scenes
     path = tmp_path / "cornell.xml"
     path.write_text(cornell_xml(renderer))
     # at 1024 spp the two means agree within 0.5 %; at 256 spp the noise allows ~3 %

@@ -67,7 +67,7 @@ def _load(sc, cache, spp: int = 4, seed: int = 0):
 
 def test_max_depth_in_an_include_is_honoured_and_keys_the_render(renderer, tmp_path, tmp_cache):
     from dbench import datasets
-    from dbench.datasets import scene_files
+    from dbench.datasets.scene_files import load as scene_files
     path = _scene(tmp_path, "box.xml", '<include filename="fragments/integrator.xml"/>')
     _fragment(tmp_path, 6)
     sc6 = scene_files.resolve(path)
@@ -92,7 +92,7 @@ def test_max_depth_in_an_include_is_honoured_and_keys_the_render(renderer, tmp_p
 
 def test_defaults_and_parameters_set_max_depth_and_minus_one_is_unlimited(renderer, tmp_path,
                                                                           tmp_cache):
-    from dbench.datasets import scene_files
+    from dbench.datasets.scene_files import load as scene_files
     path = _scene(tmp_path, "box.xml", '<default name="depth" value="3"/>'
                   + _integrator("path", "$depth"))
     assert scene_files.resolve(path).max_depth == 3
@@ -108,7 +108,7 @@ def test_defaults_and_parameters_set_max_depth_and_minus_one_is_unlimited(render
 def test_direct_is_kept_and_renders_direct_lighting(renderer, tmp_path, tmp_cache):
     """dbench's render of a ``direct`` file agrees with Mitsuba's own render of the file and is
     clearly darker than the same box with ``path`` (the walls' indirect light is missing)."""
-    from dbench.datasets import scene_files
+    from dbench.datasets.scene_files import load as scene_files
     mi = renderer
     direct = _scene(tmp_path, "direct.xml", _integrator("direct"))
     path = _scene(tmp_path, "path.xml", _integrator("path", 8))
@@ -127,7 +127,7 @@ def test_direct_is_kept_and_renders_direct_lighting(renderer, tmp_path, tmp_cach
 
 
 def test_wrappers_are_unwrapped_and_a_light_tracer_is_replaced(renderer, tmp_path, tmp_cache):
-    from dbench.datasets import scene_files
+    from dbench.datasets.scene_files import load as scene_files
     moment = scene_files.resolve(_scene(tmp_path, "moment.xml", _integrator(
         "moment", inner=_integrator("path", -1))))
     rec = moment.frame_meta["scene_file"]
@@ -148,7 +148,7 @@ def test_wrappers_are_unwrapped_and_a_light_tracer_is_replaced(renderer, tmp_pat
 
 def test_shapegroup_instances_render_where_the_spheres_are(renderer, tmp_path, tmp_cache):
     """Two instances of a shapegroup render as two plain spheres at the same places do."""
-    from dbench.datasets import scene_files
+    from dbench.datasets.scene_files import load as scene_files
     integ = _integrator("path", 4)
     group = ('<shape type="shapegroup" id="ball"><shape type="sphere">'
              '<float name="radius" value="0.3"/><ref id="white"/></shape></shape>')
@@ -173,7 +173,7 @@ def test_shapegroup_instances_render_where_the_spheres_are(renderer, tmp_path, t
 
 def test_polarized_and_spectral_files_render_in_rgb_with_their_conversions(renderer, tmp_path,
                                                                            tmp_cache):
-    from dbench.datasets import scene_files
+    from dbench.datasets.scene_files import load as scene_files
     extra = ('<shape type="sphere"><float name="radius" value="0.3"/><bsdf type="pplastic"/>'
              '</shape><shape type="sphere"><point name="center" x="0.5" y="-0.6" z="0"/>'
              '<float name="radius" value="0.2"/><bsdf type="diffuse"><spectrum name="reflectance"'
@@ -191,7 +191,7 @@ def test_polarized_and_spectral_files_render_in_rgb_with_their_conversions(rende
 
 def test_constructs_without_an_rgb_form_exit_2_before_rendering(renderer, tmp_path, tmp_cache,
                                                                 capsys):
-    from dbench.datasets import scene_files
+    from dbench.datasets.scene_files import load as scene_files
     hot = ('<emitter type="constant"><spectrum type="blackbody" name="radiance">'
            '<float name="temperature" value="3000"/></spectrum></emitter>')
     bad = _scene(tmp_path, "blackbody.xml", _integrator("path", 4) + hot)

@@ -90,7 +90,7 @@ def test_resolution_is_the_width_and_unpacks_as_the_size():
 
 
 def test_the_signature_decides_the_form():
-    from dbench.datasets.scene_build import takes_width_height
+    from dbench.datasets.scenes.build import takes_width_height
 
     def a(mi, width, height): ...
     def b(mi, res): ...
@@ -109,7 +109,7 @@ def test_the_signature_decides_the_form():
 @pytest.mark.parametrize("form", ["readme", "build(mi, res)"])
 @pytest.mark.parametrize("res", SIZES)
 def test_the_readme_steady_scene_file_renders(renderer, tmp_path, form, res):
-    from dbench.datasets import scene_files
+    from dbench.datasets.scene_files import load as scene_files
 
     code = EXAMPLES["my_scene.py"]
     path = tmp_path / "my_scene.py"
@@ -125,7 +125,7 @@ def test_the_readme_steady_scene_file_renders(renderer, tmp_path, form, res):
 @pytest.mark.parametrize("form", ["readme", "build(mi, res)"])
 @pytest.mark.parametrize("res", SIZES)
 def test_the_readme_transient_scene_file_renders(tr, tmp_path, form, res):
-    from dbench.datasets import scene_files
+    from dbench.datasets.scene_files import load as scene_files
 
     code = EXAMPLES["my_pulse.py"]
     path = tmp_path / "my_pulse.py"
@@ -188,7 +188,7 @@ def test_entry_point_builds_in_both_forms_render(renderer, tmp_path, res):
     """What an entry point registers: the README's function, the same written with
     ``"width": res, "height": res`` (a scene from before non-square sizes) and the three-int
     form."""
-    from dbench.datasets import scenes
+    from dbench.datasets.scenes import catalogue as scenes
 
     namespace: dict = {}
     exec(EXAMPLES["my_package/scenes.py"], namespace)
@@ -223,8 +223,8 @@ def test_entry_point_builds_in_both_forms_render(renderer, tmp_path, res):
 
 @pytest.mark.mitsuba
 def test_a_scene_object_with_a_square_film_for_a_wide_request_is_refused(renderer, tmp_path):
-    from dbench.datasets.scene import Scene
-    from dbench.datasets.scenes import cornell
+    from dbench.datasets.scenes.record import Scene
+    from dbench.datasets.scenes.catalogue import cornell
 
     def build(mi, res):
         d = cornell(mi, 8)
@@ -242,8 +242,8 @@ def test_a_scene_object_with_a_square_film_for_a_wide_request_is_refused(rendere
 
 @pytest.mark.mitsuba
 def test_a_transient_scene_object_in_the_square_form_renders(tr, tmp_path):
-    from dbench.datasets.scenes import cornell
-    from dbench.datasets.transient_scene import TransientScene
+    from dbench.datasets.scenes.catalogue import cornell
+    from dbench.datasets.transient.scene import TransientScene
 
     def build(mi, res):
         d = cornell(mi, 8)
@@ -263,7 +263,7 @@ def test_a_plugin_scene_naming_an_unknown_mitsuba_type_is_refused_before_renderi
         renderer, tmp_path):
     """A plugin's scene is loaded once at 8 px before its first render: a type Mitsuba has no
     plugin for is one line naming the scene, the entry and the type, and no cache entry."""
-    from dbench.datasets import scenes
+    from dbench.datasets.scenes import catalogue as scenes
 
     def blob_room(mi, res):
         d = mi.cornell_box()

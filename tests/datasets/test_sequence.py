@@ -10,8 +10,8 @@ from dbench.report import sequence_figures
 from dbench.run import sequence_run as BS
 from dbench.speed import sequence as speed_sequence
 from dbench.data import Frame, Sequence
-from dbench.datasets import scenes
-from dbench.datasets import sequence as S
+from dbench.datasets.scenes import catalogue as scenes
+from dbench.datasets.sequence import load as S
 from dbench.errors import DbenchInputError
 
 RES = 16
@@ -172,7 +172,7 @@ def test_reshaded_samples_are_the_brightest_and_reuse_the_previous_random_number
     """docs/temporal.md §2: one re-shaded sample per 3×3 stratum of frame i−1, its brightest hit
     pixel, traced again with frame i−1's random numbers (static camera here, so with unchanged
     lights it equals frame i−1's colour up to the float rounding of the rebuilt ray)."""
-    from dbench.datasets.reshade import select_strata
+    from dbench.datasets.sequence.reshade import select_strata
 
     k = S.FLICKER_SWITCH
     for i in (1, 5, k - 1, k + 1):  # lights unchanged
@@ -205,7 +205,7 @@ def test_reshaded_passes_start_from_their_own_hits_above_1_spp(renderer, seq_cac
 
 
 def test_select_strata_takes_one_brightest_hit_per_stratum():
-    from dbench.datasets.reshade import select_strata
+    from dbench.datasets.sequence.reshade import select_strata
 
     color = np.zeros((4, 5, 3))
     color[0, 1] = 2.0
@@ -222,7 +222,7 @@ def test_select_strata_takes_one_brightest_hit_per_stratum():
 def test_gradient_frame_emulation_reuses_the_previous_random_numbers(renderer, seq_cache):
     """The older emulation (``gradient="frame"``, spec §6.4): bit-identical to frame i−1 while
     the lights do not change."""
-    from dbench.datasets.sequence import load_sequence
+    from dbench.datasets.sequence.load import load_sequence
 
     seq = load_sequence("flicker", spp=1, res=RES, frames=3, cache=seq_cache, progress=False,
                         needs={"color", "gradient"}, gradient="frame")
@@ -354,7 +354,7 @@ def test_sequence_frames_carry_the_statistics_of_their_own_samples(renderer, tmp
     with the frame's seed, and single-frame statistical methods run on the frames."""
     from dbench import datasets, registry
     from dbench.run.harness import run_sequence_cell
-    from dbench.datasets import sequence as S
+    from dbench.datasets.sequence import load as S
     from dbench.datasets.mitsuba_env import mitsuba
 
     with_stats = datasets.load("orbit", spp=4, res=16, frames=3, cache=tmp_cache,

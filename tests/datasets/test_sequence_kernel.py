@@ -1,4 +1,4 @@
-"""Sequence frames summed on the device (dbench/datasets/sequence_frames.py with
+"""Sequence frames summed on the device (dbench/datasets/sequence/frames.py with
 render_moments.pass_sums; README.md, "How renders work") against the readable reference, the
 same 1-spp passes filmed by ``mi.render`` and summed on the host: the same samples, so the
 colour and every G-buffer channel are equal bit for bit; the colour statistics agree within
@@ -8,8 +8,8 @@ import pytest
 
 from dbench import datasets
 from dbench.datasets import render_moments
-from dbench.datasets import sequence as S
-from dbench.datasets import sequence_frames as F
+from dbench.datasets.sequence import load as S
+from dbench.datasets.sequence import frames as F
 
 pytestmark = pytest.mark.mitsuba
 

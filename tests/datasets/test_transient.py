@@ -50,7 +50,7 @@ def test_transient_frame_validation_names_the_buffer(kwargs, name):
 def _corridor(mi, res):
     """A narrow corridor lit by its far end: along the corridor OPL + distance to the light is
     nearly constant, so next-event estimates of later vertices fall back into earlier bins."""
-    from dbench.datasets.scenes import camera_dict, diffuse_bsdf, rect_shape
+    from dbench.datasets.scenes.catalogue import camera_dict, diffuse_bsdf, rect_shape
     T = mi.ScalarTransform4f
     white = diffuse_bsdf((0.8, 0.8, 0.8))
     length, hw = 4.0, 0.4
@@ -135,7 +135,7 @@ def test_load_errors(tr, tmp_cache):
 
 def test_energy_sum_over_bins_equals_steady_with_a_covering_window(tr):
     """Check 1: Σ_t transient = steady per pixel (1e-5 rel) when the window covers all."""
-    from dbench.datasets import scenes
+    from dbench.datasets.scenes import catalogue as scenes
     base = scenes.get("cornell-transient")
     wide = tr.TransientScene(name="cornell-wide", kind="transient", description="",
                              build=base.build, max_depth=8, window_start=0.0,
@@ -174,7 +174,7 @@ def test_direct_arrival_bin(tr, unwarp, centre, corner):
 
 def test_window_starts_at_the_first_direct_arrival(tr):
     """size_window: no energy before the chosen start; the catalogue start is not later."""
-    from dbench.datasets import scenes
+    from dbench.datasets.scenes import catalogue as scenes
     sc = scenes.get("cornell-transient")
     r = tr.size_window(sc, coverage=0.99, res=12, spp=32, horizon=20.0, bins=1000)
     assert r["fraction_before_start"] == 0.0
@@ -189,7 +189,7 @@ def test_window_starts_at_the_first_direct_arrival(tr):
 
 @pytest.mark.parametrize("transform", ["identity", "box-cox"])
 def test_collector_a_equals_numpy_on_stacked_passes(tr, transform):
-    from dbench.datasets import scenes
+    from dbench.datasets.scenes import catalogue as scenes
     from dbench.datasets.stats import stats_from_samples, transform_of_zero, transform_samples
     sc = scenes.get("cornell-transient")
     res, bins = 8, 30
@@ -240,7 +240,7 @@ def _assert_same(a, b):
 @pytest.mark.parametrize("transform", ["identity", "box-cox"])
 def test_collector_b_equals_a_exactly(tr, transform):
     """Same seeds and paths (1-spp passes): bit-identical power sums, counts and moments."""
-    from dbench.datasets import scenes
+    from dbench.datasets.scenes import catalogue as scenes
     sc = scenes.get("cornell-transient")
     a = tr.collect_passes(sc, 10, SPP, seed=2, bins=40, stats=(transform, 0.5), copies=1)
     b = tr.collect_in_integrator(sc, 10, SPP, seed=2, bins=40, transform=transform,
@@ -270,7 +270,7 @@ def test_collector_b_single_call_and_memory_independent_of_spp(tr):
     """All spp in one render: consistent statistics, 0 ≤ non_zero ≤ spp, and a state whose size
     depends on the film only: (H·W·T·3) × 3 float64 sums + (H·W·T) packed uint64 counts + 4
     uint32 counters."""
-    from dbench.datasets import scenes
+    from dbench.datasets.scenes import catalogue as scenes
     sc = scenes.get("cornell-transient")
     res, bins = 8, 30
     sizes = {}
@@ -295,7 +295,7 @@ def test_collector_b_matches_the_plain_render_in_expectation(tr):
     noise, measured by the collectors' own variance estimates (pixels are independent: the
     variances add). Pixels that see the light are left out: their rare, huge samples make
     the variance estimate itself unreliable at 64 spp."""
-    from dbench.datasets import scenes
+    from dbench.datasets.scenes import catalogue as scenes
     sc = scenes.get("cornell-transient")
     plain, steady, _ = tr.render_plain(sc, 12, 64, seed=9, bins=20)
     keep = steady.max(axis=-1) < 1.0                              # not the light's pixels
@@ -313,7 +313,7 @@ def test_collector_b_matches_the_plain_render_in_expectation(tr):
 
 def test_fog_scene_collector_a(tr):
     """Collector (a) on the media scene; (b) there: tests/datasets/test_transient_media_collector.py."""
-    from dbench.datasets import scenes
+    from dbench.datasets.scenes import catalogue as scenes
     sc = scenes.get("fog-transient")
     out = tr.collect_passes(sc, 8, 4, seed=0, bins=20, stats=("identity", 0.5))
     assert out.color.shape == (8, 8, 20, 3) and np.isfinite(out.color).all()
@@ -371,7 +371,7 @@ def test_device_moments_equal_host_formulas_bit_for_bit(tr, transform):
     """Collector (b) computes the moments, colour and counts on the device; with a sample
     count that is not a power of two (a division by a constant would be rounded differently if
     it became a multiplication by the reciprocal) they equal the host formulas exactly."""
-    from dbench.datasets import scenes
+    from dbench.datasets.scenes import catalogue as scenes
     sc = scenes.get("cornell-transient")
     spp = 7
     b = tr.collect_in_integrator(sc, 8, spp, seed=4, bins=30, transform=transform, lam=0.5)

@@ -1,4 +1,4 @@
-"""Media and signals of the transient catalogue (dbench.datasets.transient_media): scene
+"""Media and signals of the transient catalogue (dbench.datasets.transient.media): scene
 parameters (``--scene-param``) and their identity, the layered cloud, unwarped fog, step
 emission (docs/transient.md §7 check 5) and the single/multiple scattering split.
 
@@ -31,7 +31,7 @@ from dbench.errors import DbenchInputError
     ({"scattering": "double"}, ["scattering=double", "all|single|multiple"]),
 ])
 def test_bad_parameters_are_refused_in_one_line_naming_the_valid_values(given, words):
-    from dbench.datasets import scenes
+    from dbench.datasets.scenes import catalogue as scenes
     with pytest.raises(DbenchInputError) as err:
         scenes.get("fog-transient", given)
     text = str(err.value)
@@ -41,7 +41,7 @@ def test_bad_parameters_are_refused_in_one_line_naming_the_valid_values(given, w
 
 
 def test_scenes_without_parameters_refuse_them_and_name_those_that_take_them():
-    from dbench.datasets import scenes
+    from dbench.datasets.scenes import catalogue as scenes
     with pytest.raises(DbenchInputError, match="without parameters.*fog-transient.*orbit"):
         scenes.get("cornell", {"g": "0.5"})
     with pytest.raises(DbenchInputError, match="has no parameter 'g'.*gbuffer"):
@@ -52,7 +52,7 @@ def test_scenes_without_parameters_refuse_them_and_name_those_that_take_them():
 
 def test_parameter_sets_are_scenes_of_their_own(renderer):
     from dbench import datasets
-    from dbench.datasets import scenes
+    from dbench.datasets.scenes import catalogue as scenes
     fog = scenes.get("fog-transient")
     # the defaults, however spelt, are the catalogue scene (same cache entries)
     assert scenes.get("fog-transient", {"g": "0.30", "emission": "pulse"}) is fog
@@ -76,7 +76,7 @@ def test_parameter_sets_are_scenes_of_their_own(renderer):
     assert datasets.scene_fingerprint(step, 16) != datasets.scene_fingerprint(cornell, 16)
     assert step.window() == cornell.window() and step.needs_passes
     # a changed medium or scattering order takes the range window; emission keeps it
-    from dbench.datasets.transient_media import FOG_RANGE_WINDOW
+    from dbench.datasets.transient.media import FOG_RANGE_WINDOW
     assert (a.window_start, a.window_end) == FOG_RANGE_WINDOW
     fstep = scenes.get("fog-transient", {"emission": "step"})
     assert (fstep.window_start, fstep.window_end) == (fog.window_start, fog.window_end)
@@ -87,7 +87,8 @@ def test_parameter_sets_are_scenes_of_their_own(renderer):
 
 
 def test_step_and_multiple_force_collector_a():
-    from dbench.datasets import scenes, transient as tr
+    from dbench.datasets.scenes import catalogue as scenes
+    from dbench.datasets.transient import load as tr
     step = scenes.get("cornell-transient", {"emission": "step"})
     assert tr._resolve_collector(step, "auto") == "a"
     assert tr._resolve_collector(scenes.get("cornell-transient"), "auto") == "b"
@@ -125,7 +126,7 @@ def test_list_shows_the_declared_parameters(capsys):
 
 def test_hg_g_changes_the_render_and_the_cache_entry(tr, tmp_cache):
     from dbench import datasets
-    from dbench.datasets import scenes
+    from dbench.datasets.scenes import catalogue as scenes
     kw = dict(spp=16, res=8, bins=20, needs={"color"}, cache=tmp_cache, progress=False)
     out = {g: datasets.load(scenes.get("fog-transient", {"g": g}), **kw) for g in ("-0.6", "0.6")}
     assert out["-0.6"].meta["rendered"] == ["color"] == out["0.6"].meta["rendered"]
@@ -143,7 +144,7 @@ def test_hg_g_changes_the_render_and_the_cache_entry(tr, tmp_cache):
 def test_step_is_the_cumsum_of_the_pulse_colour_statistics_and_reference(tr):
     """docs/transient.md §7 check 5, and collector (a)'s per-bin statistics of a step scene are
     those of the cumsum'd 1-spp passes (each path's cumulative contributions)."""
-    from dbench.datasets import scenes
+    from dbench.datasets.scenes import catalogue as scenes
     from dbench.datasets.stats import stats_from_samples
     pulse = scenes.get("cornell-transient")
     step = scenes.get("cornell-transient", {"emission": "step"})
@@ -178,7 +179,7 @@ def test_multiple_scattering_is_all_minus_single_pass_by_pass(tr):
     path of two or more scattering vertices."""
     import dataclasses
 
-    from dbench.datasets import scenes
+    from dbench.datasets.scenes import catalogue as scenes
     kw = dict(res=8, spp=4, seed=2, bins=24, copies=1)
     sc = scenes.get("fog-transient", {"scattering": "multiple"})
     # the same window (the range window) for all three
@@ -206,7 +207,7 @@ def test_cloud_renders_and_holds_its_energy(tr, tmp_cache):
 
 def test_fog_unwarped_window_starts_earlier_and_holds_its_energy(tr, tmp_cache):
     from dbench import datasets
-    from dbench.datasets import scenes
+    from dbench.datasets.scenes import catalogue as scenes
     fog, unwarped = scenes.get("fog-transient"), scenes.get("fog-unwarped")
     assert unwarped.camera_unwarp and unwarped.window_start < 0 < fog.window_start
     assert unwarped.window_end < fog.window_end
@@ -221,7 +222,7 @@ def test_unwarped_media_subtract_the_distance_to_the_first_surface(tr):
     surface, not to the first scattering event: with camera and point light at the origin, a
     wall at z = 2 and fog in 0.5 ≤ z ≤ 1.5 on the axis, single scattering at depth z lands at
     OPL 2z − 2 ∈ [−1, 1] (world time: z), the wall at 2 (= its world time)."""
-    from dbench.datasets.transient_window import direct_arrival_dict
+    from dbench.datasets.transient.window import direct_arrival_dict
     mi = tr.mitsuba()
     window = tr.Window(-1.5, 0.02, 200)
     d = direct_arrival_dict(mi, 5, window, unwarp=True, fov=2.0)
@@ -242,8 +243,8 @@ def test_gridvolume_media_lose_null_collision_steps(tr):
     (gridvolume) medium of majorant 20 /m and almost no density, mitransient 1.3.1 puts the
     wall's direct arrival ≈ 0.95 m early (null-collision steps are not added to the OPL); a
     homogeneous medium and the cloud's null shells keep it at OPL 4.0 (spec §7 check 2)."""
-    from dbench.datasets.transient_media import _shell, _sphere_mesh, homogeneous
-    from dbench.datasets.transient_window import direct_arrival_dict
+    from dbench.datasets.transient.media import _shell, _sphere_mesh, homogeneous
+    from dbench.datasets.transient.window import direct_arrival_dict
     mi = tr.mitsuba()
     T = mi.ScalarTransform4f
     window = tr.Window(1.49, 0.02, 200)
@@ -288,7 +289,7 @@ def test_new_catalogue_windows_hold_99_percent(tr, name):
     """The catalogue's sizing (24² px, 256 spp, seed 0) reproduces the window with ≥ 99 % of
     the steady energy inside and none before it; an independent render at 32² px agrees
     within its noise (measured at 64² px, 64 spp: cloud 0.9910, fog-unwarped 0.9924)."""
-    from dbench.datasets import scenes
+    from dbench.datasets.scenes import catalogue as scenes
     sc = scenes.get(name)
     r = tr.size_window(sc, coverage=0.99, res=24, spp=256)
     assert r["fraction_before_start"] == 0.0 and r["fraction_inside"] >= 0.99
@@ -309,7 +310,7 @@ def test_new_catalogue_windows_hold_99_percent(tr, name):
     ("cloud-transient", {"scattering": "multiple", "emission": "step"}),
 ])
 def test_range_windows_hold_99_percent_at_the_corners(tr, name, given):
-    from dbench.datasets import scenes
+    from dbench.datasets.scenes import catalogue as scenes
     sc = scenes.get(name, given)
     out = tr.collect_passes(sc, 24, 128, seed=3, stats=None)
     assert out.energy_fraction >= 0.99, (name, given, out.energy_fraction)

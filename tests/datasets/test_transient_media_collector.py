@@ -12,7 +12,7 @@ RES, BINS, SPP = 8, 20, 4
 
 @pytest.fixture(scope="module")
 def fog(tr):
-    from dbench.datasets import scenes
+    from dbench.datasets.scenes import catalogue as scenes
     sc = scenes.get("fog-transient")
     assert sc.integrator == "transient_prbvolpath"
     return sc
@@ -64,7 +64,7 @@ def test_media_default_slots_never_overflow(tr, fog):
 def _null_emitters(mi, res):
     """Two emitting null-BSDF rectangles in front of an emitting diffuse one: a camera ray picks
     up three emitter hits before its first real vertex, more than 2·max_depth = 2 slots."""
-    from dbench.datasets.scene_parts import camera_dict, diffuse_bsdf, rect_shape
+    from dbench.datasets.scenes.parts import camera_dict, diffuse_bsdf, rect_shape
     T = mi.ScalarTransform4f
     d = {"type": "scene",
          "sensor": camera_dict(mi, res, origin=[0, 0, 3], target=[0, 0, 0], fov=20)}
@@ -110,7 +110,7 @@ def test_media_collector_exact_with_null_collisions_and_unwarping(tr, name):
     """The heterogeneous cloud (null collisions, ratio-tracked next-event estimation) and the
     unwarped fog (OPL starting below 0) take the other branches of the integrator: still
     bit-identical to collector (a)."""
-    from dbench.datasets import scenes
+    from dbench.datasets.scenes import catalogue as scenes
     if name not in scenes.available():
         pytest.skip(f"{name} is not in this catalogue")
     sc = scenes.get(name)

@@ -44,7 +44,7 @@ def test_loss_values_and_weights():
 
 
 def test_training_scenes_are_not_evaluation_scenes(renderer):
-    from dbench.datasets import scenes
+    from dbench.datasets.scenes import catalogue as scenes
 
     names = [training_scene(i).name for i in range(6)]
     assert not set(names) & set(scenes.available())

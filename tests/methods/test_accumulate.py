@@ -213,7 +213,7 @@ def test_expected_distance_uses_the_previous_camera_origin():
 
 
 def test_behind_previous_camera_is_never_valid():
-    from dbench.datasets.sequence import look_at_matrix, motion_vectors
+    from dbench.datasets.sequence.load import look_at_matrix, motion_vectors
 
     cam = {"to_world": look_at_matrix((0, 0, 0), (0, 0, 1)).tolist(), "fov": 40.0,
            "fov_axis": "x", "width": 4, "height": 4}

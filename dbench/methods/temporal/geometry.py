@@ -71,7 +71,7 @@ def _frame_array(frame: Any, name: str, h: int, w: int, c: int, required: bool):
 
 
 #: The normal buffers a filter may read for its feature normals (seed 001 §1.2.1): the shading
-#: normal, the geometric (face) normal, the glossy reflected normal (dbench.datasets.psr).
+#: normal, the geometric (face) normal, the glossy reflected normal (dbench.datasets.sequence.psr).
 NORMAL_BUFFERS = ("normal", "geo_normal", "reflected_normal")
 
 

@@ -1,0 +1,1 @@
+"""Renders from other renderers as folders of EXR files (OIDN's layout, multi-layer EXR), their layers and normal encoding, their reference judged, and dbench's frames exported in that layout (docs/formats.md)."""

@@ -1,0 +1,153 @@
+"""Write dbench frames as a folder that :mod:`dbench.datasets.folders.load` (and OIDN's tools) read.
+
+The layout is OIDN's training-set layout with dbench's extra tags (docs/formats.md §1):
+
+=================================  =========================================================
+file                               content
+=================================  =========================================================
+``<name>_<spp:04d>.hdr.exr``       colour, channels ``R,G,B``
+``<name>_<spp:04d>.alb.exr``       albedo, ``R,G,B``
+``<name>_<spp:04d>.nrm.exr``       normal in [-1, 1] (signed, as OIDN stores them), ``R,G,B``
+``<name>_<spp:04d>.pos.exr``       position, ``R,G,B``
+``<name>_<spp:04d>.depth.exr``     depth, ``depth.Z`` (:func:`dbench.io.write_exr` naming)
+``<name>_<spp:04d>.emitter.exr``   emitter coverage, ``emitter.Z``
+``<name>_<spp:04d>.mv.exr``        motion, ``motion.c0``, ``motion.c1``
+``<name>_<spp:04d>.stats.npz``     float64 ``n``, ``mean``, ``var_mean``, ``m3``, ``transform``,
+                                   ``lam`` (and ``diagnostics`` as JSON text)
+``<name>_ref.hdr.exr``             the reference, ``R,G,B``
+``<name>_ref.var.exr``             σ² = reference_var · ref_spp, ``R,G,B`` (the variance of one
+                                   sample, pbrt-v4's convention, so that the reader's division
+                                   by ref_spp gives reference_var back)
+``dataset.json``                   :func:`write_dataset_json`
+=================================  =========================================================
+
+The ``.stats.npz`` format is read here too (:func:`read_stats_npz`), so that one module owns
+it. Three-channel files carry plain ``R,G,B``, what OIDN's scripts and image viewers read; the
+others use dbench's own naming. ``<name>`` gains ``_f<frame:04d>`` for a frame of a sequence.
+EXR holds float32 losslessly (ZIP), so buffers read back bit-identical; only the reference
+variance goes through a float32 product and quotient (relative error below 1e-6).
+Every write is atomic. ``gradient`` and ``emission`` have no place in the layout and are not
+written.
+
+Example:
+    >>> export_frame(frame, "out/kitchen", "kitchen", 16)   # doctest: +SKIP
+    >>> write_dataset_json("out/kitchen", ref_spp=4096, ev=0.0)   # doctest: +SKIP
+"""
+from __future__ import annotations
+
+import json
+import os
+import zipfile
+from pathlib import Path
+
+import numpy as np
+
+from ...data import Frame, SampleStats, check_count
+from ...errors import DbenchInputError
+from ...io import atomic_path, write_exr, write_json
+from .exr_layers import write_channels
+
+#: Frame buffer → file tag.
+TAG_OF = {"albedo": "alb", "normal": "nrm", "position": "pos", "depth": "depth",
+          "emitter": "emitter", "motion": "mv"}
+
+
+def _rgb(path: Path, image: np.ndarray) -> None:
+    write_channels(path, {c: image[..., i] for i, c in enumerate("RGB")})
+
+
+def write_stats_npz(path: str | os.PathLike, stats: SampleStats) -> None:
+    """Write ``stats`` as float64 arrays plus transform and λ, atomically."""
+    with atomic_path(path, suffix=".tmp.npz") as tmp, open(tmp, "wb") as fh:
+        np.savez(fh, n=stats.n, mean=stats.mean, var_mean=stats.var_mean, m3=stats.m3,
+                 transform=np.array(stats.transform), lam=np.array(float(stats.lam)),
+                 diagnostics=np.array(json.dumps(stats.diagnostics, default=int)))
+
+
+def read_stats_npz(path: Path, shape: tuple[int, ...] | None = None, *,
+                   transform_only: bool = False):
+    """The SampleStats in a ``.stats.npz`` (checked against ``shape`` when given), or only its
+    transform name (reading no arrays); a DbenchInputError naming the file when unreadable."""
+    keys = {"n", "mean", "var_mean", "m3", "transform", "lam"}
+    try:
+        if not zipfile.is_zipfile(path):
+            raise ValueError("not an .npz archive")
+        with np.load(path, allow_pickle=False) as z:
+            if keys - set(z.files):
+                raise ValueError(f"lacks {sorted(keys - set(z.files))}; expected {sorted(keys)}")
+            if transform_only:
+                return str(z["transform"])
+            arrays = {k: z[k] for k in z.files}
+        diagnostics = json.loads(str(arrays["diagnostics"])) if "diagnostics" in arrays else {}
+        stats = SampleStats(n=arrays["n"], mean=arrays["mean"], var_mean=arrays["var_mean"],
+                            m3=arrays["m3"], transform=str(arrays["transform"]),
+                            lam=float(arrays["lam"]), diagnostics=diagnostics)
+    except Exception as exc:  # noqa: BLE001 - bad zip, missing key, bad shape alike
+        raise DbenchInputError(f"{path}: not a readable statistics file ({exc})") from None
+    if shape is not None and stats.shape != tuple(shape):
+        raise DbenchInputError(f"{path}: statistics of shape {stats.shape}; expected {shape}")
+    return stats
+
+
+def export_frame(frame: Frame, out_dir: str | os.PathLike, name: str, spp: int, *,
+                 frame_index: int | None = None, write_reference: bool = True) -> list[Path]:
+    """Write the buffers ``frame`` has into ``out_dir`` (table in the module docstring).
+
+    Args:
+        frame: a :class:`~dbench.data.Frame`; ``meta["ref_spp"]`` is needed when it carries
+            ``reference_var``.
+        out_dir: the folder (created when missing).
+        name: view name, the prefix of every file; it must not contain a path separator.
+        spp: the spp written into the noisy files' names.
+        frame_index: frame number of a sequence frame (names get ``_f<frame:04d>``), or None.
+        write_reference: also write the reference and its variance (when the frame has them).
+    Returns:
+        The paths written, in order.
+    """
+    if not isinstance(frame, Frame):
+        raise DbenchInputError(f"frame: expected a Frame, got {type(frame).__name__}")
+    if not name or os.sep in name or "/" in name:
+        raise DbenchInputError(f"name: {name!r}; expected a non-empty view name without '/'")
+    spp = check_count("spp", spp)
+    out = Path(out_dir)
+    base = name if frame_index is None else f"{name}_f{int(frame_index):04d}"
+    noisy = f"{base}_{spp:04d}"
+    written: list[Path] = []
+
+    def put(path: Path, write, *args) -> None:
+        write(path, *args)
+        written.append(path)
+
+    put(out / f"{noisy}.hdr.exr", _rgb, frame.color)
+    for buffer, tag in TAG_OF.items():
+        value = getattr(frame, buffer)
+        if value is None:
+            continue
+        if value.shape[-1] == 3:
+            put(out / f"{noisy}.{tag}.exr", _rgb, value)
+        else:
+            put(out / f"{noisy}.{tag}.exr", write_exr, {buffer: value})
+    if frame.stats is not None:
+        put(out / f"{noisy}.stats.npz", write_stats_npz, frame.stats)
+    if write_reference and frame.reference is not None:
+        put(out / f"{base}_ref.hdr.exr", _rgb, frame.reference)
+        if frame.reference_var is not None:
+            ref_spp = frame.meta.get("ref_spp")
+            if ref_spp is None:
+                raise DbenchInputError("frame.meta['ref_spp']: missing; needed to store "
+                                       "reference_var as per-sample variance (σ² = var·ref_spp)")
+            ref_spp = check_count("meta['ref_spp']", ref_spp)
+            sigma2 = (frame.reference_var.astype(np.float64) * ref_spp).astype(np.float32)
+            put(out / f"{base}_ref.var.exr", _rgb, sigma2)
+    return written
+
+
+def write_dataset_json(out_dir: str | os.PathLike, *, ref_spp: int | None, ev: float,
+                       description: str = "", scene: str = "") -> Path:
+    """Write ``out_dir/dataset.json`` (ref_spp, ev, normals "signed", description, scene)."""
+    if ref_spp is not None:
+        ref_spp = check_count("ref_spp", ref_spp)
+    path = Path(out_dir) / "dataset.json"
+    write_json(path, {"ref_spp": ref_spp, "ev": float(ev), "normals": "signed",
+                      "description": str(description), "scene": str(scene)})
+    return path

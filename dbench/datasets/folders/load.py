@@ -1,0 +1,465 @@
+"""Renders from a folder of EXR files: the OIDN training-set layout and multi-layer EXR files.
+
+A folder holds one or more *views*; every file name starts with the view name (docs/formats.md
+§1-2):
+
+``<view>_<spp>.<tag>.exr``
+    One buffer per file (OIDN layout). ``<spp>`` is digits, zero padding allowed, optionally
+    followed by ``spp``; ``ref``, ``reference``, ``gt`` or ``target`` instead names the
+    reference. Tags: ``hdr`` colour, ``alb`` albedo, ``nrm`` normal (OIDN's), and dbench's
+    ``depth`` (1 channel), ``pos`` position, ``emitter`` (1 channel, in [0, 1]), ``var`` the
+    variance σ² of ONE sample of the colour (pbrt-v4's ``Variance`` convention; the variance
+    of the mean is σ²/spp), ``mv`` motion (2 channels). ``ldr`` and ``sh1x/y/z`` files are
+    recognised and ignored (listed in :attr:`FolderInfo.ignored`).
+``<view>_<spp>.exr``, ``<view>_ref.exr``
+    Several buffers as named channels (Mitsuba's ``aov`` integrator, pbrt-v4's gbuffer film,
+    dbench's :func:`dbench.io.write_exr`), resolved by the alias table of
+    :mod:`dbench.datasets.folders.exr_layers`. One-buffer and multi-layer files may be mixed; one
+    buffer of one spp found in two files is an error naming both.
+``<view>_<spp>.stats.npz``
+    dbench's exact float64 statistics (``n``, ``mean``, ``var_mean``, ``m3``, ``transform``,
+    ``lam``: the fields of :class:`~dbench.data.SampleStats`), preferred over a variance image.
+``<view>_f<frame>_<spp>.<tag>.exr``
+    Numbered frames of a sequence (``walk_f0003_0004.hdr.exr``, motion in ``.mv.exr``); every
+    frame must have the files the others have.
+``dataset.json`` (optional)
+    ``{"ref_spp": int, "ev": float, "normal_encoding": "signed"|"unsigned", "description":
+    str, "scene": str}`` (``"normals"``, as :mod:`dbench.datasets.folders.export` writes it, is read
+    as ``"normal_encoding"``).
+
+Reference: the named one; without one the highest spp serves and is not offered as a noisy spp
+(``reference_from == "highest-spp"``); a single spp and no reference is an error. It is judged,
+not trusted (:mod:`dbench.datasets.folders.reference`): its variance of the mean comes from its
+``var`` image / ``Variance`` divided by ``ref_spp`` (or an identity-transform ``.stats.npz``'s
+``var_mean``), else is estimated from its spp and the noisy series, or from the series'
+convergence; when nothing gives it the frame has no ``reference_var``, ``meta["ref_rmse"]`` is
+NaN (reports say "unknown", never 0) and ``meta["ref_var_known"]`` is False. A reference no
+better than the noisy input gets ``meta["reference_warning"]``. Features missing for an spp are
+taken from the reference's files (OIDN training sets may store clean features once). Normals
+stored as n·0.5 + 0.5 are detected at scan time on the first normal image
+(:mod:`dbench.datasets.folders.normals`) and decoded to [-1, 1] for the whole view; ``dataset.json``
+"normal_encoding" overrides the detection. ``meta["layers_read"]`` and
+``meta["layers_ignored"]`` list the files and channels a load read and those it left.
+
+A folder with several views is selected by ``DIR/NAME`` (a path whose parent is the folder and
+whose last part is the view name).
+
+Example:
+    >>> info = scan_folder("renders/kitchen")                      # doctest: +SKIP
+    >>> info.spps, info.reference_from, sorted(info.buffers)       # doctest: +SKIP
+    ((4, 16), 'file', ['albedo', 'color', 'normal', 'reference'])
+    >>> frame = load_folder(info, 4, needs={"albedo"})             # doctest: +SKIP
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Iterable
+
+import numpy as np
+
+from ...data import Frame, SampleStats
+from ...errors import DbenchInputError
+from ...resolution import Res
+from . import exr_layers as xl
+from .export import read_stats_npz
+from .reference import folder_reference
+from .normals import resolve as resolve_normals
+
+TAGS = {"hdr": "color", "alb": "albedo", "nrm": "normal", "depth": "depth", "pos": "position",
+        "emitter": "emitter", "var": "variance", "mv": "motion"}
+IGNORED_TAGS = ("ldr", "sh1x", "sh1y", "sh1z")
+#: Buffers that come from an spp's own files or, failing that, from the reference's.
+FEATURES = ("albedo", "normal", "depth", "position", "emitter", "motion")
+REF_KEYS = ("ref", "reference", "gt", "target")
+STATS_FROM_VARIANCE = "variance image (identity transform, no third moment)"
+PATTERNS = ("<name>_<spp>.<tag>.exr (tag: hdr, alb, nrm, depth, pos, emitter, var, mv, ldr, "
+            "sh1x/y/z)", "<name>_ref.<tag>.exr", "<name>_<spp>.exr (multi-layer)",
+            "<name>_<spp>.stats.npz", "<name>_f<frame>_<spp>.<tag>.exr")
+_NAME = re.compile(
+    r"(?P<view>.+?)(?:_f(?P<frame>\d+))?_(?P<key>\d+(?:spp)?|ref|reference|gt|target)"
+    r"(?:\.(?P<tag>hdr|ldr|sh1[xyz]|alb|nrm|depth|pos|emitter|var|mv|stats))?\.(?P<ext>exr|npz)",
+    re.I)
+
+
+@dataclass(frozen=True, eq=False)
+class FolderInfo:
+    """What :func:`scan_folder` found for one view (see the module docstring).
+
+    ``normals`` is resolved at scan time (declared in ``dataset.json`` or detected on the
+    first normal image). ``fingerprint``: 16 hex chars of sha256 over (file name, bytes) of every
+    file the view uses, plus ``dataset.json``. ``ignored``: files recognised but unused.
+    ``reference_from`` is never None from :func:`scan_folder` (a view without any reference is
+    an error there); ``ref_spp`` is None for a named reference unless ``dataset.json`` gives it.
+    """
+
+    path: Path
+    name: str
+    width: int
+    height: int
+    spps: tuple[int, ...]
+    ref_spp: int | None
+    reference_from: str | None
+    buffers: frozenset[str]
+    stats_source: str | None
+    frames: tuple[int, ...] | None
+    ev: float
+    normals: str
+    fingerprint: str
+    ignored: tuple[str, ...]
+    #: {(frame or None, spp or "ref"): {buffer: exr_layers.Layer, or Path for "stats"}}
+    _plan: dict = field(default_factory=dict, repr=False)
+    _meta: dict = field(default_factory=dict, repr=False)
+
+
+def _parse(name: str) -> re.Match | None:
+    m = _NAME.fullmatch(name)
+    if m is None or (m["ext"].lower() == "npz") != ((m["tag"] or "").lower() == "stats"):
+        return None
+    if m["ext"].lower() == "npz" and m["key"].lower() in REF_KEYS:
+        return None
+    return m
+
+
+def _listing(folder: Path) -> list[str]:
+    # Hidden names are skipped: atomic writes leave ".<name>.*.tmp.exr" while in flight.
+    return sorted(p.name for p in folder.iterdir() if p.is_file() and not p.name.startswith("."))
+
+
+def _select(path: Path) -> tuple[Path, str, list[str], list[str]]:
+    """(folder, view, the view's files, unrecognised EXR files)."""
+    if path.is_dir():
+        folder, want = path, None
+    elif path.parent.is_dir() and path.name:
+        folder, want = path.parent, path.name
+    else:
+        raise DbenchInputError(f"{path}: no such folder (expected a folder of EXR files or "
+                               "DIR/NAME selecting one view)")
+    names = _listing(folder)
+    parsed = {n: m for n in names if (m := _parse(n)) is not None}
+    views = sorted({m["view"] for m in parsed.values()})
+    unknown = [n for n in names if n not in parsed and n.lower().endswith(".exr")]
+    if not views:
+        found = ", ".join(names[:12]) + (" …" if len(names) > 12 else "") if names else "nothing"
+        raise DbenchInputError(f"{path}: no renders in a known layout (found {found}); "
+                               f"expected {'; '.join(PATTERNS)}")
+    if want is None and len(views) > 1:
+        raise DbenchInputError(f"{folder}: holds several views ({', '.join(views)}); pass "
+                               f"{folder}/NAME to choose one, e.g. {folder / views[0]}")
+    view = want or views[0]
+    if view not in views:
+        raise DbenchInputError(f"{path}: no files of view {view!r} in {folder} (views: "
+                               f"{', '.join(views)})")
+    return folder, view, [n for n, m in parsed.items() if m["view"] == view], unknown
+
+
+def _read_dataset_json(folder: Path) -> dict:
+    path = folder / "dataset.json"
+    if not path.exists():
+        return {}
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        raise DbenchInputError(f"{path}: not readable JSON ({exc})") from None
+    kinds = {"ref_spp": int, "ev": (int, float), "normal_encoding": str, "normals": str,
+             "description": str, "scene": str}
+    if not isinstance(data, dict):
+        raise DbenchInputError(f"{path}: expected a JSON object with keys {sorted(kinds)}")
+    for key, value in data.items():
+        if key in kinds and value is not None and (not isinstance(value, kinds[key])
+                                                   or isinstance(value, bool)):
+            raise DbenchInputError(f"{path}: {key!r} has the wrong type ({value!r})")
+    for key in ("normal_encoding", "normals"):  # "normals": the exporter's spelling
+        if data.get(key) not in (None, "signed", "unsigned"):
+            raise DbenchInputError(f"{path}: {key} {data[key]!r}; expected \"signed\" or "
+                                   "\"unsigned\"")
+    if None not in (data.get("normal_encoding"), data.get("normals")) \
+            and data["normal_encoding"] != data["normals"]:
+        raise DbenchInputError(f"{path}: normal_encoding {data['normal_encoding']!r} and "
+                               f"normals {data['normals']!r} disagree; expected one")
+    if data.get("ref_spp") is not None and data["ref_spp"] < 1:
+        raise DbenchInputError(f"{path}: ref_spp {data['ref_spp']}; expected an integer >= 1")
+    return data
+
+
+def _check_frames(folder: Path, files: list[str]) -> tuple[int, ...] | None:
+    """Sorted frame numbers, or None; a frame lacking a file the others have is an error."""
+    matches = {n: _parse(n) for n in files}
+    numbered = [n for n, m in matches.items() if m["frame"] is not None]
+    if not numbered:
+        return None
+    if len(numbered) != len(files):
+        plain = sorted(set(files) - set(numbered))[0]
+        raise DbenchInputError(f"{folder / plain}: no frame number, while other files of this "
+                               "view have one (_f<frame>); expected all or none")
+    pattern = {}
+    for n in numbered:
+        m = matches[n]
+        pattern.setdefault(int(m["frame"]), {})[
+            n[:m.start("frame")] + "#" + n[m.end("frame"):]] = m["frame"]
+    every = set().union(*pattern.values())
+    for k in sorted(pattern):
+        for missing in sorted(every - set(pattern[k])):
+            width = len(next(iter(pattern[k].values())))
+            raise DbenchInputError(f"{folder / missing.replace('#', f'{k:0{width}d}')}: missing; "
+                                   f"frame {k} lacks a file the other frames have")
+    return tuple(sorted(pattern))
+
+
+def _add(slot: dict, buffer: str, source, folder: Path) -> None:
+    old = slot.get(buffer)
+    if old is not None:
+        old_file = old if isinstance(old, Path) else old.file
+        new_file = source if isinstance(source, Path) else source.file
+        raise DbenchInputError(f"{new_file}: {buffer} is also in {old_file.name}; expected "
+                               f"one file per buffer in {folder}")
+    slot[buffer] = source
+
+
+def _build_plan(folder: Path, files: list[str]):
+    """{(frame, key): {buffer: Layer | Path}}, the (H, W) of every EXR, unused channels."""
+    plan: dict = {}
+    size: tuple[tuple[int, int], str] | None = None
+    unused: dict[str, list[str]] = {}
+    ignored = []
+    for name in files:
+        m = _parse(name)
+        tag = (m["tag"] or "").lower()
+        if tag in IGNORED_TAGS:
+            ignored.append(name)
+            continue
+        key = m["key"].lower()
+        key = "ref" if key in REF_KEYS else int(key.removesuffix("spp"))
+        slot = plan.setdefault((None if m["frame"] is None else int(m["frame"]), key), {})
+        path = folder / name
+        if tag == "stats":
+            _add(slot, "stats", path, folder)
+            continue
+        hw, channels = xl.exr_header(path)
+        if size is None:
+            size = (hw, name)
+        elif hw != size[0]:
+            raise DbenchInputError(
+                f"{path}: {hw[1]}x{hw[0]} pixels, while {size[1]} has {size[0][1]}x"
+                f"{size[0][0]} (width x height); expected one size for the whole view")
+        if tag:
+            _add(slot, TAGS[tag], xl.layer_for_tag(path, channels, TAGS[tag]), folder)
+        else:
+            layers, left = xl.layers_of(path, channels)
+            for buffer, layer in layers.items():
+                _add(slot, buffer, layer, folder)
+            if left:
+                unused[name] = left
+    if size is None:
+        raise DbenchInputError(f"{folder}: no EXR image of this view (found {', '.join(files)})"
+                               f"; expected {'; '.join(PATTERNS)}")
+    return plan, size[0], unused, ignored
+
+
+def _fingerprint(folder: Path, names: Iterable[str]) -> str:
+    h = hashlib.sha256()
+    for name in sorted(set(names)):
+        h.update(name.encode() + b"\0")
+        with open(folder / name, "rb") as fh:
+            data = fh.read()
+        h.update(len(data).to_bytes(8, "little") + data)
+    return h.hexdigest()[:16]
+
+
+def scan_folder(path: str | os.PathLike) -> FolderInfo:
+    """Find one view's renders in ``path`` (a folder, or DIR/NAME) and check them.
+
+    Reads EXR headers, the first normal image (encoding detection) and every file's bytes
+    (fingerprint); no other pixels. Every inconsistency is a DbenchInputError naming a file.
+    """
+    folder, view, files, unknown = _select(Path(path))
+    info_json = _read_dataset_json(folder)
+    frames = _check_frames(folder, files)
+    plan, (h, w), unused, ignored = _build_plan(folder, files)
+    fr = frames[0] if frames else None
+    spps = sorted(k for f, k in plan if f == fr and k != "ref")
+    if not spps:
+        raise DbenchInputError(f"{folder / sorted(files)[0]}: only a reference, no noisy image; "
+                               f"expected {view}_<spp>.hdr.exr beside it")
+    declared = info_json.get("ref_spp")
+    if (fr, "ref") in plan:
+        reference_from, ref_spp = "file", declared
+    elif len(spps) >= 2:
+        reference_from, ref_spp = "highest-spp", spps.pop()
+        if declared is not None and declared != ref_spp:
+            raise DbenchInputError(f"{folder / 'dataset.json'}: ref_spp {declared}, but no "
+                                   f"reference is named and the highest spp is {ref_spp}")
+        for f in {f for f, _ in plan}:
+            plan[(f, "ref")] = plan.pop((f, ref_spp))
+    else:
+        one = sorted(files)[0]
+        raise DbenchInputError(
+            f"{folder / one}: the only spp ({spps[0]}) and no reference; "
+            f"expected {view}_ref.hdr.exr (or _reference/_gt/_target) or a second spp")
+    for (f, key), slot in plan.items():
+        if "color" not in slot:
+            some = next(iter(slot.values()))
+            some = some if isinstance(some, Path) else some.file
+            label = "the reference" if key == "ref" else f"spp {key}"
+            raise DbenchInputError(f"{some}: no colour image for {label}; expected "
+                                   f"{some.name.split('.')[0]}.hdr.exr or R,G,B channels in "
+                                   f"{some.name.split('.')[0]}.exr")
+    slots = [plan[(fr, s)] for s in spps]
+    ref = plan[(fr, "ref")]
+    buffers = {"color", "reference"}
+    buffers |= {b for b in FEATURES if all(b in s or b in ref for s in slots)}
+    sources = ["stats" if "stats" in s else "variance" if "variance" in s else None
+               for s in slots]
+    stats_source = None
+    if None not in sources:
+        buffers.add("stats")
+        parts: dict[str, list[int]] = {}
+        for s, spp, src in zip(slots, spps, sources):
+            desc = STATS_FROM_VARIANCE if src == "variance" else \
+                f"dbench statistics ({read_stats_npz(s['stats'], transform_only=True)})"
+            parts.setdefault(desc, []).append(spp)
+        stats_source = (next(iter(parts)) if len(parts) == 1 else
+                        "; ".join(f"{d} for spp {', '.join(map(str, v))}"
+                                  for d, v in parts.items()))
+    layer = next((s["normal"] for s in slots + [ref] if "normal" in s), None)
+    encoding = resolve_normals(
+        info_json.get("normal_encoding") or info_json.get("normals"),
+        None if layer is None else xl.stack(xl.read_channels(layer.file), layer),
+        "" if layer is None else f"{layer.file.name} ({', '.join(layer.channels)})")
+    used = [n for n in files if n not in ignored]
+    if (folder / "dataset.json").exists():
+        used.append("dataset.json")
+    return FolderInfo(
+        path=folder, name=view, width=w, height=h, spps=tuple(spps), ref_spp=ref_spp,
+        reference_from=reference_from, buffers=frozenset(buffers), stats_source=stats_source,
+        frames=frames, ev=float(info_json.get("ev", 0.0) or 0.0),
+        normals=encoding.encoding if encoding else "signed",
+        fingerprint=_fingerprint(folder, used), ignored=tuple(sorted(ignored + unknown)),
+        _plan=plan, _meta={"unused_channels": unused, "description":
+                           info_json.get("description", ""), "declared_scene":
+                           info_json.get("scene", ""),
+                           "normal_encoding": encoding.text if encoding else "",
+                           "normal_warning": encoding.warning if encoding else ""})
+
+
+def is_folder_scene(text: str) -> bool:
+    """True when ``text`` names an existing folder, or DIR/NAME where DIR holds files of view
+    NAME in a known layout. Never raises."""
+    try:
+        p = Path(text)
+        if text and p.is_dir():
+            return True
+        if not p.name or not p.parent.is_dir():
+            return False
+        return bool(text) and any((m := _parse(n)) is not None and m["view"] == p.name
+                   for n in _listing(p.parent))
+    except (OSError, ValueError):
+        return False
+
+
+class _Reader:
+    """Reads each EXR file once per load and checks what every buffer must satisfy."""
+
+    def __init__(self) -> None:
+        self.cache: dict[Path, dict[str, np.ndarray]] = {}
+        self.layers: list[xl.Layer] = []
+
+    def __call__(self, layer: xl.Layer) -> np.ndarray:
+        if layer.file not in self.cache:
+            self.cache[layer.file] = xl.read_channels(layer.file)
+        if layer not in self.layers:
+            self.layers.append(layer)  # meta["layers_read"]
+        arr = xl.stack(self.cache[layer.file], layer)
+        # Motion is NaN wherever there is no previous position, everywhere on a first frame.
+        if layer.buffer != "motion" and np.isnan(arr).all():
+            raise DbenchInputError(f"{layer.file}: {layer.buffer} is NaN everywhere; expected "
+                                   "an image")
+        if layer.buffer == "emitter" and not (np.nanmin(arr) >= 0 and np.nanmax(arr) <= 1):
+            raise DbenchInputError(f"{layer.file}: emitter values in [{np.nanmin(arr)}, "
+                                   f"{np.nanmax(arr)}]; expected coverage in [0, 1]")
+        return arr
+
+
+def load_folder(info_or_path: FolderInfo | str | os.PathLike, spp: int,
+                needs: Iterable[str] | None = None, frame: int | None = None) -> Frame:
+    """A :class:`~dbench.data.Frame` of one spp with exactly the buffers in ``needs``.
+
+    Args:
+        info_or_path: a :class:`FolderInfo` or a path for :func:`scan_folder`.
+        spp: one of ``info.spps``.
+        needs: buffer names (``color`` always comes; None: every buffer in ``info.buffers``);
+            ``reference`` brings ``reference_var`` and, when the folder has one, ``emitter``.
+        frame: the frame number for a sequence folder (one of ``info.frames``), else None.
+    Returns:
+        Frame with (H, W, C) float32 buffers, ``stats`` as float64 SampleStats (exact from a
+        ``.stats.npz``; from a variance image: identity transform, var_mean = σ²/spp, m3 = 0)
+        and ``meta`` describing the files (module docstring).
+    """
+    info = info_or_path if isinstance(info_or_path, FolderInfo) else scan_folder(info_or_path)
+    where = f"{info.path}/{info.name}"
+    if info.frames is None and frame is not None:
+        raise DbenchInputError(f"{where}: frame {frame!r} asked of a view without numbered "
+                               "frames; expected frame=None")
+    if info.frames is not None and frame not in info.frames:
+        raise DbenchInputError(f"{where}: frame {frame!r}; expected one of {list(info.frames)}")
+    if isinstance(spp, bool) or spp not in info.spps:
+        raise DbenchInputError(f"{where}: spp {spp!r} is not offered; expected one of "
+                               f"{list(info.spps)}")
+    wanted = set(info.buffers if needs is None else needs) | {"color"}
+    missing = wanted - info.buffers
+    if missing:
+        raise DbenchInputError(f"{where}: no {', '.join(sorted(missing))} buffer; available: "
+                               f"{', '.join(sorted(info.buffers))}")
+    if "reference" in wanted and "emitter" in info.buffers:
+        wanted.add("emitter")
+    slot, ref = info._plan[(frame, spp)], info._plan[(frame, "ref")]
+    read = _Reader()
+    files: dict[str, str] = {"color": slot["color"].file.name}
+    color = read(slot["color"])
+    buffers: dict[str, np.ndarray] = {}
+    for b in sorted(wanted & set(FEATURES)):
+        layer = slot.get(b) or ref[b]
+        buffers[b] = read(layer)
+        files[b] = layer.file.name
+    if "normal" in buffers:
+        buffers["normal"] = xl.decode_normals(buffers["normal"], info.normals)
+    stats = None
+    if "stats" in wanted:
+        if "stats" in slot:
+            stats = read_stats_npz(slot["stats"], color.shape)
+            files["stats"] = slot["stats"].name
+        else:
+            sigma2 = read(slot["variance"]).astype(np.float64)
+            stats = SampleStats(n=float(spp), mean=color.astype(np.float64),
+                                var_mean=sigma2 / spp, m3=np.zeros(color.shape),
+                                transform="identity", lam=0.5)
+            files["stats"] = slot["variance"].file.name
+    meta = {"scene": f"{info.path.name}/{info.name}", "kind": "steady", "spp": int(spp),
+            "res": Res(info.width, info.height).key, "source": "folder", "path": str(info.path),
+            "files": files, "normals": info.normals, "stats_source": info.stats_source,
+            "ref_spp": info.ref_spp, "reference_from": info.reference_from, "ev": info.ev,
+            "render_s": None, "cache_hits": [], "rendered": [],
+            "versions": {"variant": "files"}}
+    if frame is not None:
+        meta["frame"] = int(frame)
+    meta.update({k: v for k, v in info._meta.items() if v})
+    if "reference" in wanted:
+        buffers["reference"] = read(ref["color"])
+        files["reference"] = ref["color"].file.name
+        if not np.isfinite(buffers["reference"]).all():
+            raise DbenchInputError(f"{ref['color'].file}: reference contains NaN or Inf; "
+                                   "expected finite values")
+        # judged, not trusted: its noise estimated from what the folder holds ("unknown",
+        # never 0, when nothing does) and a warning when it is no better than the input
+        buffers["reference_var"], ref_meta = folder_reference(
+            info, frame, spp, read, files, buffers["reference"], buffers)
+        meta.update(ref_seed=None, **ref_meta)
+    if "normal" not in buffers:
+        meta.pop("normal_warning", None)  # a doubt about normals no method here reads
+    meta.update(xl.layers_report(read.layers, info.path, info.ignored))
+    return Frame(color=color, stats=stats, meta=meta, **buffers)
+

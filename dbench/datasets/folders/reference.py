@@ -1,0 +1,285 @@
+"""A folder's reference judged, not trusted: its noise estimated from what the folder holds, and
+a warning when it is no better than the noisy input it judges (README.md, "Renders from another
+renderer").
+
+The variance of the reference mean, ``reference_var``, comes from the first of these the folder
+allows; each says so in ``meta["ref_noise_source"]``:
+
+1. its variance image or identity statistics (``<view>_ref.var.exr``, a ``Variance``/``var``
+   layer of the reference EXR, ``<view>_ref.stats.npz``; σ² per sample ÷ ``ref_spp``);
+2. its spp (``ref_spp`` in ``dataset.json``, or the highest spp of a series serving as the
+   reference) and the noisy series: independent renders of one scene have a variance of the
+   mean σ²/spp, so E[(x_s − r)²] = σ²/s + σ²/R and the reference's share of it is s/(R + s);
+   per pixel, reference_var ≈ (x_s − r)² · s/(R + s), averaged over the series' spp (the
+   reference's error ≈ the noisy error × sqrt(s/R));
+3. the convergence of two or more noisy spp: the mean of (x_s − r)² over the image is fitted
+   as a/s + b (weighted least squares, each spp's weight its mean's standard error⁻²);
+   b is the reference's MSE when it is more than :data:`SIGNIFICANCE` standard errors above 0
+   (effective ref spp a/b), and reference_var is each (x_s − r)² scaled to mean b. b also
+   takes in any systematic difference between the noisy renders and the reference (another
+   renderer setting), which is part of the reference's error as far as the scores go. A b
+   resolved below 0 means the series converges to the reference faster than independent
+   renders would: the noisy images probably share the reference's samples (progressive
+   renders), and the reference's error is unknown;
+4. otherwise unknown: no ``reference_var``, ``meta["ref_rmse"]`` NaN (reports say "unknown",
+   never 0).
+
+The warning (``meta["reference_warning"]``, one sentence per finding joined by "; ") is given
+when the reference
+
+* equals a noisy image of the folder numerically (within half-float rounding,
+  :data:`EQUAL_RTOL`): every score would be against that render;
+* has no more spp than the noisy input (declared, or as its file name says);
+* or has an estimated relMSE, over surface pixels, of at least :data:`RATIO` times the noisy
+  input's own (its relMSE against the reference with the reference's share removed): a
+  reference with fewer than twice the noisy input's samples' worth.
+
+Surface pixels are those that are not directly visible lights (:func:`light_mask`): a light's
+absolute error dwarfs everything else, so it hides a noisy reference elsewhere.
+"""
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ...metrics.params import RELMSE_EPS
+
+#: A reference whose estimated relMSE is at least this share of the noisy input's is flagged.
+RATIO = 0.5
+#: Standard errors by which the convergence fit's reference MSE must clear 0.
+SIGNIFICANCE = 2.0
+#: Without an emitter buffer, pixels brighter than LIGHT_FACTOR × the reference's
+#: LIGHT_QUANTILE quantile (channel mean) count as lights.
+LIGHT_FACTOR = 4.0
+LIGHT_QUANTILE = 0.9
+#: Albedo at or below this in every channel is black (a light's or the sky's).
+BLACK_ALBEDO = 1e-4
+#: Relative difference under which two images are numerically equal: half-float rounding
+#: (2⁻¹¹ ≈ 4.9e-4) of a copy saved at another precision stays below it.
+EQUAL_RTOL = 1e-3
+
+
+def light_mask(reference: np.ndarray, albedo: np.ndarray | None = None,
+               emitter: np.ndarray | None = None) -> tuple[np.ndarray, str]:
+    """((H, W) bool surface pixels, the rule in words).
+
+    With an emitter buffer: pixels whose emitter fraction is 0 (the judge's surface). Without
+    one: pixels no brighter than :data:`LIGHT_FACTOR` × the reference's
+    :data:`LIGHT_QUANTILE` quantile, and, with an albedo, not black in albedo where the
+    reference is not (an emitter with a black BSDF, or the environment, seen directly).
+    """
+    r = np.nan_to_num(np.asarray(reference, np.float64)).mean(axis=-1)
+    if emitter is not None:
+        e = np.asarray(emitter, np.float64).reshape(r.shape)
+        return ~(e > 0), "emitter buffer 0"
+    q = float(np.quantile(r, LIGHT_QUANTILE))
+    light = r > LIGHT_FACTOR * q if q > 0 else np.zeros(r.shape, bool)
+    rule = (f"no brighter than {LIGHT_FACTOR:g}× the reference's "
+            f"{LIGHT_QUANTILE * 100:g}th percentile")
+    if albedo is not None:
+        a = np.nan_to_num(np.asarray(albedo, np.float64)).max(axis=-1)
+        light |= (a <= BLACK_ALBEDO) & (r > 0)
+        rule = "albedo not black where the reference is lit, and " + rule
+    return ~light, rule
+
+
+def _sq(x: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """(x − r)² in float64, NaN where x is not finite."""
+    d = np.asarray(x, np.float64) - r
+    with np.errstate(invalid="ignore", over="ignore"):
+        return np.where(np.isfinite(d), d * d, np.nan)
+
+
+def _filled(v: np.ndarray) -> np.ndarray:
+    """Non-finite entries (a noisy pixel that is not finite) get their channel's mean."""
+    mean = np.nanmean(v.reshape(-1, v.shape[-1]), axis=0)
+    return np.where(np.isfinite(v), v, np.nan_to_num(mean)).astype(np.float32)
+
+
+def equal(a: np.ndarray, b: np.ndarray) -> bool:
+    """Numerically equal images (within :data:`EQUAL_RTOL`)."""
+    a, b = np.asarray(a, np.float64), np.asarray(b, np.float64)
+    return a.shape == b.shape and bool(np.allclose(a, b, rtol=EQUAL_RTOL, atol=1e-7,
+                                                   equal_nan=True))
+
+
+def from_ref_spp(reference: np.ndarray, series: dict[int, np.ndarray], ref_spp: int
+                 ) -> np.ndarray:
+    """Estimate 2: mean over the series of (x_s − r)² · s/(R + s) (module docstring)."""
+    maps = [_sq(x, reference) * (s / (ref_spp + s)) for s, x in series.items()]
+    with np.errstate(invalid="ignore"):
+        return _filled(np.nanmean(np.stack(maps), axis=0))
+
+
+def convergence_fit(reference: np.ndarray, series: dict[int, np.ndarray]
+                    ) -> tuple[float, float, float]:
+    """(a, b, standard error of b) of mean (x_s − r)² = a/s + b (estimate 3)."""
+    spps = sorted(series)
+    d = [_sq(series[s], reference).mean(axis=-1) for s in spps]
+    ok = np.logical_and.reduce([np.isfinite(m) for m in d])
+    means = np.array([m[ok].mean() for m in d])
+    se = np.array([m[ok].std() / np.sqrt(max(int(ok.sum()), 1)) for m in d])
+    se = np.maximum(se, 1e-12 * np.maximum(means, 1e-30))
+    x = np.stack([1.0 / np.array(spps, np.float64), np.ones(len(spps))], axis=1)
+    wt = 1.0 / se ** 2
+    cov = np.linalg.inv(x.T @ (x * wt[:, None]))
+    a, b = cov @ (x.T @ (wt * means))
+    return float(a), float(b), float(np.sqrt(cov[1, 1]))
+
+
+def _estimate(reference, series, ref_spp, ref_spp_from, known) -> tuple[Any, str, dict]:
+    """(reference_var or None, meta["ref_noise_source"], extra meta)."""
+    if known is not None:
+        return known[0], known[1], {}
+    spps = ", ".join(map(str, sorted(series)))
+    if ref_spp:
+        return (from_ref_spp(reference, series, ref_spp),
+                f"estimated from the noisy series ({spps} spp) and the reference's {ref_spp} "
+                f"spp ({ref_spp_from}), assuming variance ∝ 1/spp in independent renders", {})
+    if len(series) < 2:
+        return (None, "unknown: no variance image or statistics of the reference, no ref_spp "
+                      "in dataset.json, and one noisy spp (a convergence estimate needs two)", {})
+    a, b, se = convergence_fit(reference, series)
+    if b > SIGNIFICANCE * se and a > 0:
+        # each image's squared differences scaled to mean b: the per-pixel shape of the
+        # noise, the fitted level
+        var = np.nanmean(np.stack([_sq(x, reference) * (b / np.nanmean(_sq(x, reference)))
+                                   for x in series.values()]), axis=0)
+        eff = a / b
+        return (_filled(var), f"estimated from the convergence of the noisy series ({spps} "
+                f"spp): reference MSE {b:.3g} ± {se:.2g}, worth about {eff:.0f} spp",
+                {"ref_spp_effective": float(eff)})
+    if b < -SIGNIFICANCE * se:
+        return (None, f"unknown: the noisy series ({spps} spp) converges to the reference "
+                      "faster than independent renders would (fitted reference MSE "
+                      f"{b:.3g} ± {se:.2g}); the noisy images probably share its samples",
+                {"nested": True})
+    bound = max(b, 0.0) + SIGNIFICANCE * se
+    worth = f", worth at least about {a / bound:.0f} spp" if a > 0 else ""
+    return (None, f"unknown: below what the noisy series ({spps} spp) resolves (reference "
+                  f"MSE under {bound:.3g}{worth})", {})
+
+
+def _surface_mean(m: np.ndarray, surface: np.ndarray) -> float:
+    vals = m[surface]
+    vals = vals[np.isfinite(vals)]
+    return float(vals.mean()) if vals.size else float("nan")
+
+
+def judge_reference(*, reference: np.ndarray, spp: int, series: dict[int, np.ndarray],
+                    names: dict, ref_spp: int | None, ref_spp_from: str,
+                    known: tuple[np.ndarray, str] | None = None,
+                    albedo: np.ndarray | None = None, emitter: np.ndarray | None = None,
+                    surface_from: str = "") -> tuple[np.ndarray | None, dict]:
+    """(reference_var or None when unknown, meta entries) for the noisy input at ``spp``.
+
+    Args:
+        reference: (H, W, 3) finite reference.
+        spp: the noisy input's spp, a key of ``series``.
+        series: {spp: (H, W, 3) noisy colour} of every noisy spp of the view (this frame).
+        names: {spp: file name, "ref": file name} for the texts.
+        ref_spp, ref_spp_from: the reference's spp and where it comes from ("declared in
+            dataset.json", "file name"), or None.
+        known: (reference_var, how) from the reference's own variance image or statistics.
+        albedo, emitter: the buffers :func:`light_mask` uses, or None.
+        surface_from: the file the mask's buffer came from, for the text.
+    Returns:
+        ``reference_var`` float32 (H, W, 3) and ``meta`` keys ``ref_var_known``, ``ref_rmse``
+        (NaN when unknown), ``ref_noise_source``, ``ref_relmse_surface``,
+        ``noisy_relmse_surface``, ``surface_pixels`` and, when flagged, ``reference_warning``.
+    """
+    r = np.asarray(reference, np.float64)
+    surface, rule = light_mask(r, albedo, emitter)
+    warnings = []
+    same = [s for s in sorted(series) if equal(series[s], r)]
+    rest = {s: x for s, x in series.items() if s not in same}
+    if spp in same and known is None:
+        var, source, extra = None, "unknown: the reference equals the noisy input", {}
+    else:
+        if same and not ref_spp:  # it is that render: its spp is known
+            ref_spp, ref_spp_from = same[-1], f"equal to {names[same[-1]]}"
+        var, source, extra = _estimate(r, rest, ref_spp, ref_spp_from, known)
+    for s in same:
+        warnings.append(f"the reference {names['ref']} is numerically equal to the noisy "
+                        f"input {names[s]} ({s} spp): " + (
+                            "every score is against the input itself" if s == spp else
+                            f"it is a {s}-spp render"))
+    denom = r * r + RELMSE_EPS
+    ref_rel = (_surface_mean((np.asarray(var, np.float64) / denom).mean(axis=-1), surface)
+               if var is not None else float("nan"))
+    measured = _surface_mean((_sq(series[spp], r) / denom).mean(axis=-1), surface)
+    own = max(measured - (ref_rel if np.isfinite(ref_rel) else 0.0), 0.0)
+    if ref_spp and ref_spp <= spp and spp not in same:
+        warnings.append(f"the reference has {ref_spp} spp ({ref_spp_from}), no more than the "
+                        f"noisy input's {spp}: it is no better than what it judges")
+    elif np.isfinite(ref_rel) and spp not in same and ref_rel >= RATIO * own:
+        warnings.append(f"the reference's estimated relMSE over surface pixels ({ref_rel:.3g}) "
+                        f"is not clearly below the noisy input's ({own:.3g}; flagged from "
+                        f"{RATIO:g}× it): its own error weighs on every score")
+    if extra.pop("nested", False):
+        warnings.append(source.removeprefix("unknown: "))
+    n_surface = int(surface.sum())
+    where = f" ({surface_from})" if surface_from else ""
+    meta = {"ref_var_known": var is not None,
+            "ref_rmse": (float(np.sqrt(max(float(np.mean(var, dtype=np.float64)), 0.0)))
+                         if var is not None else float("nan")),
+            "ref_noise_source": source, "ref_relmse_surface": ref_rel,
+            "noisy_relmse_surface": own if np.isfinite(measured) else float("nan"),
+            "surface_pixels": f"{n_surface} of {surface.size}: {rule}{where}", **extra}
+    if warnings:
+        meta["reference_warning"] = "; ".join(warnings)
+    return var, meta
+
+
+def known_variance(ref: dict, ref_spp: int | None, read: Any, files: dict,
+                   shape: tuple[int, ...]) -> tuple[np.ndarray, str] | None:
+    """Estimate 1: (variance of the reference mean, how) from the reference's variance image
+    (σ² per sample ÷ ``ref_spp``) or identity statistics, else None."""
+    from .export import read_stats_npz
+
+    if "variance" in ref and ref_spp:
+        sigma2 = read(ref["variance"]).astype(np.float64)
+        files["reference_var"] = ref["variance"].file.name
+        return ((sigma2 / ref_spp).astype(np.float32),
+                f"variance image {ref['variance'].file.name} ÷ {ref_spp} spp")
+    if "stats" in ref:
+        stats = read_stats_npz(ref["stats"], shape)
+        if stats.transform == "identity":  # var_mean of untransformed samples is the answer
+            files["reference_var"] = ref["stats"].name
+            return stats.var_mean.astype(np.float32), f"statistics {ref['stats'].name}"
+    return None
+
+
+def folder_reference(info: Any, frame: int | None, spp: int, read: Any, files: dict,
+                     reference: np.ndarray, buffers: dict) -> tuple[np.ndarray | None, dict]:
+    """:func:`judge_reference` for one noisy spp of a scanned folder (a
+    :class:`~dbench.datasets.folders.load.FolderInfo`); ``read`` reads a layer, ``files`` records
+    the reference variance's file, ``buffers`` the frame's loaded buffers (its emitter is
+    used when there; else the folder's albedo is read for the surface mask)."""
+    plan = info._plan
+    ref = plan[(frame, "ref")]
+    slots = {s: plan[(frame, s)] for s in info.spps}
+    known = known_variance(ref, info.ref_spp, read, files, reference.shape)
+    if known is None and "variance" in ref:
+        # σ² per sample needs the sample count to give the variance of the mean
+        known_note = f" ({ref['variance'].file.name} holds σ² per sample, but ref_spp is unknown)"
+    else:
+        known_note = ""
+    emitter, albedo, surface_from = buffers.get("emitter"), None, ""
+    if emitter is not None:
+        surface_from = files.get("emitter", "")
+    elif "albedo" in info.buffers:
+        layer = slots[spp].get("albedo") or ref["albedo"]
+        albedo, surface_from = read(layer), layer.file.name
+    names = {s: slot["color"].file.name for s, slot in slots.items()}
+    names["ref"] = ref["color"].file.name
+    var, meta = judge_reference(
+        reference=reference, spp=spp, series={s: read(slot["color"]) for s, slot in slots.items()},
+        names=names, ref_spp=info.ref_spp,
+        ref_spp_from=("declared in dataset.json" if info.reference_from == "file" else
+                      "the highest spp of the series, from its file name"),
+        known=known, albedo=albedo, emitter=emitter, surface_from=surface_from)
+    if known_note and not meta["ref_var_known"]:
+        meta["ref_noise_source"] += known_note
+    return var, meta

@@ -1,0 +1,1 @@
+"""Scenes from files (README.md, "Mitsuba scene files"): Mitsuba XML and Python scene files loaded, every file they read hashed, their integrator kept where it can be, spectral/polarized files converted or refused, and what dbench's render changed stated."""

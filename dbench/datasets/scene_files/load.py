@@ -1,0 +1,349 @@
+"""Scenes from files: ``--scene PATH.xml`` (Mitsuba 3) and ``--scene PATH.py`` (Python).
+
+**Mitsuba XML** (README.md, "Mitsuba scene files"). The file is read with Mitsuba's own
+parser and loaded once as ``mi.load_file(path, **params)`` loads it (``$name`` parameters from
+``--scene-param name=value``; relative asset paths resolve against the file's folder;
+:mod:`dbench.datasets.scene_files.xml`). dbench keeps the scene's shapes (``shapegroup``s with their
+``instance``s), materials, media and emitters (the loaded objects themselves) and takes over
+what it must control:
+
+- the film: ``hdrfilm`` of the requested size, box reconstruction filter (every 1-spp pass puts
+  one sample in each pixel);
+- the camera: a ``perspective`` (or ``thinlens``) camera with the file's ``to_world``, clip
+  planes and principal point; the file's field of view is kept along the smaller image side, so
+  the file's own film size reproduces its view exactly and any other size widens it along the
+  longer side (dbench.resolution);
+- the sampler (``independent``, dbench's seeds); the integrator is the file's with its settings
+  wherever they are set (``-1``: unlimited), wrappers (``moment``, ``aov``, ``stokes``)
+  unwrapped, replaced by ``path`` only where it cannot give one sample per pixel and pass
+  (:mod:`dbench.datasets.scene_files.integrator`); the AOV and emitter passes are dbench's own.
+
+Spectral and polarized files render in the RGB variant with their conversions stated, or are
+refused naming the construct (:mod:`dbench.datasets.scene_files.rgb`). Every steady frame of a file
+carries how its render differs from the file in ``frame.meta["scene_file"]`` and, as report
+lines, ``frame.meta["scene_file_settings"]`` (:mod:`dbench.datasets.scene_files.fidelity`).
+
+The cache key covers the file's bytes, the bytes of every file it references (``filename``
+strings, ``<include>`` fragments and ``<spectrum filename>``s, found as Mitsuba finds them:
+after ``<path>`` elements and ``$parameter`` substitution, fragments' names relative to the
+scene's folder; :mod:`dbench.datasets.scene_files.assets`), the parameters, the integrator dbench
+renders with (its type and settings) and the requested size, so editing the scene, a fragment
+or a texture invalidates exactly its entries (README.md, "Your scene, your renders, any size").
+A referenced file that cannot be found is refused before anything renders, naming it and the
+folders searched.
+
+**Python files**. ``build(mi, width, height) -> dict`` (or ``build(mi, res)``,
+:mod:`dbench.datasets.scenes.build`) returns a ``mi.load_dict`` dictionary with a sensor (dbench
+replaces its film and sampler as for XML; a ``fov`` is read along x as in Mitsuba's default).
+The dictionary is loaded once at 8 px when the file is resolved, so a type Mitsuba has no
+plugin for is refused before anything renders; ``sys.exit`` in the file or in ``build`` is
+refused too (exit 2), never the file's own exit code. Optional module attributes:
+
+- ``kind``: ``"steady"`` (default), ``"sequence"`` or ``"transient"``;
+- ``max_depth`` (else the dictionary integrator's, else 8), ``ev`` (exposure of the tone map),
+  ``description``;
+- sequences: ``camera(i) -> (origin, target)`` per frame (required), ``lights(i) ->
+  {shape key: (r, g, b)}`` (radiance of emitting shapes per frame), ``frames`` (default 24);
+  the geometry is ``build``'s dictionary without its sensor and integrator;
+- transient scenes: ``window_start`` and ``window_end`` (optical path length in metres,
+  required; :func:`dbench.datasets.transient.load.size_window` measures them), ``bins`` (default
+  200), ``integrator`` (``transient_path``, or ``transient_prbvolpath`` for media).
+
+The cache key of a Python scene is its dictionary (as for the catalogue) plus the file's bytes.
+
+Example:
+    >>> sc = resolve("my/scene.xml", {"spp": "16"})                 # doctest: +SKIP
+    >>> datasets.load(sc, spp=4, res="160x90").color.shape           # doctest: +SKIP
+    (90, 160, 3)
+"""
+from __future__ import annotations
+
+import hashlib
+import importlib.util
+import math
+import re
+from copy import deepcopy
+from dataclasses import dataclass, field
+from functools import lru_cache
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ...errors import DbenchInputError
+from ...resolution import Res, parse_res
+from ..mitsuba_env import mitsuba
+from ..scenes.record import STEADY_BUFFERS, Scene
+from ..scenes.build import call_build, exit_message, probe_load
+from ..scenes.build import own_camera as _own_camera
+from .assets import asset_hashes as _sources
+from ..scenes.parts import film_dict
+from .fidelity import FILTER, record, report_lines
+from .integrator import DEFAULT_MAX_DEPTH, IntegratorPlan, plan as _integrator_plan
+from .rgb import rgb_notes
+from .xml import load as _load_xml, parse as _parse_xml, shape_groups
+
+#: Part of every file scene's cache key; change it when the translation above changes.
+FILE_SCENE_VERSION = "file-scene-2"
+SUFFIXES = (".xml", ".py")
+_CAMERAS = {"PerspectiveCamera": "perspective", "ThinLensCamera": "thinlens"}
+
+
+def is_scene_file(text: str) -> bool:
+    """Whether ``text`` names a scene file (ends in .xml or .py), existing or not."""
+    return str(text).lower().endswith(SUFFIXES)
+
+
+def parse_scene_params(items) -> dict[str, str]:
+    """``["key=value", ...]`` (``--scene-param``) → {key: value}; DbenchInputError otherwise."""
+    out: dict[str, str] = {}
+    for item in items or []:
+        key, sep, value = str(item).partition("=")
+        if not sep or not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", key.strip()):
+            raise DbenchInputError(f"--scene-param: expected NAME=VALUE, got {item!r}")
+        out[key.strip()] = value
+    return out
+
+
+def resolve(path: str | Path, params: dict[str, str] | None = None) -> Scene:
+    """The :class:`Scene` of a scene file, the same object for the same file content and
+    parameters (renders of it share the in-process scene caches). DbenchInputError, naming the
+    file, when it does not exist, has another suffix or does not load."""
+    p = Path(path).expanduser()
+    if not p.is_file():
+        raise DbenchInputError(f"--scene {path}: no such file (scene files end in "
+                               f"{' or '.join(SUFFIXES)})")
+    p = p.resolve()
+    params = {str(k): str(v) for k, v in (params or {}).items()}
+    suffix = p.suffix.lower()
+    if suffix not in SUFFIXES:
+        raise DbenchInputError(f"--scene {path}: unknown scene file type {suffix!r}; "
+                               f"expected {' or '.join(SUFFIXES)}")
+    if suffix == ".py" and params:
+        raise DbenchInputError(f"--scene-param: {p.name} is a Python scene; parameters apply "
+                               f"to XML scenes (set them in the file)")
+    if suffix == ".xml":
+        # the digest covers every file the scene reads, so an edited texture loads afresh
+        sources = _sources(str(p), params)
+        digest = _sha256(repr(sorted(sources.items())).encode())
+        return _xml_scene(str(p), tuple(sorted(params.items())), digest)
+    return _python_scene(str(p), (), _sha256(p.read_bytes()))
+
+
+def _sha256(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()
+
+
+# ---------------------------------------------------------------------------------------------
+# Mitsuba XML
+
+
+@dataclass(frozen=True, eq=False)
+class XmlScene(Scene):
+    """A steady scene read from a Mitsuba XML file (module docstring)."""
+
+    path: str = ""
+    file_params: tuple = ()
+    #: the integrator that renders the colour (dbench.datasets.scene_files.integrator)
+    integrator_plan: IntegratorPlan | None = None
+    #: what every steady frame of the file adds to its meta (dbench.datasets.scene_files.fidelity)
+    frame_meta: dict = field(default_factory=dict)
+
+    def key_dict(self, mi, res) -> dict:
+        return {"file": self.path, "loader": FILE_SCENE_VERSION, "res": parse_res(res).key,
+                "sources": _sources(self.path, dict(self.file_params)),
+                "params": dict(self.file_params), "max_depth": self.max_depth,
+                "integrator": self.integrator_plan.render, "filter": FILTER}
+
+    def scene_dict(self, mi, res) -> dict:
+        res = parse_res(res)
+        loaded = _loaded_xml(self.path, self.file_params, mi.variant(), self.params["sha256"])
+        d: dict[str, Any] = {"type": "scene", "sensor": _sensor_dict(mi, loaded, res, self.path),
+                             "integrator": deepcopy(self.integrator_plan.render)}
+        # the instances' groups go in too: without them Mitsuba cannot build the instances
+        for i, group in enumerate(shape_groups(loaded)):
+            d[f"group{i:05d}"] = group
+        for i, shape in enumerate(loaded.shapes()):
+            d[f"shape{i:05d}"] = shape
+        # area lights come with their shapes; environment, point, spot and directional
+        # emitters have no shape and are added themselves
+        free = [e for e in loaded.emitters() if e.get_shape() is None]
+        for i, emitter in enumerate(free):
+            d[f"emitter{i:03d}"] = emitter
+        return d
+
+
+@lru_cache(maxsize=32)
+def _xml_scene(path: str, params: tuple, digest: str) -> XmlScene:
+    mi = mitsuba()
+    state = _parse_xml(path, dict(params))
+    # constructs with no RGB form are refused before any object of the file exists
+    conversions = rgb_notes(state, path)
+    integrator = _integrator_plan(state, path)
+    loaded = _loaded_xml(path, params, mi.variant(), digest)
+    sensor = _sensor_dict(mi, loaded, parse_res(8), path)  # refuses unsupported cameras
+    rec = record(integrator, state, sensor["type"], conversions)
+    name = Path(path).name
+    return XmlScene(name=name, kind="steady", description=f"Mitsuba scene file {path}",
+                    build=_no_build, max_depth=integrator.max_depth, provides=STEADY_BUFFERS,
+                    params={"sha256": digest, "file_params": dict(params)}, path=path,
+                    file_params=params, integrator_plan=integrator,
+                    frame_meta={"scene_file": rec, "scene_file_settings": report_lines(rec)})
+
+
+def file_film_size(scene: XmlScene) -> tuple[int, int]:
+    """(width, height) of the film the XML file itself declares."""
+    mi = mitsuba()
+    loaded = _loaded_xml(scene.path, scene.file_params, mi.variant(), scene.params["sha256"])
+    w, h = (int(v) for v in loaded.sensors()[0].film().size())
+    return w, h
+
+
+def _no_build(mi, res):  # pragma: no cover - XmlScene overrides scene_dict
+    raise NotImplementedError
+
+
+@lru_cache(maxsize=8)
+def _loaded_xml(path: str, params: tuple, variant: str, digest: str):
+    """The file's objects, loaded as ``mi.load_file`` loads them but for its integrator
+    (dbench.datasets.scene_files.xml; ``digest`` keys the cache on its content). Mitsuba puts the
+    file's folder first in the resolver of this load itself; the process's resolver is left as
+    it is, so one scene's folder never supplies another scene's assets."""
+    return _load_xml(path, dict(params))
+
+
+def _sensor_dict(mi, loaded, res: Res, path: str) -> dict:
+    """dbench's camera for the file's first sensor (module docstring): its kind, pose, clip
+    planes and principal point, the field of view along the smaller side, dbench's film and
+    sampler."""
+    sensors = loaded.sensors()
+    if not sensors:
+        raise DbenchInputError(f"--scene {path}: the file has no <sensor>; dbench renders "
+                               f"through the scene's camera")
+    sensor = sensors[0]
+    kind = _CAMERAS.get(sensor.class_name())
+    if kind is None:
+        raise DbenchInputError(f"--scene {path}: sensor {sensor.class_name()} is not "
+                               f"supported; use a perspective or thinlens camera")
+    p = mi.traverse(sensor)
+    film_w, film_h = (int(v) for v in sensor.film().size())
+    x_fov = float(np.ravel(p["x_fov"])[0])
+    tan_x = math.tan(math.radians(x_fov) / 2.0)
+    # the angle along the file film's smaller side, which "smaller" keeps at any size
+    small = x_fov if film_w <= film_h else math.degrees(2.0 * math.atan(tan_x * film_h / film_w))
+    matrix = np.array(p["to_world"].matrix, dtype=np.float64).reshape(4, 4)
+    d: dict[str, Any] = {"type": kind, "fov": small, "fov_axis": "smaller",
+                         "to_world": mi.ScalarTransform4f(matrix),
+                         "near_clip": float(np.ravel(p["near_clip"])[0]),
+                         "far_clip": float(np.ravel(p["far_clip"])[0]),
+                         "film": film_dict(res), "sampler": {"type": "independent"}}
+    for key in ("principal_point_offset_x", "principal_point_offset_y", "aperture_radius",
+                "focus_distance"):
+        if key in p:
+            d[key] = float(np.ravel(p[key])[0])
+    medium = sensor.get_medium()
+    if medium is not None:
+        d["medium"] = medium
+    return d
+
+
+# ---------------------------------------------------------------------------------------------
+# Python files
+
+
+def _module(path: str, digest: str):
+    spec = importlib.util.spec_from_file_location(f"dbench_scene_{digest[:12]}", path)
+    module = importlib.util.module_from_spec(spec)
+    try:
+        spec.loader.exec_module(module)
+    except SystemExit as exc:  # a scene file never ends dbench, nor lends it its exit code
+        raise DbenchInputError(f"--scene {path}: the file called {exit_message(exc)} while "
+                               f"loading; a scene file defines build(mi, width, height) -> dict "
+                               f"and returns") from None
+    except Exception as exc:
+        raise DbenchInputError(f"--scene {path}: the file failed to run: "
+                               f"{type(exc).__name__}: {exc}") from None
+    if not callable(getattr(module, "build", None)):
+        raise DbenchInputError(f"--scene {path}: defines no build(mi, width, height) -> dict")
+    return module
+
+
+def _built(module, path: str, mi, res) -> dict:
+    res = parse_res(res)
+    try:
+        # either signature (dbench.datasets.scenes.build); sys.exit becomes a DbenchInputError
+        d = call_build(module.build, mi, res, f"--scene {path}")
+    except DbenchInputError:
+        raise
+    except Exception as exc:
+        raise DbenchInputError(f"--scene {path}: build(mi, {res.width}, {res.height}) failed: "
+                               f"{type(exc).__name__}: {exc}") from None
+    if not isinstance(d, dict) or not isinstance(d.get("sensor"), dict):
+        raise DbenchInputError(f"--scene {path}: build() must return a mi.load_dict dictionary "
+                               f"with a 'sensor' dictionary")
+    return d
+
+
+@lru_cache(maxsize=32)
+def _python_scene(path: str, params: tuple, digest: str) -> Scene:
+    mi = mitsuba()
+    module = _module(path, digest)
+    kind = getattr(module, "kind", "steady")
+    probe = _built(module, path, mi, 8)
+    probe_load(mi, probe, f"--scene {path}", "build()'s dictionary")
+    depth = getattr(module, "max_depth", None) or (probe.get("integrator") or {}).get(
+        "max_depth") or DEFAULT_MAX_DEPTH
+    common = dict(name=Path(path).name, kind=kind,
+                  description=getattr(module, "description", f"Python scene file {path}"),
+                  max_depth=int(depth), params={"sha256": digest},
+                  ev=float(getattr(module, "ev", 0.0)))
+
+    def build(mi, res):
+        return _own_camera(_built(module, path, mi, res), res)
+
+    if kind == "steady":
+        return Scene(build=build, **common)
+    if kind == "sequence":
+        return _python_sequence(module, path, probe, common)
+    if kind == "transient":
+        return _python_transient(module, path, build, common)
+    raise DbenchInputError(f"--scene {path}: kind {kind!r}; valid: steady, sequence, transient")
+
+
+def _python_sequence(module, path: str, probe: dict, common: dict) -> Scene:
+    from ..sequence.scene import SEQUENCE_BUFFERS, SequenceScene
+
+    if not callable(getattr(module, "camera", None)):
+        raise DbenchInputError(f"--scene {path}: a sequence scene needs camera(i) -> "
+                               f"(origin, target)")
+    lights = getattr(module, "lights", None) or (lambda i: {})
+
+    def geometry(mi):
+        d = _built(module, path, mi, 8)
+        return {k: v for k, v in d.items() if k not in ("type", "sensor", "integrator")}
+
+    fov = float(probe["sensor"].get("fov", 39.3))
+    return SequenceScene(build=lambda mi, res: _own_camera(_built(module, path, mi, res), res),
+                         provides=SEQUENCE_BUFFERS, n_frames=int(getattr(module, "frames", 24)),
+                         geometry=geometry, camera=module.camera, lights=lights, fov=fov,
+                         **common)
+
+
+def _python_transient(module, path: str, build, common: dict) -> Scene:
+    from ..transient.scene import TRANSIENT_BUFFERS, TransientScene
+
+    missing = [a for a in ("window_start", "window_end") if not hasattr(module, a)]
+    if missing:
+        raise DbenchInputError(f"--scene {path}: a transient scene needs {', '.join(missing)} "
+                               f"(optical path length in metres; "
+                               f"dbench.datasets.transient.load.size_window measures them)")
+    integrator = getattr(module, "integrator", "transient_path")
+    return TransientScene(build=build, provides=TRANSIENT_BUFFERS,
+                          window_start=float(module.window_start),
+                          window_end=float(module.window_end),
+                          default_bins=int(getattr(module, "bins", 200)), integrator=integrator,
+                          steady_integrator="volpath" if "volpath" in integrator else "path",
+                          **common)
+
+
+__all__ = ["XmlScene", "resolve", "is_scene_file", "parse_scene_params", "FILE_SCENE_VERSION"]

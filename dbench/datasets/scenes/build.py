@@ -1,0 +1,171 @@
+"""Calling a scene's ``build``: the two signatures README.md documents ("Python scene files")
+and what dbench checks around the call.
+
+* ``build(mi, width, height) -> dict``: two ints;
+* ``build(mi, res) -> dict``: one :class:`~dbench.resolution.Resolution`, an ``int`` equal to
+  the width (a scene written when ``res`` was one side, ``"width": res, "height": res``, keeps
+  working for square images) that also has ``res.width`` and ``res.height`` and unpacks as
+  ``width, height = res``.
+
+The form is read from the signature: three required positional parameters, or parameters 2 and
+3 named ``width`` and ``height``, make the first; anything else the second (the catalogue's own
+builds, ``build(mi, res, extra=...)`` included).
+
+A ``build`` is code from outside dbench when it comes from a scene file or a plugin, so the call
+never lets it end the process: ``sys.exit`` inside it becomes a DbenchInputError naming the
+scene (exit 2), and a film whose size is not the requested one (``"height": res`` of a
+non-square request) is refused with the line to write instead of rendering the wrong image.
+"""
+from __future__ import annotations
+
+import inspect
+import re
+from functools import lru_cache
+from typing import Any, Callable
+
+from ...errors import DbenchInputError
+from ...resolution import Resolution, parse_res
+from .parts import film_dict
+
+
+@lru_cache(maxsize=512)
+def takes_width_height(fn: Callable) -> bool:
+    """Whether ``fn`` is ``build(mi, width, height)`` (module docstring) rather than
+    ``build(mi, res)``."""
+    try:
+        params = [p for p in inspect.signature(fn).parameters.values()
+                  if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD)]
+    except (TypeError, ValueError):  # a builtin without a signature: the historical form
+        return False
+    required = [p for p in params if p.default is p.empty]
+    if len(required) >= 3:
+        return True
+    return [p.name for p in params[1:3]] == ["width", "height"]
+
+
+def exit_message(exc: SystemExit) -> str:
+    """``sys.exit(0)`` as the call that raised ``exc`` (for messages)."""
+    code = exc.code
+    return f"sys.exit({code!r})" if code is not None else "sys.exit()"
+
+
+def call_build(fn: Callable, mi: Any, res: Any, what: str) -> dict:
+    """``fn(mi, width, height)`` or ``fn(mi, Resolution)`` (module docstring); ``what`` names
+    the scene in the DbenchInputError raised when ``fn`` calls ``sys.exit``."""
+    size = Resolution.of(res)
+    try:
+        if takes_width_height(fn):
+            return fn(mi, size.width, size.height)
+        return fn(mi, size)
+    except SystemExit as exc:
+        form = (f"build(mi, {size.width}, {size.height})" if takes_width_height(fn)
+                else f"build(mi, res={size.key})")
+        raise DbenchInputError(f"{what}: {form} called {exit_message(exc)}; build must return "
+                               f"a mi.load_dict dictionary") from None
+
+
+def check_film(d: Any, res: Any, what: str) -> None:
+    """Refuse a dictionary whose sensor film states another size than ``res`` (the error says
+    what to write: ``res`` is the width as an int, so ``"height": res`` is wrong for a
+    non-square request)."""
+    size = parse_res(res)
+    sensor = d.get("sensor") if isinstance(d, dict) else None
+    film = sensor.get("film") if isinstance(sensor, dict) else None
+    if not isinstance(film, dict) or "width" not in film or "height" not in film:
+        return
+    try:
+        got = (int(film["width"]), int(film["height"]))
+    except (TypeError, ValueError):
+        return
+    if got != (size.width, size.height):
+        raise DbenchInputError(
+            f"{what}: build returned a {got[0]}×{got[1]} film for a {size.text} render; state "
+            f"the film as \"width\": res.width, \"height\": res.height (or width, height = res), "
+            f"or define build(mi, width, height)")
+
+
+def own_camera(d: dict, res) -> dict:
+    """``d`` with dbench's film, sampler and field-of-view axis on its sensor (the ``fov`` it
+    states is read along x, Mitsuba's default, and kept along the smaller side): what scene
+    files and plugins' build functions render with (dbench.datasets.scene_files.load)."""
+    d = dict(d)
+    sensor = dict(d["sensor"])
+    sensor["film"] = film_dict(res)
+    sensor["sampler"] = {"type": "independent"}
+    sensor["fov_axis"] = parse_res(res).fov_axis
+    d["sensor"] = sensor
+    return d
+
+
+def plugin_build(fn: Callable, name: str) -> Callable[[Any, Any], dict]:
+    """The ``build`` of a plugin's scene given as a bare function (an entry point's
+    ``build(mi, res)`` or ``build(mi, width, height)``): called in either form, and its sensor
+    given dbench's film, sampler and field-of-view axis, as for Python scene files
+    (dbench.datasets.scene_files.load), so it renders at any size. The same function gives the
+    same adapter, so registering it twice registers once."""
+    return _plugin_build(fn, name)
+
+
+@lru_cache(maxsize=None)
+def _plugin_build(fn: Callable, name: str) -> Callable[[Any, Any], dict]:
+    def build(mi, res):
+        d = call_build(fn, mi, res, f"scene {name}")
+        if not isinstance(d, dict) or not isinstance(d.get("sensor"), dict):
+            raise DbenchInputError(f"scene {name}: build must return a mi.load_dict dictionary "
+                                   f"with a 'sensor' dictionary")
+        return own_camera(d, res)
+
+    build.__doc__ = fn.__doc__
+    build.wrapped = fn
+    return build
+
+
+#: Mitsuba's message for a ``"type"`` it has no plugin of (mi.load_dict raises RuntimeError).
+_UNKNOWN_PLUGIN = re.compile(r'node "([^"]*)".*?Plugin "([^"]+)" not found')
+
+
+def probe_load(mi, d: dict, what: str, source: str = "the scene's dictionary") -> None:
+    """Load ``d`` (a build's dictionary) once at 8 px with dbench's camera, so a name Mitsuba
+    does not know (an unknown plugin type, a misspelt property) is refused naming ``what``
+    before anything renders, rather than failing inside a render as an internal error. The
+    integrator is dbench's (set when rendering), so it is left out."""
+    probe = {k: v for k, v in own_camera(d, 8).items() if k != "integrator"}
+    try:
+        mi.load_dict(probe)
+    except Exception as exc:  # Mitsuba raises RuntimeError with its parser's message
+        message = " ".join(str(exc).split())
+        m = _UNKNOWN_PLUGIN.search(message)
+        if m:
+            raise DbenchInputError(
+                f"{what}: Mitsuba ({mi.variant()}) has no plugin \"{m.group(2)}\" "
+                f"(dictionary entry \"{m.group(1)}\"); use a Mitsuba plugin type such as "
+                f"sphere, rectangle, diffuse, area") from None
+        raise DbenchInputError(f"{what}: Mitsuba could not load {source}: {message}") from None
+
+
+_PROBED: set = set()
+
+
+def check_plugin_scene(scene: Any) -> None:
+    """:func:`probe_load` of a steady scene whose ``build`` comes from outside dbench (a
+    plugin's or an entry point's), once per scene and variant in a process; dbench's own
+    catalogue is trusted and costs nothing here."""
+    from ..mitsuba_env import mitsuba
+
+    fn = getattr(scene.build, "wrapped", scene.build)
+    if str(getattr(fn, "__module__", "")).startswith("dbench."):
+        return
+    mi = mitsuba()
+    key = (id(scene), mi.variant())
+    if key in _PROBED:
+        return
+    d = call_build(scene.build, mi, 8, f"scene {scene.name}")
+    if not isinstance(d, dict) or not isinstance(d.get("sensor"), dict):
+        raise DbenchInputError(f"scene {scene.name}: build must return a mi.load_dict "
+                               f"dictionary with a 'sensor' dictionary")
+    probe_load(mi, d, f"scene {scene.name}")
+    _PROBED.add(key)
+
+
+__all__ = ["call_build", "check_film", "check_plugin_scene", "probe_load", "check_film", "own_camera", "plugin_build", "takes_width_height",
+           "exit_message"]

@@ -1,0 +1,1 @@
+"""Animated sequences: the scene record and its cameras, the noisy frames and their G-buffers (matched or primary surface replacement), A-SVGF's re-shaded samples, per-frame references and the loader (docs/temporal.md)."""

@@ -1,0 +1,492 @@
+"""Transient (time-resolved) datasets through mitransient (docs/transient.md, docs/mitsuba.md).
+
+Scenes of kind ``transient``: ``cornell-transient`` and ``caustic-transient`` (``transient_path``)
+and ``fog-transient`` (a homogeneous participating medium, ``transient_prbvolpath``; the setting of
+seed 004); ``cloud-transient`` and ``fog-unwarped`` and the scene parameters (medium, emission
+pulse or step, scattering orders) are in :mod:`dbench.datasets.transient.media`. The time axis is optical path length (OPL) in metres, warped (the camera segment is
+included, as a real ultrafast sensor records it); each scene carries a window
+[``start_opl``, ``end_opl``) chosen with :func:`size_window` from the scene geometry (earliest
+direct arrival) and a pilot render (the OPL below which ``coverage`` of the steady energy
+arrives). ``bins`` splits the window; ``bin_width_opl = (end − start)/bins``.
+
+Collectors of the per-bin statistics (docs/methods/statistical.md §11):
+
+* (a) :func:`collect_passes`: 1-spp passes with a box filter; the film histogram of a pass holds,
+  per pixel and bin, exactly the sum of that pixel's one path contributions in the bin, which is
+  one sample; it is transformed and added to float64 power sums on the host
+  (:class:`~dbench.datasets.stats.PowerSums`, bins a path never reaches add g(0) − K = 0).
+  Several samples per call come from a Mitsuba ``batch`` sensor holding copies of the camera
+  (the transient film works as the batch film; each copy is an independent sample).
+* (b) :func:`collect_in_integrator`: the in-integrator collectors (running sums per path,
+  flushed with atomics), whose memory does not depend on spp:
+  :mod:`dbench.datasets.transient.collector` in ``transient_path`` and
+  :mod:`dbench.datasets.transient.collector_media` in ``transient_prbvolpath`` (media).
+
+Buffers of a :class:`~dbench.data.TransientFrame` from :func:`load_transient`: ``color``
+(H, W, T, 3), ``stats`` and ``non_zero`` (H, W, T, 3), ``steady`` (H, W, 3; the same samples,
+whole path length), ``albedo``, ``normal``, ``depth``, ``position`` (H, W, ·; steady AOV render of
+the same camera; for the fog scene, of the surfaces behind the fog), ``emitter`` (H, W, 1; the
+fraction of the footprint whose primary ray sees a light, from the same feature render, fog
+ignored), ``reference`` (H, W, T, 3, plain transient render at ref_spp ≥ 16·spp, same window,
+seed ``ref_seed``, in K ≥ 16 chunks) and ``reference_var`` (H, W, T, 3, the variance of the
+reference mean per bin from the chunk spread, docs/judging.md §2). ``meta`` holds the window
+(``start_opl``, ``bin_width_opl``, ``bins``, ``end_opl``, ``units``), ``energy_fraction``
+(Σ color / Σ steady: the share of the steady energy inside the window; a step's last bin over
+Σ steady), ``emitter`` (pulse or step), ``scene_params`` (the ``--scene-param`` values, empty
+for a catalogue scene as it is), integrator settings and timings.
+
+Example:
+    >>> from dbench import datasets
+    >>> v = datasets.load("cornell-transient", spp=8, res=16, bins=40)   # doctest: +SKIP
+    >>> v.color.shape, v.meta["energy_fraction"] > 0.9                   # doctest: +SKIP
+    ((16, 16, 40, 3), True)
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from functools import lru_cache
+from typing import Any, Callable, Iterable
+
+import numpy as np
+
+from ...data import SampleStats, TransientFrame, check_count, check_transform
+from ...errors import DbenchInputError
+from ...resolution import parse_res
+from .. import render as _render
+from ..scenes import catalogue as _scenes
+from ..cache import Cache
+from ..mitsuba_env import mitsuba, versions
+from ..references import check_ref_seed, reference_meta
+from ..references import reference_spp as default_ref
+from ..scenes.record import Scene, register_scene
+from .media import (EMISSION, FOG, FOG_PARAMS, FOG_RANGE_WINDOW, _fog_room, media_variant,
+                    transient_variant)
+from ..stats import ZERO_VARIANCE_RTOL, PowerSums, stats_from_sums, variance_of_mean
+from .render import (DEFAULT_REFERENCE_CHUNK, _mitransient, batch_copies, loaded_transient,
+                     render_plain, render_reference, render_signal)
+from .scene import (SPEED_OF_LIGHT, TRANSIENT_BUFFERS, TransientScene, Window, check_bins,
+                    transient_film)
+from .window import direct_arrival_dict, direct_arrivals, expected_direct_bins, size_window
+
+COLLECTORS = ("auto", "a", "b")
+DEFAULT_TRANSFORM = "identity"   # docs/methods/statistical.md §3: transient default
+#: Version of the ``total_var`` array stored with the statistics (the noisy total's variance).
+TOTAL_VAR_VERSION = 2
+
+#: Σ color ≥ this share of Σ steady counts as a window covering all contributions (docs/transient.md §6).
+COVERS_ALL = 0.999
+
+
+# ---------------------------------------------------------------------------------------------
+# the catalogue
+
+
+def _register(name: str, description: str, **kw: Any):
+    def wrap(build: Callable[[Any, int], dict]) -> Callable[[Any, int], dict]:
+        register_scene(TransientScene(name=name, kind="transient",
+                                      description=description, build=build,
+                                      provides=TRANSIENT_BUFFERS, **kw))
+        return build
+    return wrap
+
+
+# Windows from size_window(scene, coverage=0.99, res=24, spp=256): start = first direct arrival
+# rounded down (no energy before it in the pilot), end = 99 % of the steady energy, rounded up
+# to 0.5 m (results/transient.md lists the measured fractions).
+@_register("cornell-transient", "Cornell box, time-resolved (transient_path, warped OPL)",
+           max_depth=8, window_start=3.8, window_end=11.5, default_bins=200,
+           declared=(EMISSION,), variant=transient_variant)
+def cornell_transient(mi, res) -> dict:
+    return _scenes.cornell(mi, res)
+
+
+@_register("caustic-transient", "glass sphere caustic, time-resolved: the caustic arrives late "
+           "(glass OPL)", max_depth=12, window_start=3.7, window_end=14.0, default_bins=200,
+           declared=(EMISSION,), variant=transient_variant)
+def caustic_transient(mi, res) -> dict:
+    return _scenes.caustic(mi, res)
+
+
+@_register("fog-transient", "Cornell-style room filled with homogeneous fog (σs 0.6, σa 0.1 /m, "
+           "HG g 0.3): transient_prbvolpath", max_depth=8, window_start=3.8, window_end=10.0,
+           default_bins=200, integrator="transient_prbvolpath", steady_integrator="volpath",
+           feature_build=lambda mi, res: _fog_room(mi, res, with_fog=False), medium=FOG,
+           declared=FOG_PARAMS, variant=media_variant(_fog_room, FOG_RANGE_WINDOW))
+def fog_transient(mi, res) -> dict:
+    return _fog_room(mi, res, with_fog=True)
+
+
+# ---------------------------------------------------------------------------------------------
+# collector (a): 1-spp passes, host-side float64 power sums
+
+
+@dataclass
+class TransientRender:
+    """The noisy video and what was collected with it."""
+
+    color: np.ndarray                   # (H, W, T, 3) float32, mean of the samples
+    steady: np.ndarray                  # (H, W, 3) float32, same samples, all path lengths
+    stats: SampleStats | None = None    # (H, W, T, 3)
+    non_zero: np.ndarray | None = None  # (H, W, T, 3) int32
+    timing: dict = field(default_factory=dict)
+    #: float64 power sums of u = g(x) − g(0): ``s1``, ``s2``, ``s3`` (H, W, T, 3), and ``n``
+    sums: dict | None = None
+    emission: str = "pulse"             # the scene's (TransientScene.emission)
+    #: (H, W, 3) float64 variance of the mean of the per-path sums over the window's bins
+    total_var: np.ndarray | None = None
+
+    @property
+    def energy_fraction(self) -> float:
+        return energy_fraction(self.color, self.steady, self.emission)
+
+
+def energy_fraction(video: np.ndarray, steady: np.ndarray, emission: str = "pulse") -> float:
+    """Share of the steady energy inside the window: Σ video / Σ steady (all pixels, channels).
+    A step video (``emission="step"``, the cumsum of the pulse's) holds that sum in its last
+    bin: Σ video[..., -1, :] / Σ steady."""
+    total = float(np.sum(steady, dtype=np.float64))
+    if emission == "step":
+        video = video[..., -1, :]
+    return float(np.sum(video, dtype=np.float64)) / total if total > 0 else float("nan")
+
+
+def pass_samples(scene: TransientScene, res, spp: int, seed: int = 0,
+                 bins: int | None = None, copies: int | None = None):
+    """Yield the individual samples of collector (a): (transient (H, copies, W, T, 3),
+    steady (H, copies, W, 3)) float32 per 1-spp call, ``spp`` samples per pixel in all.
+
+    Call k uses seed :func:`render.pass_seed` ("transient", seed, k); the same seeds drive
+    collector (b) in its 1-spp-pass mode (tests compare the two bit for bit). Each sample is
+    the scene's signal (:func:`render_signal`: a step scene's is the cumsum along T of the
+    path's pulse contributions)."""
+    _mitransient()
+    res = parse_res(res)
+    window = scene.window(bins)
+    copies = copies or batch_copies(res, window.bins, spp)
+    if spp % copies:
+        raise DbenchInputError(f"copies: expected a divisor of spp = {spp}, got {copies}")
+    for k in range(spp // copies):
+        steady, video = render_signal(scene, res, window, copies, 1,
+                                      _render.pass_seed("transient", seed, k))
+        yield (video.reshape(res.height, copies, res.width, window.bins, 3),
+               steady.reshape(res.height, copies, res.width, 3))
+
+
+def collect_passes(scene: TransientScene, res, spp: int, seed: int = 0,
+                   bins: int | None = None, stats: tuple[str, float] | None = None,
+                   copies: int | None = None, progress: bool = False) -> TransientRender:
+    """Collector (a): ``spp`` 1-spp samples per pixel, statistics on the host.
+
+    Args:
+        stats: ``(transform, lam)`` to accumulate per-bin statistics and ``non_zero``; None
+            gives the color and steady image only (same samples, so the same color).
+        copies: camera copies per call (default :func:`batch_copies`); 1 = plain passes.
+    Returns:
+        :class:`TransientRender` with timings ``render_s`` (rendering) and ``stats_s``
+        (host-side accumulation).
+    """
+    check_count("spp", spp)
+    res = parse_res(res)
+    window = scene.window(bins)
+    shape = (res.height, res.width, window.bins, 3)
+    acc = PowerSums(shape, *stats) if stats else None
+    total = np.zeros(shape, np.float64)
+    steady = np.zeros((res.height, res.width, 3), np.float64)
+    # per-path sums over the window's bins (identity): the noisy total's own variance
+    totals = PowerSums((res.height, res.width, 3), "identity") if stats else None
+    non_zero = np.zeros(shape, np.int32) if stats else None
+    clamp = stats is not None and stats[0] == "box-cox"
+    render_s = stats_s = 0.0
+    copies = copies or batch_copies(res, window.bins, spp)
+    samples = pass_samples(scene, res, spp, seed, bins, copies)
+    with _render._progress(spp, f"{scene.name} {spp} spp (a)", progress) as bar:
+        while True:
+            t0 = time.perf_counter()
+            item = next(samples, None)
+            if item is None:
+                break
+            video, st = item
+            t1 = time.perf_counter()
+            steady += st.sum(axis=1, dtype=np.float64)
+            if acc is not None:
+                total += acc.add_batch(video, axis=1)
+                totals.add_batch(video.sum(axis=3, dtype=np.float64), axis=1)
+                nz = (video > 0) if clamp else (video != 0)
+                if acc.n_nonfinite:
+                    nz &= np.isfinite(video)
+                non_zero += nz.sum(axis=1, dtype=np.int32)
+            else:
+                total += video.sum(axis=1, dtype=np.float64)
+            render_s += t1 - t0
+            stats_s += time.perf_counter() - t1
+            bar.update(copies)
+    out = TransientRender(color=(total / spp).astype(np.float32),
+                          steady=(steady / spp).astype(np.float32), emission=scene.emission,
+                          stats=(stats_from_sums(acc.n, acc.s1, acc.s2, acc.s3, acc.transform,
+                                                 acc.lam, {"n_nonfinite": acc.n_nonfinite,
+                                                           "n_clamped": acc.n_clamped})
+                                 if acc else None), non_zero=non_zero,
+                          timing={"render_s": render_s, "stats_s": stats_s, "copies": copies,
+                                  "collector": "a"},
+                          sums=({"s1": acc.s1, "s2": acc.s2, "s3": acc.s3, "n": acc.n}
+                                if acc else None),
+                          total_var=variance_of_mean(totals.n, totals.s1, totals.s2)
+                          if totals is not None else None)
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+# collector (b): in the integrator
+
+
+def collect_in_integrator(scene: TransientScene, res, spp: int, seed: int = 0,
+                          bins: int | None = None, transform: str = DEFAULT_TRANSFORM,
+                          lam: float = 0.5, per_pass: bool = False, slots: int = 0
+                          ) -> TransientRender:
+    """Collector (b): running per-path sums inside the scene's integrator, flushed into float64
+    power sums with atomics (docs/methods/statistical.md §11.2 mode B; ``transient_path``:
+    :mod:`dbench.datasets.transient.collector`, ``transient_prbvolpath``:
+    :mod:`dbench.datasets.transient.collector_media`).
+
+    Args:
+        per_pass: render ``spp`` 1-spp passes with collector (a)'s seeds (bit-identical to (a)
+            with ``copies=1``); default: one call of ``spp`` samples (seed
+            ``pass_seed("transient-b", seed, 0)``).
+        slots: per-path slots (0 = 2·max_depth, exact).
+    """
+    if scene.integrator not in IN_INTEGRATOR:
+        raise DbenchInputError(f"collector: (b) runs inside {' or '.join(IN_INTEGRATOR)}; "
+                               f"scene {scene.name} uses {scene.integrator}, use collector 'a'")
+    if scene.needs_passes:  # its signal is made from whole rendered passes
+        raise DbenchInputError(f"collector: (b) sums inside one render; scene {scene.name} "
+                               f"needs whole passes (step emission or a minus scene), use 'a'")
+    check_count("spp", spp)
+    check_transform(transform, lam)
+    _mitransient()
+    window = scene.window(bins)
+    sc = loaded_transient(scene, res, window, 1)
+    col = _collector(sc, scene.integrator, transform, float(lam), scene.max_depth,
+                     scene.rr_depth, scene.camera_unwarp, int(slots))
+    col.reset()
+    if per_pass:
+        for k in range(spp):
+            col.render(1, _render.pass_seed("transient", seed, k))
+    else:
+        col.render(spp, _render.pass_seed("transient-b", seed, 0))
+    t0 = time.perf_counter()
+    sums = col.power_sums(unpack=False)
+    mom = col.moments(ZERO_VARIANCE_RTOL)
+    stats = SampleStats(n=float(col.n), mean=mom["mean"], var_mean=mom["var_mean"],
+                        m3=mom["m3"], transform=transform, lam=float(lam),
+                        diagnostics=col.diagnostics())
+    color, non_zero = mom["color"], mom["non_zero"]
+    steady = (col.steady / col.n).astype(np.float32)
+    total_var = col.total_var()
+    state_bytes, diagnostics = col.nbytes(), col.diagnostics()
+    col.release()  # the cached collector keeps its integrator, not the sums
+    return TransientRender(color=color, steady=steady, stats=stats,
+                           non_zero=non_zero, total_var=total_var,
+                           sums={"s1": sums["s1"], "s2": sums["s2"], "s3": sums["s3"],
+                                 "n": col.n},
+                           timing={"render_s": col.render_s,
+                                   "stats_s": time.perf_counter() - t0,
+                                   "collector": "b", "state_bytes": state_bytes,
+                                   "slots": col.slots, **diagnostics})
+
+
+#: integrators that have an in-integrator collector (b)
+IN_INTEGRATOR = ("transient_path", "transient_prbvolpath")
+
+
+@lru_cache(maxsize=4)
+def _collector(sc, integrator, transform, lam, max_depth, rr_depth, unwarp, slots):
+    if integrator == "transient_prbvolpath":
+        from .collector_media import MediaStatsCollector as cls
+    else:
+        from .collector import StatsCollector as cls
+
+    return cls(sc, transform=transform, lam=lam, max_depth=max_depth, rr_depth=rr_depth,
+               camera_unwarp=unwarp, slots=slots)
+
+
+# ---------------------------------------------------------------------------------------------
+# the loader
+
+
+def _resolve_collector(scene: TransientScene, collector: str) -> str:
+    if collector not in COLLECTORS:
+        raise DbenchInputError(f"collector: expected one of {COLLECTORS}, got {collector!r}")
+    # the cache key holds the resolved collector: (a) and (b) draw different paths
+    if scene.needs_passes:  # step emission, scattering=multiple: built from whole passes
+        if collector == "b":
+            raise DbenchInputError(f"collector: 'b' sums inside one render; {scene.name} with "
+                                   f"{scene.params} (step emission or scattering=multiple) is "
+                                   f"made from whole 1-spp passes; use 'a' or 'auto'")
+        return "a"
+    if collector == "auto":
+        return "b" if scene.integrator in IN_INTEGRATOR else "a"
+    if collector == "b" and scene.integrator not in IN_INTEGRATOR:
+        raise DbenchInputError(f"collector: 'b' needs {' or '.join(IN_INTEGRATOR)}; "
+                               f"{scene.name} uses {scene.integrator}; use 'a' or 'auto'")
+    return collector
+
+
+def reference_spp(spp: int, ref_spp: int | None) -> int:
+    return int(ref_spp) if ref_spp else max(default_ref(), 16 * int(spp))
+
+
+def load_transient(scene: str | TransientScene, spp: int, res,
+                   needs: Iterable[str] | None = None, transform: str = DEFAULT_TRANSFORM,
+                   lam: float = 0.5, seed: int = 0, ref_spp: int | None = None,
+                   cache: Cache | None = None, progress: bool = True, bins: int | None = None,
+                   collector: str = "auto", ref_seed: int | None = None) -> TransientFrame:
+    """A :class:`~dbench.data.TransientFrame` of a transient scene, rendering what is missing.
+
+    Args:
+        scene: catalogue name or TransientScene.
+        spp: samples per pixel (paths per pixel; each is one sample of every bin).
+        res: image size (a side in pixels, ``"WxH"`` or (width, height)).
+        needs: buffers (``color`` always comes; ``stats`` adds ``non_zero``); None = all.
+        transform, lam: sample transform of the statistics (default identity, docs/methods/statistical.md §3).
+        seed: base seed of the noisy samples and features (disjoint streams).
+        ref_spp: reference spp (default max(DBENCH_REF_SPP or 4096, 16·spp)).
+        ref_seed: seed of the reference and ``reference_var`` (None means 0), independent of
+            ``seed`` so that noisy renders of several seeds share one reference. ``reference``
+            brings ``reference_var`` and ``emitter``; ``meta`` then adds ``ref_spp``,
+            ``ref_seed``, ``ref_render_s`` and ``ref_rmse`` = sqrt(mean(reference_var)).
+        bins: T (default the scene's); the window [start, end) stays the scene's.
+        collector: ``"a"`` (1-spp passes, host sums), ``"b"`` (in-integrator) or ``"auto"``
+            (b for transient_path and transient_prbvolpath scenes, a otherwise). The color
+            comes from the same samples as the statistics, so it does not depend on whether
+            ``stats`` was asked for. Scenes made from whole passes (``emission=step``: each
+            path's cumsum along T; ``scattering=multiple``: a second render subtracted) use
+            (a) whatever is asked for with ``auto`` and refuse ``b``.
+    """
+    sc = scene if isinstance(scene, Scene) else _scenes.get(scene)
+    if not isinstance(sc, TransientScene):
+        raise DbenchInputError(f"scene: {sc.name} is a {sc.kind} scene, not a transient one")
+    check_count("spp", spp)
+    res = parse_res(res)
+    wanted = set(sc.provides if needs is None else needs) | {"color"}
+    unknown = wanted - set(sc.provides)
+    if unknown:
+        raise DbenchInputError(f"needs: scene {sc.name} cannot provide {sorted(unknown)}; "
+                               f"it provides {sorted(sc.provides)}")
+    check_transform(transform, lam)
+
+    if "reference" in wanted:
+        wanted.add("emitter")
+    ref_seed = check_ref_seed(ref_seed)
+    window = sc.window(bins)
+    check_bins(window.bins, res)  # memory of the film, before anything renders
+    _mitransient()
+    mi = mitsuba()
+    which = _resolve_collector(sc, collector)
+    cache = cache or Cache()
+    base = {"scene": sc.name, "res": res.key, "dict": sc.transient_dict(mi, res, window),
+            "params": sc.params, "versions": versions(), "window": window.meta()}
+    meta: dict = {"scene": sc.name, "kind": "transient", "spp": int(spp), "res": res.key,
+                  "seed": int(seed), "ev": sc.ev, "versions": base["versions"],
+                  **window.meta(), "camera_unwarp": sc.camera_unwarp, "max_depth": sc.max_depth,
+                  "integrator": sc.integrator, "emitter": sc.emitter_meta,
+                  "scene_params": dict(sc.params), "medium": sc.medium, "collector": which, "cache_hits": [], "rendered": []}
+
+    copies = batch_copies(res, window.bins, spp) if which == "a" else 1
+    noisy_desc = {**base, "what": "transient-noisy", "spp": int(spp), "seed": int(seed),
+                  "collector": which, "copies": copies}
+    stats_desc = {**noisy_desc, "what": "transient-stats", "transform": transform,
+                  "lam": float(lam), "total_var": TOTAL_VAR_VERSION}
+    noisy = cache.get("transient-noisy", noisy_desc)
+    st_entry = cache.get("transient-stats", stats_desc) if "stats" in wanted else None
+    stats = non_zero = total_var = None
+    if noisy is not None and ("stats" not in wanted or st_entry is not None):
+        arrays = noisy.arrays()
+        color, steady = arrays["color"], arrays["steady"]
+        meta.update(render_s=noisy.meta.get("render_s"))
+        meta["cache_hits"].append("color")
+        if st_entry is not None:
+            sa = st_entry.arrays()
+            stats = SampleStats(n=float(spp), mean=sa["mean"], var_mean=sa["var_mean"],
+                                m3=sa["m3"], transform=transform, lam=float(lam),
+                                diagnostics=st_entry.meta.get("diagnostics", {}))
+            non_zero = sa["non_zero"]
+            total_var = sa.get("total_var")
+            meta.update(stats_s=st_entry.meta.get("stats_s"))
+            meta["cache_hits"].append("stats")
+    else:
+        if which == "b":
+            out = collect_in_integrator(sc, res, spp, seed, bins, transform, lam)
+        else:
+            out = collect_passes(sc, res, spp, seed, bins,
+                                 (transform, lam) if "stats" in wanted else None,
+                                 copies=copies, progress=progress)
+        color, steady = out.color, out.steady
+        meta.update(render_s=out.timing["render_s"])
+        meta["rendered"].append("color")
+        if noisy is None:
+            cache.put("transient-noisy", noisy_desc, arrays={"color": color, "steady": steady},
+                      meta={"render_s": out.timing["render_s"],
+                            "timing": {k: v for k, v in out.timing.items()}}, compress=False)
+        if out.stats is not None and "stats" in wanted:
+            stats, non_zero, total_var = out.stats, out.non_zero, out.total_var
+            meta.update(stats_s=out.timing["stats_s"])
+            meta["rendered"].append("stats")
+            totals = {} if total_var is None else {"total_var": total_var}
+            cache.put("transient-stats", stats_desc,
+                      arrays={"mean": stats.mean, "var_mean": stats.var_mean, "m3": stats.m3,
+                              "non_zero": non_zero, **totals},
+                      meta={"stats_s": out.timing["stats_s"],
+                            "diagnostics": stats.diagnostics},
+                      # noisy float arrays deflate to about half at 12-25x the write time
+                      # (0.65 s at 48²×100 against a 0.24 s render): stored as they are
+                      compress=False)
+    if stats is not None:
+        meta["stats_diagnostics"] = dict(stats.diagnostics)
+    meta["energy_fraction"] = energy_fraction(color, steady, sc.emission)
+    meta["window_covers_all"] = bool(meta["energy_fraction"] >= COVERS_ALL)
+
+    buffers: dict[str, np.ndarray] = {}
+    feats_wanted = wanted & {"albedo", "normal", "depth", "position", "emitter"}
+    if feats_wanted:
+        fsc = sc.feature_scene
+        feat_desc = {"scene": sc.name, "res": res.key, "dict": fsc.scene_dict(mi, res),
+                     "versions": base["versions"], "what": "transient-features",
+                     "spp": _render.DEFAULT_FEATURE_SPP, "seed": int(seed),
+                     "aovs": _render.AOV_STRING}
+        feats = _render.cached_features(cache, feat_desc, fsc, res, seed, meta)
+        buffers.update({k: feats[k] for k in feats_wanted})
+
+    if "reference" in wanted:
+        rspp = reference_spp(spp, ref_spp)
+        ref_desc = {**base, "what": "transient-reference", "spp": rspp, "seed": ref_seed,
+                    "chunk": DEFAULT_REFERENCE_CHUNK, "var": _render.REFERENCE_VAR_VERSION}
+        entry = cache.get("transient-reference", ref_desc)
+        arrays = entry.arrays() if entry is not None else {}
+        if {"reference", "reference_var", "steady"} <= set(arrays):
+            ref, ref_var, ref_steady = arrays["reference"], arrays["reference_var"], arrays["steady"]
+            meta["ref_render_s"] = entry.meta.get("render_s")
+            meta["cache_hits"].append("reference")
+        else:
+            ref, ref_var, ref_steady, seconds = render_reference(sc, res, rspp, ref_seed, bins,
+                                                                 progress=progress)
+            cache.put("transient-reference", ref_desc,
+                      arrays={"reference": ref, "reference_var": ref_var, "steady": ref_steady},
+                      meta={"render_s": seconds,
+                            "chunks": len(_render.reference_chunks(rspp,
+                                                                   DEFAULT_REFERENCE_CHUNK))})
+            meta["ref_render_s"] = seconds
+            meta["rendered"].append("reference")
+        buffers["reference"], buffers["reference_var"] = ref, ref_var
+        meta.update(reference_meta(rspp, ref_seed, ref_var))
+        meta["reference_energy_fraction"] = energy_fraction(ref, ref_steady, sc.emission)
+
+    return TransientFrame(color=color, stats=stats, steady=steady,
+                          non_zero=None if non_zero is None else non_zero, meta=meta,
+                          total_var=total_var, **buffers)
+
+
+__all__ = ["TransientScene", "Window", "TransientRender", "load_transient", "collect_passes",
+           "collect_in_integrator", "pass_samples", "render_plain", "render_reference",
+           "size_window", "direct_arrivals", "direct_arrival_dict", "expected_direct_bins",
+           "energy_fraction", "transient_film", "SPEED_OF_LIGHT"]
