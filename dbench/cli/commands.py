@@ -373,7 +373,10 @@ def _bench_gpu(args: argparse.Namespace) -> int:
     pre = None
     if device == "cuda":  # every kernel compiled side by side first (docs/gpu.md §6)
         from ..speed.kernels import precompile
-        pre = precompile(jobs=args.jobs, log=print)
+        # at the sizes timed below: Triton's variants depend on them (dbench/speed/kernels.py)
+        pre = precompile(jobs=args.jobs, log=print,
+                         sizes=[(args.height, args.width), gpu.HOSTILE_SIZE],
+                         transient_size=gpu.TRANSIENT_SIZE)
         print(f"compiled {pre['variants']} kernel variants in {pre['compile_wall_s']:.1f} s "
               f"({pre['jobs']} at a time, {pre['errors']} failed)")
     result = gpu.bench_gpu(height=args.height, width=args.width, device=device,

@@ -28,11 +28,18 @@ HEIGHT, WIDTH = 16, 32
 FRAMES = 3
 
 
-def record_launches(methods: list[str] | None = None, transient: bool = True) -> dict[str, list]:
-    """Method name → its device path's launches (``runtime.Launch``) on the recording frame
-    (every frame's), with the GPU's launch choices, not executed. Methods without a device path
-    are left out. ``transient`` adds "statistical (transient)" on a 16 × 32 × 4 video when
-    ``statistical`` is among the methods."""
+def record_launches(methods: list[str] | None = None, transient: bool = True,
+                    size: tuple[int, int] | None = None,
+                    transient_size: tuple[int, int, int] | None = None) -> dict[str, list]:
+    """Method name → its device path's launches (``runtime.Launch``) on a synthetic frame of
+    ``size`` (height, width; default :data:`HEIGHT` × :data:`WIDTH`), every frame's, with the
+    GPU's launch choices, not executed. Methods without a device path are left out.
+    ``transient`` adds "statistical (transient)" on a video of ``transient_size`` (height,
+    width, bins; default 16 × 32 × 4) when ``statistical`` is among the methods.
+
+    Triton specialises integer arguments by value (1, multiples of 16), sizes derived from the
+    frame's included (A-SVGF's strata are ⌈H/3⌉ × ⌈W/3⌉), so a recording has the variants of
+    its own size: ``dbench bench gpu`` records at the sizes it times."""
     from .. import registry
     from ..device import upload
     from ..methods.kernels.gpu.runtime import gpu_layout, recording
@@ -40,10 +47,11 @@ def record_launches(methods: list[str] | None = None, transient: bool = True) ->
     from .gpu import TARGETS_MS, _available, _temporal, synthetic_frame, transient_video
 
     found: dict[str, list] = {}
-    frame = synthetic_frame(HEIGHT, WIDTH)
+    frame = synthetic_frame(*(size or (HEIGHT, WIDTH)))
     jobs = [(n, frame) for n in (methods or list(TARGETS_MS))]
     if transient and (methods is None or "statistical" in methods):
-        jobs.append(("statistical (transient)", transient_video(HEIGHT, WIDTH, 4)))
+        jobs.append(("statistical (transient)",
+                     transient_video(*(transient_size or (HEIGHT, WIDTH, 4)))))
     for label, fr in jobs:
         m = registry.get(label.split(" ")[0])
         if not m.runs_on_device():
@@ -59,21 +67,27 @@ def record_launches(methods: list[str] | None = None, transient: bool = True) ->
 
 
 def precompile(arch: int | None = None, jobs: int | None = None,
-               methods: list[str] | None = None, log=None) -> dict[str, Any]:
-    """Every variant of :func:`record_launches` compiled for ``sm_<arch>`` (default: the GPU
-    PyTorch sees, else :data:`aot.DEFAULT_ARCH`), ``jobs`` processes at a time (default: one per
-    core). Returns the target, the wall time and a row per variant (the methods that launch it,
-    its compile seconds and sizes, or its error)."""
+               methods: list[str] | None = None, log=None,
+               sizes: list[tuple[int, int]] | None = None,
+               transient_size: tuple[int, int, int] | None = None) -> dict[str, Any]:
+    """Every variant of :func:`record_launches` at each of ``sizes`` (default: the recording
+    frame alone) compiled for ``sm_<arch>`` (default: the GPU PyTorch sees, else
+    :data:`aot.DEFAULT_ARCH`), ``jobs`` processes at a time (default: one per core). Returns
+    the target, the wall time and a row per variant (the methods that launch it, its compile
+    seconds and sizes, or its error)."""
     from ..methods.kernels.gpu import aot
 
     arch = int(arch or _local_arch() or aot.DEFAULT_ARCH)
     jobs = int(jobs or os.cpu_count() or 1)
     t0 = time.perf_counter()
-    recorded = record_launches(methods)
     users: dict[Any, list[str]] = {}
-    for label, launches in recorded.items():
-        for v in aot.variants(launches, arch):
-            users.setdefault(v, []).append(label)
+    for i, size in enumerate(sizes or [None]):
+        recorded = record_launches(methods, transient=(i == 0), size=size,
+                                   transient_size=transient_size)
+        for label, launches in recorded.items():
+            for v in aot.variants(launches, arch):
+                if label not in users.setdefault(v, []):
+                    users[v].append(label)
     found = list(users)
     record_s = time.perf_counter() - t0
     if log:

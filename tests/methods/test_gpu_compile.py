@@ -108,3 +108,20 @@ def test_every_kernel_variant_compiles_for_sm90():
     assert result["variants"] >= 20
     failed = [(r["variant"], r["error"]) for r in result["rows"] if "error" in r]
     assert not failed, failed
+
+
+def test_variants_follow_the_frame_size_so_bench_gpu_records_at_its_own(monkeypatch):
+    """A-SVGF's strata are ⌈H/3⌉ × ⌈W/3⌉: at 48 rows they are 16 (a multiple of 16, a variant of
+    its own), at 16 rows 6. ``precompile`` records at every size it is given and compiles the
+    union (here with the compiler replaced by a stand-in)."""
+    small = kernels.record_launches(["asvgf"], transient=False, size=(16, 32))
+    tall = kernels.record_launches(["asvgf"], transient=False, size=(48, 32))
+    names = {v.name for v in set(aot.variants(tall["asvgf"])) - set(aot.variants(small["asvgf"]))}
+    assert "strata_kernel" in names
+    seen = []
+    monkeypatch.setattr(aot, "compile_all", lambda found, arch, jobs: seen.extend(found) or [
+        {"kernel": v.name, "variant": v.label, "seconds": 0.0} for v in found])
+    result = kernels.precompile(arch=90, jobs=1, methods=["asvgf"], sizes=[(16, 32), (48, 32)])
+    assert set(seen) == set(aot.variants(small["asvgf"])) | set(aot.variants(tall["asvgf"]))
+    assert result["variants"] == len(seen) and all(r["methods"] == ["asvgf"]
+                                                   for r in result["rows"])
