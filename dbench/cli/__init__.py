@@ -116,6 +116,11 @@ def _main(argv: Sequence[str] | None) -> int:
         print("dbench: interrupted", file=sys.stderr)
         return 130
     except Exception as exc:  # noqa: BLE001 - one line, not a traceback (--debug shows it)
+        from ..report import run_output
+
+        if run_output.terminated():  # SIGTERM's interrupt, turned into another error on its way
+            print("dbench: interrupted", file=sys.stderr)
+            return 130
         if debug:
             raise
         print(f"dbench: internal error: {type(exc).__name__}: {exc} (run again with --debug "

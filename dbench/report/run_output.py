@@ -23,6 +23,23 @@ from ..io import ensure_writable_dir, output_error
 #: the file every run folder holds; a folder without it is not replaced
 MARKER = "run.json"
 
+#: set by SIGTERM inside :func:`staged`; cleared when the next block starts
+_terminated = threading.Event()
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM inside :func:`staged`, raised as an interrupt (exit 130). A subclass, never a
+    bare KeyboardInterrupt: CPython marks a bare one that leaves code it ran from a string as
+    unhandled, and a process so marked kills itself with SIGINT at exit, whatever exit code
+    dbench returned."""
+
+
+def terminated() -> bool:
+    """Whether a SIGTERM arrived during the current or last :func:`staged` block (its
+    interrupt may have been swallowed where Python ignores exceptions: a weakref callback, a
+    ``__del__``, a library's catch-all)."""
+    return _terminated.is_set()
+
 #: errors that are a write problem wherever they come from; EACCES and the like only count
 #: for paths inside the run folder (elsewhere they may come from reading an input)
 _DISK_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EROFS})
@@ -75,6 +92,8 @@ def staged(out: str | os.PathLike, what: str = "--out") -> Iterator[Path]:
     try:
         with _terminate_as_interrupt():
             yield stage
+            if _terminated.is_set():  # the interrupt was swallowed: the run still ends here
+                raise Terminated
             _swap_in(stage, out)
     except BaseException as exc:
         shutil.rmtree(stage, ignore_errors=True)
@@ -86,7 +105,7 @@ def staged(out: str | os.PathLike, what: str = "--out") -> Iterator[Path]:
 
 @contextmanager
 def _terminate_as_interrupt() -> Iterator[None]:
-    """SIGTERM raises KeyboardInterrupt for the block, so the cleanup above runs (by default it
+    """SIGTERM raises :class:`Terminated` for the block, so the cleanup above runs (by default it
     kills the process on the spot). Not SystemExit: a method's sys.exit is caught as that
     method's failure (dbench/cli/run.py), a termination must end the run. Only the main thread
     can set handlers; an ignored SIGTERM stays ignored."""
@@ -99,7 +118,9 @@ def _terminate_as_interrupt() -> Iterator[None]:
         return
 
     def terminate(signum, frame):
-        raise KeyboardInterrupt
+        _terminated.set()
+        raise Terminated
+    _terminated.clear()
     signal.signal(signal.SIGTERM, terminate)
     try:
         yield

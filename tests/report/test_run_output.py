@@ -180,6 +180,33 @@ def test_terminated_run_leaves_no_partial_out(renderer, tmp_path):
     assert not out.exists() and _leftovers(out) == []
 
 
+def test_a_termination_whose_interrupt_was_swallowed_still_ends_the_run(tmp_path):
+    # SIGTERM's interrupt can land where Python ignores exceptions (a weakref callback, a
+    # __del__, a library's catch-all); the run must still end without putting its folder in place
+    from dbench.report import run_output
+
+    out = tmp_path / "run"
+    before = signal.getsignal(signal.SIGTERM)
+    with pytest.raises(run_output.Terminated):
+        with run_output.staged(out) as stage:
+            (stage / "metrics.csv").write_text("x\n")
+            try:
+                os.kill(os.getpid(), signal.SIGTERM)
+                time.sleep(1)  # the handler runs here, its exception is swallowed below
+            except KeyboardInterrupt:
+                pass
+    assert run_output.terminated()
+    assert not out.exists() and _leftovers(out) == []
+    # a bare KeyboardInterrupt that some code evaluated from a string sees pass makes CPython
+    # kill the process with SIGINT at exit (exit status -2, not 130): the subclass never does
+    assert issubclass(run_output.Terminated, KeyboardInterrupt)
+    assert run_output.Terminated is not KeyboardInterrupt
+    assert signal.getsignal(signal.SIGTERM) == before
+    with run_output.staged(out) as stage:  # the next block starts clean
+        (stage / run_output.MARKER).write_text("{}")
+    assert not run_output.terminated() and out.is_dir()
+
+
 def test_guarded_stream_drops_text_once_the_reader_is_gone():
     class Broken(io.StringIO):
         def write(self, text):
