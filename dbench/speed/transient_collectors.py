@@ -82,5 +82,6 @@ def state_bytes_vs_spp(scene: str = "cornell-transient", res: int = 32, bins: in
         rows.append({"spp": int(spp), "state_bytes": int(out.timing["state_bytes"]),
                      "voxels": res * res * sc.window(bins).bins * 3,
                      "max_non_zero": int(out.non_zero.max()),
-                     "n_overflow": int(out.timing["n_overflow"])})
+                     "n_overflow": int(out.timing["n_overflow"]),
+                     "layout": out.timing["sums_layout"]})
     return rows

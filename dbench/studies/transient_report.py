@@ -76,6 +76,13 @@ NOTES = [
 ]
 
 
+#: collector (b)'s sums layouts (dbench/datasets/transient/voxel_sums.py), as the report says them
+LAYOUTS = {"packets": "S1, S2, S3 and the `non_zero` count as 4 float64 per voxel and channel "
+                      "(the packet layout)",
+           "compact": "3 float64 sums per voxel and channel and one uint64 per voxel packing "
+                      "the three `non_zero` counts (the compact layout)"}
+
+
 # ---------------------------------------------------------------------------------------------
 # collector timings
 
@@ -120,9 +127,9 @@ def collector_section(scenes: Sequence[str], res: int = 64, spp: int = 64, bins:
         mem = state_bytes_vs_spp(name)
         lines += [f"Collector (b) state vs spp ({name}, 32×32 px, 100 bins): " +
                   ", ".join(f"{r['spp']} spp → {r['state_bytes']:,} B" for r in mem) +
-                  " (constant by construction; it holds 3 float64 sums per voxel and channel, "
-                  "one uint64 per voxel packing the three `non_zero` counts and, per pixel and "
-                  "channel, Σ total and Σ total² of the paths' window totals; overflows: " +
+                  " (constant by construction; it holds " + LAYOUTS[mem[0]["layout"]] +
+                  " and, per pixel and channel, Σ total and Σ total² of the paths' window "
+                  "totals; overflows: " +
                   ", ".join(str(r["n_overflow"]) for r in mem) + ").", ""]
     return lines
 

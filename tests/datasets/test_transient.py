@@ -268,8 +268,8 @@ def test_collector_b_exact_when_nee_reenters_bins(tr, corridor):
 
 def test_collector_b_single_call_and_memory_independent_of_spp(tr):
     """All spp in one render: consistent statistics, 0 ≤ non_zero ≤ spp, and a state whose size
-    depends on the film only: (H·W·T·3) × 3 float64 sums + (H·W·T) packed uint64 counts + 4
-    uint32 counters."""
+    depends on the film only: (H·W·T·3) × (S1, S2, S3, N) float64 + 4 uint32 counters + the
+    per-pixel window totals."""
     from dbench.datasets.scenes import catalogue as scenes
     sc = scenes.get("cornell-transient")
     res, bins = 8, 30
@@ -285,8 +285,47 @@ def test_collector_b_single_call_and_memory_independent_of_spp(tr):
         assert 0.95 < out.energy_fraction <= 1.0 + 1e-6
     voxels = res * res * bins * 3
     totals = 2 * res * res * 3 * 8       # Σ total, Σ total² per pixel and channel
-    assert sizes[1] == sizes[4] == sizes[64] == (voxels * 3 * 8 + voxels // 3 * 8 + 4 * 4
-                                                 + totals)
+    assert sizes[1] == sizes[4] == sizes[64] == state_bytes(voxels) + 4 * 4 + totals
+
+
+def state_bytes(entries: int) -> int:
+    """Bytes of the sums and counts of ``entries`` (voxel, channel) in the layout the collector
+    picks on this machine (dbench/datasets/transient/voxel_sums.py)."""
+    from dbench.datasets.transient.voxel_sums import VoxelSums
+
+    return entries * 32 if VoxelSums(3).packets else entries * 24 + entries // 3 * 8
+
+
+@pytest.mark.parametrize("per_pass", [True, False])
+def test_collector_b_expand_and_atomic_flushes_agree(tr, monkeypatch, per_pass):
+    """The flushes' two strategies (docs/methods/statistical.md §11.2): per-thread copies summed
+    after the render (Expand, LLVM, small states) and atomics into one copy. With 1-spp passes a
+    voxel gets at most one flush per pass, so both are bit-identical; in one call of many spp
+    the float64 additions only run in another order."""
+    from dbench.datasets.scenes import catalogue as scenes
+    from dbench.datasets.transient import voxel_sums
+
+    sc = scenes.get("cornell-transient")
+    out = {}
+    for budget in (voxel_sums.EXPAND_BYTES, 0):
+        monkeypatch.setattr(voxel_sums, "EXPAND_BYTES", budget)
+        out[budget] = tr.collect_in_integrator(sc, 8, 6, seed=2, bins=30, per_pass=per_pass,
+                                               transform="box-cox")
+        # the layouts differ in size: the state measured is the one the budget chose
+        packets = budget > 0 and voxel_sums.VoxelSums(3).packets
+        entries = 8 * 8 * 30 * 3
+        assert out[budget].timing["state_bytes"] == (
+            (entries * 32 if packets else entries * 24 + entries // 3 * 8)
+            + 8 * entries + 4 * 4 + 2 * 8 * 8 * 3 * 8)  # + box-cox's plain sums, counters
+    expand, atomic = out[voxel_sums.EXPAND_BYTES], out[0]
+    np.testing.assert_array_equal(expand.non_zero, atomic.non_zero)
+    np.testing.assert_array_equal(expand.color, atomic.color)
+    for k in ("s1", "s2", "s3"):
+        if per_pass:
+            np.testing.assert_array_equal(expand.sums[k], atomic.sums[k], err_msg=k)
+        else:
+            np.testing.assert_allclose(expand.sums[k], atomic.sums[k], rtol=1e-12, atol=1e-300,
+                                       err_msg=k)
 
 
 def test_collector_b_matches_the_plain_render_in_expectation(tr):

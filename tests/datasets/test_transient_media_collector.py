@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from test_transient import _assert_same  # noqa: E402  (pytest puts tests/ on sys.path)
+from test_transient import _assert_same, state_bytes  # noqa: E402  (pytest puts tests/ on sys.path)
 
 RES, BINS, SPP = 8, 20, 4
 
@@ -44,7 +44,7 @@ def test_media_state_independent_of_spp(tr, fog):
         np.testing.assert_allclose(out.sums["s1"] / spp, out.color, rtol=1e-6, atol=1e-9)
         assert np.all(out.sums["s2"] * spp >= out.sums["s1"] ** 2 * (1 - 1e-9) - 1e-12)
     voxels = RES * RES * BINS * 3
-    state = voxels * 3 * 8 + voxels // 3 * 8 + 4 * 4 + 2 * RES * RES * 3 * 8
+    state = state_bytes(voxels) + 4 * 4 + 2 * RES * RES * 3 * 8
     assert sizes[1] == sizes[4] == sizes[32] == state
 
 

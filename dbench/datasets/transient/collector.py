@@ -11,10 +11,12 @@ adding each path contribution to the film histogram, keeps a small running state
   leave a bin and come back: the slot of that bin is simply found again and its sum continued,
   so every path yields exactly one sample per bin it touches (the spec's pitfall, §11.2).
 * A slot is *flushed* at the end of the path: its float32 sum is transformed and scattered
-  with atomics into float64 power sums S1, S2, S3 (interleaved, one cache line per flush), a
-  plain sum (only when the transform is not the identity, where S1 is the plain sum) and the
-  ``non_zero`` counters. Only the bins a path touches are scattered; bins a path never reaches
-  are the zero-fill samples g(0), which add exactly 0 to the shifted sums (K = g(0)).
+  into float64 power sums S1, S2, S3 and the ``non_zero`` counts
+  (:class:`~dbench.datasets.transient.voxel_sums.VoxelSums`: packet writes into per-thread
+  copies on the LLVM backend where they fit, atomics otherwise) and a plain sum (only when the
+  transform is not the identity, where S1 is the plain sum). Only the bins a path touches are
+  scattered; bins a path never reaches are the zero-fill samples g(0), which add exactly 0 to
+  the shifted sums (K = g(0)).
 * ``slots = 2·max_depth`` (the default) can never overflow: a path has at most one emitter hit
   and one next-event estimate per vertex. With fewer slots, a slot is flushed as soon as the
   path's base optical path length has passed its bin (every later contribution has an OPL ≥ the
@@ -24,10 +26,11 @@ adding each path contribution to the film histogram, keeps a small running state
   as printed (flush whenever the bin changes), which double-counts re-entered bins. Measured:
   the full slot set is also the fastest (in-loop flushes cost more than the extra registers).
 
-Memory: the statistics state is (H, W, T, 3) × 3 float64 sums (+ 1 float64 plain sum when the
-transform is not the identity) + one uint64 per (H, W, T) voxel packing the three ``non_zero``
-counts (21 bits each), whatever the spp; a path's state is 2 × slots registers of the symbolic
-loop, never stored per sample (:meth:`StatsCollector.nbytes`).
+Memory: the statistics state is, per voxel and channel, 32 B in the packet layout (S1, S2, S3, N
+float64) or 24 B + 8/3 B in the compact one (three float64 sums and 21 bits of a uint64 per
+voxel), + 8 B of plain sum when the transform is not the identity, whatever the spp; a path's
+state is 2 × slots registers of the symbolic loop, never stored per sample
+(:meth:`StatsCollector.nbytes`).
 
 The float32 running sums are added in path order, exactly as the film histogram adds them in a
 1-spp pass, and the transform and power sums run in float64 with the same operations as the host
@@ -58,6 +61,7 @@ from ..mitsuba_env import mitsuba, require_llvm
 from ...data import TRANSFORMS, check_transform
 from ..stats import stats_from_power_sums, transform_of_zero, variance_of_mean
 from .slots import with_slots
+from .voxel_sums import VoxelSums, dr_nbytes, host_array as _host
 
 PLUGIN = "transient_path_stats"
 _REGISTERED: dict[str, Any] = {}
@@ -249,11 +253,8 @@ class StatsCollector:
     def reset(self) -> None:
         dr, mi = self.dr, self.mi
         n = self.size
-        # S1, S2, S3 interleaved: [(voxel, channel), moment], so the three atomics of one
-        # flush touch one cache line
-        self.sums = dr.zeros(mi.Float64, 3 * n)
+        self.state = VoxelSums(n)  # S1, S2, S3 and the non_zero counts
         self.plain = dr.zeros(mi.Float64, n) if self.keep_plain else None
-        self.nz = dr.zeros(mi.UInt64, n // 3)   # non_zero, 3 × 21-bit fields per voxel
         # per pixel and channel: Σ total, Σ total² of the paths' window totals (identity)
         self.totals = dr.zeros(mi.Float64, 2 * self.height * self.width * 3)
         # n_nonfinite, n_clamped, n_overflow, n_reentry
@@ -264,12 +265,12 @@ class StatsCollector:
 
     def release(self) -> None:
         """Drop the statistics state (``reset`` allocates it again)."""
-        self.sums = self.plain = self.nz = self.totals = None
+        self.state = self.plain = self.totals = None
         self.counters = None
 
     def nbytes(self) -> int:
         """Bytes of the statistics state (independent of spp by construction)."""
-        arrays = [self.sums, self.nz, self.counters, self.totals]
+        arrays = [*self.state.arrays(), self.counters, self.totals]
         if self.plain is not None:
             arrays.append(self.plain)
         return int(sum(dr_nbytes(a) for a in arrays))
@@ -304,13 +305,12 @@ class StatsCollector:
         voxel ``voxel`` = (y·W + x)·T + bin. Returns the lane's (non-finite, clamped) counts.
         ``total`` (3 Float64, the path's running window total) gets the flushed finite values.
 
-        Per channel: S1 += u, S2 += u², S3 += u³ (u = g(x) − g(0), float64) and the plain sum
-        when kept; the three ``non_zero`` counters are packed into one uint64 per voxel
-        (21 bits per channel), so one atomic serves all three channels."""
+        Per channel: S1 += u, S2 += u², S3 += u³ (u = g(x) − g(0), float64), non_zero += [x ≠ 0]
+        (:meth:`VoxelSums.add`), and the plain sum when kept."""
         dr, mi = self.dr, self.mi
         n_bad = mi.UInt32(0)
         n_neg = mi.UInt32(0)
-        nz = mi.UInt64(0)
+        us, nonzero = [], []
         base = voxel * 3
         for c in range(3):
             x = mi.Float64(value[c])
@@ -322,18 +322,12 @@ class StatsCollector:
             if self.code == 1:
                 n_neg += dr.select(active & (x < 0.0), 1, 0)
                 x = dr.maximum(x, 0.0)
-            idx = base + c
-            u = self._transform(x)
-            u2 = u * u
-            j = idx * 3
-            dr.scatter_reduce(dr.ReduceOp.Add, self.sums, u, j, active, mode=self.mode)
-            dr.scatter_reduce(dr.ReduceOp.Add, self.sums, u2, j + 1, active, mode=self.mode)
-            dr.scatter_reduce(dr.ReduceOp.Add, self.sums, u2 * u, j + 2, active, mode=self.mode)
+            us.append(self._transform(x))
+            nonzero.append(x != 0.0)
             if self.plain is not None:
-                dr.scatter_reduce(dr.ReduceOp.Add, self.plain, x, idx, active, mode=self.mode)
-            nz |= dr.select(x != 0.0, mi.UInt64(1) << NZ_BITS * c, mi.UInt64(0))
-        dr.scatter_reduce(dr.ReduceOp.Add, self.nz, nz, voxel, active & (nz != 0),
-                          mode=self.mode)
+                dr.scatter_reduce(dr.ReduceOp.Add, self.plain, x, base + c, active,
+                                  mode=self.mode)
+        self.state.add(voxel, us, nonzero, active)
         return n_bad, n_neg
 
     def _add_total(self, voxel0, total) -> None:
@@ -367,13 +361,14 @@ class StatsCollector:
     def render(self, spp: int, seed: int) -> np.ndarray:
         """Render ``spp`` samples per pixel in one call; returns the steady image (H, W, 3)."""
         mi, dr = self.mi, self.dr
-        if self.n + int(spp) > MAX_SAMPLES:
-            raise ValueError(f"StatsCollector: at most {MAX_SAMPLES} samples per pixel "
+        cap = self.state.max_samples
+        if cap is not None and self.n + int(spp) > cap:
+            raise ValueError(f"StatsCollector: at most {cap} samples per pixel "
                              "(packed non_zero counters)")
         t0 = time.perf_counter()
         steady, _ = mi.render(self.scene, integrator=self.integrator, spp=int(spp),
                               seed=int(seed))
-        arrays = [self.sums, self.nz, self.counters, self.totals]
+        arrays = [*self.state.arrays(), self.counters, self.totals]
         if self.plain is not None:
             arrays.append(self.plain)
         dr.eval(steady, *arrays)
@@ -387,17 +382,18 @@ class StatsCollector:
     def power_sums(self, unpack: bool = True) -> dict[str, np.ndarray]:
         """Host arrays: s1, s2, s3, plain (float64) and non_zero (int32; left out when
         ``unpack`` is False), each (H, W, T, 3)
-        (s1, s2, s3 are views of ``interleaved``, (H·W·T·3, 3)); with the identity transform
+        (s1, s2, s3 are columns of ``interleaved``, (H·W·T·3, 3 or 4)); with the identity transform
         ``plain`` is ``s1`` itself. On the LLVM backend these are zero-copy views of the device
         arrays (they keep them alive; :meth:`reset` allocates new ones)."""
         shape = (self.height, self.width, self.bins, 3)
-        sums = _host(self.sums).reshape(shape + (3,))
+        flat, counts = self.state.host(counts=unpack)
+        sums = flat.reshape(shape + (flat.shape[1],))
         s1 = sums[..., 0]
-        out = {"s1": s1, "interleaved": sums.reshape(-1, 3),
+        out = {"s1": s1, "interleaved": flat,
                "s2": sums[..., 1],
                "s3": sums[..., 2]}
         if unpack:
-            out["non_zero"] = unpack_non_zero(_host(self.nz)).reshape(shape)
+            out["non_zero"] = counts.reshape(shape)
         out["plain"] = (_host(self.plain).reshape(shape)
                         if self.plain is not None else s1)
         return out
@@ -418,15 +414,13 @@ class StatsCollector:
         mi, dr = self.mi, self.dr
         if self.n < 1:
             raise RuntimeError("StatsCollector.moments: nothing rendered yet")
-        F = type(self.sums)
+        F = mi.Float64
         n = float(self.n)
         count = dr.opaque(F, n)
         safe_n = dr.opaque(F, max(n, 1.0))
         denom = dr.opaque(F, max(n - 1.0, 1.0))
         idx = dr.arange(mi.UInt32, self.size)
-        s1 = dr.gather(F, self.sums, 3 * idx)
-        s2 = dr.gather(F, self.sums, 3 * idx + 1)
-        s3 = dr.gather(F, self.sums, 3 * idx + 2)
+        s1, s2, s3, non_zero = self.state.gather(idx)
         a = s1 / safe_n
         s2n = s2 / safe_n
         m2b = s2n - a * a
@@ -437,9 +431,6 @@ class StatsCollector:
         var_mean = sigma2 / safe_n
         mean = a + dr.opaque(F, float(self.k))
         color = mi.Float32((self.plain if self.plain is not None else s1) / count)
-        packed = dr.gather(type(self.nz), self.nz, idx // 3)
-        shift = mi.UInt64(idx % 3) * NZ_BITS
-        non_zero = mi.Int32((packed >> shift) & MAX_SAMPLES)
         dr.eval(mean, var_mean, m3, color, non_zero)
         shape = (self.height, self.width, self.bins, 3)
         return {name: _host(value).reshape(shape) for name, value in
@@ -462,29 +453,3 @@ class StatsCollector:
                                       self.lam, diagnostics=self.diagnostics())
         color = (p["plain"] / self.n).astype(np.float32)
         return color, stats, p["non_zero"]
-
-
-#: bits per channel of the packed ``non_zero`` counters (a voxel can count 2²¹ − 1 samples)
-NZ_BITS = 21
-MAX_SAMPLES = (1 << NZ_BITS) - 1
-
-
-def unpack_non_zero(packed: np.ndarray) -> np.ndarray:
-    """(N,) uint64 packed counters → (N, 3) int32 per-channel counts."""
-    mask = np.uint64(MAX_SAMPLES)
-    return np.stack([((packed >> np.uint64(NZ_BITS * c)) & mask).astype(np.int32)
-                     for c in range(3)], axis=-1)
-
-
-def _host(array) -> np.ndarray:
-    """A NumPy view of an LLVM (host memory) Dr.Jit array; a copy on other backends."""
-    return np.asarray(array) if mi.variant().startswith("llvm") else np.array(array)
-
-
-def dr_nbytes(array) -> int:
-    import drjit as dr
-
-    width = dr.width(array)
-    name = type(array).__name__
-    item = 8 if "64" in name else 4
-    return int(width * item)

@@ -5,8 +5,8 @@ docs/methods/statistical.md §11.1-11.2 (mode B), docs/transient.md §5. :class:
 ``transient_prbvolpath`` (delta tracking, next-event estimation at surface and medium scatter
 vertices, Russian roulette) operation for operation and with the same random numbers, but where
 that integrator adds a contribution to the film histogram it offers it to the per-path slots of
-:mod:`dbench.datasets.transient.slots`; the slots are flushed with atomics into the float64 power
-sums and packed ``non_zero`` counters of a :class:`MediaStatsCollector` (the same state and host
+:mod:`dbench.datasets.transient.slots`; the slots are flushed into the float64 power
+sums and ``non_zero`` counts of a :class:`MediaStatsCollector` (the same state and host
 side as :class:`~dbench.datasets.transient.collector.StatsCollector`).
 
 Slots: a contribution is an emitter hit (at a surface interaction, at the path's OPL) or a
@@ -271,7 +271,7 @@ def _define():
 class MediaStatsCollector(StatsCollector):
     """:class:`~dbench.datasets.transient.collector.StatsCollector` driving
     :class:`TransientPRBVolpathStats` (participating media). Same arguments, state
-    ((H, W, T, 3) float64 sums, (H, W, T) packed uint64 counts), ``render``, ``moments`` and
+    (:class:`~dbench.datasets.transient.voxel_sums.VoxelSums`), ``render``, ``moments`` and
     ``result``."""
 
     plugin = PLUGIN
