@@ -32,8 +32,10 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import queue
 import shutil
 import sys
+import threading
 import time
 import uuid
 from dataclasses import dataclass
@@ -116,6 +118,49 @@ def file_record(path: Path) -> dict[str, Any]:
     """{"size", "sha256"} of one file."""
     data = path.read_bytes()
     return {"size": len(data), "sha256": hashlib.sha256(data).hexdigest()}
+
+
+class DigestingWriter:
+    """A write-only stream over ``fh`` that takes the sha256 of what passes through, in a second
+    thread (hashlib releases the GIL, so beside the write the hash costs little wall time), so
+    a new entry's checksum needs no second read of its file. It has no ``tell``: zipfile then
+    writes a streamed archive (sizes after each member), which ``np.load`` reads as any other;
+    ``read`` only raises (NumPy tells a stream from a path by it)."""
+
+    def __init__(self, fh):
+        self._fh = fh
+        self.size = 0
+        self._sha = hashlib.sha256()
+        self._chunks: queue.SimpleQueue = queue.SimpleQueue()
+        self._thread = threading.Thread(target=self._hash, daemon=True)
+        self._thread.start()
+
+    def _hash(self) -> None:
+        while (chunk := self._chunks.get()) is not None:
+            self._sha.update(chunk)
+
+    def write(self, data) -> int:
+        data = data if isinstance(data, bytes) else bytes(data)  # a view's buffer may be reused
+        written = self._fh.write(data)
+        self._chunks.put(data)
+        self.size += len(data)
+        return written
+
+    def read(self, *args):
+        raise OSError("write-only stream")
+
+    def flush(self) -> None:
+        self._fh.flush()
+
+    def record(self) -> dict[str, Any]:
+        """{"size", "sha256"} of everything written (as :func:`file_record` of the file)."""
+        self.close()
+        return {"size": self.size, "sha256": self._sha.hexdigest()}
+
+    def close(self) -> None:
+        if self._thread.is_alive():
+            self._chunks.put(None)
+            self._thread.join()
 
 
 def verify(path: Path, meta: dict, description: dict) -> str:
@@ -202,11 +247,18 @@ class Cache:
         try:
             if images:
                 io.write_exr(tmp / "buffers.exr", images)
+            records = {}
             if arrays:
                 with io.atomic_path(tmp / "arrays.npz", suffix=".tmp.npz") as t:
                     with open(t, "wb") as fh:
-                        (np.savez_compressed if compress else np.savez)(fh, **arrays)
-            meta["files"] = {n: file_record(tmp / n) for n in DATA_FILES if (tmp / n).is_file()}
+                        writer = DigestingWriter(fh)
+                        try:
+                            (np.savez_compressed if compress else np.savez)(writer, **arrays)
+                        finally:
+                            writer.close()
+                records["arrays.npz"] = writer.record()
+            meta["files"] = {n: records.get(n) or file_record(tmp / n) for n in DATA_FILES
+                             if (tmp / n).is_file()}
             io.write_json(tmp / "meta.json", meta)
             try:
                 os.rename(tmp, final)

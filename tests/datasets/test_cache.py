@@ -5,7 +5,7 @@ import pytest
 
 from dbench import datasets
 from dbench.data import Frame
-from dbench.datasets.cache import Cache, make_key
+from dbench.datasets.cache import Cache, DigestingWriter, file_record, make_key
 from dbench.errors import DbenchInputError, UnknownNameError
 
 
@@ -32,6 +32,29 @@ def test_put_get_roundtrip_and_interrupted_write(tmp_path):
     (half / "buffers.exr").write_bytes(b"partial")
     assert cache.get("noisy", {"what": "y"}) is None
     assert cache.clean() == 1 and not half.exists()
+
+
+@pytest.mark.parametrize("compress", [False, True])
+def test_the_checksum_taken_while_writing_is_the_files(tmp_path, compress):
+    # arrays.npz is hashed as it is written (no second read); verify() hashes the file itself
+    rng = np.random.default_rng(1)
+    arrays = {"mean": rng.random((6, 7, 30, 3)), "non_zero": rng.integers(0, 9, (6, 7, 30, 3)),
+              "empty": np.zeros((0, 3))}
+    cache = Cache(tmp_path)
+    entry = cache.put("transient-stats", {"what": compress}, arrays=arrays, compress=compress)
+    assert entry.meta["files"]["arrays.npz"] == file_record(entry.path / "arrays.npz")
+    got = cache.get("transient-stats", {"what": compress}).arrays()
+    for name, value in arrays.items():
+        np.testing.assert_array_equal(got[name], value)
+        assert got[name].dtype == value.dtype
+    # a memoryview is copied before it is queued: its buffer may change after write() returns
+    buf = bytearray(b"abcd")
+    with open(tmp_path / "x.bin", "wb") as fh:
+        writer = DigestingWriter(fh)
+        writer.write(memoryview(buf))
+        buf[:] = b"zzzz"
+        record = writer.record()
+    assert record == file_record(tmp_path / "x.bin")
 
 
 def test_disabled_cache_stores_nothing(tmp_path):
