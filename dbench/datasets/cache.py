@@ -114,24 +114,15 @@ UNCHECKED = "no file checksums, so its contents cannot be checked"
 STALE_TMP_S = 24 * 3600
 
 
-def file_record(path: Path) -> dict[str, Any]:
-    """{"size", "sha256"} of one file."""
-    data = path.read_bytes()
-    return {"size": len(data), "sha256": hashlib.sha256(data).hexdigest()}
+class BackgroundSha256:
+    """The sha256 of chunks handed over one at a time, taken in a second thread: hashlib releases
+    the GIL on large chunks, so reading or writing the next chunk goes on beside the hash. At
+    most ``depth`` chunks wait, so memory stays bounded when the hash is the slower side."""
 
-
-class DigestingWriter:
-    """A write-only stream over ``fh`` that takes the sha256 of what passes through, in a second
-    thread (hashlib releases the GIL, so beside the write the hash costs little wall time), so
-    a new entry's checksum needs no second read of its file. It has no ``tell``: zipfile then
-    writes a streamed archive (sizes after each member), which ``np.load`` reads as any other;
-    ``read`` only raises (NumPy tells a stream from a path by it)."""
-
-    def __init__(self, fh):
-        self._fh = fh
+    def __init__(self, depth: int = 4):
         self.size = 0
         self._sha = hashlib.sha256()
-        self._chunks: queue.SimpleQueue = queue.SimpleQueue()
+        self._chunks: queue.Queue = queue.Queue(maxsize=depth)
         self._thread = threading.Thread(target=self._hash, daemon=True)
         self._thread.start()
 
@@ -139,11 +130,48 @@ class DigestingWriter:
         while (chunk := self._chunks.get()) is not None:
             self._sha.update(chunk)
 
+    def update(self, chunk: bytes) -> None:
+        self._chunks.put(chunk)
+        self.size += len(chunk)
+
+    def close(self) -> None:
+        if self._thread.is_alive():
+            self._chunks.put(None)
+            self._thread.join()
+
+    def record(self) -> dict[str, Any]:
+        """{"size", "sha256"} of everything handed over."""
+        self.close()
+        return {"size": self.size, "sha256": self._sha.hexdigest()}
+
+
+def file_record(path: Path, chunk: int = 8 << 20) -> dict[str, Any]:
+    """{"size", "sha256"} of one file, each chunk hashed while the next is read."""
+    digest = BackgroundSha256()
+    try:
+        with open(path, "rb") as fh:
+            while block := fh.read(chunk):
+                digest.update(block)
+    finally:
+        digest.close()
+    return digest.record()
+
+
+class DigestingWriter:
+    """A write-only stream over ``fh`` that takes the sha256 of what passes through
+    (:class:`BackgroundSha256`), so a new entry's checksum needs no second read of its file. It
+    has no ``tell``: zipfile then writes a streamed archive (sizes after each member), which
+    ``np.load`` reads as any other; ``read`` only raises (NumPy tells a stream from a path by
+    it)."""
+
+    def __init__(self, fh):
+        self._fh = fh
+        self._digest = BackgroundSha256()
+
     def write(self, data) -> int:
         data = data if isinstance(data, bytes) else bytes(data)  # a view's buffer may be reused
         written = self._fh.write(data)
-        self._chunks.put(data)
-        self.size += len(data)
+        self._digest.update(data)
         return written
 
     def read(self, *args):
@@ -154,13 +182,10 @@ class DigestingWriter:
 
     def record(self) -> dict[str, Any]:
         """{"size", "sha256"} of everything written (as :func:`file_record` of the file)."""
-        self.close()
-        return {"size": self.size, "sha256": self._sha.hexdigest()}
+        return self._digest.record()
 
     def close(self) -> None:
-        if self._thread.is_alive():
-            self._chunks.put(None)
-            self._thread.join()
+        self._digest.close()
 
 
 def verify(path: Path, meta: dict, description: dict) -> str:

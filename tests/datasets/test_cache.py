@@ -57,6 +57,19 @@ def test_the_checksum_taken_while_writing_is_the_files(tmp_path, compress):
     assert record == file_record(tmp_path / "x.bin")
 
 
+def test_file_record_in_chunks_equals_one_read(tmp_path):
+    import hashlib
+
+    data = np.random.default_rng(2).bytes(100_003)
+    (tmp_path / "f.bin").write_bytes(data)
+    (tmp_path / "empty.bin").write_bytes(b"")
+    for chunk in (7, 4096, 1 << 20):
+        assert file_record(tmp_path / "f.bin", chunk=chunk) == {
+            "size": len(data), "sha256": hashlib.sha256(data).hexdigest()}
+    assert file_record(tmp_path / "empty.bin") == {"size": 0,
+                                                   "sha256": hashlib.sha256(b"").hexdigest()}
+
+
 def test_disabled_cache_stores_nothing(tmp_path):
     cache = Cache(tmp_path, enabled=False)
     cache.put("noisy", {"a": 1}, images={"color": np.zeros((2, 2, 3))})
