@@ -240,7 +240,8 @@ class StatsCollector:
         self.integrator.collector = self
         self.slots = self.integrator.slots
         self.keep_plain = transform != "identity"
-        #: Dr.Jit reduction strategy of the flushes (Auto: Local on large arrays)
+        #: Dr.Jit reduction strategy of the plain sums, totals and counters (the power sums:
+        #: VoxelSums)
         self.mode = dr.ReduceMode.Auto
         self.reset()
 
