@@ -290,7 +290,7 @@ def test_collector_b_single_call_and_memory_independent_of_spp(tr):
 
 def state_bytes(entries: int) -> int:
     """Bytes of the sums and counts of ``entries`` (voxel, channel) in the layout the collector
-    picks on this machine (dbench/datasets/transient/voxel_sums.py)."""
+    picks on this machine under the current budget (dbench/datasets/transient/voxel_sums.py)."""
     from dbench.datasets.transient.voxel_sums import VoxelSums
 
     return entries * 32 if VoxelSums(3).packets else entries * 24 + entries // 3 * 8
@@ -312,11 +312,10 @@ def test_collector_b_expand_and_atomic_flushes_agree(tr, monkeypatch, per_pass):
         out[budget] = tr.collect_in_integrator(sc, 8, 6, seed=2, bins=30, per_pass=per_pass,
                                                transform="box-cox")
         # the layouts differ in size: the state measured is the one the budget chose
-        packets = budget > 0 and voxel_sums.VoxelSums(3).packets
         entries = 8 * 8 * 30 * 3
         assert out[budget].timing["state_bytes"] == (
-            (entries * 32 if packets else entries * 24 + entries // 3 * 8)
-            + 8 * entries + 4 * 4 + 2 * 8 * 8 * 3 * 8)  # + box-cox's plain sums, counters
+            state_bytes(entries) + 8 * entries + 4 * 4 + 2 * 8 * 8 * 3 * 8)  # + box-cox's
+        # plain sums, the counters and the window totals
     expand, atomic = out[voxel_sums.EXPAND_BYTES], out[0]
     np.testing.assert_array_equal(expand.non_zero, atomic.non_zero)
     np.testing.assert_array_equal(expand.color, atomic.color)

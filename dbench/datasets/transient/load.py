@@ -284,7 +284,7 @@ def collect_in_integrator(scene: TransientScene, res, spp: int, seed: int = 0,
     steady = (col.steady / col.n).astype(np.float32)
     total_var = col.total_var()
     state_bytes, diagnostics = col.nbytes(), col.diagnostics()
-    layout = "packets" if col.state.packets else "compact"
+    layout = col.state.layout
     col.release()  # the cached collector keeps its integrator, not the sums
     return TransientRender(color=color, steady=steady, stats=stats,
                            non_zero=non_zero, total_var=total_var,

@@ -42,6 +42,11 @@ class VoxelSums:
         self.nz = None if self.packets else dr.zeros(mi.UInt64, self.n // 3)
 
     @property
+    def layout(self) -> str:
+        """"packets" or "compact" (the module docstring), as reports name it."""
+        return "packets" if self.packets else "compact"
+
+    @property
     def max_samples(self) -> int | None:
         """The most samples per pixel the counts hold (None: exact in float64 up to 2⁵³)."""
         return None if self.packets else MAX_SAMPLES
