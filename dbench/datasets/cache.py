@@ -25,6 +25,9 @@ they existed) is a miss too, rendered again and replaced: that its files load sa
 about whether they are the pixels its key stands for (another scene's ``buffers.exr`` copied
 in loads just as well), and adopting it would seal whatever it holds with a checksum.
 
+Mostly empty transient videos are stored by their non-zero rows (:mod:`.sparse_rows`,
+docs/transient.md §6), in entries of format 2; format 1 entries read as before.
+
 Location: ``--cache DIR`` or ``DBENCH_CACHE``, default ``~/.cache/dbench``.
 """
 from __future__ import annotations
@@ -45,8 +48,14 @@ from typing import Any
 import numpy as np
 
 from .. import io
+from . import sparse_rows
 
 CACHE_FORMAT = 1
+#: The format of an entry whose arrays.npz holds packed rows (:mod:`.sparse_rows`): code that
+#: reads only CACHE_FORMAT takes such an entry for a miss instead of misreading it.
+PACKED_FORMAT = 2
+#: Entry formats this code reads.
+FORMATS = (CACHE_FORMAT, PACKED_FORMAT)
 
 
 def default_root() -> Path:
@@ -103,7 +112,7 @@ class Entry:
         if not f.exists():
             return {}
         with np.load(f) as z:
-            return {k: z[k] for k in z.files}
+            return sparse_rows.unpack({k: z[k] for k in z.files})
 
 
 #: Files an entry may hold besides meta.json.
@@ -243,7 +252,7 @@ class Cache:
         except (OSError, ValueError) as exc:
             self._warn(kind, key, f"meta.json unreadable: {type(exc).__name__}")
             return None
-        if meta.get("cache_format") != CACHE_FORMAT:
+        if meta.get("cache_format") not in FORMATS:
             return None
         why = verify(path, meta, description)
         if why:
@@ -253,14 +262,18 @@ class Cache:
 
     def put(self, kind: str, description: dict, images: dict[str, np.ndarray] | None = None,
             arrays: dict[str, np.ndarray] | None = None, meta: dict | None = None,
-            compress: bool = True) -> Entry:
+            compress: bool = True, sparse: tuple[str, ...] = ()) -> Entry:
         """Store an entry atomically. ``compress=False`` writes ``arrays.npz`` uncompressed
         (read back the same way): for float64 statistics, which deflate to about half their
-        size at 25× the write time (README.md, "How renders work")."""
+        size at 25× the write time (README.md, "How renders work"). ``sparse`` names arrays
+        that share every axis but the last and are stored by their non-zero rows
+        (:mod:`.sparse_rows`; :meth:`Entry.arrays` gives them back bit for bit)."""
         key = make_key(description)
         final = self._dir(kind, key)
-        meta = {**(meta or {}), "cache_format": CACHE_FORMAT, "kind": kind, "key": key,
-                "description": canonical(description), "created": time.time()}
+        packed = bool(arrays) and any(n in arrays for n in sparse)
+        meta = {**(meta or {}), "cache_format": PACKED_FORMAT if packed else CACHE_FORMAT,
+                "kind": kind, "key": key, "description": canonical(description),
+                "created": time.time()}
         if not self.enabled:
             return Entry(final, meta)
         final.parent.mkdir(parents=True, exist_ok=True)
@@ -278,7 +291,8 @@ class Cache:
                     with open(t, "wb") as fh:
                         writer = DigestingWriter(fh)
                         try:
-                            (np.savez_compressed if compress else np.savez)(writer, **arrays)
+                            (np.savez_compressed if compress else np.savez)(
+                                writer, **sparse_rows.pack(arrays, sparse))
                         finally:
                             writer.close()
                 records["arrays.npz"] = writer.record()
@@ -306,7 +320,7 @@ class Cache:
             meta = io.read_json(path / "meta.json")
         except (OSError, ValueError):
             return False
-        return isinstance(meta, dict) and meta.get("cache_format") == CACHE_FORMAT and \
+        return isinstance(meta, dict) and meta.get("cache_format") in FORMATS and \
             "files" in meta and not verify(path, meta, description)
 
     def clean(self, older_than_s: float = 0.0) -> int:

@@ -2,6 +2,8 @@
 collectors of per-bin statistics (docs/transient.md §7, docs/methods/statistical.md §11, §13.14)."""
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
@@ -117,6 +119,14 @@ def test_load_returns_transient_frame_and_caches(tr, tmp_cache):
     np.testing.assert_array_equal(again.color, v.color)
     np.testing.assert_array_equal(again.stats.var_mean, v.stats.var_mean)
     np.testing.assert_array_equal(again.non_zero, v.non_zero)
+    np.testing.assert_array_equal(again.stats.m3, v.stats.m3)
+    np.testing.assert_array_equal(again.reference_var, v.reference_var)
+    # the videos are stored by their non-empty (pixel, bin) rows (datasets/sparse_rows.py)
+    from dbench.datasets.cache import PACKED_FORMAT
+    for kind in ("transient-noisy", "transient-stats", "transient-reference"):
+        formats = [json.loads(p.read_text())["cache_format"]
+                   for p in tmp_cache.root.glob(f"{kind}/*/meta.json")]
+        assert formats and set(formats) == {PACKED_FORMAT}, kind
 
 
 def test_load_errors(tr, tmp_cache):

@@ -429,7 +429,8 @@ def load_transient(scene: str | TransientScene, spp: int, res,
         if noisy is None:
             cache.put("transient-noisy", noisy_desc, arrays={"color": color, "steady": steady},
                       meta={"render_s": out.timing["render_s"],
-                            "timing": {k: v for k, v in out.timing.items()}}, compress=False)
+                            "timing": {k: v for k, v in out.timing.items()}}, compress=False,
+                      sparse=("color",))
         if out.stats is not None and "stats" in wanted:
             stats, non_zero, total_var = out.stats, out.non_zero, out.total_var
             meta.update(stats_s=out.timing["stats_s"])
@@ -441,8 +442,9 @@ def load_transient(scene: str | TransientScene, spp: int, res,
                       meta={"stats_s": out.timing["stats_s"],
                             "diagnostics": stats.diagnostics},
                       # noisy float arrays deflate to about half at 12-25x the write time
-                      # (0.65 s at 48²×100 against a 0.24 s render): stored as they are
-                      compress=False)
+                      # (0.65 s at 48²×100 against a 0.24 s render); the empty (pixel, bin)
+                      # rows are left out instead (datasets/sparse_rows.py)
+                      compress=False, sparse=("mean", "var_mean", "m3", "non_zero"))
     if stats is not None:
         meta["stats_diagnostics"] = dict(stats.diagnostics)
     meta["energy_fraction"] = energy_fraction(color, steady, sc.emission)
@@ -474,6 +476,7 @@ def load_transient(scene: str | TransientScene, spp: int, res,
                                                                  progress=progress)
             cache.put("transient-reference", ref_desc,
                       arrays={"reference": ref, "reference_var": ref_var, "steady": ref_steady},
+                      sparse=("reference", "reference_var"),
                       meta={"render_s": seconds,
                             "chunks": len(_render.reference_chunks(rspp,
                                                                    DEFAULT_REFERENCE_CHUNK))})

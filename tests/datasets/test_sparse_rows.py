@@ -1,0 +1,83 @@
+"""Arrays stored by their non-zero rows (dbench/datasets/sparse_rows.py): bit for bit back,
+through the cache too, with entries written before packing still read."""
+
+import numpy as np
+import pytest
+
+from dbench.datasets import sparse_rows
+from dbench.datasets.cache import CACHE_FORMAT, PACKED_FORMAT, Cache
+
+
+def _same_bits(a, b):
+    return a.dtype == b.dtype and a.shape == b.shape and \
+        np.array_equal(np.ascontiguousarray(a).view(np.uint8),
+                       np.ascontiguousarray(b).view(np.uint8))
+
+
+def _hostile(rng, shape=(5, 6, 40, 3)):
+    """A mostly empty float64 video with -0.0, NaN (with a payload), ±inf and a subnormal in
+    rows that are otherwise zero, a float32 one, and integer counts."""
+    rows = (rng.random(shape[:-1]) < 0.15)[..., None]  # the (pixel, bin) rows a path reached
+    mean = np.where(rows, rng.normal(size=shape), 0.0)
+    mean[0, 0, 0, 1] = -0.0
+    mean[1, 2, 3, 0] = np.float64(np.frombuffer(np.uint64(0x7FF8000000000123).tobytes(),
+                                                np.float64)[0])
+    mean[2, 2, 2, 2] = np.inf
+    mean[3, 3, 3, 0] = -np.inf
+    mean[4, 4, 4, 1] = 5e-324
+    colour = np.where(rows, rng.random(shape), 0).astype(np.float32)
+    colour[0, 1, 5, 2] = np.float32(-0.0)
+    counts = np.where(rows, rng.integers(1, 64, shape), 0).astype(np.int32)
+    return {"mean": mean, "color": colour, "non_zero": counts}
+
+
+def test_unpack_of_pack_is_the_input_bit_for_bit():
+    rng = np.random.default_rng(3)
+    arrays = {**_hostile(rng), "steady": rng.random((5, 6, 3))}
+    stored = sparse_rows.pack(arrays, ("mean", "color", "non_zero"))
+    assert "mean" not in stored and "steady" in stored  # steady is stored as given
+    back = sparse_rows.unpack(stored)
+    assert set(back) == set(arrays)
+    for name, value in arrays.items():
+        assert _same_bits(back[name], value), name
+    # only the rows where some array is non-zero (in its bits) are kept
+    keep = np.zeros((5, 6, 40), bool)
+    for name in ("mean", "color", "non_zero"):
+        a = arrays[name]
+        keep |= (a.reshape(-1, 3).view(f"u{a.itemsize}") != 0).any(1).reshape(5, 6, 40)
+    assert stored["rows~mean"].shape == (int(keep.sum()), 3) and keep.sum() < keep.size / 2
+    assert keep[0, 0, 0] and keep[0, 1, 5]  # the -0.0 rows
+
+
+@pytest.mark.parametrize("fill", [0.0, 1.0])
+def test_all_empty_and_all_full(fill):
+    a = np.full((3, 4, 2), fill)
+    back = sparse_rows.unpack(sparse_rows.pack({"a": a}, ("a",)))
+    assert _same_bits(back["a"], a)
+
+
+def test_pack_refuses_arrays_of_other_shapes_and_passes_the_rest():
+    with pytest.raises(ValueError, match="share every axis but the last"):
+        sparse_rows.pack({"a": np.zeros((2, 3, 3)), "b": np.zeros((2, 4, 3))}, ("a", "b"))
+    plain = {"x": np.arange(3.0)}
+    assert sparse_rows.pack(plain, ("not-there",)) == plain
+    assert sparse_rows.unpack(plain) == plain
+
+
+@pytest.mark.parametrize("compress", [False, True])
+def test_cache_stores_packed_rows_and_reads_them_back(tmp_path, compress):
+    rng = np.random.default_rng(4)
+    arrays = {**_hostile(rng), "total_var": rng.random((5, 6, 3))}
+    cache = Cache(tmp_path)
+    put = cache.put("transient-stats", {"w": 1}, arrays=arrays, compress=compress,
+                    sparse=("mean", "color", "non_zero"))
+    assert put.meta["cache_format"] == PACKED_FORMAT
+    got = cache.get("transient-stats", {"w": 1}).arrays()
+    for name, value in arrays.items():
+        assert _same_bits(got[name], value), name
+    # an entry without packed arrays keeps the format earlier code reads
+    dense = cache.put("transient-stats", {"w": 2}, arrays=arrays, compress=compress)
+    assert dense.meta["cache_format"] == CACHE_FORMAT
+    assert _same_bits(cache.get("transient-stats", {"w": 2}).arrays()["mean"], arrays["mean"])
+    # a packed entry is smaller: most rows are empty
+    assert (put.path / "arrays.npz").stat().st_size < (dense.path / "arrays.npz").stat().st_size
