@@ -95,6 +95,10 @@ def headline_table(d: pd.DataFrame, rank_by: str, devices: Mapping[str, str] | N
         # too wide: the whole-image rmse goes first, then the ranking metric's surface form
         drop = [c for c in ("rmse", rank_by + headline.SURFACE) if c in cols[1:]]
         if max(map(len, lines)) <= WIDTH or not drop:
+            left_out = [c for c in _metric_columns(d, rank_by) if c not in cols]
+            if left_out:  # said, not silently missing (report.md has every column)
+                lines += _wrap(f"(not shown, to fit {WIDTH} columns: {', '.join(left_out)}; "
+                               f"report.md has them)")
             return lines
         cols.remove(drop[0])
 
@@ -129,6 +133,8 @@ def run_summary(d: pd.DataFrame, settings: Mapping[str, Any], rank_by: str,
                   f"{'s' if len(seeds) != 1 else ''}; device {settings.get('device', 'cpu')}")
     lines += _wrap(f"reference: {settings.get('ref_spp') or 'unknown'} spp, estimated RMSE "
                    f"{_ref_error(settings.get('reference RMSE (estimated)'))}")
+    for line in scene_file_lines(settings):
+        lines += _wrap(line, "  ")
     if not len(d):
         return lines + ["(no method finished)"]
     lines += _wrap(f"{ci_kind_text(d).capitalize()}; entries are mean ± 95 % half-width.")
@@ -140,12 +146,37 @@ def run_summary(d: pd.DataFrame, settings: Mapping[str, Any], rank_by: str,
     return lines
 
 
+#: The settings of a scene file's render that may differ from the file
+#: (dbench/datasets/scene_files/fidelity.py report_lines: "X (file: Y) — why" when they do).
+SCENE_FILE_SETTINGS = ("integrator", "filter", "sampler")
+
+
+def scene_file_lines(settings: Mapping[str, Any]) -> list[str]:
+    """What the render changed from a scene file and the ``$parameters`` it was given, as the
+    report states them (docs/formats.md §3; README.md, "Your scene, your renders, any size"):
+    nothing for a scene rendered as its file says."""
+    changed = [f"{k} {settings[k]}" for k in SCENE_FILE_SETTINGS
+               if "(file:" in str(settings.get(k, ""))]
+    if settings.get("conversions"):
+        changed.append(f"conversions: {settings['conversions']}")
+    lines = [f"scene file changed: {c}" for c in changed]
+    if settings.get("scene parameters"):
+        lines.append(f"scene parameters: {settings['scene parameters']}")
+    return lines
+
+
 def _ref_error(value: Any) -> str:
     """The reference's estimated RMSE as the settings hold it: a number, "value (source)" or
     "unknown (why)"."""
     if finite(value):
         return f"{float(value):.3g}"
     text = str(value) if value is not None else ""
+    number, _, source = text.partition(" (")
+    if source and re.fullmatch(r"[0-9.eE+-]+", number):  # "0.006342895671915049 (variance …)"
+        try:
+            return f"{float(number):.3g} ({source}"
+        except ValueError:
+            pass
     return text if text.startswith("unknown") else (text or "unknown")
 
 
@@ -172,4 +203,4 @@ def sweep_summary(cells: Sequence[dict], rank_by: str = "relmse",
 
 
 __all__ = ["WIDTH", "skip_kind", "skipped_line", "time_text", "headline_table",
-           "verdict_lines", "run_summary", "sweep_summary"]
+           "verdict_lines", "run_summary", "sweep_summary", "scene_file_lines"]

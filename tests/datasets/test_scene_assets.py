@@ -77,9 +77,8 @@ def test_key_covers_every_file_mitsuba_reads_and_nothing_else(renderer, tmp_path
     path = _project(tmp_path)
     root = tmp_path.resolve()
     sources = asset_hashes(path)
-    assert set(sources) == {"cbox.xml", str(root / "fragments" / "room.xml"),
-                            str(root / "assets" / "meshes" / "back.obj"),
-                            str(root / "assets" / "textures" / "wood.png")}
+    assert set(sources) == {"cbox.xml", "../fragments/room.xml", "../assets/meshes/back.obj",
+                            "../assets/textures/wood.png"}
     assert "missing" not in sources.values()
     # the files hashed are the files Mitsuba loads (not the decoys next to the fragment)
     shape = mi.load_file(str(path)).shapes()[0]
@@ -95,6 +94,18 @@ def test_key_covers_every_file_mitsuba_reads_and_nothing_else(renderer, tmp_path
     _texture(root / "fragments" / "textures" / "wood.png", (1, 1, 1))  # a decoy: same key
     _quad(root / "fragments" / "meshes" / "back.obj", 0.3)
     assert _fingerprint(path) == key
+
+
+def test_the_same_tree_elsewhere_is_the_same_scene(renderer, tmp_path):
+    """The fingerprint is a content hash: a scene tree copied to another folder keeps it (and
+    its cache entries and sweep cells), the same file name with other content does not."""
+    import shutil
+    first = _project(tmp_path / "here")
+    shutil.copytree(tmp_path / "here", tmp_path / "there" / "deeper")
+    moved = tmp_path / "there" / "deeper" / "scene" / "cbox.xml"
+    assert _fingerprint(moved) == _fingerprint(first)
+    _texture(tmp_path / "there" / "deeper" / "assets" / "textures" / "wood.png", (0, 1, 0))
+    assert _fingerprint(moved) != _fingerprint(first)
 
 
 def test_an_edited_texture_renders_again(renderer, tmp_path):
@@ -158,8 +169,8 @@ def test_resolution_follows_mitsuba(renderer, tmp_path):
     (root / "fragments" / "outer.xml").write_text(
         '<scene version="3.0.0"><include filename="room.xml"/></scene>')
     mi.load_file(str(late))
-    assert str(root / "fragments" / "room.xml") in asset_hashes(late)
-    assert str(root / "assets" / "meshes" / "back.obj") in asset_hashes(late)
+    assert "../fragments/room.xml" in asset_hashes(late)
+    assert "../assets/meshes/back.obj" in asset_hashes(late)
     own = root / "scene" / "own.xml"  # the fragment's <path> is its own
     own.write_text(SCENE.replace('<path value="../assets"/>', "").replace(
         "../fragments/room.xml", "../fragments/own.xml"))

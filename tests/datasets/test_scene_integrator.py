@@ -207,3 +207,25 @@ def test_constructs_without_an_rgb_form_exit_2_before_rendering(renderer, tmp_pa
     two = _scene(tmp_path, "two.xml", _integrator("path") + _integrator("direct"))
     with pytest.raises(DbenchInputError, match="one integrator"):
         scene_files.resolve(two)
+
+
+def test_the_terminal_says_what_the_render_changed_and_the_parameters(renderer, tmp_path,
+                                                                       capsys):
+    """A replaced integrator and the --scene-param values are printed under the reference line
+    of `dbench run` and stated in report.md; a file rendered as it is adds no such line."""
+    light = '<default name="power" value="17"/>' + _integrator("ptracer", 5)
+    changed = _scene(tmp_path, "ptracer.xml", light)
+    changed.write_text(changed.read_text().replace('value="17,12,4"', 'value="$power"'))
+    common = ["--method", "noisy", "--spp", "2", "--res", "8", "--ref-spp", "8",
+              "--cache", str(tmp_path / "c")]
+    assert main(["run", "--scene", str(changed), "--scene-param", "power=20",
+                 "--out", str(tmp_path / "a"), *common]) == 0
+    out = capsys.readouterr().out
+    assert "scene file changed: integrator path (file: ptracer) — replaced because" in out
+    assert "scene parameters: power=20" in out
+    report = (tmp_path / "a" / "report.md").read_text()
+    assert "power=20" in report and "replaced because" in report
+    kept = _scene(tmp_path / "k", "kept.xml", _integrator("path", 3))
+    assert main(["run", "--scene", str(kept), "--out", str(tmp_path / "b"), *common]) == 0
+    out = capsys.readouterr().out
+    assert "scene file changed" not in out and "scene parameters" not in out

@@ -234,6 +234,20 @@ def test_run_summary_fits_and_says_an_unknown_reference():
     assert "± n/a" in text and "12.5 s cuda" in text and "10 µs cpu" in text
     header = next(ln for ln in lines if ln.startswith("#"))
     assert header.split()[2] == "relmse" and "rmse_surface" in header
+    assert "not shown" not in text
+    # a column left out to fit is named, never silently missing
+    wide = d.copy()
+    for c in ("rmse", "rmse_surface", "relmse_surface"):
+        wide[c], wide[c + "_ci"] = wide["relmse"], 1.2e-8
+    lines = terminal.run_summary(wide, settings, "relmse", verdicts.HEADLINE)
+    header = next(ln for ln in lines if ln.startswith("#"))
+    assert " rmse " not in f" {header} " and "rmse_surface" in header
+    assert all(len(ln) <= terminal.WIDTH for ln in lines), "\n".join(lines)
+    assert "(not shown, to fit 100 columns: rmse; report.md has them)" in "\n".join(lines)
+    # an estimate with its source is rounded as report.md rounds it
+    settings["reference RMSE (estimated)"] = "0.006342895671915049 (variance image v.var.exr)"
+    text = "\n".join(terminal.run_summary(d, settings, "relmse", verdicts.HEADLINE))
+    assert "estimated RMSE 0.00634 (variance image v.var.exr)" in text
 
 
 def test_a_small_flagged_loss_never_reads_as_one():

@@ -48,8 +48,8 @@ MAX_INCLUDE_DEPTH = 15
 
 def asset_hashes(path: str | Path, params: dict[str, str] | None = None) -> dict[str, str]:
     """{file: sha256 of its bytes} of the scene file at ``path`` and of every file it
-    references (module docstring), each named relative to the scene's folder (absolute
-    outside it), sorted. DbenchInputError, naming the reference and the folders searched,
+    references (module docstring), each named relative to the scene's folder (with ``..``
+    outside it, so the names do not depend on where the tree is), sorted. DbenchInputError, naming the reference and the folders searched,
     when one cannot be found."""
     from ..mitsuba_env import mitsuba
 
@@ -154,10 +154,9 @@ def _sha256(f: Path) -> str:
 
 
 def _relative(f: Path, folder: Path) -> str:
-    try:
-        return str(f.resolve().relative_to(folder.resolve()))
-    except ValueError:
-        return str(f.resolve())
+    # relative even outside the folder ("../fragments/room.xml"): a scene tree moved or copied
+    # elsewhere keeps its identity, where an absolute name would make it another scene
+    return Path(os.path.relpath(f.resolve(), folder.resolve())).as_posix()
 
 
 __all__ = ["asset_hashes", "MAX_INCLUDE_DEPTH"]

@@ -150,7 +150,10 @@ class XmlScene(Scene):
     frame_meta: dict = field(default_factory=dict)
 
     def key_dict(self, mi, res) -> dict:
-        return {"file": self.path, "loader": FILE_SCENE_VERSION, "res": parse_res(res).key,
+        # the file's name, not its path: the sources hold every file's bytes, so the same
+        # scene tree anywhere on disk is the same scene (its fingerprint is path-independent)
+        return {"file": Path(self.path).name, "loader": FILE_SCENE_VERSION,
+                "res": parse_res(res).key,
                 "sources": _sources(self.path, dict(self.file_params)),
                 "params": dict(self.file_params), "max_depth": self.max_depth,
                 "integrator": self.integrator_plan.render, "filter": FILTER}
@@ -188,7 +191,9 @@ def _xml_scene(path: str, params: tuple, digest: str) -> XmlScene:
                     build=_no_build, max_depth=integrator.max_depth, provides=STEADY_BUFFERS,
                     params={"sha256": digest, "file_params": dict(params)}, path=path,
                     file_params=params, integrator_plan=integrator,
-                    frame_meta={"scene_file": rec, "scene_file_settings": report_lines(rec)})
+                    frame_meta={"scene_file": rec, "scene_file_settings": report_lines(rec),
+                                # the --scene-param values, which reports state beside them
+                                **({"scene_params": dict(params)} if params else {})})
 
 
 def file_film_size(scene: XmlScene) -> tuple[int, int]:
