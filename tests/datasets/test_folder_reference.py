@@ -156,3 +156,18 @@ def test_warning_uses_relmse_over_surface_pixels(tmp_path):
     assert "## Reference noise" in report and "relMSE over surface pixels" in report
     flagged = verdicts.ref_noise_frame(tables.cells_frame([{**row.to_dict(), "status": "ok"}]))
     assert list(flagged.share_on) == ["relmse_surface"]
+
+
+@pytest.mark.parametrize("variance", [False, True])
+def test_a_reference_noisier_than_declared_is_flagged(tmp_path, variance):
+    """A 4-spp reference declared at 4096 spp (with or without a variance image): the
+    high-pass comparison, which trusts no declaration, finds its noise; an honest 4096-spp
+    reference of a textured image is not flagged."""
+    truth = _truth(3)  # per-pixel random: the scene's detail is all high-frequency
+    lying = load_folder(_folder(tmp_path / "lying", ref_spp=4, declare=4096,
+                                variance=variance, truth=truth), spp=4)
+    warning = lying.meta.get("reference_warning", "")
+    assert "noisier than its estimate" in warning and "render of about" in warning, warning
+    honest = load_folder(_folder(tmp_path / "honest", ref_spp=4096, declare=4096,
+                                 variance=variance, truth=truth), spp=4)
+    assert "reference_warning" not in honest.meta, honest.meta.get("reference_warning")

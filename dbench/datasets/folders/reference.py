@@ -34,8 +34,23 @@ when the reference
   input's own (its relMSE against the reference with the reference's share removed): a
   reference with fewer than twice the noisy input's samples' worth.
 
+* or, whatever its estimate says, shows more noise than that estimate allows
+  (:func:`noise_ratio`): a reference declared at 4096 spp that is a 4-spp render.
+
 Surface pixels are those that are not directly visible lights (:func:`light_mask`): a light's
 absolute error dwarfs everything else, so it hides a noisy reference elsewhere.
+
+**The check that trusts no declaration** (:func:`noise_ratio`). With a high-pass H (a pixel
+minus the mean of its four neighbours) the reference R = T + e_R and the noisy input
+N = T + e_N (same scene T, independent zero-mean noise) give E⟨HR, H(R − N)⟩ = E‖He_R‖² and
+E⟨HN, H(N − R)⟩ = E‖He_N‖²: the scene's own detail cancels, whatever its texture. Their ratio
+over surface pixels (away from lights) is the reference's noise variance over the noisy
+input's, ≈ spp / ref_spp for independent renders, with a 95 % interval from a bootstrap over
+tiles. Where its lower bound is at least :data:`CLAIM_FACTOR` × the ratio the estimate implies
+(the reference's estimated relMSE over the noisy input's) and at least :data:`NOISE_FLOOR`, the
+reference is flagged as noisier than its estimate says; with no estimate, from :data:`RATIO`.
+Noise the two share (progressive renders) or a reference smoothed by a denoiser lowers the
+ratio, so the check only ever finds too much noise, never proves a reference clean.
 """
 from __future__ import annotations
 
@@ -58,6 +73,15 @@ BLACK_ALBEDO = 1e-4
 #: Relative difference under which two images are numerically equal: half-float rounding
 #: (2⁻¹¹ ≈ 4.9e-4) of a copy saved at another precision stays below it.
 EQUAL_RTOL = 1e-3
+#: A reference whose high-frequency noise (lower 95 % bound) exceeds its estimate's by this
+#: factor in variance (it is worth under 1/8 of its declared spp) is flagged...
+CLAIM_FACTOR = 8.0
+#: ...when that noise is also at least this share of the noisy input's (below it the
+#: reference's noise barely weighs on the scores, and bias between the two renders can reach it).
+NOISE_FLOOR = 0.05
+#: Tiles of the bootstrap: at least this many (fewer: no check), at most about MAX_TILES.
+MIN_TILES, MAX_TILES = 8, 256
+BOOTSTRAP = 2000
 
 
 def light_mask(reference: np.ndarray, albedo: np.ndarray | None = None,
@@ -161,6 +185,72 @@ def _estimate(reference, series, ref_spp, ref_spp_from, known) -> tuple[Any, str
                   f"MSE under {bound:.3g}{worth})", {})
 
 
+def _high_pass(x: np.ndarray) -> np.ndarray:
+    """(H − 2, W − 2, C): each interior pixel minus the mean of its four neighbours."""
+    return x[1:-1, 1:-1] - 0.25 * (x[:-2, 1:-1] + x[2:, 1:-1] + x[1:-1, :-2] + x[1:-1, 2:])
+
+
+def noise_ratio(reference: np.ndarray, noisy: np.ndarray, surface: np.ndarray
+                ) -> tuple[float, float, float] | None:
+    """(ratio, lower, upper 95 % bound) of the reference's noise variance to the noisy input's
+    over surface pixels (module docstring), or None where fewer than :data:`MIN_TILES` tiles
+    of surface pixels or no noise in the noisy input leave nothing to measure.
+
+    Args:
+        reference, noisy: (H, W, C) images of one scene.
+        surface: (H, W) bool, pixels that are not lights; a pixel counts where it and its four
+            neighbours are surface and every value is finite.
+    """
+    r = np.asarray(reference, np.float64)
+    n = np.asarray(noisy, np.float64)
+    hr, hn = _high_pass(r), _high_pass(n)
+    with np.errstate(invalid="ignore", over="ignore"):
+        pr = (hr * (hr - hn)).sum(axis=-1)
+        pn = (hn * (hn - hr)).sum(axis=-1)
+    s = surface
+    ok = (s[1:-1, 1:-1] & s[:-2, 1:-1] & s[2:, 1:-1] & s[1:-1, :-2] & s[1:-1, 2:]
+          & np.isfinite(pr) & np.isfinite(pn))
+    pr, pn = np.where(ok, pr, 0.0), np.where(ok, pn, 0.0)
+    h, w = pr.shape
+    tile = max(8, int(np.ceil(np.sqrt(h * w / MAX_TILES))))
+    th, tw = -(-h // tile), -(-w // tile)
+    sums = []
+    for p in (pr, pn, ok.astype(np.float64)):
+        p = np.pad(p, ((0, th * tile - h), (0, tw * tile - w)))
+        sums.append(p.reshape(th, tile, tw, tile).sum(axis=(1, 3)).ravel())
+    tr, tn, count = sums
+    keep = count > 0
+    tr, tn = tr[keep], tn[keep]
+    if tr.size < MIN_TILES or not tn.sum() > 0:
+        return None
+    pick = np.random.default_rng(0).integers(0, tr.size, (BOOTSTRAP, tr.size))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        boot = tr[pick].sum(axis=1) / tn[pick].sum(axis=1)
+    lo, hi = np.nanquantile(boot, [0.025, 0.975])
+    return float(tr.sum() / tn.sum()), float(lo), float(hi)
+
+
+def _noise_check(ratio: tuple[float, float, float] | None, spp: int, implied: float,
+                 source: str) -> str | None:
+    """The warning of the high-frequency check, or None. ``implied``: the reference's variance
+    over the noisy input's that its estimate gives (NaN: no estimate); ``source``: where that
+    estimate came from (``meta["ref_noise_source"]``)."""
+    if ratio is None:
+        return None
+    r, lo, hi = ratio
+    measured = (f"its noise over surface pixels is {r:.2g}× the noisy input's (95 % interval "
+                f"{lo:.2g}-{hi:.2g}, high-pass comparison), as in a render of about "
+                f"{spp / r:.2g} spp")
+    if np.isfinite(implied):
+        if lo >= max(CLAIM_FACTOR * implied, NOISE_FLOOR):
+            return (f"the reference is noisier than its estimate: {measured}, not the "
+                    f"{implied:.2g}× that the estimate gives")
+        return None
+    if lo >= RATIO:
+        return f"the reference is not clearly better than the noisy input: {measured}"
+    return None
+
+
 def _surface_mean(m: np.ndarray, surface: np.ndarray) -> float:
     vals = m[surface]
     vals = vals[np.isfinite(vals)]
@@ -217,6 +307,12 @@ def judge_reference(*, reference: np.ndarray, spp: int, series: dict[int, np.nda
         warnings.append(f"the reference's estimated relMSE over surface pixels ({ref_rel:.3g}) "
                         f"is not clearly below the noisy input's ({own:.3g}; flagged from "
                         f"{RATIO:g}× it): its own error weighs on every score")
+    elif spp not in same:
+        ratio = noise_ratio(r, series[spp], surface)
+        implied = ref_rel / own if np.isfinite(ref_rel) and own > 0 else float("nan")
+        found = _noise_check(ratio, spp, implied, source)
+        if found:
+            warnings.append(found)
     if extra.pop("nested", False):
         warnings.append(source.removeprefix("unknown: "))
     n_surface = int(surface.sum())
