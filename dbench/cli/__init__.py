@@ -7,10 +7,12 @@ to load (named, with the reason), a result that cannot be written (full disk, qu
 or unwritable folder: one line ``dbench: cannot write <path>: <reason>``; ``run`` then leaves
 no ``--out`` behind and an earlier run's folder there untouched) or a standard output that
 cannot be written (``> /dev/full``: the files are written, one line on stderr);
-3 renderer unavailable; 4 (``run``) some methods failed: each is named on stderr and in the
-report's "Failed" section, and every other method's results are written; 130 interrupted
-(Ctrl-C, or SIGTERM during ``run``: ``run`` removes its temporary folder, so no partial
-``--out`` is left); 1 an internal error (one line; ``--debug`` shows the traceback).
+3 renderer unavailable; 4 some methods failed: ``run`` names each on stderr and in the
+report's "Failed" section and writes every other method's results, ``sweep`` names its error
+cells (of this sweep's grid only) on stderr and keeps the rest, ``stress`` has failed cases;
+130 interrupted (Ctrl-C or SIGTERM, at any point of a command, also where a library turned the
+interrupt into another error or swallowed it: ``run`` removes its temporary folder, so no
+partial ``--out`` is left); 1 an internal error (one line; ``--debug`` shows the traceback).
 README.md, "dbench run", says where ``run`` writes and how it replaces an earlier run's folder.
 """
 from __future__ import annotations
@@ -60,8 +62,18 @@ def _load_plugins(args: argparse.Namespace, specs: Sequence[str]) -> None:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run one command; its exit code (the module docstring lists them)."""
+    from ..report import run_output
+
     with streams.guarded() as (out, _err):
-        code = _main(argv)
+        try:
+            with run_output.interrupts_flagged():
+                code = _main(argv)
+                if code != 130 and run_output.terminated():  # swallowed on its way
+                    print("dbench: interrupted", file=sys.stderr)
+                    code = 130
+        except KeyboardInterrupt:  # before the command's own handling (parsing, imports)
+            print("dbench: interrupted", file=sys.stderr)
+            code = 130
         out.flush()
     if out.lost is None or streams.reader_gone(out.lost):
         return code
@@ -103,35 +115,39 @@ def _main(argv: Sequence[str] | None) -> int:
     try:
         _load_plugins(args, plugin_specs)
         return args.func(args)
-    except UnknownNameError as exc:
-        print(f"dbench: {exc}", file=sys.stderr)
-        return 2
-    except DbenchInputError as exc:
-        print(f"dbench: {exc}", file=sys.stderr)
-        return 2
-    except RendererUnavailableError as exc:
-        print(f"dbench: {exc}", file=sys.stderr)
-        return 3
-    except KeyboardInterrupt:
-        print("dbench: interrupted", file=sys.stderr)
-        return 130
     except Exception as exc:  # noqa: BLE001 - one line, not a traceback (--debug shows it)
         from ..report import run_output
 
-        if run_output.terminated():  # SIGTERM's interrupt, turned into another error on its way
-            print("dbench: interrupted", file=sys.stderr)
-            return 130
-        if debug:
-            raise
-        print(f"dbench: internal error: {type(exc).__name__}: {exc} (run again with --debug "
-              "for the traceback)", file=sys.stderr)
-        return 1
+        if not run_output.terminated():
+            return _error_code(exc, debug)
+        # the interrupt, turned into another error on its way (Mitsuba's "cannot set variant")
+        print("dbench: interrupted", file=sys.stderr)
+        return 130
+    except KeyboardInterrupt:
+        print("dbench: interrupted", file=sys.stderr)
+        return 130
     finally:  # a command run in-process (tests, notebooks) leaves the environment as it was
         for key, value in saved.items():
             if value is None:
                 os.environ.pop(key, None)
             else:
                 os.environ[key] = value
+
+
+def _error_code(exc: Exception, debug: bool) -> int:
+    """One line on stderr and the exit code (module docstring) of an error that ended a
+    command; ``debug`` re-raises an internal error for its traceback."""
+    if isinstance(exc, (UnknownNameError, DbenchInputError)):
+        print(f"dbench: {exc}", file=sys.stderr)
+        return 2
+    if isinstance(exc, RendererUnavailableError):
+        print(f"dbench: {exc}", file=sys.stderr)
+        return 3
+    if debug:
+        raise exc
+    print(f"dbench: internal error: {type(exc).__name__}: {exc} (run again with --debug for the "
+          "traceback)", file=sys.stderr)
+    return 1
 
 
 __all__ = ["build_parser", "main", "parse_params", "split_plugin_args"]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 from ..errors import DbenchInputError
@@ -234,7 +235,11 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         write_text(Path(args.out) / "sweep.log", log_text(caught))
         if not args.quiet:
             print(count_text(caught).replace("run.log", "sweep.log"))
-    return 0 if counts["errors"] == 0 else 1
+    for line in counts["error_cells"][:3]:  # named, not only counted (cells/ holds them all)
+        print(f"error: {line[:300]}", file=sys.stderr)
+    if counts["errors"] > 3:
+        print(f"error: and {counts['errors'] - 3} more error cells", file=sys.stderr)
+    return 0 if counts["errors"] == 0 else 4
 
 
 def _sweep_summary(out: str, config, rank_by: str, quiet: bool) -> str:
@@ -284,7 +289,7 @@ def cmd_stress(args: argparse.Namespace) -> int:
     if caught:
         print(f"{len(caught)} library warnings on the hostile inputs (not shown: --quiet)")
     failed = sum(o.status == "fail" for r in results.values() for o in r.values())
-    return 0 if failed == 0 else 1
+    return 0 if failed == 0 else 4
 
 
 def cmd_report(args: argparse.Namespace) -> int:

@@ -21,9 +21,12 @@ import hashlib
 import json
 import os
 import platform
+import signal
 import subprocess
 import sys
+import threading
 import warnings
+from contextlib import contextmanager
 from functools import lru_cache
 from pathlib import Path
 
@@ -76,10 +79,12 @@ def _state_file(name: str = "llvm") -> Path | None:
 
 
 def _probe_key() -> str:
+    # the installed version from the package's metadata: importing Mitsuba here would load
+    # Dr.Jit outside deferred_interrupts
+    from importlib import metadata
     try:
-        import mitsuba
-        version = mitsuba.__version__
-    except Exception:  # noqa: BLE001 - mitsuba missing is reported later
+        version = metadata.version("mitsuba")
+    except metadata.PackageNotFoundError:  # mitsuba missing is reported later
         version = "missing"
     raw = f"{sys.executable}|{version}|{os.environ.get('DRJIT_LIBLLVM_PATH', '')}"
     return hashlib.sha1(raw.encode()).hexdigest()[:16]
@@ -205,23 +210,53 @@ def current_variant() -> str:
     return choose_variant(os.environ.get("DBENCH_RENDER_DEVICE") or None)
 
 
+@contextmanager
+def deferred_interrupts():
+    """Ctrl-C and SIGTERM wait until the block has ended, then arrive as they would have.
+
+    Importing Dr.Jit and Mitsuba and setting the variant start native thread pools and JIT
+    back-ends; an interrupt raised in the Python code between those steps left them half made:
+    it surfaced as "cannot set Mitsuba variant" (exit 3), as a NameError, or as a crash while the
+    interpreter shut down ("PyThreadState_Get: the function must be called with the GIL held").
+    Inside the block a signal is only noted; afterwards the handlers in force before it
+    (dbench's command handlers, Python's default) get it. Main thread only."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    arrived: list[int] = []
+    previous = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
+    for sig, handler in previous.items():
+        if handler not in (signal.SIG_IGN, None):
+            signal.signal(sig, lambda signum, frame: arrived.append(signum))
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler if handler is not None else signal.SIG_DFL)
+        for sig in dict.fromkeys(arrived):
+            signal.raise_signal(sig)
+
+
 @lru_cache(maxsize=1)
 def mitsuba():
-    """Import Mitsuba with the chosen variant set (once per process) and return the module."""
-    try:
-        import drjit as dr
-        import mitsuba as mi
-    except ImportError as exc:  # pragma: no cover - install problem
-        raise RendererUnavailableError(f"Mitsuba is not installed: {exc}") from exc
-    variant = current_variant()
-    if mi.variant() != variant:
+    """Import Mitsuba with the chosen variant set (once per process) and return the module.
+    An interrupt during the import waits until it is done (:func:`deferred_interrupts`)."""
+    variant = current_variant()  # its probes run in child processes: interruptible
+    with deferred_interrupts():
         try:
-            mi.set_variant(variant)
-        except Exception as exc:  # noqa: BLE001
-            raise RendererUnavailableError(f"cannot set Mitsuba variant {variant}: {exc}") from exc
-    threads = os.environ.get("DBENCH_RENDER_THREADS")
-    if threads:
-        dr.set_thread_count(int(threads))
+            import drjit as dr
+            import mitsuba as mi
+        except ImportError as exc:  # pragma: no cover - install problem
+            raise RendererUnavailableError(f"Mitsuba is not installed: {exc}") from exc
+        if mi.variant() != variant:
+            try:
+                mi.set_variant(variant)
+            except Exception as exc:  # noqa: BLE001
+                raise RendererUnavailableError(
+                    f"cannot set Mitsuba variant {variant}: {exc}") from exc
+        threads = os.environ.get("DBENCH_RENDER_THREADS")
+        if threads:
+            dr.set_thread_count(int(threads))
     return mi
 
 

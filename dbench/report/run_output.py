@@ -23,8 +23,11 @@ from ..io import ensure_writable_dir, output_error
 #: the file every run folder holds; a folder without it is not replaced
 MARKER = "run.json"
 
-#: set by SIGTERM inside :func:`staged`; cleared when the next block starts
+#: set by SIGTERM inside :func:`staged` (and by SIGINT or SIGTERM anywhere inside
+#: :func:`interrupts_flagged`); cleared when the next block or command starts
 _terminated = threading.Event()
+#: whether a command's :func:`interrupts_flagged` is in force (its handlers serve the blocks)
+_command_scope = threading.Event()
 
 
 class Terminated(KeyboardInterrupt):
@@ -32,6 +35,34 @@ class Terminated(KeyboardInterrupt):
     bare KeyboardInterrupt: CPython marks a bare one that leaves code it ran from a string as
     unhandled, and a process so marked kills itself with SIGINT at exit, whatever exit code
     dbench returned."""
+
+
+@contextmanager
+def interrupts_flagged() -> Iterator[None]:
+    """For a whole command (dbench/cli): Ctrl-C and SIGTERM raise :class:`Terminated` and set
+    the flag :func:`terminated` reads, so an interrupt that a library turns into another error
+    on its way (Mitsuba's variant being set: "returned a result with an exception set") or
+    swallows (a ``__del__``) still ends the command as interrupted. Only the main thread can
+    set handlers; a signal the process was started ignoring stays ignored."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
+
+    def interrupt(signum, frame):
+        _terminated.set()
+        raise Terminated
+    _terminated.clear()
+    for sig, handler in previous.items():
+        if handler is not signal.SIG_IGN:
+            signal.signal(sig, interrupt)
+    _command_scope.set()
+    try:
+        yield
+    finally:
+        _command_scope.clear()
+        for sig, handler in previous.items():
+            signal.signal(sig, handler if handler is not None else signal.SIG_DFL)
 
 
 def terminated() -> bool:
@@ -109,8 +140,8 @@ def _terminate_as_interrupt() -> Iterator[None]:
     kills the process on the spot). Not SystemExit: a method's sys.exit is caught as that
     method's failure (dbench/cli/run.py), a termination must end the run. Only the main thread
     can set handlers; an ignored SIGTERM stays ignored."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
+    if threading.current_thread() is not threading.main_thread() or _command_scope.is_set():
+        yield  # a command's handlers (interrupts_flagged) already do this, flag included
         return
     previous = signal.getsignal(signal.SIGTERM)
     if previous is signal.SIG_IGN:

@@ -431,8 +431,9 @@ def run_sweep(config: SweepConfig, out: str | Path, executor: str = "local", wor
                 pass
             raise
         run.end("finished", computed[0], t_refs)
+    errors = error_cells(config, out)
     return {"computed": computed[0], "skipped": skipped, "finished_before": done,
-            "errors": _count_errors(out)}
+            "errors": len(errors), "error_cells": errors}
 
 
 def _execute(config: SweepConfig, out: Path, groups: list, executor: str, workers: int,
@@ -478,5 +479,12 @@ def _execute(config: SweepConfig, out: Path, groups: list, executor: str, worker
     return t_refs
 
 
-def _count_errors(out: Path) -> int:
-    return sum(1 for c in load_cells(out) if c.get("status") == "error")
+def error_cells(config: SweepConfig, out: Path) -> list[str]:
+    """``scene/spp/method: error`` of every error cell of this sweep's grid (its methods,
+    scenes and spp); cells of other grids in the same folder are not this sweep's failures."""
+    labels = set(config.labels().values())
+    scenes = set(scene_labels(config, out).values())
+    return [f"{c.get('scene')}/{c.get('spp')}/{c.get('method')}: {c.get('error', '')}"
+            for c in load_cells(out) if c.get("status") == "error" and
+            c.get("method") in labels and c.get("spp") in config.spp and
+            c.get("scene") in scenes]

@@ -12,6 +12,7 @@ import numpy as np
 from ..data import Frame
 from ..errors import DbenchInputError
 from ..run import fpenv
+from ..run.inputs import first_changed, input_guard, private_copy
 from .cases import CASES, TIME_LIMIT_S, Case, _as_sequence_frame
 
 
@@ -48,7 +49,19 @@ def run_case(method_name: str, case: Case) -> Outcome:
             frame = _as_sequence_frame(frame, case)
         except DbenchInputError as exc:
             return Outcome("pass", f"rejected on construction: {exc}")
-    return judged_calls(method, case, frame, as_sequence, lambda f: fpenv.denoise(method, f))
+    # the method's own read-only copy, as in a run (dbench/run/inputs.py): a method that writes
+    # to its input fails the case, naming the buffer
+    given = private_copy(frame)
+
+    def call(f):
+        with input_guard(method_name):
+            return fpenv.denoise(method, f)
+    outcome = judged_calls(method, case, given, as_sequence, call)
+    changed = first_changed(given, frame)
+    if changed:
+        return Outcome("fail", f"modified its input buffer {changed} (a method must not write "
+                       "to its input)", outcome.seconds)
+    return outcome
 
 
 def judged_calls(method, case: Case, frame, as_sequence: bool, call) -> Outcome:
@@ -76,6 +89,9 @@ def judged_calls(method, case: Case, frame, as_sequence: bool, call) -> Outcome:
         return Outcome("fail", f"{type(exc).__name__} on frame {len(outs) + 1}: {exc} "
                        f"[{traceback.format_exc(limit=2).splitlines()[-1]}]",
                        time.perf_counter() - t0)
+    except SystemExit as exc:  # a method cannot end the stress run: the case fails
+        return Outcome("fail", f"called sys.exit({exc.code}) on frame {len(outs) + 1} (a method "
+                       "must not end the process)", time.perf_counter() - t0)
     seconds = time.perf_counter() - t0
     if case.error_ok and needed and case.strict:
         return Outcome("fail", f"missing {case.needs_buffer} accepted silently", seconds)

@@ -146,3 +146,30 @@ def test_quiet_stress_prints_no_library_warnings(tmp_path, capfd, monkeypatch):
     assert "Warning" not in captured.err + captured.out
     assert "library warnings on the hostile inputs" in captured.out
     assert (tmp_path / "stress.md").exists()
+
+
+def test_a_plugin_writing_to_its_input_or_exiting_fails_its_cases(isolated):
+    """The stress matrix gives each method a read-only copy, as a run does: a method that
+    writes to its input, or calls sys.exit, fails the case with the reason."""
+    from dbench.denoiser import Denoiser, register
+
+    @register("stress-mutates")
+    class Mutates(Denoiser):
+        kinds, needs = {"steady"}, {"color"}
+
+        def denoise(self, data):
+            data.color *= 0
+            return np.zeros_like(data.color)
+
+    @register("stress-exits")
+    class Exits(Denoiser):
+        kinds, needs = {"steady"}, {"color"}
+
+        def denoise(self, data):
+            raise SystemExit(3)
+
+    case = next(c for c in runner.CASES if c.kind != "transient" and not c.error_ok)
+    mutated = runner.run_case("stress-mutates", case)
+    assert mutated.status == "fail" and "modified its input" in mutated.why, mutated
+    exited = runner.run_case("stress-exits", case)
+    assert exited.status == "fail" and "sys.exit(3)" in exited.why, exited
