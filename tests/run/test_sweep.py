@@ -35,7 +35,8 @@ def test_sweep_writes_one_cell_per_file_and_resumes(renderer, tmp_path):
     out = tmp_path / "sweep"
     cfg = _config(tmp_path)
     counts = sweep.run_sweep(cfg, out, progress=False)
-    assert counts == {"computed": 8, "skipped": 0, "finished_before": 0, "errors": 0}
+    assert counts == {"computed": 8, "skipped": 0, "finished_before": 0, "errors": 0,
+                      "error_cells": []}
     cells = sweep.load_cells(out)
     assert len(cells) == 8 and all(c["status"] == "ok" for c in cells)
     from dbench.run.machine import machine_label
