@@ -38,16 +38,14 @@ class Terminated(KeyboardInterrupt):
 
 
 @contextmanager
-def interrupts_flagged() -> Iterator[None]:
-    """For a whole command (dbench/cli): Ctrl-C and SIGTERM raise :class:`Terminated` and set
-    the flag :func:`terminated` reads, so an interrupt that a library turns into another error
-    on its way (Mitsuba's variant being set: "returned a result with an exception set") or
-    swallows (a ``__del__``) still ends the command as interrupted. Only the main thread can
-    set handlers; a signal the process was started ignoring stays ignored."""
+def _raising_handlers(signals: tuple[int, ...]) -> Iterator[None]:
+    """Each of ``signals`` sets the flag :func:`terminated` reads and raises
+    :class:`Terminated` inside the block; the handlers before it are restored afterwards. Only
+    the main thread can set handlers; a signal the process was started ignoring stays ignored."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    previous = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
+    previous = {sig: signal.getsignal(sig) for sig in signals}
 
     def interrupt(signum, frame):
         _terminated.set()
@@ -56,17 +54,30 @@ def interrupts_flagged() -> Iterator[None]:
     for sig, handler in previous.items():
         if handler is not signal.SIG_IGN:
             signal.signal(sig, interrupt)
-    _command_scope.set()
     try:
         yield
     finally:
-        _command_scope.clear()
         for sig, handler in previous.items():
             signal.signal(sig, handler if handler is not None else signal.SIG_DFL)
 
 
+@contextmanager
+def interrupts_flagged() -> Iterator[None]:
+    """For a whole command (dbench/cli): Ctrl-C and SIGTERM raise :class:`Terminated` and set
+    the flag :func:`terminated` reads, so an interrupt that a library turns into another error
+    on its way (Mitsuba's variant being set: "returned a result with an exception set") or
+    swallows (a ``__del__``) still ends the command as interrupted."""
+    with _raising_handlers((signal.SIGINT, signal.SIGTERM)):
+        _command_scope.set()
+        try:
+            yield
+        finally:
+            _command_scope.clear()
+
+
 def terminated() -> bool:
-    """Whether a SIGTERM arrived during the current or last :func:`staged` block (its
+    """Whether a SIGTERM arrived during the current or last :func:`staged` block, or a SIGINT
+    or SIGTERM during the current or last command (:func:`interrupts_flagged`) (its
     interrupt may have been swallowed where Python ignores exceptions: a weakref callback, a
     ``__del__``, a library's catch-all)."""
     return _terminated.is_set()
@@ -138,25 +149,12 @@ def staged(out: str | os.PathLike, what: str = "--out") -> Iterator[Path]:
 def _terminate_as_interrupt() -> Iterator[None]:
     """SIGTERM raises :class:`Terminated` for the block, so the cleanup above runs (by default it
     kills the process on the spot). Not SystemExit: a method's sys.exit is caught as that
-    method's failure (dbench/cli/run.py), a termination must end the run. Only the main thread
-    can set handlers; an ignored SIGTERM stays ignored."""
-    if threading.current_thread() is not threading.main_thread() or _command_scope.is_set():
+    method's failure (dbench/cli/run.py), a termination must end the run."""
+    if _command_scope.is_set():
         yield  # a command's handlers (interrupts_flagged) already do this, flag included
         return
-    previous = signal.getsignal(signal.SIGTERM)
-    if previous is signal.SIG_IGN:
+    with _raising_handlers((signal.SIGTERM,)):
         yield
-        return
-
-    def terminate(signum, frame):
-        _terminated.set()
-        raise Terminated
-    _terminated.clear()
-    signal.signal(signal.SIGTERM, terminate)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, previous if previous is not None else signal.SIG_DFL)
 
 
 def _swap_in(stage: Path, out: Path) -> None:

@@ -49,8 +49,8 @@ MAX_INCLUDE_DEPTH = 15
 def asset_hashes(path: str | Path, params: dict[str, str] | None = None) -> dict[str, str]:
     """{file: sha256 of its bytes} of the scene file at ``path`` and of every file it
     references (module docstring), each named relative to the scene's folder (with ``..``
-    outside it, so the names do not depend on where the tree is), sorted. DbenchInputError, naming the reference and the folders searched,
-    when one cannot be found."""
+    outside it, so the names do not depend on where the tree is), sorted. DbenchInputError,
+    naming the reference and the folders searched, when one cannot be found."""
     from ..mitsuba_env import mitsuba
 
     mi = mitsuba()
