@@ -92,7 +92,9 @@ class Denoiser:
         Returns (ok, reason); the reason explains a skip in reports.
         """
         if kind not in self.kinds and not self.per_frame(kind):
-            return False, f"{self.name} works on {sorted(self.kinds)}, not on {kind} data"
+            why = f"{self.name} works on {sorted(self.kinds)}, not on {kind} data"
+            others = counterparts(self.name, kind)
+            return False, why + (f"; on {kind} data: {', '.join(others)}" if others else "")
         if available is not None:
             missing = set(self.needs) - set(available)
             if missing:
@@ -112,6 +114,14 @@ class Denoiser:
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}({self.params})"
+
+
+def counterparts(name: str, kind: str) -> list[str]:
+    """The registered methods that do what ``name`` does on ``kind`` data, by the naming the
+    built-in methods follow (``jbf-bins`` and ``oidn-bins``: ``jbf`` and ``oidn`` on every time
+    bin of a transient video; README.md, "Methods"), sorted: what a skip reason points to."""
+    return sorted(n for n, cls in _REGISTRY.items()
+                  if n.startswith(name + "-") and kind in getattr(cls, "kinds", ()))
 
 
 def register(name: str) -> Callable[[type[Denoiser]], type[Denoiser]]:

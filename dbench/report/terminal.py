@@ -21,6 +21,7 @@ from .verdicts import (NOISY, ci_kind_text, finite, fmt_value, half_width, headl
 WIDTH = 100
 
 _WORKS_ON = re.compile(r"works on \[([^\]]*)\], not on (\w+) data")
+_COUNTERPARTS = re.compile(r"; on (\w+) data: (.*)$")
 _NEEDS = re.compile(r"needs \[([^\]]*)\], which the scene cannot provide")
 
 
@@ -39,16 +40,25 @@ def skip_kind(reason: str) -> str:
 
 def skipped_line(skipped: Mapping[str, str] | Iterable[tuple[str, str]]) -> str:
     """``skipped: bmfr, svgf (sequence only); gauss3d (transient only)``: the methods grouped by
-    :func:`skip_kind`, in the order given; "" when nothing was skipped."""
+    :func:`skip_kind`, in the order given, with the methods that do their work on the data at
+    hand where a reason names them (``jbf, oidn (steady only; on transient data: jbf-bins,
+    oidn-bins)``, dbench/denoiser.py ``counterparts``); "" when nothing was skipped."""
     pairs = skipped.items() if isinstance(skipped, Mapping) else skipped
-    groups: dict[str, list[str]] = {}
+    groups: dict[str, tuple[list[str], dict[str, list[str]]]] = {}
     for label, why in pairs:
-        names = groups.setdefault(skip_kind(str(why)), [])
+        names, others = groups.setdefault(skip_kind(str(why)), ([], {}))
         if label not in names:
             names.append(str(label))
+        m = _COUNTERPARTS.search(str(why))
+        if m:
+            seen = others.setdefault(m.group(1), [])
+            seen += [o for o in (x.strip() for x in m.group(2).split(",")) if o not in seen]
     if not groups:
         return ""
-    text = "skipped: " + "; ".join(f"{', '.join(ms)} ({k})" for k, ms in groups.items())
+    text = "skipped: " + "; ".join(
+        f"{', '.join(ms)} ({k}"
+        + "".join(f"; on {kind} data: {', '.join(os_)}" for kind, os_ in others.items()) + ")"
+        for k, (ms, others) in groups.items())
     return textwrap.fill(text, WIDTH, subsequent_indent="  ", break_on_hyphens=False)
 
 

@@ -187,6 +187,13 @@ def test_skips_group_by_the_kind_of_reason():
     assert terminal.skip_kind("x works on ['sequence', 'steady'], not on transient data") == \
         "sequence or steady only"
     assert terminal.skipped_line({}) == ""
+    # a method with a counterpart for the data at hand names it (dbench/denoiser.py)
+    from dbench.registry import get
+    on_video = {m: get(m).applies_to("transient")[1] for m in ("jbf", "oidn", "svgf", "bmfr")}
+    assert on_video["jbf"].endswith("; on transient data: jbf-bins")
+    assert _flat(terminal.skipped_line(on_video)) == (
+        "skipped: jbf, oidn (steady only; on transient data: jbf-bins, oidn-bins); svgf, bmfr "
+        "(sequence only)")
     long = {f"method-{k}": "works on ['sequence'], not on steady data" for k in range(30)}
     assert all(len(ln) <= terminal.WIDTH for ln in terminal.skipped_line(long).splitlines())
 
