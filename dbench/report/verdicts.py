@@ -225,16 +225,31 @@ def rank_groups(d: pd.DataFrame, metric: str) -> list[list[str]]:
 
 
 def ranking_line(d: pd.DataFrame, metric: str) -> str:
-    """e.g. ``relmse (lower is better): oidn < a = b (tied: intervals overlap) < noisy``."""
+    """e.g. ``relmse (lower is better): oidn < a = b (tied: intervals overlap) < noisy``; a
+    group that ties with a method of the group before it follows it with ``≤`` and says which
+    (``a = b ≤ c (c ties with b)``)."""
     if metric not in d.columns:
         return f"{metric}: not recorded in these cells"
     op = " > " if higher_is_better(metric) else " < "
-    parts = [" = ".join(g) + (" (tied: " + "; ".join(TIE_WORDS[h] for h in sorted(how)) + ")"
-                              if len(g) > 1 else "")
-             for g, how in _rank(d, metric)]
+    rows = {lab: r for _, lab, r in _entries(d, metric)}
+    text = ""
+    previous: list[str] = []
+    for g, how in _rank(d, metric):
+        notes = ["tied: " + "; ".join(TIE_WORDS[h] for h in sorted(how))] if len(g) > 1 else []
+        # ties are not transitive: a group starts where a method no longer ties with the
+        # leader, yet it may tie with a member of the group before; then "<" would claim an
+        # order the intervals do not show (docs/judging.md §3)
+        bridge = [(a, b) for a in previous for b in g if tie(rows[a], rows[b], metric)]
+        notes += [f"{b} ties with {a}" for a, b in bridge[:1]]
+        part = " = ".join(g) + (f" ({'; '.join(notes)})" if notes else "")
+        if text:
+            text += (f" {'≥' if higher_is_better(metric) else '≤'} " if bridge else op) + part
+        else:
+            text = part
+        previous = g
     missing = sorted(str(m) for m, v in zip(d["method"], d[metric]) if not _finite(v))
     text = (f"{metric} ({'higher' if higher_is_better(metric) else 'lower'} is better): "
-            + (op.join(parts) if parts else "no values"))
+            + (text or "no values"))
     return text + (f"; no value: {', '.join(missing)}" if missing else "")
 
 

@@ -161,9 +161,11 @@ def test_paired_differences_decide_ties_when_cells_share_seeds():
     assert verdicts.tie(rows["statistical"], rows["oidn"], "relmse") is None
     assert verdicts.tie(rows["statistical-gate"], rows["statistical"], "relmse") == "paired"
     assert verdicts.marked(d, "relmse") == {"statistical", "statistical-gate"}
+    # oidn is behind statistical, but ties with statistical-gate: "≤", not "<"
+    assert verdicts.tie(rows["oidn"], rows["statistical-gate"], "relmse") == "paired"
     assert verdicts.ranking_line(d, "relmse").startswith(
         "relmse (lower is better): statistical = statistical-gate (tied: paired difference "
-        "includes 0) < oidn")
+        "includes 0) ≤ oidn (oidn ties with statistical-gate) < noisy")
     # jbf's mean is above the noisy input's, but seed by seed it is below once: the paired
     # interval includes 0, and "worse than noisy" says how it ties
     flags = headline.worse_than_noisy(d, ["relmse"])
@@ -174,6 +176,20 @@ def test_paired_differences_decide_ties_when_cells_share_seeds():
     r = {x["method"]: x for _, x in lone.iterrows()}
     assert verdicts.paired_interval(r["statistical"], r["oidn"], "relmse") is None
     assert verdicts.tie(r["statistical"], r["oidn"], "relmse") == "overlap"
+
+
+def test_a_group_that_ties_with_the_group_before_is_not_ranked_below_it():
+    """docs/judging.md §3: ties are not transitive. statistical ties with oidn, statistical-gate
+    with statistical but not with oidn: the ranking may not claim statistical < gate."""
+    cells = [_cell("cornell", 64, "oidn", relmse=0.0100, relmse_ci=0.001),
+             _cell("cornell", 64, "statistical", relmse=0.0115, relmse_ci=0.001),
+             _cell("cornell", 64, "statistical-gate", relmse=0.0130, relmse_ci=0.001),
+             _cell("cornell", 64, "noisy", relmse=0.05, relmse_ci=0.001)]
+    for c in cells:
+        c.pop("per_seed", None)  # intervals, not pairs, decide here
+    line = verdicts.ranking_line(_frame(cells), "relmse")
+    assert line == ("relmse (lower is better): oidn = statistical (tied: intervals overlap) ≤ "
+                    "statistical-gate (statistical-gate ties with statistical) < noisy")
 
 
 def test_reference_warning_suggests_ref_spp():
