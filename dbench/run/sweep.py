@@ -418,29 +418,37 @@ def run_sweep(config: SweepConfig, out: str | Path, executor: str = "local", wor
         if groups and not config.no_cache:  # created only once nothing refused the sweep
             io.ensure_writable_dir(datasets.Cache(config.cache).root, "--cache")
         run = sweep_history.RunRecord(out, to_write, config, executor, workers, done, skipped)
-        computed = [0]
+        # what the run writes is counted from the files (sweep_history.tally): a group stopped
+        # half-way, or finished by a pool worker whose result never came back, wrote cells too
+        before = sweep_history.snapshot(group_cells(config, out, groups))
         warned = warnings_out if warnings_out is not None else []
         try:
-            t_refs = _execute(config, out, groups, executor, workers, progress, computed,
-                              warned)
+            t_refs = _execute(config, out, groups, executor, workers, progress, warned)
         except BaseException as exc:
             try:
                 run.end("interrupted" if isinstance(exc, KeyboardInterrupt) else "failed",
-                        computed[0], error=f"{type(exc).__name__}: {exc}")
+                        sweep_history.tally(before), error=f"{type(exc).__name__}: {exc}")
             except Exception:  # noqa: BLE001 - the first error is the one to report
                 pass
             raise
-        run.end("finished", computed[0], t_refs)
+        written = sweep_history.tally(before)
+        run.end("finished", written, t_refs)
     errors = error_cells(config, out)
-    return {"computed": computed[0], "skipped": skipped, "finished_before": done,
+    return {"computed": written["cells"], "skipped": skipped, "finished_before": done,
             "errors": len(errors), "error_cells": errors}
 
 
+def group_cells(config: SweepConfig, out: Path, groups: list) -> list[Path]:
+    """The cell files the groups (scene, spp, [methods]) of :func:`plan` write."""
+    labels = config.labels()
+    scene_label = scene_labels(config, out)
+    return [cell_path(out, scene_label[s], spp, labels[m]) for s, spp, ms in groups for m in ms]
+
+
 def _execute(config: SweepConfig, out: Path, groups: list, executor: str, workers: int,
-             progress: bool, computed: list[int], warned: list[str]) -> float:
-    """Render the references, then run the groups; ``computed[0]`` counts the cells written
-    so far (also when interrupted), ``warned`` gathers the groups' library warnings, from
-    every worker. Returns the seconds the references took."""
+             progress: bool, warned: list[str]) -> float:
+    """Render the references, then run the groups; ``warned`` gathers the groups' library
+    warnings, from every worker. Returns the seconds the references took."""
     from tqdm.auto import tqdm
 
     from .. import plugins
@@ -454,7 +462,6 @@ def _execute(config: SweepConfig, out: Path, groups: list, executor: str, worker
                disable=not progress)
 
     def done(result: dict[str, list[str]]) -> None:
-        computed[0] += len(result["written"])
         warned.extend(result["warnings"])
         bar.update(len(result["written"]))
 

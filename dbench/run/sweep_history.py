@@ -4,13 +4,17 @@
 the methods, scenes, spp and labels of its runs; ``runs`` holds one entry per ``dbench sweep``
 run into the folder, in order: when it started and ended, how it ended (``finished``,
 ``interrupted``, ``failed``, or ``killed`` for a run that never wrote its end), what it asked for
-(``request``), the cells it computed (``cells``), reused and skipped, and its wall time (README.md,
-the ``dbench sweep`` paragraph). The file is only written by the sweep holding the folder's lock
-(:mod:`dbench.run.sweep_lock`).
+(``request``), the cells it wrote (``cells``; ``failed`` of them are error cells), reused and
+skipped, and its wall time (README.md, the ``dbench sweep`` paragraph). ``cells`` and ``failed``
+are counted from the cell files the run left (:func:`tally`), not from the results that reached
+the sweep process: a group interrupted half-way, or finished by a pool worker whose result never
+arrived, has still written its first cells. The file is only written by the sweep holding the
+folder's lock (:mod:`dbench.run.sweep_lock`).
 
-The file is read strictly: one that does not parse, or whose settings have the wrong types, is
-refused with one line naming it and the problem, and left as it is, so that a resume never
-replaces a history it could not read.
+The file is read strictly: one that does not parse, or any of whose fields (``config``, its
+settings and series, ``machine``, each of ``runs``) has the wrong type, is refused with one line
+naming it, the field, what it should be and what it is, and left as it is, so that a resume
+never replaces a history it could not read.
 """
 from __future__ import annotations
 
@@ -33,49 +37,107 @@ def _is_int(v: Any) -> bool:
     return isinstance(v, int) and not isinstance(v, bool)
 
 
+def _is_num(v: Any) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
 def _is_str_list(v: Any) -> bool:
     return isinstance(v, list) and all(isinstance(x, str) for x in v)
 
 
-#: (key of ``config``, check, what it should be)
-_TYPES = (
-    ("methods", _is_str_list, "a list of names"),
-    ("scenes", _is_str_list, "a list of names"),
-    ("labels", _is_str_list, "a list of names"),
-    ("metrics", _is_str_list, "a list of names"),
-    ("spp", lambda v: isinstance(v, list) and all(_is_int(x) for x in v),
-     "a list of integers"),
-    ("res", lambda v: v is None or _is_int(v) or isinstance(v, str), "a size or null"),
-    ("ref_spp", lambda v: v is None or _is_int(v), "an integer or null"),
-    ("ref_spp_default", lambda v: v is None or _is_int(v), "an integer or null"),
-    ("frames", lambda v: v is None or _is_int(v), "an integer or null"),
-    ("bins", lambda v: v is None or _is_int(v), "an integer or null"),
-    ("seed", _is_int, "an integer"),
-    ("seeds", _is_int, "an integer"),
-    ("repeats", _is_int, "an integer"),
-    ("lam", lambda v: _is_int(v) or isinstance(v, float), "a number"),
-    ("transform", lambda v: v is None or isinstance(v, str), "a name or null"),
-    ("device", lambda v: isinstance(v, str), "a name"),
-    ("series", lambda v: isinstance(v, dict), "an object"),
-    ("scene_params", lambda v: isinstance(v, dict), "an object"),
-    ("scene_labels", lambda v: isinstance(v, dict), "an object"),
-)
+def _shown(v: Any) -> str:
+    return json.dumps(v)[:60]
+
+
+# A check takes (value, the field's name) and says what is wrong ('' when nothing is).
+def _value_check(ok, what: str):
+    return lambda v, where: "" if ok(v) else f"{where} is {_shown(v)}, not {what}"
+
+
+def _fields(checks: dict, what: str):
+    """An object whose named fields each pass their check (fields not named, or absent, are
+    not checked: older files lack the newer ones)."""
+    def check(v, where):
+        if not isinstance(v, dict):
+            return f"{where} is {_shown(v)}, not {what}"
+        for key, sub in checks.items():
+            if key in v and (why := sub(v[key], f"{where}.{key}")):
+                return why
+        return ""
+    return check
+
+
+def _each_value(sub, what: str):
+    """An object whose every value passes ``sub`` (keys are names)."""
+    def check(v, where):
+        if not isinstance(v, dict):
+            return f"{where} is {_shown(v)}, not {what}"
+        return next((why for k, x in v.items() if (why := sub(x, f"{where}.{k}"))), "")
+    return check
+
+
+_NAMES = _value_check(_is_str_list, "a list of names")
+_NAME = _value_check(lambda v: isinstance(v, str), "a name")
+_TEXT = _value_check(lambda v: isinstance(v, str), "a string")
+_INT = _value_check(_is_int, "an integer")
+_INT_OR_NULL = _value_check(lambda v: v is None or _is_int(v), "an integer or null")
+_NUMBER = _value_check(_is_num, "a number")
+_OBJECT = _value_check(lambda v: isinstance(v, dict), "an object")
+#: {method: {parameter: value}}, as --param gives them
+_PARAMS = _each_value(_OBJECT, "an object ({method: {parameter: value}})")
+
+#: a sweep's settings (``config``) and each run's ``request`` (:func:`config_dict`)
+_CONFIG = {
+    "methods": _NAMES, "scenes": _NAMES, "labels": _NAMES, "metrics": _NAMES,
+    "spp": _value_check(lambda v: isinstance(v, list) and all(_is_int(x) for x in v),
+                        "a list of integers"),
+    "res": _value_check(lambda v: v is None or _is_int(v) or isinstance(v, str),
+                        "a size or null"),
+    "ref_spp": _INT_OR_NULL, "ref_spp_default": _INT_OR_NULL, "frames": _INT_OR_NULL,
+    "bins": _INT_OR_NULL, "seed": _INT, "seeds": _INT, "repeats": _INT, "lam": _NUMBER,
+    "transform": _value_check(lambda v: v is None or isinstance(v, str), "a name or null"),
+    "device": _NAME,
+    "params": _PARAMS,
+    "series": _each_value(_fields({"method": _NAME, "params": _OBJECT},
+                                  "an object ({\"method\": name, \"params\": object})"),
+                          "an object ({label: {\"method\": name, \"params\": object}})"),
+    "scene_params": _each_value(
+        _value_check(lambda v: v is None or isinstance(v, (str, int, float, bool)),
+                     "a value (string or number)"), "an object ({parameter: value})"),
+    "scene_labels": _each_value(_NAME, "an object ({scene: label})"),
+}
+#: what :func:`dbench.run.machine.machine_info` records
+_MACHINE = {"cpu": _TEXT, "cores": _INT_OR_NULL, "python": _TEXT, "platform": _TEXT,
+            "gpu": _TEXT, "packages": _each_value(_TEXT, "an object ({package: version})")}
+#: the statuses a run's entry can have (module docstring)
+STATUSES = ("running", "finished", "interrupted", "failed", "killed")
+#: one entry of ``runs`` (:class:`RunRecord`)
+_RUN = {"started": _TEXT, "ended": _TEXT,
+        "status": _value_check(lambda v: v in STATUSES, "one of " + ", ".join(STATUSES)),
+        "request": _fields(_CONFIG, "an object"), "cells": _INT, "failed": _INT,
+        "reused": _INT, "skipped": _INT, "executor": _NAME, "workers": _INT, "machine": _TEXT,
+        "wall_s": _NUMBER, "references_s": _NUMBER, "error": _TEXT}
 
 
 def problem(stored: Any) -> str:
-    """Why a parsed sweep.json cannot be used ('' when it can)."""
+    """Why a parsed sweep.json cannot be used ('' when it can): the first field of the wrong
+    type, named by its place (``config.series.jbf.params``, ``runs[2].cells``), with what it
+    should be and what it is."""
     if not isinstance(stored, dict):
         return f"not a JSON object ({type(stored).__name__})"
-    config = stored.get("config")
-    if not isinstance(config, dict):
-        return "config is missing or not an object"
-    for key, ok, what in _TYPES:
-        if key in config and not ok(config[key]):
-            return f"config.{key} is {json.dumps(config[key])[:60]}, not {what}"
+    if "config" not in stored:
+        return "config is missing"
+    checks = {"config": _fields(_CONFIG, "an object"),
+              "machine": _fields(_MACHINE, "an object (cpu, cores, python, platform, gpu, "
+                                           "packages)")}
+    for key, check in checks.items():
+        if key in stored and (why := check(stored[key], key)):
+            return why
     runs = stored.get("runs", [])
-    if not isinstance(runs, list) or not all(isinstance(r, dict) for r in runs):
-        return "runs is not a list of objects"
-    return ""
+    if not isinstance(runs, list):
+        return f"runs is {_shown(runs)}, not a list of objects"
+    run = _fields(_RUN, "an object")
+    return next((why for i, r in enumerate(runs) if (why := run(r, f"runs[{i}]"))), "")
 
 
 def read(out: Path) -> dict | None:
@@ -186,15 +248,18 @@ class RunRecord:
             if run.get("status") == "running":
                 run["status"] = "killed"
         self.entry = {"started": _now(), "status": "running", "request": config_dict(config),
-                      "cells": 0, "reused": reused, "skipped": skipped,
+                      "cells": 0, "failed": 0, "reused": reused, "skipped": skipped,
                       "executor": executor, "workers": workers, "machine": machine_label()}
         self.stored = to_write
         self.stored["runs"].append(self.entry)
         io.write_json(self.out / "sweep.json", self.stored)
 
-    def end(self, status: str, computed: int, references_s: float | None = None,
+    def end(self, status: str, written: dict[str, int], references_s: float | None = None,
             error: str | None = None) -> None:
-        self.entry.update(status=status, ended=_now(), cells=computed,
+        """Complete the entry: ``status`` (:data:`STATUSES`), ``written`` the run's
+        :func:`tally`."""
+        self.entry.update(status=status, ended=_now(), cells=written["cells"],
+                          failed=written["failed"],
                           wall_s=round(time.perf_counter() - self.t0, 1))
         if references_s is not None:
             self.entry["references_s"] = round(references_s, 1)
@@ -203,9 +268,44 @@ class RunRecord:
         io.write_json(self.out / "sweep.json", self.stored)
 
 
+def snapshot(paths) -> dict[Path, tuple | None]:
+    """{cell path: what is there before the run} for the cells a run is to compute: the file's
+    (inode, size, mtime) or None when there is none. A cell file is replaced by renaming a new
+    file onto it (:func:`dbench.io.atomic_path`), so a file written since has another inode."""
+    before = {}
+    for path in paths:
+        try:
+            st = Path(path).stat()
+            before[Path(path)] = (st.st_ino, st.st_size, st.st_mtime_ns)
+        except OSError:
+            before[Path(path)] = None
+    return before
+
+
+def tally(before: dict[Path, tuple | None]) -> dict[str, int]:
+    """{"cells": the cell files of ``before`` (:func:`snapshot`) that were written since,
+    "failed": how many of them are error cells}: what a run computed, counted from the files it
+    left, whichever way it ended (interrupted pool workers included)."""
+    cells = failed = 0
+    for path, was in before.items():
+        try:
+            st = path.stat()
+        except OSError:
+            continue
+        if was == (st.st_ino, st.st_size, st.st_mtime_ns):
+            continue
+        try:
+            cell = io.read_json(path)
+        except (OSError, ValueError):
+            continue  # not a whole cell: computed again by the next run
+        cells += 1
+        failed += int(isinstance(cell, dict) and cell.get("status") == "error")
+    return {"cells": cells, "failed": failed}
+
+
 def _now() -> str:
     return time.strftime("%Y-%m-%dT%H:%M:%S%z")
 
 
-__all__ = ["RERUN_SETTINGS", "RunRecord", "SETTINGS", "config_dict", "effective_ref_spp",
-           "problem", "read", "stored_config"]
+__all__ = ["RERUN_SETTINGS", "RunRecord", "SETTINGS", "STATUSES", "config_dict",
+           "effective_ref_spp", "problem", "read", "snapshot", "stored_config", "tally"]

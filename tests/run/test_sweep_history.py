@@ -24,7 +24,30 @@ def _stored(out):
     ('{"config": {"spp": [2], "res"', "not valid JSON"),
     ('{"config": {"spp": "abc", "res": 8}, "runs": []}', 'config.spp is "abc", not a list'),
     ('[1, 2]', "not a JSON object"),
-    ('{"config": {"spp": [2]}, "runs": {}}', "runs is not a list"),
+    ('{"config": {"spp": [2]}, "runs": {}}', "runs is {}, not a list of objects"),
+    ('{"runs": []}', "config is missing"),
+    ('{"config": [], "runs": []}', "config is [], not an object"),
+    ('{"config": {"params": []}}', "config.params is [], not an object ({method: "),
+    ('{"config": {"params": {"jbf": 3}}}', "config.params.jbf is 3, not an object"),
+    ('{"config": {"spp": [2]}, "machine": "x"}', 'machine is "x", not an object (cpu, '),
+    ('{"config": {}, "machine": {"cores": "2"}}', 'machine.cores is "2", not an integer'),
+    ('{"config": {}, "machine": {"packages": ["numpy"]}}',
+     'machine.packages is ["numpy"], not an object ({package: version})'),
+    ('{"config": {"series": {"jbf": {"method": 3}}}}',
+     "config.series.jbf.method is 3, not a name"),
+    ('{"config": {"series": []}}', "config.series is [], not an object ({label: "),
+    ('{"config": {"scene_labels": {"cornell": 1}}}',
+     "config.scene_labels.cornell is 1, not a name"),
+    ('{"config": {"scene_params": {"spp": [1]}}}',
+     "config.scene_params.spp is [1], not a value (string or number)"),
+    ('{"config": {"lam": "0.5"}}', 'config.lam is "0.5", not a number'),
+    ('{"config": {}, "runs": [1]}', "runs[0] is 1, not an object"),
+    ('{"config": {}, "runs": [{"cells": "many"}]}', 'runs[0].cells is "many", not an integer'),
+    ('{"config": {}, "runs": [{}, {"status": "paused"}]}',
+     'runs[1].status is "paused", not one of running, finished, interrupted, failed, killed'),
+    ('{"config": {}, "runs": [{"request": {"spp": 2}}]}',
+     "runs[0].request.spp is 2, not a list of integers"),
+    ('{"config": {}, "runs": [{"wall_s": null}]}', "runs[0].wall_s is null, not a number"),
 ])
 def test_a_broken_sweep_json_is_refused_and_left_unchanged(tmp_path, capsys, text, problem):
     out = tmp_path / "S"
@@ -39,6 +62,51 @@ def test_a_broken_sweep_json_is_refused_and_left_unchanged(tmp_path, capsys, tex
     assert (out / "sweep.json").read_bytes() == before
     assert sorted(p.name for p in out.iterdir()) == ["sweep.json"]
     assert not (tmp_path / "c").exists()
+
+
+def _fields(value, place=(), where=""):
+    """(place, name) of every field of a parsed sweep.json, objects and values; a method's
+    parameter values are the method's to check, and a list's items are the list's."""
+    items = value.items() if isinstance(value, dict) else \
+        enumerate(value) if place == ("runs",) else ()
+    for key, sub in items:
+        inner = (*place, key)
+        name = f"{where}[{key}]" if isinstance(key, int) else \
+            f"{where}.{key}" if where else key
+        yield inner, name
+        method_params = (len(inner) >= 3 and inner[-1] == "params" and inner[-3] == "series"
+                         or len(inner) >= 2 and inner[-2] == "params")
+        if not method_params:
+            yield from _fields(sub, inner, name)
+
+
+def test_every_field_of_a_written_sweep_json_is_type_checked(tmp_path):
+    out = tmp_path / "S"
+    out.mkdir()
+    config = _config(tmp_path, methods=["noisy", "jbf"], params={"jbf": {"radius": 2}},
+                     scene_params={"spp": "4"})
+    stored = sweep_history.stored_config(out, config, None)
+    sweep_history.RunRecord(out, stored, config, "local", 1, 0, 0).end(
+        "interrupted", {"cells": 1, "failed": 1}, 0.5, error="KeyboardInterrupt: ")
+    written = _stored(out)
+    assert sweep_history.problem(written) == ""
+    names = []
+    for place, name in _fields(written):
+        broken = json.loads(json.dumps(written))
+        parent = broken
+        for key in place[:-1]:
+            parent = parent[key]
+        # a list where anything else is expected, an object where a list is
+        wrong = {} if isinstance(parent[place[-1]], list) else []
+        parent[place[-1]] = wrong
+        assert sweep_history.problem(broken).startswith(f"{name} is {json.dumps(wrong)}, not "), \
+            name
+        names.append(name)
+    # what the checks cover: settings, series, the machine, and each run with its request
+    assert {"config.params.jbf", "config.series.jbf[radius=2].params",
+            "config.scene_labels.cornell", "config.scene_params.spp", "machine.packages.numpy",
+            "runs[0].cells", "runs[0].failed", "runs[0].references_s", "runs[0].error",
+            "runs[0].request.series.noisy.method", "runs[0].request.metrics"} <= set(names)
 
 
 def test_the_results_sweep_files_are_readable():
