@@ -25,6 +25,12 @@ they existed) is a miss too, rendered again and replaced: that its files load sa
 about whether they are the pixels its key stands for (another scene's ``buffers.exr`` copied
 in loads just as well), and adopting it would seal whatever it holds with a checksum.
 
+A cache that cannot be written (a full disk, a read-only or unwritable folder, the root
+that cannot be created) only costs time: :meth:`Cache.put` then leaves no partial entry,
+prints one warning line per process naming the folder and the system's reason, stores nothing
+more in that folder for the rest of the process, and returns an entry holding the buffers in
+memory, so the run carries on with the renders it has (README.md, "How renders work").
+
 Mostly empty transient videos are stored by their non-zero rows (:mod:`.sparse_rows`,
 docs/transient.md §6), in entries of format 2; format 1 entries read as before.
 
@@ -48,6 +54,7 @@ from typing import Any
 import numpy as np
 
 from .. import io
+from ..errors import OutputError
 from . import sparse_rows
 
 CACHE_FORMAT = 1
@@ -100,14 +107,24 @@ def make_key(description: dict) -> str:
 
 @dataclass
 class Entry:
+    """A cache entry: its folder and ``meta.json``. An entry :meth:`Cache.put` did not store
+    (a disabled or unwritable cache) holds its buffers in memory instead (``held_images``,
+    ``held_arrays``, as they were given) and reads them from there."""
+
     path: Path
     meta: dict
+    held_images: dict[str, np.ndarray] | None = None
+    held_arrays: dict[str, np.ndarray] | None = None
 
     def images(self) -> dict[str, np.ndarray]:
+        if self.held_images is not None:
+            return dict(self.held_images)
         f = self.path / "buffers.exr"
         return io.read_exr(f) if f.exists() else {}
 
     def arrays(self) -> dict[str, np.ndarray]:
+        if self.held_arrays is not None:
+            return dict(self.held_arrays)
         f = self.path / "arrays.npz"
         if not f.exists():
             return {}
@@ -121,6 +138,9 @@ DATA_FILES = ("buffers.exr", "arrays.npz")
 UNCHECKED = "no file checksums, so its contents cannot be checked"
 #: Leftover temporary folders older than this are removed (seconds).
 STALE_TMP_S = 24 * 3600
+#: {cache folder: the system's reason} of the folders this process found it cannot write:
+#: warned about once, and not written to again (a full disk stays full for a run's length)
+_UNWRITABLE: dict[str, str] = {}
 
 
 class BackgroundSha256:
@@ -267,52 +287,80 @@ class Cache:
         (read back the same way): for float64 statistics, which deflate to about half their
         size at 25× the write time (README.md, "How renders work"). ``sparse`` names arrays
         that share every axis but the last and are stored by their non-zero rows
-        (:mod:`.sparse_rows`; :meth:`Entry.arrays` gives them back bit for bit)."""
+        (:mod:`.sparse_rows`; :meth:`Entry.arrays` gives them back bit for bit).
+
+        A folder that cannot be written (OSError, or the OutputError :mod:`dbench.io` makes of
+        it) is not an error: one warning line per process, nothing left behind, and the entry
+        returned holds the buffers in memory (module docstring)."""
         key = make_key(description)
         final = self._dir(kind, key)
         packed = bool(arrays) and any(n in arrays for n in sparse)
         meta = {**(meta or {}), "cache_format": PACKED_FORMAT if packed else CACHE_FORMAT,
                 "kind": kind, "key": key, "description": canonical(description),
                 "created": time.time()}
-        if not self.enabled:
-            return Entry(final, meta)
-        final.parent.mkdir(parents=True, exist_ok=True)
-        if not self._cleaned:
-            self._cleaned = True
-            self.clean(older_than_s=STALE_TMP_S)
+        held = Entry(final, meta, dict(images or {}), dict(arrays or {}))
+        if not self.enabled or str(self.root) in _UNWRITABLE:
+            return held
         tmp = final.parent / f".tmp-{key}-{uuid.uuid4().hex[:8]}"
-        tmp.mkdir()
         try:
-            if images:
-                io.write_exr(tmp / "buffers.exr", images)
-            records = {}
-            if arrays:
-                with io.atomic_path(tmp / "arrays.npz", suffix=".tmp.npz") as t:
-                    with open(t, "wb") as fh:
-                        writer = DigestingWriter(fh)
-                        try:
-                            (np.savez_compressed if compress else np.savez)(
-                                writer, **sparse_rows.pack(arrays, sparse))
-                        finally:
-                            writer.close()
-                records["arrays.npz"] = writer.record()
-            meta["files"] = {n: records.get(n) or file_record(tmp / n) for n in DATA_FILES
-                             if (tmp / n).is_file()}
-            io.write_json(tmp / "meta.json", meta)
-            try:
-                os.rename(tmp, final)
-            except OSError:
-                if self._intact(final, description):
-                    pass  # another process finished the same entry first (same content)
-                else:  # a damaged entry: move it aside, then put the new one in its place
-                    trash = final.parent / f".tmp-{key}-old-{uuid.uuid4().hex[:8]}"
-                    os.rename(final, trash)
-                    os.rename(tmp, final)
-                    shutil.rmtree(trash, ignore_errors=True)
+            final.parent.mkdir(parents=True, exist_ok=True)
+            if not self._cleaned:
+                self._cleaned = True
+                self.clean(older_than_s=STALE_TMP_S)
+            tmp.mkdir()
+            self._write(tmp, final, description, meta, images, arrays, compress, sparse)
+        except (OSError, OutputError) as exc:
+            # the renders are in memory and right; only the time a later hit would save is lost
+            self._unwritable(exc)
+            meta.pop("files", None)  # of files that were not kept
+            return held
         finally:
             if tmp.exists():
                 shutil.rmtree(tmp, ignore_errors=True)
         return Entry(final, meta)
+
+    def _unwritable(self, exc: OSError | OutputError) -> None:
+        """Note that this process cannot write the cache folder; one warning line the first
+        time."""
+        root = str(self.root)
+        if root in _UNWRITABLE:
+            return
+        reason = exc.reason if isinstance(exc, OutputError) else (exc.strerror or str(exc))
+        _UNWRITABLE[root] = reason
+        print(f"dbench: cache at {root} is not writable ({reason}); carrying on without "
+              f"storing renders", file=sys.stderr)
+
+    def _write(self, tmp: Path, final: Path, description: dict, meta: dict,
+               images: dict[str, np.ndarray] | None, arrays: dict[str, np.ndarray] | None,
+               compress: bool, sparse: tuple[str, ...]) -> None:
+        """Fill the temporary folder ``tmp`` and rename it to ``final`` (:meth:`put`)."""
+        key = meta["key"]
+        if images:
+            io.write_exr(tmp / "buffers.exr", images)
+        records = {}
+        if arrays:
+            with io.atomic_path(tmp / "arrays.npz", suffix=".tmp.npz") as t:
+                with open(t, "wb") as fh:
+                    writer = DigestingWriter(fh)
+                    try:
+                        (np.savez_compressed if compress else np.savez)(
+                            writer, **sparse_rows.pack(arrays, sparse))
+                    finally:
+                        writer.close()
+            records["arrays.npz"] = writer.record()
+        meta["files"] = {n: records.get(n) or file_record(tmp / n) for n in DATA_FILES
+                         if (tmp / n).is_file()}
+        io.write_json(tmp / "meta.json", meta)
+        try:
+            os.rename(tmp, final)
+        except OSError:
+            if self._intact(final, description):
+                pass  # another process finished the same entry first (same content)
+            else:  # a damaged entry: move it aside, then put the new one in its place
+                trash = final.parent / f".tmp-{key}-old-{uuid.uuid4().hex[:8]}"
+                os.rename(final, trash)
+                os.rename(tmp, final)
+                shutil.rmtree(trash, ignore_errors=True)
 
     @staticmethod
     def _intact(path: Path, description: dict) -> bool:
