@@ -14,7 +14,11 @@ builds, ``build(mi, res, extra=...)`` included).
 A ``build`` is code from outside dbench when it comes from a scene file or a plugin, so the call
 never lets it end the process: ``sys.exit`` inside it becomes a DbenchInputError naming the
 scene (exit 2), and a film whose size is not the requested one (``"height": res`` of a
-non-square request) is refused with the line to write instead of rendering the wrong image.
+non-square request) is refused with the line to write instead of rendering the wrong image. A
+plugin's ``Scene`` renders its build's film as it is, so a film whose reconstruction filter is
+not a box (hdrfilm's default is a Gaussian) is refused naming the scene, its file and the entry
+to write (:func:`check_box_filter`): each 1-spp pass must keep every sample in its own pixel,
+as the per-sample statistics need (README.md, "How renders work").
 """
 from __future__ import annotations
 
@@ -143,6 +147,39 @@ def probe_load(mi, d: dict, what: str, source: str = "the scene's dictionary") -
         raise DbenchInputError(f"{what}: Mitsuba could not load {source}: {message}") from None
 
 
+def source_of(fn: Callable) -> str:
+    """The file ``fn`` is defined in, else its module's name (for messages)."""
+    fn = getattr(fn, "wrapped", fn)
+    try:
+        return inspect.getsourcefile(fn) or fn.__module__
+    except (TypeError, AttributeError):
+        return str(getattr(fn, "__module__", None) or type(fn).__name__)
+
+
+def check_box_filter(mi, d: dict, what: str) -> None:
+    """Refuse a build dictionary whose film reconstructs with another filter than a box (one
+    line naming ``what`` and the entry to write). The film is loaded by itself, so Mitsuba
+    says which filter it has, also where the film names none (hdrfilm's default, a Gaussian)."""
+    given = d["sensor"].get("film")
+    film = {"type": "hdrfilm"} if given is None else given  # the sensor's default film
+    if isinstance(film, dict):
+        try:
+            film = mi.load_dict(film)
+        except Exception:  # noqa: BLE001 - the render names what Mitsuba cannot load
+            return
+    rfilter = film.rfilter() if hasattr(film, "rfilter") else None
+    if rfilter is None or rfilter.is_box_filter():
+        return
+    stated = given.get("rfilter") if isinstance(given, dict) else None
+    name = (stated.get("type") if isinstance(stated, dict) else None) or rfilter.class_name()
+    raise DbenchInputError(
+        f"{what}: the film's reconstruction filter is {name}"
+        + (" (the film names none: hdrfilm's default)"
+           if stated is None and not hasattr(given, "rfilter") else "")
+        + "; dbench keeps each sample in its own pixel and needs a box filter: put "
+        '"rfilter": {"type": "box"} in the film of the dictionary build returns')
+
+
 _PROBED: set = set()
 
 
@@ -164,8 +201,9 @@ def check_plugin_scene(scene: Any) -> None:
         raise DbenchInputError(f"scene {scene.name}: build must return a mi.load_dict "
                                f"dictionary with a 'sensor' dictionary")
     probe_load(mi, d, f"scene {scene.name}")
+    check_box_filter(mi, d, f"scene {scene.name} ({source_of(scene.build)})")
     _PROBED.add(key)
 
 
-__all__ = ["call_build", "check_film", "check_plugin_scene", "probe_load", "check_film", "own_camera", "plugin_build", "takes_width_height",
-           "exit_message"]
+__all__ = ["call_build", "check_box_filter", "check_film", "check_plugin_scene", "exit_message",
+           "own_camera", "plugin_build", "probe_load", "source_of", "takes_width_height"]
