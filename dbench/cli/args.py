@@ -99,6 +99,22 @@ def seed_arg(text: str):
     return value
 
 
+def normal_encoding_arg(text: str):
+    """argparse ``type`` of ``--normal-encoding``: ``signed`` or ``unsigned``
+    (dbench.datasets.folders.normals); anything else comes back as a
+    :class:`dbench.cli.bounds.BadCount`, refused in one line naming the option and the valid
+    choices before the command does anything (argparse's ``choices`` would print its usage)."""
+    from .bounds import BadCount
+
+    choices = ("signed", "unsigned")  # dbench.datasets.folders.normals.ENCODINGS, without NumPy
+    value = str(text).strip().lower()
+    if value in choices:
+        return value
+    bad = BadCount(text)
+    bad.why = f"{text!r}; valid: {', '.join(choices)}"
+    return bad
+
+
 def _split(text: str) -> list[str]:
     return [t.strip() for t in text.split(",") if t.strip()]
 
@@ -186,11 +202,27 @@ def _writable_cache(args: argparse.Namespace):
 
 
 def _scene_of(args: argparse.Namespace):
-    """The Scene of ``--scene`` (catalogue name, scene file or folder) with ``--scene-param``."""
+    """The Scene of ``--scene`` (catalogue name, scene file or folder) with ``--scene-param``
+    and, for a folder of renders, ``--normal-encoding`` (refused for a scene dbench renders,
+    whose normals are its own, signed)."""
+    from dataclasses import replace
+
     from ..datasets.scene_files import load as scene_files
     from ..datasets.scenes import catalogue as scenes
 
-    return scenes.get(args.scene, scene_files.parse_scene_params(args.scene_param))
+    scene = scenes.get(args.scene, scene_files.parse_scene_params(args.scene_param))
+    encoding = getattr(args, "normal_encoding", None)
+    if encoding is None:
+        return scene
+    if scene.renders or getattr(scene, "info", None) is None:
+        raise DbenchInputError(f"--normal-encoding: {args.scene} is rendered by dbench, whose "
+                               f"normals are signed; the option applies to a folder of renders "
+                               f"(--scene DIR)")
+    from ..datasets.folders.load import with_normal_encoding
+
+    info = with_normal_encoding(scene.info, encoding)
+    # the scene's identity follows the folder's fingerprint, which now covers the encoding
+    return replace(scene, info=info, params={**scene.params, "fingerprint": info.fingerprint})
 
 
 def _default_spp(scene, fallback: int = 16) -> int:

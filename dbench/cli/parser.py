@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import argparse
 
-from .args import seed_arg
+from .args import normal_encoding_arg, seed_arg
 from .bounds import count
 from .commands import (cmd_bench, cmd_export, cmd_list, cmd_render, cmd_report, cmd_stress,
                        cmd_sweep, cmd_train)
@@ -64,6 +64,11 @@ def build_parser() -> argparse.ArgumentParser:
                    "start (default all)")
     r.add_argument("--bins", type=count, default=None, help="transient scenes: time bins "
                    "(default the scene's)")
+    r.add_argument("--normal-encoding", type=normal_encoding_arg, default=None,
+                   metavar="{signed,unsigned}", help="a folder of renders: how its normal "
+                   "images are stored, n in [-1, 1] (signed) or n*0.5+0.5 (unsigned); wins "
+                   "over dataset.json's normal_encoding and over the detection (README.md, "
+                   "\"Renders from another renderer\")")
     r.add_argument("--quiet", action="store_true")
     _device_argument(r)
     common(r)

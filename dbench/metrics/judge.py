@@ -10,7 +10,10 @@ the maps makes three things cheap and exact:
   ``cornell``) do not decide the verdict;
 * **reference noise**: ``E[(x − r)²] = E[(x − t)²] + v_r``, so
   ``rmse_unbiased = sqrt(max(0, MSE − mean(v_r)))`` and, to first order in v_r/(r² + ε),
-  ``relmse_unbiased = max(0, relMSE − mean(v_r / (r² + ε)))``; ``ref_rmse = sqrt(mean(v_r))``;
+  ``relmse_unbiased = max(0, relMSE − mean(v_r / (r² + ε)))``; ``ref_rmse = sqrt(mean(v_r))``.
+  Without v_r (a folder's reference whose noise nothing gives, README.md, "Renders from
+  another renderer") all three are NaN, "unknown": nothing was removed, so no figure may be
+  called unbiased;
 * **block bootstrap** (one seed; README.md, "Metrics"): per-block sums of every map, resampled
   with replacement (percentile interval), so B resamples cost one (B × blocks) matrix product;
   the block side adapts to small images (:func:`bootstrap_block`), and with too few blocks
@@ -213,7 +216,8 @@ def judge(output: Any, reference: Any, *, emitter: Any = None, reference_var: An
         emitter: (H, W) or (H, W, 1) emitter fraction of each pixel; pixels with 0 are the
             surface. None: every pixel counts as surface.
         reference_var: variance of the reference mean, same shape as ``reference``, or None
-            (then the unbiased figures equal the raw ones and ``ref_rmse`` is NaN).
+            when unknown (then the unbiased figures, their intervals and ``ref_rmse`` are
+            NaN: nothing is removed, and the raw figure is not passed off as unbiased).
         ev: tone-map exposure (stops) of the LDR metrics.
         names: subset of :data:`JUDGED` (default all).
         block: side of the bootstrap's blocks; None: :func:`bootstrap_block` of the image.
@@ -257,12 +261,9 @@ def judge(output: Any, reference: Any, *, emitter: Any = None, reference_var: An
         if var is not None and surface.any() else float("nan")}
     if not np.isfinite(o).all():
         return Judgement({**{c: float("nan") for c in columns}, **ref}, block=block)
+    # without a reference variance there are no <name>:refvar maps: the unbiased figures
+    # come out NaN below and in bootstrap_interval, never equal to the raw ones
     maps, weights = pixel_maps(o, r, names + list(_ALWAYS), var, ev)
-    if var is None:
-        ones = np.ones((h, w))
-        for n in _UNBIASED:
-            maps[_refvar(n)] = np.zeros((h, w))
-            weights[_refvar(n)] = ones
     values: dict[str, float] = {}
     # too small for the bootstrap: one block holding the whole image still gives the means
     side = block if block is not None else max(h, w)
@@ -278,7 +279,8 @@ def judge(output: Any, reference: Any, *, emitter: Any = None, reference_var: An
         if where == "all":
             for n in EXTRA:
                 if METRICS[n].variant == "unbiased":
-                    values[n] = float(_from_means(n, mean))
+                    values[n] = (float(_from_means(n, mean)) if var is not None
+                                 else float("nan"))
     for n in EXTRA:
         if METRICS[n].variant == "share":
             values[n] = top1_share(maps[METRICS[n].variant_of])
@@ -364,7 +366,8 @@ def bootstrap_interval(frames: Sequence[Judgement], columns: Iterable[str],
                 continue
             if base not in JUDGED and getattr(METRICS.get(base), "variant", None) != "unbiased":
                 continue
-            if any(m not in per_frame[0] for m in _needs(base)):
+            # a frame whose reference variance is unknown has no refvar maps: no interval
+            if any(m not in pf for pf in per_frame for m in _needs(base)):
                 continue
             if _blocks_with_pixels(frames, where, _needs(base)) < BOOTSTRAP_MIN_BLOCKS:
                 continue

@@ -145,13 +145,14 @@ _RECORDS: tuple[Metric, ...] = (
            has_unbiased_variant=True, variance_map=_var_sq, unbiased_definition=(
                "rmse_unbiased = sqrt(max(0, MSE − mean v_r)), v_r the per-pixel variance "
                "of the reference mean: the error against the converged image with the "
-               "reference's own noise removed")),
+               "reference's own noise removed; unknown (an empty cell) where v_r is")),
     _image("relmse", "relMSE = mean((x − r)² / (r² + ε)), ε = 1e-2" + _LINEAR,
            error_map=_err_rel_sq, eps=RELMSE_EPS, rankable=True, has_surface_variant=True,
            headline=_ALL_RUNS,
            has_unbiased_variant=True, variance_map=_var_rel_sq, unbiased_definition=(
                "relmse_unbiased = relMSE − mean(v_r / (r² + ε)): first-order "
-               "correction (r is in the denominator; accurate when v_r ≪ r² + ε)")),
+               "correction (r is in the denominator; accurate when v_r ≪ r² + ε); unknown "
+               "(an empty cell) where v_r is")),
     _image("smape", "SMAPE = mean(|x − r| / (|x| + |r| + ε)), ε = 1e-2, no factor 2" + _LINEAR,
            error_map=_err_smape, eps=SMAPE_EPS, range=(0.0, 1.0), rankable=True,
            has_surface_variant=True),

@@ -171,3 +171,27 @@ def test_a_reference_noisier_than_declared_is_flagged(tmp_path, variance):
     honest = load_folder(_folder(tmp_path / "honest", ref_spp=4096, declare=4096,
                                  variance=variance, truth=truth), spp=4)
     assert "reference_warning" not in honest.meta, honest.meta.get("reference_warning")
+
+
+def test_unbiased_figures_are_unknown_when_the_reference_noise_is(tmp_path):
+    """A reference whose noise nothing gives: rmse_unbiased and relmse_unbiased are empty in
+    metrics.csv (never the raw figures passed off as unbiased), the report states them as
+    unknown and ranks on the raw metric instead; a reference with its variance image keeps
+    finite unbiased figures below the raw ones."""
+    out = tmp_path / "run"
+    assert main(["run", "--method", "noisy", "--scene", str(_folder(tmp_path / "none")),
+                 "--spp", "4", "--repeats", "1", "--quiet", "--rank-by", "rmse_unbiased",
+                 "--out", str(out)]) == 0
+    row = pd.read_csv(out / "metrics.csv").iloc[0]
+    assert np.isfinite(row.rmse) and np.isfinite(row.relmse)
+    for col in ("rmse_unbiased", "relmse_unbiased", "rmse_unbiased_ci", "ref_rmse"):
+        assert np.isnan(row[col]), col
+    report = (out / "report.md").read_text(encoding="utf-8")
+    assert "Ranking by rmse (lower is better)" in report
+    assert "unknown (an empty cell) where v_r is" in report
+    known = tmp_path / "known"
+    assert main(["run", "--method", "noisy", "--scene",
+                 str(_folder(tmp_path / "var", declare=256, variance=True)), "--spp", "4",
+                 "--repeats", "1", "--quiet", "--out", str(known)]) == 0
+    row = pd.read_csv(known / "metrics.csv").iloc[0]
+    assert 0 < row.rmse_unbiased < row.rmse and 0 < row.relmse_unbiased < row.relmse

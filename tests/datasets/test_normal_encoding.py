@@ -1,13 +1,17 @@
 """How a folder's normals are encoded (dbench.datasets.folders.normals): both hypotheses tested against
-unit length by their median, the dataset.json declaration winning, a warning where neither
-fits; and the record of the files and EXR channels a load read and left."""
+unit length by their median, the dataset.json declaration winning, ``dbench run
+--normal-encoding`` winning over both, a warning where neither fits; and the record of the
+files and EXR channels a load read and left."""
 import json
 
 import numpy as np
 import OpenEXR
 import pytest
 
-from dbench.datasets.folders.load import load_folder, scan_folder
+from dbench.cli import main
+from dbench.cli.args import _scene_of
+from dbench.cli.parser import build_parser
+from dbench.datasets.folders.load import load_folder, scan_folder, with_normal_encoding
 from dbench.datasets.folders.normals import decide, deviations
 from dbench.errors import DbenchInputError
 
@@ -140,3 +144,63 @@ def test_layers_read_and_ignored_are_recorded(tmp_path):
     assert f.meta["layers_ignored"] == [
         "m_0008.exr: A, _arg_0.B, _arg_0.G, _arg_0.R",
         "m_0008.ldr.exr: whole file (not a buffer dbench reads)"]
+
+
+def test_the_option_wins_over_dataset_json_and_the_detection(tmp_path):
+    """``--normal-encoding`` decides, says what dataset.json said where they differ, warns
+    where the pixels contradict it, and enters the folder's fingerprint (the result's
+    identity): another encoding is another result."""
+    stored, grey = _boundary_normals()  # unsigned, and detected as such
+    info = scan_folder(_folder(tmp_path / "f", stored, {"normal_encoding": "signed"}))
+    assert info.normals == "signed"
+    given = with_normal_encoding(info, "unsigned")
+    f = load_folder(given, 4, needs={"normal"})
+    assert given.normals == "unsigned"
+    np.testing.assert_allclose(f.normal[~grey], _unit(1)[~grey], atol=1e-6)
+    assert "given by --normal-encoding, over dataset.json's 'signed'" in \
+        f.meta["normal_encoding"]
+    assert "normal_warning" not in f.meta  # the pixels agree with the option
+    against = with_normal_encoding(info, "signed")
+    g = load_folder(against, 4, needs={"normal"})
+    np.testing.assert_array_equal(g.normal, stored)
+    assert "over dataset.json" not in g.meta["normal_encoding"]  # they agree
+    assert "--normal-encoding gives signed normals, but v_0004.nrm.exr" in \
+        g.meta["normal_warning"] and "looks unsigned" in g.meta["normal_warning"]
+    assert len({info.fingerprint, given.fingerprint, against.fingerprint}) == 3
+    # over the detection alone (no dataset.json)
+    detected = scan_folder(_folder(tmp_path / "d", stored))
+    assert detected.normals == "unsigned"
+    assert with_normal_encoding(detected, "signed").normals == "signed"
+    with pytest.raises(DbenchInputError, match="--normal-encoding: 'raw'; valid: signed, "
+                                               "unsigned"):
+        with_normal_encoding(info, "raw")
+
+
+def test_the_option_on_the_command_line(tmp_path, capsys):
+    """A bad value: one line naming the option and the choices, exit 2, before anything is
+    read or written; a scene dbench renders refuses it; on a folder the scene's identity
+    carries the encoding and the report states where it came from."""
+    folder = _folder(tmp_path / "f", _boundary_normals()[0], {"normal_encoding": "signed"})
+    out = tmp_path / "run"
+    assert main(["run", "--method", "noisy", "--scene", str(folder), "--out", str(out),
+                 "--normal-encoding", "raw"]) == 2
+    err = capsys.readouterr().err
+    assert err.strip() == "dbench: --normal-encoding: 'raw'; valid: signed, unsigned"
+    assert not out.exists()
+    assert main(["run", "--method", "noisy", "--scene", "cornell", "--out", str(out),
+                 "--normal-encoding", "signed"]) == 2
+    err = capsys.readouterr().err
+    assert "--normal-encoding: cornell is rendered by dbench" in err and len(
+        err.strip().splitlines()) == 1
+    parser = build_parser()
+    plain = _scene_of(parser.parse_args(["run", "--method", "noisy", "--scene", str(folder)]))
+    given = _scene_of(parser.parse_args(["run", "--method", "noisy", "--scene", str(folder),
+                                         "--normal-encoding", "unsigned"]))
+    assert given.info.normals == "unsigned" and plain.info.normals == "signed"
+    assert given.params["fingerprint"] != plain.params["fingerprint"]
+    assert given.key_dict(None, None) != plain.key_dict(None, None)
+    assert main(["run", "--method", "noisy", "--scene", str(folder), "--out", str(out),
+                 "--repeats", "1", "--quiet", "--normal-encoding", "unsigned"]) == 0
+    report = (out / "report.md").read_text(encoding="utf-8")
+    assert "- normal encoding: unsigned [0,1] → 2n−1 (given by --normal-encoding, over " \
+        "dataset.json's 'signed'" in report

@@ -66,6 +66,28 @@ def test_unbiased_rmse_removes_the_reference_variance():
     assert v["ref_rmse"] == pytest.approx(sigma_r)
 
 
+def test_unbiased_figures_are_unknown_without_a_reference_variance():
+    """Nothing removed, nothing called unbiased: NaN ("unknown"), never the raw figure; the
+    same output with a variance of zero keeps rmse_unbiased == rmse, so only the missing
+    variance makes them unknown."""
+    o, r = _pair()
+    v = J.judge(o, r).values
+    assert np.isnan(v["rmse_unbiased"]) and np.isnan(v["relmse_unbiased"])
+    assert np.isnan(v["ref_rmse"]) and np.isfinite(v["rmse"]) and np.isfinite(v["relmse"])
+    zero = J.judge(o, r, reference_var=np.zeros(r.shape)).values
+    assert zero["rmse_unbiased"] == pytest.approx(zero["rmse"], rel=1e-12)
+    assert zero["relmse_unbiased"] == pytest.approx(zero["relmse"], rel=1e-12)
+    cols = ["rmse", "rmse_unbiased", "relmse_unbiased"]
+    ci = J.bootstrap_interval([J.judge(o, r)], cols)
+    assert np.isfinite(ci["rmse_ci"])
+    assert np.isnan(ci["rmse_unbiased_ci"]) and np.isnan(ci["relmse_unbiased_ci"])
+    # frames of one output where only some know the variance (a folder sequence): no interval
+    # for the unbiased figures, and no KeyError from the frames without their maps
+    mixed = J.bootstrap_interval([J.judge(o, r, reference_var=np.full(r.shape, 1e-4)),
+                                  J.judge(o, r)], cols)
+    assert np.isfinite(mixed["rmse_ci"]) and np.isnan(mixed["rmse_unbiased_ci"])
+
+
 def test_non_finite_output_gives_nan_everywhere():
     o, r = _pair()
     o[0, 0, 0] = np.nan

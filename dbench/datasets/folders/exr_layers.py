@@ -260,6 +260,31 @@ def decode_normals(normal: np.ndarray, encoding: str) -> np.ndarray:
     return np.where(hit, 2.0 * normal - 1.0, 0.0).astype(np.float32)
 
 
+class Reader:
+    """Reads each EXR file once per load (dbench.datasets.folders.load) and checks what every
+    buffer must satisfy: called with a :class:`Layer`, gives its (H, W, C) float32 buffer;
+    ``layers``: what was read, in order (``meta["layers_read"]``, :func:`layers_report`)."""
+
+    def __init__(self) -> None:
+        self.cache: dict[Path, dict[str, np.ndarray]] = {}
+        self.layers: list[Layer] = []
+
+    def __call__(self, layer: Layer) -> np.ndarray:
+        if layer.file not in self.cache:
+            self.cache[layer.file] = read_channels(layer.file)
+        if layer not in self.layers:
+            self.layers.append(layer)  # meta["layers_read"]
+        arr = stack(self.cache[layer.file], layer)
+        # Motion is NaN wherever there is no previous position, everywhere on a first frame.
+        if layer.buffer != "motion" and np.isnan(arr).all():
+            raise DbenchInputError(f"{layer.file}: {layer.buffer} is NaN everywhere; expected "
+                                   "an image")
+        if layer.buffer == "emitter" and not (np.nanmin(arr) >= 0 and np.nanmax(arr) <= 1):
+            raise DbenchInputError(f"{layer.file}: emitter values in [{np.nanmin(arr)}, "
+                                   f"{np.nanmax(arr)}]; expected coverage in [0, 1]")
+        return arr
+
+
 def layers_report(read: list[Layer], folder: Path, ignored_files: tuple[str, ...] = ()
                   ) -> dict[str, list[str]]:
     """``meta["layers_read"]`` and ``meta["layers_ignored"]``: one line per file and buffer read

@@ -33,13 +33,18 @@ not trusted (:mod:`dbench.datasets.folders.reference`): its variance of the mean
 ``var`` image / ``Variance`` divided by ``ref_spp`` (or an identity-transform ``.stats.npz``'s
 ``var_mean``), else is estimated from its spp and the noisy series, or from the series'
 convergence; when nothing gives it the frame has no ``reference_var``, ``meta["ref_rmse"]`` is
-NaN (reports say "unknown", never 0) and ``meta["ref_var_known"]`` is False. A reference no
-better than the noisy input gets ``meta["reference_warning"]``. Features missing for an spp are
-taken from the reference's files (OIDN training sets may store clean features once). Normals
-stored as n·0.5 + 0.5 are detected at scan time on the first normal image
-(:mod:`dbench.datasets.folders.normals`) and decoded to [-1, 1] for the whole view; ``dataset.json``
-"normal_encoding" overrides the detection. ``meta["layers_read"]`` and
-``meta["layers_ignored"]`` list the files and channels a load read and those it left.
+NaN (reports say "unknown", never 0; so are ``rmse_unbiased`` and ``relmse_unbiased``,
+:mod:`dbench.metrics.judge`) and ``meta["ref_var_known"]`` is False. A reference no better than
+the noisy input gets ``meta["reference_warning"]``. Features missing for an spp are taken from
+the reference's files (OIDN training sets may store clean features once); a feature that only
+some spp have and the reference lacks is left out at every spp, and ``meta["feature_warning"]``
+says which spp lack which buffer (:mod:`dbench.datasets.folders.features`). Normals stored as
+n·0.5 + 0.5 are detected at scan time on the first normal image
+(:mod:`dbench.datasets.folders.normals`) and decoded to [-1, 1] for the whole view;
+``dataset.json`` "normal_encoding" overrides the detection, and ``dbench run
+--normal-encoding`` (:func:`with_normal_encoding`) overrides
+both. ``meta["layers_read"]`` and ``meta["layers_ignored"]`` list the files and channels a load
+read and those it left.
 
 A folder with several views is selected by ``DIR/NAME`` (a path whose parent is the folder and
 whose last part is the view name).
@@ -56,7 +61,7 @@ import hashlib
 import json
 import os
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Iterable
 
@@ -66,15 +71,15 @@ from ...data import Frame, SampleStats
 from ...errors import DbenchInputError
 from ...resolution import Res
 from . import exr_layers as xl
+from . import features as feat
 from .export import read_stats_npz
+from .features import FEATURES
 from .reference import folder_reference
-from .normals import resolve as resolve_normals
+from .normals import BY_OPTION, ENCODINGS, resolve as resolve_normals
 
 TAGS = {"hdr": "color", "alb": "albedo", "nrm": "normal", "depth": "depth", "pos": "position",
         "emitter": "emitter", "var": "variance", "mv": "motion"}
 IGNORED_TAGS = ("ldr", "sh1x", "sh1y", "sh1z")
-#: Buffers that come from an spp's own files or, failing that, from the reference's.
-FEATURES = ("albedo", "normal", "depth", "position", "emitter", "motion")
 REF_KEYS = ("ref", "reference", "gt", "target")
 STATS_FROM_VARIANCE = "variance image (identity transform, no third moment)"
 PATTERNS = ("<name>_<spp>.<tag>.exr (tag: hdr, alb, nrm, depth, pos, emitter, var, mv, ldr, "
@@ -91,8 +96,10 @@ class FolderInfo:
     """What :func:`scan_folder` found for one view (see the module docstring).
 
     ``normals`` is resolved at scan time (declared in ``dataset.json`` or detected on the
-    first normal image). ``fingerprint``: 16 hex chars of sha256 over (file name, bytes) of every
-    file the view uses, plus ``dataset.json``. ``ignored``: files recognised but unused.
+    first normal image; :func:`with_normal_encoding` gives the command line's).
+    ``fingerprint``: 16 hex chars of sha256 over (file name, bytes) of every file the view
+    uses, plus ``dataset.json`` and a ``--normal-encoding`` given. ``ignored``: files
+    recognised but unused.
     ``reference_from`` is never None from :func:`scan_folder` (a view without any reference is
     an error there); ``ref_spp`` is None for a named reference unless ``dataset.json`` gives it.
     """
@@ -114,6 +121,8 @@ class FolderInfo:
     #: {(frame or None, spp or "ref"): {buffer: exr_layers.Layer, or Path for "stats"}}
     _plan: dict = field(default_factory=dict, repr=False)
     _meta: dict = field(default_factory=dict, repr=False)
+    #: the encoding ``dataset.json`` declares, or None
+    _declared_normals: str | None = field(default=None, repr=False)
 
 
 def _parse(name: str) -> re.Match | None:
@@ -312,6 +321,9 @@ def scan_folder(path: str | os.PathLike) -> FolderInfo:
     ref = plan[(fr, "ref")]
     buffers = {"color", "reference"}
     buffers |= {b for b in FEATURES if all(b in s or b in ref for s in slots)}
+    # a feature only some spp have, and the reference not: left out at every spp, and said
+    left = feat.left_out(feat.gaps({s: set(slot) for s, slot in zip(spps, slots)}), set(ref),
+                         view, {b: t for t, b in TAGS.items()})
     sources = ["stats" if "stats" in s else "variance" if "variance" in s else None
                for s in slots]
     stats_source = None
@@ -325,11 +337,8 @@ def scan_folder(path: str | os.PathLike) -> FolderInfo:
         stats_source = (next(iter(parts)) if len(parts) == 1 else
                         "; ".join(f"{d} for spp {', '.join(map(str, v))}"
                                   for d, v in parts.items()))
-    layer = next((s["normal"] for s in slots + [ref] if "normal" in s), None)
-    encoding = resolve_normals(
-        info_json.get("normal_encoding") or info_json.get("normals"),
-        None if layer is None else xl.stack(xl.read_channels(layer.file), layer),
-        "" if layer is None else f"{layer.file.name} ({', '.join(layer.channels)})")
+    declared = info_json.get("normal_encoding") or info_json.get("normals")
+    encoding = _normals(slots + [ref], declared)
     used = [n for n in files if n not in ignored]
     if (folder / "dataset.json").exists():
         used.append("dataset.json")
@@ -343,7 +352,34 @@ def scan_folder(path: str | os.PathLike) -> FolderInfo:
                            info_json.get("description", ""), "declared_scene":
                            info_json.get("scene", ""),
                            "normal_encoding": encoding.text if encoding else "",
-                           "normal_warning": encoding.warning if encoding else ""})
+                           "normal_warning": encoding.warning if encoding else "",
+                           "feature_warning": left},
+        _declared_normals=declared)
+
+
+def _normals(slots: list[dict], declared: str | None, given: str | None = None):
+    """:func:`dbench.datasets.folders.normals.resolve` on the first normal image of ``slots``
+    (the noisy spp's, then the reference's)."""
+    layer = next((s["normal"] for s in slots if "normal" in s), None)
+    return resolve_normals(
+        declared, None if layer is None else xl.stack(xl.read_channels(layer.file), layer),
+        "" if layer is None else f"{layer.file.name} ({', '.join(layer.channels)})", given)
+
+
+def with_normal_encoding(info: FolderInfo, encoding: str) -> FolderInfo:
+    """``info`` with the normals' encoding given by ``dbench run --normal-encoding``: it wins
+    over ``dataset.json`` and the detection (:mod:`dbench.datasets.folders.normals`),
+    ``meta["normal_encoding"]`` says so, and the fingerprint covers it, so that results under
+    another encoding never share an identity (a sweep cell, a cache entry) with these."""
+    if encoding not in ENCODINGS:
+        raise DbenchInputError(f"{BY_OPTION}: {encoding!r}; valid: {', '.join(ENCODINGS)}")
+    fr = info.frames[0] if info.frames else None
+    found = _normals([info._plan[(fr, k)] for k in (*info.spps, "ref")],
+                     info._declared_normals, encoding)
+    key = hashlib.sha256(f"{info.fingerprint}\0{BY_OPTION} {encoding}".encode())
+    return replace(info, normals=found.encoding, fingerprint=key.hexdigest()[:16],
+                   _meta={**info._meta, "normal_encoding": found.text,
+                          "normal_warning": found.warning})
 
 
 def is_folder_scene(text: str) -> bool:
@@ -359,29 +395,6 @@ def is_folder_scene(text: str) -> bool:
                    for n in _listing(p.parent))
     except (OSError, ValueError):
         return False
-
-
-class _Reader:
-    """Reads each EXR file once per load and checks what every buffer must satisfy."""
-
-    def __init__(self) -> None:
-        self.cache: dict[Path, dict[str, np.ndarray]] = {}
-        self.layers: list[xl.Layer] = []
-
-    def __call__(self, layer: xl.Layer) -> np.ndarray:
-        if layer.file not in self.cache:
-            self.cache[layer.file] = xl.read_channels(layer.file)
-        if layer not in self.layers:
-            self.layers.append(layer)  # meta["layers_read"]
-        arr = xl.stack(self.cache[layer.file], layer)
-        # Motion is NaN wherever there is no previous position, everywhere on a first frame.
-        if layer.buffer != "motion" and np.isnan(arr).all():
-            raise DbenchInputError(f"{layer.file}: {layer.buffer} is NaN everywhere; expected "
-                                   "an image")
-        if layer.buffer == "emitter" and not (np.nanmin(arr) >= 0 and np.nanmax(arr) <= 1):
-            raise DbenchInputError(f"{layer.file}: emitter values in [{np.nanmin(arr)}, "
-                                   f"{np.nanmax(arr)}]; expected coverage in [0, 1]")
-        return arr
 
 
 def load_folder(info_or_path: FolderInfo | str | os.PathLike, spp: int,
@@ -417,7 +430,7 @@ def load_folder(info_or_path: FolderInfo | str | os.PathLike, spp: int,
     if "reference" in wanted and "emitter" in info.buffers:
         wanted.add("emitter")
     slot, ref = info._plan[(frame, spp)], info._plan[(frame, "ref")]
-    read = _Reader()
+    read = xl.Reader()
     files: dict[str, str] = {"color": slot["color"].file.name}
     color = read(slot["color"])
     buffers: dict[str, np.ndarray] = {}
@@ -427,6 +440,7 @@ def load_folder(info_or_path: FolderInfo | str | os.PathLike, spp: int,
         files[b] = layer.file.name
     if "normal" in buffers:
         buffers["normal"] = xl.decode_normals(buffers["normal"], info.normals)
+    gaps = feat.gaps({s: set(info._plan[(frame, s)]) for s in info.spps})
     stats = None
     if "stats" in wanted:
         if "stats" in slot:
@@ -460,6 +474,11 @@ def load_folder(info_or_path: FolderInfo | str | os.PathLike, spp: int,
         meta.update(ref_seed=None, **ref_meta)
     if "normal" not in buffers:
         meta.pop("normal_warning", None)  # a doubt about normals no method here reads
+    mixed = feat.mixed(gaps, set(ref), set(buffers),
+                       {b: ref[b].file.name for b in FEATURES if b in ref})
+    if mixed:
+        meta["feature_warning"] = "; ".join(filter(None, (meta.get("feature_warning"), mixed)))
     meta.update(xl.layers_report(read.layers, info.path, info.ignored))
+    meta["layers_ignored"] += feat.left_out_files(gaps, set(ref), slot)
     return Frame(color=color, stats=stats, meta=meta, **buffers)
 

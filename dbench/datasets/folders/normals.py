@@ -9,7 +9,13 @@ unsigned) the median of |‖n‖ − 1| is taken as stored (signed) and of |‖2
   farther from unit length: that encoding is chosen;
 * otherwise (neither fits, or both are alike) nothing is guessed: the normals are used as
   stored and a warning says so, naming the file and both figures, and how to declare the
-  encoding in ``dataset.json`` (``"normal_encoding": "signed"`` or ``"unsigned"``).
+  encoding in ``dataset.json`` (``"normal_encoding": "signed"`` or ``"unsigned"``) or on the
+  command line (``dbench run --normal-encoding``).
+
+A declaration wins over the detection, and ``--normal-encoding`` over ``dataset.json``: the
+command line is the user's word for this run, and a dataset one cannot edit (read-only, shared)
+must still be usable when its ``dataset.json`` is wrong. The text says which declared it and,
+when the two disagree, what ``dataset.json`` said (README.md, "Renders from another renderer").
 
 The median, not the mean, decides: a share of background pixels stored as 0.5 grey, or a few
 antialiased edge pixels whose averaged normals are short, move a mean past any threshold (an
@@ -98,14 +104,23 @@ def decide(normal: np.ndarray, source: str) -> NormalEncoding:
         f"undecided, used as stored ({figures}; on {source})",
         f"normals in {source} fit neither encoding clearly ({figures}: {why}); they are used "
         "as stored, which may be wrong: declare \"normal_encoding\": \"signed\" or "
-        "\"unsigned\" in dataset.json")
+        "\"unsigned\" in dataset.json, or pass --normal-encoding")
 
 
-def declared(encoding: str, normal: np.ndarray | None = None, source: str = "") -> NormalEncoding:
-    """The encoding ``dataset.json`` declares; with the image, the figures are stated too, and a
-    declaration the pixels clearly contradict gets a warning (the declaration still wins)."""
+#: Who declared an encoding, as :func:`declared` names it: ``dataset.json`` or the option.
+BY_FILE, BY_OPTION = "dataset.json", "--normal-encoding"
+
+
+def declared(encoding: str, normal: np.ndarray | None = None, source: str = "",
+             by: str = BY_FILE, overrides: str | None = None) -> NormalEncoding:
+    """The encoding ``by`` declares (:data:`BY_FILE` or :data:`BY_OPTION`, which wins over the
+    ``overrides`` declaration of ``dataset.json``, named in the text when it differs); with the
+    image, the figures are stated too, and a declaration the pixels clearly contradict gets a
+    warning (the declaration still wins)."""
     text = ("unsigned [0,1] → 2n−1" if encoding == "unsigned" else
-            "signed [−1,1], used as stored") + " (declared in dataset.json"
+            "signed [−1,1], used as stored") + (
+        " (declared in dataset.json" if by == BY_FILE else f" (given by {by}" + (
+            f", over dataset.json's {overrides!r}" if overrides not in (None, encoding) else ""))
     if normal is None:
         return NormalEncoding(encoding, float("nan"), float("nan"), text + ")")
     signed, unsigned = deviations(normal)
@@ -113,16 +128,20 @@ def declared(encoding: str, normal: np.ndarray | None = None, source: str = "") 
     text += f"; {_figures(signed, unsigned)} on {source})"
     warning = ""
     if not found.warning and found.encoding != encoding:
-        warning = (f"dataset.json declares {encoding} normals, but {source} looks "
+        says = "dataset.json declares" if by == BY_FILE else f"{by} gives"
+        warning = (f"{says} {encoding} normals, but {source} looks "
                    f"{found.encoding} ({_figures(signed, unsigned)}); the declaration is used")
     return NormalEncoding(encoding, signed, unsigned, text, warning)
 
 
-def resolve(declared_as: str | None, image: np.ndarray | None, source: str = ""
-            ) -> NormalEncoding | None:
-    """The encoding of a folder's normals: ``declared_as`` (``dataset.json``) or detected on
-    ``image``, the first normal image of the view (read from ``source``); None without a
-    normal image and without a declaration."""
+def resolve(declared_as: str | None, image: np.ndarray | None, source: str = "",
+            given: str | None = None) -> NormalEncoding | None:
+    """The encoding of a folder's normals: ``given`` (``--normal-encoding``), else
+    ``declared_as`` (``dataset.json``), else detected on ``image``, the first normal image of
+    the view (read from ``source``); None without a normal image and without a declaration."""
+    if given is not None:
+        return declared(given, image, source, BY_OPTION, declared_as)
     if image is None:
         return None if declared_as is None else declared(declared_as)
     return declared(declared_as, image, source) if declared_as else decide(image, source)
+
