@@ -172,10 +172,11 @@ def scene_table(d: pd.DataFrame, columns: Sequence[str], rank_by: str) -> pd.Dat
 
 
 def scene_block_md(d: pd.DataFrame, rank_by: str, columns: Sequence[str] = HEADLINE,
-                   heading: str | None = None) -> list[str]:
-    """Markdown for one scene at one spp: ranking line, intervals, reference, table."""
+                   heading: str | None = None, asked: str | None = None) -> list[str]:
+    """Markdown for one scene at one spp: ranking line (``asked``: the metric asked for, named
+    where ``rank_by`` stands in for it), intervals, reference, table."""
     parts = [heading, ""] if heading else []
-    parts += [f"Ranking by {ranking_line(d, rank_by)}.", "",
+    parts += [f"Ranking by {ranking_line(d, rank_by, asked)}.", "",
               f"{ci_kind_text(d).capitalize()}; {reference_text(d)}.", "",
               markdown_table(scene_table(d, columns, rank_by)), ""]
     return parts

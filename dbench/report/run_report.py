@@ -163,12 +163,13 @@ def run_report_md(table: pd.DataFrame, settings: dict[str, Any], info: dict[str,
     ``ref_spp``, ``ref_rmse``); missing columns are shown as missing, not guessed.
     ``library_warnings``: how many warnings the libraries raised (kept in ``run.log``).
     """
+    asked = rank_by
     d, rank_by, cols, shown = _headline(table, settings, rank_by)
     sequence = settings.get("kind") == "sequence"
     parts = [f"# dbench run: {settings['scene']} at {settings['spp']} spp, "
              f"{size_text(settings['res'])} px", ""]
     if len(d):
-        parts += headline.scene_block_md(d, rank_by, shown)
+        parts += headline.scene_block_md(d, rank_by, shown, asked=asked)
     else:
         parts += ["(no method finished)", ""]
     absent = [c for c in cols if c not in shown]
@@ -235,10 +236,11 @@ def run_summary(table: pd.DataFrame, settings: dict[str, Any], rank_by: str = "r
     for a terminal (dbench/report/terminal.py), each time with the device it ran on."""
     from .terminal import run_summary as summary
 
+    asked = rank_by
     d, rank_by, _, shown = _headline(table, settings, rank_by)
     devices = ({str(m): str(v) for m, v in zip(table["method"], table["device"])
                 if isinstance(v, str)} if {"method", "device"} <= set(table.columns) else {})
-    return summary(d, settings, rank_by, shown, devices)
+    return summary(d, settings, rank_by, shown, devices, asked=asked)
 
 
 def _run_frame(table: pd.DataFrame, settings: dict[str, Any]) -> pd.DataFrame:

@@ -131,7 +131,8 @@ def _wrap(text: str, indent: str = "") -> list[str]:
 
 
 def run_summary(d: pd.DataFrame, settings: Mapping[str, Any], rank_by: str,
-                columns: Sequence[str], devices: Mapping[str, str] | None = None) -> list[str]:
+                columns: Sequence[str], devices: Mapping[str, str] | None = None,
+                asked: str | None = None) -> list[str]:
     """The headline of one run: what was run, the reference, the ranked table with intervals,
     the ranking sentence and the verdicts of ``report.md``. ``d``: the report's cells frame
     (dbench/report/run_report.py ``_run_frame``); ``columns``: the report's headline columns."""
@@ -149,7 +150,7 @@ def run_summary(d: pd.DataFrame, settings: Mapping[str, Any], rank_by: str,
         return lines + ["(no method finished)"]
     lines += _wrap(f"{ci_kind_text(d).capitalize()}; entries are mean ± 95 % half-width.")
     lines += [""] + headline_table(d, rank_by, devices) + [""]
-    lines += _wrap(f"ranking by {ranking_line(d, rank_by)}")
+    lines += _wrap(f"ranking by {ranking_line(d, rank_by, asked)}")
     verdicts = verdict_lines(d, columns, rank_by)
     if verdicts:
         lines += ["verdicts (size of the loss: mean / noisy's; PSNR: dB):"] + verdicts
@@ -204,7 +205,7 @@ def sweep_summary(cells: Sequence[dict], rank_by: str = "relmse",
         rank = rank_by if rank_by in at.columns and at[rank_by].map(finite).any() else "rmse"
         cols = columns or [c for c in headline.HEADLINE if c in at.columns]
         lines += _wrap(f"{scene} at {spp} spp ({reference_text(at)}): "
-                       f"ranking by {ranking_line(at, rank)}")
+                       f"ranking by {ranking_line(at, rank, rank_by)}")
         lines += verdict_lines(at, cols, rank)
     skipped = [(str(c.get("method")), str(c.get("reason", "")))
                for c in cells if isinstance(c, dict) and c.get("status") == "skipped"]

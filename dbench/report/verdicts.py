@@ -224,10 +224,11 @@ def rank_groups(d: pd.DataFrame, metric: str) -> list[list[str]]:
     return [labels for labels, _ in _rank(d, metric)]
 
 
-def ranking_line(d: pd.DataFrame, metric: str) -> str:
+def ranking_line(d: pd.DataFrame, metric: str, asked: str | None = None) -> str:
     """e.g. ``relmse (lower is better): oidn < a = b (tied: intervals overlap) < noisy``; a
     group that ties with a method of the group before it follows it with ``≤`` and says which
-    (``a = b ≤ c (c ties with b)``)."""
+    (``a = b ≤ c (c ties with b)``). ``asked``: the metric the user asked to rank by, named
+    where it had no value and ``metric`` ranks instead."""
     if metric not in d.columns:
         return f"{metric}: not recorded in these cells"
     op = " > " if higher_is_better(metric) else " < "
@@ -250,7 +251,10 @@ def ranking_line(d: pd.DataFrame, metric: str) -> str:
     missing = sorted(str(m) for m, v in zip(d["method"], d[metric]) if not _finite(v))
     text = (f"{metric} ({'higher' if higher_is_better(metric) else 'lower'} is better): "
             + (text or "no values"))
-    return text + (f"; no value: {', '.join(missing)}" if missing else "")
+    text += f"; no value: {', '.join(missing)}" if missing else ""
+    if asked and asked != metric:
+        text += f" ({asked}, asked for, has no value here, so {metric} ranks)"
+    return text
 
 
 def ci_kind_text(d: pd.DataFrame) -> str:

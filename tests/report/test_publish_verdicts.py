@@ -351,6 +351,14 @@ def test_run_report_md_verdicts():
             "0.8×)") in md
     assert "## Settings" in md and "## Machine" in md and "- nca: needs weights" in md
     assert "rmse_unbiased" in md
+    # ranking by a metric with no value here (rmse_unbiased without a reference variance)
+    # ranks by rmse and says so, in the report and on the terminal
+    unknown = table.assign(rmse_unbiased=math.nan)
+    said = "(rmse_unbiased, asked for, has no value here, so rmse ranks)"
+    md = report.run_report_md(unknown, settings, info, {}, rank_by="rmse_unbiased")
+    assert "Ranking by rmse (lower is better): oidn = statistical" in md and said in md
+    lines = " ".join(report.run_summary(unknown, settings, rank_by="rmse_unbiased"))
+    assert said in " ".join(lines.split())
     # a table of the old kind (no intervals, no ref columns) still renders
     old = table[["scene", "method", "spp", "res", "rmse", "relmse", "ssim", "flip", "time_s"]]
     md = report.run_report_md(old, settings, info, {})
