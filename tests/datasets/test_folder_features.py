@@ -83,3 +83,19 @@ def test_a_run_names_the_files_it_left_out(tmp_path):
     assert "- jbf: jbf needs ['albedo']" in report
     assert "v_0004.alb.exr: albedo left out at every spp (missing at spp 16, 64, and not in " \
            "the reference)" in report
+
+
+def test_statistics_some_spp_lack_are_left_out_of_the_whole_series_and_said(tmp_path):
+    folder = _folder(tmp_path / "s", {"alb": (4, 16, 64)})
+    _rgb(folder / "v_0004.var.exr", np.full((H, W, 3), 0.01))  # a variance image at 4 spp only
+    info = scan_folder(folder)
+    assert "stats" not in info.buffers
+    warning = load_folder(info, 16, needs=()).meta["feature_warning"]
+    assert warning.startswith("statistics (.stats.npz or .var.exr) missing at spp 16, 64: left "
+                              "out at every spp")
+    # at every spp: nothing to say, and the statistics are there
+    for spp in (16, 64):
+        _rgb(folder / f"v_{spp:04d}.var.exr", np.full((H, W, 3), 0.01))
+    info = scan_folder(folder)
+    assert "stats" in info.buffers
+    assert "feature_warning" not in load_folder(info, 16, needs=()).meta

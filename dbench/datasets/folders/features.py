@@ -8,7 +8,9 @@ a method that reads it would run with it on some rows and without it on others, 
 would no longer compare across the series. Refusing the folder instead would also refuse the
 methods that read no feature. Leaving it out is said, never silent: ``meta["feature_warning"]``
 names the spp that lack which buffer and how to complete them, and each file left unread is in
-``meta["layers_ignored"]`` with the reason. A feature that some spp have and the others take
+``meta["layers_ignored"]`` with the reason. Per-pixel statistics (``.stats.npz``, or a variance
+image) that some spp lack are left out of the whole series in the same way
+(:func:`stats_left_out`). A feature that some spp have and the others take
 from the reference is used (the rows then differ in their features' noise, which the loads that
 read it say in ``meta["feature_warning"]``).
 
@@ -20,7 +22,7 @@ Example:
 """
 from __future__ import annotations
 
-from typing import Mapping
+from typing import Mapping, Sequence
 
 #: Buffers that come from an spp's own files or, failing that, from the reference's.
 FEATURES = ("albedo", "normal", "depth", "position", "emitter", "motion")
@@ -79,4 +81,12 @@ def mixed(found: Mapping[str, tuple[int, ...]], ref: set[str], loaded: set[str],
                                "(a feature-using method's rows do not compare across spp)")
 
 
-__all__ = ["FEATURES", "gaps", "left_out", "left_out_files", "mixed"]
+def stats_left_out(lacking: Sequence[int], view: str) -> str:
+    """The warning for per-pixel statistics (a ``.stats.npz`` or a ``.var.exr``) that the spp
+    ``lacking`` do not have while others do: left out at every spp, as a feature would be."""
+    return (f"statistics (.stats.npz or .var.exr) missing at spp {_spps(lacking)}: left out at "
+            "every spp, so that the series' rows stay comparable (methods that need them are "
+            f"skipped); to use them, add a {view}_<spp>.stats.npz or .var.exr at those spp")
+
+
+__all__ = ["FEATURES", "gaps", "left_out", "left_out_files", "mixed", "stats_left_out"]

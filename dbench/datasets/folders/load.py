@@ -327,6 +327,9 @@ def scan_folder(path: str | os.PathLike) -> FolderInfo:
     sources = ["stats" if "stats" in s else "variance" if "variance" in s else None
                for s in slots]
     stats_source = None
+    lacking = [spp for spp, src in zip(spps, sources) if src is None]
+    if lacking and len(lacking) < len(spps):  # as a feature: left out of the whole series
+        left = "; ".join(filter(None, (left, feat.stats_left_out(lacking, view))))
     if None not in sources:
         buffers.add("stats")
         parts: dict[str, list[int]] = {}
