@@ -267,7 +267,7 @@ def sweep_page(results: str | Path, sweeps: Sequence[tuple[Path, list[dict]]],
         if not len(df):
             continue
         rel = Path(sweep_dir).relative_to(results).as_posix()
-        metric = rank_by if rank_by in df.columns and df[rank_by].notna().any() else "rmse"
+        metric = verdicts.ranking_metric(df, rank_by)
         sections += [f"<h2>Sweep {html.escape(rel)}</h2>",
                      f'<p class="note">{html.escape(metric)}: mean ± 95 % half-width, rows '
                      "scene/method, columns spp.</p>", f'<div data-table="{len(tables)}"></div>']

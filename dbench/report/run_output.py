@@ -49,7 +49,7 @@ def _raising_handlers(signals: tuple[int, ...]) -> Iterator[None]:
 
     def interrupt(signum, frame):
         _terminated.set()
-        raise Terminated
+        raise Terminated(f"stopped by {signal.Signals(signum).name}")  # said in sweep.json
     _terminated.clear()
     for sig, handler in previous.items():
         if handler is not signal.SIG_IGN:

@@ -221,11 +221,11 @@ def run_report_md(table: pd.DataFrame, settings: dict[str, Any], info: dict[str,
 
 def _headline(table: pd.DataFrame, settings: dict[str, Any], rank_by: str
               ) -> tuple[pd.DataFrame, str, Sequence[str], list[str]]:
-    """The run's cells frame, the ranking metric in effect (``rmse`` where ``rank_by`` has no
-    value), the kind's headline columns and those of them with a value."""
+    """The run's cells frame, the ranking metric in effect (:func:`verdicts.ranking_metric`:
+    another where ``rank_by`` has no value), the kind's headline columns and those of them
+    with a value."""
     d = _run_frame(table, settings)
-    if rank_by not in d.columns or not d[rank_by].notna().any():
-        rank_by = "rmse"
+    rank_by = verdicts.ranking_metric(d, rank_by)
     cols = SEQUENCE_COLUMNS if settings.get("kind") == "sequence" else verdicts.HEADLINE
     return d, rank_by, cols, [c for c in cols if c in d.columns and d[c].notna().any()]
 

@@ -16,7 +16,7 @@ import pandas as pd
 
 from . import headline
 from .verdicts import (NOISY, ci_kind_text, finite, fmt_value, half_width, headline_spp, num,
-                       ranking_line, reference_text)
+                       ranking_line, ranking_metric, reference_text)
 
 WIDTH = 100
 
@@ -202,7 +202,7 @@ def sweep_summary(cells: Sequence[dict], rank_by: str = "relmse",
     for scene, g in (df.groupby("scene", sort=True) if len(df) else []):
         spp = headline_spp(g["spp"].unique())
         at = g[g["spp"] == spp]
-        rank = rank_by if rank_by in at.columns and at[rank_by].map(finite).any() else "rmse"
+        rank = ranking_metric(at, rank_by)
         cols = columns or [c for c in headline.HEADLINE if c in at.columns]
         lines += _wrap(f"{scene} at {spp} spp ({reference_text(at)}): "
                        f"ranking by {ranking_line(at, rank, rank_by)}")

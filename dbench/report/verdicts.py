@@ -224,10 +224,21 @@ def rank_groups(d: pd.DataFrame, metric: str) -> list[list[str]]:
     return [labels for labels, _ in _rank(d, metric)]
 
 
+def ranking_metric(d: pd.DataFrame, asked: str) -> str:
+    """The metric that ranks ``d``: ``asked`` where any row has a value of it, else the metric
+    it is a form of (``relmse`` for ``relmse_unbiased`` or ``relmse_surface``) where that has
+    one, else ``rmse``; :func:`ranking_line` with ``asked`` says when another one ranks."""
+    def has(m: str | None) -> bool:
+        return m is not None and m in d.columns and bool(d[m].map(_finite).any())
+
+    base = getattr(records.METRICS.get(asked), "variant_of", None)
+    return asked if has(asked) else base if has(base) else "rmse"
+
+
 def ranking_line(d: pd.DataFrame, metric: str, asked: str | None = None) -> str:
     """e.g. ``relmse (lower is better): oidn < a = b (tied: intervals overlap) < noisy``; a
     group that ties with a method of the group before it follows it with ``≤`` and says which
-    (``a = b ≤ c (c ties with b)``). ``asked``: the metric the user asked to rank by, named
+    (``a = b ≤ c (≤: c ties with b)``). ``asked``: the metric the user asked to rank by, named
     where it had no value and ``metric`` ranks instead."""
     if metric not in d.columns:
         return f"{metric}: not recorded in these cells"
@@ -241,10 +252,11 @@ def ranking_line(d: pd.DataFrame, metric: str, asked: str | None = None) -> str:
         # leader, yet it may tie with a member of the group before; then "<" would claim an
         # order the intervals do not show (docs/judging.md §3)
         bridge = [(a, b) for a in previous for b in g if tie(rows[a], rows[b], metric)]
-        notes += [f"{b} ties with {a}" for a, b in bridge[:1]]
-        part = " = ".join(g) + (f" ({'; '.join(notes)})" if notes else "")
+        le = "≥" if higher_is_better(metric) else "≤"
+        part = " = ".join(g) + (f" ({'; '.join(notes)})" if notes else "") + "".join(
+            f" ({le}: {b} ties with {a})" for a, b in bridge[:1])
         if text:
-            text += (f" {'≥' if higher_is_better(metric) else '≤'} " if bridge else op) + part
+            text += (f" {le} " if bridge else op) + part
         else:
             text = part
         previous = g
@@ -484,7 +496,7 @@ def missing_md(missing: Sequence[tuple[str, int, str]]) -> list[str]:
 __all__ = ["METRICS", "HEADLINE", "HIGHER_IS_BETTER", "DEFINITIONS", "TIME", "headline_columns",
            "definitions", "REF_RMSE_DEFINITION", "CI_DEFINITION", "REF_SHARE", "NOISY", "num",
            "half_width", "fmt_value", "overlaps", "seed_values", "paired_interval", "tie",
-           "TIE_WORDS", "marked", "rank_groups", "ranking_line", "ci_kind_text",
+           "TIE_WORDS", "marked", "rank_groups", "ranking_line", "ranking_metric", "ci_kind_text",
            "reference_text", "reference_summary", "ref_noise_frame",
            "ref_warnings_md", "ref_cost_text", "seconds_text", "headline_spp",
            "expected_grid", "grid_status",

@@ -183,6 +183,24 @@ def test_the_readme_entry_point_scene_runs_at_any_size(renderer, tmp_path):
 
 
 @pytest.mark.mitsuba
+def test_the_readme_plugin_scene_object_runs(renderer, tmp_path):
+    """README.md, "Python scene files": the Scene a plugin file registers, with its own
+    max_depth, runs through --plugin at a non-square size."""
+    plugin = tmp_path / "my_scenes.py"
+    plugin.write_text(EXAMPLES["my_scenes.py"])
+    env = {**os.environ, "DBENCH_CACHE": str(tmp_path / "cache")}
+    out = tmp_path / "run"
+    ran = subprocess.run([sys.executable, "-m", "dbench.cli", "--plugin", str(plugin), "run",
+                          "--method", "noisy", "--scene", "my-box", "--res", "12x8", "--spp",
+                          "2", "--ref-spp", "16", "--repeats", "1", "--quiet", "--out",
+                          str(out)], env=env, cwd=tmp_path, capture_output=True, text=True,
+                         timeout=600)
+    assert ran.returncode == 0, ran.stderr
+    row = (out / "metrics.csv").read_text().splitlines()[1].split(",")
+    assert row[:2] == ["my-box", "noisy"], row
+
+
+@pytest.mark.mitsuba
 @pytest.mark.parametrize("res", SIZES)
 def test_entry_point_builds_in_both_forms_render(renderer, tmp_path, res):
     """What an entry point registers: the README's function, the same written with
@@ -237,6 +255,7 @@ def test_a_scene_object_with_a_square_film_for_a_wide_request_is_refused(rendere
         _load(sc, "12x8", tmp_path)
     message = str(exc.value)
     assert "\n" not in message and "square-only" in message and "12×12 film" in message
+    assert f"({__file__})" in message  # the file the build function is in
     assert '"width": res.width, "height": res.height' in message
 
 

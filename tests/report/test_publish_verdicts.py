@@ -165,7 +165,7 @@ def test_paired_differences_decide_ties_when_cells_share_seeds():
     assert verdicts.tie(rows["oidn"], rows["statistical-gate"], "relmse") == "paired"
     assert verdicts.ranking_line(d, "relmse").startswith(
         "relmse (lower is better): statistical = statistical-gate (tied: paired difference "
-        "includes 0) ≤ oidn (oidn ties with statistical-gate) < noisy")
+        "includes 0) ≤ oidn (≤: oidn ties with statistical-gate) < noisy")
     # jbf's mean is above the noisy input's, but seed by seed it is below once: the paired
     # interval includes 0, and "worse than noisy" says how it ties
     flags = headline.worse_than_noisy(d, ["relmse"])
@@ -189,7 +189,7 @@ def test_a_group_that_ties_with_the_group_before_is_not_ranked_below_it():
         c.pop("per_seed", None)  # intervals, not pairs, decide here
     line = verdicts.ranking_line(_frame(cells), "relmse")
     assert line == ("relmse (lower is better): oidn = statistical (tied: intervals overlap) ≤ "
-                    "statistical-gate (statistical-gate ties with statistical) < noisy")
+                    "statistical-gate (≤: statistical-gate ties with statistical) < noisy")
 
 
 def test_reference_warning_suggests_ref_spp():
@@ -359,6 +359,10 @@ def test_run_report_md_verdicts():
     assert "Ranking by rmse (lower is better): oidn = statistical" in md and said in md
     lines = " ".join(report.run_summary(unknown, settings, rank_by="rmse_unbiased"))
     assert said in " ".join(lines.split())
+    # a form of a metric falls back to the metric it is a form of
+    unknown = unknown.assign(relmse_unbiased=math.nan)
+    md = report.run_report_md(unknown, settings, info, {}, rank_by="relmse_unbiased")
+    assert "(relmse_unbiased, asked for, has no value here, so relmse ranks)" in md
     # a table of the old kind (no intervals, no ref columns) still renders
     old = table[["scene", "method", "spp", "res", "rmse", "relmse", "ssim", "flip", "time_s"]]
     md = report.run_report_md(old, settings, info, {})

@@ -130,7 +130,8 @@ def declared(encoding: str, normal: np.ndarray | None = None, source: str = "",
     if not found.warning and found.encoding != encoding:
         says = "dataset.json declares" if by == BY_FILE else f"{by} gives"
         warning = (f"{says} {encoding} normals, but {source} looks "
-                   f"{found.encoding} ({_figures(signed, unsigned)}); the declaration is used")
+                   f"{found.encoding} ({_figures(signed, unsigned)}); "
+                   + ("the declaration is used" if by == BY_FILE else f"{by} is used"))
     return NormalEncoding(encoding, signed, unsigned, text, warning)
 
 

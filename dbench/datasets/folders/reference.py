@@ -180,7 +180,8 @@ def _estimate(reference, series, ref_spp, ref_spp_from, known) -> tuple[Any, str
                       f"{b:.3g} ± {se:.2g}); the noisy images probably share its samples",
                 {"nested": True})
     bound = max(b, 0.0) + SIGNIFICANCE * se
-    worth = f", worth at least about {a / bound:.0f} spp" if a > 0 else ""
+    # a bound under one sample says nothing a reader can use ("at least about 0 spp")
+    worth = f", worth at least about {a / bound:.0f} spp" if a > 0 and a / bound >= 1 else ""
     return (None, f"unknown: below what the noisy series ({spps} spp) resolves (reference "
                   f"MSE under {bound:.3g}{worth})", {})
 

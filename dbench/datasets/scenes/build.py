@@ -68,10 +68,10 @@ def call_build(fn: Callable, mi: Any, res: Any, what: str) -> dict:
                                f"a mi.load_dict dictionary") from None
 
 
-def check_film(d: Any, res: Any, what: str) -> None:
+def check_film(d: Any, res: Any, what: str, build: Callable | None = None) -> None:
     """Refuse a dictionary whose sensor film states another size than ``res`` (the error says
     what to write: ``res`` is the width as an int, so ``"height": res`` is wrong for a
-    non-square request)."""
+    non-square request, and names the file of ``build``, the function that made ``d``)."""
     size = parse_res(res)
     sensor = d.get("sensor") if isinstance(d, dict) else None
     film = sensor.get("film") if isinstance(sensor, dict) else None
@@ -82,6 +82,7 @@ def check_film(d: Any, res: Any, what: str) -> None:
     except (TypeError, ValueError):
         return
     if got != (size.width, size.height):
+        what += f" ({source_of(build)})" if build is not None else ""
         raise DbenchInputError(
             f"{what}: build returned a {got[0]}×{got[1]} film for a {size.text} render; state "
             f"the film as \"width\": res.width, \"height\": res.height (or width, height = res), "

@@ -49,7 +49,7 @@ class Scene:
 
     def scene_dict(self, mi, res) -> dict:
         d = call_build(self.build, mi, res, f"scene {self.name}")
-        check_film(d, res, f"scene {self.name}")
+        check_film(d, res, f"scene {self.name}", self.build)
         d["integrator"] = {"type": "path", "max_depth": self.max_depth}
         return d
 

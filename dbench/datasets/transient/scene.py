@@ -102,7 +102,7 @@ class TransientScene(Scene):
     def scene_dict(self, mi, res) -> dict:
         """The steady scene (hdrfilm) with the steady integrator."""
         d = call_build(self.build, mi, res, f"scene {self.name}")
-        check_film(d, res, f"scene {self.name}")
+        check_film(d, res, f"scene {self.name}", self.build)
         d["integrator"] = {"type": self.steady_integrator, "max_depth": self.max_depth}
         return d
 
@@ -110,7 +110,7 @@ class TransientScene(Scene):
         res = parse_res(res)
         d = call_build(self.build, mi, res, f"scene {self.name}")
         # the steady renders use the build's film: refuse a wrong size here, before any
-        check_film(d, res, f"scene {self.name}")
+        check_film(d, res, f"scene {self.name}", self.build)
         d["sensor"]["film"] = transient_film(res.width, res.height, window)
         d["integrator"] = {"type": self.integrator, "max_depth": self.max_depth,
                            "rr_depth": self.rr_depth, "camera_unwarp": self.camera_unwarp}
