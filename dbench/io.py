@@ -207,3 +207,20 @@ def write_png(path: str | os.PathLike, image: np.ndarray) -> None:
     img = np.clip(np.nan_to_num(np.asarray(image, np.float32)), 0.0, 1.0)
     with atomic_path(path, suffix=".tmp.png") as tmp:
         mpimg.imsave(str(tmp), img, format="png")
+
+
+def missing_folders(path: str | Path) -> list[Path]:
+    """``path`` and its parents that do not exist yet, deepest first (what creating ``path``
+    creates)."""
+    path = Path(path).absolute()
+    return [p for p in (path, *path.parents) if not p.exists()]
+
+
+def remove_empty(folders: list[Path]) -> None:
+    """Remove ``folders`` (deepest first) as long as they are empty: a folder that holds
+    anything, someone else's file included, stays, and so do its parents."""
+    for folder in folders:
+        try:
+            folder.rmdir()
+        except OSError:
+            return

@@ -82,7 +82,8 @@ def cmd_export(args: argparse.Namespace) -> int:
     from .. import datasets
     from ..data import check_count
     from ..datasets.folders.export import export_frame, write_dataset_json
-    from ..io import ensure_writable_dir
+    from ..datasets.scenes.build import check_plugin_scene
+    from ..io import ensure_writable_dir, missing_folders, remove_empty
     from ..resolution import parse_res
 
     scene = _scene_of(args)
@@ -97,21 +98,36 @@ def cmd_export(args: argparse.Namespace) -> int:
     res = parse_res(args.res, "--res") if args.res is not None else datasets.default_res(scene)
     name = args.name or re.sub(r"[^A-Za-z0-9.-]+", "-", scene.name).strip("-") or "scene"
     out = Path(args.out)
+    # what rendering would refuse is refused before --out exists (README.md, "A result is
+    # right or clearly refused"), in datasets.load's order: a plugin's steady scene's Mitsuba
+    # types and film filter, then the film's size (the fingerprint builds the scene's
+    # dictionary at this size and renders nothing)
+    if scene.kind == "steady":
+        check_plugin_scene(scene)
+    datasets.scene_fingerprint(scene, res)
     cache = _writable_cache(args)
+    created = missing_folders(out)
     ensure_writable_dir(out, "--out")
     needs = set(scene.provides) - {"gradient", "emission"}
     written: list[Path] = []
     ref_spp = None
-    for i, spp in enumerate(spps):
-        data = datasets.load(scene, spp=spp, res=res, needs=needs, seed=args.seed,
-                             ref_spp=args.ref_spp, cache=cache, progress=not args.quiet,
-                             frames=args.frames)
-        frames = list(data) if data.kind == "sequence" else [data]
-        ref_spp = data.meta.get("ref_spp", ref_spp)
-        for k, frame in enumerate(frames):
-            written += export_frame(frame, out, name, spp,
-                                    frame_index=k if data.kind == "sequence" else None,
-                                    write_reference=(i == 0))
+    try:
+        for i, spp in enumerate(spps):
+            data = datasets.load(scene, spp=spp, res=res, needs=needs, seed=args.seed,
+                                 ref_spp=args.ref_spp, cache=cache, progress=not args.quiet,
+                                 frames=args.frames)
+            frames = list(data) if data.kind == "sequence" else [data]
+            ref_spp = data.meta.get("ref_spp", ref_spp)
+            for k, frame in enumerate(frames):
+                written += export_frame(frame, out, name, spp,
+                                        frame_index=k if data.kind == "sequence" else None,
+                                        write_reference=(i == 0))
+    except DbenchInputError:
+        # a refusal only the load makes (a sequence's --frames) comes before the first file:
+        # the folders this command created go again, as an empty --out says nothing
+        if not written:
+            remove_empty(created)
+        raise
     written.append(write_dataset_json(out, ref_spp=ref_spp, ev=scene.ev,
                                       description=scene.description, scene=scene.name))
     print(f"exported {scene.name} at {res.text} px, spp {', '.join(map(str, spps))}, "

@@ -242,23 +242,18 @@ def ranking_line(d: pd.DataFrame, metric: str, asked: str | None = None) -> str:
     where it had no value and ``metric`` ranks instead."""
     if metric not in d.columns:
         return f"{metric}: not recorded in these cells"
-    op = " > " if higher_is_better(metric) else " < "
+    op, le = (" > ", "≥") if higher_is_better(metric) else (" < ", "≤")
     rows = {lab: r for _, lab, r in _entries(d, metric)}
-    text = ""
-    previous: list[str] = []
+    text, previous = "", []
     for g, how in _rank(d, metric):
         notes = ["tied: " + "; ".join(TIE_WORDS[h] for h in sorted(how))] if len(g) > 1 else []
         # ties are not transitive: a group starts where a method no longer ties with the
         # leader, yet it may tie with a member of the group before; then "<" would claim an
         # order the intervals do not show (docs/judging.md §3)
         bridge = [(a, b) for a in previous for b in g if tie(rows[a], rows[b], metric)]
-        le = "≥" if higher_is_better(metric) else "≤"
         part = " = ".join(g) + (f" ({'; '.join(notes)})" if notes else "") + "".join(
             f" ({le}: {b} ties with {a})" for a, b in bridge[:1])
-        if text:
-            text += (f" {le} " if bridge else op) + part
-        else:
-            text = part
+        text = (text + (f" {le} " if bridge else op) + part) if text else part
         previous = g
     missing = sorted(str(m) for m, v in zip(d["method"], d[metric]) if not _finite(v))
     text = (f"{metric} ({'higher' if higher_is_better(metric) else 'lower'} is better): "

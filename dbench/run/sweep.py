@@ -33,7 +33,7 @@ from . import identity, sweep_history, sweep_lock, sweep_pool
 from ..report.cells import (NUMERIC_KEYS, cell_problem, load_cells,  # noqa: F401 - the module's
                             load_cells_checked, read_cell)  # interface, as before
 from .sweep_history import SETTINGS, stored_config  # noqa: F401 - the module's interface
-from .sweep_names import scene_labels
+from .sweep_names import check_scenes, scene_labels
 from .sweep_pool import worker_start as _worker_start  # noqa: F401 - the pool initializer
 from ..device import device_name
 from .machine import machine_label
@@ -401,9 +401,9 @@ def run_sweep(config: SweepConfig, out: str | Path, executor: str = "local", wor
     The library warnings raised while the groups ran, in this process or a worker's, are
     appended to ``warnings_out`` as lines (:mod:`.capture`).
 
-    Every setting is validated and every finished cell's identity checked before anything is
-    written or rendered. The folder is locked for the run (:mod:`.sweep_lock`) and the run is
-    recorded in sweep.json's history (:mod:`.sweep_history`)."""
+    Every setting and scene is validated and every finished cell's identity checked before
+    anything is written or rendered. The folder is locked for the run (:mod:`.sweep_lock`)
+    and the run is recorded in sweep.json's history (:mod:`.sweep_history`)."""
     from .. import datasets
 
     config.validate()
@@ -411,6 +411,7 @@ def run_sweep(config: SweepConfig, out: str | Path, executor: str = "local", wor
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise DbenchInputError(f"--out {out}: exists and is not a folder")
+    check_scenes(config)  # every scene's refusal before the folder, its lock or sweep.json
     with sweep_lock.hold(out):
         to_write = stored_config(out, config, sweep_history.read(out))
         remove_interrupted_writes(out)

@@ -154,11 +154,12 @@ def release(out: str | Path, fd: int) -> None:
 
 @contextmanager
 def hold(out: str | Path) -> Iterator[Path]:
-    """Create folder ``out`` if needed, hold its lock for the block, release it after. A
-    folder this call created is removed again when the block fails and left it empty (a
-    refused sweep writes nothing)."""
+    """Create folder ``out`` if needed, hold its lock for the block, release it after. The
+    folders this call created (``out`` and the parents it lacked) are removed again when the
+    block fails and left them empty (a refused sweep writes nothing: README.md, "A result is
+    right or clearly refused")."""
     out = Path(out)
-    created = not out.exists()
+    created = io.missing_folders(out)
     io.ensure_writable_dir(out, "--out")
     fd = acquire(out)
     ok = False
@@ -167,11 +168,8 @@ def hold(out: str | Path) -> Iterator[Path]:
         ok = True
     finally:
         release(out, fd)
-        if created and not ok:
-            try:
-                out.rmdir()
-            except OSError:
-                pass
+        if not ok:
+            io.remove_empty(created)
 
 
 __all__ = ["LOCK_NAME", "acquire", "hold", "release"]

@@ -1,4 +1,5 @@
-"""Labels of a sweep's scenes: the names their cells are filed and tabled under.
+"""A sweep's scenes: the labels their cells are filed and tabled under, and the checks every
+scene passes before the sweep touches its folder (:func:`check_scenes`).
 
 A sweep writes one cell file per (scene, spp, method label) (dbench/run/sweep.py; README.md,
 the ``dbench sweep`` paragraph). A scene's identity in a cell is its fingerprint
@@ -80,4 +81,30 @@ def _distinct_end(place: Path | None, places: list) -> str:
     return place.as_posix()
 
 
-__all__ = ["scene_labels"]
+def check_scenes(config) -> None:
+    """Refuse, before anything is written or rendered, a scene of the sweep that its turn would
+    refuse (README.md, "A result is right or clearly refused"; the ``dbench sweep`` paragraph):
+    a plugin's steady scene whose dictionary Mitsuba cannot load or whose film filter is not a
+    box (:func:`dbench.datasets.scenes.build.check_plugin_scene`), and a folder of renders that
+    does not hold the sweep's size, seeds, reference spp or every spp. A folder is checked by
+    the very loads its groups make (as :func:`dbench.run.sweep.load_seeds`, which refuse such
+    settings as ``dbench run`` does), reading only the colour of its first frame per spp. A
+    film of another size than the sweep's is refused by :func:`dbench.run.sweep.plan`, whose
+    fingerprints build every scene's dictionary before the run is recorded."""
+    from .. import datasets
+    from ..datasets.scenes.build import check_plugin_scene
+
+    for name in dict.fromkeys(config.scenes):
+        scene = config.scene(name)
+        if scene.renders:
+            if scene.kind == "steady":  # the kind datasets.load probes, before rendering
+                check_plugin_scene(scene)
+            continue
+        for spp in config.spp:  # each seed as load_seeds loads it (sweep.py imports this)
+            for k in range(config.seeds):
+                datasets.load(scene, seed=config.seed + k, ref_seed=config.seed, spp=spp,
+                              res=config.res_for(scene), needs=(), ref_spp=config.ref_spp,
+                              frames=1, progress=False)
+
+
+__all__ = ["check_scenes", "scene_labels"]

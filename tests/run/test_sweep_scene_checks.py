@@ -1,0 +1,102 @@
+"""A sweep refuses a scene its turn would refuse before it writes or renders anything (README.md,
+"A result is right or clearly refused"; the ``dbench sweep`` paragraph): a plugin scene whose
+film filter is not a box or whose film has another size, and a folder of renders that does not
+hold the sweep's reference spp, spp, size or seeds, leave no ``--out``, no ``sweep.json``
+change and no cell of another scene (dbench/run/sweep_names.py check_scenes)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from dbench import cli
+
+pytestmark = pytest.mark.mitsuba
+
+PLUGIN = '''from dbench.datasets.scenes.record import Scene, register_scene
+
+
+def _build(mi, res):
+    d = mi.cornell_box()
+    {film}
+    return d
+
+
+register_scene(Scene(name="my-room", kind="steady", description="x", build=_build))
+'''
+
+TINY = ["--methods", "noisy", "--spp", "4", "--res", "8", "--ref-spp", "16", "--repeats", "1",
+        "--quiet"]
+
+
+def _tree(root: Path) -> dict[str, bytes]:
+    return {p.relative_to(root).as_posix(): p.read_bytes()
+            for p in sorted(root.rglob("*")) if p.is_file()}
+
+
+def _one_line(capsys) -> str:
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "Traceback" not in err, err
+    return err
+
+
+@pytest.mark.parametrize("film, said", [
+    # Mitsuba's Cornell box states a Gaussian filter
+    ('d["sensor"]["film"].update(width=res.width, height=res.height)',
+     "the film's reconstruction filter is gaussian;"),
+    ('d["sensor"]["film"].update(width=16, height=16, rfilter={"type": "box"})',
+     "build returned a 16×16 film for a 8×8 render;"),
+])
+def test_a_refused_plugin_scene_leaves_no_sweep_folder_and_no_history(isolated, renderer,
+                                                                      tmp_path, capsys, film,
+                                                                      said):
+    plugin = tmp_path / "room_plugin.py"
+    plugin.write_text(PLUGIN.format(film=film))
+    out, cache = tmp_path / "x" / "sw", tmp_path / "cache"
+    refused = ["--plugin", str(plugin), "sweep", "--scenes", "my-room", *TINY,
+               "--cache", str(cache), "--out", str(out)]
+    assert cli.main(refused) == 2
+    err = _one_line(capsys)
+    assert err.startswith("dbench: scene my-room") and said in err, err
+    assert not (tmp_path / "x").exists() and not list(cache.glob("*/*"))
+    # into a sweep folder that holds a finished run: sweep.json gains no failed run, however
+    # often the refused sweep is tried
+    assert cli.main(["sweep", "--scenes", "cornell", *TINY, "--cache", str(cache),
+                     "--out", str(out)]) == 0
+    capsys.readouterr()
+    before = _tree(out)
+    for _ in range(2):
+        assert cli.main(refused) == 2
+        assert said in _one_line(capsys)
+    assert _tree(out) == before
+
+
+@pytest.fixture(scope="module")
+def renders(renderer, tmp_path_factory) -> Path:
+    """A folder of cornell's renders at 16×16, spp 4 and 16, reference 64 spp."""
+    root = tmp_path_factory.mktemp("renders")
+    assert cli.main(["export", "cornell", "--out", str(root / "exp"), "--spp", "4,16",
+                     "--res", "16", "--ref-spp", "64", "--quiet",
+                     "--cache", str(root / "cache")]) == 0
+    return root / "exp"
+
+
+@pytest.mark.parametrize("change, said", [
+    (["--ref-spp", "32"], "--ref-spp: the reference in {where} has 64 spp; got 32"),
+    (["--spp", "4,8"], "{where}: spp 8 is not offered; expected one of [4, 16]"),
+    (["--res", "8"], "--res: {where} holds 16x16 images; got 8"),
+    (["--seeds", "2"], "--seed/--seeds: {where} holds one noisy image per spp (seed 0, one "
+                       "seed); got seed 1"),
+])
+def test_a_mixed_sweep_refuses_a_folders_settings_before_any_scene_renders(
+        renders, tmp_path, capsys, change, said):
+    settings = {"--spp": "4", "--res": "16", "--ref-spp": "64", "--seeds": "1"}
+    settings.update(zip(change[::2], change[1::2]))
+    out, cache = tmp_path / "x" / "sw", tmp_path / "cache"
+    rc = cli.main(["sweep", "--scenes", f"cornell,{renders}", "--methods", "noisy",
+                   "--repeats", "1", "--quiet", "--cache", str(cache), "--out", str(out),
+                   *[x for kv in settings.items() for x in kv]])
+    assert rc == 2
+    assert _one_line(capsys) == "dbench: " + said.format(where=f"{renders}/cornell")
+    # the scene before the folder (cornell) was neither rendered nor written
+    assert not (tmp_path / "x").exists() and not list(cache.glob("*/*"))
