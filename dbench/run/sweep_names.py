@@ -85,7 +85,9 @@ def check_scenes(config) -> None:
     """Refuse, before anything is written or rendered, a scene of the sweep that its turn would
     refuse (README.md, "A result is right or clearly refused"; the ``dbench sweep`` paragraph):
     a plugin's steady scene whose dictionary Mitsuba cannot load or whose film filter is not a
-    box (:func:`dbench.datasets.scenes.build.check_plugin_scene`), and a folder of renders that
+    box (:func:`dbench.datasets.scenes.build.check_plugin_scene`), a sequence shorter than
+    ``--frames``, a transient film too large at the sweep's size and bins
+    (:func:`dbench.datasets.transient.scene.check_bins`), and a folder of renders that
     does not hold the sweep's size, seeds, reference spp or every spp. A folder is checked by
     the very loads its groups make (as :func:`dbench.run.sweep.load_seeds`, which refuse such
     settings as ``dbench run`` does), reading only the colour of its first frame per spp. A
@@ -93,12 +95,21 @@ def check_scenes(config) -> None:
     fingerprints build every scene's dictionary before the run is recorded."""
     from .. import datasets
     from ..datasets.scenes.build import check_plugin_scene
+    from ..datasets.transient.scene import check_bins
+    from ..errors import DbenchInputError
 
     for name in dict.fromkeys(config.scenes):
         scene = config.scene(name)
         if scene.renders:
             if scene.kind == "steady":  # the kind datasets.load probes, before rendering
                 check_plugin_scene(scene)
+            elif scene.kind == "sequence" and config.frames is not None \
+                    and not 1 <= config.frames <= scene.n_frames:
+                raise DbenchInputError(f"--frames: expected an integer in [1, "
+                                       f"{scene.n_frames}] for {name}, got {config.frames}")
+            elif scene.kind == "transient":  # the film's memory, at its default bins too
+                check_bins(scene.window(config.bins).bins, config.res_for(scene),
+                           "--bins" if config.bins is not None else f"{name}'s bins")
             continue
         for spp in config.spp:  # each seed as load_seeds loads it (sweep.py imports this)
             for k in range(config.seeds):

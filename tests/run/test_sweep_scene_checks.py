@@ -100,3 +100,20 @@ def test_a_mixed_sweep_refuses_a_folders_settings_before_any_scene_renders(
     assert _one_line(capsys) == "dbench: " + said.format(where=f"{renders}/cornell")
     # the scene before the folder (cornell) was neither rendered nor written
     assert not (tmp_path / "x").exists() and not list(cache.glob("*/*"))
+
+
+@pytest.mark.parametrize("scene, flag, said", [
+    ("flicker", ["--frames", "999"], "dbench: --frames: expected an integer in [1, "),
+    # its default bins, not asked for, are too many for the film at this size
+    ("cornell-transient", ["--res", "2048"],
+     "dbench: cornell-transient's bins: expected an integer in [1, "),
+])
+def test_a_sequence_or_transient_setting_is_refused_before_any_scene_renders(
+        isolated, tmp_path, capsys, scene, flag, said):
+    """Checked for every scene before the first renders: the sweep's cornell never renders."""
+    cache = tmp_path / "cache"
+    rc = cli.main(["sweep", "--scenes", f"cornell,{scene}", *TINY, *flag, "--cache", str(cache),
+                   "--out", str(tmp_path / "x" / "sw")])
+    assert rc == 2
+    assert _one_line(capsys).startswith(said)
+    assert not (tmp_path / "x").exists() and not list(cache.glob("*/*"))
