@@ -184,12 +184,39 @@ def compare(device_out: np.ndarray, host_out: np.ndarray) -> dict[str, float]:
             "finite_mismatch": int((np.isfinite(device_out) != np.isfinite(host_out)).sum())}
 
 
+#: the statistics cost a render may have against a plain one (README.md, "How renders work")
+RENDER_TARGET = 1.10
+
+
+def render_row(height: int, width: int, spp: int = 64, log=print) -> dict[str, Any]:
+    """``dbench bench render`` of ``cornell`` at the frame's size on the render device this
+    process renders with (``cuda_ad_rgb`` on a GPU machine): a plain render against the samples
+    with and without statistics, in interleaved rounds (:func:`dbench.speed.timing.bench_render`),
+    so one GPU loan also measures what statistics cost there; a failure is the entry's
+    ``error``, never the run's."""
+    from .timing import bench_render
+
+    t0 = time.perf_counter()
+    try:
+        row = bench_render("cornell", res=f"{width}x{height}", spp=spp, repeats=3)
+    except Exception as exc:  # noqa: BLE001 - recorded, as for the methods' rows
+        row = {"benchmark": "render", "error": f"{type(exc).__name__}: {exc}"[:500]}
+    row.update(target_ratio=RENDER_TARGET, wall_s=time.perf_counter() - t0)
+    log(f"render cornell {width}x{height} {spp} spp: failed: {row['error']}" if "error" in row
+        else f"render cornell {width}x{height} {spp} spp on {row['variant']}: plain "
+             f"{row['plain_s']:.3f} s, statistics {row['ratio_stats_vs_plain']:.2f}x plain "
+             f"(target {RENDER_TARGET:.2f}x)")
+    return row
+
+
 def bench_gpu(height: int = 720, width: int = 1280, repeats: int = 10, host_repeats: int = 3,
               device: str = "cuda", methods_: list[str] | None = None,
               hostile_size: tuple[int, int] = HOSTILE_SIZE, log=print,
-              precompiled: dict[str, Any] | None = None) -> dict[str, Any]:
+              precompiled: dict[str, Any] | None = None, render: bool = True
+              ) -> dict[str, Any]:
     """Every method of :data:`TARGETS_MS` (or ``methods_``): device time, host time, the check
-    against the host output, launches and copies; OIDN's qualities on the device.
+    against the host output, launches and copies; OIDN's qualities on the device; with
+    ``render``, the statistics cost of a render at the same size (:func:`render_row`).
     ``precompiled``: the result of :func:`dbench.speed.kernels.precompile` run just before (the
     kernels compiled side by side into Triton's cache, so that the timed warm-up reads them),
     recorded as the entry ``precompile``."""
@@ -239,6 +266,7 @@ def bench_gpu(height: int = 720, width: int = 1280, repeats: int = 10, host_repe
             "host_repeats": host_repeats, "host": f"{info['cpu']}, {info['cores']} cores",
             "packages": info["packages"], "rows": rows, "oidn_qualities": oidn_rows,
             "oidn_own_benchmark_ms": OIDN_OWN_MS,
+            "render": render_row(height, width, log=log) if render else None,
             "precompile": pre,
             "when": time.strftime("%Y-%m-%d %H:%M:%S")}
 
@@ -360,6 +388,13 @@ def markdown(result: dict[str, Any]) -> str:
                      f"{target} | {host} | {r['speedup_vs_host']:.0f}× | "
                      f"{r.get('kernel_launches', '-')} / {r.get('memcpy', '-')} | "
                      f"{r['max_rel_diff']:.1e} |")
+    ren = result.get("render")
+    if ren and "error" not in ren:  # the statistics cost of a render on the same machine
+        lines += ["", f"Render statistics, cornell {ren['res']} at {ren['spp']} spp on "
+                      f"{ren['variant']}: {ren['ratio_stats_vs_plain']:.2f}× a plain render's "
+                      f"{ren['plain_s']:.3f} s (target {ren['target_ratio']:.2f}×)."]
+    elif ren:
+        lines += ["", f"Render statistics: failed: {ren['error'][:120]}"]
     return "\n".join(lines)
 
 
@@ -374,7 +409,7 @@ def write_result(result: dict[str, Any], path: str | Path) -> None:
     write_text(Path(path), json.dumps(result, indent=1, default=str) + "\n")
 
 
-__all__ = ["OIDN_OWN_MS", "TARGETS_MS", "TRANSIENT_SIZE", "TRANSIENT_TARGET_MS", "bench_gpu",
+__all__ = ["OIDN_OWN_MS", "RENDER_TARGET", "TARGETS_MS", "TRANSIENT_SIZE", "TRANSIENT_TARGET_MS", "bench_gpu",
            "bench_method_device",
            "compare",
            "count_device_work", "device_run",

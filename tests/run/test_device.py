@@ -90,6 +90,11 @@ def test_bench_gpu_dry_run_on_cpu_tensors():
     assert not rows["noisy"]["device_path"] and "error" not in rows["noisy"]
     assert [q["quality"] for q in r["oidn_qualities"]] == ["high", "balanced", "fast"]
     assert "| nca |" in gpu.markdown(r)
+    # the statistics cost of a render at the frame's size, on this process's variant
+    render = r["render"]
+    assert "error" not in render, render
+    assert render["res"] == "12x8" and render["spp"] == 64
+    assert render["ratio_stats_vs_plain"] > 0 and render["target_ratio"] == gpu.RENDER_TARGET
 
 
 def test_bench_method_names_its_device_route():
