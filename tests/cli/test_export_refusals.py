@@ -8,20 +8,9 @@ from __future__ import annotations
 import pytest
 
 from dbench import cli
+from plugin_scenes import PLUGIN  # tests/plugin_scenes.py
 
 pytestmark = pytest.mark.mitsuba
-
-PLUGIN = '''from dbench.datasets.scenes.record import Scene, register_scene
-
-
-def _build(mi, res):
-    d = mi.cornell_box()
-    {film}
-    return d
-
-
-register_scene(Scene(name="my-room", kind="steady", description="x", build=_build))
-'''
 
 
 @pytest.mark.parametrize("film, said", [

@@ -3,7 +3,6 @@ import json
 from pathlib import Path
 
 import numpy as np
-import OpenEXR
 import pytest
 
 from dbench.data import Frame, SampleStats
@@ -13,20 +12,9 @@ from dbench.datasets.folders.load import (STATS_FROM_VARIANCE, is_folder_scene, 
                                     scan_folder)
 from dbench.datasets.stats import PowerSums
 from dbench.errors import DbenchInputError
+from exr_files import write_exr as _exr, write_rgb as _rgb  # tests/exr_files.py
 
 H, W = 24, 40  # non-square, so a transposed read cannot pass
-
-
-def _exr(path, channels):
-    """Write raw channels {name: (H, W)} as another tool would (no dbench naming)."""
-    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
-    data = {k: np.ascontiguousarray(v, np.float32) for k, v in channels.items()}
-    with OpenEXR.File(header, data) as f:
-        f.write(str(path))
-
-
-def _rgb(path, img, prefix=""):
-    _exr(path, {f"{prefix}{c}": img[..., i] for i, c in enumerate("RGB")})
 
 
 def _img(seed, h=H, w=W, c=3, lo=0.0, hi=4.0):

@@ -3,20 +3,13 @@
 import json
 
 import numpy as np
-import OpenEXR
 import pandas as pd
 
 from dbench import registry
 from dbench.cli import main
+from exr_files import write_rgb as _rgb  # tests/exr_files.py
 
 H, W = 24, 40
-
-
-def _rgb(path, img):
-    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
-    data = {c: np.ascontiguousarray(img[..., i], np.float32) for i, c in enumerate("RGB")}
-    with OpenEXR.File(header, data) as f:
-        f.write(str(path))
 
 
 def _colour_only(folder):

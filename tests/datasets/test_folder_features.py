@@ -2,19 +2,12 @@
 some spp have, and the reference not, is left out at every spp and said so; one that some spp
 take from the reference is used and said so where it is read."""
 import numpy as np
-import OpenEXR
 
 from dbench.cli import main
 from dbench.datasets.folders.load import load_folder, scan_folder
+from exr_files import write_rgb as _rgb  # tests/exr_files.py
 
 H, W = 24, 40
-
-
-def _rgb(path, img):
-    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
-    data = {c: np.ascontiguousarray(img[..., i], np.float32) for i, c in enumerate("RGB")}
-    with OpenEXR.File(header, data) as f:
-        f.write(str(path))
 
 
 def _folder(path, features, ref_features=()):

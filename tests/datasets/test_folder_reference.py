@@ -4,7 +4,6 @@ noisy input flagged; the reference-noise warning on relMSE over surface pixels."
 import json
 
 import numpy as np
-import OpenEXR
 import pandas as pd
 import pytest
 
@@ -12,16 +11,10 @@ from dbench.report import tables, verdicts
 from dbench.cli import main
 from dbench.datasets.folders.load import load_folder, scan_folder
 from dbench.datasets.folders.reference import judge_reference, light_mask
+from exr_files import write_rgb as _rgb  # tests/exr_files.py
 
 H, W = 24, 40
 SIGMA = 0.5  # per-sample standard deviation, relative to the true radiance
-
-
-def _rgb(path, img):
-    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
-    data = {c: np.ascontiguousarray(img[..., i], np.float32) for i, c in enumerate("RGB")}
-    with OpenEXR.File(header, data) as f:
-        f.write(str(path))
 
 
 def _truth(seed=0):

@@ -5,7 +5,6 @@ files and EXR channels a load read and left."""
 import json
 
 import numpy as np
-import OpenEXR
 import pytest
 
 from dbench.cli import main
@@ -14,19 +13,9 @@ from dbench.cli.parser import build_parser
 from dbench.datasets.folders.load import load_folder, scan_folder, with_normal_encoding
 from dbench.datasets.folders.normals import decide, deviations
 from dbench.errors import DbenchInputError
+from exr_files import write_exr as _exr, write_rgb as _rgb  # tests/exr_files.py
 
 H, W = 24, 40
-
-
-def _exr(path, channels):
-    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
-    data = {k: np.ascontiguousarray(v, np.float32) for k, v in channels.items()}
-    with OpenEXR.File(header, data) as f:
-        f.write(str(path))
-
-
-def _rgb(path, img, prefix=""):
-    _exr(path, {f"{prefix}{c}": img[..., i] for i, c in enumerate("RGB")})
 
 
 def _unit(seed):

@@ -10,20 +10,10 @@ from pathlib import Path
 import pytest
 
 from dbench import cli
+from plugin_scenes import PLUGIN  # tests/plugin_scenes.py
 
 pytestmark = pytest.mark.mitsuba
 
-PLUGIN = '''from dbench.datasets.scenes.record import Scene, register_scene
-
-
-def _build(mi, res):
-    d = mi.cornell_box()
-    {film}
-    return d
-
-
-register_scene(Scene(name="my-room", kind="steady", description="x", build=_build))
-'''
 
 TINY = ["--methods", "noisy", "--spp", "4", "--res", "8", "--ref-spp", "16", "--repeats", "1",
         "--quiet"]
