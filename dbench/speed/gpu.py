@@ -147,7 +147,9 @@ def device_run(name: str, frame, device: str, repeats: int, params: dict | None 
     _, times = time_call(call, repeats=repeats, warmup=WARMUP if temporal else 2, device=device)
     counts = count_device_work(call, device)
     out, download_s = timed(lambda: download(call()), device)
-    return {"device_path": True, "backend": m.device_backend, "time_s": statistics.median(times),
+    # what the calls ran on, where the method says (OIDN: its CPU device on CPU tensors)
+    ran = (getattr(m, "last_settings", None) or {}).get("backend") or m.device_backend
+    return {"device_path": True, "backend": ran, "time_s": statistics.median(times),
             "time_s_min": min(times), "time_s_max": max(times), "upload_s": upload_s,
             "download_s": download_s, **counts, "output": out,
             "settings": {k: v for k, v in (getattr(m, "last_settings", None) or {}).items()

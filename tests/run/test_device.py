@@ -87,6 +87,7 @@ def test_bench_gpu_dry_run_on_cpu_tensors():
     rows = {x["method"]: x for x in r["rows"]}
     assert rows["nca"]["device_path"] and rows["nca"]["max_rel_diff"] < 1e-4
     assert rows["oidn"]["hostile_nonfinite"] == 0
+    assert rows["oidn"]["backend"] == "oidn-cpu"  # CPU tensors: OIDN's CPU device ran
     assert not rows["noisy"]["device_path"] and "error" not in rows["noisy"]
     assert [q["quality"] for q in r["oidn_qualities"]] == ["high", "balanced", "fast"]
     assert "| nca |" in gpu.markdown(r)
