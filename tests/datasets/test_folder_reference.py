@@ -188,3 +188,19 @@ def test_unbiased_figures_are_unknown_when_the_reference_noise_is(tmp_path):
                  "--repeats", "1", "--quiet", "--out", str(known)]) == 0
     row = pd.read_csv(known / "metrics.csv").iloc[0]
     assert 0 < row.rmse_unbiased < row.rmse and 0 < row.relmse_unbiased < row.relmse
+
+
+def test_a_small_reference_noisier_than_declared_is_still_flagged(tmp_path):
+    """At 16 × 16 px 8-px tiles are too few for the high-pass comparison: 4-px tiles serve, and
+    a 4-spp reference declared at 4096 is flagged; at 8 × 8 nothing can be measured, and the
+    estimate says it was not checked instead of standing as a fact."""
+    truth = np.random.default_rng(3).uniform(0.2, 1.0, (16, 16, 3))
+    lying = load_folder(_folder(tmp_path / "lying", ref_spp=4, declare=4096, truth=truth),
+                        spp=4)
+    assert "noisier than its estimate" in lying.meta.get("reference_warning", ""), lying.meta
+    honest = load_folder(_folder(tmp_path / "honest", ref_spp=4096, declare=4096, truth=truth),
+                         spp=4)
+    assert "reference_warning" not in honest.meta, honest.meta.get("reference_warning")
+    tiny = load_folder(_folder(tmp_path / "tiny", ref_spp=4, declare=4096, truth=truth[:8, :8]),
+                       spp=4)
+    assert "not checked against the noisy input" in tiny.meta["ref_noise_source"], tiny.meta
