@@ -16,12 +16,13 @@ import pandas as pd
 
 from . import headline
 from .verdicts import (NOISY, ci_kind_text, finite, fmt_value, half_width, headline_spp, num,
-                       ranking_line, ranking_metric, reference_text)
+                       ranking_line, ranking_metric, ref_warnings_md, reference_text)
 
 WIDTH = 100
 
 _WORKS_ON = re.compile(r"works on \[([^\]]*)\], not on (\w+) data")
 _COUNTERPARTS = re.compile(r"; on (\w+) data: (.*)$")
+_HINT = re.compile(r"; (--param .*)$")
 _NEEDS = re.compile(r"needs \[([^\]]*)\], which the scene cannot provide")
 
 
@@ -53,12 +54,17 @@ def skipped_line(skipped: Mapping[str, str] | Iterable[tuple[str, str]]) -> str:
         if m:
             seen = others.setdefault(m.group(1), [])
             seen += [o for o in (x.strip() for x in m.group(2).split(",")) if o not in seen]
+        hint = _HINT.search(str(why))
+        if hint:  # a setting that would run it (oidn's features=none on colour alone)
+            others.setdefault("", []).append(hint.group(1))
     if not groups:
         return ""
-    text = "skipped: " + "; ".join(
-        f"{', '.join(ms)} ({k}"
-        + "".join(f"; on {kind} data: {', '.join(os_)}" for kind, os_ in others.items()) + ")"
-        for k, (ms, others) in groups.items())
+
+    def notes(others: dict[str, list[str]]) -> str:
+        return "".join(f"; on {kind} data: {', '.join(os_)}" if kind else
+                       "".join(f"; {h}" for h in os_) for kind, os_ in others.items())
+    text = "skipped: " + "; ".join(f"{', '.join(ms)} ({k}{notes(others)})"
+                                   for k, (ms, others) in groups.items())
     return textwrap.fill(text, WIDTH, subsequent_indent="  ", break_on_hyphens=False)
 
 
@@ -154,6 +160,8 @@ def run_summary(d: pd.DataFrame, settings: Mapping[str, Any], rank_by: str,
     verdicts = verdict_lines(d, columns, rank_by)
     if verdicts:
         lines += ["verdicts (size of the loss: mean / noisy's; PSNR: dB):"] + verdicts
+    for warning in ref_warnings_md(d):  # report.md's "Reference noise", where it is read
+        lines += _wrap("warning: " + warning.removeprefix("- ⚠ ").replace("`", ""))
     return lines
 
 
@@ -207,6 +215,8 @@ def sweep_summary(cells: Sequence[dict], rank_by: str = "relmse",
         lines += _wrap(f"{scene} at {spp} spp ({reference_text(at)}): "
                        f"ranking by {ranking_line(at, rank, rank_by)}")
         lines += verdict_lines(at, cols, rank)
+        for warning in ref_warnings_md(at):
+            lines += _wrap("warning: " + warning.removeprefix("- ⚠ ").replace("`", ""), "  ")
     skipped = [(str(c.get("method")), str(c.get("reason", "")))
                for c in cells if isinstance(c, dict) and c.get("status") == "skipped"]
     line = skipped_line(skipped) if skips else ""

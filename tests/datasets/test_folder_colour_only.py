@@ -28,7 +28,13 @@ def test_needs_follow_the_features_parameter():
     assert oidn.wants(colour) == {"color"}
     assert registry.get("oidn", features="albedo").needs == {"color", "albedo"}
     assert registry.get("oidn").applies_to("steady", colour) == (
-        False, "oidn needs ['albedo', 'normal'], which the scene cannot provide")
+        False, "oidn needs ['albedo', 'normal'], which the scene cannot provide; "
+               "--param oidn.features=none runs on the colour alone")
+    # said where a reader sees the skip
+    from dbench.report.terminal import skipped_line
+    assert skipped_line({"oidn": registry.get("oidn").applies_to("steady", colour)[1]}) == (
+        "skipped: oidn (needs albedo, normal; --param oidn.features=none runs on the colour "
+        "alone)")
     # the gate passes its method's needs on, plus the statistics
     assert registry.get("oidn+gate", features="none").needs == {"color", "stats"}
     assert registry.get("oidn-bins", features="none").needs == {"color"}
@@ -56,7 +62,9 @@ def test_colour_only_folder_skips_default_oidn_with_its_reason(tmp_path, capsys)
     out = tmp_path / "run"
     assert main(["run", "--method", "oidn", "--scene", str(folder), "--spp", "4",
                  "--repeats", "1", "--out", str(out)]) == 0
-    assert _skipped_line(capsys.readouterr().out) == "skipped: oidn (needs albedo, normal)"
+    assert _skipped_line(capsys.readouterr().out) == (
+        "skipped: oidn (needs albedo, normal; --param oidn.features=none runs on the colour "
+        "alone)")
     assert list(pd.read_csv(out / "metrics.csv").base_method) == ["noisy"]
 
 

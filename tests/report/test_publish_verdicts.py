@@ -346,6 +346,10 @@ def test_run_report_md_verdicts():
     assert "Intervals: t 95 % over 3 seeds; reference 256 spp" in md  # the rows', not 4096
     assert "estimated reference RMSE 0.01" in md
     assert "## Reference noise" in md and "--ref-spp" in md
+    # the terminal says it too, where most readers look
+    said = " ".join(" ".join(report.run_summary(table, settings)).split())
+    assert "warning: cornell, 64 spp: the reference's error is above 10 % of the method's" \
+        in said and "--ref-spp" in said
     assert "| oidn | **0.02 ± 0.002** |" in md
     assert ("worse than noisy on relmse 1.2× (surfaces 1.2×); rmse_surface 1.5× (whole image "
             "0.8×)") in md

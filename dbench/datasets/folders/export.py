@@ -144,10 +144,11 @@ def export_frame(frame: Frame, out_dir: str | os.PathLike, name: str, spp: int, 
 
 def write_dataset_json(out_dir: str | os.PathLike, *, ref_spp: int | None, ev: float,
                        description: str = "", scene: str = "") -> Path:
-    """Write ``out_dir/dataset.json`` (ref_spp, ev, normals "signed", description, scene)."""
+    """Write ``out_dir/dataset.json`` (ref_spp, ev, ``normal_encoding`` "signed" as README.md
+    documents it, description, scene)."""
     if ref_spp is not None:
         ref_spp = check_count("ref_spp", ref_spp)
     path = Path(out_dir) / "dataset.json"
-    write_json(path, {"ref_spp": ref_spp, "ev": float(ev), "normals": "signed",
+    write_json(path, {"ref_spp": ref_spp, "ev": float(ev), "normal_encoding": "signed",
                       "description": str(description), "scene": str(scene)})
     return path

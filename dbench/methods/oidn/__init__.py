@@ -84,6 +84,15 @@ class OIDN(Denoiser):
         self.last_settings: dict = {}
         self._runner = None  # the device path's cached OIDN device and filter
 
+    def applies_to(self, kind: str, available: set[str] | None = None) -> tuple[bool, str]:
+        """As every method's, and where the features are what is missing, the setting that
+        runs on the colour alone (README.md, "Renders from another renderer")."""
+        ok, why = super().applies_to(kind, available)
+        if not ok and available is not None and "color" in available \
+                and kind in self.kinds and self.params["features"] != "none":
+            why += f"; --param {self.name}.features=none runs on the colour alone"
+        return ok, why
+
     def __getstate__(self) -> dict:
         state = dict(self.__dict__)
         state["_runner"] = None  # native handles stay with the process that made them
