@@ -170,6 +170,26 @@ def run_summary(d: pd.DataFrame, settings: Mapping[str, Any], rank_by: str,
 SCENE_FILE_SETTINGS = ("integrator", "filter", "sampler")
 
 
+def _film_change(settings: Mapping[str, Any]) -> list[str]:
+    """The film's change where the requested size has another shape than the file's film
+    (README.md, "Your scene, your renders, any size": the field of view is kept along the
+    smaller side, so the view widens or narrows)."""
+    from ..resolution import parse_res
+
+    m = re.match(r"(\d+)×(\d+) in the file", str(settings.get("film", "")))
+    try:
+        res = parse_res(settings.get("res"))
+    except Exception:  # noqa: BLE001 - no readable size: nothing to compare
+        return []
+    if not m:
+        return []
+    fw, fh = int(m.group(1)), int(m.group(2))
+    if fw * res.height == fh * res.width:
+        return []
+    return [f"film {res.width}×{res.height} (file: {fw}×{fh}) — the requested size; the field "
+            "of view is kept along the smaller side, so the view's aspect changes"]
+
+
 def scene_file_lines(settings: Mapping[str, Any]) -> list[str]:
     """What the render changed from a scene file and the ``$parameters`` it was given, as the
     report states them (docs/formats.md §3; README.md, "Your scene, your renders, any size"):
@@ -178,6 +198,7 @@ def scene_file_lines(settings: Mapping[str, Any]) -> list[str]:
                if "(file:" in str(settings.get(k, ""))]
     if settings.get("conversions"):
         changed.append(f"conversions: {settings['conversions']}")
+    changed += _film_change(settings)
     lines = [f"scene file changed: {c}" for c in changed]
     if settings.get("scene parameters"):
         lines.append(f"scene parameters: {settings['scene parameters']}")

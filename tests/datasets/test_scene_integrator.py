@@ -229,3 +229,12 @@ def test_the_terminal_says_what_the_render_changed_and_the_parameters(renderer, 
     assert main(["run", "--scene", str(kept), "--out", str(tmp_path / "b"), *common]) == 0
     out = capsys.readouterr().out
     assert "scene file changed" not in out and "scene parameters" not in out
+    # another shape than the file's film, and a second sensor, are said
+    two = _scene(tmp_path / "s", "two.xml", _integrator("path", 3) + SENSOR)
+    assert main(["run", "--scene", str(two), "--out", str(tmp_path / "w"), *common[:4],
+                 "--res", "8x6", *common[6:]]) == 0
+    out = " ".join(capsys.readouterr().out.split())
+    assert ("scene file changed: film 8×6 (file: 16×16) — the requested size; the field of "
+            "view is kept along the smaller side") in out
+    report = (tmp_path / "w" / "report.md").read_text()
+    assert "the first of its 2 sensors" in report and "16×16 in the file" in report

@@ -38,15 +38,19 @@ def film_settings(state) -> tuple[str, str]:
             samplers[0][1].props.plugin_name() if samplers else FILE_DEFAULT_SAMPLER)
 
 
-def record(plan: IntegratorPlan, state, sensor: str, conversions: tuple[str, ...]) -> dict:
-    """The record of the render of a file (module docstring); plain values only."""
+def record(plan: IntegratorPlan, state, sensor: str, conversions: tuple[str, ...],
+           film: tuple[int, int] | None = None, sensors: int = 1) -> dict:
+    """The record of the render of a file (module docstring); plain values only. ``film``:
+    the (width, height) the file's film declares; ``sensors``: how many the file has (the
+    first renders, as in Mitsuba)."""
     file_filter, file_sampler = film_settings(state)
     return {"integrator": plan.integrator, "file_integrator": plan.file_integrator,
             "max_depth": plan.max_depth, "rr_depth": plan.rr_depth,
             "hide_emitters": plan.hide_emitters, "replaced": plan.replaced,
             "integrator_notes": list(plan.notes), "filter": FILTER, "file_filter": file_filter,
             "sampler": SAMPLER, "file_sampler": file_sampler, "sensor": sensor,
-            "conversions": list(conversions)}
+            "conversions": list(conversions), "sensors": int(sensors),
+            "file_film": list(film) if film else None}
 
 
 def report_lines(rec: dict) -> dict[str, str]:
@@ -74,7 +78,11 @@ def report_lines(rec: dict) -> dict[str, str]:
                                 "each 1-spp pass keeps its samples in their own pixels, as the "
                                 "per-sample statistics need"),
              "sampler": _kept_or(rec["sampler"], rec["file_sampler"], "dbench's seeds"),
-             "sensor": f"{rec['sensor']} (the file's pose, clip planes and field of view)"}
+             "sensor": f"{rec['sensor']} (the file's pose, clip planes and field of view"
+                       + (f"; the first of its {rec['sensors']} sensors, as Mitsuba renders"
+                          if rec.get("sensors", 1) > 1 else "") + ")"}
+    if rec.get("file_film"):
+        lines["film"] = "{}×{} in the file".format(*rec["file_film"])
     if rec["conversions"]:
         lines["conversions"] = "; ".join(rec["conversions"])
     return lines

@@ -185,7 +185,8 @@ def _xml_scene(path: str, params: tuple, digest: str) -> XmlScene:
     integrator = _integrator_plan(state, path)
     loaded = _loaded_xml(path, params, mi.variant(), digest)
     sensor = _sensor_dict(mi, loaded, parse_res(8), path)  # refuses unsupported cameras
-    rec = record(integrator, state, sensor["type"], conversions)
+    film = tuple(int(v) for v in loaded.sensors()[0].film().size())
+    rec = record(integrator, state, sensor["type"], conversions, film, len(loaded.sensors()))
     name = Path(path).name
     return XmlScene(name=name, kind="steady", description=f"Mitsuba scene file {path}",
                     build=_no_build, max_depth=integrator.max_depth, provides=STEADY_BUFFERS,
