@@ -93,7 +93,7 @@ def _one_line(exc: BaseException) -> str:
         from .datasets.scenes.build import exit_message
 
         return (f"called {exit_message(exc)} while loading; a plugin module registers methods "
-                f"or scenes and returns")
+                f"or scenes when imported and must not end the process")
     text = " ".join(str(exc).split())
     return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
 

@@ -112,14 +112,22 @@ def _main(argv: Sequence[str] | None) -> int:
         os.environ["DBENCH_RENDER_DEVICE"] = render_device
     if probe_store:
         os.environ[PROBE_STORE_ENV] = str(probe_store)
+    from ..datasets.mitsuba_env import forget_probes, probe_folder
+    from ..io import missing_folders
+
+    store = probe_folder()
+    created = missing_folders(store) if store is not None else []
+    code = 1
     try:
         _load_plugins(args, plugin_specs)
-        return args.func(args)
+        code = args.func(args)
+        return code
     except Exception as exc:  # noqa: BLE001 - one line, not a traceback (--debug shows it)
         from ..report import run_output
 
         if not run_output.terminated():
-            return _error_code(exc, debug)
+            code = _error_code(exc, debug)
+            return code
         # the interrupt, turned into another error on its way (Mitsuba's "cannot set variant")
         print("dbench: interrupted", file=sys.stderr)
         return 130
@@ -127,6 +135,8 @@ def _main(argv: Sequence[str] | None) -> int:
         print("dbench: interrupted", file=sys.stderr)
         return 130
     finally:  # a command run in-process (tests, notebooks) leaves the environment as it was
+        if code == 2 and created:  # refused: the cache folder the probes made goes again
+            forget_probes(created)
         for key, value in saved.items():
             if value is None:
                 os.environ.pop(key, None)

@@ -324,6 +324,8 @@ def cmd_report(args: argparse.Namespace) -> int:
     except ValueError:
         raise DbenchInputError(f"--sweep {sweep_dir}: must lie inside --results {results} "
                                "(the report links to it)") from None
+    if results.is_absolute() != sweep_dir.is_absolute():  # one relative, one not: the report
+        results, sweep_dir = results.absolute(), sweep_dir.absolute()  # links one to the other
     out = publish.publish(results, sweep_dir, rank_by=args.rank_by)
     print(f"written: {out}")
     return 0

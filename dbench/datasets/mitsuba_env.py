@@ -78,6 +78,30 @@ def _state_file(name: str = "llvm") -> Path | None:
     return base / f"{name}_probe.json"
 
 
+#: The probes whose verdicts :func:`_state_file` keeps.
+PROBES = ("llvm", "cuda")
+
+
+def probe_folder() -> Path | None:
+    """The folder the probes keep their verdicts in (:func:`_state_file`), None when none."""
+    state = _state_file()
+    return state.parent if state is not None else None
+
+
+def forget_probes(created: list[Path]) -> None:
+    """After a refused command: remove the probes' verdicts from the folders in ``created``
+    (those the command found missing, deepest first: :func:`dbench.io.missing_folders`) and
+    then those folders where empty, so that a command refused before rendering leaves no cache
+    folder behind (README.md, "A result is right or clearly refused")."""
+    from ..io import remove_empty
+
+    for name in PROBES:
+        state = _state_file(name)
+        if state is not None and state.parent in created:
+            state.unlink(missing_ok=True)
+    remove_empty(created)
+
+
 def _probe_key() -> str:
     # the installed version from the package's metadata: importing Mitsuba here would load
     # Dr.Jit outside deferred_interrupts

@@ -255,6 +255,17 @@ def test_report_is_byte_identical(results):
     assert pngs == {p.name: p.read_bytes() for p in (results / "sweep").glob("*.png")}
 
 
+def test_report_takes_one_path_relative_and_one_absolute(results, monkeypatch, capsys):
+    from dbench.cli import main
+
+    expected = publish.publish(results).read_bytes()
+    monkeypatch.chdir(results.parent)
+    for args in (["--results", str(results), "--sweep", "results/sweep"],
+                 ["--results", "results", "--sweep", str(results / "sweep")]):
+        assert main(["report", *args]) == 0, capsys.readouterr().err
+        assert (results / "README.md").read_bytes() == expected
+
+
 def test_rank_by_is_selectable(results):
     text = publish.publish(results, rank_by="rmse_surface").read_text()
     assert "Ranking by rmse_surface (lower is better): oidn" in text

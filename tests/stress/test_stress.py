@@ -173,3 +173,10 @@ def test_a_plugin_writing_to_its_input_or_exiting_fails_its_cases(isolated):
     assert mutated.status == "fail" and "modified its input" in mutated.why, mutated
     exited = runner.run_case("stress-exits", case)
     assert exited.status == "fail" and "sys.exit(3)" in exited.why, exited
+
+
+def test_the_readme_counts_the_cases():
+    from pathlib import Path
+
+    readme = " ".join((Path(__file__).parents[2] / "README.md").read_text().split())
+    assert f"{len(cases.CASES)} adversarial inputs" in readme

@@ -265,7 +265,7 @@ def _module(path: str, digest: str):
     except SystemExit as exc:  # a scene file never ends dbench, nor lends it its exit code
         raise DbenchInputError(f"--scene {path}: the file called {exit_message(exc)} while "
                                f"loading; a scene file defines build(mi, width, height) -> dict "
-                               f"and returns") from None
+                               f"and must not end the process") from None
     except Exception as exc:
         raise DbenchInputError(f"--scene {path}: the file failed to run: "
                                f"{type(exc).__name__}: {exc}") from None
