@@ -246,7 +246,9 @@ class RunRecord:
         self.t0 = time.perf_counter()
         for run in to_write["runs"]:
             if run.get("status") == "running":
-                run["status"] = "killed"
+                # it never wrote its end: its cells are those written since it started (the
+                # lock kept every other run out of the folder meanwhile)
+                run.update(status="killed", **cells_since(self.out, run.get("started")))
         self.entry = {"started": _now(), "status": "running", "request": config_dict(config),
                       "cells": 0, "failed": 0, "reused": reused, "skipped": skipped,
                       "executor": executor, "workers": workers, "machine": machine_label()}
@@ -266,6 +268,25 @@ class RunRecord:
         if error:
             self.entry["error"] = error[:300]
         io.write_json(self.out / "sweep.json", self.stored)
+
+
+def cells_since(out: Path, started: Any) -> dict[str, int]:
+    """{"cells", "failed"}: the cell files under ``out/cells`` written at or after ``started``
+    (a run entry's ``started`` text), as :func:`tally` counts them; {} when it is unreadable."""
+    from datetime import datetime
+
+    try:  # to the second, as _now writes it: a cell of that second counts
+        t0 = datetime.strptime(str(started), "%Y-%m-%dT%H:%M:%S%z").timestamp()
+    except (ValueError, OverflowError):
+        return {}
+    before = {}
+    for path in (Path(out) / "cells").rglob("*.json"):
+        try:
+            if path.stat().st_mtime >= t0:
+                before[path] = None  # counted by tally as written since
+        except OSError:
+            continue
+    return tally(before)
 
 
 def snapshot(paths) -> dict[Path, tuple | None]:

@@ -1,4 +1,5 @@
 """Sweeps: one file per cell, skips recorded, resume after a kill, Ray executor, report."""
+import json
 import os
 import signal
 import subprocess
@@ -84,6 +85,10 @@ def test_killed_sweep_completes_with_exactly_one_result_per_cell(renderer, tmp_p
     for p, t in finished.items():
         assert p.stat().st_mtime_ns == t  # finished cells were not recomputed
     assert not list(out.rglob(".*.tmp*"))
+    # the killed run never wrote its end: the next one records it with the cells it left
+    killed, last = json.loads((out / "sweep.json").read_text())["runs"]
+    assert killed["status"] == "killed" and killed["cells"] == len(finished), killed
+    assert last["status"] == "finished" and last["cells"] == 18 - len(finished)
 
 
 def test_skipped_pairs_are_recorded(renderer, tmp_path):
