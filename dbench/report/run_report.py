@@ -230,8 +230,8 @@ def _headline(table: pd.DataFrame, settings: dict[str, Any], rank_by: str
     return d, rank_by, cols, [c for c in cols if c in d.columns and d[c].notna().any()]
 
 
-def run_summary(table: pd.DataFrame, settings: dict[str, Any], rank_by: str = "relmse"
-                ) -> list[str]:
+def run_summary(table: pd.DataFrame, settings: dict[str, Any], rank_by: str = "relmse",
+                failed: dict[str, str] | None = None) -> list[str]:
     """The lines ``dbench run`` prints: the report's ranking, intervals and verdicts laid out
     for a terminal (dbench/report/terminal.py), each time with the device it ran on."""
     from .terminal import run_summary as summary
@@ -240,7 +240,7 @@ def run_summary(table: pd.DataFrame, settings: dict[str, Any], rank_by: str = "r
     d, rank_by, _, shown = _headline(table, settings, rank_by)
     devices = ({str(m): str(v) for m, v in zip(table["method"], table["device"])
                 if isinstance(v, str)} if {"method", "device"} <= set(table.columns) else {})
-    return summary(d, settings, rank_by, shown, devices, asked=asked)
+    return summary(d, settings, rank_by, shown, devices, asked=asked, failed=failed)
 
 
 def _run_frame(table: pd.DataFrame, settings: dict[str, Any]) -> pd.DataFrame:

@@ -119,6 +119,16 @@ def headline_table(d: pd.DataFrame, rank_by: str, devices: Mapping[str, str] | N
         cols.remove(drop[0])
 
 
+def failed_rows(failed: Mapping[str, str]) -> list[str]:
+    """``✗  label  failed: why`` under the ranked rows for each method that failed (its error
+    row: README.md, "Exit codes"), cut to :data:`WIDTH`."""
+    out = []
+    for label, why in failed.items():
+        line = f"✗  {label}  failed: {' '.join(str(why).split())}"
+        out.append(line if len(line) <= WIDTH else line[:WIDTH - 1] + "…")
+    return out
+
+
 def verdict_lines(d: pd.DataFrame, columns: Sequence[str], rank_by: str) -> list[str]:
     """``  jbf: worse than noisy on …`` for every row with something to say (the report's
     words, :func:`dbench.report.headline.verdict_words`), wrapped at :data:`WIDTH`."""
@@ -138,7 +148,8 @@ def _wrap(text: str, indent: str = "") -> list[str]:
 
 def run_summary(d: pd.DataFrame, settings: Mapping[str, Any], rank_by: str,
                 columns: Sequence[str], devices: Mapping[str, str] | None = None,
-                asked: str | None = None) -> list[str]:
+                asked: str | None = None, failed: Mapping[str, str] | None = None
+                ) -> list[str]:
     """The headline of one run: what was run, the reference, the ranked table with intervals,
     the ranking sentence and the verdicts of ``report.md``. ``d``: the report's cells frame
     (dbench/report/run_report.py ``_run_frame``); ``columns``: the report's headline columns."""
@@ -155,7 +166,7 @@ def run_summary(d: pd.DataFrame, settings: Mapping[str, Any], rank_by: str,
     if not len(d):
         return lines + ["(no method finished)"]
     lines += _wrap(f"{ci_kind_text(d).capitalize()}; entries are mean ± 95 % half-width.")
-    lines += [""] + headline_table(d, rank_by, devices) + [""]
+    lines += [""] + headline_table(d, rank_by, devices) + failed_rows(failed or {}) + [""]
     lines += _wrap(f"ranking by {ranking_line(d, rank_by, asked)}")
     verdicts = verdict_lines(d, columns, rank_by)
     if verdicts:
@@ -244,5 +255,5 @@ def sweep_summary(cells: Sequence[dict], rank_by: str = "relmse",
     return lines + ([line] if line else [])
 
 
-__all__ = ["WIDTH", "skip_kind", "skipped_line", "time_text", "headline_table",
+__all__ = ["WIDTH", "failed_rows", "skip_kind", "skipped_line", "time_text", "headline_table",
            "verdict_lines", "run_summary", "sweep_summary", "scene_file_lines"]

@@ -93,6 +93,13 @@ def run_scene(out: Path, req: RunRequest, scene, instances, labels, runnable,
     table = pd.DataFrame(rows)
     csv_table = table.drop(columns=[c for c in ("seeds", "times_s", "per_seed", "settings")
                                     if c in table.columns])
+    if failed:  # each failed method is a row of its own, with its error and no figures
+        base = {lab: n for n, lab in labels.items()}
+        csv_table = pd.concat([csv_table.assign(status="ok"), pd.DataFrame(
+            [{"scene": scene.name, "method": label, "base_method": base.get(label, label),
+              "spp": req.spp, "res": req.res.key, "status": "error", "error": why}
+             for label, why in failed.items()])],
+            ignore_index=True)
     write_csv(out / "metrics.csv", csv_table)
     write_csv(out / "metrics_per_seed.csv", pd.DataFrame(per_seed))
     if is_sequence:
@@ -155,7 +162,7 @@ def run_scene(out: Path, req: RunRequest, scene, instances, labels, runnable,
                                                        notes=notes, rank_by=req.rank_by,
                                                        failed=failed,
                                                        library_warnings=len(caught)))
-    return table, failed, report.run_summary(table, settings, req.rank_by)
+    return table, failed, report.run_summary(table, settings, req.rank_by, failed)
 
 
 def ref_rmse_text(value, source: str | None = None):

@@ -78,8 +78,12 @@ def test_run_names_failing_methods_and_keeps_the_others(plugin, tmp_path, capsys
                  "test-mutates,test-torch-mutates,test-raises,test-exits,noisy,jbf",
                  "--scene", "cornell", "--spp", "4", "--res", "16", "--ref-spp", "64",
                  "--quiet", "--out", str(out)])
-    err = capsys.readouterr().err
+    printed = capsys.readouterr()
+    err = printed.err
     assert code == 4
+    # each failed method is a row of the printed table, under the ranked ones
+    assert "✗  test-raises  failed: plugin exploded" in printed.out or \
+        "✗  test-raises  failed: RuntimeError: plugin exploded" in printed.out, printed.out
     assert "test-mutates: modified its input" in err
     assert "test-torch-mutates: modified its input buffer color" in err
     assert "plugin exploded" in err and "sys.exit(3)" in err
@@ -87,7 +91,14 @@ def test_run_names_failing_methods_and_keeps_the_others(plugin, tmp_path, capsys
     assert "## Failed" in report and "test-raises" in report
     import pandas as pd
     table = pd.read_csv(out / "metrics.csv")
-    assert set(table["method"]) == {"noisy", "jbf"}
+    ok = table[table["status"] == "ok"]
+    assert set(ok["method"]) == {"noisy", "jbf"}
+    errors = table[table["status"] == "error"].set_index("method")
+    assert set(errors.index) == {"test-mutates", "test-torch-mutates", "test-raises",
+                                 "test-exits"}
+    assert "plugin exploded" in errors.loc["test-raises", "error"]
+    assert errors["rmse"].isna().all()  # no figures for a method that failed
+    table = ok
     clean = main(["run", "--method", "noisy", "--scene", "cornell", "--spp", "4", "--res", "16",
                   "--ref-spp", "64", "--quiet", "--out", str(tmp_path / "clean")])
     assert clean == 0
