@@ -30,27 +30,28 @@ def _arrays(obj: Any) -> dict[str, np.ndarray]:
     return {k: v for k, v in vars(obj).items() if isinstance(v, np.ndarray) and k not in _SKIP}
 
 
-def _frozen(a: np.ndarray) -> np.ndarray:
+def _frozen(a: np.ndarray, writeable: bool = False) -> np.ndarray:
     c = np.array(a, copy=True)
-    c.flags.writeable = False
+    c.flags.writeable = writeable
     return c
 
 
-def private_copy(frame: Any) -> Any:
+def private_copy(frame: Any, writeable: bool = False) -> Any:
     """A shallow copy of ``frame`` (a Frame or TransientFrame; a Sequence frame by frame) whose
-    arrays, the statistics' included, are read-only copies."""
+    arrays, the statistics' included, are read-only copies (``writeable``: copies that can be
+    written, to find which one a method writes to: :func:`input_guard`)."""
     if hasattr(frame, "frames"):
         out = copy.copy(frame)
-        out.frames = [private_copy(f) for f in frame.frames]
+        out.frames = [private_copy(f, writeable) for f in frame.frames]
         return out
     out = copy.copy(frame)
     for k, v in _arrays(frame).items():
-        setattr(out, k, _frozen(v))
+        setattr(out, k, _frozen(v, writeable))
     st = getattr(frame, "stats", None)
     if st is not None:
         st2 = copy.copy(st)
         for k in _STATS:
-            setattr(st2, k, _frozen(getattr(st, k)))
+            setattr(st2, k, _frozen(getattr(st, k), writeable))
         out.stats = st2
     return out
 
@@ -94,16 +95,27 @@ def is_write_to_input(exc: BaseException) -> bool:
 
 
 @contextmanager
-def input_guard(method_name: str):
+def input_guard(method_name: str, original: Any = None, rerun=None):
     """Turn NumPy's refusal to write to the read-only input into a :class:`MethodError` naming
-    the method; every other exception passes unchanged."""
+    the method and, with ``original`` (the frame) and ``rerun`` (a call of the method on a
+    frame), the buffer: the method runs once more on a copy that can be written, and the
+    buffer whose bytes then differ is named; every other exception passes unchanged."""
     try:
         yield
     except ValueError as exc:
-        if is_write_to_input(exc):
-            raise MethodError(f"{method_name}: modified its input (wrote to a read-only input "
-                              f"array: {exc}); a method must not write to its input") from exc
-        raise
+        if not is_write_to_input(exc):
+            raise
+        name = None
+        if original is not None and rerun is not None:
+            spare = private_copy(original, writeable=True)
+            try:
+                rerun(spare)
+            except Exception:  # noqa: BLE001 - only which buffer it wrote to is wanted here
+                pass
+            name = first_changed(spare, original)
+        what = f"its input buffer {name}" if name else "its input"
+        raise MethodError(f"{method_name}: modified {what} (wrote to a read-only input array: "
+                          f"{exc}); a method must not write to its input") from exc
 
 
 __all__ = ["MethodError", "check_unchanged", "first_changed", "input_guard",

@@ -144,7 +144,8 @@ def run_sequence(method, seq: Sequence, metric_names: Iterable[str] = SEQUENCE_M
         given = mine[i]
         if stateless:
             m.reset()
-        with input_guard(m.name):
+        with input_guard(m.name, None if on_device else frame,
+                         lambda spare: fpenv.denoise(m, spare)):
             if on_device:
                 data, up_s = timed(lambda: upload(given, device, m.wants(available)), device)
                 out, dt = timed(lambda: fpenv.denoise_device(m, data), device)

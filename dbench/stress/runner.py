@@ -54,7 +54,8 @@ def run_case(method_name: str, case: Case) -> Outcome:
     given = private_copy(frame)
 
     def call(f):
-        with input_guard(method_name):
+        # f is unchanged when the write raised: the buffer is found against f itself
+        with input_guard(method_name, f, lambda spare: fpenv.denoise(method, spare)):
             return fpenv.denoise(method, f)
     outcome = judged_calls(method, case, given, as_sequence, call)
     changed = first_changed(given, frame)
