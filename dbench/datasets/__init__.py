@@ -45,7 +45,10 @@ get_scene = _scenes.get
 
 def _base_description(scene: Scene, res: Res) -> dict:
     mi = mitsuba()
-    return {"scene": scene.name, "res": res.key, "dict": scene.key_dict(mi, res),
+    # a scene file is its content (its key_dict hashes every file it reads), not its name:
+    # a renamed copy keeps its renders and cells (README.md, "Mitsuba scene files")
+    name = getattr(scene, "identity_name", None) or scene.name
+    return {"scene": name, "res": res.key, "dict": scene.key_dict(mi, res),
             "params": scene.params, "versions": versions()}
 
 

@@ -47,9 +47,9 @@ MAX_INCLUDE_DEPTH = 15
 
 
 def asset_hashes(path: str | Path, params: dict[str, str] | None = None) -> dict[str, str]:
-    """{file: sha256 of its bytes} of the scene file at ``path`` and of every file it
-    references (module docstring), each named relative to the scene's folder (with ``..``
-    outside it, so the names do not depend on where the tree is), sorted. DbenchInputError,
+    """{file: sha256 of its bytes} of the scene file at ``path`` (under :data:`SCENE_KEY`) and
+    of every file it references (module docstring), each named relative to the scene's folder
+    (with ``..`` outside it, so the names do not depend on where the tree is), sorted. DbenchInputError,
     naming the reference and the folders searched, when one cannot be found."""
     from ..mitsuba_env import mitsuba
 
@@ -59,7 +59,8 @@ def asset_hashes(path: str | Path, params: dict[str, str] | None = None) -> dict
     top = walk.read(scene, mi.FileResolver(mi.file_resolver()), depth=0)
     for ref, where in walk.deferred:  # filename strings: built after the whole parse
         walk.found(top, ref, where, "<string name=\"filename\">")
-    return dict(sorted((_relative(f, scene.parent), _sha256(f)) for f in walk.files))
+    return dict(sorted((SCENE_KEY if f == scene else _relative(f, scene.parent), _sha256(f))
+                       for f in walk.files))
 
 
 class _Walk:
@@ -153,10 +154,15 @@ def _sha256(f: Path) -> str:
     return hashlib.sha256(f.read_bytes()).hexdigest()
 
 
+#: The scene file's own entry in :func:`asset_hashes`: by its bytes, not its name, so a renamed
+#: copy is the same scene (its identity in caches and sweeps is its content: README.md).
+SCENE_KEY = "(the scene file)"
+
+
 def _relative(f: Path, folder: Path) -> str:
     # relative even outside the folder ("../fragments/room.xml"): a scene tree moved or copied
     # elsewhere keeps its identity, where an absolute name would make it another scene
     return Path(os.path.relpath(f.resolve(), folder.resolve())).as_posix()
 
 
-__all__ = ["asset_hashes", "MAX_INCLUDE_DEPTH"]
+__all__ = ["asset_hashes", "MAX_INCLUDE_DEPTH", "SCENE_KEY"]

@@ -84,7 +84,7 @@ from .rgb import rgb_notes
 from .xml import load as _load_xml, parse as _parse_xml, shape_groups
 
 #: Part of every file scene's cache key; change it when the translation above changes.
-FILE_SCENE_VERSION = "file-scene-2"
+FILE_SCENE_VERSION = "file-scene-3"
 SUFFIXES = (".xml", ".py")
 _CAMERAS = {"PerspectiveCamera": "perspective", "ThinLensCamera": "thinlens"}
 
@@ -144,15 +144,18 @@ class XmlScene(Scene):
 
     path: str = ""
     file_params: tuple = ()
+    #: what the scene is called in its identity (dbench.datasets._base_description): not the
+    #: file's name, which a copy may change
+    identity_name: str = "(scene file)"
     #: the integrator that renders the colour (dbench.datasets.scene_files.integrator)
     integrator_plan: IntegratorPlan | None = None
     #: what every steady frame of the file adds to its meta (dbench.datasets.scene_files.fidelity)
     frame_meta: dict = field(default_factory=dict)
 
     def key_dict(self, mi, res) -> dict:
-        # the file's name, not its path: the sources hold every file's bytes, so the same
-        # scene tree anywhere on disk is the same scene (its fingerprint is path-independent)
-        return {"file": Path(self.path).name, "loader": FILE_SCENE_VERSION,
+        # neither the file's path nor its name: the sources hold every file's bytes, so the
+        # same scene tree anywhere on disk, under any name, is the same scene
+        return {"loader": FILE_SCENE_VERSION,
                 "res": parse_res(res).key,
                 "sources": _sources(self.path, dict(self.file_params)),
                 "params": dict(self.file_params), "max_depth": self.max_depth,
