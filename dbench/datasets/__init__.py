@@ -168,6 +168,9 @@ def load(scene: str | Scene, spp: int, res, needs: Iterable[str] | None = None,
                   "rendered": [],
                   # a scene file's render as it differs from the file (datasets.scene_fidelity)
                   **getattr(sc, "frame_meta", {})}
+    if "scene_file" in meta:  # its settings in words, the film as rendered at this size
+        from .scene_files.fidelity import report_lines
+        meta["scene_file_settings"] = report_lines(meta["scene_file"], res)
 
     noisy_desc = {**base, "what": "noisy", "spp": int(spp), "seed": int(seed),
                   "copies": _render.batch_size(res, spp), "samples": _render.SAMPLES_VERSION}

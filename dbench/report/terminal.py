@@ -141,6 +141,13 @@ def verdict_lines(d: pd.DataFrame, columns: Sequence[str], rank_by: str) -> list
     return out
 
 
+def ref_warning_lines(d: pd.DataFrame, indent: str = "") -> list[str]:
+    """report.md's "Reference noise" lines (:func:`dbench.report.verdicts.ref_warnings_md`)
+    for the terminal, where most readers look: ``warning: cornell, 64 spp: …``."""
+    return [line for w in ref_warnings_md(d)
+            for line in _wrap("warning: " + w.removeprefix("- ⚠ ").replace("`", ""), indent)]
+
+
 def _wrap(text: str, indent: str = "") -> list[str]:
     return textwrap.wrap(text, WIDTH, initial_indent=indent, subsequent_indent=indent + "  ",
                          break_on_hyphens=False)
@@ -171,34 +178,12 @@ def run_summary(d: pd.DataFrame, settings: Mapping[str, Any], rank_by: str,
     verdicts = verdict_lines(d, columns, rank_by)
     if verdicts:
         lines += ["verdicts (size of the loss: mean / noisy's; PSNR: dB):"] + verdicts
-    for warning in ref_warnings_md(d):  # report.md's "Reference noise", where it is read
-        lines += _wrap("warning: " + warning.removeprefix("- ⚠ ").replace("`", ""))
-    return lines
+    return lines + ref_warning_lines(d)
 
 
 #: The settings of a scene file's render that may differ from the file
 #: (dbench/datasets/scene_files/fidelity.py report_lines: "X (file: Y) — why" when they do).
-SCENE_FILE_SETTINGS = ("integrator", "filter", "sampler")
-
-
-def _film_change(settings: Mapping[str, Any]) -> list[str]:
-    """The film's change where the requested size has another shape than the file's film
-    (README.md, "Your scene, your renders, any size": the field of view is kept along the
-    smaller side, so the view widens or narrows)."""
-    from ..resolution import parse_res
-
-    m = re.match(r"(\d+)×(\d+) in the file", str(settings.get("film", "")))
-    try:
-        res = parse_res(settings.get("res"))
-    except Exception:  # noqa: BLE001 - no readable size: nothing to compare
-        return []
-    if not m:
-        return []
-    fw, fh = int(m.group(1)), int(m.group(2))
-    if fw * res.height == fh * res.width:
-        return []
-    return [f"film {res.width}×{res.height} (file: {fw}×{fh}) — the requested size; the field "
-            "of view is kept along the smaller side, so the view's aspect changes"]
+SCENE_FILE_SETTINGS = ("integrator", "filter", "sampler", "film")
 
 
 def scene_file_lines(settings: Mapping[str, Any]) -> list[str]:
@@ -209,7 +194,6 @@ def scene_file_lines(settings: Mapping[str, Any]) -> list[str]:
                if "(file:" in str(settings.get(k, ""))]
     if settings.get("conversions"):
         changed.append(f"conversions: {settings['conversions']}")
-    changed += _film_change(settings)
     lines = [f"scene file changed: {c}" for c in changed]
     if settings.get("scene parameters"):
         lines.append(f"scene parameters: {settings['scene parameters']}")
@@ -246,9 +230,7 @@ def sweep_summary(cells: Sequence[dict], rank_by: str = "relmse",
         cols = columns or [c for c in headline.HEADLINE if c in at.columns]
         lines += _wrap(f"{scene} at {spp} spp ({reference_text(at)}): "
                        f"ranking by {ranking_line(at, rank, rank_by)}")
-        lines += verdict_lines(at, cols, rank)
-        for warning in ref_warnings_md(at):
-            lines += _wrap("warning: " + warning.removeprefix("- ⚠ ").replace("`", ""), "  ")
+        lines += verdict_lines(at, cols, rank) + ref_warning_lines(at, "  ")
     skipped = [(str(c.get("method")), str(c.get("reason", "")))
                for c in cells if isinstance(c, dict) and c.get("status") == "skipped"]
     line = skipped_line(skipped) if skips else ""

@@ -8,6 +8,9 @@ compared byte for byte with the original (a write through another route, e.g. a 
 from the array with ``torch.from_numpy``, is caught there). Either way the method fails with a
 :class:`MethodError` naming it and the buffer, and the other methods still receive the pristine
 frame. The copy is made outside the timed calls.
+
+:func:`load_seeds` gives the frames themselves: one per seed of a cell, for ``run``, ``sweep``
+and the sweep's checks before it writes anything.
 """
 from __future__ import annotations
 
@@ -118,5 +121,15 @@ def input_guard(method_name: str, original: Any = None, rerun=None):
                           f"{exc}); a method must not write to its input") from exc
 
 
-__all__ = ["MethodError", "check_unchanged", "first_changed", "input_guard",
+def load_seeds(scene, seed: int, n_seeds: int, **load_kwargs) -> list:
+    """One frame (or sequence) per seed ``seed`` … ``seed + n_seeds − 1``, all scored against
+    the one reference of ``seed`` (shared by ``run`` and ``sweep``); ``load_kwargs`` go to
+    :func:`dbench.datasets.load`."""
+    from .. import datasets
+
+    return [datasets.load(scene, seed=seed + k, ref_seed=seed, **load_kwargs)
+            for k in range(n_seeds)]
+
+
+__all__ = ["MethodError", "load_seeds", "check_unchanged", "first_changed", "input_guard",
            "is_write_to_input", "private_copy"]

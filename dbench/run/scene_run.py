@@ -45,7 +45,8 @@ def run_scene(out: Path, req: RunRequest, scene, instances, labels, runnable,
     from ..report import run_report as report
     from ..report.formats import write_csv
     from .machine import machine_info
-    from .sweep import cell_record, load_seeds
+    from .inputs import load_seeds
+    from .sweep import cell_record
     from ..device import device_name
     from ..io import write_exr, write_json, write_text
 

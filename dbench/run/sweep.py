@@ -33,6 +33,7 @@ from . import identity, sweep_history, sweep_lock, sweep_pool
 from ..report.cells import (NUMERIC_KEYS, cell_problem, load_cells,  # noqa: F401 - the module's
                             load_cells_checked, read_cell)  # interface, as before
 from .sweep_history import SETTINGS, stored_config  # noqa: F401 - the module's interface
+from .inputs import load_seeds  # noqa: F401 - also the module's interface, as before
 from .sweep_names import check_scenes, scene_labels
 from .sweep_pool import worker_start as _worker_start  # noqa: F401 - the pool initializer
 from ..device import device_name
@@ -248,16 +249,6 @@ def plan(config: SweepConfig, out: Path
     for path, cell in pending_skips:
         io.write_json(path, cell)
     return groups, done, skipped
-
-
-def load_seeds(scene, seed: int, n_seeds: int, **load_kwargs) -> list:
-    """One frame (or sequence) per seed ``seed`` … ``seed + n_seeds − 1``, all scored against
-    the one reference of ``seed`` (shared by ``run`` and ``sweep``); ``load_kwargs`` go to
-    :func:`dbench.datasets.load`."""
-    from .. import datasets
-
-    return [datasets.load(scene, seed=seed + k, ref_seed=seed, **load_kwargs)
-            for k in range(n_seeds)]
 
 
 def cell_record(res, frames: list, needs: set[str]) -> dict[str, Any]:

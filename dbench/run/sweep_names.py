@@ -89,14 +89,14 @@ def check_scenes(config) -> None:
     ``--frames``, a transient film too large at the sweep's size and bins
     (:func:`dbench.datasets.transient.scene.check_bins`), and a folder of renders that
     does not hold the sweep's size, seeds, reference spp or every spp. A folder is checked by
-    the very loads its groups make (as :func:`dbench.run.sweep.load_seeds`, which refuse such
+    the very loads its groups make (:func:`dbench.run.inputs.load_seeds`, which refuse such
     settings as ``dbench run`` does), reading only the colour of its first frame per spp. A
     film of another size than the sweep's is refused by :func:`dbench.run.sweep.plan`, whose
     fingerprints build every scene's dictionary before the run is recorded."""
-    from .. import datasets
     from ..datasets.scenes.build import check_plugin_scene
     from ..datasets.transient.scene import check_bins
     from ..errors import DbenchInputError
+    from .inputs import load_seeds
 
     for name in dict.fromkeys(config.scenes):
         scene = config.scene(name)
@@ -111,11 +111,9 @@ def check_scenes(config) -> None:
                 check_bins(scene.window(config.bins).bins, config.res_for(scene),
                            "--bins" if config.bins is not None else f"{name}'s bins")
             continue
-        for spp in config.spp:  # each seed as load_seeds loads it (sweep.py imports this)
-            for k in range(config.seeds):
-                datasets.load(scene, seed=config.seed + k, ref_seed=config.seed, spp=spp,
-                              res=config.res_for(scene), needs=(), ref_spp=config.ref_spp,
-                              frames=1, progress=False)
+        for spp in config.spp:
+            load_seeds(scene, config.seed, config.seeds, spp=spp, res=config.res_for(scene),
+                       needs=(), ref_spp=config.ref_spp, frames=1, progress=False)
 
 
 __all__ = ["check_scenes", "scene_labels"]

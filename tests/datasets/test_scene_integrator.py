@@ -237,4 +237,5 @@ def test_the_terminal_says_what_the_render_changed_and_the_parameters(renderer, 
     assert ("scene file changed: film 8×6 (file: 16×16) — the requested size; the field of "
             "view is kept along the smaller side") in out
     report = (tmp_path / "w" / "report.md").read_text()
-    assert "the first of its 2 sensors" in report and "16×16 in the file" in report
+    assert "the first of its 2 sensors" in report and "film: 8×6 (file: 16×16) — the requested " \
+        "size" in report

@@ -237,11 +237,10 @@ def noise_ratio(reference: np.ndarray, noisy: np.ndarray, surface: np.ndarray
     return float(tr.sum() / tn.sum()), float(lo), float(hi)
 
 
-def _noise_check(ratio: tuple[float, float, float] | None, spp: int, implied: float,
-                 source: str) -> str | None:
+def _noise_check(ratio: tuple[float, float, float] | None, spp: int, implied: float
+                 ) -> str | None:
     """The warning of the high-frequency check, or None. ``implied``: the reference's variance
-    over the noisy input's that its estimate gives (NaN: no estimate); ``source``: where that
-    estimate came from (``meta["ref_noise_source"]``)."""
+    over the noisy input's that its estimate gives (NaN: no estimate)."""
     if ratio is None:
         return None
     r, lo, hi = ratio
@@ -317,7 +316,7 @@ def judge_reference(*, reference: np.ndarray, spp: int, series: dict[int, np.nda
     elif spp not in same:
         ratio = noise_ratio(r, series[spp], surface)
         implied = ref_rel / own if np.isfinite(ref_rel) and own > 0 else float("nan")
-        found = _noise_check(ratio, spp, implied, source)
+        found = _noise_check(ratio, spp, implied)
         if found:
             warnings.append(found)
         elif ratio is None:  # an estimate nothing measured is not stated as a fact

@@ -53,9 +53,10 @@ def record(plan: IntegratorPlan, state, sensor: str, conversions: tuple[str, ...
             "file_film": list(film) if film else None}
 
 
-def report_lines(rec: dict) -> dict[str, str]:
+def report_lines(rec: dict, res=None) -> dict[str, str]:
     """{label: text} of a :func:`record` for a report's settings, e.g. ``"integrator": "path
-    (file: direct) — replaced because …"``."""
+    (file: direct) — replaced because …"``; with ``res``, the size rendered, the film as
+    rendered against the file's (:func:`film_text`)."""
     name, file = rec["integrator"], rec["file_integrator"]
     if rec["replaced"]:
         integrator = f"{name} (file: {file}) — replaced because {rec['replaced']}"
@@ -82,14 +83,30 @@ def report_lines(rec: dict) -> dict[str, str]:
                        + (f"; the first of its {rec['sensors']} sensors, as Mitsuba renders"
                           if rec.get("sensors", 1) > 1 else "") + ")"}
     if rec.get("file_film"):
-        lines["film"] = "{}×{} in the file".format(*rec["file_film"])
+        lines["film"] = film_text(rec["file_film"], res)
     if rec["conversions"]:
         lines["conversions"] = "; ".join(rec["conversions"])
     return lines
+
+
+def film_text(file_film, res=None) -> str:
+    """The film: ``16×16 in the file``; rendered at ``res`` of another shape, the change in the
+    report's form ("X (file: Y) — why"): the field of view is kept along the smaller side
+    (README.md, "Mitsuba scene files"), so the view's aspect changes."""
+    from ...resolution import parse_res
+
+    fw, fh = (int(v) for v in file_film)
+    if res is None:
+        return f"{fw}×{fh} in the file"
+    res = parse_res(res)
+    if fw * res.height == fh * res.width:
+        return f"{res.width}×{res.height} (the file's {fw}×{fh}, the same shape)"
+    return (f"{res.width}×{res.height} (file: {fw}×{fh}) — the requested size; the field of "
+            "view is kept along the smaller side, so the view's aspect changes")
 
 
 def _kept_or(used: str, file: str, why: str) -> str:
     return f"{used} (as in the file)" if used == file else f"{used} (file: {file}) — {why}"
 
 
-__all__ = ["record", "report_lines", "film_settings", "FILTER", "SAMPLER"]
+__all__ = ["record", "report_lines", "film_settings", "film_text", "FILTER", "SAMPLER"]
