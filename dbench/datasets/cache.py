@@ -32,7 +32,7 @@ more in that folder for the rest of the process, and returns an entry holding th
 memory, so the run carries on with the renders it has (README.md, "How renders work").
 
 Mostly empty transient videos are stored by their non-zero rows (:mod:`.sparse_rows`,
-docs/transient.md §6), in entries of format 2; format 1 entries read as before.
+docs/transient.md §6), in entries of format 3; entries of formats 1 and 2 read as before.
 
 Location: ``--cache DIR`` or ``DBENCH_CACHE``, default ``~/.cache/dbench``.
 """
@@ -58,11 +58,12 @@ from ..errors import OutputError
 from . import sparse_rows
 
 CACHE_FORMAT = 1
-#: The format of an entry whose arrays.npz holds packed rows (:mod:`.sparse_rows`): code that
-#: reads only CACHE_FORMAT takes such an entry for a miss instead of misreading it.
-PACKED_FORMAT = 2
-#: Entry formats this code reads.
-FORMATS = (CACHE_FORMAT, PACKED_FORMAT)
+#: The format of an entry whose arrays.npz holds packed rows (:mod:`.sparse_rows`), integer
+#: arrays among them narrowed: code that reads only earlier formats takes such an entry for a
+#: miss instead of misreading it.
+PACKED_FORMAT = 3
+#: Entry formats this code reads: 2 is packed rows without narrowed integers.
+FORMATS = (CACHE_FORMAT, 2, PACKED_FORMAT)
 
 
 def default_root() -> Path:
@@ -343,8 +344,7 @@ class Cache:
                 with open(t, "wb") as fh:
                     writer = DigestingWriter(fh)
                     try:
-                        (np.savez_compressed if compress else np.savez)(
-                            writer, **sparse_rows.pack(arrays, sparse))
+                        sparse_rows.save(writer, arrays, sparse, compress=compress)
                     finally:
                         writer.close()
             records["arrays.npz"] = writer.record()

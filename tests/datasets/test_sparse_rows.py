@@ -81,3 +81,58 @@ def test_cache_stores_packed_rows_and_reads_them_back(tmp_path, compress):
     assert _same_bits(cache.get("transient-stats", {"w": 2}).arrays()["mean"], arrays["mean"])
     # a packed entry is smaller: most rows are empty
     assert (put.path / "arrays.npz").stat().st_size < (dense.path / "arrays.npz").stat().st_size
+
+
+@pytest.mark.parametrize("values, stored", [
+    ((0, 64), np.uint8), ((-3, 100), np.int8), ((0, 300), np.uint16), ((-1, 40000), np.int32),
+    ((0, 2 ** 31 - 1), np.int32)])
+def test_integers_are_stored_narrow_and_given_back_in_their_own_type(values, stored):
+    counts = np.zeros((4, 5, 3), np.int32)
+    counts[1, 2] = values[0]
+    counts[3, 4] = values[1]
+    counts[0, 0, 1] = 1
+    packed = sparse_rows.pack({"non_zero": counts}, ("non_zero",))
+    assert packed["rows~non_zero"].dtype == stored
+    assert (sparse_rows.DTYPE + "non_zero" in packed) == (stored != np.int32)
+    assert _same_bits(sparse_rows.unpack(packed)["non_zero"], counts)
+
+
+def test_floats_and_bools_keep_their_type():
+    a = {"f": np.ones((2, 2, 3), np.float32), "b": np.ones((2, 2, 3), bool)}
+    packed = sparse_rows.pack(a, ("f", "b"))
+    assert packed["rows~f"].dtype == np.float32 and packed["rows~b"].dtype == bool
+    assert not any(k.startswith(sparse_rows.DTYPE) for k in packed)
+
+
+@pytest.mark.parametrize("chunk", [1, 7, 1 << 16])
+def test_save_streams_rows_in_chunks_and_np_load_reads_what_pack_gives(tmp_path, monkeypatch,
+                                                                       chunk):
+    monkeypatch.setattr(sparse_rows, "CHUNK_ROWS", chunk)
+    rng = np.random.default_rng(5)
+    arrays = {**_hostile(rng), "steady": rng.random((5, 6, 3))}
+    names = ("mean", "color", "non_zero")
+    with open(tmp_path / "a.npz", "wb") as fh:
+        sparse_rows.save(fh, arrays, names)
+    expected = sparse_rows.pack(arrays, names)
+    with np.load(tmp_path / "a.npz") as z:
+        assert set(z.files) == set(expected)
+        for k in z.files:
+            assert _same_bits(z[k], np.asarray(expected[k])), k
+        back = sparse_rows.unpack({k: z[k] for k in z.files})
+    for name, value in arrays.items():
+        assert _same_bits(back[name], value), name
+
+
+def test_save_writes_every_kind_of_plain_array_as_np_savez_does(tmp_path):
+    arrays = {"scalar": np.asarray(3.5), "text": np.asarray("<i4"), "empty": np.zeros((0, 3)),
+              "strided": np.arange(24.0).reshape(4, 6)[:, ::2], "flags": np.eye(3, dtype=bool),
+              "big": np.arange(200_000, dtype=np.int64)}
+    with open(tmp_path / "a.npz", "wb") as fh:
+        sparse_rows.save(fh, arrays)
+    with np.load(tmp_path / "a.npz") as z:
+        for name, value in arrays.items():
+            assert z[name].shape == value.shape and z[name].dtype == value.dtype, name
+            assert np.array_equal(z[name], value), name
+    with pytest.raises(ValueError, match="object array"):
+        with open(tmp_path / "b.npz", "wb") as fh:
+            sparse_rows.save(fh, {"o": np.array([None])})

@@ -132,3 +132,23 @@ def test_variance_of_mean_from_plain_sums():
     np.testing.assert_allclose(got, x.var(0, ddof=1) / 40, rtol=1e-10, atol=1e-15)
     assert got[0, 0] == 0.0
     assert variance_of_mean(1, x[0], x[0] ** 2) is None
+
+
+def test_one_count_for_every_pixel_stays_one_number():
+    """SampleStats given n as one number keeps it as a read-only broadcast (dbench/data.py):
+    the count reads as the (H, W, T, C) array, costs 8 bytes, not 8 a value, and cannot be
+    written through; a count that is not a number is refused naming stats.n."""
+    from dbench.data import SampleStats
+
+    mean = np.zeros((4, 5, 6, 3))
+    st = SampleStats(n=64.0, mean=mean, var_mean=mean, m3=mean, transform="identity")
+    assert st.n.shape == mean.shape and st.n.dtype == np.float64 and np.all(st.n == 64)
+    assert st.n.strides == (0, 0, 0, 0) and not st.n.flags.writeable
+    assert st.n.base is not None and st.n.base.nbytes == 8
+    np.testing.assert_array_equal(st.theta, mean)
+    with pytest.raises(ValueError, match="read-only"):
+        st.n[0, 0, 0, 0] = 1
+    full = SampleStats(n=np.full(mean.shape, 64.0), mean=mean, var_mean=mean, m3=mean)
+    assert full.n.flags.writeable and full.n.strides != (0, 0, 0, 0)
+    with pytest.raises(DbenchInputError, match="stats.n"):
+        SampleStats(n="many", mean=mean, var_mean=mean, m3=mean)

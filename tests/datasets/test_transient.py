@@ -119,6 +119,10 @@ def test_load_returns_transient_frame_and_caches(tr, tmp_cache):
     np.testing.assert_array_equal(again.color, v.color)
     np.testing.assert_array_equal(again.stats.var_mean, v.stats.var_mean)
     np.testing.assert_array_equal(again.non_zero, v.non_zero)
+    # the counts are stored in one byte (sparse_rows.narrowest), read back in their own type
+    (stored,) = tmp_cache.root.glob("transient-stats/*/arrays.npz")
+    with np.load(stored) as z:
+        assert z["rows~non_zero"].dtype == np.uint8 and str(z["rows~dtype~non_zero"]) == "<i4"
     np.testing.assert_array_equal(again.stats.m3, v.stats.m3)
     np.testing.assert_array_equal(again.reference_var, v.reference_var)
     # the videos are stored by their non-empty (pixel, bin) rows (datasets/sparse_rows.py)
