@@ -205,24 +205,11 @@ def _scene_of(args: argparse.Namespace):
     """The Scene of ``--scene`` (catalogue name, scene file or folder) with ``--scene-param``
     and, for a folder of renders, ``--normal-encoding`` (refused for a scene dbench renders,
     whose normals are its own, signed)."""
-    from dataclasses import replace
-
     from ..datasets.scene_files import load as scene_files
     from ..datasets.scenes import catalogue as scenes
 
     scene = scenes.get(args.scene, scene_files.parse_scene_params(args.scene_param))
-    encoding = getattr(args, "normal_encoding", None)
-    if encoding is None:
-        return scene
-    if scene.renders or getattr(scene, "info", None) is None:
-        raise DbenchInputError(f"--normal-encoding: {args.scene} is rendered by dbench, whose "
-                               f"normals are signed; the option applies to a folder of renders "
-                               f"(--scene DIR)")
-    from ..datasets.folders.load import with_normal_encoding
-
-    info = with_normal_encoding(scene.info, encoding)
-    # the scene's identity follows the folder's fingerprint, which now covers the encoding
-    return replace(scene, info=info, params={**scene.params, "fingerprint": info.fingerprint})
+    return scenes.with_normal_encoding(scene, getattr(args, "normal_encoding", None), args.scene)
 
 
 def _default_spp(scene, fallback: int = 16) -> int:

@@ -233,7 +233,8 @@ def cmd_sweep(args: argparse.Namespace) -> int:
                                transform=args.transform, lam=args.lam, frames=args.frames,
                                bins=args.bins,
                                params={k: v for k, v in params.items() if v}, cache=args.cache,
-                               no_cache=args.no_cache, device=args.device)
+                               no_cache=args.no_cache, device=args.device,
+                               normal_encoding=args.normal_encoding)
     from ..run.capture import count_text, library_warnings, log_text
     # the cache is checked (and created) by run_sweep once nothing refused the sweep
     from_groups: list[str] = []  # the groups' warnings, every worker's included

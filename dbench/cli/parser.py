@@ -64,11 +64,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "start (default all)")
     r.add_argument("--bins", type=count, default=None, help="transient scenes: time bins "
                    "(default the scene's)")
-    r.add_argument("--normal-encoding", type=normal_encoding_arg, default=None,
-                   metavar="{signed,unsigned}", help="a folder of renders: how its normal "
-                   "images are stored, n in [-1, 1] (signed) or n*0.5+0.5 (unsigned); wins "
-                   "over dataset.json's normal_encoding and over the detection (README.md, "
-                   "\"Renders from another renderer\")")
+    _normal_encoding_argument(r)
     r.add_argument("--quiet", action="store_true")
     _device_argument(r)
     common(r)
@@ -106,6 +102,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "start (default all)")
     sw.add_argument("--bins", type=count, default=None, help="transient scenes: time bins "
                     "(default the scene's)")
+    _normal_encoding_argument(sw, "the sweep's folders of renders")
     sw.add_argument("--quiet", action="store_true")
     _device_argument(sw)
     sw.add_argument("--rerun", action="store_true", help="recompute finished cells whose "
@@ -200,6 +197,15 @@ def build_parser() -> argparse.ArgumentParser:
         sp.add_argument("--plugin", action="append", metavar="MODULE_OR_FILE.py",
                         help=PLUGIN_HELP)
     return p
+
+
+def _normal_encoding_argument(p: argparse.ArgumentParser,
+                              what: str = "a folder of renders") -> None:
+    p.add_argument("--normal-encoding", type=normal_encoding_arg, default=None,
+                   metavar="{signed,unsigned}", help=f"{what}: how the normal images are "
+                   "stored, n in [-1, 1] (signed) or n*0.5+0.5 (unsigned); wins over "
+                   "dataset.json's normal_encoding and over the detection (README.md, "
+                   "\"Renders from another renderer\")")
 
 
 def _device_argument(parser) -> None:

@@ -77,6 +77,8 @@ class SweepConfig:
     scene_params: dict[str, str] = field(default_factory=dict)
     #: where methods with a device path run ("cpu" or "cuda"; docs/gpu.md §3)
     device: str = "cpu"
+    #: how the normals of the sweep's folders of renders are read (None: as each one says)
+    normal_encoding: str | None = None
 
     def validate(self) -> None:
         """Every setting checked before anything is written or rendered (DbenchInputError)."""
@@ -95,12 +97,19 @@ class SweepConfig:
         for name, value in (("--frames", self.frames), ("--bins", self.bins)):
             if value is not None:
                 check_count(name, value)
+        if self.normal_encoding is not None and all(self.scene(s).renders for s in self.scenes):
+            raise DbenchInputError(f"--normal-encoding: none of the sweep's scenes "
+                                   f"({', '.join(self.scenes)}) is a folder of renders; dbench "
+                                   f"renders the others, with signed normals")
 
     def scene(self, name: str):
-        """The Scene of a catalogue name, scene file or folder (with ``scene_params``)."""
+        """The Scene of a catalogue name, scene file or folder (with ``scene_params``; a
+        folder's normals read as ``normal_encoding``)."""
         from ..datasets.scenes import catalogue
 
-        return catalogue.get(name, self.scene_params or None)
+        scene = catalogue.get(name, self.scene_params or None)
+        return scene if scene.renders else \
+            catalogue.with_normal_encoding(scene, self.normal_encoding, name)
 
     def res_for(self, scene) -> Res:
         """The size ``scene`` is rendered at: ``res``, or the scene's default when None."""

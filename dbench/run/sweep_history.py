@@ -97,6 +97,7 @@ _CONFIG = {
     "bins": _INT_OR_NULL, "seed": _INT, "seeds": _INT, "repeats": _INT, "lam": _NUMBER,
     "transform": _value_check(lambda v: v is None or isinstance(v, str), "a name or null"),
     "device": _NAME,
+    "normal_encoding": _value_check(lambda v: v is None or isinstance(v, str), "a name or null"),
     "params": _PARAMS,
     "series": _each_value(_fields({"method": _NAME, "params": _OBJECT},
                                   "an object ({\"method\": name, \"params\": object})"),

@@ -193,3 +193,35 @@ def test_the_option_on_the_command_line(tmp_path, capsys):
     report = (out / "report.md").read_text(encoding="utf-8")
     assert "- normal encoding: unsigned [0,1] → 2n−1 (given by --normal-encoding, over " \
         "dataset.json's 'signed'" in report
+
+
+def test_the_option_on_a_sweep(tmp_path, capsys):
+    """``sweep --normal-encoding`` reads the sweep's folders that way, is stored in sweep.json
+    and enters each folder cell's identity; a sweep of scenes dbench renders refuses it, with
+    one line and exit 2, before its folder exists; a catalogue scene beside a folder keeps its
+    own normals."""
+    folder = _folder(tmp_path / "f", _boundary_normals()[0], {"normal_encoding": "signed"})
+    out = tmp_path / "sw"
+    assert main(["sweep", "--methods", "noisy", "--scenes", "cornell", "--spp", "4",
+                 "--out", str(out), "--normal-encoding", "unsigned"]) == 2
+    err = capsys.readouterr().err
+    assert err.strip() == ("dbench: --normal-encoding: none of the sweep's scenes (cornell) is "
+                           "a folder of renders; dbench renders the others, with signed normals")
+    assert not out.exists()
+    base = ["sweep", "--methods", "noisy", "--scenes", str(folder), "--spp", "4", "--repeats",
+            "1", "--quiet", "--out"]
+    assert main(base + [str(tmp_path / "plain")]) == 0
+    assert main(base + [str(out), "--normal-encoding", "unsigned"]) == 0
+    capsys.readouterr()
+    stored = json.loads((out / "sweep.json").read_text())
+    assert stored["config"]["normal_encoding"] == "unsigned"
+
+    def fingerprint(root):
+        cells = list((root / "cells").rglob("*.json"))
+        assert cells
+        return {json.loads(c.read_text())["identity"]["scene_fingerprint"] for c in cells}
+
+    assert fingerprint(out).isdisjoint(fingerprint(tmp_path / "plain"))
+    # the same folder read the other way is another result: refused, not mixed in
+    assert main(base + [str(out), "--normal-encoding", "signed"]) == 2
+    assert "--rerun" in capsys.readouterr().err

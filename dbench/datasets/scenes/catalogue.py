@@ -63,6 +63,25 @@ def get(name: str | Scene, params: dict[str, str] | None = None) -> Scene:
         f"scene file (.xml), a Python scene file (.py) or a folder of EXR renders") from None
 
 
+def with_normal_encoding(scene: Scene, encoding: str | None, name: str) -> Scene:
+    """``scene`` (given as ``name``) with its normals read as ``encoding`` (``--normal-encoding``
+    of run and sweep; None: as found). Only a folder of renders has normals that are not
+    dbench's own, signed ones; a scene dbench renders is refused."""
+    if encoding is None:
+        return scene
+    if scene.renders or getattr(scene, "info", None) is None:
+        raise DbenchInputError(f"--normal-encoding: {name} is rendered by dbench, whose "
+                               f"normals are signed; the option applies to a folder of renders "
+                               f"(--scene DIR)")
+    from dataclasses import replace
+
+    from ..folders.load import with_normal_encoding as encoded
+
+    info = encoded(scene.info, encoding)
+    # the scene's identity follows the folder's fingerprint, which now covers the encoding
+    return replace(scene, info=info, params={**scene.params, "fingerprint": info.fingerprint})
+
+
 def folder_scene(path: str) -> Scene:
     """A :class:`FolderScene` for a folder of EXR renders (one per folder content)."""
     from ..folders import load as folder
