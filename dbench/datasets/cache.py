@@ -55,6 +55,7 @@ import numpy as np
 
 from .. import io
 from ..errors import OutputError
+from ..memory import small_pages
 from . import sparse_rows
 
 CACHE_FORMAT = 1
@@ -117,12 +118,14 @@ class Entry:
     held_images: dict[str, np.ndarray] | None = None
     held_arrays: dict[str, np.ndarray] | None = None
 
+    @small_pages()  # what it reads is fresh arrays (dbench/memory.py)
     def images(self) -> dict[str, np.ndarray]:
         if self.held_images is not None:
             return dict(self.held_images)
         f = self.path / "buffers.exr"
         return io.read_exr(f) if f.exists() else {}
 
+    @small_pages()
     def arrays(self) -> dict[str, np.ndarray]:
         if self.held_arrays is not None:
             return dict(self.held_arrays)

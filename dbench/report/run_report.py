@@ -30,8 +30,9 @@ def metric_definitions_md() -> str:
 
 def machine_md(info: dict[str, Any]) -> str:
     pk = ", ".join(f"{k} {v}" for k, v in info["packages"].items())
+    memory = f"\n- Memory: {info['memory']}" if info.get("memory") else ""
     return (f"- CPU: {info['cpu']} ({info['cores']} cores); GPU: {info['gpu']}\n"
-            f"- Python {info['python']} on {info['platform']}\n- Packages: {pk}")
+            f"- Python {info['python']} on {info['platform']}\n- Packages: {pk}{memory}")
 
 
 def error_map(output: np.ndarray, reference: np.ndarray) -> np.ndarray:

@@ -44,5 +44,8 @@ def machine_info() -> dict[str, Any]:
         gpu = torch.cuda.get_device_name(0) if torch.cuda.is_available() else "none"
     except Exception:  # noqa: BLE001
         gpu = "unknown"
+    from ..memory import advice_text
+
     return {"cpu": cpu, "cores": os.cpu_count(), "python": platform.python_version(),
-            "platform": platform.platform(), "gpu": gpu, "packages": packages}
+            "platform": platform.platform(), "gpu": gpu, "packages": packages,
+            "memory": advice_text()}

@@ -109,7 +109,8 @@ _CONFIG = {
 }
 #: what :func:`dbench.run.machine.machine_info` records
 _MACHINE = {"cpu": _TEXT, "cores": _INT_OR_NULL, "python": _TEXT, "platform": _TEXT,
-            "gpu": _TEXT, "packages": _each_value(_TEXT, "an object ({package: version})")}
+            "gpu": _TEXT, "packages": _each_value(_TEXT, "an object ({package: version})"),
+            "memory": _TEXT}
 #: the statuses a run's entry can have (module docstring)
 STATUSES = ("running", "finished", "interrupted", "failed", "killed")
 #: one entry of ``runs`` (:class:`RunRecord`)
