@@ -21,8 +21,9 @@ own dtype or a narrower integer one) and ``rows~dtype~<name>`` (the dtype ``<nam
 back in, where it was narrowed); arrays not packed keep their own names.
 
 :func:`save` writes that form into an ``.npz`` stream a chunk of rows at a time, so storing an
-entry touches no second copy of it: on a virtual machine the first touch of fresh memory costs
-about 5 ms per MB (docs/transient.md §6), as much as the page cache the file itself fills.
+entry makes no second copy of it: on this project's virtual machines a fresh large NumPy array
+is first touched at 0.11–0.36 GB/s (:mod:`dbench.memory`; docs/transient.md §6), so the packed
+copy of a 56 MB entry, and NumPy's own copies of it in ``savez``, cost more than its render.
 """
 from __future__ import annotations
 

@@ -20,7 +20,8 @@ def test_bench_render_transient_shape(tr, tmp_path, monkeypatch):
     for name, ratio in RATIOS.items():
         assert r[f"{name}_s"] > 0 and r[ratio] > 0
     assert r["plain_s"] > 0
-    assert "x plain" in format_result(r)
+    assert "x plain" in format_result(r) and "statistics, cached" in format_result(r)
+    assert r["cached_hits"] == ["color", "stats"]  # the cached way reads, never renders
     assert list(tmp_path.iterdir()) == []  # the fresh caches are removed afterwards
 
 
