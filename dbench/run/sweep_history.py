@@ -28,7 +28,7 @@ from ..errors import DbenchInputError
 
 #: Settings every cell of one sweep folder shares; methods, scenes and spp may be extended.
 SETTINGS = ("res", "ref_spp", "seed", "seeds", "repeats", "transform", "lam", "metrics",
-            "frames", "bins")
+            "frames", "bins", "normal_encoding")
 #: Settings that ``--rerun`` may change: the cells whose identity they change are recomputed.
 RERUN_SETTINGS = ("ref_spp",)
 

@@ -3,6 +3,7 @@ unit length by their median, the dataset.json declaration winning, ``dbench run
 --normal-encoding`` winning over both, a warning where neither fits; and the record of the
 files and EXR channels a load read and left."""
 import json
+import shutil
 
 import numpy as np
 import pytest
@@ -201,6 +202,8 @@ def test_the_option_on_a_sweep(tmp_path, capsys):
     one line and exit 2, before its folder exists; a catalogue scene beside a folder keeps its
     own normals."""
     folder = _folder(tmp_path / "f", _boundary_normals()[0], {"normal_encoding": "signed"})
+    for layer in ("hdr", "alb", "nrm"):  # the folder offers 8 spp too
+        shutil.copy(folder / f"v_0004.{layer}.exr", folder / f"v_0008.{layer}.exr")
     out = tmp_path / "sw"
     assert main(["sweep", "--methods", "noisy", "--scenes", "cornell", "--spp", "4",
                  "--out", str(out), "--normal-encoding", "unsigned"]) == 2
@@ -222,6 +225,13 @@ def test_the_option_on_a_sweep(tmp_path, capsys):
         return {json.loads(c.read_text())["identity"]["scene_fingerprint"] for c in cells}
 
     assert fingerprint(out).isdisjoint(fingerprint(tmp_path / "plain"))
-    # the same folder read the other way is another result: refused, not mixed in
-    assert main(base + [str(out), "--normal-encoding", "signed"]) == 2
-    assert "--rerun" in capsys.readouterr().err
+    # the same folder read the other way is another sweep: refused, not mixed in, at the spp
+    # it holds and at any other (a setting every cell of the folder shares)
+    for spp in ("4", "8"):
+        asked = [spp if a == "4" else a for a in base]
+        assert main(asked + [str(out), "--normal-encoding", "signed", "--rerun"]) == 2
+        err = capsys.readouterr().err
+        assert "holds a sweep with other settings (normal_encoding: 'unsigned' there, " \
+            "'signed' now)" in err
+    assert json.loads((out / "sweep.json").read_text())["config"]["normal_encoding"] == \
+        "unsigned"
