@@ -22,6 +22,7 @@ from typing import Any, Callable
 
 import numpy as np
 
+from ..memory import advice_text
 from ..run import fpenv
 from ..run.machine import machine_info
 from ..resolution import parse_res, size_text
@@ -123,7 +124,7 @@ def bench_render(scene: str = "cornell", res=256, spp: int = 64, repeats: int = 
     out: dict[str, Any] = {"benchmark": "render", "scene": scene, "res": parse_res(res).key,
                            "spp": spp, "copies_per_call": render.batch_size(res, spp),
                            "transform": transform, "variant": variant, "rounds": repeats,
-                           "path": "kernel" if kernel else "host"}
+                           "path": "kernel" if kernel else "host", "memory": advice_text()}
     out.update(round_medians(times, _RENDER_RATIOS))
     return out
 

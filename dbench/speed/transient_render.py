@@ -27,6 +27,7 @@ from typing import Any
 
 
 from .timing import interleaved_times, round_medians
+from ..memory import advice_text
 from ..resolution import parse_res, size_text
 
 #: what each timed way is reported as, against the plain mitransient render
@@ -91,7 +92,7 @@ def bench_render_transient(scene: str = "fog-transient", res=48, spp: int = 64,
                            "spp": int(spp), "bins": window.bins,
                            "integrator": sc.integrator, "collector": frame.meta["collector"],
                            "transform": transform, "variant": variant, "rounds": repeats,
-                           "cached_hits": hits}
+                           "cached_hits": hits, "memory": advice_text()}
     out.update(round_medians(times, RATIOS))
     return out
 

@@ -22,6 +22,7 @@ def test_bench_render_transient_shape(tr, tmp_path, monkeypatch):
     assert r["plain_s"] > 0
     assert "x plain" in format_result(r) and "statistics, cached" in format_result(r)
     assert r["cached_hits"] == ["color", "stats"]  # the cached way reads, never renders
+    assert r["memory"].startswith("NumPy")  # how the process asked for memory (dbench/memory.py)
     assert list(tmp_path.iterdir()) == []  # the fresh caches are removed afterwards
 
 
