@@ -17,6 +17,7 @@ host round trips.
 """
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import os
@@ -298,10 +299,14 @@ def require_llvm(what: str) -> None:
 
 
 def versions() -> dict[str, str]:
-    """Renderer versions that change the pixels (part of every cache key).
+    """Renderer versions that change the pixels (part of every cache key), and the variant."""
+    return {**_package_versions(), "variant": current_variant()}
 
-    Read from package metadata: importing mitransient has side effects that need a variant.
-    """
+
+@functools.lru_cache(maxsize=1)
+def _package_versions() -> dict[str, str]:
+    """Read from package metadata once a process (importing mitransient has side effects that
+    need a variant; parsing the metadata took 1.5 ms, at every render's cache key)."""
     from importlib.metadata import PackageNotFoundError, version
 
     out: dict[str, str] = {}
@@ -310,5 +315,4 @@ def versions() -> dict[str, str]:
             out[mod] = version(mod)
         except PackageNotFoundError:
             out[mod] = "missing"
-    out["variant"] = current_variant()
     return out
