@@ -14,6 +14,18 @@ from dbench.run import fpenv  # noqa: E402
 _PRISTINE_FP = fpenv.snapshot()
 
 
+@pytest.fixture(autouse=True, scope="session")
+def _ctrl_c_as_at_a_terminal():
+    """Ctrl-C (SIGINT) raises KeyboardInterrupt, as in a terminal, also where the suite was
+    started as a shell's background job (``cmd &``), which starts it ignoring SIGINT: the tests
+    of interrupts, and the processes they start, would otherwise never see one."""
+    import signal
+
+    if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+
+
 @pytest.fixture(autouse=True)
 def _pristine_fp_environment():
     """Every test starts in the process's initial floating-point environment: a test that
