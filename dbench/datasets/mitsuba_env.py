@@ -108,12 +108,8 @@ def forget_probes(created: list[Path]) -> None:
 
 def _probe_key() -> str:
     # the installed version from the package's metadata: importing Mitsuba here would load
-    # Dr.Jit outside deferred_interrupts
-    from importlib import metadata
-    try:
-        version = metadata.version("mitsuba")
-    except metadata.PackageNotFoundError:  # mitsuba missing is reported later
-        version = "missing"
+    # Dr.Jit outside deferred_interrupts ("missing" is reported later)
+    version = _package_versions()["mitsuba"]
     raw = f"{sys.executable}|{version}|{os.environ.get('DRJIT_LIBLLVM_PATH', '')}"
     return hashlib.sha1(raw.encode()).hexdigest()[:16]
 
