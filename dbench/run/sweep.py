@@ -97,10 +97,6 @@ class SweepConfig:
         for name, value in (("--frames", self.frames), ("--bins", self.bins)):
             if value is not None:
                 check_count(name, value)
-        if self.normal_encoding is not None and all(self.scene(s).renders for s in self.scenes):
-            raise DbenchInputError(f"--normal-encoding: none of the sweep's scenes "
-                                   f"({', '.join(self.scenes)}) is a folder of renders; dbench "
-                                   f"renders the others, with signed normals")
 
     def scene(self, name: str):
         """The Scene of a catalogue name, scene file or folder (with ``scene_params``; a

@@ -87,8 +87,9 @@ def check_scenes(config) -> None:
     a plugin's steady scene whose dictionary Mitsuba cannot load or whose film filter is not a
     box (:func:`dbench.datasets.scenes.build.check_plugin_scene`), a sequence shorter than
     ``--frames``, a transient film too large at the sweep's size and bins
-    (:func:`dbench.datasets.transient.scene.check_bins`), and a folder of renders that
-    does not hold the sweep's size, seeds, reference spp or every spp. A folder is checked by
+    (:func:`dbench.datasets.transient.scene.check_bins`), a folder of renders that
+    does not hold the sweep's size, seeds, reference spp or every spp, and
+    ``--normal-encoding`` where no scene is a folder of renders. A folder is checked by
     the very loads its groups make (:func:`dbench.run.inputs.load_seeds`, which refuse such
     settings as ``dbench run`` does), reading only the colour of its first frame per spp. A
     film of another size than the sweep's is refused by :func:`dbench.run.sweep.plan`, whose
@@ -98,8 +99,10 @@ def check_scenes(config) -> None:
     from ..errors import DbenchInputError
     from .inputs import load_seeds
 
+    folders = 0
     for name in dict.fromkeys(config.scenes):
         scene = config.scene(name)
+        folders += not scene.renders
         if scene.renders:
             if scene.kind == "steady":  # the kind datasets.load probes, before rendering
                 check_plugin_scene(scene)
@@ -114,6 +117,10 @@ def check_scenes(config) -> None:
         for spp in config.spp:
             load_seeds(scene, config.seed, config.seeds, spp=spp, res=config.res_for(scene),
                        needs=(), ref_spp=config.ref_spp, frames=1, progress=False)
+    if config.normal_encoding is not None and not folders:
+        raise DbenchInputError(f"--normal-encoding: none of the sweep's scenes "
+                               f"({', '.join(config.scenes)}) is a folder of renders; dbench "
+                               f"renders the others, with signed normals")
 
 
 __all__ = ["check_scenes", "scene_labels"]

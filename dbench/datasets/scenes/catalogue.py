@@ -77,9 +77,13 @@ def with_normal_encoding(scene: Scene, encoding: str | None, name: str) -> Scene
 
     from ..folders.load import with_normal_encoding as encoded
 
-    info = encoded(scene.info, encoding)
-    # the scene's identity follows the folder's fingerprint, which now covers the encoding
-    return replace(scene, info=info, params={**scene.params, "fingerprint": info.fingerprint})
+    key = (str(scene.info.path), scene.info.name, scene.info.fingerprint, encoding)
+    if key not in _FOLDERS:  # as folder_scene: one object per content (and encoding)
+        info = encoded(scene.info, encoding)
+        # the scene's identity follows the folder's fingerprint, which now covers the encoding
+        _FOLDERS[key] = replace(scene, info=info,
+                                params={**scene.params, "fingerprint": info.fingerprint})
+    return _FOLDERS[key]
 
 
 def folder_scene(path: str) -> Scene:
