@@ -78,6 +78,7 @@ def _each_value(sub, what: str):
 
 _NAMES = _value_check(_is_str_list, "a list of names")
 _NAME = _value_check(lambda v: isinstance(v, str), "a name")
+_NAME_OR_NULL = _value_check(lambda v: v is None or isinstance(v, str), "a name or null")
 _TEXT = _value_check(lambda v: isinstance(v, str), "a string")
 _INT = _value_check(_is_int, "an integer")
 _INT_OR_NULL = _value_check(lambda v: v is None or _is_int(v), "an integer or null")
@@ -95,9 +96,7 @@ _CONFIG = {
                         "a size or null"),
     "ref_spp": _INT_OR_NULL, "ref_spp_default": _INT_OR_NULL, "frames": _INT_OR_NULL,
     "bins": _INT_OR_NULL, "seed": _INT, "seeds": _INT, "repeats": _INT, "lam": _NUMBER,
-    "transform": _value_check(lambda v: v is None or isinstance(v, str), "a name or null"),
-    "device": _NAME,
-    "normal_encoding": _value_check(lambda v: v is None or isinstance(v, str), "a name or null"),
+    "transform": _NAME_OR_NULL, "device": _NAME, "normal_encoding": _NAME_OR_NULL,
     "params": _PARAMS,
     "series": _each_value(_fields({"method": _NAME, "params": _OBJECT},
                                   "an object ({\"method\": name, \"params\": object})"),
@@ -281,14 +280,13 @@ def cells_since(out: Path, started: Any) -> dict[str, int]:
         t0 = datetime.strptime(str(started), "%Y-%m-%dT%H:%M:%S%z").timestamp()
     except (ValueError, OverflowError):
         return {}
-    before = {}
-    for path in (Path(out) / "cells").rglob("*.json"):
+
+    def since(path: Path) -> bool:
         try:
-            if path.stat().st_mtime >= t0:
-                before[path] = None  # counted by tally as written since
+            return path.stat().st_mtime >= t0
         except OSError:
-            continue
-    return tally(before)
+            return False
+    return _count(p for p in (Path(out) / "cells").rglob("*.json") if since(p))
 
 
 def snapshot(paths) -> dict[Path, tuple | None]:
@@ -309,18 +307,18 @@ def tally(before: dict[Path, tuple | None]) -> dict[str, int]:
     """{"cells": the cell files of ``before`` (:func:`snapshot`) that were written since,
     "failed": how many of them are error cells}: what a run computed, counted from the files it
     left, whichever way it ended (interrupted pool workers included)."""
+    return _count(path for path, was in before.items() if snapshot([path])[path] != was)
+
+
+def _count(paths) -> dict[str, int]:
+    """{"cells": how many of the files ``paths`` are whole cells, "failed": how many of those
+    are error cells}."""
     cells = failed = 0
-    for path, was in before.items():
-        try:
-            st = path.stat()
-        except OSError:
-            continue
-        if was == (st.st_ino, st.st_size, st.st_mtime_ns):
-            continue
+    for path in paths:
         try:
             cell = io.read_json(path)
         except (OSError, ValueError):
-            continue  # not a whole cell: computed again by the next run
+            continue  # gone, or not a whole cell: computed again by the next run
         cells += 1
         failed += int(isinstance(cell, dict) and cell.get("status") == "error")
     return {"cells": cells, "failed": failed}
