@@ -75,19 +75,26 @@ def wall_text(info: dict, cells: list[dict] | None = None) -> str:
     if refs:
         parts.append(f"{len(refs)} reference{'s' if len(refs) != 1 else ''} rendered in "
                      f"{sum(refs.values()):.0f} s in all")
-    return ", ".join(parts + machines_text(cells or []))
+    return ", ".join(parts + machines_text(cells or []) + variants_text(cells or []))
+
+
+def _tally(cells: list[dict], field: str) -> dict[str, int]:
+    """Computed cells per value of ``field`` ("not recorded" for cells older than it); skip
+    and error records time and render nothing, so they are not counted."""
+    counts: dict[str, int] = {}
+    for c in cells:
+        if c.get("status", "ok") != "ok":
+            continue
+        label = c.get(field) if isinstance(c.get(field), str) and c.get(field) else "not recorded"
+        counts[label] = counts.get(label, 0) + 1
+    return counts
 
 
 def machines_text(cells: list[dict]) -> list[str]:
     """Where the computed cells were timed (each cell records its machine; older cells do
     not): one entry per machine with its cell count, and a warning when they differ, since
-    ``time_s`` of two machines do not compare. Skip and error records are not counted."""
-    counts: dict[str, int] = {}
-    for c in cells:
-        if c.get("status", "ok") != "ok":  # skip and error records time nothing
-            continue
-        label = c.get("machine") if isinstance(c.get("machine"), str) else "not recorded"
-        counts[label] = counts.get(label, 0) + 1
+    ``time_s`` of two machines do not compare."""
+    counts = _tally(cells, "machine")
     if not counts:
         return []
     if list(counts) == ["not recorded"]:
@@ -96,6 +103,24 @@ def machines_text(cells: list[dict]) -> list[str]:
     text = "cells timed on " + "; ".join(f"{k} ({v})" for k, v in sorted(counts.items()))
     if len(counts) > 1:
         text += " (**times from different machines do not compare**)"
+    return [text]
+
+
+def variants_text(cells: list[dict]) -> list[str]:
+    """What rendered the cells' inputs and references: each cell's ``render_variant``, the
+    Mitsuba variant (``llvm_ad_rgb``, ``cuda_ad_rgb``; ``files`` for a folder of renders),
+    with its cell count. A CUDA render is not bit-identical to an LLVM one and takes another
+    time, so cells of several variants are flagged (README.md, "How renders work")."""
+    counts = _tally(cells, "render_variant")
+    if not counts:
+        return []
+    if list(counts) == ["not recorded"]:
+        return [f"the Mitsuba variant that rendered the inputs is not recorded "
+                f"({counts['not recorded']} cells, computed before cells recorded it)"]
+    text = "inputs rendered by " + "; ".join(f"{k} ({v})" for k, v in sorted(counts.items()))
+    if len(counts) > 1:
+        text += (" (**several variants: their inputs and references are other samples, and "
+                 "their render times do not compare**)")
     return [text]
 
 

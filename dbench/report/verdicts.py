@@ -363,8 +363,8 @@ def ref_cost_text(cells: Iterable[dict], scene: str, res: Any, ref_spp: float,
     """What a ``need``-spp reference of ``scene`` at ``res`` would take to render, from the
     ``ref_render_s`` the cells record for their ``ref_spp`` reference, scaled linearly with spp
     (a reference is ``ref_spp`` independent samples per pixel: README.md, "How renders work"),
-    and the machine those cells name; '' when no cell records the time. Cached references
-    keep the time of their first render."""
+    and the machine and Mitsuba variant those cells name; '' when no cell records the time.
+    Cached references keep the time of their first render."""
     from ..errors import DbenchInputError
     from ..resolution import parse_res
 
@@ -384,7 +384,8 @@ def ref_cost_text(cells: Iterable[dict], scene: str, res: Any, ref_spp: float,
         if math.isfinite(t) and t > 0:
             times[repr(c.get("ref_seed"))] = t  # one time per distinct reference
             if isinstance(c.get("machine"), str) and c["machine"]:
-                machines.add(c["machine"])
+                v = c.get("render_variant")  # what rendered it: CUDA and LLVM differ in time
+                machines.add(c["machine"] + (f", {v}" if isinstance(v, str) and v else ""))
     if not times or not (math.isfinite(ref_spp) and ref_spp > 0 and math.isfinite(need)):
         return ""
     t = float(np.median(list(times.values())))

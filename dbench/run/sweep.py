@@ -279,6 +279,8 @@ def cell_record(res, frames: list, needs: set[str]) -> dict[str, Any]:
               **res.metrics, "time_s": res.time_s, "time_s_iqr": res.time_s_iqr,
               "times_s": res.times_s, "n_nonfinite": res.n_nonfinite,
               "per_seed": res.per_seed, "machine": machine_label(),
+              # what rendered the inputs: a CUDA render is not bit-identical to an LLVM one
+              "render_variant": (first.meta.get("versions") or {}).get("variant"),
               "device": res.device, "device_name": res.device_name, "backend": res.backend}
     if res.transfer_s:
         # host↔device copies of a device cell, timed apart from the method (median per seed)

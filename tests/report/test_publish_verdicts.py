@@ -419,5 +419,27 @@ def test_reference_warning_states_its_cost():
     assert "on a machine the cells do not record" in verdicts.ref_warnings_md(
         d, [{k: v for k, v in c.items() if k != "machine"} for c in cells])[0]
     assert publish.reference_md(d, None, cells)[2] == line
+    # the Mitsuba variant that rendered the reference is named with the machine
+    gpu = [{**c, "machine": "Test CPU, 16 cores", "render_variant": "cuda_ad_rgb"}
+           for c in cells]
+    assert ("measured on Test CPU, 16 cores, cuda_ad_rgb, scaled linearly"
+            in verdicts.ref_warnings_md(d, gpu)[0])
     assert [verdicts.seconds_text(s) for s in (2.5, 45, 600, 9000)] == [
         "2.5 s", "45 s", "10 min", "2.5 h"]
+
+
+def test_reports_state_the_variant_that_rendered_the_inputs():
+    """Each cell records the Mitsuba variant of its renders; the report counts them and flags
+    cells of several variants (their samples and render times differ)."""
+    cells = [{"status": "ok", "render_variant": "llvm_ad_rgb"} for _ in range(3)]
+    assert publish.variants_text(cells) == ["inputs rendered by llvm_ad_rgb (3)"]
+    skipped = [{"status": "skipped"}, {"status": "error", "render_variant": "x"}]
+    assert publish.variants_text(cells + skipped) == publish.variants_text(cells)
+    mixed = publish.variants_text(cells + [{"render_variant": "cuda_ad_rgb"}])[0]
+    assert mixed.startswith("inputs rendered by cuda_ad_rgb (1); llvm_ad_rgb (3)")
+    assert "render times do not compare" in mixed
+    old = publish.variants_text([{"status": "ok"}, {"render_variant": None}])
+    assert old == ["the Mitsuba variant that rendered the inputs is not recorded (2 cells, "
+                   "computed before cells recorded it)"]
+    assert publish.variants_text([]) == []
+    assert "inputs rendered by llvm_ad_rgb (3)" in publish.wall_text({}, cells)

@@ -45,6 +45,9 @@ def test_sweep_writes_one_cell_per_file_and_resumes(renderer, tmp_path):
 
     # every cell and run records where it was timed
     assert all(c["machine"] == machine_label() for c in cells)
+    # and what rendered its inputs (the variant this process renders with)
+    from dbench.datasets.mitsuba_env import current_variant
+    assert {c["render_variant"] for c in cells} == {current_variant()}
     assert sweep.read_cell(out / "sweep.json")["runs"][-1]["machine"] == machine_label()
     assert machines_text(cells) == [f"cells timed on {machine_label()} (8)"]
     assert machines_text(cells + [{"status": "skipped"}]) == machines_text(cells)
