@@ -70,7 +70,8 @@ def scene_fingerprint(scene: str | Scene, res) -> str:
     """A short content hash (16 hex chars of sha256) of ``scene`` at ``res``: the canonical
     scene description (the Mitsuba dictionary through :func:`~dbench.datasets.cache.canonical`,
     ``params``, renderer :func:`versions`); every frame's dictionary for sequence scenes, the
-    transient dictionary with the default window for transient scenes. Renders nothing.
+    transient dictionary with the default window for transient scenes; the tone map's ``ev``
+    where it is not 0. Renders nothing.
     Two results with the same fingerprint were rendered from the same scene content."""
     sc = scene if isinstance(scene, Scene) else _scenes.get(scene)
     res = parse_res(res)
@@ -97,6 +98,11 @@ def scene_fingerprint(scene: str | Scene, res) -> str:
                 "samples": _render.SAMPLES_VERSION}
     # the emitter buffer feeds the surface metrics and the methods that keep lights
     desc["emitter"] = _emitter.EMITTER_VERSION
+    if float(sc.ev) != 0.0:
+        # the tone map's exposure changes the LDR metrics (PSNR, SSIM, FLIP) and pictures,
+        # not the renders; named only where it is set, so every scene at 0 EV keeps its
+        # fingerprint and cells
+        desc["ev"] = float(sc.ev)
     return make_key(desc)[:16]
 
 

@@ -3,7 +3,8 @@
 An entry is a folder ``<root>/<kind>/<key>/`` holding ``buffers.exr`` (float32 images with
 named channels), optionally ``arrays.npz`` (float64 statistics, which EXR cannot hold), and
 ``meta.json``. The key is a hash of everything that changes the pixels: the scene dictionary
-itself (canonicalised, so editing a scene invalidates its entries), resolution, spp, seed (for
+itself (canonicalised, so editing a scene invalidates its entries, with the bytes of every
+file it names by ``"filename"``: :mod:`.file_refs`), resolution, spp, seed (for
 references: the reference seed ``ref_seed``, not the noisy seed, so noisy renders of several
 seeds share one reference entry), integrator settings, transform, the Mitsuba / Dr.Jit /
 mitransient versions and variant, and version markers of what an entry holds (``emitter`` in
@@ -57,6 +58,7 @@ from .. import io
 from ..errors import OutputError
 from ..memory import small_pages
 from . import sparse_rows
+from .file_refs import file_ref
 
 CACHE_FORMAT = 1
 #: The format of an entry whose arrays.npz holds packed rows (:mod:`.sparse_rows`), integer
@@ -74,7 +76,10 @@ def default_root() -> Path:
 def canonical(obj: Any) -> Any:
     """A JSON-able, deterministic description of a scene dictionary (Mitsuba objects included)."""
     if isinstance(obj, dict):
-        return {str(k): canonical(v) for k, v in sorted(obj.items(), key=lambda kv: str(kv[0]))}
+        # a "filename" string stands for the bytes Mitsuba reads for it: an edited texture or
+        # mesh is another scene (dbench.datasets.file_refs)
+        return {str(k): file_ref(v) if k == "filename" and isinstance(v, str) else canonical(v)
+                for k, v in sorted(obj.items(), key=lambda kv: str(kv[0]))}
     if isinstance(obj, (list, tuple)):
         return [canonical(v) for v in obj]
     if isinstance(obj, (bool, int, str)) or obj is None:

@@ -49,7 +49,9 @@ refused too (exit 2), never the file's own exit code. Optional module attributes
   required; :func:`dbench.datasets.transient.load.size_window` measures them), ``bins`` (default
   200), ``integrator`` (``transient_path``, or ``transient_prbvolpath`` for media).
 
-The cache key of a Python scene is its dictionary (as for the catalogue) plus the file's bytes.
+The cache key of a Python scene is its dictionary (as for the catalogue) plus the file's bytes;
+the dictionary's ``"filename"`` strings are keyed by the bytes of the files they name
+(:mod:`dbench.datasets.file_refs`), so an edited texture or mesh renders afresh.
 
 Example:
     >>> sc = resolve("my/scene.xml", {"spp": "16"})                 # doctest: +SKIP
@@ -77,6 +79,7 @@ from ..scenes.record import STEADY_BUFFERS, Scene
 from ..scenes.build import call_build, exit_message, probe_load
 from ..scenes.build import own_camera as _own_camera
 from .assets import asset_hashes as _sources
+from ..file_refs import referenced
 from ..scenes.parts import film_dict
 from .fidelity import FILTER, record, report_lines
 from .integrator import DEFAULT_MAX_DEPTH, IntegratorPlan, plan as _integrator_plan
@@ -101,8 +104,23 @@ def parse_scene_params(items) -> dict[str, str]:
         key, sep, value = str(item).partition("=")
         if not sep or not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", key.strip()):
             raise DbenchInputError(f"--scene-param: expected NAME=VALUE, got {item!r}")
+        _check_finite(key.strip(), value)
         out[key.strip()] = value
     return out
+
+
+def _check_finite(key: str, value: str) -> None:
+    """Refuse a value holding a number that is not finite (``nan``, ``inf``, ``1e400``, in
+    a list such as ``1,nan,2`` too): Mitsuba takes it, and a light of NaN radiance renders a
+    black image that every method then matches perfectly."""
+    for token in re.split(r"[\s,]+", value.strip()):
+        try:
+            number = float(token)
+        except ValueError:
+            continue  # not a number: a name, a file, a colour word
+        if not math.isfinite(number):
+            raise DbenchInputError(f"--scene-param {key}={value}: {token!r} is not a finite "
+                                   f"number")
 
 
 def resolve(path: str | Path, params: dict[str, str] | None = None) -> Scene:
@@ -127,7 +145,11 @@ def resolve(path: str | Path, params: dict[str, str] | None = None) -> Scene:
         sources = _sources(str(p), params)
         digest = _sha256(repr(sorted(sources.items())).encode())
         return _xml_scene(str(p), tuple(sorted(params.items())), digest)
-    return _python_scene(str(p), (), _sha256(p.read_bytes()))
+    digest = _sha256(p.read_bytes())
+    # one object per content of the files its dictionary names too: the renders' in-process
+    # caches are keyed by the object, and an edited texture must not be served from them
+    files = referenced(_built(_module(str(p), digest), str(p), mitsuba(), 8))
+    return _python_scene(str(p), files, digest)
 
 
 def _sha256(data: bytes) -> str:
@@ -260,6 +282,7 @@ def _sensor_dict(mi, loaded, res: Res, path: str) -> dict:
 # Python files
 
 
+@lru_cache(maxsize=32)
 def _module(path: str, digest: str):
     spec = importlib.util.spec_from_file_location(f"dbench_scene_{digest[:12]}", path)
     module = importlib.util.module_from_spec(spec)
@@ -275,6 +298,16 @@ def _module(path: str, digest: str):
     if not callable(getattr(module, "build", None)):
         raise DbenchInputError(f"--scene {path}: defines no build(mi, width, height) -> dict")
     return module
+
+
+def _current(d: dict, files: tuple, path: str) -> dict:
+    """``d``, refused where the files it names are no longer the ones its scene was resolved
+    with (an object held across an edit would key new renders by the new bytes and render
+    the old ones from the in-process caches)."""
+    if referenced(d) != files:
+        raise DbenchInputError(f"--scene {path}: a file the scene names by \"filename\" changed "
+                               f"after the scene was resolved; resolve it again")
+    return d
 
 
 def _built(module, path: str, mi, res) -> dict:
@@ -294,7 +327,10 @@ def _built(module, path: str, mi, res) -> dict:
 
 
 @lru_cache(maxsize=32)
-def _python_scene(path: str, params: tuple, digest: str) -> Scene:
+def _python_scene(path: str, files: tuple, digest: str) -> Scene:
+    """The scene of the Python file at ``path`` (bytes ``digest``) whose dictionary names the
+    files ``files`` ((name, sha256), dbench.datasets.file_refs.referenced; () before they are
+    known)."""
     mi = mitsuba()
     module = _module(path, digest)
     kind = getattr(module, "kind", "steady")
@@ -304,22 +340,23 @@ def _python_scene(path: str, params: tuple, digest: str) -> Scene:
         "max_depth") or DEFAULT_MAX_DEPTH
     common = dict(name=Path(path).name, kind=kind,
                   description=getattr(module, "description", f"Python scene file {path}"),
-                  max_depth=int(depth), params={"sha256": digest},
+                  max_depth=int(depth),
+                  params={"sha256": digest, **({"files": dict(files)} if files else {})},
                   ev=float(getattr(module, "ev", 0.0)))
 
     def build(mi, res):
-        return _own_camera(_built(module, path, mi, res), res)
+        return _own_camera(_current(_built(module, path, mi, res), files, path), res)
 
     if kind == "steady":
         return Scene(build=build, **common)
     if kind == "sequence":
-        return _python_sequence(module, path, probe, common)
+        return _python_sequence(module, path, probe, common, build)
     if kind == "transient":
         return _python_transient(module, path, build, common)
     raise DbenchInputError(f"--scene {path}: kind {kind!r}; valid: steady, sequence, transient")
 
 
-def _python_sequence(module, path: str, probe: dict, common: dict) -> Scene:
+def _python_sequence(module, path: str, probe: dict, common: dict, build) -> Scene:
     from ..sequence.scene import SEQUENCE_BUFFERS, SequenceScene
 
     if not callable(getattr(module, "camera", None)):
@@ -328,11 +365,11 @@ def _python_sequence(module, path: str, probe: dict, common: dict) -> Scene:
     lights = getattr(module, "lights", None) or (lambda i: {})
 
     def geometry(mi):
-        d = _built(module, path, mi, 8)
+        d = build(mi, parse_res(8))
         return {k: v for k, v in d.items() if k not in ("type", "sensor", "integrator")}
 
     fov = float(probe["sensor"].get("fov", 39.3))
-    return SequenceScene(build=lambda mi, res: _own_camera(_built(module, path, mi, res), res),
+    return SequenceScene(build=build,
                          provides=SEQUENCE_BUFFERS, n_frames=int(getattr(module, "frames", 24)),
                          geometry=geometry, camera=module.camera, lights=lights, fov=fov,
                          **common)

@@ -407,8 +407,11 @@ def load_sequence(scene: str | SequenceScene, spp: int = 1, res=64,
                     lambda: {"gradient": render_frame(sc, res, spp, seed, i - 1, i, i - 1)["color"]},
                     meta, f"gradient{i}")["gradient"]
             else:
+                # the samples re-shade frame i-1's paths (its camera, lights and noisy
+                # G-buffer) in frame i: its dictionary is part of what they are
                 desc = base(i, "gradient-reshade", spp=int(spp), seed=int(seed),
-                            aovs=_render.AOV_STRING, reshade=RESHADE_VERSION, **samples, **psr)
+                            aovs=_render.AOV_STRING, reshade=RESHADE_VERSION,
+                            previous=sc.frame_dict(mi, res, i - 1), **samples, **psr)
                 images, seconds = _cached_entry(
                     cache, "seq-gradient", desc,
                     lambda: {"gradient": reshade_frame(sc, res, i, prev_noisy,

@@ -1,0 +1,132 @@
+"""What a Python scene's renders and cells are keyed by: the files its dictionary names, the
+previous frame behind a re-shaded gradient, the tone map's exposure (README.md, "Your scene,
+your renders, any size"; dbench/datasets/file_refs.py)."""
+from __future__ import annotations
+
+import os
+
+import numpy as np
+import pytest
+
+from dbench.datasets.cache import canonical
+from dbench.errors import DbenchInputError
+
+TEXTURED = '''
+from pathlib import Path
+HERE = Path(__file__).parent
+
+def build(mi, width, height):
+    T = mi.ScalarTransform4f
+    return {"type": "scene",
+            "sensor": {"type": "perspective", "fov": 45,
+                       "to_world": T().look_at(origin=[0, 2, 3], target=[0, 0, 0], up=[0, 1, 0])},
+            "floor": {"type": "rectangle", "to_world": T().rotate([1, 0, 0], -90).scale(2),
+                      "bsdf": {"type": "diffuse", "reflectance": {
+                          "type": "bitmap", "filename": str(HERE / "tex.exr")}}},
+            "sky": {"type": "constant", "radiance": {"type": "rgb", "value": [1, 1, 1]}},
+            "integrator": {"type": "path", "max_depth": 3}}
+'''
+
+
+def _write_texture(path, value: float) -> None:
+    from dbench.datasets.folders import exr_layers
+    exr_layers.write_channels(path, {c: np.full((8, 8), value, np.float32) for c in "RGB"})
+
+
+def _scene(path, text):
+    from dbench.datasets.scenes import catalogue as scenes
+    path.write_text(text)
+    return scenes.get(str(path))
+
+
+def test_a_filename_is_keyed_by_the_bytes_it_names(renderer, tmp_path, monkeypatch):
+    (tmp_path / "a.exr").write_bytes(b"one")
+    (tmp_path / "b.exr").write_bytes(b"two")
+    monkeypatch.chdir(tmp_path)
+    one = canonical({"t": {"type": "bitmap", "filename": "a.exr"}})
+    assert one["t"]["filename"]["file"] == "a.exr"  # the name as written, not where it lies
+    assert one != canonical({"t": {"type": "bitmap", "filename": "b.exr"}})
+    os.rename("b.exr", "a.exr")
+    assert canonical({"t": {"type": "bitmap", "filename": "a.exr"}}) != one
+    assert canonical({"filename": "nowhere.exr"})["filename"] == {"file": "nowhere.exr",
+                                                                "sha256": None}
+
+
+def test_an_edited_texture_of_a_python_scene_renders_afresh(renderer, tmp_path):
+    from dbench import datasets
+    _write_texture(tmp_path / "tex.exr", 0.8)
+    sc = _scene(tmp_path / "floor.py", TEXTURED)
+    cache = datasets.Cache(tmp_path / "c")
+    kw = dict(spp=2, res=16, needs={"color"}, progress=False, cache=cache)
+    bright = datasets.load(sc, **kw)
+    before = datasets.scene_fingerprint(sc, 16)
+    assert datasets.load(sc, **kw).meta["cache_hits"]
+    _write_texture(tmp_path / "tex.exr", 0.1)  # the .py file itself is unchanged
+    from dbench.datasets.scenes import catalogue as scenes
+    again = scenes.get(str(tmp_path / "floor.py"))
+    assert again is not sc and datasets.scene_fingerprint(again, 16) != before
+    dark = datasets.load(again, **kw)
+    assert not dark.meta["cache_hits"]
+    assert dark.color.mean() < 0.5 * bright.color.mean()
+    # the object resolved before the edit is refused, never keyed by the new bytes while its
+    # in-process scene still holds the old ones
+    with pytest.raises(DbenchInputError, match="floor.py.*changed after the scene was resolved"):
+        datasets.load(sc, **kw)
+
+
+ORBIT = '''
+kind = "sequence"
+frames = 2
+
+def build(mi, width, height):
+    T = mi.ScalarTransform4f
+    return {"type": "scene",
+            "sensor": {"type": "perspective", "fov": 45,
+                       "to_world": T().look_at(origin=[0, 1, 4], target=[0, 0.3, 0], up=[0, 1, 0])},
+            "floor": {"type": "rectangle", "to_world": T().rotate([1, 0, 0], -90).scale(3),
+                      "bsdf": {"type": "diffuse"}},
+            "ball": {"type": "sphere", "center": [0, 0.5, 0], "radius": 0.5},
+            "sky": {"type": "constant", "radiance": {"type": "rgb", "value": [1, 1, 1]}},
+            "integrator": {"type": "path", "max_depth": 3}}
+
+def camera(i):
+    # the path of the first frame is read from a file beside the scene (as a camera track
+    # would be): the .py file stays the same when it changes
+    from pathlib import Path
+    first = float((Path(__file__).parent / "first.txt").read_text())
+    return ((first if i == 0 else 0.0), 1.0, 4.0), (0, 0.3, 0)
+'''
+
+
+def test_a_reshaded_gradient_is_keyed_by_the_frame_it_reshades(renderer, tmp_path):
+    from dbench import datasets
+    cache = datasets.Cache(tmp_path / "c")
+    kw = dict(spp=1, res=12, needs={"color", "gradient"}, progress=False, cache=cache)
+    (tmp_path / "first.txt").write_text("0.0")
+    sc = _scene(tmp_path / "orbit.py", ORBIT)
+    datasets.load(sc, **kw)
+    assert "gradient1" in datasets.load(sc, **kw).meta["cache_hits"]
+    # only frame 0's camera moves: frame 1's dictionary is the same, its gradient is not
+    (tmp_path / "first.txt").write_text("2.0")
+    moved = datasets.load(sc, **kw)
+    assert "frame1" in moved.meta["cache_hits"] and "gradient1" in moved.meta["rendered"]
+
+
+def test_the_exposure_is_part_of_a_scene_identity(renderer, tmp_path):
+    """A plugin's scene or a folder's dataset.json can change ``ev`` alone (a Python file's
+    bytes change with it anyway): the same content at another exposure is another cell."""
+    from dataclasses import replace
+
+    from dbench import datasets
+    from dbench.datasets.scenes import catalogue as scenes
+    cornell = scenes.get("cornell")
+    assert cornell.ev == 0.0
+    plain = datasets.scene_fingerprint(cornell, 16)
+    assert datasets.scene_fingerprint(replace(cornell, ev=1.5), 16) != plain
+    # at 0 EV the description is what it always was: cells made before keep their identity
+    assert datasets.scene_fingerprint(replace(cornell, ev=0.0), 16) == plain
+
+
+@pytest.fixture(autouse=True)
+def _own_dir(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
