@@ -99,6 +99,19 @@ def ensure_writable_dir(path: str | os.PathLike, what: str) -> Path:
     return path
 
 
+def ensure_writable_file(path: str | os.PathLike, what: str) -> Path:
+    """Check that file ``path`` can be written (its folder created where missing), before any
+    work is done: a DbenchInputError naming ``what`` when it is a folder, lies under a file,
+    or cannot be written."""
+    path = Path(path)
+    if path.is_dir():
+        raise DbenchInputError(f"{what} {path}: is a folder; give a file name")
+    ensure_writable_dir(path.parent, what)
+    if path.exists() and not os.access(path, os.W_OK):
+        raise DbenchInputError(f"{what} {path}: cannot write there (read-only file)")
+    return path
+
+
 def write_text(path: str | os.PathLike, text: str) -> None:
     """Write ``text`` as UTF-8 whatever the locale (a C/ASCII locale must not fail on "×")."""
     with atomic_path(path) as tmp:

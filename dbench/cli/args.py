@@ -212,6 +212,15 @@ def _scene_of(args: argparse.Namespace):
     return scenes.with_normal_encoding(scene, getattr(args, "normal_encoding", None), args.scene)
 
 
+def check_kind_options(args: argparse.Namespace, scene) -> None:
+    """Refuse ``--frames`` for a scene that is not a sequence and ``--bins`` for one that is not
+    transient: read by nothing, they would leave the user believing the run used them."""
+    for option, kind in (("frames", "sequence"), ("bins", "transient")):
+        if getattr(args, option, None) is not None and scene.kind != kind:
+            raise DbenchInputError(f"--{option}: only {kind} scenes take it; "
+                                   f"{args.scene} is a {scene.kind} scene")
+
+
 def _default_spp(scene, fallback: int = 16) -> int:
     """``--spp`` when not given: ``fallback`` for rendered scenes; a folder's only spp (a
     folder with several makes the user choose)."""

@@ -1,7 +1,9 @@
 """Bounds of the count options, checked before a command does anything.
 
 Counts (``--spp``, ``--ref-spp``, ``--frames``, ``--bins``, ``--seeds``, ``--repeats``) are
-integers in [1, :data:`MAX_COUNT`]; ``1e3`` is read as 1000. Anything else (``--ref-spp 1e20``,
+integers in [1, :data:`MAX_COUNT`]; ``1e3`` is read as 1000. The other integer options are
+read by :func:`integer` and the real-valued ones by :func:`number` (finite), so that ``--lam
+abc`` is one line too. Anything else (``--ref-spp 1e20``,
 ``--spp 0``, ``--bins many``) is refused before the command resolves a scene or renders, with
 one line naming the option and the valid range, exit 2, as every other bad input
 (dbench/cli/__init__.py). ``--bins`` is further bounded by the memory of the transient film at
@@ -59,6 +61,31 @@ def count(text: str) -> int | BadCount:
         return bad
 
 
+def integer(text: str) -> int | BadCount:
+    """argparse ``type`` of the other integer options (``--width``, ``--workers``, ``--steps``):
+    the int (its range is checked where it is used), or a :class:`BadCount`."""
+    try:
+        return int(str(text).strip())
+    except ValueError:
+        bad = BadCount(text)
+        bad.why = f"expected an integer, got {str(text)!r}"
+        return bad
+
+
+def number(text: str) -> float | BadCount:
+    """argparse ``type`` of the real-valued options (``--lam``, ``--minutes``): a finite float,
+    or a :class:`BadCount`."""
+    try:
+        value = float(str(text).strip())
+    except ValueError:
+        value = math.nan
+    if not math.isfinite(value):
+        bad = BadCount(text)
+        bad.why = f"expected a finite number, got {str(text)!r}"
+        return bad
+    return value
+
+
 def check_counts(args: argparse.Namespace) -> None:
     """A DbenchInputError naming the first count option of ``args`` that is a BadCount."""
     for dest, value in vars(args).items():
@@ -66,4 +93,4 @@ def check_counts(args: argparse.Namespace) -> None:
             raise DbenchInputError(f"--{dest.replace('_', '-')}: {value.why}")
 
 
-__all__ = ["MAX_COUNT", "parse_count", "count", "BadCount", "check_counts"]
+__all__ = ["MAX_COUNT", "parse_count", "count", "integer", "number", "BadCount", "check_counts"]

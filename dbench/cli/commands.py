@@ -8,7 +8,7 @@ from pathlib import Path
 
 from ..errors import DbenchInputError
 from .args import (RANKABLE, _check_common, _ints, _scene_of, _split, _writable_cache,
-                   parse_params)
+                   check_kind_options, parse_params)
 
 
 def cmd_list(args: argparse.Namespace) -> int:
@@ -65,7 +65,7 @@ def cmd_render(args: argparse.Namespace) -> int:
     chosen = [scenes.get(n, params) for n in names]
     sizes = [parse_res(args.res, "--res") if args.res is not None else datasets.default_res(sc)
              for sc in chosen]
-    cache = datasets.Cache(args.cache, enabled=not args.no_cache)
+    cache = _writable_cache(args)  # --cache naming what cannot be written: exit 2
     for name, sc, res in zip(names, chosen, sizes):
         frame = datasets.load(sc, spp=args.spp, res=res, seed=args.seed,
                               ref_spp=args.ref_spp, cache=cache)
@@ -92,6 +92,7 @@ def cmd_export(args: argparse.Namespace) -> int:
     if scene.kind == "transient":
         raise DbenchInputError(f"--scene {args.scene}: transient videos have no place in the "
                                f"folder layout; export steady or sequence scenes")
+    check_kind_options(args, scene)
     spps = _ints(args.spp, "--spp")
     for spp in spps:
         check_count("--spp", spp)
@@ -105,6 +106,7 @@ def cmd_export(args: argparse.Namespace) -> int:
     if scene.kind == "steady":
         check_plugin_scene(scene)
     datasets.scene_fingerprint(scene, res)
+    _check_export_folder(out, scene, args.ref_spp)
     cache = _writable_cache(args)
     created = missing_folders(out)
     ensure_writable_dir(out, "--out")
@@ -135,13 +137,50 @@ def cmd_export(args: argparse.Namespace) -> int:
     return 0
 
 
+def _check_export_folder(out: Path, scene, ref_spp: int | None) -> None:
+    """Refuse an ``--out`` that holds other files than an export of this scene with the same
+    reference spp and exposure: its ``dataset.json`` (one per folder) would be rewritten for
+    this scene, mis-describing the renders already there, and files of other tools would
+    mix with these."""
+    import json
+
+    from ..datasets.references import reference_spp
+
+    if not out.is_dir() or not any(out.iterdir()):
+        return
+    try:
+        old = json.loads((out / "dataset.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        old = None
+    if not isinstance(old, dict):
+        raise DbenchInputError(f"--out {out}: a folder holding other files and no export's "
+                               f"dataset.json; export into a new or empty folder")
+    want = {"scene": scene.name, "ref_spp": (int(ref_spp or reference_spp())
+                                             if "reference" in scene.provides else None),
+            "ev": float(scene.ev)}
+    for key, value in want.items():
+        if old.get(key) != value:
+            raise DbenchInputError(f"--out {out}: holds an export with {key} {old.get(key)!r}, "
+                                   f"not {value!r}; export into a new or empty folder (one "
+                                   f"dataset.json describes the whole folder)")
+
+
 def cmd_bench(args: argparse.Namespace) -> int:
     from ..speed import timing as speed
     from ..resolution import parse_res
 
+    if args.scene is not None and args.what != "render":
+        raise DbenchInputError(f"--scene: only bench render renders a scene, not {args.what!r} "
+                               f"(methods and metrics are timed on synthetic frames)")
+    args.scene = args.scene or "cornell"
+    if args.out:  # checked before the benchmark: a refusal after it would lose its figures
+        from ..io import ensure_writable_file
+        ensure_writable_file(args.out, "--out")
     # --res sets the render benchmark's size (default 256) and, when given, the image size of
     # the method and metric benchmarks (instead of --width/--height)
-    if args.res is not None:
+    if args.res is None:
+        parse_res((args.width, args.height), "--width/--height")
+    else:
         args.res = parse_res(args.res, "--res")
         args.width, args.height = args.res
     if args.spp is not None and args.spp < 1:

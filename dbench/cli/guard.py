@@ -1,5 +1,6 @@
-"""What every command runs inside (set by :func:`dbench.cli.parser.build_parser`): the count
-options checked first (:mod:`dbench.cli.bounds`), and no exit code but dbench's own.
+"""What every command runs inside (set by :func:`dbench.cli.parser.build_parser`): options
+given an empty value refused and the count options checked first (:mod:`dbench.cli.bounds`),
+and no exit code but dbench's own.
 
 A plugin's method, a scene file or a plugin scene is code from outside dbench; where dbench
 calls it, a ``sys.exit`` becomes a failure it reports itself (the method's row of a run, a
@@ -25,10 +26,27 @@ def _caller(exc: BaseException) -> str:
     return f"{frames[-1].filename}:{frames[-1].lineno}" if frames else "unknown code"
 
 
+#: The positional arguments, named without dashes in refusals.
+_POSITIONAL = {("export", "scene"), ("bench", "what"), ("train", "method")}
+
+
+def check_empty(args: argparse.Namespace) -> None:
+    """A DbenchInputError naming the first option given an empty value (``--method ''``,
+    ``--out ''``, ``--spp ,``): no option takes one, and reading it as "not given" would run
+    the default (the noisy input alone, every scene, the working directory) in its place."""
+    for dest, value in vars(args).items():
+        values = value if isinstance(value, list) else [value]
+        if any(isinstance(v, str) and not v.replace(",", "").strip() for v in values):
+            name = dest if (args.command, dest) in _POSITIONAL else f"--{dest.replace('_', '-')}"
+            raise DbenchInputError(f"{name}: empty ({value!r}); give a value "
+                                   f"(dbench {args.command} --help lists the choices)")
+
+
 def command(func: Callable[[argparse.Namespace], int]) -> Callable[[argparse.Namespace], int]:
     """``func`` (a command) with the module docstring's checks."""
     @functools.wraps(func)
     def run(args: argparse.Namespace) -> int:
+        check_empty(args)
         check_counts(args)
         try:
             return func(args)
@@ -42,4 +60,4 @@ def command(func: Callable[[argparse.Namespace], int]) -> Callable[[argparse.Nam
     return run
 
 
-__all__ = ["command"]
+__all__ = ["command", "check_empty"]

@@ -4,7 +4,7 @@ from __future__ import annotations
 import argparse
 
 from .args import normal_encoding_arg, seed_arg
-from .bounds import count
+from .bounds import count, integer, number
 from .commands import (cmd_bench, cmd_export, cmd_list, cmd_render, cmd_report, cmd_stress,
                        cmd_sweep, cmd_train)
 from .guard import command
@@ -59,7 +59,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--repeats", type=count, default=5, help="timed calls after one warm-up")
     r.add_argument("--transform", default=None, help="sample transform of the statistics "
                    "(default: box-cox for steady scenes, identity for transient ones)")
-    r.add_argument("--lam", type=float, default=0.5)
+    r.add_argument("--lam", type=number, default=0.5)
     r.add_argument("--frames", type=count, default=None, help="sequence scenes: frames from the "
                    "start (default all)")
     r.add_argument("--bins", type=count, default=None, help="transient scenes: time bins "
@@ -92,12 +92,12 @@ def build_parser() -> argparse.ArgumentParser:
     sw.add_argument("--out", default="results/sweep", help="the sweep's folder: its cells "
                     "are reused where their identity matches; one sweep at a time holds it")
     sw.add_argument("--executor", choices=("local", "ray"), default="local")
-    sw.add_argument("--workers", type=int, default=1, help="local process-pool size")
+    sw.add_argument("--workers", type=integer, default=1, help="local process-pool size")
     sw.add_argument("--repeats", type=count, default=5)
     sw.add_argument("--param", action="append", metavar="[METHOD.]KEY=VALUE")
     sw.add_argument("--transform", default=None, help="sample transform of the statistics "
                     "(default: box-cox for steady scenes, identity for transient ones)")
-    sw.add_argument("--lam", type=float, default=0.5)
+    sw.add_argument("--lam", type=number, default=0.5)
     sw.add_argument("--frames", type=count, default=None, help="sequence scenes: frames from the "
                     "start (default all)")
     sw.add_argument("--bins", type=count, default=None, help="transient scenes: time bins "
@@ -148,7 +148,8 @@ def build_parser() -> argparse.ArgumentParser:
                     "the plain metrics), 'video-metrics' (ColorVideoVDP against the "
                     "per-frame and temporal metrics on a sequence), 'scene-file' (an XML scene against the catalogue's), "
                     "'plugins' (entry-point discovery time) or a method name")
-    bp.add_argument("--scene", default="cornell")
+    bp.add_argument("--scene", default=None, help="render: the scene rendered (default "
+                    "cornell; a transient scene times its per-bin statistics)")
     bp.add_argument("--res", default=None, help="image size: N (N×N) or WIDTHxHEIGHT, "
                     "e.g. 1280x720 (render: default 256; methods, metrics: default --width "
                     "× --height)")
@@ -160,8 +161,8 @@ def build_parser() -> argparse.ArgumentParser:
                     "time bins (default 100; the window stays the scene's)")
     bp.add_argument("--param", action="append", metavar="KEY=VALUE",
                     help="a parameter of the method timed (repeatable)")
-    bp.add_argument("--height", type=int, default=720)
-    bp.add_argument("--width", type=int, default=1280)
+    bp.add_argument("--height", type=integer, default=720)
+    bp.add_argument("--width", type=integer, default=1280)
     bp.add_argument("--repeats", type=count, default=3)
     bp.add_argument("--arch", type=count, default=None, help="kernels: the CUDA compute "
                     "capability to compile for, e.g. 90 (default: the GPU here, else 90)")
@@ -174,13 +175,13 @@ def build_parser() -> argparse.ArgumentParser:
     tp = sub.add_parser("train", help="train nca or autoencoder on procedural training scenes "
                         "rendered here; writes <name>.onnx and <name>.json")
     tp.add_argument("method", choices=["nca", "autoencoder"])
-    tp.add_argument("--steps", type=int, default=None, help="optimiser steps (default: config)")
-    tp.add_argument("--minutes", type=float, default=None, help="stop after this wall time")
-    tp.add_argument("--scenes", type=int, default=48,
+    tp.add_argument("--steps", type=integer, default=None, help="optimiser steps (default: config)")
+    tp.add_argument("--minutes", type=number, default=None, help="stop after this wall time")
+    tp.add_argument("--scenes", type=integer, default=48,
                     help="training scenes (nca holds 4 out, autoencoder 2)")
-    tp.add_argument("--res", type=int, default=128)
-    tp.add_argument("--width-scale", type=float, default=None, help="autoencoder widths factor")
-    tp.add_argument("--sequences", type=int, default=None,
+    tp.add_argument("--res", type=integer, default=128)
+    tp.add_argument("--width-scale", type=number, default=None, help="autoencoder widths factor")
+    tp.add_argument("--sequences", type=integer, default=None,
                     help="autoencoder: training sequences for the recurrent stage (default 16; "
                     "0: single frames only)")
     tp.add_argument("--from-weights", default=None, metavar="ONNX",

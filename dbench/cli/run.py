@@ -13,7 +13,8 @@ import sys
 from pathlib import Path
 
 from ..run.scene_run import RunRequest, run_scene
-from .args import _check_common, _default_spp, _scene_of, _split, _writable_cache, parse_params
+from .args import (_check_common, _default_spp, _scene_of, _split, _writable_cache,
+                   check_kind_options, parse_params)
 
 
 def cmd_run(args: argparse.Namespace) -> int:
@@ -28,6 +29,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     for n in names:
         registry.method_class(n)  # raises UnknownNameError listing valid names
     scene = _scene_of(args)
+    check_kind_options(args, scene)
     args.spp = _default_spp(scene) if args.spp is None else args.spp
     check_count("--spp", args.spp)
     if args.res is None:

@@ -206,6 +206,7 @@ def stored_config(out: Path, config, stored: dict | None) -> dict:
     # the names the cells are filed under, so that a report finds the grid's cells
     new["scene_labels"] = scene_labels(config, out)
     if stored is None:
+        _check_new_folder(out)
         return {"config": new, "machine": machine_info(), "runs": []}
     old = dict(stored["config"])
     old.setdefault("seeds", 1)
@@ -232,6 +233,20 @@ def stored_config(out: Path, config, stored: dict | None) -> dict:
     new["scene_labels"] = {**old.get("scene_labels", {}), **new["scene_labels"]}
     new.pop("params", None)
     return {**stored, "config": new, "runs": list(stored.get("runs", []))}
+
+
+def _check_new_folder(out: Path) -> None:
+    """Refuse to start a sweep in a folder holding files of something else (no sweep.json, no
+    cells): its report would be written among them. The sweep's own lock is not counted; a
+    folder of cells whose sweep.json was moved away starts afresh, keeping its cells."""
+    from .sweep_lock import LOCK_NAME
+
+    others = sorted(p.name for p in Path(out).iterdir() if p.name != LOCK_NAME) \
+        if Path(out).is_dir() else []
+    if others and "cells" not in others:
+        shown = ", ".join(others[:3]) + (", ..." if len(others) > 3 else "")
+        raise DbenchInputError(f"--out {out}: holds other files ({shown}) and no sweep.json; "
+                               f"give a new or empty folder, or a sweep's folder")
 
 
 class RunRecord:

@@ -1,0 +1,126 @@
+"""Options that used to be read as "not given" or ignored are refused with one line and exit 2,
+before anything renders or is written (README.md, "A result is right or clearly refused")."""
+from pathlib import Path
+
+import pytest
+
+from dbench import cli
+
+XML = """<scene version="3.0.0">
+  <default name="light" value="8"/>
+  <sensor type="perspective"><float name="fov" value="50"/>
+    <transform name="to_world"><lookat origin="0,1,4" target="0,0.3,0" up="0,1,0"/></transform>
+    <film type="hdrfilm"><integer name="width" value="16"/><integer name="height" value="16"/>
+    </film></sensor>
+  <shape type="sphere"><float name="radius" value="0.5"/></shape>
+  <shape type="rectangle"><transform name="to_world"><translate y="2"/></transform>
+    <emitter type="area"><rgb name="radiance" value="$light"/></emitter></shape>
+</scene>
+"""
+
+
+def _refused(capsys, argv, *words):
+    rc = cli.main(list(argv))
+    err = capsys.readouterr().err
+    assert rc == 2 and err.startswith("dbench: ") and err.count("\n") == 1, (rc, err)
+    for w in words:
+        assert w in err, err
+    return err
+
+
+def _run(tmp_path, *extra):
+    return ["run", "--scene", "cornell", "--spp", "4", "--res", "8", "--ref-spp", "16",
+            "--cache", str(tmp_path / "cache"), "--out", str(tmp_path / "out"), "--quiet",
+            *extra]
+
+
+@pytest.mark.parametrize("argv, option", [
+    (["--method", ""], "--method"),              # used to run the noisy input alone, exit 0
+    (["--method", ","], "--method"),
+    (["--method", "noisy", "--out", ""], "--out"),  # used to write into results/runs/
+    (["--method", "noisy", "--cache", " "], "--cache"),
+])
+def test_an_empty_value_is_refused_not_read_as_the_default(tmp_path, capsys, argv, option):
+    base = [a for a in _run(tmp_path) if a not in ("--out", str(tmp_path / "out"))
+            ] if "--out" in argv else _run(tmp_path)
+    if "--cache" in argv:
+        base = [a for a in base if a not in ("--cache", str(tmp_path / "cache"))]
+    _refused(capsys, base + argv, f"{option}: empty")
+    assert not (tmp_path / "cache").exists() and not (tmp_path / "out").exists()
+
+
+def test_empty_values_of_the_other_commands(tmp_path, capsys):
+    _refused(capsys, ["sweep", "--scenes", "", "--out", str(tmp_path / "sw")], "--scenes: empty")
+    _refused(capsys, ["export", "cornell", "--spp", "", "--out", str(tmp_path / "ex")],
+             "--spp: empty")
+    _refused(capsys, ["export", "", "--out", str(tmp_path / "ex")], "scene: empty")
+    _refused(capsys, ["render", "--scene", ","], "--scene: empty")
+    assert not (tmp_path / "sw").exists() and not (tmp_path / "ex").exists()
+
+
+def test_frames_and_bins_are_refused_where_nothing_reads_them(tmp_path, capsys):
+    _refused(capsys, _run(tmp_path, "--method", "noisy", "--frames", "3"),
+             "--frames: only sequence scenes", "cornell is a steady scene")
+    _refused(capsys, _run(tmp_path, "--method", "noisy", "--bins", "8"),
+             "--bins: only transient scenes")
+    _refused(capsys, ["export", "cornell", "--frames", "2", "--out", str(tmp_path / "ex")],
+             "--frames: only sequence scenes")
+    assert not (tmp_path / "out").exists() and not (tmp_path / "ex").exists()
+
+
+def test_a_scene_parameter_that_is_not_a_finite_number_is_refused(tmp_path, capsys):
+    scene = tmp_path / "lamp.xml"
+    scene.write_text(XML)
+    for value in ("nan", "1e400", "1,inf,1"):
+        # Mitsuba takes them: a light of NaN radiance renders black, which every method
+        # then matches perfectly
+        _refused(capsys, _run(tmp_path, "--method", "noisy", "--scene", str(scene),
+                              "--scene-param", f"light={value}"), "not a finite number")
+    assert not (tmp_path / "out").exists()
+
+
+def test_bench_checks_its_output_and_sizes_before_timing(tmp_path, capsys):
+    afile = tmp_path / "afile"
+    afile.write_text("")
+    _refused(capsys, ["bench", "jbf", "--out", str(tmp_path)], "is a folder")
+    _refused(capsys, ["bench", "jbf", "--out", str(afile / "x.jsonl")], "not a folder")
+    _refused(capsys, ["bench", "jbf", "--width", "-5"], "--width/--height", "-5x720")
+    _refused(capsys, ["bench", "jbf", "--height", "0"], "--width/--height")
+    _refused(capsys, ["bench", "jbf", "--scene", "caustic"], "--scene: only bench render")
+
+
+def test_render_refuses_a_cache_that_is_a_file(tmp_path, capsys):
+    afile = tmp_path / "afile"
+    afile.write_text("")
+    _refused(capsys, ["render", "--scene", "cornell", "--res", "8", "--cache", str(afile)],
+             "--cache", "not a folder")
+    assert Path(afile).read_text() == ""
+
+
+def test_export_adds_only_to_its_own_folder(renderer, tmp_path, capsys):
+    out = tmp_path / "exp"
+    argv = ["export", "cornell", "--out", str(out), "--res", "8", "--ref-spp", "16", "--quiet",
+            "--cache", str(tmp_path / "cache")]
+    assert cli.main(argv + ["--spp", "4"]) == 0
+    assert cli.main(argv + ["--spp", "16"]) == 0  # the same scene and reference: more spp
+    assert (out / "cornell_0016.hdr.exr").is_file()
+    # dataset.json (one per folder) would be rewritten for another scene or reference
+    _refused(capsys, ["export", "caustic", "--out", str(out), "--spp", "4", "--res", "8",
+                      "--ref-spp", "16", "--quiet"], "holds an export with scene 'cornell'")
+    _refused(capsys, argv[:-2] + ["--spp", "4", "--ref-spp", "32"], "ref_spp 16")
+    other = tmp_path / "mine"
+    other.mkdir()
+    (other / "notes.txt").write_text("someone's folder")
+    _refused(capsys, ["export", "cornell", "--out", str(other), "--spp", "4", "--res", "8"],
+             "no export's dataset.json")
+    assert sorted(p.name for p in other.iterdir()) == ["notes.txt"]
+
+
+def test_a_sweep_does_not_start_in_a_folder_of_other_files(tmp_path, capsys):
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "thesis.tex").write_text("someone's work")
+    _refused(capsys, ["sweep", "--methods", "noisy", "--scenes", "cornell", "--spp", "4",
+                      "--res", "8", "--ref-spp", "16", "--repeats", "1", "--out", str(mine),
+                      "--cache", str(tmp_path / "cache")], "holds other files (thesis.tex)")
+    assert sorted(p.name for p in mine.iterdir()) == ["thesis.tex"]
