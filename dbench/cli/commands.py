@@ -81,7 +81,8 @@ def cmd_export(args: argparse.Namespace) -> int:
 
     from .. import datasets
     from ..data import check_count
-    from ..datasets.folders.export import export_frame, write_dataset_json
+    from ..datasets.folders.export import check_export_folder, export_frame, write_dataset_json
+    from ..datasets.references import reference_spp
     from ..datasets.scenes.build import check_plugin_scene
     from ..io import ensure_writable_dir, missing_folders, remove_empty
     from ..resolution import parse_res
@@ -106,7 +107,9 @@ def cmd_export(args: argparse.Namespace) -> int:
     if scene.kind == "steady":
         check_plugin_scene(scene)
     datasets.scene_fingerprint(scene, res)
-    _check_export_folder(out, scene, args.ref_spp)
+    check_export_folder(out, scene=scene.name, ev=scene.ev,
+                        ref_spp=(int(args.ref_spp or reference_spp())
+                                 if "reference" in scene.provides else None))
     cache = _writable_cache(args)
     created = missing_folders(out)
     ensure_writable_dir(out, "--out")
@@ -135,34 +138,6 @@ def cmd_export(args: argparse.Namespace) -> int:
     print(f"exported {scene.name} at {res.text} px, spp {', '.join(map(str, spps))}, "
           f"reference {ref_spp} spp: {len(written)} files in {out}")
     return 0
-
-
-def _check_export_folder(out: Path, scene, ref_spp: int | None) -> None:
-    """Refuse an ``--out`` that holds other files than an export of this scene with the same
-    reference spp and exposure: its ``dataset.json`` (one per folder) would be rewritten for
-    this scene, mis-describing the renders already there, and files of other tools would
-    mix with these."""
-    import json
-
-    from ..datasets.references import reference_spp
-
-    if not out.is_dir() or not any(out.iterdir()):
-        return
-    try:
-        old = json.loads((out / "dataset.json").read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        old = None
-    if not isinstance(old, dict):
-        raise DbenchInputError(f"--out {out}: a folder holding other files and no export's "
-                               f"dataset.json; export into a new or empty folder")
-    want = {"scene": scene.name, "ref_spp": (int(ref_spp or reference_spp())
-                                             if "reference" in scene.provides else None),
-            "ev": float(scene.ev)}
-    for key, value in want.items():
-        if old.get(key) != value:
-            raise DbenchInputError(f"--out {out}: holds an export with {key} {old.get(key)!r}, "
-                                   f"not {value!r}; export into a new or empty folder (one "
-                                   f"dataset.json describes the whole folder)")
 
 
 def cmd_bench(args: argparse.Namespace) -> int:

@@ -152,3 +152,54 @@ def write_dataset_json(out_dir: str | os.PathLike, *, ref_spp: int | None, ev: f
     write_json(path, {"ref_spp": ref_spp, "ev": float(ev), "normal_encoding": "signed",
                       "description": str(description), "scene": str(scene)})
     return path
+
+
+def read_dataset_json(folder: Path) -> dict:
+    """``folder/dataset.json`` checked (README.md, "Your scene, your renders, any size"), or {} where there is
+    none; a file of the wrong shape is refused, naming the key."""
+    path = folder / "dataset.json"
+    if not path.exists():
+        return {}
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        raise DbenchInputError(f"{path}: not readable JSON ({exc})") from None
+    kinds = {"ref_spp": int, "ev": (int, float), "normal_encoding": str, "normals": str,
+             "description": str, "scene": str}
+    if not isinstance(data, dict):
+        raise DbenchInputError(f"{path}: expected a JSON object with keys {sorted(kinds)}")
+    for key, value in data.items():
+        if key in kinds and value is not None and (not isinstance(value, kinds[key])
+                                                   or isinstance(value, bool)):
+            raise DbenchInputError(f"{path}: {key!r} has the wrong type ({value!r})")
+    for key in ("normal_encoding", "normals"):  # "normals": the exporter's spelling
+        if data.get(key) not in (None, "signed", "unsigned"):
+            raise DbenchInputError(f"{path}: {key} {data[key]!r}; expected \"signed\" or "
+                                   "\"unsigned\"")
+    if None not in (data.get("normal_encoding"), data.get("normals")) \
+            and data["normal_encoding"] != data["normals"]:
+        raise DbenchInputError(f"{path}: normal_encoding {data['normal_encoding']!r} and "
+                               f"normals {data['normals']!r} disagree; expected one")
+    if data.get("ref_spp") is not None and data["ref_spp"] < 1:
+        raise DbenchInputError(f"{path}: ref_spp {data['ref_spp']}; expected an integer >= 1")
+    return data
+
+
+def check_export_folder(out: Path, *, scene: str, ref_spp: int | None, ev: float) -> None:
+    """Refuse an ``out`` that holds other files than an export of ``scene`` with the same
+    reference spp (None: no reference) and exposure: its ``dataset.json`` (one per folder)
+    would be rewritten for this scene, mis-describing the renders already there, and files of
+    other tools would mix with these."""
+    out = Path(out)
+    if not out.is_dir() or not any(out.iterdir()):
+        return
+    old = read_dataset_json(out) if (out / "dataset.json").is_file() else {}
+    if not old:
+        raise DbenchInputError(f"--out {out}: a folder holding other files and no export's "
+                               f"dataset.json; export into a new or empty folder")
+    want = {"scene": scene, "ref_spp": ref_spp, "ev": float(ev)}
+    for key, value in want.items():
+        if old.get(key) != value:
+            raise DbenchInputError(f"--out {out}: holds an export with {key} {old.get(key)!r}, "
+                                   f"not {value!r}; export into a new or empty folder (one "
+                                   f"dataset.json describes the whole folder)")

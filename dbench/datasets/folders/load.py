@@ -58,7 +58,6 @@ Example:
 from __future__ import annotations
 
 import hashlib
-import json
 import os
 import re
 from dataclasses import dataclass, field, replace
@@ -72,7 +71,7 @@ from ...errors import DbenchInputError
 from ...resolution import Res
 from . import exr_layers as xl
 from . import features as feat
-from .export import read_stats_npz
+from .export import read_dataset_json, read_stats_npz
 from .features import FEATURES
 from .reference import folder_reference
 from .normals import BY_OPTION, ENCODINGS, resolve as resolve_normals
@@ -166,35 +165,6 @@ def _select(path: Path) -> tuple[Path, str, list[str], list[str]]:
     return folder, view, [n for n, m in parsed.items() if m["view"] == view], unknown
 
 
-def _read_dataset_json(folder: Path) -> dict:
-    path = folder / "dataset.json"
-    if not path.exists():
-        return {}
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError) as exc:
-        raise DbenchInputError(f"{path}: not readable JSON ({exc})") from None
-    kinds = {"ref_spp": int, "ev": (int, float), "normal_encoding": str, "normals": str,
-             "description": str, "scene": str}
-    if not isinstance(data, dict):
-        raise DbenchInputError(f"{path}: expected a JSON object with keys {sorted(kinds)}")
-    for key, value in data.items():
-        if key in kinds and value is not None and (not isinstance(value, kinds[key])
-                                                   or isinstance(value, bool)):
-            raise DbenchInputError(f"{path}: {key!r} has the wrong type ({value!r})")
-    for key in ("normal_encoding", "normals"):  # "normals": the exporter's spelling
-        if data.get(key) not in (None, "signed", "unsigned"):
-            raise DbenchInputError(f"{path}: {key} {data[key]!r}; expected \"signed\" or "
-                                   "\"unsigned\"")
-    if None not in (data.get("normal_encoding"), data.get("normals")) \
-            and data["normal_encoding"] != data["normals"]:
-        raise DbenchInputError(f"{path}: normal_encoding {data['normal_encoding']!r} and "
-                               f"normals {data['normals']!r} disagree; expected one")
-    if data.get("ref_spp") is not None and data["ref_spp"] < 1:
-        raise DbenchInputError(f"{path}: ref_spp {data['ref_spp']}; expected an integer >= 1")
-    return data
-
-
 def _check_frames(folder: Path, files: list[str]) -> tuple[int, ...] | None:
     """Sorted frame numbers, or None; a frame lacking a file the others have is an error."""
     matches = {n: _parse(n) for n in files}
@@ -286,7 +256,7 @@ def scan_folder(path: str | os.PathLike) -> FolderInfo:
     (fingerprint); no other pixels. Every inconsistency is a DbenchInputError naming a file.
     """
     folder, view, files, unknown = _select(Path(path))
-    info_json = _read_dataset_json(folder)
+    info_json = read_dataset_json(folder)
     frames = _check_frames(folder, files)
     plan, (h, w), unused, ignored = _build_plan(folder, files)
     fr = frames[0] if frames else None
