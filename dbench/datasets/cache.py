@@ -73,15 +73,24 @@ def default_root() -> Path:
     return Path(os.environ.get("DBENCH_CACHE", Path.home() / ".cache" / "dbench"))
 
 
-def canonical(obj: Any) -> Any:
-    """A JSON-able, deterministic description of a scene dictionary (Mitsuba objects included)."""
+def canonical(obj: Any, files: set | None = None) -> Any:
+    """A JSON-able, deterministic description of a scene dictionary (Mitsuba objects included).
+    ``files``, where given, gathers the (name, sha256 or None) of each ``"filename"`` string
+    met on the way (:func:`referenced`)."""
     if isinstance(obj, dict):
         # a "filename" string stands for the bytes Mitsuba reads for it: an edited texture or
         # mesh is another scene (dbench.datasets.file_refs)
-        return {str(k): file_ref(v) if k == "filename" and isinstance(v, str) else canonical(v)
-                for k, v in sorted(obj.items(), key=lambda kv: str(kv[0]))}
+        out = {}
+        for k, v in sorted(obj.items(), key=lambda kv: str(kv[0])):
+            if k == "filename" and isinstance(v, str):
+                out[str(k)] = ref = file_ref(v)
+                if files is not None:
+                    files.add((ref["file"], ref["sha256"]))
+            else:
+                out[str(k)] = canonical(v, files)
+        return out
     if isinstance(obj, (list, tuple)):
-        return [canonical(v) for v in obj]
+        return [canonical(v, files) for v in obj]
     if isinstance(obj, (bool, int, str)) or obj is None:
         return obj
     if isinstance(obj, float):
@@ -105,6 +114,15 @@ def canonical(obj: Any) -> Any:
     if hasattr(obj, "matrix"):
         return {type_name: canonical(np.array(obj.matrix, dtype=np.float64))}
     return {type_name: repr(obj)}
+
+
+def referenced(d) -> tuple:
+    """((name, sha256 or None), ...) of every ``"filename"`` string in the (nested) dictionary
+    ``d``, sorted and without repeats: the files a scene built from ``d`` reads, found by
+    :func:`canonical`'s own walk."""
+    found: set = set()
+    canonical(d, found)
+    return tuple(sorted(found, key=lambda t: (t[0], t[1] or "")))
 
 
 def make_key(description: dict) -> str:

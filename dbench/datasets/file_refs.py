@@ -30,8 +30,16 @@ def file_ref(name: str) -> dict:
     path = _found(name)
     if path is None:
         return {"file": name, "sha256": None}
+    return {"file": name, "sha256": file_sha256(path)}
+
+
+def file_sha256(path: str | os.PathLike) -> str:
+    """Hex sha256 of the file's bytes, read in blocks and remembered by the file's stat (a
+    key is made many times a run: every frame of a sequence names the same mesh; an edited
+    file is hashed again)."""
+    path = Path(path).resolve()
     st = path.stat()
-    return {"file": name, "sha256": _digest(str(path), st.st_mtime_ns, st.st_size, st.st_ino)}
+    return _digest(str(path), st.st_mtime_ns, st.st_size, st.st_ino)
 
 
 def _found(name: str) -> Path | None:
@@ -47,31 +55,8 @@ def _found(name: str) -> Path | None:
     return candidate.resolve() if candidate.is_file() else None
 
 
-def referenced(d) -> tuple:
-    """((name, sha256 or None), ...) of every ``"filename"`` string in the (nested) dictionary
-    ``d``, sorted and without repeats: the files a scene built from ``d`` reads."""
-    found: set = set()
-
-    def walk(obj) -> None:
-        if isinstance(obj, dict):
-            for k, v in obj.items():
-                if k == "filename" and isinstance(v, str):
-                    ref = file_ref(v)
-                    found.add((ref["file"], ref["sha256"]))
-                else:
-                    walk(v)
-        elif isinstance(obj, (list, tuple)):
-            for v in obj:
-                walk(v)
-
-    walk(d)
-    return tuple(sorted(found, key=lambda t: (t[0], t[1] or "")))
-
-
 @lru_cache(maxsize=256)
 def _digest(path: str, mtime_ns: int, size: int, inode: int) -> str:
-    # keyed by the file's stat as well as its path: a key is made many times a run (every
-    # frame of a sequence names the same mesh), an edited file is hashed again
     h = hashlib.sha256()
     with open(path, "rb") as f:
         for block in iter(lambda: f.read(1 << 20), b""):
@@ -79,4 +64,4 @@ def _digest(path: str, mtime_ns: int, size: int, inode: int) -> str:
     return h.hexdigest()
 
 
-__all__ = ["file_ref", "referenced"]
+__all__ = ["file_ref", "file_sha256"]

@@ -34,13 +34,13 @@ it, the file that refers to it and the folders searched, before anything renders
 """
 from __future__ import annotations
 
-import hashlib
 import os
 import re
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
 from ...errors import DbenchInputError
+from ..file_refs import file_sha256
 
 #: Mitsuba's limit on nested includes (ParserConfig.max_include_depth), which also stops cycles.
 MAX_INCLUDE_DEPTH = 15
@@ -59,7 +59,7 @@ def asset_hashes(path: str | Path, params: dict[str, str] | None = None) -> dict
     top = walk.read(scene, mi.FileResolver(mi.file_resolver()), depth=0)
     for ref, where in walk.deferred:  # filename strings: built after the whole parse
         walk.found(top, ref, where, "<string name=\"filename\">")
-    return dict(sorted((SCENE_KEY if f == scene else _relative(f, scene.parent), _sha256(f))
+    return dict(sorted((SCENE_KEY if f == scene else _relative(f, scene.parent), file_sha256(f))
                        for f in walk.files))
 
 
@@ -148,10 +148,6 @@ class _Walk:
                                    f"in {file}; give it with --scene-param "
                                    f"{left.group(1)}=VALUE or a <default>")
         return value.replace("\\$", "$")
-
-
-def _sha256(f: Path) -> str:
-    return hashlib.sha256(f.read_bytes()).hexdigest()
 
 
 #: The scene file's own entry in :func:`asset_hashes`: by its bytes, not its name, so a renamed

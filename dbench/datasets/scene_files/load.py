@@ -79,7 +79,7 @@ from ..scenes.record import STEADY_BUFFERS, Scene
 from ..scenes.build import call_build, exit_message, probe_load
 from ..scenes.build import own_camera as _own_camera
 from .assets import asset_hashes as _sources
-from ..file_refs import referenced
+from ..cache import referenced
 from ..scenes.parts import film_dict
 from .fidelity import FILTER, record, report_lines
 from .integrator import DEFAULT_MAX_DEPTH, IntegratorPlan, plan as _integrator_plan
@@ -329,7 +329,7 @@ def _built(module, path: str, mi, res) -> dict:
 @lru_cache(maxsize=32)
 def _python_scene(path: str, files: tuple, digest: str) -> Scene:
     """The scene of the Python file at ``path`` (bytes ``digest``) whose dictionary names the
-    files ``files`` ((name, sha256), dbench.datasets.file_refs.referenced; () before they are
+    files ``files`` ((name, sha256), dbench.datasets.cache.referenced; () before they are
     known)."""
     mi = mitsuba()
     module = _module(path, digest)
