@@ -51,16 +51,28 @@ def _parse_value(text: str) -> Any:
 
 
 def parse_params(items: Sequence[str], method_names: Sequence[str]) -> dict[str, dict[str, Any]]:
-    """``key=value`` (every method that has ``key``) or ``method.key=value`` (one method)."""
+    """``key=value`` (every method that has ``key``) or ``method.key=value`` (one method, over a
+    ``key=value`` in either order). One key given two different values at the same level is
+    refused: settling it by the order of the options would be a silent choice."""
     from .. import registry
 
     out: dict[str, dict[str, Any]] = {m: {} for m in method_names}
+    seen: dict[str, tuple[Any, str]] = {}  # key as given -> (value, item)
+    parsed = []
     for item in items:
         if "=" not in item:
             raise DbenchInputError(f"--param: expected key=value or method.key=value, got {item!r}")
         key, value = item.split("=", 1)
-        target, _, name = key.rpartition(".")
+        key = key.strip()
         value = _parse_value(value)
+        if key in seen and seen[key][0] != value:
+            raise DbenchInputError(f"--param {item}: {key} is also given as {seen[key][1]}; "
+                                   f"give one value")
+        seen[key] = (value, item)
+        parsed.append((item, key, value))
+    # general keys first, so that method.key=value wins whatever the order
+    for item, key, value in sorted(parsed, key=lambda p: "." in p[1]):
+        target, _, name = key.rpartition(".")
         if target:
             if target not in out:
                 raise DbenchInputError(f"--param {item}: method {target!r} is not in this run "
@@ -115,8 +127,26 @@ def normal_encoding_arg(text: str):
     return bad
 
 
-def _split(text: str) -> list[str]:
-    return [t.strip() for t in text.split(",") if t.strip()]
+def _split(text: str, option: str) -> list[str]:
+    """``"a, b"`` → ["a", "b"]; an empty item (``"4,,8"``, ``"jbf,"``) is refused naming
+    ``option``: a typo there would otherwise run a shorter list than the one meant."""
+    items = [t.strip() for t in text.split(",")]
+    if not all(items):
+        raise DbenchInputError(f"{option}: an empty item in {text!r}; give a comma list "
+                               f"without empty items")
+    return items
+
+
+def names_arg(text: str, option: str) -> list[str] | None:
+    """``all`` → None (every name); ``"a,b"`` → ["a", "b"] (:func:`_split`). "all" inside a
+    list is refused: it stands alone."""
+    if text.strip() == "all":
+        return None
+    items = _split(text, option)
+    if "all" in items:
+        raise DbenchInputError(f"{option}: {text!r}; 'all' stands alone (give all, or "
+                               f"NAME[,NAME...] without it)")
+    return items
 
 
 MAX_PARAM_CHARS = 1000
@@ -128,7 +158,7 @@ def _ints(text: str, name: str) -> list[int]:
     from .bounds import MAX_COUNT, parse_count
 
     out = []
-    for t in _split(text):
+    for t in _split(text, name):
         try:
             out.append(parse_count(t))
         except ValueError:

@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 
 from ..errors import DbenchInputError
-from .args import (RANKABLE, _check_common, _ints, _scene_of, _split, _writable_cache,
+from .args import (RANKABLE, _check_common, _ints, _scene_of, _writable_cache, names_arg,
                    check_kind_options, parse_params)
 
 
@@ -61,7 +61,7 @@ def cmd_render(args: argparse.Namespace) -> int:
     from ..resolution import parse_res
 
     params = scene_files.parse_scene_params(args.scene_param)
-    names = _split(args.scene) if args.scene != "all" else datasets.available_scenes()
+    names = names_arg(args.scene, "--scene") or datasets.available_scenes()
     chosen = [scenes.get(n, params) for n in names]
     sizes = [parse_res(args.res, "--res") if args.res is not None else datasets.default_res(sc)
              for sc in chosen]
@@ -227,13 +227,30 @@ def cmd_bench(args: argparse.Namespace) -> int:
     return 0
 
 
+def _check_sweep_kind_options(args: argparse.Namespace, names: list[str],
+                              scene_params: dict) -> None:
+    """Refuse a sweep's ``--frames`` where none of its scenes is a sequence, and ``--bins``
+    where none is transient (:func:`check_kind_options` for one scene): read by no cell, they
+    would be stored in the sweep's identity and leave the user believing they were used."""
+    from ..datasets.scenes import catalogue
+
+    kinds = {catalogue.get(n, scene_params).kind for n in names}
+    for option, kind in (("frames", "sequence"), ("bins", "transient")):
+        if getattr(args, option, None) is not None and kind not in kinds:
+            raise DbenchInputError(f"--{option}: only {kind} scenes take it; this sweep's "
+                                   f"scenes ({', '.join(names)}) have none")
+
+
 def cmd_sweep(args: argparse.Namespace) -> int:
     from ..run import sweep
 
     from ..datasets.scene_files import load as scene_files
 
     scene_params = scene_files.parse_scene_params(args.scene_param)
-    methods_, scenes_ = sweep.resolve_names(args.methods, args.scenes, scene_params)
+    methods_, scenes_ = sweep.resolve_names(names_arg(args.methods, "--methods") or "all",
+                                            names_arg(args.scenes, "--scenes") or "all",
+                                            scene_params)
+    _check_sweep_kind_options(args, scenes_, scene_params)
     res_given = args.res
     args.res = args.res or "128"  # checked here; the sweep's own default is per scene
     _check_common(args)
@@ -295,8 +312,8 @@ def cmd_stress(args: argparse.Namespace) -> int:
     from .. import registry
     from ..io import ensure_writable_dir
 
-    names = ([registry.canonical(n) for n in _split(args.methods)] if args.methods != "all"
-             else None)
+    given = names_arg(args.methods, "--methods")
+    names = None if given is None else [registry.canonical(n) for n in given]
     for n in names or []:
         registry.method_class(n)
     out = Path(args.out)

@@ -13,7 +13,7 @@ import sys
 from pathlib import Path
 
 from ..run.scene_run import RunRequest, run_scene
-from .args import (_check_common, _default_spp, _scene_of, _split, _writable_cache,
+from .args import (_check_common, _default_spp, _scene_of, _writable_cache, names_arg,
                    check_kind_options, parse_params)
 
 
@@ -24,8 +24,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     from ..data import check_count
     from ..run.capture import library_warnings
 
-    names = (registry.available() if args.method == "all"
-             else [registry.canonical(n) for n in _split(args.method)])
+    given = names_arg(args.method, "--method")
+    names = registry.available() if given is None else [registry.canonical(n) for n in given]
     for n in names:
         registry.method_class(n)  # raises UnknownNameError listing valid names
     scene = _scene_of(args)

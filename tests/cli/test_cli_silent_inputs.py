@@ -124,3 +124,47 @@ def test_a_sweep_does_not_start_in_a_folder_of_other_files(tmp_path, capsys):
                       "--res", "8", "--ref-spp", "16", "--repeats", "1", "--out", str(mine),
                       "--cache", str(tmp_path / "cache")], "holds other files (thesis.tex)")
     assert sorted(p.name for p in mine.iterdir()) == ["thesis.tex"]
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["sweep", "--methods", "jbf", "--scenes", "cornell", "--spp", "4,,16"], ("--spp", "empty item")),
+    (["sweep", "--methods", "jbf,", "--scenes", "cornell"], ("--methods", "empty item")),
+    (["sweep", "--methods", "jbf", "--scenes", "cornell,,flicker"], ("--scenes", "empty item")),
+    (["export", "cornell", "--spp", "4,16,"], ("--spp", "empty item")),
+    (["run", "--method", "all,jbf", "--scene", "cornell"], ("--method", "stands alone")),
+    (["sweep", "--methods", "jbf,all", "--scenes", "cornell"], ("--methods", "stands alone")),
+    (["stress", "--methods", "jbf,,nca"], ("--methods", "empty item")),
+])
+def test_comma_lists_with_empty_items_or_all_inside_are_refused(tmp_path, capsys, argv, words):
+    # "4,,16" used to sweep 4 and 16 as if that were meant; "all,jbf" named no method "all"
+    _refused(capsys, [*argv, "--out", str(tmp_path / "out")], *words)
+    assert not (tmp_path / "out").exists()
+
+
+def test_one_parameter_given_two_values_is_refused(tmp_path, capsys):
+    # the later one used to win silently
+    _refused(capsys, _run(tmp_path, "--method", "jbf", "--param", "radius=3",
+                          "--param", "radius=5"), "--param radius=5", "radius=3", "one value")
+    _refused(capsys, _run(tmp_path, "--method", "jbf", "--param", "jbf.radius=3",
+                          "--param", "jbf.radius=5"), "jbf.radius=3")
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_method_parameter_wins_over_a_general_one_in_either_order():
+    from dbench.cli.args import parse_params
+
+    for items in (["radius=3", "jbf.radius=5"], ["jbf.radius=5", "radius=3"]):
+        got = parse_params(items, ["noisy", "jbf", "svgf"])
+        assert got["jbf"]["radius"] == 5, items
+        assert got["noisy"] == {}
+    # the same value twice is no conflict
+    assert parse_params(["radius=3", "radius=3"], ["jbf"])["jbf"]["radius"] == 3
+
+
+def test_a_sweep_refuses_frames_or_bins_that_none_of_its_scenes_reads(tmp_path, capsys):
+    _refused(capsys, ["sweep", "--methods", "jbf", "--scenes", "cornell,textured", "--frames",
+                      "4", "--out", str(tmp_path / "sw")], "--frames: only sequence scenes",
+             "cornell, textured")
+    _refused(capsys, ["sweep", "--methods", "jbf", "--scenes", "orbit", "--bins", "8",
+                      "--out", str(tmp_path / "sw")], "--bins: only transient scenes")
+    assert not (tmp_path / "sw").exists()
