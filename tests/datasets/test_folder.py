@@ -323,7 +323,13 @@ def test_fingerprint_follows_file_bytes(tmp_path):
     assert scan_folder(tmp_path).fingerprint != first
     second = scan_folder(tmp_path).fingerprint
     (tmp_path / "dataset.json").write_text(json.dumps({"ev": 1.0}))
-    assert scan_folder(tmp_path).fingerprint not in (first, second)
+    third = scan_folder(tmp_path).fingerprint
+    assert third not in (first, second)
+    # dataset.json counts by what it says: re-indented, the folder keeps its identity
+    (tmp_path / "dataset.json").write_text(json.dumps({"ev": 1.0}, indent=4) + "\n\n")
+    assert scan_folder(tmp_path).fingerprint == third
+    (tmp_path / "dataset.json").write_text(json.dumps({"ev": 2.0}))
+    assert scan_folder(tmp_path).fingerprint not in (first, second, third)
 
 
 def test_stats_built_from_samples_survive_export(tmp_path):

@@ -58,6 +58,7 @@ Example:
 from __future__ import annotations
 
 import hashlib
+import json
 import os
 import re
 from dataclasses import dataclass, field, replace
@@ -239,12 +240,17 @@ def _build_plan(folder: Path, files: list[str]):
     return plan, size[0], unused, ignored
 
 
-def _fingerprint(folder: Path, names: Iterable[str]) -> str:
+def _fingerprint(folder: Path, names: Iterable[str], info_json: dict) -> str:
+    """The folder's identity: the bytes of the renders it uses, and ``dataset.json`` by what it
+    says (its keys and values), so re-indenting the file keeps the folder's cells."""
     h = hashlib.sha256()
     for name in sorted(set(names)):
         h.update(name.encode() + b"\0")
-        with open(folder / name, "rb") as fh:
-            data = fh.read()
+        if name == "dataset.json":
+            data = json.dumps(info_json, sort_keys=True, separators=(",", ":")).encode()
+        else:
+            with open(folder / name, "rb") as fh:
+                data = fh.read()
         h.update(len(data).to_bytes(8, "little") + data)
     return h.hexdigest()[:16]
 
@@ -320,7 +326,7 @@ def scan_folder(path: str | os.PathLike) -> FolderInfo:
         reference_from=reference_from, buffers=frozenset(buffers), stats_source=stats_source,
         frames=frames, ev=float(info_json.get("ev", 0.0) or 0.0),
         normals=encoding.encoding if encoding else "signed",
-        fingerprint=_fingerprint(folder, used), ignored=tuple(sorted(ignored + unknown)),
+        fingerprint=_fingerprint(folder, used, info_json), ignored=tuple(sorted(ignored + unknown)),
         _plan=plan, _meta={"unused_channels": unused, "description":
                            info_json.get("description", ""), "declared_scene":
                            info_json.get("scene", ""),
