@@ -106,6 +106,12 @@ def scene_fingerprint(scene: str | Scene, res) -> str:
     return make_key(desc)[:16]
 
 
+def default_transform(kind: str) -> str:
+    """The statistics' sample transform of a scene of ``kind`` when none is asked
+    (docs/methods/statistical.md §3): identity for transient scenes, Box-Cox for the others."""
+    return _transient.DEFAULT_TRANSFORM if kind == "transient" else "box-cox"
+
+
 def load(scene: str | Scene, spp: int, res, needs: Iterable[str] | None = None,
          transform: str | None = None, lam: float = 0.5, seed: int = 0,
          ref_spp: int | None = None, cache: Cache | None = None, progress: bool = True,
@@ -141,18 +147,18 @@ def load(scene: str | Scene, spp: int, res, needs: Iterable[str] | None = None,
     sc = scene if isinstance(scene, Scene) else _scenes.get(scene)
     if not sc.renders:
         return _load_folder_scene(sc, spp, res, needs, seed, ref_spp, frames)
+    transform = transform or default_transform(sc.kind)
     if sc.kind == "sequence":
         return _sequence.load_sequence(sc, spp=spp, res=res, needs=needs, seed=seed,
                                        ref_spp=ref_spp, cache=cache, progress=progress,
                                        frames=frames, ref_seed=ref_seed,
-                                       transform=transform or "box-cox", lam=lam)
+                                       transform=transform, lam=lam)
     if sc.kind == "transient":
         return _transient.load_transient(sc, spp=spp, res=res, needs=needs,
-                                         transform=transform or _transient.DEFAULT_TRANSFORM,
+                                         transform=transform,
                                          lam=lam, seed=seed, ref_spp=ref_spp, cache=cache,
                                          progress=progress, bins=bins, collector=collector,
                                          ref_seed=ref_seed)
-    transform = "box-cox" if transform is None else transform
     check_count("spp", spp)
     res = parse_res(res)
     check_plugin_scene(sc)  # a plugin's unknown Mitsuba type: exit 2 before anything renders
@@ -288,4 +294,5 @@ def _load_folder_scene(sc: Scene, spp: int, res, needs, seed: int, ref_spp: int 
 
 
 __all__ = ["load", "available_scenes", "get_scene", "Cache", "Scene", "FEATURES",
-           "FEATURE_BUFFERS", "scene_fingerprint", "feature_identity", "default_res"]
+           "FEATURE_BUFFERS", "scene_fingerprint", "feature_identity", "default_res",
+           "default_transform"]

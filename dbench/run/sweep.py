@@ -172,7 +172,7 @@ def cell_identity(config: SweepConfig, scene, spp: int, method: str, fingerprint
     ``label``: the scene's label when it is not its name (:func:`scene_labels`)."""
     from .. import datasets, registry
 
-    transform = config.transform or ("identity" if scene.kind == "transient" else "box-cox")
+    transform = config.transform or datasets.default_transform(scene.kind)
     return {"scene": label or scene.name, "scene_fingerprint": fingerprint, "kind": scene.kind,
             "res": config.res_for(scene).key, "spp": int(spp), "seeds": config.seed_list,
             "ref_spp": resolved_ref_spp(config, scene, spp), "ref_seed": config.seed,

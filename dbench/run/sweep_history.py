@@ -215,6 +215,9 @@ def stored_config(out: Path, config, stored: dict | None) -> dict:
     now = effective_ref_spp(new, datasets.reference_spp())
     then = effective_ref_spp(old, now)
     differ = [k for k in SETTINGS if _value(old, k, then) != _value(new, k, now)]
+    if "transform" in differ and _same_transforms(old, new, config):
+        differ.remove("transform")
+        new["transform"] = old.get("transform")  # the folder keeps what its cells were made with
     if getattr(config, "rerun", False):
         differ = [k for k in differ if k not in RERUN_SETTINGS]
     if differ:
@@ -233,6 +236,18 @@ def stored_config(out: Path, config, stored: dict | None) -> dict:
     new["scene_labels"] = {**old.get("scene_labels", {}), **new["scene_labels"]}
     new.pop("params", None)
     return {**stored, "config": new, "runs": list(stored.get("runs", []))}
+
+
+def _same_transforms(old: dict, new: dict, config) -> bool:
+    """Whether this run's scenes get the transform the stored sweep gave them: ``--transform
+    box-cox`` is what a sweep without ``--transform`` used for its steady scenes (None means
+    each kind's default, dbench.datasets.default_transform)."""
+    from .. import datasets
+    from ..datasets.scenes import catalogue
+
+    kinds = {catalogue.get(n, config.scene_params).kind for n in config.scenes}
+    return all((old.get("transform") or datasets.default_transform(k))
+               == (new.get("transform") or datasets.default_transform(k)) for k in kinds)
 
 
 def _check_new_folder(out: Path) -> None:

@@ -155,3 +155,23 @@ def test_rerun_compares_the_reference_spp_in_effect(renderer, tmp_path, monkeypa
     monkeypatch.setenv("DBENCH_REF_SPP", "64")
     with pytest.raises(DbenchInputError, match=r"ref_spp: 32 there, 64 now"):
         sweep.run_sweep(_config(tmp_path, ref_spp=None), out, progress=False)
+
+
+def test_a_transform_is_compared_by_what_each_scene_gets(tmp_path):
+    # --transform box-cox is what a sweep without it gave its steady scenes: it resumes there
+    out = tmp_path / "S"
+    out.mkdir()
+    stored = sweep_history.stored_config(out, _config(tmp_path), None)
+    assert stored["config"]["transform"] is None
+    again = sweep_history.stored_config(out, _config(tmp_path, transform="box-cox"), stored)
+    assert again["config"]["transform"] is None  # the folder keeps what its cells used
+    with pytest.raises(DbenchInputError, match="transform: None there, 'yeo-johnson' now"):
+        sweep_history.stored_config(out, _config(tmp_path, transform="yeo-johnson"), stored)
+    # a transient scene's default is identity: box-cox there is another result
+    with pytest.raises(DbenchInputError, match="transform: None there, 'box-cox' now"):
+        sweep_history.stored_config(
+            out, _config(tmp_path, scenes=["cornell", "cornell-transient"], transform="box-cox"),
+            stored)
+    kept = sweep_history.stored_config(
+        out, _config(tmp_path, scenes=["cornell-transient"], transform="identity"), stored)
+    assert kept["config"]["transform"] is None
