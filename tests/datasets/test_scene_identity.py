@@ -127,6 +127,41 @@ def test_the_exposure_is_part_of_a_scene_identity(renderer, tmp_path):
     assert datasets.scene_fingerprint(replace(cornell, ev=0.0), 16) == plain
 
 
+XML = """<scene version="3.0.0">
+  <default name="light" value="8"/>
+  <default name="glow" value="$light"/>
+  <sensor type="perspective"><float name="fov" value="50"/>
+    <transform name="to_world"><lookat origin="0,1,4" target="0,0.3,0" up="0,1,0"/></transform>
+    <film type="hdrfilm"><integer name="width" value="16"/><integer name="height" value="16"/>
+    </film></sensor>
+  <shape type="sphere"><float name="radius" value="0.5"/>
+    <emitter type="area"><rgb name="radiance" value="$glow"/></emitter></shape>
+  <shape type="rectangle"><transform name="to_world"><translate y="2"/></transform>
+    <emitter type="area"><rgb name="radiance" value="$light"/></emitter></shape>
+</scene>
+"""
+
+
+def test_a_scene_parameter_equal_to_the_files_default_is_the_same_scene(renderer, tmp_path):
+    """``--scene-param light=8`` where the file says ``<default name="light" value="8"/>``
+    renders what no parameter renders: one scene object, one fingerprint, one cache entry."""
+    from dbench import datasets
+    from dbench.datasets.scene_files.load import resolve
+
+    (tmp_path / "s.xml").write_text(XML)
+    plain = resolve(tmp_path / "s.xml")
+    key = datasets.scene_fingerprint(plain, 16)
+    for same in ({"light": "8"}, {"light": "8", "glow": "8"}):
+        scene = resolve(tmp_path / "s.xml", same)
+        assert scene is plain and datasets.scene_fingerprint(scene, 16) == key, same
+    # a default that follows another parameter is compared with what it becomes
+    other = resolve(tmp_path / "s.xml", {"light": "9", "glow": "9"})
+    assert other is resolve(tmp_path / "s.xml", {"light": "9"})
+    assert datasets.scene_fingerprint(other, 16) != key
+    assert datasets.scene_fingerprint(resolve(tmp_path / "s.xml", {"glow": "9"}), 16) not in (
+        key, datasets.scene_fingerprint(other, 16))
+
+
 @pytest.fixture(autouse=True)
 def _own_dir(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)

@@ -51,6 +51,13 @@ def asset_hashes(path: str | Path, params: dict[str, str] | None = None) -> dict
     of every file it references (module docstring), each named relative to the scene's folder
     (with ``..`` outside it, so the names do not depend on where the tree is), sorted. DbenchInputError,
     naming the reference and the folders searched, when one cannot be found."""
+    return scene_walk(path, params)[0]
+
+
+def scene_walk(path: str | Path, params: dict[str, str] | None = None
+               ) -> tuple[dict[str, str], dict[str, str]]:
+    """(:func:`asset_hashes`, {name: value} of the ``<default>``s the files declare, the first
+    of each name as the parser meets it, ``$`` parameters in it substituted)."""
     from ..mitsuba_env import mitsuba
 
     mi = mitsuba()
@@ -59,8 +66,9 @@ def asset_hashes(path: str | Path, params: dict[str, str] | None = None) -> dict
     top = walk.read(scene, mi.FileResolver(mi.file_resolver()), depth=0)
     for ref, where in walk.deferred:  # filename strings: built after the whole parse
         walk.found(top, ref, where, "<string name=\"filename\">")
-    return dict(sorted((SCENE_KEY if f == scene else _relative(f, scene.parent), file_sha256(f))
-                       for f in walk.files))
+    hashes = dict(sorted((SCENE_KEY if f == scene else _relative(f, scene.parent), file_sha256(f))
+                         for f in walk.files))
+    return hashes, walk.defaults
 
 
 class _Walk:
@@ -71,6 +79,7 @@ class _Walk:
         self.scene = scene
         self.params = {str(k): str(v) for k, v in params.items()}
         self.files: list[Path] = []
+        self.defaults: dict[str, str] = {}
         self.deferred: list[tuple[str, Path]] = []
 
     def read(self, file: Path, parent_resolver, depth: int):
@@ -94,6 +103,7 @@ class _Walk:
         tag = el.tag if isinstance(el.tag, str) else ""
         attr = {k: self._substitute(v, file) for k, v in el.attrib.items()}
         if tag == "default":
+            self.defaults.setdefault(attr.get("name", ""), attr.get("value", ""))
             self.params.setdefault(attr.get("name", ""), attr.get("value", ""))
         elif tag == "path" and parent is not None and parent.get("is_root"):
             folder = self.found(resolver, attr.get("value", ""), file, "<path>", folder=True)
@@ -161,4 +171,4 @@ def _relative(f: Path, folder: Path) -> str:
     return Path(os.path.relpath(f.resolve(), folder.resolve())).as_posix()
 
 
-__all__ = ["asset_hashes", "MAX_INCLUDE_DEPTH", "SCENE_KEY"]
+__all__ = ["asset_hashes", "scene_walk", "MAX_INCLUDE_DEPTH", "SCENE_KEY"]

@@ -78,7 +78,7 @@ from ..mitsuba_env import mitsuba
 from ..scenes.record import STEADY_BUFFERS, Scene
 from ..scenes.build import call_build, exit_message, probe_load
 from ..scenes.build import own_camera as _own_camera
-from .assets import asset_hashes as _sources
+from .assets import asset_hashes as _sources, scene_walk
 from ..cache import referenced
 from ..scenes.parts import film_dict
 from .fidelity import FILTER, record, report_lines
@@ -142,7 +142,9 @@ def resolve(path: str | Path, params: dict[str, str] | None = None) -> Scene:
                                f"to XML scenes (set them in the file)")
     if suffix == ".xml":
         # the digest covers every file the scene reads, so an edited texture loads afresh
-        sources = _sources(str(p), params)
+        sources, defaults = scene_walk(str(p), params)
+        # a value the file's own <default> gives is no parameter: the same scene, the same key
+        params = {k: v for k, v in params.items() if defaults.get(k) != v}
         digest = _sha256(repr(sorted(sources.items())).encode())
         return _xml_scene(str(p), tuple(sorted(params.items())), digest)
     digest = _sha256(p.read_bytes())
