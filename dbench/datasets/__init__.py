@@ -146,7 +146,7 @@ def load(scene: str | Scene, spp: int, res, needs: Iterable[str] | None = None,
     """
     sc = scene if isinstance(scene, Scene) else _scenes.get(scene)
     if not sc.renders:
-        return _load_folder_scene(sc, spp, res, needs, seed, ref_spp, frames)
+        return _load_folder_scene(sc, spp, res, needs, seed, ref_spp, frames, transform, lam)
     transform = transform or default_transform(sc.kind)
     if sc.kind == "sequence":
         return _sequence.load_sequence(sc, spp=spp, res=res, needs=needs, seed=seed,
@@ -267,11 +267,13 @@ def default_res(scene: str | Scene, side: int = DEFAULT_SIDE) -> Res:
 
 
 def _load_folder_scene(sc: Scene, spp: int, res, needs, seed: int, ref_spp: int | None,
-                       frames: int | None) -> Frame | Sequence:
+                       frames: int | None, transform: str | None = None,
+                       lam: float = 0.5) -> Frame | Sequence:
     """A frame (or, for numbered frames, a sequence) read from a folder of renders
     (dbench.datasets.folders.load). Settings that cannot apply to files are refused: another size,
     another reference spp, a seed other than the first (a folder holds one noisy image per
-    spp)."""
+    spp), a ``transform`` (with its ``lam``) other than the one its statistics were gathered
+    with (None: theirs)."""
     from .folders.load import load_folder
 
     info = sc.info
@@ -280,17 +282,37 @@ def _load_folder_scene(sc: Scene, spp: int, res, needs, seed: int, ref_spp: int 
         raise DbenchInputError(f"--res: {where} holds {info.width}x{info.height} images; "
                                f"got {parse_res(res)}")
     if seed != 0:
-        raise DbenchInputError(f"--seed/--seeds: {where} holds one noisy image per spp "
-                               f"(seed 0, one seed); got seed {seed}")
+        raise DbenchInputError(f"--seed/--seeds: {where} holds one noisy image per spp, "
+                               f"made with one seed; seed {seed} was asked for (a folder "
+                               f"offers --seed 0 and --seeds 1)")
     if ref_spp is not None and info.ref_spp is not None and int(ref_spp) != int(info.ref_spp):
         raise DbenchInputError(f"--ref-spp: the reference in {where} has {info.ref_spp} spp; "
                                f"got {ref_spp}")
     if info.frames is None:
-        return load_folder(info, spp, needs)
+        return _same_transform(load_folder(info, spp, needs), transform, lam, where)
     numbers = list(info.frames)[:frames] if frames else list(info.frames)
-    out = [load_folder(info, spp, needs, frame=k) for k in numbers]
+    out = [_same_transform(load_folder(info, spp, needs, frame=k), transform, lam, where)
+           for k in numbers]
     meta = {**out[0].meta, "kind": "sequence", "frames": len(out)}
     return Sequence(out, meta=meta)
+
+
+def _same_transform(frame: Frame, transform: str | None, lam: float, where: str) -> Frame:
+    """``frame``, refused where a ``transform`` was asked for and its statistics (read from
+    the folder, not gathered here) were gathered with another transform or λ: reading them
+    as asked would be a silent change of the run's settings."""
+    stats = getattr(frame, "stats", None)
+    if transform is None or stats is None:
+        return frame
+    def named(name: str, value) -> str:  # identity has no λ
+        return name if name == "identity" else f"{name} (λ {float(value)})"
+
+    held, asked = named(stats.transform, stats.lam), named(transform, lam)
+    if held != asked:
+        raise DbenchInputError(f"--transform: the statistics in {where} were gathered with "
+                               f"{held}; {asked} was asked for (give theirs, or leave "
+                               f"--transform out)")
+    return frame
 
 
 __all__ = ["load", "available_scenes", "get_scene", "Cache", "Scene", "FEATURES",

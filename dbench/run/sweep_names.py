@@ -88,7 +88,8 @@ def check_scenes(config) -> None:
     box (:func:`dbench.datasets.scenes.build.check_plugin_scene`), a sequence shorter than
     ``--frames``, a transient film too large at the sweep's size and bins
     (:func:`dbench.datasets.transient.scene.check_bins`), a folder of renders that
-    does not hold the sweep's size, seeds, reference spp or every spp, and
+    does not hold the sweep's size, seeds, reference spp or every spp, or whose statistics
+    were gathered with another transform than a ``--transform`` given, and
     ``--normal-encoding`` where no scene is a folder of renders. A folder is checked by
     the very loads its groups make (:func:`dbench.run.inputs.load_seeds`, which refuse such
     settings as ``dbench run`` does), reading only the colour of its first frame per spp. A
@@ -114,9 +115,12 @@ def check_scenes(config) -> None:
                 check_bins(scene.window(config.bins).bins, config.res_for(scene),
                            "--bins" if config.bins is not None else f"{name}'s bins")
             continue
+        # its statistics too where a --transform must match theirs
+        needs = ("stats",) if config.transform is not None and "stats" in scene.provides else ()
         for spp in config.spp:
             load_seeds(scene, config.seed, config.seeds, spp=spp, res=config.res_for(scene),
-                       needs=(), ref_spp=config.ref_spp, frames=1, progress=False)
+                       needs=needs, ref_spp=config.ref_spp, frames=1, progress=False,
+                       transform=config.transform, lam=config.lam)
     if config.normal_encoding is not None and not folders:
         raise DbenchInputError(f"--normal-encoding: none of the sweep's scenes "
                                f"({', '.join(config.scenes)}) is a folder of renders; dbench "

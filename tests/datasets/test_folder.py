@@ -1,5 +1,6 @@
 """Folders of EXR renders (dbench.datasets.folders.load) and the exporter writing them (export)."""
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -345,3 +346,26 @@ def test_stats_built_from_samples_survive_export(tmp_path):
     got = load_folder(info, 8)
     _same_bits(got.stats.var_mean, stats.var_mean)
     assert got.meta["ref_var_known"] is False
+
+
+def test_a_transform_other_than_the_folders_statistics_is_refused(tmp_path):
+    """The statistics of a folder were gathered with their transform: --transform asks for
+    them as they are, or is refused, never read under another name."""
+    from dbench import datasets
+    from dbench.datasets.scenes import catalogue
+
+    mean = _img(3).astype(np.float64)
+    stats = SampleStats(n=np.full((H, W, 3), 8.0), mean=mean, var_mean=mean / 8,
+                        m3=np.zeros((H, W, 3)), transform="box-cox", lam=0.25)
+    export_frame(Frame(color=mean.astype(np.float32), stats=stats, reference=_img(4), meta={}),
+                 tmp_path, "s", 8)
+    scene = catalogue.get(str(tmp_path))
+    for transform, lam in ((None, 0.5), ("box-cox", 0.25)):
+        got = datasets.load(scene, spp=8, res=None, transform=transform, lam=lam)
+        assert (got.stats.transform, got.stats.lam) == ("box-cox", 0.25)
+    for transform, lam, asked in (("yeo-johnson", 0.25, "yeo-johnson (λ 0.25)"),
+                                  ("box-cox", 0.5, "box-cox (λ 0.5)"),
+                                  ("identity", 0.5, "identity was")):
+        with pytest.raises(DbenchInputError, match=r"--transform: .* gathered with box-cox "
+                                                   r"\(λ 0.25\); " + re.escape(asked)):
+            datasets.load(scene, spp=8, res=None, transform=transform, lam=lam)

@@ -75,8 +75,11 @@ def renders(renderer, tmp_path_factory) -> Path:
     (["--ref-spp", "32"], "--ref-spp: the reference in {where} has 64 spp; got 32"),
     (["--spp", "4,8"], "{where}: spp 8 is not offered; expected one of [4, 16]"),
     (["--res", "8"], "--res: {where} holds 16x16 images; got 8"),
-    (["--seeds", "2"], "--seed/--seeds: {where} holds one noisy image per spp (seed 0, one "
-                       "seed); got seed 1"),
+    (["--seeds", "2"], "--seed/--seeds: {where} holds one noisy image per spp, made with one "
+                       "seed; seed 1 was asked for (a folder offers --seed 0 and --seeds 1)"),
+    (["--transform", "yeo-johnson"], "--transform: the statistics in {where} were gathered "
+                                     "with box-cox (λ 0.5); yeo-johnson (λ 0.5) was asked for "
+                                     "(give theirs, or leave --transform out)"),
 ])
 def test_a_mixed_sweep_refuses_a_folders_settings_before_any_scene_renders(
         renders, tmp_path, capsys, change, said):
