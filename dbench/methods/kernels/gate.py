@@ -374,10 +374,14 @@ def _gate_passes(color, den, var, x, box_cox_half: bool, fix: bool, alpha: float
     value of ``var``'s row is > 0 (read in the mean's pass)."""
     check_choice("handback", handback, HANDBACKS)
     h, w, c = color.shape
-    color = np.ascontiguousarray(color).reshape(h, w * c)
-    den = np.ascontiguousarray(den, color.dtype).reshape(h, w * c)
-    var = np.ascontiguousarray(var).reshape(h, w * c)
-    x = color if x is None else np.ascontiguousarray(x, color.dtype).reshape(h, w * c)
+    # one argument type: colours float32 (as frames hold them; the output is float32), the
+    # variance float64, every input read-only and C-ordered, since each other combination (a
+    # float64 colour, a read-only broadcast variance) is another specialisation of the
+    # kernels, each about 30 s to compile
+    color = _read_only(np.ascontiguousarray(color, np.float32).reshape(h, w * c))
+    den = _read_only(np.ascontiguousarray(den, color.dtype).reshape(h, w * c))
+    var = _read_only(np.ascontiguousarray(var, np.float64).reshape(h, w * c))
+    x = color if x is None else _read_only(np.ascontiguousarray(x, color.dtype).reshape(h, w * c))
     positive = np.empty(h, np.bool_) if rows_positive is None else rows_positive
     g = gate_taps(sigma_from_mean(_mean_variance(color, den, var, x, box_cox_half, fix,
                                                  positive)))
@@ -386,6 +390,13 @@ def _gate_passes(color, den, var, x, box_cox_half: bool, fix: bool, alpha: float
     _gate_bands(color, den, var, x, box_cox_half, fix, g, g * g, int(pool), float(alpha),
                 gate_table(k, t0), LUT_T_MAX, band, handback == "wiener", out)
     return out.reshape(h, w, c)
+
+
+def _read_only(a: np.ndarray) -> np.ndarray:
+    """A read-only view of ``a`` (no copy)."""
+    view = a.view()
+    view.flags.writeable = False
+    return view
 
 
 def proden_gate_fast(hdr: Any, den: Any, var: Any, *, alpha: float = 1.0, k: float = GATE_K,
