@@ -369,3 +369,51 @@ def test_a_transform_other_than_the_folders_statistics_is_refused(tmp_path):
         with pytest.raises(DbenchInputError, match=r"--transform: .* gathered with box-cox "
                                                    r"\(λ 0.25\); " + re.escape(asked)):
             datasets.load(scene, spp=8, res=None, transform=transform, lam=lam)
+
+
+def test_a_variance_that_is_negative_or_not_finite_is_refused(tmp_path):
+    """A variance image (noisy or reference) or statistics holding a negative or NaN variance
+    are refused naming the file; a NaN variance of a non-finite noisy value is what such a
+    pixel has, and +inf (an overflowed variance) says unknown: both are read."""
+    ref, noisy, sigma2 = _img(1), _img(2), _img(3, hi=0.5)
+    _rgb(tmp_path / "v_0004.hdr.exr", noisy)
+    _rgb(tmp_path / "v_ref.hdr.exr", ref)
+    for bad in (-0.5, np.nan):
+        broken = sigma2.copy()
+        broken[2, 3, 1] = bad
+        _rgb(tmp_path / "v_0004.var.exr", broken)
+        with pytest.raises(DbenchInputError, match=r"v_0004\.var\.exr: 1 values negative or "
+                                                   r"NaN \(the first at \(2, 3, 1\)"):
+            load_folder(scan_folder(tmp_path), 4)
+    broken[2, 3, 1] = np.inf
+    _rgb(tmp_path / "v_0004.var.exr", broken)
+    assert np.isinf(load_folder(scan_folder(tmp_path), 4).stats.var_mean[2, 3, 1])
+    broken[2, 3, 1] = np.nan
+    _rgb(tmp_path / "v_0004.var.exr", broken)
+    # where the noisy value is itself NaN, its variance may be too
+    noisy_nan = noisy.copy()
+    noisy_nan[2, 3, 1] = np.nan
+    _rgb(tmp_path / "v_0004.hdr.exr", noisy_nan)
+    assert np.isnan(load_folder(scan_folder(tmp_path), 4).stats.var_mean[2, 3, 1])
+    # the reference's variance image
+    (tmp_path / "v_0004.var.exr").unlink()
+    _rgb(tmp_path / "v_0004.hdr.exr", noisy)
+    (tmp_path / "dataset.json").write_text(json.dumps({"ref_spp": 64}))
+    broken = sigma2.copy()
+    broken[0, 0, 0] = -1.0
+    _rgb(tmp_path / "v_ref.var.exr", broken)
+    with pytest.raises(DbenchInputError, match=r"v_ref\.var\.exr: 1 values negative"):
+        load_folder(scan_folder(tmp_path), 4)
+    # statistics of a .stats.npz
+    (tmp_path / "v_ref.var.exr").unlink()
+    mean = noisy.astype(np.float64)
+    var_mean = sigma2.astype(np.float64) / 4
+    var_mean[1, 1, 2] = -1e-3
+    export_frame(Frame(color=noisy, stats=SampleStats(n=np.full((H, W, 3), 4.0), mean=mean,
+                                                      var_mean=var_mean, m3=np.zeros((H, W, 3)),
+                                                      transform="identity", lam=0.5),
+                       meta={}), tmp_path, "v", 4, write_reference=False)
+    with pytest.raises(DbenchInputError, match=r"v_0004\.stats\.npz: var_mean: 1 values "
+                                               r"negative or NaN \(the first at "
+                                               r"\(1, 1, 2\)"):
+        load_folder(scan_folder(tmp_path), 4)

@@ -86,7 +86,27 @@ def read_stats_npz(path: Path, shape: tuple[int, ...] | None = None, *,
         raise DbenchInputError(f"{path}: not a readable statistics file ({exc})") from None
     if shape is not None and stats.shape != tuple(shape):
         raise DbenchInputError(f"{path}: statistics of shape {stats.shape}; expected {shape}")
+    check_variance(stats.var_mean, f"{path}: var_mean", stats.mean)
     return stats
+
+
+def check_variance(var: np.ndarray, where: str, values: np.ndarray | None = None) -> np.ndarray:
+    """``var`` (a variance read from a file), refused naming ``where`` when a value is negative
+    or NaN, except a NaN where ``values`` (the quantity it is the variance of, same shape) is
+    itself not finite: read as it is, a negative variance would weigh a pixel as surer than
+    certain and a NaN would spread through every method that reads it. +inf (a variance that
+    overflowed, as dbench's own statistics count in ``n_nonfinite_moments``) says "unknown"
+    and is read."""
+    nan = np.isnan(var)
+    if values is not None:
+        nan &= np.isfinite(values)
+    bad = nan | (var < 0)
+    if bad.any():
+        first = tuple(int(i) for i in np.argwhere(bad)[0])
+        raise DbenchInputError(f"{where}: {int(bad.sum())} values negative or NaN (the first "
+                               f"at {first}: {float(var[first])}); expected values >= 0 "
+                               f"(+inf for unknown)")
+    return var
 
 
 def export_frame(frame: Frame, out_dir: str | os.PathLike, name: str, spp: int, *,

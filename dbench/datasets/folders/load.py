@@ -72,7 +72,7 @@ from ...errors import DbenchInputError
 from ...resolution import Res
 from . import exr_layers as xl
 from . import features as feat
-from .export import read_dataset_json, read_stats_npz
+from .export import check_variance, read_dataset_json, read_stats_npz
 from .features import FEATURES
 from .reference import folder_reference
 from .normals import BY_OPTION, ENCODINGS, resolve as resolve_normals
@@ -426,7 +426,8 @@ def load_folder(info_or_path: FolderInfo | str | os.PathLike, spp: int,
             stats = read_stats_npz(slot["stats"], color.shape)
             files["stats"] = slot["stats"].name
         else:
-            sigma2 = read(slot["variance"]).astype(np.float64)
+            sigma2 = check_variance(read(slot["variance"]).astype(np.float64),
+                                    str(slot["variance"].file), color)
             stats = SampleStats(n=float(spp), mean=color.astype(np.float64),
                                 var_mean=sigma2 / spp, m3=np.zeros(color.shape),
                                 transform="identity", lam=0.5)

@@ -341,10 +341,11 @@ def known_variance(ref: dict, ref_spp: int | None, read: Any, files: dict,
                    shape: tuple[int, ...]) -> tuple[np.ndarray, str] | None:
     """Estimate 1: (variance of the reference mean, how) from the reference's variance image
     (σ² per sample ÷ ``ref_spp``) or identity statistics, else None."""
-    from .export import read_stats_npz
+    from .export import check_variance, read_stats_npz
 
     if "variance" in ref and ref_spp:
-        sigma2 = read(ref["variance"]).astype(np.float64)
+        sigma2 = check_variance(read(ref["variance"]).astype(np.float64),
+                                str(ref["variance"].file))
         files["reference_var"] = ref["variance"].file.name
         return ((sigma2 / ref_spp).astype(np.float32),
                 f"variance image {ref['variance'].file.name} ÷ {ref_spp} spp")
