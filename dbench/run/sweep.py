@@ -172,11 +172,13 @@ def cell_identity(config: SweepConfig, scene, spp: int, method: str, fingerprint
     ``label``: the scene's label when it is not its name (:func:`scene_labels`)."""
     from .. import datasets, registry
 
-    transform = config.transform or datasets.default_transform(scene.kind)
+    # a folder's statistics are what they are (a --transform other than theirs is refused)
+    transform, lam = (scene.info.stats_settings.get(spp) if not scene.renders else None) or (
+        config.transform or datasets.default_transform(scene.kind), float(config.lam))
     return {"scene": label or scene.name, "scene_fingerprint": fingerprint, "kind": scene.kind,
             "res": config.res_for(scene).key, "spp": int(spp), "seeds": config.seed_list,
             "ref_spp": resolved_ref_spp(config, scene, spp), "ref_seed": config.seed,
-            "transform": transform, "lam": float(config.lam), "frames": config.frames,
+            "transform": transform, "lam": lam, "frames": config.frames,
             "bins": config.bins, "metrics": list(config.metrics), "method": method,
             "params": identity.resolved_params(method, config.params.get(method)),
             "method_version": identity.method_version(

@@ -229,3 +229,34 @@ def test_sweep_with_three_seeds_shares_one_reference(renderer, tmp_path):
         assert c["n_seeds"] == 3 and c["seeds"] == [0, 1, 2] and c["ref_spp"] == 64
         assert c["rmse_ci"] > 0 and c["rmse_surface_ci"] > 0 and c["relmse_ci"] > 0
         assert len(c["per_seed"]) == 3 and 0 < c["top1_share"] <= 1
+
+
+def test_a_folder_cell_names_the_transform_its_statistics_were_gathered_with(tmp_path):
+    """A folder's statistics are read as they are: its cells' identity holds their transform
+    and λ per spp (a variance image: identity), not the sweep's default for the kind."""
+    import numpy as np
+
+    from dbench.data import Frame, SampleStats
+    from dbench.datasets.folders.export import export_frame
+    from dbench.datasets.scenes import catalogue
+    from exr_files import write_rgb  # tests/exr_files.py
+
+    rng = np.random.default_rng(3)
+    img = rng.random((8, 8, 3)).astype(np.float32)
+    write_rgb(tmp_path / "v_ref.hdr.exr", img)
+    write_rgb(tmp_path / "v_0004.hdr.exr", img)
+    write_rgb(tmp_path / "v_0004.var.exr", np.full((8, 8, 3), 0.01, np.float32))
+    stats = SampleStats(n=np.full((8, 8, 3), 16.0), mean=img.astype(np.float64),
+                        var_mean=np.full((8, 8, 3), 1e-3), m3=np.zeros((8, 8, 3)),
+                        transform="yeo-johnson", lam=0.25)
+    export_frame(Frame(color=img, stats=stats, meta={}), tmp_path, "v", 16,
+                 write_reference=False)
+    scene = catalogue.get(str(tmp_path))
+    assert scene.info.stats_settings == {4: ("identity", 0.5), 16: ("yeo-johnson", 0.25)}
+    cfg = sweep.SweepConfig(methods=["noisy"], scenes=[str(tmp_path)], spp=[4, 16])
+    got = {spp: sweep.cell_identity(cfg, scene, spp, "noisy", "fp") for spp in (4, 16)}
+    assert (got[4]["transform"], got[4]["lam"]) == ("identity", 0.5)
+    assert (got[16]["transform"], got[16]["lam"]) == ("yeo-johnson", 0.25)
+    # a rendered scene keeps the kind's default
+    cornell = sweep.cell_identity(cfg, catalogue.get("cornell"), 4, "noisy", "fp")
+    assert (cornell["transform"], cornell["lam"]) == ("box-cox", 0.5)

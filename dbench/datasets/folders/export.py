@@ -65,9 +65,10 @@ def write_stats_npz(path: str | os.PathLike, stats: SampleStats) -> None:
 
 
 def read_stats_npz(path: Path, shape: tuple[int, ...] | None = None, *,
-                   transform_only: bool = False):
+                   settings_only: bool = False):
     """The SampleStats in a ``.stats.npz`` (checked against ``shape`` when given), or only its
-    transform name (reading no arrays); a DbenchInputError naming the file when unreadable."""
+    (transform, λ) (reading no image arrays); a DbenchInputError naming the file when
+    unreadable."""
     keys = {"n", "mean", "var_mean", "m3", "transform", "lam"}
     try:
         if not zipfile.is_zipfile(path):
@@ -75,8 +76,8 @@ def read_stats_npz(path: Path, shape: tuple[int, ...] | None = None, *,
         with np.load(path, allow_pickle=False) as z:
             if keys - set(z.files):
                 raise ValueError(f"lacks {sorted(keys - set(z.files))}; expected {sorted(keys)}")
-            if transform_only:
-                return str(z["transform"])
+            if settings_only:
+                return str(z["transform"]), float(z["lam"])
             arrays = {k: z[k] for k in z.files}
         diagnostics = json.loads(str(arrays["diagnostics"])) if "diagnostics" in arrays else {}
         stats = SampleStats(n=arrays["n"], mean=arrays["mean"], var_mean=arrays["var_mean"],

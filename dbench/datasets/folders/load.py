@@ -123,6 +123,8 @@ class FolderInfo:
     _meta: dict = field(default_factory=dict, repr=False)
     #: the encoding ``dataset.json`` declares, or None
     _declared_normals: str | None = field(default=None, repr=False)
+    #: {spp: (transform, λ)} its statistics were gathered with (a variance image: identity)
+    stats_settings: dict = field(default_factory=dict)
 
 
 def _parse(name: str) -> re.Match | None:
@@ -303,6 +305,7 @@ def scan_folder(path: str | os.PathLike) -> FolderInfo:
     sources = ["stats" if "stats" in s else "variance" if "variance" in s else None
                for s in slots]
     stats_source = None
+    stats_settings: dict[int, tuple[str, float]] = {}
     lacking = [spp for spp, src in zip(spps, sources) if src is None]
     if lacking and len(lacking) < len(spps):  # as a feature: left out of the whole series
         left = "; ".join(filter(None, (left, feat.stats_left_out(lacking, view))))
@@ -310,8 +313,10 @@ def scan_folder(path: str | os.PathLike) -> FolderInfo:
         buffers.add("stats")
         parts: dict[str, list[int]] = {}
         for s, spp, src in zip(slots, spps, sources):
+            stats_settings[spp] = (("identity", 0.5) if src == "variance" else
+                                   read_stats_npz(s["stats"], settings_only=True))
             desc = STATS_FROM_VARIANCE if src == "variance" else \
-                f"dbench statistics ({read_stats_npz(s['stats'], transform_only=True)})"
+                f"dbench statistics ({stats_settings[spp][0]})"
             parts.setdefault(desc, []).append(spp)
         stats_source = (next(iter(parts)) if len(parts) == 1 else
                         "; ".join(f"{d} for spp {', '.join(map(str, v))}"
@@ -324,6 +329,7 @@ def scan_folder(path: str | os.PathLike) -> FolderInfo:
     return FolderInfo(
         path=folder, name=view, width=w, height=h, spps=tuple(spps), ref_spp=ref_spp,
         reference_from=reference_from, buffers=frozenset(buffers), stats_source=stats_source,
+        stats_settings=stats_settings,
         frames=frames, ev=float(info_json.get("ev", 0.0) or 0.0),
         normals=encoding.encoding if encoding else "signed",
         fingerprint=_fingerprint(folder, used, info_json), ignored=tuple(sorted(ignored + unknown)),
