@@ -92,3 +92,19 @@ def test_statistics_some_spp_lack_are_left_out_of_the_whole_series_and_said(tmp_
     info = scan_folder(folder)
     assert "stats" in info.buffers
     assert "feature_warning" not in load_folder(info, 16, needs=()).meta
+
+
+def test_feature_buffers_holding_nan_or_inf_are_said(tmp_path):
+    """Another renderer's depth where a pixel sees no surface (inf) or a broken albedo (NaN)
+    is read as it is, and meta["feature_warning"] names the buffer, the count and the file."""
+    img = np.full((H, W, 3), 0.5, np.float32)
+    _rgb(tmp_path / "v_0004.hdr.exr", img)
+    _rgb(tmp_path / "v_ref.hdr.exr", img)
+    albedo = img.copy()
+    albedo[1, 2, :] = np.nan
+    _rgb(tmp_path / "v_0004.alb.exr", albedo)
+    f = load_folder(scan_folder(tmp_path), 4)
+    assert np.isnan(f.albedo[1, 2]).all()
+    assert f.meta["feature_warning"] == "albedo: 3 values NaN or Inf in v_0004.alb.exr"
+    _rgb(tmp_path / "v_0004.alb.exr", img)
+    assert not load_folder(scan_folder(tmp_path), 4).meta.get("feature_warning")

@@ -24,6 +24,8 @@ from __future__ import annotations
 
 from typing import Mapping, Sequence
 
+import numpy as np
+
 #: Buffers that come from an spp's own files or, failing that, from the reference's.
 FEATURES = ("albedo", "normal", "depth", "position", "emitter", "motion")
 
@@ -89,4 +91,19 @@ def stats_left_out(lacking: Sequence[int], view: str) -> str:
             f"skipped); to use them, add a {view}_<spp>.stats.npz or .var.exr at those spp")
 
 
-__all__ = ["FEATURES", "gaps", "left_out", "left_out_files", "mixed", "stats_left_out"]
+def non_finite(buffers: dict, files: dict) -> str:
+    """What ``meta["feature_warning"]`` says of feature buffers holding NaN or ±Inf values
+    (another renderer's depth or position where a pixel sees no surface, a broken normal),
+    '' when none does: the methods read them as they are (their outputs stay finite), and the
+    user learns that the buffers hold them."""
+    said = []
+    for b in FEATURES:
+        if b in buffers:
+            bad = int(np.count_nonzero(~np.isfinite(buffers[b])))
+            if bad:
+                said.append(f"{b}: {bad} values NaN or Inf in {files[b]}")
+    return "; ".join(said)
+
+
+__all__ = ["FEATURES", "gaps", "left_out", "left_out_files", "mixed", "non_finite",
+           "stats_left_out"]

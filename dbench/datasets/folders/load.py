@@ -462,8 +462,9 @@ def load_folder(info_or_path: FolderInfo | str | os.PathLike, spp: int,
         meta.pop("normal_warning", None)  # a doubt about normals no method here reads
     mixed = feat.mixed(gaps, set(ref), set(buffers),
                        {b: ref[b].file.name for b in FEATURES if b in ref})
-    if mixed:
-        meta["feature_warning"] = "; ".join(filter(None, (meta.get("feature_warning"), mixed)))
+    said = "; ".join(filter(None, (mixed, feat.non_finite(buffers, files))))
+    if said:
+        meta["feature_warning"] = "; ".join(filter(None, (meta.get("feature_warning"), said)))
     meta.update(xl.layers_report(read.layers, info.path, info.ignored))
     meta["layers_ignored"] += feat.left_out_files(gaps, set(ref), slot)
     return Frame(color=color, stats=stats, meta=meta, **buffers)
