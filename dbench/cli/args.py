@@ -242,13 +242,16 @@ def _scene_of(args: argparse.Namespace):
     return scenes.with_normal_encoding(scene, getattr(args, "normal_encoding", None), args.scene)
 
 
-def check_kind_options(args: argparse.Namespace, scene) -> None:
-    """Refuse ``--frames`` for a scene that is not a sequence and ``--bins`` for one that is not
-    transient: read by nothing, they would leave the user believing the run used them."""
+def check_kind_options(args: argparse.Namespace, scenes: Sequence, names: Sequence[str]) -> None:
+    """Refuse ``--frames`` where none of ``scenes`` (named ``names``) is a sequence and
+    ``--bins`` where none is transient: read by nothing, they would leave the user believing
+    the run used them (and a sweep would store them in its identity)."""
+    kinds = {sc.kind for sc in scenes}
     for option, kind in (("frames", "sequence"), ("bins", "transient")):
-        if getattr(args, option, None) is not None and scene.kind != kind:
-            raise DbenchInputError(f"--{option}: only {kind} scenes take it; "
-                                   f"{args.scene} is a {scene.kind} scene")
+        if getattr(args, option, None) is not None and kind not in kinds:
+            held = (f"{names[0]} is a {scenes[0].kind} scene" if len(scenes) == 1 else
+                    f"this sweep's scenes ({', '.join(names)}) have none")
+            raise DbenchInputError(f"--{option}: only {kind} scenes take it; {held}")
 
 
 def _default_spp(scene, fallback: int = 16) -> int:

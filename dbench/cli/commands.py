@@ -93,7 +93,7 @@ def cmd_export(args: argparse.Namespace) -> int:
     if scene.kind == "transient":
         raise DbenchInputError(f"--scene {args.scene}: transient videos have no place in the "
                                f"folder layout; export steady or sequence scenes")
-    check_kind_options(args, scene)
+    check_kind_options(args, [scene], [args.scene])
     spps = _ints(args.spp, "--spp")
     for spp in spps:
         check_count("--spp", spp)
@@ -227,22 +227,9 @@ def cmd_bench(args: argparse.Namespace) -> int:
     return 0
 
 
-def _check_sweep_kind_options(args: argparse.Namespace, names: list[str],
-                              scene_params: dict) -> None:
-    """Refuse a sweep's ``--frames`` where none of its scenes is a sequence, and ``--bins``
-    where none is transient (:func:`check_kind_options` for one scene): read by no cell, they
-    would be stored in the sweep's identity and leave the user believing they were used."""
-    from ..datasets.scenes import catalogue
-
-    kinds = {catalogue.get(n, scene_params).kind for n in names}
-    for option, kind in (("frames", "sequence"), ("bins", "transient")):
-        if getattr(args, option, None) is not None and kind not in kinds:
-            raise DbenchInputError(f"--{option}: only {kind} scenes take it; this sweep's "
-                                   f"scenes ({', '.join(names)}) have none")
-
-
 def cmd_sweep(args: argparse.Namespace) -> int:
     from ..run import sweep
+    from ..datasets.scenes import catalogue
 
     from ..datasets.scene_files import load as scene_files
 
@@ -250,7 +237,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     methods_, scenes_ = sweep.resolve_names(names_arg(args.methods, "--methods") or "all",
                                             names_arg(args.scenes, "--scenes") or "all",
                                             scene_params)
-    _check_sweep_kind_options(args, scenes_, scene_params)
+    check_kind_options(args, [catalogue.get(n, scene_params) for n in scenes_], scenes_)
     res_given = args.res
     args.res = args.res or "128"  # checked here; the sweep's own default is per scene
     _check_common(args)

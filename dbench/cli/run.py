@@ -29,7 +29,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     for n in names:
         registry.method_class(n)  # raises UnknownNameError listing valid names
     scene = _scene_of(args)
-    check_kind_options(args, scene)
+    check_kind_options(args, [scene], [args.scene])
     args.spp = _default_spp(scene) if args.spp is None else args.spp
     check_count("--spp", args.spp)
     if args.res is None:
