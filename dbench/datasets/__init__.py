@@ -288,33 +288,34 @@ def _load_folder_scene(sc: Scene, spp: int, res, needs, seed: int, ref_spp: int 
     if ref_spp is not None and info.ref_spp is not None and int(ref_spp) != int(info.ref_spp):
         raise DbenchInputError(f"--ref-spp: the reference in {where} has {info.ref_spp} spp; "
                                f"got {ref_spp}")
+    if needs is None or "stats" in needs:
+        check_folder_transform(sc, spp, transform, lam)
     if info.frames is None:
-        return _same_transform(load_folder(info, spp, needs), transform, lam, where)
+        return load_folder(info, spp, needs)
     numbers = list(info.frames)[:frames] if frames else list(info.frames)
-    out = [_same_transform(load_folder(info, spp, needs, frame=k), transform, lam, where)
-           for k in numbers]
+    out = [load_folder(info, spp, needs, frame=k) for k in numbers]
     meta = {**out[0].meta, "kind": "sequence", "frames": len(out)}
     return Sequence(out, meta=meta)
 
 
-def _same_transform(frame: Frame, transform: str | None, lam: float, where: str) -> Frame:
-    """``frame``, refused where a ``transform`` was asked for and its statistics (read from
-    the folder, not gathered here) were gathered with another transform or λ: reading them
-    as asked would be a silent change of the run's settings."""
-    stats = getattr(frame, "stats", None)
-    if transform is None or stats is None:
-        return frame
+def check_folder_transform(sc: Scene, spp: int, transform: str | None, lam: float) -> None:
+    """Refuse a ``transform`` (with its ``lam``; None: the folder's own) other than the one the
+    statistics of the folder scene ``sc`` at ``spp`` were gathered with
+    (``FolderInfo.stats_settings``, read when the folder was scanned): its statistics are read
+    as they are, so reading them as asked would be a silent change of the run's settings."""
+    held = sc.info.stats_settings.get(int(spp))
+    if transform is None or held is None:
+        return
+
     def named(name: str, value) -> str:  # identity has no λ
         return name if name == "identity" else f"{name} (λ {float(value)})"
 
-    held, asked = named(stats.transform, stats.lam), named(transform, lam)
-    if held != asked:
-        raise DbenchInputError(f"--transform: the statistics in {where} were gathered with "
-                               f"{held}; {asked} was asked for (give theirs, or leave "
-                               f"--transform out)")
-    return frame
+    if named(*held) != named(transform, lam):
+        raise DbenchInputError(f"--transform: the statistics in {sc.info.path}/{sc.info.name} "
+                               f"were gathered with {named(*held)}; {named(transform, lam)} "
+                               f"was asked for (give theirs, or leave --transform out)")
 
 
 __all__ = ["load", "available_scenes", "get_scene", "Cache", "Scene", "FEATURES",
            "FEATURE_BUFFERS", "scene_fingerprint", "feature_identity", "default_res",
-           "default_transform"]
+           "default_transform", "check_folder_transform"]

@@ -92,9 +92,11 @@ def check_scenes(config) -> None:
     were gathered with another transform than a ``--transform`` given, and
     ``--normal-encoding`` where no scene is a folder of renders. A folder is checked by
     the very loads its groups make (:func:`dbench.run.inputs.load_seeds`, which refuse such
-    settings as ``dbench run`` does), reading only the colour of its first frame per spp. A
+    settings as ``dbench run`` does), reading only the colour of its first frame per spp, and
+    its statistics' transform by :func:`dbench.datasets.check_folder_transform`. A
     film of another size than the sweep's is refused by :func:`dbench.run.sweep.plan`, whose
     fingerprints build every scene's dictionary before the run is recorded."""
+    from .. import datasets
     from ..datasets.scenes.build import check_plugin_scene
     from ..datasets.transient.scene import check_bins
     from ..errors import DbenchInputError
@@ -115,12 +117,11 @@ def check_scenes(config) -> None:
                 check_bins(scene.window(config.bins).bins, config.res_for(scene),
                            "--bins" if config.bins is not None else f"{name}'s bins")
             continue
-        # its statistics too where a --transform must match theirs
-        needs = ("stats",) if config.transform is not None and "stats" in scene.provides else ()
         for spp in config.spp:
             load_seeds(scene, config.seed, config.seeds, spp=spp, res=config.res_for(scene),
-                       needs=needs, ref_spp=config.ref_spp, frames=1, progress=False,
-                       transform=config.transform, lam=config.lam)
+                       needs=(), ref_spp=config.ref_spp, frames=1, progress=False)
+            # its statistics' transform, as the folder's scan read it
+            datasets.check_folder_transform(scene, spp, config.transform, config.lam)
     if config.normal_encoding is not None and not folders:
         raise DbenchInputError(f"--normal-encoding: none of the sweep's scenes "
                                f"({', '.join(config.scenes)}) is a folder of renders; dbench "
