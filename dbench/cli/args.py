@@ -195,7 +195,7 @@ def _check_common(args: argparse.Namespace) -> None:
     from ..data import check_transform
 
     try:
-        check_transform(args.transform or "box-cox", args.lam)
+        check_transform(args.transform or "box-cox", DEFAULT_LAM if args.lam is None else args.lam)
     except DbenchInputError as exc:
         raise DbenchInputError(f"--transform/--lam: {exc}") from None
 
@@ -252,6 +252,48 @@ def check_kind_options(args: argparse.Namespace, scenes: Sequence, names: Sequen
             held = (f"{names[0]} is a {scenes[0].kind} scene" if len(scenes) == 1 else
                     f"this sweep's scenes ({', '.join(names)}) have none")
             raise DbenchInputError(f"--{option}: only {kind} scenes take it; {held}")
+
+
+#: λ of the Box-Cox and Yeo-Johnson transforms where ``--lam`` is not given
+DEFAULT_LAM = 0.5
+
+
+def check_lam(args: argparse.Namespace, scenes: Sequence, names: Sequence[str],
+              spps: Sequence[int]) -> None:
+    """Refuse a ``--lam`` that none of ``scenes`` (named ``names``, at ``spps``) reads, or that
+    differs from the λ a folder's statistics were gathered with; then set ``args.lam`` (not
+    given: :data:`DEFAULT_LAM`). λ is read only by the Box-Cox and Yeo-Johnson transforms: with
+    ``--transform identity``, or without ``--transform`` where every scene's statistics use the
+    identity (transient scenes, folders of variance images), it would change nothing while the
+    run records it (docs/methods/statistical.md §3). A ``--transform`` given with it is
+    compared with folders by :func:`dbench.datasets.check_folder_transform`."""
+    from ..datasets import default_transform
+
+    lam, args.lam = args.lam, DEFAULT_LAM if args.lam is None else args.lam
+    if lam is None or args.transform not in (None, "identity"):
+        return
+    if args.transform == "identity":
+        raise DbenchInputError("--lam: the identity transform takes no λ; leave --lam out or "
+                               "give --transform box-cox or yeo-johnson")
+    unread = []
+    for sc, name in zip(scenes, names):
+        if sc.renders:
+            held = {default_transform(sc.kind): None}
+        else:
+            held = {sc.info.stats_settings[s][0]: sc.info.stats_settings[s][1] for s in spps
+                    if s in sc.info.stats_settings}
+        for transform, value in held.items():
+            if transform != "identity" and value is not None and float(value) != float(lam):
+                raise DbenchInputError(f"--lam: the statistics in {sc.info.path}/{sc.info.name} "
+                                       f"were gathered with {transform} (λ {float(value)}); "
+                                       f"λ {float(lam)} was asked for (give theirs, or leave "
+                                       f"--lam out)")
+        if set(held) <= {"identity"}:
+            unread.append(f"{name} ({'identity' if held else 'no statistics'})")
+    if len(unread) == len(names):
+        raise DbenchInputError(f"--lam: only the box-cox and yeo-johnson transforms take λ, and "
+                               f"no scene here uses one: {', '.join(unread)}; give --transform "
+                               f"with it")
 
 
 def _default_spp(scene, fallback: int = 16) -> int:

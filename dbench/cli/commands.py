@@ -8,7 +8,7 @@ from pathlib import Path
 
 from ..errors import DbenchInputError
 from .args import (RANKABLE, _check_common, _ints, _scene_of, _writable_cache, names_arg,
-                   check_kind_options, parse_params)
+                   check_kind_options, check_lam, parse_params)
 
 
 def cmd_list(args: argparse.Namespace) -> int:
@@ -237,10 +237,12 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     methods_, scenes_ = sweep.resolve_names(names_arg(args.methods, "--methods") or "all",
                                             names_arg(args.scenes, "--scenes") or "all",
                                             scene_params)
-    check_kind_options(args, [catalogue.get(n, scene_params) for n in scenes_], scenes_)
+    scene_objs = [catalogue.get(n, scene_params) for n in scenes_]
+    check_kind_options(args, scene_objs, scenes_)
     res_given = args.res
     args.res = args.res or "128"  # checked here; the sweep's own default is per scene
     _check_common(args)
+    check_lam(args, scene_objs, scenes_, _ints(args.spp, "--spp"))
     params = parse_params(args.param or [], methods_)
     config = sweep.SweepConfig(methods=methods_, scenes=scenes_,
                                spp=_ints(args.spp, "--spp"),

@@ -59,7 +59,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--repeats", type=count, default=5, help="timed calls after one warm-up")
     r.add_argument("--transform", default=None, help="sample transform of the statistics "
                    "(default: box-cox for steady scenes, identity for transient ones)")
-    r.add_argument("--lam", type=number, default=0.5)
+    r.add_argument("--lam", type=number, default=None, help="λ of box-cox and yeo-johnson "
+                   "(default 0.5; refused where no scene's transform takes one)")
     r.add_argument("--frames", type=count, default=None, help="sequence scenes: frames from the "
                    "start (default all)")
     r.add_argument("--bins", type=count, default=None, help="transient scenes: time bins "
@@ -97,7 +98,8 @@ def build_parser() -> argparse.ArgumentParser:
     sw.add_argument("--param", action="append", metavar="[METHOD.]KEY=VALUE")
     sw.add_argument("--transform", default=None, help="sample transform of the statistics "
                     "(default: box-cox for steady scenes, identity for transient ones)")
-    sw.add_argument("--lam", type=number, default=0.5)
+    sw.add_argument("--lam", type=number, default=None, help="λ of box-cox and yeo-johnson "
+                    "(default 0.5; refused where no scene's transform takes one)")
     sw.add_argument("--frames", type=count, default=None, help="sequence scenes: frames from the "
                     "start (default all)")
     sw.add_argument("--bins", type=count, default=None, help="transient scenes: time bins "

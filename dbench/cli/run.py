@@ -14,7 +14,7 @@ from pathlib import Path
 
 from ..run.scene_run import RunRequest, run_scene
 from .args import (_check_common, _default_spp, _scene_of, _writable_cache, names_arg,
-                   check_kind_options, parse_params)
+                   check_kind_options, check_lam, parse_params)
 
 
 def cmd_run(args: argparse.Namespace) -> int:
@@ -35,6 +35,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     if args.res is None:
         args.res = datasets.default_res(scene)
     _check_common(args)
+    check_lam(args, [scene], [args.scene], [args.spp])
     from ..device import resolve_device
     device = resolve_device(args.device)
     if "noisy" not in names:

@@ -168,3 +168,33 @@ def test_a_sweep_refuses_frames_or_bins_that_none_of_its_scenes_reads(tmp_path, 
     _refused(capsys, ["sweep", "--methods", "jbf", "--scenes", "orbit", "--bins", "8",
                       "--out", str(tmp_path / "sw")], "--bins: only transient scenes")
     assert not (tmp_path / "sw").exists()
+
+
+def test_a_lam_that_no_scene_reads_is_refused(tmp_path, capsys):
+    """λ is read by box-cox and yeo-johnson alone: with the identity transform (asked for, or
+    a transient scene's default) it changed nothing while the run recorded it."""
+    _refused(capsys, _run(tmp_path, "--method", "noisy", "--transform", "identity", "--lam",
+                          "0.3"), "--lam: the identity transform takes no λ")
+    _refused(capsys, _run(tmp_path, "--method", "noisy", "--scene", "cornell-transient",
+                          "--lam", "0.3"), "--lam: only the box-cox and yeo-johnson",
+             "cornell-transient (identity)")
+    _refused(capsys, ["sweep", "--methods", "jbf", "--scenes", "cornell-transient,fog-transient",
+                      "--lam", "0.3", "--out", str(tmp_path / "sw")],
+             "cornell-transient (identity), fog-transient (identity)")
+    assert not (tmp_path / "out").exists() and not (tmp_path / "sw").exists()
+
+
+def test_lam_is_taken_where_one_of_the_scenes_reads_it():
+    import argparse
+
+    from dbench.cli.args import DEFAULT_LAM, check_lam
+    from dbench.datasets.scenes import catalogue
+
+    names = ["cornell-transient", "cornell"]
+    scenes = [catalogue.get(n) for n in names]
+    args = argparse.Namespace(lam=0.3, transform=None)
+    check_lam(args, scenes, names, [4])
+    assert args.lam == 0.3
+    args = argparse.Namespace(lam=None, transform="identity")
+    check_lam(args, scenes[:1], names[:1], [4])  # not given: the default, read or not
+    assert args.lam == DEFAULT_LAM

@@ -371,6 +371,35 @@ def test_a_transform_other_than_the_folders_statistics_is_refused(tmp_path):
             datasets.load(scene, spp=8, res=None, transform=transform, lam=lam)
 
 
+def test_a_lam_other_than_the_folders_statistics_is_refused(tmp_path):
+    """--lam without --transform is compared with the λ the folder's statistics were gathered
+    with; on identity statistics (a variance image) nothing reads it."""
+    import argparse
+
+    from dbench.cli.args import check_lam
+    from dbench.datasets.scenes import catalogue
+
+    mean = _img(3).astype(np.float64)
+    stats = SampleStats(n=np.full((H, W, 3), 8.0), mean=mean, var_mean=mean / 8,
+                        m3=np.zeros((H, W, 3)), transform="box-cox", lam=0.25)
+    export_frame(Frame(color=mean.astype(np.float32), stats=stats, reference=_img(4), meta={}),
+                 tmp_path / "bc", "s", 8)
+    bc = catalogue.get(str(tmp_path / "bc"))
+    args = argparse.Namespace(lam=0.25, transform=None)
+    check_lam(args, [bc], ["bc"], [8])
+    assert args.lam == 0.25
+    with pytest.raises(DbenchInputError, match=r"--lam: .* gathered with box-cox \(λ 0.25\); "
+                                               r"λ 0.5 was asked for"):
+        check_lam(argparse.Namespace(lam=0.5, transform=None), [bc], ["bc"], [8])
+    (tmp_path / "v").mkdir()
+    _rgb(tmp_path / "v" / "v_0004.hdr.exr", _img(2))
+    _rgb(tmp_path / "v" / "v_0004.var.exr", _img(3, hi=0.5))
+    _rgb(tmp_path / "v" / "v_ref.hdr.exr", _img(1))
+    v = catalogue.get(str(tmp_path / "v"))
+    with pytest.raises(DbenchInputError, match=r"no scene here uses one: v \(identity\)"):
+        check_lam(argparse.Namespace(lam=0.3, transform=None), [v], ["v"], [4])
+
+
 def test_a_variance_that_is_negative_or_not_finite_is_refused(tmp_path):
     """A variance image (noisy or reference) or statistics holding a negative or NaN variance
     are refused naming the file; a NaN variance of a non-finite noisy value is what such a
