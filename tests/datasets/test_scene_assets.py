@@ -139,6 +139,17 @@ def test_a_missing_asset_is_refused_before_rendering(renderer, tmp_path, capsys)
     text = str(err.value)
     assert "textures/wood.png" in text and "room.xml" in text
     assert str((tmp_path / "assets").resolve()) in text and str(path.parent) in text
+    # each folder named once, also the scene's own when Mitsuba's resolver holds it already
+    # (it starts with the working directory of the process)
+    glob = renderer.file_resolver()
+    glob.prepend(str(path.parent))
+    try:
+        with pytest.raises(DbenchInputError) as err:
+            scenes.get(str(path))
+    finally:
+        del glob[0]
+    searched = str(err.value).split("Mitsuba searches: ")[1].split("; ")
+    assert str(path.parent) in searched and len(searched) == len(set(searched)), searched
     out = tmp_path / "run"
     assert main(["run", "--method", "noisy", "--scene", str(path), "--spp", "1", "--res", "8",
                  "--quiet", "--cache", str(tmp_path / "c"), "--out", str(out)]) == 2

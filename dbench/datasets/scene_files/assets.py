@@ -133,7 +133,10 @@ class _Walk:
             elif Path(ref).is_absolute():
                 why = "not found"
             else:
-                searched = [str(p) for p in resolver] + [f"{os.getcwd()} (working directory)"]
+                # each folder once, in the resolver's order (a scene's own folder is in it
+                # twice when the loader and the file itself both prepend it)
+                searched = list(dict.fromkeys(str(p) for p in resolver))
+                searched.append(f"{os.getcwd()} (working directory)")
                 why = f"not found in the folders Mitsuba searches: {'; '.join(searched)}"
             raise DbenchInputError(f"--scene {self.scene}: {kind} {ref!r} ({what} in {where}) "
                                    f"{why}")
