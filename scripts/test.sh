@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Runs the test suite (sets up first if needed), without the tests marked slow (the 128-px
-# temporal quality check; its 32-px version runs). Extra arguments go to pytest, e.g.
+# Runs the test suite (sets up first if needed), without the tests marked slow (the stress
+# matrix's device-form cases through Triton's interpreter, the 128-px temporal quality check,
+# the transient media windows, ...). Extra arguments go to pytest, e.g.
 # scripts/test.sh -m slow (only the slow ones) or scripts/test.sh -m "" (everything).
 set -euo pipefail
 cd "$(dirname "$0")/.."
