@@ -30,6 +30,12 @@ bin change). With ``slots ≥ 2·max_depth`` no slot ages are kept: an integrato
 never exceed 2·max_depth contributions (``guard_overflow = False``) does not check at all; one
 that can only in unusual scenes (``guard_overflow = True``) flushes the contribution on its own
 (one extra sample in that bin) and counts it.
+
+With every slot kept (no ages), a contribution's insertion and each slot's flush run inside
+symbolic ``dr.if_stmt`` branches on their lanes' masks, which Dr.Jit compiles to real branches:
+a packet of lanes none of which contributes (most emitter hits) or uses the slot (the last ones)
+skips that work instead of computing it masked. The sums are bit for bit those of the masked
+form (README.md, "How renders work", gives the timings).
 """
 from __future__ import annotations
 
@@ -157,18 +163,37 @@ class SlotIntegrator:
         t = (opl - col.start_opl) / col.bin_width_opl
         ok = mask & (t >= 0) & (t < col.bins) & dr.any(v != 0.0)
         b = mi.Int32(dr.floor(t))
-        over, re = self._insert(st, b, v, ok)
-        st.n_re += dr.select(re, 1, 0)
-        st.last = dr.select(ok, b, st.last)
-        st.clock += 1
         if st.ages:
+            over, re = self._insert(st, b, v, ok)
+            st.n_re += dr.select(re, 1, 0)
+            st.last = dr.select(ok, b, st.last)
+            st.clock += 1
             self._overflow(col, voxel0, st, over, b, v)
-        elif self.guard_overflow:
-            # more contributions than 2·max_depth: flushed alone (inexact, counted)
-            st.n_over += dr.select(over, 1, 0)
-            nb, nn = col._scatter(voxel0 + mi.UInt32(dr.maximum(b, 0)), v, over, st.total)
-            st.bad += nb
-            st.neg += nn
+            return st
+
+        def add(ok, b, v, bins, vals, last, n_re, n_over, bad, neg, *total):
+            # on copies: the branch's results are what it returns
+            s = PathSlots(bins=list(bins), vals=list(vals), ages=[], last=last, clock=None,
+                          n_re=n_re, n_over=n_over, bad=bad, neg=neg, total=list(total))
+            over, re = self._insert(s, b, v, ok)
+            n_re = n_re + dr.select(re, 1, 0)
+            last = dr.select(ok, b, last)
+            if self.guard_overflow:
+                # more contributions than 2·max_depth: flushed alone (inexact, counted)
+                n_over = n_over + dr.select(over, 1, 0)
+                nb, nn = col._scatter(voxel0 + mi.UInt32(dr.maximum(b, 0)), v, over, s.total)
+                bad, neg = bad + nb, neg + nn
+            return s.bins, s.vals, last, n_re, n_over, bad, neg, *s.total
+
+        def skip(ok, b, v, bins, vals, last, n_re, n_over, bad, neg, *total):
+            return bins, vals, last, n_re, n_over, bad, neg, *total
+
+        # a real branch: a packet of lanes none of which contributes here (most emitter hits
+        # and light samples of a path miss the window or carry nothing) skips the slots
+        st.bins, st.vals, st.last, st.n_re, st.n_over, st.bad, st.neg, *st.total = dr.if_stmt(
+            (ok, b, v, st.bins, st.vals, st.last, st.n_re, st.n_over, st.bad, st.neg, *st.total),
+            ok, add, skip, mode="symbolic")
+        st.clock += 1
         return st
 
     def _overflow(self, col, voxel0, st: PathSlots, over, b, v) -> None:
@@ -196,8 +221,18 @@ class SlotIntegrator:
             act = st.bins[i] >= 0
             if limit is not None:
                 act &= st.bins[i] < limit
-            nb, nn = col._scatter(voxel0 + mi.UInt32(dr.maximum(st.bins[i], 0)), st.vals[i],
-                                  act, st.total)
+
+            def flush(act, voxel, value, t0, t1, t2):
+                total = [t0, t1, t2]
+                nb, nn = col._scatter(voxel, value, act, total)
+                return nb, nn, *total
+
+            def keep(act, voxel, value, t0, t1, t2):
+                return mi.UInt32(0), mi.UInt32(0), t0, t1, t2
+
+            nb, nn, *st.total = dr.if_stmt(
+                (act, voxel0 + mi.UInt32(dr.maximum(st.bins[i], 0)), st.vals[i], *st.total),
+                act, flush, keep, mode="symbolic")
             st.bad += nb
             st.neg += nn
             st.bins[i] = dr.select(act, -1, st.bins[i])
