@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..kernels.arrays import kernel_input
 from ..temporal.numba_path import out_array
 from ..temporal.params import LUMA
 
@@ -69,12 +70,13 @@ def accumulate_frame(color: np.ndarray, hist: np.ndarray, ok: np.ndarray, alpha_
     Returns:
         (history (6, H, W) float32 to store, output (H, W, 3) float32, variance (H, W) float32).
     """
-    color = np.ascontiguousarray(color, np.float32)
+    # read-only inputs (methods/kernels/arrays.py): one specialisation whoever calls
+    color = kernel_input(color, np.float32)
     h, w = color.shape[:2]
     out_hist = out_array(out_hist, (6, h, w), "out_hist")
     out_img = np.empty((h, w, 3), np.float32)
     variance = np.empty((h, w), np.float32)
-    _kernel_nb(color, np.ascontiguousarray(hist, np.float32), np.ascontiguousarray(ok, np.bool_),
+    _kernel_nb(color, kernel_input(hist, np.float32), kernel_input(ok, np.bool_),
                np.float32(alpha_min), np.float32(n_max), out_hist, out_img, variance)
     return out_hist, out_img, variance
 

@@ -40,6 +40,7 @@ from numba import get_num_threads, njit, prange
 from ..checks import check_choice
 from .gate_reference import (GATE_K, GATE_T0, GATE_TAPS, gate_taps, proden_gate_factor,
                              sigma_from_mean)
+from .arrays import kernel_input
 from .handback import HANDBACKS, WIENER_RADIUS, wiener_row
 from .variance_floor import (SUM_ANCHOR, advance_column_sums, floor_row, linear_value,
                              linear_variance, window_mean_row)
@@ -378,10 +379,10 @@ def _gate_passes(color, den, var, x, box_cox_half: bool, fix: bool, alpha: float
     # variance float64, every input read-only and C-ordered, since each other combination (a
     # float64 colour, a read-only broadcast variance) is another specialisation of the
     # kernels, each about 30 s to compile
-    color = _read_only(np.ascontiguousarray(color, np.float32).reshape(h, w * c))
-    den = _read_only(np.ascontiguousarray(den, color.dtype).reshape(h, w * c))
-    var = _read_only(np.ascontiguousarray(var, np.float64).reshape(h, w * c))
-    x = color if x is None else _read_only(np.ascontiguousarray(x, color.dtype).reshape(h, w * c))
+    color = kernel_input(color, np.float32).reshape(h, w * c)
+    den = kernel_input(den, color.dtype).reshape(h, w * c)
+    var = kernel_input(var, np.float64).reshape(h, w * c)
+    x = color if x is None else kernel_input(x, color.dtype).reshape(h, w * c)
     positive = np.empty(h, np.bool_) if rows_positive is None else rows_positive
     g = gate_taps(sigma_from_mean(_mean_variance(color, den, var, x, box_cox_half, fix,
                                                  positive)))
@@ -390,13 +391,6 @@ def _gate_passes(color, den, var, x, box_cox_half: bool, fix: bool, alpha: float
     _gate_bands(color, den, var, x, box_cox_half, fix, g, g * g, int(pool), float(alpha),
                 gate_table(k, t0), LUT_T_MAX, band, handback == "wiener", out)
     return out.reshape(h, w, c)
-
-
-def _read_only(a: np.ndarray) -> np.ndarray:
-    """A read-only view of ``a`` (no copy)."""
-    view = a.view()
-    view.flags.writeable = False
-    return view
 
 
 def proden_gate_fast(hdr: Any, den: Any, var: Any, *, alpha: float = 1.0, k: float = GATE_K,

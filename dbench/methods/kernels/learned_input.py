@@ -25,6 +25,8 @@ from typing import Sequence
 import numpy as np
 from numba import njit, prange
 
+from .arrays import kernel_input
+
 #: a_eff's threshold (docs/methods/svgf.md §2) and the feature planes, as in the codecs of both models
 ALBEDO_EPS = 1e-3
 FEATURE_CHANNELS = {"normal": 3, "albedo": 3, "depth": 1, "level": 1}
@@ -110,16 +112,17 @@ def encode_planar(color: np.ndarray, buffers: dict, features: Sequence[str],
     ones without ``demodulate``). ``color`` (H, W, 3); ``buffers`` holds (H, W, 3) ``albedo``
     and, as ``features`` ask, (H, W, 3) ``normal``, (H, W, 1) ``depth`` and a number ``level``
     (shapes checked by the caller)."""
-    color = np.ascontiguousarray(color, np.float32)
+    # read-only inputs (arrays.py): one specialisation of each kernel whoever calls
+    color = kernel_input(color, np.float32)
     h, w = color.shape[:2]
     unknown = [f for f in features if f not in _CODES]
     if unknown:
         raise ValueError(f"unknown feature {unknown[0]!r}; valid: {tuple(_CODES)}")
-    albedo = np.ascontiguousarray(buffers["albedo"], np.float32)
-    normal = np.ascontiguousarray(buffers["normal"], np.float32) if "normal" in features \
-        else np.zeros((1, 1, 3), np.float32)
-    depth = np.ascontiguousarray(buffers["depth"], np.float32) if "depth" in features \
-        else np.zeros((1, 1, 1), np.float32)
+    albedo = kernel_input(buffers["albedo"], np.float32)
+    normal = kernel_input(buffers["normal"] if "normal" in features
+                          else np.zeros((1, 1, 3), np.float32), np.float32)
+    depth = kernel_input(buffers["depth"] if "depth" in features
+                         else np.zeros((1, 1, 1), np.float32), np.float32)
     codes = np.array([_CODES[f] for f in features], np.int64)
     depth_scale = np.float32(_depth_max_nb(depth)) if "depth" in features else np.float32(0.0)
     channels = 3 + sum(FEATURE_CHANNELS[f] for f in features)
@@ -158,12 +161,12 @@ def decode_planar(state_rgb: np.ndarray, albedo: np.ndarray | None, demodulate: 
     (or the state's without ``demodulate``): max(expm1(min(x, 80)), 0) with non-finite x as 0,
     times a_eff when ``demodulate``, divided by ``exposure``. Equals
     :func:`dbench.methods.nca.codec.decode` within 1e-6 relative (tests)."""
-    state_rgb = np.ascontiguousarray(state_rgb, np.float32)
+    state_rgb = kernel_input(state_rgb, np.float32)
     if demodulate:
-        albedo = np.ascontiguousarray(albedo, np.float32)
+        albedo = kernel_input(albedo, np.float32)
         h, w = albedo.shape[:2]
     else:
-        albedo = np.zeros((1, 1, 3), np.float32)
+        albedo = kernel_input(np.zeros((1, 1, 3), np.float32))
         h, w = state_rgb.shape[1:]
     out = np.empty((h, w, 3), np.float32)
     _decode_nb(state_rgb, albedo, bool(demodulate), float(exposure), out)

@@ -15,6 +15,7 @@ from numba import njit, prange
 
 from ...data import check_buffer
 from ...errors import DbenchInputError
+from ..kernels.arrays import kernel_input
 
 __all__ = ["VideoStats", "video_stats", "nonempty_bins", "prepare_video", "bins_in_play",
            "video_shape"]
@@ -225,7 +226,9 @@ def prepare_video(color: Any, stats: Any, bins: np.ndarray, *, want_stats: bool 
         theta = vout = np.zeros((1, 3, 1, 1))
         bad = np.zeros((1, 1, 1), np.bool_)
         nint = np.zeros((1, 3, 1, 1), np.int32)
-    _prepare_video(col, *arrs, idx, bool(want_stats), bool(want_nint), planes, theta, vout,
+    # read-only inputs (methods/kernels/arrays.py): one specialisation whoever calls
+    _prepare_video(kernel_input(col), *map(kernel_input, arrs), idx, bool(want_stats),
+                   bool(want_nint), planes, theta, vout,
                    nint, bad, flags)
     if not want_stats:
         return planes, None, (-1, -1)

@@ -11,6 +11,7 @@ import numpy as np
 
 from ...data import check_buffer
 from ...errors import DbenchInputError
+from ..kernels.arrays import kernel_input
 from ..temporal import LUMA
 from .params import ALBEDO_FLOOR, EPS_VAR, EPS_Z, H1, SPATIAL_RADIUS
 
@@ -112,8 +113,10 @@ def prepare_fast(color, albedo, emission, hit, albedo_floor: float = ALBEDO_FLOO
            "emission": np.empty((3, h, w), np.float32), "present": np.empty((h, w), np.bool_),
            "emitter": np.empty((h, w), np.bool_), "moments": np.empty((2, h, w), np.float32),
            "lum_raw": np.empty((h, w), np.float32)}
-    _prepare_nb(np.ascontiguousarray(color, np.float32), np.ascontiguousarray(albedo, np.float32),
-                e_in, np.ascontiguousarray(hit, np.bool_), np.float32(albedo_floor),
+    # read-only inputs (methods/kernels/arrays.py): one specialisation whoever calls
+    _prepare_nb(kernel_input(color, np.float32), kernel_input(albedo, np.float32),
+                kernel_input(e_in, np.float32), kernel_input(hit, np.bool_),
+                np.float32(albedo_floor),
                 out["illum"], out["a_eff"],
                 out["emission"], out["present"], out["emitter"], out["moments"], out["lum_raw"])
     return out

@@ -10,6 +10,7 @@ import numpy as np
 
 from ...data import check_buffer
 from ...errors import DbenchInputError
+from ..kernels.arrays import kernel_input
 
 
 try:  # Numba is a dependency; the NumPy/Python reference still works without it
@@ -122,9 +123,11 @@ def frame_geometry(frame: Any, position: bool = True, backend: str = "numba") ->
         normal_p = np.empty((3, h, w), np.float32)
         pos_p = np.empty((3, h, w) if pos is not None else (3, 0, 0), np.float32)
         mot_p = np.empty((2, h, w) if motion is not None else (2, 0, 0), np.float32)
-        _geometry_nb(np.ascontiguousarray(depth), normal,
-                     pos if pos is not None else np.zeros((0, 0, 3), np.float32),
-                     motion if motion is not None else np.zeros((0, 0, 2), np.float32),
+        # read-only inputs (methods/kernels/arrays.py): one specialisation whoever calls
+        _geometry_nb(kernel_input(depth), kernel_input(normal),
+                     kernel_input(pos if pos is not None else np.zeros((0, 0, 3), np.float32)),
+                     kernel_input(motion if motion is not None
+                                  else np.zeros((0, 0, 2), np.float32)),
                      hit, depth_p, normal_p, pos_p, mot_p)
         return Geometry(hit=hit, depth=depth_p, normal=normal_p,
                         position=pos_p if pos is not None else None,

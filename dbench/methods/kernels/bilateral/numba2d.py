@@ -21,6 +21,7 @@ from ....errors import DbenchInputError
 from ..welch import row_welch, row_welch_table
 from .guide import Guide
 from .params import LABEL_SCALE, PLANE_MAX
+from ..arrays import kernel_input
 from .vexp import F0, F1, F_CUT, exp32
 
 
@@ -140,9 +141,9 @@ def _accumulate_kernel(fsq, fdot, beta, horizon, planes, dys, dxs, es,
     return out
 
 
-_EMPTY_F64 = np.zeros((3, 1, 1), np.float64)
-_EMPTY_I32 = np.zeros((3, 1, 1), np.int32)
-EMPTY_TABLE = np.zeros(1, np.float64)
+_EMPTY_F64 = kernel_input(np.zeros((3, 1, 1), np.float64))
+_EMPTY_I32 = kernel_input(np.zeros((3, 1, 1), np.int32))
+EMPTY_TABLE = kernel_input(np.zeros(1, np.float64))
 
 
 def scaled_feature_groups(guide: Guide) -> np.ndarray:
@@ -210,20 +211,21 @@ def accumulate(guide: Guide, planes: np.ndarray, *, dot_normal: np.ndarray | Non
     h, w = guide.shape
     planes, scale = _scaled_planes(planes)
     fsq = scaled_feature_groups(guide)
-    fdot = (np.zeros((0, 1, 1), np.float32) if dot_normal is None
-            else np.ascontiguousarray(dot_normal, dtype=np.float32))
+    fdot = kernel_input(np.zeros((0, 1, 1), np.float32) if dot_normal is None else dot_normal,
+                        np.float32)
     dys, dxs, es = half_window(guide, extra_exponent)
+    # read-only inputs (arrays.py), empty or not: one specialisation of the kernel
     if theta is None:
         test_mode, th, va, ni, table, gg = 0, _EMPTY_F64, _EMPTY_F64, _EMPTY_I32, EMPTY_TABLE, 0.0
     else:
-        th = np.ascontiguousarray(theta, dtype=np.float64)
-        va = np.ascontiguousarray(var, dtype=np.float64)
+        th = kernel_input(theta, np.float64)
+        va = kernel_input(var, np.float64)
         if g2_table is None:
             test_mode, ni, table, gg = 1, _EMPTY_I32, EMPTY_TABLE, float(g2)
         else:
             test_mode, gg = 2, 0.0
-            ni = np.ascontiguousarray(nint, dtype=np.int32)
-            table = np.ascontiguousarray(g2_table, dtype=np.float64)
+            ni = kernel_input(nint, np.int32)
+            table = kernel_input(g2_table, np.float64)
     nbands = num_bands(h)
     sums = _accumulate_kernel(fsq, fdot, np.float32(beta), bool(horizon), planes, dys, dxs, es,
                               th, va, ni, np.float64(gg), table, int(test_mode), nbands,

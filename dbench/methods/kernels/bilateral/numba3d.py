@@ -10,6 +10,7 @@ import numpy as np
 from numba import njit, prange
 
 from ....errors import DbenchInputError
+from ..arrays import kernel_input
 from ..welch import row_welch_pair, row_welch_pair_table
 from .guide import Guide
 from .numba2d import (EMPTY_TABLE, _scaled_planes, half_window, num_bands, row_exp,
@@ -167,8 +168,8 @@ def _merge_normalise3d(acc, planes, active, bins, ratio, out):
                     out[y, x, t, c] = s[c, x] / d * ratio[c] if d > 0 else 0.0
 
 
-_EMPTY_F64_4D = np.zeros((1, 3, 1, 1), np.float64)
-_EMPTY_I32_4D = np.zeros((1, 3, 1, 1), np.int32)
+_EMPTY_F64_4D = kernel_input(np.zeros((1, 3, 1, 1), np.float64))
+_EMPTY_I32_4D = kernel_input(np.zeros((1, 3, 1, 1), np.int32))
 
 
 def _half_window_3d(guide: Guide):
@@ -256,14 +257,15 @@ def accumulate3d(guide: Guide, planes: np.ndarray, tfac: np.ndarray, bins: np.nd
         test_mode, th, va, ni, table, gg = 0, _EMPTY_F64_4D, _EMPTY_F64_4D, _EMPTY_I32_4D, \
             EMPTY_TABLE, 0.0
     else:
-        th = np.ascontiguousarray(theta, dtype=np.float64)
-        va = np.ascontiguousarray(var, dtype=np.float64)
+        # read-only inputs (kernels/arrays.py), empty or not: one specialisation
+        th = kernel_input(theta, np.float64)
+        va = kernel_input(var, np.float64)
         if g2_table is None:
             test_mode, ni, table, gg = 1, _EMPTY_I32_4D, EMPTY_TABLE, float(g2)
         else:
             test_mode, gg = 2, 0.0
-            ni = np.ascontiguousarray(nint, dtype=np.int32)
-            table = np.ascontiguousarray(g2_table, dtype=np.float64)
+            ni = kernel_input(nint, np.int32)
+            table = kernel_input(g2_table, np.float64)
     if normalise_into is not None:
         shape = (h, w, n_bins, planes.shape[1] - 1)
         if (normalise_into.shape != shape or normalise_into.dtype != np.float32
