@@ -31,7 +31,7 @@ never exceed 2·max_depth contributions (``guard_overflow = False``) does not ch
 that can only in unusual scenes (``guard_overflow = True``) flushes the contribution on its own
 (one extra sample in that bin) and counts it.
 
-With every slot kept (no ages), a contribution's insertion and each slot's flush run inside
+Each slot's flush and, with every slot kept (no ages), a contribution's insertion run inside
 symbolic ``dr.if_stmt`` branches on their lanes' masks, which Dr.Jit compiles to real branches:
 a packet of lanes none of which contributes (most emitter hits) or uses the slot (the last ones)
 skips that work instead of computing it masked. The sums are bit for bit those of the masked
