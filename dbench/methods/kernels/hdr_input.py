@@ -26,6 +26,7 @@ import numpy as np
 from numba import njit, prange
 
 from ...errors import DbenchInputError
+from .arrays import kernel_input
 
 EXPOSURE_KEY = 0.18
 EXPOSURE_BLOCK = 16
@@ -42,8 +43,8 @@ def autoexposure(color: np.ndarray, block: int = EXPOSURE_BLOCK) -> float:
     c = np.asarray(color)
     if c.ndim != 3 or c.shape[-1] != 3 or c.size == 0:
         return autoexposure_reference(color, block)
-    means = _block_means_nb(np.ascontiguousarray(c, np.float32 if c.dtype == np.float32
-                                                 else np.float64), int(block), LUMINANCE)
+    means = _block_means_nb(kernel_input(c, np.float32 if c.dtype == np.float32 else np.float64),
+                            int(block), LUMINANCE)
     return _exposure_from_means(means)
 
 

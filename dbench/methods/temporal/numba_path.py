@@ -9,6 +9,7 @@ from typing import Iterator
 import numpy as np
 
 from ..guards import clamp_magnitude
+from ..kernels.arrays import kernel_input
 from .params import EPS_F, FALLBACK_KERNEL, N_MAX, SMALL_IMAGE, TAU_D, TAU_N
 
 
@@ -248,6 +249,7 @@ def clamp_radiance(x: np.ndarray, limit: float) -> np.ndarray:
     x = np.asarray(x)
     if numba is None or x.dtype not in (np.float32, np.float64) or not x.flags.c_contiguous:
         return clamp_magnitude(x, limit)
-    if _count_over_nb(x.reshape(-1), x.dtype.type(limit)) == 0:
+    # a read-only view (methods/kernels/arrays.py): one specialisation per dtype
+    if _count_over_nb(kernel_input(x).reshape(-1), x.dtype.type(limit)) == 0:
         return x
     return clamp_magnitude(x, limit)
