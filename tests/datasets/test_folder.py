@@ -371,6 +371,30 @@ def test_a_transform_other_than_the_folders_statistics_is_refused(tmp_path):
             datasets.load(scene, spp=8, res=None, transform=transform, lam=lam)
 
 
+def test_statistics_of_another_spp_are_refused(tmp_path):
+    """A .stats.npz whose sample count is the same at every pixel and not its name's spp holds
+    other samples than the colour beside it (another spp's file copied over): refused, naming
+    the file. A count that varies per pixel (adaptive sampling) is read as it is."""
+    mean = _img(3).astype(np.float64)
+
+    def frame(n):
+        st = SampleStats(n=n, mean=mean, var_mean=mean / 8, m3=np.zeros((H, W, 3)),
+                         transform="identity", lam=0.5)
+        return Frame(color=mean.astype(np.float32), stats=st, reference=_img(4), meta={})
+
+    export_frame(frame(np.full((H, W, 3), 4.0)), tmp_path, "s", 16)
+    export_frame(frame(np.full((H, W, 3), 4.0)), tmp_path, "s", 4, write_reference=False)
+    info = scan_folder(tmp_path)
+    assert load_folder(info, 4).stats.n[0, 0, 0] == 4
+    with pytest.raises(DbenchInputError, match=r"s_0016\.stats\.npz: statistics of 4 samples "
+                                               r"at every pixel in a file named for 16 spp"):
+        load_folder(info, 16)
+    adaptive = np.full((H, W, 3), 16.0)
+    adaptive[0, 0] = 9.0
+    export_frame(frame(adaptive), tmp_path, "s", 16)
+    assert load_folder(scan_folder(tmp_path), 16).stats.n[0, 0, 0] == 9
+
+
 def test_a_lam_other_than_the_folders_statistics_is_refused(tmp_path):
     """--lam without --transform is compared with the λ the folder's statistics were gathered
     with; on identity statistics (a variance image) nothing reads it."""

@@ -65,10 +65,13 @@ def write_stats_npz(path: str | os.PathLike, stats: SampleStats) -> None:
 
 
 def read_stats_npz(path: Path, shape: tuple[int, ...] | None = None, *,
-                   settings_only: bool = False):
+                   settings_only: bool = False, spp: int | None = None):
     """The SampleStats in a ``.stats.npz`` (checked against ``shape`` when given), or only its
     (transform, λ) (reading no image arrays); a DbenchInputError naming the file when
-    unreadable."""
+    unreadable, or when ``spp`` (the count its name gives) is contradicted by a sample count
+    the same at every pixel: such a file holds the statistics of other samples than the colour
+    beside it (a copy of another spp's file), which no method could tell. A count that varies
+    from pixel to pixel (adaptive sampling) is read as it is."""
     keys = {"n", "mean", "var_mean", "m3", "transform", "lam"}
     try:
         if not zipfile.is_zipfile(path):
@@ -87,6 +90,11 @@ def read_stats_npz(path: Path, shape: tuple[int, ...] | None = None, *,
         raise DbenchInputError(f"{path}: not a readable statistics file ({exc})") from None
     if shape is not None and stats.shape != tuple(shape):
         raise DbenchInputError(f"{path}: statistics of shape {stats.shape}; expected {shape}")
+    n = np.asarray(stats.n)
+    if spp is not None and n.size and (n == n.flat[0]).all() and float(n.flat[0]) != spp:
+        raise DbenchInputError(f"{path}: statistics of {float(n.flat[0]):g} samples at every "
+                               f"pixel in a file named for {spp} spp; expected n = {spp} "
+                               f"(is it another spp's file?)")
     check_variance(stats.var_mean, f"{path}: var_mean", stats.mean)
     return stats
 

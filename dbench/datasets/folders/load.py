@@ -429,7 +429,7 @@ def load_folder(info_or_path: FolderInfo | str | os.PathLike, spp: int,
     stats = None
     if "stats" in wanted:
         if "stats" in slot:
-            stats = read_stats_npz(slot["stats"], color.shape)
+            stats = read_stats_npz(slot["stats"], color.shape, spp=int(spp))
             files["stats"] = slot["stats"].name
         else:
             sigma2 = check_variance(read(slot["variance"]).astype(np.float64),

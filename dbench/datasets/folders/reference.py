@@ -350,7 +350,7 @@ def known_variance(ref: dict, ref_spp: int | None, read: Any, files: dict,
         return ((sigma2 / ref_spp).astype(np.float32),
                 f"variance image {ref['variance'].file.name} ÷ {ref_spp} spp")
     if "stats" in ref:
-        stats = read_stats_npz(ref["stats"], shape)
+        stats = read_stats_npz(ref["stats"], shape, spp=ref_spp)
         if stats.transform == "identity":  # var_mean of untransformed samples is the answer
             files["reference_var"] = ref["stats"].name
             return stats.var_mean.astype(np.float32), f"statistics {ref['stats'].name}"
