@@ -265,9 +265,11 @@ def check_lam(args: argparse.Namespace, scenes: Sequence, names: Sequence[str],
     given: :data:`DEFAULT_LAM`). λ is read only by the Box-Cox and Yeo-Johnson transforms: with
     ``--transform identity``, or without ``--transform`` where every scene's statistics use the
     identity (transient scenes, folders of variance images), it would change nothing while the
-    run records it (docs/methods/statistical.md §3). A ``--transform`` given with it is
-    compared with folders by :func:`dbench.datasets.check_folder_transform`."""
-    from ..datasets import default_transform
+    run records it (docs/methods/statistical.md §3). A folder's statistics are compared, at
+    each of ``spps``, under their own transform with this λ by
+    :func:`dbench.datasets.check_folder_transform` (which also compares a ``--transform``
+    given with it)."""
+    from ..datasets import check_folder_transform, default_transform
 
     lam, args.lam = args.lam, DEFAULT_LAM if args.lam is None else args.lam
     if lam is None or args.transform not in (None, "identity"):
@@ -278,17 +280,13 @@ def check_lam(args: argparse.Namespace, scenes: Sequence, names: Sequence[str],
     unread = []
     for sc, name in zip(scenes, names):
         if sc.renders:
-            held = {default_transform(sc.kind): None}
+            held = {default_transform(sc.kind)}
         else:
-            held = {sc.info.stats_settings[s][0]: sc.info.stats_settings[s][1] for s in spps
-                    if s in sc.info.stats_settings}
-        for transform, value in held.items():
-            if transform != "identity" and value is not None and float(value) != float(lam):
-                raise DbenchInputError(f"--lam: the statistics in {sc.info.path}/{sc.info.name} "
-                                       f"were gathered with {transform} (λ {float(value)}); "
-                                       f"λ {float(lam)} was asked for (give theirs, or leave "
-                                       f"--lam out)")
-        if set(held) <= {"identity"}:
+            kept = [s for s in spps if s in sc.info.stats_settings]
+            held = {sc.info.stats_settings[s][0] for s in kept}
+            for s in kept:  # each spp: their λ may differ from one to the next
+                check_folder_transform(sc, s, sc.info.stats_settings[s][0], lam, "--lam")
+        if held <= {"identity"}:
             unread.append(f"{name} ({'identity' if held else 'no statistics'})")
     if len(unread) == len(names):
         raise DbenchInputError(f"--lam: only the box-cox and yeo-johnson transforms take λ, and "

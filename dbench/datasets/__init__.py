@@ -298,11 +298,14 @@ def _load_folder_scene(sc: Scene, spp: int, res, needs, seed: int, ref_spp: int 
     return Sequence(out, meta=meta)
 
 
-def check_folder_transform(sc: Scene, spp: int, transform: str | None, lam: float) -> None:
+def check_folder_transform(sc: Scene, spp: int, transform: str | None, lam: float,
+                           option: str = "--transform") -> None:
     """Refuse a ``transform`` (with its ``lam``; None: the folder's own) other than the one the
     statistics of the folder scene ``sc`` at ``spp`` were gathered with
     (``FolderInfo.stats_settings``, read when the folder was scanned): its statistics are read
-    as they are, so reading them as asked would be a silent change of the run's settings."""
+    as they are, so reading them as asked would be a silent change of the run's settings.
+    ``option``: what the message names (``--lam`` when only λ was given, with the folder's own
+    transform)."""
     held = sc.info.stats_settings.get(int(spp))
     if transform is None or held is None:
         return
@@ -311,9 +314,9 @@ def check_folder_transform(sc: Scene, spp: int, transform: str | None, lam: floa
         return name if name == "identity" else f"{name} (λ {float(value)})"
 
     if named(*held) != named(transform, lam):
-        raise DbenchInputError(f"--transform: the statistics in {sc.info.path}/{sc.info.name} "
+        raise DbenchInputError(f"{option}: the statistics in {sc.info.path}/{sc.info.name} "
                                f"were gathered with {named(*held)}; {named(transform, lam)} "
-                               f"was asked for (give theirs, or leave --transform out)")
+                               f"was asked for (give theirs, or leave {option} out)")
 
 
 __all__ = ["load", "available_scenes", "get_scene", "Cache", "Scene", "FEATURES",

@@ -413,8 +413,17 @@ def test_a_lam_other_than_the_folders_statistics_is_refused(tmp_path):
     check_lam(args, [bc], ["bc"], [8])
     assert args.lam == 0.25
     with pytest.raises(DbenchInputError, match=r"--lam: .* gathered with box-cox \(λ 0.25\); "
-                                               r"λ 0.5 was asked for"):
+                                               r"box-cox \(λ 0.5\) was asked for"):
         check_lam(argparse.Namespace(lam=0.5, transform=None), [bc], ["bc"], [8])
+    # each spp is compared: one of λ 0.5 beside the λ 0.25 one does not hide it
+    stats.lam = 0.5
+    export_frame(Frame(color=mean.astype(np.float32), stats=stats, reference=_img(4), meta={}),
+                 tmp_path / "bc", "s", 16, write_reference=False)
+    bc = catalogue.get(str(tmp_path / "bc"))
+    for spps in ([8, 16], [16, 8]):
+        with pytest.raises(DbenchInputError, match=r"--lam: .* gathered with box-cox "
+                                                   r"\(λ 0.25\); box-cox \(λ 0.5\) was asked"):
+            check_lam(argparse.Namespace(lam=0.5, transform=None), [bc], ["bc"], spps)
     (tmp_path / "v").mkdir()
     _rgb(tmp_path / "v" / "v_0004.hdr.exr", _img(2))
     _rgb(tmp_path / "v" / "v_0004.var.exr", _img(3, hi=0.5))
