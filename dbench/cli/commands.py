@@ -242,10 +242,10 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     res_given = args.res
     args.res = args.res or "128"  # checked here; the sweep's own default is per scene
     _check_common(args)
-    check_lam(args, scene_objs, scenes_, _ints(args.spp, "--spp"))
+    spps = _ints(args.spp, "--spp")
+    check_lam(args, scene_objs, scenes_, spps)
     params = parse_params(args.param or [], methods_)
-    config = sweep.SweepConfig(methods=methods_, scenes=scenes_,
-                               spp=_ints(args.spp, "--spp"),
+    config = sweep.SweepConfig(methods=methods_, scenes=scenes_, spp=spps,
                                res=args.res.key if res_given is not None else None,
                                scene_params=scene_params,
                                ref_spp=args.ref_spp, seed=args.seed, seeds=args.seeds,

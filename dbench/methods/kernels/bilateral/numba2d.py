@@ -18,10 +18,10 @@ import numpy as np
 from numba import njit, prange
 
 from ....errors import DbenchInputError
+from ..arrays import kernel_input
 from ..welch import row_welch, row_welch_table
 from .guide import Guide
 from .params import LABEL_SCALE, PLANE_MAX
-from ..arrays import kernel_input
 from .vexp import F0, F1, F_CUT, exp32
 
 
