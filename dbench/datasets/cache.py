@@ -1,7 +1,8 @@
 """Content-addressed cache of rendered buffers.
 
 An entry is a folder ``<root>/<kind>/<key>/`` holding ``buffers.exr`` (float32 images with
-named channels), optionally ``arrays.npz`` (float64 statistics, which EXR cannot hold), and
+named channels), optionally its arrays (float64 statistics, which EXR cannot hold: a folder
+``arrays/`` of ``.npy`` files, :mod:`.array_files`, or, compressed, ``arrays.npz``), and
 ``meta.json``. The key is a hash of everything that changes the pixels: the scene dictionary
 itself (canonicalised, so editing a scene invalidates its entries, with the bytes of every
 file it names by ``"filename"``: :mod:`.file_refs`), resolution, spp, seed (for
@@ -18,7 +19,8 @@ written last. A killed render leaves only a ``.tmp-*`` folder, which readers ign
 
 Integrity: ``meta.json`` records the canonical description the entry was built from and the
 size and sha256 of each of its files. :meth:`Cache.get` checks both (a cheap read of files that
-are about to be read anyway); an entry whose description differs (a folder copied under another
+are about to be read anyway; the files in ``arrays/`` are read and checked in the same pass,
+and the entry it returns holds them); an entry whose description differs (a folder copied under another
 key), whose files are missing, truncated or replaced, or whose ``meta.json`` is unreadable is a
 miss: one warning line names it, the caller renders again, and :meth:`Cache.put` replaces the
 damaged folder atomically. An entry whose ``meta.json`` records no checksums (written before
@@ -33,7 +35,8 @@ more in that folder for the rest of the process, and returns an entry holding th
 memory, so the run carries on with the renders it has (README.md, "How renders work").
 
 Mostly empty transient videos are stored by their non-zero rows (:mod:`.sparse_rows`,
-docs/transient.md §6), in entries of format 3; entries of formats 1 and 2 read as before.
+docs/transient.md §6), in entries of format 4 (``arrays/``); entries of formats 1 to 3 (an
+``arrays.npz``, packed from format 2 on) read as before.
 
 Location: ``--cache DIR`` or ``DBENCH_CACHE``, default ``~/.cache/dbench``.
 """
@@ -57,7 +60,7 @@ import numpy as np
 from .. import io
 from ..errors import OutputError
 from ..memory import small_pages
-from . import sparse_rows
+from . import array_files, sparse_rows
 from .file_refs import file_ref
 
 CACHE_FORMAT = 1
@@ -65,8 +68,11 @@ CACHE_FORMAT = 1
 #: arrays among them narrowed: code that reads only earlier formats takes such an entry for a
 #: miss instead of misreading it.
 PACKED_FORMAT = 3
+#: The format of an entry whose uncompressed arrays are a folder of ``.npy`` files
+#: (:mod:`.array_files`), packed as in :data:`PACKED_FORMAT` where asked.
+FILES_FORMAT = 4
 #: Entry formats this code reads: 2 is packed rows without narrowed integers.
-FORMATS = (CACHE_FORMAT, 2, PACKED_FORMAT)
+FORMATS = (CACHE_FORMAT, 2, PACKED_FORMAT, FILES_FORMAT)
 
 
 def default_root() -> Path:
@@ -152,6 +158,9 @@ class Entry:
     def arrays(self) -> dict[str, np.ndarray]:
         if self.held_arrays is not None:
             return dict(self.held_arrays)
+        folder = self.path / array_files.FOLDER
+        if folder.is_dir():  # (an entry :meth:`Cache.put` returns: its files were just written)
+            return array_files.read(folder, _array_files(self.path), _NoDigest)[0]
         f = self.path / "arrays.npz"
         if not f.exists():
             return {}
@@ -159,7 +168,22 @@ class Entry:
             return sparse_rows.unpack({k: z[k] for k in z.files})
 
 
-#: Files an entry may hold besides meta.json.
+def _array_files(path: Path) -> list[str]:
+    """The names of the files in the entry ``path``'s ``arrays/`` folder."""
+    return sorted(p.name for p in (path / array_files.FOLDER).iterdir())
+
+
+class _NoDigest:
+    """A digest that takes none, for reading files this process has just written."""
+
+    def update(self, chunk) -> None:
+        pass
+
+    def record(self) -> None:
+        return None
+
+
+#: Files an entry may hold besides meta.json (and the files of ``arrays/``).
 DATA_FILES = ("buffers.exr", "arrays.npz")
 #: Why :func:`verify` refuses an entry whose meta.json records no checksums.
 UNCHECKED = "no file checksums, so its contents cannot be checked"
@@ -244,15 +268,20 @@ class DigestingWriter:
         self._digest.close()
 
 
-def verify(path: Path, meta: dict, description: dict) -> str:
-    """'' when the entry at ``path`` is intact and was built from ``description``, else why."""
+def verify(path: Path, meta: dict, description: dict, hash_arrays: bool = True) -> str:
+    """'' when the entry at ``path`` is intact and was built from ``description``, else why.
+    ``hash_arrays=False`` checks the files of ``arrays/`` by their size only: the caller reads
+    them with their checksum (:func:`read_arrays`)."""
     if meta.get("description") != json.loads(json.dumps(canonical(description))):
         return "built from another description"
     files = meta.get("files")
     if not isinstance(files, dict):
         return UNCHECKED
-    for name in DATA_FILES:  # a file the checksums leave out would be read unchecked
-        if name not in files and (path / name).exists():
+    present = [n for n in DATA_FILES if (path / n).exists()]
+    if (path / array_files.FOLDER).is_dir():
+        present += [f"{array_files.FOLDER}/{n}" for n in _array_files(path)]
+    for name in present:  # a file the checksums leave out would be read unchecked
+        if name not in files:
             return f"{name} has no checksum"
     for name, record in files.items():
         if not isinstance(record, dict):
@@ -262,9 +291,27 @@ def verify(path: Path, meta: dict, description: dict) -> str:
             return f"{name} missing"
         if f.stat().st_size != record.get("size"):
             return f"{name} has {f.stat().st_size} bytes, expected {record.get('size')}"
-        if file_record(f)["sha256"] != record.get("sha256"):
+        if (hash_arrays or not name.startswith(array_files.FOLDER + "/")) and \
+                file_record(f)["sha256"] != record.get("sha256"):
             return f"{name} checksum differs"
     return ""
+
+
+@small_pages()  # what it reads is fresh arrays (dbench/memory.py)
+def read_arrays(path: Path, meta: dict) -> tuple[dict[str, np.ndarray] | None, str]:
+    """(the arrays of the entry at ``path``, '') read from its ``arrays/`` folder with each
+    file's checksum taken in the same pass, or (None, why) when one differs from ``meta``'s
+    or a file is damaged (after :func:`verify` with ``hash_arrays=False``)."""
+    prefix = array_files.FOLDER + "/"
+    try:
+        arrays, records = array_files.read(path / array_files.FOLDER, _array_files(path),
+                                           BackgroundSha256)
+    except (OSError, ValueError) as exc:
+        return None, str(exc)
+    for name, record in records.items():
+        if record != meta["files"].get(prefix + name):
+            return None, f"{prefix}{name} checksum differs"
+    return arrays, ""
 
 
 class Cache:
@@ -301,20 +348,27 @@ class Cache:
             return None
         if meta.get("cache_format") not in FORMATS:
             return None
-        why = verify(path, meta, description)
+        why = verify(path, meta, description, hash_arrays=False)
+        arrays = None
+        if not why and (path / array_files.FOLDER).is_dir():
+            arrays, why = read_arrays(path, meta)
         if why:
             self._warn(kind, key, why)
             return None
-        return Entry(path, meta)
+        return Entry(path, meta, held_arrays=arrays)
 
     def put(self, kind: str, description: dict, images: dict[str, np.ndarray] | None = None,
             arrays: dict[str, np.ndarray] | None = None, meta: dict | None = None,
-            compress: bool = True, sparse: tuple[str, ...] = ()) -> Entry:
-        """Store an entry atomically. ``compress=False`` writes ``arrays.npz`` uncompressed
-        (read back the same way): for float64 statistics, which deflate to about half their
-        size at 25× the write time (README.md, "How renders work"). ``sparse`` names arrays
+            compress: bool = True, sparse: tuple[str, ...] = (),
+            rows: np.ndarray | None = None) -> Entry:
+        """Store an entry atomically. ``compress=False`` writes the arrays uncompressed, one
+        ``.npy`` file each in ``arrays/`` (:mod:`.array_files`): for float64 statistics, which
+        deflate to about half their size at 25× the write time (README.md, "How renders
+        work"); ``compress=True`` writes them deflated into ``arrays.npz``. ``sparse`` names arrays
         that share every axis but the last and are stored by their non-zero rows
-        (:mod:`.sparse_rows`; :meth:`Entry.arrays` gives them back bit for bit).
+        (:mod:`.sparse_rows`; :meth:`Entry.arrays` gives them back bit for bit); ``rows``, where
+        the caller found them, are those rows (bool, the arrays' shape but the last axis;
+        :func:`.sparse_rows.layout`), and every row it leaves out must be zero.
 
         A folder that cannot be written (OSError, or the OutputError :mod:`dbench.io` makes of
         it) is not an error: one warning line per process, nothing left behind, and the entry
@@ -322,7 +376,9 @@ class Cache:
         key = make_key(description)
         final = self._dir(kind, key)
         packed = bool(arrays) and any(n in arrays for n in sparse)
-        meta = {**(meta or {}), "cache_format": PACKED_FORMAT if packed else CACHE_FORMAT,
+        fmt = FILES_FORMAT if arrays and not compress else \
+            PACKED_FORMAT if packed else CACHE_FORMAT
+        meta = {**(meta or {}), "cache_format": fmt,
                 "kind": kind, "key": key, "description": canonical(description),
                 "created": time.time()}
         held = Entry(final, meta, dict(images or {}), dict(arrays or {}))
@@ -335,7 +391,7 @@ class Cache:
                 self._cleaned = True
                 self.clean(older_than_s=STALE_TMP_S)
             tmp.mkdir()
-            self._write(tmp, final, description, meta, images, arrays, compress, sparse)
+            self._write(tmp, final, description, meta, images, arrays, compress, sparse, rows)
         except (OSError, OutputError) as exc:
             # the renders are in memory and right; only the time a later hit would save is lost
             self._unwritable(exc)
@@ -359,23 +415,26 @@ class Cache:
 
     def _write(self, tmp: Path, final: Path, description: dict, meta: dict,
                images: dict[str, np.ndarray] | None, arrays: dict[str, np.ndarray] | None,
-               compress: bool, sparse: tuple[str, ...]) -> None:
+               compress: bool, sparse: tuple[str, ...], rows: np.ndarray | None) -> None:
         """Fill the temporary folder ``tmp`` and rename it to ``final`` (:meth:`put`)."""
         key = meta["key"]
         if images:
             io.write_exr(tmp / "buffers.exr", images)
         records = {}
-        if arrays:
+        if arrays and not compress:
+            records = {f"{array_files.FOLDER}/{n}": r for n, r in array_files.write(
+                tmp / array_files.FOLDER, arrays, sparse, DigestingWriter, rows).items()}
+        elif arrays:
             with io.atomic_path(tmp / "arrays.npz", suffix=".tmp.npz") as t:
                 with open(t, "wb") as fh:
                     writer = DigestingWriter(fh)
                     try:
-                        sparse_rows.save(writer, arrays, sparse, compress=compress)
+                        sparse_rows.save(writer, arrays, sparse, compress=compress, keep=rows)
                     finally:
                         writer.close()
             records["arrays.npz"] = writer.record()
-        meta["files"] = {n: records.get(n) or file_record(tmp / n) for n in DATA_FILES
-                         if (tmp / n).is_file()}
+        meta["files"] = {**records, **{n: records.get(n) or file_record(tmp / n)
+                                       for n in DATA_FILES if (tmp / n).is_file()}}
         io.write_json(tmp / "meta.json", meta)
         try:
             os.rename(tmp, final)

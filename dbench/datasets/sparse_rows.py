@@ -15,15 +15,18 @@ input (tests/datasets/test_sparse_rows.py).
 An integer array is stored in the narrowest integer type that holds its values (the per-bin
 sample counts of 64 spp fit one byte, not four) and given back in its own type.
 
-Stored names (in ``arrays.npz``): ``rows~mask`` (``np.packbits`` of the mask), ``rows~shape``
+Stored names (files of an entry's ``arrays/``, :mod:`.array_files`, or members of its
+``arrays.npz``): ``rows~mask`` (``np.packbits`` of the mask), ``rows~shape``
 (the shape without the last axis), ``rows~<name>`` ((kept rows, channels) of ``<name>``, its
 own dtype or a narrower integer one) and ``rows~dtype~<name>`` (the dtype ``<name>`` is given
 back in, where it was narrowed); arrays not packed keep their own names.
 
-:func:`save` writes that form into an ``.npz`` stream a chunk of rows at a time, so storing an
-entry makes no second copy of it: on this project's virtual machines a fresh large NumPy array
-is first touched at 0.11–0.36 GB/s (:mod:`dbench.memory`; docs/transient.md §6), so the packed
-copy of a 56 MB entry, and NumPy's own copies of it in ``savez``, cost more than its render.
+:func:`members` gives that form a chunk of rows at a time (:func:`save` writes it into an
+``.npz`` stream, :mod:`.array_files` into files; :class:`Unpacker` reads it back the same way),
+so storing an entry makes no second copy of it: on this project's virtual machines a fresh
+large NumPy array is first touched at 0.11–0.36 GB/s (:mod:`dbench.memory`; docs/transient.md
+§6), so the packed copy of a 56 MB entry, and NumPy's own copies of it in ``savez``, cost more
+than its render.
 """
 from __future__ import annotations
 
@@ -91,9 +94,13 @@ def narrowest(a: np.ndarray) -> np.dtype:
     return a.dtype
 
 
-def layout(arrays: Mapping[str, np.ndarray], names: Sequence[str]) -> dict:
+def layout(arrays: Mapping[str, np.ndarray], names: Sequence[str],
+           keep: np.ndarray | None = None) -> dict:
     """What :func:`pack` stores, with each packed array's rows left as a :class:`Rows` (no
-    copy yet): the form :func:`save` streams."""
+    copy yet): the form :func:`save` streams. ``keep``: the rows to keep (bool, the shape of
+    the arrays but the last axis) where the caller already knows them, e.g. the transient
+    collector, which finds them on the device; every row it leaves out must be zero, or its
+    values are lost. None: the rows where any of the arrays has a non-zero bit pattern."""
     names = [n for n in names if n in arrays]
     if not names:
         return dict(arrays)
@@ -101,12 +108,18 @@ def layout(arrays: Mapping[str, np.ndarray], names: Sequence[str]) -> dict:
     rows_shape = shapes[names[0]][:-1]
     if any(len(s) < 2 or s[:-1] != rows_shape for s in shapes.values()):
         raise ValueError(f"sparse rows: arrays must share every axis but the last, got {shapes}")
-    keep = np.zeros(int(np.prod(rows_shape)), bool)
-    for n in names:
-        bits = _bits(np.asarray(arrays[n]))
-        # column by column: NumPy's reduce along a short last axis is 5× slower than this
-        for j in range(bits.shape[1]):
-            keep |= bits[:, j] != 0
+    if keep is not None:
+        if np.shape(keep) != rows_shape or np.asarray(keep).dtype != bool:
+            raise ValueError(f"sparse rows: the rows to keep must be bool {rows_shape}, got "
+                             f"{np.asarray(keep).dtype} {np.shape(keep)}")
+        keep = np.asarray(keep).reshape(-1)
+    else:
+        keep = np.zeros(int(np.prod(rows_shape)), bool)
+        for n in names:
+            bits = _bits(np.asarray(arrays[n]))
+            # column by column: NumPy's reduce along a short last axis is 5× slower than this
+            for j in range(bits.shape[1]):
+                keep |= bits[:, j] != 0
     index = np.flatnonzero(keep)
     out = {k: v for k, v in arrays.items() if k not in names}
     out[MASK] = np.packbits(keep)
@@ -133,32 +146,87 @@ def pack(arrays: Mapping[str, np.ndarray], names: Sequence[str]) -> dict[str, np
     return {k: v.array() if isinstance(v, Rows) else v for k, v in layout(arrays, names).items()}
 
 
+def members(arrays: Mapping[str, np.ndarray], names: Sequence[str] = (),
+            keep: np.ndarray | None = None) -> Iterator[tuple[str, np.dtype, tuple, Iterator]]:
+    """(stored name, dtype, shape, chunks of its bytes in C order) of each array an entry
+    stores (:func:`layout`): packed rows a chunk at a time, other arrays as slices of
+    themselves, not NumPy's 16 MB copies of them. Each chunk is valid until the next.
+    ``keep``: as for :func:`layout`."""
+    for name, value in layout(arrays, names, keep).items():
+        if isinstance(value, Rows):
+            yield name, value.dtype, value.shape, value.chunks()
+            continue
+        a = np.asarray(value)  # (ascontiguousarray would make a 0-d array 1-d)
+        a = a if a.flags.c_contiguous else np.ascontiguousarray(a)
+        if a.dtype.hasobject:
+            raise ValueError(f"sparse rows: {name} is an object array")
+        flat = a.reshape(-1).view(np.uint8)
+        step = CHUNK_ROWS * 24
+        yield name, a.dtype, a.shape, (flat[i:i + step] for i in range(0, flat.size, step))
+
+
+def write_npy(fh: BinaryIO, dtype: np.dtype, shape: tuple, chunks: Iterator) -> None:
+    """One ``.npy`` (format 1.0) of ``dtype`` and ``shape`` whose body is ``chunks``."""
+    np.lib.format.write_array_header_1_0(fh, {
+        "descr": np.lib.format.dtype_to_descr(dtype), "fortran_order": False, "shape": shape})
+    for chunk in chunks:
+        fh.write(chunk)
+
+
 def save(fh: BinaryIO, arrays: Mapping[str, np.ndarray], names: Sequence[str] = (),
-         compress: bool = False) -> None:
-    """Write ``arrays`` (those in ``names`` packed, :func:`layout`) to ``fh`` as an ``.npz``
-    archive that ``np.load`` reads (what ``np.savez`` / ``np.savez_compressed`` write), the
-    packed rows a chunk at a time."""
+         compress: bool = False, keep: np.ndarray | None = None) -> None:
+    """Write ``arrays`` (those in ``names`` packed, :func:`layout` with ``keep``) to ``fh`` as
+    an ``.npz`` archive that ``np.load`` reads (what ``np.savez`` / ``np.savez_compressed``
+    write), the packed rows a chunk at a time."""
     method = zipfile.ZIP_DEFLATED if compress else zipfile.ZIP_STORED
     with zipfile.ZipFile(fh, "w", compression=method, allowZip64=True) as zf:
-        for name, value in layout(arrays, names).items():
+        for name, dtype, shape, chunks in members(arrays, names, keep):
             with zf.open(name + ".npy", "w", force_zip64=True) as member:
-                if isinstance(value, Rows):
-                    chunks, dtype, shape = value.chunks(), value.dtype, value.shape
-                else:
-                    a = np.asarray(value)  # (ascontiguousarray would make a 0-d array 1-d)
-                    a = a if a.flags.c_contiguous else np.ascontiguousarray(a)
-                    if a.dtype.hasobject:
-                        raise ValueError(f"sparse rows: {name} is an object array")
-                    # slices of the array itself, not NumPy's 16 MB copies of it
-                    flat = a.reshape(-1).view(np.uint8)
-                    step = CHUNK_ROWS * 24
-                    chunks = (flat[i:i + step] for i in range(0, flat.size, step))
-                    dtype, shape = a.dtype, a.shape
-                np.lib.format.write_array_header_1_0(member, {
-                    "descr": np.lib.format.dtype_to_descr(dtype), "fortran_order": False,
-                    "shape": shape})
-                for chunk in chunks:
-                    member.write(chunk)
+                write_npy(member, dtype, shape, chunks)
+
+
+def is_rows(stored_name: str) -> bool:
+    """Whether ``stored_name`` holds an array's kept rows (not the mask, shape or a dtype)."""
+    return stored_name.startswith(PREFIX) and stored_name not in (MASK, SHAPE) and \
+        not stored_name.startswith(DTYPE)
+
+
+class Unpacker:
+    """The arrays :func:`pack` was given, filled in from what it stored a chunk of rows at a
+    time, so a reader can put each chunk it reads in its place without first assembling the
+    packed array (:mod:`dbench.datasets.array_files`).
+
+    ``small``: every stored array but the kept rows (:func:`is_rows`); the mask and shape
+    among them, where anything was packed."""
+
+    def __init__(self, small: Mapping[str, np.ndarray]):
+        self.out = {k: v for k, v in small.items() if not k.startswith(PREFIX)}
+        self._small = small
+        self.index = None
+        if MASK in small:
+            self.rows_shape = tuple(int(s) for s in small[SHAPE])
+            self.n_rows = int(np.prod(self.rows_shape))
+            self.index = np.flatnonzero(np.unpackbits(small[MASK], count=self.n_rows))
+
+    def target(self, stored_name: str, shape: tuple, dtype: np.dtype) -> np.ndarray:
+        """The zeroed (all rows, channels) array that the kept rows ``stored_name`` (stored
+        as ``shape``, ``dtype``) unpack into; ValueError when they do not fit the mask."""
+        name = stored_name[len(PREFIX):]
+        if self.index is None:
+            raise ValueError(f"sparse rows: {name} is packed, but no mask was stored")
+        if len(shape) != 2 or shape[0] != self.index.size:
+            raise ValueError(f"sparse rows: {name} holds {shape[0] if shape else 0} rows, "
+                             f"the mask {self.index.size}")
+        given = self._small.get(DTYPE + name)
+        full = np.zeros((self.n_rows, shape[1]),
+                        np.dtype(np.asarray(given).item()) if given is not None else dtype)
+        self.out[name] = full.reshape(self.rows_shape + (shape[1],))
+        return full
+
+    def fill(self, full: np.ndarray, start: int, rows: np.ndarray) -> None:
+        """Put the kept rows ``start``.. (``rows``, (k, channels)) into ``full``
+        (:meth:`target`)."""
+        full[self.index[start:start + rows.shape[0]]] = rows
 
 
 def unpack(stored: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
@@ -166,25 +234,12 @@ def unpack(stored: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
     are, so entries written without packing read the same way)."""
     if MASK not in stored:
         return dict(stored)
-    rows_shape = tuple(int(s) for s in stored[SHAPE])
-    n_rows = int(np.prod(rows_shape))
-    index = np.flatnonzero(np.unpackbits(stored[MASK], count=n_rows))
-    out = {}
+    un = Unpacker({k: v for k, v in stored.items() if not is_rows(k)})
     for k, v in stored.items():
-        if k in (MASK, SHAPE) or k.startswith(DTYPE):
-            continue
-        if not k.startswith(PREFIX):
-            out[k] = v
-            continue
-        name = k[len(PREFIX):]
-        if v.shape[0] != index.size:
-            raise ValueError(f"sparse rows: {name} holds {v.shape[0]} rows, "
-                             f"the mask {index.size}")
-        dtype = np.dtype(np.asarray(stored[DTYPE + name]).item()) if DTYPE + name in stored else v.dtype
-        full = np.zeros((n_rows, v.shape[1]), dtype)
-        full[index] = v
-        out[name] = full.reshape(rows_shape + (v.shape[1],))
-    return out
+        if is_rows(k):
+            un.fill(un.target(k, v.shape, v.dtype), 0, v)
+    return un.out
 
 
-__all__ = ["pack", "unpack", "save", "layout", "PREFIX"]
+__all__ = ["pack", "unpack", "save", "layout", "members", "write_npy", "is_rows", "Unpacker",
+           "PREFIX"]

@@ -36,13 +36,19 @@ def test_put_get_roundtrip_and_interrupted_write(tmp_path):
 
 @pytest.mark.parametrize("compress", [False, True])
 def test_the_checksum_taken_while_writing_is_the_files(tmp_path, compress):
-    # arrays.npz is hashed as it is written (no second read); verify() hashes the file itself
+    # the arrays' files (arrays.npz, or each file of arrays/) are hashed as they are written
+    # (no second read); verify() hashes the files themselves
     rng = np.random.default_rng(1)
     arrays = {"mean": rng.random((6, 7, 30, 3)), "non_zero": rng.integers(0, 9, (6, 7, 30, 3)),
-              "empty": np.zeros((0, 3))}
+              "empty": np.zeros((0, 3)), "scalar": np.asarray("<i4")}
     cache = Cache(tmp_path)
     entry = cache.put("transient-stats", {"what": compress}, arrays=arrays, compress=compress)
-    assert entry.meta["files"]["arrays.npz"] == file_record(entry.path / "arrays.npz")
+    names = ["arrays.npz"] if compress else [f"arrays/{n}.npy" for n in arrays]
+    assert sorted(entry.meta["files"]) == sorted(names)
+    for name in names:
+        assert entry.meta["files"][name] == file_record(entry.path / name)
+    if not compress:  # each is a plain .npy
+        np.testing.assert_array_equal(np.load(entry.path / "arrays/mean.npy"), arrays["mean"])
     got = cache.get("transient-stats", {"what": compress}).arrays()
     for name, value in arrays.items():
         np.testing.assert_array_equal(got[name], value)

@@ -45,6 +45,48 @@ def test_damaged_entries_are_misses_and_get_replaced(tmp_path, capsys, damage):
     assert cache.get("noisy", {"what": "b"}).images()["color"].mean() == 2.0
 
 
+def _put_files(cache, what, value):
+    """An entry whose arrays are files of arrays/ (uncompressed), one of them packed."""
+    video = np.zeros((4, 5, 6, 3))
+    video[1, 2, 3] = value
+    cache.put("transient-stats", {"what": what}, arrays={"m": np.full(3, value), "v": video},
+              compress=False, sparse=("v",))
+    return cache._dir("transient-stats", make_key({"what": what}))
+
+
+@pytest.mark.parametrize("damage", ["swap", "flip", "header", "truncate", "delete", "extra"])
+def test_damaged_array_files_are_misses_and_get_replaced(tmp_path, capsys, damage):
+    # the files of arrays/ are checked in the same pass that reads them (cache.read_arrays)
+    cache = Cache(tmp_path)
+    a = _put_files(cache, "a", 1.0)
+    b = _put_files(cache, "b", 2.0)
+    f = a / "arrays" / "rows~v.npy"
+    if damage == "swap":  # the same size, another entry's values
+        shutil.copy(b / "arrays" / "rows~v.npy", f)
+    elif damage == "flip":
+        data = bytearray(f.read_bytes())
+        data[-1] ^= 1
+        f.write_bytes(bytes(data))
+    elif damage == "header":
+        data = bytearray(f.read_bytes())
+        data[:6] = b"XXXXXX"
+        f.write_bytes(bytes(data))
+    elif damage == "truncate":
+        f.write_bytes(f.read_bytes()[:-8])
+    elif damage == "delete":
+        f.unlink()
+    elif damage == "extra":  # a file no checksum covers would be read unchecked
+        shutil.copy(a / "arrays" / "m.npy", a / "arrays" / "w.npy")
+    assert cache.get("transient-stats", {"what": "a"}) is None
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "damaged" in err and "rows~v.npy" in err or \
+        damage == "extra" and "w.npy has no checksum" in err
+    _put_files(cache, "a", 1.0)
+    got = cache.get("transient-stats", {"what": "a"}).arrays()
+    assert got["v"][1, 2, 3, 0] == 1.0 and got["v"].sum() == 3.0 and got["m"].tolist() == [1.0] * 3
+    assert capsys.readouterr().err == ""
+
+
 def test_entries_without_checksums_are_misses_even_when_they_read(tmp_path):
     cache = Cache(tmp_path)
     a = _put(cache, "a", 1.0)

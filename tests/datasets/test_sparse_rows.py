@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from dbench.datasets import sparse_rows
-from dbench.datasets.cache import CACHE_FORMAT, PACKED_FORMAT, Cache
+from dbench.datasets.cache import CACHE_FORMAT, FILES_FORMAT, PACKED_FORMAT, Cache
 
 
 def _same_bits(a, b):
@@ -64,6 +64,11 @@ def test_pack_refuses_arrays_of_other_shapes_and_passes_the_rest():
     assert sparse_rows.unpack(plain) == plain
 
 
+def _data_bytes(entry):
+    return sum(f.stat().st_size for f in entry.path.rglob("*") if f.is_file() and
+               f.name != "meta.json")
+
+
 @pytest.mark.parametrize("compress", [False, True])
 def test_cache_stores_packed_rows_and_reads_them_back(tmp_path, compress):
     rng = np.random.default_rng(4)
@@ -71,16 +76,38 @@ def test_cache_stores_packed_rows_and_reads_them_back(tmp_path, compress):
     cache = Cache(tmp_path)
     put = cache.put("transient-stats", {"w": 1}, arrays=arrays, compress=compress,
                     sparse=("mean", "color", "non_zero"))
-    assert put.meta["cache_format"] == PACKED_FORMAT
-    got = cache.get("transient-stats", {"w": 1}).arrays()
-    for name, value in arrays.items():
-        assert _same_bits(got[name], value), name
-    # an entry without packed arrays keeps the format earlier code reads
+    assert put.meta["cache_format"] == (PACKED_FORMAT if compress else FILES_FORMAT)
+    for got in (cache.get("transient-stats", {"w": 1}).arrays(), put.arrays()):
+        for name, value in arrays.items():
+            assert _same_bits(got[name], value), name
+    # an entry without packed arrays: a compressed one keeps the format earlier code reads
     dense = cache.put("transient-stats", {"w": 2}, arrays=arrays, compress=compress)
-    assert dense.meta["cache_format"] == CACHE_FORMAT
+    assert dense.meta["cache_format"] == (CACHE_FORMAT if compress else FILES_FORMAT)
     assert _same_bits(cache.get("transient-stats", {"w": 2}).arrays()["mean"], arrays["mean"])
     # a packed entry is smaller: most rows are empty
-    assert (put.path / "arrays.npz").stat().st_size < (dense.path / "arrays.npz").stat().st_size
+    assert _data_bytes(put) < _data_bytes(dense)
+
+
+def test_rows_given_by_the_caller_are_the_rows_stored(tmp_path):
+    # the transient collector finds the rows on the device (cache.put's rows): a superset of
+    # the non-zero rows stores the extra ones as zeros and reads back bit for bit
+    rng = np.random.default_rng(5)
+    arrays = _hostile(rng)
+    found = np.unpackbits(sparse_rows.pack(arrays, ("mean",))[sparse_rows.MASK],
+                          count=5 * 6 * 40).astype(bool).reshape(5, 6, 40)
+    wider = found | (rng.random(found.shape) < 0.3)
+    packed = sparse_rows.pack(arrays, ("mean",))
+    given = {k: v.array() if isinstance(v, sparse_rows.Rows) else v
+             for k, v in sparse_rows.layout(arrays, ("mean",), keep=wider).items()}
+    assert given["rows~mean"].shape[0] == wider.sum() > packed["rows~mean"].shape[0]
+    assert _same_bits(sparse_rows.unpack(given)["mean"], arrays["mean"])
+    entry = Cache(tmp_path).put("k", {"a": 1}, arrays=arrays, compress=False, sparse=("mean",),
+                                rows=wider)
+    assert _same_bits(Cache(tmp_path).get("k", {"a": 1}).arrays()["mean"], arrays["mean"])
+    assert np.load(entry.path / "arrays" / "rows~mean.npy").shape[0] == wider.sum()
+    for bad in (wider[..., :-1], wider.astype(np.uint8)):
+        with pytest.raises(ValueError, match="rows to keep must be bool"):
+            sparse_rows.layout(arrays, ("mean",), keep=bad)
 
 
 @pytest.mark.parametrize("values, stored", [

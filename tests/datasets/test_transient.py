@@ -120,17 +120,19 @@ def test_load_returns_transient_frame_and_caches(tr, tmp_cache):
     np.testing.assert_array_equal(again.stats.var_mean, v.stats.var_mean)
     np.testing.assert_array_equal(again.non_zero, v.non_zero)
     # the counts are stored in one byte (sparse_rows.narrowest), read back in their own type
-    (stored,) = tmp_cache.root.glob("transient-stats/*/arrays.npz")
-    with np.load(stored) as z:
-        assert z["rows~non_zero"].dtype == np.uint8 and str(z["rows~dtype~non_zero"]) == "<i4"
+    (stored,) = tmp_cache.root.glob("transient-stats/*/arrays")
+    assert np.load(stored / "rows~non_zero.npy").dtype == np.uint8
+    assert str(np.load(stored / "rows~dtype~non_zero.npy")) == "<i4"
     np.testing.assert_array_equal(again.stats.m3, v.stats.m3)
     np.testing.assert_array_equal(again.reference_var, v.reference_var)
     # the videos are stored by their non-empty (pixel, bin) rows (datasets/sparse_rows.py)
-    from dbench.datasets.cache import PACKED_FORMAT
-    for kind in ("transient-noisy", "transient-stats", "transient-reference"):
+    # (uncompressed ones as files of arrays/, the reference deflated in arrays.npz)
+    from dbench.datasets.cache import FILES_FORMAT, PACKED_FORMAT
+    for kind, fmt in (("transient-noisy", FILES_FORMAT), ("transient-stats", FILES_FORMAT),
+                      ("transient-reference", PACKED_FORMAT)):
         formats = [json.loads(p.read_text())["cache_format"]
                    for p in tmp_cache.root.glob(f"{kind}/*/meta.json")]
-        assert formats and set(formats) == {PACKED_FORMAT}, kind
+        assert formats and set(formats) == {fmt}, kind
 
 
 def test_load_errors(tr, tmp_cache):
@@ -251,6 +253,18 @@ def _assert_same(a, b):
     np.testing.assert_allclose(a.steady, b.steady, rtol=1e-6)
 
 
+def assert_rows_found(b):
+    """The rows collector (b) finds on the device for the cache (packed rows) are those a host
+    scan of the bit patterns finds (datasets/sparse_rows.py.layout)."""
+    from dbench.datasets import sparse_rows
+    for key, arrays in (("stats", {"mean": b.stats.mean, "var_mean": b.stats.var_mean,
+                                   "m3": b.stats.m3, "non_zero": b.non_zero}),
+                        ("color", {"color": b.color})):
+        host = np.unpackbits(sparse_rows.layout(arrays, list(arrays))[sparse_rows.MASK],
+                             count=b.rows[key].size).astype(bool)
+        assert b.rows[key].dtype == bool and np.array_equal(b.rows[key].reshape(-1), host), key
+
+
 @pytest.mark.parametrize("transform", ["identity", "box-cox"])
 def test_collector_b_equals_a_exactly(tr, transform):
     """Same seeds and paths (1-spp passes): bit-identical power sums, counts and moments."""
@@ -261,6 +275,8 @@ def test_collector_b_equals_a_exactly(tr, transform):
                                  per_pass=True)
     _assert_same(a, b)
     assert b.timing["n_overflow"] == 0 and b.timing["n_nonfinite"] == 0
+    assert_rows_found(b)
+    assert 0 < b.rows["color"].mean() < 1  # the test sees empty rows and full ones
 
 
 def test_collector_b_exact_when_nee_reenters_bins(tr, corridor):

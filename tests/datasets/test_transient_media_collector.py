@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from test_transient import _assert_same, state_bytes  # noqa: E402  (pytest puts tests/ on sys.path)
+# (pytest puts tests/ on sys.path)
+from test_transient import _assert_same, assert_rows_found, state_bytes  # noqa: E402
 
 RES, BINS, SPP = 8, 20, 4
 
@@ -28,6 +29,7 @@ def test_media_collector_equals_passes_bit_for_bit(tr, fog, transform):
                                  lam=0.5, per_pass=True)
     assert b.non_zero.max() > 0 and (b.non_zero > 0).mean() > 0.2   # the test sees data
     _assert_same(a, b)
+    assert_rows_found(b)
     assert b.timing["collector"] == "b" and b.timing["slots"] == 2 * fog.max_depth
     assert b.timing["n_overflow"] == 0 and b.timing["n_nonfinite"] == 0
 

@@ -50,19 +50,25 @@ def test_transient_cache_entries_are_stored_uncompressed_and_read_back_exactly(t
         np.testing.assert_array_equal(getattr(again, name), getattr(first, name))
     for name in ("mean", "var_mean", "m3"):
         np.testing.assert_array_equal(getattr(again.stats, name), getattr(first.stats, name))
-    files = list(tmp_cache.root.glob("transient-*/*/arrays.npz"))
-    assert len(files) == 2
-    for f in files:
-        with zipfile.ZipFile(f) as z:
-            assert {i.compress_type for i in z.infolist()} == {zipfile.ZIP_STORED}
+    # one plain .npy per stored array (datasets/array_files.py), no zip archive
+    assert not list(tmp_cache.root.glob("transient-*/*/arrays.npz"))
+    folders = list(tmp_cache.root.glob("transient-*/*/arrays"))
+    assert len(folders) == 2
+    for folder in folders:
+        for f in folder.iterdir():
+            assert f.suffix == ".npy" and np.load(f) is not None
 
 
 def test_cache_put_compresses_by_default(tmp_cache):
     a = {"x": np.zeros(1000)}
-    for compress, kind in ((True, zipfile.ZIP_DEFLATED), (False, zipfile.ZIP_STORED)):
+    for compress in (True, False):
         entry = tmp_cache.put("k", {"c": compress}, arrays=a, compress=compress)
-        with zipfile.ZipFile(entry.path / "arrays.npz") as z:
-            assert {i.compress_type for i in z.infolist()} == {kind}
+        if compress:
+            with zipfile.ZipFile(entry.path / "arrays.npz") as z:
+                assert {i.compress_type for i in z.infolist()} == {zipfile.ZIP_DEFLATED}
+        else:
+            assert not (entry.path / "arrays.npz").exists()
+            np.testing.assert_array_equal(np.load(entry.path / "arrays" / "x.npy"), a["x"])
         np.testing.assert_array_equal(tmp_cache.get("k", {"c": compress}).arrays()["x"], a["x"])
 
 

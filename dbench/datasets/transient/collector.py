@@ -402,7 +402,8 @@ class StatsCollector:
     def moments(self, rtol: float) -> dict[str, np.ndarray]:
         """Mean, variance of the mean and third central moment (float64), the mean colour
         (float32), each (H, W, T, 3), and the unpacked ``non_zero`` counts (int32), computed on
-        the device from the power sums.
+        the device from the power sums; ``rows`` and ``color_rows`` ((H, W, T) bool) are the
+        rows of the statistics and of the colour the cache stores (:meth:`_rows`).
 
         The arithmetic is that of :func:`dbench.datasets.stats.stats_from_sums` operation
         for operation (docs/methods/statistical.md §4.1), so the results are bit-identical to it (tested):
@@ -433,10 +434,31 @@ class StatsCollector:
         mean = a + dr.opaque(F, float(self.k))
         color = mi.Float32((self.plain if self.plain is not None else s1) / count)
         dr.eval(mean, var_mean, m3, color, non_zero)
+        stat_rows, color_rows = self._rows(mean, var_mean, m3, non_zero, color)
         shape = (self.height, self.width, self.bins, 3)
-        return {name: _host(value).reshape(shape) for name, value in
-                (("mean", mean), ("var_mean", var_mean), ("m3", m3), ("color", color),
-                 ("non_zero", non_zero))}
+        out = {name: _host(value).reshape(shape) for name, value in
+               (("mean", mean), ("var_mean", var_mean), ("m3", m3), ("color", color),
+                ("non_zero", non_zero))}
+        out.update({name: np.asarray(value).reshape(shape[:-1]) for name, value in
+                    (("rows", stat_rows), ("color_rows", color_rows))})
+        return out
+
+    def _rows(self, mean, var_mean, m3, non_zero, color):
+        """Which (pixel, bin) rows of the statistics and of the colour hold a non-zero bit
+        pattern (-0.0 and NaN count): the rows the cache stores (datasets/sparse_rows.py),
+        found in one kernel over the rows instead of a host pass over the 137 MB of a
+        128² × 100-bin video (and without per-value flags, whose fresh memory costs more)."""
+        mi, dr = self.mi, self.dr
+        row = dr.arange(mi.UInt32, self.size // 3) * 3
+        stat, col = mi.Bool(False), mi.Bool(False)
+        for c in range(3):
+            bits = dr.zeros(mi.UInt64, 1)
+            for a in (mean, var_mean, m3):
+                bits |= dr.reinterpret_array(mi.UInt64, dr.gather(mi.Float64, a, row + c))
+            stat |= (bits != 0) | (dr.gather(type(non_zero), non_zero, row + c) != 0)
+            col |= dr.reinterpret_array(mi.UInt32, dr.gather(mi.Float32, color, row + c)) != 0
+        dr.eval(stat, col)
+        return stat, col
 
     def diagnostics(self) -> dict[str, int]:
         c = np.array(self.counters, dtype=np.int64)

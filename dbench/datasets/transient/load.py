@@ -1,10 +1,11 @@
 """Transient (time-resolved) datasets through mitransient (docs/transient.md, docs/mitsuba.md).
 
 Scenes of kind ``transient``: ``cornell-transient`` and ``caustic-transient`` (``transient_path``)
-and ``fog-transient`` (a homogeneous participating medium, ``transient_prbvolpath``; the setting of
-seed 004); ``cloud-transient`` and ``fog-unwarped`` and the scene parameters (medium, emission
-pulse or step, scattering orders) are in :mod:`dbench.datasets.transient.media`. The time axis is optical path length (OPL) in metres, warped (the camera segment is
-included, as a real ultrafast sensor records it); each scene carries a window
+and ``fog-transient`` (a homogeneous medium, ``transient_prbvolpath``; the setting of seed 004);
+``cloud-transient``, ``fog-unwarped`` and the scene parameters (medium, emission pulse or step,
+scattering orders) are in :mod:`dbench.datasets.transient.media`. The time axis is optical path
+length (OPL) in metres, warped (the camera segment is included, as a real ultrafast sensor
+records it); each scene carries a window
 [``start_opl``, ``end_opl``) chosen with :func:`size_window` from the scene geometry (earliest
 direct arrival) and a pilot render (the OPL below which ``coverage`` of the steady energy
 arrives). ``bins`` splits the window; ``bin_width_opl = (end − start)/bins``.
@@ -84,9 +85,8 @@ COVERS_ALL = 0.999
 
 def _register(name: str, description: str, **kw: Any):
     def wrap(build: Callable[[Any, int], dict]) -> Callable[[Any, int], dict]:
-        register_scene(TransientScene(name=name, kind="transient",
-                                      description=description, build=build,
-                                      provides=TRANSIENT_BUFFERS, **kw))
+        register_scene(TransientScene(name=name, kind="transient", description=description,
+                                      build=build, provides=TRANSIENT_BUFFERS, **kw))
         return build
     return wrap
 
@@ -102,8 +102,8 @@ def cornell_transient(mi, res) -> dict:
 
 
 @_register("caustic-transient", "glass sphere caustic, time-resolved: the caustic arrives late "
-           "(glass OPL)", max_depth=12, window_start=3.7, window_end=14.0, default_bins=200,
-           declared=(EMISSION,), variant=transient_variant)
+           "(glass OPL)", max_depth=12, window_start=3.7, window_end=14.0,
+           default_bins=200, declared=(EMISSION,), variant=transient_variant)
 def caustic_transient(mi, res) -> dict:
     return _scenes.caustic(mi, res)
 
@@ -135,6 +135,8 @@ class TransientRender:
     emission: str = "pulse"             # the scene's (TransientScene.emission)
     #: (H, W, 3) float64 variance of the mean of the per-path sums over the window's bins
     total_var: np.ndarray | None = None
+    #: {"stats", "color"}: (H, W, T) bool, the rows the cache stores (collector (b) finds them)
+    rows: dict | None = None
 
     @property
     def energy_fraction(self) -> float:
@@ -142,9 +144,8 @@ class TransientRender:
 
 
 def energy_fraction(video: np.ndarray, steady: np.ndarray, emission: str = "pulse") -> float:
-    """Share of the steady energy inside the window: Σ video / Σ steady (all pixels, channels).
-    A step video (``emission="step"``, the cumsum of the pulse's) holds that sum in its last
-    bin: Σ video[..., -1, :] / Σ steady."""
+    """Share of the steady energy inside the window: Σ video / Σ steady (all pixels, channels);
+    a step video (the cumsum of the pulse's) holds it in its last bin: Σ video[..., -1, :]."""
     total = float(np.sum(steady, dtype=np.float64))
     if emission == "step":
         video = video[..., -1, :]
@@ -286,8 +287,9 @@ def collect_in_integrator(scene: TransientScene, res, spp: int, seed: int = 0,
     state_bytes, diagnostics = col.nbytes(), col.diagnostics()
     layout = col.state.layout
     col.release()  # the cached collector keeps its integrator, not the sums
-    return TransientRender(color=color, steady=steady, stats=stats,
-                           non_zero=non_zero, total_var=total_var,
+    return TransientRender(color=color, steady=steady, stats=stats, non_zero=non_zero,
+                           total_var=total_var, rows={"stats": mom["rows"],
+                                                      "color": mom["color_rows"]},
                            sums={"s1": sums["s1"], "s2": sums["s2"], "s3": sums["s3"],
                                  "n": col.n},
                            timing={"render_s": col.render_s,
@@ -423,14 +425,14 @@ def load_transient(scene: str | TransientScene, spp: int, res,
             out = collect_passes(sc, res, spp, seed, bins,
                                  (transform, lam) if "stats" in wanted else None,
                                  copies=copies, progress=progress)
-        color, steady = out.color, out.steady
+        color, steady, rows = out.color, out.steady, out.rows or {}
         meta.update(render_s=out.timing["render_s"])
         meta["rendered"].append("color")
         if noisy is None:
             cache.put("transient-noisy", noisy_desc, arrays={"color": color, "steady": steady},
                       meta={"render_s": out.timing["render_s"],
                             "timing": {k: v for k, v in out.timing.items()}}, compress=False,
-                      sparse=("color",))
+                      sparse=("color",), rows=rows.get("color"))
         if out.stats is not None and "stats" in wanted:
             stats, non_zero, total_var = out.stats, out.non_zero, out.total_var
             meta.update(stats_s=out.timing["stats_s"])
@@ -444,7 +446,8 @@ def load_transient(scene: str | TransientScene, spp: int, res,
                       # noisy float arrays deflate to about half at 12-25x the write time
                       # (0.65 s at 48²×100 against a 0.24 s render); the empty (pixel, bin)
                       # rows are left out instead (datasets/sparse_rows.py)
-                      compress=False, sparse=("mean", "var_mean", "m3", "non_zero"))
+                      compress=False, sparse=("mean", "var_mean", "m3", "non_zero"),
+                      rows=rows.get("stats"))
     if stats is not None:
         meta["stats_diagnostics"] = dict(stats.diagnostics)
     meta["energy_fraction"] = energy_fraction(color, steady, sc.emission)

@@ -1,0 +1,140 @@
+"""A cache entry's arrays as a folder of ``.npy`` files, written and read a chunk at a time.
+
+This is how :mod:`dbench.datasets.cache` stores uncompressed arrays (entry format 4): the
+float64 per-bin statistics and colour of transient videos, packed by their non-zero rows
+(:mod:`.sparse_rows`). Each array is one ``arrays/<stored name>.npy`` (format 1.0) that
+``np.load`` reads as any other.
+
+Why not one ``arrays.npz``, as before: a zip member carries a CRC-32, which ``zipfile``
+computes over every byte written and again over every byte read, 13 ms each way for the 56 MB
+statistics entry of a 128² × 100-bin video on this project's machines. The entry's sha256
+(``meta.json``) already checks those bytes, so the CRC was a second checksum of the same bytes.
+
+Reading is one pass over each file: every chunk read goes to the checksum and straight to its
+place in the unpacked array (:class:`.sparse_rows.Unpacker`), where the zip form took a
+checksum pass over the file, a read into packed arrays and an unpacking copy
+(docs/transient.md §6).
+"""
+from __future__ import annotations
+
+import io as _io
+from pathlib import Path
+from typing import Any, Callable, Iterable, Mapping, Sequence
+
+import numpy as np
+
+from . import sparse_rows
+
+#: The folder of an entry that holds its arrays.
+FOLDER = "arrays"
+SUFFIX = ".npy"
+#: Bytes of a chunk read at a time from an array that is not packed.
+CHUNK_BYTES = sparse_rows.CHUNK_ROWS * 24
+_MAGIC = b"\x93NUMPY\x01\x00"
+
+
+def write(folder: Path, arrays: Mapping[str, np.ndarray], names: Sequence[str],
+          wrap: Callable[[Any], Any], keep: np.ndarray | None = None) -> dict[str, Any]:
+    """Write ``arrays`` (those in ``names`` packed, :func:`.sparse_rows.layout` with ``keep``)
+    into the new folder ``folder``, one file each, through ``wrap(file)`` (a writer with
+    ``write`` and ``record``, e.g. the cache's checksum); return {file name: its writer's
+    ``record()``}."""
+    folder.mkdir()
+    records = {}
+    for name, dtype, shape, chunks in sparse_rows.members(arrays, names, keep):
+        with open(folder / (name + SUFFIX), "wb") as fh:
+            writer = wrap(fh)
+            try:
+                sparse_rows.write_npy(writer, dtype, shape, chunks)
+            finally:
+                writer.close()
+        records[name + SUFFIX] = writer.record()
+    return records
+
+
+def _header(fh, digest) -> tuple[tuple, np.dtype, int]:
+    """(shape, dtype, body bytes) of the ``.npy`` open in ``fh``, its header read and handed to
+    ``digest``; ValueError for anything this module does not write."""
+    head = fh.read(len(_MAGIC) + 2)
+    if len(head) < len(_MAGIC) + 2 or head[:len(_MAGIC)] != _MAGIC:
+        raise ValueError("not a .npy of format 1.0")
+    text = fh.read(int.from_bytes(head[-2:], "little"))
+    digest.update(head)
+    digest.update(text)
+    shape, fortran, dtype = np.lib.format.read_array_header_1_0(_io.BytesIO(head[-2:] + text))
+    if fortran or dtype.hasobject:
+        raise ValueError("not an array this cache writes")
+    return shape, dtype, int(np.prod(shape, dtype=np.int64)) * dtype.itemsize
+
+
+def _body(fh, out: np.ndarray, digest) -> None:
+    """Read the rest of ``fh`` into ``out`` (C-contiguous), each chunk handed to ``digest``
+    (the chunks are ``out``'s own memory, which nothing writes again)."""
+    view = memoryview(out.reshape(-1).view(np.uint8))
+    for start in range(0, len(view), CHUNK_BYTES):
+        part = view[start:start + CHUNK_BYTES]
+        if fh.readinto(part) != len(part):
+            raise ValueError("shorter than its header says")
+        digest.update(part)
+
+
+def read(folder: Path, files: Iterable[str], digest: Callable[[], Any]
+         ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+    """The arrays :func:`write` was given, from the files ``files`` of ``folder``, and
+    {file: ``record()`` of the ``digest()`` object (``update``, ``record``) that saw its
+    bytes}. ValueError (naming the file) when a file is not one :func:`write` writes or its
+    rows do not fit the stored mask; OSError when it cannot be read."""
+    files = list(files)
+    stored = {f[:-len(SUFFIX)]: f for f in files if f.endswith(SUFFIX)}
+    if len(stored) != len(files):
+        raise ValueError(f"{FOLDER}/: unexpected file in {sorted(files)}")
+    records: dict[str, Any] = {}
+    small: dict[str, np.ndarray] = {}
+    for name, f in stored.items():  # everything but the packed rows, which need the mask
+        if not sparse_rows.is_rows(name):
+            small[name] = _read_plain(folder / f, digest, records)
+    unpacker = sparse_rows.Unpacker(small)
+    for name, f in stored.items():
+        if sparse_rows.is_rows(name):
+            _read_rows(folder / f, unpacker, name, digest, records)
+    return unpacker.out, records
+
+
+def _read_plain(path: Path, digest: Callable[[], Any], records: dict) -> np.ndarray:
+    d = digest()
+    try:
+        with open(path, "rb") as fh:
+            shape, dtype, _ = _header(fh, d)
+            out = np.empty(shape, dtype)
+            _body(fh, out, d)
+    except ValueError as exc:
+        raise ValueError(f"{FOLDER}/{path.name}: {exc}") from None
+    finally:
+        records[path.name] = d.record()
+    return out
+
+
+def _read_rows(path: Path, unpacker: sparse_rows.Unpacker, name: str,
+               digest: Callable[[], Any], records: dict) -> None:
+    """Read the kept rows ``name`` from ``path`` into their unpacked array, a chunk of
+    :data:`.sparse_rows.CHUNK_ROWS` rows at a time."""
+    d = digest()
+    try:
+        with open(path, "rb") as fh:
+            shape, dtype, size = _header(fh, d)
+            full = unpacker.target(name, shape, dtype)
+            row_bytes = max(1, size // max(1, shape[0]))
+            for start in range(0, shape[0], sparse_rows.CHUNK_ROWS):
+                rows = min(sparse_rows.CHUNK_ROWS, shape[0] - start)
+                chunk = fh.read(rows * row_bytes)  # a new bytes object: the digest keeps it
+                if len(chunk) != rows * row_bytes:
+                    raise ValueError("shorter than its header says")
+                d.update(chunk)
+                unpacker.fill(full, start, np.frombuffer(chunk, dtype).reshape(rows, shape[1]))
+    except ValueError as exc:
+        raise ValueError(f"{FOLDER}/{path.name}: {exc}") from None
+    finally:
+        records[path.name] = d.record()
+
+
+__all__ = ["FOLDER", "read", "write"]
