@@ -277,6 +277,9 @@ def test_collector_b_equals_a_exactly(tr, transform):
     assert b.timing["n_overflow"] == 0 and b.timing["n_nonfinite"] == 0
     assert_rows_found(b)
     assert 0 < b.rows["color"].mean() < 1  # the test sees empty rows and full ones
+    if transform == "identity":  # without a cache to fill, they are not looked for
+        off = tr.collect_in_integrator(sc, 10, SPP, seed=2, bins=40, rows=False)
+        assert off.rows == {"stats": None, "color": None}
 
 
 def test_collector_b_exact_when_nee_reenters_bins(tr, corridor):

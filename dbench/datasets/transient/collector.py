@@ -399,11 +399,11 @@ class StatsCollector:
                         if self.plain is not None else s1)
         return out
 
-    def moments(self, rtol: float) -> dict[str, np.ndarray]:
+    def moments(self, rtol: float, rows: bool = True) -> dict[str, np.ndarray]:
         """Mean, variance of the mean and third central moment (float64), the mean colour
         (float32), each (H, W, T, 3), and the unpacked ``non_zero`` counts (int32), computed on
-        the device from the power sums; ``rows`` and ``color_rows`` ((H, W, T) bool) are the
-        rows of the statistics and of the colour the cache stores (:meth:`_rows`).
+        the device from the power sums; with ``rows``, ``rows`` and ``color_rows`` ((H, W, T)
+        bool) too: the rows of the statistics and of the colour the cache stores (:meth:`_rows`).
 
         The arithmetic is that of :func:`dbench.datasets.stats.stats_from_sums` operation
         for operation (docs/methods/statistical.md §4.1), so the results are bit-identical to it (tested):
@@ -434,13 +434,13 @@ class StatsCollector:
         mean = a + dr.opaque(F, float(self.k))
         color = mi.Float32((self.plain if self.plain is not None else s1) / count)
         dr.eval(mean, var_mean, m3, color, non_zero)
-        stat_rows, color_rows = self._rows(mean, var_mean, m3, non_zero, color)
+        found = self._rows(mean, var_mean, m3, non_zero, color) if rows else ()
         shape = (self.height, self.width, self.bins, 3)
         out = {name: _host(value).reshape(shape) for name, value in
                (("mean", mean), ("var_mean", var_mean), ("m3", m3), ("color", color),
                 ("non_zero", non_zero))}
         out.update({name: np.asarray(value).reshape(shape[:-1]) for name, value in
-                    (("rows", stat_rows), ("color_rows", color_rows))})
+                    zip(("rows", "color_rows"), found)})
         return out
 
     def _rows(self, mean, var_mean, m3, non_zero, color):

@@ -135,8 +135,7 @@ class TransientRender:
     emission: str = "pulse"             # the scene's (TransientScene.emission)
     #: (H, W, 3) float64 variance of the mean of the per-path sums over the window's bins
     total_var: np.ndarray | None = None
-    #: {"stats", "color"}: (H, W, T) bool, the rows the cache stores (collector (b) finds them)
-    rows: dict | None = None
+    rows: dict | None = None  # {"stats", "color"}: (H, W, T) bool, rows the cache stores
 
     @property
     def energy_fraction(self) -> float:
@@ -243,8 +242,8 @@ def collect_passes(scene: TransientScene, res, spp: int, seed: int = 0,
 
 def collect_in_integrator(scene: TransientScene, res, spp: int, seed: int = 0,
                           bins: int | None = None, transform: str = DEFAULT_TRANSFORM,
-                          lam: float = 0.5, per_pass: bool = False, slots: int = 0
-                          ) -> TransientRender:
+                          lam: float = 0.5, per_pass: bool = False, slots: int = 0,
+                          rows: bool = True) -> TransientRender:
     """Collector (b): running per-path sums inside the scene's integrator, flushed into float64
     power sums with atomics (docs/methods/statistical.md §11.2 mode B; ``transient_path``:
     :mod:`dbench.datasets.transient.collector`, ``transient_prbvolpath``:
@@ -255,6 +254,7 @@ def collect_in_integrator(scene: TransientScene, res, spp: int, seed: int = 0,
             with ``copies=1``); default: one call of ``spp`` samples (seed
             ``pass_seed("transient-b", seed, 0)``).
         slots: per-path slots (0 = 2·max_depth, exact).
+        rows: find the rows the cache stores (``TransientRender.rows``).
     """
     if scene.integrator not in IN_INTEGRATOR:
         raise DbenchInputError(f"collector: (b) runs inside {' or '.join(IN_INTEGRATOR)}; "
@@ -277,7 +277,7 @@ def collect_in_integrator(scene: TransientScene, res, spp: int, seed: int = 0,
         col.render(spp, _render.pass_seed("transient-b", seed, 0))
     t0 = time.perf_counter()
     sums = col.power_sums(unpack=False)
-    mom = col.moments(ZERO_VARIANCE_RTOL)
+    mom = col.moments(ZERO_VARIANCE_RTOL, rows=rows)
     stats = SampleStats(n=float(col.n), mean=mom["mean"], var_mean=mom["var_mean"],
                         m3=mom["m3"], transform=transform, lam=float(lam),
                         diagnostics=col.diagnostics())
@@ -288,8 +288,8 @@ def collect_in_integrator(scene: TransientScene, res, spp: int, seed: int = 0,
     layout = col.state.layout
     col.release()  # the cached collector keeps its integrator, not the sums
     return TransientRender(color=color, steady=steady, stats=stats, non_zero=non_zero,
-                           total_var=total_var, rows={"stats": mom["rows"],
-                                                      "color": mom["color_rows"]},
+                           total_var=total_var, rows={"stats": mom.get("rows"),
+                                                      "color": mom.get("color_rows")},
                            sums={"s1": sums["s1"], "s2": sums["s2"], "s3": sums["s3"],
                                  "n": col.n},
                            timing={"render_s": col.render_s,
@@ -420,7 +420,7 @@ def load_transient(scene: str | TransientScene, spp: int, res,
             meta["cache_hits"].append("stats")
     else:
         if which == "b":
-            out = collect_in_integrator(sc, res, spp, seed, bins, transform, lam)
+            out = collect_in_integrator(sc, res, spp, seed, bins, transform, lam, rows=cache.enabled)
         else:
             out = collect_passes(sc, res, spp, seed, bins,
                                  (transform, lam) if "stats" in wanted else None,
