@@ -423,8 +423,12 @@ def _bench_gpu(args: argparse.Namespace) -> int:
                          transient_size=gpu.TRANSIENT_SIZE)
         print(f"compiled {pre['variants']} kernel variants in {pre['compile_wall_s']:.1f} s "
               f"({pre['jobs']} at a time, {pre['errors']} failed)")
+    # a dry run times the transient renders at 8² (the same code, seconds)
+    renders = gpu.TRANSIENT_RENDERS if device == "cuda" or args.res is not None else \
+        tuple((scene, 8, target) for scene, _, target in gpu.TRANSIENT_RENDERS)
     result = gpu.bench_gpu(height=args.height, width=args.width, device=device,
-                           repeats=max(args.repeats, 1), precompiled=pre)
+                           repeats=max(args.repeats, 1), precompiled=pre,
+                           transient_renders=renders)
     print(gpu.markdown(result))
     if device == "cuda" or args.out:
         path = args.out or gpu.result_path(result)

@@ -211,14 +211,45 @@ def render_row(height: int, width: int, spp: int = 64, log=print) -> dict[str, A
     return row
 
 
+#: (scene, size, the per-bin statistics' target cost against a plain render) of the transient
+#: render rows (issue targets; README.md, "How renders work")
+TRANSIENT_RENDERS = (("cornell-transient", 128, 1.2), ("fog-transient", 48, 1.5))
+
+
+def transient_render_rows(renders=TRANSIENT_RENDERS, log=print) -> list[dict[str, Any]]:
+    """``dbench bench render`` of each transient scene of ``renders`` (100 bins, 64 spp) on the
+    render device this process renders with: a plain mitransient render against colour and
+    per-bin statistics through ``datasets.load``, with storing, with the cache off and read
+    back (:func:`dbench.speed.transient_render.bench_render_transient`); a failure is the
+    row's ``error``, never the run's."""
+    from .transient_render import bench_render_transient
+
+    rows = []
+    for scene, res, target in renders:
+        t0 = time.perf_counter()
+        try:
+            row = bench_render_transient(scene, res=res, spp=64, bins=100, repeats=3)
+        except Exception as exc:  # noqa: BLE001 - recorded, as for the methods' rows
+            row = {"benchmark": "render-transient", "scene": scene, "res": res,
+                   "error": f"{type(exc).__name__}: {exc}"[:500]}
+        row.update(target_ratio=target, wall_s=time.perf_counter() - t0)
+        log(f"render {scene} {res}²: failed: {row['error']}" if "error" in row else
+            f"render {scene} {res}² on {row['variant']}: plain {row['plain_s']:.3f} s, "
+            f"statistics {row['ratio_stats_vs_plain']:.2f}x with storing, "
+            f"{row['ratio_stats_nocache_vs_plain']:.2f}x cache off (target {target:.2f}x)")
+        rows.append(row)
+    return rows
+
+
 def bench_gpu(height: int = 720, width: int = 1280, repeats: int = 10, host_repeats: int = 3,
               device: str = "cuda", methods_: list[str] | None = None,
               hostile_size: tuple[int, int] = HOSTILE_SIZE, log=print,
-              precompiled: dict[str, Any] | None = None, render: bool = True
-              ) -> dict[str, Any]:
+              precompiled: dict[str, Any] | None = None, render: bool = True,
+              transient_renders=TRANSIENT_RENDERS) -> dict[str, Any]:
     """Every method of :data:`TARGETS_MS` (or ``methods_``): device time, host time, the check
     against the host output, launches and copies; OIDN's qualities on the device; with
-    ``render``, the statistics cost of a render at the same size (:func:`render_row`).
+    ``render``, the statistics cost of a render at the same size (:func:`render_row`) and of
+    the transient renders ``transient_renders`` (:func:`transient_render_rows`).
     ``precompiled``: the result of :func:`dbench.speed.kernels.precompile` run just before (the
     kernels compiled side by side into Triton's cache, so that the timed warm-up reads them),
     recorded as the entry ``precompile``."""
@@ -269,6 +300,8 @@ def bench_gpu(height: int = 720, width: int = 1280, repeats: int = 10, host_repe
             "packages": info["packages"], "rows": rows, "oidn_qualities": oidn_rows,
             "oidn_own_benchmark_ms": OIDN_OWN_MS,
             "render": render_row(height, width, log=log) if render else None,
+            "transient_render": transient_render_rows(transient_renders, log=log)
+            if render else None,
             "precompile": pre,
             "when": time.strftime("%Y-%m-%d %H:%M:%S")}
 
@@ -397,6 +430,16 @@ def markdown(result: dict[str, Any]) -> str:
                       f"{ren['plain_s']:.3f} s (target {ren['target_ratio']:.2f}×)."]
     elif ren:
         lines += ["", f"Render statistics: failed: {ren['error'][:120]}"]
+    for t in result.get("transient_render") or ():
+        size = f"{t['res']}²" if isinstance(t["res"], int) else t["res"]
+        lines += ["", f"Transient per-bin statistics, {t['scene']} {size}: failed: "
+                      f"{t['error'][:120]}" if "error" in t else
+                  f"Transient per-bin statistics, {t['scene']} {size} × {t['bins']} bins at "
+                  f"{t['spp']} spp on {t['variant']}: {t['ratio_stats_vs_plain']:.2f}× a plain "
+                  f"render's {t['plain_s']:.3f} s with storing, "
+                  f"{t['ratio_stats_nocache_vs_plain']:.2f}× with the cache off, "
+                  f"{t['ratio_stats_cached_vs_plain']:.2f}× read back (target "
+                  f"{t['target_ratio']:.2f}×)."]
     return "\n".join(lines)
 
 
@@ -411,9 +454,7 @@ def write_result(result: dict[str, Any], path: str | Path) -> None:
     write_text(Path(path), json.dumps(result, indent=1, default=str) + "\n")
 
 
-__all__ = ["OIDN_OWN_MS", "RENDER_TARGET", "TARGETS_MS", "TRANSIENT_SIZE", "TRANSIENT_TARGET_MS", "bench_gpu",
-           "bench_method_device",
-           "compare",
-           "count_device_work", "device_run",
-           "synthetic_frame", "transient_video",
-           "markdown", "result_path", "write_result"]
+__all__ = ["OIDN_OWN_MS", "RENDER_TARGET", "TARGETS_MS", "TRANSIENT_RENDERS", "TRANSIENT_SIZE",
+           "TRANSIENT_TARGET_MS", "bench_gpu", "bench_method_device", "compare",
+           "count_device_work", "device_run", "synthetic_frame", "transient_render_rows",
+           "transient_video", "markdown", "result_path", "write_result"]

@@ -83,7 +83,8 @@ def test_sweep_identity_names_a_gpu_device_only(monkeypatch):
 def test_bench_gpu_dry_run_on_cpu_tensors():
     from dbench.speed import gpu
     r = gpu.bench_gpu(height=8, width=12, device="cpu", repeats=1, host_repeats=1,
-                      methods_=["nca", "oidn", "noisy"], hostile_size=(8, 12), log=lambda s: None)
+                      methods_=["nca", "oidn", "noisy"], hostile_size=(8, 12), log=lambda s: None,
+                      transient_renders=(("cornell-transient", 8, 1.2), ("no-such-scene", 8, 1)))
     rows = {x["method"]: x for x in r["rows"]}
     assert rows["nca"]["device_path"] and rows["nca"]["max_rel_diff"] < 1e-4
     assert rows["oidn"]["hostile_nonfinite"] == 0
@@ -96,6 +97,15 @@ def test_bench_gpu_dry_run_on_cpu_tensors():
     assert "error" not in render, render
     assert render["res"] == "12x8" and render["spp"] == 64
     assert render["ratio_stats_vs_plain"] > 0 and render["target_ratio"] == gpu.RENDER_TARGET
+    # and of the transient per-bin statistics; a scene that fails is its row's error
+    ok, bad = r["transient_render"]
+    assert "error" not in ok, ok
+    assert ok["res"] == 8 and ok["bins"] == 100 and ok["target_ratio"] == 1.2
+    assert ok["ratio_stats_vs_plain"] > 0 and ok["ratio_stats_nocache_vs_plain"] > 0
+    assert bad["scene"] == "no-such-scene" and "error" in bad
+    text = gpu.markdown(r)
+    assert "Transient per-bin statistics, cornell-transient 8² × 100 bins" in text
+    assert "no-such-scene 8²: failed" in text
 
 
 def test_bench_method_names_its_device_route():
