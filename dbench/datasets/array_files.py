@@ -39,6 +39,9 @@ def write(folder: Path, arrays: Mapping[str, np.ndarray], names: Sequence[str],
     into the new folder ``folder``, one file each, through ``wrap(file)`` (a writer with
     ``write`` and ``record``, e.g. the cache's checksum); return {file name: its writer's
     ``record()``}."""
+    bad = [n for n in arrays if not n or n != Path(n).name or n.startswith(".")]
+    if bad:  # each array is a file of the folder
+        raise ValueError(f"{FOLDER}/: array names must be plain file names, got {bad}")
     folder.mkdir()
     records = {}
     for name, dtype, shape, chunks in sparse_rows.members(arrays, names, keep):

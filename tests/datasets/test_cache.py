@@ -47,8 +47,12 @@ def test_the_checksum_taken_while_writing_is_the_files(tmp_path, compress):
     assert sorted(entry.meta["files"]) == sorted(names)
     for name in names:
         assert entry.meta["files"][name] == file_record(entry.path / name)
-    if not compress:  # each is a plain .npy
+    if not compress:  # each is a plain .npy, named by its array
         np.testing.assert_array_equal(np.load(entry.path / "arrays/mean.npy"), arrays["mean"])
+        for bad in ("a/b", "..", ""):
+            with pytest.raises(ValueError, match="plain file names"):
+                cache.put("transient-stats", {"bad": bad}, arrays={bad: np.zeros(2)},
+                          compress=False)
     got = cache.get("transient-stats", {"what": compress}).arrays()
     for name, value in arrays.items():
         np.testing.assert_array_equal(got[name], value)
