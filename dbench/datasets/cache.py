@@ -20,13 +20,14 @@ written last. A killed render leaves only a ``.tmp-*`` folder, which readers ign
 Integrity: ``meta.json`` records the canonical description the entry was built from and the
 size and sha256 of each of its files. :meth:`Cache.get` checks both (a cheap read of files that
 are about to be read anyway; the files in ``arrays/`` are read and checked in the same pass,
-and the entry it returns holds them); an entry whose description differs (a folder copied under another
-key), whose files are missing, truncated or replaced, or whose ``meta.json`` is unreadable is a
-miss: one warning line names it, the caller renders again, and :meth:`Cache.put` replaces the
-damaged folder atomically. An entry whose ``meta.json`` records no checksums (written before
-they existed) is a miss too, rendered again and replaced: that its files load says nothing
-about whether they are the pixels its key stands for (another scene's ``buffers.exr`` copied
-in loads just as well), and adopting it would seal whatever it holds with a checksum.
+and the entry it returns holds them); an entry whose description differs (a folder copied
+under another key), whose files are missing, truncated or replaced, or whose ``meta.json`` is
+unreadable is a miss: one warning line names it, the caller renders again, and
+:meth:`Cache.put` replaces the damaged folder atomically. An entry whose ``meta.json``
+records no checksums (written before they existed) is a miss too, rendered again and
+replaced: that its files load says nothing about whether they are the pixels its key stands
+for (another scene's ``buffers.exr`` copied in loads just as well), and adopting it would seal
+whatever it holds with a checksum.
 
 A cache that cannot be written (a full disk, a read-only or unwritable folder, the root
 that cannot be created) only costs time: :meth:`Cache.put` then leaves no partial entry,
