@@ -14,7 +14,8 @@ from dbench.datasets.cache import Cache, make_key
 
 def _put(cache, what, value):
     img = np.full((4, 5, 3), value, np.float32)
-    cache.put("noisy", {"what": what}, images={"color": img}, arrays={"m": np.arange(3.0)})
+    cache.put("noisy", {"what": what}, images={"color": img}, arrays={"m": np.arange(3.0)},
+              compress=True)  # (arrays.npz: the files of arrays/ are damaged further down)
     return cache._dir("noisy", make_key({"what": what}))
 
 

@@ -126,13 +126,13 @@ def test_load_returns_transient_frame_and_caches(tr, tmp_cache):
     np.testing.assert_array_equal(again.stats.m3, v.stats.m3)
     np.testing.assert_array_equal(again.reference_var, v.reference_var)
     # the videos are stored by their non-empty (pixel, bin) rows (datasets/sparse_rows.py)
-    # (uncompressed ones as files of arrays/, the reference deflated in arrays.npz)
-    from dbench.datasets.cache import FILES_FORMAT, PACKED_FORMAT
-    for kind, fmt in (("transient-noisy", FILES_FORMAT), ("transient-stats", FILES_FORMAT),
-                      ("transient-reference", PACKED_FORMAT)):
+    # (uncompressed, as files of arrays/)
+    from dbench.datasets.cache import FILES_FORMAT
+    for kind in ("transient-noisy", "transient-stats", "transient-reference"):
         formats = [json.loads(p.read_text())["cache_format"]
                    for p in tmp_cache.root.glob(f"{kind}/*/meta.json")]
-        assert formats and set(formats) == {fmt}, kind
+        assert formats and set(formats) == {FILES_FORMAT}, kind
+        assert list(tmp_cache.root.glob(f"{kind}/*/arrays/rows~mask.npy")), kind
 
 
 def test_load_errors(tr, tmp_cache):

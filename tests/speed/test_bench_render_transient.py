@@ -59,10 +59,11 @@ def test_transient_cache_entries_are_stored_uncompressed_and_read_back_exactly(t
             assert f.suffix == ".npy" and np.load(f) is not None
 
 
-def test_cache_put_compresses_by_default(tmp_cache):
+def test_cache_put_compresses_only_when_asked(tmp_cache):
     a = {"x": np.zeros(1000)}
-    for compress in (True, False):
-        entry = tmp_cache.put("k", {"c": compress}, arrays=a, compress=compress)
+    for compress in (True, False, None):  # None: the default, uncompressed
+        kw = {} if compress is None else {"compress": compress}
+        entry = tmp_cache.put("k", {"c": compress}, arrays=a, **kw)
         if compress:
             with zipfile.ZipFile(entry.path / "arrays.npz") as z:
                 assert {i.compress_type for i in z.infolist()} == {zipfile.ZIP_DEFLATED}
