@@ -204,7 +204,7 @@ def load(scene: str | Scene, spp: int, res, needs: Iterable[str] | None = None,
         meta.update(render_s=timing["render_s"])
         meta["rendered"].append("color")
         if color_entry is None:
-            cache.put("noisy", noisy_desc, images={"color": color},
+            cache.put("noisy", noisy_desc, images={"color": color}, compress_images=False,
                       meta={"render_s": timing["render_s"], "copies": timing["copies"]})
         if stats is not None:
             meta.update(stats_s=timing["stats_s"])
@@ -237,7 +237,8 @@ def load(scene: str | Scene, spp: int, res, needs: Iterable[str] | None = None,
             ref, ref_var, seconds = _render.render_reference(sc, res, ref_spp, ref_seed,
                                                              progress=progress)
             cache.put("reference", ref_desc, images={"reference": ref, "reference_var": ref_var},
-                      meta={"render_s": seconds, "chunks": len(_render.reference_chunks(ref_spp))})
+                      meta={"render_s": seconds, "chunks": len(_render.reference_chunks(ref_spp))},
+                      compress_images=False)
             buffers["reference"], buffers["reference_var"] = ref, ref_var
             meta["ref_render_s"] = seconds
             meta["rendered"].append("reference")

@@ -364,7 +364,7 @@ class Cache:
     def put(self, kind: str, description: dict, images: dict[str, np.ndarray] | None = None,
             arrays: dict[str, np.ndarray] | None = None, meta: dict | None = None,
             compress: bool = False, sparse: tuple[str, ...] = (),
-            rows: np.ndarray | None = None) -> Entry:
+            rows: np.ndarray | None = None, compress_images: bool = True) -> Entry:
         """Store an entry atomically. The arrays are written uncompressed, one ``.npy`` file
         each in ``arrays/`` (:mod:`.array_files`): float64 statistics deflate to about 2/3 of
         their size at 15-25× the write time, and float32 transient references to 93 % at 25×
@@ -374,6 +374,7 @@ class Cache:
         (:mod:`.sparse_rows`; :meth:`Entry.arrays` gives them back bit for bit); ``rows``, where
         the caller found them, are those rows (bool, the arrays' shape but the last axis;
         :func:`.sparse_rows.layout`), and every row it leaves out must be zero.
+        ``compress_images=False`` writes ``buffers.exr`` uncompressed (:func:`dbench.io.write_exr`).
 
         A folder that cannot be written (OSError, or the OutputError :mod:`dbench.io` makes of
         it) is not an error: one warning line per process, nothing left behind, and the entry
@@ -396,7 +397,8 @@ class Cache:
                 self._cleaned = True
                 self.clean(older_than_s=STALE_TMP_S)
             tmp.mkdir()
-            self._write(tmp, final, description, meta, images, arrays, compress, sparse, rows)
+            self._write(tmp, final, description, meta, images, arrays, compress, sparse, rows,
+                        compress_images)
         except (OSError, OutputError) as exc:
             # the renders are in memory and right; only the time a later hit would save is lost
             self._unwritable(exc)
@@ -420,11 +422,12 @@ class Cache:
 
     def _write(self, tmp: Path, final: Path, description: dict, meta: dict,
                images: dict[str, np.ndarray] | None, arrays: dict[str, np.ndarray] | None,
-               compress: bool, sparse: tuple[str, ...], rows: np.ndarray | None) -> None:
+               compress: bool, sparse: tuple[str, ...], rows: np.ndarray | None,
+               compress_images: bool = True) -> None:
         """Fill the temporary folder ``tmp`` and rename it to ``final`` (:meth:`put`)."""
         key = meta["key"]
         if images:
-            io.write_exr(tmp / "buffers.exr", images)
+            io.write_exr(tmp / "buffers.exr", images, compress=compress_images)
         records = {}
         if arrays and not compress:
             records = {f"{array_files.FOLDER}/{n}": r for n, r in array_files.write(
