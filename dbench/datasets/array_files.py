@@ -124,10 +124,10 @@ def _read_rows(path: Path, unpacker: sparse_rows.Unpacker, name: str,
     d = digest()
     try:
         with open(path, "rb") as fh:
-            shape, dtype, size = _header(fh, d)
+            shape, dtype, _ = _header(fh, d)
             full = unpacker.target(name, shape, dtype)
-            row_bytes = max(1, size // max(1, shape[0]))
-            for start in range(0, shape[0], sparse_rows.CHUNK_ROWS):
+            row_bytes = dtype.itemsize * shape[1]
+            for start in range(0, shape[0] if row_bytes else 0, sparse_rows.CHUNK_ROWS):
                 rows = min(sparse_rows.CHUNK_ROWS, shape[0] - start)
                 chunk = fh.read(rows * row_bytes)  # a new bytes object: the digest keeps it
                 if len(chunk) != rows * row_bytes:
