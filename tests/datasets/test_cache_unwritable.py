@@ -36,9 +36,9 @@ def _disk_full_under(monkeypatch, root: Path) -> None:
         write(self, data[:10])
         raise OSError(errno.ENOSPC, ENOSPC)
 
-    def full_exr(path, buffers):
+    def full_exr(path, buffers, **kw):
         if Path(root) not in Path(path).parents:
-            return write_exr(path, buffers)
+            return write_exr(path, buffers, **kw)
         Path(path).write_bytes(b"partial")
         raise OSError(errno.ENOSPC, ENOSPC)
 
