@@ -146,13 +146,29 @@ class PowerSums:
 
 
 def stats_to_arrays(stats: SampleStats) -> dict[str, np.ndarray]:
-    """The arrays of ``stats`` as a cache entry stores them."""
-    return {"n": stats.n, "mean": stats.mean, "var_mean": stats.var_mean, "m3": stats.m3}
+    """The arrays of ``stats`` as a cache entry stores them. A count array whose every value
+    has the same bits (the spp of dbench's own renders) is stored as that one value and
+    ``n_shape``: uncompressed, it was a quarter of a steady entry (:func:`stats_from_arrays`
+    gives the array back, bit for bit)."""
+    n = stats.n
+    out = {"n": n, "mean": stats.mean, "var_mean": stats.var_mean, "m3": stats.m3}
+    if isinstance(n, np.ndarray) and n.ndim and n.size:
+        if not any(n.strides):  # SampleStats' broadcast of one number: given back as such
+            out["n"] = np.array(n.flat[0])
+            return out
+        bits = np.ascontiguousarray(n).view(np.uint8).reshape(n.size, n.itemsize)
+        if (bits == bits[0]).all():
+            out.update(n=np.array(n.flat[0]), n_shape=np.asarray(n.shape, np.int64))
+    return out
 
 
 def stats_from_arrays(arrays: dict[str, np.ndarray], transform: str, lam: float) -> SampleStats:
-    """:class:`~dbench.data.SampleStats` from the arrays of a cache entry."""
-    return SampleStats(n=arrays["n"], mean=arrays["mean"], var_mean=arrays["var_mean"],
+    """:class:`~dbench.data.SampleStats` from the arrays of a cache entry
+    (:func:`stats_to_arrays`)."""
+    n = arrays["n"]
+    if "n_shape" in arrays:
+        n = np.full(tuple(int(s) for s in arrays["n_shape"]), n, dtype=np.asarray(n).dtype)
+    return SampleStats(n=n, mean=arrays["mean"], var_mean=arrays["var_mean"],
                        m3=arrays["m3"], transform=transform, lam=lam)
 
 

@@ -5,6 +5,7 @@ from scipy import stats as sps
 
 from dbench.datasets.stats import (PowerSums, stats_from_power_sums, stats_from_samples,
                                    transform_of_zero, transform_samples, variance_of_mean)
+from dbench.data import SampleStats
 from dbench.errors import DbenchInputError
 
 
@@ -152,3 +153,27 @@ def test_one_count_for_every_pixel_stays_one_number():
     assert full.n.flags.writeable and full.n.strides != (0, 0, 0, 0)
     with pytest.raises(DbenchInputError, match="stats.n"):
         SampleStats(n="many", mean=mean, var_mean=mean, m3=mean)
+
+
+@pytest.mark.parametrize("n, stored", [(np.full((4, 5, 3), 64.0), "value and shape"),
+                                       (np.arange(60.0).reshape(4, 5, 3), "array"),
+                                       (np.full((4, 5, 3), 7, np.int32), "value and shape"),
+                                       (16.0, "value")])
+def test_stats_through_the_cache_keep_their_count_bit_for_bit(tmp_path, n, stored):
+    # a uniform count is stored as one value (stats.stats_to_arrays): with its shape where
+    # SampleStats held a full array, alone where it held a broadcast of one number
+    from dbench.datasets.cache import Cache
+    from dbench.datasets.stats import stats_from_arrays, stats_to_arrays
+    rng = np.random.default_rng(3)
+    stats = SampleStats(n=n, mean=rng.random((4, 5, 3)), var_mean=rng.random((4, 5, 3)),
+                        m3=rng.random((4, 5, 3)), transform="identity", lam=0.5)
+    arrays = stats_to_arrays(stats)
+    assert {"value and shape": np.ndim(arrays["n"]) == 0 and "n_shape" in arrays,
+            "array": np.shape(arrays["n"]) == (4, 5, 3) and "n_shape" not in arrays,
+            "value": np.ndim(arrays["n"]) == 0 and "n_shape" not in arrays}[stored]
+    Cache(tmp_path).put("stats", {"n": repr(n)}, arrays=arrays)
+    back = stats_from_arrays(Cache(tmp_path).get("stats", {"n": repr(n)}).arrays(),
+                             "identity", 0.5)
+    assert back.n.dtype == stats.n.dtype and back.n.shape == stats.n.shape
+    assert back.n.tobytes() == stats.n.tobytes()
+    assert back.n.flags.writeable == stats.n.flags.writeable
