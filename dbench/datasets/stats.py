@@ -156,7 +156,9 @@ def stats_to_arrays(stats: SampleStats) -> dict[str, np.ndarray]:
         if not any(n.strides):  # SampleStats' broadcast of one number: given back as such
             out["n"] = np.array(n.flat[0])
             return out
-        bits = np.ascontiguousarray(n).view(np.uint8).reshape(n.size, n.itemsize)
+        flat = np.ascontiguousarray(n).reshape(-1)
+        bits = flat.view({1: np.uint8, 2: np.uint16, 4: np.uint32, 8: np.uint64}.get(
+            n.itemsize, np.uint8)).reshape(n.size, -1)  # each value's bits as one integer
         if (bits == bits[0]).all():
             out.update(n=np.array(n.flat[0]), n_shape=np.asarray(n.shape, np.int64))
     return out

@@ -439,7 +439,7 @@ class StatsCollector:
         out = {name: _host(value).reshape(shape) for name, value in
                (("mean", mean), ("var_mean", var_mean), ("m3", m3), ("color", color),
                 ("non_zero", non_zero))}
-        out.update({name: np.asarray(value).reshape(shape[:-1]) for name, value in
+        out.update({name: _host(value).reshape(shape[:-1]) for name, value in
                     zip(("rows", "color_rows"), found)})
         return out
 
