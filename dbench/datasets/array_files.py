@@ -18,6 +18,7 @@ checksum pass over the file, a read into packed arrays and an unpacking copy
 from __future__ import annotations
 
 import io as _io
+from functools import partial
 from pathlib import Path
 from typing import Any, Callable, Iterable, Mapping, Sequence
 
@@ -28,8 +29,6 @@ from . import sparse_rows
 #: The folder of an entry that holds its arrays.
 FOLDER = "arrays"
 SUFFIX = ".npy"
-#: Bytes of a chunk read at a time from an array that is not packed.
-CHUNK_BYTES = sparse_rows.CHUNK_ROWS * 24
 _MAGIC = b"\x93NUMPY\x01\x00"
 
 
@@ -55,8 +54,8 @@ def write(folder: Path, arrays: Mapping[str, np.ndarray], names: Sequence[str],
     return records
 
 
-def _header(fh, digest) -> tuple[tuple, np.dtype, int]:
-    """(shape, dtype, body bytes) of the ``.npy`` open in ``fh``, its header read and handed to
+def _header(fh, digest) -> tuple[tuple, np.dtype]:
+    """(shape, dtype) of the ``.npy`` open in ``fh``, its header read and handed to
     ``digest``; ValueError for anything this module does not write."""
     head = fh.read(len(_MAGIC) + 2)
     if len(head) < len(_MAGIC) + 2 or head[:len(_MAGIC)] != _MAGIC:
@@ -67,18 +66,7 @@ def _header(fh, digest) -> tuple[tuple, np.dtype, int]:
     shape, fortran, dtype = np.lib.format.read_array_header_1_0(_io.BytesIO(head[-2:] + text))
     if fortran or dtype.hasobject:
         raise ValueError("not an array this cache writes")
-    return shape, dtype, int(np.prod(shape, dtype=np.int64)) * dtype.itemsize
-
-
-def _body(fh, out: np.ndarray, digest) -> None:
-    """Read the rest of ``fh`` into ``out`` (C-contiguous), each chunk handed to ``digest``
-    (the chunks are ``out``'s own memory, which nothing writes again)."""
-    view = memoryview(out.reshape(-1).view(np.uint8))
-    for start in range(0, len(view), CHUNK_BYTES):
-        part = view[start:start + CHUNK_BYTES]
-        if fh.readinto(part) != len(part):
-            raise ValueError("shorter than its header says")
-        digest.update(part)
+    return shape, dtype
 
 
 def read(folder: Path, files: Iterable[str], digest: Callable[[], Any]
@@ -92,52 +80,55 @@ def read(folder: Path, files: Iterable[str], digest: Callable[[], Any]
     if len(stored) != len(files):
         raise ValueError(f"{FOLDER}/: unexpected file in {sorted(files)}")
     records: dict[str, Any] = {}
-    small: dict[str, np.ndarray] = {}
-    for name, f in stored.items():  # everything but the packed rows, which need the mask
-        if not sparse_rows.is_rows(name):
-            small[name] = _read_plain(folder / f, digest, records)
+    small = {name: _read(folder / f, digest, records, _plain)  # the packed rows need the mask
+             for name, f in stored.items() if not sparse_rows.is_rows(name)}
     unpacker = sparse_rows.Unpacker(small)
     for name, f in stored.items():
         if sparse_rows.is_rows(name):
-            _read_rows(folder / f, unpacker, name, digest, records)
+            _read(folder / f, digest, records, partial(_rows, unpacker=unpacker, name=name))
     return unpacker.out, records
 
 
-def _read_plain(path: Path, digest: Callable[[], Any], records: dict) -> np.ndarray:
+def _read(path: Path, digest: Callable[[], Any], records: dict, body: Callable):
+    """``body(file, shape, dtype, digest)`` of the ``.npy`` at ``path`` after its header, the
+    file's bytes handed to a new ``digest()``, whose ``record()`` goes into ``records``;
+    a ValueError names the file."""
     d = digest()
     try:
         with open(path, "rb") as fh:
-            shape, dtype, _ = _header(fh, d)
-            out = np.empty(shape, dtype)
-            _body(fh, out, d)
+            return body(fh, *_header(fh, d), d)
     except ValueError as exc:
         raise ValueError(f"{FOLDER}/{path.name}: {exc}") from None
     finally:
         records[path.name] = d.record()
+
+
+def _plain(fh, shape: tuple, dtype: np.dtype, digest) -> np.ndarray:
+    """The array of that shape and dtype read from ``fh`` a chunk at a time, each chunk handed
+    to ``digest`` (the chunks are the array's own memory, which nothing writes again)."""
+    out = np.empty(shape, dtype)
+    view = memoryview(out.reshape(-1).view(np.uint8))
+    for start in range(0, len(view), sparse_rows.CHUNK_BYTES):
+        part = view[start:start + sparse_rows.CHUNK_BYTES]
+        if fh.readinto(part) != len(part):
+            raise ValueError("shorter than its header says")
+        digest.update(part)
     return out
 
 
-def _read_rows(path: Path, unpacker: sparse_rows.Unpacker, name: str,
-               digest: Callable[[], Any], records: dict) -> None:
-    """Read the kept rows ``name`` from ``path`` into their unpacked array, a chunk of
+def _rows(fh, shape: tuple, dtype: np.dtype, digest, unpacker: sparse_rows.Unpacker,
+          name: str) -> None:
+    """The kept rows ``name`` read from ``fh`` into their unpacked array, a chunk of
     :data:`.sparse_rows.CHUNK_ROWS` rows at a time."""
-    d = digest()
-    try:
-        with open(path, "rb") as fh:
-            shape, dtype, _ = _header(fh, d)
-            full = unpacker.target(name, shape, dtype)
-            row_bytes = dtype.itemsize * shape[1]
-            for start in range(0, shape[0] if row_bytes else 0, sparse_rows.CHUNK_ROWS):
-                rows = min(sparse_rows.CHUNK_ROWS, shape[0] - start)
-                chunk = fh.read(rows * row_bytes)  # a new bytes object: the digest keeps it
-                if len(chunk) != rows * row_bytes:
-                    raise ValueError("shorter than its header says")
-                d.update(chunk)
-                unpacker.fill(full, start, np.frombuffer(chunk, dtype).reshape(rows, shape[1]))
-    except ValueError as exc:
-        raise ValueError(f"{FOLDER}/{path.name}: {exc}") from None
-    finally:
-        records[path.name] = d.record()
+    full = unpacker.target(name, shape, dtype)
+    row_bytes = dtype.itemsize * shape[1]
+    for start in range(0, shape[0] if row_bytes else 0, sparse_rows.CHUNK_ROWS):
+        rows = min(sparse_rows.CHUNK_ROWS, shape[0] - start)
+        chunk = fh.read(rows * row_bytes)  # a new bytes object: the digest keeps it
+        if len(chunk) != rows * row_bytes:
+            raise ValueError("shorter than its header says")
+        digest.update(chunk)
+        unpacker.fill(full, start, np.frombuffer(chunk, dtype).reshape(rows, shape[1]))
 
 
 __all__ = ["FOLDER", "read", "write"]

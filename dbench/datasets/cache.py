@@ -423,7 +423,7 @@ class Cache:
     def _write(self, tmp: Path, final: Path, description: dict, meta: dict,
                images: dict[str, np.ndarray] | None, arrays: dict[str, np.ndarray] | None,
                compress: bool, sparse: tuple[str, ...], rows: np.ndarray | None,
-               compress_images: bool = True) -> None:
+               compress_images: bool) -> None:
         """Fill the temporary folder ``tmp`` and rename it to ``final`` (:meth:`put`)."""
         key = meta["key"]
         if images:

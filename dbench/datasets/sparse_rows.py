@@ -41,6 +41,8 @@ SHAPE = PREFIX + "shape"
 DTYPE = PREFIX + "dtype~"
 #: rows a chunk of :meth:`Rows.chunks` holds (1.5 MB of float64 triples)
 CHUNK_ROWS = 1 << 16
+#: bytes of a chunk of an array that is not packed, written or read a chunk at a time
+CHUNK_BYTES = CHUNK_ROWS * 24
 
 
 def _bits(a: np.ndarray) -> np.ndarray:
@@ -161,8 +163,8 @@ def members(arrays: Mapping[str, np.ndarray], names: Sequence[str] = (),
         if a.dtype.hasobject:
             raise ValueError(f"sparse rows: {name} is an object array")
         flat = a.reshape(-1).view(np.uint8)
-        step = CHUNK_ROWS * 24
-        yield name, a.dtype, a.shape, (flat[i:i + step] for i in range(0, flat.size, step))
+        yield name, a.dtype, a.shape, (flat[i:i + CHUNK_BYTES]
+                                       for i in range(0, flat.size, CHUNK_BYTES))
 
 
 def write_npy(fh: BinaryIO, dtype: np.dtype, shape: tuple, chunks: Iterator) -> None:
