@@ -64,7 +64,7 @@ PIP=("$VENV/bin/pip" install -q --disable-pip-version-check)
 # torchvision 0.16.2 imports on this torch without its compiled parts, and the metric uses only
 # its Gaussian blur, written in PyTorch. The rest of what cvvdp imports is in pyproject.toml.
 "${PIP[@]}" --no-deps "cvvdp==0.5.7" "torchvision==0.16.2" 2>&1 | grep -v "^WARNING" || true
-"$VENV/bin/python" -W ignore -c "import importlib.util as u, dbench, mitsuba, torch, pyoidn, flip_evaluator, numba, OpenEXR, kornia, onnxruntime, skimage, pandas, matplotlib, selenium, triton, pycvvdp; assert u.find_spec('mitransient'); assert torch.__version__.startswith('2.13.0')" \
+"$VENV/bin/python" -W ignore -c "import importlib.util as u, dbench, mitsuba, torch, pyoidn, flip_evaluator, numba, OpenEXR, kornia, onnxruntime, skimage, pandas, matplotlib, selenium, triton, pycvvdp, xxhash; assert u.find_spec('mitransient'); assert torch.__version__.startswith('2.13.0')" \
   || { echo "setup: package installation failed" >&2; exit 1; }
 echo "$want" > "$stamp"
 echo "setup: done ($("$VENV/bin/python" -c 'import torch, mitsuba; print("torch", torch.__version__, "| mitsuba", mitsuba.__version__)'))"

@@ -7,8 +7,9 @@ float64 per-bin statistics and colour of transient videos, packed by their non-z
 
 Why not one ``arrays.npz``, as before: a zip member carries a CRC-32, which ``zipfile``
 computes over every byte written and again over every byte read, 13 ms each way for the 56 MB
-statistics entry of a 128² × 100-bin video on this project's machines. The entry's sha256
-(``meta.json``) already checks those bytes, so the CRC was a second checksum of the same bytes.
+statistics entry of a 128² × 100-bin video on this project's machines. The entry's checksums
+(``meta.json``, :mod:`.checksums`) already check those bytes, so the CRC was a second checksum
+of the same bytes.
 
 Reading is one pass over each file: every chunk read goes to the checksum and straight to its
 place in the unpacked array (:class:`.sparse_rows.Unpacker`), where the zip form took a
@@ -121,14 +122,16 @@ def _rows(fh, shape: tuple, dtype: np.dtype, digest, unpacker: sparse_rows.Unpac
     """The kept rows ``name`` read from ``fh`` into their unpacked array, a chunk of
     :data:`.sparse_rows.CHUNK_ROWS` rows at a time."""
     full = unpacker.target(name, shape, dtype)
-    row_bytes = dtype.itemsize * shape[1]
-    for start in range(0, shape[0] if row_bytes else 0, sparse_rows.CHUNK_ROWS):
-        rows = min(sparse_rows.CHUNK_ROWS, shape[0] - start)
-        chunk = fh.read(rows * row_bytes)  # a new bytes object: the digest keeps it
-        if len(chunk) != rows * row_bytes:
+    if not shape[0] or not dtype.itemsize * shape[1]:
+        return
+    # one buffer for every chunk: the digest is done with a chunk when update() returns
+    buf = np.empty((min(sparse_rows.CHUNK_ROWS, shape[0]), shape[1]), dtype)
+    for start in range(0, shape[0], sparse_rows.CHUNK_ROWS):
+        part = buf[:min(sparse_rows.CHUNK_ROWS, shape[0] - start)]
+        if fh.readinto(part.reshape(-1).view(np.uint8)) != part.nbytes:
             raise ValueError("shorter than its header says")
-        digest.update(chunk)
-        unpacker.fill(full, start, np.frombuffer(chunk, dtype).reshape(rows, shape[1]))
+        digest.update(part)
+        unpacker.fill(full, start, part)
 
 
 __all__ = ["FOLDER", "read", "write"]

@@ -18,7 +18,8 @@ written last. A killed render leaves only a ``.tmp-*`` folder, which readers ign
 :func:`Cache.clean` removes (a cache removes such folders older than a day by itself).
 
 Integrity: ``meta.json`` records the canonical description the entry was built from and the
-size and sha256 of each of its files. :meth:`Cache.get` checks both (a cheap read of files that
+size and checksum of each of its files (xxh3-128, :mod:`.checksums`; sha256 in entries before
+format 5, which are checked with it). :meth:`Cache.get` checks both (a cheap read of files that
 are about to be read anyway; the files in ``arrays/`` are read and checked in the same pass,
 and the entry it returns holds them); an entry whose description differs (a folder copied
 under another key), whose files are missing, truncated or replaced, or whose ``meta.json`` is
@@ -36,8 +37,10 @@ more in that folder for the rest of the process, and returns an entry holding th
 memory, so the run carries on with the renders it has (README.md, "How renders work").
 
 Mostly empty transient videos are stored by their non-zero rows (:mod:`.sparse_rows`,
-docs/transient.md §6), in entries of format 4 (``arrays/``); entries of formats 1 to 3 (an
-``arrays.npz``, packed from format 2 on) read as before.
+docs/transient.md §6), uncompressed arrays as an ``arrays/`` folder (format 4 on), compressed
+ones as an ``arrays.npz``. Entries are written in format 5 (format 4's layouts, xxh3-128
+checksums); entries of formats 1 to 4 (an ``arrays.npz``, packed from format 2 on; ``arrays/``
+in 4) read as before.
 
 Location: ``--cache DIR`` or ``DBENCH_CACHE``, default ``~/.cache/dbench``.
 """
@@ -46,13 +49,12 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-import queue
 import shutil
 import sys
-import threading
 import time
 import uuid
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -61,7 +63,8 @@ import numpy as np
 from .. import io
 from ..errors import OutputError
 from ..memory import small_pages
-from . import array_files, sparse_rows
+from . import array_files, checksums, sparse_rows
+from .checksums import DigestingWriter, NoDigest, file_record
 from .file_refs import file_ref
 
 CACHE_FORMAT = 1
@@ -72,8 +75,12 @@ PACKED_FORMAT = 3
 #: The format of an entry whose uncompressed arrays are a folder of ``.npy`` files
 #: (:mod:`.array_files`), packed as in :data:`PACKED_FORMAT` where asked.
 FILES_FORMAT = 4
+#: The format of every entry written now: any of the layouts above (told apart by the files
+#: an entry holds), its files' checksums xxh3-128 where earlier formats have sha256
+#: (:mod:`.checksums`).
+CHECKSUM_FORMAT = checksums.FIRST_FORMAT
 #: Entry formats this code reads: 2 is packed rows without narrowed integers.
-FORMATS = (CACHE_FORMAT, 2, PACKED_FORMAT, FILES_FORMAT)
+FORMATS = (CACHE_FORMAT, 2, PACKED_FORMAT, FILES_FORMAT, CHECKSUM_FORMAT)
 
 
 def default_root() -> Path:
@@ -164,7 +171,7 @@ class Entry:
     def _read_arrays(self) -> dict[str, np.ndarray]:
         folder = self.path / array_files.FOLDER
         if folder.is_dir():  # (an entry :meth:`Cache.put` returns: its files were just written)
-            return array_files.read(folder, _array_files(self.path), _NoDigest)[0]
+            return array_files.read(folder, _array_files(self.path), NoDigest)[0]
         f = self.path / "arrays.npz"
         if not f.exists():
             return {}
@@ -177,16 +184,6 @@ def _array_files(path: Path) -> list[str]:
     return sorted(p.name for p in (path / array_files.FOLDER).iterdir())
 
 
-class _NoDigest:
-    """A digest that takes none, for reading files this process has just written."""
-
-    def update(self, chunk) -> None:
-        pass
-
-    def record(self) -> None:
-        return None
-
-
 #: Files an entry may hold besides meta.json (and the files of ``arrays/``).
 DATA_FILES = ("buffers.exr", "arrays.npz")
 #: Why :func:`verify` refuses an entry whose meta.json records no checksums.
@@ -196,80 +193,6 @@ STALE_TMP_S = 24 * 3600
 #: {cache folder: the system's reason} of the folders this process found it cannot write:
 #: warned about once, and not written to again (a full disk stays full for a run's length)
 _UNWRITABLE: dict[str, str] = {}
-
-
-class BackgroundSha256:
-    """The sha256 of chunks handed over one at a time, taken in a second thread: hashlib releases
-    the GIL on large chunks, so reading or writing the next chunk goes on beside the hash. At
-    most ``depth`` chunks wait, so memory stays bounded when the hash is the slower side."""
-
-    def __init__(self, depth: int = 4):
-        self.size = 0
-        self._sha = hashlib.sha256()
-        self._chunks: queue.Queue = queue.Queue(maxsize=depth)
-        self._thread = threading.Thread(target=self._hash, daemon=True)
-        self._thread.start()
-
-    def _hash(self) -> None:
-        while (chunk := self._chunks.get()) is not None:
-            self._sha.update(chunk)
-
-    def update(self, chunk: bytes) -> None:
-        self._chunks.put(chunk)
-        self.size += len(chunk)
-
-    def close(self) -> None:
-        if self._thread.is_alive():
-            self._chunks.put(None)
-            self._thread.join()
-
-    def record(self) -> dict[str, Any]:
-        """{"size", "sha256"} of everything handed over."""
-        self.close()
-        return {"size": self.size, "sha256": self._sha.hexdigest()}
-
-
-def file_record(path: Path, chunk: int = 8 << 20) -> dict[str, Any]:
-    """{"size", "sha256"} of one file, each chunk hashed while the next is read."""
-    digest = BackgroundSha256()
-    try:
-        with open(path, "rb") as fh:
-            while block := fh.read(chunk):
-                digest.update(block)
-    finally:
-        digest.close()
-    return digest.record()
-
-
-class DigestingWriter:
-    """A write-only stream over ``fh`` that takes the sha256 of what passes through
-    (:class:`BackgroundSha256`), so a new entry's checksum needs no second read of its file. It
-    has no ``tell``: zipfile then writes a streamed archive (sizes after each member), which
-    ``np.load`` reads as any other; ``read`` only raises (NumPy tells a stream from a path by
-    it)."""
-
-    def __init__(self, fh):
-        self._fh = fh
-        self._digest = BackgroundSha256()
-
-    def write(self, data) -> int:
-        data = data if isinstance(data, bytes) else bytes(data)  # a view's buffer may be reused
-        written = self._fh.write(data)
-        self._digest.update(data)
-        return written
-
-    def read(self, *args):
-        raise OSError("write-only stream")
-
-    def flush(self) -> None:
-        self._fh.flush()
-
-    def record(self) -> dict[str, Any]:
-        """{"size", "sha256"} of everything written (as :func:`file_record` of the file)."""
-        return self._digest.record()
-
-    def close(self) -> None:
-        self._digest.close()
 
 
 def verify(path: Path, meta: dict, description: dict, hash_arrays: bool = True) -> str:
@@ -287,6 +210,7 @@ def verify(path: Path, meta: dict, description: dict, hash_arrays: bool = True) 
     for name in present:  # a file the checksums leave out would be read unchecked
         if name not in files:
             return f"{name} has no checksum"
+    algorithm = checksums.algorithm(meta)
     for name, record in files.items():
         if not isinstance(record, dict):
             return f"checksum of {name} unreadable"
@@ -296,7 +220,7 @@ def verify(path: Path, meta: dict, description: dict, hash_arrays: bool = True) 
         if f.stat().st_size != record.get("size"):
             return f"{name} has {f.stat().st_size} bytes, expected {record.get('size')}"
         if (hash_arrays or not name.startswith(array_files.FOLDER + "/")) and \
-                file_record(f)["sha256"] != record.get("sha256"):
+                file_record(f, algorithm) != record:
             return f"{name} checksum differs"
     return ""
 
@@ -309,7 +233,7 @@ def read_arrays(path: Path, meta: dict) -> tuple[dict[str, np.ndarray] | None, s
     prefix = array_files.FOLDER + "/"
     try:
         arrays, records = array_files.read(path / array_files.FOLDER, _array_files(path),
-                                           BackgroundSha256)
+                                           partial(checksums.Digest, checksums.algorithm(meta)))
     except (OSError, ValueError) as exc:
         return None, str(exc)
     for name, record in records.items():
@@ -381,10 +305,7 @@ class Cache:
         returned holds the buffers in memory (module docstring)."""
         key = make_key(description)
         final = self._dir(kind, key)
-        packed = bool(arrays) and any(n in arrays for n in sparse)
-        fmt = FILES_FORMAT if arrays and not compress else \
-            PACKED_FORMAT if packed else CACHE_FORMAT
-        meta = {**(meta or {}), "cache_format": fmt,
+        meta = {**(meta or {}), "cache_format": CHECKSUM_FORMAT,
                 "kind": kind, "key": key, "description": canonical(description),
                 "created": time.time()}
         held = Entry(final, meta, dict(images or {}), dict(arrays or {}))

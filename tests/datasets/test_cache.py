@@ -5,7 +5,8 @@ import pytest
 
 from dbench import datasets
 from dbench.data import Frame
-from dbench.datasets.cache import Cache, DigestingWriter, file_record, make_key
+from dbench.datasets.cache import Cache, make_key
+from dbench.datasets.checksums import DigestingWriter, file_record
 from dbench.errors import DbenchInputError, UnknownNameError
 
 
@@ -57,7 +58,7 @@ def test_the_checksum_taken_while_writing_is_the_files(tmp_path, compress):
     for name, value in arrays.items():
         np.testing.assert_array_equal(got[name], value)
         assert got[name].dtype == value.dtype
-    # a memoryview is copied before it is queued: its buffer may change after write() returns
+    # a chunk is checksummed before write() returns: its buffer may change after that
     buf = bytearray(b"abcd")
     with open(tmp_path / "x.bin", "wb") as fh:
         writer = DigestingWriter(fh)
@@ -84,14 +85,34 @@ def test_noisy_images_are_stored_uncompressed_where_asked(tmp_path):
 def test_file_record_in_chunks_equals_one_read(tmp_path):
     import hashlib
 
+    import xxhash
+
     data = np.random.default_rng(2).bytes(100_003)
     (tmp_path / "f.bin").write_bytes(data)
     (tmp_path / "empty.bin").write_bytes(b"")
-    for chunk in (7, 4096, 1 << 20):
-        assert file_record(tmp_path / "f.bin", chunk=chunk) == {
-            "size": len(data), "sha256": hashlib.sha256(data).hexdigest()}
-    assert file_record(tmp_path / "empty.bin") == {"size": 0,
-                                                   "sha256": hashlib.sha256(b"").hexdigest()}
+    whole = {"xxh3_128": lambda b: xxhash.xxh3_128(b).hexdigest(),
+             "sha256": lambda b: hashlib.sha256(b).hexdigest()}
+    for name, digest in whole.items():
+        for chunk in (7, 4096, 1 << 20):
+            assert file_record(tmp_path / "f.bin", name, chunk=chunk) == {
+                "size": len(data), name: digest(data)}
+        assert file_record(tmp_path / "empty.bin", name) == {"size": 0, name: digest(b"")}
+    assert "xxh3_128" in file_record(tmp_path / "f.bin")  # what entries record now
+
+
+def test_digest_counts_an_arrays_bytes_not_its_length():
+    import xxhash
+
+    from dbench.datasets.checksums import Digest
+
+    a = np.arange(12.0).reshape(4, 3)
+    d = Digest()
+    d.update(a)
+    d.update(a[1:3])  # a contiguous view: its own bytes
+    assert d.record() == {"size": 6 * 3 * 8,
+                          "xxh3_128": xxhash.xxh3_128(a.tobytes() + a[1:3].tobytes()).hexdigest()}
+    with pytest.raises(ValueError, match="xxh3_128 or sha256"):
+        Digest("md5")
 
 
 def test_disabled_cache_stores_nothing(tmp_path):

@@ -10,6 +10,7 @@ import pytest
 
 from dbench import datasets, io
 from dbench.datasets.cache import Cache, make_key
+from dbench.datasets.checksums import file_record
 
 
 def _put(cache, what, value):
@@ -86,6 +87,42 @@ def test_damaged_array_files_are_misses_and_get_replaced(tmp_path, capsys, damag
     got = cache.get("transient-stats", {"what": "a"}).arrays()
     assert got["v"][1, 2, 3, 0] == 1.0 and got["v"].sum() == 3.0 and got["m"].tolist() == [1.0] * 3
     assert capsys.readouterr().err == ""
+
+
+def _as_sha256_entry(path, fmt):
+    """Rewrite the entry at ``path`` as an earlier format wrote it: sha256 records."""
+    meta = io.read_json(path / "meta.json")
+    meta["cache_format"] = fmt
+    meta["files"] = {n: file_record(path / n, "sha256") for n in meta["files"]}
+    io.write_json(path / "meta.json", meta)
+
+
+@pytest.mark.parametrize("fmt", [1, 4])
+def test_entries_of_earlier_formats_are_checked_with_their_sha256(tmp_path, capsys, fmt):
+    # entries before format 5 record sha256 (datasets/checksums.py): still hits, still checked
+    cache = Cache(tmp_path)
+    a = _put(cache, "a", 1.0) if fmt == 1 else _put_files(cache, "a", 1.0)
+    kind = "noisy" if fmt == 1 else "transient-stats"
+    _as_sha256_entry(a, fmt)
+    entry = cache.get(kind, {"what": "a"})
+    assert entry is not None and capsys.readouterr().err == ""
+    if fmt == 1:
+        assert entry.images()["color"].mean() == 1.0
+        target = a / "buffers.exr"
+    else:
+        assert entry.arrays()["v"][1, 2, 3, 0] == 1.0
+        target = a / "arrays" / "rows~v.npy"
+    data = bytearray(target.read_bytes())
+    data[-1] ^= 1
+    target.write_bytes(bytes(data))
+    assert cache.get(kind, {"what": "a"}) is None
+    assert "checksum differs" in capsys.readouterr().err
+    # an xxh3 record under an earlier format's number is not taken for a sha256 one
+    b = _put(cache, "b", 2.0)
+    meta = io.read_json(b / "meta.json")
+    meta["cache_format"] = 4
+    io.write_json(b / "meta.json", meta)
+    assert cache.get("noisy", {"what": "b"}) is None
 
 
 def test_entries_without_checksums_are_misses_even_when_they_read(tmp_path):

@@ -11,7 +11,8 @@ import pytest
 
 from dbench import cli, datasets, io
 from dbench.datasets import cache as cache_mod
-from dbench.datasets.cache import Cache, DigestingWriter
+from dbench.datasets.cache import Cache
+from dbench.datasets.checksums import DigestingWriter
 
 ENOSPC = os.strerror(errno.ENOSPC)
 

@@ -127,11 +127,11 @@ def test_load_returns_transient_frame_and_caches(tr, tmp_cache):
     np.testing.assert_array_equal(again.reference_var, v.reference_var)
     # the videos are stored by their non-empty (pixel, bin) rows (datasets/sparse_rows.py)
     # (uncompressed, as files of arrays/)
-    from dbench.datasets.cache import FILES_FORMAT
+    from dbench.datasets.cache import CHECKSUM_FORMAT
     for kind in ("transient-noisy", "transient-stats", "transient-reference"):
         formats = [json.loads(p.read_text())["cache_format"]
                    for p in tmp_cache.root.glob(f"{kind}/*/meta.json")]
-        assert formats and set(formats) == {FILES_FORMAT}, kind
+        assert formats and set(formats) == {CHECKSUM_FORMAT}, kind
         assert list(tmp_cache.root.glob(f"{kind}/*/arrays/rows~mask.npy")), kind
 
 
