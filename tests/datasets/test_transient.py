@@ -280,6 +280,18 @@ def test_collector_b_equals_a_exactly(tr, transform):
     if transform == "identity":  # without a cache to fill, they are not looked for
         off = tr.collect_in_integrator(sc, 10, SPP, seed=2, bins=40, rows=False)
         assert off.rows == {"stats": None, "color": None}
+    assert_colour_alone_is_the_same(tr, sc, b, 10, 40, SPP, transform)
+
+
+def assert_colour_alone_is_the_same(tr, sc, b, res, bins, spp, transform):
+    """Without statistics (a load that asked for none) the collector gives the same colour and
+    colour rows bit for bit, and no statistics."""
+    alone = tr.collect_in_integrator(sc, res, spp, seed=2, bins=bins, transform=transform,
+                                     per_pass=True, stats=False)
+    assert alone.stats is None and alone.non_zero is None and alone.rows["stats"] is None
+    assert alone.color.dtype == np.float32 and alone.color.tobytes() == b.color.tobytes()
+    np.testing.assert_array_equal(alone.rows["color"], b.rows["color"])
+    np.testing.assert_array_equal(alone.steady, b.steady)
 
 
 def test_collector_b_exact_when_nee_reenters_bins(tr, corridor):

@@ -6,7 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 # (pytest puts tests/ on sys.path)
-from test_transient import _assert_same, assert_rows_found, state_bytes  # noqa: E402
+from test_transient import (  # noqa: E402
+    _assert_same, assert_colour_alone_is_the_same, assert_rows_found, state_bytes)
 
 RES, BINS, SPP = 8, 20, 4
 
@@ -30,6 +31,7 @@ def test_media_collector_equals_passes_bit_for_bit(tr, fog, transform):
     assert b.non_zero.max() > 0 and (b.non_zero > 0).mean() > 0.2   # the test sees data
     _assert_same(a, b)
     assert_rows_found(b)
+    assert_colour_alone_is_the_same(tr, fog, b, RES, BINS, SPP, transform)
     assert b.timing["collector"] == "b" and b.timing["slots"] == 2 * fog.max_depth
     assert b.timing["n_overflow"] == 0 and b.timing["n_nonfinite"] == 0
 

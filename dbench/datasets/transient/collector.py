@@ -399,11 +399,14 @@ class StatsCollector:
                         if self.plain is not None else s1)
         return out
 
-    def moments(self, rtol: float, rows: bool = True) -> dict[str, np.ndarray]:
+    def moments(self, rtol: float, rows: bool = True,
+                stats: bool = True) -> dict[str, np.ndarray]:
         """Mean, variance of the mean and third central moment (float64), the mean colour
         (float32), each (H, W, T, 3), and the unpacked ``non_zero`` counts (int32), computed on
         the device from the power sums; with ``rows``, ``rows`` and ``color_rows`` ((H, W, T)
         bool) too: the rows of the statistics and of the colour the cache stores (:meth:`_rows`).
+        ``stats=False`` gives the colour (and ``color_rows``) alone, for a caller that asked for
+        no statistics: about 5 ms instead of 30 at 128² × 100 bins.
 
         The arithmetic is that of :func:`dbench.datasets.stats.stats_from_sums` operation
         for operation (docs/methods/statistical.md §4.1), so the results are bit-identical to it (tested):
@@ -419,10 +422,16 @@ class StatsCollector:
         F = mi.Float64
         n = float(self.n)
         count = dr.opaque(F, n)
+        shape = (self.height, self.width, self.bins, 3)
+        s1, s2, s3, non_zero = self.state.gather(dr.arange(mi.UInt32, self.size))
+        if not stats:  # (s2, s3 and the counts are then never evaluated)
+            color = mi.Float32((self.plain if self.plain is not None else s1) / count)
+            col = self._color_rows(color) if rows else None
+            dr.eval(color, col)
+            return {"color": _host(color).reshape(shape),
+                    **({"color_rows": _host(col).reshape(shape[:-1])} if rows else {})}
         safe_n = dr.opaque(F, max(n, 1.0))
         denom = dr.opaque(F, max(n - 1.0, 1.0))
-        idx = dr.arange(mi.UInt32, self.size)
-        s1, s2, s3, non_zero = self.state.gather(idx)
         a = s1 / safe_n
         s2n = s2 / safe_n
         m2b = s2n - a * a
@@ -435,7 +444,6 @@ class StatsCollector:
         color = mi.Float32((self.plain if self.plain is not None else s1) / count)
         dr.eval(mean, var_mean, m3, color, non_zero)
         found = self._rows(mean, var_mean, m3, non_zero, color) if rows else ()
-        shape = (self.height, self.width, self.bins, 3)
         out = {name: _host(value).reshape(shape) for name, value in
                (("mean", mean), ("var_mean", var_mean), ("m3", m3), ("color", color),
                 ("non_zero", non_zero))}
@@ -450,15 +458,24 @@ class StatsCollector:
         128² × 100-bin video (and without per-value flags, whose fresh memory costs more)."""
         mi, dr = self.mi, self.dr
         row = dr.arange(mi.UInt32, self.size // 3) * 3
-        stat, col = mi.Bool(False), mi.Bool(False)
+        stat = mi.Bool(False)
         for c in range(3):
             bits = dr.zeros(mi.UInt64, 1)
             for a in (mean, var_mean, m3):
                 bits |= dr.reinterpret_array(mi.UInt64, dr.gather(mi.Float64, a, row + c))
             stat |= (bits != 0) | (dr.gather(type(non_zero), non_zero, row + c) != 0)
-            col |= dr.reinterpret_array(mi.UInt32, dr.gather(mi.Float32, color, row + c)) != 0
+        col = self._color_rows(color)
         dr.eval(stat, col)
         return stat, col
+
+    def _color_rows(self, color):
+        """Which rows of the colour hold a non-zero bit pattern (Bool per (pixel, bin), lazy)."""
+        mi, dr = self.mi, self.dr
+        row = dr.arange(mi.UInt32, self.size // 3) * 3
+        col = mi.Bool(False)
+        for c in range(3):
+            col |= dr.reinterpret_array(mi.UInt32, dr.gather(mi.Float32, color, row + c)) != 0
+        return col
 
     def diagnostics(self) -> dict[str, int]:
         c = np.array(self.counters, dtype=np.int64)

@@ -243,7 +243,7 @@ def collect_passes(scene: TransientScene, res, spp: int, seed: int = 0,
 def collect_in_integrator(scene: TransientScene, res, spp: int, seed: int = 0,
                           bins: int | None = None, transform: str = DEFAULT_TRANSFORM,
                           lam: float = 0.5, per_pass: bool = False, slots: int = 0,
-                          rows: bool = True) -> TransientRender:
+                          rows: bool = True, stats: bool = True) -> TransientRender:
     """Collector (b): running per-path sums inside the scene's integrator, flushed into float64
     power sums with atomics (docs/methods/statistical.md §11.2 mode B; ``transient_path``:
     :mod:`dbench.datasets.transient.collector`, ``transient_prbvolpath``:
@@ -255,6 +255,7 @@ def collect_in_integrator(scene: TransientScene, res, spp: int, seed: int = 0,
             ``pass_seed("transient-b", seed, 0)``).
         slots: per-path slots (0 = 2·max_depth, exact).
         rows: find the rows the cache stores (``TransientRender.rows``).
+        stats: compute the moments (without, ``stats`` and ``non_zero`` are None: colour only).
     """
     if scene.integrator not in IN_INTEGRATOR:
         raise DbenchInputError(f"collector: (b) runs inside {' or '.join(IN_INTEGRATOR)}; "
@@ -277,11 +278,11 @@ def collect_in_integrator(scene: TransientScene, res, spp: int, seed: int = 0,
         col.render(spp, _render.pass_seed("transient-b", seed, 0))
     t0 = time.perf_counter()
     sums = col.power_sums(unpack=False)
-    mom = col.moments(ZERO_VARIANCE_RTOL, rows=rows)
+    mom = col.moments(ZERO_VARIANCE_RTOL, rows=rows, stats=stats)
     stats = SampleStats(n=float(col.n), mean=mom["mean"], var_mean=mom["var_mean"],
                         m3=mom["m3"], transform=transform, lam=float(lam),
-                        diagnostics=col.diagnostics())
-    color, non_zero = mom["color"], mom["non_zero"]
+                        diagnostics=col.diagnostics()) if stats else None
+    color, non_zero = mom["color"], mom.get("non_zero")
     steady = (col.steady / col.n).astype(np.float32)
     total_var = col.total_var()
     state_bytes, diagnostics = col.nbytes(), col.diagnostics()
@@ -420,7 +421,8 @@ def load_transient(scene: str | TransientScene, spp: int, res,
             meta["cache_hits"].append("stats")
     else:
         if which == "b":
-            out = collect_in_integrator(sc, res, spp, seed, bins, transform, lam, rows=cache.enabled)
+            out = collect_in_integrator(sc, res, spp, seed, bins, transform, lam,
+                                        rows=cache.enabled, stats="stats" in wanted)
         else:
             out = collect_passes(sc, res, spp, seed, bins,
                                  (transform, lam) if "stats" in wanted else None,
@@ -430,9 +432,8 @@ def load_transient(scene: str | TransientScene, spp: int, res,
         meta["rendered"].append("color")
         if noisy is None:
             cache.put("transient-noisy", noisy_desc, arrays={"color": color, "steady": steady},
-                      meta={"render_s": out.timing["render_s"],
-                            "timing": {k: v for k, v in out.timing.items()}}, compress=False,
-                      sparse=("color",), rows=rows.get("color"))
+                      meta={"render_s": out.timing["render_s"], "timing": dict(out.timing)},
+                      compress=False, sparse=("color",), rows=rows.get("color"))
         if out.stats is not None and "stats" in wanted:
             stats, non_zero, total_var = out.stats, out.non_zero, out.total_var
             meta.update(stats_s=out.timing["stats_s"])
@@ -443,9 +444,8 @@ def load_transient(scene: str | TransientScene, spp: int, res,
                               "non_zero": non_zero, **totals},
                       meta={"stats_s": out.timing["stats_s"],
                             "diagnostics": stats.diagnostics},
-                      # noisy float arrays deflate to about half at 12-25x the write time
-                      # (0.65 s at 48²×100 against a 0.24 s render); the empty (pixel, bin)
-                      # rows are left out instead (datasets/sparse_rows.py)
+                      # deflating took 12-25x the write time for half the size; the empty
+                      # (pixel, bin) rows are left out instead (datasets/sparse_rows.py)
                       compress=False, sparse=("mean", "var_mean", "m3", "non_zero"),
                       rows=rows.get("stats"))
     if stats is not None:
