@@ -288,7 +288,8 @@ class Cache:
     def put(self, kind: str, description: dict, images: dict[str, np.ndarray] | None = None,
             arrays: dict[str, np.ndarray] | None = None, meta: dict | None = None,
             compress: bool = False, sparse: tuple[str, ...] = (),
-            rows: np.ndarray | None = None, compress_images: bool = True) -> Entry:
+            rows: np.ndarray | None = None, compress_images: bool = True,
+            raw_images: tuple[str, ...] = ()) -> Entry:
         """Store an entry atomically. The arrays are written uncompressed, one ``.npy`` file
         each in ``arrays/`` (:mod:`.array_files`): float64 statistics deflate to about 2/3 of
         their size at 15-25× the write time, and float32 transient references to 93 % at 25×
@@ -298,7 +299,9 @@ class Cache:
         (:mod:`.sparse_rows`; :meth:`Entry.arrays` gives them back bit for bit); ``rows``, where
         the caller found them, are those rows (bool, the arrays' shape but the last axis;
         :func:`.sparse_rows.layout`), and every row it leaves out must be zero.
-        ``compress_images=False`` writes ``buffers.exr`` uncompressed (:func:`dbench.io.write_exr`).
+        ``compress_images=False`` writes ``buffers.exr`` uncompressed, and ``raw_images`` names
+        images written uncompressed in a part of their own beside the others
+        (:func:`dbench.io.write_exr`: a sequence frame's noisy colour beside its G-buffer).
 
         A folder that cannot be written (OSError, or the OutputError :mod:`dbench.io` makes of
         it) is not an error: one warning line per process, nothing left behind, and the entry
@@ -319,7 +322,7 @@ class Cache:
                 self.clean(older_than_s=STALE_TMP_S)
             tmp.mkdir()
             self._write(tmp, final, description, meta, images, arrays, compress, sparse, rows,
-                        compress_images)
+                        {"compress": compress_images, "raw": tuple(raw_images)})
         except (OSError, OutputError) as exc:
             # the renders are in memory and right; only the time a later hit would save is lost
             self._unwritable(exc)
@@ -344,11 +347,12 @@ class Cache:
     def _write(self, tmp: Path, final: Path, description: dict, meta: dict,
                images: dict[str, np.ndarray] | None, arrays: dict[str, np.ndarray] | None,
                compress: bool, sparse: tuple[str, ...], rows: np.ndarray | None,
-               compress_images: bool) -> None:
-        """Fill the temporary folder ``tmp`` and rename it to ``final`` (:meth:`put`)."""
+               exr: dict) -> None:
+        """Fill the temporary folder ``tmp`` and rename it to ``final`` (:meth:`put`); ``exr``:
+        :func:`dbench.io.write_exr`'s options."""
         key = meta["key"]
         if images:
-            io.write_exr(tmp / "buffers.exr", images, compress=compress_images)
+            io.write_exr(tmp / "buffers.exr", images, **exr)
         records = {}
         if arrays and not compress:
             records = {f"{array_files.FOLDER}/{n}": r for n, r in array_files.write(

@@ -82,6 +82,36 @@ def test_noisy_images_are_stored_uncompressed_where_asked(tmp_path):
         np.testing.assert_array_equal(cache.get("noisy", {"what": what}).images()["color"], img)
 
 
+def test_raw_images_are_an_uncompressed_part_beside_the_others(tmp_path):
+    # a sequence frame: noisy colour uncompressed beside its G-buffer, ZIP (dbench/io.py)
+    import OpenEXR
+
+    from dbench import io
+
+    rng = np.random.default_rng(3)
+    images = {"color": rng.random((4, 5, 3)).astype(np.float32),
+              "depth": rng.random((4, 5, 1)).astype(np.float32),
+              "normal": rng.random((4, 5, 3)).astype(np.float32)}
+    cache = Cache(tmp_path)
+    entry = cache.put("seq-frame", {"w": 1}, images=images, raw_images=("color",))
+    with OpenEXR.File(str(entry.path / "buffers.exr")) as f:
+        parts = {p.header["compression"]: sorted(p.channels) for p in f.parts}
+    assert parts == {OpenEXR.NO_COMPRESSION: ["color"],
+                     OpenEXR.ZIP_COMPRESSION: ["depth.Z", "normal"]}
+    got = cache.get("seq-frame", {"w": 1}).images()
+    assert sorted(got) == sorted(images)
+    for name, value in images.items():
+        assert got[name].tobytes() == value.tobytes(), name
+    # uncompressed throughout, or every buffer raw: one part
+    for kw in ({"compress": False, "raw": ("color",)}, {"raw": tuple(images)}):
+        io.write_exr(tmp_path / "one.exr", images, **kw)
+        with OpenEXR.File(str(tmp_path / "one.exr")) as f:
+            assert len(f.parts) == 1
+            assert f.parts[0].header["compression"] == OpenEXR.NO_COMPRESSION
+    with pytest.raises(ValueError, match="no buffers"):
+        io.write_exr(tmp_path / "none.exr", {})
+
+
 def test_file_record_in_chunks_equals_one_read(tmp_path):
     import hashlib
 

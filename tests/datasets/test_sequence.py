@@ -365,6 +365,23 @@ def test_sequence_frames_carry_the_statistics_of_their_own_samples(renderer, tmp
     for a, b in zip(with_stats, plain):
         np.testing.assert_array_equal(a.color, b.color)
         np.testing.assert_array_equal(a.stats.n, 4)
+    # a frame's entry holds its noisy colour uncompressed beside the ZIP G-buffer, with
+    # statistics or without (S.RAW_IMAGES), and reads back the same
+    import OpenEXR
+    for root in (tmp_cache.root, tmp_cache.root / "other"):
+        files = sorted(root.glob("seq-frame/*/buffers.exr"))
+        assert len(files) == 3
+        for f in files:
+            with OpenEXR.File(str(f)) as exr:
+                parts = {p.header["compression"]: sorted(p.channels) for p in exr.parts}
+            assert parts.pop(OpenEXR.NO_COMPRESSION) == ["color"]
+            assert list(parts) == [OpenEXR.ZIP_COMPRESSION] and "albedo" in parts.popitem()[1]
+    again = S.load_sequence("orbit", spp=4, res=16, frames=3, needs={"color", "albedo"},
+                            cache=tmp_cache, progress=False)
+    assert not any(r.startswith("frame") for r in again.meta["rendered"])
+    for a, b in zip(again, with_stats):
+        np.testing.assert_array_equal(a.color, b.color)
+        np.testing.assert_array_equal(a.albedo, b.albedo)
     mi = mitsuba()
     sc = datasets.get_scene("orbit")
     d = sc.frame_dict(mi, 16, 2, 2)
