@@ -67,6 +67,8 @@ from . import array_files, checksums, sparse_rows
 from .checksums import DigestingWriter, NoDigest, file_record
 from .file_refs import file_ref
 
+#: The first entry format: images and dense arrays (``arrays.npz``), sha256 checksums. Entries
+#: of formats 1-4 were written by earlier versions and are still read.
 CACHE_FORMAT = 1
 #: The format of an entry whose arrays.npz holds packed rows (:mod:`.sparse_rows`), integer
 #: arrays among them narrowed: code that reads only earlier formats takes such an entry for a
