@@ -1,6 +1,6 @@
 """A cache entry's arrays as a folder of ``.npy`` files, written and read a chunk at a time.
 
-This is how :mod:`dbench.datasets.cache` stores uncompressed arrays (entry format 4): the
+This is how :mod:`dbench.datasets.cache` stores uncompressed arrays (entry formats 4 and 5): the
 float64 per-bin statistics and colour of transient videos, packed by their non-zero rows
 (:mod:`.sparse_rows`). Each array is one ``arrays/<stored name>.npy`` (format 1.0) that
 ``np.load`` reads as any other.
