@@ -47,10 +47,7 @@ def write(folder: Path, arrays: Mapping[str, np.ndarray], names: Sequence[str],
     for name, dtype, shape, chunks in sparse_rows.members(arrays, names, keep):
         with open(folder / (name + SUFFIX), "wb") as fh:
             writer = wrap(fh)
-            try:
-                sparse_rows.write_npy(writer, dtype, shape, chunks)
-            finally:
-                writer.close()
+            sparse_rows.write_npy(writer, dtype, shape, chunks)
         records[name + SUFFIX] = writer.record()
     return records
 

@@ -363,10 +363,7 @@ class Cache:
             with io.atomic_path(tmp / "arrays.npz", suffix=".tmp.npz") as t:
                 with open(t, "wb") as fh:
                     writer = DigestingWriter(fh)
-                    try:
-                        sparse_rows.save(writer, arrays, sparse, compress=compress, keep=rows)
-                    finally:
-                        writer.close()
+                    sparse_rows.save(writer, arrays, sparse, compress=compress, keep=rows)
             records["arrays.npz"] = writer.record()
         meta["files"] = {**records, **{n: records.get(n) or file_record(tmp / n)
                                        for n in DATA_FILES if (tmp / n).is_file()}}

@@ -109,9 +109,6 @@ class DigestingWriter:
         """{"size", checksum} of everything written (as :func:`file_record` of the file)."""
         return self._digest.record()
 
-    def close(self) -> None:
-        """Nothing to finish: each chunk was checksummed as it was written."""
-
 
 __all__ = ["ALGORITHM", "LEGACY", "FIRST_FORMAT", "algorithm", "Digest", "NoDigest",
            "DigestingWriter", "file_record"]
