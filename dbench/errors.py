@@ -28,7 +28,7 @@ class RendererUnavailableError(DbenchError, RuntimeError):
 class OutputError(DbenchInputError):
     """A result cannot be written where the user asked (full disk, quota, read-only or
     unwritable folder): the message names the path and the system's reason, e.g.
-    ``cannot write results/run/metrics.csv: No space left on device`` (README.md, "dbench run").
+    ``cannot write results/run/metrics.csv: No space left on device`` (README.md, "Usage").
     """
 
     def __init__(self, path: object, reason: str) -> None:

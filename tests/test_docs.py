@@ -67,3 +67,30 @@ def test_every_method_has_its_page():
 def test_the_package_cites_no_file_outside_the_repository():
     outside = re.compile(r"\.\./" + "shared|/work/" + "shared")
     assert [str(f.relative_to(ROOT)) for f, text in _texts() if outside.search(text)] == []
+
+
+#: a README section cited by its name in double quotes after "README.md,", also across a
+#: comment's line break
+README_CITE = re.compile(r'README(?:\.md)?,?\s+(?:#\s*)?"([^"]+)"')
+
+
+def test_every_cited_readme_section_exists():
+    """A README section cited by name is one of its headings or the bold lead of a paragraph."""
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    heads = {h.strip() for h in re.findall(r"^#{2,4} (.+)$", readme, re.M)}
+    leads = {b.strip().rstrip(".") for b in re.findall(r"\*\*([^*]+?)\*\*", readme)}
+    unknown = []
+    for f, text in _texts():
+        for m in README_CITE.finditer(text):
+            name = " ".join(re.sub(r"\n\s*#?", " ", m.group(1)).split())
+            if not (name.rstrip(".") in leads or any(h.startswith(name) for h in heads)):
+                unknown.append(f"{f.relative_to(ROOT)}: {name!r}")
+    assert unknown == []
+
+
+def test_published_results_cite_the_repository_docs():
+    """The Markdown under results/ cites docs/, never the specification folder it was once
+    written against (``spec/x.md``), which the repository does not hold."""
+    stale = re.compile(r"(?<![\w/.])spec/\w+\.md")
+    assert [str(f.relative_to(ROOT)) for f in ROOT.joinpath("results").rglob("*.md")
+            if stale.search(f.read_text(encoding="utf-8"))] == []

@@ -13,7 +13,7 @@ cells (of this sweep's grid only) on stderr and keeps the rest, ``stress`` has f
 130 interrupted (Ctrl-C or SIGTERM, at any point of a command, also where a library turned the
 interrupt into another error or swallowed it: ``run`` removes its temporary folder, so no
 partial ``--out`` is left); 1 an internal error (one line; ``--debug`` shows the traceback).
-README.md, "dbench run", says where ``run`` writes and how it replaces an earlier run's folder.
+README.md, "Usage", says where ``run`` writes and how it replaces an earlier run's folder.
 """
 from __future__ import annotations
 

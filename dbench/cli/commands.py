@@ -100,10 +100,10 @@ def cmd_export(args: argparse.Namespace) -> int:
     res = parse_res(args.res, "--res") if args.res is not None else datasets.default_res(scene)
     name = args.name or re.sub(r"[^A-Za-z0-9.-]+", "-", scene.name).strip("-") or "scene"
     out = Path(args.out)
-    # what rendering would refuse is refused before --out exists (README.md, "A result is
-    # right or clearly refused"), in datasets.load's order: a plugin's steady scene's Mitsuba
-    # types and film filter, then the film's size (the fingerprint builds the scene's
-    # dictionary at this size and renders nothing)
+    # what rendering would refuse is refused before --out exists (README.md, "Usage"), in
+    # datasets.load's order: a plugin's steady scene's Mitsuba types and film filter, then
+    # the film's size (the fingerprint builds the scene's dictionary at this size and renders
+    # nothing)
     if scene.kind == "steady":
         check_plugin_scene(scene)
     datasets.scene_fingerprint(scene, res)

@@ -2,7 +2,7 @@
 folder staged, the scene run (dbench/run/scene_run.py), the headline printed.
 
 The outputs are written into a temporary folder that takes the place of ``--out`` only once
-all of them are written, and only then is the table printed (README.md, "dbench run";
+all of them are written, and only then is the table printed (README.md, "Usage";
 dbench/report/run_output.py).
 """
 from __future__ import annotations

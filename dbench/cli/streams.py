@@ -1,4 +1,4 @@
-"""Standard output and error that never end a command (README.md, "dbench run").
+"""Standard output and error that never end a command (README.md, "Usage").
 
 A reader that goes away (``dbench run ... | head -1``) or a full device (``> /dev/full``) costs
 only the printed text: the command goes on and its files are written. Text the terminal's

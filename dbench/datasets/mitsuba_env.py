@@ -93,7 +93,7 @@ def forget_probes(created: list[Path]) -> None:
     """After a refused command: remove the probes' verdicts from the folders in ``created``
     (those the command found missing, deepest first: :func:`dbench.io.missing_folders`) and
     then those folders where empty, so that a command refused before rendering leaves no cache
-    folder behind (README.md, "A result is right or clearly refused")."""
+    folder behind (README.md, "Usage")."""
     from ..io import remove_empty
 
     for name in PROBES:

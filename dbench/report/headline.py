@@ -1,7 +1,7 @@
 """The headline of a scene: rows ranked by the ranking metric, ``mean ± interval`` entries and
 the verdict words, one form for ``report.md`` (dbench/report/run_report.py), the sweep's README
 (dbench/report/publish.py), the viewer (dbench/report/html.py) and the terminal
-(dbench/report/terminal.py), so that all four say the same thing (README.md, "dbench run").
+(dbench/report/terminal.py), so that all four say the same thing (README.md, "Usage").
 
 Intervals, ties and rankings are :mod:`dbench.report.verdicts`'; this module only arranges them.
 

@@ -1,4 +1,4 @@
-"""The output folder of ``dbench run``, written whole or not at all (README.md, "dbench run").
+"""The output folder of ``dbench run``, written whole or not at all (README.md, "Usage").
 
 Every file of a run goes into a temporary sibling ``<out>.partial-<pid>``; only when all of
 them are written does that folder take the place of ``<out>`` (an earlier run's folder there is

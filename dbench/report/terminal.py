@@ -1,5 +1,5 @@
 """What ``dbench run`` and ``dbench sweep`` print: the headline a researcher reads first
-(README.md, "dbench run"), in plain text at most :data:`WIDTH` columns wide.
+(README.md, "Usage"), in plain text at most :data:`WIDTH` columns wide.
 
 The rows, their order, the ranking sentence and the verdict words are those of ``report.md``
 and the README (dbench/report/headline.py, dbench/report/verdicts.py); this module only lays them
@@ -121,7 +121,7 @@ def headline_table(d: pd.DataFrame, rank_by: str, devices: Mapping[str, str] | N
 
 def failed_rows(failed: Mapping[str, str]) -> list[str]:
     """``✗  label  failed: why`` under the ranked rows for each method that failed (its error
-    row: README.md, "Exit codes"), cut to :data:`WIDTH`."""
+    row; exit code 4: README.md, "Usage"), cut to :data:`WIDTH`."""
     out = []
     for label, why in failed.items():
         line = f"✗  {label}  failed: {' '.join(str(why).split())}"

@@ -2,7 +2,7 @@
 
 NumPy's RuntimeWarnings on NaN inputs, numba's performance notes, a library's ``logging``
 warnings: none of them is the run's result, and printed between the progress lines they bury
-the headline (README.md, "dbench run"). Inside :func:`library_warnings` every
+the headline (README.md, "Usage"). Inside :func:`library_warnings` every
 :mod:`warnings` warning and every ``logging`` record of level WARNING or above is kept, in
 order, as one line; the run writes them to ``run.log`` and counts them in ``report.md``.
 """

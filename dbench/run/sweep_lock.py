@@ -156,8 +156,7 @@ def release(out: str | Path, fd: int) -> None:
 def hold(out: str | Path) -> Iterator[Path]:
     """Create folder ``out`` if needed, hold its lock for the block, release it after. The
     folders this call created (``out`` and the parents it lacked) are removed again when the
-    block fails and left them empty (a refused sweep writes nothing: README.md, "A result is
-    right or clearly refused")."""
+    block fails and left them empty (a refused sweep writes nothing: README.md, "Usage")."""
     out = Path(out)
     created = io.missing_folders(out)
     io.ensure_writable_dir(out, "--out")

@@ -83,7 +83,7 @@ def _distinct_end(place: Path | None, places: list) -> str:
 
 def check_scenes(config) -> None:
     """Refuse, before anything is written or rendered, a scene of the sweep that its turn would
-    refuse (README.md, "A result is right or clearly refused"; the ``dbench sweep`` paragraph):
+    refuse (README.md, "Usage"; the ``dbench sweep`` paragraph):
     a plugin's steady scene whose dictionary Mitsuba cannot load or whose film filter is not a
     box (:func:`dbench.datasets.scenes.build.check_plugin_scene`), a sequence shorter than
     ``--frames``, a transient film too large at the sweep's size and bins

@@ -1,5 +1,5 @@
 """Options that used to be read as "not given" or ignored are refused with one line and exit 2,
-before anything renders or is written (README.md, "A result is right or clearly refused")."""
+before anything renders or is written (README.md, "Usage")."""
 from pathlib import Path
 
 import pytest

@@ -1,5 +1,5 @@
 """``dbench export`` refuses a scene that rendering would refuse before ``--out`` exists
-(README.md, "A result is right or clearly refused"): a plugin scene whose film filter is not a
+(README.md, "Usage"): a plugin scene whose film filter is not a
 box or whose film has another size, and a sequence's ``--frames`` beyond its frames, exit 2 in
 one line and leave no folder, neither ``--out`` nor a parent it lacked (dbench/cli/commands.py
 cmd_export)."""

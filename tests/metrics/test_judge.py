@@ -146,7 +146,7 @@ def test_one_seed_gets_a_bootstrap_interval_and_says_so():
 @pytest.mark.mitsuba
 def test_on_cornell_surface_pixels_rank_oidn_and_statistical_below_the_noisy_input(
         renderer, tmp_cache):
-    """verdicts.md §1: with the visible light left out, both denoisers beat the noisy input."""
+    """docs/judging.md §1: with the visible light left out, both denoisers beat the noisy input."""
     from dbench import datasets, registry
 
     frame = datasets.load("cornell", spp=64, res=64, ref_spp=1024, cache=tmp_cache,

@@ -1,4 +1,4 @@
-"""What ``dbench run`` and ``dbench sweep`` print first (README.md, "dbench run"): the
+"""What ``dbench run`` and ``dbench sweep`` print first (README.md, "Usage"): the
 report's ranking with intervals, surface column, time and device, the verdict words with the
 size of each loss, skipped methods grouped by reason, and with ``--quiet`` nothing else: no
 progress bars, no library warnings (those go to run.log and are counted in report.md)."""

@@ -1,5 +1,5 @@
 """``dbench run`` writes its folder whole or not at all, whatever happens to stdout, the locale,
-the disk or the run (README.md, "dbench run"; dbench/report/run_output.py, dbench/cli/streams.py).
+the disk or the run (README.md, "Usage"; dbench/report/run_output.py, dbench/cli/streams.py).
 """
 from __future__ import annotations
 

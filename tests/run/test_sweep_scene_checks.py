@@ -1,5 +1,5 @@
 """A sweep refuses a scene its turn would refuse before it writes or renders anything (README.md,
-"A result is right or clearly refused"; the ``dbench sweep`` paragraph): a plugin scene whose
+"Usage"; the ``dbench sweep`` paragraph): a plugin scene whose
 film filter is not a box or whose film has another size, and a folder of renders that does not
 hold the sweep's reference spp, spp, size or seeds, leave no ``--out``, no ``sweep.json``
 change and no cell of another scene (dbench/run/sweep_names.py check_scenes)."""
