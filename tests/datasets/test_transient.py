@@ -289,6 +289,7 @@ def assert_colour_alone_is_the_same(tr, sc, b, res, bins, spp, transform):
     alone = tr.collect_in_integrator(sc, res, spp, seed=2, bins=bins, transform=transform,
                                      per_pass=True, stats=False)
     assert alone.stats is None and alone.non_zero is None and alone.rows["stats"] is None
+    assert alone.sums is None
     assert alone.color.dtype == np.float32 and alone.color.tobytes() == b.color.tobytes()
     np.testing.assert_array_equal(alone.rows["color"], b.rows["color"])
     np.testing.assert_array_equal(alone.steady, b.steady)

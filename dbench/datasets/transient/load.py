@@ -255,7 +255,7 @@ def collect_in_integrator(scene: TransientScene, res, spp: int, seed: int = 0,
             ``pass_seed("transient-b", seed, 0)``).
         slots: per-path slots (0 = 2·max_depth, exact).
         rows: find the rows the cache stores (``TransientRender.rows``).
-        stats: compute the moments (without, ``stats`` and ``non_zero`` are None: colour only).
+        stats: compute the moments (without: colour only; ``stats``, ``non_zero``, ``sums`` None).
     """
     if scene.integrator not in IN_INTEGRATOR:
         raise DbenchInputError(f"collector: (b) runs inside {' or '.join(IN_INTEGRATOR)}; "
@@ -277,7 +277,7 @@ def collect_in_integrator(scene: TransientScene, res, spp: int, seed: int = 0,
     else:
         col.render(spp, _render.pass_seed("transient-b", seed, 0))
     t0 = time.perf_counter()
-    sums = col.power_sums(unpack=False)
+    sums = col.power_sums(unpack=False) if stats else None
     mom = col.moments(ZERO_VARIANCE_RTOL, rows=rows, stats=stats)
     stats = SampleStats(n=float(col.n), mean=mom["mean"], var_mean=mom["var_mean"],
                         m3=mom["m3"], transform=transform, lam=float(lam),
@@ -291,8 +291,8 @@ def collect_in_integrator(scene: TransientScene, res, spp: int, seed: int = 0,
     return TransientRender(color=color, steady=steady, stats=stats, non_zero=non_zero,
                            total_var=total_var, rows={"stats": mom.get("rows"),
                                                       "color": mom.get("color_rows")},
-                           sums={"s1": sums["s1"], "s2": sums["s2"], "s3": sums["s3"],
-                                 "n": col.n},
+                           sums=sums and {"s1": sums["s1"], "s2": sums["s2"],
+                                          "s3": sums["s3"], "n": col.n},
                            timing={"render_s": col.render_s,
                                    "stats_s": time.perf_counter() - t0,
                                    "collector": "b", "state_bytes": state_bytes,
