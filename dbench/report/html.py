@@ -246,31 +246,37 @@ def grid_table(df: pd.DataFrame, metric: str) -> dict[str, Any]:
             "text": text, "best": {}, "flagged": flagged}
 
 
-def sweep_page(results: str | Path, sweeps: Sequence[tuple[Path, list[dict]]],
-               rank_by: str = "relmse") -> Path:
-    """``results/index.html``: for every (sweep folder, its cells), its figures (convergence and
-    error against time, static PNGs) and the sortable scene × method × spp grid of
-    ``rank_by`` with intervals; rows worse than the noisy input at the headline spp in red.
-    Sweeps keep numbers, not images: the images of a cell are in the folder of the
-    ``dbench run`` that reproduces it (``dbench run --method M --scene S --spp N``)."""
+def sweep_page(results: str | Path, sweeps: Sequence[tuple], rank_by: str = "relmse") -> Path:
+    """``results/index.html``: for every sweep, given as (folder, its cells) or (folder, its
+    cells, its settings line as the README gives it: reference spp and error, variant,
+    intervals, skipped cells), its figures (convergence and error against time, static PNGs,
+    drawn first by :func:`dbench.report.publish.build_readme`) and the sortable scene ×
+    method × spp grid of ``rank_by`` with intervals; rows worse than the noisy input at the
+    headline spp in red, as the page says. Sweeps keep numbers, not images: the images of a
+    cell are in the folder of the ``dbench run`` that reproduces it (``dbench run --method M
+    --scene S --spp N``)."""
     from .tables import cells_frame
 
     results = Path(results)
-    tables, sections = [], ['<p class="note">The numbers behind results/README.md, sortable '
-                            "(click a column). Bold/red conventions as in the README. Sweeps "
-                            "keep numbers, not images: `dbench run` pages hold the images "
-                            "(viewer with zoom, exposure and error maps).</p>",
-                            '<p><a href="README.md">README.md</a> · '
-                            '<a href="table_3_1.md">Table 3.1</a></p>']
-    for sweep_dir, cells in sweeps:
+    links = ['<a href="README.md">README.md</a>'] + (
+        ['<a href="table_3_1.md">Table 3.1</a>'] if (results / "table_3_1.md").is_file() else [])
+    tables, sections = [], ['<p class="note">The numbers behind README.md in this folder, '
+                            "sortable (click a column). Sweeps keep numbers, not images: "
+                            "`dbench run` pages hold the images (viewer with zoom, exposure "
+                            "and error maps).</p>", "<p>" + " · ".join(links) + "</p>"]
+    for sweep_dir, cells, *summary in sweeps:
         df = cells_frame(cells)
         if not len(df):
             continue
         rel = Path(sweep_dir).relative_to(results).as_posix()
         metric = verdicts.ranking_metric(df, rank_by)
-        sections += [f"<h2>Sweep {html.escape(rel)}</h2>",
-                     f'<p class="note">{html.escape(metric)}: mean ± 95 % half-width, rows '
-                     "scene/method, columns spp.</p>", f'<div data-table="{len(tables)}"></div>']
+        head = verdicts.headline_spp(df.spp.unique())
+        sections += [f"<h2>Sweep {html.escape(rel)}</h2>"]
+        sections += [f'<p class="note">{html.escape(str(line))}</p>' for line in summary]
+        sections += [f'<p class="note">{html.escape(metric)}: mean ± 95 % half-width, rows '
+                     f"scene/method, columns spp; a row in red is worse than the noisy input "
+                     f"on {html.escape(metric)} at {head} spp (the README's headline "
+                     "spp).</p>", f'<div data-table="{len(tables)}"></div>']
         tables.append(grid_table(df, metric))
         figures = sorted(Path(sweep_dir).glob("*.png"))
         if figures:

@@ -20,6 +20,7 @@ from ..resolution import size_text
 from . import headline, plots, tables, verdicts
 from .cells import load_cells_checked, read_cell
 from .formats import markdown_table
+from .html import sweep_page
 from .run_report import machine_md, metric_definitions_md
 from .table31 import table31_md
 
@@ -485,12 +486,15 @@ def publish(results: str | Path = "results", sweep_dir: str | Path | None = None
         stale.unlink()
     if (results / "sweep-table31" / "sweep.json").is_file():
         table31_file(results, results / "sweep-table31")
-    from .html import sweep_page
-
-    sweep_page(results, [(d, load_sweep(d)[1]) for d in [sweep_dir, *extra_sweeps(results,
-                                                                                sweep_dir)]],
-               rank_by=rank_by)
     text = build_readme(results, sweep_dir, rank_by=rank_by)
     out = results / "README.md"
     io.write_text(out, text)
+    sweeps = []
+    for d in [sweep_dir, *extra_sweeps(results, sweep_dir)]:
+        info, cells, _ = load_sweep(d)
+        df, config = tables.cells_frame(cells), _config(info)
+        sweeps.append((d, cells, settings_line(config, df, verdicts.grid_status(config, cells),
+                                               d.relative_to(results).as_posix())
+                       if len(df) else ""))
+    sweep_page(results, sweeps, rank_by=rank_by)  # last: it shows the figures just drawn
     return out

@@ -214,6 +214,10 @@ def run_report_md(table: pd.DataFrame, settings: dict[str, Any], info: dict[str,
         parts += ["Files: `metrics.csv`, `per_frame_<method>.csv`, `error_per_frame.png`, "
                   "`comparison.png` (frames × methods), the last frame's outputs as EXR in "
                   "`images/`.", ""]
+    elif settings.get("kind") == "transient":  # dbench/report/transient_figures.py
+        parts += ["Files: `metrics.csv`, `rmse_per_bin.csv` and `rmse_per_bin.png` (error per "
+                  "time bin), `bins.png` (four bins side by side), `streak.png` (an x–t slice), "
+                  "one EXR per output in `images/`.", ""]
     else:
         parts += ["Files: `metrics.csv`, `comparison.png`, one EXR per output in `images/`.",
                   ""]

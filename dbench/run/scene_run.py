@@ -1,7 +1,7 @@
 """``dbench run``'s work on one scene once the command line is parsed: the frames loaded over
 the seeds, every runnable method run on them (a failing one named, not fatal), and every output
 written into the run's folder: images, metrics, per-seed and per-frame tables, figures,
-``run.json``, ``index.html``, ``run.log`` and ``report.md`` last (README.md, "dbench run";
+``run.json``, ``index.html``, ``run.log`` and ``report.md`` last (README.md, "Usage";
 dbench/report/run_output.py stages the folder). The CLI (dbench/cli/run.py) parses, builds the
 :class:`RunRequest` and prints the headline this returns.
 """
@@ -12,6 +12,8 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Sequence
+
+import numpy as np
 
 
 @dataclass
@@ -131,11 +133,11 @@ def run_scene(out: Path, req: RunRequest, scene, instances, labels, runnable,
                 "seeds": ", ".join(map(str, seeds)),
                 "ref_spp": frame.meta.get("ref_spp"),
                 "reference seed": frame.meta.get("ref_seed"),
-                "reference RMSE (estimated)": ref_rmse_text(frame.meta.get("ref_rmse"),
-                                                             first.meta.get("ref_noise_source")),
+                "reference RMSE (estimated)": ref_rmse_text(
+                    judged_ref_rmse(frame) if is_sequence else frame.meta.get("ref_rmse"),
+                    first.meta.get("ref_noise_source")),
                 "repeats": (sequence_window(len(frame)) if is_sequence else req.repeats),
-                "transform": (f"{frame.stats.transform} (λ = {frame.stats.lam})"
-                              if getattr(frame, "stats", None) is not None else "n/a"),
+                "transform": transform_text(getattr(frame, "stats", None)),
                 "variant": frame.meta["versions"]["variant"],
                 "device": device if device == "cpu" else f"{device} ({device_name(device)})",
                 "render_s": frame.meta.get("render_s"),
@@ -164,6 +166,15 @@ def run_scene(out: Path, req: RunRequest, scene, instances, labels, runnable,
                                                        failed=failed,
                                                        library_warnings=len(caught)))
     return table, failed, report.run_summary(table, settings, req.rank_by, failed)
+
+
+def transform_text(stats) -> str:
+    """The settings' transform: its name, with λ only where the transform takes one (the
+    identity takes none, docs/methods/statistical.md §3); "n/a" without statistics."""
+    if stats is None:
+        return "n/a"
+    return stats.transform if stats.transform == "identity" else (
+        f"{stats.transform} (λ = {stats.lam})")
 
 
 def ref_rmse_text(value, source: str | None = None):
@@ -266,6 +277,19 @@ def summarise_parts(parts: Sequence[str]) -> str:
     return ", ".join(f"{k} ×{v}" if k in numbered else k for k, v in counts.items())
 
 
+def judged_ref_rmse(seq) -> float | None:
+    """A sequence's reference RMSE as its cells give it (``ref_rmse`` in metrics.csv): the mean,
+    over the frames the metrics average (those after the warm-up, :func:`sequence_window`), of
+    each frame's sqrt(mean(reference_var)); None where a frame's is unknown."""
+    from .sequence_run import WARMUP
+
+    values = [seq[k].meta.get("ref_rmse") for k in range(len(seq))]
+    judged = values[WARMUP:] if len(values) > WARMUP else values
+    if not judged or any(v is None or v != v for v in judged):
+        return None
+    return float(np.mean(judged))
+
+
 def sequence_window(n_frames: int) -> str:
     from .sequence_run import WARMUP
 
@@ -275,5 +299,6 @@ def sequence_window(n_frames: int) -> str:
             f"the {WARMUP}-frame warm-up)")
 
 
-__all__ = ["INPUT_FACTS", "INPUT_WARNINGS", "RunRequest", "input_notes", "method_failure",
-           "ref_rmse_text", "run_scene", "sequence_window", "summarise_parts", "write_run_page"]
+__all__ = ["INPUT_FACTS", "INPUT_WARNINGS", "RunRequest", "input_notes", "judged_ref_rmse",
+           "method_failure", "ref_rmse_text", "run_scene", "sequence_window", "summarise_parts",
+           "write_run_page"]

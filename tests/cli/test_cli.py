@@ -1,4 +1,6 @@
 """The command line: run, list, unknown names, parameters."""
+import json
+
 import pandas as pd
 import pytest
 
@@ -61,6 +63,10 @@ def test_run_on_a_sequence_scene_writes_per_frame_results(renderer, tmp_path):
     report = (out / "report.md").read_text()
     assert "Sequence: every frame is denoised once" in report
     assert "frame ×10" in report  # cache parts summarised, not listed 10 times
+    # the settings give the reference RMSE the cells give: over the judged frames 8-9
+    settings = json.loads((out / "run.json").read_text())["settings"]
+    stated = float(str(settings["reference RMSE (estimated)"]).split()[0])
+    assert stated == pytest.approx(table.ref_rmse[0], rel=1e-6)
     for name in ("comparison.png", "error_per_frame.png", "images/svgf.exr",
                  "images/reference.exr"):
         assert (out / name).stat().st_size > 500

@@ -237,3 +237,17 @@ def test_sweep_page_sorts_the_grid(browser, tmp_path):
                                                     "table.metrics tbody td:nth-child(3)")]
     assert [float(t.split(" ")[0]) for t in col] == sorted(float(t.split(" ")[0]) for t in col)
     assert json.loads(json.dumps(browser.execute_script("return window.DBENCH.tables.length"))) == 1
+
+
+def test_each_report_names_the_files_its_run_wrote(steady_run, sequence_run, transient_run):
+    """The closing "Files:" line of report.md names files that are there (a ``<method>`` in a
+    name stands for each method's), for every kind of run."""
+    import re
+
+    for run in (steady_run, sequence_run, transient_run):
+        line = next(ln for ln in (run / "report.md").read_text().splitlines()
+                    if ln.startswith("Files:"))
+        names = re.findall(r"`([^`]+\.(?:csv|png))`", line)
+        assert names, line
+        missing = [n for n in names if not list(run.glob(re.sub(r"<\w+>", "*", n)))]
+        assert missing == [], (run.name, missing)

@@ -443,3 +443,22 @@ def test_reports_state_the_variant_that_rendered_the_inputs():
                    "computed before cells recorded it)"]
     assert publish.variants_text([]) == []
     assert "inputs rendered by llvm_ad_rgb (3)" in publish.wall_text({}, cells)
+
+
+def test_the_results_page_shows_its_figures_settings_and_only_links_that_exist(results):
+    """The first ``dbench report`` already shows the sweep's figures on index.html (they are
+    drawn before the page), the sweep's settings line (reference, variant, intervals), what a
+    red row means, and no link to a Table 3.1 that was not written."""
+    import html
+    import re
+
+    publish.publish(results)
+    page = (results / "index.html").read_text()
+    assert not (results / "table_3_1.md").exists() and "table_3_1.md" not in page
+    shown = set(re.findall(r'<img src="sweep/([^"]+\.png)"', page))
+    assert shown and shown == {p.name for p in (results / "sweep").glob("*.png")}
+    readme = (results / "README.md").read_text()
+    line = next(ln for ln in readme.splitlines() if ln.startswith("Sweep `sweep`"))
+    # the README's line adds the timing; the part both give starts with the grid and reference
+    assert html.escape(";".join(line.split(";")[:2])) in page
+    assert "a row in red is worse than the noisy input" in page
