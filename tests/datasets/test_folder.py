@@ -35,11 +35,15 @@ def _frame(seed, spp):
         acc.add(s)
     motion = rng.normal(0, 2, (H, W, 2)).astype(np.float32)
     motion[:3] = np.nan  # no previous position there
+    # the samples' mean is 1: the reference is 1 with the noise its variance states (a
+    # reference its own noise check does not contradict)
+    ref_var = _img(seed + 6, hi=1e-3)
+    reference = (1.0 + rng.normal(size=(H, W, 3)) * np.sqrt(ref_var)).astype(np.float32)
     return Frame(color=samples.mean(axis=0), albedo=_img(seed + 1, hi=1.0), normal=_unit(seed + 2),
                  depth=_img(seed + 3, c=1, lo=0.5, hi=9.0), position=_img(seed + 4, lo=-5, hi=5),
                  emitter=(rng.random((H, W, 1)) < 0.1).astype(np.float32), stats=acc.finalize(),
-                 reference=_img(seed + 5, hi=2.0), reference_var=_img(seed + 6, hi=1e-3),
-                 motion=motion, meta={"ref_spp": 256})
+                 reference=reference, reference_var=ref_var, motion=motion,
+                 meta={"ref_spp": 256})
 
 
 def _same_bits(a, b):
@@ -114,7 +118,10 @@ def test_hand_written_oidn_folder(tmp_path):
 
 
 def test_highest_spp_serves_as_reference(tmp_path):
-    lo, hi, sigma2 = _img(1), _img(2), _img(3, hi=0.5)
+    # two renders of one scene, of 4 and 64 spp, whose per-sample variance the file states
+    truth, sigma2, rng = _img(1), _img(3, hi=0.5), np.random.default_rng(2)
+    lo, hi = ((truth + rng.normal(size=truth.shape) * np.sqrt(sigma2 / n)).astype(np.float32)
+              for n in (4, 64))
     _rgb(tmp_path / "v_4spp.hdr.exr", lo)
     _rgb(tmp_path / "v_64spp.hdr.exr", hi)
     _rgb(tmp_path / "v_64spp.var.exr", sigma2)
@@ -182,8 +189,10 @@ def test_alias_table_on_channel_names():
 
 
 def test_pbrt_gbuffer_multilayer_gives_stats_from_variance(tmp_path):
-    color, alb, ns, ng, pos, var = (_img(1), _img(2, hi=1), _unit(3), _unit(4),
+    truth, alb, ns, ng, pos, var = (_img(1), _img(2, hi=1), _unit(3), _unit(4),
                                     _img(5, lo=-2, hi=2), _img(6, hi=0.3))
+    rng = np.random.default_rng(9)  # a 16-spp render and a 1024-spp reference of one scene
+    color = (truth + rng.normal(size=truth.shape) * np.sqrt(var / 16)).astype(np.float32)
     ch = {c: color[..., i] for i, c in enumerate("RGB")}
     for prefix, img, comps in (("Albedo.", alb, "RGB"), ("Ns", ns, "xyz"), ("N", ng, "xyz"),
                                ("P", pos, "xyz"), ("Variance.", var, "RGB"),
@@ -191,7 +200,8 @@ def test_pbrt_gbuffer_multilayer_gives_stats_from_variance(tmp_path):
         ch.update({f"{prefix}{c}": img[..., i] for i, c in enumerate(comps)})
     ch["dzdx"] = ch["dzdy"] = np.zeros((H, W))
     _exr(tmp_path / "pb_16.exr", ch)
-    ref, ref_var = _img(7), _img(8, hi=0.1)
+    ref_var = _img(8, hi=0.1)
+    ref = (truth + rng.normal(size=truth.shape) * np.sqrt(ref_var / 1024)).astype(np.float32)
     _exr(tmp_path / "pb_gt.exr", {**{c: ref[..., i] for i, c in enumerate("RGB")},
                                   **{f"Variance.{c}": ref_var[..., i]
                                      for i, c in enumerate("RGB")}})

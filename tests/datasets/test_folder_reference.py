@@ -161,9 +161,14 @@ def test_a_reference_noisier_than_declared_is_flagged(tmp_path, variance):
                                 variance=variance, truth=truth), spp=4)
     warning = lying.meta.get("reference_warning", "")
     assert "noisier than its estimate" in warning and "render of about" in warning, warning
+    # the contradicted estimate is not kept: the reference's error is unknown, so no
+    # reference_var makes the unbiased figures look corrected
+    assert lying.meta["ref_noise_source"].startswith("unknown: the high-pass check")
+    assert np.isnan(lying.meta["ref_rmse"]) and lying.reference_var is None
     honest = load_folder(_folder(tmp_path / "honest", ref_spp=4096, declare=4096,
                                  variance=variance, truth=truth), spp=4)
     assert "reference_warning" not in honest.meta, honest.meta.get("reference_warning")
+    assert np.isfinite(honest.meta["ref_rmse"]) and honest.reference_var is not None
 
 
 def test_unbiased_figures_are_unknown_when_the_reference_noise_is(tmp_path):

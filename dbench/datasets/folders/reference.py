@@ -48,7 +48,10 @@ over surface pixels (away from lights) is the reference's noise variance over th
 input's, ≈ spp / ref_spp for independent renders, with a 95 % interval from a bootstrap over
 tiles. Where its lower bound is at least :data:`CLAIM_FACTOR` × the ratio the estimate implies
 (the reference's estimated relMSE over the noisy input's) and at least :data:`NOISE_FLOOR`, the
-reference is flagged as noisier than its estimate says; with no estimate, from :data:`RATIO`.
+reference is flagged as noisier than its estimate says, and the estimate is dropped: the
+reference's error is then unknown (no ``reference_var``, ``ref_rmse`` NaN, no unbiased
+figures), since a variance the measurement contradicts would make the scores look corrected;
+with no estimate, flagged from :data:`RATIO`.
 Noise the two share (progressive renders) or a reference smoothed by a denoiser lowers the
 ratio, so the check only ever finds too much noise, never proves a reference clean.
 """
@@ -319,6 +322,11 @@ def judge_reference(*, reference: np.ndarray, spp: int, series: dict[int, np.nda
         found = _noise_check(ratio, spp, implied)
         if found:
             warnings.append(found)
+        if found and np.isfinite(implied):
+            # the measurement contradicts the estimate: it would misstate the reference's
+            # error and make the unbiased figures look corrected, so the error is unknown
+            var, ref_rel = None, float("nan")
+            source = f"unknown: the high-pass check contradicts the estimate ({source})"
         elif ratio is None:  # an estimate nothing measured is not stated as a fact
             source += ("; not checked against the noisy input (too few surface pixels for "
                        "the high-pass comparison)")
