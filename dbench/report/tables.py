@@ -26,7 +26,7 @@ from .formats import markdown_table, write_csv
 from .verdicts import HEADLINE, METRICS, fmt_value, num, seed_values
 
 ID_COLUMNS = ["scene", "method", "base_method", "spp", "res", "n_seeds", "ci_kind", "ref_spp",
-              "ref_rmse", "ref_relmse_surface"]
+              "ref_rmse", "ref_relmse_surface", "render_variant"]
 TIME_COLUMNS = ["time_s", "time_s_iqr", "render_s", "gradient_s", "total_s"]
 #: The sequence-only metrics (temporal and video records).
 TEMPORAL = records.sequence_metrics()
@@ -57,7 +57,9 @@ def _row(c: dict) -> dict | None:
            "spp": int(spp), "res": _res_key(c.get("res")), "n_seeds": num(c.get("n_seeds")),
            "ci_kind": _label(c.get("ci_kind")) or "", "ref_spp": num(c.get("ref_spp")),
            "ref_rmse": num(c.get("ref_rmse")),
-           "ref_relmse_surface": num(c.get("ref_relmse_surface"))}
+           "ref_relmse_surface": num(c.get("ref_relmse_surface")),
+           # what rendered the inputs ("files": a folder's renders, its reference a file)
+           "render_variant": _label(c.get("render_variant")) or ""}
     for m in COLUMNS:
         row[m] = num(c.get(m))
         row[m + "_ci"] = num(c.get(m + "_ci"))
@@ -126,7 +128,8 @@ def cells_frame(cells: list[dict]) -> pd.DataFrame:
     df = pd.DataFrame(rows, columns=cols + ["render_plain_s", "stats_s", "render_measured_s",
                                             "per_seed"])
     for c in df.columns:
-        if c not in ("scene", "method", "base_method", "ci_kind", "res", "per_seed"):
+        if c not in ("scene", "method", "base_method", "ci_kind", "res", "per_seed",
+                     "render_variant"):
             df[c] = df[c].astype(float) if c != "spp" else df[c].astype(int)
     df = _model_render_time(df).drop(columns=["render_plain_s", "stats_s"])
     drop = [k for m in TEMPORAL if df[m].isna().all() for k in (m, m + "_ci")]

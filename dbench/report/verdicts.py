@@ -400,14 +400,16 @@ def ref_warnings_md(df: pd.DataFrame, cells: Iterable[dict] | None = None) -> li
     """One line per (scene, spp) with a too-noisy reference, listing the methods; with the raw
     ``cells``, what the suggested reference would cost (:func:`ref_cost_text`)."""
     bad = ref_noise_frame(df)
-    cells = list(cells or [])
-    lines = []
+    cells, lines = list(cells or []), []
     for (scene, spp), g in bad.groupby(["scene", "spp"], sort=True):
         need = g["needed_ref_spp"].max()
         refs = sorted({int(v) for v in g["ref_spp"] if _finite(v)})
-        fix = (f"`--ref-spp {int(need)}` would bring it under 10 %" if _finite(need)
+        # a folder's reference is one of its files, which --ref-spp cannot change
+        files = "files" in set(df[df["scene"] == scene].get("render_variant", ()))
+        fix = ((f"a reference of at least {int(need)} spp in the folder" if files else
+                f"`--ref-spp {int(need)}`") + " would bring it under 10 %" if _finite(need)
                else "a reference with more samples would fix it")
-        if _finite(need) and cells:
+        if _finite(need) and cells and not files:
             worst = g.loc[g["needed_ref_spp"].idxmax()]
             cost = ref_cost_text(cells, scene, worst["res"], num(worst["ref_spp"]), need)
             fix += f", {cost}" if cost else ""
@@ -493,7 +495,6 @@ __all__ = ["METRICS", "HEADLINE", "HIGHER_IS_BETTER", "DEFINITIONS", "TIME", "he
            "definitions", "REF_RMSE_DEFINITION", "CI_DEFINITION", "REF_SHARE", "NOISY", "num",
            "half_width", "fmt_value", "overlaps", "seed_values", "paired_interval", "tie",
            "TIE_WORDS", "marked", "rank_groups", "ranking_line", "ranking_metric", "ci_kind_text",
-           "reference_text", "reference_summary", "ref_noise_frame",
-           "ref_warnings_md", "ref_cost_text", "seconds_text", "headline_spp",
-           "expected_grid", "grid_status",
+           "reference_text", "reference_summary", "ref_noise_frame", "ref_warnings_md",
+           "ref_cost_text", "seconds_text", "headline_spp", "expected_grid", "grid_status",
            "grid_status_text", "missing_md", "next_pow2", "finite"]

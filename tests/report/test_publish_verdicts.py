@@ -206,6 +206,12 @@ def test_reference_warning_suggests_ref_spp():
     worst = max(256 * (0.01 / AT64[m][0]) ** 2 / 0.1 for m in set(bad.method))
     assert f"--ref-spp {verdicts.next_pow2(worst)}" in lines[0]
     assert verdicts.next_pow2(640) == 1024 and verdicts.next_pow2(1024) == 1024
+    # a folder's reference is one of its files: --ref-spp cannot change it, so the advice
+    # names the render the folder would need, and no cost of rendering it here
+    files = _frame([_cell("cornell", 64, m, render_variant="files") for m in LABELS])
+    (line,) = verdicts.ref_warnings_md(files, [_cell("cornell", 64, "oidn")])
+    assert f"a reference of at least {verdicts.next_pow2(worst)} spp in the folder" in line
+    assert "--ref-spp" not in line
 
 
 def test_readme_verdicts(results):
