@@ -245,8 +245,8 @@ def build_readme(results: Path, sweep_dir: Path, headline_spp: int = 64,
               "samples.", ""]
     eq = tables.equal_time_md(df, spp) if spp is not None else None
     if eq is not None and len(eq):
-        parts += [f"At {spp} spp:", "", markdown_table(eq, ".3g"), "",
-                  f"All spp: [{rel(paths['equal_time'])}]({rel(paths['equal_time'])})", ""]
+        parts += [f"At {spp} spp:", "", markdown_table(eq, ".3g"), "", *tables.equal_time_gaps(
+            df), f"All spp: [{rel(paths['equal_time'])}]({rel(paths['equal_time'])})", ""]
 
     for other in extra_sweeps(results, sweep_dir):
         parts += other_sweep_md(results, other, rank_by=rank_by)

@@ -216,7 +216,26 @@ def equal_time_md(df: pd.DataFrame, spp: int) -> pd.DataFrame:
     cols = ["scene", "method", "total_s"] + [c for m in EQUAL_TIME_METRICS
                                              for c in (f"equal_{m}_spp", f"{m}_time_saved_s")
                                              if c in eq.columns and eq[c].notna().any()]
-    return eq[cols].reset_index(drop=True)
+    out = eq[cols].reset_index(drop=True)
+    return out.astype(object).where(out.notna(), "—")  # as convergence_table_md marks a gap
+
+
+def equal_time_gaps(df: pd.DataFrame) -> list[str]:
+    """Why the equal-time table has no figure for a scene and metric (a Markdown paragraph and
+    a blank line, or nothing): the noisy input's error there has fewer than two spp to fit, or
+    does not fall as spp grows (fit slope ≥ 0, e.g. a firefly at the higher spp), so no spp of
+    plain rendering reaches a method's error by that fit."""
+    gaps = []
+    for scene in sorted(df.scene.unique()):
+        for m in (m for m in EQUAL_TIME_METRICS if m in df.columns):
+            fit = noisy_fit(df, scene, m)
+            if fit is None:
+                gaps.append(f"{scene} on {m} (fewer than two spp of the noisy input)")
+            elif fit[1] >= 0:
+                gaps.append(f"{scene} on {m} (the noisy input's {m} does not fall as spp "
+                            f"grows: log-log slope {fit[1]:+.2f})")
+    return [f"No equal-time figure (—) for {'; '.join(gaps)}: no spp of plain rendering "
+            "reaches a method's error by that fit.", ""] if gaps else []
 
 
 def headline_table(df: pd.DataFrame, spp: int) -> pd.DataFrame:
@@ -256,5 +275,5 @@ def convergence_plot(df: pd.DataFrame, path: Path) -> None:  # kept for callers 
 
 
 __all__ = ["cells_frame", "convergence_table", "convergence_table_md", "noisy_fit",
-           "render_cost_per_spp", "equal_time_table", "equal_time_md", "headline_table",
-           "write_tables", "convergence_plot", "markdown_table"]
+           "render_cost_per_spp", "equal_time_table", "equal_time_md", "equal_time_gaps",
+           "headline_table", "write_tables", "convergence_plot", "markdown_table"]

@@ -468,3 +468,22 @@ def test_the_results_page_shows_its_figures_settings_and_only_links_that_exist(r
     # the README's line adds the timing; the part both give starts with the grid and reference
     assert html.escape(";".join(line.split(";")[:2])) in page
     assert "a row in red is worse than the noisy input" in page
+
+
+def test_equal_time_gaps_are_marked_and_explained(tmp_path):
+    """Where the noisy input's error grows with spp (a firefly at the higher spp), no spp of
+    plain rendering reaches a method's error: the README's equal-time table marks the gap
+    with "—", never "nan", and says why, naming the scene, metric and slope."""
+    cells = [_cell(s, p, m) for s in SCENES for p in SPP for m in LABELS]
+    for c in cells:
+        if (c["scene"], c["method"], c["spp"]) == ("mirrors", "noisy", 64):
+            c["relmse"] = 1.0
+    res = tmp_path / "results"
+    _write(res / "sweep", cells)
+    text = publish.publish(res).read_text()
+    part = text[text.index("Equal-time view"):]
+    part = part[:part.index("All spp:")]
+    assert "nan" not in part and "| — |" in part
+    assert "No equal-time figure (—) for mirrors on relmse (the noisy input's relmse does not " \
+           "fall as spp grows: log-log slope +" in part
+    assert "cornell on" not in part
