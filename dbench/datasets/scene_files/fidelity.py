@@ -9,7 +9,12 @@ dbench uses and the file's, the camera kind, and the conversions to the RGB vari
 ({label: text}, for the run's report).
 
 The film's filter is always a box: each 1-spp pass must keep each sample in its own pixel, as
-the per-sample statistics need. The sampler is always ``independent`` with dbench's seeds.
+the per-sample statistics need. The sampler is always ``independent`` with dbench's seeds. The
+film covers the whole view: a crop window of the file's film (``crop_offset_x``,
+``crop_offset_y``, ``crop_width``, ``crop_height``) is not applied, and the film line says so.
+
+A Python scene file's dictionary (and a plugin's build function's) gets the same record from
+:func:`dict_record`: its integrator's plan, its film's filter and sampler against dbench's.
 """
 from __future__ import annotations
 
@@ -22,10 +27,19 @@ SAMPLER = "independent"
 #: what Mitsuba uses where the file names none (hdrfilm's filter; a sensor's sampler)
 FILE_DEFAULT_FILTER = "gaussian"
 FILE_DEFAULT_SAMPLER = "independent"
+#: a film's crop window (hdrfilm; Mitsuba renders only the window)
+CROP_KEYS = ("crop_offset_x", "crop_offset_y", "crop_width", "crop_height")
 
 
 def film_settings(state) -> tuple[str, str]:
-    """(reconstruction filter, sampler) of the file's first sensor, by plugin name."""
+    """(reconstruction filter, sampler) of the file's first sensor, by plugin name; ``state``
+    is the file's parser state, or a ``mi.load_dict`` dictionary."""
+    if isinstance(state, dict):
+        sensor = state.get("sensor") if isinstance(state.get("sensor"), dict) else {}
+        film = sensor.get("film", {"type": "hdrfilm"})
+        rfilter = film.get("rfilter") if isinstance(film, dict) else film.rfilter()
+        return (_name(rfilter, FILE_DEFAULT_FILTER),
+                _name(sensor.get("sampler"), FILE_DEFAULT_SAMPLER))
     mi = mitsuba()
     sensors = children(state, state.root, mi.ObjectType.Sensor)
     if not sensors:
@@ -38,11 +52,47 @@ def film_settings(state) -> tuple[str, str]:
             samplers[0][1].props.plugin_name() if samplers else FILE_DEFAULT_SAMPLER)
 
 
+def _name(obj, default: str) -> str:
+    """The plugin name of a dictionary entry (a loaded object: its class name)."""
+    if obj is None:
+        return default
+    if isinstance(obj, dict):
+        return str(obj.get("type", default))
+    return obj.class_name() if hasattr(obj, "class_name") else type(obj).__name__
+
+
+def file_crop(film) -> dict | None:
+    """The crop window of a loaded film, ``{"size": [w, h], "offset": [x, y]}``; None where
+    the film renders its whole size."""
+    size, crop, offset = ([int(v) for v in xy] for xy in
+                          (film.size(), film.crop_size(), film.crop_offset()))
+    return None if crop == size and offset == [0, 0] else {"size": crop, "offset": offset}
+
+
+def dict_record(plan: IntegratorPlan, d: dict) -> dict:
+    """The :func:`record` of a build dictionary ``d`` (module docstring): dbench gives its
+    sensor its own film, sampler and field-of-view axis (dbench.datasets.scenes.build.own_camera)
+    and keeps the rest of the sensor; a crop window of its film is named by its keys."""
+    sensor = d.get("sensor") if isinstance(d.get("sensor"), dict) else {}
+    film = sensor.get("film")
+    crop = [k for k in CROP_KEYS if isinstance(film, dict) and k in film]
+    rec = record(plan, d, str(sensor.get("type", "perspective")), (),
+                 crop={"keys": crop} if crop else None)
+    axis = sensor.get("fov_axis")
+    rec["sensor_text"] = (f"{rec['sensor']} (the file's pose and field of view: its fov is read "
+                          f"along x and kept along the image's smaller side"
+                          + (f"; its fov_axis {axis} is not applied" if axis not in (None, "x")
+                             else "") + ")")
+    return rec
+
+
 def record(plan: IntegratorPlan, state, sensor: str, conversions: tuple[str, ...],
-           film: tuple[int, int] | None = None, sensors: int = 1) -> dict:
+           film: tuple[int, int] | None = None, sensors: int = 1,
+           crop: dict | None = None) -> dict:
     """The record of the render of a file (module docstring); plain values only. ``film``:
     the (width, height) the file's film declares; ``sensors``: how many the file has (the
-    first renders, as in Mitsuba)."""
+    first renders, as in Mitsuba); ``crop``: its film's crop window (:func:`file_crop`, or
+    ``{"keys": [...]}`` naming the dictionary entries that set one)."""
     file_filter, file_sampler = film_settings(state)
     return {"integrator": plan.integrator, "file_integrator": plan.file_integrator,
             "max_depth": plan.max_depth, "rr_depth": plan.rr_depth,
@@ -50,7 +100,7 @@ def record(plan: IntegratorPlan, state, sensor: str, conversions: tuple[str, ...
             "integrator_notes": list(plan.notes), "filter": FILTER, "file_filter": file_filter,
             "sampler": SAMPLER, "file_sampler": file_sampler, "sensor": sensor,
             "conversions": list(conversions), "sensors": int(sensors),
-            "file_film": list(film) if film else None}
+            "file_film": list(film) if film else None, "file_crop": crop}
 
 
 def report_lines(rec: dict, res=None) -> dict[str, str]:
@@ -79,34 +129,55 @@ def report_lines(rec: dict, res=None) -> dict[str, str]:
                                 "each 1-spp pass keeps its samples in their own pixels, as the "
                                 "per-sample statistics need"),
              "sampler": _kept_or(rec["sampler"], rec["file_sampler"], "dbench's seeds"),
-             "sensor": f"{rec['sensor']} (the file's pose, clip planes and field of view"
-                       + (f"; the first of its {rec['sensors']} sensors, as Mitsuba renders"
-                          if rec.get("sensors", 1) > 1 else "") + ")"}
-    if rec.get("file_film"):
-        lines["film"] = film_text(rec["file_film"], res)
+             "sensor": rec.get("sensor_text") or (
+                 f"{rec['sensor']} (the file's pose, clip planes and field of view"
+                 + (f"; the first of its {rec['sensors']} sensors, as Mitsuba renders"
+                    if rec.get("sensors", 1) > 1 else "") + ")")}
+    if rec.get("file_film") or rec.get("file_crop"):
+        lines["film"] = film_text(rec.get("file_film"), res, rec.get("file_crop"))
     if rec["conversions"]:
         lines["conversions"] = "; ".join(rec["conversions"])
     return lines
 
 
-def film_text(file_film, res=None) -> str:
+def film_text(file_film, res=None, crop: dict | None = None) -> str:
     """The film: ``16×16 in the file``; rendered at ``res`` of another shape, the change in the
     report's form ("X (file: Y) — why"): the field of view is kept along the smaller side
-    (README.md, "Mitsuba scene files"), so the view's aspect changes."""
+    (README.md, "Mitsuba scene files"), so the view's aspect changes. A crop window of the
+    file's (``crop``, :func:`record`) is stated as not applied. ``file_film`` None: a build
+    dictionary's film, made at the requested size."""
     from ...resolution import parse_res
 
+    res = None if res is None else parse_res(res)
+    cropped = ""
+    if crop and "keys" in crop:
+        cropped = (f"the file's film sets {', '.join(crop['keys'])}, a crop window dbench does "
+                   f"not apply: it renders the whole view")
+    elif crop:
+        (cw, ch), (cx, cy) = crop["size"], crop["offset"]
+        cropped = (f"the file's crop window {cw}×{ch} at ({cx}, {cy}) is not applied: dbench "
+                   f"renders the whole view")
+    if file_film is None:
+        size = "the requested size" if res is None else f"{res.width}×{res.height}"
+        return f"{size} (file: the same size, with a crop window) — {cropped}"
     fw, fh = (int(v) for v in file_film)
+    window = " with a crop window" if crop else ""
     if res is None:
-        return f"{fw}×{fh} in the file"
-    res = parse_res(res)
+        return (f"{fw}×{fh} (file: {fw}×{fh}{window}) — {cropped}" if crop
+                else f"{fw}×{fh} in the file")
     if fw * res.height == fh * res.width:
+        if crop:
+            return (f"{res.width}×{res.height} (file: {fw}×{fh}, the same shape,{window}) — "
+                    f"{cropped}")
         return f"{res.width}×{res.height} (the file's {fw}×{fh}, the same shape)"
-    return (f"{res.width}×{res.height} (file: {fw}×{fh}) — the requested size; the field of "
-            "view is kept along the smaller side, so the view's aspect changes")
+    return (f"{res.width}×{res.height} (file: {fw}×{fh}{window}) — the requested size; the "
+            "field of view is kept along the smaller side, so the view's aspect changes"
+            + (f"; {cropped}" if crop else ""))
 
 
 def _kept_or(used: str, file: str, why: str) -> str:
     return f"{used} (as in the file)" if used == file else f"{used} (file: {file}) — {why}"
 
 
-__all__ = ["record", "report_lines", "film_settings", "film_text", "FILTER", "SAMPLER"]
+__all__ = ["record", "dict_record", "file_crop", "report_lines", "film_settings",
+           "film_text", "CROP_KEYS", "FILTER", "SAMPLER"]

@@ -26,11 +26,17 @@ file's integrator is. Hence:
   max_depth 8, as the catalogue does, and the record says so.
 
 Two integrators at the top of one scene are refused as Mitsuba refuses them.
+
+A Python scene file's dictionary (and a plugin's build function's) follows the same rules
+(:func:`plan_dict`, README.md "Python scene files"): its ``"integrator"`` entry is kept,
+unwrapped or replaced as above, and a dictionary without one renders with ``path``; a Python
+file's module attribute ``max_depth``, where set, overrides the depth, and the notes say so.
 """
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass
+from copy import deepcopy
+from dataclasses import dataclass, replace
 
 from ...errors import DbenchInputError
 from ..mitsuba_env import mitsuba
@@ -114,13 +120,81 @@ def plan(state, path: str) -> IntegratorPlan:
                          f"({nested[0][1].props.plugin_name()}) renders the image")
         notes.append(WRAPPERS[name])
         node = nested[0][1]
-    settings = _settings(state, node, path)
+    return _keep_or_replace(mi, _settings(state, node, path), chain, notes, path)
+
+
+def plan_dict(integrator, path: str, max_depth: int | None = None,
+              source: str = "build()'s dictionary") -> IntegratorPlan:
+    """The :class:`IntegratorPlan` of a ``mi.load_dict`` dictionary's ``"integrator"`` entry
+    (None where it has none), by the rules :func:`plan` applies to a file (module docstring):
+    Python scene files and plugins' build functions. Nested integrators of a wrapper are its
+    entries that are dictionaries, in the dictionary's order. ``max_depth`` (a Python scene
+    file's module attribute), when given, overrides the depth of the integrator that renders,
+    and the notes say so. DbenchInputError when the entry is not a dictionary or Mitsuba
+    refuses it."""
+    mi = mitsuba()
+    if integrator is None:
+        depth = DEFAULT_MAX_DEPTH if max_depth is None else int(max_depth)
+        return _finish(path, {"type": "path", "max_depth": depth}, None, None,
+                       (f"{source} names no integrator (mi.load_dict gives a scene without "
+                        f"one); dbench renders path with max_depth {depth}"
+                        + (" (the module's max_depth)" if max_depth is not None else ""),), {})
+    if not isinstance(integrator, dict) or not isinstance(integrator.get("type"), str):
+        raise DbenchInputError(f"--scene {path}: {source} gives its integrator as "
+                               f"{type(integrator).__name__}; give it as a dictionary such as "
+                               f"{{\"type\": \"path\", \"max_depth\": 8}}, so dbench can read "
+                               f"its settings")
+    settings = deepcopy(integrator)
+    chain: list[str] = []
+    notes: list[str] = []
+    while settings["type"] in WRAPPERS:
+        name = settings["type"]
+        nested = [v for v in settings.values() if isinstance(v, dict) and "type" in v]
+        chain.append(name)
+        if not nested:
+            return _override(_empty_wrapper(name, chain, notes, settings, path), max_depth, path)
+        if len(nested) > 1:
+            notes.append(f"{name} holds {len(nested)} integrators; the first "
+                         f"({nested[0]['type']}) renders the image")
+        notes.append(WRAPPERS[name])
+        settings = nested[0]
+    return _override(_keep_or_replace(mi, settings, chain, notes, path), max_depth, path)
+
+
+def _empty_wrapper(name: str, chain: list, notes: list, settings: dict,
+                   path: str) -> IntegratorPlan:
+    """A wrapper holding no integrator: its image has no colour, path renders it."""
+    replaced = (f"{name} holds no integrator, so its image has no colour; dbench renders the "
+                f"colour with path (max_depth {DEFAULT_MAX_DEPTH}) and makes its own AOVs")
+    return _finish(path, {"type": "path", "max_depth": DEFAULT_MAX_DEPTH},
+                   _chain(chain, None), replaced, tuple(notes), settings)
+
+
+def _keep_or_replace(mi, settings: dict, chain: list, notes: list, path: str) -> IntegratorPlan:
+    """The plan of the integrator ``settings`` the wrappers ``chain`` hold: kept where it can
+    render dbench's passes, else path carrying its :data:`CARRIED` settings."""
     name = settings["type"]
     why = _cannot_keep(mi, _instantiate(settings, path), name)
     render = settings
     if why:
         render = {"type": "path", **{k: settings[k] for k in CARRIED if k in settings}}
     return _finish(path, render, _chain(chain, name), why, tuple(notes), settings)
+
+
+def _override(p: IntegratorPlan, max_depth: int | None, path: str) -> IntegratorPlan:
+    """``p`` with the module attribute ``max_depth`` in place of the depth it renders with,
+    said in its notes."""
+    if max_depth is None or p.max_depth == int(max_depth):
+        return p
+    if p.max_depth is None:
+        note = (f"the module's max_depth {int(max_depth)} does not apply: {p.integrator} has "
+                f"no max_depth")
+        return replace(p, notes=p.notes + (note,))
+    note = (f"max_depth {int(max_depth)} is the module's max_depth, which overrides the "
+            f"integrator's {'unlimited' if p.max_depth == -1 else p.max_depth}")
+    render = {**p.render, "max_depth": int(max_depth)}
+    done = _finish(path, render, p.file_integrator, p.replaced, p.notes + (note,), {})
+    return replace(done, hide_emitters=p.hide_emitters)
 
 
 def _chain(wrappers: list[str], inner: str | None) -> str:
@@ -193,4 +267,4 @@ def _depth(text: str, key: str) -> int | None:
     return -1 if value in (-1, _UNLIMITED) else value
 
 
-__all__ = ["IntegratorPlan", "plan", "DEFAULT_MAX_DEPTH", "WRAPPERS"]
+__all__ = ["IntegratorPlan", "plan", "plan_dict", "DEFAULT_MAX_DEPTH", "WRAPPERS"]

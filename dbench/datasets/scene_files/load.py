@@ -8,7 +8,8 @@ parser and loaded once as ``mi.load_file(path, **params)`` loads it (``$name`` p
 what it must control:
 
 - the film: ``hdrfilm`` of the requested size, box reconstruction filter (every 1-spp pass puts
-  one sample in each pixel);
+  one sample in each pixel), the whole view (a crop window of the file's film is not applied,
+  and the record says so);
 - the camera: a ``perspective`` (or ``thinlens``) camera with the file's ``to_world``, clip
   planes and principal point; the file's field of view is kept along the smaller image side, so
   the file's own film size reproduces its view exactly and any other size widens it along the
@@ -22,6 +23,8 @@ Spectral and polarized files render in the RGB variant with their conversions st
 refused naming the construct (:mod:`dbench.datasets.scene_files.rgb`). Every steady frame of a file
 carries how its render differs from the file in ``frame.meta["scene_file"]`` and, as report
 lines, ``frame.meta["scene_file_settings"]`` (:mod:`dbench.datasets.scene_files.fidelity`).
+A scene without an emitter (XML or Python) is refused before anything renders: its images are
+black, and every method would match them perfectly.
 
 The cache key covers the file's bytes, the bytes of every file it references (``filename``
 strings, ``<include>`` fragments and ``<spectrum filename>``s, found as Mitsuba finds them:
@@ -35,16 +38,23 @@ folders searched.
 **Python files**. ``build(mi, width, height) -> dict`` (or ``build(mi, res)``,
 :mod:`dbench.datasets.scenes.build`) returns a ``mi.load_dict`` dictionary with a sensor (dbench
 replaces its film and sampler as for XML; a ``fov`` is read along x as in Mitsuba's default).
+A steady file renders its dictionary's ``"integrator"`` by the rules of XML files (kept,
+unwrapped, or replaced by ``path`` with the reason; none: ``path``, max_depth 8;
+:func:`dbench.datasets.scene_files.integrator.plan_dict`), and its frames carry the same
+``meta["scene_file"]`` record (:func:`dbench.datasets.scene_files.fidelity.dict_record`).
 The dictionary is loaded once at 8 px when the file is resolved, so a type Mitsuba has no
 plugin for is refused before anything renders; ``sys.exit`` in the file or in ``build`` is
 refused too (exit 2), never the file's own exit code. Optional module attributes:
 
 - ``kind``: ``"steady"`` (default), ``"sequence"`` or ``"transient"``;
-- ``max_depth`` (else the dictionary integrator's, else 8), ``ev`` (exposure of the tone map),
-  ``description``;
+- ``max_depth`` (overrides the depth of the integrator that renders, as the record says;
+  else the dictionary integrator's, else 8), ``ev`` (exposure of the tone map), ``description``;
 - sequences: ``camera(i) -> (origin, target)`` per frame (required), ``lights(i) ->
   {shape key: (r, g, b)}`` (radiance of emitting shapes per frame), ``frames`` (default 24);
   the geometry is ``build``'s dictionary without its sensor and integrator;
+- sequence and transient scenes render with dbench's integrators (``path``; the transient one),
+  so a dictionary integrator other than a ``path`` (``volpath`` for ``transient_prbvolpath``)
+  setting at most ``max_depth`` is refused, naming it;
 - transient scenes: ``window_start`` and ``window_end`` (optical path length in metres,
   required; :func:`dbench.datasets.transient.load.size_window` measures them), ``bins`` (default
   200), ``integrator`` (``transient_path``, or ``transient_prbvolpath`` for media).
@@ -65,7 +75,7 @@ import importlib.util
 import math
 import re
 from copy import deepcopy
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 from typing import Any
@@ -76,13 +86,13 @@ from ...errors import DbenchInputError
 from ...resolution import Res, parse_res
 from ..mitsuba_env import mitsuba
 from ..scenes.record import STEADY_BUFFERS, Scene
-from ..scenes.build import call_build, exit_message, probe_load
+from ..scenes.build import call_build, check_lit, exit_message, probe_load
 from ..scenes.build import own_camera as _own_camera
 from .assets import asset_hashes as _sources, scene_walk
 from ..cache import referenced
 from ..scenes.parts import film_dict
-from .fidelity import FILTER, record, report_lines
-from .integrator import DEFAULT_MAX_DEPTH, IntegratorPlan, plan as _integrator_plan
+from .fidelity import FILTER, dict_record, file_crop, record, report_lines
+from .integrator import DEFAULT_MAX_DEPTH, plan as _integrator_plan, plan_dict
 from .rgb import rgb_notes
 from .xml import load as _load_xml, parse as _parse_xml, shape_groups
 
@@ -171,10 +181,8 @@ class XmlScene(Scene):
     #: what the scene is called in its identity (dbench.datasets._base_description): not the
     #: file's name, which a copy may change
     identity_name: str = "(scene file)"
-    #: the integrator that renders the colour (dbench.datasets.scene_files.integrator)
-    integrator_plan: IntegratorPlan | None = None
-    #: what every steady frame of the file adds to its meta (dbench.datasets.scene_files.fidelity)
-    frame_meta: dict = field(default_factory=dict)
+    # integrator_plan (dbench.datasets.scene_files.integrator) and frame_meta
+    # (dbench.datasets.scene_files.fidelity) are Scene's, always set for a file
 
     def key_dict(self, mi, res) -> dict:
         # neither the file's path nor its name: the sources hold every file's bytes, so the
@@ -212,8 +220,10 @@ def _xml_scene(path: str, params: tuple, digest: str) -> XmlScene:
     integrator = _integrator_plan(state, path)
     loaded = _loaded_xml(path, params, mi.variant(), digest)
     sensor = _sensor_dict(mi, loaded, parse_res(8), path)  # refuses unsupported cameras
-    film = tuple(int(v) for v in loaded.sensors()[0].film().size())
-    rec = record(integrator, state, sensor["type"], conversions, film, len(loaded.sensors()))
+    check_lit(loaded, f"--scene {path}")  # a black image every method would match
+    film = loaded.sensors()[0].film()
+    rec = record(integrator, state, sensor["type"], conversions,
+                 tuple(int(v) for v in film.size()), len(loaded.sensors()), file_crop(film))
     name = Path(path).name
     return XmlScene(name=name, kind="steady", description=f"Mitsuba scene file {path}",
                     build=_no_build, max_depth=integrator.max_depth, provides=STEADY_BUFFERS,
@@ -337,25 +347,61 @@ def _python_scene(path: str, files: tuple, digest: str) -> Scene:
     module = _module(path, digest)
     kind = getattr(module, "kind", "steady")
     probe = _built(module, path, mi, 8)
-    probe_load(mi, probe, f"--scene {path}", "build()'s dictionary")
-    depth = getattr(module, "max_depth", None) or (probe.get("integrator") or {}).get(
-        "max_depth") or DEFAULT_MAX_DEPTH
+    loaded = probe_load(mi, probe, f"--scene {path}", "build()'s dictionary")
+    depth = getattr(module, "max_depth", None)
+    if depth is not None and (isinstance(depth, bool) or not isinstance(depth, int)):
+        raise DbenchInputError(f"--scene {path}: max_depth is {depth!r}; give an integer")
     common = dict(name=Path(path).name, kind=kind,
                   description=getattr(module, "description", f"Python scene file {path}"),
-                  max_depth=int(depth),
                   params={"sha256": digest, **({"files": dict(files)} if files else {})},
                   ev=float(getattr(module, "ev", 0.0)))
 
     def build(mi, res):
         return _own_camera(_current(_built(module, path, mi, res), files, path), res)
 
+    if kind not in ("steady", "sequence", "transient"):
+        raise DbenchInputError(f"--scene {path}: kind {kind!r}; valid: steady, sequence, "
+                               f"transient")
+    if kind != "sequence" or not callable(getattr(module, "lights", None)):
+        check_lit(loaded, f"--scene {path}")  # a black image every method would match
     if kind == "steady":
-        return Scene(build=build, **common)
+        # the dictionary's integrator, by the rules of XML files (scene_files.integrator)
+        plan = plan_dict(probe.get("integrator"), path, depth)
+        rec = dict_record(plan, probe)
+        return Scene(build=build, max_depth=plan.max_depth, integrator_plan=plan,
+                     frame_meta={"scene_file": rec, "scene_file_settings": report_lines(rec)},
+                     **common)
+    integrator = probe.get("integrator")
+    common["max_depth"] = int(depth if depth is not None else
+                              (integrator if isinstance(integrator, dict) else {}).get(
+                                  "max_depth") or DEFAULT_MAX_DEPTH)
     if kind == "sequence":
+        _own_integrator_only(integrator, path, kind, "path", "path")
         return _python_sequence(module, path, probe, common, build)
-    if kind == "transient":
-        return _python_transient(module, path, build, common)
-    raise DbenchInputError(f"--scene {path}: kind {kind!r}; valid: steady, sequence, transient")
+    own = getattr(module, "integrator", "transient_path")
+    _own_integrator_only(integrator, path, kind, "volpath" if "volpath" in own else "path",
+                         own)
+    return _python_transient(module, path, build, common)
+
+
+def _own_integrator_only(integrator, path: str, kind: str, steady: str, renders: str) -> None:
+    """Refuse a dictionary integrator that a sequence or transient scene would not render:
+    they render with dbench's own integrators (``renders``; ``steady``: the one of its steady
+    passes), taking over only the dictionary's ``max_depth``."""
+    if integrator is None:
+        return
+    name = integrator.get("type") if isinstance(integrator, dict) else type(integrator).__name__
+    extra = [k for k in integrator if k not in ("type", "max_depth")] \
+        if isinstance(integrator, dict) else []
+    if name == steady and not extra:
+        return
+    what = f"integrator {name}" if name != steady else f"{', '.join(extra)} on its {name}"
+    raise DbenchInputError(
+        f"--scene {path}: build()'s dictionary sets {what}, which a {kind} scene does not "
+        f"render: it renders with dbench's {renders}"
+        + (f" ({steady} for its steady passes)" if renders != steady else "")
+        + f", taking only max_depth from the dictionary; remove the dictionary's integrator or "
+        f"make it {{\"type\": \"{steady}\", \"max_depth\": N}}")
 
 
 def _python_sequence(module, path: str, probe: dict, common: dict, build) -> Scene:

@@ -19,6 +19,13 @@ plugin's ``Scene`` renders its build's film as it is, so a film whose reconstruc
 not a box (hdrfilm's default is a Gaussian) is refused naming the scene, its file and the entry
 to write (:func:`check_box_filter`): each 1-spp pass must keep every sample in its own pixel,
 as the per-sample statistics need (README.md, "How renders work").
+
+A scene that has no emitter renders black images, which every method matches perfectly, so it
+is refused before anything renders (:func:`check_lit`). A plugin's bare build function
+(:func:`plugin_build`) renders its dictionary's integrator by the rules of Python scene files
+(:func:`dictionary_plan`, dbench.datasets.scene_files.integrator.plan_dict), and its frames
+state how the render differs from the dictionary as a scene file's do
+(:func:`check_plugin_scene` fills ``Scene.frame_meta``).
 """
 from __future__ import annotations
 
@@ -129,14 +136,15 @@ def _plugin_build(fn: Callable, name: str) -> Callable[[Any, Any], dict]:
 _UNKNOWN_PLUGIN = re.compile(r'node "([^"]*)".*?Plugin "([^"]+)" not found')
 
 
-def probe_load(mi, d: dict, what: str, source: str = "the scene's dictionary") -> None:
+def probe_load(mi, d: dict, what: str, source: str = "the scene's dictionary"):
     """Load ``d`` (a build's dictionary) once at 8 px with dbench's camera, so a name Mitsuba
     does not know (an unknown plugin type, a misspelt property) is refused naming ``what``
     before anything renders, rather than failing inside a render as an internal error. The
-    integrator is dbench's (set when rendering), so it is left out."""
+    integrator is planned apart (dbench.datasets.scene_files.integrator), so it is left out.
+    Returns the loaded scene."""
     probe = {k: v for k, v in own_camera(d, 8).items() if k != "integrator"}
     try:
-        mi.load_dict(probe)
+        return mi.load_dict(probe)
     except Exception as exc:  # Mitsuba raises RuntimeError with its parser's message
         message = " ".join(str(exc).split())
         m = _UNKNOWN_PLUGIN.search(message)
@@ -181,6 +189,42 @@ def check_box_filter(mi, d: dict, what: str) -> None:
         '"rfilter": {"type": "box"} in the film of the dictionary build returns')
 
 
+def check_lit(loaded, what: str) -> None:
+    """Refuse the loaded scene ``loaded`` when it has no emitter (area lights are their shapes'
+    and count, as do environment maps and constant emitters): every image of it is black, and
+    every method would score perfectly on it."""
+    if not len(loaded.emitters()):
+        raise DbenchInputError(f"{what}: the scene has no emitter, so every image is black and "
+                               f"every method would score perfectly; add a light")
+
+
+def dictionary_plan(scene: Any):
+    """The integrator plan ``scene`` renders its colour with: its own ``integrator_plan`` (a
+    Python scene file's), the plan of its dictionary for a plugin's bare build function
+    (:func:`plugin_build`; planned once per variant), else None (the catalogue's path)."""
+    if scene.integrator_plan is not None or getattr(scene.build, "wrapped", None) is None:
+        return scene.integrator_plan
+    from ..mitsuba_env import mitsuba
+
+    return _adapter_record(scene, mitsuba().variant())[0]
+
+
+@lru_cache(maxsize=None)
+def _adapter_record(scene: Any, variant: str) -> tuple:
+    """(plan, fidelity record) of a plugin build function's dictionary, built at 8 px as it
+    returns it (its own film and sampler, before :func:`own_camera`)."""
+    from ..mitsuba_env import mitsuba
+    from ..scene_files.fidelity import dict_record
+    from ..scene_files.integrator import plan_dict
+
+    d = call_build(scene.build.wrapped, mitsuba(), 8, f"scene {scene.name}")
+    if not isinstance(d, dict) or not isinstance(d.get("sensor"), dict):
+        raise DbenchInputError(f"scene {scene.name}: build must return a mi.load_dict dictionary "
+                               f"with a 'sensor' dictionary")
+    plan = plan_dict(d.get("integrator"), scene.name, source="the build function's dictionary")
+    return plan, dict_record(plan, d)
+
+
 _PROBED: set = set()
 
 
@@ -201,10 +245,16 @@ def check_plugin_scene(scene: Any) -> None:
     if not isinstance(d, dict) or not isinstance(d.get("sensor"), dict):
         raise DbenchInputError(f"scene {scene.name}: build must return a mi.load_dict "
                                f"dictionary with a 'sensor' dictionary")
-    probe_load(mi, d, f"scene {scene.name}")
+    check_lit(probe_load(mi, d, f"scene {scene.name}"), f"scene {scene.name}")
     check_box_filter(mi, d, f"scene {scene.name} ({source_of(scene.build)})")
+    if dictionary_plan(scene) is not None:  # a plugin's bare build function
+        from ..scene_files.fidelity import report_lines
+
+        rec = _adapter_record(scene, mi.variant())[1]
+        scene.frame_meta.update(scene_file=rec, scene_file_settings=report_lines(rec))
     _PROBED.add(key)
 
 
-__all__ = ["call_build", "check_box_filter", "check_film", "check_plugin_scene", "exit_message",
-           "own_camera", "plugin_build", "probe_load", "source_of", "takes_width_height"]
+__all__ = ["call_build", "check_box_filter", "check_film", "check_lit", "check_plugin_scene",
+           "dictionary_plan", "exit_message", "own_camera", "plugin_build", "probe_load",
+           "source_of", "takes_width_height"]

@@ -3,10 +3,11 @@ transient scenes subclass it) and the catalogue dictionary that scene modules an
 into. Nothing here renders; :mod:`dbench.datasets.scenes.catalogue` resolves names, files and folders."""
 from __future__ import annotations
 
+from copy import deepcopy
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
-from .build import call_build, check_film
+from .build import call_build, check_film, dictionary_plan
 
 STEADY_BUFFERS = frozenset({"color", "albedo", "normal", "depth", "position", "emitter",
                             "stats", "reference"})
@@ -25,7 +26,8 @@ class Scene:
             and ``height``, unpacking as (width, height)), or ``build(mi, width, height)``
             (:mod:`dbench.datasets.scenes.build`; README.md, "Python scene files"). The
             dictionary's film must have the requested size.
-        max_depth: path length of the integrator (part of the cache key through the dict).
+        max_depth: path length of the ``path`` integrator of a scene without an
+            ``integrator_plan`` (part of the cache key through the dict).
         provides: buffers this scene can render.
         params: anything else that changes the pixels (goes into the cache key); for a scene
             made from ``--scene-param`` values, every declared parameter's value.
@@ -34,6 +36,13 @@ class Scene:
             (:class:`dbench.datasets.scenes.params.Param`; empty: none).
         variant: ``variant(scene, values) -> Scene``, the scene of one set of values (every
             declared name, checked); :func:`dbench.datasets.scenes.params.bind` calls it.
+        integrator_plan: the integrator that renders the colour where it is the dictionary's
+            (:func:`dbench.datasets.scene_files.integrator.plan_dict`: Python scene files; a
+            plugin's bare build function is planned when first rendered,
+            :func:`dbench.datasets.scenes.build.dictionary_plan`); None: ``path`` with
+            ``max_depth``.
+        frame_meta: what every steady frame adds to its meta: how the render differs from
+            the scene's file or dictionary (dbench.datasets.scene_files.fidelity).
     """
 
     name: str
@@ -46,11 +55,15 @@ class Scene:
     ev: float = 0.0
     declared: tuple = ()
     variant: Callable[["Scene", dict], "Scene"] | None = None
+    integrator_plan: Any = None
+    frame_meta: dict = field(default_factory=dict)
 
     def scene_dict(self, mi, res) -> dict:
         d = call_build(self.build, mi, res, f"scene {self.name}")
         check_film(d, res, f"scene {self.name}", self.build)
-        d["integrator"] = {"type": "path", "max_depth": self.max_depth}
+        plan = dictionary_plan(self)
+        d["integrator"] = (deepcopy(plan.render) if plan is not None
+                           else {"type": "path", "max_depth": self.max_depth})
         return d
 
     #: whether the scene is rendered (False: read from files, dbench.datasets.folders.load)

@@ -1,0 +1,114 @@
+"""What a scene file's render cannot honour is refused or stated (README.md, "Mitsuba scene
+files"): a scene with no emitter (black images every method would match) exits 2 naming the
+file before anything renders, and a film's crop window, which dbench does not apply, is named
+in the record and its report line (dbench/datasets/scene_files/fidelity.py)."""
+from __future__ import annotations
+
+import pytest
+
+from dbench.cli import main
+from dbench.errors import DbenchInputError
+
+
+def _xml(tmp_path, name: str, extra: str = "", film: str = "", size=(16, 16)):
+    path = tmp_path / name
+    path.write_text(f'''<scene version="3.0.0">
+  <sensor type="perspective">
+    <transform name="to_world"><lookat origin="0,1,4" target="0,0,0" up="0,1,0"/></transform>
+    <film type="hdrfilm"><integer name="width" value="{size[0]}"/>
+      <integer name="height" value="{size[1]}"/>{film}</film>
+  </sensor>
+  <shape type="sphere"><bsdf type="diffuse"/></shape>{extra}
+</scene>
+''')
+    return path
+
+
+NO_LIGHT_PY = '''
+def build(mi, width, height):
+    T = mi.ScalarTransform4f
+    return {"type": "scene",
+            "sensor": {"type": "perspective", "fov": 45,
+                       "to_world": T().look_at(origin=[0, 1, 4], target=[0, 0, 0], up=[0, 1, 0])},
+            "ball": {"type": "sphere", "bsdf": {"type": "diffuse"}}%s}
+'''
+CROP = ('<integer name="crop_offset_x" value="4"/><integer name="crop_offset_y" value="2"/>'
+        '<integer name="crop_width" value="8"/><integer name="crop_height" value="6"/>')
+
+
+def test_a_scene_without_an_emitter_exits_2_before_rendering(renderer, tmp_path, capsys):
+    from dbench.datasets.scene_files.load import resolve
+    dark = _xml(tmp_path, "noemit.xml")
+    with pytest.raises(DbenchInputError, match=r"noemit\.xml: the scene has no emitter, so "
+                                               r"every image is black .*; add a light$"):
+        resolve(dark)
+    rc = main(["run", "--method", "noisy", "--scene", str(dark), "--res", "8", "--spp", "1",
+               "--out", str(tmp_path / "out"), "--cache", str(tmp_path / "cache")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1 and "no emitter" in err[0] and "noemit.xml" in err[0]
+    assert not (tmp_path / "out").exists() and not (tmp_path / "cache").exists()
+    py = tmp_path / "noemit.py"
+    py.write_text(NO_LIGHT_PY % "")
+    with pytest.raises(DbenchInputError, match=r"noemit\.py: the scene has no emitter"):
+        resolve(py)
+    # an environment (a constant emitter) or an area light is a light
+    resolve(_xml(tmp_path, "sky.xml", '<emitter type="constant"/>'))
+    resolve(_xml(tmp_path, "lamp.xml", '<shape type="sphere"><point name="center" x="0" y="3" '
+                                       'z="0"/><emitter type="area"/></shape>'))
+    (tmp_path / "sky.py").write_text(NO_LIGHT_PY % ', "sky": {"type": "constant"}')
+    resolve(tmp_path / "sky.py")
+
+
+def test_a_plugin_scene_without_an_emitter_is_refused(renderer):
+    from dbench import datasets
+    from dbench.datasets.scenes.build import plugin_build
+    from dbench.datasets.scenes.record import Scene
+
+    def build(mi, res):
+        d = mi.cornell_box()
+        d["sensor"]["film"].update(width=res.width, height=res.height)
+        d["light"].pop("emitter")
+        return d
+
+    sc = Scene(name="dark-box", kind="steady", description="x",
+               build=plugin_build(build, "dark-box"))
+    with pytest.raises(DbenchInputError, match=r"scene dark-box: the scene has no emitter"):
+        datasets.load(sc, spp=1, res=8, needs={"color"}, progress=False)
+
+
+def test_an_xml_films_crop_window_is_stated_as_not_applied(renderer, tmp_path):
+    from dbench import datasets
+    from dbench.datasets.scene_files.fidelity import report_lines
+    from dbench.datasets.scene_files.load import resolve
+    sc = resolve(_xml(tmp_path, "crop.xml", '<emitter type="constant"/>', CROP))
+    rec = sc.frame_meta["scene_file"]
+    assert rec["file_crop"] == {"size": [8, 6], "offset": [4, 2]}
+    frame = datasets.load(sc, spp=1, res=8, needs={"color"}, progress=False,
+                          cache=datasets.Cache(tmp_path / "c"))
+    film = frame.meta["scene_file_settings"]["film"]
+    assert film == ("8×8 (file: 16×16, the same shape, with a crop window) — the file's crop "
+                    "window 8×6 at (4, 2) is not applied: dbench renders the whole view")
+    wide = report_lines(rec, "16x8")["film"]
+    assert wide.startswith("16×8 (file: 16×16 with a crop window) — the requested size;")
+    assert wide.endswith("; the file's crop window 8×6 at (4, 2) is not applied: dbench "
+                         "renders the whole view")
+    # without a crop the film line is as before
+    plain = resolve(_xml(tmp_path, "plain.xml", '<emitter type="constant"/>'))
+    assert plain.frame_meta["scene_file"]["file_crop"] is None
+    assert report_lines(plain.frame_meta["scene_file"], 8)["film"] == \
+        "8×8 (the file's 16×16, the same shape)"
+
+
+def test_a_python_dictionarys_crop_window_is_stated(renderer, tmp_path):
+    from dbench.datasets.scene_files.fidelity import report_lines
+    from dbench.datasets.scene_files.load import resolve
+    path = tmp_path / "crop.py"
+    path.write_text((NO_LIGHT_PY % ', "sky": {"type": "constant"}').replace(
+        '"type": "perspective",',
+        '"type": "perspective", "film": {"type": "hdrfilm", "width": width, "height": height, '
+        '"crop_width": 4, "crop_height": 4},'))
+    rec = resolve(path).frame_meta["scene_file"]
+    assert rec["file_crop"] == {"keys": ["crop_width", "crop_height"]}
+    assert report_lines(rec, 8)["film"] == (
+        "8×8 (file: the same size, with a crop window) — the file's film sets crop_width, "
+        "crop_height, a crop window dbench does not apply: it renders the whole view")
