@@ -129,13 +129,38 @@ def canonical(obj: Any, files: set | None = None) -> Any:
                 "repr": repr(obj)}
     if hasattr(obj, "matrix"):
         return {type_name: canonical(np.array(obj.matrix, dtype=np.float64))}
+    if hasattr(obj, "class_name"):  # another loaded Mitsuba object: a texture, a BSDF, ...
+        out = {type_name: repr(obj), "params": _parameters(obj)}
+        if files is not None:  # what it read from files is in it, not in a "filename" string
+            digest = hashlib.sha256(json.dumps(out, sort_keys=True).encode()).hexdigest()
+            files.add((f"<loaded {type_name} {digest[:12]}>", digest))
+        return out
     return {type_name: repr(obj)}
+
+
+def _parameters(obj: Any) -> dict:
+    """Every parameter ``mi.traverse`` exposes of a loaded Mitsuba object (a texture's pixels, a
+    BSDF's values and those of the textures it holds), described by :func:`canonical`: its repr
+    names a bitmap's size and mean, not its pixels, so a texture loaded in a Python scene's
+    build would otherwise key an edited file as the old one."""
+    from .mitsuba_env import mitsuba
+
+    params = mitsuba().traverse(obj)
+    out = {}
+    for key in sorted(params.keys()):
+        value = params[key]
+        if not hasattr(value, "matrix"):  # (transforms: canonical reads their matrix)
+            array = np.asarray(value)
+            value = array if array.dtype != object else repr(value)
+        out[key] = canonical(value)
+    return out
 
 
 def referenced(d) -> tuple:
     """((name, sha256 or None), ...) of every ``"filename"`` string in the (nested) dictionary
-    ``d``, sorted and without repeats: the files a scene built from ``d`` reads, found by
-    :func:`canonical`'s own walk."""
+    ``d``, and of every loaded Mitsuba object in it (``<loaded Type digest>``, the sha256 of its
+    parameters: a texture a build loaded from a file), sorted and without repeats: the content
+    a scene built from ``d`` reads, found by :func:`canonical`'s own walk."""
     found: set = set()
     canonical(d, found)
     return tuple(sorted(found, key=lambda t: (t[0], t[1] or "")))

@@ -74,6 +74,39 @@ def test_an_edited_texture_of_a_python_scene_renders_afresh(renderer, tmp_path):
         datasets.load(sc, **kw)
 
 
+def test_a_texture_loaded_in_build_is_keyed_by_its_pixels(renderer, tmp_path):
+    """A build that loads its texture as an object (``mi.load_dict``) names no file in its
+    dictionary: the object is keyed by its pixels (mi.traverse), not its repr, which gives
+    only the size and mean. The texture mirrored (same mean) renders afresh."""
+    from dbench import datasets
+    from dbench.datasets.folders import exr_layers
+
+    half = np.full((8, 8), 0.05, np.float32)
+    half[:, :4] = 0.9
+    exr_layers.write_channels(tmp_path / "tex.exr", {c: half for c in "RGB"})
+    text = TEXTURED.replace('{\n                          "type": "bitmap", "filename": '
+                            'str(HERE / "tex.exr")}', 'mi.load_dict({"type": "bitmap", '
+                            '"filename": str(HERE / "tex.exr")})')
+    assert "mi.load_dict" in text
+    sc = _scene(tmp_path / "loaded.py", text)
+    cache = datasets.Cache(tmp_path / "c")
+    kw = dict(spp=2, res=16, needs={"color"}, progress=False, cache=cache)
+    first = datasets.load(sc, **kw)
+    assert datasets.load(sc, **kw).meta["cache_hits"]
+    exr_layers.write_channels(tmp_path / "tex.exr", {c: half[:, ::-1].copy() for c in "RGB"})
+    from dbench.datasets.scenes import catalogue as scenes
+    again = scenes.get(str(tmp_path / "loaded.py"))
+    assert again is not sc  # a new scene object: the in-process caches hold the old pixels
+    mirrored = datasets.load(again, **kw)
+    assert not mirrored.meta["cache_hits"]
+    assert not np.array_equal(mirrored.color, first.color)
+    # the camera looks straight down the scene's mirror plane: the image is mirrored too
+    flipped = np.abs(mirrored.color[:, ::-1] - first.color).mean()
+    assert flipped < 0.5 * np.abs(mirrored.color - first.color).mean()
+    with pytest.raises(DbenchInputError, match="loaded.py.*changed after the scene was resolved"):
+        datasets.load(sc, **kw)  # the object resolved before the edit is refused
+
+
 ORBIT = '''
 kind = "sequence"
 frames = 2

@@ -61,7 +61,8 @@ refused too (exit 2), never the file's own exit code. Optional module attributes
 
 The cache key of a Python scene is its dictionary (as for the catalogue) plus the file's bytes;
 the dictionary's ``"filename"`` strings are keyed by the bytes of the files they name
-(:mod:`dbench.datasets.file_refs`), so an edited texture or mesh renders afresh.
+(:mod:`dbench.datasets.file_refs`), and objects ``build`` loaded itself by their parameters
+(:func:`dbench.datasets.cache.canonical`), so an edited texture or mesh renders afresh.
 
 Example:
     >>> sc = resolve("my/scene.xml", {"spp": "16"})                 # doctest: +SKIP
@@ -317,8 +318,9 @@ def _current(d: dict, files: tuple, path: str) -> dict:
     with (an object held across an edit would key new renders by the new bytes and render
     the old ones from the in-process caches)."""
     if referenced(d) != files:
-        raise DbenchInputError(f"--scene {path}: a file the scene names by \"filename\" changed "
-                               f"after the scene was resolved; resolve it again")
+        raise DbenchInputError(f"--scene {path}: a file the scene names by \"filename\" (or an "
+                               f"object its build loads) changed after the scene was resolved; "
+                               f"resolve it again")
     return d
 
 
