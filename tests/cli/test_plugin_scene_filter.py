@@ -53,3 +53,29 @@ def test_a_plugin_scene_with_a_box_filter_renders(isolated, renderer, tmp_path, 
     rc, _ = _run(tmp_path, 'd["sensor"]["film"]["rfilter"] = {"type": "box"}')
     assert rc == 0, capsys.readouterr().err
     assert (tmp_path / "out" / "report.md").is_file()
+
+
+@pytest.mark.parametrize("integrator, said", [
+    ('{"type": "direct"}', "direct"),
+    ('{"type": "path", "max_depth": 3, "hide_emitters": True}', "path with hide_emitters")])
+def test_a_plugin_scene_whose_integrator_would_be_replaced_exits_2(isolated, renderer, tmp_path,
+                                                                   capsys, integrator, said):
+    """A Scene renders with path at its own max_depth: a dictionary naming another integrator
+    (or other settings) is refused in one line, never replaced without a word."""
+    rc, plugin = _run(tmp_path, 'd["sensor"]["film"]["rfilter"] = {"type": "box"}; '
+                                f'd["integrator"] = {integrator}')
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and len(err.splitlines()) == 1, err
+    assert err.startswith(f"dbench: scene my-room ({plugin}): its dictionary's integrator is "
+                          f"{said}, but a Scene renders with path at its max_depth (8)"), err
+    assert "Traceback" not in err and not list((tmp_path / "cache").glob("*/*"))
+
+
+def test_a_plugin_scene_states_the_depth_it_renders_at(isolated, renderer, tmp_path, capsys):
+    """The Scene's max_depth sets the depth (README.md); the dictionary's other depth is
+    stated in the run's settings."""
+    rc, _ = _run(tmp_path, 'd["sensor"]["film"]["rfilter"] = {"type": "box"}; '
+                           'd["integrator"] = {"type": "path", "max_depth": 3}')
+    assert rc == 0, capsys.readouterr().err
+    report = (tmp_path / "out" / "report.md").read_text()
+    assert "- max_depth: 8 (file: 3) — the Scene's max_depth renders" in report

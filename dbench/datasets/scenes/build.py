@@ -252,9 +252,34 @@ def check_plugin_scene(scene: Any) -> None:
 
         rec = _adapter_record(scene, mi.variant())[1]
         scene.frame_meta.update(scene_file=rec, scene_file_settings=report_lines(rec))
+    else:
+        check_own_integrator(scene, d.get("integrator"))
     _PROBED.add(key)
 
 
-__all__ = ["call_build", "check_box_filter", "check_film", "check_lit", "check_plugin_scene",
-           "dictionary_plan", "exit_message", "own_camera", "plugin_build", "probe_load",
-           "source_of", "takes_width_height"]
+def check_own_integrator(scene: Any, integrator: Any) -> None:
+    """A plugin's ``Scene`` renders with ``path`` at its own ``max_depth`` (README.md, "Python
+    scene files": it sets the depth): a dictionary integrator of another type or with other
+    settings is refused, which would otherwise be replaced without a word; another
+    ``max_depth`` is stated in the frames' settings (``Scene.frame_meta``)."""
+    if integrator is None:
+        return
+    name = integrator.get("type") if isinstance(integrator, dict) else type(integrator).__name__
+    extra = sorted(set(integrator) - {"type", "max_depth"}) if isinstance(integrator, dict) \
+        else []
+    if name != "path" or extra:
+        given = f"{name}" + (f" with {', '.join(extra)}" if extra else "")
+        raise DbenchInputError(
+            f"scene {scene.name} ({source_of(scene.build)}): its dictionary's integrator is "
+            f"{given}, but a Scene renders with path at its max_depth ({scene.max_depth}); "
+            f"remove it, or register the build function itself (an entry point), which "
+            f"renders its dictionary's integrator")
+    depth = integrator.get("max_depth")
+    if depth is not None and depth != scene.max_depth:
+        scene.frame_meta.setdefault("scene_file_settings", {})["max_depth"] = (
+            f"{scene.max_depth} (file: {depth}) — the Scene's max_depth renders")
+
+
+__all__ = ["call_build", "check_box_filter", "check_film", "check_lit", "check_own_integrator",
+           "check_plugin_scene", "dictionary_plan", "exit_message", "own_camera", "plugin_build",
+           "probe_load", "source_of", "takes_width_height"]
