@@ -13,6 +13,7 @@ Example:
 """
 from __future__ import annotations
 
+import math
 from typing import Any, Callable
 
 import numpy as np
@@ -21,6 +22,25 @@ from .data import BUFFER_NAMES
 from .errors import DbenchInputError
 
 _REGISTRY: dict[str, type["Denoiser"]] = {}
+
+
+def check_like_default(name: str, value: Any, default: Any) -> None:
+    """Refuse a parameter value of another kind than its default's, before anything renders: a
+    bool default takes True or False only (a string such as ``false`` from the command line
+    would read as true), an integer default an integer (2.7 would be truncated), a float
+    default a number that is not NaN. Defaults of other kinds (None, strings) are the
+    method's to check."""
+    real = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(
+        value, (bool, np.bool_))
+    if isinstance(default, bool):
+        if not isinstance(value, (bool, np.bool_)):
+            raise DbenchInputError(f"{name}: expected True or False, got {value!r}")
+    elif isinstance(default, int):
+        if not real or not float(value).is_integer():
+            raise DbenchInputError(f"{name}: expected an integer, got {value!r}")
+    elif isinstance(default, float):
+        if not real or math.isnan(value):
+            raise DbenchInputError(f"{name}: expected a number, got {value!r}")
 
 
 class Denoiser:
@@ -60,6 +80,8 @@ class Denoiser:
             raise DbenchInputError(
                 f"{self.name}: unknown parameter(s) {sorted(unknown)}; "
                 f"valid: {sorted(self.defaults) or 'none'}")
+        for key, value in params.items():
+            check_like_default(key, value, self.defaults[key])
         self.params: dict[str, Any] = {**self.defaults, **params}
 
     def reset(self) -> None:

@@ -22,6 +22,25 @@ def test_unknown_parameter_is_rejected():
         registry.get("noisy", radius=3)
 
 
+def test_a_parameter_of_another_kind_than_its_default_is_rejected():
+    """Denoiser.__init__ (dbench.denoiser.check_like_default): a bool default takes True or
+    False, an int default an integer, a float default a number that is not NaN; NumPy scalars
+    of the right kind pass, and None-default parameters are the method's to check."""
+    import numpy as np
+
+    for name, value, said in (("oidn", {"clean_aux": "false"}, "expected True or False"),
+                              ("oidn", {"clean_aux": 1}, "expected True or False"),
+                              ("jbf", {"radius": 2.5}, "expected an integer"),
+                              ("jbf", {"radius": True}, "expected an integer"),
+                              ("jbf", {"sigma_depth": float("nan")}, "expected a number"),
+                              ("jbf", {"sigma_depth": "0.1"}, "expected a number")):
+        with pytest.raises(DbenchInputError, match=f"{next(iter(value))}: {said}"):
+            registry.get(name, **value)
+    registry.get("jbf", radius=np.int64(3), sigma_depth=np.float32(0.02), hit_mask=np.bool_(0),
+                 sigma_position=1)  # an int where the default is a float is a number
+    registry.get("accumulate", n_max=20.0)  # an integral float is an integer
+
+
 def test_every_method_declares_valid_kinds_and_needs():
     from dbench.data import BUFFER_NAMES
     for name in registry.available():

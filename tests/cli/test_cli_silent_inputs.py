@@ -198,3 +198,33 @@ def test_lam_is_taken_where_one_of_the_scenes_reads_it():
     args = argparse.Namespace(lam=None, transform="identity")
     check_lam(args, scenes[:1], names[:1], [4])  # not given: the default, read or not
     assert args.lam == DEFAULT_LAM
+
+
+@pytest.mark.parametrize("method, param, said", [
+    # a string from the command line used to read as true: oidn ran with clean_aux on,
+    # labelled oidn[clean_aux=false]
+    ("oidn", "clean_aux=false", "clean_aux: expected True or False, got 'false'"),
+    ("oidn", "clean_aux=2", "clean_aux: expected True or False, got 2"),
+    ("jbf", "radius=2.5", "radius: expected an integer, got 2.5"),   # used to truncate
+    ("jbf", "sigma_depth=nan", "sigma_depth: expected a number, got 'nan'"),
+    # these were refused only on the first frame, after rendering, with exit 4
+    ("nca", "iterations=-1", "iterations: expected an integer >= 0, got -1"),
+    ("nca", "spp=0", "spp: expected a finite number > 0, got 0"),
+])
+def test_a_method_parameter_of_the_wrong_kind_is_refused_before_rendering(
+        tmp_path, capsys, method, param, said):
+    _refused(capsys, _run(tmp_path, "--method", method, "--param", param), said)
+    assert not (tmp_path / "cache").exists() and not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("method, param, said", [
+    ("asvgf", "gradient_iterations=abc", "gradient_iterations: expected an integer, got 'abc'"),
+    ("asvgf", "gradient_iterations=-1", "gradient_iterations: expected an integer >= 0"),
+    ("accumulate", "tau_d=nan", "tau_d: expected a number, got 'nan'"),
+    ("accumulate", "tau_n=-5", "tau_n: expected a number in [-1, 1], got -5"),
+])
+def test_a_temporal_parameter_out_of_range_is_refused_before_rendering(
+        tmp_path, capsys, method, param, said):
+    argv = [a if a != "cornell" else "flicker" for a in _run(tmp_path)]
+    _refused(capsys, argv + ["--frames", "2", "--method", method, "--param", param], said)
+    assert not (tmp_path / "cache").exists() and not (tmp_path / "out").exists()

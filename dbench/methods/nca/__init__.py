@@ -205,6 +205,15 @@ class NCADenoiser(Denoiser):
         super().__init__(**params)
         from ..ort_session import check_weights
         check_weights(self.params["weights"], "nca")
+        # refused here, before anything renders, not on the first frame
+        for key, low in (("iterations", 0), ("threads", 1)):
+            v = self.params[key]
+            if v is not None and (isinstance(v, bool) or not isinstance(v, int) or v < low):
+                raise DbenchInputError(f"{key}: expected an integer >= {low}, got {v!r}")
+        spp = self.params["spp"]
+        if spp is not None and (isinstance(spp, bool) or not isinstance(spp, (int, float))
+                                or not 0 < spp < float("inf")):
+            raise DbenchInputError(f"spp: expected a finite number > 0, got {spp!r}")
         self._device_nets: dict[str, Any] = {}  # the PyTorch automaton per device
 
     def denoise(self, data) -> np.ndarray:

@@ -123,6 +123,12 @@ class HistoryDenoiser(Denoiser):
 
     def _start(self) -> None:
         p = self.params
+        # reprojection's tests (docs/methods/temporal.md §3.2): a relative depth tolerance > 0
+        # and a normal cosine in [-1, 1] (-1 accepts every normal)
+        if not (isinstance(p["tau_d"], (int, float)) and 0.0 < p["tau_d"] < float("inf")):
+            raise DbenchInputError(f"tau_d: expected a finite number > 0, got {p['tau_d']!r}")
+        if not (isinstance(p["tau_n"], (int, float)) and -1.0 <= p["tau_n"] <= 1.0):
+            raise DbenchInputError(f"tau_n: expected a number in [-1, 1], got {p['tau_n']!r}")
         # "auto" is decided once, here; params keep the resolved name so that result files
         # record the kernels that ran
         self.backend = p["backend"] = resolve_backend(p["backend"])
