@@ -153,6 +153,11 @@ def _error_code(exc: Exception, debug: bool) -> int:
     if isinstance(exc, RendererUnavailableError):
         print(f"dbench: {exc}", file=sys.stderr)
         return 3
+    if isinstance(exc, PermissionError) and exc.filename and not debug:
+        # a file or folder the user named that this user may not read: the input's problem
+        print(f"dbench: cannot access {exc.filename}: {exc.strerror or 'permission denied'}",
+              file=sys.stderr)
+        return 2
     if debug:
         raise exc
     print(f"dbench: internal error: {type(exc).__name__}: {exc} (run again with --debug for the "

@@ -329,3 +329,24 @@ def test_a_bad_reference_spp_from_the_environment_is_one_line(tmp_path, value):
     line = _one_line(r.stderr)
     assert "DBENCH_REF_SPP" in line and value in line and "[1, 2147483647]" in line
     assert _nothing_rendered(tmp_path / "cache") and not (tmp_path / "out").exists()
+
+
+def test_a_path_this_user_may_not_read_exits_2_in_one_line(tmp_path, monkeypatch, capsys):
+    """A scene file (or folder, or results folder) the user may not read was an internal error
+    (exit 1); it is the input's problem: one line naming the path, exit 2. (Tests run as root
+    read through permissions, so the refusal is raised where the file is opened.)"""
+    from dbench import cli
+    from dbench.datasets.scene_files import load as scene_files
+
+    path = tmp_path / "unread.xml"
+    path.write_text("<scene/>")
+
+    def denied(*_a, **_k):
+        raise PermissionError(13, "Permission denied", str(path))
+
+    monkeypatch.setattr(scene_files, "resolve", denied)
+    rc = cli.main(["run", "--method", "noisy", "--scene", str(path), "--res", "8", "--spp", "2",
+                   "--out", str(tmp_path / "out"), "--cache", str(tmp_path / "cache")])
+    err = capsys.readouterr().err
+    assert rc == 2 and err == f"dbench: cannot access {path}: Permission denied\n", err
+    assert not (tmp_path / "out").exists()
