@@ -228,3 +228,11 @@ def test_a_temporal_parameter_out_of_range_is_refused_before_rendering(
     argv = [a if a != "cornell" else "flicker" for a in _run(tmp_path)]
     _refused(capsys, argv + ["--frames", "2", "--method", method, "--param", param], said)
     assert not (tmp_path / "cache").exists() and not (tmp_path / "out").exists()
+
+
+def test_a_scene_parameter_given_twice_with_two_values_is_refused(tmp_path, capsys):
+    """As --param refuses one key given two values: the last used to win without a word."""
+    argv = [a if a != "cornell" else "fog-transient" for a in _run(tmp_path)]
+    _refused(capsys, argv + ["--method", "noisy", "--scene-param", "g=0.5", "--scene-param",
+                             "g=0.2"], "--scene-param: g given twice, '0.5' and '0.2'")
+    assert not (tmp_path / "cache").exists() and not (tmp_path / "out").exists()

@@ -115,8 +115,12 @@ def parse_scene_params(items) -> dict[str, str]:
         key, sep, value = str(item).partition("=")
         if not sep or not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", key.strip()):
             raise DbenchInputError(f"--scene-param: expected NAME=VALUE, got {item!r}")
-        _check_finite(key.strip(), value)
-        out[key.strip()] = value
+        key = key.strip()
+        _check_finite(key, value)
+        if key in out and out[key] != value:  # the last would win without a word
+            raise DbenchInputError(f"--scene-param: {key} given twice, {out[key]!r} and "
+                                   f"{value!r}; give it once")
+        out[key] = value
     return out
 
 
