@@ -24,7 +24,7 @@ def test_no_import_cycles():
 
 #: The rooms of the package, top to bottom (docs/architecture.md, "Rooms"): a module may import
 #: its own room and the rooms below its layer, never a room above it or beside it.
-LAYERS = (("cli",), ("studies",), ("speed", "stress", "learn"), ("run",), ("report",),
+LAYERS = (("__main__",), ("cli",), ("studies",), ("speed", "stress", "learn"), ("run",), ("report",),
           ("registry",), ("plugins",), ("synthetic", "datasets"), ("methods", "metrics"),
           ("denoiser", "device", "data", "io", "memory", "resolution", "errors"))
 
