@@ -134,7 +134,23 @@ def _split(text: str, option: str) -> list[str]:
     if not all(items):
         raise DbenchInputError(f"{option}: an empty item in {text!r}; give a comma list "
                                f"without empty items")
-    return items
+    return check_distinct(items, option, text)
+
+
+def check_distinct(items: Sequence, option: str, text: str, shown: Sequence | None = None
+                   ) -> list:
+    """``items`` when no two are equal; a DbenchInputError naming ``option`` and the repeated
+    item otherwise: a repeated item would be run once (or twice) without a word, and the
+    printed settings would not say which (``shown``: the items as the user wrote them)."""
+    seen: dict = {}
+    for i, item in enumerate(items):
+        if item in seen:
+            first, again = (shown[seen[item]], shown[i]) if shown is not None else (item, item)
+            same = f"{again!r} is given twice" if first == again else \
+                f"{first!r} and {again!r} name the same item"
+            raise DbenchInputError(f"{option}: {same} in {text!r}; give each once")
+        seen[item] = i
+    return list(items)
 
 
 def names_arg(text: str, option: str) -> list[str] | None:
@@ -157,14 +173,14 @@ def _ints(text: str, name: str) -> list[int]:
     (dbench.cli.bounds) for anything else."""
     from .bounds import MAX_COUNT, parse_count
 
-    out = []
-    for t in _split(text, name):
+    out, given = [], _split(text, name)
+    for t in given:
         try:
             out.append(parse_count(t))
         except ValueError:
             raise DbenchInputError(f"{name}: expected a comma list of integers in "
                                    f"[1, {MAX_COUNT}], got {t!r} in {text!r}") from None
-    return out
+    return check_distinct(out, name, text, given)  # "4,4e0" is 4 twice
 
 
 def _check_common(args: argparse.Namespace) -> None:

@@ -1,5 +1,5 @@
-"""The other commands: ``list``, ``render``, ``export``, ``bench``, ``sweep``, ``stress``,
-``report`` and ``train`` (``run`` has its own module)."""
+"""The other commands: ``list``, ``render``, ``export``, ``sweep``, ``stress`` and ``report``
+(``run``, ``bench`` and ``train`` have their own modules)."""
 from __future__ import annotations
 
 import argparse
@@ -7,8 +7,8 @@ import sys
 from pathlib import Path
 
 from ..errors import DbenchInputError
-from .args import (RANKABLE, _check_common, _ints, _scene_of, _writable_cache, names_arg,
-                   check_kind_options, check_lam, parse_params)
+from .args import (RANKABLE, _check_common, _ints, _scene_of, _writable_cache, check_distinct,
+                   check_kind_options, check_lam, names_arg, parse_params)
 
 
 def cmd_list(args: argparse.Namespace) -> int:
@@ -140,101 +140,18 @@ def cmd_export(args: argparse.Namespace) -> int:
     return 0
 
 
-def cmd_bench(args: argparse.Namespace) -> int:
-    from ..speed import timing as speed
-    from ..resolution import parse_res
-
-    if args.scene is not None and args.what != "render":
-        raise DbenchInputError(f"--scene: only bench render renders a scene, not {args.what!r} "
-                               f"(methods and metrics are timed on synthetic frames)")
-    args.scene = args.scene or "cornell"
-    if args.out:  # checked before the benchmark: a refusal after it would lose its figures
-        from ..io import ensure_writable_file
-        ensure_writable_file(args.out, "--out")
-    # --res sets the render benchmark's size (default 256) and, when given, the image size of
-    # the method and metric benchmarks (instead of --width/--height)
-    if args.res is None:
-        parse_res((args.width, args.height), "--width/--height")
-    else:
-        args.res = parse_res(args.res, "--res")
-        args.width, args.height = args.res
-    if args.spp is not None and args.spp < 1:
-        raise DbenchInputError(f"--spp: expected an integer >= 1, got {args.spp}")
-    if args.what == "gpu":
-        return _bench_gpu(args)
-    if args.what == "kernels":
-        return _bench_kernels(args)
-    timed_method = args.what not in ("render", "scene-file", "plugins", "metrics",
-                                     "video-metrics")
-    if args.param and not timed_method:
-        raise DbenchInputError(f"--param: only a method's benchmark takes parameters, not "
-                               f"{args.what!r}")
-    if not timed_method:
-        args.spp = 64 if args.spp is None else args.spp
-    if args.what == "render":
-        from ..speed import transient_render as speed_transient
-        if speed_transient.is_transient(args.scene):
-            # transient: a plain mitransient render against dbench's load, 48² by default
-            result = speed_transient.bench_render_transient(
-                scene=args.scene, res=args.res or parse_res(48), spp=args.spp,
-                bins=args.bins or 100, repeats=args.repeats)
-            print(speed_transient.format_result(result))
-            if args.out:
-                speed.append_result(args.out, result)
-            return 0
-        if args.bins is not None:
-            raise DbenchInputError(f"--bins: only a transient scene has time bins, not "
-                                   f"{args.scene!r}")
-        result = speed.bench_render(scene=args.scene, res=args.res or parse_res(256),
-                                    spp=args.spp,
-                                    repeats=args.repeats)
-    elif args.what in ("scene-file", "plugins"):
-        from ..speed import files as speed_files
-        result = (speed_files.bench_plugin_discovery(repeats=max(args.repeats, 3))
-                  if args.what == "plugins" else
-                  speed_files.bench_scene_file(res=args.res or parse_res(256), spp=args.spp,
-                                               repeats=args.repeats))
-        print(speed_files.format_result(result))
-        if args.out:
-            speed.append_result(args.out, result)
-        return 0
-    elif args.what == "metrics":
-        result = speed.bench_metrics(height=args.height, width=args.width,
-                                     repeats=args.repeats)
-    elif args.what == "video-metrics":
-        from ..speed import video_metrics as speed_video
-        result = speed_video.bench_video_metrics(height=args.height, width=args.width,
-                                                 repeats=args.repeats)
-        print(speed_video.format_result(result))
-        if args.out:
-            speed.append_result(args.out, result)
-        return 0
-    else:
-        params = parse_params(args.param or [], [args.what]).get(args.what, {})
-        from ..device import resolve_device
-        device = resolve_device(args.device)
-        spp = speed.METHOD_SPP if args.spp is None else args.spp
-        if device != "cpu":
-            from ..speed.gpu import bench_method_device
-            result = bench_method_device(args.what, args.height, args.width, args.repeats, spp,
-                                         params, device)
-        else:
-            result = speed.bench_method(args.what, height=args.height, width=args.width,
-                                        repeats=args.repeats, spp=spp, params=params)
-    print(speed.format_result(result))
-    if args.out:
-        speed.append_result(args.out, result)
-    return 0
-
-
 def cmd_sweep(args: argparse.Namespace) -> int:
     from ..run import sweep
     from ..datasets.scenes import catalogue
 
     from ..datasets.scene_files import load as scene_files
 
+    if args.workers is not None and args.executor == "ray":
+        raise DbenchInputError(f"--workers {args.workers}: the local executor's pool size; "
+                               f"--executor ray runs the cells on the Ray cluster's workers")
+    args.workers = 1 if args.workers is None else args.workers
     scene_params = scene_files.parse_scene_params(args.scene_param)
-    methods_, scenes_ = sweep.resolve_names(names_arg(args.methods, "--methods") or "all",
+    methods_, scenes_ = sweep.resolve_names(_method_names(args.methods, "--methods") or "all",
                                             names_arg(args.scenes, "--scenes") or "all",
                                             scene_params)
     scene_objs = [catalogue.get(n, scene_params) for n in scenes_]
@@ -279,6 +196,17 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     return 0 if counts["errors"] == 0 else 4
 
 
+def _method_names(text: str, option: str) -> list[str] | None:
+    """:func:`names_arg` of a method list, as the names the methods are published under; two
+    names of one method (an alias and its name) are refused as a repeated item."""
+    from .. import registry
+
+    given = names_arg(text, option)
+    if given is None:
+        return None
+    return check_distinct([registry.canonical(n) for n in given], option, text, given)
+
+
 def _sweep_summary(out: str, config, rank_by: str, quiet: bool) -> str:
     """The sweep's headline: per scene, the ranking and the verdicts of its README at the
     headline spp, and (unless ``quiet``) the skipped methods grouped by reason, over this
@@ -301,8 +229,7 @@ def cmd_stress(args: argparse.Namespace) -> int:
     from .. import registry
     from ..io import ensure_writable_dir
 
-    given = names_arg(args.methods, "--methods")
-    names = None if given is None else [registry.canonical(n) for n in given]
+    names = _method_names(args.methods, "--methods")
     for n in names or []:
         registry.method_class(n)
     out = Path(args.out)
@@ -349,89 +276,4 @@ def cmd_report(args: argparse.Namespace) -> int:
         results, sweep_dir = results.absolute(), sweep_dir.absolute()  # links one to the other
     out = publish.publish(results, sweep_dir, rank_by=args.rank_by)
     print(f"written: {out}")
-    return 0
-
-
-def cmd_train(args: argparse.Namespace) -> int:
-    """Render (or read cached) procedural training scenes, train, write the ONNX + JSON."""
-    from .. import datasets
-    from ..learn.train import run_training
-
-    overrides = {"seed": args.seed}
-    if args.steps is not None:
-        overrides["steps"] = args.steps
-    if args.minutes is not None:
-        overrides["max_minutes"] = args.minutes
-    if args.width_scale is not None:
-        if args.method != "autoencoder":
-            raise DbenchInputError("--width-scale: only the autoencoder has widths")
-        overrides["width_scale"] = args.width_scale
-    if args.sequences and args.method != "autoencoder":
-        raise DbenchInputError("--sequences: only the autoencoder is recurrent")
-    if args.sequences is None:
-        args.sequences = 16 if args.method == "autoencoder" else 0
-    if args.from_weights is not None:
-        if args.method != "autoencoder":
-            raise DbenchInputError("--from-weights: only the autoencoder has later stages")
-        if not Path(args.from_weights).is_file():
-            raise DbenchInputError(f"--from-weights: no such file {args.from_weights}")
-        overrides.pop("seed")  # stage 1's; stage 3 has its own
-        if overrides:
-            raise DbenchInputError("--from-weights: --steps, --minutes and --width-scale are "
-                                   "stage-1 settings")
-    run_training(args.method, n_scenes=args.scenes, res=args.res,
-                 ref_spp=args.ref_spp or 2048, out_dir=args.out, sequences=args.sequences,
-                 cache=datasets.Cache(args.cache, enabled=not args.no_cache),
-                 from_weights=args.from_weights, **overrides)
-    return 0
-
-
-def _bench_kernels(args: argparse.Namespace) -> int:
-    """``dbench bench kernels``: every Triton kernel variant compiled for a CUDA target, here
-    (dbench.speed.kernels; no GPU needed)."""
-    from ..speed import kernels
-    from ..speed import timing as speed
-
-    if args.param:
-        raise DbenchInputError("--param: bench kernels compiles every method with its defaults")
-    result = kernels.precompile(arch=args.arch, jobs=args.jobs, log=print)
-    print(kernels.format_result(result))
-    if args.out:
-        speed.append_result(args.out, result)
-    return 1 if result["errors"] else 0
-
-
-def _bench_gpu(args: argparse.Namespace) -> int:
-    """``dbench bench gpu``: results/gpu/<device>.json and its table (dbench.speed.gpu)."""
-    from ..speed import gpu
-    from ..device import resolve_device
-
-    if args.device == "auto" and resolve_device("auto") != "cuda":
-        raise DbenchInputError("bench gpu: PyTorch sees no usable CUDA GPU here; run it on a GPU "
-                               "machine, or pass --device cpu for a dry run on small frames")
-    device = resolve_device(args.device)
-    if args.param:
-        raise DbenchInputError("--param: bench gpu times every method with its defaults")
-    if device == "cpu" and args.res is None:
-        args.width, args.height = 24, 16  # a dry run: the kernels through the interpreter
-    pre = None
-    if device == "cuda":  # every kernel compiled side by side first (docs/gpu.md §6)
-        from ..speed.kernels import precompile
-        # at the sizes timed below: Triton's variants depend on them (dbench/speed/kernels.py)
-        pre = precompile(jobs=args.jobs, log=print,
-                         sizes=[(args.height, args.width), gpu.HOSTILE_SIZE],
-                         transient_size=gpu.TRANSIENT_SIZE)
-        print(f"compiled {pre['variants']} kernel variants in {pre['compile_wall_s']:.1f} s "
-              f"({pre['jobs']} at a time, {pre['errors']} failed)")
-    # a dry run times the transient renders at 8² (the same code, seconds)
-    renders = gpu.TRANSIENT_RENDERS if device == "cuda" or args.res is not None else \
-        tuple((scene, 8, target) for scene, _, target in gpu.TRANSIENT_RENDERS)
-    result = gpu.bench_gpu(height=args.height, width=args.width, device=device,
-                           repeats=max(args.repeats, 1), precompiled=pre,
-                           transient_renders=renders)
-    print(gpu.markdown(result))
-    if device == "cuda" or args.out:
-        path = args.out or gpu.result_path(result)
-        gpu.write_result(result, path)
-        print(f"\nwritten: {path}")
     return 0

@@ -1,6 +1,6 @@
 """What every command runs inside (set by :func:`dbench.cli.parser.build_parser`): options
-given an empty value refused and the count options checked first (:mod:`dbench.cli.bounds`),
-and no exit code but dbench's own.
+given an empty value refused, the count options checked first (:mod:`dbench.cli.bounds`),
+``--cache`` with ``--no-cache`` refused, and no exit code but dbench's own.
 
 A plugin's method, a scene file or a plugin scene is code from outside dbench; where dbench
 calls it, a ``sys.exit`` becomes a failure it reports itself (the method's row of a run, a
@@ -42,12 +42,21 @@ def check_empty(args: argparse.Namespace) -> None:
                                    f"(dbench {args.command} --help lists the choices)")
 
 
+def check_exclusive(args: argparse.Namespace) -> None:
+    """``--cache DIR`` with ``--no-cache`` is refused: the second would leave the first
+    unread without a word."""
+    if getattr(args, "no_cache", False) and getattr(args, "cache", None) is not None:
+        raise DbenchInputError(f"--cache {args.cache}: --no-cache renders everything afresh "
+                               f"and reads no cache; give one of them")
+
+
 def command(func: Callable[[argparse.Namespace], int]) -> Callable[[argparse.Namespace], int]:
     """``func`` (a command) with the module docstring's checks."""
     @functools.wraps(func)
     def run(args: argparse.Namespace) -> int:
         check_empty(args)
         check_counts(args)
+        check_exclusive(args)
         try:
             return func(args)
         except SystemExit as exc:
@@ -60,4 +69,4 @@ def command(func: Callable[[argparse.Namespace], int]) -> Callable[[argparse.Nam
     return run
 
 
-__all__ = ["command", "check_empty"]
+__all__ = ["command", "check_empty", "check_exclusive"]

@@ -2,13 +2,15 @@
 from __future__ import annotations
 
 import argparse
+from typing import NoReturn
 
 from .args import normal_encoding_arg, seed_arg
 from .bounds import count, integer, number
-from .commands import (cmd_bench, cmd_export, cmd_list, cmd_render, cmd_report, cmd_stress,
-                       cmd_sweep, cmd_train)
+from .bench import cmd_bench
+from .commands import cmd_export, cmd_list, cmd_render, cmd_report, cmd_stress, cmd_sweep
 from .guard import command
 from .run import cmd_run
+from .train import cmd_train
 
 #: The first line of ``dbench --help`` (the first line of the package's docstring).
 DESCRIPTION = ("Command line: ``dbench run | sweep | stress | report | list | render | export | "
@@ -18,11 +20,20 @@ PLUGIN_HELP = ("import a module or .py file that registers methods or scenes (re
                "without it)")
 
 
-def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="dbench", description=DESCRIPTION)
-    sub = p.add_subparsers(dest="command", required=True)
+class Parser(argparse.ArgumentParser):
+    """An ArgumentParser whose refusals are one line, ``dbench: <argparse's message>``, exit 2
+    (README.md, "Usage"), without the usage block argparse prints; ``--help`` is unchanged.
+    Every subcommand's parser is one too (``parser_class``)."""
 
-    def common(sp: argparse.ArgumentParser) -> None:
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"dbench: {' '.join(message.split())}\n")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = Parser(prog="dbench", description=DESCRIPTION)
+    sub = p.add_subparsers(dest="command", required=True, parser_class=Parser)
+
+    def common(sp: argparse.ArgumentParser, scene_params: bool = True) -> None:
         sp.add_argument("--cache", default=None, help="cache folder (default $DBENCH_CACHE or "
                         "~/.cache/dbench)")
         sp.add_argument("--no-cache", action="store_true", help="render everything afresh")
@@ -30,6 +41,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "renders and of the reference, in [0, 4294967295]")
         sp.add_argument("--ref-spp", type=count, default=None,
                         help="reference spp (default $DBENCH_REF_SPP or 4096)")
+        if not scene_params:  # train: its procedural scenes take none
+            return
         sp.add_argument("--scene-param", action="append", metavar="NAME=VALUE",
                         help="a $parameter of a Mitsuba scene file, or a parameter a "
                         "catalogue scene declares (dbench list shows them; e.g. g=0.5, "
@@ -93,7 +106,8 @@ def build_parser() -> argparse.ArgumentParser:
     sw.add_argument("--out", default="results/sweep", help="the sweep's folder: its cells "
                     "are reused where their identity matches; one sweep at a time holds it")
     sw.add_argument("--executor", choices=("local", "ray"), default="local")
-    sw.add_argument("--workers", type=integer, default=1, help="local process-pool size")
+    sw.add_argument("--workers", type=integer, default=None, help="local process-pool size "
+                    "(default 1; --executor ray runs the cells on the cluster's workers)")
     sw.add_argument("--repeats", type=count, default=5)
     sw.add_argument("--param", action="append", metavar="[METHOD.]KEY=VALUE")
     sw.add_argument("--transform", default=None, help="sample transform of the statistics "
@@ -163,35 +177,42 @@ def build_parser() -> argparse.ArgumentParser:
                     "time bins (default 100; the window stays the scene's)")
     bp.add_argument("--param", action="append", metavar="KEY=VALUE",
                     help="a parameter of the method timed (repeatable)")
-    bp.add_argument("--height", type=integer, default=720)
-    bp.add_argument("--width", type=integer, default=1280)
-    bp.add_argument("--repeats", type=count, default=3)
+    bp.add_argument("--height", type=integer, default=None, help="methods, metrics, "
+                    "video-metrics, gpu: image height (default 720)")
+    bp.add_argument("--width", type=integer, default=None, help="methods, metrics, "
+                    "video-metrics, gpu: image width (default 1280)")
+    bp.add_argument("--repeats", type=count, default=None, help="timed rounds (default 3)")
     bp.add_argument("--arch", type=count, default=None, help="kernels: the CUDA compute "
                     "capability to compile for, e.g. 90 (default: the GPU here, else 90)")
     bp.add_argument("--jobs", type=count, default=None, help="kernels, gpu: compilations run "
                     "side by side (default: one per core)")
-    _device_argument(bp)
+    _device_argument(bp, None)
     bp.add_argument("--out", default=None, help="append the result to this JSON-lines file")
     bp.set_defaults(func=cmd_bench)
 
     tp = sub.add_parser("train", help="train nca or autoencoder on procedural training scenes "
                         "rendered here; writes <name>.onnx and <name>.json")
     tp.add_argument("method", choices=["nca", "autoencoder"])
-    tp.add_argument("--steps", type=integer, default=None, help="optimiser steps (default: config)")
-    tp.add_argument("--minutes", type=number, default=None, help="stop after this wall time")
+    tp.add_argument("--steps", type=integer, default=None, help="optimiser steps, >= 1 "
+                    "(default: config; the autoencoder's stage 1)")
+    tp.add_argument("--minutes", type=number, default=None, help="stop after this wall time, "
+                    "> 0 (the autoencoder's stage 1)")
     tp.add_argument("--scenes", type=integer, default=48,
-                    help="training scenes (nca holds 4 out, autoencoder 2)")
-    tp.add_argument("--res", type=integer, default=128)
-    tp.add_argument("--width-scale", type=number, default=None, help="autoencoder widths factor")
+                    help="training scenes (nca holds 4 out, autoencoder 2; at least one more)")
+    tp.add_argument("--res", type=integer, default=128, help="side of the square training "
+                    "images, at least the crops trained on: nca 64, autoencoder 96 "
+                    "(default 128)")
+    tp.add_argument("--width-scale", type=number, default=None, help="autoencoder widths "
+                    "factor, > 0")
     tp.add_argument("--sequences", type=integer, default=None,
-                    help="autoencoder: training sequences for the recurrent stage (default 16; "
-                    "0: single frames only)")
+                    help="autoencoder: training sequences for the recurrent stage, 2 held out "
+                    "(default 16; 0: single frames only)")
     tp.add_argument("--from-weights", default=None, metavar="ONNX",
                     help="autoencoder: start from these weights (their .json beside them) and "
                     "run only the consistency stage (stage 3)")
     tp.add_argument("--out", default=None, help="output folder (default: the method's package "
                     "folder, replacing the shipped weights)")
-    common(tp)
+    common(tp, scene_params=False)
     tp.set_defaults(func=cmd_train)
     for sp in sub.choices.values():
         # counts checked first; no sys.exit of a plugin ends the command (dbench.cli.guard)
@@ -211,8 +232,12 @@ def _normal_encoding_argument(p: argparse.ArgumentParser,
                    "\"Renders from another renderer\")")
 
 
-def _device_argument(parser) -> None:
-    parser.add_argument("--device", default="auto", help="where methods with a GPU path run "
+def _device_argument(parser, default: str | None = "auto") -> None:
+    """``--device``; bench's default is None (auto), so that a benchmark that runs on the CPU
+    alone can refuse it given (dbench.cli.bench.READS)."""
+    parser.add_argument("--device", default=default, help="where methods with a GPU path run "
                         "and where Mitsuba renders: cpu, cuda, or auto (default: cuda when "
                         "PyTorch sees a usable GPU, rendering on cuda_ad_rgb where its probe "
-                        "passes); methods without one run on the CPU and say so (docs/gpu.md)")
+                        "passes); methods without one run on the CPU and say so (docs/gpu.md)"
+                        + ("" if default else "; bench: render, scene-file, gpu and methods "
+                           "only"))

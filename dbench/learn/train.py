@@ -87,22 +87,96 @@ def resume_autoencoder(weights: str | Path) -> TrainResult:
     if not weights.is_file() or not record.is_file():
         raise DbenchInputError(f"--from-weights: expected an autoencoder .onnx with its .json "
                                f"beside it, got {weights}")
-    prev = json.loads(record.read_text(encoding="utf-8"))
-    fields = {f.name for f in dataclasses.fields(AEConfig)}
-    cfg = AEConfig(**{k: tuple(v) if isinstance(v, list) else v
-                      for k, v in prev["training_config"].items() if k in fields})
-    residual = cfg.residual and not cfg.blend
-    net = RecurrentAE(int(prev["in_channels"]), cfg.width_scale, cfg.recurrent, residual,
-                      cfg.blend, None, cfg.gate_max, tuple(cfg.gate_init),
-                      bool(prev.get("pixel_gate")) and residual)
+    try:
+        prev = json.loads(record.read_text(encoding="utf-8"))
+        if prev.get("method") not in (None, "autoencoder"):
+            raise ValueError(f"it records a {prev.get('method')} model")
+        fields = {f.name for f in dataclasses.fields(AEConfig)}
+        cfg = AEConfig(**{k: tuple(v) if isinstance(v, list) else v
+                          for k, v in prev["training_config"].items() if k in fields})
+        residual = cfg.residual and not cfg.blend
+        net = RecurrentAE(int(prev["in_channels"]), cfg.width_scale, cfg.recurrent, residual,
+                          cfg.blend, None, cfg.gate_max, tuple(cfg.gate_init),
+                          bool(prev.get("pixel_gate")) and residual)
+    except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
+        raise DbenchInputError(f"--from-weights: {record} is not the training record of an "
+                               f"autoencoder ({_reason(exc)})") from None
     if prev.get("level_gate"):
         raise DbenchInputError("--from-weights: a level-gated model cannot be resumed")
-    net.load_state_dict({k: torch.from_numpy(np.array(v))  # writable copies
-                         for k, v in state_from_onnx(onnx.load(str(weights))).items()})
+    try:
+        net.load_state_dict({k: torch.from_numpy(np.array(v))  # writable copies
+                             for k, v in state_from_onnx(onnx.load(str(weights))).items()})
+    except Exception as exc:  # noqa: BLE001 - onnx's DecodeError, torch's shape mismatch, ...
+        raise DbenchInputError(f"--from-weights: {weights} does not hold the weights its "
+                               f"{record.name} describes ({_reason(exc)})") from None
     losses = prev.get("losses", {})
     return TrainResult("autoencoder", net, cfg, [], [], float(losses.get("wall_s", 0.0)),
                        int(losses.get("steps_done", 0)), dict(losses.get("validation", {})),
                        dict(prev.get("data", {})), previous=prev)
+
+
+#: Training scenes held out for validation where ``n_validation`` is not given (the NCA picks
+#: its step count on them), and training sequences held out (:func:`split_sequences`).
+HELD_OUT = {"nca": 4, "autoencoder": 2}
+SEQUENCES_HELD_OUT = 2
+
+
+def check_training(method: str, *, n_scenes: int, res: int, sequences: int = 0,
+                   n_validation: int | None = None, sequence_overrides: dict | None = None,
+                   **overrides) -> None:
+    """Refuse, before anything renders, the settings :func:`run_training` could not finish
+    with: a DbenchInputError naming the ``dbench train`` option and the valid range. The
+    training images must hold the method's largest crop; the scenes and sequences must leave
+    one to train on after those held out; ``steps``, ``max_minutes`` and ``width_scale`` must
+    be positive (0 steps trains nothing, and a width scale of 0 builds no network)."""
+    import math
+
+    from ..errors import DbenchInputError, UnknownNameError
+    from ..resolution import MAX_SIDE
+
+    def whole(value) -> bool:
+        return isinstance(value, (int, np.integer)) and not isinstance(value, bool)
+
+    if method not in HELD_OUT:
+        raise UnknownNameError(f"unknown trainable method {method!r}; available: "
+                               "autoencoder, nca")
+    held = HELD_OUT[method] if n_validation is None else n_validation
+    if not whole(n_scenes) or n_scenes < held + 1:
+        raise DbenchInputError(f"--scenes: {method} holds {held} out for validation; expected "
+                               f"an integer >= {held + 1}, got {n_scenes!r}")
+    crop = overrides.get("crop", (NCAConfig() if method == "nca" else AEConfig()).crop)
+    if method == "autoencoder" and sequences:  # stages 2-3 crop the single frames too
+        crop = max(crop, (sequence_overrides or {}).get("steady_crop",
+                                                        AESequenceConfig().steady_crop))
+    if not whole(res) or not crop <= res <= MAX_SIDE:
+        raise DbenchInputError(f"--res: {method} trains on {crop} px crops of the training "
+                               f"images; expected an integer in [{crop}, {MAX_SIDE}], got "
+                               f"{res!r}")
+    if not whole(sequences) or sequences < 0 or (method == "nca" and sequences):
+        raise DbenchInputError(f"--sequences: expected 0 or an integer >= "
+                               f"{SEQUENCES_HELD_OUT + 1}, got {sequences!r}"
+                               if method == "autoencoder" else
+                               "--sequences: only the autoencoder is recurrent")
+    if 0 < sequences <= SEQUENCES_HELD_OUT:
+        raise DbenchInputError(f"--sequences: {SEQUENCES_HELD_OUT} of them are held out for "
+                               f"validation; expected 0 (single frames only) or an integer >= "
+                               f"{SEQUENCES_HELD_OUT + 1}, got {sequences}")
+    steps = overrides.get("steps")
+    if steps is not None and (not whole(steps) or steps < 1):
+        raise DbenchInputError(f"--steps: expected an integer >= 1, got {steps!r}")
+    for key, option in (("max_minutes", "--minutes"), ("width_scale", "--width-scale")):
+        value = overrides.get(key)
+        if value is not None and not (isinstance(value, (int, float)) and math.isfinite(value)
+                                      and value > 0):
+            raise DbenchInputError(f"{option}: expected a number > 0, got {value!r}")
+    if "width_scale" in overrides and method != "autoencoder":
+        raise DbenchInputError("--width-scale: only the autoencoder has widths")
+
+
+def _reason(exc: Exception) -> str:
+    """``exc`` on one short line, for a refusal."""
+    text = " ".join(str(exc).split())
+    return f"{type(exc).__name__}: {text[:200]}" if text else type(exc).__name__
 
 
 def run_training(method: str, *, n_scenes: int = 48, res: int = 128, ref_spp: int = 2048,
@@ -123,21 +197,21 @@ def run_training(method: str, *, n_scenes: int = 48, res: int = 128, ref_spp: in
     run stage 3 only (:func:`resume_autoencoder`)."""
     from .dataset import build_training_set
 
-    if method not in ("nca", "autoencoder"):
-        from ..errors import UnknownNameError
-        raise UnknownNameError(f"unknown trainable method {method!r}; available: "
-                               "autoencoder, nca")
+    check_training(method, n_scenes=n_scenes, res=res, sequences=sequences,
+                   n_validation=n_validation, sequence_overrides=sequence_overrides, **overrides)
     if from_weights is not None and (method != "autoencoder" or not sequences or overrides
                                      or not consistency):
         from ..errors import DbenchInputError
         raise DbenchInputError("--from-weights: autoencoder only, with sequences, and without "
                                "stage-1 settings (they are the shipped model's)")
+    # the weights are read before anything renders: a file that is not such a model is refused
+    resumed = resume_autoencoder(from_weights) if from_weights is not None else None
     if progress:
         print(f"training set: {n_scenes} procedural scenes at {res} px, reference {ref_spp} spp")
     ts = build_training_set(n_scenes=n_scenes, res=res, spp=spp, ref_spp=ref_spp, cache=cache,
                             progress=progress) if from_weights is None else None
     if n_validation is None:  # the NCA picks its step count on the held-out scenes: 4 of them
-        n_validation = 4 if method == "nca" else 2
+        n_validation = HELD_OUT[method]
     if method == "nca":
         train_set, val_set = split(ts, n_validation)
         cfg = dataclasses.replace(NCAConfig(), **overrides)
@@ -149,7 +223,7 @@ def run_training(method: str, *, n_scenes: int = 48, res: int = 128, ref_spp: in
             cfg = dataclasses.replace(AEConfig(), **overrides)
             result = train_autoencoder(train_set, cfg, progress, val_set)
         else:
-            result = resume_autoencoder(from_weights)
+            result = resumed
             cfg = result.config
         if sequences:
             from .dataset import build_sequence_set, split_sequences

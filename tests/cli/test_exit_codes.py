@@ -258,8 +258,9 @@ _BARS = ("%|", "it/s", "pass/s", "spp/s")
     ("orbit", ["--spp", "1", "--ref-spp", "16", "--frames", "4"]),
 ])
 def test_quiet_runs_print_no_progress_bar(renderer, tmp_path, capsys, scene, extra):
+    # --no-cache below (no --cache beside it: the two together are refused)
     argv = ["run", "--method", "noisy", "--scene", scene, "--res", "8", "--repeats", "1",
-            "--cache", str(tmp_path / "cache"), "--out", str(tmp_path / "out"), *extra]
+            "--out", str(tmp_path / "out"), *extra]
     if scene == "cornell-transient":
         from dbench.datasets import mitsuba_env
         if not mitsuba_env.mitsuba().variant().startswith(("llvm", "cuda")):
