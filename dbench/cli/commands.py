@@ -274,6 +274,10 @@ def cmd_report(args: argparse.Namespace) -> int:
                                "(the report links to it)") from None
     if results.is_absolute() != sweep_dir.is_absolute():  # one relative, one not: the report
         results, sweep_dir = results.absolute(), sweep_dir.absolute()  # links one to the other
+    from ..run import sweep_history
+
+    for folder in [sweep_dir, *publish.extra_sweeps(results, sweep_dir)]:
+        sweep_history.read(folder)  # a damaged sweep.json: one line, as `sweep` says it
     out = publish.publish(results, sweep_dir, rank_by=args.rank_by)
     print(f"written: {out}")
     return 0

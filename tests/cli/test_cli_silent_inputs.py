@@ -236,3 +236,16 @@ def test_a_scene_parameter_given_twice_with_two_values_is_refused(tmp_path, caps
     _refused(capsys, argv + ["--method", "noisy", "--scene-param", "g=0.5", "--scene-param",
                              "g=0.2"], "--scene-param: g given twice, '0.5' and '0.2'")
     assert not (tmp_path / "cache").exists() and not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("text", ["garbage", "[]", '{"config": 3}'])
+def test_report_refuses_a_damaged_sweep_json(tmp_path, capsys, text):
+    """dbench report used to publish a README of "0 method labels × spp , None px" from a
+    sweep.json that is not one; it refuses it as dbench sweep does, and writes nothing."""
+    sweep = tmp_path / "res" / "sw"
+    sweep.mkdir(parents=True)
+    (sweep / "sweep.json").write_text(text)
+    err = _refused(capsys, ["report", "--results", str(tmp_path / "res"), "--sweep", str(sweep)],
+                   f"{sweep / 'sweep.json'}: ")
+    assert "repair it or move it away" in err
+    assert not (tmp_path / "res" / "README.md").exists()
