@@ -17,6 +17,7 @@ Example:
 """
 from __future__ import annotations
 
+import math
 import re
 from typing import Any, NamedTuple
 
@@ -181,4 +182,27 @@ def parse_res(value: Any, name: str = "res") -> Res:
     return Res(int(w), int(h))
 
 
-__all__ = ["Res", "Resolution", "parse_res", "size_text", "MAX_SIDE"]
+#: sensors that take a field of view (and so a ``fov_axis``)
+FOV_SENSORS = ("perspective", "thinlens")
+
+
+def focal_fov(focal: Any, film: Any) -> float:
+    """The field of view along x, in degrees, of a 35 mm-equivalent ``focal_length`` (``"50mm"``
+    or a number of mm) on ``film`` (a film dictionary; hdrfilm's 768×576 where it gives no
+    size), as Mitsuba computes it: the angle across the 36×24 mm diagonal, then along x for
+    the film's aspect."""
+    text = str(focal).strip().lower().removesuffix("mm")
+    try:
+        f = float(text)
+    except ValueError:
+        raise DbenchInputError(f"sensor: focal_length {focal!r}; give a number of mm such "
+                               f"as \"50mm\" or a \"fov\" in degrees") from None
+    if not math.isfinite(f) or f <= 0:
+        raise DbenchInputError(f"sensor: focal_length {focal!r} must be > 0 mm")
+    film = film if isinstance(film, dict) else {}
+    w, h = float(film.get("width", 768)), float(film.get("height", 576))
+    tan_half_diagonal = math.hypot(36.0, 24.0) / (2.0 * f)
+    return math.degrees(2.0 * math.atan(tan_half_diagonal * w / math.hypot(w, h)))
+
+
+__all__ = ["Res", "Resolution", "parse_res", "size_text", "MAX_SIDE", "FOV_SENSORS", "focal_fov"]

@@ -112,3 +112,41 @@ def test_a_python_dictionarys_crop_window_is_stated(renderer, tmp_path):
     assert report_lines(rec, 8)["film"] == (
         "8×8 (file: the same size, with a crop window) — the file's film sets crop_width, "
         "crop_height, a crop window dbench does not apply: it renders the whole view")
+
+
+def test_the_fov_of_a_focal_length_is_mitsubas(renderer):
+    """dbench.resolution.focal_fov: the fov along x Mitsuba makes of a 35 mm-equivalent focal
+    length on a film (diagonal angle, then x for the film's aspect), checked against the
+    x_fov of Mitsuba's own sensor."""
+    from dbench.datasets.mitsuba_env import mitsuba
+    from dbench.resolution import focal_fov
+
+    mi = mitsuba()
+    for focal, ours, (w, h) in (("35mm", "35mm", (64, 48)), ("50mm", 50, (768, 576)),
+                                ("20mm", "20mm", (32, 64))):
+        sensor = mi.load_dict({"type": "perspective", "focal_length": focal,
+                               "film": {"type": "hdrfilm", "width": w, "height": h}})
+        assert focal_fov(ours, {"width": w, "height": h}) == pytest.approx(
+            mi.traverse(sensor)["x_fov"][0], rel=1e-6)
+    with pytest.raises(DbenchInputError, match="focal_length 'wide'"):
+        focal_fov("wide", {})
+
+
+@pytest.mark.parametrize("sensor, said", [
+    ('"focal_length": "35mm"', "its focal_length 35mm is read as the fov along x"),
+    ("", "its focal_length 50mm (Mitsuba's default) is read as the fov along x"),
+])
+def test_a_python_sensor_without_a_fov_renders_and_says_how(renderer, tmp_path, sensor, said):
+    """A perspective sensor given a focal length, or no fov at all (Mitsuba's 50 mm), used to
+    fail inside Mitsuba ("unreferenced property fov_axis"); it renders with the fov Mitsuba
+    makes of it, and the record says so."""
+    from dbench import datasets
+    from dbench.datasets.scenes import catalogue as scenes
+
+    path = tmp_path / "lens.py"
+    path.write_text(NO_LIGHT_PY.replace('"fov": 45,', sensor + ("," if sensor else ""))
+                    % ', "sky": {"type": "constant"}')
+    frame = datasets.load(scenes.get(str(path)), spp=2, res=16, needs={"color"},
+                          progress=False, cache=datasets.Cache(enabled=False))
+    assert frame.color.shape == (16, 16, 3) and frame.color.mean() > 0
+    assert said in frame.meta["scene_file_settings"]["sensor"]

@@ -19,6 +19,7 @@ A Python scene file's dictionary (and a plugin's build function's) gets the same
 from __future__ import annotations
 
 from ..mitsuba_env import mitsuba
+from ...resolution import FOV_SENSORS, focal_fov
 from .integrator import IntegratorPlan
 from .xml import children
 
@@ -79,8 +80,14 @@ def dict_record(plan: IntegratorPlan, d: dict) -> dict:
     rec = record(plan, d, str(sensor.get("type", "perspective")), (),
                  crop={"keys": crop} if crop else None)
     axis = sensor.get("fov_axis")
-    rec["sensor_text"] = (f"{rec['sensor']} (the file's pose and field of view: its fov is read "
-                          f"along x and kept along the image's smaller side"
+    fov = "its fov is read along x"
+    if "fov" not in sensor and rec["sensor"] in FOV_SENSORS:  # (own_camera converts it)
+        focal = sensor.get("focal_length", "50mm")
+        given = "" if "focal_length" in sensor else " (Mitsuba's default)"
+        fov = (f"its focal_length {focal}{given} is read as the fov along x that Mitsuba "
+               f"makes of it, {focal_fov(focal, sensor.get('film')):.4g}°,")
+    rec["sensor_text"] = (f"{rec['sensor']} (the file's pose and field of view: {fov} "
+                          f"and kept along the image's smaller side"
                           + (f"; its fov_axis {axis} is not applied" if axis not in (None, "x")
                              else "") + ")")
     return rec

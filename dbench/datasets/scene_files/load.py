@@ -37,7 +37,9 @@ folders searched.
 
 **Python files**. ``build(mi, width, height) -> dict`` (or ``build(mi, res)``,
 :mod:`dbench.datasets.scenes.build`) returns a ``mi.load_dict`` dictionary with a sensor (dbench
-replaces its film and sampler as for XML; a ``fov`` is read along x as in Mitsuba's default).
+replaces its film and sampler as for XML; a ``fov`` is read along x as in Mitsuba's default,
+a ``focal_length``, or neither, as the fov along x Mitsuba makes of it:
+:func:`dbench.resolution.focal_fov`).
 A steady file renders its dictionary's ``"integrator"`` by the rules of XML files (kept,
 unwrapped, or replaced by ``path`` with the reason; none: ``path``, max_depth 8;
 :func:`dbench.datasets.scene_files.integrator.plan_dict`), and its frames carry the same

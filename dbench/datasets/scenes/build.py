@@ -35,7 +35,7 @@ from functools import lru_cache
 from typing import Any, Callable
 
 from ...errors import DbenchInputError
-from ...resolution import Resolution, parse_res
+from ...resolution import FOV_SENSORS, Resolution, focal_fov, parse_res
 from .parts import film_dict
 
 
@@ -98,13 +98,19 @@ def check_film(d: Any, res: Any, what: str, build: Callable | None = None) -> No
 
 def own_camera(d: dict, res) -> dict:
     """``d`` with dbench's film, sampler and field-of-view axis on its sensor (the ``fov`` it
-    states is read along x, Mitsuba's default, and kept along the smaller side): what scene
-    files and plugins' build functions render with (dbench.datasets.scene_files.load)."""
+    states is read along x, Mitsuba's default, and kept along the smaller side; a sensor that
+    states a ``focal_length`` instead, or neither, gets the fov along x that Mitsuba makes of
+    it for the dictionary's own film, :func:`focal_fov`): what scene files and plugins' build
+    functions render with (dbench.datasets.scene_files.load). Other sensors (orthographic ...)
+    take no field of view and keep theirs."""
     d = dict(d)
     sensor = dict(d["sensor"])
+    if sensor.get("type", "perspective") in FOV_SENSORS:
+        if "fov" not in sensor:
+            sensor["fov"] = focal_fov(sensor.pop("focal_length", "50mm"), sensor.get("film"))
+        sensor["fov_axis"] = parse_res(res).fov_axis
     sensor["film"] = film_dict(res)
     sensor["sampler"] = {"type": "independent"}
-    sensor["fov_axis"] = parse_res(res).fov_axis
     d["sensor"] = sensor
     return d
 
@@ -281,5 +287,5 @@ def check_own_integrator(scene: Any, integrator: Any) -> None:
 
 
 __all__ = ["call_build", "check_box_filter", "check_film", "check_lit", "check_own_integrator",
-           "check_plugin_scene", "dictionary_plan", "exit_message", "own_camera", "plugin_build",
-           "probe_load", "source_of", "takes_width_height"]
+           "check_plugin_scene", "dictionary_plan", "exit_message", "own_camera",
+           "plugin_build", "probe_load", "source_of", "takes_width_height"]
