@@ -121,6 +121,14 @@ def test_sequence_and_transient_files_refuse_an_integrator_they_would_not_render
             _scene(_file(tmp_path, name, integrator, extra=extra))
     sc = _scene(_file(tmp_path, "fine", {"type": "path", "max_depth": 5}, extra=extra))
     assert sc.kind in ("sequence", "transient") and sc.max_depth == 5
+    # their frames carry no record to say which of two depths renders: two are refused
+    with pytest.raises(DbenchInputError, match=r"twice\.py: max_depth 3 in the module and 5 in "
+                                               r"build\(\)'s integrator; give one"):
+        _scene(_file(tmp_path, "twice", {"type": "path", "max_depth": 5},
+                     extra=extra + "max_depth = 3\n"))
+    same = _scene(_file(tmp_path, "same", {"type": "path", "max_depth": 5},
+                        extra=extra + "max_depth = 5\n"))
+    assert same.max_depth == 5
 
 
 def test_a_plugin_build_function_renders_its_dictionarys_integrator(renderer, tmp_path):

@@ -380,9 +380,11 @@ def _python_scene(path: str, files: tuple, digest: str) -> Scene:
                      frame_meta={"scene_file": rec, "scene_file_settings": report_lines(rec)},
                      **common)
     integrator = probe.get("integrator")
-    common["max_depth"] = int(depth if depth is not None else
-                              (integrator if isinstance(integrator, dict) else {}).get(
-                                  "max_depth") or DEFAULT_MAX_DEPTH)
+    given = (integrator if isinstance(integrator, dict) else {}).get("max_depth")
+    if depth is not None and given is not None and given != depth:  # no record states which
+        raise DbenchInputError(f"--scene {path}: max_depth {depth} in the module and "
+                               f"{given} in build()'s integrator; give one")
+    common["max_depth"] = int(depth if depth is not None else given or DEFAULT_MAX_DEPTH)
     if kind == "sequence":
         _own_integrator_only(integrator, path, kind, "path", "path")
         return _python_sequence(module, path, probe, common, build)
