@@ -37,6 +37,7 @@ count is taken (a layer named after the buffer wins when there are several).
 """
 from __future__ import annotations
 
+import errno
 import os
 import re
 from dataclasses import dataclass
@@ -84,11 +85,19 @@ class Layer:
     priority: int = 1
 
 
+def _check_readable(path: Path) -> None:
+    """Refuse a file this user may not read before OpenEXR does: its C library prints its own
+    line to stderr first, and the user would get two (PermissionError: one line, exit 2)."""
+    if path.is_file() and not os.access(path, os.R_OK):
+        raise PermissionError(errno.EACCES, "Permission denied", str(path))
+
+
 def exr_header(path: str | os.PathLike) -> tuple[tuple[int, int], list[str]]:
     """((H, W), raw channel names) of an EXR file, reading no pixels."""
     import OpenEXR
 
     path = Path(path)
+    _check_readable(path)
     try:
         with OpenEXR.File(str(path), header_only=True) as f:
             if len(f.parts) != 1:
@@ -111,6 +120,7 @@ def read_channels(path: str | os.PathLike) -> dict[str, np.ndarray]:
     """Every channel of an EXR file by raw name, as (H, W) float32 (half floats widened)."""
     import OpenEXR
 
+    _check_readable(Path(path))
     try:
         with OpenEXR.File(str(path), separate_channels=True) as f:
             return {k: np.asarray(v.pixels, dtype=np.float32) for k, v in f.channels().items()}
