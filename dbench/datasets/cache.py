@@ -124,18 +124,33 @@ def canonical(obj: Any, files: set | None = None) -> Any:
         # repr leaves out their phase functions
         media = [None if m is None else {"medium": repr(m), "phase": repr(m.phase_function())}
                  for m in (obj.interior_medium(), obj.exterior_medium())]
-        return {"mesh": canonical(np.array(obj.vertex_positions_buffer())),
-                "faces": canonical(np.array(obj.faces_buffer())), "media": media,
-                "repr": repr(obj)}
+        out = {"mesh": canonical(np.array(obj.vertex_positions_buffer())),
+               "faces": canonical(np.array(obj.faces_buffer())), "media": media,
+               "repr": repr(obj)}
+        # a mesh a build loaded from a file (a ply) brings UVs, normals and a BSDF whose
+        # textures its repr does not show (entries added only where there are some)
+        if obj.has_vertex_texcoords():
+            out["uv"] = canonical(np.array(obj.vertex_texcoords_buffer()))
+        if obj.has_vertex_normals():
+            out["normals"] = canonical(np.array(obj.vertex_normals_buffer()))
+        bsdf = _parameters(obj.bsdf()) if obj.bsdf() is not None else {}
+        if bsdf:
+            out["bsdf"] = bsdf
+        return _loaded(out, type_name, files)
     if hasattr(obj, "matrix"):
         return {type_name: canonical(np.array(obj.matrix, dtype=np.float64))}
     if hasattr(obj, "class_name"):  # another loaded Mitsuba object: a texture, a BSDF, ...
-        out = {type_name: repr(obj), "params": _parameters(obj)}
-        if files is not None:  # what it read from files is in it, not in a "filename" string
-            digest = hashlib.sha256(json.dumps(out, sort_keys=True).encode()).hexdigest()
-            files.add((f"<loaded {type_name} {digest[:12]}>", digest))
-        return out
+        return _loaded({type_name: repr(obj), "params": _parameters(obj)}, type_name, files)
     return {type_name: repr(obj)}
+
+
+def _loaded(out: dict, type_name: str, files: set | None) -> dict:
+    """``out``, the description of a loaded object, counted in ``files`` (:func:`referenced`):
+    what it read from files is in it, not in a "filename" string."""
+    if files is not None:
+        digest = hashlib.sha256(json.dumps(out, sort_keys=True).encode()).hexdigest()
+        files.add((f"<loaded {type_name} {digest[:12]}>", digest))
+    return out
 
 
 def _parameters(obj: Any) -> dict:

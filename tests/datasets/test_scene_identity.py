@@ -107,6 +107,38 @@ def test_a_texture_loaded_in_build_is_keyed_by_its_pixels(renderer, tmp_path):
         datasets.load(sc, **kw)  # the object resolved before the edit is refused
 
 
+def test_a_mesh_loaded_in_build_is_keyed_by_its_uvs_and_its_bsdfs_textures(renderer, tmp_path):
+    """A mesh a build loads from a ply was keyed by its positions, faces and repr: new UVs, or
+    new pixels of its BSDF's texture (same mean), kept the old key and the old renders. Both
+    now change the key and count among the content its scene was resolved with."""
+    from dbench.datasets.cache import make_key, referenced
+    from dbench.datasets.mitsuba_env import mitsuba
+
+    mi = mitsuba()
+
+    def ply(uv_scale: float) -> str:
+        mesh = mi.Mesh("quad", 4, 2, has_vertex_texcoords=True)
+        p = mi.traverse(mesh)
+        p["vertex_positions"] = mi.Float([0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0])
+        p["faces"] = mi.UInt32([0, 1, 2, 0, 2, 3])
+        p["vertex_texcoords"] = mi.Float([0, 0, 1, 0, 1, 1, 0, 1]) * uv_scale
+        p.update()
+        mesh.write_ply(str(tmp_path / "quad.ply"))
+        return str(tmp_path / "quad.ply")
+
+    def loaded(uv_scale: float, flip: bool):
+        texture = np.zeros((4, 4, 3), np.float32)
+        texture[:, :2] = 1.0
+        bitmap = mi.Bitmap(texture[:, ::-1].copy() if flip else texture)
+        return {"quad": mi.load_dict({"type": "ply", "filename": ply(uv_scale), "bsdf": {
+            "type": "diffuse", "reflectance": {"type": "bitmap", "bitmap": bitmap}}})}
+
+    first = loaded(1.0, False)
+    keys = {make_key(first), make_key(loaded(0.25, False)), make_key(loaded(1.0, True))}
+    assert len(keys) == 3 and make_key(loaded(1.0, False)) == make_key(first)
+    assert any(name.startswith("<loaded") for name, _ in referenced(first))
+
+
 ORBIT = '''
 kind = "sequence"
 frames = 2
