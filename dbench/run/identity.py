@@ -105,12 +105,23 @@ def method_files(cls: type) -> list[Path]:
     (``guards.py``, ``checks.py``, ...) and every module of ``dbench.methods`` those files
     import, directly or through one another (shared kernels such as
     ``dbench/methods/kernels/``, or the steps of another method it reuses). A class defined in a
-    plugin package gives that package's folder; one in a stand-alone file or top-level module
-    (``--plugin my_method.py``) that file only."""
+    plugin package gives that package's folder (whatever the folder is called); one in a
+    stand-alone file or top-level module (``--plugin my_method.py``) that file and the modules
+    beside it that it imports; a plugin's class adds the files of the classes it inherits
+    from."""
     wrapped = getattr(cls, "wrapped", None)  # NAME+gate: the gate's files and the method's
     if wrapped is not None:
         return sorted(set(method_files(wrapped)) | set(_package_files(inspect.getfile(cls))))
-    return _package_files(inspect.getfile(cls))
+    files = set(_package_files(inspect.getfile(cls)))
+    import dbench.methods as pkg
+
+    if Path(pkg.__file__).resolve().parent not in Path(inspect.getfile(cls)).resolve().parents:
+        # a plugin's class runs the code of the classes it inherits from too (a built-in
+        # method's): theirs count (dbench's own classes import their bases, traced above)
+        for base in cls.__mro__[1:]:
+            if base.__module__ not in ("builtins", "dbench.denoiser"):
+                files |= set(_package_files(inspect.getfile(base)))
+    return sorted(files)
 
 
 def _package_files(source_file: str) -> list[Path]:
@@ -122,9 +133,9 @@ def _package_files(source_file: str) -> list[Path]:
     files = [source]
     outside_package = (shared not in source.parents and source.name != "__init__.py"
                        and not (source.parent / "__init__.py").is_file())
-    if outside_package:
-        pass  # a plugin file or top-level module (dbench --plugin x.py): that file alone
-    elif source.name == "__init__.py" or source.parent.name != "methods":
+    if outside_package:  # a plugin file or top-level module (dbench --plugin x.py): that file
+        files += _sibling_imports(source)  # and the modules beside it that it imports
+    elif source.name == "__init__.py" or source.parent != shared:
         folder = source.parent
         files = [p for p in folder.rglob("*") if p.suffix in (".py", ".onnx", ".json")
                  and "__pycache__" not in p.parts]
@@ -140,6 +151,24 @@ def _package_files(source_file: str) -> list[Path]:
                     todo.append(f)
                     files.append(f)
     return sorted(dict.fromkeys(p.resolve() for p in files))
+
+
+def _sibling_imports(source: Path) -> list[Path]:
+    """The modules in ``source``'s folder that it imports (``import helper``, ``from helper
+    import x``), and those they import in turn: a stand-alone plugin's helpers."""
+    found, todo = [], [source]
+    while todo:
+        tree = ast.parse(todo.pop().read_text(encoding="utf-8"))
+        for node in ast.walk(tree):
+            names = ([a.name for a in node.names] if isinstance(node, ast.Import) else
+                     [node.module] if isinstance(node, ast.ImportFrom) and node.module
+                     and not node.level else [])
+            for name in names:
+                f = source.parent / f"{name.split('.')[0]}.py"
+                if f.is_file() and f.resolve() != source and f.resolve() not in found:
+                    found.append(f.resolve())
+                    todo.append(f.resolve())
+    return found
 
 
 def device_only(path: Path) -> bool:

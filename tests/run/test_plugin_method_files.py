@@ -1,0 +1,74 @@
+"""The code behind a plugin method's numbers (dbench/run/identity.py method_files): its package
+folder even when that folder is called ``methods``, the modules a stand-alone plugin file
+imports from beside it, and the classes it inherits from (a built-in method's files), so an
+edit to any of them changes its cells' identity."""
+import importlib.util
+import sys
+from pathlib import Path
+
+from dbench.run import identity
+
+
+def _load(monkeypatch, path: Path, name: str):
+    """Import ``name`` (a package module under ``path``'s root, or the file ``path`` itself)
+    as a plugin would be; the modules stay in sys.modules for the test only (inspect.getfile
+    reads them there)."""
+    root = path.parents[2] if "." in name else path.parent
+    monkeypatch.syspath_prepend(str(root))
+    before = set(sys.modules)
+    if "." in name:
+        module = importlib.import_module(name)
+    else:
+        spec = importlib.util.spec_from_file_location(name, path)
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[name] = module
+        spec.loader.exec_module(module)
+    for key in set(sys.modules) - before:  # removed again when the test ends
+        monkeypatch.setitem(sys.modules, key, sys.modules[key])
+    return module
+
+
+METHOD = '''from dbench.denoiser import Denoiser
+{imports}
+
+
+class Den(Denoiser):
+    def denoise(self, data):
+        return data.color * {scale}
+'''
+
+
+def test_a_plugin_package_folder_called_methods_counts_whole(tmp_path, monkeypatch):
+    pkg = tmp_path / "mylab" / "methods"
+    pkg.mkdir(parents=True)
+    (tmp_path / "mylab" / "__init__.py").write_text("")
+    (pkg / "__init__.py").write_text("")
+    (pkg / "util.py").write_text("SCALE = 0.5\n")
+    (pkg / "den.py").write_text(METHOD.format(imports="from .util import SCALE",
+                                              scale="SCALE"))
+    module = _load(monkeypatch, pkg / "den.py", "mylab.methods.den")
+    files = {p.name for p in identity.method_files(module.Den)}
+    assert {"den.py", "util.py", "__init__.py"} <= files
+
+
+def test_a_stand_alone_plugin_file_counts_the_helpers_it_imports(tmp_path, monkeypatch):
+    (tmp_path / "tmp_helper.py").write_text("SCALE = 0.5\n")
+    (tmp_path / "unused.py").write_text("X = 1\n")
+    (tmp_path / "mymeth.py").write_text(METHOD.format(imports="import tmp_helper",
+                                                      scale="tmp_helper.SCALE"))
+    module = _load(monkeypatch, tmp_path / "mymeth.py", "mymeth_plugin")
+    files = [p.name for p in identity.method_files(module.Den)]
+    assert files == ["mymeth.py", "tmp_helper.py"]
+    before = identity.method_version(module.Den)
+    (tmp_path / "tmp_helper.py").write_text("SCALE = 0.9\n")
+    identity.method_version.cache_clear()  # (one version per process: code is read once)
+    assert identity.method_version(module.Den) != before
+
+
+def test_a_plugin_subclass_counts_the_built_in_method_it_inherits(tmp_path, monkeypatch):
+    (tmp_path / "sub.py").write_text("from dbench.methods.noisy import Noisy\n\n\n"
+                                     "class MyNoisy(Noisy):\n    pass\n")
+    module = _load(monkeypatch, tmp_path / "sub.py", "sub_plugin")
+    files = identity.method_files(module.MyNoisy)
+    noisy = Path(sys.modules["dbench.methods.noisy"].__file__).resolve()
+    assert noisy in files and (tmp_path / "sub.py").resolve() in files
