@@ -211,11 +211,15 @@ def judge_version() -> str:
 
 
 def resolved_params(name: str, overrides: dict[str, Any] | None = None) -> dict[str, Any]:
-    """The method's defaults with ``overrides`` applied (JSON-normalised)."""
+    """The method's defaults with ``overrides`` applied (JSON-normalised): an integer given
+    where the default is a float is that float (``beta=10`` is the default ``10.0``, the
+    same numbers and so the same identity)."""
     from .. import registry
 
     cls = registry.method_class(name)
-    return _jsonable({**cls.defaults, **(overrides or {})})
+    given = {k: float(v) if isinstance(cls.defaults.get(k), float) and isinstance(v, int)
+             and not isinstance(v, bool) else v for k, v in (overrides or {}).items()}
+    return _jsonable({**cls.defaults, **given})
 
 
 def label(name: str, overrides: dict[str, Any] | None = None) -> str:

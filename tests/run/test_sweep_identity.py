@@ -20,6 +20,11 @@ def test_labels_name_the_parameters_that_differ_from_the_defaults():
     assert identity.label("jbf", {"radius": 3}) == "jbf[radius=3]"
     default_radius = identity.resolved_params("jbf")["radius"]
     assert identity.label("jbf", {"radius": default_radius}) == "jbf"
+    # an integer where the default is a float is that float: the same identity, not a cell
+    # refused as changed (beta's default is 10.0)
+    assert json.dumps(identity.resolved_params("jbf", {"beta": 10}), sort_keys=True) == \
+        json.dumps(identity.resolved_params("jbf"), sort_keys=True)  # (10 == 10.0 in Python)
+    assert identity.label("jbf", {"beta": 10}) == "jbf"
     assert identity.file_stem("jbf[radius=3]") == "jbf[radius=3]"
     odd = identity.file_stem("nca[weights=/tmp/x y.onnx]")
     assert "/" not in odd and odd.startswith("nca@")
