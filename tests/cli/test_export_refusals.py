@@ -41,3 +41,23 @@ def test_a_refused_frame_count_leaves_no_export_folder(renderer, tmp_path, capsy
     err = capsys.readouterr().err.strip()
     assert rc == 2 and err == "dbench: frames: expected an integer in [1, 48], got 999", err
     assert not (tmp_path / "x").exists()
+
+
+def test_an_export_folder_that_cannot_be_written_leaves_no_folders(tmp_path, monkeypatch,
+                                                                  capsys):
+    """The write check creates --out and its missing parents to probe them; refused, it
+    removes them again (they were left behind, empty)."""
+    import errno
+
+    from dbench import io
+
+    def denied(*_a, **_k):
+        raise OSError(errno.EACCES, "Permission denied")
+
+    monkeypatch.setattr(io.tempfile, "mkstemp", denied)
+    out = tmp_path / "new" / "deeper" / "ex"
+    rc = cli.main(["export", "cornell", "--spp", "2", "--res", "8", "--ref-spp", "16",
+                   "--out", str(out), "--no-cache"])
+    err = capsys.readouterr().err
+    assert rc == 2 and "cannot write there (Permission denied)" in err, err
+    assert not (tmp_path / "new").exists()
