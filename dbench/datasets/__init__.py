@@ -20,7 +20,7 @@ from typing import Iterable
 
 import numpy as np
 
-from ..data import Frame, SampleStats, Sequence, TransientFrame, check_count, check_transform
+from ..data import Frame, SampleStats, Sequence, TransientFrame, check_transform
 from ..errors import DbenchInputError
 from ..resolution import Res, parse_res
 from . import emitter as _emitter
@@ -30,7 +30,7 @@ from .sequence import load as _sequence  # registers the sequence scenes
 from .transient import load as _transient  # registers the transient scenes
 from .cache import Cache, make_key
 from .mitsuba_env import mitsuba, versions
-from .references import check_ref_seed, reference_meta, reference_spp
+from .references import check_ref_seed, check_render_args, reference_meta, reference_spp
 from .scenes.catalogue import Scene
 from .scenes.build import check_plugin_scene
 from .stats import stats_from_arrays, stats_to_arrays
@@ -159,7 +159,7 @@ def load(scene: str | Scene, spp: int, res, needs: Iterable[str] | None = None,
                                          lam=lam, seed=seed, ref_spp=ref_spp, cache=cache,
                                          progress=progress, bins=bins, collector=collector,
                                          ref_seed=ref_seed)
-    check_count("spp", spp)
+    seed = check_render_args(spp, seed, ref_spp)
     res = parse_res(res)
     check_plugin_scene(sc)  # a plugin's unknown Mitsuba type: exit 2 before anything renders
     wanted = set(sc.provides if needs is None else needs) | {"color"}

@@ -53,6 +53,24 @@ def reference_spp() -> int:
     return value
 
 
+def check_render_args(spp, seed, ref_spp) -> int:
+    """Check a load's ``spp`` (an integer >= 1), ``seed`` (:func:`check_seed`) and ``ref_spp``
+    (None for the default, else an integer in [2, 2³¹ − 1]: the reference's variance comes from
+    the spread of its chunks, and one chunk has none); DbenchInputError naming the first that
+    is not, before anything renders. Returns the seed as an int: a float seed would key the
+    cache as its integer part while the render hashed the float."""
+    from ..data import check_count
+
+    check_count("spp", spp)
+    seed = check_seed(seed, name="seed")
+    if ref_spp is not None and (isinstance(ref_spp, (bool, np.bool_)) or not isinstance(
+            ref_spp, (int, np.integer)) or not 2 <= ref_spp <= 2**31 - 1):
+        raise DbenchInputError(f"ref_spp: expected an integer in [2, {2**31 - 1}] (None: the "
+                               f"default; the reference's variance is the spread of its "
+                               f"chunks), got {ref_spp!r}")
+    return seed
+
+
 def check_ref_seed(ref_seed: int | None) -> int:
     """The reference seed: 0 for None, else an integer in [0, :data:`MAX_SEED`]
     (DbenchInputError)."""

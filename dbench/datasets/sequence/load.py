@@ -76,7 +76,7 @@ from typing import Any, Callable, Iterable
 
 import numpy as np
 
-from ...data import Frame, Sequence, check_count, check_transform
+from ...data import Frame, Sequence, check_transform
 from ...errors import DbenchInputError
 from ...resolution import parse_res
 from .. import emitter as _emitter
@@ -93,7 +93,7 @@ from .frames import (MATCHED_LAYOUT, PSR_GLOSSY_ALPHA,  # noqa: F401 - re-export
                      SAMPLES_VERSION, _matched_integrator, _render_dict, frame_seed,
                      pass_seeds, render_frame, render_gbuffer)
 from .render import render_emitter, render_reference
-from ..references import check_ref_seed, reference_meta, reference_spp
+from ..references import check_ref_seed, check_render_args, reference_meta, reference_spp
 from ..stats import stats_from_arrays, stats_to_arrays
 
 FEATURES = ("albedo", "normal", "depth", "position")
@@ -317,7 +317,7 @@ def load_sequence(scene: str | SequenceScene, spp: int = 1, res=64,
     sc = scene if isinstance(scene, Scene) else _scenes.get(scene)
     if not isinstance(sc, SequenceScene):
         raise DbenchInputError(f"scene: {sc.name} is a {sc.kind} scene, not a sequence")
-    check_count("spp", spp)
+    seed = check_render_args(spp, seed, ref_spp)
     res = parse_res(res)
     n = sc.n_frames if frames is None else frames
     if not isinstance(n, (int, np.integer)) or not 1 <= n <= sc.n_frames:

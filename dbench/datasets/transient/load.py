@@ -58,7 +58,7 @@ from .. import render as _render
 from ..scenes import catalogue as _scenes
 from ..cache import Cache
 from ..mitsuba_env import mitsuba, versions
-from ..references import check_ref_seed, reference_meta
+from ..references import check_ref_seed, check_render_args, reference_meta
 from ..references import reference_spp as default_ref
 from ..scenes.record import Scene, register_scene
 from .media import (EMISSION, FOG, FOG_PARAMS, FOG_RANGE_WINDOW, _fog_room, media_variant,
@@ -371,7 +371,7 @@ def load_transient(scene: str | TransientScene, spp: int, res,
     sc = scene if isinstance(scene, Scene) else _scenes.get(scene)
     if not isinstance(sc, TransientScene):
         raise DbenchInputError(f"scene: {sc.name} is a {sc.kind} scene, not a transient one")
-    check_count("spp", spp)
+    seed = check_render_args(spp, seed, ref_spp)
     res = parse_res(res)
     wanted = set(sc.provides if needs is None else needs) | {"color"}
     unknown = wanted - set(sc.provides)
