@@ -39,6 +39,8 @@ def test_a_parameter_of_another_kind_than_its_default_is_rejected():
     registry.get("jbf", radius=np.int64(3), sigma_depth=np.float32(0.02), hit_mask=np.bool_(0),
                  sigma_position=1)  # an int where the default is a float is a number
     registry.get("accumulate", n_max=20.0)  # an integral float is an integer
+    with pytest.raises(DbenchInputError, match=r"seed: expected an integer in \[0, "):
+        registry.get("bmfr", seed=-1)  # it failed inside NumPy on the first frame
 
 
 def test_every_method_declares_valid_kinds_and_needs():

@@ -138,6 +138,9 @@ class BMFR(T.HistoryDenoiser):
                 if key not in params:
                     self.params[key] = value
         p = self.params
+        if not 0 <= p["seed"] < 2**32:  # (an integer: Denoiser checks its kind) NumPy's seeds
+            raise DbenchInputError(f"seed: expected an integer in [0, {2**32 - 1}], "
+                                   f"got {p['seed']!r}")
         if p["features"] not in FEATURE_PRESETS:
             raise DbenchInputError(f"features: expected one of {tuple(FEATURE_PRESETS)}, "
                                    f"got {p['features']!r}")
