@@ -206,6 +206,15 @@ def _block_sums(maps: dict[str, np.ndarray], weights: dict[str, np.ndarray], sel
     return sums, counts
 
 
+def _numbers(name: str, value: Any) -> np.ndarray:
+    """``value`` as float64, or a DbenchInputError naming ``name`` (a string, an object)."""
+    try:
+        return np.asarray(value, np.float64)
+    except (TypeError, ValueError):
+        raise DbenchInputError(f"{name}: expected an array of numbers, got "
+                               f"{type(value).__name__}") from None
+
+
 def judge(output: Any, reference: Any, *, emitter: Any = None, reference_var: Any = None,
           ev: float = 0.0, names: Iterable[str] | None = None,
           block: int | None = None) -> Judgement:
@@ -234,19 +243,25 @@ def judge(output: Any, reference: Any, *, emitter: Any = None, reference_var: An
     if emitter is None:
         surface = np.ones((h, w), bool)
     else:
-        e = np.asarray(emitter, np.float64)
+        e = _numbers("emitter", emitter)
         if e.ndim == 3 and e.shape[-1] == 1:
             e = e[..., 0]
         if e.shape != (h, w):
             raise DbenchInputError(f"emitter: expected shape ({h}, {w}, 1), got "
                                    f"{tuple(np.shape(emitter))}")
+        if not (np.isfinite(e) & (e >= 0) & (e <= 1)).all():  # a fraction of the footprint
+            raise DbenchInputError("emitter: expected values in [0, 1] (the fraction of each "
+                                   "pixel that sees a light)")
         surface = ~(e > 0)
     var = None
     if reference_var is not None:
-        var = np.asarray(reference_var, np.float64)
+        var = _numbers("reference_var", reference_var)
         if var.shape != r.shape:
             raise DbenchInputError(f"reference_var: expected shape {tuple(r.shape)}, got "
                                    f"{tuple(var.shape)}")
+        if not (np.isfinite(var) & (var >= 0)).all():  # (-1 or inf: meaningless unbiased)
+            raise DbenchInputError("reference_var: expected finite values >= 0 (the variance "
+                                   "of the reference mean); give None where it is unknown")
     if block is None:
         block = bootstrap_block(h, w)
     elif isinstance(block, bool) or not isinstance(block, (int, np.integer)) or block < 1:

@@ -6,6 +6,7 @@ import pytest
 from dbench import metrics
 from dbench.run import harness
 from dbench.data import Frame
+from dbench.errors import DbenchInputError
 from dbench.metrics import judge as J
 from denoisers import Blur  # tests/denoisers.py
 
@@ -161,3 +162,27 @@ def test_on_cornell_surface_pixels_rank_oidn_and_statistical_below_the_noisy_inp
     for s in scores.values():
         assert 0 < s["top1_share"] <= 1
         assert s["rmse_surface"] < s["rmse"]  # the light holds a large share of the error
+
+
+@pytest.mark.parametrize("kw, said", [
+    ({"reference_var": -1.0}, "reference_var: expected finite values >= 0"),
+    ({"reference_var": np.inf}, "reference_var: expected finite values >= 0"),
+    ({"reference_var": np.nan}, "reference_var: expected finite values >= 0"),
+    ({"reference_var": "x"}, "reference_var: expected an array of numbers, got str"),
+    ({"emitter": np.nan}, r"emitter: expected values in \[0, 1\]"),
+    ({"emitter": -5.0}, r"emitter: expected values in \[0, 1\]"),
+    ({"emitter": "abc"}, "emitter: expected an array of numbers, got str"),
+])
+def test_a_reference_variance_or_emitter_that_cannot_be_one_is_refused(kw, said):
+    """A negative variance made rmse_unbiased exceed rmse, an infinite one zeroed it, a NaN
+    emitter counted every pixel as surface; strings raised NumPy's ValueError."""
+    from dbench.metrics.judge import judge
+
+    rng = np.random.default_rng(0)
+    r = rng.uniform(0.1, 1.0, (16, 16, 3)).astype(np.float32)
+    o = (r + rng.normal(0, 0.05, r.shape)).astype(np.float32)
+    shape = (16, 16, 1) if "emitter" in kw else r.shape
+    value = next(iter(kw.values()))
+    arg = value if isinstance(value, str) else np.full(shape, value)
+    with pytest.raises(DbenchInputError, match=said):
+        judge(o, r, **{next(iter(kw)): arg})
