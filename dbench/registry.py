@@ -52,6 +52,9 @@ def canonical(name: str) -> str:
 def method_class(name: str) -> type[Denoiser]:
     """The class of ``name``: a registered method, an alias of one, or ``NAME+gate`` (the
     registered steady method ``NAME`` wrapped by ProDen's gate, :mod:`dbench.methods.gate`)."""
+    if not isinstance(name, str):
+        raise UnknownNameError(f"method: expected a name (str), got {name!r}; available "
+                               f"methods: {', '.join(available())}")
     name = canonical(name)
     if name not in _REGISTRY:
         _load_plugins()

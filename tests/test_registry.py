@@ -57,3 +57,9 @@ def test_applies_to_explains_skips():
     assert not ok and "transient" in why
     ok, why = m.applies_to("steady", {"color"})
     assert not ok and "albedo" in why
+
+
+@pytest.mark.parametrize("name", [None, 5])
+def test_a_method_name_that_is_no_string_is_an_unknown_name(name):
+    with pytest.raises(UnknownNameError, match="method: expected a name"):
+        registry.get(name)

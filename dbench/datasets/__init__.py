@@ -16,6 +16,7 @@ Example:
 """
 from __future__ import annotations
 
+import os
 from typing import Iterable
 
 import numpy as np
@@ -144,7 +145,16 @@ def load(scene: str | Scene, spp: int, res, needs: Iterable[str] | None = None,
         reference also ``ref_spp``, ``ref_seed``, ``ref_render_s`` (seconds the reference took,
         from the cache entry when cached) and ``ref_rmse`` = sqrt(mean(reference_var)).
     """
-    sc = scene if isinstance(scene, Scene) else _scenes.get(scene)
+    if not isinstance(scene, (str, os.PathLike, Scene)):
+        raise DbenchInputError(f"scene: expected a catalogue name, a scene file or folder, or a "
+                               f"Scene, got {scene!r}")
+    if needs is not None and (isinstance(needs, (str, bytes)) or not isinstance(
+            needs, Iterable)):  # a string would read as its letters
+        raise DbenchInputError(f"needs: expected a collection of buffer names (e.g. "
+                               f"{{'color', 'reference'}}), got {needs!r}")
+    if cache is not None and not isinstance(cache, Cache):
+        raise DbenchInputError(f"cache: expected a dbench.datasets.Cache, got {cache!r}")
+    sc = scene if isinstance(scene, Scene) else _scenes.get(os.fspath(scene))
     if not sc.renders:
         return _load_folder_scene(sc, spp, res, needs, seed, ref_spp, frames, transform, lam)
     transform = transform or default_transform(sc.kind)
@@ -161,14 +171,21 @@ def load(scene: str | Scene, spp: int, res, needs: Iterable[str] | None = None,
                                          ref_seed=ref_seed)
     seed = check_render_args(spp, seed, ref_spp)
     res = parse_res(res)
+    for name, value in (("frames", frames), ("bins", bins)):  # not silently left unread
+        if value is not None:
+            raise DbenchInputError(f"{name}: {sc.name} is a {sc.kind} scene; only "
+                                   f"{'sequence' if name == 'frames' else 'transient'} scenes "
+                                   f"take {name}")
+    if collector != "auto":
+        raise DbenchInputError(f"collector: {sc.name} is a steady scene; only transient scenes "
+                               f"take a collector")
+    check_transform(transform, lam)  # whether or not the statistics are asked for
     check_plugin_scene(sc)  # a plugin's unknown Mitsuba type: exit 2 before anything renders
     wanted = set(sc.provides if needs is None else needs) | {"color"}
     unknown = wanted - set(sc.provides)
     if unknown:
         raise DbenchInputError(f"needs: scene {sc.name} cannot provide {sorted(unknown)}; "
                                f"it provides {sorted(sc.provides)}")
-    if "stats" in wanted:
-        check_transform(transform, lam)
     if "reference" in wanted:
         wanted.add("emitter")
     ref_seed = check_ref_seed(ref_seed)

@@ -145,6 +145,40 @@ def _as_list(frames) -> list:
     return list(frames) if isinstance(frames, (list, tuple)) else [frames]
 
 
+def check_cell_args(method: Any, frames: list, metric_names: Any, repeats: int | None,
+                    warmup: int | None, extra: tuple = ()) -> None:
+    """Refuse, naming the argument, what :func:`run_cell` and :func:`run_sequence_cell` would
+    otherwise coerce or drop without a word: a method that is not built (a name), no frames,
+    frames that differ in size (or, for steady frames, in reference: one cell's seeds share
+    one), metric names that are no judged metric (or a string, which reads as its letters),
+    repeats below 1 and a negative warm-up (``None``: not an argument of the caller)."""
+    from ..data import check_count
+
+    if not isinstance(method, Denoiser):
+        raise DbenchInputError(f"method: expected a built method (dbench.registry.get(name)), "
+                               f"got {method!r}")
+    if not frames:
+        raise DbenchInputError("frame: expected a frame or a non-empty list of them (one per "
+                               "seed)")
+    # a steady or transient frame has its colour; a sequence its frames
+    shapes = {(np.shape(f.color), 0) if hasattr(f, "color") else (np.shape(f[0].color), len(f))
+              for f in frames}
+    refs = [getattr(f, "reference", None) if hasattr(f, "color") else None for f in frames]
+    if len(shapes) > 1 or (refs[0] is not None and any(
+            r is None or not np.array_equal(r, refs[0]) for r in refs[1:])):
+        raise DbenchInputError("frame: the frames of one cell (one per seed) must have one "
+                               "size (and length) and share one reference")
+    valid = list(judge.JUDGED) + list(extra)
+    if isinstance(metric_names, (str, bytes)) or any(n not in valid for n in metric_names):
+        raise DbenchInputError(f"metric_names: expected a list of judged metrics, got "
+                               f"{metric_names!r}; valid: {valid}")
+    if repeats is not None:
+        check_count("repeats", repeats)
+    if warmup is not None and (isinstance(warmup, bool) or not isinstance(
+            warmup, (int, np.integer)) or warmup < 0):
+        raise DbenchInputError(f"warmup: expected an integer >= 0, got {warmup!r}")
+
+
 def run_cell(method: Denoiser, frame, metric_names=DEFAULT_METRICS, repeats: int = 5,
              warmup: int = 1, device: str = "cpu") -> CellResult:
     """Run ``method`` on ``frame`` (or a list of frames, one per seed, sharing one reference);
@@ -154,6 +188,7 @@ def run_cell(method: Denoiser, frame, metric_names=DEFAULT_METRICS, repeats: int
     calls of every seed. Metrics: see :class:`CellResult`.
     """
     frames = _as_list(frame)
+    check_cell_args(method, frames, metric_names, repeats, warmup)
     first = frames[0]
     available = _buffers(first)
     ok, reason = method.applies_to(getattr(first, "kind", "steady"), available)
@@ -223,8 +258,9 @@ def run_sequence_cell(method: Denoiser, seq, metric_names=DEFAULT_METRICS,
     """
     from ..data import BUFFER_NAMES
 
-    warmup = WARMUP if warmup is None else int(warmup)
     seqs = _as_list(seq)
+    check_cell_args(method, seqs, metric_names, None, warmup, extra=("t_rmse", "tpsnr", "cvvdp"))
+    warmup = WARMUP if warmup is None else int(warmup)
     available = {b for b in BUFFER_NAMES if seqs[0].has(b)}
     ok, reason = method.applies_to("sequence", available)
     if not ok:

@@ -35,3 +35,23 @@ def test_a_numpy_integer_seed_and_ref_spp_are_integers(renderer, tmp_path):
                       ref_spp=np.int64(16), cache=datasets.Cache(enabled=False),
                       progress=False)
     assert f.meta["seed"] == 1 and f.meta["ref_spp"] == 16 and f.meta["ref_rmse"] > 0
+
+
+@pytest.mark.parametrize("kw, said", [
+    ({"needs": "color"}, "needs: expected a collection of buffer names"),  # read as letters
+    ({"needs": 5}, "needs: expected a collection of buffer names"),
+    ({"cache": "x"}, "cache: expected a dbench.datasets.Cache"),
+    ({"frames": 2}, "frames: cornell is a steady scene; only sequence scenes take frames"),
+    ({"bins": 4}, "bins: cornell is a steady scene; only transient scenes take bins"),
+    ({"collector": "z"}, "collector: cornell is a steady scene"),
+    ({"transform": "bogus"}, "transform: unknown 'bogus'"),  # checked without stats too
+])
+def test_arguments_a_steady_load_would_not_read_are_refused(kw, said):
+    with pytest.raises(DbenchInputError, match=said):
+        datasets.load("cornell", spp=2, res=8, **{"needs": {"color"}, **kw})
+
+
+@pytest.mark.parametrize("scene", [None, 5])
+def test_a_scene_that_is_no_name_is_refused(scene):
+    with pytest.raises(DbenchInputError, match="scene: expected a catalogue name"):
+        datasets.load(scene, spp=2, res=8)

@@ -94,3 +94,31 @@ def test_zoom_window_finds_where_outputs_go_wrong():
     ref2[2:8, 45:55] = np.random.default_rng(0).random((6, 10, 3))
     y0, x0, size = zoom_window(ref2)
     assert y0 <= 2 + 3 and x0 + size >= 48 and x0 <= 52
+
+
+def _frame(h=8, w=8, seed=0):
+    rng = np.random.default_rng(seed)
+    ref = rng.uniform(0.1, 1.0, (h, w, 3)).astype(np.float32)
+    return Frame(color=(ref + rng.normal(0, 0.05, ref.shape)).astype(np.float32),
+                 reference=ref)
+
+
+@pytest.mark.parametrize("args, kw, said", [
+    (("jbf", [_frame()]), {}, "method: expected a built method"),
+    ((None, []), {}, "frame: expected a frame or a non-empty list"),
+    ((None, [_frame(8, 8), _frame(4, 4)]), {}, "frame: the frames of one cell"),
+    ((None, [_frame(seed=0), _frame(seed=1)]), {}, "frame: the frames of one cell"),
+    ((None, [_frame()]), {"metric_names": ["bogus"]}, "metric_names: expected a list of judged"),
+    ((None, [_frame()]), {"metric_names": "rmse"}, "metric_names: expected a list of judged"),
+    ((None, [_frame()]), {"repeats": 0}, "repeats: expected an integer >= 1"),
+    ((None, [_frame()]), {"repeats": 1.5}, "repeats: expected an integer >= 1"),
+    ((None, [_frame()]), {"warmup": -1}, "warmup: expected an integer >= 0"),
+])
+def test_run_cell_refuses_what_it_would_coerce_or_drop(args, kw, said):
+    """Unknown metric names were dropped (a cell with no metrics), repeats 0 became 1, frames
+    of two sizes or references were pooled, a method's name raised AttributeError."""
+    from dbench.errors import DbenchInputError
+
+    method = args[0] if args[0] is not None else _Sleepy()
+    with pytest.raises(DbenchInputError, match=said):
+        harness.run_cell(method, args[1], **kw)
