@@ -84,16 +84,19 @@ def _umask() -> int:
 
 def ensure_writable_dir(path: str | os.PathLike, what: str) -> Path:
     """Create folder ``path`` (and parents) and check that files can be written in it; a
-    DbenchInputError naming ``what`` otherwise (before any work is done)."""
+    DbenchInputError naming ``what`` otherwise (before any work is done), and then the folders
+    this check created are gone again."""
     path = Path(path)
     if path.exists() and not path.is_dir():
         raise DbenchInputError(f"{what} {path}: exists and is not a folder")
+    created = missing_folders(path)
     try:
         path.mkdir(parents=True, exist_ok=True)
         fd, probe = tempfile.mkstemp(prefix=".write-probe-", dir=path)
         os.close(fd)
         os.unlink(probe)
     except OSError as exc:
+        remove_empty(created)
         raise DbenchInputError(f"{what} {path}: cannot write there ({exc.strerror or exc})") \
             from None
     return path

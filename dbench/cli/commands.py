@@ -112,11 +112,7 @@ def cmd_export(args: argparse.Namespace) -> int:
                                  if "reference" in scene.provides else None))
     cache = _writable_cache(args)
     created = missing_folders(out)
-    try:
-        ensure_writable_dir(out, "--out")
-    except BaseException:  # (the parents it made for the check go again)
-        remove_empty(created)
-        raise
+    ensure_writable_dir(out, "--out")
     needs = set(scene.provides) - {"gradient", "emission"}
     written: list[Path] = []
     ref_spp = None

@@ -72,22 +72,18 @@ def _writable_out(args: argparse.Namespace) -> list[Path]:
     """Check the folder the model is written into (``--out``, else the method's package
     folder) before anything renders: a folder this user can write, where the model's files
     are not folders. Returns the folders the check created (deepest first)."""
-    from ..io import ensure_writable_dir, missing_folders, remove_empty
+    from ..io import ensure_writable_dir, missing_folders
     from ..learn.ship import PACKAGE_METHODS
 
     given = args.out is not None
     out = Path(args.out) if given else PACKAGE_METHODS / args.method
     what = "--out" if given else "--out (not given: the package folder)"
     created = missing_folders(out)
-    try:
-        ensure_writable_dir(out, what)
-        for name in (f"{args.method}.onnx", f"{args.method}.json"):
-            if (out / name).is_dir():
-                raise DbenchInputError(f"{what} {out}: {name} there is a folder; the model "
-                                       f"is written as that file")
-    except DbenchInputError:
-        remove_empty(created)
-        raise
+    ensure_writable_dir(out, what)  # (refused, it leaves none of the folders it made)
+    for name in (f"{args.method}.onnx", f"{args.method}.json"):
+        if (out / name).is_dir():  # (then out was there before: the check created nothing)
+            raise DbenchInputError(f"{what} {out}: {name} there is a folder; the model is "
+                                   f"written as that file")
     return created
 
 
