@@ -23,7 +23,7 @@ from ..device import device_name, download, timed, upload
 from . import fpenv
 from .inputs import check_unchanged, input_guard, private_copy
 from .scoring import DEFAULT_METRICS, judge_frame
-from .sequence_run import WARMUP, run_sequence
+from .sequence_run import WARMUP, after_warmup, run_sequence
 
 
 @dataclass
@@ -275,7 +275,7 @@ def run_sequence_cell(method: Denoiser, seq, metric_names=DEFAULT_METRICS,
         run = run_sequence(method, s, metric_names=names, warmup=warmup, keep_outputs=True,
                            device=where, cvvdp=cvvdp)
         result.transfer_s.append(run.summary.get("transfer_s", 0.0))
-        after = run.per_frame[warmup:] if len(run.per_frame) > warmup else run.per_frame
+        after = after_warmup(run.per_frame, warmup)
         result.times_s += [r["time_s"] for r in after]
         result.n_nonfinite += int(sum((~np.isfinite(o)).sum() for o in run.outputs))
         if result.sequence is None:

@@ -281,10 +281,9 @@ def judged_ref_rmse(seq) -> float | None:
     """A sequence's reference RMSE as its cells give it (``ref_rmse`` in metrics.csv): the mean,
     over the frames the metrics average (those after the warm-up, :func:`sequence_window`), of
     each frame's sqrt(mean(reference_var)); None where a frame's is unknown."""
-    from .sequence_run import WARMUP
+    from .sequence_run import after_warmup
 
-    values = [seq[k].meta.get("ref_rmse") for k in range(len(seq))]
-    judged = values[WARMUP:] if len(values) > WARMUP else values
+    judged = after_warmup([seq[k].meta.get("ref_rmse") for k in range(len(seq))])
     if not judged or any(v is None or v != v for v in judged):
         return None
     return float(np.mean(judged))

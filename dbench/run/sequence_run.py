@@ -46,6 +46,13 @@ SEQUENCE_METRICS = ("rmse", "ssim")
 TEMPORAL_METHODS = ("noisy", "accumulate", "svgf", "asvgf", "bmfr")
 
 
+def after_warmup(items: list, warmup: int = WARMUP) -> list:
+    """The per-frame ``items`` a sequence's figures average: those after the warm-up, or all
+    of them when the sequence is no longer than it (one home for the window, so that the
+    summary, the cells and the run's settings judge the same frames)."""
+    return items[warmup:] if len(items) > warmup else items
+
+
 @dataclass
 class SequenceResult:
     """Outcome of one method on one sequence.
@@ -168,9 +175,8 @@ def run_sequence(method, seq: Sequence, metric_names: Iterable[str] = SEQUENCE_M
         outs.append(out.astype(np.float32))
     check_unchanged(m.name, mine, seq)
     res = SequenceResult(m.name, dict(m.params), rows, outputs=outs if keep_outputs else None,
-                         judgements=judgements[warmup:] if len(judgements) > warmup
-                         else judgements)
-    after = rows[warmup:] if len(rows) > warmup else rows
+                         judgements=after_warmup(judgements, warmup))
+    after = after_warmup(rows, warmup)
     summary: dict[str, float] = {"warmup": int(warmup), "frames": len(rows)}
     scored = [k for k in (rows[0] if rows else {}) if k not in ("frame", "time_s")]
     for name in dict.fromkeys(list(names) + scored):
