@@ -322,11 +322,11 @@ def judge_reference(*, reference: np.ndarray, spp: int, series: dict[int, np.nda
         found = _noise_check(ratio, spp, implied)
         if found:
             warnings.append(found)
-        if found and np.isfinite(implied):
-            # the measurement contradicts the estimate: it would misstate the reference's
-            # error and make the unbiased figures look corrected, so the error is unknown
-            var, ref_rel = None, float("nan")
-            source = f"unknown: the high-pass check contradicts the estimate ({source})"
+            if np.isfinite(implied):
+                # the measurement contradicts the estimate: it would misstate the reference's
+                # error and make the unbiased figures look corrected, so the error is unknown
+                var, ref_rel = None, float("nan")
+                source = f"unknown: the high-pass check contradicts the estimate ({source})"
         elif ratio is None:  # an estimate nothing measured is not stated as a fact
             source += ("; not checked against the noisy input (too few surface pixels for "
                        "the high-pass comparison)")
