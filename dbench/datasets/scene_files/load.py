@@ -89,7 +89,7 @@ from ...errors import DbenchInputError
 from ...resolution import Res, parse_res
 from ..mitsuba_env import mitsuba
 from ..scenes.record import STEADY_BUFFERS, Scene
-from ..scenes.build import call_build, check_lit, exit_message, probe_load
+from ..scenes.build import call_build, check_lit, exit_message, integrator_settings, probe_load
 from ..scenes.build import own_camera as _own_camera
 from .assets import asset_hashes as _sources, scene_walk
 from ..cache import referenced
@@ -400,9 +400,7 @@ def _own_integrator_only(integrator, path: str, kind: str, steady: str, renders:
     passes), taking over only the dictionary's ``max_depth``."""
     if integrator is None:
         return
-    name = integrator.get("type") if isinstance(integrator, dict) else type(integrator).__name__
-    extra = [k for k in integrator if k not in ("type", "max_depth")] \
-        if isinstance(integrator, dict) else []
+    name, extra = integrator_settings(integrator)
     if name == steady and not extra:
         return
     what = f"integrator {name}" if name != steady else f"{', '.join(extra)} on its {name}"

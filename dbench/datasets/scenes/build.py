@@ -263,6 +263,15 @@ def check_plugin_scene(scene: Any) -> None:
     _PROBED.add(key)
 
 
+def integrator_settings(integrator: Any) -> tuple[str, list[str]]:
+    """(type, its settings other than ``max_depth``, sorted) of a build dictionary's
+    ``"integrator"``: what decides whether dbench's own ``path`` (or ``volpath``) at that depth
+    renders it as it is (a loaded object: its class name, settings unknown)."""
+    if not isinstance(integrator, dict):
+        return type(integrator).__name__, []
+    return str(integrator.get("type")), sorted(set(integrator) - {"type", "max_depth"})
+
+
 def check_own_integrator(scene: Any, integrator: Any) -> None:
     """A plugin's ``Scene`` renders with ``path`` at its own ``max_depth`` (README.md, "Python
     scene files": it sets the depth): a dictionary integrator of another type or with other
@@ -270,9 +279,7 @@ def check_own_integrator(scene: Any, integrator: Any) -> None:
     ``max_depth`` is stated in the frames' settings (``Scene.frame_meta``)."""
     if integrator is None:
         return
-    name = integrator.get("type") if isinstance(integrator, dict) else type(integrator).__name__
-    extra = sorted(set(integrator) - {"type", "max_depth"}) if isinstance(integrator, dict) \
-        else []
+    name, extra = integrator_settings(integrator)
     if name != "path" or extra:
         given = f"{name}" + (f" with {', '.join(extra)}" if extra else "")
         raise DbenchInputError(
@@ -287,5 +294,5 @@ def check_own_integrator(scene: Any, integrator: Any) -> None:
 
 
 __all__ = ["call_build", "check_box_filter", "check_film", "check_lit", "check_own_integrator",
-           "check_plugin_scene", "dictionary_plan", "exit_message", "own_camera",
-           "plugin_build", "probe_load", "source_of", "takes_width_height"]
+           "check_plugin_scene", "dictionary_plan", "exit_message", "integrator_settings",
+           "own_camera", "plugin_build", "probe_load", "source_of", "takes_width_height"]
