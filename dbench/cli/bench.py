@@ -143,14 +143,11 @@ def _bench_kernels(args: argparse.Namespace) -> int:
     """``dbench bench kernels``: every Triton kernel variant compiled for a CUDA target, here
     (dbench.speed.kernels; no GPU needed)."""
     from ..speed import kernels
-    from ..speed import timing as speed
 
     if args.param:
         raise DbenchInputError("--param: bench kernels compiles every method with its defaults")
     result = kernels.precompile(arch=args.arch, jobs=args.jobs, log=print)
-    print(kernels.format_result(result))
-    if args.out:
-        speed.append_result(args.out, result)
+    _report(kernels.format_result(result), result, args.out)
     return 1 if result["errors"] else 0
 
 
