@@ -197,10 +197,11 @@ def _check_common(args: argparse.Namespace) -> None:
     from ..datasets.references import check_seed
 
     check_seed(args.seed, args.seeds)  # the last noisy seed is --seed + --seeds − 1
+    from ..datasets.references import check_ref_spp, reference_spp
+
     if args.ref_spp is not None:
-        check_count("--ref-spp", args.ref_spp)
+        check_ref_spp(args.ref_spp)
     else:
-        from ..datasets.references import reference_spp
 
         reference_spp()  # a bad DBENCH_REF_SPP is refused here, before anything renders
     if getattr(args, "bins", None) is not None:  # the transient film's memory at this size

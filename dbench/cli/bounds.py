@@ -1,7 +1,8 @@
 """Bounds of the count options, checked before a command does anything.
 
 Counts (``--spp``, ``--ref-spp``, ``--frames``, ``--bins``, ``--seeds``, ``--repeats``) are
-integers in [1, :data:`MAX_COUNT`]; ``1e3`` is read as 1000. The other integer options are
+integers in [1, :data:`MAX_COUNT`] (``--ref-spp`` in [2, :data:`MAX_COUNT`]: :func:`ref_count`);
+``1e3`` is read as 1000. The other integer options are
 read by :func:`integer` and the real-valued ones by :func:`number` (finite), so that ``--lam
 abc`` is one line too. Anything else (``--ref-spp 1e20``,
 ``--spp 0``, ``--bins many``) is refused before the command resolves a scene or renders, with
@@ -59,6 +60,19 @@ def count(text: str) -> int | BadCount:
         bad = BadCount(text)
         bad.why = str(exc)
         return bad
+
+
+def ref_count(text: str) -> int | BadCount:
+    """argparse ``type`` of ``--ref-spp``: a count of at least 2
+    (:func:`dbench.datasets.references.ref_spp_problem`), or a :class:`BadCount`."""
+    from ..datasets.references import ref_spp_problem
+
+    value = count(text)
+    if isinstance(value, BadCount) or ref_spp_problem(value):
+        bad = BadCount(text)
+        bad.why = ref_spp_problem(value if not isinstance(value, BadCount) else str(text))
+        return bad
+    return value
 
 
 def integer(text: str) -> int | BadCount:

@@ -5,7 +5,7 @@ import argparse
 from typing import NoReturn
 
 from .args import normal_encoding_arg, seed_arg
-from .bounds import count, integer, number
+from .bounds import count, integer, number, ref_count
 from .bench import cmd_bench
 from .commands import cmd_export, cmd_list, cmd_render, cmd_report, cmd_stress, cmd_sweep
 from .guard import command
@@ -39,7 +39,7 @@ def build_parser() -> argparse.ArgumentParser:
         sp.add_argument("--no-cache", action="store_true", help="render everything afresh")
         sp.add_argument("--seed", type=seed_arg, default=0, help="base seed of the noisy "
                         "renders and of the reference, in [0, 4294967295]")
-        sp.add_argument("--ref-spp", type=count, default=None,
+        sp.add_argument("--ref-spp", type=ref_count, default=None,
                         help="reference spp (default $DBENCH_REF_SPP or 4096)")
         if not scene_params:  # train: its procedural scenes take none
             return

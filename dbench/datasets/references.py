@@ -12,6 +12,10 @@ DEFAULT_REFERENCE_SPP = 4096
 #: Largest seed: Mitsuba takes a render's seed as an unsigned 32-bit integer (``mi.render``
 #: refuses -1 and 2**32), so a seed outside [0, MAX_SEED] is not a seed a render could have used.
 MAX_SEED = 2**32 - 1
+#: Fewest and most reference spp: the reference's variance is the spread of its chunks, and one
+#: sample is one chunk, whose spread reads as zero (a "noise-free" reference); Mitsuba's spp is a
+#: signed 32-bit integer.
+MIN_REF_SPP, MAX_REF_SPP = 2, 2**31 - 1
 
 
 def seed_problem(seed, n_seeds: int = 1) -> str:
@@ -35,8 +39,26 @@ def check_seed(seed, n_seeds: int = 1, name: str = "--seed") -> int:
     return int(seed)
 
 
+def ref_spp_problem(value) -> str:
+    """'' when ``value`` is an integer in [:data:`MIN_REF_SPP`, :data:`MAX_REF_SPP`], else the
+    words that say the valid range and why 1 is not in it."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) \
+            or not MIN_REF_SPP <= value <= MAX_REF_SPP:
+        return (f"expected an integer in [{MIN_REF_SPP}, {MAX_REF_SPP}] (the reference's "
+                f"variance is the spread of its chunks, and 1 spp is one chunk), got {value!r}")
+    return ""
+
+
+def check_ref_spp(value, name: str = "--ref-spp") -> int:
+    """``value`` as an int (:func:`ref_spp_problem`); DbenchInputError naming ``name``."""
+    problem = ref_spp_problem(value)
+    if problem:
+        raise DbenchInputError(f"{name}: {problem}")
+    return int(value)
+
+
 def reference_spp() -> int:
-    """``DBENCH_REF_SPP`` (an integer in [1, 2³¹ − 1], the range of ``--ref-spp``), else
+    """``DBENCH_REF_SPP`` (an integer in [2, 2³¹ − 1], the range of ``--ref-spp``), else
     :data:`DEFAULT_REFERENCE_SPP`; DbenchInputError naming the variable otherwise, so a bad
     value is one line and exit 2 before anything renders."""
     text = os.environ.get("DBENCH_REF_SPP", "").strip()
@@ -45,11 +67,10 @@ def reference_spp() -> int:
     try:
         value = int(text)
     except ValueError:
-        value = 0
-    if not 1 <= value <= 2**31 - 1:
-        raise DbenchInputError(f"DBENCH_REF_SPP: expected an integer in [1, {2**31 - 1}] "
-                               f"(the reference spp), got {text!r}; unset it for "
-                               f"{DEFAULT_REFERENCE_SPP}")
+        value = text
+    if ref_spp_problem(value):  # (the text, a str, is never valid: the words show it as given)
+        raise DbenchInputError(f"DBENCH_REF_SPP: {ref_spp_problem(text)}; "
+                               f"unset it for {DEFAULT_REFERENCE_SPP}")
     return value
 
 
@@ -63,11 +84,8 @@ def check_render_args(spp, seed, ref_spp) -> int:
 
     check_count("spp", spp)
     seed = check_seed(seed, name="seed")
-    if ref_spp is not None and (isinstance(ref_spp, (bool, np.bool_)) or not isinstance(
-            ref_spp, (int, np.integer)) or not 2 <= ref_spp <= 2**31 - 1):
-        raise DbenchInputError(f"ref_spp: expected an integer in [2, {2**31 - 1}] (None: the "
-                               f"default; the reference's variance is the spread of its "
-                               f"chunks), got {ref_spp!r}")
+    if ref_spp is not None:
+        check_ref_spp(ref_spp, "ref_spp")
     return seed
 
 

@@ -185,10 +185,11 @@ def test_an_unwritable_cache_named_on_the_command_line_exits_2(tmp_path, capsys)
 
 
 @pytest.mark.parametrize("extra, option, valid", [
-    (["--ref-spp", "1e20"], "--ref-spp", "[1, 2147483647]"),
+    (["--ref-spp", "1e20"], "--ref-spp", "[2, 2147483647]"),
+    (["--ref-spp", "1"], "--ref-spp", "[2, 2147483647]"),
     (["--spp", "0"], "--spp", "[1, 2147483647]"),
     (["--spp", "-4"], "--spp", "[1, 2147483647]"),
-    (["--ref-spp", "many"], "--ref-spp", "[1, 2147483647]"),
+    (["--ref-spp", "many"], "--ref-spp", "[2, 2147483647]"),
     (["--seeds", "1e20"], "--seeds", "[1, 2147483647]"),
     (["--repeats", "99999999999"], "--repeats", "[1, 2147483647]"),
     (["--bins", "10000000"], "--bins", "[1, 87381]"),
@@ -320,15 +321,16 @@ def test_nan_and_3e38_outputs_print_no_numpy_warnings(isolated, renderer, tmp_pa
     assert not numpy_warnings and "RuntimeWarning" not in err, numpy_warnings or err
 
 
-@pytest.mark.parametrize("value", ["lots", "0", "-64", str(2**31)])
+@pytest.mark.parametrize("value", ["lots", "0", "1", "-64", str(2**31)])
 def test_a_bad_reference_spp_from_the_environment_is_one_line(tmp_path, value):
-    """DBENCH_REF_SPP is read as --ref-spp is: anything but a count is refused, naming it."""
+    """DBENCH_REF_SPP is read as --ref-spp is: anything but a count of at least 2 is refused,
+    naming it (1 spp is one chunk, whose spread would read as a noise-free reference)."""
     args = ["run", "--method", "noisy", "--scene", "cornell", "--res", "8", "--spp", "2",
             "--repeats", "1", "--quiet", "--out", str(tmp_path / "out")]
     r = _dbench(tmp_path, *args, env={"DBENCH_REF_SPP": value})
     assert r.returncode == 2, r.stderr
     line = _one_line(r.stderr)
-    assert "DBENCH_REF_SPP" in line and value in line and "[1, 2147483647]" in line
+    assert "DBENCH_REF_SPP" in line and repr(value) in line and "[2, 2147483647]" in line
     assert _nothing_rendered(tmp_path / "cache") and not (tmp_path / "out").exists()
 
 
