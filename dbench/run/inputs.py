@@ -127,9 +127,31 @@ def load_seeds(scene, seed: int, n_seeds: int, **load_kwargs) -> list:
     :func:`dbench.datasets.load`."""
     from .. import datasets
 
-    return [datasets.load(scene, seed=seed + k, ref_seed=seed, **load_kwargs)
-            for k in range(n_seeds)]
+    frames = [datasets.load(scene, seed=seed + k, ref_seed=seed, **load_kwargs)
+              for k in range(n_seeds)]
+    check_reference_lit(frames[0], getattr(scene, "name", scene))
+    return frames
 
 
-__all__ = ["MethodError", "load_seeds", "check_unchanged", "first_changed", "input_guard",
+def check_reference_lit(data: Any, scene_name: str) -> None:
+    """Refuse ``data`` (a Frame, Sequence or TransientFrame) whose reference is 0 in every
+    pixel (and frame, and bin): emitters of zero radiance, or lights that reach nothing the
+    camera sees. Every method would then score 0 error on it, and rank as a tie, which is no
+    finding (README "A result is right or clearly refused"); a scene without any emitter is
+    refused before rendering (:func:`dbench.datasets.scenes.build.check_lit`)."""
+    from ..errors import DbenchInputError
+
+    frames = data.frames if getattr(data, "kind", "") == "sequence" else [data]
+    refs = [f.reference for f in frames if getattr(f, "reference", None) is not None]
+    if refs and not any(np.any(r) for r in refs):
+        video = getattr(data, "kind", "") == "transient"
+        where = " and frame" if len(frames) > 1 else " and time bin" if video else ""
+        when = " within the video's time window" if video else ""
+        raise DbenchInputError(
+            f"scene {scene_name}: the reference is 0 in every pixel{where} (no light of its "
+            f"emitters reaches the camera{when}), so every method would score a perfect 0 "
+            f"error; give a light some radiance or point the camera at what it lights")
+
+
+__all__ = ["MethodError", "load_seeds", "check_reference_lit", "check_unchanged", "first_changed", "input_guard",
            "is_write_to_input", "private_copy"]
