@@ -90,6 +90,20 @@ class Denoiser:
     def denoise(self, data: Any) -> np.ndarray:  # pragma: no cover - abstract
         raise NotImplementedError
 
+    def check_input(self, data: Any) -> None:
+        """Refuse ``data`` that is not a dbench frame of a kind this method takes (a
+        :class:`~dbench.data.Frame`, also one frame of a sequence for a temporal method, or a
+        :class:`~dbench.data.TransientFrame`), naming the method and what it takes, so a bare
+        array is one DbenchInputError rather than an AttributeError from inside the method."""
+        takes = set(self.kinds) | ({"steady"} if "sequence" in self.kinds else set())
+        kind = getattr(data, "kind", None)
+        if kind not in takes or not hasattr(data, "color"):
+            names = {"steady": "Frame", "sequence": "Frame", "transient": "TransientFrame"}
+            wanted = dict.fromkeys(names[k] for k in sorted(self.kinds) if k in names)
+            raise DbenchInputError(
+                f"{self.name}: expected a dbench {' or '.join(wanted)}, got "
+                f"{kind + ' data' if isinstance(kind, str) else type(data).__name__}")
+
     def denoise_device(self, data: Any) -> Any:  # pragma: no cover - optional
         """The method on a :class:`dbench.device.DeviceFrame` whose buffers are tensors already
         on a device: returns an (H, W, 3) float32 tensor on that device, the same numbers as

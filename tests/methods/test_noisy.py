@@ -25,3 +25,17 @@ def test_non_finite_input_is_shown_as_is():
 @pytest.mark.parametrize("shape", [(1, 1, 3), (1, 13, 3), (17, 1, 3)])
 def test_any_size(shape):
     assert registry.get("noisy").denoise(Frame(color=np.zeros(shape))).shape == shape
+
+
+def test_something_other_than_a_frame_is_refused_naming_the_method():
+    """A bare array is one DbenchInputError naming the method and what it takes, not an
+    AttributeError from inside it (Denoiser.check_input)."""
+    import numpy as np
+    import pytest
+
+    from dbench import registry
+    from dbench.errors import DbenchInputError
+
+    for name in ("noisy", "oidn"):
+        with pytest.raises(DbenchInputError, match=rf"^{name}: expected a dbench Frame"):
+            registry.get(name).denoise(np.zeros((4, 4, 3), np.float32))

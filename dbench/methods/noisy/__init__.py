@@ -16,4 +16,5 @@ class Noisy(Denoiser):
     defaults: dict = {}
 
     def denoise(self, data) -> np.ndarray:
+        self.check_input(data)
         return np.array(data.color, dtype=np.float32, copy=True)

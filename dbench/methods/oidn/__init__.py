@@ -113,6 +113,7 @@ class OIDN(Denoiser):
         return out
 
     def denoise(self, data) -> np.ndarray:
+        self.check_input(data)
         features = self.params["features"]
         albedo = data.albedo if features != "none" else None
         normal = data.normal if features == "albedo+normal" else None
