@@ -38,6 +38,8 @@ import numpy as np
 
 from ..errors import DbenchInputError
 from .checks import _integrate, check_pair
+from .ldr import ssim_global_over
+from .params import SSIM_WIN
 from .pixel import pixel_mean as _pixel_mean
 from .records import METRICS, judge_figures, judged
 from .tonemapping import check_ev, tonemap
@@ -299,6 +301,12 @@ def judge(output: Any, reference: Any, *, emitter: Any = None, reference_var: An
     for n in EXTRA:
         if METRICS[n].variant == "share":
             values[n] = top1_share(maps[METRICS[n].variant_of])
+    if "ssim" in names and min(h, w) < SSIM_WIN and not surface.all():
+        # one window covers the image, so its map is one value everywhere and the mean over
+        # the surface would be the whole image's SSIM, lights included: the surface form is
+        # the same single window over the surface pixels alone
+        values["ssim_surface"] = ssim_global_over(tonemap(_integrate(o), ev),
+                                                  tonemap(_integrate(r), ev), surface)
     values["ref_rmse"] = ref_rmse
     return Judgement({c: values[c] for c in columns} | ref, sums, map_names, block)
 

@@ -50,6 +50,16 @@ def ssim_ldr(a: np.ndarray, b: np.ndarray) -> float:
     return _ssim_global(a, b)
 
 
+def ssim_global_over(a: np.ndarray, b: np.ndarray, select: np.ndarray) -> float:
+    """The single-window SSIM of :func:`ssim_ldr`'s small images over the pixels ``select``
+    ((H, W) bool) of the tone-mapped (H, W, C) pair: the surface form of an image smaller than
+    the window, where the per-pixel map is one value for the whole image; NaN when ``select``
+    holds no pixel."""
+    if not select.any():
+        return float("nan")
+    return _ssim_global(a[select][:, None, :], b[select][:, None, :])
+
+
 def _ssim_global(a: np.ndarray, b: np.ndarray) -> float:
     c1 = (SSIM_K1 * 1.0) ** 2
     c2 = (SSIM_K2 * 1.0) ** 2
@@ -66,16 +76,20 @@ def _ssim_global(a: np.ndarray, b: np.ndarray) -> float:
 
 def _psnr_from_mean(m: Any) -> Any:
     """PSNR from the mean squared LDR error ``m`` (a scalar or an array of bootstrap
-    resamples), as the judge takes it: capped at 100 dB, 100 dB where ``m`` is 0."""
+    resamples), as the judge takes it: capped at 100 dB, 100 dB where ``m`` is 0, NaN where
+    ``m`` is NaN (a mean over no pixel, e.g. the surface of an image that is all light: no
+    value, where the cap would read as a perfect score)."""
     m = np.asarray(m, np.float64)
     out = np.where(m > 0, np.minimum(PSNR_CAP_DB, 10.0 * np.log10(1.0 / np.where(
         m > 0, m, 1.0))), PSNR_CAP_DB)
+    out = np.where(np.isnan(m), np.nan, out)
     return out if out.ndim else float(out)
 
 
 def _ssim_map(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(map, weight): skimage's SSIM map averaged over channels, weight 0 on the border it
-    crops; images smaller than the window get the global SSIM everywhere (:func:`ssim_ldr`)."""
+    crops; images smaller than the window get the global SSIM everywhere (:func:`ssim_ldr`;
+    their surface form is :func:`ssim_global_over` the surface pixels, set by the judge)."""
     h, w = a.shape[:2]
     if min(h, w) < SSIM_WIN:
         return np.full((h, w), _ssim_global(a, b)), np.ones((h, w))

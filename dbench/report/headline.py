@@ -36,8 +36,9 @@ JODS = frozenset({"cvvdp"})
 
 #: What the verdict column says, for the notes under the tables.
 VERDICT_NOTE = ("`verdict` names every headline metric on which a method is worse than the "
-                "noisy input, with the size of the loss (its mean / the noisy input's; PSNR: "
-                "the difference in dB) and, at the end, the losses the intervals cannot tell "
+                "noisy input, with the size of the loss (its mean / the noisy input's; PSNR, "
+                "SSIM and other scores where higher is better: the difference, in dB for PSNR) "
+                "and, at the end, the losses the intervals cannot tell "
                 "from none (`tied: …`); beside a whole-image loss, the same metric over surface "
                 "pixels: no worse than the noisy input there means the loss comes from lights "
                 "seen directly or in mirrors.")
@@ -50,11 +51,15 @@ def flag_metrics(columns: Sequence[str], rank_by: str) -> list[str]:
 
 
 def loss_size(value: float, noisy: float, metric: str) -> str:
-    """``11.8×`` (value / noisy), or ``−2.6 dB`` for PSNR-like metrics."""
+    """``11.8×`` (value / noisy) for an error, or the difference for a score where higher is
+    better: ``−2.6 dB`` for PSNR-like metrics, ``−0.15`` for SSIM (signed, in [−1, 1], so a
+    ratio of two SSIMs means nothing and flips with their signs)."""
     if metric in DECIBELS:
         return f"{value - noisy:+.2g} dB".replace("-", "−")
     if metric in JODS:
         return f"{value - noisy:+.2g} JOD".replace("-", "−")
+    if higher_is_better(metric):
+        return f"{value - noisy:+.2g}".replace("-", "−")
     if noisy == 0:
         return f"{value:.3g} (noisy 0)"
     ratio = value / noisy

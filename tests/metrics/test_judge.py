@@ -33,6 +33,32 @@ def test_small_images_use_the_global_ssim_like_the_readable_metric():
     assert J.judge(o, r).values["ssim"] == pytest.approx(metrics.ssim(o, r), rel=1e-12)
 
 
+def test_an_image_without_surface_pixels_has_no_surface_figures():
+    """Every surface form is NaN when every pixel is light: PSNR's 100 dB cap is for a zero
+    error, not for a mean over no pixel (it read as a perfect score)."""
+    o, r = _pair(32, 32)
+    v = J.judge(o, r, emitter=np.ones((32, 32))).values
+    for name in J.JUDGED:
+        assert np.isnan(v[name + "_surface"]), name
+        assert np.isfinite(v[name]), name
+
+
+def test_a_small_images_surface_ssim_is_over_its_surface_pixels():
+    """Under the 11-px window the SSIM map is one value for the whole image; the surface form
+    is the same single window over the surface pixels, not the whole image's value."""
+    rng = np.random.default_rng(11)
+    r = rng.uniform(0.2, 0.8, (8, 8, 3))
+    o = r + rng.normal(0, 0.02, r.shape)
+    emitter = np.zeros((8, 8))
+    emitter[:4] = 1.0
+    o[:4] = 0.0  # the lights' rows are ruined, the surface rows are close
+    v = J.judge(o, r, emitter=emitter).values
+    assert v["ssim"] == pytest.approx(metrics.ssim(o, r), rel=1e-12)
+    assert v["ssim_surface"] == pytest.approx(metrics.ssim(o[4:], r[4:]), rel=1e-12)
+    assert v["ssim_surface"] > 0.9 > 0.2 > v["ssim"]
+    assert np.isnan(J.judge(o, r, emitter=np.ones((8, 8))).values["ssim_surface"])
+
+
 def test_surface_metrics_leave_out_emitter_pixels():
     o, r = _pair(sigma=0.0)
     emitter = np.zeros(r.shape[:2] + (1,))

@@ -159,13 +159,14 @@ def test_flags_name_the_loss_and_where_it_comes_from():
         "method").loc["jbf", "verdict"] == words["jbf"]
     assert _flat(" ".join(terminal.verdict_lines(d, verdicts.HEADLINE, "relmse"))) == \
         f"jbf: {words['jbf']}"
-    # a loss on surfaces that the whole image hides; SSIM's loss as a ratio, PSNR's in dB
+    # a loss on surfaces that the whole image hides; SSIM's loss as a difference (it is signed),
+    # PSNR's in dB
     d = _cells(rmse=0.08, rmse_surface=0.1, ssim=0.6, psnr=20.0)
     d.loc[d.method == "noisy", "psnr"] = 22.6
     d["psnr_ci"] = 0.01
     words = headline.worse_than_noisy(d, ["rmse_surface", "ssim", "psnr"])
     assert words["jbf"] == ("worse than noisy on rmse_surface 2× (whole image 0.8×); "
-                            "ssim 0.75×; psnr −2.6 dB")
+                            "ssim −0.2; psnr −2.6 dB")
     assert headline.worse_than_noisy(_cells(), verdicts.HEADLINE) == {}
     # losses the intervals cannot tell from none are named once, at the end
     d = _cells(rmse=0.12, flip=0.3)
@@ -264,3 +265,12 @@ def test_a_small_flagged_loss_never_reads_as_one():
     assert loss_size(1.0025, 1.0, "flip") == "1.002×"
     assert loss_size(0.04017, 0.04, "rmse") == "1.004×"
     assert loss_size(12.3, 1.0, "rmse") == "12.3×" and loss_size(1.04, 1.0, "rmse") == "1.04×"
+
+
+def test_an_ssim_loss_is_a_difference_not_a_ratio():
+    """SSIM is signed: a ratio of -0.2 to -0.05 read as a 4× loss, 0.5 to 0.9 as 0.56×."""
+    from dbench.report.headline import loss_size
+
+    assert loss_size(-0.2, -0.05, "ssim") == "−0.15"
+    assert loss_size(0.5, 0.9, "ssim_surface") == "−0.4"
+    assert loss_size(30.0, 32.5, "psnr") == "−2.5 dB"
