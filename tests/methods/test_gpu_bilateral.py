@@ -69,6 +69,21 @@ def test_statistical_device_equals_reference(kw, uniform):
         assert m.last_settings[key] == ref_m.last_settings[key], key
 
 
+@pytest.mark.parametrize("membership", [True, False])
+def test_statistical_device_gives_lights_their_own_label_as_the_host(membership):
+    """An ``emitter`` buffer labels the lights in the device guide as in the host's (the
+    base filter is jbf's, docs/methods/statistical.md §7)."""
+    f = frame(seed=5)
+    emitter = np.zeros(f.shape + (1,))
+    emitter[2:6, 10:20] = 1.0
+    f = f.with_buffers(emitter=emitter, color=f.color + 30.0 * emitter)
+    ref = get("statistical", backend="reference", radius=3, membership=membership).denoise(f)
+    blended = get("statistical", backend="reference", radius=3, membership=membership).denoise(
+        f.with_buffers(emitter=None))
+    assert rel_err(blended, ref) > 10 * TOL  # the buffer changes the result
+    assert rel_err(device_out(get("statistical", radius=3, membership=membership), f), ref) < TOL
+
+
 def test_hostile_inputs_are_finite_and_follow_the_policies():
     f = frame(h=12, w=20, seed=5)
     color = np.array(f.color)

@@ -244,6 +244,27 @@ def test_all_memberships_forced_on_equals_jbf():
                                    backend="numba").denoise(frame), jbf_method, rtol=1e-6)
 
 
+@pytest.mark.parametrize("backend", ["reference", "numba"])
+def test_without_membership_equals_jbf_with_lights_in_view(backend):
+    """§7: membership=False is jbf, an ``emitter`` buffer included: lights seen directly get
+    their own label in both guides (docs/methods/jbf.md §1.3), so a light is not blended into
+    the surfaces around it (it was, by up to 5.0 on cornell)."""
+    color, stats, albedo, normal, depth = synthetic_case(17, 20, seed=8, zero_frac=0.0)
+    emitter = np.zeros((17, 20, 1), np.float32)
+    emitter[3:7, 4:9] = 1.0
+    color = color.astype(np.float32)
+    color[3:7, 4:9] += 20.0  # a bright light
+    frame = Frame(color=color, albedo=albedo.astype(np.float32),
+                  normal=normal.astype(np.float32), depth=depth.astype(np.float32),
+                  stats=stats, emitter=emitter)
+    jbf_method = get("jbf", radius=5).denoise(frame)
+    off = get("statistical", radius=5, membership=False, backend=backend).denoise(frame)
+    np.testing.assert_allclose(off, jbf_method, rtol=1e-6, atol=1e-6)
+    blended = get("statistical", radius=5, membership=False, backend=backend).denoise(
+        frame.with_buffers(emitter=None))
+    assert np.abs(blended - jbf_method).max() > 0.1  # the buffer is what separates them
+
+
 def test_null_hypothesis_exclusion_rate():
     """spec §13 check 11: i.i.d. N(1, 1), n = 256, α = 0.005, r = 5 → ≈ 1 − 0.995³ = 1.49 %."""
     rng = np.random.default_rng(9)

@@ -107,7 +107,9 @@ class Statistical(Denoiser):
 
     kinds = {"steady", "transient"}
     needs = {"color", "albedo", "normal", "stats"}
-    optional_needs = {"depth"}
+    #: ``emitter``: lights seen directly get their own label in the base filter's guide, as in
+    #: ``jbf`` (docs/methods/jbf.md §1.3), so ``membership=False`` is ``jbf`` (§7)
+    optional_needs = {"depth", "emitter"}
     defaults: dict[str, Any] = dict(
         radius=None, alpha=None, gamma=None, sigma=SEED_SIGMA,
         sigma_convention="variance", window="square", backend="auto", hit_mask=True,
@@ -191,7 +193,8 @@ class Statistical(Denoiser):
             data.color, data.stats, data.albedo, data.normal, depth_or_hit(data),
             radius=radius, alpha=alpha, gamma=p["gamma"], sigma=p["sigma"],
             sigma_convention=p["sigma_convention"], window=p["window"], hit_mask=p["hit_mask"],
-            membership_on=p["membership"], backend=p["backend"], return_info=True)
+            membership_on=p["membership"], backend=p["backend"], return_info=True,
+            emitter=getattr(data, "emitter", None))
         self.last_settings = info
         return out
 

@@ -73,7 +73,8 @@ def statistical_device(frame: Any, *, radius: int, alpha: float | None, gamma: f
     color = check_tensor("color", frame.color, h, w, 3)
     theta, var, nint, bad, negative = stat_planes_device(frame.stats, h, w)
     guide = make_device_guide(frame.albedo, frame.normal, depth_or_hit(frame), frame.position,
-                              shape=(h, w), radius=radius, isolate=bad, **guide_options)
+                              shape=(h, w), radius=radius, isolate=bad,
+                              emitter=getattr(frame, "emitter", None), **guide_options)
     valid = (~bad)[..., None].expand(h, w, 3)
     counts = nint[..., :3]
     big = torch.iinfo(torch.int32).max

@@ -55,7 +55,7 @@ def statistical_filter(color: Any, stats: SampleStats, albedo: Any, normal: Any,
                        sigma_convention: str = "variance", window: str = "square",
                        hit_mask: bool = True, features=("xy", "albedo", "normal"),
                        membership_on: bool = True, backend: str = "auto",
-                       return_info: bool = False):
+                       return_info: bool = False, emitter: Any = None):
     """Statistical denoiser of docs/methods/statistical.md on one steady image.
 
     Args:
@@ -63,7 +63,8 @@ def statistical_filter(color: Any, stats: SampleStats, albedo: Any, normal: Any,
         stats: SampleStats with (H, W, 3) n, mean, var_mean, m3 of the transformed samples
             (θ̂ = stats.theta, Var(θ̂) = stats.var_mean).
         albedo, normal: (H, W, 3); depth: (H, W, 1) or None (all pixels hit); position: (H, W, 3)
-            when ``features`` include it.
+            when ``features`` include it; emitter: (H, W, 1) emitter coverage or None (lights
+            seen directly get their own label, as in ``jbf``'s guide: docs/methods/jbf.md §1.3).
         radius, sigma, sigma_convention, window, hit_mask, features: base filter ρ
             (docs/methods/jbf.md).
         alpha: test level, γ_t = t_{1−α/2, n_i+n_j−2}; gamma: threshold given directly (wins).
@@ -78,7 +79,7 @@ def statistical_filter(color: Any, stats: SampleStats, albedo: Any, normal: Any,
     backend = resolve_backend(backend)
     guide = make_guide(albedo, normal, depth, position, radius=radius, sigma=sigma,
                        sigma_convention=sigma_convention, window=window, hit_mask=hit_mask,
-                       features=features, shape=shape)
+                       features=features, shape=shape, emitter=emitter)
     sp = stat_planes(stats, shape)
     thr = resolve_threshold(sp.nint, alpha, gamma, valid=np.broadcast_to(~sp.bad, sp.nint.shape))
     if backend == "reference":
