@@ -22,6 +22,18 @@ def check_choice(name: str, value: Any, choices: Sequence[str]) -> str:
     return value
 
 
+def check_features(value: Any, choices: Sequence[str], name: str = "features") -> None:
+    """A guide's ``features``: one name or a sequence of names, each in ``choices``; anything
+    else (a number, None, True) is refused naming ``name`` rather than failing inside the
+    filter."""
+    names = (value,) if isinstance(value, str) else value
+    if not isinstance(names, (tuple, list)):
+        raise DbenchInputError(f"{name}: expected a name or a sequence of names from "
+                               f"{list(choices)}, got {value!r}")
+    for f in names:
+        check_choice(name, f, choices)
+
+
 def check_positive(name: str, value: Any, *, allow_inf: bool = False, allow_zero: bool = False) -> float:
     try:
         v = float(value)

@@ -209,7 +209,11 @@ def test_lam_is_taken_where_one_of_the_scenes_reads_it():
     ("jbf", "sigma_depth=nan", "sigma_depth: expected a number, got 'nan'"),
     # these were refused only on the first frame, after rendering, with exit 4
     ("nca", "iterations=-1", "iterations: expected an integer >= 0, got -1"),
-    ("nca", "spp=0", "spp: expected a finite number > 0, got 0"),
+    ("nca", "spp=0", "spp: expected a sample count >= 1, got 0"),
+    ("nca", "spp=0.5", "spp: expected a sample count >= 1, got 0.5"),
+    ("autoencoder", "threads=-1", "threads: expected an integer >= 1"),  # used to run
+    ("autoencoder", "spp=-1", "spp: expected a sample count >= 1, got -1"),
+    ("jbf", "features=1", "features: expected a name or a sequence of names"),  # exit 1
 ])
 def test_a_method_parameter_of_the_wrong_kind_is_refused_before_rendering(
         tmp_path, capsys, method, param, said):
@@ -219,7 +223,9 @@ def test_a_method_parameter_of_the_wrong_kind_is_refused_before_rendering(
 
 @pytest.mark.parametrize("method, param, said", [
     ("asvgf", "gradient_iterations=abc", "gradient_iterations: expected an integer, got 'abc'"),
-    ("asvgf", "gradient_iterations=-1", "gradient_iterations: expected an integer >= 0"),
+    ("asvgf", "gradient_iterations=-1", "gradient_iterations: expected an integer in [0, 12]"),
+    ("asvgf", "gradient_iterations=64", "gradient_iterations: expected an integer in [0, 12]"),
+    ("bmfr", "rcond=-1", "rcond: expected a finite number ≥ 0, got -1"),
     ("accumulate", "tau_d=nan", "tau_d: expected a number, got 'nan'"),
     ("accumulate", "tau_n=-5", "tau_n: expected a number in [-1, 1], got -5"),
 ])

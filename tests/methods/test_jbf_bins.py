@@ -1,6 +1,8 @@
 """``jbf-bins``: the JBF on every time bin with shared G-buffers, and its 3D variant."""
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 
@@ -108,3 +110,12 @@ def test_bad_inputs_name_the_buffer():
         registry.get("jbf-bins", temporal_radius=-1)
     with pytest.raises(DbenchInputError, match="temporal_profile"):
         registry.get("jbf-bins", temporal_profile="tent")
+
+
+@pytest.mark.parametrize("features, said", [
+    (1, "a name or a sequence of names"), (None, "a name or a sequence of names"),
+    ("foo", "got 'foo'"), (("xy", "position"), "got 'position'")])  # no position buffer
+def test_features_are_checked_when_built(features, said):
+    """docs/methods/jbf-bins.md: every value is checked at construction, before rendering."""
+    with pytest.raises(DbenchInputError, match=rf"^features: .*{re.escape(said)}"):
+        registry.get("jbf-bins", features=features)

@@ -80,7 +80,7 @@ from ...data import check_buffer
 from ...errors import DbenchInputError
 from ...denoiser import Denoiser, register
 from ..kernels.emitters import keep_emitters
-from ..kernels.hdr_input import autoexposure, frame_spp, noise_level
+from ..kernels.hdr_input import autoexposure, check_run_options, frame_spp, noise_level
 from ..kernels.learned_input import encode_planar
 from ..ort_session import cpu_session
 from .codec import FEATURE_CHANNELS, MULTIPLE, decode, encode, pad_to_multiple
@@ -225,6 +225,7 @@ class Autoencoder(Denoiser):
         super().__init__(**params)
         from ..ort_session import check_weights
         check_weights(self.params["weights"], "autoencoder")
+        check_run_options(self.params)  # refused here, before anything renders
         # hidden states of the previous frame: NumPy arrays after denoise, tensors on the
         # device after denoise_device (each path takes over the other's)
         self._hidden: list[Any] | None = None

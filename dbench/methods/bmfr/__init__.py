@@ -93,6 +93,7 @@ import numpy as np
 from ...data import check_buffer
 from ...errors import DbenchInputError
 from ...denoiser import register
+from ..checks import check_positive
 from .. import temporal as T
 from ..svgf.dispatch import prepare, remodulate
 from ..svgf.steps import accumulate_emission, emission_buffer, gradient_history
@@ -154,6 +155,7 @@ class BMFR(T.HistoryDenoiser):
         if not 0.0 <= float(p["noise_amount"]) < 1.0:
             raise DbenchInputError(f"noise_amount: expected a number in [0, 1), "
                                    f"got {p['noise_amount']!r}")
+        check_positive("rcond", p["rcond"], allow_zero=True)  # a relative threshold, < inf
         if p["samples"] is not None and (not isinstance(p["samples"], (int, np.integer))
                                          or isinstance(p["samples"], bool) or p["samples"] < 1):
             raise DbenchInputError(f"samples: expected None (every pixel of a block) or an "

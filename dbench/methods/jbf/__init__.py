@@ -57,7 +57,7 @@ import numpy as np
 
 from ...errors import DbenchInputError
 from ...denoiser import Denoiser, register
-from ..checks import check_choice, check_positive, check_radius
+from ..checks import check_choice, check_features, check_positive, check_radius
 from ..guards import depth_or_hit, require_buffers
 from ..kernels.bilateral.guide import Guide, check_sigma, make_guide, window_offsets
 from ..kernels.bilateral.numba2d import accumulate
@@ -106,8 +106,7 @@ class JBF(Denoiser):
         check_sigma(p["sigma"])
         check_choice("sigma_convention", p["sigma_convention"], SIGMA_CONVENTIONS)
         check_choice("window", p["window"], WINDOWS)
-        for f in (p["features"],) if isinstance(p["features"], str) else p["features"]:
-            check_choice("features", f, FEATURES)
+        check_features(p["features"], FEATURES)
         for name in ("sigma_position", "sigma_depth", "sigma_P"):
             check_positive(name, p[name], allow_inf=True)
         for name in ("alpha", "beta", "eps_albedo"):

@@ -104,6 +104,23 @@ def noise_level(spp: Any) -> float:
     return float(np.log2(s) / 10.0)
 
 
+def check_run_options(params: dict[str, Any]) -> None:
+    """The learned methods' ``threads`` (None, or an integer >= 1) and ``spp`` (None, or a
+    sample count >= 1, :func:`noise_level`) in ``params``, checked when the method is built,
+    before anything renders, rather than on its first frame; DbenchInputError naming the
+    parameter."""
+    threads = params.get("threads")
+    if threads is not None and (isinstance(threads, (bool, np.bool_))
+                                or not isinstance(threads, (int, np.integer)) or threads < 1):
+        raise DbenchInputError(f"threads: expected an integer >= 1 (None: the runtime's "
+                               f"default), got {threads!r}")
+    spp = params.get("spp")
+    if spp is not None:
+        if isinstance(spp, (bool, np.bool_)) or not isinstance(spp, (int, float, np.number)):
+            raise DbenchInputError(f"spp: expected a sample count >= 1, got {spp!r}")
+        noise_level(spp)
+
+
 def frame_spp(data: Any, given: Any = None) -> float | None:
     """The sample count behind ``data.color``: ``given`` (a method parameter) when not None,
     else ``data.meta["spp"]``, else None."""
@@ -115,4 +132,4 @@ def frame_spp(data: Any, given: Any = None) -> float | None:
     return None if spp is None else float(spp)
 
 
-__all__ = ["EXPOSURE_KEY", "autoexposure", "frame_spp", "noise_level"]
+__all__ = ["EXPOSURE_KEY", "autoexposure", "check_run_options", "frame_spp", "noise_level"]

@@ -58,7 +58,7 @@ from ...data import check_buffer
 from ...errors import DbenchInputError
 from ...denoiser import Denoiser, register
 from ..kernels.emitters import keep_emitters
-from ..kernels.hdr_input import autoexposure, frame_spp, noise_level
+from ..kernels.hdr_input import autoexposure, check_run_options, frame_spp, noise_level
 from ..kernels.learned_input import decode_planar, encode_planar
 from ..ort_session import cpu_session
 from .codec import decode, encode
@@ -206,14 +206,10 @@ class NCADenoiser(Denoiser):
         from ..ort_session import check_weights
         check_weights(self.params["weights"], "nca")
         # refused here, before anything renders, not on the first frame
-        for key, low in (("iterations", 0), ("threads", 1)):
-            v = self.params[key]
-            if v is not None and (isinstance(v, bool) or not isinstance(v, int) or v < low):
-                raise DbenchInputError(f"{key}: expected an integer >= {low}, got {v!r}")
-        spp = self.params["spp"]
-        if spp is not None and (isinstance(spp, bool) or not isinstance(spp, (int, float))
-                                or not 0 < spp < float("inf")):
-            raise DbenchInputError(f"spp: expected a finite number > 0, got {spp!r}")
+        v = self.params["iterations"]
+        if v is not None and (isinstance(v, bool) or not isinstance(v, int) or v < 0):
+            raise DbenchInputError(f"iterations: expected an integer >= 0, got {v!r}")
+        check_run_options(self.params)
         self._device_nets: dict[str, Any] = {}  # the PyTorch automaton per device
 
     def denoise(self, data) -> np.ndarray:

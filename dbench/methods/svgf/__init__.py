@@ -360,8 +360,11 @@ class ASVGF(_SVGFBase):
             raise DbenchInputError(f"gradient_mode: expected one of {GRADIENT_MODES}, "
                                    f"got {self.params['gradient_mode']!r}")
         self.n_max = _positive("n_max", self.params["n_max"])
-        if self.params["gradient_iterations"] < 0:  # (an integer: Denoiser checks its kind)
-            raise DbenchInputError(f"gradient_iterations: expected an integer >= 0, got "
+        # as many à-trous passes as the colour's at most: a step of 2^12 px already passes
+        # any image, and a larger count overflowed the step's integer inside the kernel
+        if not _integer_in(self.params["gradient_iterations"], 0, MAX_ITERATIONS):
+            raise DbenchInputError(f"gradient_iterations: expected an integer in "
+                                   f"[0, {MAX_ITERATIONS}], got "
                                    f"{self.params['gradient_iterations']!r}")
         if self.params["alpha_floor"] is None:  # on with the dbench preset, off with the others
             self.params["alpha_floor"] = self.params["preset"] == "dbench"

@@ -43,10 +43,10 @@ import numpy as np
 from ...data import check_buffer
 from ...errors import DbenchInputError
 from ...denoiser import Denoiser, register
-from ..checks import check_choice, check_positive, check_radius
+from ..checks import check_choice, check_features, check_positive, check_radius
 from ..kernels.bilateral.guide import check_sigma, make_guide
 from ..kernels.bilateral.numba2d import accumulate
-from ..kernels.bilateral.params import SEED_SIGMA, SIGMA_CONVENTIONS, WINDOWS
+from ..kernels.bilateral.params import FEATURES, SEED_SIGMA, SIGMA_CONVENTIONS, WINDOWS
 from ..oidn import FEATURE_NEEDS, FEATURE_SETS, QUALITIES, oidn_denoise
 
 TEMPORAL_PROFILES = ("box", "gaussian")
@@ -198,6 +198,8 @@ class JBFBins(Denoiser):
         check_radius(p["temporal_radius"], "temporal_radius")
         check_choice("temporal_profile", p["temporal_profile"], TEMPORAL_PROFILES)
         check_positive("sigma_t", p["sigma_t"])
+        # a video's guide has no position buffer (jbf-bins does not load one)
+        check_features(p["features"], [f for f in FEATURES if f != "position"])
 
     def denoise(self, data: Any) -> np.ndarray:
         video = check_video(data, self.name)
