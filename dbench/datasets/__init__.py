@@ -306,6 +306,11 @@ def _load_folder_scene(sc: Scene, spp: int, res, needs, seed: int, ref_spp: int 
     if ref_spp is not None and info.ref_spp is not None and int(ref_spp) != int(info.ref_spp):
         raise DbenchInputError(f"--ref-spp: the reference in {where} has {info.ref_spp} spp; "
                                f"got {ref_spp}")
+    if ref_spp is not None and info.ref_spp is None:  # it would be read as said and ignored
+        raise DbenchInputError(f"--ref-spp: the reference in {where} states no spp, and a "
+                               f"file's spp is not an option of the run; declare it in the "
+                               f"folder's dataset.json (\"ref_spp\": {ref_spp}, docs/formats.md) "
+                               f"or leave --ref-spp out")
     if needs is None or "stats" in needs:
         check_folder_transform(sc, spp, transform, lam)
     if info.frames is None:

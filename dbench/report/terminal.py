@@ -177,7 +177,8 @@ def run_summary(d: pd.DataFrame, settings: Mapping[str, Any], rank_by: str,
     lines += _wrap(f"ranking by {ranking_line(d, rank_by, asked)}")
     verdicts = verdict_lines(d, columns, rank_by)
     if verdicts:
-        lines += ["verdicts (size of the loss: mean / noisy's; PSNR: dB):"] + verdicts
+        lines += ["verdicts (size of the loss: mean / noisy's; PSNR, SSIM: the difference):"] \
+            + verdicts
     return lines + ref_warning_lines(d)
 
 

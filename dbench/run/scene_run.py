@@ -123,21 +123,28 @@ def run_scene(out: Path, req: RunRequest, scene, instances, labels, runnable,
     info = machine_info()
     first = frame[0] if is_sequence else frame  # a folder's input facts live on its frames
     seeds = [req.seed + k for k in range(req.seeds)]
+    from_files = first.meta.get("source") == "folder"
     settings = {"scene": scene.name, "kind": scene.kind,
                 **({"scene parameters": ", ".join(f"{k}={v}" for k, v in
                                                   frame.meta["scene_params"].items())}
                    if frame.meta.get("scene_params") else {}),
                 # what a scene file's render kept and changed (integrator, depth, filter)
                 **frame.meta.get("scene_file_settings", {}),
+                **folder_settings(first.meta),
                 "spp": req.spp, "res": req.res.key,
-                "seeds": ", ".join(map(str, seeds)),
-                "ref_spp": frame.meta.get("ref_spp"),
-                "reference seed": frame.meta.get("ref_seed"),
+                # a folder holds one noisy render per spp, made by whoever rendered it
+                "seeds": ("one render per spp, from the files" if from_files
+                          else ", ".join(map(str, seeds))),
+                "ref_spp": frame.meta.get("ref_spp") or "unknown",
+                **({} if from_files else {"reference seed": frame.meta.get("ref_seed")}),
                 "reference RMSE (estimated)": ref_rmse_text(
                     judged_ref_rmse(frame) if is_sequence else frame.meta.get("ref_rmse"),
                     first.meta.get("ref_noise_source")),
                 "repeats": (sequence_window(len(frame)) if is_sequence else req.repeats),
                 "transform": transform_text(getattr(frame, "stats", None)),
+                **({"tone-map EV": f"{first.meta['ev']:g} stops (the LDR metrics' exposure, "
+                   f"{'dataset.json' if from_files else 'the scene'})"}
+                   if first.meta.get("ev") else {}),
                 "variant": frame.meta["versions"]["variant"],
                 "device": device if device == "cpu" else f"{device} ({device_name(device)})",
                 "render_s": frame.meta.get("render_s"),
@@ -183,8 +190,19 @@ def ref_rmse_text(value, source: str | None = None):
     (dbench/datasets/folders/reference.py) says where the estimate came from, or why none."""
     import math
     if value is None or (isinstance(value, float) and math.isnan(value)):
+        if source and source.startswith("unknown"):  # the source says so itself
+            return source
         return f"unknown ({source or 'no variance or statistics of the reference were given'})"
     return f"{value} ({source})" if source else value
+
+
+def folder_settings(meta: dict) -> dict[str, str]:
+    """{"folder": its path} for the frame ``meta`` of a folder of renders (docs/formats.md),
+    else {}: a folder's view is named like a catalogue scene ("cornell"), so the report says
+    which files it scored."""
+    if meta.get("source") != "folder":
+        return {}
+    return {"folder": str(meta.get("path", "?"))}
 
 
 #: input facts a folder load reports (dbench/datasets/folders/load.py): {meta key: settings label}
