@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from dbench.data import Frame, SampleStats
-from dbench.datasets.folders.export import export_frame, write_dataset_json
+from dbench.datasets.folders.export import check_variance, export_frame, write_dataset_json
 from dbench.datasets.folders.exr_layers import detect_normal_encoding, layers_of
 from dbench.datasets.folders.load import (STATS_FROM_VARIANCE, is_folder_scene, load_folder,
                                     scan_folder)
@@ -445,7 +445,7 @@ def test_a_lam_other_than_the_folders_statistics_is_refused(tmp_path):
 
 def test_a_variance_that_is_negative_or_not_finite_is_refused(tmp_path):
     """A variance image (noisy or reference) or statistics holding a negative or NaN variance
-    are refused naming the file; a NaN variance of a non-finite noisy value is what such a
+    are refused naming the file; a NaN variance of a non-finite value is what such a
     pixel has, and +inf (an overflowed variance) says unknown: both are read."""
     ref, noisy, sigma2 = _img(1), _img(2), _img(3, hi=0.5)
     _rgb(tmp_path / "v_0004.hdr.exr", noisy)
@@ -462,11 +462,11 @@ def test_a_variance_that_is_negative_or_not_finite_is_refused(tmp_path):
     assert np.isinf(load_folder(scan_folder(tmp_path), 4).stats.var_mean[2, 3, 1])
     broken[2, 3, 1] = np.nan
     _rgb(tmp_path / "v_0004.var.exr", broken)
-    # where the noisy value is itself NaN, its variance may be too
+    # where the value is itself NaN, its variance may be too (a noisy colour file holding
+    # one is refused first: tests/datasets/test_folder_inputs.py)
     noisy_nan = noisy.copy()
     noisy_nan[2, 3, 1] = np.nan
-    _rgb(tmp_path / "v_0004.hdr.exr", noisy_nan)
-    assert np.isnan(load_folder(scan_folder(tmp_path), 4).stats.var_mean[2, 3, 1])
+    assert np.isnan(check_variance(broken, "v_0004.var.exr", noisy_nan)[2, 3, 1])
     # the reference's variance image
     (tmp_path / "v_0004.var.exr").unlink()
     _rgb(tmp_path / "v_0004.hdr.exr", noisy)

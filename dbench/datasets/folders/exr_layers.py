@@ -295,6 +295,19 @@ class Reader:
         return arr
 
 
+def refuse_non_finite(arr: np.ndarray, path: Path, what: str) -> np.ndarray:
+    """``arr`` ((H, W, C) colour read from ``path``), refused naming the file, the first pixel
+    (x, y) that is not finite and the count of such values, when it holds NaN or ±Inf: every
+    method would be blamed for values its input already had, and the scores would compare
+    nothing there (docs/formats.md §1: colour is linear HDR radiance)."""
+    bad = ~np.isfinite(arr)
+    if bad.any():
+        y, x = (int(i) for i in np.argwhere(bad)[0][:2])
+        raise DbenchInputError(f"{path}: {what} contains NaN or Inf: {int(bad.sum())} values, "
+                               f"the first at pixel (x, y) = ({x}, {y}); expected finite values")
+    return arr
+
+
 def layers_report(read: list[Layer], folder: Path, ignored_files: tuple[str, ...] = ()
                   ) -> dict[str, list[str]]:
     """``meta["layers_read"]`` and ``meta["layers_ignored"]``: one line per file and buffer read

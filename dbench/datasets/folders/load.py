@@ -28,8 +28,9 @@ A folder holds one or more *views*; every file name starts with the view name (d
     as ``"normal_encoding"``).
 
 Reference: the named one; without one the highest spp serves and is not offered as a noisy spp
-(``reference_from == "highest-spp"``); a single spp and no reference is an error. It is judged,
-not trusted (:mod:`dbench.datasets.folders.reference`): its variance of the mean comes from its
+(``reference_from == "highest-spp"``); a single spp and no reference is an error. Colour, noisy
+or reference, must be finite (:func:`~dbench.datasets.folders.exr_layers.refuse_non_finite`).
+The reference is judged, not trusted (:mod:`dbench.datasets.folders.reference`): its variance of the mean comes from its
 ``var`` image / ``Variance`` divided by ``ref_spp`` (or an identity-transform ``.stats.npz``'s
 ``var_mean``), else is estimated from its spp and the noisy series, or from the series'
 convergence; when nothing gives it the frame has no ``reference_var``, ``meta["ref_rmse"]`` is
@@ -417,7 +418,7 @@ def load_folder(info_or_path: FolderInfo | str | os.PathLike, spp: int,
     slot, ref = info._plan[(frame, spp)], info._plan[(frame, "ref")]
     read = xl.Reader()
     files: dict[str, str] = {"color": slot["color"].file.name}
-    color = read(slot["color"])
+    color = xl.refuse_non_finite(read(slot["color"]), slot["color"].file, "colour")
     buffers: dict[str, np.ndarray] = {}
     for b in sorted(wanted & set(FEATURES)):
         layer = slot.get(b) or ref[b]
@@ -448,11 +449,9 @@ def load_folder(info_or_path: FolderInfo | str | os.PathLike, spp: int,
         meta["frame"] = int(frame)
     meta.update({k: v for k, v in info._meta.items() if v})
     if "reference" in wanted:
-        buffers["reference"] = read(ref["color"])
+        buffers["reference"] = xl.refuse_non_finite(read(ref["color"]), ref["color"].file,
+                                                     "reference")
         files["reference"] = ref["color"].file.name
-        if not np.isfinite(buffers["reference"]).all():
-            raise DbenchInputError(f"{ref['color'].file}: reference contains NaN or Inf; "
-                                   "expected finite values")
         # judged, not trusted: its noise estimated from what the folder holds ("unknown",
         # never 0, when nothing does) and a warning when it is no better than the input
         buffers["reference_var"], ref_meta = folder_reference(

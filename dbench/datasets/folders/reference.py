@@ -62,6 +62,7 @@ from typing import Any
 import numpy as np
 
 from ...metrics.params import RELMSE_EPS
+from . import exr_layers as xl
 
 #: A reference whose estimated relMSE is at least this share of the noisy input's is flagged.
 RATIO = 0.5
@@ -386,10 +387,14 @@ def folder_reference(info: Any, frame: int | None, spp: int, read: Any, files: d
     elif "albedo" in info.buffers:
         layer = slots[spp].get("albedo") or ref["albedo"]
         albedo, surface_from = read(layer), layer.file.name
+    # every spp's colour feeds the estimate: a NaN in another spp's file is refused as the
+    # loaded spp's would be, not dropped from the estimate unsaid
+    series = {s: xl.refuse_non_finite(read(slot["color"]), slot["color"].file, "colour")
+              for s, slot in slots.items()}
     names = {s: slot["color"].file.name for s, slot in slots.items()}
     names["ref"] = ref["color"].file.name
     var, meta = judge_reference(
-        reference=reference, spp=spp, series={s: read(slot["color"]) for s, slot in slots.items()},
+        reference=reference, spp=spp, series=series,
         names=names, ref_spp=info.ref_spp,
         ref_spp_from=("declared in dataset.json" if info.reference_from == "file" else
                       "the highest spp of the series, from its file name"),

@@ -1,0 +1,52 @@
+"""What a folder of EXR renders must hold to be read (dbench/datasets/folders/; docs/formats.md
+§1-2): finite colour, one data window per view, readable files; and what it may hold beside
+(a reference's ``.stats.npz``, numbered frames a sweep reads)."""
+import numpy as np
+import pytest
+
+from dbench.cli import main
+from dbench.datasets.folders.load import load_folder, scan_folder
+from dbench.errors import DbenchInputError
+from exr_files import write_rgb as _rgb  # tests/exr_files.py
+
+H, W = 16, 20
+
+
+def _img(seed, lo=0.2, hi=1.0):
+    return np.random.default_rng(seed).uniform(lo, hi, (H, W, 3)).astype(np.float32)
+
+
+def _series(folder, view="v"):
+    """Noisy renders at 4 and 16 spp and a reference of one scene (``view``)."""
+    folder.mkdir(exist_ok=True)
+    truth = _img(0)
+    rng = np.random.default_rng(1)
+    for spp in (4, 16):
+        noise = rng.normal(0, 0.2 / np.sqrt(spp), truth.shape)
+        _rgb(folder / f"{view}_{spp:04d}.hdr.exr", (truth + noise).astype(np.float32))
+    _rgb(folder / f"{view}_ref.hdr.exr", truth)
+    return folder
+
+
+def test_a_noisy_colour_holding_nan_or_inf_is_refused_naming_the_first_pixel(tmp_path, capsys):
+    """The reference was checked for finiteness, the noisy colour was not: its NaN reached the
+    methods, whose rows were blamed for "non-finite output values"."""
+    folder = _series(tmp_path / "renders")
+    noisy = _img(5)
+    noisy[4, 4, 0] = np.nan  # R at x 4, y 4
+    noisy[7, 9, 1] = np.inf  # G at x 9, y 7
+    _rgb(folder / "v_0016.hdr.exr", noisy)
+    said = (r"v_0016\.hdr\.exr: colour contains NaN or Inf: 2 values, the first at pixel "
+            r"\(x, y\) = \(4, 4\); expected finite values")
+    info = scan_folder(folder)
+    with pytest.raises(DbenchInputError, match=said):
+        load_folder(info, 16, needs={"color"})
+    # spp 4's run reads spp 16 too, for the reference's estimate: refused alike
+    with pytest.raises(DbenchInputError, match=said):
+        load_folder(info, 4)
+    out = tmp_path / "run"
+    assert main(["run", "--method", "noisy", "--scene", str(folder), "--spp", "16",
+                 "--repeats", "1", "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("dbench: ") and "v_0016.hdr.exr" in err[0]
+    assert not (out / "metrics.csv").exists()  # refused before any method ran
