@@ -50,3 +50,20 @@ def test_a_noisy_colour_holding_nan_or_inf_is_refused_naming_the_first_pixel(tmp
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("dbench: ") and "v_0016.hdr.exr" in err[0]
     assert not (out / "metrics.csv").exists()  # refused before any method ran
+
+
+def test_files_of_one_view_with_other_data_windows_are_refused_naming_both(tmp_path):
+    """Only the sizes were compared: a reference whose data window starts at x = 3 was scored
+    against a noisy image at x = 0 of the same size, pixel by pixel, offset by 3."""
+    folder = _series(tmp_path / "renders")
+    _rgb(folder / "v_ref.hdr.exr", _img(0), origin=(3, 0))
+    with pytest.raises(DbenchInputError, match=(
+            r"v_ref\.hdr\.exr: data window \(3, 0\)-\(22, 15\), while v_0004\.hdr\.exr has "
+            r"\(0, 0\)-\(19, 15\) .*expected one data window for the whole view")):
+        scan_folder(folder)
+    # one window shared by every file, wherever it lies, is read as it is
+    for spp in (4, 16):
+        _rgb(folder / f"v_{spp:04d}.hdr.exr", _img(spp), origin=(3, 0))
+    frame = load_folder(scan_folder(folder), 4)
+    assert frame.color.shape == (H, W, 3)
+    np.testing.assert_array_equal(frame.color, _img(4))

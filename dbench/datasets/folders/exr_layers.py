@@ -92,8 +92,15 @@ def _check_readable(path: Path) -> None:
         raise PermissionError(errno.EACCES, "Permission denied", str(path))
 
 
-def exr_header(path: str | os.PathLike) -> tuple[tuple[int, int], list[str]]:
-    """((H, W), raw channel names) of an EXR file, reading no pixels."""
+#: An EXR data window: ((x min, y min), (x max, y max)), inclusive.
+Window = tuple[tuple[int, int], tuple[int, int]]
+
+
+def exr_header(path: str | os.PathLike) -> tuple[tuple[int, int], list[str], Window]:
+    """((H, W), raw channel names, data window) of an EXR file, reading no pixels. The pixels
+    read are the data window's only, so two files of one size but other windows would be
+    compared offset: :func:`dbench.datasets.folders.load.scan_folder` needs one window per
+    view (docs/formats.md §1)."""
     import OpenEXR
 
     path = Path(path)
@@ -113,7 +120,8 @@ def exr_header(path: str | os.PathLike) -> tuple[tuple[int, int], list[str]]:
         raise DbenchInputError(f"{path}: not a readable EXR file ({exc})") from None
     if bad:
         raise DbenchInputError(f"{path}: subsampled channels {bad}; expected full resolution")
-    return (int(hi[1] - lo[1] + 1), int(hi[0] - lo[0] + 1)), names
+    window = ((int(lo[0]), int(lo[1])), (int(hi[0]), int(hi[1])))
+    return (int(hi[1] - lo[1] + 1), int(hi[0] - lo[0] + 1)), names, window
 
 
 def read_channels(path: str | os.PathLike) -> dict[str, np.ndarray]:

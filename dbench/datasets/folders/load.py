@@ -203,10 +203,15 @@ def _add(slot: dict, buffer: str, source, folder: Path) -> None:
     slot[buffer] = source
 
 
+def _window(window: xl.Window) -> str:
+    (x0, y0), (x1, y1) = window
+    return f"({x0}, {y0})-({x1}, {y1})"
+
+
 def _build_plan(folder: Path, files: list[str]):
     """{(frame, key): {buffer: Layer | Path}}, the (H, W) of every EXR, unused channels."""
     plan: dict = {}
-    size: tuple[tuple[int, int], str] | None = None
+    size: tuple[tuple[int, int], str, xl.Window] | None = None
     unused: dict[str, list[str]] = {}
     ignored = []
     for name in files:
@@ -222,13 +227,20 @@ def _build_plan(folder: Path, files: list[str]):
         if tag == "stats":
             _add(slot, "stats", path, folder)
             continue
-        hw, channels = xl.exr_header(path)
+        hw, channels, window = xl.exr_header(path)
         if size is None:
-            size = (hw, name)
+            size = (hw, name, window)
         elif hw != size[0]:
             raise DbenchInputError(
                 f"{path}: {hw[1]}x{hw[0]} pixels, while {size[1]} has {size[0][1]}x"
                 f"{size[0][0]} (width x height); expected one size for the whole view")
+        elif window != size[2]:
+            # pixels are read from the data window alone: the same size elsewhere in the
+            # plane would be compared pixel by pixel, offset
+            raise DbenchInputError(
+                f"{path}: data window {_window(window)}, while {size[1]} has "
+                f"{_window(size[2])} ((x min, y min)-(x max, y max)); expected one data "
+                "window for the whole view")
         if tag:
             _add(slot, TAGS[tag], xl.layer_for_tag(path, channels, TAGS[tag]), folder)
         else:
