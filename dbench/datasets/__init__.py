@@ -71,13 +71,16 @@ def scene_fingerprint(scene: str | Scene, res) -> str:
     """A short content hash (16 hex chars of sha256) of ``scene`` at ``res``: the canonical
     scene description (the Mitsuba dictionary through :func:`~dbench.datasets.cache.canonical`,
     ``params``, renderer :func:`versions`); every frame's dictionary for sequence scenes, the
-    transient dictionary with the default window for transient scenes; the tone map's ``ev``
-    where it is not 0. Renders nothing.
+    transient dictionary with the default window for transient scenes; a folder of renders,
+    steady or a sequence, by its own key (the content hash of the files it uses,
+    docs/formats.md §1); the tone map's ``ev`` where it is not 0. Renders nothing.
     Two results with the same fingerprint were rendered from the same scene content."""
     sc = scene if isinstance(scene, Scene) else _scenes.get(scene)
     res = parse_res(res)
     mi = mitsuba()
-    if sc.kind == "sequence":
+    # a folder holding a sequence is read, not rendered: it has no frame dictionaries, and its
+    # key_dict (below) already names its content, as a steady folder's does
+    if sc.kind == "sequence" and not isinstance(sc, _scenes.FolderScene):
         desc = {"scene": sc.name, "kind": sc.kind, "res": res.key, "n_frames": int(sc.n_frames),
                 "frames": [sc.frame_dict(mi, res, i) for i in range(sc.n_frames)],
                 "params": sc.params, "versions": versions(),

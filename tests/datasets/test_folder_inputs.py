@@ -67,3 +67,34 @@ def test_files_of_one_view_with_other_data_windows_are_refused_naming_both(tmp_p
     frame = load_folder(scan_folder(folder), 4)
     assert frame.color.shape == (H, W, 3)
     np.testing.assert_array_equal(frame.color, _img(4))
+
+
+def test_a_sweep_reads_a_folder_holding_a_sequence(tmp_path, capsys):
+    """dbench sweep ended in an internal error (AttributeError: no n_frames) on a folder of
+    numbered frames: its fingerprint was taken as a rendered sequence's. It is the folder's own
+    key, its content hash, as for a folder of one frame."""
+    import json
+
+    from dbench import datasets
+    from dbench.datasets.scenes import catalogue
+
+    folder = tmp_path / "walk"
+    folder.mkdir()
+    for k in range(3):
+        view = _series(tmp_path / "one", view=f"v_f{k:04d}")
+        for f in view.iterdir():
+            f.rename(folder / f.name)
+    scene = catalogue.get(str(folder))
+    assert scene.kind == "sequence" and scene.info.frames == (0, 1, 2)
+    first = datasets.scene_fingerprint(scene, (W, H))
+    out = tmp_path / "sweep"
+    args = ["sweep", "--scenes", str(folder), "--methods", "noisy", "--spp", "4", "--out",
+            str(out), "--quiet"]
+    assert main(args) == 0
+    cell = json.loads((out / "cells" / "v" / "00004spp" / "noisy.json").read_text())
+    assert (cell["status"], cell["frames"]) == ("ok", 3)
+    assert "1 cells computed" in capsys.readouterr().out
+    assert main(args) == 0  # the same content: the same cell, kept
+    assert "0 cells computed, 0 not applicable, 1 already finished" in capsys.readouterr().out
+    _rgb(folder / "v_f0002_0016.hdr.exr", _img(9))  # another content: another identity
+    assert datasets.scene_fingerprint(catalogue.get(str(folder)), (W, H)) != first
