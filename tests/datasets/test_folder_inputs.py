@@ -5,6 +5,8 @@ import numpy as np
 import pytest
 
 from dbench.cli import main
+from dbench.data import SampleStats
+from dbench.datasets.folders.export import write_stats_npz
 from dbench.datasets.folders.load import load_folder, scan_folder
 from dbench.errors import DbenchInputError
 from exr_files import write_rgb as _rgb  # tests/exr_files.py
@@ -98,3 +100,32 @@ def test_a_sweep_reads_a_folder_holding_a_sequence(tmp_path, capsys):
     assert "0 cells computed, 0 not applicable, 1 already finished" in capsys.readouterr().out
     _rgb(folder / "v_f0002_0016.hdr.exr", _img(9))  # another content: another identity
     assert datasets.scene_fingerprint(catalogue.get(str(folder)), (W, H)) != first
+
+
+def _stats(mean, var_mean, transform):
+    n = np.full(mean.shape, 4096.0)
+    return SampleStats(n=n, mean=mean.astype(np.float64), var_mean=var_mean,
+                       m3=np.zeros(mean.shape), transform=transform, lam=0.5)
+
+
+def test_a_reference_stats_npz_gives_the_references_variance(tmp_path):
+    """<view>_ref.stats.npz was not even listed (the variance fell back to an estimate from
+    the series), though the docstrings named it a source of the reference's variance."""
+    folder = _series(tmp_path / "renders")
+    (folder / "dataset.json").write_text('{"ref_spp": 4096}')
+    var_mean = np.random.default_rng(3).uniform(1e-6, 1e-4, (H, W, 3))
+    write_stats_npz(folder / "v_ref.stats.npz", _stats(_img(0), var_mean, "identity"))
+    info = scan_folder(folder)
+    frame = load_folder(info, 4)
+    np.testing.assert_array_equal(frame.reference_var, var_mean.astype(np.float32))
+    assert frame.meta["ref_noise_source"] == "statistics v_ref.stats.npz"
+    assert frame.meta["files"]["reference_var"] == "v_ref.stats.npz"
+    before = info.fingerprint  # the file is part of what the folder's identity covers
+    write_stats_npz(folder / "v_ref.stats.npz", _stats(_img(0), var_mean * 2, "identity"))
+    assert scan_folder(folder).fingerprint != before
+    # statistics of transformed samples do not give the colour's variance: unused, and said
+    write_stats_npz(folder / "v_ref.stats.npz", _stats(_img(0), var_mean, "box-cox"))
+    said = load_folder(scan_folder(folder), 4).meta["ref_noise_source"]
+    assert said.startswith("estimated from the noisy series") and said.endswith(
+        "(v_ref.stats.npz holds statistics of box-cox-transformed samples, not the colour's "
+        "variance: unused)")

@@ -16,9 +16,10 @@ A folder holds one or more *views*; every file name starts with the view name (d
     dbench's :func:`dbench.io.write_exr`), resolved by the alias table of
     :mod:`dbench.datasets.folders.exr_layers`. One-buffer and multi-layer files may be mixed; one
     buffer of one spp found in two files is an error naming both.
-``<view>_<spp>.stats.npz``
+``<view>_<spp>.stats.npz``, ``<view>_ref.stats.npz``
     dbench's exact float64 statistics (``n``, ``mean``, ``var_mean``, ``m3``, ``transform``,
-    ``lam``: the fields of :class:`~dbench.data.SampleStats`), preferred over a variance image.
+    ``lam``: the fields of :class:`~dbench.data.SampleStats`), preferred over a variance image;
+    the reference's gives its variance where its transform is the identity.
 ``<view>_f<frame>_<spp>.<tag>.exr``
     Numbered frames of a sequence (``walk_f0003_0004.hdr.exr``, motion in ``.mv.exr``); every
     frame must have the files the others have.
@@ -85,7 +86,8 @@ REF_KEYS = ("ref", "reference", "gt", "target")
 STATS_FROM_VARIANCE = "variance image (identity transform, no third moment)"
 PATTERNS = ("<name>_<spp>.<tag>.exr (tag: hdr, alb, nrm, depth, pos, emitter, var, mv, ldr, "
             "sh1x/y/z)", "<name>_ref.<tag>.exr", "<name>_<spp>.exr (multi-layer)",
-            "<name>_<spp>.stats.npz", "<name>_f<frame>_<spp>.<tag>.exr")
+            "<name>_<spp>.stats.npz", "<name>_ref.stats.npz",
+            "<name>_f<frame>_<spp>.<tag>.exr")
 _NAME = re.compile(
     r"(?P<view>.+?)(?:_f(?P<frame>\d+))?_(?P<key>\d+(?:spp)?|ref|reference|gt|target)"
     r"(?:\.(?P<tag>hdr|ldr|sh1[xyz]|alb|nrm|depth|pos|emitter|var|mv|stats))?\.(?P<ext>exr|npz)",
@@ -129,10 +131,10 @@ class FolderInfo:
 
 
 def _parse(name: str) -> re.Match | None:
+    # a reference's .stats.npz is parsed too: its identity statistics give the reference's
+    # variance (reference.known_variance)
     m = _NAME.fullmatch(name)
     if m is None or (m["ext"].lower() == "npz") != ((m["tag"] or "").lower() == "stats"):
-        return None
-    if m["ext"].lower() == "npz" and m["key"].lower() in REF_KEYS:
         return None
     return m
 

@@ -5,8 +5,9 @@ renderer").
 The variance of the reference mean, ``reference_var``, comes from the first of these the folder
 allows; each says so in ``meta["ref_noise_source"]``:
 
-1. its variance image or identity statistics (``<view>_ref.var.exr``, a ``Variance``/``var``
-   layer of the reference EXR, ``<view>_ref.stats.npz``; σ² per sample ÷ ``ref_spp``);
+1. its variance image (``<view>_ref.var.exr``, a ``Variance``/``var`` layer of the reference
+   EXR; σ² per sample ÷ ``ref_spp``) or identity statistics (``<view>_ref.stats.npz``: its
+   ``var_mean``; statistics of transformed samples are left unused, and said so);
 2. its spp (``ref_spp`` in ``dataset.json``, or the highest spp of a series serving as the
    reference) and the noisy series: independent renders of one scene have a variance of the
    mean σ²/spp, so E[(x_s − r)²] = σ²/s + σ²/R and the reference's share of it is s/(R + s);
@@ -376,11 +377,18 @@ def folder_reference(info: Any, frame: int | None, spp: int, read: Any, files: d
     ref = plan[(frame, "ref")]
     slots = {s: plan[(frame, s)] for s in info.spps}
     known = known_variance(ref, info.ref_spp, read, files, reference.shape)
+    known_note = unused = ""
     if known is None and "variance" in ref:
         # σ² per sample needs the sample count to give the variance of the mean
         known_note = f" ({ref['variance'].file.name} holds σ² per sample, but ref_spp is unknown)"
-    else:
-        known_note = ""
+    if known is None and "stats" in ref and info.reference_from == "file":
+        from .export import read_stats_npz
+
+        # the variance of transformed samples' mean is not the colour's: the file is left
+        # unused, and said so whatever gives the variance instead
+        unused = (f" ({ref['stats'].name} holds statistics of "
+                  f"{read_stats_npz(ref['stats'], settings_only=True)[0]}-transformed "
+                  "samples, not the colour's variance: unused)")
     emitter, albedo, surface_from = buffers.get("emitter"), None, ""
     if emitter is not None:
         surface_from = files.get("emitter", "")
@@ -401,4 +409,5 @@ def folder_reference(info: Any, frame: int | None, spp: int, read: Any, files: d
         known=known, albedo=albedo, emitter=emitter, surface_from=surface_from)
     if known_note and not meta["ref_var_known"]:
         meta["ref_noise_source"] += known_note
+    meta["ref_noise_source"] += unused
     return var, meta
