@@ -1,6 +1,8 @@
 """What a folder of EXR renders must hold to be read (dbench/datasets/folders/; docs/formats.md
 §1-2): finite colour, one data window per view, readable files; and what it may hold beside
 (a reference's ``.stats.npz``, numbered frames a sweep reads)."""
+import os
+
 import numpy as np
 import pytest
 
@@ -129,3 +131,26 @@ def test_a_reference_stats_npz_gives_the_references_variance(tmp_path):
     assert said.startswith("estimated from the noisy series") and said.endswith(
         "(v_ref.stats.npz holds statistics of box-cox-transformed samples, not the colour's "
         "variance: unused)")
+
+
+def test_a_truncated_exr_gives_one_line(tmp_path, capfd):
+    """A file cut to half its bytes gave three lines: OpenEXR's own EXR_ERR_BAD_CHUNK_LEADER
+    on stderr, its "Warning: Exception raised reading pixel data" on stdout, then dbench's
+    "Invalid part index '0': file has 0 parts"."""
+    folder = _series(tmp_path / "renders")
+    path = folder / "v_0016.hdr.exr"
+    data = path.read_bytes()
+    path.write_bytes(data[:len(data) // 2])
+    capfd.readouterr()
+    assert main(["run", "--method", "noisy", "--scene", str(folder), "--spp", "16",
+                 "--repeats", "1", "--out", str(tmp_path / "run")]) == 2
+    out, err = capfd.readouterr()
+    assert "Warning" not in out and "EXR_ERR" not in out
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    assert lines[0].startswith(f"dbench: {path}: not a readable EXR file (truncated or damaged: ")
+    assert "EXR_ERR_BAD_CHUNK_LEADER" in lines[0] and "parts" not in lines[0]
+    # the descriptors are back where they were: what is printed next is seen
+    print("after", flush=True)
+    os.write(2, b"after\n")
+    assert capfd.readouterr() == ("after\n", "after\n")

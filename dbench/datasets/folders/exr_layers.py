@@ -38,10 +38,15 @@ count is taken (a layer named after the buffer wins when there are several).
 from __future__ import annotations
 
 import errno
+import io
 import os
 import re
+import sys
+import tempfile
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any, Iterator
 
 import numpy as np
 
@@ -96,6 +101,78 @@ def _check_readable(path: Path) -> None:
 Window = tuple[tuple[int, int], tuple[int, int]]
 
 
+def _flush_c_stdio() -> None:
+    """Flush the C library's stdio buffers: text it wrote to a descriptor that is a file or a
+    pipe waits there, and must land on the side of the swap it was written on."""
+    try:
+        import ctypes
+
+        ctypes.CDLL(None).fflush(None)
+    except (OSError, AttributeError, TypeError):
+        pass  # no C library by that name (Windows): nothing of it to flush
+
+
+@contextmanager
+def _library_output() -> Iterator[list[str]]:
+    """Capture what OpenEXR prints during the block: its C library on file descriptors 1 and
+    2 (``EXR_ERR_BAD_CHUNK_LEADER`` on stderr), its binding through Python's ``sys.stdout``
+    ("Warning: Exception raised reading pixel data").
+
+    Like :func:`_check_readable`, this keeps the library's own lines about a bad file from
+    reaching the user before dbench's one line; the yielded list gets the captured lines, for
+    that line to quote. When the block ends without an error the text is passed on to where it
+    was going, so nothing a successful read says is lost.
+    """
+    lines: list[str] = []
+    streams = sys.stdout, sys.stderr
+    for stream in streams:
+        try:
+            stream.flush()  # Python's own text goes out before the descriptors are swapped
+        except (AttributeError, OSError, ValueError):
+            pass
+    _flush_c_stdio()
+    saved: dict[int, tuple[int, Any]] = {}
+    texts = io.StringIO(), io.StringIO()
+    ok = False
+    try:
+        for fd in (1, 2):
+            try:
+                old = os.dup(fd)
+            except OSError:
+                continue  # started with that descriptor closed: nothing to keep from it
+            saved[fd] = (old, tempfile.TemporaryFile())
+            os.dup2(saved[fd][1].fileno(), fd)
+        sys.stdout, sys.stderr = texts
+        yield lines
+        ok = True
+    finally:
+        sys.stdout, sys.stderr = streams
+        _flush_c_stdio()
+        for fd, (old, tmp) in saved.items():
+            os.dup2(old, fd)
+            os.close(old)
+            tmp.seek(0)
+            text = tmp.read()
+            tmp.close()
+            if ok and text:
+                os.write(fd, text)
+            lines += text.decode("utf-8", "replace").splitlines()
+        for stream, text in zip(streams, texts):
+            if ok and text.getvalue() and stream is not None:
+                stream.write(text.getvalue())
+            lines += text.getvalue().splitlines()
+
+
+def _unreadable(path: Path, exc: Exception, said: list[str]) -> DbenchInputError:
+    """One error for an EXR file OpenEXR could not read, quoting the library's own account
+    (``said``, captured by :func:`_library_output`; its line begins with the path, named once
+    here) where it gave one, else the binding's exception."""
+    own = [ln.split(": ", 1)[-1] if ln.startswith(str(path)) else ln
+           for ln in said if "EXR_ERR" in ln]
+    return DbenchInputError(f"{path}: not a readable EXR file (truncated or damaged: "
+                            f"{own[0] if own else exc})")
+
+
 def exr_header(path: str | os.PathLike) -> tuple[tuple[int, int], list[str], Window]:
     """((H, W), raw channel names, data window) of an EXR file, reading no pixels. The pixels
     read are the data window's only, so two files of one size but other windows would be
@@ -105,8 +182,9 @@ def exr_header(path: str | os.PathLike) -> tuple[tuple[int, int], list[str], Win
 
     path = Path(path)
     _check_readable(path)
+    said: list[str] = []
     try:
-        with OpenEXR.File(str(path), header_only=True) as f:
+        with _library_output() as said, OpenEXR.File(str(path), header_only=True) as f:
             if len(f.parts) != 1:
                 raise DbenchInputError(f"{path}: multi-part EXR ({len(f.parts)} parts); "
                                        "expected a single-part file")
@@ -117,7 +195,7 @@ def exr_header(path: str | os.PathLike) -> tuple[tuple[int, int], list[str], Win
     except DbenchInputError:
         raise
     except Exception as exc:  # noqa: BLE001 - the binding raises RuntimeError, KeyError, ...
-        raise DbenchInputError(f"{path}: not a readable EXR file ({exc})") from None
+        raise _unreadable(path, exc, said) from None
     if bad:
         raise DbenchInputError(f"{path}: subsampled channels {bad}; expected full resolution")
     window = ((int(lo[0]), int(lo[1])), (int(hi[0]), int(hi[1])))
@@ -128,12 +206,16 @@ def read_channels(path: str | os.PathLike) -> dict[str, np.ndarray]:
     """Every channel of an EXR file by raw name, as (H, W) float32 (half floats widened)."""
     import OpenEXR
 
-    _check_readable(Path(path))
+    path = Path(path)
+    _check_readable(path)
+    said: list[str] = []
     try:
-        with OpenEXR.File(str(path), separate_channels=True) as f:
+        # a file cut short passes the header read and fails here, the library printing its
+        # own lines first (_library_output keeps them for the one line said)
+        with _library_output() as said, OpenEXR.File(str(path), separate_channels=True) as f:
             return {k: np.asarray(v.pixels, dtype=np.float32) for k, v in f.channels().items()}
     except Exception as exc:  # noqa: BLE001
-        raise DbenchInputError(f"{path}: not a readable EXR file ({exc})") from None
+        raise _unreadable(path, exc, said) from None
 
 
 def write_channels(path: str | os.PathLike, channels: dict[str, np.ndarray]) -> None:
