@@ -215,6 +215,10 @@ class Frame:
         reflected_normal: (H, W, 3) float32 sequence frames only (PSR G-buffers): ``normal``,
             replaced on glossy surfaces of roughness < 0.4 by the shading normal of what their
             mirror direction hits (seed 001 §1.2.1), or None.
+        judged_lights: (H, W, 1) float32, 1 on the pixels the judge counts as lights where the
+            frame has no ``emitter`` buffer (a folder of renders: the rule its
+            ``meta["surface_pixels"]`` states, docs/formats.md), or None. Scoring only: no
+            method reads it.
     """
 
     color: np.ndarray
@@ -232,6 +236,7 @@ class Frame:
     reference_var: np.ndarray | None = None
     geo_normal: np.ndarray | None = None
     reflected_normal: np.ndarray | None = None
+    judged_lights: np.ndarray | None = None
 
     kind = "steady"
 
@@ -244,6 +249,8 @@ class Frame:
         _check_pixel_buffers(self, FRAME_BUFFERS, h, w)
         if self.reference_var is not None:
             self.reference_var = check_buffer("reference_var", self.reference_var, (h, w, 3))
+        if self.judged_lights is not None:
+            self.judged_lights = check_buffer("judged_lights", self.judged_lights, (h, w, 1))
         if self.stats is not None and self.stats.shape != (h, w, 3):
             raise DbenchInputError(f"stats: expected shape (H, W, 3) = ({h}, {w}, 3), "
                                    f"got {self.stats.shape}")

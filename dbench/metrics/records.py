@@ -191,7 +191,8 @@ _RECORDS: tuple[Metric, ...] = (
 )
 
 _SURFACE_TEXT = ("the metric over surface pixels only, pixels whose emitter fraction is 0 "
-                 "(lights seen directly or in smooth mirrors excluded)")
+                 "(lights seen directly or in smooth mirrors excluded; a folder of renders "
+                 "without an emitter buffer: the pixels its report lists as surface pixels)")
 
 
 def _derived(base: Metric, variant: str, definition: str | None,

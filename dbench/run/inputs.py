@@ -137,7 +137,7 @@ def check_reference_lit(data: Any, scene_name: str) -> None:
     """Refuse ``data`` (a Frame, Sequence or TransientFrame) whose reference is 0 in every
     pixel (and frame, and bin): emitters of zero radiance, or lights that reach nothing the
     camera sees. Every method would then score 0 error on it, and rank as a tie, which is no
-    finding (README "A result is right or clearly refused"); a scene without any emitter is
+    finding (README.md, "Metrics"); a scene without any emitter is
     refused before rendering (:func:`dbench.datasets.scenes.build.check_lit`)."""
     from ..errors import DbenchInputError
 

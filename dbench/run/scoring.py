@@ -15,8 +15,12 @@ DEFAULT_METRICS = records.judged()
 
 def judge_frame(output: np.ndarray, frame, names: Sequence[str] = DEFAULT_METRICS):
     """:func:`dbench.metrics.judge.judge` of ``output`` against ``frame``'s reference, surface
-    (emitter fraction 0) and reference variance, when the frame carries them."""
-    return judge.judge(output, frame.reference, emitter=getattr(frame, "emitter", None),
+    (emitter fraction 0; a folder's frame without an emitter buffer: not its
+    ``judged_lights``) and reference variance, when the frame carries them."""
+    lights = getattr(frame, "emitter", None)
+    if lights is None:
+        lights = getattr(frame, "judged_lights", None)
+    return judge.judge(output, frame.reference, emitter=lights,
                        reference_var=getattr(frame, "reference_var", None),
                        ev=frame.meta.get("ev", 0.0),
                        names=[n for n in names if n in judge.JUDGED])

@@ -311,10 +311,11 @@ def run_group(config: SweepConfig, out: str, scene_name: str, spp: int,
     instances = {m: registry.get(m, **config.params.get(m, {})) for m in method_names}
     for inst in instances.values():
         needs |= inst.wants(scene.provides)
+    # --ref-spp is for the scenes the sweep renders; a folder keeps its own (resolved_ref_spp)
     frames = load_seeds(scene, config.seed, config.seeds, spp=spp, res=res,
                         needs=needs, transform=config.transform, lam=config.lam,
-                        ref_spp=config.ref_spp, cache=cache, progress=False,
-                        frames=config.frames, bins=config.bins)
+                        ref_spp=config.ref_spp if scene.renders else None, cache=cache,
+                        progress=False, frames=config.frames, bins=config.bins)
     written = []
     for m, inst in instances.items():
         ident = cell_identity(config, scene, spp, m, fingerprint, scene_label)

@@ -209,3 +209,23 @@ def test_a_small_reference_noisier_than_declared_is_still_flagged(tmp_path):
     tiny = load_folder(_folder(tmp_path / "tiny", ref_spp=4, declare=4096, truth=truth[:8, :8]),
                        spp=4)
     assert "not checked against the noisy input" in tiny.meta["ref_noise_source"], tiny.meta
+
+
+def test_without_an_emitter_buffer_the_surface_metrics_leave_out_the_checks_lights(tmp_path):
+    """The surface metrics are over the pixels the report lists as surface pixels (the
+    reference check's light_mask), not over every pixel: a bright light in view is left out."""
+    from dbench.run.scoring import judge_frame
+
+    truth = _truth()
+    truth[2:6, 3:9] = 500.0  # a light seen directly: far above 4x the 90th percentile
+    _folder(tmp_path / "f", spps=(4, 16), truth=truth, declare=256)
+    frame = load_folder(scan_folder(tmp_path / "f"), 4, ["color", "reference"])
+    surface, _ = light_mask(frame.reference)
+    assert frame.emitter is None and frame.meta["surface_pixels"].startswith(
+        f"{int(surface.sum())} of {H * W}: ")
+    np.testing.assert_array_equal(frame.judged_lights[..., 0], ~surface)
+    assert (~surface).sum() == 24  # the light's 4 x 6 pixels
+    v = judge_frame(frame.color, frame).values
+    on_surface = np.sqrt(np.mean((frame.color - frame.reference)[surface] ** 2))
+    assert v["rmse_surface"] == pytest.approx(on_surface, rel=1e-6)
+    assert v["rmse"] > 2 * v["rmse_surface"]  # the light's error is in the whole image only

@@ -68,3 +68,17 @@ def test_ref_spp_on_a_folder_whose_reference_states_none_is_refused(tmp_path, ca
     assert not out.exists()
     _folder(tmp_path / "declared", {"ref_spp": 4096})
     assert _run(tmp_path, tmp_path / "declared", "--ref-spp", "4096")[0] == 0
+
+
+def test_a_sweep_gives_ref_spp_to_its_rendered_scenes_and_refuses_it_for_folders_alone(
+        tmp_path, capsys):
+    """In a sweep mixing rendered scenes and folders (tests/datasets/test_scene_files.py),
+    --ref-spp is the rendered scenes'; over folders alone it would do nothing."""
+    folder = _folder(tmp_path / "renders")
+    rc = cli.main(["sweep", "--methods", "noisy", "--scenes", str(folder), "--spp", "16",
+                   "--ref-spp", "64", "--repeats", "1", "--quiet", "--cache",
+                   str(tmp_path / "cache"), "--out", str(tmp_path / "sweep")])
+    err = capsys.readouterr().err
+    assert rc == 2 and err.count("\n") == 1, err
+    assert err.startswith("dbench: --ref-spp: every scene of the sweep") and "leave" in err
+    assert not (tmp_path / "sweep").exists()

@@ -468,8 +468,10 @@ def load_folder(info_or_path: FolderInfo | str | os.PathLike, spp: int,
         files["reference"] = ref["color"].file.name
         # judged, not trusted: its noise estimated from what the folder holds ("unknown",
         # never 0, when nothing does) and a warning when it is no better than the input
-        buffers["reference_var"], ref_meta = folder_reference(
+        buffers["reference_var"], ref_meta, lights = folder_reference(
             info, frame, spp, read, files, buffers["reference"], buffers)
+        if lights is not None:  # no emitter buffer: the judge's surface is the check's
+            buffers["judged_lights"] = lights
         meta.update(ref_seed=None, **ref_meta)
     if "normal" not in buffers:
         meta.pop("normal_warning", None)  # a doubt about normals no method here reads

@@ -368,11 +368,15 @@ def known_variance(ref: dict, ref_spp: int | None, read: Any, files: dict,
 
 
 def folder_reference(info: Any, frame: int | None, spp: int, read: Any, files: dict,
-                     reference: np.ndarray, buffers: dict) -> tuple[np.ndarray | None, dict]:
+                     reference: np.ndarray, buffers: dict
+                     ) -> tuple[np.ndarray | None, dict, np.ndarray | None]:
     """:func:`judge_reference` for one noisy spp of a scanned folder (a
     :class:`~dbench.datasets.folders.load.FolderInfo`); ``read`` reads a layer, ``files`` records
     the reference variance's file, ``buffers`` the frame's loaded buffers (its emitter is
-    used when there; else the folder's albedo is read for the surface mask)."""
+    used when there; else the folder's albedo is read for the surface mask). The third value:
+    without an emitter buffer, the (H, W, 1) lights of that mask (:func:`light_mask`), which
+    the judge's surface metrics then leave out (``Frame.judged_lights``), so they are over the
+    pixels the report lists as surface; else None."""
     plan = info._plan
     ref = plan[(frame, "ref")]
     slots = {s: plan[(frame, s)] for s in info.spps}
@@ -410,4 +414,7 @@ def folder_reference(info: Any, frame: int | None, spp: int, read: Any, files: d
     if known_note and not meta["ref_var_known"]:
         meta["ref_noise_source"] += known_note
     meta["ref_noise_source"] += unused
-    return var, meta
+    lights = None
+    if emitter is None:
+        lights = (~light_mask(np.asarray(reference, np.float64), albedo)[0])[..., None]
+    return var, meta, None if lights is None else lights.astype(np.float32)
