@@ -34,7 +34,7 @@ from ..report.cells import (NUMERIC_KEYS, cell_problem, load_cells,  # noqa: F40
                             load_cells_checked, read_cell)  # interface, as before
 from .sweep_history import SETTINGS, stored_config  # noqa: F401 - the module's interface
 from .inputs import load_seeds  # noqa: F401 - also the module's interface, as before
-from .sweep_names import check_scenes, scene_labels
+from .sweep_names import check_scenes, folder_ref_spp, scene_labels
 from .sweep_pool import worker_start as _worker_start  # noqa: F401 - the pool initializer
 from ..device import device_name
 from .machine import machine_label
@@ -311,11 +311,11 @@ def run_group(config: SweepConfig, out: str, scene_name: str, spp: int,
     instances = {m: registry.get(m, **config.params.get(m, {})) for m in method_names}
     for inst in instances.values():
         needs |= inst.wants(scene.provides)
-    # --ref-spp is for the scenes the sweep renders; a folder keeps its own (resolved_ref_spp)
     frames = load_seeds(scene, config.seed, config.seeds, spp=spp, res=res,
                         needs=needs, transform=config.transform, lam=config.lam,
-                        ref_spp=config.ref_spp if scene.renders else None, cache=cache,
-                        progress=False, frames=config.frames, bins=config.bins)
+                        ref_spp=config.ref_spp if scene.renders else
+                        folder_ref_spp(config, scene), cache=cache, progress=False,
+                        frames=config.frames, bins=config.bins)
     written = []
     for m, inst in instances.items():
         ident = cell_identity(config, scene, spp, m, fingerprint, scene_label)

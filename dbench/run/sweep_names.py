@@ -88,10 +88,9 @@ def check_scenes(config) -> None:
     box (:func:`dbench.datasets.scenes.build.check_plugin_scene`), a sequence shorter than
     ``--frames``, a transient film too large at the sweep's size and bins
     (:func:`dbench.datasets.transient.scene.check_bins`), a folder of renders that
-    does not hold the sweep's size, seeds or every spp, or whose statistics
-    were gathered with another transform than a ``--transform`` given,
-    ``--normal-encoding`` where no scene is a folder of renders, and ``--ref-spp`` where
-    every scene is one (it applies to rendered scenes; a folder keeps its own reference). A folder is checked by
+    does not hold the sweep's size, seeds, reference spp (:func:`folder_ref_spp`) or every
+    spp, or whose statistics were gathered with another transform than a ``--transform``
+    given, and ``--normal-encoding`` where no scene is a folder of renders. A folder is checked by
     the very loads its groups make (:func:`dbench.run.inputs.load_seeds`, which refuse such
     settings as ``dbench run`` does), reading only the colour of its first frame per spp, and
     its statistics' transform by :func:`dbench.datasets.check_folder_transform`. A
@@ -120,15 +119,10 @@ def check_scenes(config) -> None:
             continue
         for spp in config.spp:
             load_seeds(scene, config.seed, config.seeds, spp=spp, res=config.res_for(scene),
-                       needs=(), ref_spp=None, frames=1, progress=False)
+                       needs=(), ref_spp=folder_ref_spp(config, scene), frames=1,
+                       progress=False)
             # its statistics' transform, as the folder's scan read it
             datasets.check_folder_transform(scene, spp, config.transform, config.lam)
-    if config.ref_spp is not None and folders == len(set(config.scenes)):
-        # a folder keeps its own reference; --ref-spp would be recorded and do nothing
-        raise DbenchInputError(f"--ref-spp: every scene of the sweep ({', '.join(config.scenes)})"
-                               f" is a folder of renders, whose reference is its own file; "
-                               f"leave --ref-spp out (a folder states its spp in dataset.json,"
-                               f" docs/formats.md)")
     if config.normal_encoding is not None and not folders:
         raise DbenchInputError(f"--normal-encoding: none of the sweep's scenes "
                                f"({', '.join(config.scenes)}) is a folder of renders; dbench "
@@ -136,3 +130,15 @@ def check_scenes(config) -> None:
 
 
 __all__ = ["check_scenes", "scene_labels"]
+
+
+def folder_ref_spp(config, scene) -> int | None:
+    """The ``--ref-spp`` the sweep ``config`` checks the folder of renders ``scene`` against
+    (:func:`dbench.run.inputs.load_seeds` refuses a mismatch): the option where the folder
+    states its reference's spp (they must agree) or where every scene is a folder (as in
+    ``dbench run``, an option that would apply to nothing is refused); None where the folder
+    states none and the sweep renders other scenes, for which ``--ref-spp`` is given: the
+    folder's cells then record its reference spp as unknown (docs/formats.md)."""
+    if config.ref_spp is None or scene.info.ref_spp is not None:
+        return config.ref_spp
+    return None if any(config.scene(n).renders for n in config.scenes) else config.ref_spp

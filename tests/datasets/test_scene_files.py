@@ -238,6 +238,9 @@ def test_sweep_over_a_scene_file_and_a_folder(renderer, tmp_path):
     assert by_scene[("scene.xml", "jbf")]["res"] == "128x77"
     assert by_scene[("view", "jbf")]["res"] == "40x24"
     assert all(c["status"] == "ok" for c in cells)
+    # --ref-spp is the file's; the folder's reference states no spp and stays unknown
+    assert by_scene[("scene.xml", "jbf")]["ref_spp"] == 16
+    assert by_scene[("view", "jbf")]["ref_spp"] is None
     assert main(args) == 0  # resumes: nothing to compute
 
 

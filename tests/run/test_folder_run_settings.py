@@ -70,15 +70,16 @@ def test_ref_spp_on_a_folder_whose_reference_states_none_is_refused(tmp_path, ca
     assert _run(tmp_path, tmp_path / "declared", "--ref-spp", "4096")[0] == 0
 
 
-def test_a_sweep_gives_ref_spp_to_its_rendered_scenes_and_refuses_it_for_folders_alone(
-        tmp_path, capsys):
-    """In a sweep mixing rendered scenes and folders (tests/datasets/test_scene_files.py),
-    --ref-spp is the rendered scenes'; over folders alone it would do nothing."""
+
+def test_a_sweep_over_folders_alone_checks_ref_spp_as_run_does(tmp_path, capsys):
+    """Beside a rendered scene a folder stating no spp keeps "unknown" (--ref-spp is the
+    rendered scene's: tests/datasets/test_scene_files.py); over folders alone the option would
+    apply to nothing, and is refused as ``dbench run`` refuses it."""
     folder = _folder(tmp_path / "renders")
     rc = cli.main(["sweep", "--methods", "noisy", "--scenes", str(folder), "--spp", "16",
                    "--ref-spp", "64", "--repeats", "1", "--quiet", "--cache",
                    str(tmp_path / "cache"), "--out", str(tmp_path / "sweep")])
     err = capsys.readouterr().err
     assert rc == 2 and err.count("\n") == 1, err
-    assert err.startswith("dbench: --ref-spp: every scene of the sweep") and "leave" in err
+    assert err.startswith("dbench: --ref-spp: the reference in ") and "states no spp" in err
     assert not (tmp_path / "sweep").exists()
