@@ -197,3 +197,38 @@ def test_resolution_follows_mitsuba(renderer, tmp_path):
     resolver = [str(p) for p in mi.file_resolver()]
     scenes.get(str(path))
     assert [str(p) for p in mi.file_resolver()] == resolver
+
+
+def test_a_file_only_mitsubas_lenient_reader_takes_is_walked_as_mitsuba_reads_it(renderer,
+                                                                                tmp_path):
+    """pugixml, Mitsuba's XML reader, loads what a strict parser refuses: a Latin-1 comment,
+    a bare "&" in a file name, an attribute given twice (the first counts), text after the
+    root element. Such a file was refused as "not well-formed"; it loads, its key covers the
+    files Mitsuba reads, and a file whose tags do not match is still refused."""
+    from dbench.datasets.scene_files.assets import asset_hashes
+    from dbench.datasets.scenes import catalogue as scenes
+    mi = renderer
+    path = _project(tmp_path)
+    root = tmp_path.resolve()
+    rock = root / "assets" / "textures" / "rock&moss.png"
+    _texture(rock, (0.2, 0.6, 0.2))
+    text = (SCENE.replace("<sensor", "<!-- caf\xe9 \xa9 -->\n  <sensor")
+            # the second name is never read: fragments/absent.xml does not exist
+            .replace('filename="../fragments/room.xml"',
+                     'filename="../fragments/room.xml" filename="../fragments/absent.xml"')
+            .replace("</scene>", '<shape type="rectangle"><bsdf type="diffuse"><texture '
+                     'type="bitmap" name="reflectance"><string name="filename" '
+                     'value="textures/rock&moss.png"/></texture></bsdf></shape>\n</scene>')
+            + "<!-- written by hand --> the end\n")
+    path.write_bytes(text.encode("latin-1"))
+    mi.load_file(str(path))  # Mitsuba's own load takes it
+    assert set(asset_hashes(path)) == {"(the scene file)", "../fragments/room.xml",
+                                       "../assets/meshes/back.obj",
+                                       "../assets/textures/wood.png",
+                                       "../assets/textures/rock&moss.png"}
+    key = _fingerprint(path)
+    _texture(rock, (0.9, 0.1, 0.1))
+    assert _fingerprint(path) != key
+    path.write_bytes(text.replace("</scene>", "</shape>").encode("latin-1"))
+    with pytest.raises(DbenchInputError, match="not well-formed XML"):
+        scenes.get(str(path))

@@ -41,6 +41,7 @@ from pathlib import Path
 
 from ...errors import DbenchInputError
 from ..file_refs import file_sha256
+from . import markup
 
 #: Mitsuba's limit on nested includes (ParserConfig.max_include_depth), which also stops cycles.
 MAX_INCLUDE_DEPTH = 15
@@ -90,7 +91,8 @@ class _Walk:
                                    f"<include>s (at {file}); is an include circular?")
         self._add(file)
         try:
-            root = ET.fromstring(file.read_bytes())
+            # read as Mitsuba's parser reads it (a Latin-1 comment, a bare "&": markup.py)
+            root = markup.root(file.read_bytes())
         except ET.ParseError as exc:
             raise DbenchInputError(f"--scene {self.scene}: {file} is not well-formed XML "
                                    f"({exc})") from None
