@@ -46,7 +46,9 @@ unwrapped, or replaced by ``path`` with the reason; none: ``path``, max_depth 8;
 ``meta["scene_file"]`` record (:func:`dbench.datasets.scene_files.fidelity.dict_record`).
 The dictionary is loaded once at 8 px when the file is resolved, so a type Mitsuba has no
 plugin for is refused before anything renders; ``sys.exit`` in the file or in ``build`` is
-refused too (exit 2), never the file's own exit code. Optional module attributes:
+refused too (exit 2), never the file's own exit code. Optional module attributes, each
+checked when the file is resolved and refused in one line naming it where it is not of its
+kind (:mod:`dbench.datasets.scene_files.attributes`):
 
 - ``kind``: ``"steady"`` (default), ``"sequence"`` or ``"transient"``;
 - ``max_depth`` (overrides the depth of the integrator that renders, as the record says;
@@ -92,6 +94,7 @@ from ..scenes.record import STEADY_BUFFERS, Scene
 from ..scenes.build import call_build, check_lit, exit_message, integrator_settings, probe_load
 from ..scenes.build import own_camera as _own_camera
 from .assets import asset_hashes as _sources, scene_walk
+from .attributes import settings
 from ..cache import referenced
 from ..scenes.parts import film_dict
 from .fidelity import FILTER, dict_record, file_crop, record, report_lines
@@ -353,23 +356,19 @@ def _python_scene(path: str, files: tuple, digest: str) -> Scene:
     known)."""
     mi = mitsuba()
     module = _module(path, digest)
-    kind = getattr(module, "kind", "steady")
+    # every module attribute checked before anything is built or rendered (attributes.py)
+    attrs = settings(module, path)
+    kind, depth = attrs["kind"], attrs["max_depth"]
     probe = _built(module, path, mi, 8)
     loaded = probe_load(mi, probe, f"--scene {path}", "build()'s dictionary")
-    depth = getattr(module, "max_depth", None)
-    if depth is not None and (isinstance(depth, bool) or not isinstance(depth, int)):
-        raise DbenchInputError(f"--scene {path}: max_depth is {depth!r}; give an integer")
     common = dict(name=Path(path).name, kind=kind,
                   description=getattr(module, "description", f"Python scene file {path}"),
                   params={"sha256": digest, **({"files": dict(files)} if files else {})},
-                  ev=float(getattr(module, "ev", 0.0)))
+                  ev=attrs["ev"])
 
     def build(mi, res):
         return _own_camera(_current(_built(module, path, mi, res), files, path), res)
 
-    if kind not in ("steady", "sequence", "transient"):
-        raise DbenchInputError(f"--scene {path}: kind {kind!r}; valid: steady, sequence, "
-                               f"transient")
     if kind != "sequence" or not callable(getattr(module, "lights", None)):
         check_lit(loaded, f"--scene {path}")  # a black image every method would match
     if kind == "steady":
@@ -387,11 +386,11 @@ def _python_scene(path: str, files: tuple, digest: str) -> Scene:
     common["max_depth"] = int(depth if depth is not None else given or DEFAULT_MAX_DEPTH)
     if kind == "sequence":
         _own_integrator_only(integrator, path, kind, "path", "path")
-        return _python_sequence(module, path, probe, common, build)
-    own = getattr(module, "integrator", "transient_path")
+        return _python_sequence(module, path, probe, common, build, attrs["frames"])
+    own = attrs["integrator"]
     _own_integrator_only(integrator, path, kind, "volpath" if "volpath" in own else "path",
                          own)
-    return _python_transient(module, path, build, common)
+    return _python_transient(build, common, attrs)
 
 
 def _own_integrator_only(integrator, path: str, kind: str, steady: str, renders: str) -> None:
@@ -412,7 +411,8 @@ def _own_integrator_only(integrator, path: str, kind: str, steady: str, renders:
         f"make it {{\"type\": \"{steady}\", \"max_depth\": N}}")
 
 
-def _python_sequence(module, path: str, probe: dict, common: dict, build) -> Scene:
+def _python_sequence(module, path: str, probe: dict, common: dict, build,
+                     frames: int) -> Scene:
     from ..sequence.scene import SEQUENCE_BUFFERS, SequenceScene
 
     if not callable(getattr(module, "camera", None)):
@@ -426,24 +426,18 @@ def _python_sequence(module, path: str, probe: dict, common: dict, build) -> Sce
 
     fov = float(probe["sensor"].get("fov", 39.3))
     return SequenceScene(build=build,
-                         provides=SEQUENCE_BUFFERS, n_frames=int(getattr(module, "frames", 24)),
+                         provides=SEQUENCE_BUFFERS, n_frames=frames,
                          geometry=geometry, camera=module.camera, lights=lights, fov=fov,
                          **common)
 
 
-def _python_transient(module, path: str, build, common: dict) -> Scene:
+def _python_transient(build, common: dict, attrs: dict) -> Scene:
     from ..transient.scene import TRANSIENT_BUFFERS, TransientScene
 
-    missing = [a for a in ("window_start", "window_end") if not hasattr(module, a)]
-    if missing:
-        raise DbenchInputError(f"--scene {path}: a transient scene needs {', '.join(missing)} "
-                               f"(optical path length in metres; "
-                               f"dbench.datasets.transient.load.size_window measures them)")
-    integrator = getattr(module, "integrator", "transient_path")
+    integrator = attrs["integrator"]
     return TransientScene(build=build, provides=TRANSIENT_BUFFERS,
-                          window_start=float(module.window_start),
-                          window_end=float(module.window_end),
-                          default_bins=int(getattr(module, "bins", 200)), integrator=integrator,
+                          window_start=attrs["window_start"], window_end=attrs["window_end"],
+                          default_bins=attrs["bins"], integrator=integrator,
                           steady_integrator="volpath" if "volpath" in integrator else "path",
                           **common)
 

@@ -1,0 +1,79 @@
+"""A Python scene file's optional module attributes (README.md, "Python scene files") are
+checked when the file is resolved: a value that is not a number of the stated kind is refused
+in one line naming the attribute (exit 2) before anything renders, where it used to end in an
+internal error (``ev = "bright"``), be refused only after the renders (``ev = nan``), or be cut
+to an integer without a word (``frames = 2.7``, ``bins = 2.5``)."""
+from __future__ import annotations
+
+import pytest
+
+from dbench.errors import DbenchInputError
+
+SCENE = '''
+def build(mi, width, height):
+    T = mi.ScalarTransform4f
+    return {"type": "scene",
+            "sensor": {"type": "perspective", "fov": 45,
+                       "to_world": T().look_at(origin=[0, 1, 4], target=[0, 0.3, 0],
+                                               up=[0, 1, 0])},
+            "floor": {"type": "rectangle", "to_world": T().rotate([1, 0, 0], -90).scale(3),
+                      "bsdf": {"type": "diffuse"}},
+            "lamp": {"type": "sphere", "center": [0, 0.4, 1.6], "radius": 0.3,
+                     "emitter": {"type": "area", "radiance": {"type": "rgb", "value": 6}}}}
+
+def camera(i):
+    return [0, 1, 4], [0, 0.3, 0]
+'''
+TRANSIENT = 'kind = "transient"\nwindow_start = 1.0\nwindow_end = 9.0\n'
+
+BAD = {"ev-text": ('ev = "bright"\n', "ev is 'bright'"),
+       "ev-none": ("ev = None\n", "ev is None"),
+       "ev-nan": ('ev = float("nan")\n', "ev is nan"),
+       "kind": ('kind = "video"\n', "kind is 'video'; give one of steady, sequence"),
+       "depth": ("max_depth = 2.5\n", "max_depth is 2.5; give an integer"),
+       "frames-text": ('kind = "sequence"\nframes = "many"\n', "frames is 'many'"),
+       "frames-fraction": ('kind = "sequence"\nframes = 2.7\n', "frames is 2.7"),
+       "frames-zero": ('kind = "sequence"\nframes = 0\n', "frames is 0; give an integer >= 1"),
+       "bins-fraction": (TRANSIENT + "bins = 2.5\n", "bins is 2.5; give an integer >= 1"),
+       "window-text": (TRANSIENT + 'window_start = "x"\n', "window_start is 'x'"),
+       "window-order": (TRANSIENT + "window_end = 0.5\n",
+                        "window_end is 0.5; give a length greater than window_start (1.0)"),
+       "window-missing": ('kind = "transient"\nwindow_start = 1.0\n',
+                          "a transient scene needs window_end"),
+       "integrator": (TRANSIENT + 'integrator = "transient_volpath"\n',
+                      "integrator is 'transient_volpath'; give transient_path or "
+                      "transient_prbvolpath"),
+       "integrator-number": (TRANSIENT + "integrator = 5\n", "integrator is 5")}
+
+
+@pytest.mark.parametrize("case", sorted(BAD))
+def test_a_bad_module_attribute_is_refused_naming_it(renderer, tmp_path, case):
+    from dbench.datasets.scenes import catalogue as scenes
+    extra, said = BAD[case]
+    path = tmp_path / f"{case}.py"
+    path.write_text(SCENE + extra)
+    with pytest.raises(DbenchInputError) as err:
+        scenes.get(str(path))
+    assert said in str(err.value) and str(path) in str(err.value), str(err.value)
+
+
+def test_good_attributes_are_kept_and_a_refusal_exits_2_before_rendering(renderer, tmp_path,
+                                                                         capsys):
+    from dbench.cli import main
+    from dbench.datasets.scenes import catalogue as scenes
+    path = tmp_path / "seq.py"
+    path.write_text(SCENE + 'kind = "sequence"\nframes = 3\nev = 1\n')
+    sc = scenes.get(str(path))
+    assert (sc.n_frames, sc.ev) == (3, 1.0)
+    path = tmp_path / "pulse.py"
+    path.write_text(SCENE + TRANSIENT + "bins = 7\n")
+    sc = scenes.get(str(path))
+    assert (sc.default_bins, sc.window_start, sc.window_end) == (7, 1.0, 9.0)
+    path = tmp_path / "nan.py"
+    path.write_text(SCENE + 'ev = float("nan")\n')
+    assert main(["run", "--method", "noisy", "--scene", str(path), "--spp", "1", "--res", "8",
+                 "--ref-spp", "16", "--quiet", "--cache", str(tmp_path / "c"),
+                 "--out", str(tmp_path / "run")]) == 2
+    err = capsys.readouterr().err
+    assert "ev is nan" in err and len(err.strip().splitlines()) == 1, err
+    assert not (tmp_path / "c").exists() and not (tmp_path / "run").exists()
