@@ -77,3 +77,45 @@ def test_good_attributes_are_kept_and_a_refusal_exits_2_before_rendering(rendere
     err = capsys.readouterr().err
     assert "ev is nan" in err and len(err.strip().splitlines()) == 1, err
     assert not (tmp_path / "c").exists() and not (tmp_path / "run").exists()
+
+
+SEQUENCE = 'kind = "sequence"\nframes = 3\n'
+FUNCTIONS = {
+    "camera-none": ("def camera(i):\n    return None\n", "camera(0) returned None"),
+    "camera-raises": ("def camera(i):\n    raise ValueError('no pose')\n",
+                      "camera(0) failed: ValueError: no pose"),
+    "camera-three": ("def camera(i):\n    return [0, 1, 4], [0, 0, 0], [0, 1, 0]\n",
+                     "give (origin, target), two points"),
+    "camera-late": ("def camera(i):\n    return ([0, 1, 4], [0, 0, 0]) if i < 2 else None\n",
+                    "camera(2) returned None"),
+    # a vertical view: look_at's roll is undefined (NaN), rendered as a black sequence
+    "camera-vertical": ("def camera(i):\n    return [0, 5, 0], [0, 0, 0]\n", "not vertical"),
+    "camera-still": ("def camera(i):\n    return [0, 1, 4], [0, 1, 4]\n",
+                     "two different finite points"),
+    "lights-key": ("def lights(i):\n    return {'lmap': (1, 1, 1)}\n",
+                   "lights(0)'s key is 'lmap'; give a shape key of build()'s dictionary: "
+                   "floor, lamp"),
+    "lights-colour": ("def lights(i):\n    return {'lamp': 'red'}\n",
+                      "lights(0)['lamp'] is 'red'; give (r, g, b)"),
+    "lights-nan": ("def lights(i):\n    return {'lamp': (1, float('nan'), 1)}\n",
+                   "three finite numbers"),
+    "lights-raises": ("def lights(i):\n    return {'lamp': (1, 1, 1)}[i]\n",
+                      "lights(0) failed: KeyError: 0"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(FUNCTIONS))
+def test_a_sequence_files_camera_and_lights_are_checked_for_every_frame(renderer, tmp_path,
+                                                                        case):
+    """camera(i) and lights(i) used to fail inside the render (an internal error, exit 1) or,
+    for a vertical view, render a black sequence refused as unlit; they are called for every
+    frame when the file is resolved and refused naming the frame."""
+    from dbench.datasets.scenes import catalogue as scenes
+    code, said = FUNCTIONS[case]
+    path = tmp_path / f"{case}.py"
+    still = "def camera(i):\n    return [0, 1, 4], [0, 0.3, 0]\n"
+    path.write_text(SCENE.replace("def camera", "def _unused") + SEQUENCE + code
+                    + ("" if "camera" in case else still))
+    with pytest.raises(DbenchInputError) as err:
+        scenes.get(str(path))
+    assert said in str(err.value) and str(path) in str(err.value), str(err.value)

@@ -1,16 +1,20 @@
 """The optional module attributes of a Python scene file, checked when the file is resolved
 (README.md, "Python scene files"; :mod:`dbench.datasets.scene_files.load` lists them).
 
-Each is a number of a stated kind, or the file is refused in one line naming the attribute,
+Each is a value of a stated kind, or the file is refused in one line naming the attribute,
 the value and what it may be (exit 2), before anything renders: a value that is not a number
 used to end in an internal error, and a fractional count (``frames = 2.7``, ``bins = 2.5``) was
-cut to an integer without a word.
+cut to an integer without a word. A sequence's ``camera(i)`` and ``lights(i)`` are called for
+every frame at the same time (:func:`sequence_functions`): a camera looking straight up or
+down has no defined roll (``look_at`` with up +y gives NaN) and rendered a black sequence.
 """
 from __future__ import annotations
 
 import math
 from numbers import Integral, Real
 from typing import Any
+
+import numpy as np
 
 from ...errors import DbenchInputError
 
@@ -62,6 +66,64 @@ def settings(module, path: str) -> dict[str, Any]:
     return out
 
 
+def sequence_functions(module, path: str, frames: int, shapes: dict):
+    """(camera, lights) of a sequence file: its ``camera(i)`` and ``lights(i)`` (none: no
+    light changes), each called for every frame now, so that one that raises or returns what
+    a frame cannot use is refused naming the frame before anything renders, and wrapped so
+    that every later call is checked alike. ``shapes``: build()'s dictionary, whose shape
+    keys ``lights`` may name. The values pass on as the file gives them (they are part of
+    the frames' dictionaries, and so of their identity)."""
+    camera_fn = module.camera
+    lights_fn = getattr(module, "lights", None) or (lambda i: {})
+
+    def camera(i: int):
+        got = _call(path, "camera", camera_fn, i)
+        try:
+            origin, target = (np.asarray(v, np.float64).reshape(3) for v in got)
+        except (TypeError, ValueError):
+            _refuse(path, f"camera({i})", got, "(origin, target), two points (x, y, z)",
+                    "returned")
+        view = target - origin
+        if not (np.isfinite(origin).all() and np.isfinite(target).all()) \
+                or np.linalg.norm(view) == 0 \
+                or np.linalg.norm(np.cross(view, (0.0, 1.0, 0.0))) <= 1e-9 * np.linalg.norm(view):
+            _refuse(path, f"camera({i})", got, "two different finite points whose view is "
+                    "not vertical (up is +y: a vertical view has no roll)", "returned")
+        return got
+
+    def lights(i: int):
+        got = _call(path, "lights", lights_fn, i)
+        if not isinstance(got, dict):
+            _refuse(path, f"lights({i})", got, "{shape key: (r, g, b)}", "returned")
+        for key, rgb in got.items():
+            if not isinstance(shapes.get(key), dict) or key in ("sensor", "integrator"):
+                keys = [k for k, v in shapes.items()
+                        if isinstance(v, dict) and k not in ("type", "sensor", "integrator")]
+                _refuse(path, f"lights({i})'s key", key,
+                        f"a shape key of build()'s dictionary: {', '.join(map(str, keys))}")
+            try:
+                value = np.asarray(rgb, np.float64).reshape(3)
+            except (TypeError, ValueError):
+                value = np.array([np.nan])
+            if not np.isfinite(value).all():
+                _refuse(path, f"lights({i})[{key!r}]", rgb, "(r, g, b), three finite numbers")
+        return got
+
+    for i in range(frames):
+        camera(i), lights(i)
+    return camera, lights
+
+
+def _call(path: str, name: str, fn, i: int):
+    try:
+        return fn(i)
+    except DbenchInputError:
+        raise
+    except Exception as exc:  # the file's own code: its failure is the file's, named as such
+        raise DbenchInputError(f"--scene {path}: {name}({i}) failed: {type(exc).__name__}: "
+                               f"{exc}") from None
+
+
 def _number(path: str, name: str, value, what: str) -> float:
     if isinstance(value, bool) or not isinstance(value, Real) or not math.isfinite(value):
         _refuse(path, name, value, f"a finite number ({what})")
@@ -76,8 +138,8 @@ def _count(path: str, name: str, value, default: int) -> int:
     return int(value)
 
 
-def _refuse(path: str, name: str, value, valid: str) -> None:
-    raise DbenchInputError(f"--scene {path}: {name} is {value!r}; give {valid}")
+def _refuse(path: str, name: str, value, valid: str, verb: str = "is") -> None:
+    raise DbenchInputError(f"--scene {path}: {name} {verb} {value!r}; give {valid}")
 
 
-__all__ = ["settings", "KINDS", "TRANSIENT_INTEGRATORS"]
+__all__ = ["settings", "sequence_functions", "KINDS", "TRANSIENT_INTEGRATORS"]

@@ -55,6 +55,7 @@ kind (:mod:`dbench.datasets.scene_files.attributes`):
   else the dictionary integrator's, else 8), ``ev`` (exposure of the tone map), ``description``;
 - sequences: ``camera(i) -> (origin, target)`` per frame (required), ``lights(i) ->
   {shape key: (r, g, b)}`` (radiance of emitting shapes per frame), ``frames`` (default 24);
+  both functions are called for every frame when the file is resolved, and checked;
   the geometry is ``build``'s dictionary without its sensor and integrator;
 - sequence and transient scenes render with dbench's integrators (``path``; the transient one),
   so a dictionary integrator other than a ``path`` (``volpath`` for ``transient_prbvolpath``)
@@ -94,7 +95,7 @@ from ..scenes.record import STEADY_BUFFERS, Scene
 from ..scenes.build import call_build, check_lit, exit_message, integrator_settings, probe_load
 from ..scenes.build import own_camera as _own_camera
 from .assets import asset_hashes as _sources, scene_walk
-from .attributes import settings
+from .attributes import sequence_functions, settings
 from ..cache import referenced
 from ..scenes.parts import film_dict
 from .fidelity import FILTER, dict_record, file_crop, record, report_lines
@@ -418,7 +419,7 @@ def _python_sequence(module, path: str, probe: dict, common: dict, build,
     if not callable(getattr(module, "camera", None)):
         raise DbenchInputError(f"--scene {path}: a sequence scene needs camera(i) -> "
                                f"(origin, target)")
-    lights = getattr(module, "lights", None) or (lambda i: {})
+    camera, lights = sequence_functions(module, path, frames, probe)
 
     def geometry(mi):
         d = build(mi, parse_res(8))
@@ -427,7 +428,7 @@ def _python_sequence(module, path: str, probe: dict, common: dict, build,
     fov = float(probe["sensor"].get("fov", 39.3))
     return SequenceScene(build=build,
                          provides=SEQUENCE_BUFFERS, n_frames=frames,
-                         geometry=geometry, camera=module.camera, lights=lights, fov=fov,
+                         geometry=geometry, camera=camera, lights=lights, fov=fov,
                          **common)
 
 
