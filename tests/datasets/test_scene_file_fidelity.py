@@ -150,3 +150,25 @@ def test_a_python_sensor_without_a_fov_renders_and_says_how(renderer, tmp_path, 
                           progress=False, cache=datasets.Cache(enabled=False))
     assert frame.color.shape == (16, 16, 3) and frame.color.mean() > 0
     assert said in frame.meta["scene_file_settings"]["sensor"]
+
+
+@pytest.mark.parametrize("sensor", ["irradiancemeter", "orthographic"])
+def test_a_sensor_dbench_cannot_render_through_is_refused_before_the_load(renderer, tmp_path,
+                                                                          capfd, sensor):
+    """One line, exit 2, from the parse alone: the scene was loaded first, so an irradiance
+    meter (which warns about the film's gaussian filter while it is built) printed Mitsuba's
+    warning above the refusal."""
+    from dbench.datasets.scene_files import load
+    # the file's first sensor; a perspective one follows, which Mitsuba would not render
+    path = _xml(tmp_path, f"{sensor}.xml", '<emitter type="constant"/>')
+    path.write_text(path.read_text().replace('<sensor type="perspective">',
+                                             f'<sensor type="{sensor}"/><sensor '
+                                             f'type="perspective">'))
+    before = load._loaded_xml.cache_info().misses
+    rc = main(["run", "--method", "noisy", "--scene", str(path), "--res", "8", "--spp", "1",
+               "--quiet", "--out", str(tmp_path / "out"), "--cache", str(tmp_path / "cache")])
+    captured = capfd.readouterr()
+    err = (captured.err + captured.out).strip().splitlines()
+    assert rc == 2 and len(err) == 1, err
+    assert f"sensor {sensor} at {path}" in err[0] and "perspective or thinlens" in err[0]
+    assert load._loaded_xml.cache_info().misses == before  # nothing of the file was built

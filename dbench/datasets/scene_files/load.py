@@ -101,7 +101,7 @@ from ..scenes.parts import film_dict
 from .fidelity import FILTER, dict_record, file_crop, record, report_lines
 from .integrator import DEFAULT_MAX_DEPTH, plan as _integrator_plan, plan_dict
 from .rgb import rgb_notes
-from .xml import load as _load_xml, parse as _parse_xml, shape_groups
+from .xml import children, load as _load_xml, parse as _parse_xml, shape_groups, where
 
 #: Part of every file scene's cache key; change it when the translation above changes.
 FILE_SCENE_VERSION = "file-scene-3"
@@ -229,6 +229,7 @@ def _xml_scene(path: str, params: tuple, digest: str) -> XmlScene:
     # constructs with no RGB form are refused before any object of the file exists
     conversions = rgb_notes(state, path)
     integrator = _integrator_plan(state, path)
+    _check_camera(mi, state, path)  # before the load: a large scene takes minutes to load
     loaded = _loaded_xml(path, params, mi.variant(), digest)
     sensor = _sensor_dict(mi, loaded, parse_res(8), path)  # refuses unsupported cameras
     check_lit(loaded, f"--scene {path}")  # a black image every method would match
@@ -243,6 +244,18 @@ def _xml_scene(path: str, params: tuple, digest: str) -> XmlScene:
                     frame_meta={"scene_file": rec, "scene_file_settings": report_lines(rec),
                                 # the --scene-param values, which reports state beside them
                                 **({"scene_params": dict(params)} if params else {})})
+
+
+def _check_camera(mi, state, path: str) -> None:
+    """Refuse, from the parse alone, a file whose first sensor is no camera dbench renders
+    through (:func:`_sensor_dict` checks the loaded one too, and a file without a sensor):
+    loading it first cost the whole load, and a sensor that warns while it is built (an
+    irradiance meter with the film's gaussian filter) added Mitsuba's line to the refusal."""
+    sensors = children(state, state.root, mi.ObjectType.Sensor)
+    name = sensors[0][1].props.plugin_name() if sensors else None
+    if name is not None and name not in _CAMERAS.values():
+        raise DbenchInputError(f"--scene {path}: sensor {name} at {where(state, sensors[0][1])} "
+                               f"is not supported; use a perspective or thinlens camera")
 
 
 def file_film_size(scene: XmlScene) -> tuple[int, int]:
