@@ -172,3 +172,37 @@ def test_a_sensor_dbench_cannot_render_through_is_refused_before_the_load(render
     assert rc == 2 and len(err) == 1, err
     assert f"sensor {sensor} at {path}" in err[0] and "perspective or thinlens" in err[0]
     assert load._loaded_xml.cache_info().misses == before  # nothing of the file was built
+
+
+LAMP = ('<shape type="sphere"><point name="center" x="0" y="3" z="0"/>'
+        '<emitter type="area"><rgb name="radiance" value="{}"/></emitter></shape>')
+
+
+@pytest.mark.parametrize("value, said", [("10, nan, 10", "[10., nan, 10.]"),
+                                         ("$L", "[inf, inf, inf]")])
+def test_a_number_of_the_file_that_is_not_finite_is_refused(renderer, tmp_path, capsys, value,
+                                                            said):
+    """A light of radiance (10, NaN, 10) rendered: dbench counts a NaN sample as 0, so the
+    images and the reference were those of a light without its green, without a word (Mitsuba
+    renders NaN there). A value of the file, or of a <default>, is refused as --scene-param
+    L=nan already was, before anything renders."""
+    path = _xml(tmp_path, "lamp.xml", '<default name="L" value="inf"/>' + LAMP.format(value))
+    rc = main(["run", "--method", "noisy", "--scene", str(path), "--res", "8", "--spp", "1",
+               "--quiet", "--out", str(tmp_path / "out"), "--cache", str(tmp_path / "cache")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1, err
+    assert f"area radiance at {path} (line" in err[0] and said in err[0], err
+    assert not (tmp_path / "out").exists() and not (tmp_path / "cache").exists()
+
+
+def test_a_python_dictionary_value_that_is_not_finite_is_refused(renderer, tmp_path):
+    from dbench.datasets.scene_files.load import resolve
+    py = tmp_path / "lamp.py"
+    py.write_text(NO_LIGHT_PY % ', "sky": {"type": "constant", "radiance": {"type": "rgb", '
+                                '"value": [1, float("nan"), 1]}}')
+    with pytest.raises(DbenchInputError, match=r"lamp\.py: build\(\)'s dictionary\['sky'\]"
+                                               r"\['radiance'\]\['value'\] is \[1, nan, 1\]"):
+        resolve(py)
+    py.write_text(NO_LIGHT_PY % ', "sky": {"type": "constant", "radiance": {"type": "rgb", '
+                                '"value": [1, 0.5, 1]}}')
+    resolve(py)

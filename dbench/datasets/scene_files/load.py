@@ -98,6 +98,7 @@ from .assets import asset_hashes as _sources, scene_walk
 from .attributes import sequence_functions, settings
 from ..cache import referenced
 from ..scenes.parts import film_dict
+from .finite import check_dictionary, check_state
 from .fidelity import FILTER, dict_record, file_crop, record, report_lines
 from .integrator import DEFAULT_MAX_DEPTH, plan as _integrator_plan, plan_dict
 from .rgb import rgb_notes
@@ -226,6 +227,7 @@ class XmlScene(Scene):
 def _xml_scene(path: str, params: tuple, digest: str) -> XmlScene:
     mi = mitsuba()
     state = _parse_xml(path, dict(params))
+    check_state(state, path)  # a NaN would render as 0 in dbench's sums (finite.py)
     # constructs with no RGB form are refused before any object of the file exists
     conversions = rgb_notes(state, path)
     integrator = _integrator_plan(state, path)
@@ -374,6 +376,7 @@ def _python_scene(path: str, files: tuple, digest: str) -> Scene:
     attrs = settings(module, path)
     kind, depth = attrs["kind"], attrs["max_depth"]
     probe = _built(module, path, mi, 8)
+    check_dictionary(probe, path)  # a NaN would render as 0 in dbench's sums (finite.py)
     loaded = probe_load(mi, probe, f"--scene {path}", "build()'s dictionary")
     common = dict(name=Path(path).name, kind=kind,
                   description=getattr(module, "description", f"Python scene file {path}"),
