@@ -119,3 +119,29 @@ def test_a_sequence_files_camera_and_lights_are_checked_for_every_frame(renderer
     with pytest.raises(DbenchInputError) as err:
         scenes.get(str(path))
     assert said in str(err.value) and str(path) in str(err.value), str(err.value)
+
+
+@pytest.mark.parametrize("where", ["module", "build"])
+def test_a_scene_file_that_sets_the_variant_is_refused_and_the_variant_kept(renderer, tmp_path,
+                                                                            where):
+    """mi.set_variant("scalar_rgb") at the top of a scene file, as Mitsuba's tutorials begin,
+    switched the process to scalar_rgb: its renders were made there while the cache keys, the
+    cells and the report named llvm_ad_rgb. The variant is put back and the file refused."""
+    from dbench.datasets.scenes import catalogue as scenes
+    mine = renderer.variant()
+    other = "scalar_rgb" if mine != "scalar_rgb" else "llvm_ad_rgb"
+    if other not in renderer.variants():
+        pytest.skip(f"{other} is not compiled into this Mitsuba")
+    path = tmp_path / f"{where}.py"
+    if where == "module":
+        path.write_text(f"import mitsuba\nmitsuba.set_variant({other!r})\n" + SCENE)
+        said = "the file set Mitsuba's variant"
+    else:
+        path.write_text(SCENE.replace("    T = mi.ScalarTransform4f",
+                                      f"    mi.set_variant({other!r})\n"
+                                      f"    T = mi.ScalarTransform4f"))
+        said = "build(mi, 8, 8) set Mitsuba's variant"
+    with pytest.raises(DbenchInputError) as err:
+        scenes.get(str(path))
+    assert f"{said} to {other}, but dbench renders in {mine}" in str(err.value)
+    assert renderer.variant() == mine

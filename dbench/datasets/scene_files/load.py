@@ -46,7 +46,8 @@ unwrapped, or replaced by ``path`` with the reason; none: ``path``, max_depth 8;
 ``meta["scene_file"]`` record (:func:`dbench.datasets.scene_files.fidelity.dict_record`).
 The dictionary is loaded once at 8 px when the file is resolved, so a type Mitsuba has no
 plugin for is refused before anything renders; ``sys.exit`` in the file or in ``build`` is
-refused too (exit 2), never the file's own exit code. Optional module attributes, each
+refused too (exit 2), never the file's own exit code, and so is ``mi.set_variant`` there
+(:func:`dbench.datasets.scenes.build.keeps_variant`). Optional module attributes, each
 checked when the file is resolved and refused in one line naming it where it is not of its
 kind (:mod:`dbench.datasets.scene_files.attributes`):
 
@@ -92,7 +93,8 @@ from ...errors import DbenchInputError
 from ...resolution import Res, parse_res
 from ..mitsuba_env import mitsuba
 from ..scenes.record import STEADY_BUFFERS, Scene
-from ..scenes.build import call_build, check_lit, exit_message, integrator_settings, probe_load
+from ..scenes.build import (call_build, check_lit, exit_message, integrator_settings,
+                            keeps_variant, probe_load)
 from ..scenes.build import own_camera as _own_camera
 from .assets import asset_hashes as _sources, scene_walk
 from .attributes import sequence_functions, settings
@@ -325,7 +327,10 @@ def _module(path: str, digest: str):
     spec = importlib.util.spec_from_file_location(f"dbench_scene_{digest[:12]}", path)
     module = importlib.util.module_from_spec(spec)
     try:
-        spec.loader.exec_module(module)
+        with keeps_variant(mitsuba(), f"--scene {path}", "the file"):
+            spec.loader.exec_module(module)
+    except DbenchInputError:
+        raise
     except SystemExit as exc:  # a scene file never ends dbench, nor lends it its exit code
         raise DbenchInputError(f"--scene {path}: the file called {exit_message(exc)} while "
                                f"loading; a scene file defines build(mi, width, height) -> dict "

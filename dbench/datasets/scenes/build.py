@@ -20,6 +20,11 @@ not a box (hdrfilm's default is a Gaussian) is refused naming the scene, its fil
 to write (:func:`check_box_filter`): each 1-spp pass must keep every sample in its own pixel,
 as the per-sample statistics need (README.md, "How renders work").
 
+Nor may it change Mitsuba's variant (``mi.set_variant("scalar_rgb")``, as Mitsuba's
+tutorials begin): the renders would be made in that variant while the cache keys, the cells
+and the report name the one dbench chose (README.md, "How renders work"), so the variant is
+put back and the scene refused (:func:`keeps_variant`).
+
 A scene that has no emitter renders black images, which every method matches perfectly, so it
 is refused before anything renders (:func:`check_lit`). A plugin's bare build function
 (:func:`plugin_build`) renders its dictionary's integrator by the rules of Python scene files
@@ -31,6 +36,7 @@ from __future__ import annotations
 
 import inspect
 import re
+from contextlib import contextmanager
 from functools import lru_cache
 from typing import Any, Callable
 
@@ -60,14 +66,35 @@ def exit_message(exc: SystemExit) -> str:
     return f"sys.exit({code!r})" if code is not None else "sys.exit()"
 
 
+@contextmanager
+def keeps_variant(mi: Any, what: str, code: str):
+    """Run a scene's own ``code`` (its build, a scene file's module) and refuse it, with
+    Mitsuba's variant put back, where it changed the variant (module docstring)."""
+    variant = getattr(mi, "variant", None)  # a stand-in for Mitsuba has none to keep
+    before = variant() if variant is not None else None
+    try:
+        yield
+    finally:
+        after = variant() if variant is not None else None
+        if after != before:
+            mi.set_variant(before)
+            raise DbenchInputError(
+                f"{what}: {code} set Mitsuba's variant to {after}, but dbench renders in "
+                f"{before} and names it in every cache key and result; remove mi.set_variant "
+                f"from the scene (DBENCH_VARIANT={after} renders in {after})")
+
+
 def call_build(fn: Callable, mi: Any, res: Any, what: str) -> dict:
     """``fn(mi, width, height)`` or ``fn(mi, Resolution)`` (module docstring); ``what`` names
-    the scene in the DbenchInputError raised when ``fn`` calls ``sys.exit``."""
+    the scene in the DbenchInputError raised when ``fn`` calls ``sys.exit`` or changes
+    Mitsuba's variant."""
     size = Resolution.of(res)
     try:
         if takes_width_height(fn):
-            return fn(mi, size.width, size.height)
-        return fn(mi, size)
+            with keeps_variant(mi, what, f"build(mi, {size.width}, {size.height})"):
+                return fn(mi, size.width, size.height)
+        with keeps_variant(mi, what, f"build(mi, res={size.key})"):
+            return fn(mi, size)
     except SystemExit as exc:
         form = (f"build(mi, {size.width}, {size.height})" if takes_width_height(fn)
                 else f"build(mi, res={size.key})")
