@@ -145,3 +145,31 @@ def test_a_scene_file_that_sets_the_variant_is_refused_and_the_variant_kept(rend
         scenes.get(str(path))
     assert f"{said} to {other}, but dbench renders in {mine}" in str(err.value)
     assert renderer.variant() == mine
+
+
+def test_a_sequence_sees_through_the_sensors_fov_or_focal_length(renderer, tmp_path):
+    """A sequence file's frames took the sensor's "fov" or 39.3°: a 24 mm focal length
+    rendered at 39.3° instead of the 71.6° a steady file (and Mitsuba) gives it, without a
+    word. They now take the field of view a steady file's sensor gives, and a sensor that is
+    no perspective camera is refused."""
+    from dbench.datasets.scenes import catalogue as scenes
+    from dbench.resolution import focal_fov
+
+    def sequence(name, sensor_entry):
+        path = tmp_path / f"{name}.py"
+        path.write_text(SCENE.replace('"type": "perspective", "fov": 45,', sensor_entry)
+                        + SEQUENCE)
+        return scenes.get(str(path))
+
+    steady = tmp_path / "steady.py"
+    steady.write_text(SCENE.replace('"fov": 45,', '"focal_length": "24mm",'))
+    wide = scenes.get(str(steady)).scene_dict(renderer, 16)["sensor"]["fov"]
+    focal = sequence("focal", '"type": "perspective", "focal_length": "24mm",')
+    assert focal.fov == pytest.approx(wide)
+    assert wide == pytest.approx(71.59, abs=0.01)
+    assert sequence("fov", '"type": "perspective", "fov": 30,').fov == 30
+    neither = sequence("neither", '"type": "perspective",')
+    assert neither.fov == pytest.approx(focal_fov("50mm", None))
+    with pytest.raises(DbenchInputError, match="build\\(\\)'s sensor type is 'thinlens'; "
+                                               "give \"perspective\""):
+        sequence("lens", '"type": "thinlens", "aperture_radius": 0.1, "fov": 45,')

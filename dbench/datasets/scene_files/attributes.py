@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from ...errors import DbenchInputError
+from ...resolution import focal_fov
 
 KINDS = ("steady", "sequence", "transient")
 #: mitransient's integrators a transient scene file may name
@@ -114,6 +115,24 @@ def sequence_functions(module, path: str, frames: int, shapes: dict):
     return camera, lights
 
 
+def sequence_fov(sensor: dict, path: str) -> float:
+    """The field of view (degrees) a sequence file's frames are rendered with, read from
+    build()'s sensor as a steady file's is (:func:`dbench.datasets.scenes.build.own_camera`):
+    its ``fov``, else the fov along x Mitsuba makes of its ``focal_length`` (50 mm where it
+    states neither; :func:`dbench.resolution.focal_fov`). A focal length used to be dropped
+    for 39.3° (24 mm rendered at 39.3° instead of 71.6°). The frames are seen through a
+    perspective camera at ``camera(i)``, so a sensor of another type (a thin lens's depth of
+    field, an orthographic view) is refused rather than rendered as another camera."""
+    kind = sensor.get("type", "perspective")
+    if kind != "perspective":
+        _refuse(path, "build()'s sensor type", kind, "\"perspective\": a sequence scene is "
+                "seen through a perspective camera at camera(i), taking the sensor's fov or "
+                "focal_length")
+    if "fov" in sensor:
+        return float(sensor["fov"])
+    return focal_fov(sensor.get("focal_length", "50mm"), sensor.get("film"))
+
+
 def _call(path: str, name: str, fn, i: int):
     try:
         return fn(i)
@@ -142,4 +161,4 @@ def _refuse(path: str, name: str, value, valid: str, verb: str = "is") -> None:
     raise DbenchInputError(f"--scene {path}: {name} {verb} {value!r}; give {valid}")
 
 
-__all__ = ["settings", "sequence_functions", "KINDS", "TRANSIENT_INTEGRATORS"]
+__all__ = ["settings", "sequence_functions", "sequence_fov", "KINDS", "TRANSIENT_INTEGRATORS"]

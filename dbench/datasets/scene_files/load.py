@@ -57,7 +57,9 @@ kind (:mod:`dbench.datasets.scene_files.attributes`):
 - sequences: ``camera(i) -> (origin, target)`` per frame (required), ``lights(i) ->
   {shape key: (r, g, b)}`` (radiance of emitting shapes per frame), ``frames`` (default 24);
   both functions are called for every frame when the file is resolved, and checked;
-  the geometry is ``build``'s dictionary without its sensor and integrator;
+  the geometry is ``build``'s dictionary without its sensor and integrator, and each frame
+  is seen at ``camera(i)`` through a perspective camera of the sensor's ``fov`` (or
+  ``focal_length``, as for steady files; :func:`dbench.datasets.scene_files.attributes.sequence_fov`);
 - sequence and transient scenes render with dbench's integrators (``path``; the transient one),
   so a dictionary integrator other than a ``path`` (``volpath`` for ``transient_prbvolpath``)
   setting at most ``max_depth`` is refused, naming it;
@@ -97,7 +99,7 @@ from ..scenes.build import (call_build, check_lit, exit_message, integrator_sett
                             keeps_variant, probe_load)
 from ..scenes.build import own_camera as _own_camera
 from .assets import asset_hashes as _sources, scene_walk
-from .attributes import sequence_functions, settings
+from .attributes import sequence_fov, sequence_functions, settings
 from ..cache import referenced
 from ..scenes.parts import film_dict
 from .finite import check_dictionary, check_state
@@ -446,7 +448,7 @@ def _python_sequence(module, path: str, probe: dict, common: dict, build,
         d = build(mi, parse_res(8))
         return {k: v for k, v in d.items() if k not in ("type", "sensor", "integrator")}
 
-    fov = float(probe["sensor"].get("fov", 39.3))
+    fov = sequence_fov(probe["sensor"], path)
     return SequenceScene(build=build,
                          provides=SEQUENCE_BUFFERS, n_frames=frames,
                          geometry=geometry, camera=camera, lights=lights, fov=fov,
