@@ -168,6 +168,11 @@ def camera(i):
     empty.write_text("x = 1\n")
     with pytest.raises(DbenchInputError, match="empty.py.*build"):
         scenes.get(str(empty))
+    # the suffix is matched in any case: "LAMP.PY" was taken and ended in an internal error
+    # (importlib finds no loader for it)
+    upper = tmp_path / "LAMP.PY"
+    upper.write_text(PY_SCENE)
+    assert scenes.get(str(upper)).max_depth == 4
 
 
 def _oidn_folder(folder: Path, tmp_path: Path) -> Path:

@@ -80,6 +80,7 @@ Example:
 from __future__ import annotations
 
 import hashlib
+import importlib.machinery
 import importlib.util
 import math
 import re
@@ -326,7 +327,11 @@ def _sensor_dict(mi, loaded, res: Res, path: str) -> dict:
 
 @lru_cache(maxsize=32)
 def _module(path: str, digest: str):
-    spec = importlib.util.spec_from_file_location(f"dbench_scene_{digest[:12]}", path)
+    name = f"dbench_scene_{digest[:12]}"
+    # a loader of its own: the suffix is matched in any case (SUFFIXES), and importlib finds
+    # no loader for "scene.PY" (spec None: an internal error)
+    spec = importlib.util.spec_from_file_location(
+        name, path, loader=importlib.machinery.SourceFileLoader(name, path))
     module = importlib.util.module_from_spec(spec)
     try:
         with keeps_variant(mitsuba(), f"--scene {path}", "the file"):
