@@ -23,6 +23,8 @@ KINDS = ("steady", "sequence", "transient")
 #: mitransient's integrators a transient scene file may name
 TRANSIENT_INTEGRATORS = ("transient_path", "transient_prbvolpath")
 _MISSING = object()
+#: the bound of every count dbench takes (README.md, "How renders work": Counts)
+MAX_COUNT = 2**31 - 1
 
 
 def settings(module, path: str) -> dict[str, Any]:
@@ -152,8 +154,8 @@ def _number(path: str, name: str, value, what: str) -> float:
 def _count(path: str, name: str, value, default: int) -> int:
     if value is _MISSING:
         return default
-    if isinstance(value, bool) or not isinstance(value, Integral) or value < 1:
-        _refuse(path, name, value, "an integer >= 1")
+    if isinstance(value, bool) or not isinstance(value, Integral) or not 1 <= value <= MAX_COUNT:
+        _refuse(path, name, value, f"an integer in [1, {MAX_COUNT}]")
     return int(value)
 
 
