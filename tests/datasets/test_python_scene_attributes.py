@@ -104,6 +104,13 @@ FUNCTIONS = {
                    "three finite numbers"),
     "lights-raises": ("def lights(i):\n    return {'lamp': (1, 1, 1)}[i]\n",
                       "lights(0) failed: KeyError: 0"),
+    "lights-negative": ("def lights(i):\n    return {'lamp': (1, -1, 1)}\n",
+                        "three finite numbers >= 0"),
+    # the lamp's own emitter taken away: no frame would have light (refused after the renders)
+    "lights-dark": ("def lights(i):\n    return {'lamp': (0, 0, 0)}\n"
+                    "_build = build\ndef build(mi, width, height):\n"
+                    "    d = _build(mi, width, height)\n    del d['lamp']['emitter']\n"
+                    "    return d\n", "no frame has an emitter"),
 }
 
 

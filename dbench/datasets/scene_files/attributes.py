@@ -69,13 +69,16 @@ def settings(module, path: str) -> dict[str, Any]:
     return out
 
 
-def sequence_functions(module, path: str, frames: int, shapes: dict):
+def sequence_functions(module, path: str, frames: int, shapes: dict, emitters: int = 1):
     """(camera, lights) of a sequence file: its ``camera(i)`` and ``lights(i)`` (none: no
     light changes), each called for every frame now, so that one that raises or returns what
     a frame cannot use is refused naming the frame before anything renders, and wrapped so
     that every later call is checked alike. ``shapes``: build()'s dictionary, whose shape
-    keys ``lights`` may name. The values pass on as the file gives them (they are part of
-    the frames' dictionaries, and so of their identity)."""
+    keys ``lights`` may name; ``emitters``: the emitters that dictionary holds itself. A
+    radiance must be three finite numbers >= 0, and some frame must have an emitter (else every
+    image is black and every method would score perfectly, as check_lit refuses for other
+    scenes, here before the renders). The values pass on as the file gives them (they are part
+    of the frames' dictionaries, and so of their identity)."""
     camera_fn = module.camera
     lights_fn = getattr(module, "lights", None) or (lambda i: {})
 
@@ -108,12 +111,20 @@ def sequence_functions(module, path: str, frames: int, shapes: dict):
                 value = np.asarray(rgb, np.float64).reshape(3)
             except (TypeError, ValueError):
                 value = np.array([np.nan])
-            if not np.isfinite(value).all():
-                _refuse(path, f"lights({i})[{key!r}]", rgb, "(r, g, b), three finite numbers")
+            if not np.isfinite(value).all() or (value < 0).any():
+                _refuse(path, f"lights({i})[{key!r}]", rgb,
+                        "(r, g, b), three finite numbers >= 0")
+            lit[0] = lit[0] or bool((value > 0).any())
         return got
 
+    lit = [emitters > 0]
     for i in range(frames):
         camera(i), lights(i)
+    if not lit[0]:
+        raise DbenchInputError(f"--scene {path}: no frame has an emitter (build()'s dictionary "
+                               f"holds none and lights(i) gives no radiance above 0), so every "
+                               f"image is black and every method would score perfectly; add a "
+                               f"light")
     return camera, lights
 
 

@@ -415,7 +415,8 @@ def _python_scene(path: str, files: tuple, digest: str) -> Scene:
     common["max_depth"] = int(depth if depth is not None else given or DEFAULT_MAX_DEPTH)
     if kind == "sequence":
         _own_integrator_only(integrator, path, kind, "path", "path")
-        return _python_sequence(module, path, probe, common, build, attrs["frames"])
+        return _python_sequence(module, path, probe, common, build, attrs["frames"],
+                                len(loaded.emitters()))
     own = attrs["integrator"]
     _own_integrator_only(integrator, path, kind, "volpath" if "volpath" in own else "path",
                          own)
@@ -441,13 +442,13 @@ def _own_integrator_only(integrator, path: str, kind: str, steady: str, renders:
 
 
 def _python_sequence(module, path: str, probe: dict, common: dict, build,
-                     frames: int) -> Scene:
+                     frames: int, emitters: int) -> Scene:
     from ..sequence.scene import SEQUENCE_BUFFERS, SequenceScene
 
     if not callable(getattr(module, "camera", None)):
         raise DbenchInputError(f"--scene {path}: a sequence scene needs camera(i) -> "
                                f"(origin, target)")
-    camera, lights = sequence_functions(module, path, frames, probe)
+    camera, lights = sequence_functions(module, path, frames, probe, emitters)
 
     def geometry(mi):
         d = build(mi, parse_res(8))
