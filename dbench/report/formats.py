@@ -15,14 +15,23 @@ def write_csv(path: str | Path, table: pd.DataFrame) -> None:
         table.to_csv(tmp, index=False, float_format="%.6g", encoding="utf-8")
 
 
+def markdown_cell(text: Any) -> str:
+    """``text`` as one cell of a GitHub Markdown table: a ``|`` in a method or scene name (a
+    plugin may register any name, README.md "Add your own denoiser") would end the cell and
+    shift every number after it into the next column, so it is escaped (``\\|``, which GitHub
+    shows as ``|``); a line break would end the row, so it becomes a space."""
+    return " ".join(str(text).splitlines()).replace("|", "\\|")
+
+
 def markdown_table(table: pd.DataFrame, floatfmt: str = ".4g") -> str:
-    """A GitHub Markdown table (pandas' to_markdown needs tabulate; this does not)."""
+    """A GitHub Markdown table (pandas' to_markdown needs tabulate; this does not); every
+    cell through :func:`markdown_cell`, so each row has as many cells as the header."""
     def fmt(v: Any) -> str:
         if isinstance(v, (float, np.floating)):
             return "nan" if not np.isfinite(v) else format(float(v), floatfmt)
-        return str(v)
+        return markdown_cell(v)
 
-    cols = [str(c) for c in table.columns]
+    cols = [markdown_cell(c) for c in table.columns]
     lines = ["| " + " | ".join(cols) + " |", "|" + "|".join("---" for _ in cols) + "|"]
     for row in table.itertuples(index=False):
         lines.append("| " + " | ".join(fmt(v) for v in row) + " |")
