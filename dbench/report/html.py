@@ -159,12 +159,15 @@ def write_page(out: str | Path, *, title: str, data: dict[str, Any], sections: S
 def run_page(out: str | Path, *, title: str, frame: Any, outputs: Sequence[tuple[str, Any]],
              table: pd.DataFrame, columns: Sequence[str], settings: dict[str, Any],
              machine: dict[str, Any], skipped: dict[str, str], ev: float = 0.0,
-             plots: Sequence[tuple[str, str]] = (), rank_by: str = "relmse") -> Path:
+             plots: Sequence[tuple[str, str]] = (), rank_by: str = "relmse",
+             failed: dict[str, str] | None = None) -> Path:
     """The page of one ``dbench run`` (steady image, sequence or transient video).
 
     ``frame``: the run's first-seed Frame, Sequence or TransientFrame; ``outputs``: (label,
     output) with an (H, W, 3) image, a SequenceResult with kept outputs, or an (H, W, T, 3)
-    video; ``table``: the run's cells frame; ``plots``: (title, file name in ``out``)."""
+    video; ``table``: the run's cells frame; ``plots``: (title, file name in ``out``);
+    ``failed``: label → error of the methods that failed, listed as report.md's "Failed"
+    section lists them (README.md, "Usage")."""
     from ..metrics import DEFINITIONS
     from .run_report import zoom_window
 
@@ -204,8 +207,14 @@ def run_page(out: str | Path, *, title: str, frame: Any, outputs: Sequence[tuple
     sections = ["<h2>Metrics</h2>", '<div data-table="0"></div>',
                 '<p class="note">Mean ± 95 % half-width; bold: the best entry of a column and '
                 "every entry tied with it (paired over common seeds, else overlapping "
-                "intervals); rows in red are worse than the noisy "
-                "input on relMSE or surface RMSE. Click a column to sort.</p>"]
+                "intervals); a row in red is worse than the noisy input on at least one "
+                "headline metric, as its verdict says (which metrics, by how much, and which "
+                "losses the intervals cannot tell from none). Click a column to sort.</p>"]
+    if failed:
+        # a failed method has no row and no image: without this the page would not say it ran
+        sections += ["<h2>Failed</h2>", '<p class="note">These methods raised an error or '
+                     "broke the method contract; they have no row above, and the run exits "
+                     "with code 4.</p>", _kv_table(failed)]
     if skipped:
         sections += ["<h2>Skipped</h2>", _kv_table(skipped)]
     if plots:

@@ -165,7 +165,7 @@ def run_scene(out: Path, req: RunRequest, scene, instances, labels, runnable,
             f"{m}: {json.dumps(v, sort_keys=True, default=str)}" for m, v in resolved.items())
     write_json(out / "run.json", {"settings": settings, "machine": info, "skipped": skipped,
                                   "failed": failed})
-    write_run_page(out, scene, frame, outputs, table, settings, info, skipped, req)
+    write_run_page(out, scene, frame, outputs, table, settings, info, skipped, req, failed)
     from .capture import log_text
     write_text(out / "run.log", log_text(caught))
     write_text(out / "report.md", report.run_report_md(table, settings, info, skipped,
@@ -266,7 +266,7 @@ def method_failure(exc: BaseException) -> str:
 
 
 def write_run_page(out: Path, scene, frame, outputs, table, settings, info, skipped,
-                    req: RunRequest) -> None:
+                    req: RunRequest, failed: dict[str, str] | None = None) -> None:
     """``index.html``: the run's interactive viewer and tables (dbench.report.html)."""
     from ..report import html, run_report as report, verdicts
 
@@ -281,7 +281,8 @@ def write_run_page(out: Path, scene, frame, outputs, table, settings, info, skip
     html.run_page(out, title=title, frame=frame, outputs=outputs,
                   table=report._run_frame(table, settings), columns=columns,
                   settings=settings, machine=info, skipped=skipped, ev=scene.ev,
-                  plots=[(t, f) for t, f in plots if (out / f).exists()], rank_by=req.rank_by)
+                  plots=[(t, f) for t, f in plots if (out / f).exists()], rank_by=req.rank_by,
+                  failed=failed)
 
 
 def summarise_parts(parts: Sequence[str]) -> str:

@@ -89,6 +89,8 @@ def test_run_names_failing_methods_and_keeps_the_others(plugin, tmp_path, capsys
     assert "plugin exploded" in err and "sys.exit(3)" in err
     report = (out / "report.md").read_text(encoding="utf-8")
     assert "## Failed" in report and "test-raises" in report
+    page = (out / "index.html").read_text(encoding="utf-8")  # the viewer names them too
+    assert "<h2>Failed</h2>" in page and "plugin exploded" in page and "test-exits" in page
     import pandas as pd
     table = pd.read_csv(out / "metrics.csv")
     ok = table[table["status"] == "ok"]
