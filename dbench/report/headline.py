@@ -44,6 +44,20 @@ VERDICT_NOTE = ("`verdict` names every headline metric on which a method is wors
                 "seen directly or in mirrors.")
 
 
+def timing_words(repeats: Any, seeds: Any) -> str:
+    """The calls ``time_s`` is the median of, for the notes under the tables: each seed is
+    timed alone, one warm-up call and then ``repeats`` calls, and the median is over the calls
+    of every seed together (``run_cell`` in dbench/run/harness.py; docs/metrics.md §1), so with
+    3 seeds and ``--repeats 1`` it is the median of 3 calls, not of 1."""
+    n = seeds if isinstance(seeds, int) and not isinstance(seeds, bool) else 1
+    if not isinstance(repeats, int) or isinstance(repeats, bool):
+        return "the timed calls after one warm-up (how many is not recorded)"
+    if n <= 1:
+        return f"{repeats} timed call{'' if repeats == 1 else 's'} after one warm-up"
+    return (f"{repeats * n} timed calls ({repeats} per seed × {n} seeds, each seed after one "
+            "warm-up call)")
+
+
 def flag_metrics(columns: Sequence[str], rank_by: str) -> list[str]:
     """The metrics a verdict looks at: the ranking metric, then every metric column (time is
     a cost, not a loss)."""
@@ -209,5 +223,5 @@ def headline_md(df: pd.DataFrame, spp: int | None, rank_by: str = "relmse",
     return parts
 
 
-__all__ = ["VERDICT_NOTE", "flag_metrics", "loss_size", "worse_than_noisy", "verdict_words",
+__all__ = ["VERDICT_NOTE", "timing_words", "flag_metrics", "loss_size", "worse_than_noisy", "verdict_words",
            "ranked_labels", "scene_table", "scene_block_md", "headline_md"]

@@ -189,8 +189,8 @@ def build_readme(results: Path, sweep_dir: Path, headline_spp: int = 64,
              "The same numbers, sortable, with the figures: [index.html](index.html) (open it "
              "in a browser; no network needed).", ""]
     sequence = any(c.get("frames") for c in cells)
-    timing = (f"denoise time = median of {config.get('repeats')} calls after a warm-up "
-              "(rendering excluded)")
+    reps, seeds = config.get("repeats"), config.get("seeds")
+    timing = f"denoise time = median over {headline.timing_words(reps, seeds)} (rendering excluded)"
     parts += [settings_line(config, df, status, rel(sweep_dir),
                             [timing] + [t for t in [wall_text(info, cells)] if t]) + (
         " Sequence scenes: each frame denoised once, in order; metrics are means "

@@ -186,9 +186,9 @@ def run_report_md(table: pd.DataFrame, settings: dict[str, Any], info: dict[str,
                   "quality in JOD (10: no visible difference; README.md, Metrics), empty where "
                   "the video is too large for its default."
                   if sequence else
-                  "`time_s` is the median denoise time "
-                  f"of {settings['repeats']} calls after one warm-up (rendering excluded), ± "
-                  "half its interquartile range.")
+                  "`time_s` is the median denoise time over "
+                  f"{headline.timing_words(settings['repeats'], _seed_count(d))} (rendering "
+                  "excluded), ± half its interquartile range.")
               + (f" Not recorded: {', '.join(absent)}." if absent else ""), ""]
     warn = verdicts.ref_warnings_md(d) if len(d) else []
     if warn:
@@ -246,6 +246,12 @@ def run_summary(table: pd.DataFrame, settings: dict[str, Any], rank_by: str = "r
     devices = ({str(m): str(v) for m, v in zip(table["method"], table["device"])
                 if isinstance(v, str)} if {"method", "device"} <= set(table.columns) else {})
     return summary(d, settings, rank_by, shown, devices, asked=asked, failed=failed)
+
+
+def _seed_count(d: pd.DataFrame) -> int:
+    """How many seeds the run's methods were timed on (its ``n_seeds``; 1 where unknown)."""
+    n = pd.to_numeric(d["n_seeds"], errors="coerce").max() if "n_seeds" in d.columns else 1
+    return int(n) if np.isfinite(n) and n >= 1 else 1
 
 
 def _run_frame(table: pd.DataFrame, settings: dict[str, Any]) -> pd.DataFrame:
