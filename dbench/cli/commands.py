@@ -210,16 +210,17 @@ def _method_names(text: str, option: str) -> list[str] | None:
 def _sweep_summary(out: str, config, rank_by: str, quiet: bool) -> str:
     """The sweep's headline: per scene, the ranking and the verdicts of its README at the
     headline spp, and (unless ``quiet``) the skipped methods grouped by reason, over this
-    sweep's grid only (dbench/report/terminal.py)."""
+    sweep's grid only (dbench/report/terminal.py); a warning where the folder's other cells of
+    its labels and scenes were computed with other settings (a ``--rerun`` over part of it)."""
     from ..report import cells as sweep_cells, terminal
     from ..run.sweep_names import scene_labels
 
     labels = set(config.labels().values())
     scenes = set(scene_labels(config, out).values())
-    cells = [c for c in sweep_cells.load_cells(out) if isinstance(c, dict)
-             and c.get("method") in labels and c.get("spp") in config.spp
-             and c.get("scene") in scenes]
-    return "\n".join(terminal.sweep_summary(cells, rank_by, skips=not quiet))
+    beside = [c for c in sweep_cells.load_cells(out) if isinstance(c, dict)
+              and c.get("method") in labels and c.get("scene") in scenes]
+    cells = [c for c in beside if c.get("spp") in config.spp]
+    return "\n".join(terminal.sweep_summary(cells, rank_by, skips=not quiet, beside=beside))
 
 
 def cmd_stress(args: argparse.Namespace) -> int:

@@ -8,8 +8,9 @@ again.
 """
 from __future__ import annotations
 
+import json
 from pathlib import Path
-from typing import Any
+from typing import Any, Sequence
 
 from .. import io
 
@@ -73,4 +74,155 @@ def load_cells(out: str | Path) -> list[dict]:
     return load_cells_checked(out)[0]
 
 
-__all__ = ["NUMERIC_KEYS", "cell_problem", "load_cells", "load_cells_checked", "read_cell"]
+def expected_grid(config: dict) -> list[tuple[str, int, str]]:
+    labels = config.get("labels") or config.get("methods") or []
+    names = config.get("scene_labels") if isinstance(config.get("scene_labels"), dict) else {}
+    try:  # cells are filed under the scene's label (a scene file's name, not its path)
+        return [(str(names.get(s, s)), int(p), str(m)) for s in config.get("scenes") or []
+                for p in config.get("spp") or [] for m in labels]
+    except (TypeError, ValueError):
+        return []
+
+
+def cell_key(c: dict) -> tuple[str, int, str] | None:
+    try:
+        return str(c["scene"]), int(c["spp"]), str(c["method"])
+    except (KeyError, TypeError, ValueError):
+        return None
+
+
+#: Identity keys (dbench/run/sweep.py, ``cell_identity``) that differ from cell to cell of one
+#: table by design: the grid's axes and what follows from them (the reference's spp, which
+#: verdicts.reference_summary states on its own; the feature buffers' spp).
+PER_CELL = frozenset({"scene", "spp", "ref_spp", "feature_spp"})
+#: Identity keys of the method label: the same over every cell of the label, every scene.
+METHOD_KEYS = frozenset({"method", "params", "method_version", "device", "device_name"})
+
+
+def _flat(identity: dict, prefix: str = "") -> dict[str, str]:
+    """Dotted key → the value as JSON (``params.radius``: ``3``)."""
+    out: dict[str, str] = {}
+    for k, v in identity.items():
+        if isinstance(v, dict) and v:
+            out.update(_flat(v, f"{prefix}{k}."))
+        else:
+            out[f"{prefix}{k}"] = json.dumps(v, sort_keys=True, default=str)
+    return out
+
+
+def mixed_settings(cells: Sequence[dict]) -> list[tuple[str, str, dict[str, list[str]]]]:
+    """(who, key, value → the cells that hold it) for every identity key whose value differs
+    between the finished cells the report puts side by side: between the cells of one method
+    label (its parameters and code, over every scene and spp: ``who`` is the label in
+    backticks) or between the cells of one scene (scene content, seeds, size, transform,
+    metric code: ``who`` is the scene). A sweep refuses such a mix unless ``--rerun``, and a
+    ``--rerun`` over part of the grid recomputes only that part (README.md, the ``dbench
+    sweep`` paragraph), so the rest keeps the old settings; cells without an identity (older
+    format) are not compared."""
+    ok = [c for c in cells if isinstance(c, dict) and c.get("status") == "ok"
+          and isinstance(c.get("identity"), dict)]
+    groups: dict[tuple[str, str], list[tuple[str, dict[str, str]]]] = {}
+    for c in ok:
+        flat = {k: v for k, v in _flat(c["identity"]).items()
+                if k.split(".")[0] not in PER_CELL}
+        groups.setdefault(("label", str(c.get("method"))), []).append(
+            (f"{c.get('scene')} {c.get('spp')} spp",
+             {k: v for k, v in flat.items() if k.split(".")[0] in METHOD_KEYS}))
+        groups.setdefault(("scene", str(c.get("scene"))), []).append(
+            (f"{c.get('spp')} spp {c.get('method')}",
+             {k: v for k, v in flat.items() if k.split(".")[0] not in METHOD_KEYS}))
+    out = []
+    for (kind, name), members in sorted(groups.items()):
+        for key in sorted({k for _, flat in members for k in flat}):
+            values: dict[str, list[str]] = {}
+            for where, flat in members:
+                values.setdefault(flat.get(key, "(absent)"), []).append(where)
+            if len(values) > 1:
+                out.append((f"`{name}`" if kind == "label" else name, key, values))
+    return out
+
+
+def mixed_text(mixed: Sequence[tuple[str, str, dict]],
+               where: str = 'see "Mixed settings" in README.md') -> str:
+    """The settings line's warning: who mixes which keys ('' when nothing is mixed)."""
+    by: dict[str, list[str]] = {}
+    for who, key, _ in mixed:
+        by.setdefault(who, []).append(key)
+    return (f"⚠ cells computed with different settings side by side ({where}): "
+            + "; ".join(f"{w}: {', '.join(k)}" for w, k in by.items()) if by else "")
+
+
+def mixed_md(mixed: Sequence[tuple[str, str, dict]]) -> list[str]:
+    """One line per mixed key: each value (shortened) and the cells that hold it."""
+    def where(cells: list[str]) -> str:
+        return ", ".join(cells[:3]) + (f" and {len(cells) - 3} more" if len(cells) > 3 else "")
+
+    def short(v: str) -> str:
+        return v if len(v) <= 40 else v[:39] + "…"
+    return [f"- {who}: {key} is " + "; ".join(f"{short(v)} in {where(c)}"
+                                             for v, c in values.items())
+            for who, key, values in mixed]
+
+
+def grid_status(config: dict, cells: Sequence[dict]) -> dict[str, Any]:
+    """Counts of the (scene, spp, label) cells the config expects by status (ok / skipped /
+    error / other), the expected cells no file holds (``missing``) and the cells outside that
+    grid (``outside``), so that expected = ok + skipped + error + other + missing. A config
+    that names no grid (an old or missing sweep.json) expects the cells there are."""
+    counts = {"ok": 0, "skipped": 0, "error": 0, "other": 0}
+    grid = dict.fromkeys(expected_grid(config))
+    keys = [cell_key(c) for c in cells]
+    if not grid:
+        grid = dict.fromkeys(k for k in keys if k is not None)
+    seen, outside = set(), 0
+    for c, k in zip(cells, keys):
+        if k not in grid or k in seen:  # another grid's cell, or a second file of one cell
+            outside += 1
+            continue
+        seen.add(k)
+        st = c.get("status")
+        counts[st if st in counts else "other"] += 1
+    missing = sorted(k for k in grid if k not in seen)
+    return {**counts, "expected": len(grid), "missing": missing, "outside": outside,
+            "mixed": mixed_settings(cells)}
+
+
+def grid_status_text(status: dict[str, Any]) -> str:
+    text = (f"cells: {status['expected']} expected, {status['ok']} ok, {status['skipped']} "
+            f"skipped, {status['error']} error, {len(status['missing'])} missing")
+    text += f", {status['other']} of unknown status" if status["other"] else ""
+    outside = status.get("outside", 0)
+    text += (f"; {outside} more cell{'s' if outside != 1 else ''} outside the sweep's "
+             f"settings (not counted)" if outside else "")
+    mixed = mixed_text(status.get("mixed") or [])
+    return text + (f"; {mixed}" if mixed else "")
+
+
+def missing_md(missing: Sequence[tuple[str, int, str]]) -> list[str]:
+    """One line per (scene, label) listing the spp with no cell file."""
+    by: dict[tuple[str, str], list[int]] = {}
+    for scene, spp, label in missing:
+        by.setdefault((scene, label), []).append(spp)
+    return [f"- missing {label} on {scene} at {', '.join(map(str, sorted(s)))} spp"
+            for (scene, label), s in sorted(by.items())]
+
+
+def problems_md(cells: list[dict], problems: list[str], missing) -> list[str]:
+    """Skipped pairs (once per reason), errors, malformed files and missing cells."""
+    lines, seen = [], set()
+    for c in cells:
+        if c.get("status") == "skipped":
+            key = (str(c.get("method")), str(c.get("scene")), str(c.get("reason", "")))
+            if key not in seen:
+                seen.add(key)
+                lines.append(f"- skipped {key[0]} on {key[1]}: {key[2]}")
+    lines += [f"- error {c.get('method')} on {c.get('scene')} at {c.get('spp')} spp: "
+              f"{c.get('error', '')}" for c in cells if c.get("status") == "error"]
+    lines += [f"- malformed cell file {p}" for p in problems]
+    lines += missing_md(missing)
+    return lines
+
+
+__all__ = ["NUMERIC_KEYS", "cell_problem", "load_cells", "load_cells_checked", "read_cell",
+           "expected_grid", "cell_key", "grid_status", "grid_status_text", "missing_md",
+           "problems_md", "PER_CELL", "METHOD_KEYS", "mixed_settings", "mixed_text", "mixed_md"]

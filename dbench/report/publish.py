@@ -18,7 +18,7 @@ from pathlib import Path
 from .. import io
 from ..resolution import size_text
 from . import headline, plots, tables, verdicts
-from .cells import load_cells_checked, read_cell
+from .cells import load_cells_checked, mixed_md, problems_md, read_cell
 from .formats import markdown_table
 from .html import sweep_page
 from .run_report import machine_md, metric_definitions_md
@@ -140,22 +140,6 @@ def settings_line(config: dict, df, status: dict, rel_name: str, extras=()) -> s
             + f"{verdicts.grid_status_text(status)}.")
 
 
-def problems_md(cells: list[dict], problems: list[str], missing) -> list[str]:
-    """Skipped pairs (once per reason), errors, malformed files and missing cells."""
-    lines, seen = [], set()
-    for c in cells:
-        if c.get("status") == "skipped":
-            key = (str(c.get("method")), str(c.get("scene")), str(c.get("reason", "")))
-            if key not in seen:
-                seen.add(key)
-                lines.append(f"- skipped {key[0]} on {key[1]}: {key[2]}")
-    lines += [f"- error {c.get('method')} on {c.get('scene')} at {c.get('spp')} spp: "
-              f"{c.get('error', '')}" for c in cells if c.get("status") == "error"]
-    lines += [f"- malformed cell file {p}" for p in problems]
-    lines += verdicts.missing_md(missing)
-    return lines
-
-
 def reference_md(df, rel_csv: str | None = None, cells: list | None = None) -> list[str]:
     """The reference-noise warnings (with ``cells``, their cost), or why there are none."""
     if "ref_rmse" not in df.columns or not df["ref_rmse"].notna().any():
@@ -206,6 +190,11 @@ def build_readme(results: Path, sweep_dir: Path, headline_spp: int = 64,
     lines = problems_md(cells, problems, status["missing"])
     if lines:
         parts += ["## Skipped and failed cells", ""] + lines + [""]
+    if status["mixed"]:  # one row or table holding cells of other settings or code
+        parts += ["## Mixed settings", "", "These cells were computed with different settings "
+                  "or code, yet stand side by side in the tables below (a `--rerun` over part "
+                  "of the grid recomputes only that part); `dbench sweep ... --rerun` over the "
+                  "whole grid makes them alike:", ""] + mixed_md(status["mixed"]) + [""]
 
     parts += ["## Convergence", "", f"![convergence]({rel(sweep_dir / 'convergence.png')})", "",
               "Entries are mean ± 95 % half-width (— where no cell).", ""]
@@ -318,6 +307,9 @@ def other_sweep_md(results: Path, sweep_dir: Path, rank_by: str = "relmse") -> l
     lines = [ln for ln in problems_md(cells, problems, status["missing"])
              if not ln.startswith("- skipped ")]
     parts += lines + ([""] if lines else [])
+    if status["mixed"]:
+        parts += ["Mixed settings (cells computed with different settings or code, side by side "
+                  "in the tables below):", ""] + mixed_md(status["mixed"]) + [""]
     rank = _pick_rank(df, rank_by)
     spp = verdicts.headline_spp(df.spp.unique()) if len(df) else None
     if spp is not None:

@@ -217,9 +217,13 @@ def _ref_error(value: Any) -> str:
 
 
 def sweep_summary(cells: Sequence[dict], rank_by: str = "relmse",
-                  columns: Sequence[str] = (), skips: bool = True) -> list[str]:
+                  columns: Sequence[str] = (), skips: bool = True,
+                  beside: Sequence[dict] | None = None) -> list[str]:
     """Per scene at its headline spp (the README's, :func:`headline_spp`): the ranking sentence
-    and the verdicts, then (``skips``) the skipped methods grouped by reason kind, one line."""
+    and the verdicts, a warning where cells computed with different settings stand side by side
+    among ``beside`` (default ``cells``: the folder's cells of the same labels and scenes, at
+    any spp; :func:`dbench.report.cells.mixed_settings`), then (``skips``) the skipped methods
+    grouped by reason kind, one line."""
     from .tables import cells_frame
 
     df = cells_frame(list(cells))
@@ -232,6 +236,11 @@ def sweep_summary(cells: Sequence[dict], rank_by: str = "relmse",
         lines += _wrap(f"{scene} at {spp} spp ({reference_text(at)}): "
                        f"ranking by {ranking_line(at, rank, rank_by)}")
         lines += verdict_lines(at, cols, rank) + ref_warning_lines(at, "  ")
+    # a --rerun over part of the grid leaves the rest as it was: never a silent mix
+    from .cells import mixed_settings, mixed_text
+    mixed = mixed_text(mixed_settings(cells if beside is None else beside),
+                       'dbench report lists them under "Mixed settings"')
+    lines += _wrap("warning: " + mixed.removeprefix("⚠ ")) if mixed else []
     skipped = [(str(c.get("method")), str(c.get("reason", "")))
                for c in cells if isinstance(c, dict) and c.get("status") == "skipped"]
     line = skipped_line(skipped) if skips else ""

@@ -1,5 +1,6 @@
 """Verdicts from sweep cells (docs/judging.md): intervals, best and tied methods, rankings,
-methods worse than the noisy input, the reference's own noise and missing cells.
+methods worse than the noisy input and the reference's own noise (the grid of cells: expected,
+missing and mixed, in dbench/report/cells.py, imported here for the callers).
 
 Everything here reads a frame of :func:`dbench.report.tables.cells_frame` (one row per cell,
 ``<metric>`` and ``<metric>_ci`` columns) and returns Markdown lines or small frames; nothing
@@ -25,12 +26,13 @@ are in dbench/report/headline.py.
 from __future__ import annotations
 
 import math
-from typing import Any, Iterable, Sequence
+from typing import Any, Iterable
 
 import numpy as np
 import pandas as pd
 
 from ..metrics import records
+from .cells import expected_grid, grid_status, grid_status_text, missing_md
 
 #: Metric columns of a cell (each with a ``_ci`` half-width column), from the metric records.
 METRICS = records.cell_columns()
@@ -432,63 +434,6 @@ def headline_spp(spps: Iterable[Any], preferred: int = 64) -> int | None:
     if preferred in vals:
         return preferred
     return min(vals, key=lambda s: (abs(math.log2(s) - math.log2(preferred)), s))
-
-
-def expected_grid(config: dict) -> list[tuple[str, int, str]]:
-    labels = config.get("labels") or config.get("methods") or []
-    names = config.get("scene_labels") if isinstance(config.get("scene_labels"), dict) else {}
-    try:  # cells are filed under the scene's label (a scene file's name, not its path)
-        return [(str(names.get(s, s)), int(p), str(m)) for s in config.get("scenes") or []
-                for p in config.get("spp") or [] for m in labels]
-    except (TypeError, ValueError):
-        return []
-
-
-def cell_key(c: dict) -> tuple[str, int, str] | None:
-    try:
-        return str(c["scene"]), int(c["spp"]), str(c["method"])
-    except (KeyError, TypeError, ValueError):
-        return None
-
-
-def grid_status(config: dict, cells: Sequence[dict]) -> dict[str, Any]:
-    """Counts of the (scene, spp, label) cells the config expects by status (ok / skipped /
-    error / other), the expected cells no file holds (``missing``) and the cells outside that
-    grid (``outside``), so that expected = ok + skipped + error + other + missing. A config
-    that names no grid (an old or missing sweep.json) expects the cells there are."""
-    counts = {"ok": 0, "skipped": 0, "error": 0, "other": 0}
-    grid = dict.fromkeys(expected_grid(config))
-    keys = [cell_key(c) for c in cells]
-    if not grid:
-        grid = dict.fromkeys(k for k in keys if k is not None)
-    seen, outside = set(), 0
-    for c, k in zip(cells, keys):
-        if k not in grid or k in seen:  # another grid's cell, or a second file of one cell
-            outside += 1
-            continue
-        seen.add(k)
-        st = c.get("status")
-        counts[st if st in counts else "other"] += 1
-    missing = sorted(k for k in grid if k not in seen)
-    return {**counts, "expected": len(grid), "missing": missing, "outside": outside}
-
-
-def grid_status_text(status: dict[str, Any]) -> str:
-    text = (f"cells: {status['expected']} expected, {status['ok']} ok, {status['skipped']} "
-            f"skipped, {status['error']} error, {len(status['missing'])} missing")
-    text += f", {status['other']} of unknown status" if status["other"] else ""
-    outside = status.get("outside", 0)
-    return text + (f"; {outside} more cell{'s' if outside != 1 else ''} outside the sweep's "
-                   f"settings (not counted)" if outside else "")
-
-
-def missing_md(missing: Sequence[tuple[str, int, str]]) -> list[str]:
-    """One line per (scene, label) listing the spp with no cell file."""
-    by: dict[tuple[str, str], list[int]] = {}
-    for scene, spp, label in missing:
-        by.setdefault((scene, label), []).append(spp)
-    return [f"- missing {label} on {scene} at {', '.join(map(str, sorted(s)))} spp"
-            for (scene, label), s in sorted(by.items())]
 
 
 __all__ = ["METRICS", "HEADLINE", "HIGHER_IS_BETTER", "DEFINITIONS", "TIME", "headline_columns",
