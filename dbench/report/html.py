@@ -233,6 +233,8 @@ def grid_table(df: pd.DataFrame, metric: str) -> dict[str, Any]:
     """The scene × method × spp grid of one sweep for the viewer's table: one row per (scene,
     method), one column per spp, ``metric`` as mean ± interval (raw means for sorting); rows
     worse than the noisy input at the headline spp are flagged."""
+    from .tables import NO_VALUE, NONFINITE
+
     spps = sorted(int(v) for v in df.spp.unique())
     rows, text, flagged = [], [], []
     head = verdicts.headline_spp(spps)
@@ -245,7 +247,10 @@ def grid_table(df: pd.DataFrame, metric: str) -> dict[str, Any]:
             ci = verdicts.num(getattr(r, metric + "_ci", float("nan"))) if r is not None \
                 else float("nan")
             values.append(v if np.isfinite(v) else None)
-            words.append(verdicts.fmt_value(v, ci) if np.isfinite(v) else "")
+            # a cell without a value is said as the README's convergence tables say it
+            words.append(verdicts.fmt_value(v, ci) if np.isfinite(v) else "" if r is None else
+                         NONFINITE if verdicts.num(getattr(r, "n_nonfinite", 0)) > 0
+                         else NO_VALUE)
         at = df[(df.scene == scene) & (df.spp == head)]
         if method in headline.worse_than_noisy(at, [metric]):
             flagged.append(len(rows))

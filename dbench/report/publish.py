@@ -197,7 +197,8 @@ def build_readme(results: Path, sweep_dir: Path, headline_spp: int = 64,
                   "whole grid makes them alike:", ""] + mixed_md(status["mixed"]) + [""]
 
     parts += ["## Convergence", "", f"![convergence]({rel(sweep_dir / 'convergence.png')})", "",
-              "Entries are mean ± 95 % half-width (— where no cell).", ""]
+              "Entries are mean ± 95 % half-width (— where no cell; \"no value (non-finite "
+              "output)\" where the cell's outputs held NaN or Inf).", ""]
     for metric in README_CONVERGENCE:
         if metric in df.columns and df[metric].notna().any():
             parts += [f"### {metric.upper()} (rows scene/method, columns spp)", "",

@@ -152,14 +152,25 @@ def convergence_table(df: pd.DataFrame, metric: str, ci: bool = True) -> pd.Data
     return out.reset_index()
 
 
+#: What a convergence entry says where a cell exists but has no value of the metric: "—" is
+#: kept for "no cell", so a finished cell never reads as one that was not run.
+NONFINITE, NO_VALUE = "no value (non-finite output)", "no value"
+
+
 def convergence_table_md(df: pd.DataFrame, metric: str) -> pd.DataFrame:
-    """Like :func:`convergence_table` with ``mean ± ci`` strings (``—`` where no cell)."""
+    """Like :func:`convergence_table` with ``mean ± ci`` strings: ``—`` where no cell,
+    :data:`NONFINITE` where the cell's outputs held non-finite values (its metrics are NaN,
+    README.md "Metrics"), :data:`NO_VALUE` where the cell has no value of ``metric``."""
     t = convergence_table(df, metric)
     spps = [c for c in t.columns if c.endswith(" spp")]
     out = t[["scene", "method"]].copy()
+    nonfinite = df.get("n_nonfinite", pd.Series(np.nan, index=df.index))
+    held = {(r.scene, r.method, f"{r.spp} spp"): n for r, n in zip(df.itertuples(), nonfinite)}
     for c in spps:
         cis = t[c + "_ci"] if c + "_ci" in t.columns else [np.nan] * len(t)
-        out[c] = [fmt_value(m, h) for m, h in zip(t[c], cis)]
+        out[c] = [fmt_value(m, h) if np.isfinite(m) or (s, k, c) not in held else
+                  NONFINITE if held[(s, k, c)] > 0 else NO_VALUE
+                  for s, k, m, h in zip(t["scene"], t["method"], t[c], cis)]
     return out
 
 
@@ -274,6 +285,7 @@ def convergence_plot(df: pd.DataFrame, path: Path) -> None:  # kept for callers 
     plot(df, path)
 
 
-__all__ = ["cells_frame", "convergence_table", "convergence_table_md", "noisy_fit",
+__all__ = ["NONFINITE", "NO_VALUE", "cells_frame", "convergence_table", "convergence_table_md",
+           "noisy_fit",
            "render_cost_per_spp", "equal_time_table", "equal_time_md", "equal_time_gaps",
            "headline_table", "write_tables", "convergence_plot", "markdown_table"]
