@@ -207,7 +207,7 @@ def run_page(out: str | Path, *, title: str, frame: Any, outputs: Sequence[tuple
     sections = ["<h2>Metrics</h2>", '<div data-table="0"></div>',
                 '<p class="note">Mean ± 95 % half-width; bold: the best entry of a column and '
                 "every entry tied with it (paired over common seeds, else overlapping "
-                "intervals); a row in red is worse than the noisy input on at least one "
+                "intervals; the noisy input is not a candidate for the fastest time_s); a row in red is worse than the noisy input on at least one "
                 "headline metric, as its verdict says (which metrics, by how much, and which "
                 "losses the intervals cannot tell from none). Click a column to sort.</p>"]
     if failed:

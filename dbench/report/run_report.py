@@ -176,8 +176,8 @@ def run_report_md(table: pd.DataFrame, settings: dict[str, Any], info: dict[str,
     absent = [c for c in cols if c not in shown]
     parts += ["**Bold**: the best entry of a column and every entry tied with it (the paired "
               "difference over common seeds includes 0; without them, the intervals overlap or one "
-              "is missing, shown `± n/a`); "
-              "entries are mean ± 95 % half-width. " + headline.VERDICT_NOTE + " Lower is "
+              "is missing, shown `± n/a`; the noisy input is not a candidate for the fastest "
+              "`time_s`); entries are mean ± 95 % half-width. " + headline.VERDICT_NOTE + " Lower is "
               "better except PSNR, tPSNR, SSIM and cvvdp. " + (
                   "Sequence: every frame is denoised once, in order; metrics are means and "
                   "`time_s` the median per-frame time over the frames after the warm-up "

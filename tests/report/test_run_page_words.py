@@ -50,6 +50,10 @@ def test_red_rows_are_the_rows_the_verdict_calls_worse_and_the_note_says_so(tmp_
     # the note must not claim a narrower rule than the one the page applies
     assert "on relMSE or surface RMSE" not in note
     assert "at least one headline metric, as its verdict says" in " ".join(note.split())
+    # the noisy input is the fastest yet never the bold time: the note says why
+    time_col = str(table["columns"].index("time_s"))
+    assert [table["rows"][i][0] for i in table["best"][time_col]] == ["flips"]
+    assert "the noisy input is not a candidate for the fastest time_s" in " ".join(note.split())
 
 
 def test_a_failed_method_is_named_on_the_page_with_its_error_escaped(tmp_path):

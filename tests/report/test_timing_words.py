@@ -44,6 +44,8 @@ def test_run_report_counts_the_calls_of_every_seed():
                                            {}).split())
     assert "`time_s` is the median denoise time over 3 timed calls (1 per seed × 3 seeds" in md
     assert "of 1 calls" not in md
+    # the noisy input (fastest here) is not bold in time_s, and the note says so
+    assert "the noisy input is not a candidate for the fastest `time_s`" in md
 
 
 def test_sweep_readme_counts_the_calls_of_every_seed(tmp_path):
