@@ -128,13 +128,15 @@ def lower_envelope(points: pd.DataFrame, metric: str) -> pd.DataFrame:
 
 def error_time_plot(df: pd.DataFrame, metric: str, path: Path) -> bool:
     """Error (log) against render + denoise time (log), one panel per scene; returns False
-    (and writes nothing) when no cell has both."""
+    when no cell has both, and then removes the figure an earlier report drew at ``path`` (the
+    README says there is none, and the results page shows every PNG of the sweep folder)."""
     plt = _plt()
     ok = df[np.isfinite(df.get(metric, pd.Series(np.nan, index=df.index)))
             & np.isfinite(df.total_s)] if metric in df.columns else df.iloc[0:0]
     ok = ok[(ok[metric] > 0) & (ok.total_s > 0)] if len(ok) else ok
     scenes = sorted(ok.scene.unique())
     if not scenes:
+        Path(path).unlink(missing_ok=True)
         return False
     styles = method_styles(df.method.unique())
     fig, axes = _panels(plt, len(scenes), extra_w=3.2)

@@ -259,16 +259,20 @@ def headline_table(df: pd.DataFrame, spp: int) -> pd.DataFrame:
 
 def write_tables(df: pd.DataFrame, out: Path) -> dict[str, Path]:
     """CSV files of every table under ``out``; returns their paths. A convergence CSV is
-    written for each metric some cell records (numbers, with ``_ci`` columns)."""
+    written for each metric some cell records (numbers, with ``_ci`` columns); one an earlier
+    report wrote for a metric these cells do not record is removed, never left with the old
+    cells' numbers."""
     from .verdicts import ref_noise_frame
 
     paths = {}
     every_cell = records.judged()  # written even when no cell has a value
     for metric in COLUMNS:
+        p = out / f"convergence_{metric}.csv"
         if metric in df.columns and (df[metric].notna().any() or metric in every_cell):
-            p = out / f"convergence_{metric}.csv"
             write_csv(p, convergence_table(df, metric))
             paths[f"convergence_{metric}"] = p
+        else:
+            p.unlink(missing_ok=True)
     paths["equal_time"] = out / "equal_time.csv"
     write_csv(paths["equal_time"], equal_time_table(df))
     paths["reference_noise"] = out / "reference_noise.csv"

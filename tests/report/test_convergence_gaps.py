@@ -1,7 +1,8 @@
 """A convergence entry without a number says why (README.md, "Usage", the ``dbench report``
 paragraph): "—" only where the sweep holds no cell; a cell whose method's outputs held NaN or
 Inf (its metrics are NaN, README.md "Metrics") says "no value (non-finite output)", in the
-README's tables and on the results page, so a finished cell never reads as one not run."""
+README's tables and on the results page, so a finished cell never reads as one not run; and
+a report over fewer cells leaves no figure or table of the earlier ones."""
 from __future__ import annotations
 
 import math
@@ -12,7 +13,8 @@ from dbench.report import html, tables
 def _cell(method: str, spp: int, rmse: float, nonfinite: int = 0) -> dict:
     return {"status": "ok", "scene": "cornell", "method": method, "base_method": method,
             "spp": spp, "res": 16, "n_seeds": 2, "rmse": rmse, "rmse_ci": 0.01,
-            "relmse": rmse, "relmse_ci": 0.01, "time_s": 0.01, "n_nonfinite": nonfinite}
+            "relmse": rmse, "relmse_ci": 0.01, "time_s": 0.01, "render_s": 0.05 * spp,
+            "n_nonfinite": nonfinite}
 
 
 def test_a_cell_of_nonfinite_outputs_is_not_a_missing_cell():
@@ -28,3 +30,29 @@ def test_a_cell_of_nonfinite_outputs_is_not_a_missing_cell():
     text = {tuple(r[:2]): r[2:] for r in grid["text"]}
     assert text[("cornell", "nan-out")] == ["no value (non-finite output)", ""]
     assert text[("cornell", "jbf")] == ["", "0.05 ± 0.01"]
+
+
+def test_a_report_of_fewer_cells_leaves_no_figure_or_table_of_the_earlier_ones(tmp_path):
+    """``dbench report`` after cells were removed (a sweep started again in its folder): the
+    error-against-time figure the README now says cannot be drawn, and the convergence CSV of a
+    metric no cell records, are gone, not left with the earlier cells' numbers."""
+    import pandas as pd
+
+    from dbench.report import plots
+
+    before = tables.cells_frame([_cell("noisy", 4, 0.2), _cell("noisy", 16, 0.1)])
+    before["rmse_surface"], before["rmse_surface_ci"] = 0.05, 0.01
+    out = tmp_path / "tables"
+    written = tables.write_tables(before, out)
+    figure = tmp_path / "error_time_rmse_surface.png"
+    assert plots.error_time_plot(before, "rmse_surface", figure) and figure.is_file()
+    assert "convergence_rmse_surface" in written
+    after = tables.cells_frame([])
+    assert not plots.error_time_plot(after, "rmse_surface", figure)
+    assert not figure.exists()
+    written = tables.write_tables(after, out)
+    assert "convergence_rmse_surface" not in written
+    assert not (out / "convergence_rmse_surface.csv").exists()
+    left = {p.name for p in out.glob("convergence_*.csv")}
+    assert left == {p.name for k, p in written.items() if k.startswith("convergence_")}
+    assert all(pd.read_csv(out / n).empty for n in left)
