@@ -175,8 +175,11 @@ def build_readme(results: Path, sweep_dir: Path, headline_spp: int = 64,
     sequence = any(c.get("frames") for c in cells)
     reps, seeds = config.get("repeats"), config.get("seeds")
     timing = f"denoise time = median over {headline.timing_words(reps, seeds)} (rendering excluded)"
+    # --repeats times steady and transient cells only; a sequence's time is said after this line
+    single = any(not c.get("frames") for c in cells if c.get("status") == "ok") or not sequence
+    timing = ("steady and transient scenes: " + timing if sequence else timing) if single else ""
     parts += [settings_line(config, df, status, rel(sweep_dir),
-                            [timing] + [t for t in [wall_text(info, cells)] if t]) + (
+                            [t for t in [timing, wall_text(info, cells)] if t]) + (
         " Sequence scenes: each frame denoised once, in order; metrics are means "
         "and time the median per frame over the frames after the warm-up." if sequence else ""),
         ""]

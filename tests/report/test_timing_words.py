@@ -48,7 +48,7 @@ def test_run_report_counts_the_calls_of_every_seed():
     assert "the noisy input is not a candidate for the fastest `time_s`" in md
 
 
-def test_sweep_readme_counts_the_calls_of_every_seed(tmp_path):
+def _sweep_readme(tmp_path, **cell) -> str:
     sweep = tmp_path / "results" / "sweep"
     config = {"labels": ["noisy", "jbf"], "methods": ["noisy", "jbf"], "scenes": ["cornell"],
               "spp": [4], "res": 16, "seeds": 2, "seed": 0, "ref_spp": 64, "repeats": 5}
@@ -57,7 +57,19 @@ def test_sweep_readme_counts_the_calls_of_every_seed(tmp_path):
     for m in ("noisy", "jbf"):
         p = sweep / "cells" / "cornell" / "00004spp" / f"{m}.json"
         p.parent.mkdir(parents=True, exist_ok=True)
-        p.write_text(json.dumps(_cell(m, 2, 5)))
-    text = " ".join(publish.publish(tmp_path / "results").read_text().split())
+        p.write_text(json.dumps({**_cell(m, 2, 5), **cell}))
+    return " ".join(publish.publish(tmp_path / "results").read_text().split())
+
+
+def test_sweep_readme_counts_the_calls_of_every_seed(tmp_path):
+    text = _sweep_readme(tmp_path)
     assert ("denoise time = median over 10 timed calls (5 per seed × 2 seeds, each seed after "
             "one warm-up call) (rendering excluded)") in text
+
+
+def test_a_sequence_sweep_says_only_how_sequences_are_timed(tmp_path):
+    """A sequence cell denoises each frame once (--repeats does not apply): its README speaks
+    of the frames after the warm-up, never of timed calls."""
+    text = _sweep_readme(tmp_path, frames=4)
+    assert "timed call" not in text
+    assert "time the median per frame over the frames after the warm-up" in text
