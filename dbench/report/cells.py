@@ -164,6 +164,32 @@ def mixed_md(mixed: Sequence[tuple[str, str, dict]]) -> list[str]:
             for who, key, values in mixed]
 
 
+def device_label(cell: dict) -> str:
+    """Where a cell's method was timed: ``cpu``, ``cuda (NVIDIA H200)``; "" for cells older than
+    the record (docs/gpu.md §3: every cell records ``device`` and ``device_name``)."""
+    dev, name = cell.get("device"), cell.get("device_name")
+    if not isinstance(dev, str) or not dev:
+        return ""
+    return f"{dev} ({name})" if dev != "cpu" and isinstance(name, str) and name else dev
+
+
+def devices_text(cells: Sequence[dict]) -> list[str]:
+    """The devices the finished cells' methods ran on, each with its cell count and, where
+    there are several, its methods and a warning: a sweep on a GPU times the methods with a
+    device path there and the others on the host (README.md, "On a GPU"), so ``time_s`` and
+    the time plots then compare devices as well as methods."""
+    by: dict[str, list[str]] = {}
+    for c in cells:
+        if isinstance(c, dict) and c.get("status") == "ok" and device_label(c):
+            by.setdefault(device_label(c), []).append(str(c.get("method")))
+    if len(by) < 2:
+        return [f"methods run on {d} ({len(m)})" for d, m in by.items()]
+    return ["methods run on " + "; ".join(
+        f"{d} ({len(m)}: {', '.join(sorted(set(m)))})" for d, m in sorted(by.items()))
+        + " (**times of different devices side by side: time_s compares devices as well as "
+          "methods**)"]
+
+
 def grid_status(config: dict, cells: Sequence[dict]) -> dict[str, Any]:
     """Counts of the (scene, spp, label) cells the config expects by status (ok / skipped /
     error / other), the expected cells no file holds (``missing``) and the cells outside that
@@ -225,4 +251,5 @@ def problems_md(cells: list[dict], problems: list[str], missing) -> list[str]:
 
 __all__ = ["NUMERIC_KEYS", "cell_problem", "load_cells", "load_cells_checked", "read_cell",
            "expected_grid", "cell_key", "grid_status", "grid_status_text", "missing_md",
-           "problems_md", "PER_CELL", "METHOD_KEYS", "mixed_settings", "mixed_text", "mixed_md"]
+           "problems_md", "PER_CELL", "METHOD_KEYS", "mixed_settings", "mixed_text", "mixed_md",
+           "device_label", "devices_text"]

@@ -18,7 +18,7 @@ from pathlib import Path
 from .. import io
 from ..resolution import size_text
 from . import headline, plots, tables, verdicts
-from .cells import load_cells_checked, mixed_md, problems_md, read_cell
+from .cells import devices_text, load_cells_checked, mixed_md, problems_md, read_cell
 from .formats import markdown_table
 from .html import sweep_page
 from .run_report import machine_md, metric_definitions_md
@@ -76,7 +76,8 @@ def wall_text(info: dict, cells: list[dict] | None = None) -> str:
     if refs:
         parts.append(f"{len(refs)} reference{'s' if len(refs) != 1 else ''} rendered in "
                      f"{sum(refs.values()):.0f} s in all")
-    return ", ".join(parts + machines_text(cells or []) + variants_text(cells or []))
+    return ", ".join(parts + machines_text(cells or []) + devices_text(cells or [])
+                     + variants_text(cells or []))
 
 
 def _tally(cells: list[dict], field: str) -> dict[str, int]:

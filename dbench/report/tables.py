@@ -22,11 +22,12 @@ import pandas as pd
 from ..errors import DbenchInputError
 from ..metrics import records
 from ..resolution import parse_res
+from .cells import device_label
 from .formats import markdown_table, write_csv
 from .verdicts import HEADLINE, METRICS, fmt_value, num, seed_values
 
 ID_COLUMNS = ["scene", "method", "base_method", "spp", "res", "n_seeds", "ci_kind", "ref_spp",
-              "ref_rmse", "ref_relmse_surface", "render_variant"]
+              "ref_rmse", "ref_relmse_surface", "render_variant", "device", "backend"]
 TIME_COLUMNS = ["time_s", "time_s_iqr", "render_s", "gradient_s", "total_s"]
 #: The sequence-only metrics (temporal and video records).
 TEMPORAL = records.sequence_metrics()
@@ -59,7 +60,9 @@ def _row(c: dict) -> dict | None:
            "ref_rmse": num(c.get("ref_rmse")),
            "ref_relmse_surface": num(c.get("ref_relmse_surface")),
            # what rendered the inputs ("files": a folder's renders, its reference a file)
-           "render_variant": _label(c.get("render_variant")) or ""}
+           "render_variant": _label(c.get("render_variant")) or "",
+           # where the method was timed (docs/gpu.md §3): GPU and CPU times are never unnamed
+           "device": device_label(c), "backend": _label(c.get("backend")) or ""}
     for m in COLUMNS:
         row[m] = num(c.get(m))
         row[m + "_ci"] = num(c.get(m + "_ci"))
@@ -129,7 +132,7 @@ def cells_frame(cells: list[dict]) -> pd.DataFrame:
                                             "per_seed"])
     for c in df.columns:
         if c not in ("scene", "method", "base_method", "ci_kind", "res", "per_seed",
-                     "render_variant"):
+                     "render_variant", "device", "backend"):
             df[c] = df[c].astype(float) if c != "spp" else df[c].astype(int)
     df = _model_render_time(df).drop(columns=["render_plain_s", "stats_s"])
     drop = [k for m in TEMPORAL if df[m].isna().all() for k in (m, m + "_ci")]
