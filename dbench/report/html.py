@@ -204,7 +204,15 @@ def run_page(out: str | Path, *, title: str, frame: Any, outputs: Sequence[tuple
             "frame_labels": labels, "start_frame": show,
             "zoom": {"x0": int(x0), "y0": int(y0), "side": int(side)},
             "tables": [metrics_table(table, columns, rank_by)]}
-    sections = ["<h2>Metrics</h2>", '<div data-table="0"></div>',
+    d = table
+    rank = verdicts.ranking_metric(d, rank_by) if len(d) else rank_by
+    # what report.md says above its table: the ranking, the kind of interval (one seed: a
+    # block bootstrap, or none), the reference's spp and estimated error
+    head = (f"Ranking by {verdicts.ranking_line(d, rank, rank_by)}. "
+            f"{verdicts.ci_kind_text(d).capitalize()}; {verdicts.reference_text(d)}."
+            if len(d) else "No method finished.")
+    sections = ["<h2>Metrics</h2>", f'<p class="note">{html.escape(head)}</p>',
+                '<div data-table="0"></div>',
                 '<p class="note">Mean ± 95 % half-width; bold: the best entry of a column and '
                 "every entry tied with it (paired over common seeds, else overlapping "
                 "intervals; the noisy input is not a candidate for the fastest time_s); a row in red is worse than the noisy input on at least one "

@@ -304,6 +304,8 @@ def reference_text(d: pd.DataFrame) -> str:
         lo, hi = float(err.min()), float(err.max())
         text += (f", estimated reference RMSE {lo:.3g}" if lo == hi else
                  f", estimated reference RMSE {lo:.3g}–{hi:.3g}")
+    else:  # said, not left out: a reader must not take the reference for exact
+        text += ", estimated reference RMSE unknown"
     return text
 
 

@@ -323,7 +323,7 @@ def test_old_cells_without_new_keys_render(tmp_path):
     text = publish.publish(res).read_text()
     assert "No confidence intervals in these cells" in text
     assert "Not recorded in these cells: rmse_surface" in text
-    assert "reference 4096 spp in every scene" in text
+    assert "reference 4096 spp, estimated reference RMSE unknown in every scene" in text
     assert "do not record `ref_rmse`" in text
     assert "## Sweep `sweep-extra`" in text and "### Headline at 1 spp" in text
     assert "0 missing" in text

@@ -64,3 +64,25 @@ def test_a_failed_method_is_named_on_the_page_with_its_error_escaped(tmp_path):
     assert {r[0] for r in table["rows"]} == {"noisy", "flips"}
     text, _ = _page(tmp_path / "none", failed={})
     assert "<h2>Failed</h2>" not in text
+
+
+def test_the_page_says_the_interval_kind_and_the_reference_as_report_md_does(tmp_path):
+    """One seed: a block bootstrap (or no interval); the reference's spp and estimated error,
+    "unknown" where the run could not estimate it (a folder's reference without variance)."""
+    from dbench.report import run_report
+
+    kind = "block bootstrap 95 % (4-px blocks, 1000 resamples, one seed)"
+    table = _table().assign(ci_kind=kind, ref_spp=16)
+    f = base_frame(16, 16)
+    page = html.run_page(tmp_path, title="s", frame=f, outputs=[("noisy", f.color)],
+                         table=table, columns=("rmse", "relmse", "time_s"),
+                         settings={"scene": "s"}, machine={}, skipped={})
+    text = " ".join(page.read_text(encoding="utf-8").split())
+    assert f"Intervals: {kind}; reference 16 spp, estimated reference RMSE unknown." in text
+    assert "Ranking by relmse (lower is better): flips &lt; noisy" in text
+    settings = {"scene": "s", "kind": "steady", "spp": 4, "res": 16, "repeats": 1,
+                "ref_spp": 16, "reference RMSE (estimated)": "unknown (no variance image)"}
+    machine = {"cpu": "c", "cores": 2, "gpu": "none", "python": "3", "platform": "p",
+               "packages": {}}
+    md = " ".join(run_report.run_report_md(table, settings, machine, {}).split())
+    assert f"Intervals: {kind}; reference 16 spp, estimated reference RMSE unknown." in md
