@@ -218,8 +218,15 @@ def headline_md(df: pd.DataFrame, spp: int | None, rank_by: str = "relmse",
               f"the fastest). Rows ranked by `{rank_by}`; " + VERDICT_NOTE), ""]
     if absent:
         parts += [f"Not recorded in these cells: {', '.join(absent)}.", ""]
-    for scene, g in d.groupby("scene", sort=True):
-        parts += scene_block_md(g, rank_by, shown, heading=f"{level} {scene}")
+    for scene in sorted(set(map(str, df["scene"]))):
+        g = d[d["scene"] == scene]
+        if len(g):
+            parts += scene_block_md(g, rank_by, shown, heading=f"{level} {scene}")
+            continue
+        # a scene without cells at this spp is named, never left out of "every scene"
+        has = sorted({int(v) for v in df.loc[df["scene"] == scene, "spp"]})
+        parts += [f"{level} {scene}", "", f"No finished cell at {spp} spp (its cells are at "
+                  f"{', '.join(map(str, has))} spp: the convergence tables below).", ""]
     return parts
 
 

@@ -56,3 +56,16 @@ def test_a_report_of_fewer_cells_leaves_no_figure_or_table_of_the_earlier_ones(t
     left = {p.name for p in out.glob("convergence_*.csv")}
     assert left == {p.name for k, p in written.items() if k.startswith("convergence_")}
     assert all(pd.read_csv(out / n).empty for n in left)
+
+
+def test_a_scene_without_cells_at_the_headline_spp_is_named_in_the_headline():
+    """"every method × every scene at 64 spp": a scene whose cells are all at other spp gets its
+    heading and a line saying where its cells are, never a silent gap."""
+    from dbench.report import headline
+
+    cells = [_cell(m, spp, 0.1 / spp) for m in ("noisy", "jbf") for spp in (4, 64)]
+    cells += [{**_cell(m, 4, 0.05), "scene": "mirrors"} for m in ("noisy", "jbf")]
+    text = "\n".join(headline.headline_md(tables.cells_frame(cells), 64))
+    assert "### cornell" in text and "| jbf |" in text
+    assert ("### mirrors\n\nNo finished cell at 64 spp (its cells are at 4 spp: the "
+            "convergence tables below).") in text
