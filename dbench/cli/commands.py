@@ -277,8 +277,18 @@ def cmd_report(args: argparse.Namespace) -> int:
         results, sweep_dir = results.absolute(), sweep_dir.absolute()  # links one to the other
     from ..run import sweep_history
 
+    from ..run.capture import library_warnings
+
     for folder in [sweep_dir, *publish.extra_sweeps(results, sweep_dir)]:
         sweep_history.read(folder)  # a damaged sweep.json: one line, as `sweep` says it
-    out = publish.publish(results, sweep_dir, rank_by=args.rank_by)
+    # the libraries' warnings (matplotlib's missing glyphs for a name its font lacks) are one
+    # line, as `run` and `sweep` count theirs, never their source lines on the terminal
+    with library_warnings() as caught:
+        out = publish.publish(results, sweep_dir, rank_by=args.rank_by)
     print(f"written: {out}")
+    if caught:
+        seen = list(dict.fromkeys(ln.split(": ", 1)[-1] for ln in caught))
+        print(f"{len(caught)} library warning{'s' if len(caught) != 1 else ''} while writing: "
+              + "; ".join(seen[:3]) + (f"; and {len(seen) - 3} more" if len(seen) > 3 else ""),
+              file=sys.stderr)
     return 0

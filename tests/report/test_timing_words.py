@@ -73,3 +73,4 @@ def test_a_sequence_sweep_says_only_how_sequences_are_timed(tmp_path):
     text = _sweep_readme(tmp_path, frames=4)
     assert "timed call" not in text
     assert "time the median per frame over the frames after the warm-up" in text
+
