@@ -294,7 +294,7 @@ def _load_folder_scene(sc: Scene, spp: int, res, needs, seed: int, ref_spp: int 
     (dbench.datasets.folders.load). Settings that cannot apply to files are refused: another size,
     another reference spp, a seed other than the first (a folder holds one noisy image per
     spp), a ``transform`` (with its ``lam``) other than the one its statistics were gathered
-    with (None: theirs)."""
+    with (None: theirs), more ``frames`` than the folder numbers."""
     from .folders.load import load_folder
 
     info = sc.info
@@ -318,6 +318,10 @@ def _load_folder_scene(sc: Scene, spp: int, res, needs, seed: int, ref_spp: int 
         check_folder_transform(sc, spp, transform, lam)
     if info.frames is None:
         return load_folder(info, spp, needs)
+    if frames is not None and not 1 <= int(frames) <= len(info.frames):  # not silently fewer
+        raise DbenchInputError(f"--frames: {where} holds {len(info.frames)} numbered frames "
+                               f"({info.frames[0]}-{info.frames[-1]}); expected an integer in "
+                               f"[1, {len(info.frames)}], got {frames}")
     numbers = list(info.frames)[:frames] if frames else list(info.frames)
     out = [load_folder(info, spp, needs, frame=k) for k in numbers]
     meta = {**out[0].meta, "kind": "sequence", "frames": len(out)}

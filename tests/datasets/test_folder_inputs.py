@@ -154,3 +154,42 @@ def test_a_truncated_exr_gives_one_line(tmp_path, capfd):
     print("after", flush=True)
     os.write(2, b"after\n")
     assert capfd.readouterr() == ("after\n", "after\n")
+
+
+def _frames(folder, numbers):
+    """A folder of numbered frames ``numbers`` of one view ``v`` (4 and 16 spp, a reference)."""
+    folder.mkdir()
+    for k in numbers:
+        view = _series(folder.parent / f"one{k}", view=f"v_f{k:04d}")
+        for f in view.iterdir():
+            f.rename(folder / f.name)
+    return folder
+
+
+def test_numbered_frames_with_a_gap_are_refused(tmp_path, capsys):
+    """Frames 0, 2 and 3 were read as a sequence of three: frame 2's motion vectors (to frame
+    1) reprojected frame 0's history and t_rmse differenced frames 0 and 2, silently."""
+    folder = _frames(tmp_path / "walk", (0, 2, 3))
+    with pytest.raises(DbenchInputError, match=r"walk/v: frames 0-3 lack frame 1; expected "
+                                               r"consecutive frame numbers"):
+        scan_folder(folder)
+    assert main(["run", "--method", "noisy", "--scene", str(folder), "--spp", "4",
+                 "--out", str(tmp_path / "run")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "lack frame 1" in err[0]
+    assert not (tmp_path / "run").exists()
+    assert scan_folder(_frames(tmp_path / "later", (5, 6, 7))).frames == (5, 6, 7)
+
+
+def test_more_frames_than_a_folder_numbers_are_refused(tmp_path, capsys):
+    """--frames 10 on a folder of 3 frames ran 3 frames and said nothing (a catalogue
+    sequence refuses more frames than it has)."""
+    folder = _frames(tmp_path / "walk", (0, 1, 2))
+    assert main(["run", "--method", "noisy", "--scene", str(folder), "--spp", "4",
+                 "--frames", "10", "--out", str(tmp_path / "run")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"dbench: --frames: {folder}/v holds 3 numbered frames (0-2); expected an "
+                   "integer in [1, 3], got 10"]
+    assert not (tmp_path / "run").exists()
+    assert main(["run", "--method", "noisy", "--scene", str(folder), "--spp", "4",
+                 "--frames", "2", "--out", str(tmp_path / "run2"), "--quiet"]) == 0

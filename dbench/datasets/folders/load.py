@@ -22,7 +22,8 @@ A folder holds one or more *views*; every file name starts with the view name (d
     the reference's gives its variance where its transform is the identity.
 ``<view>_f<frame>_<spp>.<tag>.exr``
     Numbered frames of a sequence (``walk_f0003_0004.hdr.exr``, motion in ``.mv.exr``); every
-    frame must have the files the others have.
+    frame must have the files the others have, and the numbers must be consecutive (motion
+    points to the frame before).
 ``dataset.json`` (optional)
     ``{"ref_spp": int, "ev": float, "normal_encoding": "signed"|"unsigned", "description":
     str, "scene": str}`` (``"normals"``, as :mod:`dbench.datasets.folders.export` writes it, is read
@@ -192,7 +193,18 @@ def _check_frames(folder: Path, files: list[str]) -> tuple[int, ...] | None:
             width = len(next(iter(pattern[k].values())))
             raise DbenchInputError(f"{folder / missing.replace('#', f'{k:0{width}d}')}: missing; "
                                    f"frame {k} lacks a file the other frames have")
-    return tuple(sorted(pattern))
+    numbers = sorted(pattern)
+    # motion vectors point to the previous frame and the temporal figures difference neighbours:
+    # a gap would pair frames that do not follow each other, silently
+    absent = sorted(set(range(numbers[0], numbers[-1] + 1)) - set(numbers))
+    if absent:
+        view = matches[numbered[0]]["view"]
+        raise DbenchInputError(f"{folder / view}: frames {numbers[0]}-{numbers[-1]} lack "
+                               f"frame{'s' if len(absent) > 1 else ''} "
+                               f"{', '.join(map(str, absent[:5]))}{' …' if len(absent) > 5 else ''}"
+                               "; expected consecutive frame numbers (a sequence's motion "
+                               "vectors point to the frame before)")
+    return tuple(numbers)
 
 
 def _add(slot: dict, buffer: str, source, folder: Path) -> None:
