@@ -314,7 +314,7 @@ def sequence_window(n_frames: int) -> str:
     if n_frames > WARMUP:
         return f"1 per frame; metrics and time over frames {WARMUP}-{n_frames - 1} of {n_frames}"
     return (f"1 per frame; metrics and time over all {n_frames} frame(s) (no more frames than "
-            f"the {WARMUP}-frame warm-up)")
+            f"the {WARMUP}-frame warm-up; frames 0-1 first run once untimed, then a reset)")
 
 
 __all__ = ["INPUT_FACTS", "INPUT_WARNINGS", "RunRequest", "input_notes", "judged_ref_rmse",

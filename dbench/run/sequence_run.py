@@ -44,6 +44,9 @@ from .inputs import check_unchanged, input_guard, private_copy
 WARMUP = 8
 SEQUENCE_METRICS = ("rmse", "ssim")
 TEMPORAL_METHODS = ("noisy", "accumulate", "svgf", "asvgf", "bmfr")
+#: frames whose calls compile a temporal method's paths: frame 0 (no history) and frame 1 (the
+#: reprojection and, in A-SVGF, the gradient); from frame 2 on no call compiled anything
+COMPILING_FRAMES = 2
 
 
 def after_warmup(items: list, warmup: int = WARMUP) -> list:
@@ -82,6 +85,24 @@ def _method(method) -> Any:
         from .. import registry
         return registry.get(method)
     return method
+
+
+def _warm_up(m, seq: Sequence, mine: Sequence, stateless: bool, on_device: bool, device: str,
+             available: set) -> None:
+    """Run ``m`` untimed over the first :data:`COMPILING_FRAMES` frames of ``mine`` and reset
+    it: its first calls compile (Numba, Triton) or load its kernels and models, seconds per
+    frame against milliseconds after, and a sequence no longer than the warm-up would
+    otherwise time them (README.md, "Usage": one warm-up call before timing)."""
+    for i in range(min(COMPILING_FRAMES, len(seq))):
+        if stateless:
+            m.reset()
+        with input_guard(m.name, None if on_device else seq[i],
+                         lambda spare: fpenv.denoise(m, spare)):
+            if on_device:
+                download(fpenv.denoise_device(m, upload(mine[i], device, m.wants(available))))
+            else:
+                fpenv.denoise(m, mine[i])
+    m.reset()  # the history of the warm-up frames is not the sequence's (README: reset())
 
 
 def temporal_stability(outputs: list[np.ndarray], references: list[np.ndarray],
@@ -125,8 +146,10 @@ def run_sequence(method, seq: Sequence, metric_names: Iterable[str] = SEQUENCE_M
     call and the output downloaded after it, those copies timed apart (the summary's
     ``transfer_s``, the median per frame), the call itself timed with the device synchronised.
 
-    A temporal method is reset once and keeps its history; a steady (single-frame) method is
-    reset before every frame (:meth:`dbench.registry.Denoiser.per_frame`). Frames without a
+    Where the timed frames (those after the warm-up, or all of a sequence no longer than it)
+    include frame 0 or 1, the method first runs untimed over frames 0-1 and is reset, so that
+    the times hold no compilation. A temporal method is reset once and keeps its history; a
+    steady (single-frame) method is reset before every frame (:meth:`dbench.registry.Denoiser.per_frame`). Frames without a
     reference get times but no metrics. Returns a :class:`SequenceResult`.
     """
     m = _method(method)
@@ -147,6 +170,8 @@ def run_sequence(method, seq: Sequence, metric_names: Iterable[str] = SEQUENCE_M
     on_device = device != "cpu" and m.runs_on_device()
     transfers = []
     mine = private_copy(seq)  # read-only; compared with seq after the run (run/inputs.py)
+    if after_warmup(list(range(len(seq))), warmup)[0] < COMPILING_FRAMES:
+        _warm_up(m, seq, mine, stateless, on_device, device, available)
     for i, frame in enumerate(seq):
         given = mine[i]
         if stateless:
