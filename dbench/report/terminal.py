@@ -162,10 +162,12 @@ def run_summary(d: pd.DataFrame, settings: Mapping[str, Any], rank_by: str,
     (dbench/report/run_report.py ``_run_frame``); ``columns``: the report's headline columns."""
     from ..resolution import size_text
 
-    seeds = str(settings.get("seeds", "")).split(", ")
+    seeds = str(settings.get("seeds", ""))
+    # a folder's is a sentence ("one render per spp, from the files"), not a list of seeds
+    n_seeds = len(seeds.split(", ")) if re.fullmatch(r"\d+(, \d+)*", seeds) else 1
     lines = _wrap(f"{settings.get('scene')} at {settings.get('spp')} spp, "
-                  f"{size_text(settings.get('res'))} px, {len(seeds)} seed"
-                  f"{'s' if len(seeds) != 1 else ''}; device {settings.get('device', 'cpu')}")
+                  f"{size_text(settings.get('res'))} px, {n_seeds} seed"
+                  f"{'s' if n_seeds != 1 else ''}; device {settings.get('device', 'cpu')}")
     lines += _wrap(f"reference: {settings.get('ref_spp') or 'unknown'} spp, estimated RMSE "
                    f"{_ref_error(settings.get('reference RMSE (estimated)'))}")
     for line in scene_file_lines(settings):

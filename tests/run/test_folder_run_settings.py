@@ -49,6 +49,15 @@ def test_the_report_names_the_folder_and_says_its_renders_are_files(tmp_path):
     assert "- tone-map EV: 3 stops" in (out / "report.md").read_text()
 
 
+def test_the_headline_of_a_folder_run_says_one_seed(tmp_path, capsys):
+    """It said "2 seeds": the seed count was the number of comma-separated parts of the
+    settings' "one render per spp, from the files"."""
+    capsys.readouterr()
+    assert _run(tmp_path, _folder(tmp_path / "renders"))[0] == 0
+    head = [line for line in capsys.readouterr().out.splitlines() if " spp, " in line]
+    assert head and head[0].endswith("px, 1 seed; device cpu"), head
+
+
 def test_a_catalogue_run_keeps_its_seeds_and_states_no_folder(tmp_path):
     rc = cli.main(["run", "--method", "noisy", "--scene", "cornell", "--spp", "2", "--res",
                    "8", "--ref-spp", "16", "--repeats", "1", "--quiet", "--cache",
