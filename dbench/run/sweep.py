@@ -34,7 +34,7 @@ from ..report.cells import (NUMERIC_KEYS, cell_problem, load_cells,  # noqa: F40
                             load_cells_checked, read_cell)  # interface, as before
 from .sweep_history import SETTINGS, stored_config  # noqa: F401 - the module's interface
 from .inputs import load_seeds  # noqa: F401 - also the module's interface, as before
-from .sweep_names import check_scenes, folder_ref_spp, scene_labels
+from .sweep_names import check_scenes, folder_ref_spp, kind_options, scene_labels
 from .sweep_pool import worker_start as _worker_start  # noqa: F401 - the pool initializer
 from ..device import device_name
 from .machine import machine_label
@@ -178,8 +178,8 @@ def cell_identity(config: SweepConfig, scene, spp: int, method: str, fingerprint
     return {"scene": label or scene.name, "scene_fingerprint": fingerprint, "kind": scene.kind,
             "res": config.res_for(scene).key, "spp": int(spp), "seeds": config.seed_list,
             "ref_spp": resolved_ref_spp(config, scene, spp), "ref_seed": config.seed,
-            "transform": transform, "lam": lam, "frames": config.frames,
-            "bins": config.bins, "metrics": list(config.metrics), "method": method,
+            "transform": transform, "lam": lam, **kind_options(config, scene),
+            "metrics": list(config.metrics), "method": method,
             "params": identity.resolved_params(method, config.params.get(method)),
             "method_version": identity.method_version(
                 registry.method_class(method),
@@ -315,7 +315,7 @@ def run_group(config: SweepConfig, out: str, scene_name: str, spp: int,
                         needs=needs, transform=config.transform, lam=config.lam,
                         ref_spp=config.ref_spp if scene.renders else
                         folder_ref_spp(config, scene), cache=cache, progress=False,
-                        frames=config.frames, bins=config.bins)
+                        **kind_options(config, scene))
     written = []
     for m, inst in instances.items():
         ident = cell_identity(config, scene, spp, m, fingerprint, scene_label)
@@ -360,7 +360,7 @@ def _prerender_references(config: SweepConfig, scenes: Iterable[str],
         datasets.load(s, spp=1, res=config.res_for(s), needs={"reference", "albedo"},
                       seed=config.seed,
                       ref_seed=config.seed, ref_spp=config.ref_spp, cache=cache,
-                      frames=config.frames, bins=config.bins, progress=progress)
+                      **kind_options(config, s), progress=progress)
 
 
 def run_group_captured(config: SweepConfig, out: str, scene_name: str, spp: int,

@@ -142,3 +142,11 @@ def folder_ref_spp(config, scene) -> int | None:
     if config.ref_spp is None or scene.info.ref_spp is not None:
         return config.ref_spp
     return None if any(config.scene(n).renders for n in config.scenes) else config.ref_spp
+
+
+def kind_options(config, scene) -> dict:
+    """``frames`` and ``bins`` as ``scene`` takes them: each is read by one kind of scene alone
+    (README.md, "Usage": refused only where none of a sweep's scenes reads it), so in a sweep
+    mixing kinds the others get None, load and cell identity alike."""
+    return {"frames": config.frames if scene.kind == "sequence" else None,
+            "bins": config.bins if scene.kind == "transient" else None}

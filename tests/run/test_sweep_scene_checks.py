@@ -110,3 +110,25 @@ def test_a_sequence_or_transient_setting_is_refused_before_any_scene_renders(
     assert rc == 2
     assert _one_line(capsys).startswith(said)
     assert not (tmp_path / "x").exists() and not cache.exists()
+
+
+@pytest.mark.parametrize("scene, flag, field", [("orbit", ["--frames", "2"], "frames"),
+                                                ("cornell-transient", ["--bins", "4"], "bins")])
+def test_a_sweep_mixing_kinds_gives_frames_or_bins_to_the_scenes_that_take_them(
+        renderer, tmp_path, capsys, scene, flag, field):
+    """A sweep over cornell and orbit with --frames 2 wrote sweep.json and cornell's skipped
+    cells, then ended with "frames: cornell is a steady scene" (exit 2) while prerendering,
+    after any scene sorted before it had rendered; --frames is refused only where no scene
+    reads it (tests/cli/test_cli_silent_inputs.py), so the sequence takes it and cornell
+    renders as without it (its cells' identities record none)."""
+    import json
+
+    out = tmp_path / "sw"
+    assert cli.main(["sweep", "--scenes", f"cornell,{scene}", *TINY, *flag, "--cache",
+                     str(tmp_path / "cache"), "--out", str(out)]) == 0
+    assert "0 errors" in capsys.readouterr().out
+    cells = {p.parent.parent.name: json.loads(p.read_text())
+             for p in out.glob("cells/*/*/noisy.json")}
+    assert cells[scene]["status"] == cells["cornell"]["status"] == "ok"
+    assert cells[scene]["identity"][field] == int(flag[1])
+    assert cells["cornell"]["identity"][field] is None
