@@ -318,14 +318,22 @@ def _load_folder_scene(sc: Scene, spp: int, res, needs, seed: int, ref_spp: int 
         check_folder_transform(sc, spp, transform, lam)
     if info.frames is None:
         return load_folder(info, spp, needs)
-    if frames is not None and not 1 <= int(frames) <= len(info.frames):  # not silently fewer
-        raise DbenchInputError(f"--frames: {where} holds {len(info.frames)} numbered frames "
-                               f"({info.frames[0]}-{info.frames[-1]}); expected an integer in "
-                               f"[1, {len(info.frames)}], got {frames}")
+    check_folder_frames(sc, frames)
     numbers = list(info.frames)[:frames] if frames else list(info.frames)
     out = [load_folder(info, spp, needs, frame=k) for k in numbers]
     meta = {**out[0].meta, "kind": "sequence", "frames": len(out)}
     return Sequence(out, meta=meta)
+
+
+def check_folder_frames(sc: Scene, frames: int | None) -> None:
+    """Refuse ``frames`` above the count of the folder scene ``sc``'s numbered frames, rather
+    than run fewer than asked (a catalogue sequence refuses more than it has)."""
+    info = sc.info
+    if info.frames is not None and frames is not None and not 1 <= int(frames) <= len(
+            info.frames):
+        raise DbenchInputError(f"--frames: {info.path}/{info.name} holds {len(info.frames)} "
+                               f"numbered frames ({info.frames[0]}-{info.frames[-1]}); expected "
+                               f"an integer in [1, {len(info.frames)}], got {frames}")
 
 
 def check_folder_transform(sc: Scene, spp: int, transform: str | None, lam: float,
@@ -351,4 +359,4 @@ def check_folder_transform(sc: Scene, spp: int, transform: str | None, lam: floa
 
 __all__ = ["load", "available_scenes", "get_scene", "Cache", "Scene", "FEATURES",
            "FEATURE_BUFFERS", "scene_fingerprint", "feature_identity", "default_res",
-           "default_transform", "check_folder_transform"]
+           "default_transform", "check_folder_frames", "check_folder_transform"]

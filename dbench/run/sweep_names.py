@@ -117,6 +117,7 @@ def check_scenes(config) -> None:
                 check_bins(scene.window(config.bins).bins, config.res_for(scene),
                            "--bins" if config.bins is not None else f"{name}'s bins")
             continue
+        datasets.check_folder_frames(scene, kind_options(config, scene)["frames"])
         for spp in config.spp:
             load_seeds(scene, config.seed, config.seeds, spp=spp, res=config.res_for(scene),
                        needs=(), ref_spp=folder_ref_spp(config, scene), frames=1,

@@ -193,3 +193,17 @@ def test_more_frames_than_a_folder_numbers_are_refused(tmp_path, capsys):
     assert not (tmp_path / "run").exists()
     assert main(["run", "--method", "noisy", "--scene", str(folder), "--spp", "4",
                  "--frames", "2", "--out", str(tmp_path / "run2"), "--quiet"]) == 0
+
+
+def test_a_sweep_refuses_more_frames_than_a_folder_numbers_before_anything_renders(tmp_path,
+                                                                                  capsys):
+    """Beside a rendered sequence the folder was loaded only in its turn: orbit had rendered
+    and its cells and sweep.json were written before the refusal."""
+    folder = _frames(tmp_path / "walk", (0, 1, 2))
+    out, cache = tmp_path / "x" / "sw", tmp_path / "cache"
+    assert main(["sweep", "--scenes", f"orbit,{folder}", "--methods", "noisy", "--spp", "4",
+                 "--frames", "5", "--quiet", "--cache", str(cache), "--out", str(out)]) == 2
+    assert capsys.readouterr().err.strip().splitlines() == [
+        f"dbench: --frames: {folder}/v holds 3 numbered frames (0-2); expected an integer in "
+        "[1, 3], got 5"]
+    assert not (tmp_path / "x").exists() and not cache.exists()
