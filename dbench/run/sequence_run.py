@@ -11,7 +11,8 @@ warm-up, temporal stability, plots, strip comparisons and the 720p speed benchma
   against the reference's, ``d_i = out_i − out_{i−1}`` vs ``r_i = ref_i − ref_{i−1}``:
   ``t_rmse`` on linear values, and ``tpsnr`` = PSNR of the tone-mapped differences
   ``T(out_i) − T(out_{i−1})`` vs ``T(ref_i) − T(ref_{i−1})`` (peak 1, T = dbench tone map),
-  both over frames i ≥ max(warmup, 1); ``cvvdp``, ColorVideoVDP's JOD of the frames after the
+  both over frames i ≥ max(warmup, 1), or i ≥ 1 on a sequence no longer than the warm-up
+  (whose metrics average all its frames: :func:`after_warmup`); ``cvvdp``, ColorVideoVDP's JOD of the frames after the
   warm-up (dbench/metrics/video_quality.py), on small sequences unless asked for.
 * :func:`plot_errors`, :func:`strip` — matplotlib figures; :func:`benchmark` — per-frame time at
   1280×720 on a synthetic moving sequence; :func:`main` writes results/temporal figures.
@@ -108,9 +109,11 @@ def _warm_up(m, seq: Sequence, mine: Sequence, stateless: bool, on_device: bool,
 def temporal_stability(outputs: list[np.ndarray], references: list[np.ndarray],
                        warmup: int = WARMUP, ev: float = 0.0) -> dict[str, float]:
     """``t_rmse`` (linear) and ``tpsnr`` (tone-mapped, dB) of the frame-to-frame differences of
-    ``outputs`` against those of ``references`` over frames i ≥ max(warmup, 1); NaN when there
-    are fewer than two frames or any output is non-finite."""
-    start = max(int(warmup), 1)
+    ``outputs`` against those of ``references`` over frames i ≥ max(warmup, 1), or i ≥ 1 where
+    the sequence is no longer than the warm-up (the frames its metrics average,
+    :func:`after_warmup`); NaN when there are fewer than two frames or any output is
+    non-finite."""
+    start = max(int(warmup), 1) if len(outputs) > int(warmup) else 1
     if len(outputs) != len(references):
         raise DbenchInputError(f"outputs: expected {len(references)} frames, got {len(outputs)}")
     if len(outputs) <= start:

@@ -171,3 +171,25 @@ def test_a_sequence_shorter_than_the_warm_up_is_timed_without_compilation():
     m = _Compiling()
     harness.run_sequence_cell(m, synthetic_sequence(8, 8, frames=10), metric_names=["rmse"])
     assert m.calls == 10
+
+
+def test_a_sequence_shorter_than_the_warm_up_gets_its_temporal_stability():
+    """Its metrics averaged all 3 frames while t_rmse and tpsnr were NaN (the report said "Not
+    recorded: t_rmse, tpsnr"): they waited for frame 8. They now score the differences of the
+    frames the metrics average, frames 1-2; a single frame has none."""
+    from dbench.run.sequence_run import run_sequence, temporal_stability
+    from dbench.synthetic import synthetic_sequence
+
+    seq = synthetic_sequence(8, 8, frames=3)
+    res = run_sequence("noisy", seq)
+    outs = [np.asarray(f.color, np.float64) for f in seq]
+    refs = [np.asarray(f.reference, np.float64) for f in seq]
+    d = [(outs[i] - outs[i - 1]) - (refs[i] - refs[i - 1]) for i in (1, 2)]
+    assert res.summary["t_rmse"] == pytest.approx(float(np.sqrt(np.mean(np.square(d)))),
+                                                  rel=1e-6)
+    assert 0 < res.summary["tpsnr"] < 100
+    assert np.isnan(temporal_stability(outs[:1], refs[:1])["t_rmse"])
+    # longer than the warm-up: from frame 8 on, as before
+    long = synthetic_sequence(8, 8, frames=10)
+    assert run_sequence("noisy", long).summary["t_rmse"] == pytest.approx(temporal_stability(
+        [f.color for f in long][7:], [f.reference for f in long][7:], warmup=1)["t_rmse"])
