@@ -181,9 +181,9 @@ def build_readme(results: Path, sweep_dir: Path, headline_spp: int = 64,
     timing = ("steady and transient scenes: " + timing if sequence else timing) if single else ""
     parts += [settings_line(config, df, status, rel(sweep_dir),
                             [t for t in [timing, wall_text(info, cells)] if t]) + (
-        " Sequence scenes: each frame denoised once, in order; metrics are means "
-        "and time the median per frame over the frames after the warm-up." if sequence else ""),
-        ""]
+        " Sequence scenes: each frame denoised once, in order; metrics are means and time the "
+        "median per frame after the 8-frame warm-up (all of a sequence of 8 or fewer)."
+        if sequence else ""), ""]
     spp = verdicts.headline_spp(df.spp.unique(), headline_spp) if len(df) else None
     parts += [f"## Headline: every method × every scene at {spp} spp", ""]
     if rank != rank_by:
@@ -302,8 +302,8 @@ def other_sweep_md(results: Path, sweep_dir: Path, rank_by: str = "relmse") -> l
         extras.append(wall_text(info, cells))
     parts = [f"## Sweep `{rel}`", "", settings_line(config, df, status, rel, extras) +
              (" Sequences: each frame denoised once, in order; metrics are means over the "
-              "frames after the 8-frame warm-up; `t_rmse` / `tPSNR` score frame-to-frame "
-              "differences." if sequence else "") +
+              "frames after the 8-frame warm-up (all of a sequence of 8 or fewer); `t_rmse`"
+              " / `tPSNR` score frame-to-frame differences." if sequence else "") +
              (" Transient videos: RMSE and relMSE over every voxel; SSIM and FLIP on the "
               "time-integrated image." if transient else ""), ""]
     skipped = sorted({str(c.get("method")) for c in cells if c.get("status") == "skipped"})

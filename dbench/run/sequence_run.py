@@ -12,8 +12,9 @@ warm-up, temporal stability, plots, strip comparisons and the 720p speed benchma
   ``t_rmse`` on linear values, and ``tpsnr`` = PSNR of the tone-mapped differences
   ``T(out_i) − T(out_{i−1})`` vs ``T(ref_i) − T(ref_{i−1})`` (peak 1, T = dbench tone map),
   both over frames i ≥ max(warmup, 1), or i ≥ 1 on a sequence no longer than the warm-up
-  (whose metrics average all its frames: :func:`after_warmup`); ``cvvdp``, ColorVideoVDP's JOD of the frames after the
-  warm-up (dbench/metrics/video_quality.py), on small sequences unless asked for.
+  (whose metrics average all its frames: :func:`after_warmup`); ``cvvdp``, ColorVideoVDP's
+  JOD of the frames after the warm-up (dbench/metrics/video_quality.py), on small sequences
+  unless asked for.
 * :func:`plot_errors`, :func:`strip` — matplotlib figures; :func:`benchmark` — per-frame time at
   1280×720 on a synthetic moving sequence; :func:`main` writes results/temporal figures.
 
@@ -152,8 +153,9 @@ def run_sequence(method, seq: Sequence, metric_names: Iterable[str] = SEQUENCE_M
     Where the timed frames (those after the warm-up, or all of a sequence no longer than it)
     include frame 0 or 1, the method first runs untimed over frames 0-1 and is reset, so that
     the times hold no compilation. A temporal method is reset once and keeps its history; a
-    steady (single-frame) method is reset before every frame (:meth:`dbench.registry.Denoiser.per_frame`). Frames without a
-    reference get times but no metrics. Returns a :class:`SequenceResult`.
+    steady (single-frame) method is reset before every frame
+    (:meth:`dbench.registry.Denoiser.per_frame`). Frames without a reference get times but no
+    metrics. Returns a :class:`SequenceResult`.
     """
     m = _method(method)
     if not isinstance(seq, Sequence):

@@ -132,3 +132,18 @@ def test_a_sweep_mixing_kinds_gives_frames_or_bins_to_the_scenes_that_take_them(
     assert cells[scene]["status"] == cells["cornell"]["status"] == "ok"
     assert cells[scene]["identity"][field] == int(flag[1])
     assert cells["cornell"]["identity"][field] is None
+
+
+def test_the_published_report_of_a_short_sequence_says_which_frames_it_averaged(renderer,
+                                                                                 tmp_path):
+    """A sweep of 2-frame sequences averages both frames (no more than the warm-up), while
+    the results README said the means were over the frames after the 8-frame warm-up."""
+    from dbench.report import publish
+
+    results = tmp_path / "results"
+    assert cli.main(["sweep", "--scenes", "orbit", *TINY, "--frames", "2", "--cache",
+                     str(tmp_path / "cache"), "--out", str(results / "sweep")]) == 0
+    cell = (results / "sweep" / "cells" / "orbit" / "00004spp" / "noisy.json").read_text()
+    assert '"frames": 2' in cell and '"warmup": 8' in cell
+    text = publish.build_readme(results, results / "sweep")
+    assert "after the 8-frame warm-up (all of a sequence of 8 or fewer)." in text
