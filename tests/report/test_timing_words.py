@@ -72,5 +72,5 @@ def test_a_sequence_sweep_says_only_how_sequences_are_timed(tmp_path):
     of the frames after the warm-up, never of timed calls."""
     text = _sweep_readme(tmp_path, frames=4)
     assert "timed call" not in text
-    assert "time the median per frame over the frames after the warm-up" in text
+    assert "time the median per frame after the 8-frame warm-up (all of a sequence" in text
 
