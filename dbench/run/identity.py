@@ -203,11 +203,17 @@ def method_version(cls: type, device: str = "cpu") -> str:
 
 @lru_cache(maxsize=1)
 def judge_version() -> str:
-    """Hash of the metric code (dbench/metrics/*.py, as :func:`code_text` reads it): changing how
-    a number is computed changes every cell's identity; a docstring or a comment does not."""
+    """Hash of the code that turns a method's output into a cell's numbers, as
+    :func:`code_text` reads it: the metrics (dbench/metrics/*.py), the pixels they are judged
+    over (dbench/run/scoring.py: surfaces, lights) and a sequence's protocol
+    (dbench/run/sequence_run.py: which frames are averaged and timed, t_rmse and tpsnr).
+    Changing how a number is computed changes every cell's identity; a docstring or a comment
+    does not."""
     import dbench.metrics as pkg
 
-    return _hash_files(list(Path(pkg.__file__).parent.glob("*.py")))
+    run = Path(__file__).parent
+    return _hash_files(sorted(Path(pkg.__file__).parent.glob("*.py"))
+                       + [run / "scoring.py", run / "sequence_run.py"])
 
 
 def resolved_params(name: str, overrides: dict[str, Any] | None = None) -> dict[str, Any]:

@@ -265,3 +265,15 @@ def test_a_folder_cell_names_the_transform_its_statistics_were_gathered_with(tmp
     # a rendered scene keeps the kind's default
     cornell = sweep.cell_identity(cfg, catalogue.get("cornell"), 4, "noisy", "fp")
     assert (cornell["transform"], cornell["lam"]) == ("box-cox", 0.5)
+
+
+@pytest.mark.parametrize("name", ["judge.py", "scoring.py", "sequence_run.py"])
+def test_the_judge_version_covers_every_file_that_makes_a_cells_numbers(monkeypatch, name):
+    """Which pixels are judged (run/scoring.py) and a sequence's protocol (run/sequence_run.py:
+    the frames averaged and timed, t_rmse) change numbers as the metrics do; a resumed sweep
+    kept cells made by their older code."""
+    from dbench.run import identity
+    before, real = identity.judge_version.__wrapped__(), identity.code_text
+    monkeypatch.setattr(identity, "code_text",
+                        lambda p: real(p) + (b"changed = 1\n" if p.name == name else b""))
+    assert identity.judge_version.__wrapped__() != before
