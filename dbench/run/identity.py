@@ -58,7 +58,12 @@ def _hash_files(paths: list[Path]) -> str:
     h = hashlib.sha256()
     for p in sorted(paths):
         h.update(p.name.encode())
-        h.update(code_text(p))
+        if p.suffix == ".py":
+            h.update(code_text(p))
+        else:  # the same bytes as code_text, read in pieces: a plugin's weights may be large
+            with p.open("rb") as f:
+                for block in iter(lambda: f.read(1 << 20), b""):
+                    h.update(block)
     return h.hexdigest()[:12]
 
 
@@ -105,10 +110,12 @@ def method_files(cls: type) -> list[Path]:
     (``guards.py``, ``checks.py``, ...) and every module of ``dbench.methods`` those files
     import, directly or through one another (shared kernels such as
     ``dbench/methods/kernels/``, or the steps of another method it reuses). A class defined in a
-    plugin package gives that package's folder (whatever the folder is called); one in a
-    stand-alone file or top-level module (``--plugin my_method.py``) that file and the modules
-    beside it that it imports; a plugin's class adds the files of the classes it inherits
-    from."""
+    plugin package gives every file of that package's folder (whatever the folder is called
+    and whatever its files hold: weights in any format; not ``__pycache__`` nor hidden files)
+    and the modules of its top-level package that those import (``from ..common import x``),
+    README.md "Add your own denoiser"; one in a stand-alone file or top-level module
+    (``--plugin my_method.py``) that file and the modules beside it that it imports; a
+    plugin's class adds the files of the classes it inherits from."""
     wrapped = getattr(cls, "wrapped", None)  # NAME+gate: the gate's files and the method's
     if wrapped is not None:
         return sorted(set(method_files(wrapped)) | set(_package_files(inspect.getfile(cls))))
@@ -135,6 +142,8 @@ def _package_files(source_file: str) -> list[Path]:
                        and not (source.parent / "__init__.py").is_file())
     if outside_package:  # a plugin file or top-level module (dbench --plugin x.py): that file
         files += _sibling_imports(source)  # and the modules beside it that it imports
+    elif shared not in source.parents:  # a plugin package: its folder, whatever it holds
+        files = _plugin_package_files(source.parent)
     elif source.name == "__init__.py" or source.parent != shared:
         folder = source.parent
         files = [p for p in folder.rglob("*") if p.suffix in (".py", ".onnx", ".json")
@@ -151,6 +160,26 @@ def _package_files(source_file: str) -> list[Path]:
                     todo.append(f)
                     files.append(f)
     return sorted(dict.fromkeys(p.resolve() for p in files))
+
+
+def _plugin_package_files(folder: Path) -> list[Path]:
+    """Every file under a plugin package's ``folder`` (its weights too, whatever their format:
+    a changed ``weights.pt`` changes the numbers as a changed module does), bar ``__pycache__``
+    and hidden files, and the modules of its top-level package that the Python files import,
+    directly or through one another (``from ..common import SCALE`` in ``mylab/methods/``)."""
+    files = {p.resolve() for p in folder.rglob("*") if p.is_file()
+             and "__pycache__" not in p.relative_to(folder).parts and p.suffix != ".pyc"
+             and not any(part.startswith(".") for part in p.relative_to(folder).parts)}
+    top = folder
+    while (top.parent / "__init__.py").is_file():
+        top = top.parent
+    todo = [p for p in files if p.suffix == ".py"]
+    while todo:
+        for f in _imported_files(todo.pop(), top):
+            if f not in files:
+                files.add(f)
+                todo.append(f)
+    return sorted(files)
 
 
 def _sibling_imports(source: Path) -> list[Path]:

@@ -1,6 +1,7 @@
 """The code behind a plugin method's numbers (dbench/run/identity.py method_files): its package
-folder even when that folder is called ``methods``, the modules a stand-alone plugin file
-imports from beside it, and the classes it inherits from (a built-in method's files), so an
+folder (every file of it, its weights included) even when that folder is called ``methods``,
+the modules of its package it imports, the modules a stand-alone plugin file imports from
+beside it, and the classes it inherits from (a built-in method's files), so an
 edit to any of them changes its cells' identity."""
 import importlib.util
 import sys
@@ -72,3 +73,31 @@ def test_a_plugin_subclass_counts_the_built_in_method_it_inherits(tmp_path, monk
     files = identity.method_files(module.MyNoisy)
     noisy = Path(sys.modules["dbench.methods.noisy"].__file__).resolve()
     assert noisy in files and (tmp_path / "sub.py").resolve() in files
+
+
+def test_a_plugin_package_counts_its_weights_and_the_modules_of_its_package_it_imports(
+        tmp_path, monkeypatch):
+    # a package's weights in a format of its own and a module of the package outside the
+    # method's folder decide its numbers: a change to either changed nothing in the identity,
+    # so a sweep reused the cells computed with the old ones
+    pkg = tmp_path / "mylab2" / "methods"
+    pkg.mkdir(parents=True)
+    (tmp_path / "mylab2" / "__init__.py").write_text("")
+    (tmp_path / "mylab2" / "common.py").write_text("SCALE = 0.5\n")
+    (pkg / "__init__.py").write_text("")
+    (pkg / "weights.npy").write_bytes(b"\x93NUMPY one")
+    (pkg / "__pycache__").mkdir()
+    (pkg / "__pycache__" / "den.cpython-312.pyc").write_bytes(b"compiled")
+    (pkg / ".DS_Store").write_bytes(b"finder")
+    (pkg / "den.py").write_text(METHOD.format(imports="from ..common import SCALE",
+                                              scale="SCALE"))
+    module = _load(monkeypatch, pkg / "den.py", "mylab2.methods.den")
+    files = {p.name for p in identity.method_files(module.Den)}
+    assert files == {"__init__.py", "den.py", "weights.npy", "common.py"}
+    versions = {identity.method_version(module.Den)}
+    for path, text in ((pkg / "weights.npy", b"\x93NUMPY two"),
+                       (tmp_path / "mylab2" / "common.py", b"SCALE = 0.9\n")):
+        path.write_bytes(text)
+        identity.method_version.cache_clear()
+        versions.add(identity.method_version(module.Den))
+    assert len(versions) == 3
