@@ -14,6 +14,7 @@ Example:
 from __future__ import annotations
 
 import math
+import re
 from typing import Any, Callable
 
 import numpy as np
@@ -22,6 +23,30 @@ from .data import BUFFER_NAMES
 from .errors import DbenchInputError
 
 _REGISTRY: dict[str, type["Denoiser"]] = {}
+
+#: The data a method can take (README.md, "Add your own denoiser": ``kinds``).
+KINDS = ("steady", "sequence", "transient")
+#: The suffix of a steady method wrapped by ProDen's gate (:mod:`dbench.methods.gate`).
+GATE_SUFFIX = "+gate"
+#: Old names kept working: name -> the name it now has (:func:`dbench.registry.canonical`).
+ALIASES = {"statistical-gate": "statistical+gate"}
+#: A name a user can type: method lists split at commas (``--method a,b``), a label adds
+#: ``[key=value]`` to the name (``jbf[radius=3]``) and ``all`` stands for every method.
+_NAME = re.compile(r"[^\W_][\w.+-]*")
+
+
+def check_method_name(name: Any) -> None:
+    """Refuse (ValueError) a method name that could not be asked for or would stand for another
+    method: anything but letters, digits and ``_ . + -`` (a comma, a space, a bracket, ``=``),
+    ``all``, an old name of a built-in method, or ``NAME+gate`` (the gated ``NAME``)."""
+    if not isinstance(name, str) or not _NAME.fullmatch(name):
+        raise ValueError(f"method name {name!r}: expected letters, digits and _ . + - "
+                         f"(starting with a letter or a digit)")
+    if name == "all" or name in ALIASES or name.endswith(GATE_SUFFIX):
+        what = ("'all' stands for every method" if name == "all" else
+                f"{name!r} is the old name of {ALIASES[name]}" if name in ALIASES else
+                f"NAME{GATE_SUFFIX} is the method NAME wrapped by ProDen's gate")
+        raise ValueError(f"method name {name!r} is taken: {what}")
 
 
 def check_like_default(name: str, value: Any, default: Any) -> None:
@@ -164,11 +189,17 @@ def register(name: str) -> Callable[[type[Denoiser]], type[Denoiser]]:
     """Class decorator adding a Denoiser subclass to the registry under ``name``."""
 
     def wrap(cls: type[Denoiser]) -> type[Denoiser]:
+        check_method_name(name)
         if name in _REGISTRY and _REGISTRY[name] is not cls:
             raise ValueError(f"method {name!r} registered twice")
         bad = (set(cls.needs) | set(cls.optional_needs)) - set(BUFFER_NAMES)
         if bad:
             raise ValueError(f"method {name!r} needs unknown buffers {sorted(bad)}")
+        # kinds = "steady" would read as its letters, and a misspelt kind would skip the
+        # method on every scene without a word about the typo
+        if isinstance(cls.kinds, str) or not cls.kinds or not set(cls.kinds) <= set(KINDS):
+            raise ValueError(f"method {name!r}: kinds {cls.kinds!r}; expected a non-empty set "
+                             f"of {', '.join(KINDS)}")
         cls.name = name
         _REGISTRY[name] = cls
         return cls

@@ -21,7 +21,7 @@ from typing import Any
 
 from . import methods  # noqa: F401 - registers the built-in methods
 from . import plugins
-from .denoiser import _REGISTRY, Denoiser, register
+from .denoiser import _REGISTRY, ALIASES, Denoiser, register
 from .errors import UnknownNameError
 from .methods.gate import SUFFIX, gated_class
 
@@ -30,10 +30,6 @@ def _load_plugins() -> None:
     """Plugins (entry points, ``DBENCH_PLUGINS``), once per process, after the built-in
     methods (imported with this module)."""
     plugins.ensure_loaded()
-
-
-#: Old names kept working: name -> the name it now has.
-ALIASES = {"statistical-gate": "statistical+gate"}
 
 
 def available() -> list[str]:

@@ -63,3 +63,30 @@ def test_applies_to_explains_skips():
 def test_a_method_name_that_is_no_string_is_an_unknown_name(name):
     with pytest.raises(UnknownNameError, match="method: expected a name"):
         registry.get(name)
+
+
+@pytest.mark.parametrize("name, said", [
+    ("x,y", "expected letters"), ("q[k=1]", "expected letters"), ("sp ace", "expected letters"),
+    ("", "expected letters"), ("../up", "expected letters"), (5, "expected letters"),
+    ("all", "stands for every method"), ("jbf+gate", "wrapped by ProDen's gate"),
+    ("statistical-gate", "old name of statistical\\+gate")])
+def test_a_name_that_could_not_be_asked_for_or_names_another_method_is_refused(name, said):
+    # a comma list could not select 'x,y', 'q[k=1]' took the label of q with k=1 (one row,
+    # one file for two methods), 'jbf+gate' stood in for the gated jbf: each was registered
+    from dbench.denoiser import Denoiser, register
+
+    cls = type("Odd", (Denoiser,), {"denoise": lambda self, data: data.color})
+    with pytest.raises(ValueError, match=said):
+        register(name)(cls)
+    assert name not in registry.available()
+
+
+@pytest.mark.parametrize("kinds", [{"stedy"}, "steady", set()])
+def test_kinds_outside_steady_sequence_transient_are_refused(kinds):
+    # a misspelt kind was registered and then skipped on every scene
+    from dbench.denoiser import Denoiser, register
+
+    cls = type("Kinds", (Denoiser,), {"kinds": kinds, "denoise": lambda self, data: data.color})
+    with pytest.raises(ValueError, match="expected a non-empty set of steady, sequence"):
+        register("kinds-test")(cls)
+    assert "kinds-test" not in registry.available()

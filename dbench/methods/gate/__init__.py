@@ -58,7 +58,7 @@ from typing import Any
 
 import numpy as np
 
-from ...denoiser import Denoiser
+from ...denoiser import GATE_SUFFIX, Denoiser
 from ...errors import DbenchInputError
 from ..checks import check_choice
 from ..kernels.emitters import keep_emitters
@@ -68,7 +68,7 @@ from ..kernels.variance_floor import linear_variance
 from ..kernels.handback import HANDBACKS
 from ..kernels.variance_floor import POOL_RADIUS
 
-SUFFIX = "+gate"
+SUFFIX = GATE_SUFFIX
 GATE_DEFAULTS: dict[str, Any] = dict(gate_alpha=1.0, gate_k=GATE_K, gate_t0=GATE_T0,
                                      gate_backend="fast", gate_emitters=True,
                                      gate_pool=POOL_RADIUS, gate_handback="wiener")
