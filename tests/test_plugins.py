@@ -119,6 +119,55 @@ def test_broken_file_plugin_exits_2_and_is_listed(isolated, tmp_path, capsys):
     assert "noisy" in registry.available() and registry.get("noisy") is not None
 
 
+BAD_METHODS = '''
+import numpy as np
+from dbench.registry import Denoiser, register
+
+
+class Base(Denoiser):
+    kinds = {"steady"}
+    needs = {"color"}
+
+
+@register("bench-none")
+class ReturnsNone(Base):
+    def denoise(self, data):
+        return None
+
+
+@register("bench-raises")
+class Raises(Base):
+    def denoise(self, data):
+        raise RuntimeError("no model\\nloaded")
+
+
+@register("bench-writes")
+class Writes(Base):
+    def denoise(self, data):
+        data.color.flags.writeable = True  # its copy owns its memory: NumPy allows this
+        data.color[...] = 0
+        return np.zeros(data.color.shape, np.float32)
+'''
+
+
+@pytest.mark.parametrize("name, said", [
+    ("bench-none", "bench-none output: expected real numbers of shape (8, 8, 3)"),
+    ("bench-raises", "bench-raises failed: RuntimeError: no model loaded"),
+    ("bench-writes", "bench-writes: modified its input buffer color")])
+def test_bench_of_a_plugin_that_breaks_the_contract_fails_in_one_line(isolated, tmp_path, capsys,
+                                                                      name, said):
+    # dbench bench timed a method returning None (and published its Mpix/s), timed OIDN on the
+    # frame a method had zeroed, and called a method's exception an internal error (exit 1)
+    path = tmp_path / "bad_methods.py"
+    path.write_text(BAD_METHODS)
+    out = tmp_path / "bench.jsonl"
+    rc = cli.main(["bench", name, "--plugin", str(path), "--res", "8", "--repeats", "1",
+                   "--out", str(out)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 4 and len(err) == 1 and err[0].startswith(f"dbench: bench {said}"), err
+    assert not out.exists()
+
+
 def test_entry_points_found_in_process(isolated, tmp_path):
     site = _fake_install(tmp_path / "site", EP_TEXT)
     sys.path.insert(0, str(site))

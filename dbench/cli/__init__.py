@@ -9,7 +9,8 @@ no ``--out`` behind and an earlier run's folder there untouched) or a standard o
 cannot be written (``> /dev/full``: the files are written, one line on stderr);
 3 renderer unavailable; 4 some methods failed: ``run`` names each on stderr and in the
 report's "Failed" section and writes every other method's results, ``sweep`` names its error
-cells (of this sweep's grid only) on stderr and keeps the rest, ``stress`` has failed cases;
+cells (of this sweep's grid only) on stderr and keeps the rest, ``stress`` has failed cases,
+``bench METHOD`` names the method's failure in one line and writes nothing;
 130 interrupted (Ctrl-C or SIGTERM, at any point of a command, also where a library turned the
 interrupt into another error or swallowed it: ``run`` removes its temporary folder, so no
 partial ``--out`` is left); 1 an internal error (one line; ``--debug`` shows the traceback).

@@ -8,6 +8,7 @@ one line naming it and the benchmark (exit 2, README.md "Usage"), never ignored,
 from __future__ import annotations
 
 import argparse
+import sys
 
 from ..errors import DbenchInputError
 from .args import parse_params
@@ -124,8 +125,13 @@ def cmd_bench(args: argparse.Namespace) -> int:
             result = bench_method_device(args.what, args.height, args.width, args.repeats, spp,
                                          params, device)
         else:
-            result = speed.bench_method(args.what, height=args.height, width=args.width,
-                                        repeats=args.repeats, spp=spp, params=params)
+            from ..run.inputs import MethodError
+            try:
+                result = speed.bench_method(args.what, height=args.height, width=args.width,
+                                            repeats=args.repeats, spp=spp, params=params)
+            except MethodError as exc:  # the method failed: no time, nothing appended to --out
+                print(f"dbench: bench {exc}", file=sys.stderr)
+                return 4
     return _report(speed.format_result(result), result, args.out)
 
 

@@ -17,6 +17,7 @@ import inspect
 import json
 import statistics
 import time
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, Callable
 
@@ -135,6 +136,38 @@ METHOD_SPP = 16
 GATE_SHARE_ROUNDS = 15
 
 
+@contextmanager
+def method_failure(name: str):
+    """A method's exception (or ``sys.exit``) inside the block as a
+    :class:`~dbench.run.inputs.MethodError` naming it, in one line (``dbench bench`` exits 4:
+    a method failed, README.md "Add your own denoiser"); dbench's own refusals of bad input
+    (DbenchInputError) pass unchanged."""
+    from ..errors import DbenchInputError
+    from ..run.inputs import MethodError, input_guard
+    from ..run.scene_run import method_failure as failure_text
+
+    try:
+        with input_guard(name):
+            yield
+    except (DbenchInputError, MethodError):
+        raise
+    except (Exception, SystemExit) as exc:  # noqa: BLE001 - the method's failure, named
+        raise MethodError(f"{name} failed: {' '.join(failure_text(exc).split())}") from exc
+
+
+def check_output(name: str, output: Any, shape: tuple) -> None:
+    """Refuse (MethodError) an output that is not an array of real numbers of ``shape`` (the
+    input colour's), as ``dbench run`` refuses it (README.md "Add your own denoiser")."""
+    from ..run.inputs import MethodError
+
+    out = np.asarray(output) if output is not None else None
+    if out is None or out.shape != tuple(shape) or out.dtype.kind not in "biuf":
+        got = ("None" if out is None else f"shape {out.shape}" if out.shape != tuple(shape)
+               else f"dtype {out.dtype}")
+        raise MethodError(f"{name} output: expected real numbers of shape {tuple(shape)} (the "
+                          f"input colour's), got {got}")
+
+
 def bench_method(name: str, height: int = 720, width: int = 1280, repeats: int = 3,
                  spp: int = METHOD_SPP, params: dict[str, Any] | None = None
                  ) -> dict[str, Any]:
@@ -143,11 +176,16 @@ def bench_method(name: str, height: int = 720, width: int = 1280, repeats: int =
     them from it), built with ``params``; OIDN timed in the same run. On a GPU:
     :func:`dbench.speed.gpu.bench_method_device`."""
     from .. import registry
+    from ..run.inputs import check_unchanged, private_copy
     from ..synthetic import base_frame
 
     # the frame says its spp as a rendered frame does (meta), for methods that follow it
     frame = base_frame(height, width, spp=spp).with_buffers(meta={"spp": spp})
     method = registry.get(name, **(params or {}))
+    if not {"steady", "sequence"} & set(method.kinds):
+        from ..errors import DbenchInputError
+        raise DbenchInputError(f"bench {name}: a method is timed on a steady frame (or a "
+                               f"sequence's frames); {name} works on {sorted(method.kinds)}")
     if "steady" not in method.kinds and "sequence" in method.kinds:
         # A temporal method is timed per frame in steady state: zero motion (static camera) and
         # an unchanged-light gradient frame, so every call reprojects history, after the
@@ -156,9 +194,9 @@ def bench_method(name: str, height: int = 720, width: int = 1280, repeats: int =
 
         frame = frame.with_buffers(motion=np.zeros((height, width, 2), np.float32),
                                    gradient=np.array(frame.color, copy=True))
-        method.reset()
-        for _ in range(WARMUP):
-            fpenv.denoise(method, frame)
+    # the method's own read-only copy, as the harness gives it (dbench/run/inputs.py): a
+    # method writing to its input would otherwise time later calls, and OIDN, on other data
+    mine = private_copy(frame)
     steady = "steady" in method.kinds
 
     def run(m):
@@ -167,17 +205,24 @@ def bench_method(name: str, height: int = 720, width: int = 1280, repeats: int =
         # first); temporal methods keep their history
         if steady:
             m.reset()
-        return fpenv.denoise(m, frame)
+        return fpenv.denoise(m, mine)
 
-    wrapped = getattr(type(method), "wrapped", None)
-    if wrapped is not None:  # NAME+gate: the method alone, interleaved with it, for the share
-        inner = method.inner
-        rounds = interleaved_times([lambda: run(method), lambda: run(inner)],
-                                   max(repeats, GATE_SHARE_ROUNDS))
-        t_method, t_inner = (statistics.median(t) for t in rounds)
-        share = paired_share(*rounds)
-    else:
-        t_method = median_time(lambda: run(method), repeats)
+    with method_failure(name):
+        if not steady:
+            method.reset()
+            for _ in range(WARMUP):
+                fpenv.denoise(method, mine)
+        check_output(name, run(method), frame.color.shape)  # a time of no output is no time
+        wrapped = getattr(type(method), "wrapped", None)
+        if wrapped is not None:  # NAME+gate: the method alone, interleaved with it: its share
+            inner = method.inner
+            rounds = interleaved_times([lambda: run(method), lambda: run(inner)],
+                                       max(repeats, GATE_SHARE_ROUNDS))
+            t_method, t_inner = (statistics.median(t) for t in rounds)
+            share = paired_share(*rounds)
+        else:
+            t_method = median_time(lambda: run(method), repeats)
+    check_unchanged(name, mine, frame)
     oidn = registry.get("oidn")
     t_oidn = median_time(lambda: fpenv.denoise(oidn, frame), repeats)
     result: dict[str, Any] = {"benchmark": "method", "method": name, "height": height,
