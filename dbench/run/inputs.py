@@ -29,6 +29,20 @@ class MethodError(Exception):
     """A method failed or broke the method contract; the message names the method."""
 
 
+def method_failure(exc: BaseException) -> str:
+    """One line for a method's failure (``dbench run``'s stderr and report, a sweep's error
+    cell, ``dbench bench``): the harness's own message for a broken contract, else the
+    exception's type and message; a message over several lines is joined into one (README.md
+    "Usage": a refusal or a failure is one line)."""
+    if isinstance(exc, MethodError):
+        text = str(exc)
+    elif isinstance(exc, SystemExit):
+        text = f"called sys.exit({exc.code!r}) inside the method"
+    else:
+        text = f"{type(exc).__name__}: {exc}"
+    return " ".join(text.split())
+
+
 def _arrays(obj: Any) -> dict[str, np.ndarray]:
     return {k: v for k, v in vars(obj).items() if isinstance(v, np.ndarray) and k not in _SKIP}
 
@@ -153,5 +167,5 @@ def check_reference_lit(data: Any, scene_name: str) -> None:
             f"error; give a light some radiance or point the camera at what it lights")
 
 
-__all__ = ["MethodError", "load_seeds", "check_reference_lit", "check_unchanged", "first_changed", "input_guard",
+__all__ = ["MethodError", "method_failure", "load_seeds", "check_reference_lit", "check_unchanged", "first_changed", "input_guard",
            "is_write_to_input", "private_copy"]

@@ -15,6 +15,8 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from .inputs import method_failure  # noqa: F401 - the module's interface, as before
+
 
 @dataclass
 class RunRequest:
@@ -252,17 +254,6 @@ def frames_text(ks: list[int]) -> str:
     if ks == list(range(ks[0], ks[-1] + 1)):
         return f"frames {ks[0]}-{ks[-1]}"
     return "frames " + ", ".join(map(str, ks))
-
-
-def method_failure(exc: BaseException) -> str:
-    """One line for a method's failure: the harness's own message for a broken contract
-    (run/inputs.py), else the exception's type and message."""
-    from .inputs import MethodError
-    if isinstance(exc, MethodError):
-        return str(exc)
-    if isinstance(exc, SystemExit):
-        return f"called sys.exit({exc.code!r}) inside the method"
-    return f"{type(exc).__name__}: {exc}"
 
 
 def write_run_page(out: Path, scene, frame, outputs, table, settings, info, skipped,

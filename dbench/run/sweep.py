@@ -33,7 +33,7 @@ from . import identity, sweep_history, sweep_lock, sweep_pool
 from ..report.cells import (NUMERIC_KEYS, cell_problem, load_cells,  # noqa: F401 - the module's
                             load_cells_checked, read_cell)  # interface, as before
 from .sweep_history import SETTINGS, stored_config  # noqa: F401 - the module's interface
-from .inputs import load_seeds  # noqa: F401 - also the module's interface, as before
+from .inputs import load_seeds, method_failure  # noqa: F401 - load_seeds: the interface too
 from .sweep_names import check_scenes, folder_ref_spp, kind_options, scene_labels
 from .sweep_pool import worker_start as _worker_start  # noqa: F401 - the pool initializer
 from ..device import device_name
@@ -339,7 +339,7 @@ def run_group(config: SweepConfig, out: str, scene_name: str, spp: int,
                                              else "temporal")
         except (Exception, SystemExit) as exc:  # noqa: BLE001 - one failing method (or a
             # plugin's sys.exit) must not stop the sweep nor lend it its exit code
-            cell = {**base, "status": "error", "error": f"{type(exc).__name__}: {exc}",
+            cell = {**base, "status": "error", "error": method_failure(exc),
                     "traceback": traceback.format_exc(limit=5)}
         io.write_json(cell_path(out_path, scene_label, spp, labels[m]), cell)
         written.append(m)

@@ -143,8 +143,7 @@ def method_failure(name: str):
     a method failed, README.md "Add your own denoiser"); dbench's own refusals of bad input
     (DbenchInputError) pass unchanged."""
     from ..errors import DbenchInputError
-    from ..run.inputs import MethodError, input_guard
-    from ..run.scene_run import method_failure as failure_text
+    from ..run.inputs import MethodError, input_guard, method_failure as failure_text
 
     try:
         with input_guard(name):
@@ -152,7 +151,7 @@ def method_failure(name: str):
     except (DbenchInputError, MethodError):
         raise
     except (Exception, SystemExit) as exc:  # noqa: BLE001 - the method's failure, named
-        raise MethodError(f"{name} failed: {' '.join(failure_text(exc).split())}") from exc
+        raise MethodError(f"{name} failed: {failure_text(exc)}") from exc
 
 
 def check_output(name: str, output: Any, shape: tuple) -> None:

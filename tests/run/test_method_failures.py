@@ -116,3 +116,14 @@ def test_stress_contract_cases(case):
     from dbench.stress.contract import run_contract_case
     outcome = run_contract_case(case)
     assert outcome.status == "pass", outcome.why
+
+
+def test_a_failure_is_one_line_in_run_sweep_and_bench():
+    # a message over two lines was two lines on dbench run's stderr and in the error cells
+    # dbench sweep names (where sys.exit(3) was also 'SystemExit: 3', not run's words)
+    from dbench.run import scene_run, sweep
+
+    for module in (scene_run, sweep):
+        assert module.method_failure(RuntimeError("no model\n  loaded")) == \
+            "RuntimeError: no model loaded"
+        assert module.method_failure(SystemExit(3)) == "called sys.exit(3) inside the method"
