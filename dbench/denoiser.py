@@ -68,6 +68,23 @@ def check_like_default(name: str, value: Any, default: Any) -> None:
             raise DbenchInputError(f"{name}: expected a number, got {value!r}")
 
 
+def is_identity_value(value: Any) -> bool:
+    """Whether ``value`` reads back the same from a sweep cell's identity (JSON): None, a bool,
+    an int, a float other than NaN (NaN equals nothing, so a method run with its defaults would
+    be labelled as if it were not), a string, or a list, tuple or str-keyed dict of them. A
+    function or an object is written as its repr, which holds its address and so changes in
+    every process: a sweep would call its own cells changed."""
+    if value is None or isinstance(value, (bool, int, str)):
+        return True
+    if isinstance(value, float):
+        return not math.isnan(value)
+    if isinstance(value, (list, tuple)):
+        return all(is_identity_value(v) for v in value)
+    if isinstance(value, dict):
+        return all(isinstance(k, str) and is_identity_value(v) for k, v in value.items())
+    return False
+
+
 class Denoiser:
     """Base class of every method.
 
@@ -200,6 +217,11 @@ def register(name: str) -> Callable[[type[Denoiser]], type[Denoiser]]:
         if isinstance(cls.kinds, str) or not cls.kinds or not set(cls.kinds) <= set(KINDS):
             raise ValueError(f"method {name!r}: kinds {cls.kinds!r}; expected a non-empty set "
                              f"of {', '.join(KINDS)}")
+        for key, value in dict(cls.defaults).items():  # part of a sweep cell's identity
+            if not isinstance(key, str) or not is_identity_value(value):
+                raise ValueError(f"method {name!r}: default {key!r}={value!r}; expected None, "
+                                 f"True/False, a Python number (not NaN), a string, or a list or "
+                                 f"dict of them (the defaults are part of a result's identity)")
         cls.name = name
         _REGISTRY[name] = cls
         return cls

@@ -90,3 +90,18 @@ def test_kinds_outside_steady_sequence_transient_are_refused(kinds):
     with pytest.raises(ValueError, match="expected a non-empty set of steady, sequence"):
         register("kinds-test")(cls)
     assert "kinds-test" not in registry.available()
+
+
+@pytest.mark.parametrize("default", [lambda x: x, object(), float("nan"), {"a", "b"},
+                                     __import__("numpy").float32(0.5), [1, object()]])
+def test_a_default_that_is_no_identity_value_is_refused(default):
+    # a function's or an object's repr holds its address: a resumed sweep called every cell
+    # of the method changed ('differs in params.k'); a NaN default labelled the method run
+    # with its defaults 'name[k=NaN]'
+    from dbench.denoiser import Denoiser, register
+
+    cls = type("Defaults", (Denoiser,), {"defaults": {"k": default},
+                                         "denoise": lambda self, data: data.color})
+    with pytest.raises(ValueError, match="default 'k'=.*expected None, True/False, a Python"):
+        register("defaults-test")(cls)
+    assert "defaults-test" not in registry.available()
