@@ -184,7 +184,9 @@ def _plugin_package_files(folder: Path) -> list[Path]:
 
 def _sibling_imports(source: Path) -> list[Path]:
     """The modules in ``source``'s folder that it imports (``import helper``, ``from helper
-    import x``), and those they import in turn: a stand-alone plugin's helpers."""
+    import x``), and those they import in turn: a stand-alone plugin's helpers. A package
+    beside it (``helpers/__init__.py``) counts as a plugin package does, whole
+    (:func:`_plugin_package_files`)."""
     found, todo = [], [source]
     while todo:
         tree = ast.parse(todo.pop().read_text(encoding="utf-8"))
@@ -194,7 +196,10 @@ def _sibling_imports(source: Path) -> list[Path]:
                      and not node.level else [])
             for name in names:
                 f = source.parent / f"{name.split('.')[0]}.py"
-                if f.is_file() and f.resolve() != source and f.resolve() not in found:
+                package = source.parent / name.split(".")[0]
+                if not f.is_file() and (package / "__init__.py").is_file():
+                    found += [p for p in _plugin_package_files(package) if p not in found]
+                elif f.is_file() and f.resolve() != source and f.resolve() not in found:
                     found.append(f.resolve())
                     todo.append(f.resolve())
     return found

@@ -101,3 +101,19 @@ def test_a_plugin_package_counts_its_weights_and_the_modules_of_its_package_it_i
         identity.method_version.cache_clear()
         versions.add(identity.method_version(module.Den))
     assert len(versions) == 3
+
+
+def test_a_stand_alone_plugin_file_counts_a_package_beside_it_that_it_imports(tmp_path,
+                                                                            monkeypatch):
+    # 'from sibhelpers import SCALE' with sibhelpers/ a folder: only a sibhelpers.py was looked
+    # for, so an edit to the package left the plugin's cells in place
+    (tmp_path / "sibhelpers").mkdir()
+    (tmp_path / "sibhelpers" / "__init__.py").write_text("SCALE = 0.5\n")
+    (tmp_path / "sibmeth.py").write_text(METHOD.format(imports="from sibhelpers import SCALE",
+                                                       scale="SCALE"))
+    module = _load(monkeypatch, tmp_path / "sibmeth.py", "sibmeth_plugin")
+    assert [p.name for p in identity.method_files(module.Den)] == ["__init__.py", "sibmeth.py"]
+    before = identity.method_version(module.Den)
+    (tmp_path / "sibhelpers" / "__init__.py").write_text("SCALE = 0.9\n")
+    identity.method_version.cache_clear()
+    assert identity.method_version(module.Den) != before
