@@ -41,10 +41,14 @@ def code_text(path: Path) -> bytes:
     """What of a file decides the numbers: a Python file's syntax tree without its docstrings
     (``ast.dump``: comments, formatting and line numbers are not in it), any other file's
     bytes (ONNX weights, JSON metadata). So documentation and formatting edits keep a method's
-    identity, and any change to what runs changes it."""
+    identity, and any change to what runs changes it. A Python file is decoded as Python
+    decodes it (from bytes: a ``# -*- coding: latin-1 -*-`` line, a byte-order mark); one that
+    does not parse (a template in a plugin's folder, never imported) counts by its bytes."""
     if path.suffix != ".py":
         return path.read_bytes()
-    tree = ast.parse(path.read_text(encoding="utf-8"), str(path))
+    tree = _parsed(path)
+    if tree is None:
+        return path.read_bytes()
     for node in ast.walk(tree):
         body = getattr(node, "body", None)
         if (isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef))
@@ -52,6 +56,15 @@ def code_text(path: Path) -> bytes:
                 and isinstance(body[0].value, ast.Constant) and isinstance(body[0].value.value, str)):
             node.body = body[1:] or [ast.Pass()]
     return ast.dump(tree).encode()
+
+
+def _parsed(path: Path) -> ast.Module | None:
+    """The syntax tree of the Python file ``path`` read as bytes (so its coding declaration or
+    byte-order mark is honoured, as ``import`` honours it), or None when it does not parse."""
+    try:
+        return ast.parse(path.read_bytes(), str(path))
+    except (SyntaxError, ValueError):
+        return None
 
 
 def _hash_files(paths: list[Path]) -> str:
@@ -84,7 +97,7 @@ def _imported_files(path: Path, root: Path) -> set[Path]:
     rel = path.relative_to(root.parent).with_suffix("").parts
     package = list(rel[:-1])
     names: set[str] = set()
-    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"), str(path))):
+    for node in ast.walk(_parsed(path) or ast.Module(body=[], type_ignores=[])):
         if isinstance(node, ast.Import):
             names.update(a.name for a in node.names)
         elif isinstance(node, ast.ImportFrom):
@@ -189,7 +202,7 @@ def _sibling_imports(source: Path) -> list[Path]:
     (:func:`_plugin_package_files`)."""
     found, todo = [], [source]
     while todo:
-        tree = ast.parse(todo.pop().read_text(encoding="utf-8"))
+        tree = _parsed(todo.pop()) or ast.Module(body=[], type_ignores=[])
         for node in ast.walk(tree):
             names = ([a.name for a in node.names] if isinstance(node, ast.Import) else
                      [node.module] if isinstance(node, ast.ImportFrom) and node.module

@@ -117,3 +117,25 @@ def test_a_stand_alone_plugin_file_counts_a_package_beside_it_that_it_imports(tm
     (tmp_path / "sibhelpers" / "__init__.py").write_text("SCALE = 0.9\n")
     identity.method_version.cache_clear()
     assert identity.method_version(module.Den) != before
+
+
+def test_a_plugin_file_in_latin_1_or_with_a_byte_order_mark_is_versioned(tmp_path, monkeypatch):
+    # Python imports both, but the identity read them as UTF-8 text: dbench sweep ended in an
+    # internal error (UnicodeDecodeError; SyntaxError on U+FEFF)
+    (tmp_path / "latinmeth.py").write_bytes(
+        b"# -*- coding: latin-1 -*-\n# caf\xe9\n" + METHOD.format(imports="", scale=2).encode())
+    (tmp_path / "bommeth.py").write_bytes(
+        b"\xef\xbb\xbf" + METHOD.format(imports="", scale=2).encode())
+    for stem in ("latinmeth", "bommeth"):
+        module = _load(monkeypatch, tmp_path / f"{stem}.py", f"{stem}_plugin")
+        assert identity.method_version(module.Den)
+    # a package's file that is no Python (a template, never imported) counts by its bytes
+    pkg = tmp_path / "tplpkg" / "methods"
+    pkg.mkdir(parents=True)
+    (tmp_path / "tplpkg" / "__init__.py").write_text("")
+    (pkg / "__init__.py").write_text("")
+    (pkg / "template.py").write_text("{{ not python }}\n")
+    (pkg / "den.py").write_text(METHOD.format(imports="", scale=2))
+    module = _load(monkeypatch, pkg / "den.py", "tplpkg.methods.den")
+    assert "template.py" in {p.name for p in identity.method_files(module.Den)}
+    assert identity.method_version(module.Den)
