@@ -217,7 +217,10 @@ def register(name: str) -> Callable[[type[Denoiser]], type[Denoiser]]:
         if isinstance(cls.kinds, str) or not cls.kinds or not set(cls.kinds) <= set(KINDS):
             raise ValueError(f"method {name!r}: kinds {cls.kinds!r}; expected a non-empty set "
                              f"of {', '.join(KINDS)}")
-        for key, value in dict(cls.defaults).items():  # part of a sweep cell's identity
+        if not isinstance(cls.defaults, dict):  # read as a dict when the method is built
+            raise ValueError(f"method {name!r}: defaults {cls.defaults!r}; expected a dict "
+                             f"of parameter names and their defaults")
+        for key, value in cls.defaults.items():  # part of a sweep cell's identity
             if not isinstance(key, str) or not is_identity_value(value):
                 raise ValueError(f"method {name!r}: default {key!r}={value!r}; expected None, "
                                  f"True/False, a Python number (not NaN), a string, or a list or "

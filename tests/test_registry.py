@@ -105,3 +105,15 @@ def test_a_default_that_is_no_identity_value_is_refused(default):
     with pytest.raises(ValueError, match="default 'k'=.*expected None, True/False, a Python"):
         register("defaults-test")(cls)
     assert "defaults-test" not in registry.available()
+
+
+@pytest.mark.parametrize("defaults", [[("k", 1)], None])
+def test_defaults_that_are_no_dict_are_refused(defaults):
+    # a list of pairs was registered, then building the method was an internal error
+    from dbench.denoiser import Denoiser, register
+
+    cls = type("NoDict", (Denoiser,), {"defaults": defaults,
+                                       "denoise": lambda self, data: data.color})
+    with pytest.raises(ValueError, match="expected a dict of parameter names"):
+        register("no-dict-test")(cls)
+    assert "no-dict-test" not in registry.available()
