@@ -88,6 +88,12 @@ _REQUESTED: list[str] = []
 _STATE = {"discovered": False, "loading": False}
 
 
+def one_line(exc: BaseException) -> str:
+    """``ExceptionType: message`` on one line (a plugin's failure, as ``dbench list`` and the
+    refusals show it)."""
+    return _one_line(exc)
+
+
 def _one_line(exc: BaseException) -> str:
     if isinstance(exc, SystemExit):
         from .datasets.scenes.build import exit_message

@@ -17,12 +17,13 @@ Example:
 """
 from __future__ import annotations
 
+import inspect
 from typing import Any
 
 from . import methods  # noqa: F401 - registers the built-in methods
 from . import plugins
 from .denoiser import _REGISTRY, ALIASES, Denoiser, register
-from .errors import UnknownNameError
+from .errors import DbenchInputError, UnknownNameError
 from .methods.gate import SUFFIX, gated_class
 
 
@@ -72,8 +73,26 @@ def method_class(name: str) -> type[Denoiser]:
 
 
 def get(name: str, **params: Any) -> Denoiser:
-    """Build the method ``name`` with ``params`` overriding its defaults."""
-    return method_class(name)(**params)
+    """Build the method ``name`` with ``params`` overriding its defaults.
+
+    A plugin's method that raises while it is built (its weights file is missing, its library
+    is not installed) is a :class:`~dbench.plugins.PluginError` naming it and the reason, as a
+    plugin that fails to load is (exit 2 before anything renders, README.md "Add your own
+    denoiser"), not an internal error of dbench; dbench's own methods' errors pass unchanged."""
+    cls = method_class(name)
+    try:
+        return cls(**params)
+    except DbenchInputError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - named below, when it is a plugin's own code
+        if cls.__module__.split(".")[0] == "dbench":
+            raise
+        try:  # where the user wrote it: a --plugin file's module name is dbench's own
+            where = inspect.getfile(cls)
+        except (TypeError, OSError):
+            where = cls.__module__
+        raise plugins.PluginError(f"method {cls.name} ({where}) could not be built: "
+                                  f"{plugins.one_line(exc)}") from exc
 
 
 __all__ = ["ALIASES", "Denoiser", "register", "available", "canonical", "method_class", "get"]

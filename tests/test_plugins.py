@@ -168,6 +168,26 @@ def test_bench_of_a_plugin_that_breaks_the_contract_fails_in_one_line(isolated, 
     assert not out.exists()
 
 
+def test_a_plugin_method_that_cannot_be_built_is_refused_in_one_line(isolated, tmp_path,
+                                                                       capsys):
+    # its constructor's FileNotFoundError ended run, sweep, bench and stress as an "internal
+    # error" of dbench (exit 1)
+    path = tmp_path / "needs_weights.py"
+    path.write_text("from dbench.registry import Denoiser, register\n\n\n"
+                    "@register('needs-weights')\nclass NeedsWeights(Denoiser):\n"
+                    "    def __init__(self, **params):\n"
+                    "        super().__init__(**params)\n"
+                    "        raise FileNotFoundError('weights.pt not found')\n")
+    for argv in (["run", "--method", "needs-weights", "--scene", "cornell",
+                  "--out", str(tmp_path / "run")],
+                 ["bench", "needs-weights", "--res", "8", "--repeats", "1"]):
+        assert cli.main([*argv, "--plugin", str(path)]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert err == [f"dbench: method needs-weights ({path}) could not be built: "
+                       "FileNotFoundError: weights.pt not found"], err
+    assert not (tmp_path / "run").exists()
+
+
 def test_entry_points_found_in_process(isolated, tmp_path):
     site = _fake_install(tmp_path / "site", EP_TEXT)
     sys.path.insert(0, str(site))
