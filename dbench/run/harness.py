@@ -77,9 +77,17 @@ class CellResult:
 def resolved_settings(method: Denoiser) -> dict[str, Any]:
     """The scalar entries of a method's ``last_settings`` after a call (numbers, strings,
     booleans, None, and short lists or tuples of them), as plain Python values; arrays and
-    nested objects are left out. {} for a method that records none."""
+    nested objects are left out. {} for a method that records none; a ``last_settings`` that is
+    no dict breaks the method contract (README.md "Add your own denoiser") and fails the
+    method with that said, not with an AttributeError of dbench's."""
+    from .inputs import MethodError
+
+    settings = getattr(method, "last_settings", None) or {}
+    if not isinstance(settings, dict):
+        raise MethodError(f"{method.name}: last_settings is a {type(settings).__name__}; "
+                          f"expected a dict of setting names and values")
     out: dict[str, Any] = {}
-    for key, value in (getattr(method, "last_settings", None) or {}).items():
+    for key, value in settings.items():
         if isinstance(value, np.generic):
             value = value.item()
         if isinstance(value, (list, tuple)) and len(value) <= 16 and all(

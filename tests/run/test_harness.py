@@ -65,6 +65,23 @@ def test_cell_records_the_resolved_settings_as_plain_scalars():
     assert harness.run_cell(_Sleepy(), f, metric_names=["rmse"], repeats=1).settings == {}
 
 
+def test_last_settings_that_are_no_dict_fail_the_method_saying_so():
+    # a list failed it with dbench's own "AttributeError: 'list' object has no attribute
+    # 'items'", which said nothing of what the method had done wrong
+    from dbench.run.inputs import MethodError
+
+    class Listing(_Sleepy):
+        name = "listing"
+
+        def denoise(self, data):
+            self.last_settings = ["radius", 3]
+            return np.array(data.color, np.float32)
+
+    f = Frame(color=np.zeros((8, 8, 3)), reference=np.zeros((8, 8, 3)))
+    with pytest.raises(MethodError, match="listing: last_settings is a list; expected a dict"):
+        harness.run_cell(Listing(), f, metric_names=["rmse"], repeats=1)
+
+
 @pytest.mark.mitsuba
 def test_noisy_rmse_converges_like_inverse_sqrt_spp(renderer, tmp_cache):
     from dbench import datasets
