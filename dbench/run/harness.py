@@ -21,7 +21,7 @@ from ..errors import DbenchInputError
 from ..registry import Denoiser
 from ..device import device_name, download, timed, upload
 from . import fpenv
-from .inputs import check_unchanged, input_guard, private_copy
+from .inputs import check_output, check_unchanged, input_guard, private_copy
 from .scoring import DEFAULT_METRICS, judge_frame
 from .sequence_run import WARMUP, after_warmup, run_sequence
 
@@ -230,10 +230,7 @@ def run_cell(method: Denoiser, frame, metric_names=DEFAULT_METRICS, repeats: int
         if on_device:
             output, down_s = timed(lambda out=output: download(out), where)
             result.transfer_s.append(up_s + down_s)
-        output = np.asarray(output)
-        if output.shape != f.color.shape:
-            raise DbenchInputError(f"{method.name} output: expected shape {f.color.shape}, "
-                                   f"got {output.shape}")
+        output = check_output(method.name, output, f.color.shape)
         result.times_s += times
         result.n_nonfinite += int((~np.isfinite(output)).sum())
         if result.output is None:

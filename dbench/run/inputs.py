@@ -43,6 +43,23 @@ def method_failure(exc: BaseException) -> str:
     return " ".join(text.split())
 
 
+def check_output(method_name: str, output: Any, shape: tuple) -> np.ndarray:
+    """``output`` as an array, refused (DbenchInputError naming the method) unless it holds
+    real numbers in ``shape``, the input colour's (README.md "Add your own denoiser": float32
+    of the shape of ``data.color``): None, a wrong shape, or complex, object or string values
+    (which would otherwise fail inside the metrics with an error of NumPy's)."""
+    from ..errors import DbenchInputError
+
+    out = np.asarray(output)
+    if output is None or out.shape != tuple(shape):
+        raise DbenchInputError(f"{method_name} output: expected shape {tuple(shape)}, got "
+                               f"{'None' if output is None else out.shape}")
+    if out.dtype.kind not in "biuf":
+        raise DbenchInputError(f"{method_name} output: expected real numbers (float32), got "
+                               f"dtype {out.dtype}")
+    return out
+
+
 def _arrays(obj: Any) -> dict[str, np.ndarray]:
     return {k: v for k, v in vars(obj).items() if isinstance(v, np.ndarray) and k not in _SKIP}
 
@@ -167,5 +184,5 @@ def check_reference_lit(data: Any, scene_name: str) -> None:
             f"error; give a light some radiance or point the camera at what it lights")
 
 
-__all__ = ["MethodError", "method_failure", "load_seeds", "check_reference_lit", "check_unchanged", "first_changed", "input_guard",
+__all__ = ["MethodError", "check_output", "method_failure", "load_seeds", "check_reference_lit", "check_unchanged", "first_changed", "input_guard",
            "is_write_to_input", "private_copy"]

@@ -41,7 +41,7 @@ from ..device import download, timed, upload
 from ..errors import DbenchInputError
 from ..metrics import video_quality
 from . import fpenv
-from .inputs import check_unchanged, input_guard, private_copy
+from .inputs import check_output, check_unchanged, input_guard, private_copy
 
 WARMUP = 8
 SEQUENCE_METRICS = ("rmse", "ssim")
@@ -192,10 +192,7 @@ def run_sequence(method, seq: Sequence, metric_names: Iterable[str] = SEQUENCE_M
                 t0 = time.perf_counter()
                 out = fpenv.denoise(m, given)
                 dt = time.perf_counter() - t0
-        out = np.asarray(out)
-        if out.shape != frame.color.shape:
-            raise DbenchInputError(f"{m.name} output: expected shape {frame.color.shape}, "
-                                   f"got {out.shape}")
+        out = check_output(m.name, out, frame.color.shape)
         row: dict[str, float] = {"frame": i, "time_s": dt}
         if frame.reference is not None:
             j = judge_frame(out, frame, names)

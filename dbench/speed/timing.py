@@ -155,16 +155,16 @@ def method_failure(name: str):
 
 
 def check_output(name: str, output: Any, shape: tuple) -> None:
-    """Refuse (MethodError) an output that is not an array of real numbers of ``shape`` (the
-    input colour's), as ``dbench run`` refuses it (README.md "Add your own denoiser")."""
-    from ..run.inputs import MethodError
+    """Refuse an output that is not an array of real numbers of ``shape`` (the input colour's)
+    as ``dbench run`` refuses it (:func:`dbench.run.inputs.check_output`), as the method's
+    failure (MethodError: ``dbench bench`` exits 4), not as bad input of the user's."""
+    from ..errors import DbenchInputError
+    from ..run.inputs import MethodError, check_output as checked
 
-    out = np.asarray(output) if output is not None else None
-    if out is None or out.shape != tuple(shape) or out.dtype.kind not in "biuf":
-        got = ("None" if out is None else f"shape {out.shape}" if out.shape != tuple(shape)
-               else f"dtype {out.dtype}")
-        raise MethodError(f"{name} output: expected real numbers of shape {tuple(shape)} (the "
-                          f"input colour's), got {got}")
+    try:
+        checked(name, output, shape)
+    except DbenchInputError as exc:
+        raise MethodError(str(exc)) from exc
 
 
 def bench_method(name: str, height: int = 720, width: int = 1280, repeats: int = 3,

@@ -210,3 +210,21 @@ def test_a_sequence_shorter_than_the_warm_up_gets_its_temporal_stability():
     long = synthetic_sequence(8, 8, frames=10)
     assert run_sequence("noisy", long).summary["t_rmse"] == pytest.approx(temporal_stability(
         [f.color for f in long][7:], [f.reference for f in long][7:], warmup=1)["t_rmse"])
+
+
+@pytest.mark.parametrize("made", [lambda c: np.asarray(c).astype(object),
+                                  lambda c: np.asarray(c).astype(str), lambda c: None])
+def test_an_output_that_is_no_array_of_numbers_is_refused_naming_the_method(made):
+    # an object array failed inside the metrics with NumPy's "ufunc 'isfinite' not supported
+    # for the input types", which named neither the method nor its output
+    from dbench.errors import DbenchInputError
+
+    class Odd(_Sleepy):
+        name = "odd-output"
+
+        def denoise(self, data):
+            return made(data.color)
+
+    f = Frame(color=np.ones((8, 8, 3)), reference=np.ones((8, 8, 3)))
+    with pytest.raises(DbenchInputError, match=r"odd-output output: expected (real numbers|shape)"):
+        harness.run_cell(Odd(), f, metric_names=["rmse"], repeats=1)
