@@ -29,12 +29,17 @@ def _die_with_parent() -> None:
 
 
 def worker_start(plugin_specs: Sequence[str] = ()) -> None:
-    """Process-pool initializer: ignore Ctrl-C (the sweep process stops the pool), die with
-    the parent, then load the parent's plugins (entry points, $DBENCH_PLUGINS and every
-    --plugin), so the worker can build plugin methods."""
+    """Process-pool initializer: ignore Ctrl-C (the sweep process stops the pool), end at once
+    on the SIGTERM with which :func:`stop` ends it, die with the parent, then load the parent's
+    plugins (entry points, $DBENCH_PLUGINS and every --plugin), so the worker can build plugin
+    methods."""
     from .. import plugins, registry  # noqa: F401 - the built-in methods before the plugins
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    # the sweep process's SIGTERM handler, forked into the worker, raised its interrupt there:
+    # an idle worker (waiting for a group) printed "Process ForkProcess-2: Traceback ..." on
+    # every Ctrl-C or SIGTERM of the sweep
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
     _die_with_parent()
     plugins.worker_init(plugin_specs)
 

@@ -67,3 +67,22 @@ def test_ctrl_c_stops_a_pool_sweep_within_seconds(renderer, tmp_path):
     assert not (out / sweep_lock.LOCK_NAME).exists()
     run = json.loads((out / "sweep.json").read_text())["runs"][-1]
     assert run["status"] == "interrupted" and run["cells"] <= len(kept)
+
+
+def _sigterm_is_default() -> bool:
+    return signal.getsignal(signal.SIGTERM) == signal.SIG_DFL
+
+
+def test_a_pool_worker_ends_on_sigterm_without_a_traceback():
+    # the workers are forked inside the command's signal handlers (dbench/cli), whose SIGTERM
+    # handler raises; stop() ends them with SIGTERM, and an idle one printed a traceback
+    from concurrent.futures import ProcessPoolExecutor
+    from multiprocessing import get_context
+
+    from dbench.report import run_output
+    from dbench.run import sweep_pool
+
+    with run_output.interrupts_flagged():
+        with ProcessPoolExecutor(1, mp_context=get_context("fork"),
+                                 initializer=sweep_pool.worker_start) as pool:
+            assert pool.submit(_sigterm_is_default).result(timeout=60)
