@@ -197,19 +197,30 @@ def _plugin_package_files(folder: Path) -> list[Path]:
 
 def _sibling_imports(source: Path) -> list[Path]:
     """The modules in ``source``'s folder that it imports (``import helper``, ``from helper
-    import x``), and those they import in turn: a stand-alone plugin's helpers. A package
-    beside it (``helpers/__init__.py``) counts as a plugin package does, whole
-    (:func:`_plugin_package_files`)."""
+    import x``, and in a namespace package ``from .helper import x``), and those they import
+    in turn: a stand-alone plugin's helpers. A package beside it (``helpers/__init__.py``)
+    counts as a plugin package does, whole (:func:`_plugin_package_files`)."""
     found, todo = [], [source]
     while todo:
-        tree = _parsed(todo.pop()) or ast.Module(body=[], type_ignores=[])
+        current = todo.pop()
+        tree = _parsed(current) or ast.Module(body=[], type_ignores=[])
         for node in ast.walk(tree):
-            names = ([a.name for a in node.names] if isinstance(node, ast.Import) else
-                     [node.module] if isinstance(node, ast.ImportFrom) and node.module
-                     and not node.level else [])
+            folder = source.parent  # an absolute import: a module beside the plugin file
+            if isinstance(node, ast.Import):
+                names = [a.name for a in node.names]
+            elif isinstance(node, ast.ImportFrom) and not node.level:
+                names = [node.module] if node.module else []
+            elif isinstance(node, ast.ImportFrom):  # relative: a namespace package's module
+                ups = [current.parent, *current.parent.parents]
+                if node.level > len(ups):
+                    continue
+                folder = ups[node.level - 1]
+                names = [node.module] if node.module else [a.name for a in node.names]
+            else:
+                continue
             for name in names:
-                f = source.parent / f"{name.split('.')[0]}.py"
-                package = source.parent / name.split(".")[0]
+                f = folder / f"{name.split('.')[0]}.py"
+                package = folder / name.split(".")[0]
                 if not f.is_file() and (package / "__init__.py").is_file():
                     found += [p for p in _plugin_package_files(package) if p not in found]
                 elif f.is_file() and f.resolve() != source and f.resolve() not in found:

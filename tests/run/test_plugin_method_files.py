@@ -139,3 +139,19 @@ def test_a_plugin_file_in_latin_1_or_with_a_byte_order_mark_is_versioned(tmp_pat
     module = _load(monkeypatch, pkg / "den.py", "tplpkg.methods.den")
     assert "template.py" in {p.name for p in identity.method_files(module.Den)}
     assert identity.method_version(module.Den)
+
+
+def test_a_namespace_package_module_counts_the_modules_it_imports_relatively(tmp_path,
+                                                                           monkeypatch):
+    # nsplug/sub/ has no __init__.py (PEP 420): 'from .nshelper import SCALE' was not followed,
+    # so an edit to nshelper.py left the method's cells in place
+    sub = tmp_path / "nsplug" / "sub"
+    sub.mkdir(parents=True)
+    (sub / "nshelper.py").write_text("SCALE = 0.5\n")
+    (sub / "nsmeth.py").write_text(METHOD.format(imports="from .nshelper import SCALE",
+                                                 scale="SCALE"))
+    monkeypatch.syspath_prepend(str(tmp_path))
+    module = importlib.import_module("nsplug.sub.nsmeth")
+    for key in [k for k in sys.modules if k.startswith("nsplug")]:
+        monkeypatch.setitem(sys.modules, key, sys.modules[key])
+    assert [p.name for p in identity.method_files(module.Den)] == ["nshelper.py", "nsmeth.py"]
