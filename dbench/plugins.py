@@ -200,6 +200,9 @@ def _import_target(spec: str) -> Any:
     if not is_file_spec(spec):
         return importlib.import_module(spec)
     path = Path(spec)
+    if path.is_dir():  # it exists: "no such file" would send the user looking for a typo
+        raise IsADirectoryError(f"{path} is a folder; give a .py file, or a module name "
+                                f"(--plugin {path.name} with {path.parent} on PYTHONPATH)")
     if not path.is_file():
         raise FileNotFoundError(f"no such file {path}")
     name = module_name_for_file(path)

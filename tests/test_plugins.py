@@ -188,6 +188,17 @@ def test_a_plugin_method_that_cannot_be_built_is_refused_in_one_line(isolated, t
     assert not (tmp_path / "run").exists()
 
 
+def test_a_folder_given_as_a_plugin_is_refused_as_a_folder(isolated, tmp_path, capsys):
+    # a package's folder was "no such file" though it is there
+    (tmp_path / "mypkg").mkdir()
+    (tmp_path / "mypkg" / "__init__.py").write_text("")
+    assert cli.main(["run", "--method", "noisy", "--scene", "cornell",
+                     "--plugin", str(tmp_path / "mypkg")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "IsADirectoryError" in err[0] and "is a folder" in err[0] \
+        and f"--plugin mypkg with {tmp_path} on PYTHONPATH" in err[0], err
+
+
 def test_entry_points_found_in_process(isolated, tmp_path):
     site = _fake_install(tmp_path / "site", EP_TEXT)
     sys.path.insert(0, str(site))
