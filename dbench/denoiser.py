@@ -217,6 +217,12 @@ def register(name: str) -> Callable[[type[Denoiser]], type[Denoiser]]:
         if isinstance(cls.kinds, str) or not cls.kinds or not set(cls.kinds) <= set(KINDS):
             raise ValueError(f"method {name!r}: kinds {cls.kinds!r}; expected a non-empty set "
                              f"of {', '.join(KINDS)}")
+        version = getattr(cls, "version", None)  # a class attribute, part of the identity
+        if version is not None and (isinstance(version, bool)
+                                    or not isinstance(version, (str, int, float))):
+            raise ValueError(f"method {name!r}: version {version!r}; expected a class "
+                             f"attribute holding a string or a number (a property or an "
+                             f"object is written with its address, another in every process)")
         if not isinstance(cls.defaults, dict):  # read as a dict when the method is built
             raise ValueError(f"method {name!r}: defaults {cls.defaults!r}; expected a dict "
                              f"of parameter names and their defaults")

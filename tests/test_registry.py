@@ -117,3 +117,15 @@ def test_defaults_that_are_no_dict_are_refused(defaults):
     with pytest.raises(ValueError, match="expected a dict of parameter names"):
         register("no-dict-test")(cls)
     assert "no-dict-test" not in registry.available()
+
+
+def test_a_version_that_is_no_string_or_number_is_refused():
+    # a property's repr holds its address: every resumed sweep found the method's code changed
+    # ('differs in method_version') though nothing had
+    from dbench.denoiser import Denoiser, register
+
+    cls = type("Versioned", (Denoiser,), {"version": property(lambda self: "1.0"),
+                                          "denoise": lambda self, data: data.color})
+    with pytest.raises(ValueError, match="version <property .*expected a class attribute"):
+        register("versioned-test")(cls)
+    assert "versioned-test" not in registry.available()
