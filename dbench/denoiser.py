@@ -212,6 +212,9 @@ def register(name: str) -> Callable[[type[Denoiser]], type[Denoiser]]:
         bad = (set(cls.needs) | set(cls.optional_needs)) - set(BUFFER_NAMES)
         if bad:
             raise ValueError(f"method {name!r} needs unknown buffers {sorted(bad)}")
+        if "reference" in set(cls.needs) | set(cls.optional_needs):
+            raise ValueError(f"method {name!r} needs the reference: it is what a method is "
+                             f"scored against, and no method is handed it (dbench/run/inputs.py)")
         # kinds = "steady" would read as its letters, and a misspelt kind would skip the
         # method on every scene without a word about the typo
         if isinstance(cls.kinds, str) or not cls.kinds or not set(cls.kinds) <= set(KINDS):

@@ -228,3 +228,31 @@ def test_an_output_that_is_no_array_of_numbers_is_refused_naming_the_method(made
     f = Frame(color=np.ones((8, 8, 3)), reference=np.ones((8, 8, 3)))
     with pytest.raises(DbenchInputError, match=r"odd-output output: expected (real numbers|shape)"):
         harness.run_cell(Odd(), f, metric_names=["rmse"], repeats=1)
+
+
+def test_a_method_never_sees_the_reference_it_is_scored_against():
+    # the method's copy held data.reference: returning it scored a perfect 0 error, silently
+    seen = {}
+
+    class Peeks(_Sleepy):
+        name = "peeks"
+
+        def denoise(self, data):
+            seen.update(reference=data.reference, reference_var=data.reference_var)
+            return np.array(data.color, np.float32)
+
+    f = Frame(color=np.ones((8, 8, 3)), reference=np.full((8, 8, 3), 2.0),
+              reference_var=np.full((8, 8, 3), 0.1))
+    res = harness.run_cell(Peeks(), f, metric_names=["rmse"], repeats=1)
+    assert seen == {"reference": None, "reference_var": None}
+    assert res.metrics["rmse"] == pytest.approx(1.0)  # still scored against the reference
+    assert f.reference is not None and f.reference_var is not None  # the caller's frame keeps it
+
+
+def test_a_method_cannot_declare_that_it_needs_the_reference():
+    from dbench.denoiser import Denoiser, register
+
+    cls = type("NeedsRef", (Denoiser,), {"needs": {"color", "reference"},
+                                         "denoise": lambda self, data: data.reference})
+    with pytest.raises(ValueError, match="needs the reference: it is what a method is scored"):
+        register("needs-reference-test")(cls)
