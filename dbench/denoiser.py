@@ -203,7 +203,13 @@ def counterparts(name: str, kind: str) -> list[str]:
 
 
 def register(name: str) -> Callable[[type[Denoiser]], type[Denoiser]]:
-    """Class decorator adding a Denoiser subclass to the registry under ``name``."""
+    """Class decorator adding a Denoiser subclass to the registry under ``name``.
+
+    Refuses (ValueError; a plugin that raises it is *broken*, with the reason) what README.md
+    "Add your own denoiser" rules out: a name taken or one that could not be asked for, needs
+    outside :data:`~dbench.data.BUFFER_NAMES` or naming the reference, kinds outside
+    :data:`KINDS`, a ``version`` that is no string or number, and defaults that are no dict of
+    :func:`is_identity_value` values."""
 
     def wrap(cls: type[Denoiser]) -> type[Denoiser]:
         check_method_name(name)
