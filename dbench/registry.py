@@ -67,9 +67,15 @@ def method_class(name: str) -> type[Denoiser]:
         why = plugins.broken_reason(name)
         if why:
             raise plugins.PluginError(why) from None
+        # a plugin file that defines its class but forgot @register loads without a word:
+        # say so where its method is asked for, or the user looks for a typo in the name
+        empty = [p.name for p in plugins.all_plugins()
+                 if p.ok and not p.provides and p.origin in ("--plugin", plugins.ENV_VAR)]
+        hint = (f"; plugin {', '.join(empty)} loaded but registered no method (a Denoiser "
+                f"subclass needs @register(\"NAME\"))" if empty else "")
         raise UnknownNameError(
             f"unknown method {name!r}; available methods: {', '.join(available())} "
-            "(and NAME+gate for any steady method)") from None
+            f"(and NAME+gate for any steady method){hint}") from None
 
 
 def get(name: str, **params: Any) -> Denoiser:

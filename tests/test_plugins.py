@@ -199,6 +199,20 @@ def test_a_folder_given_as_a_plugin_is_refused_as_a_folder(isolated, tmp_path, c
         and f"--plugin mypkg with {tmp_path} on PYTHONPATH" in err[0], err
 
 
+def test_a_plugin_that_registers_nothing_is_named_where_its_method_is_asked_for(
+        isolated, tmp_path, capsys):
+    # its class without @register loaded silently, and --method blur3 was only "unknown"
+    path = tmp_path / "forgot.py"
+    path.write_text("from dbench.registry import Denoiser\n\n\nclass Blur3(Denoiser):\n"
+                    "    def denoise(self, data):\n        return data.color\n")
+    assert cli.main(["run", "--method", "blur3", "--scene", "cornell",
+                     "--plugin", str(path)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "unknown method 'blur3'" in err[0] and err[0].endswith(
+        "plugin forgot.py loaded but registered no method (a Denoiser subclass needs "
+        '@register("NAME"))'), err
+
+
 def test_entry_points_found_in_process(isolated, tmp_path):
     site = _fake_install(tmp_path / "site", EP_TEXT)
     sys.path.insert(0, str(site))
