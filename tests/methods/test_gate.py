@@ -187,6 +187,20 @@ def test_plugin_method_takes_the_gate():
         _REGISTRY.pop("test-gate-plugin-box", None)
 
 
+@pytest.mark.parametrize("made", [lambda c: None, lambda c: c.mean(-1, keepdims=True),
+                                  lambda c: c[1:]])
+def test_a_wrong_output_of_the_gated_method_is_named(made):
+    # it failed inside the gate: "ValueError: cannot reshape array of size 1 into shape ..."
+    register("test-gate-wrong")(type("Wrong", (Denoiser,), {
+        "denoise": lambda self, data: made(np.asarray(data.color, np.float32))}))
+    try:
+        with pytest.raises(DbenchInputError,
+                           match=r"test-gate-wrong output: expected shape \(14, 15, 3\)"):
+            get("test-gate-wrong+gate").denoise(_frame(seed=5))
+    finally:
+        _REGISTRY.pop("test-gate-wrong", None)
+
+
 def test_nonfinite_noisy_pixels_keep_the_method_output():
     frame = _frame(seed=9)
     color = frame.color.copy()

@@ -200,6 +200,12 @@ def gated_class(base: type[Denoiser]) -> type[Denoiser]:
                                        f"{getattr(data, 'kind', type(data).__name__)} data")
             stats = _require_stats(getattr(data, "stats", None))  # before the method runs
             out = self.inner.denoise(data)
+            # the harness checks the gated output only: the method's own must be checked here,
+            # or a wrong one fails inside the gate ("cannot reshape array of size 1 ...")
+            if out is None or np.shape(out) != np.shape(data.color):
+                raise DbenchInputError(f"{base.name} output: expected shape "
+                                       f"{np.shape(data.color)}, got "
+                                       f"{'None' if out is None else np.shape(out)}")
             p = self.params
             gated = gate_output(data.color, out, stats, alpha=float(p["gate_alpha"]),
                                 k=float(p["gate_k"]), t0=float(p["gate_t0"]),
