@@ -49,18 +49,20 @@ def method_failure(exc: BaseException) -> str:
 
 def check_output(method_name: str, output: Any, shape: tuple) -> np.ndarray:
     """``output`` as an array, refused (DbenchInputError naming the method) unless it holds
-    real numbers in ``shape``, the input colour's (README.md "Add your own denoiser": float32
-    of the shape of ``data.color``): None, a wrong shape, or complex, object or string values
-    (which would otherwise fail inside the metrics with an error of NumPy's)."""
+    floating-point numbers in ``shape``, the input colour's (README.md "Add your own denoiser": float32
+    of the shape of ``data.color``): None, a wrong shape, complex, object or string values
+    (which would otherwise fail inside the metrics with an error of NumPy's), and integers or
+    booleans (radiance truncated to whole numbers: scored, they only looked like a bad method,
+    and ``dbench stress`` already failed them)."""
     from ..errors import DbenchInputError
 
     out = np.asarray(output)
     if output is None or out.shape != tuple(shape):
         raise DbenchInputError(f"{method_name} output: expected shape {tuple(shape)}, got "
                                f"{'None' if output is None else out.shape}")
-    if out.dtype.kind not in "biuf":
-        raise DbenchInputError(f"{method_name} output: expected real numbers (float32), got "
-                               f"dtype {out.dtype}")
+    if out.dtype.kind != "f":
+        raise DbenchInputError(f"{method_name} output: expected floating-point radiance "
+                               f"(float32), got dtype {out.dtype}")
     return out
 
 
