@@ -156,7 +156,8 @@ def verdict_words(d: pd.DataFrame, columns: Sequence[str], rank_by: str) -> dict
         words = ["noisy input" if lab == NOISY else flags.get(lab, "")]
         nonfinite = num(r["n_nonfinite"]) if "n_nonfinite" in d.columns else float("nan")
         if math.isfinite(nonfinite) and nonfinite > 0:
-            words.append(f"{int(nonfinite)} non-finite output values")
+            n = int(nonfinite)
+            words.append(f"{n} non-finite output value{'s' if n != 1 else ''}")
         out[lab] = "; ".join(w for w in words if w)
     return out
 

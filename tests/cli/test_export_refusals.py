@@ -39,7 +39,8 @@ def test_a_refused_frame_count_leaves_no_export_folder(renderer, tmp_path, capsy
                    "--ref-spp", "16", "--frames", "999", "--quiet",
                    "--cache", str(tmp_path / "cache")])
     err = capsys.readouterr().err.strip()
-    assert rc == 2 and err == "dbench: frames: expected an integer in [1, 48], got 999", err
+    assert rc == 2 and err == ("dbench: frames: flicker has 48 frames; expected an "
+                               "integer in [1, 48], got 999"), err
     assert not (tmp_path / "x").exists()
 
 

@@ -163,8 +163,13 @@ def test_a_missing_asset_is_refused_before_rendering(renderer, tmp_path, capsys)
     with pytest.raises(DbenchInputError, match="nowhere"):
         scenes.get(str(path))
     path.write_text(SCENE.replace('value="$sky"', 'value="$sun"'))
-    with pytest.raises(DbenchInputError, match=r"\$sun"):
+    with pytest.raises(DbenchInputError, match=r"\$sun.*--scene-param sun=VALUE"):
         scenes.get(str(path))
+    # "$1" can be no --scene-param (names start with a letter or _): the hint says so
+    path.write_text(SCENE.replace('value="$sky"', 'value="$1"'))
+    with pytest.raises(DbenchInputError) as err:
+        scenes.get(str(path))
+    assert "--scene-param 1=" not in str(err.value) and "starts with a letter" in str(err.value)
 
 
 def test_resolution_follows_mitsuba(renderer, tmp_path):

@@ -159,9 +159,14 @@ class _Walk:
             value = re.sub(r"(?<!\\)\$" + re.escape(key), lambda m: self.params[key], value)
         left = re.search(r"(?<!\\)\$([A-Za-z0-9_]*)", value)
         if left:
-            raise DbenchInputError(f"--scene {self.scene}: undefined parameter ${left.group(1)} "
-                                   f"in {file}; give it with --scene-param "
-                                   f"{left.group(1)}=VALUE or a <default>")
+            name = left.group(1)
+            # --scene-param takes names only (scene_files/load.parse_scene_params): "$1" or a
+            # lone "$" is no parameter it could give
+            fix = (f"give it with --scene-param {name}=VALUE or a <default>"
+                   if re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", name)
+                   else "a parameter's name starts with a letter or _; write \\$ for a $ itself")
+            raise DbenchInputError(f"--scene {self.scene}: undefined parameter ${name} in "
+                                   f"{file}; {fix}")
         return value.replace("\\$", "$")
 
 

@@ -321,7 +321,8 @@ def load_sequence(scene: str | SequenceScene, spp: int = 1, res=64,
     res = parse_res(res)
     n = sc.n_frames if frames is None else frames
     if not isinstance(n, (int, np.integer)) or not 1 <= n <= sc.n_frames:
-        raise DbenchInputError(f"frames: expected an integer in [1, {sc.n_frames}], got {frames!r}")
+        raise DbenchInputError(f"frames: {sc.name} has {sc.n_frames} frames; expected an "
+                               f"integer in [1, {sc.n_frames}], got {frames!r}")
     if gradient not in GRADIENTS:
         raise DbenchInputError(f"gradient: expected one of {GRADIENTS}, got {gradient!r}")
     declared = sc.params.get("gbuffer", GBUFFER_PARAM.default)
