@@ -212,7 +212,8 @@ def load(scene: str | Scene, spp: int, res, needs: Iterable[str] | None = None,
     stats: SampleStats | None = None
     if color_entry is not None and ("stats" not in wanted or stats_entry is not None):
         color = color_entry.images()["color"]
-        meta.update(render_s=color_entry.meta.get("render_s"))
+        meta.update(render_s=color_entry.meta.get("render_s"),
+                    nonfinite_samples=color_entry.meta.get("nonfinite_samples"))
         meta["cache_hits"].append("color")
         if stats_entry is not None:
             stats = stats_from_arrays(stats_entry.arrays(), transform, lam)
@@ -221,11 +222,12 @@ def load(scene: str | Scene, spp: int, res, needs: Iterable[str] | None = None,
     else:
         want_stats = (transform, lam) if "stats" in wanted else None
         color, stats, timing = _render.render_passes(sc, res, spp, seed, want_stats, progress)
-        meta.update(render_s=timing["render_s"])
+        meta.update(render_s=timing["render_s"], nonfinite_samples=timing["nonfinite_samples"])
         meta["rendered"].append("color")
         if color_entry is None:
             cache.put("noisy", noisy_desc, images={"color": color}, compress_images=False,
-                      meta={"render_s": timing["render_s"], "copies": timing["copies"]})
+                      meta={"render_s": timing["render_s"], "copies": timing["copies"],
+                            "nonfinite_samples": timing["nonfinite_samples"]})
         if stats is not None:
             meta.update(stats_s=timing["stats_s"])
             meta["rendered"].append("stats")
@@ -252,19 +254,40 @@ def load(scene: str | Scene, spp: int, res, needs: Iterable[str] | None = None,
             buffers["reference"] = images["reference"]
             buffers["reference_var"] = images["reference_var"]
             meta["ref_render_s"] = entry.meta.get("render_s")
+            meta["ref_nonfinite_samples"] = entry.meta.get("nonfinite_samples")
             meta["cache_hits"].append("reference")
         else:
+            counts: dict = {}
             ref, ref_var, seconds = _render.render_reference(sc, res, ref_spp, ref_seed,
-                                                             progress=progress)
+                                                             progress=progress, counts=counts)
             cache.put("reference", ref_desc, images={"reference": ref, "reference_var": ref_var},
-                      meta={"render_s": seconds, "chunks": len(_render.reference_chunks(ref_spp))},
+                      meta={"render_s": seconds, "chunks": len(_render.reference_chunks(ref_spp)),
+                            **counts},
                       compress_images=False)
+            meta["ref_nonfinite_samples"] = counts.get("nonfinite_samples")
             buffers["reference"], buffers["reference_var"] = ref, ref_var
             meta["ref_render_s"] = seconds
             meta["rendered"].append("reference")
         meta.update(reference_meta(ref_spp, ref_seed, buffers["reference_var"]))
+    bad = nonfinite_text(meta.get("nonfinite_samples"), meta.get("ref_nonfinite_samples"))
+    if bad:
+        meta["nonfinite_warning"] = bad
 
     return Frame(color=color, stats=stats, meta=meta, **buffers)
+
+
+def nonfinite_text(noisy: int | None, reference: int | None) -> str:
+    """What a render's NaN or ±Inf sample values (one per channel; None: not counted, as for
+    entries cached before they were) mean for its numbers, or '' where there were none: they
+    are counted as 0 (README.md, "How renders work") where Mitsuba's film would hold NaN, so
+    the images are not the scene's as Mitsuba renders it."""
+    parts = [f"{n} in the {what}" for n, what in ((noisy, "noisy image"),
+                                                  (reference, "reference")) if n]
+    if not parts:
+        return ""
+    return (f"the renderer gave NaN or ±Inf sample values ({' and '.join(parts)}; one per "
+            f"channel), counted as 0 where Mitsuba's own film would hold NaN: the scene holds a "
+            f"non-finite value (a texture's pixel, a parameter), which its numbers leave out")
 
 
 #: Longer image side of a scene's default size (catalogue scenes: DEFAULT_SIDE²).

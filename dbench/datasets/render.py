@@ -184,8 +184,10 @@ def render_passes(scene: Scene, res: Res, spp: int, seed: int = 0,
         ``render_s`` (the batches, after an untimed warm-up render the first time the scene
         is rendered in the process; on JIT variants the statistics are made in the same
         kernel and counted here), ``stats_s`` (host-side work for the statistics: adding the
-        batches' sums and the moments, or on scalar variants the whole accumulation) and
-        ``copies`` (samples per pixel per batch).
+        batches' sums and the moments, or on scalar variants the whole accumulation),
+        ``copies`` (samples per pixel per batch) and ``nonfinite_samples``: sample values
+        (one per channel) that were NaN or ±Inf and, as in the statistics, counted as 0, where
+        Mitsuba's film would hold NaN (README.md, "How renders work").
     """
     if spp < 1:
         raise ValueError(f"spp must be >= 1, got {spp}")
@@ -194,6 +196,7 @@ def render_passes(scene: Scene, res: Res, spp: int, seed: int = 0,
     total = np.zeros((res.height, res.width, 3), np.float64)
     acc = PowerSums((res.height, res.width, 3), *stats) if stats else None
     render_s = stats_s = 0.0
+    nonfinite = 0
     kernel = _kernel_path() if kernel is None else bool(kernel)
     if kernel and not _kernel_path():
         raise ValueError(f"the one-pass kernel needs a JIT variant, not {mitsuba().variant()}")
@@ -209,6 +212,7 @@ def render_passes(scene: Scene, res: Res, spp: int, seed: int = 0,
             t1 = time.perf_counter()
             if kernel:
                 total += batch.plain
+                nonfinite += batch.n_nonfinite
                 if acc is not None:
                     acc.add_sums(batch.m, batch.s1, batch.s2, batch.s3, batch.n_nonfinite,
                                  batch.n_clamped)
@@ -218,8 +222,9 @@ def render_passes(scene: Scene, res: Res, spp: int, seed: int = 0,
                 part = batch.sum(axis=1, dtype=np.float64)
                 if not np.isfinite(part).all():
                     # non-finite samples count as 0, as the statistics count them (PowerSums)
-                    part = np.where(np.isfinite(batch), batch, 0.0).sum(axis=1,
-                                                                      dtype=np.float64)
+                    finite = np.isfinite(batch)
+                    nonfinite += int(finite.size - np.count_nonzero(finite))
+                    part = np.where(finite, batch, 0.0).sum(axis=1, dtype=np.float64)
                 total += part
             render_s += t1 - t0
             stats_s += time.perf_counter() - t1
@@ -227,8 +232,11 @@ def render_passes(scene: Scene, res: Res, spp: int, seed: int = 0,
     t1 = time.perf_counter()
     color = (total / spp).astype(np.float32)
     out = acc.finalize() if acc else None
+    if acc is not None and not kernel:  # the host path's PowerSums counted them
+        nonfinite = acc.n_nonfinite
     stats_s += time.perf_counter() - t1
-    return color, out, {"render_s": render_s, "stats_s": stats_s, "copies": copies}
+    return color, out, {"render_s": render_s, "stats_s": stats_s, "copies": copies,
+                        "nonfinite_samples": int(nonfinite)}
 
 
 def _kernel_batches(scene: Scene, res: Res, spp: int, seed: int, stats):
@@ -353,8 +361,8 @@ class ChunkMoments:
 
 
 def render_reference(scene: Scene, res: Res, spp: int, seed: int = 0,
-                     chunk: int = DEFAULT_REFERENCE_CHUNK, progress: bool = True
-                     ) -> tuple[np.ndarray, np.ndarray, float]:
+                     chunk: int = DEFAULT_REFERENCE_CHUNK, progress: bool = True,
+                     counts: dict | None = None) -> tuple[np.ndarray, np.ndarray, float]:
     """A high-spp reference, rendered as :func:`reference_chunks` with independent seeds
     (stream ``reference``, ``seed`` = the reference seed): on JIT variants each chunk is the
     mean of one-pass kernel batches (:mod:`dbench.datasets.render_moments`, at most
@@ -362,7 +370,9 @@ def render_reference(scene: Scene, res: Res, spp: int, seed: int = 0,
     ``mi.render`` call per chunk.
 
     Returns (reference (H, W, 3) float32, reference_var (H, W, 3) float32: variance of
-    the reference mean from the chunk spread, seconds)."""
+    the reference mean from the chunk spread, seconds); ``counts``, where given, gets
+    ``nonfinite_samples`` (kernel batches: the sample values counted as 0 for being NaN or
+    ±Inf; a ``mi.render`` chunk keeps them, NaN in its pixels)."""
     res = parse_res(res)
     acc = ChunkMoments((res.height, res.width, 3))
     t0 = time.perf_counter()
@@ -370,14 +380,18 @@ def render_reference(scene: Scene, res: Res, spp: int, seed: int = 0,
 
     with tqdm(total=spp, desc=f"{scene.name} reference {spp} spp", unit="spp", leave=False,
               disable=not progress, mininterval=0.5) as bar:
-        for n, mean in _reference_chunk_means(scene, res, spp, seed, chunk):
+        tally = {"nonfinite_samples": 0}
+        for n, mean in _reference_chunk_means(scene, res, spp, seed, chunk, tally):
             acc.add(mean, n)
             bar.update(n)
+    if counts is not None:
+        counts.update(tally)
     return (acc.mean().astype(np.float32), acc.var_mean().astype(np.float32),
             time.perf_counter() - t0)
 
 
-def _reference_chunk_means(scene: Scene, res: Res, spp: int, seed: int, chunk: int):
+def _reference_chunk_means(scene: Scene, res: Res, spp: int, seed: int, chunk: int,
+                           tally: dict):
     """Yield (n_i, chunk mean (H, W, 3) float64) for each chunk of :func:`reference_chunks`.
     Kernel batches take seeds pass_seed("reference", seed, k) for k = 0, 1, ... across all
     chunks; ``mi.render`` chunks take pass_seed("reference", seed, i)."""
@@ -394,6 +408,8 @@ def _reference_chunk_means(scene: Scene, res: Res, spp: int, seed: int, chunk: i
         copies = batch_size(res, n)
         total = np.zeros((res.height, res.width, 3), np.float64)
         for _ in range(n // copies):
-            total += batch_sums(sc, copies, pass_seed("reference", seed, k)).plain
+            batch = batch_sums(sc, copies, pass_seed("reference", seed, k))
+            total += batch.plain
+            tally["nonfinite_samples"] += batch.n_nonfinite
             k += 1
         yield n, total / n

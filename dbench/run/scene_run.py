@@ -212,7 +212,8 @@ INPUT_FACTS = {"ref_noise_source": "reference noise from", "surface_pixels": "su
                 "normal_encoding": "normal encoding", "layers_read": "layers read",
                 "layers_ignored": "layers ignored"}
 #: doubts about the input: printed at once and listed in the report's notes
-INPUT_WARNINGS = ("reference_warning", "normal_warning", "feature_warning")
+INPUT_WARNINGS = ("reference_warning", "normal_warning", "feature_warning",
+                  "nonfinite_warning")
 
 
 def input_notes(metas: list[dict], settings: dict) -> list[str]:
