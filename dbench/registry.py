@@ -87,18 +87,33 @@ def get(name: str, **params: Any) -> Denoiser:
     denoiser"), not an internal error of dbench; dbench's own methods' errors pass unchanged."""
     cls = method_class(name)
     try:
-        return cls(**params)
+        method = cls(**params)
     except DbenchInputError:
         raise
     except Exception as exc:  # noqa: BLE001 - named below, when it is a plugin's own code
         if cls.__module__.split(".")[0] == "dbench":
             raise
-        try:  # where the user wrote it: a --plugin file's module name is dbench's own
-            where = inspect.getfile(cls)
-        except (TypeError, OSError):
-            where = cls.__module__
-        raise plugins.PluginError(f"method {cls.name} ({where}) could not be built: "
+        raise plugins.PluginError(f"method {cls.name} ({_where(cls)}) could not be built: "
                                   f"{plugins.one_line(exc)}") from exc
+    # needs set in __init__ escape register()'s check of the class: an unknown buffer would
+    # skip the method on every scene ("needs [...]"), the reference would be handed to it
+    from .data import BUFFER_NAMES
+
+    asked = set(method.needs) | set(method.optional_needs)
+    bad = sorted(asked - set(BUFFER_NAMES)) + (["reference"] if "reference" in asked else [])
+    if bad:
+        raise plugins.PluginError(f"method {cls.name} ({_where(cls)}) could not be built: its "
+                                  f"needs name {bad}; valid: "
+                                  f"{', '.join(b for b in BUFFER_NAMES if b != 'reference')}")
+    return method
+
+
+def _where(cls: type) -> str:
+    """Where the user wrote ``cls``: its file (a --plugin file's module name is dbench's own)."""
+    try:
+        return inspect.getfile(cls)
+    except (TypeError, OSError):
+        return cls.__module__
 
 
 __all__ = ["ALIASES", "Denoiser", "register", "available", "canonical", "method_class", "get"]

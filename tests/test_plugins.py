@@ -188,6 +188,28 @@ def test_a_plugin_method_that_cannot_be_built_is_refused_in_one_line(isolated, t
     assert not (tmp_path / "run").exists()
 
 
+@pytest.mark.parametrize("needs, said", [('{"color", "bogus"}', "['bogus']"),
+                                         ('{"color", "reference"}', "['reference']")])
+def test_needs_a_plugin_sets_when_it_is_built_are_checked_as_its_class_is(
+        isolated, tmp_path, capsys, needs, said):
+    # register() checks the class's needs; set in __init__, an unknown buffer skipped the
+    # method on every scene ("needs ['bogus']") and "reference" would have been asked for
+    path = tmp_path / "late_needs.py"
+    path.write_text("from dbench.registry import Denoiser, register\n\n\n"
+                    "@register('late-needs')\nclass LateNeeds(Denoiser):\n"
+                    "    def __init__(self, **params):\n"
+                    "        super().__init__(**params)\n"
+                    f"        self.needs = {needs}\n\n"
+                    "    def denoise(self, data):\n        return data.color\n")
+    out = tmp_path / "run"
+    assert cli.main(["run", "--method", "late-needs", "--scene", "cornell", "--res", "8",
+                     "--spp", "2", "--plugin", str(path), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(
+        f"dbench: method late-needs ({path}) could not be built: its needs name {said}"), err
+    assert not out.exists()
+
+
 def test_a_folder_given_as_a_plugin_is_refused_as_a_folder(isolated, tmp_path, capsys):
     # a package's folder was "no such file" though it is there
     (tmp_path / "mypkg").mkdir()
