@@ -202,6 +202,22 @@ def counterparts(name: str, kind: str) -> list[str]:
                   if n.startswith(name + "-") and kind in getattr(cls, "kinds", ()))
 
 
+def check_needs(name: str, needs: Any, optional_needs: Any) -> None:
+    """Refuse (ValueError) ``needs`` or ``optional_needs`` naming a buffer outside
+    :data:`~dbench.data.BUFFER_NAMES`, which would skip the method on every scene, or the
+    reference, which no method is handed (dbench/run/inputs.py): a class's when it is
+    registered, an instance's when it is built (:func:`dbench.registry.get`: needs set in
+    ``__init__``)."""
+    asked = set(needs) | set(optional_needs)
+    bad = asked - set(BUFFER_NAMES)
+    if bad:
+        raise ValueError(f"method {name!r} needs unknown buffers {sorted(bad)}; valid: "
+                         f"{', '.join(b for b in BUFFER_NAMES if b != 'reference')}")
+    if "reference" in asked:
+        raise ValueError(f"method {name!r} needs the reference: it is what a method is "
+                         f"scored against, and no method is handed it (dbench/run/inputs.py)")
+
+
 def register(name: str) -> Callable[[type[Denoiser]], type[Denoiser]]:
     """Class decorator adding a Denoiser subclass to the registry under ``name``.
 
@@ -215,12 +231,7 @@ def register(name: str) -> Callable[[type[Denoiser]], type[Denoiser]]:
         check_method_name(name)
         if name in _REGISTRY and _REGISTRY[name] is not cls:
             raise ValueError(f"method {name!r} registered twice")
-        bad = (set(cls.needs) | set(cls.optional_needs)) - set(BUFFER_NAMES)
-        if bad:
-            raise ValueError(f"method {name!r} needs unknown buffers {sorted(bad)}")
-        if "reference" in set(cls.needs) | set(cls.optional_needs):
-            raise ValueError(f"method {name!r} needs the reference: it is what a method is "
-                             f"scored against, and no method is handed it (dbench/run/inputs.py)")
+        check_needs(name, cls.needs, cls.optional_needs)
         # kinds = "steady" would read as its letters, and a misspelt kind would skip the
         # method on every scene without a word about the typo
         if isinstance(cls.kinds, str) or not cls.kinds or not set(cls.kinds) <= set(KINDS):

@@ -22,7 +22,7 @@ from typing import Any
 
 from . import methods  # noqa: F401 - registers the built-in methods
 from . import plugins
-from .denoiser import _REGISTRY, ALIASES, Denoiser, register
+from .denoiser import _REGISTRY, ALIASES, Denoiser, check_needs, register
 from .errors import DbenchInputError, UnknownNameError
 from .methods.gate import SUFFIX, gated_class
 
@@ -95,16 +95,11 @@ def get(name: str, **params: Any) -> Denoiser:
             raise
         raise plugins.PluginError(f"method {cls.name} ({_where(cls)}) could not be built: "
                                   f"{plugins.one_line(exc)}") from exc
-    # needs set in __init__ escape register()'s check of the class: an unknown buffer would
-    # skip the method on every scene ("needs [...]"), the reference would be handed to it
-    from .data import BUFFER_NAMES
-
-    asked = set(method.needs) | set(method.optional_needs)
-    bad = sorted(asked - set(BUFFER_NAMES)) + (["reference"] if "reference" in asked else [])
-    if bad:
-        raise plugins.PluginError(f"method {cls.name} ({_where(cls)}) could not be built: its "
-                                  f"needs name {bad}; valid: "
-                                  f"{', '.join(b for b in BUFFER_NAMES if b != 'reference')}")
+    try:  # needs set in __init__ escape register()'s check of the class: checked alike here
+        check_needs(cls.name, method.needs, method.optional_needs)
+    except ValueError as exc:
+        raise plugins.PluginError(f"method {cls.name} ({_where(cls)}) could not be built: "
+                                  f"{exc}") from None
     return method
 
 
