@@ -44,6 +44,12 @@ FRAME_BUFFERS: dict[str, int] = {
 BUFFER_NAMES = tuple(FRAME_BUFFERS) + ("stats",)
 
 
+#: Largest count dbench takes (spp, frames, bins, ...): counts reach Mitsuba as 32-bit integers
+#: (a reference chunk's spp, the transient film's ``temporal_bins``), and a larger one would run
+#: for years anyway (README.md, "How renders work": Counts).
+MAX_COUNT = 2**31 - 1
+
+
 def check_count(name: str, value: Any) -> int:
     """``value`` as an int when it is an integer >= 1 (spp, res, bins, frames), else a
     DbenchInputError naming ``name``."""

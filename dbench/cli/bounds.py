@@ -20,11 +20,8 @@ from __future__ import annotations
 import argparse
 import math
 
+from ..data import MAX_COUNT  # the largest count an option takes
 from ..errors import DbenchInputError
-
-#: Largest count an option takes: counts reach Mitsuba as 32-bit integers (a reference chunk's
-#: spp, the transient film's ``temporal_bins``), and a larger one would run for years anyway.
-MAX_COUNT = 2**31 - 1
 
 
 def parse_count(text: str, top: int = MAX_COUNT) -> int:

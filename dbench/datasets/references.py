@@ -6,6 +6,7 @@ import os
 
 import numpy as np
 
+from ..data import MAX_COUNT
 from ..errors import DbenchInputError
 
 DEFAULT_REFERENCE_SPP = 4096
@@ -15,7 +16,7 @@ MAX_SEED = 2**32 - 1
 #: Fewest and most reference spp: the reference's variance is the spread of its chunks, and one
 #: sample is one chunk, whose spread reads as zero (a "noise-free" reference); Mitsuba's spp is a
 #: signed 32-bit integer.
-MIN_REF_SPP, MAX_REF_SPP = 2, 2**31 - 1
+MIN_REF_SPP, MAX_REF_SPP = 2, MAX_COUNT
 
 
 def seed_problem(seed, n_seeds: int = 1) -> str:

@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from ...data import MAX_COUNT
 from ...errors import DbenchInputError
 from ...resolution import focal_fov
 
@@ -23,8 +24,6 @@ KINDS = ("steady", "sequence", "transient")
 #: mitransient's integrators a transient scene file may name
 TRANSIENT_INTEGRATORS = ("transient_path", "transient_prbvolpath")
 _MISSING = object()
-#: the bound of every count dbench takes (README.md, "How renders work": Counts)
-MAX_COUNT = 2**31 - 1
 
 
 def settings(module, path: str) -> dict[str, Any]:
