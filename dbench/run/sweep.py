@@ -313,8 +313,7 @@ def run_group(config: SweepConfig, out: str, scene_name: str, spp: int,
         needs |= inst.wants(scene.provides)
     frames = load_seeds(scene, config.seed, config.seeds, spp=spp, res=res,
                         needs=needs, transform=config.transform, lam=config.lam,
-                        ref_spp=config.ref_spp if scene.renders else
-                        folder_ref_spp(config, scene), cache=cache, progress=False,
+                        ref_spp=folder_ref_spp(config, scene), cache=cache, progress=False,
                         **kind_options(config, scene))
     written = []
     for m, inst in instances.items():

@@ -130,17 +130,17 @@ def check_scenes(config) -> None:
                                f"renders the others, with signed normals")
 
 
-__all__ = ["check_scenes", "scene_labels"]
 
 
 def folder_ref_spp(config, scene) -> int | None:
-    """The ``--ref-spp`` the sweep ``config`` checks the folder of renders ``scene`` against
+    """The ``--ref-spp`` the sweep ``config`` loads ``scene`` with: the option itself for a
+    scene the sweep renders; for a folder of renders, the value its loads check against
     (:func:`dbench.run.inputs.load_seeds` refuses a mismatch): the option where the folder
     states its reference's spp (they must agree) or where every scene is a folder (as in
     ``dbench run``, an option that would apply to nothing is refused); None where the folder
     states none and the sweep renders other scenes, for which ``--ref-spp`` is given: the
     folder's cells then record its reference spp as unknown (docs/formats.md)."""
-    if config.ref_spp is None or scene.info.ref_spp is not None:
+    if scene.renders or config.ref_spp is None or scene.info.ref_spp is not None:
         return config.ref_spp
     return None if any(config.scene(n).renders for n in config.scenes) else config.ref_spp
 
@@ -151,3 +151,6 @@ def kind_options(config, scene) -> dict:
     mixing kinds the others get None, load and cell identity alike."""
     return {"frames": config.frames if scene.kind == "sequence" else None,
             "bins": config.bins if scene.kind == "transient" else None}
+
+
+__all__ = ["check_scenes", "folder_ref_spp", "kind_options", "scene_labels"]
