@@ -152,7 +152,13 @@ def _register_method_object(name: str, obj: Any) -> None:
     if not (inspect.isclass(obj) and issubclass(obj, Denoiser)):
         raise TypeError(f"{obj!r} is neither a Denoiser subclass nor a module")
     if any(c is obj for c in _REGISTRY.values()):
-        return  # already registered (by @register, or an earlier load)
+        if obj.name == name:
+            return  # already registered (by @register, or an earlier load)
+        # a class has one name: --method NAME of the entry point would be "unknown" while
+        # `dbench list` shows the class under its own name, with nothing joining the two
+        raise ValueError(f"entry point {name!r} names {obj.__module__}.{obj.__qualname__}, "
+                         f"which is registered as {obj.name!r}: ask for --method {obj.name}, "
+                         f"or give the entry point the name {obj.name!r}")
     if name in _REGISTRY:
         raise ValueError(f"method {name!r} is already registered by "
                          f"{_REGISTRY[name].__module__}.{_REGISTRY[name].__qualname__}")

@@ -73,6 +73,10 @@ def method_class(name: str) -> type[Denoiser]:
                  if p.ok and not p.provides and p.origin in ("--plugin", plugins.ENV_VAR)]
         hint = (f"; plugin {', '.join(empty)} loaded but registered no method (a Denoiser "
                 f"subclass needs @register(\"NAME\"))" if empty else "")
+        # an entry point naming a module: its name is the plugin's, not a method's
+        named = [p for p in plugins.all_plugins() if p.ok and p.name == name and p.provides]
+        hint += "".join(f"; plugin {p.name} ({p.origin}) registered {', '.join(p.provides)}, "
+                        f"not a method named {name}" for p in named)
         raise UnknownNameError(
             f"unknown method {name!r}; available methods: {', '.join(available())} "
             f"(and NAME+gate for any steady method){hint}") from None

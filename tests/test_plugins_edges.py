@@ -1,0 +1,70 @@
+"""Plugins at the edges of the contract (README.md, "Add your own denoiser"): entry points whose
+name is not the method's, plugin code that raises where dbench asks it a question, classes
+without a source file.
+
+Nothing is pip-installed: an entry point is a ``*.dist-info`` folder (METADATA and
+entry_points.txt) beside its package on a temporary path, which importlib.metadata finds.
+"""
+from __future__ import annotations
+
+import sys
+import textwrap
+from pathlib import Path
+
+import pytest
+
+from dbench import cli, plugins, registry
+
+
+def _install(site: Path, dist: str, package: str, code: str, entry_points: str) -> Path:
+    """``package`` (its ``__init__.py`` holds ``code``) and the dist-info folder of ``dist``
+    declaring ``entry_points`` on ``site``, and ``site`` on sys.path: what pip would do."""
+    (site / package).mkdir(parents=True, exist_ok=True)
+    (site / package / "__init__.py").write_text(textwrap.dedent(code))
+    info = site / f"{dist}-0.1.dist-info"
+    info.mkdir()
+    (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {dist}\nVersion: 0.1\n")
+    (info / "entry_points.txt").write_text(textwrap.dedent(entry_points))
+    sys.path.insert(0, str(site))
+    return site
+
+
+REGISTERED_AS = """\
+    from dbench.registry import Denoiser, register
+
+
+    @register("box-three")
+    class Box3(Denoiser):
+        def denoise(self, data):
+            return data.color
+    """
+
+
+def test_an_entry_point_naming_a_class_registered_under_another_name_is_refused(
+        isolated, tmp_path, capsys):
+    # the entry point's name was dropped without a word: --method box3 was an "unknown method"
+    # while `dbench list` showed box-three, and nothing joined the two names
+    _install(tmp_path / "site", "ep-mismatch", "ep_mismatch", REGISTERED_AS,
+             "[dbench.methods]\nbox3 = ep_mismatch:Box3\n")
+    plugins.discover_entry_points()
+    assert registry.method_class("box-three").name == "box-three"  # its own name works
+    assert cli.main(["run", "--method", "box3", "--scene", "cornell"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("dbench: plugin box3 (entry point (ep-mismatch)"), err
+    assert ("entry point 'box3' names ep_mismatch.Box3, which is registered as 'box-three': "
+            "ask for --method box-three") in err[0]
+    assert cli.main(["list"]) == 0
+    listed = capsys.readouterr().out
+    assert "box3         BROKEN" in listed and "registered as 'box-three'" in listed
+
+
+def test_an_entry_point_naming_a_module_is_named_where_its_name_is_asked_for(isolated, tmp_path):
+    # a module's entry point names the plugin, not a method: asking for it said only "unknown"
+    _install(tmp_path / "site", "lab-methods", "lab_methods",
+             REGISTERED_AS.replace("box-three", "lab-box"),
+             "[dbench.methods]\nlab = lab_methods\n")
+    plugins.discover_entry_points()
+    with pytest.raises(registry.UnknownNameError) as caught:
+        registry.method_class("lab")
+    assert str(caught.value).endswith(
+        "; plugin lab (entry point (lab-methods)) registered lab-box, not a method named lab")
