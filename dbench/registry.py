@@ -20,6 +20,8 @@ from __future__ import annotations
 import inspect
 from typing import Any
 
+import numpy as np
+
 from . import methods  # noqa: F401 - registers the built-in methods
 from . import plugins
 from .denoiser import _REGISTRY, ALIASES, Denoiser, check_needs, register
@@ -95,7 +97,7 @@ def get(name: str, **params: Any) -> Denoiser:
     except DbenchInputError:
         raise
     except Exception as exc:  # noqa: BLE001 - named below, when it is a plugin's own code
-        if cls.__module__.split(".")[0] == "dbench":
+        if _own(cls):
             raise
         raise plugins.PluginError(f"method {cls.name} ({_where(cls)}) could not be built: "
                                   f"{plugins.one_line(exc)}") from exc
@@ -107,6 +109,41 @@ def get(name: str, **params: Any) -> Denoiser:
     return method
 
 
+def applies(method: Denoiser, kind: str, available: set[str] | None = None
+            ) -> tuple[bool, str]:
+    """``method.applies_to(kind, available)``: (ok, the reason of a skip). A plugin's
+    ``applies_to`` that raises, or answers anything but a bool and a string, is a
+    :class:`~dbench.plugins.PluginError` naming the method and what went wrong, as a method that
+    cannot be built is (:func:`get`): exit 2 before anything renders where ``run`` and
+    ``sweep`` ask it first, the method's failure where a cell asks it (README.md "Add your own
+    denoiser"); dbench's own methods' errors pass unchanged."""
+    cls = type(method)
+    try:
+        answer = method.applies_to(kind, available)
+    except DbenchInputError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - named below, when it is a plugin's own code
+        if _own(cls):
+            raise
+        raise plugins.PluginError(f"method {cls.name} ({_where(cls)}) failed in "
+                                  f"applies_to({kind!r}): {plugins.one_line(exc)}") from exc
+    if _own(cls):
+        return answer
+    # `ok, why = answer` would fail on None or True with an error of Python's, not the plugin's
+    if not (isinstance(answer, tuple) and len(answer) == 2
+            and isinstance(answer[0], (bool, np.bool_)) and isinstance(answer[1], str)):
+        raise plugins.PluginError(
+            f"method {cls.name} ({_where(cls)}): applies_to({kind!r}) returned "
+            f"{' '.join(repr(answer).split())[:80]}; expected (ok, reason): True or False and "
+            f"a string")
+    return bool(answer[0]), answer[1]
+
+
+def _own(cls: type) -> bool:
+    """Whether ``cls`` is one of dbench's own methods (its errors are dbench's to report)."""
+    return cls.__module__.split(".")[0] == "dbench"
+
+
 def _where(cls: type) -> str:
     """Where the user wrote ``cls``: its file (a --plugin file's module name is dbench's own)."""
     try:
@@ -115,4 +152,5 @@ def _where(cls: type) -> str:
         return cls.__module__
 
 
-__all__ = ["ALIASES", "Denoiser", "register", "available", "canonical", "method_class", "get"]
+__all__ = ["ALIASES", "Denoiser", "register", "available", "canonical", "method_class", "get",
+           "applies"]

@@ -68,3 +68,52 @@ def test_an_entry_point_naming_a_module_is_named_where_its_name_is_asked_for(iso
         registry.method_class("lab")
     assert str(caught.value).endswith(
         "; plugin lab (entry point (lab-methods)) registered lab-box, not a method named lab")
+
+
+APPLIES = '''
+from dbench.registry import Denoiser, register
+
+
+@register("asks-{name}")
+class Asks(Denoiser):
+    def applies_to(self, kind, available=None):
+        {body}
+
+    def denoise(self, data):
+        return data.color
+'''
+
+
+@pytest.mark.parametrize("name, body, said", [
+    ("raises", "raise RuntimeError('no model\\nfor this kind')",
+     "failed in applies_to('steady'): RuntimeError: no model for this kind"),
+    ("none", "return None", "applies_to('steady') returned None; expected (ok, reason)"),
+    ("bool", "return True", "applies_to('steady') returned True; expected (ok, reason)")])
+def test_a_plugin_applies_to_that_fails_is_refused_in_one_line(isolated, tmp_path, capsys,
+                                                                name, body, said):
+    # run and sweep ended with "internal error: RuntimeError: ..." (exit 1), and an answer
+    # other than (ok, reason) with "cannot unpack non-iterable NoneType object"
+    path = tmp_path / f"asks_{name}.py"
+    path.write_text(APPLIES.format(name=name, body=body))
+    for argv in (["run", "--method", f"asks-{name}", "--out", str(tmp_path / "run")],
+                 ["sweep", "--methods", f"asks-{name}", "--spp", "2", "--res", "8",
+                  "--out", str(tmp_path / "sweep")]):
+        assert cli.main([*argv, "--scene" + ("s" if argv[0] == "sweep" else ""), "cornell",
+                         "--plugin", str(path)]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith(f"dbench: method asks-{name} ({path})") \
+            and said in err[0], err
+    assert not (tmp_path / "run").exists() and not (tmp_path / "sweep").exists()
+
+
+def test_a_cell_whose_plugin_applies_to_raises_names_the_method(isolated, tmp_path):
+    # where a cell asks it (a sweep's worker, the Python API) the method fails, named
+    from dbench.run.harness import run_cell
+    from dbench.synthetic import base_frame
+
+    path = tmp_path / "asks_cell.py"
+    path.write_text(APPLIES.format(name="cell", body="raise KeyError('kind')"))
+    plugins.load(str(path))
+    with pytest.raises(plugins.PluginError, match=r"^method asks-cell \(.*asks_cell.py\) failed "
+                       r"in applies_to\('steady'\): KeyError: 'kind'$"):
+        run_cell(registry.get("asks-cell"), base_frame(4, 4), repeats=1)

@@ -48,7 +48,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     skipped: dict[str, str] = {}
     runnable = []
     for n, m in instances.items():
-        ok, why = m.applies_to(scene.kind, set(scene.provides))
+        ok, why = registry.applies(m, scene.kind, set(scene.provides))
         if ok:
             runnable.append(n)
         else:

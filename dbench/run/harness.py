@@ -18,7 +18,7 @@ import numpy as np
 
 from ..metrics import judge
 from ..errors import DbenchInputError
-from ..registry import Denoiser
+from ..registry import Denoiser, applies
 from ..device import device_name, download, timed, upload
 from . import fpenv
 from .inputs import check_output, check_unchanged, input_guard, private_copy
@@ -199,7 +199,7 @@ def run_cell(method: Denoiser, frame, metric_names=DEFAULT_METRICS, repeats: int
     check_cell_args(method, frames, metric_names, repeats, warmup)
     first = frames[0]
     available = _buffers(first)
-    ok, reason = method.applies_to(getattr(first, "kind", "steady"), available)
+    ok, reason = applies(method, getattr(first, "kind", "steady"), available)
     if not ok:
         return CellResult(method.name, dict(method.params), None, skipped=reason)
     columns = judge.metric_names([n for n in metric_names if n in judge.JUDGED])
@@ -267,7 +267,7 @@ def run_sequence_cell(method: Denoiser, seq, metric_names=DEFAULT_METRICS,
     check_cell_args(method, seqs, metric_names, None, warmup, extra=("t_rmse", "tpsnr", "cvvdp"))
     warmup = WARMUP if warmup is None else int(warmup)
     available = {b for b in BUFFER_NAMES if seqs[0].has(b)}
-    ok, reason = method.applies_to("sequence", available)
+    ok, reason = applies(method, "sequence", available)
     if not ok:
         return CellResult(method.name, dict(method.params), None, skipped=reason)
     names = [n for n in metric_names if n in judge.JUDGED]

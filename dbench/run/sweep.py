@@ -235,7 +235,7 @@ def plan(config: SweepConfig, out: Path
                                          f"(differs in {', '.join(diff[:6]) or 'identity'})")
                         continue
                 method = registry.get(m, **config.params.get(m, {}))
-                ok, why = method.applies_to(scene.kind, set(scene.provides))
+                ok, why = registry.applies(method, scene.kind, set(scene.provides))
                 if not ok:
                     pending_skips.append((path, {
                         "status": "skipped", "reason": why, "scene": scene_label[scene_name],

@@ -162,8 +162,8 @@ def run_methods(frame: TransientFrame, names: Sequence[str] = DEFAULT_METHODS,
     rows, outputs = [], {}
     for name in names:
         m = registry.get(name)
-        ok, why = m.applies_to(frame.kind, {b for b in ("color", "albedo", "normal", "depth",
-                                                         "stats") if frame.has(b)})
+        ok, why = registry.applies(m, frame.kind, {b for b in ("color", "albedo", "normal",
+                                                              "depth", "stats") if frame.has(b)})
         if not ok:
             rows.append({"method": name, "skipped": why})
             continue
