@@ -117,3 +117,66 @@ def test_a_cell_whose_plugin_applies_to_raises_names_the_method(isolated, tmp_pa
     with pytest.raises(plugins.PluginError, match=r"^method asks-cell \(.*asks_cell.py\) failed "
                        r"in applies_to\('steady'\): KeyError: 'kind'$"):
         run_cell(registry.get("asks-cell"), base_frame(4, 4), repeats=1)
+
+
+
+TYPED = """
+from dbench.registry import Denoiser, register
+
+SCALE = {scale}
+
+
+def helper(x):
+    return x * SCALE
+
+
+@register("typed")
+class Typed(Denoiser):
+    kinds = {{"steady", "sequence"}}
+    defaults = {{"passes": 1}}
+
+    def denoise(self, data):
+        return helper(data.color){tail}
+"""
+
+
+def _typed(monkeypatch, scale: float = 0.5, tail: str = "") -> type:
+    """The class of TYPED as `python -c`, a prompt or a notebook defines it: in a ``__main__``
+    without a file (its name free again for the next one)."""
+    import types
+
+    main = types.ModuleType("__main__")
+    monkeypatch.setitem(sys.modules, "__main__", main)
+    registry._REGISTRY.pop("typed", None)
+    exec(compile(TYPED.format(scale=scale, tail=tail), "<stdin>", "exec"), main.__dict__)
+    return main.Typed
+
+
+def test_a_class_without_a_source_file_is_versioned_by_its_compiled_code(isolated, monkeypatch):
+    # method_version raised OSError ("source code not available"), or FileNotFoundError for
+    # `python - < file` ('<stdin>'): a sweep of such a method ended as an internal error
+    from dbench.run import identity
+
+    first = identity.method_version(_typed(monkeypatch))
+    assert first.startswith("source-unknown-")
+    assert identity.method_version(_typed(monkeypatch)) == first  # typed again: the same code
+    assert identity.method_version(_typed(monkeypatch, scale=0.25)) != first  # a constant used
+    assert identity.method_version(_typed(monkeypatch, tail=" * 2")) != first  # the method
+    cls = _typed(monkeypatch)
+    cls.version = "2"
+    assert identity.method_version(cls).startswith("2+source-unknown-")
+
+
+def test_a_class_typed_in_python_c_keeps_its_version_from_process_to_process(tmp_path):
+    # the version of the same code, typed again in another process, lets a sweep reuse its
+    # cells: no set order (it follows the string hash, another in every process) nor address
+    import os
+    import subprocess
+
+    code = TYPED.format(scale=0.5, tail="") + (
+        "from dbench.run import identity\nprint(identity.method_version(Typed))\n")
+    env = {k: v for k, v in os.environ.items() if k != plugins.ENV_VAR}
+    versions = {subprocess.run([sys.executable, "-c", code], env={**env, "PYTHONHASHSEED": seed},
+                               capture_output=True, text=True, timeout=120).stdout.strip()
+                for seed in ("1", "2")}
+    assert len(versions) == 1 and versions.pop().startswith("source-unknown-"), versions

@@ -18,6 +18,7 @@ import hashlib
 import inspect
 import json
 import re
+import types
 from functools import lru_cache
 from pathlib import Path
 from typing import Any
@@ -132,16 +133,95 @@ def method_files(cls: type) -> list[Path]:
     wrapped = getattr(cls, "wrapped", None)  # NAME+gate: the gate's files and the method's
     if wrapped is not None:
         return sorted(set(method_files(wrapped)) | set(_package_files(inspect.getfile(cls))))
-    files = set(_package_files(inspect.getfile(cls)))
+    own = source_file(cls)  # None: a class with no file (unsourced_classes)
+    files = set(_package_files(str(own))) if own is not None else set()
     import dbench.methods as pkg
 
-    if Path(pkg.__file__).resolve().parent not in Path(inspect.getfile(cls)).resolve().parents:
+    if own is None or Path(pkg.__file__).resolve().parent not in own.parents:
         # a plugin's class runs the code of the classes it inherits from too (a built-in
         # method's): theirs count (dbench's own classes import their bases, traced above)
         for base in cls.__mro__[1:]:
-            if base.__module__ not in ("builtins", "dbench.denoiser"):
-                files |= set(_package_files(inspect.getfile(base)))
+            base_file = source_file(base)
+            if base.__module__ not in ("builtins", "dbench.denoiser") and base_file is not None:
+                files |= set(_package_files(str(base_file)))
     return sorted(files)
+
+
+def source_file(cls: type) -> Path | None:
+    """The file ``cls`` was defined in, or None where it has none to read: a class typed at a
+    prompt, in a notebook cell or in ``python -c`` (``__main__`` without a file, or with a
+    name such as ``<stdin>`` that is no file)."""
+    try:
+        path = Path(inspect.getfile(cls))
+    except (TypeError, OSError):
+        return None
+    return path.resolve() if path.is_file() else None
+
+
+def unsourced_classes(cls: type) -> list[type]:
+    """The classes behind a method's numbers that have no :func:`source_file`: ``cls`` and
+    the classes it inherits from (the method a ``NAME+gate`` wraps, and its), bar dbench's
+    base class."""
+    classes = list(cls.__mro__) + list(getattr(getattr(cls, "wrapped", None), "__mro__", ()))
+    return [k for k in dict.fromkeys(classes)
+            if k.__module__ not in ("builtins", "dbench.denoiser") and source_file(k) is None]
+
+
+def _stable(value: Any) -> str:
+    """``value`` as the same text in every process: sets sorted (their order follows the
+    string hash, another in every process) and no object addresses."""
+    if isinstance(value, (set, frozenset)):
+        return "{" + ",".join(sorted(_stable(v) for v in value)) + "}"
+    if isinstance(value, (list, tuple)):
+        return "(" + ",".join(_stable(v) for v in value) + ")"
+    if isinstance(value, dict):
+        return "{" + ",".join(sorted(f"{_stable(k)}:{_stable(v)}" for k, v in value.items())) + "}"
+    return re.sub(r" at 0x[0-9A-Fa-f]+", "", repr(value))
+
+
+def _code_parts(obj: Any, module: str, seen: set[int]) -> list[str]:
+    """What of ``obj`` (a class, function or code object of the module ``module``) decides what
+    it computes: a class's name and attributes, a function's compiled code (bytecode, constants
+    and the names it uses, nested functions included) and defaults, and the functions, classes
+    and plain constants of ``module`` that the code uses by name, each once."""
+    if id(obj) in seen:
+        return []
+    seen.add(id(obj))
+    if isinstance(obj, type):
+        out = [obj.__qualname__]
+        for name, value in sorted(vars(obj).items()):
+            if name not in ("__dict__", "__weakref__", "__module__", "__doc__", "__qualname__"):
+                out += [name] + (_code_parts(value, module, seen) or [_stable(value)])
+        return out
+    if isinstance(obj, (staticmethod, classmethod)):
+        return _code_parts(obj.__func__, module, seen)
+    if isinstance(obj, property):
+        return [p for f in (obj.fget, obj.fset, obj.fdel) if f is not None
+                for p in _code_parts(f, module, seen)]
+    if not isinstance(obj, types.FunctionType):
+        return []
+    out, names, todo = [_stable((obj.__defaults__, obj.__kwdefaults__))], set(), [obj.__code__]
+    while todo:
+        code = todo.pop()
+        out += [code.co_code.hex(), _stable(code.co_names), _stable(code.co_varnames)]
+        out += [_stable(c) for c in code.co_consts if not isinstance(c, types.CodeType)]
+        todo += [c for c in code.co_consts if isinstance(c, types.CodeType)]
+        names |= set(code.co_names)
+    for name in sorted(names):  # what the code reaches in its module by name
+        value = obj.__globals__.get(name)
+        if isinstance(value, (type, types.FunctionType)) and value.__module__ == module:
+            out += [name, *_code_parts(value, module, seen)]
+        elif isinstance(value, (bool, int, float, complex, str, bytes, tuple, frozenset)):
+            out += [name, _stable(value)]
+    return out
+
+
+def _unsourced_version(classes: list[type]) -> str:
+    """``source-unknown-`` and a hash of :func:`_code_parts` of ``classes`` (compiled code:
+    it changes with the Python version too), so a cell is reused only by the same code."""
+    seen: set[int] = set()
+    parts = [p for k in classes for p in _code_parts(k, k.__module__, seen)]
+    return "source-unknown-" + hashlib.sha256("\n".join(parts).encode()).hexdigest()[:12]
 
 
 def _package_files(source_file: str) -> list[Path]:
@@ -250,12 +330,16 @@ def method_version(cls: type, device: str = "cpu") -> str:
     joined with a hash of :func:`method_files` (its package folder, the shared top-level modules
     of ``dbench.methods`` and every module of ``dbench.methods`` they import), each as
     :func:`code_text` reads it. On the CPU the :func:`device_only` files are left out: a change
-    to a GPU kernel is no change to a CPU cell's numbers; on a device they count."""
+    to a GPU kernel is no change to a CPU cell's numbers; on a device they count. Classes with
+    no file (:func:`unsourced_classes`: typed in a notebook or ``python -c``) add
+    ``source-unknown-`` and a hash of their compiled code (:func:`_unsourced_version`)."""
     declared = getattr(cls, "version", None)
     files = method_files(cls)
     if device == "cpu":
         files = [f for f in files if not device_only(f)]
-    code = _hash_files(files)
+    unsourced = unsourced_classes(cls)
+    code = "+".join(([_hash_files(files)] if files or not unsourced else [])
+                    + ([_unsourced_version(unsourced)] if unsourced else []))
     return f"{declared}+{code}" if declared else code
 
 
