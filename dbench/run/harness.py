@@ -1,4 +1,5 @@
-"""One benchmark cell: a method run on a dataset, timed, and scored against the reference.
+"""One benchmark cell: a method run on a dataset, timed, and scored against the reference, and
+the record of its numbers that ``run`` and ``sweep`` write (:func:`cell_record`).
 
 Timing (README "Usage"): rendering and I/O are excluded; one warm-up call, then the
 median of ``repeats`` calls measured with ``time.perf_counter``. On a GPU (``device="cuda"``) a
@@ -21,6 +22,7 @@ from ..errors import DbenchInputError
 from ..registry import Denoiser, applies
 from ..device import device_name, download, timed, upload
 from . import fpenv
+from .machine import machine_label
 from .inputs import check_output, check_unchanged, input_guard, private_copy
 from .scoring import DEFAULT_METRICS, judge_frame
 from .sequence_run import WARMUP, after_warmup, run_sequence
@@ -295,3 +297,37 @@ def run_sequence_cell(method: Denoiser, seq, metric_names=DEFAULT_METRICS,
     if any(result.per_seed[0].get(c) == result.per_seed[0].get(c) for c in names):
         result.metrics, result.ci_kind = summarise_seeds(result.per_seed, judgements, columns)
     return result
+
+
+def cell_record(res, frames: list, needs: set[str]) -> dict[str, Any]:
+    """The numbers of one finished cell (shared by ``run`` and ``sweep``); ``needs``: the
+    buffers the method used (its ``wants``)."""
+    def median_meta(key: str) -> float:
+        vals = [f.meta.get(key) for f in frames if f.meta.get(key) is not None]
+        return float(statistics.median(vals)) if vals else float("nan")
+
+    first = frames[0]
+    record = {"n_seeds": res.n_seeds, "seeds": [f.meta.get("seed") for f in frames],
+              "ci_kind": res.ci_kind, "ref_spp": first.meta.get("ref_spp"),
+              "ref_seed": first.meta.get("ref_seed"),
+              "ref_render_s": first.meta.get("ref_render_s"),
+              "render_s": median_meta("render_s"),
+              "stats_s": median_meta("stats_s") if "stats" in needs else 0.0,
+              # A-SVGF's re-shaded samples are rendered for the methods that use them: their
+              # cost per frame counts with the method (docs/temporal.md §2)
+              "gradient_s": (median_meta("gradient_per_frame_s") if "gradient" in needs
+                             and first.kind == "sequence" else 0.0),
+              **res.metrics, "time_s": res.time_s, "time_s_iqr": res.time_s_iqr,
+              "times_s": res.times_s, "n_nonfinite": res.n_nonfinite,
+              "per_seed": res.per_seed, "machine": machine_label(),
+              # what rendered the inputs: a CUDA render is not bit-identical to an LLVM one
+              "render_variant": (first.meta.get("versions") or {}).get("variant"),
+              "device": res.device, "device_name": res.device_name, "backend": res.backend}
+    if res.transfer_s:
+        # host↔device copies of a device cell, timed apart from the method (median per seed)
+        record["transfer_s"] = float(statistics.median(res.transfer_s))
+    if res.settings:
+        record["settings"] = res.settings       # what the method resolved (first seed)
+    if first.kind == "sequence":
+        record.update(frames=len(first), warmup=res.sequence.summary["warmup"])
+    return record

@@ -50,7 +50,7 @@ def run_scene(out: Path, req: RunRequest, scene, instances, labels, runnable,
     from ..report.formats import write_csv
     from .machine import machine_info
     from .inputs import load_seeds
-    from .sweep import cell_record
+    from .harness import cell_record
     from ..device import device_name
     from ..io import write_exr, write_json, write_text
 

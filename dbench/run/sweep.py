@@ -37,7 +37,6 @@ from .inputs import load_seeds, method_failure  # noqa: F401 - load_seeds: the i
 from .sweep_names import check_scenes, folder_ref_spp, kind_options, scene_labels
 from .sweep_pool import worker_start as _worker_start  # noqa: F401 - the pool initializer
 from ..device import device_name
-from .machine import machine_label
 
 DEFAULT_SPP = (4, 16, 64, 256, 1024)
 
@@ -258,47 +257,11 @@ def plan(config: SweepConfig, out: Path
     return groups, done, skipped
 
 
-def cell_record(res, frames: list, needs: set[str]) -> dict[str, Any]:
-    """The numbers of one finished cell (shared by ``run`` and ``sweep``); ``needs``: the
-    buffers the method used (its ``wants``)."""
-    import statistics as st
-
-    def median_meta(key: str) -> float:
-        vals = [f.meta.get(key) for f in frames if f.meta.get(key) is not None]
-        return float(st.median(vals)) if vals else float("nan")
-
-    first = frames[0]
-    record = {"n_seeds": res.n_seeds, "seeds": [f.meta.get("seed") for f in frames],
-              "ci_kind": res.ci_kind, "ref_spp": first.meta.get("ref_spp"),
-              "ref_seed": first.meta.get("ref_seed"),
-              "ref_render_s": first.meta.get("ref_render_s"),
-              "render_s": median_meta("render_s"),
-              "stats_s": median_meta("stats_s") if "stats" in needs else 0.0,
-              # A-SVGF's re-shaded samples are rendered for the methods that use them: their
-              # cost per frame counts with the method (docs/temporal.md §2)
-              "gradient_s": (median_meta("gradient_per_frame_s") if "gradient" in needs
-                             and first.kind == "sequence" else 0.0),
-              **res.metrics, "time_s": res.time_s, "time_s_iqr": res.time_s_iqr,
-              "times_s": res.times_s, "n_nonfinite": res.n_nonfinite,
-              "per_seed": res.per_seed, "machine": machine_label(),
-              # what rendered the inputs: a CUDA render is not bit-identical to an LLVM one
-              "render_variant": (first.meta.get("versions") or {}).get("variant"),
-              "device": res.device, "device_name": res.device_name, "backend": res.backend}
-    if res.transfer_s:
-        # host↔device copies of a device cell, timed apart from the method (median per seed)
-        record["transfer_s"] = float(st.median(res.transfer_s))
-    if res.settings:
-        record["settings"] = res.settings       # what the method resolved (first seed)
-    if first.kind == "sequence":
-        record.update(frames=len(first), warmup=res.sequence.summary["warmup"])
-    return record
-
-
 def run_group(config: SweepConfig, out: str, scene_name: str, spp: int,
               method_names: list[str]) -> list[str]:
     """Load one frame per seed and run the given methods on them, writing one cell file each."""
     from .. import datasets, registry
-    from .harness import run_cell, run_sequence_cell
+    from .harness import cell_record, run_cell, run_sequence_cell
 
     out_path = Path(out)
     cache = datasets.Cache(config.cache, enabled=not config.no_cache)

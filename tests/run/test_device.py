@@ -64,7 +64,7 @@ def test_the_harness_runs_a_device_path_and_records_where(monkeypatch):
     # a method without a device path runs on the host, and says so
     plain = harness.run_cell(get("noisy"), f, repeats=1, device="cuda")
     assert plain.device == "cpu" and not plain.transfer_s
-    record = sweep.cell_record(on_dev, [f], {"color"})
+    record = harness.cell_record(on_dev, [f], {"color"})
     assert {"device", "device_name", "backend", "transfer_s"} <= set(record)
 
 
