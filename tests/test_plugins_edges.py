@@ -180,3 +180,56 @@ def test_a_class_typed_in_python_c_keeps_its_version_from_process_to_process(tmp
                                capture_output=True, text=True, timeout=120).stdout.strip()
                 for seed in ("1", "2")}
     assert len(versions) == 1 and versions.pop().startswith("source-unknown-"), versions
+
+
+EDITED = '''
+from dbench.registry import Denoiser, register
+
+
+@register("edited")
+class Edited(Denoiser):
+    def denoise(self, data):
+        return data.color * {scale}
+'''
+
+
+@pytest.mark.mitsuba  # the plan fingerprints the scene (Mitsuba's dictionary)
+@pytest.mark.parametrize("removed", [False, True])
+def test_a_plugin_edited_during_a_sweep_is_refused_not_scored_under_the_old_code(
+        renderer, isolated, tmp_path, monkeypatch, removed):
+    # a pool worker read the plugin after the sweep hashed it, and filed its numbers under the
+    # old code's identity (a file removed meanwhile: FileNotFoundError ended the sweep; now its
+    # compiled code is what runs); frames and cells are stand-ins (pool workers are forked)
+    from types import SimpleNamespace
+
+    from dbench.run import harness, identity, sweep
+
+    path = tmp_path / "edited.py"
+    path.write_text(EDITED.format(scale=1.0))
+    plugins.load(str(path))
+    monkeypatch.setattr(sweep, "load_seeds", lambda *a, **k: [SimpleNamespace(kind="steady")])
+    monkeypatch.setattr(sweep, "_prerender_references", lambda *a, **k: None)
+    monkeypatch.setattr(harness, "run_cell", lambda method, frames, **kw: harness.CellResult(
+        method.name, dict(method.params), None, skipped="stand-in"))
+    planned = sweep.plan
+
+    def plan_then_edit(config, out):  # the user saves the file while the sweep starts
+        groups = planned(config, out)
+        path.unlink() if removed else path.write_text(EDITED.format(scale=0.5))
+        return groups
+
+    monkeypatch.setattr(sweep, "plan", plan_then_edit)
+    old = identity.method_version(registry.method_class("edited"))
+    config = sweep.SweepConfig(methods=["noisy", "edited"], scenes=["cornell"], spp=[2, 3],
+                               res=8, ref_spp=16, repeats=1, cache=str(tmp_path / "cache"))
+    counts = sweep.run_sweep(config, tmp_path / "S", workers=2, progress=False)
+    identity.method_version.cache_clear()  # the file as it is now
+    new = identity.method_version(registry.method_class("edited"))
+    assert new != old and new.startswith("source-unknown-") == removed
+    assert counts["errors"] == 2, counts
+    cells = [c for c in sweep.load_cells(tmp_path / "S") if c["method"] == "edited"]
+    assert [c["error"] for c in cells] == [
+        f"edited: its code changed during the sweep (method_version {old} -> {new}); not "
+        f"scored: run the sweep again"] * 2
+    assert {c["status"] for c in sweep.load_cells(tmp_path / "S") if c["method"] == "noisy"} \
+        == {"skipped"}

@@ -393,6 +393,23 @@ def file_stem(label_: str) -> str:
     return f"{base}@{digest(label_, 10)}"
 
 
+def changed_during_sweep(method: str, planned: dict[str, Any] | None,
+                         now: dict[str, Any]) -> str:
+    """``""`` when ``now``, a cell's identity as the process about to score it finds it, is the
+    one the sweep planned (``planned``; None: nothing planned, as from the Python API), else the
+    line that refuses the cell: a plugin's file edited while ``dbench sweep --workers N`` runs
+    is read by a worker after the sweep hashed it, and its numbers would be filed under the old
+    code's identity (README.md, the ``dbench sweep`` paragraph). The error cell is computed
+    again by the next run of the sweep."""
+    if planned is None or digest(planned) == digest(now):
+        return ""
+    keys = differences(planned, now)
+    what = (f"its code changed during the sweep (method_version {planned['method_version']} "
+            f"-> {now['method_version']})" if keys == ["method_version"] else
+            f"its cell's identity changed during the sweep (differs in {', '.join(keys[:6])})")
+    return f"{method}: {what}; not scored: run the sweep again"
+
+
 def differences(old: dict[str, Any], new: dict[str, Any], prefix: str = "") -> list[str]:
     """Dotted keys whose values differ between two identity dicts."""
     out = []
@@ -406,4 +423,4 @@ def differences(old: dict[str, Any], new: dict[str, Any], prefix: str = "") -> l
 
 
 __all__ = ["digest", "code_text", "method_files", "method_version", "judge_version", "resolved_params", "label",
-           "file_stem", "differences"]
+           "file_stem", "differences", "changed_during_sweep"]

@@ -33,7 +33,7 @@ from . import identity, sweep_history, sweep_lock, sweep_pool
 from ..report.cells import (NUMERIC_KEYS, cell_problem, load_cells,  # noqa: F401 - the module's
                             load_cells_checked, read_cell)  # interface, as before
 from .sweep_history import SETTINGS, stored_config  # noqa: F401 - the module's interface
-from .inputs import load_seeds, method_failure  # noqa: F401 - load_seeds: the interface too
+from .inputs import MethodError, load_seeds, method_failure  # noqa: F401 - load_seeds too
 from .sweep_names import check_scenes, folder_ref_spp, kind_options, scene_labels
 from .sweep_pool import worker_start as _worker_start  # noqa: F401 - the pool initializer
 from ..device import device_name
@@ -193,8 +193,9 @@ def cell_identity(config: SweepConfig, scene, spp: int, method: str, fingerprint
 
 
 def plan(config: SweepConfig, out: Path
-         ) -> tuple[list[tuple[str, int, list[str]]], int, int]:
-    """Groups still to compute: (scene, spp, [methods]); newly skipped cells are written here.
+         ) -> tuple[list[tuple[str, int, list[str], dict[str, dict]]], int, int]:
+    """Groups still to compute: (scene, spp, [methods], {method: its cell's identity}); newly
+    skipped cells are written here.
 
     Returns the groups, the number of cells finished (or skipped) by an earlier run with the
     same identity, and the number of cells skipped now because the method does not apply.
@@ -216,7 +217,7 @@ def plan(config: SweepConfig, out: Path
         planned.add(scene_label[scene_name])
         fingerprint = datasets.scene_fingerprint(scene, config.res_for(scene))
         for spp in config.spp:
-            todo = []
+            todo = {}
             for m in config.methods:
                 path = cell_path(out, scene_label[scene_name], spp, labels[m])
                 ident = cell_identity(config, scene, spp, m, fingerprint,
@@ -243,9 +244,9 @@ def plan(config: SweepConfig, out: Path
                         "identity": ident, "identity_hash": key}))
                     skipped += 1
                     continue
-                todo.append(m)
+                todo[m] = ident
             if todo:
-                groups.append((scene_name, spp, todo))
+                groups.append((scene_name, spp, list(todo), todo))
     if conflicts:
         raise DbenchInputError(
             f"{len(conflicts)} finished cell(s) under the same label were computed with other "
@@ -258,8 +259,11 @@ def plan(config: SweepConfig, out: Path
 
 
 def run_group(config: SweepConfig, out: str, scene_name: str, spp: int,
-              method_names: list[str]) -> list[str]:
-    """Load one frame per seed and run the given methods on them, writing one cell file each."""
+              method_names: list[str], planned: dict[str, dict] | None = None) -> list[str]:
+    """Load one frame per seed and run the given methods on them, writing one cell file each.
+    ``planned``: each method's cell identity as :func:`plan` found it; a cell whose identity
+    differs here (its code edited since, read by this worker) is an error cell, not scored
+    (:func:`dbench.run.identity.changed_during_sweep`)."""
     from .. import datasets, registry
     from .harness import cell_record, run_cell, run_sequence_cell
 
@@ -280,11 +284,15 @@ def run_group(config: SweepConfig, out: str, scene_name: str, spp: int,
                         **kind_options(config, scene))
     written = []
     for m, inst in instances.items():
+        # this process's hash of the code (a pool worker's own: sweep_pool.worker_start)
         ident = cell_identity(config, scene, spp, m, fingerprint, scene_label)
+        changed = identity.changed_during_sweep(m, (planned or {}).get(m), ident)
         base = {"scene": scene_label, "method": labels[m], "base_method": m, "spp": spp,
                 "res": res.key, "params": ident["params"], "identity": ident,
                 "identity_hash": identity.digest(ident)}
         try:
+            if changed:
+                raise MethodError(changed)
             if frames[0].kind == "sequence":
                 result = run_sequence_cell(inst, frames, metric_names=config.metrics,
                                            device=config.device)
@@ -326,25 +334,26 @@ def _prerender_references(config: SweepConfig, scenes: Iterable[str],
 
 
 def run_group_captured(config: SweepConfig, out: str, scene_name: str, spp: int,
-                       method_names: list[str]) -> dict[str, list[str]]:
+                       method_names: list[str], planned: dict[str, dict] | None = None
+                       ) -> dict[str, list[str]]:
     """:func:`run_group` with the library warnings raised meanwhile kept as lines
     (:mod:`.capture`), so that a worker process's warnings reach the sweep's ``sweep.log``
     instead of the terminal: ``{"written": cell paths, "warnings": lines}``."""
     from .capture import library_warnings
 
     with library_warnings() as caught:
-        written = run_group(config, out, scene_name, spp, method_names)
+        written = run_group(config, out, scene_name, spp, method_names, planned)
     return {"written": written, "warnings": list(caught)}
 
 
 def run_group_with_plugins(plugin_specs: Sequence[str], config: SweepConfig, out: str,
-                           scene_name: str, spp: int, method_names: list[str]
-                           ) -> dict[str, list[str]]:
+                           scene_name: str, spp: int, method_names: list[str],
+                           planned: dict[str, dict] | None = None) -> dict[str, list[str]]:
     """:func:`run_group_captured` after loading the parent's plugins (a Ray task's start-up)."""
     from .. import plugins, registry  # noqa: F401 - the built-in methods before the plugins
 
     plugins.worker_init(plugin_specs)
-    return run_group_captured(config, out, scene_name, spp, method_names)
+    return run_group_captured(config, out, scene_name, spp, method_names, planned)
 
 
 def remove_interrupted_writes(out: Path) -> int:
@@ -403,10 +412,11 @@ def run_sweep(config: SweepConfig, out: str | Path, executor: str = "local", wor
 
 
 def group_cells(config: SweepConfig, out: Path, groups: list) -> list[Path]:
-    """The cell files the groups (scene, spp, [methods]) of :func:`plan` write."""
+    """The cell files the groups (scene, spp, [methods], identities) of :func:`plan` write."""
     labels = config.labels()
     scene_label = scene_labels(config, out)
-    return [cell_path(out, scene_label[s], spp, labels[m]) for s, spp, ms in groups for m in ms]
+    return [cell_path(out, scene_label[s], spp, labels[m]) for s, spp, ms, *_ in groups
+            for m in ms]
 
 
 def _execute(config: SweepConfig, out: Path, groups: list, executor: str, workers: int,

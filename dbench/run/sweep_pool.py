@@ -14,6 +14,8 @@ import signal
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from typing import Callable, Sequence
 
+from . import identity
+
 #: seconds a terminated worker is given to exit before it is killed
 STOP_GRACE_S = 3.0
 
@@ -32,7 +34,7 @@ def worker_start(plugin_specs: Sequence[str] = ()) -> None:
     """Process-pool initializer: ignore Ctrl-C (the sweep process stops the pool), end at once
     on the SIGTERM with which :func:`stop` ends it, die with the parent, then load the parent's
     plugins (entry points, $DBENCH_PLUGINS and every --plugin), so the worker can build plugin
-    methods."""
+    methods, and hash every method's code afresh."""
     from .. import plugins, registry  # noqa: F401 - the built-in methods before the plugins
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
@@ -42,6 +44,9 @@ def worker_start(plugin_specs: Sequence[str] = ()) -> None:
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     _die_with_parent()
     plugins.worker_init(plugin_specs)
+    # the worker hashes the code as it finds it, for run_group to compare with the sweep's
+    # hash: a fork inherits the sweep's hashes, which would hide a file edited since
+    identity.method_version.cache_clear()
 
 
 def stop(pool: ProcessPoolExecutor) -> None:
