@@ -13,6 +13,7 @@ Example:
 """
 from __future__ import annotations
 
+import inspect
 import math
 import re
 from typing import Any, Callable
@@ -218,6 +219,15 @@ def check_needs(name: str, needs: Any, optional_needs: Any) -> None:
                          f"scored against, and no method is handed it (dbench/run/inputs.py)")
 
 
+def defined_in(cls: type) -> str:
+    """Where ``cls`` was written: its file, else its module's name (a class typed in
+    ``python -c`` or a notebook has no file; a ``--plugin`` file's module name is dbench's)."""
+    try:
+        return inspect.getfile(cls)
+    except (TypeError, OSError):
+        return cls.__module__
+
+
 def register(name: str) -> Callable[[type[Denoiser]], type[Denoiser]]:
     """Class decorator adding a Denoiser subclass to the registry under ``name``.
 
@@ -230,7 +240,10 @@ def register(name: str) -> Callable[[type[Denoiser]], type[Denoiser]]:
     def wrap(cls: type[Denoiser]) -> type[Denoiser]:
         check_method_name(name)
         if name in _REGISTRY and _REGISTRY[name] is not cls:
-            raise ValueError(f"method {name!r} registered twice")
+            # two files of one name (a/same.py, b/same.py) could not be told apart otherwise
+            held = _REGISTRY[name]
+            raise ValueError(f"method {name!r} is already registered by {held.__qualname__} "
+                             f"({defined_in(held)})")
         check_needs(name, cls.needs, cls.optional_needs)
         # kinds = "steady" would read as its letters, and a misspelt kind would skip the
         # method on every scene without a word about the typo

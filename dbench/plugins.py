@@ -43,7 +43,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterable
 
-from .denoiser import _REGISTRY, Denoiser, register
+from .denoiser import _REGISTRY, Denoiser, defined_in, register
 from .errors import DbenchInputError
 
 #: Entry-point groups.
@@ -161,7 +161,7 @@ def _register_method_object(name: str, obj: Any) -> None:
                          f"or give the entry point the name {obj.name!r}")
     if name in _REGISTRY:
         raise ValueError(f"method {name!r} is already registered by "
-                         f"{_REGISTRY[name].__module__}.{_REGISTRY[name].__qualname__}")
+                         f"{_REGISTRY[name].__qualname__} ({defined_in(_REGISTRY[name])})")
     register(name)(obj)
 
 
@@ -272,8 +272,8 @@ def load_all(specs: Iterable[str] = (), strict: bool = True) -> list[Plugin]:
     if strict:
         bad = [p for p in out if not p.ok]
         env_bad = [p for p in _PLUGINS.values() if p.origin == ENV_VAR and not p.ok]
-        for p in bad + env_bad:
-            raise PluginError(f"plugin {p.name} ({p.origin}) failed to load: {p.error}")
+        for p in bad + env_bad:  # a file by its path: two plugins may share a file name
+            raise PluginError(f"plugin {p.target} ({p.origin}) failed to load: {p.error}")
     return out
 
 

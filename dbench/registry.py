@@ -17,14 +17,13 @@ Example:
 """
 from __future__ import annotations
 
-import inspect
 from typing import Any
 
 import numpy as np
 
 from . import methods  # noqa: F401 - registers the built-in methods
 from . import plugins
-from .denoiser import _REGISTRY, ALIASES, Denoiser, check_needs, register
+from .denoiser import _REGISTRY, ALIASES, Denoiser, check_needs, defined_in, register
 from .errors import DbenchInputError, UnknownNameError
 from .methods.gate import SUFFIX, gated_class
 
@@ -99,12 +98,12 @@ def get(name: str, **params: Any) -> Denoiser:
     except Exception as exc:  # noqa: BLE001 - named below, when it is a plugin's own code
         if _own(cls):
             raise
-        raise plugins.PluginError(f"method {cls.name} ({_where(cls)}) could not be built: "
+        raise plugins.PluginError(f"method {cls.name} ({defined_in(cls)}) could not be built: "
                                   f"{plugins.one_line(exc)}") from exc
     try:  # needs set in __init__ escape register()'s check of the class: checked alike here
         check_needs(cls.name, method.needs, method.optional_needs)
     except ValueError as exc:
-        raise plugins.PluginError(f"method {cls.name} ({_where(cls)}) could not be built: "
+        raise plugins.PluginError(f"method {cls.name} ({defined_in(cls)}) could not be built: "
                                   f"{exc}") from None
     return method
 
@@ -125,7 +124,7 @@ def applies(method: Denoiser, kind: str, available: set[str] | None = None
     except Exception as exc:  # noqa: BLE001 - named below, when it is a plugin's own code
         if _own(cls):
             raise
-        raise plugins.PluginError(f"method {cls.name} ({_where(cls)}) failed in "
+        raise plugins.PluginError(f"method {cls.name} ({defined_in(cls)}) failed in "
                                   f"applies_to({kind!r}): {plugins.one_line(exc)}") from exc
     if _own(cls):
         return answer
@@ -133,7 +132,7 @@ def applies(method: Denoiser, kind: str, available: set[str] | None = None
     if not (isinstance(answer, tuple) and len(answer) == 2
             and isinstance(answer[0], (bool, np.bool_)) and isinstance(answer[1], str)):
         raise plugins.PluginError(
-            f"method {cls.name} ({_where(cls)}): applies_to({kind!r}) returned "
+            f"method {cls.name} ({defined_in(cls)}): applies_to({kind!r}) returned "
             f"{' '.join(repr(answer).split())[:80]}; expected (ok, reason): True or False and "
             f"a string")
     return bool(answer[0]), answer[1]
@@ -144,12 +143,6 @@ def _own(cls: type) -> bool:
     return cls.__module__.split(".")[0] == "dbench"
 
 
-def _where(cls: type) -> str:
-    """Where the user wrote ``cls``: its file (a --plugin file's module name is dbench's own)."""
-    try:
-        return inspect.getfile(cls)
-    except (TypeError, OSError):
-        return cls.__module__
 
 
 __all__ = ["ALIASES", "Denoiser", "register", "available", "canonical", "method_class", "get",

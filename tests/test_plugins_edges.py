@@ -233,3 +233,32 @@ def test_a_plugin_edited_during_a_sweep_is_refused_not_scored_under_the_old_code
         f"scored: run the sweep again"] * 2
     assert {c["status"] for c in sweep.load_cells(tmp_path / "S") if c["method"] == "noisy"} \
         == {"skipped"}
+
+
+SAME = """
+from dbench.registry import Denoiser, register
+
+
+@register("{name}")
+class Same(Denoiser):
+    def denoise(self, data):
+        return data.color
+"""
+
+
+@pytest.mark.parametrize("name, holder", [
+    ("twice", "Same ({first})"), ("jbf", "JBF ({root}/dbench/methods/jbf/__init__.py)")])
+def test_a_name_taken_is_refused_naming_both_files(isolated, tmp_path, capsys, name, holder):
+    # "plugin same.py (--plugin) failed to load: ValueError: method 'twice' registered twice":
+    # neither which same.py nor who held the name
+    first, second = tmp_path / "a" / "same.py", tmp_path / "b" / "same.py"
+    for path in (first, second):
+        path.parent.mkdir()
+        path.write_text(SAME.format(name=name))
+    specs = ["--plugin", str(second)] if name == "jbf" else \
+        ["--plugin", str(first), "--plugin", str(second)]
+    assert cli.main(["run", "--method", name, "--scene", "cornell", *specs]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    said = holder.format(first=first, root=Path(__file__).resolve().parents[1])
+    assert err == [f"dbench: plugin {second} (--plugin) failed to load: ValueError: method "
+                   f"{name!r} is already registered by {said}"], err
