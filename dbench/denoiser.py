@@ -232,7 +232,8 @@ def register(name: str) -> Callable[[type[Denoiser]], type[Denoiser]]:
     """Class decorator adding a Denoiser subclass to the registry under ``name``.
 
     Refuses (ValueError; a plugin that raises it is *broken*, with the reason) what README.md
-    "Add your own denoiser" rules out: a name taken or one that could not be asked for, needs
+    "Add your own denoiser" rules out: a name taken or one that could not be asked for, a
+    class registered under another name already, needs
     outside :data:`~dbench.data.BUFFER_NAMES` or naming the reference, kinds outside
     :data:`KINDS`, a ``version`` that is no string or number, and defaults that are no dict of
     :func:`is_identity_value` values."""
@@ -244,6 +245,11 @@ def register(name: str) -> Callable[[type[Denoiser]], type[Denoiser]]:
             held = _REGISTRY[name]
             raise ValueError(f"method {name!r} is already registered by {held.__qualname__} "
                              f"({defined_in(held)})")
+        other = [n for n, c in _REGISTRY.items() if c is cls and n != name]
+        if other:  # cls.name would become the last name, and the first would run under it
+            raise ValueError(f"method {name!r}: {cls.__qualname__} ({defined_in(cls)}) is "
+                             f"registered as {other[0]!r} already; a class has one name "
+                             f"(register a subclass under the second)")
         check_needs(name, cls.needs, cls.optional_needs)
         # kinds = "steady" would read as its letters, and a misspelt kind would skip the
         # method on every scene without a word about the typo

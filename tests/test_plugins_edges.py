@@ -262,3 +262,16 @@ def test_a_name_taken_is_refused_naming_both_files(isolated, tmp_path, capsys, n
     said = holder.format(first=first, root=Path(__file__).resolve().parents[1])
     assert err == [f"dbench: plugin {second} (--plugin) failed to load: ValueError: method "
                    f"{name!r} is already registered by {said}"], err
+
+
+def test_one_class_registered_under_two_names_is_refused(isolated, tmp_path):
+    # the class took the second name: --method first-name ran, skipped and failed as
+    # "second-name", its cells filed under one name and its messages under the other
+    path = tmp_path / "two_names.py"
+    path.write_text(SAME.format(name="second-name").replace(
+        '@register("second-name")', '@register("second-name")\n@register("first-name")'))
+    with pytest.raises(plugins.PluginError) as caught:
+        plugins.load(str(path))
+    assert str(caught.value).endswith(
+        f"ValueError: method 'second-name': Same ({path}) is registered as 'first-name' "
+        f"already; a class has one name (register a subclass under the second)")
