@@ -219,6 +219,17 @@ def check_needs(name: str, needs: Any, optional_needs: Any) -> None:
                          f"scored against, and no method is handed it (dbench/run/inputs.py)")
 
 
+def check_kinds(name: str, kinds: Any) -> None:
+    """Refuse (ValueError) ``kinds`` that are no non-empty set of :data:`KINDS`: ``"steady"``
+    would read as its letters, and a misspelt kind would skip the method on every scene
+    without a word about the typo; a class's when it is registered, an instance's when it is
+    built (:func:`dbench.registry.get`: kinds set in ``__init__``)."""
+    if isinstance(kinds, str) or not isinstance(kinds, (set, frozenset, list, tuple)) \
+            or not kinds or not set(kinds) <= set(KINDS):
+        raise ValueError(f"method {name!r}: kinds {kinds!r}; expected a non-empty set "
+                         f"of {', '.join(KINDS)}")
+
+
 def defined_in(cls: type) -> str:
     """Where ``cls`` was written: its file, else its module's name (a class typed in
     ``python -c`` or a notebook has no file; a ``--plugin`` file's module name is dbench's)."""
@@ -251,11 +262,7 @@ def register(name: str) -> Callable[[type[Denoiser]], type[Denoiser]]:
                              f"registered as {other[0]!r} already; a class has one name "
                              f"(register a subclass under the second)")
         check_needs(name, cls.needs, cls.optional_needs)
-        # kinds = "steady" would read as its letters, and a misspelt kind would skip the
-        # method on every scene without a word about the typo
-        if isinstance(cls.kinds, str) or not cls.kinds or not set(cls.kinds) <= set(KINDS):
-            raise ValueError(f"method {name!r}: kinds {cls.kinds!r}; expected a non-empty set "
-                             f"of {', '.join(KINDS)}")
+        check_kinds(name, cls.kinds)
         version = getattr(cls, "version", None)  # a class attribute, part of the identity
         if version is not None and (isinstance(version, bool)
                                     or not isinstance(version, (str, int, float))):

@@ -23,7 +23,8 @@ import numpy as np
 
 from . import methods  # noqa: F401 - registers the built-in methods
 from . import plugins
-from .denoiser import _REGISTRY, ALIASES, Denoiser, check_needs, defined_in, register
+from .denoiser import (_REGISTRY, ALIASES, Denoiser, check_kinds, check_needs, defined_in,
+                       register)
 from .errors import DbenchInputError, UnknownNameError
 from .methods.gate import SUFFIX, gated_class
 
@@ -100,8 +101,9 @@ def get(name: str, **params: Any) -> Denoiser:
             raise
         raise plugins.PluginError(f"method {cls.name} ({defined_in(cls)}) could not be built: "
                                   f"{plugins.one_line(exc)}") from exc
-    try:  # needs set in __init__ escape register()'s check of the class: checked alike here
+    try:  # needs and kinds set in __init__ escape register()'s check of the class: alike here
         check_needs(cls.name, method.needs, method.optional_needs)
+        check_kinds(cls.name, method.kinds)
     except ValueError as exc:
         raise plugins.PluginError(f"method {cls.name} ({defined_in(cls)}) could not be built: "
                                   f"{exc}") from None

@@ -275,3 +275,22 @@ def test_one_class_registered_under_two_names_is_refused(isolated, tmp_path):
     assert str(caught.value).endswith(
         f"ValueError: method 'second-name': Same ({path}) is registered as 'first-name' "
         f"already; a class has one name (register a subclass under the second)")
+
+
+@pytest.mark.parametrize("kinds", ['{"stedy"}', '"transient"', "None"])
+def test_kinds_a_plugin_sets_when_it_is_built_are_checked_as_its_class_is(isolated, tmp_path,
+                                                                         capsys, kinds):
+    # register() checks the class's kinds; set in __init__, a misspelt kind skipped the method
+    # on every scene, a string was read by its letters and None ended run as an internal error
+    path = tmp_path / "late_kinds.py"
+    path.write_text(SAME.format(name="late-kinds").replace(
+        "    def denoise", f"    def __init__(self, **params):\n        super().__init__(**params)"
+        f"\n        self.kinds = {kinds}\n\n    def denoise"))
+    out = tmp_path / "run"
+    assert cli.main(["run", "--method", "late-kinds", "--scene", "cornell", "--plugin",
+                     str(path), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"dbench: method late-kinds ({path}) could not be built: method "
+                   f"'late-kinds': kinds {eval(kinds)!r}; expected a non-empty set of steady, "
+                   f"sequence, transient"], err
+    assert not out.exists()
