@@ -298,18 +298,39 @@ def _load_entry_point(ep: Any, group: str) -> Plugin:
 
 def discover_entry_points() -> list[Plugin]:
     """Load every ``dbench.methods`` and ``dbench.scenes`` entry point not loaded yet."""
-    from importlib.metadata import entry_points
+    from importlib.metadata import distributions
 
     out = []
     with _LOCK:
+        dists = list(distributions())
         for group in (METHOD_GROUP, SCENE_GROUP):
-            seen = set()
-            for ep in entry_points(group=group):
-                if ep.name in seen:  # the same distribution on sys.path twice
-                    continue
-                seen.add(ep.name)
-                out.append(_load_entry_point(ep, group))
+            # name -> {target: entry point}: one target seen twice is one distribution whose
+            # folder is on sys.path twice; two targets are two claims on one name, which
+            # importlib.metadata.entry_points(group=...) would give once, the other dropped
+            by_name: dict[str, dict[str, Any]] = {}
+            for ep in (ep for d in dists for ep in d.entry_points if ep.group == group):
+                by_name.setdefault(ep.name, {}).setdefault(ep.value, ep)
+            for name, eps in by_name.items():
+                found = list(eps.values())
+                out.append(_load_entry_point(found[0], group) if len(found) == 1
+                           else _clash(name, found, group))
     return out
+
+
+def _clash(name: str, eps: list[Any], group: str) -> Plugin:
+    """The record of entry point ``name`` declared by two distributions for two targets: broken,
+    none of them loaded, since which one sys.path would find first is no choice of the user's
+    (asking for it names both)."""
+    spec = f"{group}:{name}"
+    if spec not in _PLUGINS:
+        dists = [getattr(getattr(ep, "dist", None), "name", None) or "?" for ep in eps]
+        _PLUGINS[spec] = Plugin(
+            spec=spec, origin=f"entry points ({', '.join(dists)})",
+            target=", ".join(ep.value for ep in eps), name=name,
+            error=f"ValueError: entry point {name!r} is declared by "
+                  + " and by ".join(f"{d} ({ep.value})" for d, ep in zip(dists, eps))
+                  + "; uninstall one of them, or give one another name")
+    return _PLUGINS[spec]
 
 
 def ensure_loaded() -> None:

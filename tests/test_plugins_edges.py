@@ -294,3 +294,20 @@ def test_kinds_a_plugin_sets_when_it_is_built_are_checked_as_its_class_is(isolat
                    f"'late-kinds': kinds {eval(kinds)!r}; expected a non-empty set of steady, "
                    f"sequence, transient"], err
     assert not out.exists()
+
+
+def test_one_entry_point_name_declared_by_two_distributions_is_refused_naming_both(
+        isolated, tmp_path, capsys):
+    # the distribution found later on sys.path was dropped without a word: --method twin ran
+    # whichever came first
+    for dist, package in (("twin-a", "twin_a"), ("twin-b", "twin_b")):
+        _install(tmp_path / dist, dist, package, REGISTERED_AS.replace(
+            '    @register("box-three")\n', ""), f"[dbench.methods]\ntwin = {package}:Box3\n")
+    plugins.discover_entry_points()
+    assert "twin" not in registry.available()
+    assert cli.main(["run", "--method", "twin", "--scene", "cornell"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["dbench: plugin twin (entry points (twin-b, twin-a), twin_b:Box3, "
+                   "twin_a:Box3) failed to load: ValueError: entry point 'twin' is declared by "
+                   "twin-b (twin_b:Box3) and by twin-a (twin_a:Box3); uninstall one of them, or "
+                   "give one another name"], err
