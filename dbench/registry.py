@@ -101,9 +101,13 @@ def get(name: str, **params: Any) -> Denoiser:
             raise
         raise plugins.PluginError(f"method {cls.name} ({defined_in(cls)}) could not be built: "
                                   f"{plugins.one_line(exc)}") from exc
-    try:  # needs and kinds set in __init__ escape register()'s check of the class: alike here
+    try:  # needs, kinds and version set in __init__ escape register()'s check of the class
         check_needs(cls.name, method.needs, method.optional_needs)
         check_kinds(cls.name, method.kinds)
+        mine = vars(method).get("version", getattr(cls, "version", None))
+        if mine != getattr(cls, "version", None):  # a result's identity would not hold it
+            raise ValueError(f"version {mine!r} set in __init__ is not read: a result's "
+                             f"identity holds the class attribute version; set it there")
     except ValueError as exc:
         raise plugins.PluginError(f"method {cls.name} ({defined_in(cls)}) could not be built: "
                                   f"{exc}") from None

@@ -311,3 +311,20 @@ def test_one_entry_point_name_declared_by_two_distributions_is_refused_naming_bo
                    "twin_a:Box3) failed to load: ValueError: entry point 'twin' is declared by "
                    "twin-b (twin_b:Box3) and by twin-a (twin_a:Box3); uninstall one of them, or "
                    "give one another name"], err
+
+
+def test_a_version_a_plugin_sets_when_it_is_built_is_refused(isolated, tmp_path, capsys):
+    # method_version reads the class attribute: self.version (of the weights it loaded, say)
+    # was dropped without a word, and cells of other weights were reused as these
+    path = tmp_path / "late_version.py"
+    path.write_text(SAME.format(name="late-version").replace(
+        "    def denoise", "    version = 1\n\n    def __init__(self, **params):\n"
+        "        super().__init__(**params)\n        self.version = 'weights-2'\n\n    def denoise"))
+    out = tmp_path / "run"
+    assert cli.main(["run", "--method", "late-version", "--scene", "cornell", "--plugin",
+                     str(path), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"dbench: method late-version ({path}) could not be built: version "
+                   f"'weights-2' set in __init__ is not read: a result's identity holds the "
+                   f"class attribute version; set it there"], err
+    assert not out.exists()
