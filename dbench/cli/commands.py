@@ -9,6 +9,7 @@ from pathlib import Path
 from ..errors import DbenchInputError
 from .args import (RANKABLE, _check_common, _ints, _scene_of, _writable_cache, check_distinct,
                    check_kind_options, check_lam, names_arg, parse_params)
+from .scene_list import scene_names
 
 
 def cmd_list(args: argparse.Namespace) -> int:
@@ -61,7 +62,7 @@ def cmd_render(args: argparse.Namespace) -> int:
     from ..resolution import parse_res
 
     params = scene_files.parse_scene_params(args.scene_param)
-    names = names_arg(args.scene, "--scene") or datasets.available_scenes()
+    names = scene_names(args.scene, "--scene") or datasets.available_scenes()
     chosen = [scenes.get(n, params) for n in names]
     sizes = [parse_res(args.res, "--res") if args.res is not None else datasets.default_res(sc)
              for sc in chosen]
@@ -152,7 +153,8 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     args.workers = 1 if args.workers is None else args.workers
     scene_params = scene_files.parse_scene_params(args.scene_param)
     methods_, scenes_ = sweep.resolve_names(_method_names(args.methods, "--methods") or "all",
-                                            names_arg(args.scenes, "--scenes") or "all",
+                                            scene_names(args.scenes or ["all"], "--scenes")
+                                            or "all",
                                             scene_params)
     scene_objs = [catalogue.get(n, scene_params) for n in scenes_]
     check_kind_options(args, scene_objs, scenes_)

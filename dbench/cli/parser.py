@@ -90,7 +90,8 @@ def build_parser() -> argparse.ArgumentParser:
     lp.set_defaults(func=cmd_list)
 
     rp = sub.add_parser("render", help="render or find cached buffers of scenes")
-    rp.add_argument("--scene", default="all")
+    rp.add_argument("--scene", default="all", help="all, or NAME[,NAME...] as sweep "
+                    "--scenes takes them")
     rp.add_argument("--spp", type=count, default=16)
     rp.add_argument("--res", default=None, help="image size: N (N×N) or WIDTHxHEIGHT "
                     "(default: as for run)")
@@ -99,7 +100,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     sw = sub.add_parser("sweep", help="the benchmark grid, resumable")
     sw.add_argument("--methods", default="all", help="all or NAME[,NAME...]")
-    sw.add_argument("--scenes", default="all", help="all or NAME[,NAME...]")
+    sw.add_argument("--scenes", action="append", default=None, metavar="all|NAME[,NAME...]",
+                    help="all (default), or catalogue names, scene files (.xml, .py) and "
+                    "folders of renders; repeatable, each list adding its scenes; a path that "
+                    "exists is one scene even when its name holds a comma")
     sw.add_argument("--spp", default="4,16,64,256,1024")
     sw.add_argument("--res", default=None, help="image size: N (N×N) or WIDTHxHEIGHT "
                     "(default: each scene's, as for run)")
