@@ -143,6 +143,7 @@ def cmd_export(args: argparse.Namespace) -> int:
 
 def cmd_sweep(args: argparse.Namespace) -> int:
     from ..run import sweep
+    from ..run.sweep_names import scene_place
     from ..datasets.scenes import catalogue
 
     from ..datasets.scene_files import load as scene_files
@@ -174,6 +175,10 @@ def cmd_sweep(args: argparse.Namespace) -> int:
                                params={k: v for k, v in params.items() if v}, cache=args.cache,
                                no_cache=args.no_cache, device=args.device,
                                normal_encoding=args.normal_encoding)
+    # one scene named two ways (a.xml and ./a.xml, a folder and DIR/VIEW of its one view) would
+    # be swept once under one label, as if given once
+    check_distinct([scene_place(config, s) for s in scenes_], "--scenes",
+                   " ".join(args.scenes or ["all"]), scenes_)
     from ..run.capture import count_text, library_warnings, log_text
     # the cache is checked (and created) by run_sweep once nothing refused the sweep
     from_groups: list[str] = []  # the groups' warnings, every worker's included

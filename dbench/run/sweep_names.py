@@ -37,7 +37,7 @@ def scene_labels(config, out: str | Path | None = None) -> dict[str, str]:
     specs = before + [s for s in dict.fromkeys(config.scenes) if s not in before]
     groups: dict[str, list[tuple[str, Path | None]]] = {}
     for spec in specs:
-        place = _scene_place(config, spec)
+        place = scene_place(config, spec)
         if place is not None:
             groups.setdefault(place[0], []).append((spec, place[1]))
     labels = {spec: spec for spec in config.scenes}  # unresolvable: refused by config.scene
@@ -49,7 +49,7 @@ def scene_labels(config, out: str | Path | None = None) -> dict[str, str]:
     return {spec: labels[spec] for spec in config.scenes}
 
 
-def _scene_place(config, spec: str) -> tuple[str, Path | None] | None:
+def scene_place(config, spec: str) -> tuple[str, Path | None] | None:
     """(name, where it lives) of a scene as given: (name, None) for a catalogue scene, the
     resolved path of a scene file, folder/view of a folder of renders; None when it does not
     resolve (a scene of an earlier run that is gone)."""
@@ -153,4 +153,4 @@ def kind_options(config, scene) -> dict:
             "bins": config.bins if scene.kind == "transient" else None}
 
 
-__all__ = ["check_scenes", "folder_ref_spp", "kind_options", "scene_labels"]
+__all__ = ["check_scenes", "folder_ref_spp", "kind_options", "scene_labels", "scene_place"]

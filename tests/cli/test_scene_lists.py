@@ -121,3 +121,18 @@ def test_render_takes_a_path_with_a_comma_whole(files, monkeypatch, capsys):
     assert cli.main(["render", "--scene", f"{files}/my,scene.xml", "--res", "8", "--cache",
                      str(files / "cache")]) == 2
     assert "stand-in" in capsys.readouterr().err and loaded == ["my,scene.xml"]
+
+
+@pytest.mark.parametrize("argv, said", [
+    (["--scenes", "a.xml,./a.xml"], "'a.xml' and './a.xml' name the same item"),
+    (["--scenes", "a.xml", "--scenes", "{d}/x,y/../a.xml"],
+     "'a.xml' and '{d}/x,y/../a.xml' name the same item"),
+])
+def test_one_scene_named_two_ways_is_refused(files, swept, capsys, argv, said):
+    """It was swept once, under one label, as if given once."""
+    argv = [a.format(d=files) for a in argv]
+    assert cli.main(["sweep", *argv, "--methods", "noisy", "--spp", "4", "--out",
+                     str(files / "out")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("dbench: --scenes: " + said.format(d=files)), err
+    assert err.count("\n") == 1 and swept == []
