@@ -10,8 +10,9 @@ method once over the frames in order and reports the means after the warm-up fra
 (:func:`dbench.run.harness.run_sequence_cell`).
 
 Work is grouped by (scene, spp): one group loads the frame once (renders are cached and shared)
-and runs every method on it. References are rendered once per scene before the groups are
-dispatched, so parallel workers never render the same reference twice.
+and runs every method on it. References are rendered once per scene, and refused when black,
+before the sweep writes anything to its folder (:func:`dbench.run.sweep_names.render_references`),
+so parallel workers never render the same reference twice.
 
 ``<scene>`` is the scene's label (:func:`scene_labels`): its name, unless another scene of the
 sweep has that name (``a/cbox.xml`` and ``b/cbox.xml``); a scene's identity is its fingerprint,
@@ -19,11 +20,10 @@ never its name (README.md, the ``dbench sweep`` paragraph).
 """
 from __future__ import annotations
 
-import time
 import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Iterable, Sequence
+from typing import Any, Sequence
 
 from .. import io
 from ..data import check_count
@@ -34,7 +34,8 @@ from ..report.cells import (NUMERIC_KEYS, cell_problem, load_cells,  # noqa: F40
                             load_cells_checked, read_cell)  # interface, as before
 from .sweep_history import SETTINGS, stored_config  # noqa: F401 - the module's interface
 from .inputs import MethodError, load_seeds, method_failure  # noqa: F401 - load_seeds too
-from .sweep_names import check_scenes, folder_ref_spp, kind_options, scene_labels
+from .sweep_names import (check_scenes, folder_ref_spp, kind_options, render_references,
+                          scene_labels)
 from .sweep_pool import worker_start as _worker_start  # noqa: F401 - the pool initializer
 from ..device import device_name
 
@@ -193,12 +194,14 @@ def cell_identity(config: SweepConfig, scene, spp: int, method: str, fingerprint
 
 
 def plan(config: SweepConfig, out: Path
-         ) -> tuple[list[tuple[str, int, list[str], dict[str, dict]]], int, int]:
-    """Groups still to compute: (scene, spp, [methods], {method: its cell's identity}); newly
-    skipped cells are written here.
+         ) -> tuple[list[tuple[str, int, list[str], dict[str, dict]]], int,
+                    list[tuple[Path, dict]]]:
+    """Groups still to compute: (scene, spp, [methods], {method: its cell's identity}). Writes
+    nothing.
 
     Returns the groups, the number of cells finished (or skipped) by an earlier run with the
-    same identity, and the number of cells skipped now because the method does not apply.
+    same identity, and the cells skipped now because the method does not apply, as (path,
+    cell) for :func:`run_sweep` to write once nothing refused the sweep.
     Raises DbenchInputError, before anything is rendered, when a finished cell under the same
     label was computed with another identity (changed defaults, code, reference spp...) and
     ``config.rerun`` is false.
@@ -206,7 +209,7 @@ def plan(config: SweepConfig, out: Path
     from .. import datasets, registry
 
     labels = config.labels()
-    groups, done, skipped, conflicts = [], 0, 0, []
+    groups, done, conflicts = [], 0, []
     pending_skips = []
     scene_label = scene_labels(config, out)
     planned = set()
@@ -242,7 +245,6 @@ def plan(config: SweepConfig, out: Path
                         "method": labels[m], "base_method": m, "spp": spp,
                         "res": config.res_for(scene).key,
                         "identity": ident, "identity_hash": key}))
-                    skipped += 1
                     continue
                 todo[m] = ident
             if todo:
@@ -253,9 +255,7 @@ def plan(config: SweepConfig, out: Path
             f"settings or code: {'; '.join(conflicts[:3])}"
             + (f" and {len(conflicts) - 3} more" if len(conflicts) > 3 else "")
             + "; use --rerun to recompute them, or another --out")
-    for path, cell in pending_skips:
-        io.write_json(path, cell)
-    return groups, done, skipped
+    return groups, done, pending_skips
 
 
 def run_group(config: SweepConfig, out: str, scene_name: str, spp: int,
@@ -316,23 +316,6 @@ def run_group(config: SweepConfig, out: str, scene_name: str, spp: int,
     return written
 
 
-def _prerender_references(config: SweepConfig, scenes: Iterable[str],
-                          progress: bool = True) -> None:
-    from .. import datasets
-
-    if config.no_cache:  # nothing would keep the references for the groups
-        return
-    cache = datasets.Cache(config.cache)
-    for name in scenes:
-        s = config.scene(name)
-        if not s.renders:
-            continue
-        datasets.load(s, spp=1, res=config.res_for(s), needs={"reference", "albedo"},
-                      seed=config.seed,
-                      ref_seed=config.seed, ref_spp=config.ref_spp, cache=cache,
-                      **kind_options(config, s), progress=progress)
-
-
 def run_group_captured(config: SweepConfig, out: str, scene_name: str, spp: int,
                        method_names: list[str], planned: dict[str, dict] | None = None
                        ) -> dict[str, list[str]]:
@@ -374,8 +357,11 @@ def run_sweep(config: SweepConfig, out: str | Path, executor: str = "local", wor
     appended to ``warnings_out`` as lines (:mod:`.capture`).
 
     Every setting and scene is validated and every finished cell's identity checked before
-    anything is written or rendered. The folder is locked for the run (:mod:`.sweep_lock`)
-    and the run is recorded in sweep.json's history (:mod:`.sweep_history`)."""
+    anything is written or rendered, and every reference the run scores against is rendered
+    and found lit before anything is written: a refusal leaves the folder as it was (README.md,
+    the ``dbench sweep`` paragraph). The folder is locked for the run (:mod:`.sweep_lock`)
+    and the run is recorded in sweep.json's history (:mod:`.sweep_history`) from then on (one
+    stopped while its references render wrote nothing, and leaves no entry)."""
     from .. import datasets
 
     config.validate()
@@ -387,16 +373,20 @@ def run_sweep(config: SweepConfig, out: str | Path, executor: str = "local", wor
     with sweep_lock.hold(out):
         to_write = stored_config(out, config, sweep_history.read(out))
         remove_interrupted_writes(out)
-        groups, done, skipped = plan(config, out)
+        groups, done, skips = plan(config, out)
         if groups and not config.no_cache:  # created only once nothing refused the sweep
             io.ensure_writable_dir(datasets.Cache(config.cache).root, "--cache")
+        t_refs = render_references(config, sorted({g[0] for g in groups}), progress)
+        for path, cell in skips:
+            io.write_json(path, cell)
+        skipped = len(skips)
         run = sweep_history.RunRecord(out, to_write, config, executor, workers, done, skipped)
         # what the run writes is counted from the files (sweep_history.tally): a group stopped
         # half-way, or finished by a pool worker whose result never came back, wrote cells too
         before = sweep_history.snapshot(group_cells(config, out, groups))
         warned = warnings_out if warnings_out is not None else []
         try:
-            t_refs = _execute(config, out, groups, executor, workers, progress, warned)
+            _execute(config, out, groups, executor, workers, progress, warned)
         except BaseException as exc:
             try:
                 run.end("interrupted" if isinstance(exc, KeyboardInterrupt) else "failed",
@@ -420,18 +410,15 @@ def group_cells(config: SweepConfig, out: Path, groups: list) -> list[Path]:
 
 
 def _execute(config: SweepConfig, out: Path, groups: list, executor: str, workers: int,
-             progress: bool, warned: list[str]) -> float:
-    """Render the references, then run the groups; ``warned`` gathers the groups' library
-    warnings, from every worker. Returns the seconds the references took."""
+             progress: bool, warned: list[str]) -> None:
+    """Run the groups (their references rendered already); ``warned`` gathers the groups'
+    library warnings, from every worker."""
     from tqdm.auto import tqdm
 
     from .. import plugins
 
     if not groups:
-        return 0.0
-    t_start = time.perf_counter()
-    _prerender_references(config, sorted({g[0] for g in groups}), progress)
-    t_refs = time.perf_counter() - t_start
+        return
     bar = tqdm(total=sum(len(g[2]) for g in groups), desc="sweep", unit="cell",
                disable=not progress)
 
@@ -457,7 +444,6 @@ def _execute(config: SweepConfig, out: Path, groups: list, executor: str, worker
         for g in groups:
             done(run_group_captured(config, str(out), *g))
     bar.close()
-    return t_refs
 
 
 def error_cells(config: SweepConfig, out: Path) -> list[str]:

@@ -90,10 +90,12 @@ def check_scenes(config) -> None:
     (:func:`dbench.datasets.transient.scene.check_bins`), a folder of renders that
     does not hold the sweep's size, seeds, reference spp (:func:`folder_ref_spp`) or every
     spp, or whose statistics were gathered with another transform than a ``--transform``
-    given, and ``--normal-encoding`` where no scene is a folder of renders. A folder is checked by
-    the very loads its groups make (:func:`dbench.run.inputs.load_seeds`, which refuse such
-    settings as ``dbench run`` does), reading only the colour of its first frame per spp, and
-    its statistics' transform by :func:`dbench.datasets.check_folder_transform`. A
+    given, or whose reference is black, and ``--normal-encoding`` where no scene is a folder of
+    renders. A folder is checked by the very loads its groups make
+    (:func:`dbench.run.inputs.load_seeds`, which refuse such settings as ``dbench run`` does),
+    reading only the colour of its first frame per spp and its reference once, and its
+    statistics' transform by :func:`dbench.datasets.check_folder_transform`. The references
+    of the scenes dbench renders are checked by :func:`render_references`. A
     film of another size than the sweep's is refused by :func:`dbench.run.sweep.plan`, whose
     fingerprints build every scene's dictionary before the run is recorded."""
     from .. import datasets
@@ -117,11 +119,15 @@ def check_scenes(config) -> None:
                 check_bins(scene.window(config.bins).bins, config.res_for(scene),
                            "--bins" if config.bins is not None else f"{name}'s bins")
             continue
-        datasets.check_folder_frames(scene, kind_options(config, scene)["frames"])
-        for spp in config.spp:
+        frames = kind_options(config, scene)["frames"]
+        datasets.check_folder_frames(scene, frames)
+        for i, spp in enumerate(config.spp):
+            # the first load reads the reference too, over every frame the sweep takes:
+            # load_seeds refuses a black one (dbench.run.inputs.check_reference_lit)
+            ref = i == 0 and "reference" in scene.provides
             load_seeds(scene, config.seed, config.seeds, spp=spp, res=config.res_for(scene),
-                       needs=(), ref_spp=folder_ref_spp(config, scene), frames=1,
-                       progress=False)
+                       needs=("reference",) if ref else (), frames=frames if ref else 1,
+                       ref_spp=folder_ref_spp(config, scene), progress=False)
             # its statistics' transform, as the folder's scan read it
             datasets.check_folder_transform(scene, spp, config.transform, config.lam)
     if config.normal_encoding is not None and not folders:
@@ -130,6 +136,33 @@ def check_scenes(config) -> None:
                                f"renders the others, with signed normals")
 
 
+
+
+def render_references(config, names, progress: bool = True) -> float:
+    """Render the reference of each scene of ``names`` (scenes dbench renders; a folder's is
+    checked by :func:`check_scenes`) once, into the cache the groups read it from, and refuse a
+    reference that is 0 in every pixel (:func:`dbench.run.inputs.check_reference_lit`, as
+    ``dbench run`` refuses it) before the sweep writes anything to its folder (README.md, the
+    ``dbench sweep`` paragraph). Under ``--no-cache`` nothing keeps the reference for the
+    groups, so each is rendered once more by its first group. Returns the seconds taken."""
+    import time
+
+    from .. import datasets
+    from .inputs import check_reference_lit
+
+    t0 = time.perf_counter()
+    cache = datasets.Cache(config.cache, enabled=not config.no_cache)
+    for name in names:
+        scene = config.scene(name)
+        if not scene.renders:
+            continue
+        # the albedo warms the groups' feature render; under --no-cache it would be wasted
+        needs = {"reference"} | (set() if config.no_cache else {"albedo"})
+        frame = datasets.load(scene, spp=1, res=config.res_for(scene), needs=needs,
+                              seed=config.seed, ref_seed=config.seed, ref_spp=config.ref_spp,
+                              cache=cache, **kind_options(config, scene), progress=progress)
+        check_reference_lit(frame, scene.name)
+    return time.perf_counter() - t0
 
 
 def folder_ref_spp(config, scene) -> int | None:
@@ -153,4 +186,5 @@ def kind_options(config, scene) -> dict:
             "bins": config.bins if scene.kind == "transient" else None}
 
 
-__all__ = ["check_scenes", "folder_ref_spp", "kind_options", "scene_labels", "scene_place"]
+__all__ = ["check_scenes", "folder_ref_spp", "kind_options", "render_references",
+           "scene_labels", "scene_place"]

@@ -61,3 +61,58 @@ def test_a_video_black_in_its_time_window_is_refused():
         check_reference_lit(video, "s")
     ref[1, 2, 4, 0] = 2.0
     check_reference_lit(TransientFrame(color=ref.copy(), reference=ref), "s")
+
+
+def _tree(root):
+    return {p.relative_to(root).as_posix(): p.read_bytes()
+            for p in sorted(root.rglob("*")) if p.is_file()} if root.exists() else None
+
+
+SWEEP = ["--spp", "4", "--res", "8", "--ref-spp", "16", "--repeats", "1", "--quiet"]
+
+
+@pytest.mark.mitsuba
+@pytest.mark.parametrize("no_cache", [False, True])
+def test_a_sweep_refuses_a_black_reference_before_it_writes_anything(renderer, tmp_path, capsys,
+                                                                     no_cache):
+    """The sweep wrote sweep.json (a run marked failed) and the skipped cells of its methods
+    that do not apply before the reference was found black; a refused sweep now leaves no
+    folder, and a sweep's folder as it was (dbench/run/sweep_names.py render_references)."""
+    scene = tmp_path / "dark.xml"
+    scene.write_text(DARK)
+    cache = ["--no-cache"] if no_cache else ["--cache", str(tmp_path / "cache")]
+    out = tmp_path / "x" / "sw"
+    # accumulate does not apply to a steady scene: a skipped cell, planned before any render
+    refused = ["sweep", "--methods", "noisy,accumulate", "--scenes", str(scene), *SWEEP, *cache,
+               "--out", str(out)]
+    assert cli.main(refused) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("dbench: scene dark.xml: the reference is 0 in every pixel") \
+        and err.count("\n") == 1, err
+    assert not (tmp_path / "x").exists()
+    assert cli.main(["sweep", "--methods", "noisy", "--scenes", "cornell", *SWEEP, *cache,
+                     "--out", str(out)]) == 0
+    capsys.readouterr()
+    before = _tree(out)
+    assert cli.main(refused[:4] + [f"cornell,{scene}"] + refused[5:]) == 2
+    assert "dbench: scene dark.xml: the reference is 0" in capsys.readouterr().err
+    assert _tree(out) == before  # no run in the history, no skipped cell of cornell's
+
+
+@pytest.mark.mitsuba
+def test_a_sweep_refuses_a_folder_whose_reference_is_black_before_it_writes(renderer, tmp_path,
+                                                                            capsys):
+    from exr_files import write_rgb  # tests/exr_files.py
+
+    folder = tmp_path / "renders"
+    assert cli.main(["export", "cornell", "--out", str(folder), "--spp", "4", "--res", "8",
+                     "--ref-spp", "16", "--quiet", "--cache", str(tmp_path / "cache")]) == 0
+    write_rgb(folder / "cornell_ref.hdr.exr", np.zeros((8, 8, 3), np.float32))
+    capsys.readouterr()
+    out = tmp_path / "x" / "sw"
+    assert cli.main(["sweep", "--methods", "noisy", "--scenes", str(folder), "--spp", "4",
+                     "--repeats", "1", "--quiet", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("dbench: scene cornell: the reference is 0 in every pixel") \
+        and err.count("\n") == 1, err
+    assert not (tmp_path / "x").exists()

@@ -30,7 +30,7 @@ def _stand_ins(monkeypatch, fail_spp: int, interrupt_spp: int) -> None:
         return harness.CellResult(method.name, dict(method.params), None, skipped="stand-in")
 
     monkeypatch.setattr(sweep, "load_seeds", load_seeds)
-    monkeypatch.setattr(sweep, "_prerender_references", lambda *a, **k: None)
+    monkeypatch.setattr(sweep, "render_references", lambda *a, **k: 0.0)
     monkeypatch.setattr(harness, "run_cell", run_cell)
 
 
