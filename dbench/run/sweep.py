@@ -366,6 +366,7 @@ def run_sweep(config: SweepConfig, out: str | Path, executor: str = "local", wor
 
     config.validate()
     check_count("--workers", workers)
+    sweep_pool.check_executor(executor)
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise DbenchInputError(f"--out {out}: exists and is not a folder")

@@ -7,6 +7,8 @@ cell being written by one is left as a temporary file, removed by the next run, 
 again then) and exits with code 130, keeping every finished cell (README.md, the ``dbench sweep``
 paragraph). A worker also dies with the sweep process (Linux ``PR_SET_PDEATHSIG``), so
 ``kill -9`` of a sweep never leaves workers behind.
+
+:func:`check_executor` refuses, before the sweep writes anything, an executor it cannot use.
 """
 from __future__ import annotations
 
@@ -18,6 +20,22 @@ from . import identity
 
 #: seconds a terminated worker is given to exit before it is killed
 STOP_GRACE_S = 3.0
+
+
+def check_executor(executor: str) -> None:
+    """Refuse an executor :func:`dbench.run.sweep.run_sweep` does not have, and ``ray`` where
+    Ray is not installed (an optional dependency, pyproject.toml's ``ray`` extra): found only
+    when the groups were dispatched, it ended the run as an internal error after sweep.json
+    was written and the references rendered."""
+    import importlib.util
+
+    from ..errors import DbenchInputError
+
+    if executor not in ("local", "ray"):
+        raise DbenchInputError(f"--executor: {executor!r}; valid: local, ray")
+    if executor == "ray" and importlib.util.find_spec("ray") is None:
+        raise DbenchInputError("--executor ray: Ray is not installed here (pip install "
+                               "'dbench[ray]'); install it, or use --executor local")
 
 
 def _die_with_parent() -> None:
@@ -80,4 +98,4 @@ def run_groups(fn: Callable, args: Sequence, groups: Sequence[tuple], workers: i
     pool.shutdown(wait=True)
 
 
-__all__ = ["STOP_GRACE_S", "run_groups", "stop", "worker_start"]
+__all__ = ["STOP_GRACE_S", "check_executor", "run_groups", "stop", "worker_start"]
