@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import ast
-import os
 from collections.abc import Sequence as _Sequence
 from typing import Any, Sequence
 
@@ -222,10 +221,12 @@ def _writable_cache(args: argparse.Namespace):
     cannot be written is refused (exit 2): the user named it. The cache only saves time, so
     when the folder comes from the environment (``$DBENCH_CACHE`` naming a file, a read-only
     home's ``~/.cache/dbench``) the command carries on without it, after one warning line, and
-    renders everything; a sweep, whose workers share renders through the cache, refuses."""
+    renders everything (a sweep, whose workers share renders through the cache, refuses:
+    :func:`dbench.run.sweep.run_sweep`)."""
     import sys
 
     from .. import datasets
+    from ..datasets.cache import origin
     from ..io import ensure_writable_dir
 
     cache = datasets.Cache(args.cache, enabled=not args.no_cache)
@@ -234,13 +235,9 @@ def _writable_cache(args: argparse.Namespace):
     if args.cache is not None:
         ensure_writable_dir(cache.root, "--cache")
         return cache
-    what = "$DBENCH_CACHE" if os.environ.get("DBENCH_CACHE") else "the cache folder"
     try:
-        ensure_writable_dir(cache.root, what)
+        ensure_writable_dir(cache.root, origin(args.cache))
     except DbenchInputError as exc:
-        if getattr(args, "command", None) == "sweep":
-            raise DbenchInputError(f"{exc}; a sweep's workers share renders through the "
-                                   f"cache: give --cache a writable folder") from None
         print(f"dbench: warning: {exc}; carrying on without the cache (nothing is read from "
               f"it or saved; --cache DIR names another)", file=sys.stderr)
         args.no_cache = True

@@ -89,6 +89,14 @@ def default_root() -> Path:
     return Path(os.environ.get("DBENCH_CACHE", Path.home() / ".cache" / "dbench"))
 
 
+def origin(root: str | os.PathLike | None) -> str:
+    """What named the folder of ``Cache(root)``, for a refusal to name: ``--cache`` (given),
+    else ``$DBENCH_CACHE`` (set), else "the cache folder" (:func:`default_root`)."""
+    if root is not None:
+        return "--cache"
+    return "$DBENCH_CACHE" if os.environ.get("DBENCH_CACHE") else "the cache folder"
+
+
 def canonical(obj: Any, files: set | None = None) -> Any:
     """A JSON-able, deterministic description of a scene dictionary (Mitsuba objects included).
     ``files``, where given, gathers the (name, sha256 or None) of each ``"filename"`` string

@@ -362,7 +362,6 @@ def run_sweep(config: SweepConfig, out: str | Path, executor: str = "local", wor
     the ``dbench sweep`` paragraph). The folder is locked for the run (:mod:`.sweep_lock`)
     and the run is recorded in sweep.json's history (:mod:`.sweep_history`) from then on (one
     stopped while its references render wrote nothing, and leaves no entry)."""
-    from .. import datasets
 
     config.validate()
     check_count("--workers", workers)
@@ -376,7 +375,7 @@ def run_sweep(config: SweepConfig, out: str | Path, executor: str = "local", wor
         remove_interrupted_writes(out)
         groups, done, skips = plan(config, out)
         if groups and not config.no_cache:  # created only once nothing refused the sweep
-            io.ensure_writable_dir(datasets.Cache(config.cache).root, "--cache")
+            check_cache(config)
         t_refs = render_references(config, sorted({g[0] for g in groups}), progress)
         for path, cell in skips:
             io.write_json(path, cell)
@@ -400,6 +399,20 @@ def run_sweep(config: SweepConfig, out: str | Path, executor: str = "local", wor
     errors = error_cells(config, out)
     return {"computed": written["cells"], "skipped": skipped, "finished_before": done,
             "errors": len(errors), "error_cells": errors}
+
+
+def check_cache(config: SweepConfig) -> None:
+    """Create the sweep's cache folder, or refuse one that cannot be written, naming what named
+    it (--cache, $DBENCH_CACHE or the default): the workers share renders through it."""
+    from ..datasets.cache import Cache, origin
+
+    try:
+        io.ensure_writable_dir(Cache(config.cache).root, origin(config.cache))
+    except DbenchInputError as exc:
+        if config.cache is not None:  # named by the user
+            raise
+        raise DbenchInputError(f"{exc}; a sweep's workers share renders through the cache: "
+                               f"give --cache a writable folder") from None
 
 
 def group_cells(config: SweepConfig, out: Path, groups: list) -> list[Path]:

@@ -35,6 +35,25 @@ def test_a_refused_sweep_does_not_create_the_cache(tmp_path, capsys):
 
 
 @pytest.mark.mitsuba
+@pytest.mark.parametrize("given", [False, True])
+def test_a_cache_folder_that_is_a_file_is_named_as_it_was_given(renderer, tmp_path, capsys,
+                                                                monkeypatch, given):
+    """$DBENCH_CACHE naming a file was refused as "--cache FILE", an option never given."""
+    taken = tmp_path / "taken"
+    taken.write_text("")
+    if given:
+        argv = _args(tmp_path / "S", taken)
+    else:
+        monkeypatch.setenv("DBENCH_CACHE", str(taken))
+        argv = [a for a in _args(tmp_path / "S", taken) if a not in ("--cache", str(taken))]
+    assert cli.main(argv) == 2
+    said = f"--cache {taken}: exists and is not a folder\n" if given else \
+        (f"$DBENCH_CACHE {taken}: exists and is not a folder; a sweep's workers share renders "
+         f"through the cache: give --cache a writable folder\n")
+    assert capsys.readouterr().err == "dbench: " + said
+    assert not (tmp_path / "S").exists()
+
+
 def test_no_cache_writes_nothing_to_the_cache(renderer, tmp_path):
     cache = tmp_path / "cache"
     env = {**os.environ, "DBENCH_CACHE": str(cache)}
