@@ -48,15 +48,18 @@ def library_warnings() -> Iterator[list[str]]:
             root.removeHandler(handler)
 
 
+def _count(n: int) -> str:
+    """``1 library warning``, ``3 library warnings``."""
+    return f"{n} library warning{'s' if n != 1 else ''}"
+
+
 def log_text(lines: list[str]) -> str:
     """``run.log``: one warning a line, or a line saying there were none."""
     if not lines:
         return "no library warnings\n"
-    return f"{len(lines)} library warnings\n" + "".join(f"{ln}\n" for ln in lines)
+    return f"{_count(len(lines))}\n" + "".join(f"{ln}\n" for ln in lines)
 
 
 def count_text(lines: list[str]) -> str:
     """``3 library warnings, see run.log`` (or ``no library warnings``)."""
-    n = len(lines)
-    return f"{n} library warning{'s' if n != 1 else ''}, see run.log" if n else \
-        "no library warnings"
+    return f"{_count(len(lines))}, see run.log" if lines else "no library warnings"
