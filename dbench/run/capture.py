@@ -28,8 +28,9 @@ class _Keep(logging.Handler):
 
 @contextlib.contextmanager
 def library_warnings() -> Iterator[list[str]]:
-    """Collects the warnings raised inside the block as lines (``category file:line: text``)
-    into the list it yields; nothing of them reaches the terminal."""
+    """Collects the warnings raised inside the block as lines (``category file:line: text``,
+    ``LEVEL logger: text``) into the list it yields; nothing of them reaches the terminal. In
+    nested blocks the innermost keeps each line."""
     lines: list[str] = []
     root = logging.getLogger()
     handler = _Keep(lines)
@@ -40,12 +41,19 @@ def library_warnings() -> Iterator[list[str]]:
             lines.append(f"{category.__name__} {filename}:{lineno}: {message}")
 
         warnings.showwarning = keep
+        # the innermost block keeps a record, as catch_warnings does for warnings: a sweep's
+        # group run in the sweep's own process is counted once, not by both blocks
+        outer = [h for h in root.handlers if isinstance(h, _Keep)]
+        for h in outer:
+            root.removeHandler(h)
         # a root handler also keeps Python's last-resort handler from printing records
         root.addHandler(handler)
         try:
             yield lines
         finally:
             root.removeHandler(handler)
+            for h in outer:
+                root.addHandler(h)
 
 
 def _count(n: int) -> str:
