@@ -106,13 +106,21 @@ def _main(argv: Sequence[str] | None) -> int:
     # the renderer probes keep their verdict in the command's cache folder, and nowhere under
     # --no-cache (dbench/datasets/mitsuba_env.py); sweep workers inherit both
     from ..datasets.mitsuba_env import PROBE_STORE_ENV
+    from ..datasets.mitsuba_log import QUIET_ENV
 
     probe_store = ("none" if getattr(args, "no_cache", False) else getattr(args, "cache", None))
-    saved = {k: os.environ.get(k) for k in ("DBENCH_RENDER_DEVICE", PROBE_STORE_ENV)}
+    saved = {k: os.environ.get(k) for k in ("DBENCH_RENDER_DEVICE", PROBE_STORE_ENV, QUIET_ENV)}
     if render_device in ("cpu", "cuda"):
         os.environ["DBENCH_RENDER_DEVICE"] = render_device
     if probe_store:
         os.environ[PROBE_STORE_ENV] = str(probe_store)
+    # --quiet: Mitsuba's own log lines are kept in the run's run.log or the sweep's sweep.log,
+    # not shown (sweep workers inherit it: dbench/datasets/mitsuba_log.py); the commands that
+    # keep no log (export, stress) show them still, as nowhere else would hold them
+    if getattr(args, "quiet", False) and args.command in ("run", "sweep"):
+        os.environ[QUIET_ENV] = "1"
+    else:
+        os.environ.pop(QUIET_ENV, None)
     from ..datasets.mitsuba_env import forget_probes, probe_folder
     from ..io import missing_folders
 

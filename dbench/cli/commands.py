@@ -142,6 +142,16 @@ def cmd_export(args: argparse.Namespace) -> int:
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:
+    from ..run.capture import library_warnings
+
+    # from the scenes' first reading on: Mitsuba warns about a scene file while it is checked,
+    # and those lines belong in sweep.log too
+    with library_warnings() as caught:
+        return _sweep(args, caught)
+
+
+def _sweep(args: argparse.Namespace, caught: list[str]) -> int:
+    """:func:`cmd_sweep` with ``caught``, the library warnings so far (dbench/run/capture.py)."""
     from ..run import sweep
     from ..run.sweep_names import scene_place
     from ..datasets.scenes import catalogue
@@ -179,13 +189,12 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     # be swept once under one label, as if given once
     check_distinct([scene_place(config, s) for s in scenes_], "--scenes",
                    " ".join(args.scenes or ["all"]), scenes_)
-    from ..run.capture import count_text, library_warnings, log_text
+    from ..run.capture import count_text, log_text
     # the cache is checked (and created) by run_sweep once nothing refused the sweep
     from_groups: list[str] = []  # the groups' warnings, every worker's included
-    with library_warnings() as caught:
-        counts = sweep.run_sweep(config, args.out, executor=args.executor,
-                                 workers=args.workers, progress=not args.quiet,
-                                 warnings_out=from_groups)
+    counts = sweep.run_sweep(config, args.out, executor=args.executor,
+                             workers=args.workers, progress=not args.quiet,
+                             warnings_out=from_groups)
     print(_sweep_summary(args.out, config, args.rank_by, quiet=args.quiet))
     print(f"sweep {args.out}: {counts['computed']} cells computed, "
           f"{counts['skipped']} not applicable, "

@@ -18,11 +18,20 @@ from .args import (_check_common, _default_spp, _scene_of, _writable_cache, chec
 
 
 def cmd_run(args: argparse.Namespace) -> int:
+    from ..run.capture import library_warnings
+
+    # from the scene's first reading on: Mitsuba warns about a scene file while it is checked,
+    # before anything renders, and those lines belong in run.log too
+    with library_warnings() as caught:
+        return _run(args, caught)
+
+
+def _run(args: argparse.Namespace, caught: list[str]) -> int:
+    """:func:`cmd_run` with ``caught``, the library warnings so far (dbench/run/capture.py)."""
     from .. import datasets, registry
     from ..run import identity
     from ..report import run_output
     from ..data import check_count
-    from ..run.capture import library_warnings
 
     given = names_arg(args.method, "--method")
     names = registry.available() if given is None else check_distinct(
@@ -62,7 +71,7 @@ def cmd_run(args: argparse.Namespace) -> int:
                          frames=args.frames, bins=args.bins, repeats=args.repeats,
                          quiet=args.quiet, rank_by=args.rank_by)
     # a failure or Ctrl-C inside the block removes the temporary folder: no partial --out
-    with run_output.staged(out) as stage, library_warnings() as caught:
+    with run_output.staged(out) as stage:
         table, failed, summary = run_scene(stage, request, scene, instances, labels, runnable,
                                            skipped, device, cache, caught)
     # printed only now: a reader that goes away (| head) can no longer cost any file

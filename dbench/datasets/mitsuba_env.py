@@ -278,6 +278,9 @@ def mitsuba():
             except Exception as exc:  # noqa: BLE001
                 raise RendererUnavailableError(
                     f"cannot set Mitsuba variant {variant}: {exc}") from exc
+        from .mitsuba_log import route
+
+        route(mi)  # Mitsuba's warnings: kept in the run's files, shown unless --quiet
         threads = os.environ.get("DBENCH_RENDER_THREADS")
         if threads:
             dr.set_thread_count(int(threads))

@@ -1,10 +1,11 @@
 """Library warnings kept out of the terminal and written to the run's ``run.log``.
 
 NumPy's RuntimeWarnings on NaN inputs, numba's performance notes, a library's ``logging``
-warnings: none of them is the run's result, and printed between the progress lines they bury
-the headline (README.md, "Usage"). Inside :func:`library_warnings` every
-:mod:`warnings` warning and every ``logging`` record of level WARNING or above is kept, in
-order, as one line; the run writes them to ``run.log`` and counts them in ``report.md``.
+warnings, Mitsuba's own log lines (dbench/datasets/mitsuba_log.py): none of them is the run's
+result, and printed between the progress lines they bury the headline (README.md, "Usage").
+Inside :func:`library_warnings` every :mod:`warnings` warning and every ``logging`` record of
+level WARNING or above is kept, in order, as one line; the run writes them to ``run.log`` and
+counts them in ``report.md``.
 """
 from __future__ import annotations
 
@@ -29,7 +30,8 @@ class _Keep(logging.Handler):
 @contextlib.contextmanager
 def library_warnings() -> Iterator[list[str]]:
     """Collects the warnings raised inside the block as lines (``category file:line: text``,
-    ``LEVEL logger: text``) into the list it yields; nothing of them reaches the terminal. In
+    ``LEVEL logger: text``) into the list it yields; nothing of them reaches the terminal
+    (Mitsuba's lines are also shown unless ``--quiet``: dbench/datasets/mitsuba_log.py). In
     nested blocks the innermost keeps each line."""
     lines: list[str] = []
     root = logging.getLogger()

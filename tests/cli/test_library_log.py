@@ -1,10 +1,63 @@
-"""The other libraries' warnings (dbench/run/capture.py): kept in ``run.log`` / ``sweep.log``
-and counted in ``report.md`` (README.md, "Usage")."""
+"""Mitsuba's own log lines (dbench/datasets/mitsuba_log.py) and the other libraries' warnings
+(dbench/run/capture.py): kept in ``run.log`` / ``sweep.log`` and counted in ``report.md``, on
+the terminal only without ``--quiet`` (README.md, "Usage")."""
 from __future__ import annotations
 
 import logging
 
+import pytest
+
+from dbench.cli import main
 from dbench.run.capture import count_text, library_warnings, log_text
+
+#: A scene file Mitsuba loads with a warning (the film's removed "compensate" parameter).
+XML = """<scene version="3.0.0">
+  <sensor type="perspective"><float name="fov" value="50"/>
+    <transform name="to_world"><lookat origin="0,1.2,4" target="0,0.3,0" up="0,1,0"/></transform>
+    <film type="hdrfilm"><boolean name="compensate" value="true"/>
+      <integer name="width" value="12"/><integer name="height" value="12"/></film>
+  </sensor>
+  <shape type="sphere"><point name="center" x="0" y="0.5" z="0"/><float name="radius" value="0.5"/>
+    <bsdf type="diffuse"/></shape>
+  <emitter type="constant"><rgb name="radiance" value="1"/></emitter>
+</scene>
+"""
+WARNED = '"compensate"'
+TINY = ["--spp", "2", "--res", "12", "--ref-spp", "16", "--repeats", "1"]
+
+
+@pytest.mark.mitsuba
+@pytest.mark.parametrize("quiet", [True, False])
+def test_a_scene_files_mitsuba_warning_is_kept_and_shown_only_without_quiet(
+        renderer, tmp_path, capfd, quiet):
+    scene = tmp_path / "warns.xml"
+    scene.write_text(XML)
+    out = tmp_path / "run"
+    assert main(["run", "--scene", str(scene), "--method", "noisy", *TINY,
+                 "--cache", str(tmp_path / "cache"), "--out", str(out)]
+                + (["--quiet"] if quiet else [])) == 0
+    cap = capfd.readouterr()  # the descriptors: Mitsuba printed from C++ before
+    shown = [ln for ln in (cap.out + cap.err).splitlines() if WARNED in ln]
+    assert shown == ([] if quiet else [
+        'mitsuba warning: [HDRFilm] The "compensate" (Kahan-style error-compensated '
+        'accumulation) parameter has been removed and is now ignored.'])
+    log = (out / "run.log").read_text(encoding="utf-8").splitlines()
+    kept = [ln for ln in log if WARNED in ln]
+    assert len(kept) == 1 and kept[0].startswith("WARNING mitsuba: [HDRFilm] The ")
+    assert log[0] == "1 library warning"
+    assert "1 library warning, see run.log." in (out / "report.md").read_text(encoding="utf-8")
+
+
+@pytest.mark.mitsuba
+def test_a_quiet_sweep_keeps_the_mitsuba_warning_in_its_log_once(renderer, tmp_path, capfd):
+    scene = tmp_path / "warns.xml"
+    scene.write_text(XML)
+    assert main(["sweep", "--scenes", str(scene), "--methods", "noisy", *TINY, "--quiet",
+                 "--cache", str(tmp_path / "cache"), "--out", str(tmp_path / "S")]) == 0
+    cap = capfd.readouterr()
+    assert WARNED not in cap.out + cap.err
+    log = (tmp_path / "S" / "sweep.log").read_text(encoding="utf-8")
+    assert log.count(WARNED) == 1, log
 
 
 def test_one_warning_is_one_warning_in_the_log_and_the_count():
