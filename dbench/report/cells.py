@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any, Sequence
 
 from .. import io
+from .formats import markdown_code, markdown_text
 
 #: Numbers an "ok" cell must carry as numbers (or null) to be read.
 NUMERIC_KEYS = ("spp", "rmse", "relmse", "time_s")
@@ -138,7 +139,7 @@ def mixed_settings(cells: Sequence[dict]) -> list[tuple[str, str, dict[str, list
             for where, flat in members:
                 values.setdefault(flat.get(key, "(absent)"), []).append(where)
             if len(values) > 1:
-                out.append((f"`{name}`" if kind == "label" else name, key, values))
+                out.append((markdown_code(name) if kind == "label" else name, key, values))
     return out
 
 
@@ -190,6 +191,52 @@ def devices_text(cells: Sequence[dict]) -> list[str]:
           "methods**)"]
 
 
+def _tally(cells: list[dict], field: str) -> dict[str, int]:
+    """Computed cells per value of ``field`` ("not recorded" for cells older than it); skip
+    and error records time and render nothing, so they are not counted."""
+    counts: dict[str, int] = {}
+    for c in cells:
+        if c.get("status", "ok") != "ok":
+            continue
+        label = c.get(field) if isinstance(c.get(field), str) and c.get(field) else "not recorded"
+        counts[label] = counts.get(label, 0) + 1
+    return counts
+
+
+def machines_text(cells: list[dict]) -> list[str]:
+    """Where the computed cells were timed (each cell records its machine; older cells do
+    not): one entry per machine with its cell count, and a warning when they differ, since
+    ``time_s`` of two machines do not compare."""
+    counts = _tally(cells, "machine")
+    if not counts:
+        return []
+    if list(counts) == ["not recorded"]:
+        return [f"the machine the cells were timed on is not recorded ({counts['not recorded']} "
+                f"cells, computed before cells recorded it)"]
+    text = "cells timed on " + "; ".join(f"{k} ({v})" for k, v in sorted(counts.items()))
+    if len(counts) > 1:
+        text += " (**times from different machines do not compare**)"
+    return [text]
+
+
+def variants_text(cells: list[dict]) -> list[str]:
+    """What rendered the cells' inputs and references: each cell's ``render_variant``, the
+    Mitsuba variant (``llvm_ad_rgb``, ``cuda_ad_rgb``; ``files`` for a folder of renders),
+    with its cell count. A CUDA render is not bit-identical to an LLVM one and takes another
+    time, so cells of several variants are flagged (README.md, "How renders work")."""
+    counts = _tally(cells, "render_variant")
+    if not counts:
+        return []
+    if list(counts) == ["not recorded"]:
+        return [f"the Mitsuba variant that rendered the inputs is not recorded "
+                f"({counts['not recorded']} cells, computed before cells recorded it)"]
+    text = "inputs rendered by " + "; ".join(f"{k} ({v})" for k, v in sorted(counts.items()))
+    if len(counts) > 1:
+        text += (" (**several variants: their inputs and references are other samples, and "
+                 "their render times do not compare**)")
+    return [text]
+
+
 def grid_status(config: dict, cells: Sequence[dict]) -> dict[str, Any]:
     """Counts of the (scene, spp, label) cells the config expects by status (ok / skipped /
     error / other), the expected cells no file holds (``missing``) and the cells outside that
@@ -229,7 +276,8 @@ def missing_md(missing: Sequence[tuple[str, int, str]]) -> list[str]:
     by: dict[tuple[str, str], list[int]] = {}
     for scene, spp, label in missing:
         by.setdefault((scene, label), []).append(spp)
-    return [f"- missing {label} on {scene} at {', '.join(map(str, sorted(s)))} spp"
+    return [f"- missing {markdown_text(label)} on {markdown_text(scene)} at "
+            f"{', '.join(map(str, sorted(s)))} spp"
             for (scene, label), s in sorted(by.items())]
 
 
@@ -241,9 +289,12 @@ def problems_md(cells: list[dict], problems: list[str], missing) -> list[str]:
             key = (str(c.get("method")), str(c.get("scene")), str(c.get("reason", "")))
             if key not in seen:
                 seen.add(key)
-                lines.append(f"- skipped {key[0]} on {key[1]}: {key[2]}")
-    lines += [f"- error {c.get('method')} on {c.get('scene')} at {c.get('spp')} spp: "
-              f"{c.get('error', '')}" for c in cells if c.get("status") == "error"]
+                lines.append(f"- skipped {markdown_text(key[0])} on {markdown_text(key[1])}: "
+                             f"{markdown_text(key[2])}")
+    # an error's text is a library's (``<lambda>``, ``__init__``): escaped as the names are
+    lines += [f"- error {markdown_text(c.get('method'))} on {markdown_text(c.get('scene'))} at "
+              f"{c.get('spp')} spp: {markdown_text(c.get('error', ''))}"
+              for c in cells if c.get("status") == "error"]
     lines += [f"- malformed cell file {p}" for p in problems]
     lines += missing_md(missing)
     return lines
@@ -252,4 +303,4 @@ def problems_md(cells: list[dict], problems: list[str], missing) -> list[str]:
 __all__ = ["NUMERIC_KEYS", "cell_problem", "load_cells", "load_cells_checked", "read_cell",
            "expected_grid", "cell_key", "grid_status", "grid_status_text", "missing_md",
            "problems_md", "PER_CELL", "METHOD_KEYS", "mixed_settings", "mixed_text", "mixed_md",
-           "device_label", "devices_text"]
+           "device_label", "devices_text", "machines_text", "variants_text"]

@@ -1,8 +1,9 @@
 """Plain table formats: pandas → CSV files (written atomically) and GitHub Markdown tables."""
 from __future__ import annotations
 
+import re
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable, Sequence
 
 import numpy as np
 import pandas as pd
@@ -15,24 +16,66 @@ def write_csv(path: str | Path, table: pd.DataFrame) -> None:
         table.to_csv(tmp, index=False, float_format="%.6g", encoding="utf-8")
 
 
+#: What Markdown reads as markup wherever it stands in running text or a table cell:
+#: emphasis and strikethrough (``*``, ``_``, ``~``), code spans, HTML tags and entities (``<``,
+#: ``>``, ``&``), table cells (``|``) and the escape itself.
+_MARKUP = re.compile(r"([\\`*_~<>&|])")
+#: Brackets make a link or an image only as ``[text](url)``, ``[text][ref]`` or a reference
+#: definition ``[ref]: url``, a checkbox only as ``[ ]`` at a list item's start, a heading
+#: starts with ``#``: a ``]`` before ``(``, ``[`` or ``:`` is escaped, and a ``[`` or ``#``
+#: that starts the text, so that a label such as ``jbf[radius=3]`` stays as it reads.
+_BRACKETS = re.compile(r"\](?=[(\[:])|^[\[#]")
+#: A ``|`` that no backslash escapes (an even number of backslashes before it, none included).
+_BARE_PIPE = re.compile(r"(?<!\\)((?:\\\\)*)\|")
+#: The columns :func:`markdown_table` treats as names (a plugin's method, a user's scene).
+NAME_COLUMNS = ("method", "scene", "base_method")
+
+
+def markdown_text(text: Any) -> str:
+    """A method or scene name (a plugin may register any name, a scene file's name is its
+    file's; README.md "Add your own denoiser") as literal Markdown text: every character
+    Markdown reads as markup is escaped with a backslash, which GitHub shows as the character
+    itself (``a_b_c``, ``<x>``, ``*star*`` read as written, not as emphasis or an HTML tag);
+    a line break becomes a space. The one escape of names in report.md and README.md; CSV
+    files keep names raw, the viewer escapes HTML (dbench/report/html.py)."""
+    text = _MARKUP.sub(r"\\\1", " ".join(str(text).splitlines()))
+    return _BRACKETS.sub(lambda m: "\\" + m.group(0), text)
+
+
+def markdown_code(text: Any) -> str:
+    """``text`` as a Markdown code span, fenced by more backticks than it holds in a row (a
+    backtick in a name would otherwise end the span)."""
+    text = " ".join(str(text).splitlines())
+    run = max((len(m) for m in re.findall(r"`+", text)), default=0)
+    fence = "`" * (run + 1)
+    pad = " " if run or text.startswith(" ") else ""
+    return f"{fence}{pad}{text}{pad}{fence}"
+
+
 def markdown_cell(text: Any) -> str:
     """``text`` as one cell of a GitHub Markdown table: a ``|`` in a method or scene name (a
     plugin may register any name, README.md "Add your own denoiser") would end the cell and
     shift every number after it into the next column, so it is escaped (``\\|``, which GitHub
-    shows as ``|``); a line break would end the row, so it becomes a space."""
-    return " ".join(str(text).splitlines()).replace("|", "\\|")
+    shows as ``|``) unless a backslash already escapes it (:func:`markdown_text`); a line
+    break would end the row, so it becomes a space."""
+    return _BARE_PIPE.sub(r"\1\\|", " ".join(str(text).splitlines()))
 
 
-def markdown_table(table: pd.DataFrame, floatfmt: str = ".4g") -> str:
+def markdown_table(table: pd.DataFrame, floatfmt: str = ".4g",
+                   names: Sequence[str] = NAME_COLUMNS, name_headers: bool = False) -> str:
     """A GitHub Markdown table (pandas' to_markdown needs tabulate; this does not); every
-    cell through :func:`markdown_cell`, so each row has as many cells as the header."""
-    def fmt(v: Any) -> str:
+    cell through :func:`markdown_cell`, so each row has as many cells as the header; the cells
+    of the ``names`` columns (and, with ``name_headers``, the headers: a table whose columns
+    are scenes) are names, through :func:`markdown_text`."""
+    def fmt(v: Any, name: bool = False) -> str:
         if isinstance(v, (float, np.floating)):
             return "nan" if not np.isfinite(v) else format(float(v), floatfmt)
-        return markdown_cell(v)
+        return markdown_text(v) if name else markdown_cell(v)
 
-    cols = [markdown_cell(c) for c in table.columns]
+    head: Callable[[Any], str] = markdown_text if name_headers else markdown_cell
+    cols = [head(c) for c in table.columns]
+    is_name = [c in names for c in table.columns]
     lines = ["| " + " | ".join(cols) + " |", "|" + "|".join("---" for _ in cols) + "|"]
     for row in table.itertuples(index=False):
-        lines.append("| " + " | ".join(fmt(v) for v in row) + " |")
+        lines.append("| " + " | ".join(fmt(v, n) for v, n in zip(row, is_name)) + " |")
     return "\n".join(lines)

@@ -21,7 +21,7 @@ from typing import Any, Sequence
 
 import pandas as pd
 
-from .formats import markdown_table
+from .formats import markdown_table, markdown_text
 from .verdicts import (HEADLINE, NOISY, TIE_WORDS, ci_kind_text, finite, fmt_value, half_width,
                        higher_is_better, marked, num, rank_groups, ranking_line, reference_text,
                        tie)
@@ -196,8 +196,8 @@ def scene_block_md(d: pd.DataFrame, rank_by: str, columns: Sequence[str] = HEADL
     """Markdown for one scene at one spp: ranking line (``asked``: the metric asked for, named
     where ``rank_by`` stands in for it), intervals, reference, table."""
     parts = [heading, ""] if heading else []
-    parts += [f"Ranking by {ranking_line(d, rank_by, asked)}.", "",
-              f"{ci_kind_text(d).capitalize()}; {reference_text(d)}.", "",
+    parts += [f"Ranking by {ranking_line(d, rank_by, asked, name=markdown_text)}.", "",
+              f"{ci_kind_text(d).capitalize()}; {reference_text(d, markdown_text)}.", "",
               markdown_table(scene_table(d, columns, rank_by)), ""]
     return parts
 
@@ -222,12 +222,14 @@ def headline_md(df: pd.DataFrame, spp: int | None, rank_by: str = "relmse",
     for scene in sorted(set(map(str, df["scene"]))):
         g = d[d["scene"] == scene]
         if len(g):
-            parts += scene_block_md(g, rank_by, shown, heading=f"{level} {scene}")
+            parts += scene_block_md(g, rank_by, shown,
+                                    heading=f"{level} {markdown_text(scene)}")
             continue
         # a scene without cells at this spp is named, never left out of "every scene"
         has = sorted({int(v) for v in df.loc[df["scene"] == scene, "spp"]})
-        parts += [f"{level} {scene}", "", f"No finished cell at {spp} spp (its cells are at "
-                  f"{', '.join(map(str, has))} spp: the convergence tables below).", ""]
+        parts += [f"{level} {markdown_text(scene)}", "", f"No finished cell at {spp} spp (its "
+                  f"cells are at {', '.join(map(str, has))} spp: the convergence tables "
+                  "below).", ""]
     return parts
 
 

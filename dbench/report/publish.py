@@ -18,8 +18,9 @@ from pathlib import Path
 from .. import io
 from ..resolution import size_text
 from . import headline, plots, tables, verdicts
-from .cells import devices_text, load_cells_checked, mixed_md, problems_md, read_cell
-from .formats import markdown_table
+from .cells import (devices_text, load_cells_checked, machines_text, mixed_md, problems_md,
+                    read_cell, variants_text)
+from .formats import markdown_table, markdown_text
 from .html import sweep_page
 from .run_report import machine_md, metric_definitions_md
 from .table31 import table31_md
@@ -80,62 +81,19 @@ def wall_text(info: dict, cells: list[dict] | None = None) -> str:
                      + variants_text(cells or []))
 
 
-def _tally(cells: list[dict], field: str) -> dict[str, int]:
-    """Computed cells per value of ``field`` ("not recorded" for cells older than it); skip
-    and error records time and render nothing, so they are not counted."""
-    counts: dict[str, int] = {}
-    for c in cells:
-        if c.get("status", "ok") != "ok":
-            continue
-        label = c.get(field) if isinstance(c.get(field), str) and c.get(field) else "not recorded"
-        counts[label] = counts.get(label, 0) + 1
-    return counts
-
-
-def machines_text(cells: list[dict]) -> list[str]:
-    """Where the computed cells were timed (each cell records its machine; older cells do
-    not): one entry per machine with its cell count, and a warning when they differ, since
-    ``time_s`` of two machines do not compare."""
-    counts = _tally(cells, "machine")
-    if not counts:
-        return []
-    if list(counts) == ["not recorded"]:
-        return [f"the machine the cells were timed on is not recorded ({counts['not recorded']} "
-                f"cells, computed before cells recorded it)"]
-    text = "cells timed on " + "; ".join(f"{k} ({v})" for k, v in sorted(counts.items()))
-    if len(counts) > 1:
-        text += " (**times from different machines do not compare**)"
-    return [text]
-
-
-def variants_text(cells: list[dict]) -> list[str]:
-    """What rendered the cells' inputs and references: each cell's ``render_variant``, the
-    Mitsuba variant (``llvm_ad_rgb``, ``cuda_ad_rgb``; ``files`` for a folder of renders),
-    with its cell count. A CUDA render is not bit-identical to an LLVM one and takes another
-    time, so cells of several variants are flagged (README.md, "How renders work")."""
-    counts = _tally(cells, "render_variant")
-    if not counts:
-        return []
-    if list(counts) == ["not recorded"]:
-        return [f"the Mitsuba variant that rendered the inputs is not recorded "
-                f"({counts['not recorded']} cells, computed before cells recorded it)"]
-    text = "inputs rendered by " + "; ".join(f"{k} ({v})" for k, v in sorted(counts.items()))
-    if len(counts) > 1:
-        text += (" (**several variants: their inputs and references are other samples, and "
-                 "their render times do not compare**)")
-    return [text]
-
-
-def settings_line(config: dict, df, status: dict, rel_name: str, extras=()) -> str:
+def settings_line(config: dict, df, status: dict, rel_name: str, extras=(),
+                  name: verdicts.Namer = markdown_text) -> str:
+    """The sweep's settings in one paragraph of the README; ``name`` writes the scenes' and
+    methods' names (the viewer's line, which escapes HTML: as they are)."""
     scenes = config.get("scenes") or sorted(df.scene.unique())
     seeds = config.get("seeds")
     seeds = seeds if isinstance(seeds, int) else 1
     ref = config.get("ref_spp")
-    return (f"Sweep `{rel_name}`: {len(scenes)} scenes ({', '.join(map(str, scenes))}) × "
+    return (f"Sweep `{rel_name}`: {len(scenes)} scenes ({', '.join(map(name, scenes))}) × "
             f"{len(_labels(config))} method labels × spp "
             f"{', '.join(map(str, config.get('spp', [])))}, {size_text(config.get('res'))} px, "
             f"{seeds} seed{'s' if seeds != 1 else ''} (first seed "
-            f"{config.get('seed')}); {verdicts.reference_summary(df)} (read from the cells; "
+            f"{config.get('seed')}); {verdicts.reference_summary(df, name)} (read from the cells; "
             f"requested: {f'--ref-spp {ref}' if ref else 'the default'}); "
             + "".join(f"{e}; " for e in extras)
             + f"{verdicts.grid_status_text(status)}.")
@@ -308,7 +266,7 @@ def other_sweep_md(results: Path, sweep_dir: Path, rank_by: str = "relmse") -> l
               "time-integrated image." if transient else ""), ""]
     skipped = sorted({str(c.get("method")) for c in cells if c.get("status") == "skipped"})
     if skipped:
-        parts += ["Not applicable: " + ", ".join(skipped) + ".", ""]
+        parts += ["Not applicable: " + ", ".join(map(markdown_text, skipped)) + ".", ""]
     lines = [ln for ln in problems_md(cells, problems, status["missing"])
              if not ln.startswith("- skipped ")]
     parts += lines + ([""] if lines else [])
@@ -406,14 +364,15 @@ def _statistical_checks(t, name: str) -> list[str]:
     worse = t[t[name] > t["noisy"]]
     checks.append(f"- RMSE never above the noisy input's: {'yes' if never_worse else 'no'}"
                   + ("" if never_worse else " (" + ", ".join(
-                      f"{r.scene} {r.spp} spp" for r in worse.itertuples()) + ")"))
+                      f"{markdown_text(r.scene)} {r.spp} spp" for r in worse.itertuples())
+                      + ")"))
     mono = []
     for scene, g in t.groupby("scene"):
         r = g.sort_values("spp")[name].to_numpy()
         if not np.all(np.diff(r) < 0):
             mono.append(scene)
     checks.append("- RMSE decreasing as spp grows on every scene: "
-                  + ("yes" if not mono else "no (" + ", ".join(mono) + ")"))
+                  + ("yes" if not mono else "no (" + ", ".join(map(markdown_text, mono)) + ")"))
     if "jbf" in t.columns:
         sub = t[t.scene.isin(["caustic", "mirrors"]) & (t.spp >= 64)]
         ok = (sub[name] < sub["jbf"]).all() if len(sub) else False
@@ -491,7 +450,7 @@ def publish(results: str | Path = "results", sweep_dir: str | Path | None = None
         info, cells, _ = load_sweep(d)
         df, config = tables.cells_frame(cells), _config(info)
         sweeps.append((d, cells, settings_line(config, df, verdicts.grid_status(config, cells),
-                                               d.relative_to(results).as_posix())
+                                               d.relative_to(results).as_posix(), name=str)
                        if len(df) else ""))
     sweep_page(results, sweeps, rank_by=rank_by)  # last: it shows the figures just drawn
     return out

@@ -14,6 +14,7 @@ import pandas as pd
 from .. import io, metrics
 from ..resolution import size_text
 from . import headline, verdicts
+from .formats import markdown_text
 from .tables import cells_frame
 
 #: Headline columns of a sequence run (steady and transient runs: verdicts.HEADLINE).
@@ -153,6 +154,11 @@ def comparison_figure(images: Sequence[tuple[str, np.ndarray]], reference: np.nd
     return fig
 
 
+#: The settings whose values hold the scene's or the methods' names (dbench/run/scene_run.py).
+NAMED_SETTINGS = frozenset({"scene", "folder", "scene parameters", "method parameters",
+                            "method devices", "resolved settings"})
+
+
 def run_report_md(table: pd.DataFrame, settings: dict[str, Any], info: dict[str, Any],
                   skipped: dict[str, str], notes: Sequence[str] = (),
                   rank_by: str = "relmse", failed: dict[str, str] | None = None,
@@ -167,7 +173,7 @@ def run_report_md(table: pd.DataFrame, settings: dict[str, Any], info: dict[str,
     asked = rank_by
     d, rank_by, cols, shown = _headline(table, settings, rank_by)
     sequence = settings.get("kind") == "sequence"
-    parts = [f"# dbench run: {settings['scene']} at {settings['spp']} spp, "
+    parts = [f"# dbench run: {markdown_text(settings['scene'])} at {settings['spp']} spp, "
              f"{size_text(settings['res'])} px", ""]
     if len(d):
         parts += headline.scene_block_md(d, rank_by, shown, asked=asked)
@@ -196,16 +202,22 @@ def run_report_md(table: pd.DataFrame, settings: dict[str, Any], info: dict[str,
     if failed:
         parts += ["## Failed", "", "These methods raised an error or broke the method contract; "
                   "they have no row above, and the run exits with code 4.", ""]
-        parts += [f"- **{m}**: {why}" for m, why in failed.items()] + [""]
+        # the error's text is a library's (``<lambda>``, ``__init__``): escaped as names are
+        parts += [f"- **{markdown_text(m)}**: {markdown_text(why)}"
+                  for m, why in failed.items()] + [""]
     if skipped:
-        parts += ["## Skipped", ""] + [f"- {m}: {why}" for m, why in skipped.items()] + [""]
+        parts += ["## Skipped", ""] + [f"- {markdown_text(m)}: {markdown_text(why)}"
+                                       for m, why in skipped.items()] + [""]
     if library_warnings is not None:
         n = library_warnings
         parts += ["## Library warnings", "",
                   f"{n} library warning{'s' if n != 1 else ''}, see run.log." if n else
                   "No library warnings (run.log).", ""]
     parts += ["## Settings", ""]
-    parts += [f"- {k}: {v}" for k, v in settings.items()]
+    # the values that name the scene, its folder and the methods are escaped as names; the
+    # others are dbench's own words (a scene file's "max_depth", a folder's file names)
+    parts += [f"- {k}: {markdown_text(v) if k in NAMED_SETTINGS else v}"
+              for k, v in settings.items()]
     parts += ["", "## Metric definitions", "", metric_definitions_md(), "",
               "## Machine", "", machine_md(info), ""]
     if notes:

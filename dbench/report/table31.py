@@ -54,6 +54,6 @@ def table31_md(df, cells: list[dict], spp: int | None = None) -> list[str]:
             f"A-SVGF samples the method uses, on top of the denoiser's time. "
             f"A method that returns its input does so where its statistics carry no "
             f"information (one sample per pixel has no variance).",
-            "", markdown_table(pd.DataFrame(order)), ""]
+            "", markdown_table(pd.DataFrame(order), name_headers=True), ""]
 
 

@@ -23,7 +23,7 @@ from ..errors import DbenchInputError
 from ..metrics import records
 from ..resolution import parse_res
 from .cells import device_label
-from .formats import markdown_table, write_csv
+from .formats import markdown_table, markdown_text, write_csv
 from .verdicts import HEADLINE, METRICS, fmt_value, num, seed_values
 
 ID_COLUMNS = ["scene", "method", "base_method", "spp", "res", "n_seeds", "ci_kind", "ref_spp",
@@ -244,9 +244,10 @@ def equal_time_gaps(df: pd.DataFrame) -> list[str]:
         for m in (m for m in EQUAL_TIME_METRICS if m in df.columns):
             fit = noisy_fit(df, scene, m)
             if fit is None:
-                gaps.append(f"{scene} on {m} (fewer than two spp of the noisy input)")
+                gaps.append(f"{markdown_text(scene)} on {m} (fewer than two spp of the noisy "
+                            "input)")
             elif fit[1] >= 0:
-                gaps.append(f"{scene} on {m} (the noisy input's {m} does not fall as spp "
+                gaps.append(f"{markdown_text(scene)} on {m} (the noisy input's {m} does not fall as spp "
                             f"grows: log-log slope {fit[1]:+.2f})")
     return [f"No equal-time figure (—) for {'; '.join(gaps)}: no spp of plain rendering "
             "reaches a method's error by that fit.", ""] if gaps else []

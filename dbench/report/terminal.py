@@ -144,7 +144,7 @@ def verdict_lines(d: pd.DataFrame, columns: Sequence[str], rank_by: str) -> list
 def ref_warning_lines(d: pd.DataFrame, indent: str = "") -> list[str]:
     """report.md's "Reference noise" lines (:func:`dbench.report.verdicts.ref_warnings_md`)
     for the terminal, where most readers look: ``warning: cornell, 64 spp: …``."""
-    return [line for w in ref_warnings_md(d)
+    return [line for w in ref_warnings_md(d, name=str)
             for line in _wrap("warning: " + w.removeprefix("- ⚠ ").replace("`", ""), indent)]
 
 

@@ -26,13 +26,18 @@ are in dbench/report/headline.py.
 from __future__ import annotations
 
 import math
-from typing import Any, Iterable
+from typing import Any, Callable, Iterable
 
 import numpy as np
 import pandas as pd
 
 from ..metrics import records
 from .cells import expected_grid, grid_status, grid_status_text, missing_md
+from .formats import markdown_text
+
+#: How a text names a method or scene: as it is (the terminal, the viewer, which escapes HTML)
+#: or escaped for Markdown (:func:`dbench.report.formats.markdown_text`).
+Namer = Callable[[Any], str]
 
 #: Metric columns of a cell (each with a ``_ci`` half-width column), from the metric records.
 METRICS = records.cell_columns()
@@ -237,11 +242,13 @@ def ranking_metric(d: pd.DataFrame, asked: str) -> str:
     return asked if has(asked) else base if has(base) else "rmse"
 
 
-def ranking_line(d: pd.DataFrame, metric: str, asked: str | None = None) -> str:
+def ranking_line(d: pd.DataFrame, metric: str, asked: str | None = None,
+                 name: Namer = str) -> str:
     """e.g. ``relmse (lower is better): oidn < a = b (tied: intervals overlap) < noisy``; a
     group that ties with a method of the group before it follows it with ``≤`` and says which
     (``a = b ≤ c (≤: c ties with b)``). ``asked``: the metric the user asked to rank by, named
-    where it had no value and ``metric`` ranks instead."""
+    where it had no value and ``metric`` ranks instead; ``name`` writes each method's label
+    (Markdown: :func:`dbench.report.formats.markdown_text`)."""
     if metric not in d.columns:
         return f"{metric}: not recorded in these cells"
     op, le = (" > ", "≥") if higher_is_better(metric) else (" < ", "≤")
@@ -253,11 +260,12 @@ def ranking_line(d: pd.DataFrame, metric: str, asked: str | None = None) -> str:
         # leader, yet it may tie with a member of the group before; then "<" would claim an
         # order the intervals do not show (docs/judging.md §3)
         bridge = [(a, b) for a in previous for b in g if tie(rows[a], rows[b], metric)]
-        part = " = ".join(g) + (f" ({'; '.join(notes)})" if notes else "") + "".join(
-            f" ({le}: {b} ties with {a})" for a, b in bridge[:1])
+        part = " = ".join(map(name, g)) + (f" ({'; '.join(notes)})" if notes else "") + "".join(
+            f" ({le}: {name(b)} ties with {name(a)})" for a, b in bridge[:1])
         text = (text + (f" {le} " if bridge else op) + part) if text else part
         previous = g
-    missing = sorted(str(m) for m, v in zip(d["method"], d[metric]) if not _finite(v))
+    missing = [name(m) for m in sorted(str(m) for m, v in zip(d["method"], d[metric])
+                                       if not _finite(v))]
     text = (f"{metric} ({'higher' if higher_is_better(metric) else 'lower'} is better): "
             + (text or "no values"))
     text += f"; no value: {', '.join(missing)}" if missing else ""
@@ -274,18 +282,19 @@ def ci_kind_text(d: pd.DataFrame) -> str:
     return "intervals: " + "; ".join(kinds)
 
 
-def _cells_text(g: pd.DataFrame, all_methods: set[str]) -> str:
+def _cells_text(g: pd.DataFrame, all_methods: set[str], name: Namer = str) -> str:
     """``4, 16 spp`` or ``64 spp (jbf, oidn)`` for the cells of ``g``."""
     parts = []
     for spp, h in g.groupby("spp", sort=True):
         ms = sorted(set(map(str, h["method"])))
         parts.append(f"{int(spp)} spp" + ("" if set(ms) >= all_methods else
-                                          f" ({', '.join(ms)})"))
+                                          f" ({', '.join(map(name, ms))})"))
     return ", ".join(parts)
 
 
-def reference_text(d: pd.DataFrame) -> str:
-    """The reference spp actually used by the cells of one scene (never the config's)."""
+def reference_text(d: pd.DataFrame, name: Namer = str) -> str:
+    """The reference spp actually used by the cells of one scene (never the config's);
+    ``name`` writes the methods' labels (:func:`ranking_line`)."""
     refs = d["ref_spp"].map(num) if "ref_spp" in d.columns else pd.Series(dtype=float)
     known = sorted({int(v) for v in refs if math.isfinite(v)})
     if not known:
@@ -294,9 +303,9 @@ def reference_text(d: pd.DataFrame) -> str:
         text = f"reference {known[0]} spp"
     else:
         methods = set(map(str, d["method"]))
-        per = [f"{v} spp for {_cells_text(d[refs == v], methods)}" for v in known]
+        per = [f"{v} spp for {_cells_text(d[refs == v], methods, name)}" for v in known]
         if refs.isna().any():
-            per.append(f"not recorded for {_cells_text(d[refs.isna()], methods)}")
+            per.append(f"not recorded for {_cells_text(d[refs.isna()], methods, name)}")
         text = "reference differs between cells: " + "; ".join(per)
     err = d["ref_rmse"].map(num) if "ref_rmse" in d.columns else pd.Series(dtype=float)
     err = err[np.isfinite(err)]
@@ -309,14 +318,15 @@ def reference_text(d: pd.DataFrame) -> str:
     return text
 
 
-def reference_summary(df: pd.DataFrame) -> str:
-    """One phrase for a sweep header: the reference spp of every scene, from the cells."""
+def reference_summary(df: pd.DataFrame, name: Namer = str) -> str:
+    """One phrase for a sweep header: the reference spp of every scene, from the cells;
+    ``name`` writes the scenes' and methods' names (:func:`ranking_line`)."""
     if df.empty:
         return "no finished cells"
-    texts = {s: reference_text(g) for s, g in df.groupby("scene", sort=True)}
+    texts = {s: reference_text(g, name) for s, g in df.groupby("scene", sort=True)}
     if len(set(texts.values())) == 1:
         return next(iter(texts.values())) + " in every scene"
-    return "per scene, " + "; ".join(f"{s}: {t}" for s, t in texts.items())
+    return "per scene, " + "; ".join(f"{name(s)}: {t}" for s, t in texts.items())
 
 
 def next_pow2(x: float) -> int:
@@ -400,9 +410,11 @@ def ref_cost_text(cells: Iterable[dict], scene: str, res: Any, ref_spp: float,
             f"measured {where}, scaled linearly with spp)")
 
 
-def ref_warnings_md(df: pd.DataFrame, cells: Iterable[dict] | None = None) -> list[str]:
+def ref_warnings_md(df: pd.DataFrame, cells: Iterable[dict] | None = None,
+                    name: Namer = markdown_text) -> list[str]:
     """One line per (scene, spp) with a too-noisy reference, listing the methods; with the raw
-    ``cells``, what the suggested reference would cost (:func:`ref_cost_text`)."""
+    ``cells``, what the suggested reference would cost (:func:`ref_cost_text`). ``name``
+    writes the scenes' and methods' names (the terminal's lines: as they are)."""
     bad = ref_noise_frame(df)
     cells, lines = list(cells or []), []
     for (scene, spp), g in bad.groupby(["scene", "spp"], sort=True):
@@ -421,9 +433,9 @@ def ref_warnings_md(df: pd.DataFrame, cells: Iterable[dict] | None = None) -> li
             {"relmse_surface": "relMSE over surface pixels", "rmse": "MSE"}[o]
             for o in sorted(set(g["share_on"]), reverse=True))
         lines.append(
-            f"- ⚠ {scene}, {spp} spp: the reference's error is above 10 % of the method's "
-            f"(reference / method on {on}, up to {g['ref_mse_share'].max():.2g}) for "
-            f"{', '.join(map(str, g['method']))}"
+            f"- ⚠ {name(scene)}, {spp} spp: the reference's error is above 10 % of the "
+            f"method's (reference / method on {on}, up to {g['ref_mse_share'].max():.2g}) for "
+            f"{', '.join(map(name, g['method']))}"
             + (f"; reference {', '.join(map(str, refs))} spp" if refs else "") + f"; {fix}.")
     return lines
 

@@ -8,7 +8,7 @@ import re
 
 import pandas as pd
 
-from dbench.report import headline, publish
+from dbench.report import headline, publish, run_report as report
 from dbench.report.formats import markdown_table
 
 # GitHub's table rows split on every "|" that no backslash escapes
@@ -66,3 +66,87 @@ def test_report_counts_library_warnings_in_one_line(tmp_path, monkeypatch, capsy
     err = capsys.readouterr().err
     assert err == ("3 library warnings while writing: Glyph 38634 missing from font(s) DejaVu "
                    "Sans.\n")
+
+
+#: Names Markdown would read as markup: emphasis, an HTML tag, a code span, a link, a heading.
+ODD_SCENES = ["a_b_c", "<x>"]
+ODD_METHODS = ["noisy", "*star*", "tick`s", "[l](u)", "#h"]
+
+
+def _cell(scene: str, spp: int, method: str) -> dict:
+    err = 0.05 if method == "noisy" else 0.03 + 0.001 * ODD_METHODS.index(method)
+    c = {"status": "ok", "scene": scene, "method": method, "base_method": "noisy", "spp": spp,
+         "res": 16, "n_seeds": 1, "seeds": [0], "ci_kind": "block bootstrap", "ref_spp": 64,
+         "ref_rmse": 1e-4, "time_s": 0.01, "time_s_iqr": 0.0, "render_s": 0.01,
+         "n_nonfinite": 0, "params": {}}
+    for k in ("rmse", "rmse_surface", "relmse", "relmse_surface", "ssim", "flip"):
+        c[k], c[k + "_ci"] = err, err * 0.01
+    return c
+
+
+def _sweep(folder, cells, scenes, methods, spp):
+    folder.mkdir(parents=True)
+    (folder / "sweep.json").write_text(json.dumps({"config": {
+        "labels": methods, "methods": methods, "scenes": scenes, "spp": spp, "res": 16,
+        "seeds": 1, "seed": 0, "repeats": 1}}))
+    for c in cells:
+        p = folder / "cells" / c["scene"] / f"{c['spp']:05d}spp" / f"{c['method']}.json"
+        p.parent.mkdir(parents=True, exist_ok=True)
+        p.write_text(json.dumps(c))
+
+
+def _raw(text: str, names) -> list[str]:
+    """The names that stand unescaped in Markdown ``text`` (not preceded by a backslash)."""
+    return [n for n in names if re.search(r"(?<!\\)" + re.escape(n), text)]
+
+
+def test_names_markdown_reads_as_markup_are_escaped_in_readme_and_kept_raw_in_csv(tmp_path):
+    from dbench.report.formats import markdown_text
+
+    results = tmp_path / "results"
+    cells = [_cell(s, p, m) for s in ODD_SCENES for p in (4, 16) for m in ODD_METHODS
+             if (s, p, m) != ("<x>", 4, "#h")]  # one missing: named in the problems list
+    cells.append({**_cell("a_b_c", 4, "*star*"), "method": "err_or", "status": "error",
+                  "error": "ValueError: <lambda> failed"})
+    _sweep(results / "sweep", cells, ODD_SCENES, ODD_METHODS + ["err_or"], [4, 16])
+    md = publish.publish(results).read_text(encoding="utf-8")
+    names = ["a_b_c", "<x>", "*star*", "tick`s", "[l](u)", "<lambda>", "err_or"]
+    assert _raw(md, names) == []
+    for name in ("a_b_c", "<x>", "*star*", "tick`s"):
+        assert markdown_text(name) in md, name
+    assert "### a\\_b\\_c" in md and "### \\<x\\>" in md  # the headline's headings
+    assert "- missing \\#h on \\<x\\> at 4 spp" in md
+    assert "- error err\\_or on a\\_b\\_c at 4 spp: ValueError: \\<lambda\\> failed" in md
+    # CSV keeps names as they are; the viewer escapes HTML, not Markdown
+    csv = (results / "sweep" / "tables" / "cells.csv").read_text(encoding="utf-8")
+    assert "<x>" in csv and "*star*" in csv and "a\\_b" not in csv
+    page = (results / "index.html").read_text(encoding="utf-8")
+    assert "&lt;x&gt;" in page and "<x>" not in page and "a\\_b" not in page
+
+
+def test_names_markdown_reads_as_markup_are_escaped_in_the_run_report():
+    from dbench.report.formats import markdown_text
+
+    table = pd.DataFrame([{**_cell("<x>", 4, m), "n_seeds": 1} for m in ODD_METHODS])
+    settings = {"scene": "<x>", "kind": "steady", "spp": 4, "res": 16, "repeats": 1,
+                "method parameters": "*star*: {}"}
+    machine = {"cpu": "c", "cores": 2, "gpu": "none", "python": "3", "platform": "p",
+               "packages": {}}
+    md = report.run_report_md(table, settings, machine, skipped={"a_b": "sequence only"},
+                              failed={"tick`s": "ValueError: <lambda>"})
+    assert md.startswith("# dbench run: \\<x\\> at 4 spp")
+    assert _raw(md, ["<x>", "*star*", "a_b", "<lambda>", "tick`s", "[l](u)"]) == []
+    assert "- **tick\\`s**: ValueError: \\<lambda\\>" in md and "- a\\_b: sequence only" in md
+    ranking = next(ln for ln in md.splitlines() if ln.startswith("Ranking by "))
+    assert markdown_text("*star*") in ranking and markdown_text("[l](u)") in ranking
+
+
+def test_markdown_text_escapes_markup_once_and_leaves_plain_labels_alone():
+    from dbench.report.formats import markdown_cell, markdown_code, markdown_text
+
+    assert markdown_text("jbf[radius=3]") == "jbf[radius=3]"  # no link: left as it reads
+    assert markdown_text("[l](u)") == "\\[l\\](u)"
+    assert markdown_text("a|b") == "a\\|b" and markdown_cell(markdown_text("a|b")) == "a\\|b"
+    assert markdown_cell("a|b") == "a\\|b"
+    assert markdown_text("two\nlines") == "two lines"
+    assert markdown_code("x`y") == "`` x`y ``"
