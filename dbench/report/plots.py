@@ -91,14 +91,30 @@ def _log_axes(ax, title: str, xlabel: str, ylabel: str, xbase: float = 10) -> No
     ax.grid(True, which="both", alpha=0.3)
 
 
-def convergence_plot(df: pd.DataFrame, path: Path, metric: str = "rmse") -> None:
+def _drawable(df: pd.DataFrame, metric: str) -> pd.DataFrame:
+    """The rows a log axis can show: a finite, positive ``metric``."""
+    if metric not in df.columns or not len(df):
+        return df.iloc[0:0]
+    v = pd.to_numeric(df[metric], errors="coerce")
+    return df[np.isfinite(v) & (v > 0)]
+
+
+def convergence_plot(df: pd.DataFrame, path: Path, metric: str = "rmse") -> bool:
+    """``metric`` against spp (log-log), one panel per scene with a value; returns False when
+    no cell has a finite, positive one (no finished cell, every value NaN) and then draws
+    nothing and removes the figure an earlier report drew at ``path``, as
+    :func:`error_time_plot` does."""
+    ok = _drawable(df, metric)
+    scenes = sorted(ok.scene.unique())
+    if not scenes:
+        Path(path).unlink(missing_ok=True)
+        return False
     plt = _plt()
-    scenes = sorted(df.scene.unique())
     styles = method_styles(df.method.unique())
     fig, axes = _panels(plt, len(scenes))
     handles = {}
     for ax, scene in zip(axes.ravel(), scenes):
-        d = df[df.scene == scene]
+        d = ok[ok.scene == scene]
         for method in sorted(d.method.unique()):
             m = d[d.method == method].sort_values("spp")
             st = styles[method]
@@ -109,6 +125,7 @@ def convergence_plot(df: pd.DataFrame, path: Path, metric: str = "rmse") -> None
     _legend(fig, dict(sorted(handles.items())))
     save(fig, path)
     plt.close(fig)
+    return True
 
 
 def lower_envelope(points: pd.DataFrame, metric: str) -> pd.DataFrame:

@@ -123,7 +123,7 @@ def build_readme(results: Path, sweep_dir: Path, headline_spp: int = 64,
     status = verdicts.grid_status(config, cells)
     rel = lambda p: Path(p).relative_to(results).as_posix()  # noqa: E731
     paths = tables.write_tables(df, sweep_dir / "tables")
-    plots.convergence_plot(df, sweep_dir / "convergence.png")
+    converged = plots.convergence_plot(df, sweep_dir / "convergence.png")
     figures = {m: sweep_dir / f"error_time_{m}.png" for m in ("rmse_surface", "relmse")}
     drawn = {m: plots.error_time_plot(df, m, p) for m, p in figures.items()}
 
@@ -158,7 +158,9 @@ def build_readme(results: Path, sweep_dir: Path, headline_spp: int = 64,
                   "of the grid recomputes only that part); `dbench sweep ... --rerun` over the "
                   "whole grid makes them alike:", ""] + mixed_md(status["mixed"]) + [""]
 
-    parts += ["## Convergence", "", f"![convergence]({rel(sweep_dir / 'convergence.png')})", "",
+    parts += ["## Convergence", "", f"![convergence]({rel(sweep_dir / 'convergence.png')})"
+              if converged else "No convergence figure: no finished cell records a finite rmse "
+              "(see the cells above).", "",
               "Entries are mean ± 95 % half-width (— where no cell; \"no value (non-finite "
               "output)\" where the cell's outputs held NaN or Inf).", ""]
     for metric in README_CONVERGENCE:

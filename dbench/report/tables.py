@@ -287,10 +287,10 @@ def write_tables(df: pd.DataFrame, out: Path) -> dict[str, Path]:
     return paths
 
 
-def convergence_plot(df: pd.DataFrame, path: Path) -> None:  # kept for callers of tables
+def convergence_plot(df: pd.DataFrame, path: Path) -> bool:  # kept for callers of tables
     from .plots import convergence_plot as plot
 
-    plot(df, path)
+    return plot(df, path)
 
 
 __all__ = ["NONFINITE", "NO_VALUE", "cells_frame", "convergence_table", "convergence_table_md",

@@ -1,0 +1,55 @@
+"""``dbench report`` on sweep folders at the edges (README.md, "Usage", the ``dbench report``
+paragraph): no finished cell, one cell, one method, every value NaN; each is a README that
+says what is there, with no traceback, no empty figure and no misleading word."""
+from __future__ import annotations
+
+import json
+import math
+
+from dbench.cli import main
+
+
+def _cell(scene: str, spp: int, method: str, err: float = 0.03) -> dict:
+    c = {"status": "ok", "scene": scene, "method": method, "base_method": method, "spp": spp,
+         "res": 16, "n_seeds": 1, "seeds": [0], "ci_kind": "block bootstrap", "ref_spp": 64,
+         "ref_rmse": 1e-4, "time_s": 0.01, "time_s_iqr": 0.0, "render_s": 0.01,
+         "n_nonfinite": 0, "params": {}}
+    for k in ("rmse", "rmse_surface", "relmse", "relmse_surface", "ssim", "flip"):
+        c[k], c[k + "_ci"] = err, err * 0.01
+    return c
+
+
+def _report(tmp_path, cells, scenes, methods, spp) -> str:
+    """README.md of ``dbench report`` over a sweep folder holding ``cells``."""
+    sweep = tmp_path / "results" / "sweep"
+    sweep.mkdir(parents=True, exist_ok=True)
+    (sweep / "sweep.json").write_text(json.dumps({"config": {
+        "labels": methods, "methods": methods, "scenes": scenes, "spp": spp, "res": 16,
+        "seeds": 1, "seed": 0, "repeats": 1}}))
+    for c in cells:
+        p = sweep / "cells" / c["scene"] / f"{c['spp']:05d}spp" / f"{c['method']}.json"
+        p.parent.mkdir(parents=True, exist_ok=True)
+        p.write_text(json.dumps(c))
+    assert main(["report", "--results", str(tmp_path / "results")]) == 0
+    return (tmp_path / "results" / "README.md").read_text(encoding="utf-8")
+
+
+def test_a_sweep_without_finished_cells_draws_no_empty_figure_and_says_why(tmp_path):
+    sweep = tmp_path / "results" / "sweep"
+    sweep.mkdir(parents=True)
+    (sweep / "convergence.png").write_bytes(b"an earlier report's figure")
+    failed = [{"status": "error", "scene": "cornell", "spp": 4, "method": m, "error": "boom"}
+              for m in ("noisy", "jbf")]
+    md = _report(tmp_path, failed, ["cornell"], ["noisy", "jbf"], [4])
+    assert list(sweep.glob("*.png")) == []
+    assert "![convergence]" not in md
+    assert "No convergence figure: no finished cell records a finite rmse" in md
+    page = (tmp_path / "results" / "index.html").read_text(encoding="utf-8")
+    assert ".png" not in page
+
+
+def test_a_sweep_whose_every_value_is_nan_is_reported_without_a_figure(tmp_path):
+    cells = [_cell("cornell", s, m, math.nan) for s in (4, 16) for m in ("noisy", "jbf")]
+    md = _report(tmp_path, cells, ["cornell"], ["noisy", "jbf"], [4, 16])
+    assert "No convergence figure" in md
+    assert not (tmp_path / "results" / "sweep" / "convergence.png").exists()
