@@ -196,9 +196,11 @@ def _sweep(args: argparse.Namespace, caught: list[str]) -> int:
                              workers=args.workers, progress=not args.quiet,
                              warnings_out=from_groups)
     print(_sweep_summary(args.out, config, args.rank_by, quiet=args.quiet))
-    print(f"sweep {args.out}: {counts['computed']} cells computed, "
+    from ..report.formats import counted
+
+    print(f"sweep {args.out}: {counted(counts['computed'], 'cell')} computed, "
           f"{counts['skipped']} not applicable, "
-          f"{counts['finished_before']} already finished, {counts['errors']} errors")
+          f"{counts['finished_before']} already finished, {counted(counts['errors'], 'error')}")
     caught = list(caught) + from_groups
     if caught:
         from ..io import write_text

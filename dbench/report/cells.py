@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any, Sequence
 
 from .. import io
-from .formats import markdown_code, markdown_text
+from .formats import counted, markdown_code, markdown_text
 
 #: Numbers an "ok" cell must carry as numbers (or null) to be read.
 NUMERIC_KEYS = ("spp", "rmse", "relmse", "time_s")
@@ -211,8 +211,9 @@ def machines_text(cells: list[dict]) -> list[str]:
     if not counts:
         return []
     if list(counts) == ["not recorded"]:
-        return [f"the machine the cells were timed on is not recorded ({counts['not recorded']} "
-                f"cells, computed before cells recorded it)"]
+        return [f"the machine the cells were timed on is not recorded "
+                f"({counted(counts['not recorded'], 'cell')}, computed before cells recorded "
+                "it)"]
     text = "cells timed on " + "; ".join(f"{k} ({v})" for k, v in sorted(counts.items()))
     if len(counts) > 1:
         text += " (**times from different machines do not compare**)"
@@ -229,7 +230,8 @@ def variants_text(cells: list[dict]) -> list[str]:
         return []
     if list(counts) == ["not recorded"]:
         return [f"the Mitsuba variant that rendered the inputs is not recorded "
-                f"({counts['not recorded']} cells, computed before cells recorded it)"]
+                f"({counted(counts['not recorded'], 'cell')}, computed before cells recorded "
+                "it)"]
     text = "inputs rendered by " + "; ".join(f"{k} ({v})" for k, v in sorted(counts.items()))
     if len(counts) > 1:
         text += (" (**several variants: their inputs and references are other samples, and "

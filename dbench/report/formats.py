@@ -11,6 +11,11 @@ import pandas as pd
 from .. import io
 
 
+def counted(n: int, noun: str, plural: str | None = None) -> str:
+    """``1 scene``, ``2 scenes``, ``0 errors``: a count with its noun, singular for one."""
+    return f"{n} {noun if n == 1 else plural or noun + 's'}"
+
+
 def write_csv(path: str | Path, table: pd.DataFrame) -> None:
     with io.atomic_path(path, suffix=".tmp.csv") as tmp:
         table.to_csv(tmp, index=False, float_format="%.6g", encoding="utf-8")

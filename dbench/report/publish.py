@@ -20,7 +20,7 @@ from ..resolution import size_text
 from . import headline, plots, tables, verdicts
 from .cells import (devices_text, load_cells_checked, machines_text, mixed_md, problems_md,
                     read_cell, variants_text)
-from .formats import markdown_table, markdown_text
+from .formats import counted, markdown_table, markdown_text
 from .html import sweep_page
 from .run_report import machine_md, metric_definitions_md
 from .table31 import table31_md
@@ -72,10 +72,10 @@ def wall_text(info: dict, cells: list[dict] | None = None) -> str:
     if runs:
         wall = sum(float(r.get("wall_s", 0)) for r in runs)
         cells_n = sum(int(r.get("cells", 0)) for r in runs)
-        parts.append(f"wall time {wall:.0f} s for the last {cells_n} cells computed "
-                     f"({len(runs)} run{'s' if len(runs) != 1 else ''})")
+        parts.append(f"wall time {wall:.0f} s for the last {counted(cells_n, 'cell')} "
+                     f"computed ({counted(len(runs), 'run')})")
     if refs:
-        parts.append(f"{len(refs)} reference{'s' if len(refs) != 1 else ''} rendered in "
+        parts.append(f"{counted(len(refs), 'reference')} rendered in "
                      f"{sum(refs.values()):.0f} s in all")
     return ", ".join(parts + machines_text(cells or []) + devices_text(cells or [])
                      + variants_text(cells or []))
@@ -89,10 +89,11 @@ def settings_line(config: dict, df, status: dict, rel_name: str, extras=(),
     seeds = config.get("seeds")
     seeds = seeds if isinstance(seeds, int) else 1
     ref = config.get("ref_spp")
-    return (f"Sweep `{rel_name}`: {len(scenes)} scenes ({', '.join(map(name, scenes))}) × "
-            f"{len(_labels(config))} method labels × spp "
+    return (f"Sweep `{rel_name}`: {counted(len(scenes), 'scene')} "
+            f"({', '.join(map(name, scenes))}) × {counted(len(_labels(config)), 'method label')}"
+            " × spp "
             f"{', '.join(map(str, config.get('spp', [])))}, {size_text(config.get('res'))} px, "
-            f"{seeds} seed{'s' if seeds != 1 else ''} (first seed "
+            f"{counted(seeds, 'seed')} (first seed "
             f"{config.get('seed')}); {verdicts.reference_summary(df, name)} (read from the cells; "
             f"requested: {f'--ref-spp {ref}' if ref else 'the default'}); "
             + "".join(f"{e}; " for e in extras)

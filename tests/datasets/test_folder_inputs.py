@@ -97,7 +97,7 @@ def test_a_sweep_reads_a_folder_holding_a_sequence(tmp_path, capsys):
     assert main(args) == 0
     cell = json.loads((out / "cells" / "v" / "00004spp" / "noisy.json").read_text())
     assert (cell["status"], cell["frames"]) == ("ok", 3)
-    assert "1 cells computed" in capsys.readouterr().out
+    assert "1 cell computed" in capsys.readouterr().out
     assert main(args) == 0  # the same content: the same cell, kept
     assert "0 cells computed, 0 not applicable, 1 already finished" in capsys.readouterr().out
     _rgb(folder / "v_f0002_0016.hdr.exr", _img(9))  # another content: another identity

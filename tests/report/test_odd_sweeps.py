@@ -19,13 +19,14 @@ def _cell(scene: str, spp: int, method: str, err: float = 0.03) -> dict:
     return c
 
 
-def _report(tmp_path, cells, scenes, methods, spp) -> str:
-    """README.md of ``dbench report`` over a sweep folder holding ``cells``."""
+def _report(tmp_path, cells, scenes, methods, spp, **info) -> str:
+    """README.md of ``dbench report`` over a sweep folder holding ``cells`` (``info``: more
+    of sweep.json, its runs)."""
     sweep = tmp_path / "results" / "sweep"
     sweep.mkdir(parents=True, exist_ok=True)
     (sweep / "sweep.json").write_text(json.dumps({"config": {
         "labels": methods, "methods": methods, "scenes": scenes, "spp": spp, "res": 16,
-        "seeds": 1, "seed": 0, "repeats": 1}}))
+        "seeds": 1, "seed": 0, "repeats": 1}, **info}))
     for c in cells:
         p = sweep / "cells" / c["scene"] / f"{c['spp']:05d}spp" / f"{c['method']}.json"
         p.parent.mkdir(parents=True, exist_ok=True)
@@ -53,3 +54,15 @@ def test_a_sweep_whose_every_value_is_nan_is_reported_without_a_figure(tmp_path)
     md = _report(tmp_path, cells, ["cornell"], ["noisy", "jbf"], [4, 16])
     assert "No convergence figure" in md
     assert not (tmp_path / "results" / "sweep" / "convergence.png").exists()
+
+
+def test_one_cell_is_one_scene_one_label_one_cell_in_the_words(tmp_path):
+    cell = {**_cell("cornell", 4, "noisy"), "ref_render_s": 2.0}
+    md = _report(tmp_path, [cell], ["cornell"], ["noisy"], [4],
+                 runs=[{"wall_s": 3, "cells": 1}])
+    settings = next(ln for ln in md.splitlines() if ln.startswith("Sweep `sweep`"))
+    assert "1 scene (cornell) × 1 method label × spp 4" in settings
+    assert "1 seed (first seed 0)" in settings
+    assert "wall time 3 s for the last 1 cell computed (1 run), 1 reference rendered" in settings
+    assert "the machine the cells were timed on is not recorded (1 cell," in settings
+    assert not any(w in settings for w in ("1 scenes", "1 method labels", "1 cells"))
