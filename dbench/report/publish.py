@@ -144,11 +144,16 @@ def build_readme(results: Path, sweep_dir: Path, headline_spp: int = 64,
         "median per frame after the 8-frame warm-up (all of a sequence of 8 or fewer)."
         if sequence else ""), ""]
     spp = verdicts.headline_spp(df.spp.unique(), headline_spp) if len(df) else None
-    parts += [f"## Headline: every method × every scene at {spp} spp", ""]
-    if rank != rank_by:
-        parts += [f"(`{rank_by}` is not recorded in these cells: ranked by `{rank}`.)", ""]
-    parts += headline.headline_md(df, spp, rank)
-    parts += ["### Reference noise", ""] + reference_md(df, rel(paths["reference_noise"]), cells)
+    if spp is None:  # nothing ranks, and no cell says what its metrics or reference were
+        parts += ["## Headline", "", "No finished cell: nothing to rank (every cell failed, "
+                  "does not apply or is missing; see below).", ""]
+    else:
+        parts += [f"## Headline: every method × every scene at {spp} spp", ""]
+        if rank != rank_by:
+            parts += [f"(`{rank_by}` is not recorded in these cells: ranked by `{rank}`.)", ""]
+        parts += headline.headline_md(df, spp, rank)
+        parts += ["### Reference noise", ""] + reference_md(df, rel(paths["reference_noise"]),
+                                                            cells)
 
     lines = problems_md(cells, problems, status["missing"])
     if lines:
@@ -171,13 +176,14 @@ def build_readme(results: Path, sweep_dir: Path, headline_spp: int = 64,
     others = [m for m in verdicts.METRICS if f"convergence_{m}" in paths
               and m not in README_CONVERGENCE]
     parts += ["Other metrics (CSV, numbers with `_ci` columns): " + ", ".join(
-        f"[{m}]({rel(paths['convergence_' + m])})" for m in others) + ".", ""]
-    parts += [("`rmse_unbiased` removes the reference's own noise, sqrt(max(0, MSE − mean "
-               "reference variance)): " + (
-                   f"[{rel(paths['convergence_rmse_unbiased'])}]"
-                   f"({rel(paths['convergence_rmse_unbiased'])})."
-                   if "convergence_rmse_unbiased" in paths else
-                   "not recorded in these cells (older format).")), ""]
+        f"[{m}]({rel(paths['convergence_' + m])})" for m in others) + ".", ""] if others else []
+    if len(df):  # without cells, nothing is recorded, and no format is older
+        parts += [("`rmse_unbiased` removes the reference's own noise, sqrt(max(0, MSE − mean "
+                   "reference variance)): " + (
+                       f"[{rel(paths['convergence_rmse_unbiased'])}]"
+                       f"({rel(paths['convergence_rmse_unbiased'])})."
+                       if "convergence_rmse_unbiased" in paths else
+                       "not recorded in these cells (older format).")), ""]
 
     parts += ["## Error against time", "",
               "One panel per scene: x = render + denoise time (render includes statistics "

@@ -66,3 +66,12 @@ def test_one_cell_is_one_scene_one_label_one_cell_in_the_words(tmp_path):
     assert "wall time 3 s for the last 1 cell computed (1 run), 1 reference rendered" in settings
     assert "the machine the cells were timed on is not recorded (1 cell," in settings
     assert not any(w in settings for w in ("1 scenes", "1 method labels", "1 cells"))
+
+
+def test_a_sweep_without_finished_cells_says_so_instead_of_a_headline_of_none(tmp_path):
+    skipped = [{"status": "skipped", "scene": "cornell", "spp": 4, "method": "svgf",
+                "reason": "sequence only"}]
+    md = _report(tmp_path, skipped, ["cornell"], ["svgf"], [4])
+    assert "## Headline\n\nNo finished cell: nothing to rank" in md
+    # no cell to say what it records: never "at None spp", never "older format"
+    assert "None" not in md and "older format" not in md and "is not recorded in" not in md
