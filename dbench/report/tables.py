@@ -34,6 +34,10 @@ TEMPORAL = records.sequence_metrics()
 #: Every metric column of a cell: the verdicts' metrics and the sequence-only ones they lack.
 COLUMNS = METRICS + tuple(m for m in TEMPORAL if m not in METRICS)
 EQUAL_TIME_METRICS = ("rmse", "relmse", "rmse_surface")
+#: The log-log slope below which the noisy input's error falls as spp grows: a flat error (the
+#: same at every spp; a fit's rounding leaves a slope of −5e-16) reaches no method's error at
+#: any spp, and dividing by it overflows (Monte Carlo error falls with slope −0.5).
+FALLING = -1e-6
 
 
 def _label(v) -> str | None:
@@ -213,8 +217,10 @@ def equal_time_table(df: pd.DataFrame, metrics: tuple[str, ...] = EQUAL_TIME_MET
             for m in metrics:
                 fit, v = fits[m], r[m]
                 eq = np.nan
-                if fit is not None and np.isfinite(v) and v > 0 and fit[1] < 0:
-                    eq = float(np.exp((np.log(v) - fit[0]) / fit[1]))
+                if fit is not None and np.isfinite(v) and v > 0 and fit[1] < FALLING:
+                    with np.errstate(over="ignore"):  # beyond any spp: no figure, not inf
+                        eq = float(np.exp((np.log(v) - fit[0]) / fit[1]))
+                    eq = eq if np.isfinite(eq) else np.nan
                 row.update({m: v, f"equal_{m}_spp": eq, f"equal_{m}_render_s": eq * cost,
                             f"{m}_time_saved_s": eq * cost - r.total_s})
             rows.append(row)
@@ -246,9 +252,9 @@ def equal_time_gaps(df: pd.DataFrame) -> list[str]:
             if fit is None:
                 gaps.append(f"{markdown_text(scene)} on {m} (fewer than two spp of the noisy "
                             "input)")
-            elif fit[1] >= 0:
-                gaps.append(f"{markdown_text(scene)} on {m} (the noisy input's {m} does not fall as spp "
-                            f"grows: log-log slope {fit[1]:+.2f})")
+            elif fit[1] >= FALLING:
+                gaps.append(f"{markdown_text(scene)} on {m} (the noisy input's {m} does not "
+                            f"fall as spp grows: log-log slope {fit[1]:+.2f})")
     return [f"No equal-time figure (—) for {'; '.join(gaps)}: no spp of plain rendering "
             "reaches a method's error by that fit.", ""] if gaps else []
 

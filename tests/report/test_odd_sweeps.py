@@ -75,3 +75,22 @@ def test_a_sweep_without_finished_cells_says_so_instead_of_a_headline_of_none(tm
     assert "## Headline\n\nNo finished cell: nothing to rank" in md
     # no cell to say what it records: never "at None spp", never "older format"
     assert "None" not in md and "older format" not in md and "is not recorded in" not in md
+
+
+def test_a_noisy_error_flat_over_spp_gives_no_equal_spp_and_no_overflow():
+    """Cells whose noisy error is the same at every spp (the fit's slope is −5e-16, not 0):
+    no spp of plain rendering reaches a method's error, said as such, never "inf" after an
+    overflow warning."""
+    import warnings
+
+    from dbench.report import tables
+
+    cells = [_cell("cornell", s, m, 0.05 if m == "noisy" else 0.03)
+             for s in (4, 16) for m in ("noisy", "jbf")]
+    df = tables.cells_frame(cells)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        eq = tables.equal_time_md(df, 16)
+        gaps = tables.equal_time_gaps(df)
+    assert "equal_rmse_spp" not in eq.columns
+    assert "cornell on rmse (the noisy input's rmse does not fall as spp grows" in gaps[0]
