@@ -205,9 +205,14 @@ def build_readme(results: Path, sweep_dir: Path, headline_spp: int = 64,
               "(render + denoise time of the method). Positive: denoising beats rendering more "
               "samples.", ""]
     eq = tables.equal_time_md(df, spp) if spp is not None else None
-    if eq is not None and len(eq):
+    if eq is not None and any(c.startswith("equal_") for c in eq.columns):
         parts += [f"At {spp} spp:", "", markdown_table(eq, ".3g"), "", *tables.equal_time_gaps(
             df), f"All spp: [{rel(paths['equal_time'])}]({rel(paths['equal_time'])})", ""]
+    elif eq is not None and len(eq):  # a table of times alone would say nothing
+        parts += tables.equal_time_gaps(df, "No equal-time table: no fit for")
+    elif spp is not None:
+        parts += [f"No equal-time table: no method but the noisy input has a finished cell at "
+                  f"{spp} spp.", ""]
 
     for other in extra_sweeps(results, sweep_dir):
         parts += other_sweep_md(results, other, rank_by=rank_by)

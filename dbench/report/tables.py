@@ -240,11 +240,12 @@ def equal_time_md(df: pd.DataFrame, spp: int) -> pd.DataFrame:
     return out.astype(object).where(out.notna(), "—")  # as convergence_table_md marks a gap
 
 
-def equal_time_gaps(df: pd.DataFrame) -> list[str]:
+def equal_time_gaps(df: pd.DataFrame, lead: str = "No equal-time figure (—) for") -> list[str]:
     """Why the equal-time table has no figure for a scene and metric (a Markdown paragraph and
     a blank line, or nothing): the noisy input's error there has fewer than two spp to fit, or
     does not fall as spp grows (fit slope ≥ 0, e.g. a firefly at the higher spp), so no spp of
-    plain rendering reaches a method's error by that fit."""
+    plain rendering reaches a method's error by that fit. ``lead`` opens the paragraph (no
+    table at all: "No equal-time table: no fit for")."""
     gaps = []
     for scene in sorted(df.scene.unique()):
         for m in (m for m in EQUAL_TIME_METRICS if m in df.columns):
@@ -255,7 +256,7 @@ def equal_time_gaps(df: pd.DataFrame) -> list[str]:
             elif fit[1] >= FALLING:
                 gaps.append(f"{markdown_text(scene)} on {m} (the noisy input's {m} does not "
                             f"fall as spp grows: log-log slope {fit[1]:+.2f})")
-    return [f"No equal-time figure (—) for {'; '.join(gaps)}: no spp of plain rendering "
+    return [f"{lead} {'; '.join(gaps)}: no spp of plain rendering "
             "reaches a method's error by that fit.", ""] if gaps else []
 
 

@@ -94,3 +94,17 @@ def test_a_noisy_error_flat_over_spp_gives_no_equal_spp_and_no_overflow():
         gaps = tables.equal_time_gaps(df)
     assert "equal_rmse_spp" not in eq.columns
     assert "cornell on rmse (the noisy input's rmse does not fall as spp grows" in gaps[0]
+
+
+def test_the_equal_time_view_without_a_figure_says_why_in_one_line(tmp_path):
+    """One method only: no table, one line; one spp only: no table of times alone (the
+    equal spp needs the noisy input at two spp), the reason instead."""
+    md = _report(tmp_path / "a", [_cell("cornell", s, "noisy", 0.1 / s) for s in (4, 16)],
+                 ["cornell"], ["noisy"], [4, 16])
+    assert "No equal-time table: no method but the noisy input has a finished cell at 16 spp." \
+        in md
+    cells = [_cell("cornell", 4, m, e) for m, e in (("noisy", 0.05), ("jbf", 0.03))]
+    md = _report(tmp_path / "b", cells, ["cornell"], ["noisy", "jbf"], [4])
+    assert "| scene | method | total_s |" not in md
+    assert ("No equal-time table: no fit for cornell on rmse (fewer than two spp of the noisy "
+            "input)") in md
