@@ -17,7 +17,7 @@ whole-image figure that hides it.
 from __future__ import annotations
 
 import math
-from typing import Any, Sequence
+from typing import Any, Mapping, Sequence
 
 import pandas as pd
 
@@ -203,14 +203,22 @@ def scene_block_md(d: pd.DataFrame, rank_by: str, columns: Sequence[str] = HEADL
 
 
 def headline_md(df: pd.DataFrame, spp: int | None, rank_by: str = "relmse",
-                columns: Sequence[str] = HEADLINE, level: str = "###") -> list[str]:
+                columns: Sequence[str] = HEADLINE, level: str = "###",
+                scene_columns: Mapping[str, Sequence[str]] | None = None) -> list[str]:
     """Per scene at ``spp``: the ranking line and the ``mean ± ci`` table (columns that no
-    cell records are left out and named)."""
+    cell records are left out and named). ``scene_columns``: the columns of the scenes whose
+    kind has others (a sequence's temporal metrics, :func:`verdicts.headline_columns`)."""
     d = df[df["spp"] == spp] if spp is not None else df.iloc[0:0]
     if d.empty:
         return ["(no finished cells at this spp)", ""]
-    shown = [c for c in columns if c in d.columns and d[c].map(finite).any()]
-    absent = [c for c in columns if c not in shown]
+    scenes = sorted(set(map(str, df["scene"])))
+    shown_of = {}
+    for scene in scenes:
+        g = d[d["scene"] == scene]
+        shown_of[scene] = [c for c in (scene_columns or {}).get(scene, columns)
+                           if c in g.columns and g[c].map(finite).any()]
+    asked = dict.fromkeys(c for s in scenes for c in (scene_columns or {}).get(s, columns))
+    absent = [c for c in asked if not any(c in shown_of[s] for s in scenes)]
     parts = [("**Bold**: the best entry of a column on the scene and every entry tied with it "
               "(the paired difference over the seeds both cells hold includes 0; without common "
               "seeds, the intervals overlap or one is missing, `± n/a`). Entries are mean ± 95 % "
@@ -219,10 +227,10 @@ def headline_md(df: pd.DataFrame, spp: int | None, rank_by: str = "relmse",
               f"the fastest). Rows ranked by `{rank_by}`; " + VERDICT_NOTE), ""]
     if absent:
         parts += [f"Not recorded in these cells: {', '.join(absent)}.", ""]
-    for scene in sorted(set(map(str, df["scene"]))):
+    for scene in scenes:
         g = d[d["scene"] == scene]
         if len(g):
-            parts += scene_block_md(g, rank_by, shown,
+            parts += scene_block_md(g, rank_by, shown_of[scene],
                                     heading=f"{level} {markdown_text(scene)}")
             continue
         # a scene without cells at this spp is named, never left out of "every scene"

@@ -151,7 +151,7 @@ def build_readme(results: Path, sweep_dir: Path, headline_spp: int = 64,
         parts += [f"## Headline: every method × every scene at {spp} spp", ""]
         if rank != rank_by:
             parts += [f"(`{rank_by}` is not recorded in these cells: ranked by `{rank}`.)", ""]
-        parts += headline.headline_md(df, spp, rank)
+        parts += headline.headline_md(df, spp, rank, scene_columns=scene_columns(cells))
         parts += ["### Reference noise", ""] + reference_md(df, rel(paths["reference_noise"]),
                                                             cells)
 
@@ -244,6 +244,20 @@ def extra_sweeps(results: Path, main: Path) -> list[Path]:
     whose settings differ, such as sequence scenes at 1 spp or transient videos."""
     return sorted(p.parent for p in results.glob("sweep-*/sweep.json")
                   if p.parent.resolve() != main.resolve())
+
+
+def scene_columns(cells: list[dict]) -> dict[str, tuple[str, ...]]:
+    """The headline columns of each sequence or transient scene of ``cells`` (a sequence's
+    temporal metrics; :func:`dbench.report.verdicts.headline_columns`): a sweep's scenes may be
+    of every kind, and its headline shows each with its own."""
+    out = {}
+    for c in cells:
+        scene = str(c.get("scene"))
+        if c.get("frames"):
+            out[scene] = SEQUENCE_HEADLINE
+        elif scene not in out and _is_transient(scene):
+            out[scene] = TRANSIENT_HEADLINE
+    return out
 
 
 def _is_transient(scene: str) -> bool:

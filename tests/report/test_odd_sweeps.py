@@ -108,3 +108,20 @@ def test_the_equal_time_view_without_a_figure_says_why_in_one_line(tmp_path):
     assert "| scene | method | total_s |" not in md
     assert ("No equal-time table: no fit for cornell on rmse (fewer than two spp of the noisy "
             "input)") in md
+
+
+def test_a_sequence_scene_in_the_main_sweep_shows_its_temporal_metrics(tmp_path):
+    """A sweep of a sequence scene beside a steady one: each scene's headline table has its
+    kind's columns (``t_rmse``, ``tpsnr`` for the sequence), as a sweep of its own shows."""
+    seq = [{**_cell("orbit", 4, m, e), "frames": 2, "t_rmse": e, "t_rmse_ci": 0.001,
+            "tpsnr": 30.0, "tpsnr_ci": 0.1} for m, e in (("noisy", 0.05), ("svgf", 0.03))]
+    steady = [_cell("cornell", 4, m, e) for m, e in (("noisy", 0.05), ("svgf", 0.03))]
+    md = _report(tmp_path, seq + steady, ["orbit", "cornell"], ["noisy", "svgf"], [4])
+
+    def header(scene: str) -> str:
+        block = md[md.index(f"### {scene}\n"):]
+        return next(ln for ln in block.splitlines() if ln.startswith("| method |"))
+
+    assert "| t_rmse | tpsnr |" in header("orbit")
+    assert "t_rmse" not in header("cornell") and "| flip |" in header("cornell")
+    assert "Not recorded in these cells: cvvdp." in md
