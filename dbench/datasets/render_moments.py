@@ -86,6 +86,16 @@ def _log1p(dr, t, one_plus_t):
     return dr.select(u1 == 0.0, t, dr.log(one_plus_t) * (t / dr.select(u1 == 0.0, 1.0, u1)))
 
 
+def _is_ad_integrator(integrator) -> bool:
+    """Whether ``integrator`` is one of Mitsuba's Python (AD) integrators (``prb``), whose
+    ``sample`` takes the AD arguments. Told by the class names of its MRO, not by
+    ``isinstance``: after a variant switch Mitsuba registers them anew from
+    ``mitsuba.python.ad.integrators``, while ``mi.ad`` stays on the first classes once a module
+    imported ``mitsuba.ad.integrators`` by name (mitransient does), and the same PRB integrator
+    was then no ADIntegrator (its ``sample`` called with the C++ integrators' arguments)."""
+    return any(c.__name__ == "ADIntegrator" for c in type(integrator).__mro__)
+
+
 def _radiance(mi, dr, scene, sensor, sampler, m: int, integrator=None):
     """Per-lane RGB radiance (Color3f) of W·H·m lanes, pixel-major; the pixel index (UInt32);
     (W, H); the integrator's AOVs (a list of Float, unweighted as the film stores them; empty
@@ -113,7 +123,7 @@ def _radiance(mi, dr, scene, sensor, sampler, m: int, integrator=None):
     ray, weight = sensor.sample_ray_differential(time, wavelength, pos, aperture)
     integrator = scene.integrator() if integrator is None else integrator
     aovs = []
-    if isinstance(integrator, mi.ad.integrators.common.ADIntegrator):
+    if _is_ad_integrator(integrator):
         value = integrator.sample(mode=dr.ADMode.Primal, scene=scene, sampler=sampler, ray=ray,
                                   depth=mi.UInt32(0), δL=None, δaovs=None, state_in=None,
                                   active=mi.Bool(True))[0]

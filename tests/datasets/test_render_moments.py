@@ -105,6 +105,27 @@ def test_one_batch_is_mitsubas_own_render_at_the_same_seed(jit, integrator):
     np.testing.assert_allclose(b.plain / 64, plain, rtol=2e-5, atol=1e-6)
 
 
+def test_a_python_integrator_is_told_apart_after_a_variant_switch(jit):
+    """With mitransient imported (any transient render), a switch of Mitsuba's variant and back
+    (a scene file that sets it is refused and the variant put back) left ``prb`` no instance of
+    ``mi.ad``'s ADIntegrator: the kernel called it as a C++ integrator and failed."""
+    mi = jit
+    pytest.importorskip("mitransient")
+    mine = mi.variant()
+    other = "scalar_rgb" if mine != "scalar_rgb" else "llvm_ad_rgb"
+    if other not in mi.variants():
+        pytest.skip(f"{other} is not compiled into this Mitsuba")
+    mi.set_variant(other)
+    mi.set_variant(mine)
+    d = scenes.get("cornell").scene_dict(mi, render.parse_res(8))
+    d["sensor"] = {**d["sensor"], "sampler": {"type": "independent"}}
+    d["integrator"] = {"type": "prb"}
+    sc = mi.load_dict(d)
+    b = render_moments.batch_sums(sc, 4, seed=11)
+    plain = np.array(mi.render(sc, spp=4, seed=11), dtype=np.float64)
+    np.testing.assert_allclose(b.plain / 4, plain, rtol=2e-5, atol=1e-6)
+
+
 def _edge_scene(mi, res):
     # a lit rectangle covering exactly the left half of the view (its edge on the centre
     # line of an even-width image): a sample that strayed into a neighbouring pixel, or a
