@@ -31,6 +31,7 @@ from .sequence import load as _sequence  # registers the sequence scenes
 from .transient import load as _transient  # registers the transient scenes
 from .cache import Cache, make_key
 from .mitsuba_env import mitsuba, versions
+from .nonfinite import note_nonfinite
 from .references import check_ref_seed, check_render_args, reference_meta, reference_spp
 from .scenes.catalogue import Scene
 from .scenes.build import check_plugin_scene
@@ -269,25 +270,8 @@ def load(scene: str | Scene, spp: int, res, needs: Iterable[str] | None = None,
             meta["ref_render_s"] = seconds
             meta["rendered"].append("reference")
         meta.update(reference_meta(ref_spp, ref_seed, buffers["reference_var"]))
-    bad = nonfinite_text(meta.get("nonfinite_samples"), meta.get("ref_nonfinite_samples"))
-    if bad:
-        meta["nonfinite_warning"] = bad
-
+    note_nonfinite(meta)  # the warning of their counts (datasets/nonfinite.py)
     return Frame(color=color, stats=stats, meta=meta, **buffers)
-
-
-def nonfinite_text(noisy: int | None, reference: int | None) -> str:
-    """What a render's NaN or ±Inf sample values (one per channel; None: not counted, as for
-    entries cached before they were) mean for its numbers, or '' where there were none: they
-    are counted as 0 (README.md, "How renders work") where Mitsuba's film would hold NaN, so
-    the images are not the scene's as Mitsuba renders it."""
-    parts = [f"{n} in the {what}" for n, what in ((noisy, "noisy image"),
-                                                  (reference, "reference")) if n]
-    if not parts:
-        return ""
-    return (f"the renderer gave NaN or ±Inf sample values ({' and '.join(parts)}; one per "
-            f"channel), counted as 0 where Mitsuba's own film would hold NaN: the scene holds a "
-            f"non-finite value (a texture's pixel, a parameter), which its numbers leave out")
 
 
 #: Longer image side of a scene's default size (catalogue scenes: DEFAULT_SIDE²).

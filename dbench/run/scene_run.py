@@ -159,7 +159,8 @@ def run_scene(out: Path, req: RunRequest, scene, instances, labels, runnable,
                     f"({r['backend']}"
                     + (f", copies {r['transfer_s'] * 1e3:.2f} ms timed apart"
                        if r.get("transfer_s") else "") + ")" for r in rows)}
-    notes = input_notes([f.meta for f in frame] if is_sequence else [frame.meta], settings)
+    notes = input_notes([f.meta for f in frame] if is_sequence else [frame.meta], settings,
+                        frame.meta if is_sequence else None)
     resolved = {r["method"]: r["settings"] for r in rows if r.get("settings")}
     if resolved:
         # what the methods resolved from "auto"/None defaults on this frame (first seed)
@@ -216,12 +217,14 @@ INPUT_WARNINGS = ("reference_warning", "normal_warning", "feature_warning",
                   "nonfinite_warning")
 
 
-def input_notes(metas: list[dict], settings: dict) -> list[str]:
+def input_notes(metas: list[dict], settings: dict, whole: dict | None = None) -> list[str]:
     """Adds a loaded input's facts to ``settings`` and returns its warnings, each also printed
     to stderr now: a doubtful reference or normal buffer is said where the user looks.
     ``metas``: one frame's meta, or every frame's of a sequence (a folder's facts are found
     frame by frame): a fact or warning that differs between frames is given with the frames
-    it holds for ("frames 0-3: …; frame 4: …"), one the frames share once."""
+    it holds for ("frames 0-3: …; frame 4: …"), one the frames share once. ``whole``: a
+    sequence's own meta, whose warnings its frames do not carry are said first (a rendered
+    sequence's non-finite samples, summed over its frames: dbench/datasets/nonfinite.py)."""
     def text(value) -> str:
         return "; ".join(value) if isinstance(value, (list, tuple)) else str(value)
 
@@ -232,17 +235,18 @@ def input_notes(metas: list[dict], settings: dict) -> list[str]:
                 found.setdefault(text(meta[key]), []).append(k)
         return list(found.items())
 
-    whole = len(metas)
+    count = len(metas)
     for key, label in INPUT_FACTS.items():
         values = by_value(key)
-        if len(values) == 1 and len(values[0][1]) == whole:
+        if len(values) == 1 and len(values[0][1]) == count:
             settings[label] = values[0][0]
         elif values:
             settings[label] = "; ".join(f"{frames_text(ks)}: {v}" for v, ks in values)
-    notes = []
+    notes = [whole[key] for key in INPUT_WARNINGS if (whole or {}).get(key)
+             and not any(meta.get(key) for meta in metas)]
     for key in INPUT_WARNINGS:
         for value, ks in by_value(key):
-            notes.append(value if len(ks) == whole else f"{frames_text(ks)}: {value}")
+            notes.append(value if len(ks) == count else f"{frames_text(ks)}: {value}")
     for note in notes:
         print(f"warning: {note}", file=sys.stderr)
     return notes

@@ -1,7 +1,10 @@
 """Sample values that are NaN or ±Inf in the renderer (a texture with NaN pixels) are counted as
 0 by dbench's sums where Mitsuba's own film holds NaN; a run used to score such a scene
 without a word. Both render paths and the reference count them, the counts travel with the
-cache entries, and a run states them as a warning (README.md, "How renders work")."""
+cache entries, and a run states them as a warning (README.md, "How renders work"). Sequences
+and transient videos counted them only in their statistics' diagnostics (and their references
+held NaN, which failed every method): they now count them too, per frame and over all bins,
+and a run states them once, as for an image."""
 import numpy as np
 
 from dbench import cli
@@ -59,3 +62,77 @@ def test_a_run_states_them_also_from_the_cache(renderer, tmp_path, capsys):
         said = [line for line in err.splitlines() if "NaN or ±Inf sample values" in line]
         assert len(said) == 1 and "in the noisy image and" in said[0], err
         assert "NaN or ±Inf sample values" in (out / "report.md").read_text()
+
+
+#: The same plane as a Python scene file of another kind (README.md, "Python scene files"); a
+#: Python file names its texture by an absolute path.
+PYTHON = '''
+def build(mi, width, height):
+    T = mi.ScalarTransform4f
+    return {{"type": "scene",
+            "sensor": {{"type": "perspective", "fov": 45,
+                        "to_world": T().look_at(origin=[0, 0, 3], target=[0, 0, 0],
+                                                up=[0, 1, 0])}},
+            "plane": {{"type": "rectangle", "bsdf": {{"type": "diffuse", "reflectance": {{
+                "type": "bitmap", "filename": "{tex}", "filter_type": "nearest"}}}}}},
+            "lamp": {{"type": "sphere", "center": [1.0, 1.0, 1.5], "radius": 0.3,
+                      "emitter": {{"type": "area", "radiance": {{"type": "rgb", "value": 6}}}}}}}}
+
+def camera(i):
+    return [0, 0, 3], [0, 0, 0]
+'''
+KINDS = {"sequence": 'kind = "sequence"\nframes = 2\n',
+         "transient": 'kind = "transient"\nwindow_start = 2.0\nwindow_end = 12.0\nbins = 4\n'}
+
+
+def _python_scene(folder, kind: str):
+    _scene(folder, True)
+    path = folder / f"{kind}.py"
+    path.write_text(PYTHON.format(tex=(folder / "tex.exr").as_posix()) + KINDS[kind])
+    return path
+
+
+def test_sequences_and_videos_count_them_in_every_frame_and_bin(renderer, tmp_path):
+    """A sequence's counts are its frames' sums; a video's cover all its bins, with either
+    collector; the images stay finite (the reference included, which held NaN)."""
+    from dbench import datasets
+    seq = datasets.load(str(_python_scene(tmp_path, "sequence")), spp=2, res=16, ref_spp=16,
+                        needs={"color", "reference"}, cache=datasets.Cache(tmp_path / "c"),
+                        progress=False)
+    for key in ("nonfinite_samples", "ref_nonfinite_samples"):
+        per_frame = [f.meta[key] for f in seq]
+        assert all(n > 0 for n in per_frame) and seq.meta[key] == sum(per_frame), key
+    per_frame_noisy = [f.meta["nonfinite_samples"] for f in seq]
+    assert all(np.isfinite(f.color).all() and np.isfinite(f.reference).all() for f in seq)
+    assert "in the noisy image and" in seq.meta["nonfinite_warning"]
+    # rendered again with statistics (which count the same samples), then read back
+    for k in range(2):
+        stats = datasets.load(str(tmp_path / "sequence.py"), spp=2, res=16, progress=False,
+                              needs={"color", "stats"}, cache=datasets.Cache(tmp_path / "c"))
+        assert [f.meta["nonfinite_samples"] for f in stats] == per_frame_noisy, k
+        if k == 0:
+            assert [f.stats.diagnostics["n_nonfinite"] for f in stats] == per_frame_noisy
+    path = _python_scene(tmp_path, "transient")
+    for collector in ("a", "b"):
+        video = datasets.load(str(path), spp=2, res=16, ref_spp=16, collector=collector,
+                              needs={"color", "reference"}, progress=False,
+                              cache=datasets.Cache(tmp_path / "c"))
+        assert video.meta["nonfinite_samples"] > 0 and video.meta["ref_nonfinite_samples"] > 0
+        assert np.isfinite(video.color).all() and np.isfinite(video.reference).all()
+        assert "in the noisy image and" in video.meta["nonfinite_warning"], collector
+
+
+def test_a_run_of_a_sequence_or_a_video_states_them_as_for_an_image(renderer, tmp_path,
+                                                                    capsys):
+    for kind in KINDS:
+        path = _python_scene(tmp_path, kind)
+        for k in range(2):  # rendered, then read back from the cache
+            out = tmp_path / f"{kind}{k}"
+            assert cli.main(["run", "--method", "noisy", "--scene", str(path), "--spp", "2",
+                             "--res", "16", "--ref-spp", "16", "--repeats", "1", "--quiet",
+                             "--cache", str(tmp_path / "cache"), "--out", str(out)]) == 0
+            err = capsys.readouterr().err
+            said = [line for line in err.splitlines() if "NaN or ±Inf sample values" in line]
+            # once, for the whole sequence (its frames' sum), not once per frame
+            assert len(said) == 1 and "in the noisy image and" in said[0], (kind, err)
+            assert said[0].removeprefix("warning: ") in (out / "report.md").read_text()

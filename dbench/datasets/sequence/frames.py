@@ -9,6 +9,7 @@ import numpy as np
 from . import psr as _psr
 from .. import render as _render
 from ..mitsuba_env import mitsuba
+from ..nonfinite import zeroed
 from .psr import psr_integrator
 from ..render_moments import jit_variant, pass_sums
 from .scene import SequenceScene
@@ -65,7 +66,8 @@ def pass_seeds(seed: int, seed_frame: int, spp: int) -> list[int]:
 
 def render_frame(scene: SequenceScene, res, spp: int, seed: int, camera_frame: int,
                  light_frame: int, seed_frame: int, stats: tuple[str, float] | None = None,
-                 gbuffer: str = "psr", kernel: bool | None = None) -> dict[str, np.ndarray]:
+                 gbuffer: str = "psr", kernel: bool | None = None,
+                 counts: dict | None = None) -> dict[str, np.ndarray]:
     """Noisy colour and matched G-buffer: ``color``, ``emission``, ``albedo``, ``normal``,
     ``depth``, ``position`` (H, W, C), the means of ``spp`` 1-spp passes
     (:func:`pass_seeds`) with the camera of ``camera_frame``, the lights of ``light_frame`` and
@@ -88,7 +90,8 @@ def render_frame(scene: SequenceScene, res, spp: int, seed: int, camera_frame: i
     are), False films every pass to NumPy and sums there (the readable reference, and the
     only path of scalar variants); None picks the kernel wherever the variant compiles
     wavefronts. Both draw the same samples; non-finite colour samples count as 0 in the
-    colour, as in its statistics (README.md, "How renders work").
+    colour, as in its statistics (README.md, "How renders work"), and ``counts``, where given,
+    gets their number (one per channel) as ``nonfinite_samples`` (:mod:`dbench.datasets.nonfinite`).
     """
     mi = mitsuba()
     d = scene.frame_dict(mi, res, camera_frame, light_frame)
@@ -101,14 +104,16 @@ def render_frame(scene: SequenceScene, res, spp: int, seed: int, camera_frame: i
     kernel = jit_variant(mi.variant()) if kernel is None else bool(kernel)
     if kernel:
         sums = pass_sums(loaded, integ, seeds, _film_channels, stats)
-        total, acc = sums.channels, None
+        total, acc, nonfinite = sums.channels, None, sums.colour.n_nonfinite
         total[..., 0:3] = sums.colour.plain
         if stats is not None:
             acc = PowerSums((total.shape[0], total.shape[1], 3), *stats)
             c = sums.colour
             acc.add_sums(c.m, c.s1, c.s2, c.s3, c.n_nonfinite, c.n_clamped)
     else:
-        total, acc = _host_passes(mi, loaded, integ, seeds, stats)
+        total, acc, nonfinite = _host_passes(mi, loaded, integ, seeds, stats)
+    if counts is not None:
+        counts["nonfinite_samples"] = int(nonfinite)
     mean = (total / spp).astype(np.float32)
     layout = MATCHED_LAYOUT + (_psr.PSR_EXTRA_LAYOUT if gbuffer in PSR_GLOSSY_ALPHA else ())
     buffers = {name: np.ascontiguousarray(mean[..., c0:c0 + nc]) for name, c0, nc in layout}
@@ -118,9 +123,10 @@ def render_frame(scene: SequenceScene, res, spp: int, seed: int, camera_frame: i
 
 
 def _host_passes(mi, loaded, integ, seeds, stats):
-    """The passes as films: float64 sums of every channel (non-finite colour samples as 0)
-    and the PowerSums of the colour, or None."""
+    """The passes as films: float64 sums of every channel (non-finite colour samples as 0),
+    the PowerSums of the colour, or None, and the number of those non-finite samples."""
     total = acc = None
+    nonfinite = 0
     for s in seeds:
         out = np.array(mi.render(loaded, spp=1, seed=s, integrator=integ), dtype=np.float64)
         if stats is not None:
@@ -128,9 +134,10 @@ def _host_passes(mi, loaded, integ, seeds, stats):
                 acc = PowerSums(out.shape[:2] + (3,), *stats)
             acc.add(out[..., 0:3])
         # non-finite colour samples count as 0, as the statistics count them (PowerSums)
-        out[..., 0:3] = np.where(np.isfinite(out[..., 0:3]), out[..., 0:3], 0.0)
+        out[..., 0:3], n = zeroed(out[..., 0:3])
+        nonfinite += n
         total = out if total is None else total + out
-    return total, acc
+    return total, acc, nonfinite
 
 
 def _film_channels(spec, aovs, names):

@@ -93,6 +93,7 @@ from .frames import (MATCHED_LAYOUT, PSR_GLOSSY_ALPHA,  # noqa: F401 - re-export
                      SAMPLES_VERSION, _matched_integrator, _render_dict, frame_seed,
                      pass_seeds, render_frame, render_gbuffer)
 from .render import render_emitter, render_reference
+from ..nonfinite import note_nonfinite, total
 from ..references import check_ref_seed, check_render_args, reference_meta, reference_spp
 from ..stats import stats_from_arrays, stats_to_arrays
 
@@ -223,19 +224,23 @@ RAW_IMAGES = {"seq-frame": ("color",)}
 
 
 def _cached_entry(cache: Cache, kind: str, desc: dict, render: Callable[[], dict[str, np.ndarray]],
-                  meta: dict, name: str, time_key: str = "render_s"
+                  meta: dict, name: str, time_key: str = "render_s", counts: dict | None = None
                   ) -> tuple[dict[str, np.ndarray], float | None]:
     """``render()`` through ``cache``; returns (images, seconds the render took, from the entry's
     meta on a hit). The seconds of a new render are added to ``meta[time_key]``. A frame's
-    noisy colour is stored uncompressed (:data:`RAW_IMAGES`)."""
+    noisy colour is stored uncompressed (:data:`RAW_IMAGES`). ``counts``: the dict the render
+    fills (``nonfinite_samples``, :mod:`dbench.datasets.nonfinite`), kept in the entry's meta
+    and filled from it on a hit (None there: an entry made before the count was kept)."""
     entry = cache.get(kind, desc)
     if entry is not None:
         meta["cache_hits"].append(name)
+        if counts is not None:
+            counts["nonfinite_samples"] = entry.meta.get("nonfinite_samples")
         return entry.images(), entry.meta.get("render_s")
     t0 = time.perf_counter()
     images = render()
     seconds = time.perf_counter() - t0
-    cache.put(kind, desc, images=images, meta={"render_s": seconds},
+    cache.put(kind, desc, images=images, meta={"render_s": seconds, **(counts or {})},
               raw_images=RAW_IMAGES.get(kind, ()))
     meta["rendered"].append(name)
     meta[time_key] = meta.get(time_key, 0.0) + seconds
@@ -243,15 +248,18 @@ def _cached_entry(cache: Cache, kind: str, desc: dict, render: Callable[[], dict
 
 
 def _frame_with_stats(cache: Cache, noisy_desc: dict, transform: str, lam: float, meta: dict,
-                      i: int, render: Callable[[], dict]) -> tuple[dict[str, np.ndarray], Any]:
+                      i: int, render: Callable[[], dict], counts: dict
+                      ) -> tuple[dict[str, np.ndarray], Any]:
     """A noisy frame and the statistics of its samples, each through the cache (``seq-frame``
     and ``seq-stats``); rendered once for both when either is missing (the passes are
-    deterministic, so a frame cached without statistics gets the same colour again)."""
+    deterministic, so a frame cached without statistics gets the same colour again).
+    ``counts`` as for :func:`_cached_entry`, kept with the frame's entry."""
     stats_desc = {**noisy_desc, "what": "stats", "transform": transform, "lam": float(lam)}
     frame_entry = cache.get("seq-frame", noisy_desc)
     stats_entry = cache.get("seq-stats", stats_desc)
     if frame_entry is not None and stats_entry is not None:
         meta["cache_hits"] += [f"frame{i}", f"stats{i}"]
+        counts["nonfinite_samples"] = frame_entry.meta.get("nonfinite_samples")
         return (frame_entry.images(),
                 stats_from_arrays(stats_entry.arrays(), transform, float(lam)))
     t0 = time.perf_counter()
@@ -259,8 +267,8 @@ def _frame_with_stats(cache: Cache, noisy_desc: dict, transform: str, lam: float
     seconds = time.perf_counter() - t0
     stats = images.pop("stats")
     if frame_entry is None:
-        cache.put("seq-frame", noisy_desc, images=images, meta={"render_s": seconds},
-                  raw_images=RAW_IMAGES["seq-frame"])
+        cache.put("seq-frame", noisy_desc, images=images,
+                  meta={"render_s": seconds, **counts}, raw_images=RAW_IMAGES["seq-frame"])
     cache.put("seq-stats", stats_desc, arrays=stats_to_arrays(stats),
               meta={"render_s": seconds, "diagnostics": stats.diagnostics})
     meta["rendered"] += [f"frame{i}", f"stats{i}"]
@@ -312,7 +320,10 @@ def load_sequence(scene: str | SequenceScene, spp: int = 1, res=64,
         ``reference`` (which brings ``reference_var`` and ``emitter``), the sequence's and each
         frame's ``meta`` add ``ref_spp``, ``ref_seed``, ``ref_render_s`` (seconds of the
         reference renders, from the cache entries when cached; not in ``render_s``) and
-        ``ref_rmse`` = sqrt(mean(reference_var)) (over all frames for the sequence).
+        ``ref_rmse`` = sqrt(mean(reference_var)) (over all frames for the sequence). Each
+        frame's ``meta`` holds ``nonfinite_samples`` and ``ref_nonfinite_samples``, its NaN or
+        ±Inf samples counted as 0 (:mod:`dbench.datasets.nonfinite`); the sequence's holds
+        their sums over the frames and, where either is above 0, ``nonfinite_warning``.
     """
     sc = scene if isinstance(scene, Scene) else _scenes.get(scene)
     if not isinstance(sc, SequenceScene):
@@ -384,15 +395,18 @@ def load_sequence(scene: str | SequenceScene, spp: int = 1, res=64,
         noisy_desc = base(i, "noisy+gbuffer+emission", spp=int(spp), seed=int(seed),
                           aovs=_render.AOV_STRING, **samples, **psr)
         stats = None
+        counts: dict = {}  # the frame's non-finite colour samples (datasets/nonfinite.py)
         if "stats" in wanted:
             noisy, stats = _frame_with_stats(cache, noisy_desc, transform, lam, meta, i,
                                              lambda: render_frame(sc, res, spp, seed, i, i, i,
                                                                   stats=(transform, lam),
-                                                                  gbuffer=frame_gbuffer))
+                                                                  gbuffer=frame_gbuffer,
+                                                                  counts=counts), counts)
         else:
-            noisy = _cached(cache, "seq-frame", noisy_desc,
-                            lambda: render_frame(sc, res, spp, seed, i, i, i,
-                                                 gbuffer=frame_gbuffer), meta, f"frame{i}")
+            noisy = _cached_entry(cache, "seq-frame", noisy_desc,
+                                  lambda: render_frame(sc, res, spp, seed, i, i, i,
+                                                       gbuffer=frame_gbuffer, counts=counts),
+                                  meta, f"frame{i}", counts=counts)[0]
         gbuf = noisy
         if gbuffer == "supersampled" and wanted & (set(FEATURES) | {"emission", "motion"}):
             gbuf = _cached(cache, "seq-gbuffer",
@@ -438,20 +452,24 @@ def load_sequence(scene: str | SequenceScene, spp: int = 1, res=64,
                 lambda: {"emitter": render_emitter(sc, res, i, seed)},
                 meta, f"emitter{i}", time_key="emitter_s")[0]["emitter"]
         fmeta = {"scene": sc.name, "kind": "sequence", "frame": i, "spp": int(spp), "gbuffer": gbuffer,
-                 "res": res.key, "seed": int(seed), "ev": sc.ev, "camera": camera}
+                 "res": res.key, "seed": int(seed), "ev": sc.ev, "camera": camera,
+                 "nonfinite_samples": counts.get("nonfinite_samples")}
         if "reference" in wanted:
+            ref_counts: dict = {}
             ref, ref_s = _cached_entry(
                 cache, "seq-reference",
                 base(i, "reference", spp=ref_spp, seed=ref_seed, chunk=REFERENCE_CHUNK,
                      var=_render.REFERENCE_VAR_VERSION),
                 lambda: dict(zip(("reference", "reference_var"),
-                                 render_reference(sc, res, i, ref_seed, ref_spp))),
-                meta, f"reference{i}", time_key="_ref_rendered_s")
+                                 render_reference(sc, res, i, ref_seed, ref_spp,
+                                                  counts=ref_counts))),
+                meta, f"reference{i}", time_key="_ref_rendered_s", counts=ref_counts)
             buffers["reference"], buffers["reference_var"] = ref["reference"], ref["reference_var"]
             ref_vars.append(ref["reference_var"])
             meta["ref_render_s"] += float(ref_s or 0.0)
             fmeta.update(reference_meta(ref_spp, ref_seed, ref["reference_var"]),
-                         ref_render_s=ref_s)
+                         ref_render_s=ref_s,
+                         ref_nonfinite_samples=ref_counts.get("nonfinite_samples"))
         out.append(Frame(meta=fmeta, stats=stats, **buffers))
         prev_camera, prev_noisy = camera, noisy
     meta.pop("_ref_rendered_s", None)
@@ -459,7 +477,10 @@ def load_sequence(scene: str | SequenceScene, spp: int = 1, res=64,
         meta["gradient_per_frame_s"] = float(np.mean(gradient_seconds))
     if ref_vars:
         meta.update(reference_meta(ref_spp, ref_seed, ref_vars))
-    return Sequence(out, meta=meta)
+    # the sequence's counts are its frames' sums, and its warning says them once
+    for key in ("nonfinite_samples", "ref_nonfinite_samples"):
+        meta[key] = total(f.meta.get(key) for f in out)
+    return Sequence(out, meta=note_nonfinite(meta))
 
 
 __all__ = ["SequenceScene", "SEQUENCE_BUFFERS", "FLICKER_SWITCH", "camera_info", "frame_seed",

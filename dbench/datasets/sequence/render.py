@@ -8,6 +8,7 @@ import numpy as np
 from ...resolution import parse_res
 from .. import render as _render
 from ..mitsuba_env import mitsuba
+from ..nonfinite import zeroed
 from .scene import SequenceScene
 
 REFERENCE_CHUNK = _render.DEFAULT_REFERENCE_CHUNK
@@ -15,10 +16,15 @@ GBUFFER_SPP = _render.DEFAULT_FEATURE_SPP
 
 
 def render_reference(scene: SequenceScene, res, i: int, seed: int, spp: int,
-                     chunk: int = REFERENCE_CHUNK) -> tuple[np.ndarray, np.ndarray]:
+                     chunk: int = REFERENCE_CHUNK, counts: dict | None = None
+                     ) -> tuple[np.ndarray, np.ndarray]:
     """The reference of frame ``i``: ``spp`` samples in :func:`~dbench.datasets.render.
     reference_chunks` (K ≥ 16 when spp ≥ 16), a seed stream disjoint from the noisy frames'
     (``seed`` is the reference seed).
+
+    A chunk's NaN or ±Inf pixel values (each stands for at least one such sample) count as 0,
+    as the noisy frames count their samples (:func:`dbench.datasets.nonfinite.zeroed`), and
+    ``counts``, where given, gets their number as ``nonfinite_samples``.
 
     Returns (reference (H, W, 3) float32, reference_var (H, W, 3) float32: variance of
     the mean from the chunk spread)."""
@@ -28,9 +34,14 @@ def render_reference(scene: SequenceScene, res, i: int, seed: int, spp: int,
     # optimize=False as in _render_dict, so the pixels equal a per-chunk load bit for bit.
     loaded = mi.load_dict(scene.frame_dict(mi, res, i), optimize=False)
     acc = _render.ChunkMoments((res.height, res.width, 3))
+    nonfinite = 0
     for c, n in enumerate(_render.reference_chunks(spp, chunk)):
         img = mi.render(loaded, spp=n, seed=_render.pass_seed(f"seq-reference-{i}", seed, c))
-        acc.add(np.array(img, dtype=np.float32), n)
+        img, bad = zeroed(np.array(img, dtype=np.float32))
+        nonfinite += bad
+        acc.add(img, n)
+    if counts is not None:
+        counts["nonfinite_samples"] = nonfinite
     return acc.mean().astype(np.float32), acc.var_mean().astype(np.float32)
 
 

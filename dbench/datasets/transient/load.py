@@ -34,7 +34,11 @@ reference mean per bin from the chunk spread, docs/judging.md §2). ``meta`` hol
 (``start_opl``, ``bin_width_opl``, ``bins``, ``end_opl``, ``units``), ``energy_fraction``
 (Σ color / Σ steady: the share of the steady energy inside the window; a step's last bin over
 Σ steady), ``emitter`` (pulse or step), ``scene_params`` (the ``--scene-param`` values, empty
-for a catalogue scene as it is), integrator settings and timings.
+for a catalogue scene as it is), integrator settings and timings, and ``nonfinite_samples``
+and ``ref_nonfinite_samples``: the noisy video's and the reference's NaN or ±Inf sample values
+over all bins, counted as 0 (collector (b) counts them per path and bin; (a) and the
+reference as their renders hold them, :func:`collect_passes`), with ``nonfinite_warning``
+where either is above 0 (:mod:`dbench.datasets.nonfinite`).
 
 Example:
     >>> from dbench import datasets
@@ -57,6 +61,7 @@ from .. import render as _render
 from ..scenes import catalogue as _scenes
 from ..cache import Cache
 from ..mitsuba_env import mitsuba, versions
+from ..nonfinite import note_nonfinite
 from ..references import check_ref_seed, check_render_args, reference_meta
 from ..references import reference_spp as default_ref
 from ..scenes.record import Scene, register_scene
@@ -177,6 +182,7 @@ def collect_in_integrator(scene: TransientScene, res, spp: int, seed: int = 0,
                            timing={"render_s": col.render_s,
                                    "stats_s": time.perf_counter() - t0,
                                    "collector": "b", "state_bytes": state_bytes,
+                                   "nonfinite_samples": diagnostics["n_nonfinite"],
                                    "sums_layout": layout,
                                    "slots": col.slots, **diagnostics})
 
@@ -289,7 +295,8 @@ def load_transient(scene: str | TransientScene, spp: int, res,
     if noisy is not None and ("stats" not in wanted or st_entry is not None):
         arrays = noisy.arrays()
         color, steady = arrays["color"], arrays["steady"]
-        meta.update(render_s=noisy.meta.get("render_s"))
+        meta.update(render_s=noisy.meta.get("render_s"),
+                    nonfinite_samples=noisy.meta.get("nonfinite_samples"))
         meta["cache_hits"].append("color")
         if st_entry is not None:
             sa = st_entry.arrays()
@@ -309,11 +316,13 @@ def load_transient(scene: str | TransientScene, spp: int, res,
                                  (transform, lam) if "stats" in wanted else None,
                                  copies=copies, progress=progress)
         color, steady, rows = out.color, out.steady, out.rows or {}
-        meta.update(render_s=out.timing["render_s"])
+        meta.update(render_s=out.timing["render_s"],
+                    nonfinite_samples=out.timing["nonfinite_samples"])
         meta["rendered"].append("color")
         if noisy is None:
             cache.put("transient-noisy", noisy_desc, arrays={"color": color, "steady": steady},
-                      meta={"render_s": out.timing["render_s"], "timing": dict(out.timing)},
+                      meta={"render_s": out.timing["render_s"], "timing": dict(out.timing),
+                            "nonfinite_samples": out.timing["nonfinite_samples"]},
                       compress=False, sparse=("color",), rows=rows.get("color"))
         if out.stats is not None and "stats" in wanted:
             stats, non_zero, total_var = out.stats, out.non_zero, out.total_var
@@ -354,24 +363,29 @@ def load_transient(scene: str | TransientScene, spp: int, res,
         if {"reference", "reference_var", "steady"} <= set(arrays):
             ref, ref_var, ref_steady = arrays["reference"], arrays["reference_var"], arrays["steady"]
             meta["ref_render_s"] = entry.meta.get("render_s")
+            meta["ref_nonfinite_samples"] = entry.meta.get("nonfinite_samples")
             meta["cache_hits"].append("reference")
         else:
+            counts: dict = {}
             ref, ref_var, ref_steady, seconds = render_reference(sc, res, rspp, ref_seed, bins,
-                                                                 progress=progress)
+                                                                 progress=progress,
+                                                                 counts=counts)
             cache.put("transient-reference", ref_desc,
                       arrays={"reference": ref, "reference_var": ref_var, "steady": ref_steady},
                       sparse=("reference", "reference_var"),
-                      meta={"render_s": seconds,
+                      meta={"render_s": seconds, **counts,
                             "chunks": len(_render.reference_chunks(rspp,
                                                                    DEFAULT_REFERENCE_CHUNK))})
             meta["ref_render_s"] = seconds
+            meta["ref_nonfinite_samples"] = counts["nonfinite_samples"]
             meta["rendered"].append("reference")
         buffers["reference"], buffers["reference_var"] = ref, ref_var
         meta.update(reference_meta(rspp, ref_seed, ref_var))
         meta["reference_energy_fraction"] = energy_fraction(ref, ref_steady, sc.emission)
 
     return TransientFrame(color=color, stats=stats, steady=steady,
-                          non_zero=None if non_zero is None else non_zero, meta=meta,
+                          non_zero=None if non_zero is None else non_zero,
+                          meta=note_nonfinite(meta),
                           total_var=total_var, **buffers)
 
 

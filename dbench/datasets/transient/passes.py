@@ -13,6 +13,7 @@ from ...data import SampleStats, check_count
 from ...errors import DbenchInputError
 from ...resolution import parse_res
 from .. import render as _render
+from ..nonfinite import zeroed
 from ..stats import PowerSums, stats_from_sums, variance_of_mean
 from .render import _mitransient, batch_copies, render_signal
 from .scene import TransientScene
@@ -80,8 +81,11 @@ def collect_passes(scene: TransientScene, res, spp: int, seed: int = 0,
             gives the color and steady image only (same samples, so the same color).
         copies: camera copies per call (default :func:`batch_copies`); 1 = plain passes.
     Returns:
-        :class:`TransientRender` with timings ``render_s`` (rendering) and ``stats_s``
-        (host-side accumulation).
+        :class:`TransientRender` with timings ``render_s`` (rendering), ``stats_s``
+        (host-side accumulation) and ``nonfinite_samples``: the passes' NaN or ±Inf values
+        (one per channel), each counted as 0 (:mod:`dbench.datasets.nonfinite`), over all
+        bins of the video and in the steady image: mitransient's film gives a 1-spp pass's
+        non-finite bin values as 0, so its steady image is where they show.
     """
     check_count("spp", spp)
     res = parse_res(res)
@@ -95,6 +99,7 @@ def collect_passes(scene: TransientScene, res, spp: int, seed: int = 0,
     non_zero = np.zeros(shape, np.int32) if stats else None
     clamp = stats is not None and stats[0] == "box-cox"
     render_s = stats_s = 0.0
+    nonfinite = 0  # without statistics; with them, the PowerSums count the video's
     copies = copies or batch_copies(res, window.bins, spp)
     samples = pass_samples(scene, res, spp, seed, bins, copies)
     with _render._progress(spp, f"{scene.name} {spp} spp (a)", progress) as bar:
@@ -105,6 +110,8 @@ def collect_passes(scene: TransientScene, res, spp: int, seed: int = 0,
                 break
             video, st = item
             t1 = time.perf_counter()
+            st, bad = zeroed(st)
+            nonfinite += bad
             steady += st.sum(axis=1, dtype=np.float64)
             if acc is not None:
                 total += acc.add_batch(video, axis=1)
@@ -114,6 +121,8 @@ def collect_passes(scene: TransientScene, res, spp: int, seed: int = 0,
                     nz &= np.isfinite(video)
                 non_zero += nz.sum(axis=1, dtype=np.int32)
             else:
+                video, bad = zeroed(video)
+                nonfinite += bad
                 total += video.sum(axis=1, dtype=np.float64)
             render_s += t1 - t0
             stats_s += time.perf_counter() - t1
@@ -125,7 +134,8 @@ def collect_passes(scene: TransientScene, res, spp: int, seed: int = 0,
                                                            "n_clamped": acc.n_clamped})
                                  if acc else None), non_zero=non_zero,
                           timing={"render_s": render_s, "stats_s": stats_s, "copies": copies,
-                                  "collector": "a"},
+                                  "collector": "a", "nonfinite_samples": nonfinite + (
+                                      acc.n_nonfinite if acc else 0)},
                           sums=({"s1": acc.s1, "s2": acc.s2, "s3": acc.s3, "n": acc.n}
                                 if acc else None),
                           total_var=variance_of_mean(totals.n, totals.s1, totals.s2)

@@ -11,6 +11,7 @@ import numpy as np
 from ...resolution import parse_res
 from .. import render as _render
 from ..mitsuba_env import mitsuba, require_llvm
+from ..nonfinite import zeroed
 from .scene import TransientScene, Window
 
 #: float32 voxels of one batched pass (copies × H × W × T × 3): bounds the pass memory (64 MB).
@@ -88,10 +89,13 @@ def render_plain(scene: TransientScene, res, spp: int, seed: int = 0,
 
 def render_reference(scene: TransientScene, res, spp: int, seed: int = 0,
                      bins: int | None = None, chunk: int = DEFAULT_REFERENCE_CHUNK,
-                     progress: bool = False
+                     progress: bool = False, counts: dict | None = None
                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
     """High-spp video in :func:`~dbench.datasets.render.reference_chunks` (K ≥ 16 chunks of at
-    most ``chunk`` spp when spp ≥ 16) with independent seeds (same window).
+    most ``chunk`` spp when spp ≥ 16) with independent seeds (same window). A chunk's NaN or
+    ±Inf values, in any bin of its video or in its steady image (each stands for at least one
+    such sample), count as 0 (:func:`dbench.datasets.nonfinite.zeroed`), and ``counts``, where
+    given, gets their number as ``nonfinite_samples``.
 
     Returns (video (H, W, T, 3), video_var (H, W, T, 3): variance of the video mean per bin from
     the chunk spread, steady (H, W, 3), seconds), float32 arrays."""
@@ -101,14 +105,19 @@ def render_reference(scene: TransientScene, res, spp: int, seed: int = 0,
     video = _render.ChunkMoments((res.height, res.width, window.bins, 3))
     steady = np.zeros((res.height, res.width, 3), np.float64)
     t0 = time.perf_counter()
+    nonfinite = 0
     with _render._progress(len(chunks), f"{scene.name} reference {spp} spp",
                            progress and len(chunks) >= 8) as bar:
         for i, n in enumerate(chunks):
             # the chunk spread of the signal (a step's cumsum per chunk) gives its variance
             st, tr = render_signal(scene, res, window, 1, n,
                                    _render.pass_seed("reference", seed, i))
+            (st, bad_steady), (tr, bad) = zeroed(st), zeroed(tr)
+            nonfinite += bad_steady + bad
             video.add(tr.astype(np.float64), n)
             steady += st.astype(np.float64) * n
             bar.update(1)
+    if counts is not None:
+        counts["nonfinite_samples"] = nonfinite
     return (video.mean().astype(np.float32), video.var_mean().astype(np.float32),
             (steady / spp).astype(np.float32), time.perf_counter() - t0)

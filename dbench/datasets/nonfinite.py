@@ -1,0 +1,61 @@
+"""Sample values that come out NaN or ±Inf: counted as 0, counted, and said (README.md, "How
+renders work").
+
+A scene holding a non-finite value (a texture's pixel, a parameter) makes Mitsuba's film hold
+NaN where such a sample lands. dbench's sums count those samples as 0 (the render kernel,
+:class:`~dbench.datasets.stats.PowerSums`, the chunks of the sequence and transient references
+here), so its images stay finite but are not the scene's as Mitsuba renders it. Every loader
+(steady, sequence, transient) states how many there were in its frame's ``meta``:
+``nonfinite_samples`` (the noisy input), ``ref_nonfinite_samples`` (the reference; None: not
+counted, as for cache entries made before the counts were kept) and, where either is above 0,
+``nonfinite_warning``, which ``dbench run`` prints and lists in report.md's notes and a sweep
+records in its cells (``input_warnings``)."""
+from __future__ import annotations
+
+from typing import Iterable
+
+import numpy as np
+
+
+def zeroed(values: np.ndarray) -> tuple[np.ndarray, int]:
+    """(``values`` with every NaN or ±Inf value replaced by 0, how many there were): the rule
+    of the sums for a film rendered by ``mi.render`` (a reference chunk, a transient pass),
+    whose non-finite pixel values each stand for at least one such sample. ``values`` itself
+    is returned, unchanged, where all are finite."""
+    finite = np.isfinite(values)
+    n = int(finite.size - np.count_nonzero(finite))
+    return (values, 0) if n == 0 else (np.where(finite, values, 0).astype(values.dtype), n)
+
+
+def total(counts: Iterable[int | None]) -> int | None:
+    """The sum of the counts that were made (a sequence's over its frames), None where none
+    was (every frame's entry cached before the counts were kept)."""
+    known = [int(n) for n in counts if n is not None]
+    return sum(known) if known else None
+
+
+def nonfinite_text(noisy: int | None, reference: int | None) -> str:
+    """What a render's NaN or ±Inf sample values (one per channel; a transient video's over
+    all its bins; None: not counted, as for entries cached before they were) mean for its
+    numbers, or '' where there were none: they are counted as 0 (README.md, "How renders
+    work") where Mitsuba's film would hold NaN, so the images are not the scene's as Mitsuba
+    renders it."""
+    parts = [f"{n} in the {what}" for n, what in ((noisy, "noisy image"),
+                                                  (reference, "reference")) if n]
+    if not parts:
+        return ""
+    return (f"the renderer gave NaN or ±Inf sample values ({' and '.join(parts)}; one per "
+            f"channel), counted as 0 where Mitsuba's own film would hold NaN: the scene holds a "
+            f"non-finite value (a texture's pixel, a parameter), which its numbers leave out")
+
+
+def note_nonfinite(meta: dict) -> dict:
+    """``meta`` (a frame's or a sequence's) with ``nonfinite_warning`` added where its
+    ``nonfinite_samples`` or ``ref_nonfinite_samples`` is above 0 (:func:`nonfinite_text`)."""
+    said = nonfinite_text(meta.get("nonfinite_samples"), meta.get("ref_nonfinite_samples"))
+    if said:
+        meta["nonfinite_warning"] = said
+    return meta
+
+
+__all__ = ["nonfinite_text", "note_nonfinite", "total", "zeroed"]
