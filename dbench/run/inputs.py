@@ -10,11 +10,13 @@ from the array with ``torch.from_numpy``, is caught there). Either way the metho
 frame. The copy is made outside the timed calls.
 
 :func:`load_seeds` gives the frames themselves: one per seed of a cell, for ``run``, ``sweep``
-and the sweep's checks before it writes anything.
+and the sweep's checks before it writes anything; :func:`input_notes` what the loaded input
+says of itself (a folder's facts, the doubts of :data:`INPUT_WARNINGS`).
 """
 from __future__ import annotations
 
 import copy
+import sys
 from contextlib import contextmanager
 from typing import Any
 
@@ -194,5 +196,59 @@ def check_reference_lit(data: Any, scene_name: str) -> None:
             f"error; give a light some radiance or point the camera at what it lights")
 
 
-__all__ = ["MethodError", "check_output", "method_failure", "load_seeds", "check_reference_lit", "check_unchanged", "first_changed", "input_guard",
-           "is_write_to_input", "private_copy"]
+#: input facts a folder load reports (dbench/datasets/folders/load.py): {meta key: settings label}
+INPUT_FACTS = {"ref_noise_source": "reference noise from", "surface_pixels": "surface pixels",
+                "normal_encoding": "normal encoding", "layers_read": "layers read",
+                "layers_ignored": "layers ignored"}
+#: doubts about the input: printed at once and listed in the report's notes
+INPUT_WARNINGS = ("reference_warning", "normal_warning", "feature_warning",
+                  "nonfinite_warning")
+
+
+def input_notes(metas: list[dict], settings: dict, whole: dict | None = None) -> list[str]:
+    """Adds a loaded input's facts to ``settings`` and returns its warnings, each also printed
+    to stderr now: a doubtful reference or normal buffer is said where the user looks.
+    ``metas``: one frame's meta, or every frame's of a sequence (a folder's facts are found
+    frame by frame): a fact or warning that differs between frames is given with the frames
+    it holds for ("frames 0-3: …; frame 4: …"), one the frames share once. ``whole``: a
+    sequence's own meta, whose warnings its frames do not carry are said first (a rendered
+    sequence's non-finite samples, summed over its frames: dbench/datasets/nonfinite.py)."""
+    def text(value) -> str:
+        return "; ".join(value) if isinstance(value, (list, tuple)) else str(value)
+
+    def by_value(key: str) -> list[tuple[str, list[int]]]:
+        found: dict[str, list[int]] = {}
+        for k, meta in enumerate(metas):
+            if meta.get(key):
+                found.setdefault(text(meta[key]), []).append(k)
+        return list(found.items())
+
+    count = len(metas)
+    for key, label in INPUT_FACTS.items():
+        values = by_value(key)
+        if len(values) == 1 and len(values[0][1]) == count:
+            settings[label] = values[0][0]
+        elif values:
+            settings[label] = "; ".join(f"{frames_text(ks)}: {v}" for v, ks in values)
+    notes = [whole[key] for key in INPUT_WARNINGS if (whole or {}).get(key)
+             and not any(meta.get(key) for meta in metas)]
+    for key in INPUT_WARNINGS:
+        for value, ks in by_value(key):
+            notes.append(value if len(ks) == count else f"{frames_text(ks)}: {value}")
+    for note in notes:
+        print(f"warning: {note}", file=sys.stderr)
+    return notes
+
+
+def frames_text(ks: list[int]) -> str:
+    """``frame 4``, ``frames 0-3``, ``frames 0, 2, 5``."""
+    if len(ks) == 1:
+        return f"frame {ks[0]}"
+    if ks == list(range(ks[0], ks[-1] + 1)):
+        return f"frames {ks[0]}-{ks[-1]}"
+    return "frames " + ", ".join(map(str, ks))
+
+
+__all__ = ["MethodError", "check_output", "method_failure", "load_seeds", "check_reference_lit",
+           "check_unchanged", "first_changed", "input_guard", "is_write_to_input", "private_copy",
+           "INPUT_FACTS", "INPUT_WARNINGS", "input_notes", "frames_text"]
