@@ -1,4 +1,6 @@
-"""The cell files of a sweep folder: reading them, and which ones can be used.
+"""The cell files of a sweep folder: reading them, which ones can be used, and what they say
+together (the machines, devices and Mitsuba variants they ran on; settings they mix; what
+their inputs said of themselves).
 
 A sweep writes one JSON file per (scene, spp, method label) cell,
 ``<out>/cells/<scene>/<spp:05d>spp/<method>.json`` (:mod:`dbench.run.sweep`; README.md, the
@@ -239,6 +241,23 @@ def variants_text(cells: list[dict]) -> list[str]:
     return [text]
 
 
+def input_warnings(cells: Sequence[dict]) -> list[str]:
+    """``scene at 4, 16 spp: warning`` for each warning the cells recorded of their inputs
+    (``input_warnings``, what ``dbench run`` prints: a folder's doubtful reference or normals,
+    NaN or ±Inf samples; dbench/run/inputs.py), once per scene and warning, with the spp
+    whose cells carry it; cells older than the record say nothing."""
+    found: dict[tuple[str, str], set[int]] = {}
+    for c in cells:
+        said = c.get("input_warnings") if isinstance(c, dict) else None
+        for text in said if isinstance(said, list) else []:
+            spp = found.setdefault((str(c.get("scene")), str(text)), set())
+            if isinstance(c.get("spp"), int):
+                spp.add(c["spp"])
+    return [f"{scene}{' at ' + ', '.join(map(str, sorted(spp))) + ' spp' if spp else ''}: "
+            f"{text}" for (scene, text), spp in sorted(
+                found.items(), key=lambda kv: (kv[0][0], min(kv[1], default=0), kv[0][1]))]
+
+
 def grid_status(config: dict, cells: Sequence[dict]) -> dict[str, Any]:
     """Counts of the (scene, spp, label) cells the config expects by status (ok / skipped /
     error / other), the expected cells no file holds (``missing``) and the cells outside that
@@ -305,4 +324,5 @@ def problems_md(cells: list[dict], problems: list[str], missing) -> list[str]:
 __all__ = ["NUMERIC_KEYS", "cell_problem", "load_cells", "load_cells_checked", "read_cell",
            "expected_grid", "cell_key", "grid_status", "grid_status_text", "missing_md",
            "problems_md", "PER_CELL", "METHOD_KEYS", "mixed_settings", "mixed_text", "mixed_md",
-           "device_label", "devices_text", "machines_text", "variants_text"]
+           "device_label", "devices_text", "machines_text", "variants_text",
+           "input_warnings"]

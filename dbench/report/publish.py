@@ -18,8 +18,8 @@ from pathlib import Path
 from .. import io
 from ..resolution import size_text
 from . import headline, plots, tables, verdicts
-from .cells import (devices_text, load_cells_checked, machines_text, mixed_md, problems_md,
-                    read_cell, variants_text)
+from .cells import (devices_text, input_warnings, load_cells_checked, machines_text, mixed_md,
+                    problems_md, read_cell, variants_text)
 from .formats import counted, markdown_table, markdown_text
 from .html import sweep_page
 from .run_report import machine_md, metric_definitions_md
@@ -114,6 +114,15 @@ def reference_md(df, rel_csv: str | None = None, cells: list | None = None) -> l
             + [""] + ([f"Every flagged cell: [{rel_csv}]({rel_csv}).", ""] if rel_csv else []))
 
 
+def input_warnings_md(cells: list[dict], title: str) -> list[str]:
+    """A section ``title`` listing what the cells' inputs said of themselves
+    (:func:`dbench.report.cells.input_warnings`), or nothing where they said nothing."""
+    said = input_warnings(cells)
+    return [title, "", "What the inputs of these cells say of themselves, as `dbench run` "
+            "prints it (their numbers are computed all the same):", ""] + [
+        f"- {markdown_text(line)}" for line in said] + [""] if said else []
+
+
 def build_readme(results: Path, sweep_dir: Path, headline_spp: int = 64,
                  rank_by: str = "relmse") -> str:
     results, sweep_dir = Path(results), Path(sweep_dir)
@@ -155,6 +164,7 @@ def build_readme(results: Path, sweep_dir: Path, headline_spp: int = 64,
         parts += ["### Reference noise", ""] + reference_md(df, rel(paths["reference_noise"]),
                                                             cells)
 
+    parts += input_warnings_md(cells, "## Input warnings")
     lines = problems_md(cells, problems, status["missing"])
     if lines:
         parts += ["## Skipped and failed cells", ""] + lines + [""]
@@ -297,7 +307,7 @@ def other_sweep_md(results: Path, sweep_dir: Path, rank_by: str = "relmse") -> l
         parts += ["Not applicable: " + ", ".join(map(markdown_text, skipped)) + ".", ""]
     lines = [ln for ln in problems_md(cells, problems, status["missing"])
              if not ln.startswith("- skipped ")]
-    parts += lines + ([""] if lines else [])
+    parts += lines + ([""] if lines else []) + input_warnings_md(cells, "### Input warnings")
     if status["mixed"]:
         parts += ["Mixed settings (cells computed with different settings or code, side by side "
                   "in the tables below):", ""] + mixed_md(status["mixed"]) + [""]

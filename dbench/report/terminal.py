@@ -224,8 +224,9 @@ def sweep_summary(cells: Sequence[dict], rank_by: str = "relmse",
     """Per scene at its headline spp (the README's, :func:`headline_spp`): the ranking sentence
     and the verdicts, a warning where cells computed with different settings stand side by side
     among ``beside`` (default ``cells``: the folder's cells of the same labels and scenes, at
-    any spp; :func:`dbench.report.cells.mixed_settings`), then (``skips``) the skipped methods
-    grouped by reason kind, one line."""
+    any spp; :func:`dbench.report.cells.mixed_settings`), a warning for each doubt the cells
+    recorded of their inputs (:func:`dbench.report.cells.input_warnings`), then (``skips``)
+    the skipped methods grouped by reason kind, one line."""
     from .tables import cells_frame
 
     df = cells_frame(list(cells))
@@ -239,10 +240,13 @@ def sweep_summary(cells: Sequence[dict], rank_by: str = "relmse",
                        f"ranking by {ranking_line(at, rank, rank_by)}")
         lines += verdict_lines(at, cols, rank) + ref_warning_lines(at, "  ")
     # a --rerun over part of the grid leaves the rest as it was: never a silent mix
-    from .cells import mixed_settings, mixed_text
+    from .cells import input_warnings, mixed_settings, mixed_text
     mixed = mixed_text(mixed_settings(cells if beside is None else beside),
                        'dbench report lists them under "Mixed settings"')
     lines += _wrap("warning: " + mixed.removeprefix("⚠ ")) if mixed else []
+    # what the inputs said of themselves, as `dbench run` prints it (dbench/run/inputs.py)
+    for said in input_warnings(cells):
+        lines += _wrap(f"warning: {said}")
     skipped = [(str(c.get("method")), str(c.get("reason", "")))
                for c in cells if isinstance(c, dict) and c.get("status") == "skipped"]
     line = skipped_line(skipped) if skips else ""

@@ -205,36 +205,59 @@ INPUT_WARNINGS = ("reference_warning", "normal_warning", "feature_warning",
                   "nonfinite_warning")
 
 
-def input_notes(metas: list[dict], settings: dict, whole: dict | None = None) -> list[str]:
-    """Adds a loaded input's facts to ``settings`` and returns its warnings, each also printed
-    to stderr now: a doubtful reference or normal buffer is said where the user looks.
-    ``metas``: one frame's meta, or every frame's of a sequence (a folder's facts are found
-    frame by frame): a fact or warning that differs between frames is given with the frames
-    it holds for ("frames 0-3: …; frame 4: …"), one the frames share once. ``whole``: a
-    sequence's own meta, whose warnings its frames do not carry are said first (a rendered
-    sequence's non-finite samples, summed over its frames: dbench/datasets/nonfinite.py)."""
-    def text(value) -> str:
-        return "; ".join(value) if isinstance(value, (list, tuple)) else str(value)
+def input_metas(data: Any) -> tuple[list[dict], dict | None]:
+    """What :func:`input_notes` reads of a loaded input: (every frame's meta, the sequence's
+    own) of a Sequence, ([its meta], None) of a Frame or TransientFrame."""
+    if getattr(data, "kind", "") == "sequence":
+        return [f.meta for f in data], data.meta
+    return [data.meta], None
 
-    def by_value(key: str) -> list[tuple[str, list[int]]]:
-        found: dict[str, list[int]] = {}
-        for k, meta in enumerate(metas):
-            if meta.get(key):
-                found.setdefault(text(meta[key]), []).append(k)
-        return list(found.items())
 
-    count = len(metas)
-    for key, label in INPUT_FACTS.items():
-        values = by_value(key)
-        if len(values) == 1 and len(values[0][1]) == count:
-            settings[label] = values[0][0]
-        elif values:
-            settings[label] = "; ".join(f"{frames_text(ks)}: {v}" for v, ks in values)
+def _by_value(metas: list[dict], key: str) -> list[tuple[str, list[int]]]:
+    """[(the value of ``key`` as text, the frames that hold it)] over ``metas``."""
+    found: dict[str, list[int]] = {}
+    for k, meta in enumerate(metas):
+        value = meta.get(key)
+        if value:
+            text = "; ".join(value) if isinstance(value, (list, tuple)) else str(value)
+            found.setdefault(text, []).append(k)
+    return list(found.items())
+
+
+def warning_lines(metas: list[dict], whole: dict | None = None) -> list[str]:
+    """The warnings of :data:`INPUT_WARNINGS` a loaded input carries (``metas`` and ``whole`` as
+    for :func:`input_notes`), one line each: a warning that differs between frames with the
+    frames it holds for ("frames 0-3: …"), one the frames share once; a sequence's own
+    (``whole``: a rendered sequence's non-finite samples, summed over its frames,
+    dbench/datasets/nonfinite.py) first, where its frames do not carry it."""
     notes = [whole[key] for key in INPUT_WARNINGS if (whole or {}).get(key)
              and not any(meta.get(key) for meta in metas)]
     for key in INPUT_WARNINGS:
-        for value, ks in by_value(key):
-            notes.append(value if len(ks) == count else f"{frames_text(ks)}: {value}")
+        for value, ks in _by_value(metas, key):
+            notes.append(value if len(ks) == len(metas) else f"{frames_text(ks)}: {value}")
+    return notes
+
+
+def input_warnings(data: Any) -> list[str]:
+    """:func:`warning_lines` of a loaded input (a Frame, TransientFrame or Sequence): what
+    ``dbench run`` prints of it and a sweep records in each of its cells (``input_warnings``)."""
+    return warning_lines(*input_metas(data))
+
+
+def input_notes(metas: list[dict], settings: dict, whole: dict | None = None) -> list[str]:
+    """Adds a loaded input's facts to ``settings`` and returns its warnings
+    (:func:`warning_lines`), each also printed to stderr now: a doubtful reference or normal
+    buffer is said where the user looks. ``metas``: one frame's meta, or every frame's of a
+    sequence (a folder's facts are found frame by frame): a fact that differs between frames
+    is given with the frames it holds for ("frames 0-3: …; frame 4: …"), one the frames share
+    once. ``whole``: a sequence's own meta (:func:`input_metas`)."""
+    for key, label in INPUT_FACTS.items():
+        values = _by_value(metas, key)
+        if len(values) == 1 and len(values[0][1]) == len(metas):
+            settings[label] = values[0][0]
+        elif values:
+            settings[label] = "; ".join(f"{frames_text(ks)}: {v}" for v, ks in values)
+    notes = warning_lines(metas, whole)
     for note in notes:
         print(f"warning: {note}", file=sys.stderr)
     return notes
@@ -251,4 +274,5 @@ def frames_text(ks: list[int]) -> str:
 
 __all__ = ["MethodError", "check_output", "method_failure", "load_seeds", "check_reference_lit",
            "check_unchanged", "first_changed", "input_guard", "is_write_to_input", "private_copy",
-           "INPUT_FACTS", "INPUT_WARNINGS", "input_notes", "frames_text"]
+           "INPUT_FACTS", "INPUT_WARNINGS", "input_metas", "input_notes", "input_warnings",
+           "warning_lines", "frames_text"]

@@ -16,7 +16,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from .inputs import (INPUT_FACTS, INPUT_WARNINGS, frames_text,  # noqa: F401 - the module's
-                     input_notes, method_failure)  # interface, as before
+                     input_metas, input_notes, method_failure)  # interface, as before
 
 
 @dataclass
@@ -160,8 +160,8 @@ def run_scene(out: Path, req: RunRequest, scene, instances, labels, runnable,
                     f"({r['backend']}"
                     + (f", copies {r['transfer_s'] * 1e3:.2f} ms timed apart"
                        if r.get("transfer_s") else "") + ")" for r in rows)}
-    notes = input_notes([f.meta for f in frame] if is_sequence else [frame.meta], settings,
-                        frame.meta if is_sequence else None)
+    metas, whole = input_metas(frame)
+    notes = input_notes(metas, settings, whole)
     resolved = {r["method"]: r["settings"] for r in rows if r.get("settings")}
     if resolved:
         # what the methods resolved from "auto"/None defaults on this frame (first seed)

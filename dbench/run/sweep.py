@@ -2,8 +2,11 @@
 
 Each cell's result is its own JSON file, written atomically:
 ``<out>/cells/<scene>/<spp:05d>spp/<method>.json`` with ``status`` ``ok``, ``skipped`` (with the
-reason) or ``error`` (with the message). A sweep run again reads the finished cells and computes
-only the missing ones, so a killed sweep loses at most the cells in flight.
+reason) or ``error`` (with the message), and ``input_warnings`` where the cell's input doubts
+itself (:func:`dbench.run.inputs.input_warnings`: a folder's reference or normals, NaN or ±Inf
+samples), the lines ``dbench run`` prints, which the sweep's summary and ``dbench report`` say.
+A sweep run again reads the finished cells and computes only the missing ones, so a killed
+sweep loses at most the cells in flight.
 
 Steady and transient cells time ``repeats`` calls after a warm-up; a sequence cell runs the
 method once over the frames in order and reports the means after the warm-up frames
@@ -33,7 +36,7 @@ from . import identity, sweep_history, sweep_lock, sweep_pool
 from ..report.cells import (NUMERIC_KEYS, cell_problem, load_cells,  # noqa: F401 - the module's
                             load_cells_checked, read_cell)  # interface, as before
 from .sweep_history import SETTINGS, stored_config  # noqa: F401 - the module's interface
-from .inputs import MethodError, load_seeds, method_failure  # noqa: F401 - load_seeds too
+from .inputs import MethodError, input_warnings, load_seeds, method_failure  # noqa: F401
 from .sweep_names import (check_scenes, folder_ref_spp, kind_options, render_references,
                           scene_labels)
 from .sweep_pool import worker_start as _worker_start  # noqa: F401 - the pool initializer
@@ -282,6 +285,9 @@ def run_group(config: SweepConfig, out: str, scene_name: str, spp: int,
                         needs=needs, transform=config.transform, lam=config.lam,
                         ref_spp=folder_ref_spp(config, scene), cache=cache, progress=False,
                         **kind_options(config, scene))
+    # what the input says of itself, as `dbench run` prints it (first seed, as there):
+    # every cell of the group records it, and the sweep's summary and report say it
+    said = input_warnings(frames[0])
     written = []
     for m, inst in instances.items():
         # this process's hash of the code (a pool worker's own: sweep_pool.worker_start)
@@ -289,7 +295,8 @@ def run_group(config: SweepConfig, out: str, scene_name: str, spp: int,
         changed = identity.changed_during_sweep(m, (planned or {}).get(m), ident)
         base = {"scene": scene_label, "method": labels[m], "base_method": m, "spp": spp,
                 "res": res.key, "params": ident["params"], "identity": ident,
-                "identity_hash": identity.digest(ident)}
+                "identity_hash": identity.digest(ident),
+                **({"input_warnings": said} if said else {})}
         try:
             if changed:
                 raise MethodError(changed)

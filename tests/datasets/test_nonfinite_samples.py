@@ -4,7 +4,7 @@ without a word. Both render paths and the reference count them, the counts trave
 cache entries, and a run states them as a warning (README.md, "How renders work"). Sequences
 and transient videos counted them only in their statistics' diagnostics (and their references
 held NaN, which failed every method): they now count them too, per frame and over all bins,
-and a run states them once, as for an image."""
+and a run states them once, as for an image. A sweep records them in its cells and says them."""
 import numpy as np
 
 from dbench import cli
@@ -136,3 +136,32 @@ def test_a_run_of_a_sequence_or_a_video_states_them_as_for_an_image(renderer, tm
             # once, for the whole sequence (its frames' sum), not once per frame
             assert len(said) == 1 and "in the noisy image and" in said[0], (kind, err)
             assert said[0].removeprefix("warning: ") in (out / "report.md").read_text()
+
+
+def test_a_sweep_records_them_in_its_cells_and_says_them(renderer, tmp_path, capsys):
+    """A sweep's cells record what their inputs say of themselves (``input_warnings``, as
+    ``dbench run`` prints it), and its summary and README say it, per scene and spp; a sweep
+    over such a scene used to give a clean-looking table."""
+    import json
+    import shutil
+
+    image = _scene(tmp_path, True)
+    (tmp_path / "seq").mkdir()
+    sequence = _python_scene(tmp_path / "seq", "sequence")
+    results = tmp_path / "results"
+    assert cli.main(["sweep", "--methods", "noisy", "--scenes", f"{image},{sequence}",
+                     "--spp", "2", "--res", "16", "--ref-spp", "16", "--repeats", "1",
+                     "--quiet", "--cache", str(tmp_path / "cache"),
+                     "--out", str(results / "sweep")]) == 0
+    out = " ".join(capsys.readouterr().out.split())  # the summary's lines are wrapped
+    shutil.copytree(results / "sweep", results / "sweep-beside")  # a sweep beside the main one
+    assert cli.main(["report", "--results", str(results)]) == 0
+    readme = (results / "README.md").read_text()
+    assert "## Input warnings" in readme and "### Input warnings" in readme
+    for name in ("scene.xml", "sequence.py"):
+        cell = json.loads((results / "sweep" / "cells" / name / "00002spp" / "noisy.json")
+                          .read_text())
+        said = cell["input_warnings"]  # the sequence's once, summed over its frames
+        assert len(said) == 1 and "NaN or ±Inf sample values" in said[0], name
+        line = f"{name} at 2 spp: {said[0]}"
+        assert f"warning: {line}" in out and f"- {line}\n" in readme, (name, out)
