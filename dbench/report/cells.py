@@ -205,21 +205,29 @@ def _tally(cells: list[dict], field: str) -> dict[str, int]:
     return counts
 
 
+def _recorded_text(cells: list[dict], key: str, what: str, verb: str, mixed: str
+                   ) -> list[str]:
+    """One line of the values of ``key`` the cells record, each with its cell count
+    (``{verb} A (3); B (2)``), with ``mixed`` appended where they differ; cells older than the
+    record are counted as "not recorded", and where no cell records it the line says so of
+    ``what``."""
+    counts = _tally(cells, key)
+    if not counts:
+        return []
+    if list(counts) == ["not recorded"]:
+        return [f"{what} is not recorded ({counted(counts['not recorded'], 'cell')}, computed "
+                "before cells recorded it)"]
+    text = verb + " " + "; ".join(f"{k} ({v})" for k, v in sorted(counts.items()))
+    return [text + (mixed if len(counts) > 1 else "")]
+
+
 def machines_text(cells: list[dict]) -> list[str]:
     """Where the computed cells were timed (each cell records its machine; older cells do
     not): one entry per machine with its cell count, and a warning when they differ, since
     ``time_s`` of two machines do not compare."""
-    counts = _tally(cells, "machine")
-    if not counts:
-        return []
-    if list(counts) == ["not recorded"]:
-        return [f"the machine the cells were timed on is not recorded "
-                f"({counted(counts['not recorded'], 'cell')}, computed before cells recorded "
-                "it)"]
-    text = "cells timed on " + "; ".join(f"{k} ({v})" for k, v in sorted(counts.items()))
-    if len(counts) > 1:
-        text += " (**times from different machines do not compare**)"
-    return [text]
+    return _recorded_text(cells, "machine", "the machine the cells were timed on",
+                          "cells timed on", " (**times from different machines do not "
+                          "compare**)")
 
 
 def variants_text(cells: list[dict]) -> list[str]:
@@ -227,18 +235,10 @@ def variants_text(cells: list[dict]) -> list[str]:
     Mitsuba variant (``llvm_ad_rgb``, ``cuda_ad_rgb``; ``files`` for a folder of renders),
     with its cell count. A CUDA render is not bit-identical to an LLVM one and takes another
     time, so cells of several variants are flagged (README.md, "How renders work")."""
-    counts = _tally(cells, "render_variant")
-    if not counts:
-        return []
-    if list(counts) == ["not recorded"]:
-        return [f"the Mitsuba variant that rendered the inputs is not recorded "
-                f"({counted(counts['not recorded'], 'cell')}, computed before cells recorded "
-                "it)"]
-    text = "inputs rendered by " + "; ".join(f"{k} ({v})" for k, v in sorted(counts.items()))
-    if len(counts) > 1:
-        text += (" (**several variants: their inputs and references are other samples, and "
-                 "their render times do not compare**)")
-    return [text]
+    return _recorded_text(cells, "render_variant",
+                          "the Mitsuba variant that rendered the inputs", "inputs rendered by",
+                          " (**several variants: their inputs and references are other "
+                          "samples, and their render times do not compare**)")
 
 
 def input_warnings(cells: Sequence[dict]) -> list[str]:
