@@ -144,6 +144,31 @@ def applies(method: Denoiser, kind: str, available: set[str] | None = None
     return bool(answer[0]), answer[1]
 
 
+def wants(method: Denoiser, available: set[str] | frozenset[str]) -> set[str]:
+    """``method.wants(available)``: the buffers to load for it (a set of buffer names). A
+    plugin's ``wants`` that raises, or answers anything but a set (or frozenset) of strings, is
+    a :class:`~dbench.plugins.PluginError` naming the method and what went wrong, as in
+    :func:`applies` (README.md "Add your own denoiser"); dbench's own methods' errors pass
+    unchanged."""
+    cls = type(method)
+    try:
+        answer = method.wants(available)
+    except DbenchInputError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - named below, when it is a plugin's own code
+        if _own(cls):
+            raise
+        raise plugins.PluginError(f"method {cls.name} ({defined_in(cls)}) failed in "
+                                  f"wants({sorted(available)}): {plugins.one_line(exc)}") from exc
+    if _own(cls):
+        return answer
+    if not (isinstance(answer, (set, frozenset)) and all(isinstance(b, str) for b in answer)):
+        raise plugins.PluginError(
+            f"method {cls.name} ({defined_in(cls)}): wants() returned "
+            f"{' '.join(repr(answer).split())[:80]}; expected a set of buffer names")
+    return set(answer)
+
+
 def _own(cls: type) -> bool:
     """Whether ``cls`` is one of dbench's own methods (its errors are dbench's to report)."""
     return cls.__module__.split(".")[0] == "dbench"
@@ -152,4 +177,4 @@ def _own(cls: type) -> bool:
 
 
 __all__ = ["ALIASES", "Denoiser", "register", "available", "canonical", "method_class", "get",
-           "applies"]
+           "applies", "wants"]

@@ -120,6 +120,42 @@ def test_a_cell_whose_plugin_applies_to_raises_names_the_method(isolated, tmp_pa
 
 
 
+WANTS = '''
+from dbench.registry import Denoiser, register
+
+
+@register("wants-{name}")
+class Wants(Denoiser):
+    def wants(self, available):
+        {body}
+
+    def denoise(self, data):
+        return data.color
+'''
+
+
+@pytest.mark.parametrize("name, body, said", [
+    ("raises", "raise RuntimeError('no such\\nbuffer')",
+     "failed in wants(['albedo', "),
+    ("none", "return None", "wants() returned None; expected a set of buffer names")])
+def test_a_plugin_wants_that_fails_is_refused_in_one_line(isolated, tmp_path, capsys, name,
+                                                          body, said):
+    # run ended with "internal error: RuntimeError: ..." (exit 1) when an overridden wants()
+    # raised, as it did for applies_to (registry.applies)
+    path = tmp_path / f"wants_{name}.py"
+    path.write_text(WANTS.format(name=name, body=body))
+    for argv in (["run", "--method", f"wants-{name}", "--scene", "cornell"],
+                 ["sweep", "--methods", f"wants-{name}", "--scenes", "cornell"]):
+        assert cli.main([*argv, "--res", "8", "--spp", "2", "--ref-spp", "4", "--out",
+                         str(tmp_path / argv[0]), "--plugin", str(path)]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith(f"dbench: method wants-{name} ({path})") \
+            and said in err[0], err
+        if name == "raises":
+            assert err[0].endswith("RuntimeError: no such buffer"), err
+    assert not (tmp_path / "run").exists() and not (tmp_path / "sweep").exists()
+
+
 TYPED = """
 from dbench.registry import Denoiser, register
 

@@ -47,6 +47,7 @@ def run_scene(out: Path, req: RunRequest, scene, instances, labels, runnable,
     library warnings so far (dbench/run/capture.py), written to ``run.log`` and counted in the
     report, which is written last so that the count covers every other output."""
     from . import harness, identity
+    from .. import registry
     from ..report import run_report as report
     from ..report.formats import write_csv
     from .machine import machine_info
@@ -57,7 +58,7 @@ def run_scene(out: Path, req: RunRequest, scene, instances, labels, runnable,
 
     import pandas as pd
 
-    needs = set().union(*(instances[n].wants(scene.provides) for n in runnable)) | {
+    needs = set().union(*(registry.wants(instances[n], scene.provides) for n in runnable)) | {
         "reference"} | ({"emitter"} & set(scene.provides))
     frames = load_seeds(scene, req.seed, req.seeds, spp=req.spp, res=req.res, needs=needs,
                         transform=req.transform, lam=req.lam, ref_spp=req.ref_spp,
@@ -85,7 +86,7 @@ def run_scene(out: Path, req: RunRequest, scene, instances, labels, runnable,
         if res.skipped:
             skipped[n] = res.skipped
             continue
-        record = cell_record(res, frames, instances[n].wants(scene.provides))
+        record = cell_record(res, frames, registry.wants(instances[n], scene.provides))
         rows.append({"scene": scene.name, "method": labels[n], "base_method": n,
                      "spp": req.spp, "res": req.res.key, **record,
                      "params": json.dumps(res.params, sort_keys=True, default=str)})

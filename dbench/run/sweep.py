@@ -249,6 +249,7 @@ def plan(config: SweepConfig, out: Path
                         "res": config.res_for(scene).key,
                         "identity": ident, "identity_hash": key}))
                     continue
+                registry.wants(method, scene.provides)  # a plugin's failure: before any render
                 todo[m] = ident
             if todo:
                 groups.append((scene_name, spp, list(todo), todo))
@@ -280,7 +281,7 @@ def run_group(config: SweepConfig, out: str, scene_name: str, spp: int,
     needs = {"reference"} | ({"emitter"} & set(scene.provides))
     instances = {m: registry.get(m, **config.params.get(m, {})) for m in method_names}
     for inst in instances.values():
-        needs |= inst.wants(scene.provides)
+        needs |= registry.wants(inst, scene.provides)
     frames = load_seeds(scene, config.seed, config.seeds, spp=spp, res=res,
                         needs=needs, transform=config.transform, lam=config.lam,
                         ref_spp=folder_ref_spp(config, scene), cache=cache, progress=False,
@@ -310,7 +311,7 @@ def run_group(config: SweepConfig, out: str, scene_name: str, spp: int,
                 cell = {**base, "status": "skipped", "reason": result.skipped}
             else:
                 cell = {**base, "status": "ok",
-                        **cell_record(result, frames, inst.wants(scene.provides))}
+                        **cell_record(result, frames, registry.wants(inst, scene.provides))}
                 if frames[0].kind == "sequence":
                     cell["sequence_mode"] = ("frame by frame" if inst.per_frame("sequence")
                                              else "temporal")
