@@ -9,7 +9,7 @@ from pathlib import Path
 from ..errors import DbenchInputError
 from .args import (RANKABLE, _check_common, _ints, _scene_of, _writable_cache, check_distinct,
                    check_kind_options, check_lam, names_arg, parse_params)
-from .scene_list import scene_names
+from .scene_list import refusals_naming, scene_names
 
 
 def cmd_list(args: argparse.Namespace) -> int:
@@ -146,7 +146,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 
     # from the scenes' first reading on: Mitsuba warns about a scene file while it is checked,
     # and those lines belong in sweep.log too
-    with library_warnings() as caught:
+    with library_warnings() as caught, refusals_naming("--scenes"):
         return _sweep(args, caught)
 
 

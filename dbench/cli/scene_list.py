@@ -9,8 +9,9 @@ ways, every item of each reading naming a scene (``a.xml,b.xml`` where ``a.xml``
 """
 from __future__ import annotations
 
+from contextlib import contextmanager
 from pathlib import Path
-from typing import Sequence
+from typing import Iterator, Sequence
 
 from ..errors import DbenchInputError
 from .args import check_distinct
@@ -89,4 +90,19 @@ def scene_names(texts: str | Sequence[str], option: str) -> list[str] | None:
     return check_distinct(items, option, " ".join(texts))
 
 
-__all__ = ["readings", "scene_names"]
+@contextmanager
+def refusals_naming(option: str) -> Iterator[None]:
+    """Refusals of a scene raised inside the block name ``option``, the option the user gave
+    (``sweep --scenes``): a scene file's or folder's refusal begins ``--scene PATH:``
+    (dbench.datasets.scene_files, dbench.datasets.folders), the option of ``run`` and
+    ``render``, which a sweep does not have (README.md, "Usage")."""
+    try:
+        yield
+    except DbenchInputError as exc:
+        said = exc.args[0] if len(exc.args) == 1 else None
+        if isinstance(said, str) and said.startswith("--scene ") and option != "--scene":
+            exc.args = (option + said[len("--scene"):],)
+        raise
+
+
+__all__ = ["readings", "refusals_naming", "scene_names"]

@@ -136,3 +136,19 @@ def test_one_scene_named_two_ways_is_refused(files, swept, capsys, argv, said):
     err = capsys.readouterr().err
     assert err.startswith("dbench: --scenes: " + said.format(d=files)), err
     assert err.count("\n") == 1 and swept == []
+
+
+@pytest.mark.parametrize("name, text, said", [
+    ("nosensor.xml", SCENE.replace("<sensor", "<!-- ").replace("</sensor>", " -->"),
+     "the file has no <sensor>"),
+    ("nosuch.xml", None, "no such file")])
+def test_a_scene_refused_in_a_sweep_names_the_scenes_option(files, capsys, name, text, said):
+    # a scene file's refusal inside a sweep said "--scene X", an option sweep does not have
+    if text is not None:
+        (files / name).write_text(text)
+    assert cli.main(["sweep", "--scenes", f"cornell,{name}", "--methods", "noisy", "--spp", "4",
+                     "--out", str(files / "out")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("dbench: --scenes ") and f"{name}: {said}" in err \
+        and err.count("\n") == 1, err
+    assert not (files / "out").exists()
