@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import ast
 from collections.abc import Sequence as _Sequence
-from typing import Any, Sequence
+from typing import Any, Callable, Sequence
 
 from ..errors import DbenchInputError
 
@@ -126,14 +126,15 @@ def normal_encoding_arg(text: str):
     return bad
 
 
-def _split(text: str, option: str) -> list[str]:
+def _split(text: str, option: str, distinct: bool = True) -> list[str]:
     """``"a, b"`` → ["a", "b"]; an empty item (``"4,,8"``, ``"jbf,"``) is refused naming
-    ``option``: a typo there would otherwise run a shorter list than the one meant."""
+    ``option``: a typo there would otherwise run a shorter list than the one meant. With
+    ``distinct`` an item given twice is refused too (:func:`check_distinct`)."""
     items = [t.strip() for t in text.split(",")]
     if not all(items):
         raise DbenchInputError(f"{option}: an empty item in {text!r}; give a comma list "
                                f"without empty items")
-    return check_distinct(items, option, text)
+    return check_distinct(items, option, text) if distinct else items
 
 
 def check_distinct(items: Sequence, option: str, text: str, shown: Sequence | None = None
@@ -152,16 +153,40 @@ def check_distinct(items: Sequence, option: str, text: str, shown: Sequence | No
     return list(items)
 
 
-def names_arg(text: str, option: str) -> list[str] | None:
-    """``all`` → None (every name); ``"a,b"`` → ["a", "b"] (:func:`_split`). "all" inside a
-    list is refused: it stands alone."""
-    if text.strip() == "all":
+def list_items(texts: str | Sequence[str], option: str,
+               items_of: Callable[[str], list[str]]) -> list[str] | None:
+    """The items of a list option (``--method``, ``--methods``, ``--scenes``) given as
+    ``texts``, one text per time it is given (argparse's ``append``): ``all`` alone → None
+    (every name); else every text's items (``items_of(text)``) in order, each list adding its
+    items, never the last list alone (README.md, "Usage"). An item given twice, in one list or
+    two, is refused (:func:`check_distinct`), and so is ``all`` beside anything: it stands
+    alone."""
+    texts = [texts] if isinstance(texts, str) else list(texts)
+    if len(texts) == 1 and texts[0].strip() == "all":
         return None
-    items = _split(text, option)
+    items = [item for text in texts for item in items_of(text)]
     if "all" in items:
-        raise DbenchInputError(f"{option}: {text!r}; 'all' stands alone (give all, or "
-                               f"NAME[,NAME...] without it)")
-    return items
+        raise DbenchInputError(f"{option}: {' '.join(texts)!r}; 'all' stands alone (give all, "
+                               f"or NAME[,NAME...] without it)")
+    return check_distinct(items, option, " ".join(texts))
+
+
+def names_arg(texts: str | Sequence[str], option: str) -> list[str] | None:
+    """``all`` → None (every name); ``"a,b"`` → ["a", "b"] (:func:`_split`); given more than
+    once, every list's names (:func:`list_items`)."""
+    return list_items(texts, option, lambda text: _split(text, option, distinct=False))
+
+
+def method_names(texts: str | Sequence[str], option: str) -> list[str] | None:
+    """:func:`names_arg` of a method list, as the names the methods are published under; two
+    names of one method (an alias and its name) are refused as a repeated item."""
+    from .. import registry
+
+    given = names_arg(texts, option)
+    if given is None:
+        return None
+    shown = " ".join([texts] if isinstance(texts, str) else texts)
+    return check_distinct([registry.canonical(n) for n in given], option, shown, given)
 
 
 MAX_PARAM_CHARS = 1000

@@ -8,7 +8,7 @@ from pathlib import Path
 
 from ..errors import DbenchInputError
 from .args import (RANKABLE, _check_common, _ints, _scene_of, _writable_cache, check_distinct,
-                   check_kind_options, check_lam, names_arg, parse_params)
+                   check_kind_options, check_lam, method_names, parse_params)
 from .scene_list import refusals_naming, scene_names
 
 
@@ -62,7 +62,7 @@ def cmd_render(args: argparse.Namespace) -> int:
     from ..resolution import parse_res
 
     params = scene_files.parse_scene_params(args.scene_param)
-    names = scene_names(args.scene, "--scene") or datasets.available_scenes()
+    names = scene_names(args.scene or ["all"], "--scene") or datasets.available_scenes()
     chosen = [scenes.get(n, params) for n in names]
     sizes = [parse_res(args.res, "--res") if args.res is not None else datasets.default_res(sc)
              for sc in chosen]
@@ -163,10 +163,9 @@ def _sweep(args: argparse.Namespace, caught: list[str]) -> int:
                                f"--executor ray runs the cells on the Ray cluster's workers")
     args.workers = 1 if args.workers is None else args.workers
     scene_params = scene_files.parse_scene_params(args.scene_param)
-    methods_, scenes_ = sweep.resolve_names(_method_names(args.methods, "--methods") or "all",
-                                            scene_names(args.scenes or ["all"], "--scenes")
-                                            or "all",
-                                            scene_params)
+    methods_, scenes_ = sweep.resolve_names(
+        method_names(args.methods or ["all"], "--methods") or "all",
+        scene_names(args.scenes or ["all"], "--scenes") or "all", scene_params)
     scene_objs = [catalogue.get(n, scene_params) for n in scenes_]
     check_kind_options(args, scene_objs, scenes_)
     res_given = args.res
@@ -214,17 +213,6 @@ def _sweep(args: argparse.Namespace, caught: list[str]) -> int:
     return 0 if counts["errors"] == 0 else 4
 
 
-def _method_names(text: str, option: str) -> list[str] | None:
-    """:func:`names_arg` of a method list, as the names the methods are published under; two
-    names of one method (an alias and its name) are refused as a repeated item."""
-    from .. import registry
-
-    given = names_arg(text, option)
-    if given is None:
-        return None
-    return check_distinct([registry.canonical(n) for n in given], option, text, given)
-
-
 def _sweep_summary(out: str, config, rank_by: str, quiet: bool) -> str:
     """The sweep's headline: per scene, the ranking and the verdicts of its README at the
     headline spp, and (unless ``quiet``) the skipped methods grouped by reason, over this
@@ -248,7 +236,7 @@ def cmd_stress(args: argparse.Namespace) -> int:
     from .. import registry
     from ..io import ensure_writable_dir
 
-    names = _method_names(args.methods, "--methods")
+    names = method_names(args.methods or ["all"], "--methods")
     for n in names or []:
         registry.method_class(n)
     out = Path(args.out)

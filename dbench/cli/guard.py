@@ -35,10 +35,12 @@ def check_empty(args: argparse.Namespace) -> None:
     ``--out ''``, ``--spp ,``): no option takes one, and reading it as "not given" would run
     the default (the noisy input alone, every scene, the working directory) in its place."""
     for dest, value in vars(args).items():
-        values = value if isinstance(value, list) else [value]
-        if any(isinstance(v, str) and not v.replace(",", "").strip() for v in values):
+        # a repeatable option is a list: the empty one of its values is named
+        empty = [v for v in (value if isinstance(value, list) else [value])
+                 if isinstance(v, str) and not v.replace(",", "").strip()]
+        if empty:
             name = dest if (args.command, dest) in _POSITIONAL else f"--{dest.replace('_', '-')}"
-            raise DbenchInputError(f"{name}: empty ({value!r}); give a value "
+            raise DbenchInputError(f"{name}: empty ({empty[0]!r}); give a value "
                                    f"(dbench {args.command} --help lists the choices)")
 
 

@@ -29,6 +29,18 @@ class Parser(argparse.ArgumentParser):
         self.exit(2, f"dbench: {' '.join(message.split())}\n")
 
 
+class Once(argparse.Action):
+    """An option that takes one value (``run --scene``): given a second time it is refused in
+    one line, never settled by keeping the last one without a word (README.md, "Usage")."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        before = getattr(namespace, self.dest, None)
+        if before is not None:
+            parser.error(f"{option_string}: given twice ({before!r}, {values!r}); "
+                         f"dbench {parser.prog.split()[-1]} takes one {self.dest}")
+        setattr(namespace, self.dest, values)
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = Parser(prog="dbench", description=DESCRIPTION)
     sub = p.add_subparsers(dest="command", required=True, parser_class=Parser)
@@ -57,9 +69,11 @@ def build_parser() -> argparse.ArgumentParser:
                         "(default relmse, the convention for HDR renders)")
 
     r = sub.add_parser("run", help="run methods on one scene and write a report")
-    r.add_argument("--method", required=True, help="NAME[,NAME...] or all (those that do not "
-                   "apply to the scene are skipped with the reason)")
-    r.add_argument("--scene", required=True)
+    r.add_argument("--method", required=True, action="append", help="NAME[,NAME...] or all "
+                   "(those that do not apply to the scene are skipped with the reason); "
+                   "repeatable, each list adding its methods")
+    r.add_argument("--scene", required=True, action=Once, help="one scene: a catalogue name, "
+                   "a scene file or a folder of renders (dbench sweep --scenes takes several)")
     r.add_argument("--spp", type=count, default=None, help="samples per pixel (default 16; a "
                    "folder of renders: its only spp)")
     r.add_argument("--res", default=None, help="image size: N (N×N) or WIDTHxHEIGHT, e.g. "
@@ -90,8 +104,9 @@ def build_parser() -> argparse.ArgumentParser:
     lp.set_defaults(func=cmd_list)
 
     rp = sub.add_parser("render", help="render or find cached buffers of scenes")
-    rp.add_argument("--scene", default="all", help="all, or NAME[,NAME...] as sweep "
-                    "--scenes takes them")
+    rp.add_argument("--scene", action="append", default=None, metavar="all|NAME[,NAME...]",
+                    help="all (default), or NAME[,NAME...] as sweep --scenes takes them; "
+                    "repeatable, each list adding its scenes")
     rp.add_argument("--spp", type=count, default=16)
     rp.add_argument("--res", default=None, help="image size: N (N×N) or WIDTHxHEIGHT "
                     "(default: as for run)")
@@ -99,7 +114,9 @@ def build_parser() -> argparse.ArgumentParser:
     rp.set_defaults(func=cmd_render)
 
     sw = sub.add_parser("sweep", help="the benchmark grid, resumable")
-    sw.add_argument("--methods", default="all", help="all or NAME[,NAME...]")
+    sw.add_argument("--methods", action="append", default=None, metavar="all|NAME[,NAME...]",
+                    help="all (default) or NAME[,NAME...]; repeatable, each list adding its "
+                    "methods")
     sw.add_argument("--scenes", action="append", default=None, metavar="all|NAME[,NAME...]",
                     help="all (default), or catalogue names, scene files (.xml, .py) and "
                     "folders of renders; repeatable, each list adding its scenes; a path that "
@@ -133,7 +150,9 @@ def build_parser() -> argparse.ArgumentParser:
     sw.set_defaults(func=cmd_sweep)
 
     st = sub.add_parser("stress", help="every method against adversarial inputs")
-    st.add_argument("--methods", default="all")
+    st.add_argument("--methods", action="append", default=None, metavar="all|NAME[,NAME...]",
+                    help="all (default) or NAME[,NAME...]; repeatable, each list adding its "
+                    "methods")
     st.add_argument("--out", default="results/stress.md")
     st.add_argument("--quiet", action="store_true")
     st.set_defaults(func=cmd_stress)

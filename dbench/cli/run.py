@@ -13,8 +13,8 @@ import sys
 from pathlib import Path
 
 from ..run.scene_run import RunRequest, run_scene
-from .args import (_check_common, _default_spp, _scene_of, _writable_cache, check_distinct,
-                   check_kind_options, check_lam, names_arg, parse_params)
+from .args import (_check_common, _default_spp, _scene_of, _writable_cache,
+                   check_kind_options, check_lam, method_names, parse_params)
 
 
 def cmd_run(args: argparse.Namespace) -> int:
@@ -33,9 +33,7 @@ def _run(args: argparse.Namespace, caught: list[str]) -> int:
     from ..report import run_output
     from ..data import check_count
 
-    given = names_arg(args.method, "--method")
-    names = registry.available() if given is None else check_distinct(
-        [registry.canonical(n) for n in given], "--method", args.method, given)
+    names = method_names(args.method, "--method") or registry.available()
     for n in names:
         registry.method_class(n)  # raises UnknownNameError listing valid names
     scene = _scene_of(args)

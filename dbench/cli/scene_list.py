@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Iterator, Sequence
 
 from ..errors import DbenchInputError
-from .args import check_distinct
+from .args import list_items
 
 
 def _names_a_scene(item: str, known: set[str]) -> bool:
@@ -75,19 +75,11 @@ def _items(text: str, option: str, known: set[str]) -> list[str]:
 def scene_names(texts: str | Sequence[str], option: str) -> list[str] | None:
     """The scenes of ``option`` given as ``texts`` (one text per time the option is given):
     None for ``all`` (every scene), else every text's items in order (module docstring),
-    each scene once (a scene given twice is refused, as :func:`dbench.cli.args.check_distinct`
-    refuses any repeated item). ``all`` stands alone."""
+    each scene once; the rule of every list option (:func:`dbench.cli.args.list_items`)."""
     from ..datasets.scenes import catalogue
 
-    texts = [texts] if isinstance(texts, str) else list(texts)
-    if len(texts) == 1 and texts[0].strip() == "all":
-        return None
     known = set(catalogue.available())
-    items = [item for text in texts for item in _items(text, option, known)]
-    if "all" in items:
-        raise DbenchInputError(f"{option}: {' '.join(texts)!r}; 'all' stands alone (give all, "
-                               f"or NAME[,NAME...] without it)")
-    return check_distinct(items, option, " ".join(texts))
+    return list_items(texts, option, lambda text: _items(text, option, known))
 
 
 @contextmanager

@@ -28,8 +28,8 @@ def _refused(capsys, argv, *words):
     return err
 
 
-def _run(tmp_path, *extra):
-    return ["run", "--scene", "cornell", "--spp", "4", "--res", "8", "--ref-spp", "16",
+def _run(tmp_path, *extra, scene="cornell"):
+    return ["run", "--scene", scene, "--spp", "4", "--res", "8", "--ref-spp", "16",
             "--cache", str(tmp_path / "cache"), "--out", str(tmp_path / "out"), "--quiet",
             *extra]
 
@@ -74,8 +74,8 @@ def test_a_scene_parameter_that_is_not_a_finite_number_is_refused(tmp_path, caps
     for value in ("nan", "1e400", "1,inf,1"):
         # Mitsuba takes them: a light of NaN radiance renders black, which every method
         # then matches perfectly
-        _refused(capsys, _run(tmp_path, "--method", "noisy", "--scene", str(scene),
-                              "--scene-param", f"light={value}"), "not a finite number")
+        _refused(capsys, _run(tmp_path, "--method", "noisy", "--scene-param",
+                              f"light={value}", scene=str(scene)), "not a finite number")
     assert not (tmp_path / "out").exists()
 
 
@@ -175,8 +175,8 @@ def test_a_lam_that_no_scene_reads_is_refused(tmp_path, capsys):
     a transient scene's default) it changed nothing while the run recorded it."""
     _refused(capsys, _run(tmp_path, "--method", "noisy", "--transform", "identity", "--lam",
                           "0.3"), "--lam: the identity transform takes no λ")
-    _refused(capsys, _run(tmp_path, "--method", "noisy", "--scene", "cornell-transient",
-                          "--lam", "0.3"), "--lam: only the box-cox and yeo-johnson",
+    _refused(capsys, _run(tmp_path, "--method", "noisy", "--lam", "0.3",
+                          scene="cornell-transient"), "--lam: only the box-cox and yeo-johnson",
              "cornell-transient (identity)")
     _refused(capsys, ["sweep", "--methods", "jbf", "--scenes", "cornell-transient,fog-transient",
                       "--lam", "0.3", "--out", str(tmp_path / "sw")],
