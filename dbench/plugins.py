@@ -376,12 +376,29 @@ def broken() -> list[Plugin]:
     return [p for p in all_plugins() if not p.ok]
 
 
+def _failure(p: Plugin) -> str:
+    """The sentence saying which plugin failed to load and why."""
+    return f"plugin {p.name} ({p.origin}, {p.target}) failed to load: {p.error}"
+
+
 def broken_reason(name: str) -> str:
     """``''`` unless ``name`` is a broken plugin: the sentence saying which and why."""
     for p in list(_PLUGINS.values()):
         if not p.ok and name in (p.name, p.spec):
-            return f"plugin {p.name} ({p.origin}, {p.target}) failed to load: {p.error}"
+            return _failure(p)
     return ""
+
+
+def left_out(option: str) -> str:
+    """``''``, or one line saying which plugins that may hold methods failed to load and why
+    (every broken plugin but a scene entry point): what ``option all`` runs without, as
+    ``dbench list`` shows them under "Broken plugins (not loaded)" (README.md "Add your own
+    denoiser")."""
+    bad = [p for p in broken() if not p.spec.startswith(f"{SCENE_GROUP}:")]
+    if not bad:
+        return ""
+    return (f"{option} all leaves out what these plugins hold: "
+            + "; ".join(_failure(p) for p in bad))
 
 
 def _reset_for_tests() -> None:
@@ -394,4 +411,5 @@ def _reset_for_tests() -> None:
 
 __all__ = ["METHOD_GROUP", "SCENE_GROUP", "ENV_VAR", "Plugin", "PluginError", "load",
            "load_all", "discover_entry_points", "ensure_loaded", "requested", "worker_init",
-           "all_plugins", "broken", "broken_reason", "module_name_for_file", "env_specs"]
+           "all_plugins", "broken", "broken_reason", "left_out", "module_name_for_file",
+           "env_specs"]

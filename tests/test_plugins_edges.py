@@ -364,3 +364,58 @@ def test_a_version_a_plugin_sets_when_it_is_built_is_refused(isolated, tmp_path,
                    f"'weights-2' set in __init__ is not read: a result's identity holds the "
                    f"class attribute version; set it there"], err
     assert not out.exists()
+
+
+@pytest.fixture
+def broken_entry_point(isolated, tmp_path):
+    """A method entry point whose module fails to import (dbench list: "Broken plugins")."""
+    _install(tmp_path / "site", "lab-broken", "lab_broken",
+             "raise ImportError('needs libfoo')\n", "[dbench.methods]\nlab-box = lab_broken:Box\n")
+    plugins.discover_entry_points()
+    return "plugin lab-box (entry point (lab-broken), lab_broken:Box) failed to load: " \
+           "ImportError: needs libfoo"
+
+
+def test_all_names_the_method_plugins_it_leaves_out(broken_entry_point, tmp_path, capsys,
+                                                    monkeypatch):
+    # --method all / --methods all ran every method that loaded without a word of the broken
+    # ones; now one line on stderr (and a note in run's report.md) names each and why
+    from dbench.cli import run as cli_run
+    from dbench.run import sweep
+    from dbench.stress import runner
+
+    def stand_in(*a, **k):
+        raise plugins.PluginError("stand-in: nothing runs here")
+
+    monkeypatch.setattr(sweep, "run_sweep", stand_in)
+    monkeypatch.setattr(runner, "run_all", stand_in)
+    for argv, option in ((["sweep", "--methods", "all", "--scenes", "cornell", "--spp", "2"],
+                          "--methods"), (["stress"], "--methods")):
+        assert cli.main([*argv, "--out", str(tmp_path / "out")]) == 2
+        err = capsys.readouterr().err.splitlines()
+        assert err == [f"dbench: warning: {option} all leaves out what these plugins hold: "
+                       f"{broken_entry_point}", "dbench: stand-in: nothing runs here"], err
+    # a plain list asks for no "all": nothing to say
+    assert cli.main(["stress", "--methods", "jbf", "--out", str(tmp_path / "out")]) == 2
+    assert capsys.readouterr().err.splitlines() == ["dbench: stand-in: nothing runs here"]
+    seen = []
+    monkeypatch.setattr(cli_run, "run_scene", lambda stage, req, *a: seen.append(req.notes)
+                        or stand_in())
+    assert cli.main(["run", "--method", "all", "--scene", "cornell", "--res", "8", "--spp",
+                     "2", "--out", str(tmp_path / "run")]) == 2
+    said = f"--method all leaves out what these plugins hold: {broken_entry_point}"
+    assert capsys.readouterr().err.splitlines()[0] == f"dbench: warning: {said}"
+    assert seen == [(said,)]
+
+
+def test_a_run_report_notes_the_plugins_all_leaves_out(broken_entry_point, tmp_path,
+                                                       monkeypatch):
+    from dbench import registry
+
+    # "all" as the noisy input and one method: enough to write report.md, and fast
+    monkeypatch.setattr(registry, "available", lambda: ["noisy", "jbf"])
+    assert cli.main(["run", "--method", "all", "--scene", "cornell", "--res", "8", "--spp",
+                     "2", "--ref-spp", "4", "--repeats", "1", "--quiet", "--out",
+                     str(tmp_path / "run")]) == 0
+    report = (tmp_path / "run" / "report.md").read_text()
+    assert f"- --method all leaves out what these plugins hold: {broken_entry_point}" in report

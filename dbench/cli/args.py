@@ -189,6 +189,20 @@ def method_names(texts: str | Sequence[str], option: str) -> list[str] | None:
     return check_distinct([registry.canonical(n) for n in given], option, shown, given)
 
 
+def warn_left_out(option: str) -> str:
+    """Where ``option`` is ``all``: one warning line on stderr naming the plugins that failed
+    to load and why (:func:`dbench.plugins.left_out`), so that "all" never means "all that
+    loaded" without a word; the line (``''`` when every plugin loaded), for a report's notes."""
+    import sys
+
+    from .. import plugins
+
+    line = plugins.left_out(option)
+    if line:
+        print(f"dbench: warning: {line}", file=sys.stderr)
+    return line
+
+
 MAX_PARAM_CHARS = 1000
 
 

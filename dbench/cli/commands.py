@@ -8,7 +8,8 @@ from pathlib import Path
 
 from ..errors import DbenchInputError
 from .args import (RANKABLE, _check_common, _ints, _scene_of, _writable_cache, check_distinct,
-                   check_kind_options, check_lam, method_names, parse_params)
+                   check_kind_options, check_lam, method_names, parse_params,
+                   warn_left_out)
 from .scene_list import refusals_naming, scene_names
 
 
@@ -163,8 +164,9 @@ def _sweep(args: argparse.Namespace, caught: list[str]) -> int:
                                f"--executor ray runs the cells on the Ray cluster's workers")
     args.workers = 1 if args.workers is None else args.workers
     scene_params = scene_files.parse_scene_params(args.scene_param)
+    given = method_names(args.methods or ["all"], "--methods")
     methods_, scenes_ = sweep.resolve_names(
-        method_names(args.methods or ["all"], "--methods") or "all",
+        given or "all",
         scene_names(args.scenes or ["all"], "--scenes") or "all", scene_params)
     scene_objs = [catalogue.get(n, scene_params) for n in scenes_]
     check_kind_options(args, scene_objs, scenes_)
@@ -191,6 +193,8 @@ def _sweep(args: argparse.Namespace, caught: list[str]) -> int:
     from ..run.capture import count_text, log_text
     # the cache is checked (and created) by run_sweep once nothing refused the sweep
     from_groups: list[str] = []  # the groups' warnings, every worker's included
+    if given is None:  # checked: "all" says what it leaves out
+        warn_left_out("--methods")
     counts = sweep.run_sweep(config, args.out, executor=args.executor,
                              workers=args.workers, progress=not args.quiet,
                              warnings_out=from_groups)
@@ -243,6 +247,8 @@ def cmd_stress(args: argparse.Namespace) -> int:
     if out.is_dir() or args.out.endswith("/"):
         out = out / "stress.md"  # a folder: the matrix goes into it
     ensure_writable_dir(out.parent, "--out")
+    if names is None:  # checked: "all" says what it leaves out
+        warn_left_out("--methods")
     import contextlib
 
     from ..stress.device import run_device_forms

@@ -14,7 +14,8 @@ from pathlib import Path
 
 from ..run.scene_run import RunRequest, run_scene
 from .args import (_check_common, _default_spp, _scene_of, _writable_cache,
-                   check_kind_options, check_lam, method_names, parse_params)
+                   check_kind_options, check_lam, method_names, parse_params,
+                   warn_left_out)
 
 
 def cmd_run(args: argparse.Namespace) -> int:
@@ -33,7 +34,8 @@ def _run(args: argparse.Namespace, caught: list[str]) -> int:
     from ..report import run_output
     from ..data import check_count
 
-    names = method_names(args.method, "--method") or registry.available()
+    given = method_names(args.method, "--method")
+    names = given or registry.available()
     for n in names:
         registry.method_class(n)  # raises UnknownNameError listing valid names
     scene = _scene_of(args)
@@ -64,10 +66,13 @@ def _run(args: argparse.Namespace, caught: list[str]) -> int:
         f"{scene.name}_{args.spp}spp_{args.res}px_"
         f"{_dt.datetime.now().strftime('%Y%m%d-%H%M%S')}")
     cache = _writable_cache(args)
+    # checked and about to render: "all" says what it leaves out (not before a refusal's line)
+    left_out = warn_left_out("--method") if given is None else ""
     request = RunRequest(spp=args.spp, res=args.res, seed=args.seed, seeds=args.seeds,
                          transform=args.transform, lam=args.lam, ref_spp=args.ref_spp,
                          frames=args.frames, bins=args.bins, repeats=args.repeats,
-                         quiet=args.quiet, rank_by=args.rank_by)
+                         quiet=args.quiet, rank_by=args.rank_by,
+                         notes=(left_out,) if left_out else ())
     # a failure or Ctrl-C inside the block removes the temporary folder: no partial --out
     with run_output.staged(out) as stage:
         table, failed, summary = run_scene(stage, request, scene, instances, labels, runnable,

@@ -38,6 +38,7 @@ class RunRequest:
     repeats: int
     quiet: bool
     rank_by: str
+    notes: tuple[str, ...] = ()  # the command line's own, first in report.md's notes
 
 
 def run_scene(out: Path, req: RunRequest, scene, instances, labels, runnable,
@@ -162,7 +163,7 @@ def run_scene(out: Path, req: RunRequest, scene, instances, labels, runnable,
                     + (f", copies {r['transfer_s'] * 1e3:.2f} ms timed apart"
                        if r.get("transfer_s") else "") + ")" for r in rows)}
     metas, whole = input_metas(frame)
-    notes = input_notes(metas, settings, whole)
+    notes = list(req.notes) + input_notes(metas, settings, whole)
     resolved = {r["method"]: r["settings"] for r in rows if r.get("settings")}
     if resolved:
         # what the methods resolved from "auto"/None defaults on this frame (first seed)
