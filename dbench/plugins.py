@@ -293,7 +293,17 @@ def _load_entry_point(ep: Any, group: str) -> Plugin:
         plugin.ok = True
     except (Exception, SystemExit) as exc:  # noqa: BLE001 - as in load()
         plugin.error = _one_line(exc)
+        _scene_not_loaded(plugin, group)
     return _record(plugin, before)
+
+
+def _scene_not_loaded(plugin: Plugin, group: str) -> None:
+    """A broken scene entry point, noted in the scene catalogue (which cannot import this
+    module): ``--scene NAME`` then names the failure, not an unknown scene."""
+    if group == SCENE_GROUP:
+        from .datasets.scenes.record import note_not_loaded
+
+        note_not_loaded(plugin.name, _failure(plugin))
 
 
 def discover_entry_points() -> list[Plugin]:
@@ -330,6 +340,7 @@ def _clash(name: str, eps: list[Any], group: str) -> Plugin:
             error=f"ValueError: entry point {name!r} is declared by "
                   + " and by ".join(f"{d} ({ep.value})" for d, ep in zip(dists, eps))
                   + "; uninstall one of them, or give one another name")
+        _scene_not_loaded(_PLUGINS[spec], group)
     return _PLUGINS[spec]
 
 

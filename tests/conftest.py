@@ -76,11 +76,12 @@ def isolated():
     after a test that loads plugins (tests/test_plugins.py, tests/cli/test_exit_codes.py)."""
     import dbench.methods  # noqa: F401 - built-ins in the snapshot
     from dbench import plugins, registry
-    from dbench.datasets.scenes import catalogue as scenes
+    from dbench.datasets.scenes import catalogue as scenes, record
 
     plugins.ensure_loaded()
     methods_before = dict(registry._REGISTRY)
     scenes_before = dict(scenes._CATALOGUE)
+    not_loaded_before = dict(record._NOT_LOADED)
     plugins_before = dict(plugins._PLUGINS)
     requested_before = list(plugins._REQUESTED)
     state_before = dict(plugins._STATE)
@@ -91,6 +92,8 @@ def isolated():
     registry._REGISTRY.update(methods_before)
     scenes._CATALOGUE.clear()
     scenes._CATALOGUE.update(scenes_before)
+    record._NOT_LOADED.clear()
+    record._NOT_LOADED.update(not_loaded_before)
     plugins._PLUGINS.clear()
     plugins._PLUGINS.update(plugins_before)
     plugins._REQUESTED[:] = requested_before

@@ -419,3 +419,20 @@ def test_a_run_report_notes_the_plugins_all_leaves_out(broken_entry_point, tmp_p
                      str(tmp_path / "run")]) == 0
     report = (tmp_path / "run" / "report.md").read_text()
     assert f"- --method all leaves out what these plugins hold: {broken_entry_point}" in report
+
+
+def test_a_scene_entry_point_that_failed_to_load_is_named_where_it_is_asked_for(
+        isolated, tmp_path, capsys):
+    # --scene NAME of a broken scene entry point said only "unknown scene 'NAME'"
+    _install(tmp_path / "site", "lab-rooms", "lab_rooms", "raise ImportError('needs libbar')\n",
+             "[dbench.scenes]\nlab-room = lab_rooms:room\n")
+    plugins.discover_entry_points()
+    why = ("scene 'lab-room': plugin lab-room (entry point (lab-rooms), lab_rooms:room) failed "
+           "to load: ImportError: needs libbar")
+    for argv in (["run", "--method", "noisy", "--scene", "lab-room"],
+                 ["sweep", "--methods", "noisy", "--scenes", "cornell,lab-room"],
+                 ["render", "--scene", "lab-room"]):
+        out = ["--out", str(tmp_path / "out")] if argv[0] != "render" else []
+        assert cli.main([*argv, *out]) == 2
+        assert capsys.readouterr().err.splitlines() == [f"dbench: {why}"]
+    assert not (tmp_path / "out").exists()

@@ -22,7 +22,7 @@ from typing import Any, Callable
 import numpy as np
 
 from ...errors import DbenchInputError, UnknownNameError
-from .record import _CATALOGUE, Scene, available
+from .record import _CATALOGUE, Scene, available, not_loaded
 from .parts import (camera_dict, ceiling_light, diffuse_bsdf, film_dict, mirror_objects, rect_shape,
                     room_shapes)
 
@@ -39,7 +39,8 @@ def get(name: str | Scene, params: dict[str, str] | None = None) -> Scene:
     """The Scene named ``name``: a catalogue name (``params``: the values of the parameters
     it declares, dbench.datasets.scenes.params), a scene file (``.xml``, ``.py``;
     dbench.datasets.scene_files.load, ``params`` fill its ``$parameters``) or a folder of EXR
-    renders (dbench.datasets.folders.load). UnknownNameError lists the catalogue otherwise."""
+    renders (dbench.datasets.folders.load). UnknownNameError lists the catalogue otherwise; a
+    DbenchInputError names a scene entry point that failed to load (record.not_loaded)."""
     if isinstance(name, Scene):
         return name
     if name in _CATALOGUE:
@@ -58,6 +59,9 @@ def get(name: str | Scene, params: dict[str, str] | None = None) -> Scene:
             raise DbenchInputError(f"--scene-param: {name} is a folder of renders; parameters "
                                    f"apply to scene files")
         return folder_scene(name)
+    why = not_loaded(name)
+    if why:  # a scene entry point that failed to load: its failure, not an unknown name
+        raise DbenchInputError(f"scene {name!r}: {why}")
     raise UnknownNameError(
         f"unknown scene {name!r}; available scenes: {', '.join(available())}; or a Mitsuba "
         f"scene file (.xml), a Python scene file (.py) or a folder of EXR renders") from None

@@ -86,5 +86,21 @@ def register_scene(scene: Scene) -> Scene:
     return scene
 
 
+#: scene name -> why the plugin meant to register it did not load: a scene entry point that
+#: failed (dbench.plugins, above this layer, notes it here), so that asking for the scene names
+#: the failure rather than an unknown name
+_NOT_LOADED: dict[str, str] = {}
+
+
+def note_not_loaded(name: str, why: str) -> None:
+    """Record that scene ``name`` was not loaded, and ``why`` (one sentence)."""
+    _NOT_LOADED[name] = why
+
+
+def not_loaded(name: str) -> str:
+    """``''`` unless ``name`` is a scene whose plugin failed to load: the sentence saying why."""
+    return "" if name in _CATALOGUE else _NOT_LOADED.get(name, "")
+
+
 def available() -> list[str]:
     return sorted(_CATALOGUE)
