@@ -92,15 +92,7 @@ def get(name: str, **params: Any) -> Denoiser:
     plugin that fails to load is (exit 2 before anything renders, README.md "Add your own
     denoiser"), not an internal error of dbench; dbench's own methods' errors pass unchanged."""
     cls = method_class(name)
-    try:
-        method = cls(**params)
-    except DbenchInputError:
-        raise
-    except Exception as exc:  # noqa: BLE001 - named below, when it is a plugin's own code
-        if _own(cls):
-            raise
-        raise plugins.PluginError(f"method {cls.name} ({defined_in(cls)}) could not be built: "
-                                  f"{plugins.one_line(exc)}") from exc
+    method = _plugin_call(cls, "could not be built", lambda: cls(**params))
     try:  # needs, kinds and version set in __init__ escape register()'s check of the class
         check_needs(cls.name, method.needs, method.optional_needs)
         check_kinds(cls.name, method.kinds)
@@ -123,15 +115,8 @@ def applies(method: Denoiser, kind: str, available: set[str] | None = None
     ``sweep`` ask it first, the method's failure where a cell asks it (README.md "Add your own
     denoiser"); dbench's own methods' errors pass unchanged."""
     cls = type(method)
-    try:
-        answer = method.applies_to(kind, available)
-    except DbenchInputError:
-        raise
-    except Exception as exc:  # noqa: BLE001 - named below, when it is a plugin's own code
-        if _own(cls):
-            raise
-        raise plugins.PluginError(f"method {cls.name} ({defined_in(cls)}) failed in "
-                                  f"applies_to({kind!r}): {plugins.one_line(exc)}") from exc
+    answer = _plugin_call(cls, f"failed in applies_to({kind!r})",
+                          lambda: method.applies_to(kind, available))
     if _own(cls):
         return answer
     # `ok, why = answer` would fail on None or True with an error of Python's, not the plugin's
@@ -151,15 +136,8 @@ def wants(method: Denoiser, available: set[str] | frozenset[str]) -> set[str]:
     :func:`applies` (README.md "Add your own denoiser"); dbench's own methods' errors pass
     unchanged."""
     cls = type(method)
-    try:
-        answer = method.wants(available)
-    except DbenchInputError:
-        raise
-    except Exception as exc:  # noqa: BLE001 - named below, when it is a plugin's own code
-        if _own(cls):
-            raise
-        raise plugins.PluginError(f"method {cls.name} ({defined_in(cls)}) failed in "
-                                  f"wants({sorted(available)}): {plugins.one_line(exc)}") from exc
+    answer = _plugin_call(cls, f"failed in wants({sorted(available)})",
+                          lambda: method.wants(available))
     if _own(cls):
         return answer
     if not (isinstance(answer, (set, frozenset)) and all(isinstance(b, str) for b in answer)):
@@ -174,6 +152,20 @@ def _own(cls: type) -> bool:
     return cls.__module__.split(".")[0] == "dbench"
 
 
+def _plugin_call(cls: type, what: str, call):
+    """``call()`` (building, or asking, a method of class ``cls``): a plugin's own failure in
+    it is a :class:`~dbench.plugins.PluginError` naming the method, where it is defined and
+    ``what`` failed, in one line (README.md "Add your own denoiser"); dbench's own methods'
+    errors, and a refusal of the user's input, pass unchanged."""
+    try:
+        return call()
+    except DbenchInputError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - named below, when it is a plugin's own code
+        if _own(cls):
+            raise
+        raise plugins.PluginError(f"method {cls.name} ({defined_in(cls)}) {what}: "
+                                  f"{plugins.one_line(exc)}") from exc
 
 
 __all__ = ["ALIASES", "Denoiser", "register", "available", "canonical", "method_class", "get",

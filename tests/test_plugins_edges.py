@@ -243,7 +243,8 @@ def test_a_plugin_edited_during_a_sweep_is_refused_not_scored_under_the_old_code
     path = tmp_path / "edited.py"
     path.write_text(EDITED.format(scale=1.0))
     plugins.load(str(path))
-    monkeypatch.setattr(sweep, "load_seeds", lambda *a, **k: [SimpleNamespace(kind="steady")])
+    monkeypatch.setattr(sweep, "load_seeds",
+                        lambda *a, **k: [SimpleNamespace(kind="steady", meta={})])
     monkeypatch.setattr(sweep, "render_references", lambda *a, **k: 0.0)
     monkeypatch.setattr(harness, "run_cell", lambda method, frames, **kw: harness.CellResult(
         method.name, dict(method.params), None, skipped="stand-in"))
