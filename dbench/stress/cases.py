@@ -17,7 +17,8 @@ Sequence methods run ``reset()`` and then the same frame twice: the first frame 
 history) are judged separately and must both pass.
 
 Anything else fails: another exception, a wrong shape or dtype, NaN spread, or more than
-``TIME_LIMIT_S`` seconds on a tiny image. ``dbench stress`` writes ``results/stress.md``; the same
+``TIME_LIMIT_S`` seconds on a tiny image (twice: calls over it are timed again, since a
+method's first call in a process compiles its kernels). ``dbench stress`` writes ``results/stress.md``; the same
 cases run in pytest (tests/stress/test_stress.py).
 """
 from __future__ import annotations
