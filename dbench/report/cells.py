@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any, Callable, Sequence
 
 from .. import io
 from .formats import counted, markdown_code, markdown_text
@@ -113,12 +113,13 @@ def _flat(identity: dict, prefix: str = "") -> dict[str, str]:
     return out
 
 
-def mixed_settings(cells: Sequence[dict]) -> list[tuple[str, str, dict[str, list[str]]]]:
-    """(who, key, value → the cells that hold it) for every identity key whose value differs
-    between the finished cells the report puts side by side: between the cells of one method
-    label (its parameters and code, over every scene and spp: ``who`` is the label in
-    backticks) or between the cells of one scene (scene content, seeds, size, transform,
-    metric code: ``who`` is the scene). A sweep refuses such a mix unless ``--rerun``, and a
+def mixed_settings(cells: Sequence[dict]) -> list[tuple[str, str, str, dict[str, list[str]]]]:
+    """(kind, who, key, value → the cells that hold it) for every identity key whose value
+    differs between the finished cells the report puts side by side: between the cells of one method
+    label (its parameters and code, over every scene and spp: ``kind`` "label", ``who`` the
+    label) or between the cells of one scene (scene content, seeds, size, transform, metric
+    code: ``kind`` "scene", ``who`` the scene); names as they are (:func:`mixed_text` and
+    :func:`mixed_md` write them). A sweep refuses such a mix unless ``--rerun``, and a
     ``--rerun`` over part of the grid recomputes only that part (README.md, the ``dbench
     sweep`` paragraph), so the rest keeps the old settings; cells without an identity (older
     format) are not compared."""
@@ -141,30 +142,41 @@ def mixed_settings(cells: Sequence[dict]) -> list[tuple[str, str, dict[str, list
             for where, flat in members:
                 values.setdefault(flat.get(key, "(absent)"), []).append(where)
             if len(values) > 1:
-                out.append((markdown_code(name) if kind == "label" else name, key, values))
+                out.append((kind, name, key, values))
     return out
 
 
-def mixed_text(mixed: Sequence[tuple[str, str, dict]],
-               where: str = 'see "Mixed settings" in README.md') -> str:
-    """The settings line's warning: who mixes which keys ('' when nothing is mixed)."""
+def _who(kind: str, who: str, name: Callable[[Any], str]) -> str:
+    """A label as code (:func:`markdown_code`, plain backticks unless it holds one), a scene as
+    ``name`` writes it."""
+    return markdown_code(who) if kind == "label" else name(who)
+
+
+def mixed_text(mixed: Sequence[tuple[str, str, str, dict]],
+               where: str = 'see "Mixed settings" in README.md',
+               name: Callable[[Any], str] = markdown_text) -> str:
+    """The settings line's warning: who mixes which keys ('' when nothing is mixed); ``name``
+    writes the scenes (:func:`markdown_text` in Markdown, ``str`` on the terminal and in the
+    results page, which escapes HTML itself)."""
     by: dict[str, list[str]] = {}
-    for who, key, _ in mixed:
-        by.setdefault(who, []).append(key)
+    for kind, who, key, _ in mixed:
+        by.setdefault(_who(kind, who, name), []).append(key)
     return (f"⚠ cells computed with different settings side by side ({where}): "
             + "; ".join(f"{w}: {', '.join(k)}" for w, k in by.items()) if by else "")
 
 
-def mixed_md(mixed: Sequence[tuple[str, str, dict]]) -> list[str]:
-    """One line per mixed key: each value (shortened) and the cells that hold it."""
+def mixed_md(mixed: Sequence[tuple[str, str, str, dict]]) -> list[str]:
+    """One line per mixed key: each value (shortened) and the cells that hold it, as literal
+    Markdown text (:func:`markdown_text`: the cells name scenes and methods)."""
     def where(cells: list[str]) -> str:
-        return ", ".join(cells[:3]) + (f" and {len(cells) - 3} more" if len(cells) > 3 else "")
+        more = f" and {len(cells) - 3} more" if len(cells) > 3 else ""
+        return ", ".join(map(markdown_text, cells[:3])) + more
 
     def short(v: str) -> str:
-        return v if len(v) <= 40 else v[:39] + "…"
-    return [f"- {who}: {key} is " + "; ".join(f"{short(v)} in {where(c)}"
-                                             for v, c in values.items())
-            for who, key, values in mixed]
+        return markdown_text(v if len(v) <= 40 else v[:39] + "…")
+    return [f"- {_who(kind, who, markdown_text)}: {key} is "
+            + "; ".join(f"{short(v)} in {where(c)}" for v, c in values.items())
+            for kind, who, key, values in mixed]
 
 
 def device_label(cell: dict) -> str:
@@ -281,14 +293,16 @@ def grid_status(config: dict, cells: Sequence[dict]) -> dict[str, Any]:
             "mixed": mixed_settings(cells)}
 
 
-def grid_status_text(status: dict[str, Any]) -> str:
+def grid_status_text(status: dict[str, Any], name: Callable[[Any], str] = markdown_text) -> str:
+    """The cell counts by status in one line, with :func:`mixed_text`'s warning (``name``
+    writes the scenes there)."""
     text = (f"cells: {status['expected']} expected, {status['ok']} ok, {status['skipped']} "
             f"skipped, {status['error']} error, {len(status['missing'])} missing")
     text += f", {status['other']} of unknown status" if status["other"] else ""
     outside = status.get("outside", 0)
     text += (f"; {outside} more cell{'s' if outside != 1 else ''} outside the sweep's "
              f"settings (not counted)" if outside else "")
-    mixed = mixed_text(status.get("mixed") or [])
+    mixed = mixed_text(status.get("mixed") or [], name=name)
     return text + (f"; {mixed}" if mixed else "")
 
 

@@ -242,7 +242,7 @@ def sweep_summary(cells: Sequence[dict], rank_by: str = "relmse",
     # a --rerun over part of the grid leaves the rest as it was: never a silent mix
     from .cells import input_warnings, mixed_settings, mixed_text
     mixed = mixed_text(mixed_settings(cells if beside is None else beside),
-                       'dbench report lists them under "Mixed settings"')
+                       'dbench report lists them under "Mixed settings"', name=str)
     lines += _wrap("warning: " + mixed.removeprefix("⚠ ")) if mixed else []
     # what the inputs said of themselves, as `dbench run` prints it (dbench/run/inputs.py)
     for said in input_warnings(cells):

@@ -91,3 +91,36 @@ def test_the_sweep_warns_when_its_cells_stand_beside_cells_of_other_settings():
     assert ("warning: cells computed with different settings side by side (dbench report lists "
             "them under \"Mixed settings\"): `wt`: params.weight") in text
     assert "warning: cells computed" not in " ".join(terminal.sweep_summary(new))
+
+
+def test_names_in_mixed_settings_and_the_sweep_folder_are_literal_markdown(tmp_path):
+    # a scene's name is its file's, a label any plugin's name, a folder any name: Markdown
+    # reads none of them as markup (README.md "Add your own denoiser")
+    scene, label = "a_b*c*", "w`t"
+
+    def named(c: dict) -> dict:
+        c = copy.deepcopy(c)
+        c["scene"] = c["identity"]["scene"] = scene
+        if c["method"] == "wt":
+            c["method"] = c["base_method"] = label
+        return c
+    cells = [named(c) for c in (
+        _cell("noisy", 2), _cell("wt", 2), _cell("noisy", 4, judge_version="j2"),
+        _cell("wt", 4, params={"weight": "x_y_z"}, judge_version="j2"))]
+    sweep = tmp_path / "results" / "sweep-a`b"
+    sweep.mkdir(parents=True)
+    config = {**CONFIG, "scenes": [scene], "labels": ["noisy", label], "methods": ["noisy", "wt"]}
+    (sweep / "sweep.json").write_text(json.dumps({"config": config, "machine": MACHINE}))
+    for i, c in enumerate(cells):
+        p = sweep / "cells" / "s" / f"{c['spp']:05d}spp" / f"{i}.json"
+        p.parent.mkdir(parents=True, exist_ok=True)
+        p.write_text(json.dumps(c))
+    text = publish.publish(tmp_path / "results", sweep).read_text(encoding="utf-8")
+    section = text[text.index("## Mixed settings"):text.index("## Convergence")]
+    assert r"- a\_b\*c\*: judge_version is" in section
+    assert r"in 2 spp noisy, 2 spp w\`t;" in section  # the cells, as literal text
+    assert r'- `` w`t ``: params.weight is 1.0 in a\_b\*c\* 2 spp; "x\_y\_z" in' in section
+    assert r"`` w`t ``: params.weight; a\_b\*c\*: judge_version" in " ".join(text.split())
+    assert "Sweep `` sweep-a`b ``: " in text
+    page = (tmp_path / "results" / "index.html").read_text(encoding="utf-8")
+    assert r"a\_b" not in page  # the results page escapes HTML, not Markdown
