@@ -22,6 +22,7 @@ from typing import Any, Mapping, Sequence
 import pandas as pd
 
 from .formats import markdown_table, markdown_text
+from .tables import unshown_md
 from .verdicts import (HEADLINE, NOISY, TIE_WORDS, ci_kind_text, finite, fmt_value, half_width,
                        higher_is_better, marked, num, rank_groups, ranking_line, reference_text,
                        tie)
@@ -225,8 +226,7 @@ def headline_md(df: pd.DataFrame, spp: int | None, rank_by: str = "relmse",
               "half-width; `time_s` is "
               "the median denoise time ± half its IQR (the noisy input is not a candidate for "
               f"the fastest). Rows ranked by `{rank_by}`; " + VERDICT_NOTE), ""]
-    if absent:
-        parts += [f"Not recorded in these cells: {', '.join(absent)}.", ""]
+    parts += unshown_md(df, absent)
     for scene in scenes:
         g = d[d["scene"] == scene]
         if len(g):

@@ -105,9 +105,14 @@ def reference_md(df, rel_csv: str | None = None, cells: list | None = None) -> l
     if "ref_rmse" not in df.columns or not df["ref_rmse"].notna().any():
         return ["The cells do not record `ref_rmse` (older format): the reference's own noise "
                 "is not checked here.", ""]
-    warn = verdicts.ref_warnings_md(df, cells)
+    warn, unchecked = verdicts.ref_warnings_md(df, cells), verdicts.ref_unchecked(df)
+    if unchecked == len(df):  # every method's error NaN: nothing to hold the reference's to
+        return ["No cell records a finite error for its method (NaN or Inf): the reference's "
+                "own noise cannot be checked here.", ""]
     if not warn:
-        return ["No cell's reference error exceeds 10 % of the method's.", ""]
+        return ["No cell's reference error exceeds 10 % of the method's"
+                + (f" ({counted(unchecked, 'cell')} without a finite error not checked)."
+                   if unchecked else "."), ""]
     return (["Reference too noisy for these cells (its relMSE over surface pixels above "
              "0.1 · relmse_surface, or ref_rmse² > 0.1 · rmse² where a cell lacks it; the "
              "reference's variance scales as 1 / ref_spp, its cost as ref_spp):", ""] + warn
@@ -159,7 +164,9 @@ def build_readme(results: Path, sweep_dir: Path, headline_spp: int = 64,
     else:
         parts += [f"## Headline: every method × every scene at {spp} spp", ""]
         if rank != rank_by:
-            parts += [f"(`{rank_by}` is not recorded in these cells: ranked by `{rank}`.)", ""]
+            why = ("is not finite in any cell" if rank_by in df.attrs.get("recorded", ())
+                   else "is not recorded in these cells")
+            parts += [f"(`{rank_by}` {why}: ranked by `{rank}`.)", ""]
         parts += headline.headline_md(df, spp, rank, scene_columns=scene_columns(cells))
         parts += ["### Reference noise", ""] + reference_md(df, rel(paths["reference_noise"]),
                                                             cells)

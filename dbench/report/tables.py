@@ -127,7 +127,9 @@ def cells_frame(cells: list[dict]) -> pd.DataFrame:
     ``render_measured_s`` the measured one), ``gradient_s`` the per-frame cost of the re-shaded
     gradient samples where the method uses them, and ``total_s`` = ``render_s`` + ``time_s`` +
     ``gradient_s``. The temporal metrics are kept only when some cell has them (sequence
-    scenes)."""
+    scenes). ``attrs["recorded"]``: the metric and time columns some finished cell holds a
+    number for, NaN included (a NaN is a value the cell computed, a missing key one it never
+    did: :func:`unshown_md` tells them apart)."""
     ok = [c for c in cells if isinstance(c, dict) and c.get("status") == "ok"]
     cols = ID_COLUMNS + [k for m in COLUMNS for k in (m, m + "_ci")] + TIME_COLUMNS + [
         "n_nonfinite"]
@@ -139,9 +141,27 @@ def cells_frame(cells: list[dict]) -> pd.DataFrame:
                      "render_variant", "device", "backend"):
             df[c] = df[c].astype(float) if c != "spp" else df[c].astype(int)
     df = _model_render_time(df).drop(columns=["render_plain_s", "stats_s"])
-    drop = [k for m in TEMPORAL if df[m].isna().all() for k in (m, m + "_ci")]
+    recorded = frozenset(m for m in (*COLUMNS, *TIME_COLUMNS) for c in ok
+                         if isinstance(c.get(m), (int, float)) and not isinstance(c.get(m), bool))
+    drop = [k for m in TEMPORAL if m not in recorded for k in (m, m + "_ci")]
     df = df.drop(columns=drop)
-    return df.sort_values(["scene", "spp", "method"], kind="stable").reset_index(drop=True)
+    df = df.sort_values(["scene", "spp", "method"], kind="stable").reset_index(drop=True)
+    df.attrs["recorded"] = recorded
+    return df
+
+
+def unshown_md(df: pd.DataFrame, columns: list[str], lead: str = "Not recorded in these cells"
+               ) -> list[str]:
+    """Why ``columns`` (metrics no cell of ``df`` holds a finite value of) are not shown, as
+    Markdown lines: those no finished cell records (older cells, another kind of scene) after
+    ``lead``, those every cell that records them holds as NaN or Inf (``attrs["recorded"]``,
+    :func:`cells_frame`) named as such; [] when ``columns`` is empty."""
+    recorded = df.attrs.get("recorded", frozenset())
+    absent = [c for c in columns if c not in recorded]
+    nan = [c for c in columns if c in recorded]
+    return ([f"{lead}: {', '.join(absent)}.", ""] if absent else []) + (
+        [f"Not finite in any cell that records it (NaN or Inf): {', '.join(nan)}.", ""]
+        if nan else [])
 
 
 def convergence_table(df: pd.DataFrame, metric: str, ci: bool = True) -> pd.DataFrame:

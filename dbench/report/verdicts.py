@@ -333,6 +333,24 @@ def next_pow2(x: float) -> int:
     return int(2 ** math.ceil(math.log2(max(x, 1.0))))
 
 
+def ref_share(r: Any) -> tuple[float, str]:
+    """(share, share_on) of one cell's row (:func:`ref_noise_frame`): the reference's error
+    over the method's, NaN (share_on "") where the row lacks a finite pair of the two."""
+    ref, err = num(r.get("ref_rmse")), num(r.get("rmse"))
+    ref_rel, rel = num(r.get("ref_relmse_surface")), num(r.get("relmse_surface"))
+    if math.isfinite(ref_rel) and math.isfinite(rel) and rel > 0:
+        return ref_rel / rel, "relmse_surface"
+    if math.isfinite(ref) and math.isfinite(err) and err > 0:
+        return ref * ref / (err * err), "rmse"
+    return math.nan, ""
+
+
+def ref_unchecked(df: pd.DataFrame) -> int:
+    """How many cells of ``df`` :func:`ref_noise_frame` cannot check (no finite pair of the
+    reference's and the method's error: a method's NaN output)."""
+    return sum(not math.isfinite(ref_share(r)[0]) for _, r in df.iterrows())
+
+
 def ref_noise_frame(df: pd.DataFrame) -> pd.DataFrame:
     """Cells whose reference error exceeds :data:`REF_SHARE` of the method's, with the
     ``--ref-spp`` that would bring it under: ref_spp · share / 0.1, rounded up to a power of two
@@ -349,13 +367,7 @@ def ref_noise_frame(df: pd.DataFrame) -> pd.DataFrame:
     rows = []
     for _, r in df.iterrows():
         ref, err, n = num(r.get("ref_rmse")), num(r.get("rmse")), num(r.get("ref_spp"))
-        ref_rel, rel = num(r.get("ref_relmse_surface")), num(r.get("relmse_surface"))
-        if math.isfinite(ref_rel) and math.isfinite(rel) and rel > 0:
-            share, on = ref_rel / rel, "relmse_surface"
-        elif math.isfinite(ref) and math.isfinite(err) and err > 0:
-            share, on = ref * ref / (err * err), "rmse"
-        else:
-            continue
+        share, on = ref_share(r)
         if share > REF_SHARE:
             need = next_pow2(n * share / REF_SHARE) if math.isfinite(n) and n > 0 else np.nan
             rows.append({"scene": r["scene"], "spp": int(r["spp"]), "method": r["method"],
@@ -456,4 +468,4 @@ __all__ = ["METRICS", "HEADLINE", "HIGHER_IS_BETTER", "DEFINITIONS", "TIME", "he
            "TIE_WORDS", "marked", "rank_groups", "ranking_line", "ranking_metric", "ci_kind_text",
            "reference_text", "reference_summary", "ref_noise_frame", "ref_warnings_md",
            "ref_cost_text", "seconds_text", "headline_spp", "expected_grid", "grid_status",
-           "grid_status_text", "missing_md", "next_pow2", "finite"]
+           "grid_status_text", "missing_md", "next_pow2", "finite", "ref_share", "ref_unchecked"]

@@ -54,6 +54,20 @@ def test_a_sweep_whose_every_value_is_nan_is_reported_without_a_figure(tmp_path)
     md = _report(tmp_path, cells, ["cornell"], ["noisy", "jbf"], [4, 16])
     assert "No convergence figure" in md
     assert not (tmp_path / "results" / "sweep" / "convergence.png").exists()
+    # the cells record every metric, as NaN: never "not recorded", never a check that
+    # could not be made said as passed
+    assert "Not recorded in these cells" not in md and "is not recorded in these cells" not in md
+    assert "Not finite in any cell that records it (NaN or Inf): rmse, rmse_surface" in md
+    assert "(`relmse` is not finite in any cell: ranked by `rmse`.)" in md
+    assert "No cell's reference error exceeds" not in md
+    assert "the reference's own noise cannot be checked here" in md
+
+
+def test_cells_whose_error_is_nan_are_not_counted_as_a_checked_reference(tmp_path):
+    cells = [_cell("cornell", 4, "noisy"), _cell("cornell", 4, "jbf", math.nan)]
+    md = _report(tmp_path, cells, ["cornell"], ["noisy", "jbf"], [4])
+    assert ("No cell's reference error exceeds 10 % of the method's (1 cell without a finite "
+            "error not checked).") in md
 
 
 def test_one_cell_is_one_scene_one_label_one_cell_in_the_words(tmp_path):
@@ -125,3 +139,4 @@ def test_a_sequence_scene_in_the_main_sweep_shows_its_temporal_metrics(tmp_path)
     assert "| t_rmse | tpsnr |" in header("orbit")
     assert "t_rmse" not in header("cornell") and "| flip |" in header("cornell")
     assert "Not recorded in these cells: cvvdp." in md
+
