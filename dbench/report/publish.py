@@ -298,7 +298,7 @@ def other_sweep_md(results: Path, sweep_dir: Path, rank_by: str = "relmse") -> l
     transient = any(_is_transient(str(c.get("scene"))) for c in cells)
     extras = []
     if config.get("frames"):
-        extras.append(f"first {config['frames']} frames")
+        extras.append(f"first {counted(config['frames'], 'frame')}")
     if config.get("bins"):
         extras.append(f"{config['bins']} time bins")
     if wall_text(info, cells):

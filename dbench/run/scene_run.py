@@ -50,7 +50,7 @@ def run_scene(out: Path, req: RunRequest, scene, instances, labels, runnable,
     from . import harness, identity
     from .. import registry
     from ..report import run_report as report
-    from ..report.formats import write_csv
+    from ..report.formats import counted, write_csv
     from .machine import machine_info
     from .inputs import load_seeds
     from .harness import cell_record
@@ -113,7 +113,7 @@ def run_scene(out: Path, req: RunRequest, scene, instances, labels, runnable,
     if is_sequence:
         from ..report.sequence_figures import plot_errors, strip
         runs = dict(outputs)
-        title = f"{scene.name}, {req.spp} spp, {req.res.text} px, {len(frame)} frames"
+        title = f"{scene.name}, {req.spp} spp, {req.res.text} px, {counted(len(frame), 'frame')}"
         plot_errors(runs, out / "error_per_frame.png", title=title,
                     events=frame.meta.get("events"))
         strip(frame, runs, out / "comparison.png", title=title)
@@ -255,11 +255,13 @@ def judged_ref_rmse(seq) -> float | None:
 
 
 def sequence_window(n_frames: int) -> str:
+    from ..report.formats import counted
     from .sequence_run import WARMUP
 
     if n_frames > WARMUP:
         return f"1 per frame; metrics and time over frames {WARMUP}-{n_frames - 1} of {n_frames}"
-    return (f"1 per frame; metrics and time over all {n_frames} frame(s) (no more frames than "
+    return (f"1 per frame; metrics and time over all {counted(n_frames, 'frame')} (no more "
+            f"frames than "
             f"the {WARMUP}-frame warm-up; frames 0-1 first run once untimed, then a reset)")
 
 

@@ -93,13 +93,22 @@ def test_a_one_pixel_image_simply_works(renderer, tmp_path, capsys):
 
 
 @pytest.mark.mitsuba
-def test_one_frame_sequence_says_what_it_scored(renderer, tmp_path):
+def test_one_frame_sequence_says_what_it_scored(renderer, tmp_path, monkeypatch):
+    from dbench.report import sequence_figures
+
+    titles = []
+    for name in ("plot_errors", "strip"):  # the figures' titles, as drawn
+        def drawn(*a, _f=getattr(sequence_figures, name), title="", **k):
+            titles.append(title)
+            return _f(*a, title=title, **k)
+        monkeypatch.setattr(sequence_figures, name, drawn)
     argv = ["run", "--method", "accumulate", "--scene", "flicker", "--spp", "1", "--res", "8",
             "--frames", "1", "--ref-spp", "16", "--cache", str(tmp_path / "cache"), "--out",
             str(tmp_path / "out"), "--quiet"]
     assert cli.main(argv) == 0
+    assert len(titles) == 2 and all(t.endswith(", 1 frame") for t in titles), titles
     text = (tmp_path / "out" / "report.md").read_text()
-    assert "over all 1 frame(s)" in text and "≥ 8 of 1" not in text
+    assert "over all 1 frame (" in text and "≥ 8 of 1" not in text and "frame(s)" not in text
 
 
 @pytest.mark.mitsuba

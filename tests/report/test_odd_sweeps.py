@@ -140,3 +140,16 @@ def test_a_sequence_scene_in_the_main_sweep_shows_its_temporal_metrics(tmp_path)
     assert "t_rmse" not in header("cornell") and "| flip |" in header("cornell")
     assert "Not recorded in these cells: cvvdp." in md
 
+
+def test_a_sweep_of_one_frame_says_one_frame(tmp_path):
+    from dbench.report import publish
+
+    sweep = tmp_path / "results" / "sweep-seq"
+    p = sweep / "cells" / "orbit" / "00001spp" / "noisy.json"
+    p.parent.mkdir(parents=True)
+    p.write_text(json.dumps({**_cell("orbit", 1, "noisy"), "frames": 1}))
+    (sweep / "sweep.json").write_text(json.dumps({"config": {
+        "labels": ["noisy"], "methods": ["noisy"], "scenes": ["orbit"], "spp": [1], "res": 16,
+        "seeds": 1, "seed": 0, "repeats": 1, "frames": 1}}))
+    text = "\n".join(publish.other_sweep_md(tmp_path / "results", sweep))
+    assert "first 1 frame;" in text and "1 frames" not in text
