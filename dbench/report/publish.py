@@ -188,8 +188,8 @@ def build_readme(results: Path, sweep_dir: Path, headline_spp: int = 64,
               "output)\" where the cell's outputs held NaN or Inf).", ""]
     for metric in README_CONVERGENCE:
         if metric in df.columns and df[metric].notna().any():
-            parts += [f"### {metric.upper()} (rows scene/method, columns spp)", "",
-                      markdown_table(tables.convergence_table_md(df, metric)), ""]
+            parts += [f"### {metric.upper()} (rows scene/method, columns spp)", ""
+                      ] + tables.convergence_md(df, metric, cells)
     others = [m for m in verdicts.METRICS if f"convergence_{m}" in paths
               and m not in README_CONVERGENCE]
     parts += ["Other metrics (CSV, numbers with `_ci` columns): " + ", ".join(
@@ -332,8 +332,8 @@ def other_sweep_md(results: Path, sweep_dir: Path, rank_by: str = "relmse") -> l
         "rmse", "relmse", "ssim", "time_s")
     for metric in shown:
         if metric in df.columns and df[metric].notna().any():
-            parts += [f"### {metric.upper()} (rows scene/method, columns spp)", "",
-                      markdown_table(tables.convergence_table_md(df, metric)), ""]
+            parts += [f"### {metric.upper()} (rows scene/method, columns spp)", ""
+                      ] + tables.convergence_md(df, metric, cells)
     return parts
 
 

@@ -14,7 +14,7 @@ Plots live in :mod:`dbench.report.plots`; verdicts (ties, rankings) in
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import Any, Collection, Sequence
 
 import numpy as np
 import pandas as pd
@@ -179,13 +179,26 @@ def convergence_table(df: pd.DataFrame, metric: str, ci: bool = True) -> pd.Data
     return out.reset_index()
 
 
-#: What a convergence entry says where a cell exists but has no value of the metric: "—" is
-#: kept for "no cell", so a finished cell never reads as one that was not run.
-NONFINITE, NO_VALUE = "no value (non-finite output)", "no value"
+#: What a convergence entry says where a cell exists but has no value of the metric, and where
+#: the method does not apply to the scene (its cell is skipped): "—" is kept for "no cell", so
+#: a finished or skipped cell never reads as one that was not run.
+NONFINITE, NO_VALUE, NOT_APPLICABLE = "no value (non-finite output)", "no value", "n/a"
+#: The line under a convergence table that holds :data:`NOT_APPLICABLE`.
+NOT_APPLICABLE_NOTE = ("n/a: the method does not apply to the scene (its cell is skipped, "
+                       "not run); —: no cell.")
 
 
-def convergence_table_md(df: pd.DataFrame, metric: str) -> pd.DataFrame:
+def skipped_keys(cells: Sequence[dict]) -> set[tuple[str, str, str]]:
+    """(scene, method label, ``<spp> spp``) of every skipped cell: a method that does not apply
+    to the scene (a temporal method on a still image)."""
+    return {(str(c.get("scene")), str(c.get("method")), f"{c.get('spp')} spp")
+            for c in cells if isinstance(c, dict) and c.get("status") == "skipped"}
+
+
+def convergence_table_md(df: pd.DataFrame, metric: str,
+                         skipped: Collection[tuple[str, str, str]] = ()) -> pd.DataFrame:
     """Like :func:`convergence_table` with ``mean ± ci`` strings: ``—`` where no cell,
+    :data:`NOT_APPLICABLE` where the cell is one of ``skipped`` (:func:`skipped_keys`),
     :data:`NONFINITE` where the cell's outputs held non-finite values (its metrics are NaN,
     README.md "Metrics"), :data:`NO_VALUE` where the cell has no value of ``metric``."""
     t = convergence_table(df, metric)
@@ -195,10 +208,20 @@ def convergence_table_md(df: pd.DataFrame, metric: str) -> pd.DataFrame:
     held = {(r.scene, r.method, f"{r.spp} spp"): n for r, n in zip(df.itertuples(), nonfinite)}
     for c in spps:
         cis = t[c + "_ci"] if c + "_ci" in t.columns else [np.nan] * len(t)
-        out[c] = [fmt_value(m, h) if np.isfinite(m) or (s, k, c) not in held else
-                  NONFINITE if held[(s, k, c)] > 0 else NO_VALUE
+        out[c] = [fmt_value(m, h) if np.isfinite(m) else
+                  (NONFINITE if held[(s, k, c)] > 0 else NO_VALUE) if (s, k, c) in held else
+                  NOT_APPLICABLE if (s, k, c) in skipped else "—"
                   for s, k, m, h in zip(t["scene"], t["method"], t[c], cis)]
     return out
+
+
+def convergence_md(df: pd.DataFrame, metric: str, cells: Sequence[dict]) -> list[str]:
+    """The Markdown convergence table of ``metric`` (:func:`convergence_table_md`, the cells
+    skipped in ``cells`` marked :data:`NOT_APPLICABLE`) and, where it holds one, the line
+    that says what it means."""
+    t = convergence_table_md(df, metric, skipped_keys(cells))
+    marked = (t.drop(columns=["scene", "method"]) == NOT_APPLICABLE).to_numpy().any()
+    return [markdown_table(t), ""] + ([NOT_APPLICABLE_NOTE, ""] if marked else [])
 
 
 def noisy_fit(df: pd.DataFrame, scene: str, metric: str = "rmse") -> tuple[float, float] | None:
@@ -290,7 +313,8 @@ def headline_table(df: pd.DataFrame, spp: int) -> pd.DataFrame:
 
 def write_tables(df: pd.DataFrame, out: Path) -> dict[str, Path]:
     """CSV files of every table under ``out``; returns their paths. A convergence CSV is
-    written for each metric some cell records (numbers, with ``_ci`` columns); one an earlier
+    written for each metric some cell records (numbers, with ``_ci`` columns; none without a
+    finished cell, whose tables would be headers alone, never linked); one an earlier
     report wrote for a metric these cells do not record is removed, never left with the old
     cells' numbers."""
     from .verdicts import ref_noise_frame
@@ -299,7 +323,9 @@ def write_tables(df: pd.DataFrame, out: Path) -> dict[str, Path]:
     every_cell = records.judged()  # written even when no cell has a value
     for metric in COLUMNS:
         p = out / f"convergence_{metric}.csv"
-        if metric in df.columns and (df[metric].notna().any() or metric in every_cell):
+        # without a finished cell a table would be its header alone: none is written
+        if len(df) and metric in df.columns and (df[metric].notna().any()
+                                                 or metric in every_cell):
             write_csv(p, convergence_table(df, metric))
             paths[f"convergence_{metric}"] = p
         else:
@@ -320,7 +346,8 @@ def convergence_plot(df: pd.DataFrame, path: Path) -> bool:  # kept for callers 
     return plot(df, path)
 
 
-__all__ = ["NONFINITE", "NO_VALUE", "cells_frame", "convergence_table", "convergence_table_md",
+__all__ = ["NONFINITE", "NO_VALUE", "NOT_APPLICABLE", "NOT_APPLICABLE_NOTE", "cells_frame",
+           "convergence_table", "convergence_table_md", "skipped_keys", "convergence_md",
            "noisy_fit",
            "render_cost_per_spp", "equal_time_table", "equal_time_md", "equal_time_gaps",
            "headline_table", "write_tables", "convergence_plot", "markdown_table"]

@@ -47,6 +47,8 @@ def test_a_sweep_without_finished_cells_draws_no_empty_figure_and_says_why(tmp_p
     assert "No convergence figure: no finished cell records a finite rmse" in md
     page = (tmp_path / "results" / "index.html").read_text(encoding="utf-8")
     assert ".png" not in page
+    # no table of headers alone is written, nor linked
+    assert ".csv)" not in md and not list(sweep.glob("tables/convergence_*.csv"))
 
 
 def test_a_sweep_whose_every_value_is_nan_is_reported_without_a_figure(tmp_path):
@@ -153,3 +155,16 @@ def test_a_sweep_of_one_frame_says_one_frame(tmp_path):
         "seeds": 1, "seed": 0, "repeats": 1, "frames": 1}}))
     text = "\n".join(publish.other_sweep_md(tmp_path / "results", sweep))
     assert "first 1 frame;" in text and "1 frames" not in text
+
+
+def test_a_method_that_does_not_apply_reads_n_a_in_the_convergence_tables(tmp_path):
+    skipped = [{"status": "skipped", "scene": "mirrors", "spp": s, "method": "svgf",
+                "reason": "sequence only"} for s in (4, 16)]
+    cells = [_cell(sc, s, m) for sc in ("cornell", "mirrors") for s in (4, 16)
+             for m in ("noisy", "svgf") if (sc, m) != ("mirrors", "svgf")]
+    del cells[1]  # cornell svgf at 4 spp: no cell
+    md = _report(tmp_path, cells + skipped, ["cornell", "mirrors"], ["noisy", "svgf"], [4, 16])
+    table = md[md.index("### RMSE (rows"):md.index("### RELMSE (rows")]
+    assert "| mirrors | svgf | n/a | n/a |" in table  # does not apply
+    assert "| cornell | svgf | — | 0.03 ± 0.0003 |" in table  # no cell
+    assert "n/a: the method does not apply to the scene (its cell is skipped, not run)" in table
