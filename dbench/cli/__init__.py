@@ -28,6 +28,11 @@ from . import streams
 from .args import parse_params
 from .parser import PLUGIN_HELP, build_parser
 
+#: The commands that keep the libraries' warnings, Mitsuba's log lines included, in a log
+#: beside their output (run.log, sweep.log, export.log, stress.log): under --quiet none of them
+#: shows those lines on the terminal (dbench/datasets/mitsuba_log.py).
+LOGGED = ("run", "sweep", "export", "stress")
+
 
 def split_plugin_args(argv: Sequence[str]) -> tuple[list[str], list[str]]:
     """(argv without ``--plugin X`` / ``--plugin=X``, the plugin specs): the option is taken
@@ -114,10 +119,10 @@ def _main(argv: Sequence[str] | None) -> int:
         os.environ["DBENCH_RENDER_DEVICE"] = render_device
     if probe_store:
         os.environ[PROBE_STORE_ENV] = str(probe_store)
-    # --quiet: Mitsuba's own log lines are kept in the run's run.log or the sweep's sweep.log,
-    # not shown (sweep workers inherit it: dbench/datasets/mitsuba_log.py); the commands that
-    # keep no log (export, stress) show them still, as nowhere else would hold them
-    if getattr(args, "quiet", False) and args.command in ("run", "sweep"):
+    # --quiet: Mitsuba's own log lines are kept in the command's log beside its output (run.log,
+    # sweep.log, export.log, stress.log), not shown (sweep workers inherit it:
+    # dbench/datasets/mitsuba_log.py)
+    if getattr(args, "quiet", False) and args.command in LOGGED:
         os.environ[QUIET_ENV] = "1"
     else:
         os.environ.pop(QUIET_ENV, None)

@@ -76,9 +76,31 @@ def cmd_render(args: argparse.Namespace) -> int:
     return 0
 
 
+def _kept(caught: list[str], log: Path) -> str:
+    """Write ``caught`` (the library warnings a ``--quiet`` command kept off the terminal,
+    dbench/run/capture.py) to ``log`` beside the command's output; the line that says so."""
+    from ..io import write_text
+    from ..run.capture import count_text, log_text
+
+    write_text(log, log_text(caught))
+    return count_text(caught, str(log))
+
+
 def cmd_export(args: argparse.Namespace) -> int:
     """Write a scene's renders (noisy at each spp, features, emitter, statistics, reference)
-    in the OIDN folder layout that ``--scene DIR`` reads (dbench.datasets.folders.export)."""
+    in the OIDN folder layout that ``--scene DIR`` reads (dbench.datasets.folders.export).
+    Under ``--quiet`` the libraries' warnings (Mitsuba's lines on a scene file) go to
+    ``export.log`` in ``--out``, counted on the terminal."""
+    import contextlib
+
+    from ..run.capture import library_warnings
+
+    with (library_warnings() if args.quiet else contextlib.nullcontext([])) as caught:
+        return _export(args, caught)
+
+
+def _export(args: argparse.Namespace, caught: list[str]) -> int:
+    """:func:`cmd_export` with ``caught``, the library warnings kept so far."""
     import re
 
     from .. import datasets
@@ -139,6 +161,8 @@ def cmd_export(args: argparse.Namespace) -> int:
                                       description=scene.description, scene=scene.name))
     print(f"exported {scene.name} at {res.text} px, spp {', '.join(map(str, spps))}, "
           f"reference {ref_spp} spp: {len(written)} files in {out}")
+    if caught:
+        print(_kept(caught, out / "export.log"))
     return 0
 
 
@@ -263,8 +287,8 @@ def cmd_stress(args: argparse.Namespace) -> int:
     write_text(out, text)
     print("\n".join(text.splitlines()[:3 + len(results) + 4]))
     print(f"written: {out}")
-    if caught:
-        print(f"{len(caught)} library warnings on the hostile inputs (not shown: --quiet)")
+    if caught:  # kept beside the matrix: stress.md's stress.log
+        print("on the hostile inputs: " + _kept(caught, out.with_suffix(".log")))
     failed = sum(o.status == "fail" for r in results.values() for o in r.values())
     return 0 if failed == 0 else 4
 

@@ -5,7 +5,8 @@ Mitsuba prints its warnings itself (a deprecated parameter of a user's scene fil
 output, past ``--quiet`` and past the run's files. :func:`route` replaces that appender, once a
 process, by one that hands every line to the Python logger ``mitsuba`` (level WARNING, or ERROR
 for Mitsuba's errors): inside :func:`dbench.run.capture.library_warnings` it is kept, in order,
-with the other libraries' warnings in ``run.log`` / ``sweep.log`` and counted in ``report.md``;
+with the other libraries' warnings in ``run.log`` / ``sweep.log`` (under ``--quiet``,
+``export.log`` / ``stress.log``) and counted;
 and it is shown on standard error as Mitsuba showed it, unless the command runs under
 ``--quiet`` (README.md, "Usage"): the command line sets :data:`QUIET_ENV` for the command's
 duration, and a sweep's worker processes inherit it.
@@ -17,7 +18,7 @@ import os
 import sys
 
 #: Set (to "1") by the command line for a command run with ``--quiet``: Mitsuba's lines are
-#: then kept (run.log, sweep.log) and not shown.
+#: then kept (run.log, sweep.log, export.log, stress.log) and not shown.
 QUIET_ENV = "DBENCH_QUIET"
 #: The Python logger Mitsuba's lines go to.
 LOGGER = "mitsuba"

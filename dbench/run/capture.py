@@ -70,6 +70,7 @@ def log_text(lines: list[str]) -> str:
     return f"{_count(len(lines))}\n" + "".join(f"{ln}\n" for ln in lines)
 
 
-def count_text(lines: list[str]) -> str:
-    """``3 library warnings, see run.log`` (or ``no library warnings``)."""
-    return f"{_count(len(lines))}, see run.log" if lines else "no library warnings"
+def count_text(lines: list[str], where: str = "run.log") -> str:
+    """``3 library warnings, see run.log`` (``where``: the log that holds them; or ``no
+    library warnings``)."""
+    return f"{_count(len(lines))}, see {where}" if lines else "no library warnings"

@@ -77,3 +77,50 @@ def test_nested_blocks_keep_a_logging_record_once():
         logging.getLogger("some.library").warning("after")
     assert inner == ["WARNING some.library: once"]
     assert outer == ["WARNING some.library: after"]
+
+
+@pytest.mark.mitsuba
+def test_a_quiet_export_keeps_the_mitsuba_warning_in_export_log(renderer, tmp_path, capfd):
+    scene = tmp_path / "warns.xml"
+    scene.write_text(XML)
+    out = tmp_path / "folder"
+    assert main(["export", str(scene), "--out", str(out), "--spp", "2", "--res", "12",
+                 "--ref-spp", "16", "--cache", str(tmp_path / "cache"), "--quiet"]) == 0
+    cap = capfd.readouterr()
+    assert WARNED not in cap.out + cap.err
+    log = (out / "export.log").read_text(encoding="utf-8").splitlines()
+    assert log[0] == "1 library warning" and WARNED in log[1], log
+    assert f"1 library warning, see {out / 'export.log'}" in cap.out
+
+
+#: A method that loads the scene file above each time it runs: Mitsuba warns while stress runs.
+PLUGIN = f'''
+import numpy as np
+from dbench.registry import Denoiser, register
+
+@register("loads-xml")
+class LoadsXml(Denoiser):
+    kinds = {{"steady"}}
+    needs = {{"color"}}
+
+    def denoise(self, data):
+        from dbench.datasets.mitsuba_env import mitsuba
+        mitsuba().load_string({XML!r})
+        return np.asarray(data.color, dtype=np.float32)
+'''
+
+
+@pytest.mark.mitsuba
+def test_a_quiet_stress_keeps_the_mitsuba_warnings_in_stress_log(renderer, tmp_path, capfd):
+    plugin = tmp_path / "loads_xml.py"
+    plugin.write_text(PLUGIN)
+    out = tmp_path / "stress.md"
+    assert main(["--plugin", str(plugin), "stress", "--methods", "loads-xml", "--out", str(out),
+                 "--quiet"]) in (0, 4)
+    cap = capfd.readouterr()
+    assert WARNED not in cap.out + cap.err
+    log = (tmp_path / "stress.log").read_text(encoding="utf-8")
+    n = log.count(WARNED)
+    assert n >= 1 and log.splitlines()[0].endswith(("library warning", "library warnings"))
+    assert f"on the hostile inputs: {log.splitlines()[0]}, see {tmp_path / 'stress.log'}" \
+        in cap.out

@@ -144,7 +144,9 @@ def test_quiet_stress_prints_no_library_warnings(tmp_path, capfd, monkeypatch):
     assert main(["stress", "--methods", "jbf", "--quiet", "--out", str(tmp_path)]) == 0
     captured = capfd.readouterr()
     assert "Warning" not in captured.err + captured.out
-    assert "library warnings on the hostile inputs" in captured.out
+    assert "on the hostile inputs: " in captured.out  # counted, and kept beside stress.md
+    assert f"see {tmp_path / 'stress.log'}" in captured.out
+    assert "RuntimeWarning" in (tmp_path / "stress.log").read_text(encoding="utf-8")
     assert (tmp_path / "stress.md").exists()
 
 
