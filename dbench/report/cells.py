@@ -335,8 +335,41 @@ def problems_md(cells: list[dict], problems: list[str], missing) -> list[str]:
     return lines
 
 
+def load_sweep(sweep_dir: Path) -> tuple[dict, list[dict], list[str]]:
+    """(sweep.json, cells, problems): the cells and one line per file that is not a cell
+    (:func:`dbench.report.cells.load_cells_checked`)."""
+    sweep_dir = Path(sweep_dir)
+    info = read_cell(sweep_dir / "sweep.json") or {}
+    info = info if isinstance(info, dict) else {}
+    cells, problems = load_cells_checked(sweep_dir)
+    return info, list(cells), [str(p) for p in problems]
+
+
+def wall_text(info: dict, cells: list[dict] | None = None) -> str:
+    """The wall time the sweep's runs took (recorded in sweep.json by each run) and the time
+    its references took to render (each distinct reference's ``ref_render_s`` from the cells,
+    also when it was rendered by an earlier, interrupted run); '' when nothing was recorded."""
+    runs = [r for r in info.get("runs", []) if isinstance(r, dict)]
+    refs: dict[tuple, float] = {}
+    for c in cells or []:
+        t = c.get("ref_render_s")
+        if isinstance(t, (int, float)) and not isinstance(t, bool):
+            refs[(c.get("scene"), c.get("ref_spp"), c.get("ref_seed"))] = float(t)
+    parts = []
+    if runs:
+        wall = sum(float(r.get("wall_s", 0)) for r in runs)
+        cells_n = sum(int(r.get("cells", 0)) for r in runs)
+        parts.append(f"wall time {wall:.0f} s for the last {counted(cells_n, 'cell')} "
+                     f"computed ({counted(len(runs), 'run')})")
+    if refs:
+        parts.append(f"{counted(len(refs), 'reference')} rendered in "
+                     f"{sum(refs.values()):.0f} s in all")
+    return ", ".join(parts + machines_text(cells or []) + devices_text(cells or [])
+                     + variants_text(cells or []))
+
+
 __all__ = ["NUMERIC_KEYS", "cell_problem", "load_cells", "load_cells_checked", "read_cell",
            "expected_grid", "cell_key", "grid_status", "grid_status_text", "missing_md",
            "problems_md", "PER_CELL", "METHOD_KEYS", "mixed_settings", "mixed_text", "mixed_md",
            "device_label", "devices_text", "machines_text", "variants_text",
-           "input_warnings"]
+           "input_warnings", "load_sweep", "wall_text"]

@@ -18,28 +18,18 @@ from pathlib import Path
 from .. import io
 from ..resolution import size_text
 from . import headline, plots, tables, verdicts
-from .cells import (devices_text, input_warnings, load_cells_checked, machines_text, mixed_md,
-                    problems_md, read_cell, variants_text)
+from .cells import (input_warnings, load_sweep, mixed_md, problems_md,  # noqa: F401 - load_sweep,
+                    wall_text)  # wall_text: the module's interface, as before
 from .formats import counted, markdown_code, markdown_table, markdown_text
 from .html import sweep_page
 from .run_report import machine_md, metric_definitions_md
-from .table31 import table31_md
+from .table31 import table31_file, table31_md
 
 #: Metrics shown as Markdown convergence tables in the README (others: CSV links).
 README_CONVERGENCE = ("rmse", "relmse", "rmse_surface")
 #: Headline columns of published sequence and transient sweeps (steady: verdicts.HEADLINE).
 SEQUENCE_HEADLINE = verdicts.headline_columns("sequence")
 TRANSIENT_HEADLINE = verdicts.headline_columns("transient")
-
-
-def load_sweep(sweep_dir: Path) -> tuple[dict, list[dict], list[str]]:
-    """(sweep.json, cells, problems): the cells and one line per file that is not a cell
-    (:func:`dbench.report.cells.load_cells_checked`)."""
-    sweep_dir = Path(sweep_dir)
-    info = read_cell(sweep_dir / "sweep.json") or {}
-    info = info if isinstance(info, dict) else {}
-    cells, problems = load_cells_checked(sweep_dir)
-    return info, list(cells), [str(p) for p in problems]
 
 
 def _config(info: dict) -> dict:
@@ -56,29 +46,6 @@ def _pick_rank(df, rank_by: str) -> str:
     if rank_by in df.columns and df[rank_by].notna().any():
         return rank_by
     return "rmse"
-
-
-def wall_text(info: dict, cells: list[dict] | None = None) -> str:
-    """The wall time the sweep's runs took (recorded in sweep.json by each run) and the time
-    its references took to render (each distinct reference's ``ref_render_s`` from the cells,
-    also when it was rendered by an earlier, interrupted run); '' when nothing was recorded."""
-    runs = [r for r in info.get("runs", []) if isinstance(r, dict)]
-    refs: dict[tuple, float] = {}
-    for c in cells or []:
-        t = c.get("ref_render_s")
-        if isinstance(t, (int, float)) and not isinstance(t, bool):
-            refs[(c.get("scene"), c.get("ref_spp"), c.get("ref_seed"))] = float(t)
-    parts = []
-    if runs:
-        wall = sum(float(r.get("wall_s", 0)) for r in runs)
-        cells_n = sum(int(r.get("cells", 0)) for r in runs)
-        parts.append(f"wall time {wall:.0f} s for the last {counted(cells_n, 'cell')} "
-                     f"computed ({counted(len(runs), 'run')})")
-    if refs:
-        parts.append(f"{counted(len(refs), 'reference')} rendered in "
-                     f"{sum(refs.values()):.0f} s in all")
-    return ", ".join(parts + machines_text(cells or []) + devices_text(cells or [])
-                     + variants_text(cells or []))
 
 
 def settings_line(config: dict, df, status: dict, rel_name: str, extras=(),
@@ -458,23 +425,6 @@ def statistical_md(df, sweep_dir: Path) -> str:
     if bench:
         parts += ["## Speed at 1280×720", "", bench]
     return "\n".join(parts)
-
-def table31_file(results: Path, sweep_dir: Path) -> Path:
-    """``results/table_3_1.md``: the Table 3.1 layout at every spp of a sequence sweep."""
-    info, cells, _ = load_sweep(sweep_dir)
-    df = tables.cells_frame(cells)
-    rel = Path(sweep_dir).relative_to(results).as_posix()
-    parts = ["# Seed 001's Table 3.1, regenerated", "",
-             f"From the sweep {markdown_code(rel)} "
-             f"({wall_text(info, cells) or 'see its sweep.json'}). "
-             "Scenes: dbench's camera paths (the seed used Sponza, DeleteMe and Dragon); "
-             "single-frame methods run frame by frame beside the temporal ones.", ""]
-    for spp in sorted(df.spp.unique()):
-        parts += table31_md(df, cells, spp)
-    out = results / "table_3_1.md"
-    io.write_text(out, "\n".join(parts))
-    return out
-
 
 def publish(results: str | Path = "results", sweep_dir: str | Path | None = None,
             rank_by: str = "relmse") -> Path:

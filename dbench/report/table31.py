@@ -1,15 +1,18 @@
 """results/table_3_1.md: Table 3.1 of the recurrent-denoising thesis laid out for a sequence sweep
 (per method the mean SSIM over each scene's frames after the warm-up with its interval over
 seeds, the median milliseconds per frame, how the method ran and the device), at every spp of
-the sweep (``publish.table31_file``) or one (:func:`table31_md`, a section of results/README.md)."""
+the sweep (:func:`table31_file`) or one (:func:`table31_md`, a section of results/README.md)."""
 from __future__ import annotations
 
+from pathlib import Path
 
 import pandas as pd
 
+from .. import io
 from ..resolution import size_text
-from . import verdicts
-from .formats import markdown_table
+from . import tables, verdicts
+from .cells import load_sweep, wall_text
+from .formats import markdown_code, markdown_table
 
 
 def table31_md(df, cells: list[dict], spp: int | None = None) -> list[str]:
@@ -57,3 +60,18 @@ def table31_md(df, cells: list[dict], spp: int | None = None) -> list[str]:
             "", markdown_table(pd.DataFrame(order), name_headers=True), ""]
 
 
+def table31_file(results: Path, sweep_dir: Path) -> Path:
+    """``results/table_3_1.md``: the Table 3.1 layout at every spp of a sequence sweep."""
+    info, cells, _ = load_sweep(sweep_dir)
+    df = tables.cells_frame(cells)
+    rel = Path(sweep_dir).relative_to(results).as_posix()
+    parts = ["# Seed 001's Table 3.1, regenerated", "",
+             f"From the sweep {markdown_code(rel)} "
+             f"({wall_text(info, cells) or 'see its sweep.json'}). "
+             "Scenes: dbench's camera paths (the seed used Sponza, DeleteMe and Dragon); "
+             "single-frame methods run frame by frame beside the temporal ones.", ""]
+    for spp in sorted(df.spp.unique()):
+        parts += table31_md(df, cells, spp)
+    out = results / "table_3_1.md"
+    io.write_text(out, "\n".join(parts))
+    return out

@@ -111,7 +111,8 @@ class LoadsXml(Denoiser):
 
 
 @pytest.mark.mitsuba
-def test_a_quiet_stress_keeps_the_mitsuba_warnings_in_stress_log(renderer, tmp_path, capfd):
+def test_a_quiet_stress_keeps_the_mitsuba_warnings_in_stress_log(renderer, isolated, tmp_path,
+                                                                 capfd):
     plugin = tmp_path / "loads_xml.py"
     plugin.write_text(PLUGIN)
     out = tmp_path / "stress.md"

@@ -437,18 +437,20 @@ def test_reference_warning_states_its_cost():
 def test_reports_state_the_variant_that_rendered_the_inputs():
     """Each cell records the Mitsuba variant of its renders; the report counts them and flags
     cells of several variants (their samples and render times differ)."""
+    from dbench.report.cells import variants_text, wall_text
+
     cells = [{"status": "ok", "render_variant": "llvm_ad_rgb"} for _ in range(3)]
-    assert publish.variants_text(cells) == ["inputs rendered by llvm_ad_rgb (3)"]
+    assert variants_text(cells) == ["inputs rendered by llvm_ad_rgb (3)"]
     skipped = [{"status": "skipped"}, {"status": "error", "render_variant": "x"}]
-    assert publish.variants_text(cells + skipped) == publish.variants_text(cells)
-    mixed = publish.variants_text(cells + [{"render_variant": "cuda_ad_rgb"}])[0]
+    assert variants_text(cells + skipped) == variants_text(cells)
+    mixed = variants_text(cells + [{"render_variant": "cuda_ad_rgb"}])[0]
     assert mixed.startswith("inputs rendered by cuda_ad_rgb (1); llvm_ad_rgb (3)")
     assert "render times do not compare" in mixed
-    old = publish.variants_text([{"status": "ok"}, {"render_variant": None}])
+    old = variants_text([{"status": "ok"}, {"render_variant": None}])
     assert old == ["the Mitsuba variant that rendered the inputs is not recorded (2 cells, "
                    "computed before cells recorded it)"]
-    assert publish.variants_text([]) == []
-    assert "inputs rendered by llvm_ad_rgb (3)" in publish.wall_text({}, cells)
+    assert variants_text([]) == []
+    assert "inputs rendered by llvm_ad_rgb (3)" in wall_text({}, cells)
 
 
 def test_the_results_page_shows_its_figures_settings_and_only_links_that_exist(results):

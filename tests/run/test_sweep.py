@@ -41,7 +41,7 @@ def test_sweep_writes_one_cell_per_file_and_resumes(renderer, tmp_path):
     cells = sweep.load_cells(out)
     assert len(cells) == 8 and all(c["status"] == "ok" for c in cells)
     from dbench.run.machine import machine_label
-    from dbench.report.publish import machines_text
+    from dbench.report.cells import machines_text
 
     # every cell and run records where it was timed
     assert all(c["machine"] == machine_label() for c in cells)
