@@ -7,16 +7,11 @@ import json
 import math
 
 from dbench.cli import main
+from sweep_cells import ok_cell  # tests/sweep_cells.py
 
 
 def _cell(scene: str, spp: int, method: str, err: float = 0.03) -> dict:
-    c = {"status": "ok", "scene": scene, "method": method, "base_method": method, "spp": spp,
-         "res": 16, "n_seeds": 1, "seeds": [0], "ci_kind": "block bootstrap", "ref_spp": 64,
-         "ref_rmse": 1e-4, "time_s": 0.01, "time_s_iqr": 0.0, "render_s": 0.01,
-         "n_nonfinite": 0, "params": {}}
-    for k in ("rmse", "rmse_surface", "relmse", "relmse_surface", "ssim", "flip"):
-        c[k], c[k + "_ci"] = err, err * 0.01
-    return c
+    return ok_cell(scene, spp, method, err)
 
 
 def _report(tmp_path, cells, scenes, methods, spp, **info) -> str:

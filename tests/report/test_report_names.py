@@ -10,6 +10,7 @@ import pandas as pd
 
 from dbench.report import headline, publish, run_report as report
 from dbench.report.formats import markdown_table
+from sweep_cells import ok_cell  # tests/sweep_cells.py
 
 # GitHub's table rows split on every "|" that no backslash escapes
 CELL = re.compile(r"(?:\\.|[^|\\])+")
@@ -75,13 +76,7 @@ ODD_METHODS = ["noisy", "*star*", "tick`s", "[l](u)", "#h"]
 
 def _cell(scene: str, spp: int, method: str) -> dict:
     err = 0.05 if method == "noisy" else 0.03 + 0.001 * ODD_METHODS.index(method)
-    c = {"status": "ok", "scene": scene, "method": method, "base_method": "noisy", "spp": spp,
-         "res": 16, "n_seeds": 1, "seeds": [0], "ci_kind": "block bootstrap", "ref_spp": 64,
-         "ref_rmse": 1e-4, "time_s": 0.01, "time_s_iqr": 0.0, "render_s": 0.01,
-         "n_nonfinite": 0, "params": {}}
-    for k in ("rmse", "rmse_surface", "relmse", "relmse_surface", "ssim", "flip"):
-        c[k], c[k + "_ci"] = err, err * 0.01
-    return c
+    return ok_cell(scene, spp, method, err, base_method="noisy")
 
 
 def _sweep(folder, cells, scenes, methods, spp):
