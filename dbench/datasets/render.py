@@ -28,6 +28,7 @@ from functools import lru_cache
 import numpy as np
 
 from .mitsuba_env import mitsuba
+from .nonfinite import zeroed
 from .scenes.record import Scene
 from .render_moments import batch_sums, jit_variant
 from .stats import PowerSums
@@ -222,9 +223,9 @@ def render_passes(scene: Scene, res: Res, spp: int, seed: int = 0,
                 part = batch.sum(axis=1, dtype=np.float64)
                 if not np.isfinite(part).all():
                     # non-finite samples count as 0, as the statistics count them (PowerSums)
-                    finite = np.isfinite(batch)
-                    nonfinite += int(finite.size - np.count_nonzero(finite))
-                    part = np.where(finite, batch, 0.0).sum(axis=1, dtype=np.float64)
+                    clean, n = zeroed(batch)
+                    nonfinite += n
+                    part = clean.sum(axis=1, dtype=np.float64)
                 total += part
             render_s += t1 - t0
             stats_s += time.perf_counter() - t1
