@@ -156,25 +156,27 @@ def mixed_text(mixed: Sequence[tuple[str, str, str, dict]],
                where: str = 'see "Mixed settings" in README.md',
                name: Callable[[Any], str] = markdown_text) -> str:
     """The settings line's warning: who mixes which keys ('' when nothing is mixed); ``name``
-    writes the scenes (:func:`markdown_text` in Markdown, ``str`` on the terminal and in the
-    results page, which escapes HTML itself)."""
+    writes the scenes and the keys (:func:`markdown_text` in Markdown, ``str`` on the terminal
+    and in the results page, which escapes HTML itself): a key names a method's parameter
+    (``params.<name>``), which a plugin may call anything."""
     by: dict[str, list[str]] = {}
     for kind, who, key, _ in mixed:
-        by.setdefault(_who(kind, who, name), []).append(key)
+        by.setdefault(_who(kind, who, name), []).append(name(key))
     return (f"⚠ cells computed with different settings side by side ({where}): "
             + "; ".join(f"{w}: {', '.join(k)}" for w, k in by.items()) if by else "")
 
 
 def mixed_md(mixed: Sequence[tuple[str, str, str, dict]]) -> list[str]:
     """One line per mixed key: each value (shortened) and the cells that hold it, as literal
-    Markdown text (:func:`markdown_text`: the cells name scenes and methods)."""
+    Markdown text (:func:`markdown_text`: the cells name scenes and methods, a key a method's
+    parameter)."""
     def where(cells: list[str]) -> str:
         more = f" and {len(cells) - 3} more" if len(cells) > 3 else ""
         return ", ".join(map(markdown_text, cells[:3])) + more
 
     def short(v: str) -> str:
         return markdown_text(v if len(v) <= 40 else v[:39] + "…")
-    return [f"- {_who(kind, who, markdown_text)}: {key} is "
+    return [f"- {_who(kind, who, markdown_text)}: {markdown_text(key)} is "
             + "; ".join(f"{short(v)} in {where(c)}" for v, c in values.items())
             for kind, who, key, values in mixed]
 

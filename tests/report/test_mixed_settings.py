@@ -52,12 +52,14 @@ def test_cells_of_one_label_or_scene_with_other_settings_are_named(tmp_path):
                    judge_version="j2")]
     text, page = _publish(tmp_path, cells)
     flat = " ".join(text.split())
-    assert ("⚠ cells computed with different settings side by side (see \"Mixed settings\" "
-            "in README.md): `wt`: method_version, params.weight; cornell: judge_version") in flat
+    assert ('⚠ cells computed with different settings side by side (see "Mixed settings" '
+            r"in README.md): `wt`: method\_version, params.weight; cornell: judge\_version"
+            ) in flat
     section = text[text.index("## Mixed settings"):text.index("## Convergence")]
     assert '- `wt`: params.weight is 1.0 in cornell 2 spp; 0.5 in cornell 4 spp' in section
-    assert '- `wt`: method_version is "aaaa" in cornell 2 spp; "bbbb" in cornell 4 spp' in section
-    assert ('- cornell: judge_version is "j1" in 2 spp noisy, 2 spp wt; "j2" in 4 spp noisy, '
+    assert (r'- `wt`: method\_version is "aaaa" in cornell 2 spp; "bbbb" in cornell 4 spp'
+            in section)
+    assert (r'- cornell: judge\_version is "j1" in 2 spp noisy, 2 spp wt; "j2" in 4 spp noisy, '
             '4 spp wt') in section
     assert "⚠ cells computed with different settings side by side" in page  # the results page
     extra = text[text.index("## Sweep `sweep-extra`"):]
@@ -117,10 +119,26 @@ def test_names_in_mixed_settings_and_the_sweep_folder_are_literal_markdown(tmp_p
         p.write_text(json.dumps(c))
     text = publish.publish(tmp_path / "results", sweep).read_text(encoding="utf-8")
     section = text[text.index("## Mixed settings"):text.index("## Convergence")]
-    assert r"- a\_b\*c\*: judge_version is" in section
+    assert r"- a\_b\*c\*: judge\_version is" in section
     assert r"in 2 spp noisy, 2 spp w\`t;" in section  # the cells, as literal text
     assert r'- `` w`t ``: params.weight is 1.0 in a\_b\*c\* 2 spp; "x\_y\_z" in' in section
-    assert r"`` w`t ``: params.weight; a\_b\*c\*: judge_version" in " ".join(text.split())
+    assert r"`` w`t ``: params.weight; a\_b\*c\*: judge\_version" in " ".join(text.split())
     assert "Sweep `` sweep-a`b ``: " in text
     page = (tmp_path / "results" / "index.html").read_text(encoding="utf-8")
     assert r"a\_b" not in page  # the results page escapes HTML, not Markdown
+
+
+def test_a_mixed_key_is_literal_markdown_as_its_values_are(tmp_path):
+    # a key names a method's parameter (params.<name>), which a plugin may call anything: as
+    # written, `a_b*c` would start emphasis in the settings line and in "Mixed settings"
+    cells = [_cell("noisy", 2), _cell("wt", 2, params={"a_b*c": 1.0}), _cell("noisy", 4),
+             _cell("wt", 4, params={"a_b*c": 0.5})]
+    text, page = _publish(tmp_path, cells)
+    section = text[text.index("## Mixed settings"):text.index("## Convergence")]
+    assert r"- `wt`: params.a\_b\*c is 1.0 in cornell 2 spp; 0.5 in cornell 4 spp" in section
+    assert r'(see "Mixed settings" in README.md): `wt`: params.a\_b\*c.' in " ".join(
+        text.split())
+    extra = text[text.index("## Sweep `sweep-extra`"):]
+    assert r"- `wt`: params.a\_b\*c is 1.0" in extra
+    assert "params.a_b*c" not in text
+    assert "`wt`: params.a_b*c" in page and r"a\_b" not in page  # the page escapes HTML
