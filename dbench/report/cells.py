@@ -256,20 +256,29 @@ def variants_text(cells: list[dict]) -> list[str]:
 
 
 def input_warnings(cells: Sequence[dict]) -> list[str]:
-    """``scene at 4, 16 spp: warning`` for each warning the cells recorded of their inputs
+    """``scene: warning`` for each warning the cells recorded of their inputs
     (``input_warnings``, what ``dbench run`` prints: a folder's doubtful reference or normals,
-    NaN or ±Inf samples; dbench/run/inputs.py), once per scene and warning, with the spp
-    whose cells carry it; cells older than the record say nothing."""
+    NaN or ±Inf samples; dbench/run/inputs.py), once per scene and warning however many spp
+    and labels carry it; ``scene at 4, 16 spp: warning`` where it holds at some of the scene's
+    spp only (README.md, "How renders work"). Cells older than the record say nothing."""
     found: dict[tuple[str, str], set[int]] = {}
+    spps: dict[str, set[int]] = {}
     for c in cells:
-        said = c.get("input_warnings") if isinstance(c, dict) else None
+        if not isinstance(c, dict):
+            continue
+        scene, said = str(c.get("scene")), c.get("input_warnings")
+        if isinstance(c.get("spp"), int):
+            spps.setdefault(scene, set()).add(c["spp"])
         for text in said if isinstance(said, list) else []:
-            spp = found.setdefault((str(c.get("scene")), str(text)), set())
+            spp = found.setdefault((scene, str(text)), set())
             if isinstance(c.get("spp"), int):
                 spp.add(c["spp"])
-    return [f"{scene}{' at ' + ', '.join(map(str, sorted(spp))) + ' spp' if spp else ''}: "
-            f"{text}" for (scene, text), spp in sorted(
-                found.items(), key=lambda kv: (kv[0][0], min(kv[1], default=0), kv[0][1]))]
+
+    def at(scene: str, spp: set[int]) -> str:
+        some = spp and spp != spps.get(scene, set())
+        return f" at {', '.join(map(str, sorted(spp)))} spp" if some else ""
+    return [f"{scene}{at(scene, spp)}: {text}" for (scene, text), spp in sorted(
+        found.items(), key=lambda kv: (kv[0][0], min(kv[1], default=0), kv[0][1]))]
 
 
 def grid_status(config: dict, cells: Sequence[dict]) -> dict[str, Any]:

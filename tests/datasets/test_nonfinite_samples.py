@@ -140,8 +140,9 @@ def test_a_run_of_a_sequence_or_a_video_states_them_as_for_an_image(renderer, tm
 
 def test_a_sweep_records_them_in_its_cells_and_says_them(renderer, tmp_path, capsys):
     """A sweep's cells record what their inputs say of themselves (``input_warnings``, as
-    ``dbench run`` prints it), and its summary and README say it, per scene and spp; a sweep
-    over such a scene used to give a clean-looking table."""
+    ``dbench run`` prints it), and its summary and README say it, once per scene (the spp named
+    where it holds at some only); a sweep over such a scene used to give a clean-looking
+    table."""
     import json
     import shutil
 
@@ -163,5 +164,5 @@ def test_a_sweep_records_them_in_its_cells_and_says_them(renderer, tmp_path, cap
                           .read_text())
         said = cell["input_warnings"]  # the sequence's once, summed over its frames
         assert len(said) == 1 and "NaN or ±Inf sample values" in said[0], name
-        line = f"{name} at 2 spp: {said[0]}"
+        line = f"{name}: {said[0]}"  # the sweep's one spp: no spp to name
         assert f"warning: {line}" in out and f"- {line}\n" in readme, (name, out)

@@ -1,0 +1,66 @@
+"""What a sweep's inputs say of themselves (each cell's ``input_warnings``: NaN or ±Inf samples
+counted as 0, a folder's doubtful reference or normals; README.md, "How renders work") in the
+README of ``dbench report`` ("Input warnings"): each distinct warning once per scene, with the
+spp where it holds at some of them only."""
+from __future__ import annotations
+
+import json
+
+from dbench.report import publish
+from sweep_cells import ok_cell  # tests/sweep_cells.py
+
+SPP = [4, 16, 64]
+#: a folder's warning quotes its files' names, which may hold anything HTML reads as markup
+EVERYWHERE = "the reference <ref>.exr & its normals_x are doubtful"
+SOME = "the reference has 16 spp, no more than the noisy input's"
+
+
+def _cells(scene: str = "cornell") -> list[dict]:
+    cells = []
+    for spp in SPP:
+        for method in ("noisy", "jbf"):
+            c = ok_cell(scene, spp, method)
+            c["input_warnings"] = [EVERYWHERE] + ([SOME] if spp <= 16 else [])
+            cells.append(c)
+    return cells
+
+
+def _publish(tmp_path, cells) -> tuple[str, str]:
+    """(README.md, index.html) of ``dbench report`` over a main sweep and one beside it, both
+    holding ``cells``."""
+    results = tmp_path / "results"
+    for name in ("sweep", "sweep-beside"):
+        sweep = results / name
+        sweep.mkdir(parents=True)
+        (sweep / "sweep.json").write_text(json.dumps({"config": {
+            "labels": ["noisy", "jbf"], "methods": ["noisy", "jbf"],
+            "scenes": sorted({c["scene"] for c in cells}), "spp": SPP, "res": 16, "seeds": 1,
+            "seed": 0, "repeats": 1}}))
+        for c in cells:
+            p = sweep / "cells" / c["scene"] / f"{c['spp']:05d}spp" / f"{c['method']}.json"
+            p.parent.mkdir(parents=True, exist_ok=True)
+            p.write_text(json.dumps(c))
+    readme = publish.publish(results).read_text(encoding="utf-8")
+    return readme, (results / "index.html").read_text(encoding="utf-8")
+
+
+def test_the_readme_states_each_warning_once_per_scene(tmp_path):
+    readme, _ = _publish(tmp_path, _cells())
+    for title, end in (("## Input warnings", "## Convergence"),
+                       ("### Input warnings", "### Headline")):
+        section = readme[readme.index(title):]
+        section = section[:section.index(end)]
+        lines = [ln for ln in section.splitlines() if ln.startswith("- ")]
+        # six cells carry the first, four the second: one line each, the spp named where
+        # the warning does not hold at every spp of the scene
+        assert lines == [r"- cornell: the reference \<ref\>.exr \& its normals\_x are doubtful",
+                         "- cornell at 4, 16 spp: the reference has 16 spp, no more than the "
+                         "noisy input's"], (title, section)
+
+
+def test_a_sweep_whose_inputs_said_nothing_has_no_such_section(tmp_path):
+    cells = _cells()
+    for c in cells:
+        del c["input_warnings"]
+    readme, _ = _publish(tmp_path, cells)
+    assert "Input warnings" not in readme
