@@ -281,6 +281,12 @@ def input_warnings(cells: Sequence[dict]) -> list[str]:
         found.items(), key=lambda kv: (kv[0][0], min(kv[1], default=0), kv[0][1]))]
 
 
+#: What the "Input warnings" of the README and of the results page say above their lines;
+#: ``{run}``: ``dbench run`` as code in the page's format.
+INPUT_WARNINGS_INTRO = ("What the inputs of these cells say of themselves, as {run} prints it "
+                        "(their numbers are computed all the same):")
+
+
 def grid_status(config: dict, cells: Sequence[dict]) -> dict[str, Any]:
     """Counts of the (scene, spp, label) cells the config expects by status (ok / skipped /
     error / other), the expected cells no file holds (``missing``) and the cells outside that
@@ -383,4 +389,4 @@ __all__ = ["NUMERIC_KEYS", "cell_problem", "load_cells", "load_cells_checked", "
            "expected_grid", "cell_key", "grid_status", "grid_status_text", "missing_md",
            "problems_md", "PER_CELL", "METHOD_KEYS", "mixed_settings", "mixed_text", "mixed_md",
            "device_label", "devices_text", "machines_text", "variants_text",
-           "input_warnings", "load_sweep", "wall_text"]
+           "input_warnings", "INPUT_WARNINGS_INTRO", "load_sweep", "wall_text"]

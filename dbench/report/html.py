@@ -32,6 +32,7 @@ import pandas as pd
 
 from .. import io
 from . import headline, verdicts
+from .cells import INPUT_WARNINGS_INTRO, input_warnings
 
 ASSETS = Path(__file__).with_name("viewer")
 HALF_MAX = 65504.0
@@ -268,13 +269,27 @@ def grid_table(df: pd.DataFrame, metric: str) -> dict[str, Any]:
             "text": text, "best": {}, "flagged": flagged}
 
 
+def input_warnings_html(cells: Sequence[dict]) -> list[str]:
+    """The sweep's "Input warnings" as its README states them
+    (:func:`dbench.report.cells.input_warnings`: once per scene and warning, with the spp where
+    it holds at some only), as HTML text: a scene is named as its file is, a warning quotes
+    file names; nothing where the inputs said nothing."""
+    said = input_warnings(cells)
+    if not said:
+        return []
+    return ["<h3>Input warnings</h3>", '<p class="note">' + INPUT_WARNINGS_INTRO.format(
+        run="<code>dbench run</code>") + "</p>", '<ul class="note">' + "".join(
+            f"<li>{html.escape(line)}</li>" for line in said) + "</ul>"]
+
+
 def sweep_page(results: str | Path, sweeps: Sequence[tuple], rank_by: str = "relmse") -> Path:
     """``results/index.html``: for every sweep, given as (folder, its cells) or (folder, its
     cells, its settings line as the README gives it: reference spp and error, variant,
-    intervals, skipped cells), its figures (convergence and error against time, static PNGs,
-    drawn first by :func:`dbench.report.publish.build_readme`) and the sortable scene ×
-    method × spp grid of ``rank_by`` with intervals; rows worse than the noisy input at the
-    headline spp in red, as the page says. Sweeps keep numbers, not images: the images of a
+    intervals, skipped cells), what its inputs said of themselves (:func:`input_warnings_html`),
+    its figures (convergence and error against time, static PNGs, drawn first by
+    :func:`dbench.report.publish.build_readme`) and the sortable scene × method × spp grid of
+    ``rank_by`` with intervals; rows worse than the noisy input at the headline spp in red, as
+    the page says. Sweeps keep numbers, not images: the images of a
     cell are in the folder of the ``dbench run`` that reproduces it (``dbench run --method M
     --scene S --spp N``)."""
     from .tables import cells_frame
@@ -295,6 +310,7 @@ def sweep_page(results: str | Path, sweeps: Sequence[tuple], rank_by: str = "rel
         head = verdicts.headline_spp(df.spp.unique())
         sections += [f"<h2>Sweep {html.escape(rel)}</h2>"]
         sections += [f'<p class="note">{html.escape(str(line))}</p>' for line in summary]
+        sections += input_warnings_html(cells)
         sections += [f'<p class="note">{html.escape(metric)}: mean ± 95 % half-width, rows '
                      f"scene/method, columns spp; a row in red is worse than the noisy input "
                      f"on {html.escape(metric)} at {head} spp (the README's headline "
@@ -311,4 +327,4 @@ def sweep_page(results: str | Path, sweeps: Sequence[tuple], rank_by: str = "rel
 
 
 __all__ = ["encode_half", "decode_half", "image_entry", "metrics_table", "run_page", "write_page",
-           "grid_table", "sweep_page"]
+           "grid_table", "input_warnings_html", "sweep_page"]

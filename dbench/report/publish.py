@@ -18,8 +18,8 @@ from pathlib import Path
 from .. import io
 from ..resolution import size_text
 from . import headline, plots, tables, verdicts
-from .cells import (input_warnings, load_sweep, mixed_md, problems_md,  # noqa: F401 - load_sweep,
-                    wall_text)  # wall_text: the module's interface, as before
+from .cells import (INPUT_WARNINGS_INTRO, input_warnings, load_sweep,  # noqa: F401 - load_sweep,
+                    mixed_md, problems_md, wall_text)  # wall_text: the module's interface, as before
 from .formats import counted, markdown_code, markdown_table, markdown_text
 from .html import sweep_page
 from .run_report import machine_md, metric_definitions_md
@@ -90,8 +90,7 @@ def input_warnings_md(cells: list[dict], title: str) -> list[str]:
     """A section ``title`` listing what the cells' inputs said of themselves
     (:func:`dbench.report.cells.input_warnings`), or nothing where they said nothing."""
     said = input_warnings(cells)
-    return [title, "", "What the inputs of these cells say of themselves, as `dbench run` "
-            "prints it (their numbers are computed all the same):", ""] + [
+    return [title, "", INPUT_WARNINGS_INTRO.format(run="`dbench run`"), ""] + [
         f"- {markdown_text(line)}" for line in said] + [""] if said else []
 
 

@@ -1,7 +1,8 @@
 """What a sweep's inputs say of themselves (each cell's ``input_warnings``: NaN or ±Inf samples
 counted as 0, a folder's doubtful reference or normals; README.md, "How renders work") in the
-README of ``dbench report`` ("Input warnings"): each distinct warning once per scene, with the
-spp where it holds at some of them only."""
+reports of ``dbench report``: its README ("Input warnings") and its results page
+(``results/index.html``), each distinct warning once per scene, with the spp where it holds
+at some of them only."""
 from __future__ import annotations
 
 import json
@@ -58,9 +59,23 @@ def test_the_readme_states_each_warning_once_per_scene(tmp_path):
                          "noisy input's"], (title, section)
 
 
+def test_the_results_page_states_them_beside_the_sweeps_settings(tmp_path):
+    _, page = _publish(tmp_path, _cells("a<b>"))
+    escaped = ("<li>a&lt;b&gt;: the reference &lt;ref&gt;.exr &amp; its normals_x are "
+               "doubtful</li>")
+    some = "<li>a&lt;b&gt; at 4, 16 spp: the reference has 16 spp, no more than the noisy "
+    assert "<ref>" not in page and "a<b>" not in page
+    for k, name in enumerate(("sweep", "sweep-beside")):
+        section = page[page.index(f"<h2>Sweep {name}</h2>"):page.index(f'data-table="{k}"')]
+        # under the sweep's settings line, above its grid
+        assert section.index("Sweep `") < section.index("<h3>Input warnings</h3>"), section
+        assert section.count("<li>") == 2 and escaped in section and some in section, section
+        assert "as <code>dbench run</code> prints it" in section
+
+
 def test_a_sweep_whose_inputs_said_nothing_has_no_such_section(tmp_path):
     cells = _cells()
     for c in cells:
         del c["input_warnings"]
-    readme, _ = _publish(tmp_path, cells)
-    assert "Input warnings" not in readme
+    readme, page = _publish(tmp_path, cells)
+    assert "Input warnings" not in readme and "Input warnings" not in page
