@@ -286,12 +286,13 @@ def _writable_cache(args: argparse.Namespace):
 
 def _scene_of(args: argparse.Namespace):
     """The Scene of ``--scene`` (catalogue name, scene file or folder) with ``--scene-param``
-    and, for a folder of renders, ``--normal-encoding`` (refused for a scene dbench renders,
-    whose normals are its own, signed)."""
-    from ..datasets.scene_files import load as scene_files
-    from ..datasets.scenes import catalogue as scenes
+    (NAME=VALUE, or SCENE:NAME=VALUE naming this one scene as written in ``--scene``:
+    dbench.datasets.scenes.scoped) and, for a folder of renders, ``--normal-encoding`` (refused
+    for a scene dbench renders, whose normals are its own, signed)."""
+    from ..datasets.scenes import catalogue as scenes, scoped
 
-    scene = scenes.get(args.scene, scene_files.parse_scene_params(args.scene_param))
+    every, own = scoped.split(args.scene_param, [args.scene], "--scene")
+    scene = scenes.get(args.scene, scoped.values_for(every, own, args.scene) or None)
     return scenes.with_normal_encoding(scene, getattr(args, "normal_encoding", None), args.scene)
 
 

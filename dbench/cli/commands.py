@@ -58,13 +58,13 @@ def cmd_list(args: argparse.Namespace) -> int:
 def cmd_render(args: argparse.Namespace) -> int:
     """Render (or find cached) every buffer of the given scenes, e.g. to warm the cache."""
     from .. import datasets
-    from ..datasets.scene_files import load as scene_files
-    from ..datasets.scenes import catalogue as scenes
+    from ..datasets.scenes import catalogue as scenes, scoped
     from ..resolution import parse_res
 
-    params = scene_files.parse_scene_params(args.scene_param)
-    names = scene_names(args.scene or ["all"], "--scene") or datasets.available_scenes()
-    chosen = [scenes.get(n, params) for n in names]
+    listed = scene_names(args.scene or ["all"], "--scene")
+    names = listed or datasets.available_scenes()
+    every, own = scoped.split(args.scene_param, names, "--scene")
+    chosen = [scenes.get(n, scoped.values_for(every, own, n) or None) for n in names]
     sizes = [parse_res(args.res, "--res") if args.res is not None else datasets.default_res(sc)
              for sc in chosen]
     cache = _writable_cache(args)  # --cache naming what cannot be written: exit 2
@@ -179,20 +179,28 @@ def _sweep(args: argparse.Namespace, caught: list[str]) -> int:
     """:func:`cmd_sweep` with ``caught``, the library warnings so far (dbench/run/capture.py)."""
     from ..run import sweep
     from ..run.sweep_names import scene_place
-    from ..datasets.scenes import catalogue
-
-    from ..datasets.scene_files import load as scene_files
+    from ..datasets.scenes import catalogue, scoped
 
     if args.workers is not None and args.executor == "ray":
         raise DbenchInputError(f"--workers {args.workers}: the local executor's pool size; "
                                f"--executor ray runs the cells on the Ray cluster's workers")
     args.workers = 1 if args.workers is None else args.workers
-    scene_params = scene_files.parse_scene_params(args.scene_param)
     given = method_names(args.methods or ["all"], "--methods")
-    methods_, scenes_ = sweep.resolve_names(
-        given or "all",
-        scene_names(args.scenes or ["all"], "--scenes") or "all", scene_params)
-    scene_objs = [catalogue.get(n, scene_params) for n in scenes_]
+    listed = scene_names(args.scenes or ["all"], "--scenes")
+    # NAME=VALUE for every scene, SCENE:NAME=VALUE for one (SCENE as written in --scenes)
+    scene_params, by_scene = scoped.split(args.scene_param, listed or catalogue.available(),
+                                          "--scenes")
+    try:
+        methods_, scenes_ = sweep.resolve_names(given or "all", listed or "all", scene_params,
+                                                by_scene)
+    except DbenchInputError as exc:  # a value for every scene that one of them cannot take
+        several = listed is None or len(listed) > 1
+        if not (scene_params and several and str(exc).startswith("--scene-param")):
+            raise
+        raise DbenchInputError(f"{exc}; --scene-param SCENE:NAME=VALUE gives a value to one "
+                               f"scene only") from None
+    scene_objs = [catalogue.get(n, scoped.values_for(scene_params, by_scene, n) or None)
+                  for n in scenes_]
     check_kind_options(args, scene_objs, scenes_)
     res_given = args.res
     args.res = args.res or "128"  # checked here; the sweep's own default is per scene
@@ -202,7 +210,7 @@ def _sweep(args: argparse.Namespace, caught: list[str]) -> int:
     params = parse_params(args.param or [], methods_)
     config = sweep.SweepConfig(methods=methods_, scenes=scenes_, spp=spps,
                                res=args.res.key if res_given is not None else None,
-                               scene_params=scene_params,
+                               scene_params=scene_params, scene_params_by_scene=by_scene,
                                ref_spp=args.ref_spp, seed=args.seed, seeds=args.seeds,
                                repeats=args.repeats, rerun=args.rerun,
                                transform=args.transform, lam=args.lam, frames=args.frames,

@@ -55,10 +55,12 @@ def build_parser() -> argparse.ArgumentParser:
                         help="reference spp (default $DBENCH_REF_SPP or 4096)")
         if not scene_params:  # train: its procedural scenes take none
             return
-        sp.add_argument("--scene-param", action="append", metavar="NAME=VALUE",
+        sp.add_argument("--scene-param", action="append", metavar="[SCENE:]NAME=VALUE",
                         help="a $parameter of a Mitsuba scene file, or a parameter a "
                         "catalogue scene declares (dbench list shows them; e.g. g=0.5, "
-                        "emission=step on the transient scenes) (repeatable)")
+                        "emission=step on the transient scenes), for every scene; "
+                        "SCENE:NAME=VALUE for that scene only, named as written in the "
+                        "scene option (repeatable)")
 
     def judged(sp: argparse.ArgumentParser) -> None:
         sp.add_argument("--seeds", type=count, default=1, help="independent noisy renders "

@@ -76,8 +76,10 @@ class SweepConfig:
                                                         "ssim", "flip"])
     #: recompute cells whose identity changed (otherwise such a sweep is refused)
     rerun: bool = False
-    #: ``$parameters`` of scene files (--scene-param NAME=VALUE)
+    #: ``$parameters`` of scene files and declared parameters of catalogue scenes, for every
+    #: scene (--scene-param NAME=VALUE) and for one (SCENE:NAME=VALUE: {scene: {name: value}})
     scene_params: dict[str, str] = field(default_factory=dict)
+    scene_params_by_scene: dict[str, dict[str, str]] = field(default_factory=dict)
     #: where methods with a device path run ("cpu" or "cuda"; docs/gpu.md §3)
     device: str = "cpu"
     #: how the normals of the sweep's folders of renders are read (None: as each one says)
@@ -100,13 +102,23 @@ class SweepConfig:
         for name, value in (("--frames", self.frames), ("--bins", self.bins)):
             if value is not None:
                 check_count(name, value)
+        from ..datasets.scenes.scoped import check_config
+
+        check_config(self.scene_params, self.scene_params_by_scene, self.scenes, "--scenes")
+
+    def params_of(self, name: str) -> dict[str, str]:
+        """The ``--scene-param`` values of scene ``name`` (as written in ``scenes``): every
+        scene's and its own (dbench.datasets.scenes.scoped)."""
+        from ..datasets.scenes.scoped import values_for
+
+        return values_for(self.scene_params, self.scene_params_by_scene, name)
 
     def scene(self, name: str):
-        """The Scene of a catalogue name, scene file or folder (with ``scene_params``; a
+        """The Scene of a catalogue name, scene file or folder (with its :meth:`params_of`; a
         folder's normals read as ``normal_encoding``)."""
         from ..datasets.scenes import catalogue
 
-        scene = catalogue.get(name, self.scene_params or None)
+        scene = catalogue.get(name, self.params_of(name) or None)
         return scene if scene.renders else \
             catalogue.with_normal_encoding(scene, self.normal_encoding, name)
 
@@ -137,10 +149,14 @@ def cell_path(out: Path, scene: str, spp: int, label: str) -> Path:
 
 
 def resolve_names(methods: str | Sequence[str], scenes: str | Sequence[str],
-                  scene_params: dict[str, str] | None = None) -> tuple[list[str], list[str]]:
-    """``all`` or comma lists → validated names (UnknownNameError lists the valid ones)."""
+                  scene_params: dict[str, str] | None = None,
+                  by_scene: dict[str, dict[str, str]] | None = None
+                  ) -> tuple[list[str], list[str]]:
+    """``all`` or comma lists → validated names (UnknownNameError lists the valid ones); each
+    scene with ``scene_params`` and its own ``by_scene`` values (SweepConfig.params_of)."""
     from .. import registry
     from ..datasets.scenes import catalogue
+    from ..datasets.scenes.scoped import values_for
 
     def split(v):
         return [s.strip() for s in v.split(",") if s.strip()] if isinstance(v, str) else list(v)
@@ -151,7 +167,7 @@ def resolve_names(methods: str | Sequence[str], scenes: str | Sequence[str],
     for name in m:
         registry.method_class(name)
     for name in s:
-        catalogue.get(name, scene_params)
+        catalogue.get(name, values_for(scene_params or {}, by_scene or {}, name) or None)
     if "noisy" not in m:
         m = ["noisy"] + m
     return m, s

@@ -5,8 +5,10 @@ the methods, scenes, spp and labels of its runs; ``runs`` holds one entry per ``
 run into the folder, in order: when it started and ended, how it ended (``finished``,
 ``interrupted``, ``failed``, or ``killed`` for a run that never wrote its end), what it asked for
 (``request``), the cells it wrote (``cells``; ``failed`` of them are error cells), reused and
-skipped, and its wall time (README.md, the ``dbench sweep`` paragraph). ``cells`` and ``failed``
-are counted from the cell files the run left (:func:`tally`), not from the results that reached
+skipped, and its wall time (README.md, the ``dbench sweep`` paragraph).
+``config.scene_params_by_scene`` holds each scene's own ``--scene-param`` values, those given
+for every scene included (its cells' identities hold them too, through the scene's
+fingerprint). ``cells`` and ``failed`` are counted from the cell files the run left (:func:`tally`), not from the results that reached
 the sweep process: a group interrupted half-way, or finished by a pool worker whose result never
 arrived, has still written its first cells. The file is only written by the sweep holding the
 folder's lock (:mod:`dbench.run.sweep_lock`).
@@ -87,6 +89,11 @@ _OBJECT = _value_check(lambda v: isinstance(v, dict), "an object")
 #: {method: {parameter: value}}, as --param gives them
 _PARAMS = _each_value(_OBJECT, "an object ({method: {parameter: value}})")
 
+#: --scene-param values: {parameter: value}
+_SCENE_PARAMS = _each_value(
+    _value_check(lambda v: v is None or isinstance(v, (str, int, float, bool)),
+                 "a value (string or number)"), "an object ({parameter: value})")
+
 #: a sweep's settings (``config``) and each run's ``request`` (:func:`config_dict`)
 _CONFIG = {
     "methods": _NAMES, "scenes": _NAMES, "labels": _NAMES, "metrics": _NAMES,
@@ -101,9 +108,9 @@ _CONFIG = {
     "series": _each_value(_fields({"method": _NAME, "params": _OBJECT},
                                   "an object ({\"method\": name, \"params\": object})"),
                           "an object ({label: {\"method\": name, \"params\": object}})"),
-    "scene_params": _each_value(
-        _value_check(lambda v: v is None or isinstance(v, (str, int, float, bool)),
-                     "a value (string or number)"), "an object ({parameter: value})"),
+    "scene_params": _SCENE_PARAMS,
+    "scene_params_by_scene": _each_value(_SCENE_PARAMS,
+                                         "an object ({scene: {parameter: value}})"),
     "scene_labels": _each_value(_NAME, "an object ({scene: label})"),
 }
 #: what :func:`dbench.run.machine.machine_info` records
@@ -173,6 +180,10 @@ def config_dict(config) -> dict:
     for key in ("cache", "no_cache", "rerun"):
         d.pop(key, None)
     d["ref_spp"] = config.ref_spp  # as asked; the resolved value is in every cell's identity
+    # each scene's own --scene-param values (its cells' identity holds them too), so that the
+    # record says what every scene was rendered with, however they were given
+    own = {s: config.params_of(s) for s in config.scenes}
+    d["scene_params_by_scene"] = {s: v for s, v in own.items() if v}
     # the default in effect when none is asked, so that a resume compares what was used
     d["ref_spp_default"] = datasets.reference_spp() if config.ref_spp is None else None
     labels = config.labels()
@@ -234,6 +245,10 @@ def stored_config(out: Path, config, stored: dict | None) -> dict:
         new[key] = old.get(key, []) + [v for v in new[key] if v not in old.get(key, [])]
     new["series"] = {**old.get("series", {}), **new["series"]}
     new["scene_labels"] = {**old.get("scene_labels", {}), **new["scene_labels"]}
+    # the scenes of earlier runs keep their values; this run's scenes have theirs (none too)
+    new["scene_params_by_scene"] = {
+        **{s: v for s, v in old.get("scene_params_by_scene", {}).items()
+           if s not in config.scenes}, **new["scene_params_by_scene"]}
     new.pop("params", None)
     return {**stored, "config": new, "runs": list(stored.get("runs", []))}
 
@@ -245,7 +260,7 @@ def _same_transforms(old: dict, new: dict, config) -> bool:
     from .. import datasets
     from ..datasets.scenes import catalogue
 
-    kinds = {catalogue.get(n, config.scene_params).kind for n in config.scenes}
+    kinds = {catalogue.get(n, config.params_of(n) or None).kind for n in config.scenes}
     return all((old.get("transform") or datasets.default_transform(k))
                == (new.get("transform") or datasets.default_transform(k)) for k in kinds)
 

@@ -105,6 +105,7 @@ def test_every_field_of_a_written_sweep_json_is_type_checked(tmp_path):
     # what the checks cover: settings, series, the machine, and each run with its request
     assert {"config.params.jbf", "config.series.jbf[radius=2].params",
             "config.scene_labels.cornell", "config.scene_params.spp", "machine.packages.numpy",
+            "config.scene_params_by_scene.cornell", "config.scene_params_by_scene.cornell.spp",
             "runs[0].cells", "runs[0].failed", "runs[0].references_s", "runs[0].error",
             "runs[0].request.series.noisy.method", "runs[0].request.metrics"} <= set(names)
 
@@ -175,3 +176,22 @@ def test_a_transform_is_compared_by_what_each_scene_gets(tmp_path):
     kept = sweep_history.stored_config(
         out, _config(tmp_path, scenes=["cornell-transient"], transform="identity"), stored)
     assert kept["config"]["transform"] is None
+
+
+def test_each_scenes_own_values_are_recorded_and_kept_for_the_scenes_of_earlier_runs(tmp_path):
+    # scene_params held the values given for every scene alone: a scene's own values (SCENE:
+    # NAME=VALUE) were nowhere in the record, and a run extending the sweep with another scene
+    # replaced the values the earlier scenes were rendered with
+    out = tmp_path / "S"
+    out.mkdir()
+    first = _config(tmp_path, scenes=["cornell", "a.xml"], scene_params={"spp": "4"},
+                    scene_params_by_scene={"a.xml": {"light": "5"}})
+    stored = sweep_history.stored_config(out, first, None)
+    assert stored["config"]["scene_params_by_scene"] == {
+        "cornell": {"spp": "4"}, "a.xml": {"spp": "4", "light": "5"}}
+    more = _config(tmp_path, scenes=["b.xml"], scene_params_by_scene={"b.xml": {"light": "7"}})
+    again = sweep_history.stored_config(out, more, stored)["config"]
+    assert again["scene_params_by_scene"] == {
+        "cornell": {"spp": "4"}, "a.xml": {"spp": "4", "light": "5"}, "b.xml": {"light": "7"}}
+    assert sweep_history.problem({"config": again}) == ""
+
