@@ -400,16 +400,22 @@ def broken_reason(name: str) -> str:
     return ""
 
 
-def left_out(option: str) -> str:
-    """``''``, or one line saying which plugins that may hold methods failed to load and why
-    (every broken plugin but a scene entry point): what ``option all`` runs without, as
-    ``dbench list`` shows them under "Broken plugins (not loaded)" (README.md "Add your own
-    denoiser")."""
-    bad = [p for p in broken() if not p.spec.startswith(f"{SCENE_GROUP}:")]
+def left_out(option: str, group: str = METHOD_GROUP) -> str:
+    """``''``, or one line saying which plugins that may hold what ``option all`` takes failed
+    to load and why, as ``dbench list`` shows them under "Broken plugins (not loaded)"
+    (README.md "Add your own denoiser"): for methods (``group`` METHOD_GROUP) every broken
+    plugin but a scene entry point; for scenes (SCENE_GROUP) the broken scene entry points,
+    the scenes ``all`` never lists (a ``--plugin`` file or ``DBENCH_PLUGINS`` entry that failed
+    has refused the command already, dbench.cli.main)."""
+    if group == SCENE_GROUP:
+        bad = [p for p in broken() if p.spec.startswith(f"{SCENE_GROUP}:")]
+        what = "these scene plugins"
+    else:
+        bad = [p for p in broken() if not p.spec.startswith(f"{SCENE_GROUP}:")]
+        what = "what these plugins hold"
     if not bad:
         return ""
-    return (f"{option} all leaves out what these plugins hold: "
-            + "; ".join(_failure(p) for p in bad))
+    return f"{option} all leaves out {what}: " + "; ".join(_failure(p) for p in bad)
 
 
 def _reset_for_tests() -> None:

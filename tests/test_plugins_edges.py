@@ -437,3 +437,50 @@ def test_a_scene_entry_point_that_failed_to_load_is_named_where_it_is_asked_for(
         assert cli.main([*argv, *out]) == 2
         assert capsys.readouterr().err.splitlines() == [f"dbench: {why}"]
     assert not (tmp_path / "out").exists()
+
+
+@pytest.fixture
+def broken_scene_entry_point(isolated, tmp_path):
+    """A scene entry point whose module fails to import (dbench list: "Broken plugins")."""
+    _install(tmp_path / "site", "lab-rooms", "lab_rooms", "raise ImportError('needs libbar')\n",
+             "[dbench.scenes]\nlab-room = lab_rooms:room\n")
+    plugins.discover_entry_points()
+    return "plugin lab-room (entry point (lab-rooms), lab_rooms:room) failed to load: " \
+           "ImportError: needs libbar"
+
+
+def test_all_names_the_scene_plugins_it_leaves_out(broken_scene_entry_point, tmp_path, capsys,
+                                                   monkeypatch):
+    # --scenes all swept every scene that loaded without a word of the broken scene plugins
+    # (left_out names the method plugins only); now one line on stderr, and the run's entry in
+    # sweep.json keeps it for the report
+    from dbench import datasets
+    from dbench.run import sweep
+
+    seen = []
+
+    def stand_in(config, *a, **k):
+        seen.append(config.notes)
+        raise plugins.PluginError("stand-in: nothing runs here")
+
+    monkeypatch.setattr(sweep, "run_sweep", stand_in)
+    said = f"--scenes all leaves out these scene plugins: {broken_scene_entry_point}"
+    assert cli.main(["sweep", "--methods", "noisy", "--scenes", "all", "--spp", "2", "--out",
+                     str(tmp_path / "out")]) == 2
+    assert capsys.readouterr().err.splitlines() == [
+        f"dbench: warning: {said}", "dbench: stand-in: nothing runs here"]
+    assert seen == [[said]]
+    # the methods' line leaves the scene plugin out, as before
+    assert plugins.left_out("--methods") == ""
+    # a plain list asks for no "all": nothing to say
+    assert cli.main(["sweep", "--methods", "noisy", "--scenes", "cornell", "--spp", "2",
+                     "--out", str(tmp_path / "out")]) == 2
+    assert capsys.readouterr().err.splitlines() == ["dbench: stand-in: nothing runs here"]
+    assert seen[-1] == []
+    # render's --scene all (its default) says it too, before it renders anything
+    monkeypatch.setattr(datasets, "load", lambda *a, **k: stand_in(
+        type("Config", (), {"notes": "render"})))
+    assert cli.main(["render", "--res", "8", "--cache", str(tmp_path / "cache")]) == 2
+    assert capsys.readouterr().err.splitlines() == [
+        f"dbench: warning: --scene all leaves out these scene plugins: "
+        f"{broken_scene_entry_point}", "dbench: stand-in: nothing runs here"]

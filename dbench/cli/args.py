@@ -189,15 +189,16 @@ def method_names(texts: str | Sequence[str], option: str) -> list[str] | None:
     return check_distinct([registry.canonical(n) for n in given], option, shown, given)
 
 
-def warn_left_out(option: str) -> str:
+def warn_left_out(option: str, scenes: bool = False) -> str:
     """Where ``option`` is ``all``: one warning line on stderr naming the plugins that failed
-    to load and why (:func:`dbench.plugins.left_out`), so that "all" never means "all that
-    loaded" without a word; the line (``''`` when every plugin loaded), for a report's notes."""
+    to load and why (:func:`dbench.plugins.left_out`; with ``scenes``, the scene plugins), so
+    that "all" never means "all that loaded" without a word; the line (``''`` when every
+    plugin loaded), for a report's notes."""
     import sys
 
     from .. import plugins
 
-    line = plugins.left_out(option)
+    line = plugins.left_out(option, plugins.SCENE_GROUP if scenes else plugins.METHOD_GROUP)
     if line:
         print(f"dbench: warning: {line}", file=sys.stderr)
     return line

@@ -65,6 +65,8 @@ def cmd_render(args: argparse.Namespace) -> int:
     names = listed or datasets.available_scenes()
     every, own = scoped.split(args.scene_param, names, "--scene")
     chosen = [scenes.get(n, scoped.values_for(every, own, n) or None) for n in names]
+    if listed is None:  # "all" says which scene plugins it leaves out
+        warn_left_out("--scene", scenes=True)
     sizes = [parse_res(args.res, "--res") if args.res is not None else datasets.default_res(sc)
              for sc in chosen]
     cache = _writable_cache(args)  # --cache naming what cannot be written: exit 2
@@ -225,8 +227,10 @@ def _sweep(args: argparse.Namespace, caught: list[str]) -> int:
     from ..run.capture import count_text, log_text
     # the cache is checked (and created) by run_sweep once nothing refused the sweep
     from_groups: list[str] = []  # the groups' warnings, every worker's included
-    if given is None:  # checked: "all" says what it leaves out
-        warn_left_out("--methods")
+    # checked: "all" says what it leaves out, here and in the run's entry for the report
+    config.notes = [line for line in (warn_left_out("--methods") if given is None else "",
+                                      warn_left_out("--scenes", scenes=True)
+                                      if listed is None else "") if line]
     counts = sweep.run_sweep(config, args.out, executor=args.executor,
                              workers=args.workers, progress=not args.quiet,
                              warnings_out=from_groups)

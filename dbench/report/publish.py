@@ -18,8 +18,9 @@ from pathlib import Path
 from .. import io
 from ..resolution import size_text
 from . import headline, plots, tables, verdicts
-from .cells import (INPUT_WARNINGS_INTRO, input_warnings, load_sweep,  # noqa: F401 - load_sweep,
-                    mixed_md, problems_md, wall_text)  # wall_text: the module's interface, as before
+# load_sweep and wall_text are imported for this module's callers too, as before
+from .cells import (INPUT_WARNINGS_INTRO, input_warnings, load_sweep,  # noqa: F401
+                    mixed_md, problems_md, run_notes_md, wall_text)
 from .formats import counted, markdown_code, markdown_table, markdown_text
 from .html import sweep_page
 from .run_report import machine_md, metric_definitions_md
@@ -122,7 +123,7 @@ def build_readme(results: Path, sweep_dir: Path, headline_spp: int = 64,
                             [t for t in [timing, wall_text(info, cells)] if t]) + (
         " Sequence scenes: each frame denoised once, in order; metrics are means and time the "
         "median per frame after the 8-frame warm-up (all of a sequence of 8 or fewer)."
-        if sequence else ""), ""]
+        if sequence else ""), ""] + run_notes_md(info)
     spp = verdicts.headline_spp(df.spp.unique(), headline_spp) if len(df) else None
     if spp is None:  # nothing ranks, and no cell says what its metrics or reference were
         parts += ["## Headline", "", "No finished cell: nothing to rank (every cell failed, "
@@ -274,7 +275,7 @@ def other_sweep_md(results: Path, sweep_dir: Path, rank_by: str = "relmse") -> l
               "frames after the 8-frame warm-up (all of a sequence of 8 or fewer); `t_rmse`"
               " / `tPSNR` score frame-to-frame differences." if sequence else "") +
              (" Transient videos: RMSE and relMSE over every voxel; SSIM and FLIP on the "
-              "time-integrated image." if transient else ""), ""]
+              "time-integrated image." if transient else ""), ""] + run_notes_md(info)
     skipped = sorted({str(c.get("method")) for c in cells if c.get("status") == "skipped"})
     if skipped:
         parts += ["Not applicable: " + ", ".join(map(markdown_text, skipped)) + ".", ""]

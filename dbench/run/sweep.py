@@ -84,6 +84,8 @@ class SweepConfig:
     device: str = "cpu"
     #: how the normals of the sweep's folders of renders are read (None: as each one says)
     normal_encoding: str | None = None
+    #: what the run's entry in sweep.json notes for the report (what "all" left out)
+    notes: list[str] = field(default_factory=list)
 
     def validate(self) -> None:
         """Every setting checked before anything is written or rendered (DbenchInputError)."""

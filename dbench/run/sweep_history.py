@@ -5,11 +5,12 @@ the methods, scenes, spp and labels of its runs; ``runs`` holds one entry per ``
 run into the folder, in order: when it started and ended, how it ended (``finished``,
 ``interrupted``, ``failed``, or ``killed`` for a run that never wrote its end), what it asked for
 (``request``), the cells it wrote (``cells``; ``failed`` of them are error cells), reused and
-skipped, and its wall time (README.md, the ``dbench sweep`` paragraph).
-``config.scene_params_by_scene`` holds each scene's own ``--scene-param`` values, those given
-for every scene included (its cells' identities hold them too, through the scene's
-fingerprint). ``cells`` and ``failed`` are counted from the cell files the run left (:func:`tally`), not from the results that reached
-the sweep process: a group interrupted half-way, or finished by a pool worker whose result never
+skipped, its wall time, and ``notes`` for the report where it has any (the plugins its ``all``
+left out; README.md, the ``dbench sweep`` paragraph). ``config.scene_params_by_scene`` holds
+each scene's own ``--scene-param`` values, those given for every scene included (its cells'
+identities hold them too, through the scene's fingerprint). ``cells`` and ``failed`` are
+counted from the cell files the run left (:func:`tally`), not from the results that reached the
+sweep process: a group interrupted half-way, or finished by a pool worker whose result never
 arrived, has still written its first cells. The file is only written by the sweep holding the
 folder's lock (:mod:`dbench.run.sweep_lock`).
 
@@ -124,6 +125,7 @@ _RUN = {"started": _TEXT, "ended": _TEXT,
         "status": _value_check(lambda v: v in STATUSES, "one of " + ", ".join(STATUSES)),
         "request": _fields(_CONFIG, "an object"), "cells": _INT, "failed": _INT,
         "reused": _INT, "skipped": _INT, "executor": _NAME, "workers": _INT, "machine": _TEXT,
+        "notes": _value_check(_is_str_list, "a list of lines"),
         "wall_s": _NUMBER, "references_s": _NUMBER, "error": _TEXT}
 
 
@@ -177,7 +179,7 @@ def config_dict(config) -> dict:
     from .. import datasets
 
     d = dict(config.__dict__)
-    for key in ("cache", "no_cache", "rerun"):
+    for key in ("cache", "no_cache", "rerun", "notes"):  # notes: the run's (RunRecord)
         d.pop(key, None)
     d["ref_spp"] = config.ref_spp  # as asked; the resolved value is in every cell's identity
     # each scene's own --scene-param values (its cells' identity holds them too), so that the
@@ -297,7 +299,10 @@ class RunRecord:
                 run.update(status="killed", **cells_since(self.out, run.get("started")))
         self.entry = {"started": _now(), "status": "running", "request": config_dict(config),
                       "cells": 0, "failed": 0, "reused": reused, "skipped": skipped,
-                      "executor": executor, "workers": workers, "machine": machine_label()}
+                      "executor": executor, "workers": workers, "machine": machine_label(),
+                      # what the run left out of "all" (a broken plugin), for the report
+                      **({"notes": list(config.notes)} if getattr(config, "notes", None)
+                         else {})}
         self.stored = to_write
         self.stored["runs"].append(self.entry)
         io.write_json(self.out / "sweep.json", self.stored)

@@ -84,7 +84,7 @@ def test_every_field_of_a_written_sweep_json_is_type_checked(tmp_path):
     out = tmp_path / "S"
     out.mkdir()
     config = _config(tmp_path, methods=["noisy", "jbf"], params={"jbf": {"radius": 2}},
-                     scene_params={"spp": "4"})
+                     scene_params={"spp": "4"}, notes=["--scenes all leaves out ..."])
     stored = sweep_history.stored_config(out, config, None)
     sweep_history.RunRecord(out, stored, config, "local", 1, 0, 0).end(
         "interrupted", {"cells": 1, "failed": 1}, 0.5, error="KeyboardInterrupt: ")
@@ -106,7 +106,7 @@ def test_every_field_of_a_written_sweep_json_is_type_checked(tmp_path):
     assert {"config.params.jbf", "config.series.jbf[radius=2].params",
             "config.scene_labels.cornell", "config.scene_params.spp", "machine.packages.numpy",
             "config.scene_params_by_scene.cornell", "config.scene_params_by_scene.cornell.spp",
-            "runs[0].cells", "runs[0].failed", "runs[0].references_s", "runs[0].error",
+            "runs[0].notes", "runs[0].cells", "runs[0].failed", "runs[0].references_s", "runs[0].error",
             "runs[0].request.series.noisy.method", "runs[0].request.metrics"} <= set(names)
 
 
@@ -195,3 +195,21 @@ def test_each_scenes_own_values_are_recorded_and_kept_for_the_scenes_of_earlier_
         "cornell": {"spp": "4"}, "a.xml": {"spp": "4", "light": "5"}, "b.xml": {"light": "7"}}
     assert sweep_history.problem({"config": again}) == ""
 
+
+def test_a_runs_notes_reach_the_report(tmp_path):
+    from dbench.report.cells import run_notes_md
+
+    out = tmp_path / "S"
+    out.mkdir()
+    said = "--scenes all leaves out these scene plugins: plugin lab-room (...) failed to load"
+    for notes in ([], [said]):
+        config = _config(tmp_path, notes=notes)
+        stored = sweep_history.stored_config(out, config, sweep_history.read(out))
+        sweep_history.RunRecord(out, stored, config, "local", 1, 0, 0).end(
+            "finished", {"cells": 0, "failed": 0})
+    runs = _stored(out)["runs"]
+    assert "notes" not in runs[0] and runs[1]["notes"] == [said]
+    assert "notes" not in _stored(out)["config"] and "notes" not in runs[1]["request"]
+    assert run_notes_md(_stored(out)) == [
+        "Notes of the runs:", "", f"- run 2 ({runs[1]['started']}): {said}", ""]
+    assert run_notes_md({"runs": runs[:1]}) == []
