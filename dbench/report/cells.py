@@ -385,13 +385,22 @@ def wall_text(info: dict, cells: list[dict] | None = None) -> str:
                      + variants_text(cells or []))
 
 
-def run_notes_md(info: dict) -> list[str]:
-    """The notes the sweep's runs recorded in sweep.json (what a run's ``--methods all`` or
-    ``--scenes all`` left out: dbench.run.sweep_history), each with the run it came from, as
-    markdown lines; none where no run noted anything."""
+def _notes(info: dict) -> list[tuple[str, str]]:
     runs = [r for r in info.get("runs", []) if isinstance(r, dict)]
-    lines = [f"- run {i} ({r.get('started', '?')}): {markdown_text(str(note))}"
-             for i, r in enumerate(runs, 1) for note in r.get("notes") or []]
+    return [(f"run {i} ({r.get('started', '?')})", str(note))
+            for i, r in enumerate(runs, 1) for note in r.get("notes") or []]
+
+
+def run_notes(info: dict) -> list[str]:
+    """The notes the sweep's runs recorded in sweep.json (what a run's ``--methods all`` or
+    ``--scenes all`` left out: dbench.run.sweep_history), each as plain text with the run it
+    came from, ``run 2 (<started>): <note>``; none where no run noted anything."""
+    return [f"{run}: {note}" for run, note in _notes(info)]
+
+
+def run_notes_md(info: dict) -> list[str]:
+    """:func:`run_notes` as Markdown lines under "Notes of the runs:" (each note escaped)."""
+    lines = [f"- {run}: {markdown_text(note)}" for run, note in _notes(info)]
     return ["Notes of the runs:", ""] + lines + [""] if lines else []
 
 
@@ -399,5 +408,5 @@ __all__ = ["NUMERIC_KEYS", "cell_problem", "load_cells", "load_cells_checked", "
            "expected_grid", "cell_key", "grid_status", "grid_status_text", "missing_md",
            "problems_md", "PER_CELL", "METHOD_KEYS", "mixed_settings", "mixed_text", "mixed_md",
            "device_label", "devices_text", "machines_text", "variants_text",
-           "input_warnings", "INPUT_WARNINGS_INTRO", "load_sweep", "run_notes_md",
-           "wall_text"]
+           "input_warnings", "INPUT_WARNINGS_INTRO", "load_sweep", "run_notes",
+           "run_notes_md", "wall_text"]

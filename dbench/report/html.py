@@ -285,7 +285,7 @@ def input_warnings_html(cells: Sequence[dict]) -> list[str]:
 def sweep_page(results: str | Path, sweeps: Sequence[tuple], rank_by: str = "relmse") -> Path:
     """``results/index.html``: for every sweep, given as (folder, its cells) or (folder, its
     cells, its settings line as the README gives it: reference spp and error, variant,
-    intervals, skipped cells), what its inputs said of themselves (:func:`input_warnings_html`),
+    intervals, skipped cells, then its runs' notes, :func:`dbench.report.cells.run_notes`), what its inputs said of themselves (:func:`input_warnings_html`),
     its figures (convergence and error against time, static PNGs, drawn first by
     :func:`dbench.report.publish.build_readme`) and the sortable scene × method × spp grid of
     ``rank_by`` with intervals; rows worse than the noisy input at the headline spp in red, as
