@@ -3,9 +3,10 @@ renders work").
 
 A scene holding a non-finite value (a texture's pixel, a parameter) makes Mitsuba's film hold
 NaN where such a sample lands. dbench's sums count those samples as 0 (the render kernel,
-:class:`~dbench.datasets.stats.PowerSums`, the chunks of the sequence and transient references
-here), so its images stay finite but are not the scene's as Mitsuba renders it. Every loader
-(steady, sequence, transient) states how many there were in its frame's ``meta``:
+:class:`~dbench.datasets.stats.PowerSums`, here the ``mi.render`` chunks of every reference
+and the transient passes), so its images stay finite but are not the scene's as Mitsuba
+renders it. Every loader (steady, sequence, transient) states how many there were in its
+frame's ``meta``:
 ``nonfinite_samples`` (the noisy input), ``ref_nonfinite_samples`` (the reference; None: not
 counted, as for cache entries made before the counts were kept) and, where either is above 0,
 ``nonfinite_warning``, which ``dbench run`` prints and lists in report.md's notes and a sweep

@@ -372,8 +372,10 @@ def render_reference(scene: Scene, res: Res, spp: int, seed: int = 0,
 
     Returns (reference (H, W, 3) float32, reference_var (H, W, 3) float32: variance of
     the reference mean from the chunk spread, seconds); ``counts``, where given, gets
-    ``nonfinite_samples`` (kernel batches: the sample values counted as 0 for being NaN or
-    ±Inf; a ``mi.render`` chunk keeps them, NaN in its pixels)."""
+    ``nonfinite_samples``: the values counted as 0 for being NaN or ±Inf (README.md, "How
+    renders work"), kernel batches' samples, or a ``mi.render`` chunk's pixel values, each of
+    which stands for at least one such sample (:func:`dbench.datasets.nonfinite.zeroed`, as
+    the sequence and transient references count them)."""
     res = parse_res(res)
     acc = ChunkMoments((res.height, res.width, 3))
     t0 = time.perf_counter()
@@ -401,8 +403,12 @@ def _reference_chunk_means(scene: Scene, res: Res, spp: int, seed: int, chunk: i
     if not _kernel_path():
         mi = mitsuba()
         for i, n in enumerate(chunks):
-            yield n, np.array(mi.render(sc, spp=n, seed=pass_seed("reference", seed, i)),
-                              dtype=np.float64)
+            # Mitsuba's film holds NaN where a sample was non-finite: without this, one such
+            # sample made the reference's pixel NaN, which fails every method
+            img = mi.render(sc, spp=n, seed=pass_seed("reference", seed, i))
+            mean, bad = zeroed(np.array(img, dtype=np.float64))
+            tally["nonfinite_samples"] += bad
+            yield n, mean
         return
     k = 0
     for n in chunks:

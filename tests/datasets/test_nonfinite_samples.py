@@ -51,6 +51,20 @@ def test_both_render_paths_and_the_reference_count_non_finite_samples(renderer, 
     assert render.render_passes(clean, 16, 4, progress=False)[2]["nonfinite_samples"] == 0
 
 
+def test_the_scalar_reference_counts_them_as_0_too(renderer, tmp_path, monkeypatch):
+    """On scalar variants a reference chunk is one ``mi.render`` call, whose film holds NaN
+    where a sample was: the chunk's NaN pixel values count as 0 and are counted, as in the
+    sequence and transient references; the reference used to hold NaN there."""
+    from dbench.datasets import render
+    from dbench.datasets.scenes import catalogue as scenes
+    bad = scenes.get(str(_scene(tmp_path, True)))
+    monkeypatch.setattr(render, "_kernel_path", lambda: False)  # the scalar variants' path
+    counts: dict = {}
+    ref, ref_var, _ = render.render_reference(bad, 16, 32, progress=False, counts=counts)
+    assert counts["nonfinite_samples"] > 0
+    assert np.isfinite(ref).all() and np.isfinite(ref_var).all()
+
+
 def test_a_run_states_them_also_from_the_cache(renderer, tmp_path, capsys):
     path = _scene(tmp_path, True)
     for k in range(2):  # rendered, then read back from the cache
