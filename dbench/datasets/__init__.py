@@ -31,7 +31,7 @@ from .sequence import load as _sequence  # registers the sequence scenes
 from .transient import load as _transient  # registers the transient scenes
 from .cache import Cache, make_key
 from .mitsuba_env import mitsuba, versions
-from .nonfinite import note_nonfinite
+from .nonfinite import NONFINITE_VERSION, note_nonfinite
 from .references import check_ref_seed, check_render_args, reference_meta, reference_spp
 from .scenes.catalogue import Scene
 from .scenes.build import check_plugin_scene
@@ -205,8 +205,10 @@ def load(scene: str | Scene, spp: int, res, needs: Iterable[str] | None = None,
         from .scene_files.fidelity import report_lines
         meta["scene_file_settings"] = report_lines(meta["scene_file"], res)
 
+    # (NONFINITE_VERSION: entries made before the counts were kept are not read as new)
     noisy_desc = {**base, "what": "noisy", "spp": int(spp), "seed": int(seed),
-                  "copies": _render.batch_size(res, spp), "samples": _render.SAMPLES_VERSION}
+                  "copies": _render.batch_size(res, spp), "samples": _render.SAMPLES_VERSION,
+                  "nonfinite": NONFINITE_VERSION}
     stats_desc = {**noisy_desc, "what": "stats", "transform": transform, "lam": float(lam)}
     color_entry = cache.get("noisy", noisy_desc)
     stats_entry = cache.get("stats", stats_desc) if "stats" in wanted else None
@@ -248,7 +250,8 @@ def load(scene: str | Scene, spp: int, res, needs: Iterable[str] | None = None,
     if "reference" in wanted:
         ref_desc = {**base, "what": "reference", "spp": int(ref_spp), "seed": ref_seed,
                     "chunk": _render.DEFAULT_REFERENCE_CHUNK,
-                    "var": _render.REFERENCE_VAR_VERSION, "samples": _render.SAMPLES_VERSION}
+                    "var": _render.REFERENCE_VAR_VERSION, "samples": _render.SAMPLES_VERSION,
+                    "nonfinite": NONFINITE_VERSION}
         entry = cache.get("reference", ref_desc)
         images = entry.images() if entry is not None else {}
         if "reference" in images and "reference_var" in images:

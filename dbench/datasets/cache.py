@@ -10,8 +10,9 @@ references: the reference seed ``ref_seed``, not the noisy seed, so noisy render
 seeds share one reference entry), integrator settings, transform, the Mitsuba / Dr.Jit /
 mitransient versions and variant, and version markers of what an entry holds (``emitter`` in
 feature entries, which hold albedo, normal, depth, position and emitter; ``var`` in reference
-entries, which hold ``reference`` and ``reference_var``), so entries written before a buffer
-existed are not reused.
+entries, which hold ``reference`` and ``reference_var``; ``nonfinite`` in noisy, statistics
+and reference entries, whose NaN or ±Inf samples count as 0 and are counted in their meta,
+:mod:`.nonfinite`), so entries written before a buffer or a rule existed are not reused.
 
 An entry is built in a temporary folder and renamed into place when complete; ``meta.json`` is
 written last. A killed render leaves only a ``.tmp-*`` folder, which readers ignore and

@@ -6,16 +6,29 @@ NaN where such a sample lands. dbench's sums count those samples as 0 (the rende
 :class:`~dbench.datasets.stats.PowerSums`, here the ``mi.render`` chunks of every reference
 and the transient passes), so its images stay finite but are not the scene's as Mitsuba
 renders it. Every loader (steady, sequence, transient) states how many there were in its
-frame's ``meta``:
-``nonfinite_samples`` (the noisy input), ``ref_nonfinite_samples`` (the reference; None: not
-counted, as for cache entries made before the counts were kept) and, where either is above 0,
+frame's ``meta``: ``nonfinite_samples`` (the noisy input), ``ref_nonfinite_samples`` (the
+reference; None or absent where none was loaded) and, where either is above 0,
 ``nonfinite_warning``, which ``dbench run`` prints and lists in report.md's notes and a sweep
-records in its cells (``input_warnings``)."""
+records in its cells (``input_warnings``).
+
+The render entries this rule changed carry :data:`NONFINITE_VERSION` in their cache keys, so
+an entry cached before it (no count in its meta; a sequence's or video's reference holding
+NaN) is never read as a new one."""
 from __future__ import annotations
 
 from typing import Iterable
 
 import numpy as np
+
+#: Marker in the cache key of the render entries this rule changed: the noisy colour and the
+#: reference of a steady frame, a sequence frame and a transient video (each holds its count;
+#: a sequence's or video's reference, a scalar variant's steady one and the steady image of a
+#: video from collector (a) held NaN or ±Inf where a sample was), and the statistics of the
+#: same renders (their keys extend the colour's). Entries made before it hold no count, so a
+#: run would say nothing of such samples, and such a reference fails every method: they are
+#: never read as new ones. Not in a scene's fingerprint (datasets.scene_fingerprint): where no sample is
+#: non-finite the numbers are the same, so every cell keeps its identity.
+NONFINITE_VERSION = "zeroed-counted-1"
 
 
 def zeroed(values: np.ndarray) -> tuple[np.ndarray, int]:
@@ -30,14 +43,14 @@ def zeroed(values: np.ndarray) -> tuple[np.ndarray, int]:
 
 def total(counts: Iterable[int | None]) -> int | None:
     """The sum of the counts that were made (a sequence's over its frames), None where none
-    was (every frame's entry cached before the counts were kept)."""
+    was (no frame's reference was loaded)."""
     known = [int(n) for n in counts if n is not None]
     return sum(known) if known else None
 
 
 def nonfinite_text(noisy: int | None, reference: int | None) -> str:
     """What a render's NaN or ±Inf sample values (one per channel; a transient video's over
-    all its bins; None: not counted, as for entries cached before they were) mean for its
+    all its bins; None: not counted, where no reference was loaded) mean for its
     numbers, or '' where there were none: they are counted as 0 (README.md, "How renders
     work") where Mitsuba's film would hold NaN, so the images are not the scene's as Mitsuba
     renders it."""
@@ -59,4 +72,4 @@ def note_nonfinite(meta: dict) -> dict:
     return meta
 
 
-__all__ = ["nonfinite_text", "note_nonfinite", "total", "zeroed"]
+__all__ = ["NONFINITE_VERSION", "nonfinite_text", "note_nonfinite", "total", "zeroed"]

@@ -180,3 +180,65 @@ def test_a_sweep_records_them_in_its_cells_and_says_them(renderer, tmp_path, cap
         assert len(said) == 1 and "NaN or ±Inf sample values" in said[0], name
         line = f"{name}: {said[0]}"  # the sweep's one spp: no spp to name
         assert f"warning: {line}" in out and f"- {line}\n" in readme, (name, out)
+
+
+def _put_as_before_the_counts(monkeypatch):
+    """``Cache.put`` as the code before the counts were kept wrote its entries: keys without
+    the NONFINITE_VERSION marker, meta without ``nonfinite_samples``, and a reference holding
+    NaN (as a sequence's or video's reference did where a sample was). Returns the undo."""
+    from dbench.datasets.cache import Cache
+    put = Cache.put
+
+    def spoiled(buffers):
+        out = dict(buffers or {})
+        if "reference" in out:
+            out["reference"] = out["reference"].copy()
+            out["reference"].reshape(-1)[0] = np.nan
+        return out
+
+    def old_put(self, kind, description, images=None, arrays=None, meta=None, **kw):
+        description = {k: v for k, v in description.items() if k != "nonfinite"}
+        meta = {k: v for k, v in (meta or {}).items() if k != "nonfinite_samples"}
+        return put(self, kind, description, spoiled(images), spoiled(arrays), meta, **kw)
+
+    monkeypatch.setattr(Cache, "put", old_put)
+    return lambda: monkeypatch.setattr(Cache, "put", put)
+
+
+def test_entries_cached_before_the_counts_are_not_read_as_new(renderer, tmp_path, monkeypatch):
+    """A noisy or reference entry written before the counts were kept (no count, for a
+    sequence's or video's reference NaN pixels, which failed every method until the cache was
+    cleared) is never served: each kind is rendered again (datasets.nonfinite.NONFINITE_VERSION
+    in its key), and the new entries hold their counts, read back on the next load."""
+    from dbench import datasets
+    from dbench.data import Sequence
+    image = _scene(tmp_path, True)
+    sequence = _python_scene(tmp_path, "sequence")
+    video = _python_scene(tmp_path, "transient")
+    loads = {"image": dict(scene=str(image), spp=4, res=16, needs={"color", "stats",
+                                                                   "reference"}),
+             "sequence": dict(scene=str(sequence), spp=2, res=16,
+                              needs={"color", "stats", "reference"}),
+             "sequence, colour only": dict(scene=str(sequence), spp=2, res=16,
+                                           needs={"color", "reference"}),
+             "video (a)": dict(scene=str(video), spp=2, res=16, collector="a",
+                               needs={"color", "stats", "reference"}),
+             "video (b)": dict(scene=str(video), spp=2, res=16, collector="b",
+                               needs={"color", "reference"})}
+    for name, kw in loads.items():
+        cache = datasets.Cache(tmp_path / "cache" / name.replace(" ", "_"))
+        undo = _put_as_before_the_counts(monkeypatch)
+        datasets.load(ref_spp=16, cache=cache, progress=False, **kw)
+        undo()
+        for k in range(2):  # rendered again over the old entries, then read back
+            got = datasets.load(ref_spp=16, cache=cache, progress=False, **kw)
+            metas = list(got) if isinstance(got, Sequence) else [got]
+            # the colour, statistics and references (features and emitter buffers are shared)
+            counted = ("color", "stats", "frame", "reference")
+            hits = [h for h in got.meta["cache_hits"] if h.startswith(counted)]
+            rendered = [h for h in got.meta["rendered"] if h.startswith(counted)]
+            assert (rendered, hits)[k] and not (rendered, hits)[1 - k], (name, k, hits)
+            for m in [got.meta] + [f.meta for f in metas if f is not got]:
+                assert m["nonfinite_samples"] > 0 and m["ref_nonfinite_samples"] > 0, (name, k)
+            for f in metas:
+                assert np.isfinite(f.reference).all(), (name, k)

@@ -93,7 +93,7 @@ from .frames import (MATCHED_LAYOUT, PSR_GLOSSY_ALPHA,  # noqa: F401 - re-export
                      SAMPLES_VERSION, _matched_integrator, _render_dict, frame_seed,
                      pass_seeds, render_frame, render_gbuffer)
 from .render import render_emitter, render_reference
-from ..nonfinite import note_nonfinite, total
+from ..nonfinite import NONFINITE_VERSION, note_nonfinite, total
 from ..references import check_ref_seed, check_render_args, reference_meta, reference_spp
 from ..stats import stats_from_arrays, stats_to_arrays
 
@@ -230,7 +230,9 @@ def _cached_entry(cache: Cache, kind: str, desc: dict, render: Callable[[], dict
     meta on a hit). The seconds of a new render are added to ``meta[time_key]``. A frame's
     noisy colour is stored uncompressed (:data:`RAW_IMAGES`). ``counts``: the dict the render
     fills (``nonfinite_samples``, :mod:`dbench.datasets.nonfinite`), kept in the entry's meta
-    and filled from it on a hit (None there: an entry made before the count was kept)."""
+    and filled from it on a hit (the entries that hold it are keyed by
+    :data:`~dbench.datasets.nonfinite.NONFINITE_VERSION`, so one made before the count was
+    kept is never hit)."""
     entry = cache.get(kind, desc)
     if entry is not None:
         meta["cache_hits"].append(name)
@@ -393,7 +395,8 @@ def load_sequence(scene: str | SequenceScene, spp: int = 1, res=64,
                   disable=not progress or n < 4, mininterval=0.5):
         camera = camera_info(sc, res, i)
         noisy_desc = base(i, "noisy+gbuffer+emission", spp=int(spp), seed=int(seed),
-                          aovs=_render.AOV_STRING, **samples, **psr)
+                          aovs=_render.AOV_STRING, nonfinite=NONFINITE_VERSION, **samples,
+                          **psr)
         stats = None
         counts: dict = {}  # the frame's non-finite colour samples (datasets/nonfinite.py)
         if "stats" in wanted:
@@ -459,7 +462,7 @@ def load_sequence(scene: str | SequenceScene, spp: int = 1, res=64,
             ref, ref_s = _cached_entry(
                 cache, "seq-reference",
                 base(i, "reference", spp=ref_spp, seed=ref_seed, chunk=REFERENCE_CHUNK,
-                     var=_render.REFERENCE_VAR_VERSION),
+                     var=_render.REFERENCE_VAR_VERSION, nonfinite=NONFINITE_VERSION),
                 lambda: dict(zip(("reference", "reference_var"),
                                  render_reference(sc, res, i, ref_seed, ref_spp,
                                                   counts=ref_counts))),

@@ -61,7 +61,7 @@ from .. import render as _render
 from ..scenes import catalogue as _scenes
 from ..cache import Cache
 from ..mitsuba_env import mitsuba, versions
-from ..nonfinite import note_nonfinite
+from ..nonfinite import NONFINITE_VERSION, note_nonfinite
 from ..references import check_ref_seed, check_render_args, reference_meta
 from ..references import reference_spp as default_ref
 from ..scenes.record import Scene, register_scene
@@ -286,7 +286,7 @@ def load_transient(scene: str | TransientScene, spp: int, res,
 
     copies = batch_copies(res, window.bins, spp) if which == "a" else 1
     noisy_desc = {**base, "what": "transient-noisy", "spp": int(spp), "seed": int(seed),
-                  "collector": which, "copies": copies}
+                  "collector": which, "copies": copies, "nonfinite": NONFINITE_VERSION}
     stats_desc = {**noisy_desc, "what": "transient-stats", "transform": transform,
                   "lam": float(lam), "total_var": TOTAL_VAR_VERSION}
     noisy = cache.get("transient-noisy", noisy_desc)
@@ -357,7 +357,8 @@ def load_transient(scene: str | TransientScene, spp: int, res,
     if "reference" in wanted:
         rspp = reference_spp(spp, ref_spp)
         ref_desc = {**base, "what": "transient-reference", "spp": rspp, "seed": ref_seed,
-                    "chunk": DEFAULT_REFERENCE_CHUNK, "var": _render.REFERENCE_VAR_VERSION}
+                    "chunk": DEFAULT_REFERENCE_CHUNK, "var": _render.REFERENCE_VAR_VERSION,
+                    "nonfinite": NONFINITE_VERSION}
         entry = cache.get("transient-reference", ref_desc)
         arrays = entry.arrays() if entry is not None else {}
         if {"reference", "reference_var", "steady"} <= set(arrays):
