@@ -233,7 +233,9 @@ def render_passes(scene: Scene, res: Res, spp: int, seed: int = 0,
     t1 = time.perf_counter()
     color = (total / spp).astype(np.float32)
     out = acc.finalize() if acc else None
-    if acc is not None and not kernel:  # the host path's PowerSums counted them
+    if acc is not None and not kernel:
+        # the host path's PowerSums counted them, as zeroed counts them without statistics:
+        # the same number for the same samples (tests/datasets/test_nonfinite_samples.py)
         nonfinite = acc.n_nonfinite
     stats_s += time.perf_counter() - t1
     return color, out, {"render_s": render_s, "stats_s": stats_s, "copies": copies,

@@ -23,10 +23,16 @@ SCENE = """<scene version="3.0.0">
 </scene>"""
 
 
-def _scene(folder, bad: bool):
+def _scene(folder, bad: bool, mixed: bool = False):
+    """The plane's scene in ``folder``, its texture with NaN pixels in one channel where
+    ``bad``, and where ``mixed`` also NaN in all three and +Inf and -Inf in one."""
     tex = np.full((8, 8, 3), 0.5, np.float32)
     if bad:
         tex[2:5, 2:5, 1] = np.nan
+    if mixed:
+        tex[5:7, 5:7, :] = np.nan
+        tex[0:2, 6:8, 0] = np.inf
+        tex[6:8, 0:2, 2] = -np.inf
     write_rgb(folder / "tex.exr", tex)
     (folder / "scene.xml").write_text(SCENE)
     return folder / "scene.xml"
@@ -49,6 +55,23 @@ def test_both_render_paths_and_the_reference_count_non_finite_samples(renderer, 
     (tmp_path / "clean").mkdir()
     clean = scenes.get(str(_scene(tmp_path / "clean", False)))
     assert render.render_passes(clean, 16, 4, progress=False)[2]["nonfinite_samples"] == 0
+
+
+def test_the_host_path_counts_them_as_its_statistics_do(renderer, tmp_path):
+    """render_passes' host path counts them itself without statistics (nonfinite.zeroed over
+    a batch whose sums are not finite) and takes PowerSums' count with them (its compiled pass
+    over the float32 batch): the same samples at the same seed, so the same count, one per
+    channel, NaN and ±Inf alike, whichever transform; and so does the kernel path."""
+    from dbench.datasets import render
+    from dbench.datasets.scenes import catalogue as scenes
+    bad = scenes.get(str(_scene(tmp_path, True, mixed=True)))
+    for kernel in (False, True):
+        _, _, plain = render.render_passes(bad, 16, 8, seed=1, progress=False, kernel=kernel)
+        for transform in ("identity", "box-cox", "yeo-johnson"):
+            _, st, timing = render.render_passes(bad, 16, 8, seed=1, stats=(transform, 0.5),
+                                                 progress=False, kernel=kernel)
+            assert timing["nonfinite_samples"] == plain["nonfinite_samples"] \
+                == st.diagnostics["n_nonfinite"] > 0, (kernel, transform)
 
 
 def test_the_scalar_reference_counts_them_as_0_too(renderer, tmp_path, monkeypatch):
