@@ -149,3 +149,10 @@ def test_run_takes_the_scoped_form_naming_its_one_scene(renderer, lamp, tmp_path
     assert not (tmp_path / "R0").exists()
     assert cli.main(run + [str(tmp_path / "R"), "--scene-param", "lamp.xml:light=5"]) == 0
     assert "- scene parameters: light=5" in (tmp_path / "R" / "report.md").read_text()
+
+
+def test_a_missing_value_names_the_scoped_form_too(tmp_path, lamp, capsys):
+    # beside cornell, the unscoped form alone would be refused by cornell: the line says both
+    _refused(capsys, _sweep(tmp_path), "lamp.xml: undefined parameter $light",
+             "--scene-param light=VALUE (SCENE:light=VALUE for this scene alone")
+    assert not (tmp_path / "S").exists()

@@ -162,7 +162,9 @@ class _Walk:
             name = left.group(1)
             # --scene-param takes names only (scene_files/load.parse_scene_params): "$1" or a
             # lone "$" is no parameter it could give
-            fix = (f"give it with --scene-param {name}=VALUE or a <default>"
+            # (a sweep's other scenes may have no such parameter: the scoped form names this one)
+            fix = (f"give it with --scene-param {name}=VALUE (SCENE:{name}=VALUE for this "
+                   f"scene alone, SCENE as the command names it) or a <default>"
                    if re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", name)
                    else "a parameter's name starts with a letter or _; write \\$ for a $ itself")
             raise DbenchInputError(f"--scene {self.scene}: undefined parameter ${name} in "
