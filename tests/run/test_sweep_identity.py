@@ -3,9 +3,6 @@ identity matches; other parameters make another labelled series; a changed defau
 reference is refused (exit 2) unless --rerun; refused sweeps write nothing; temporary and
 malformed files are never read as cells."""
 import json
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -169,21 +166,23 @@ def test_report_refuses_missing_folders_without_creating_them(tmp_path, capsys):
     assert rc == 2 and "sweep" in capsys.readouterr().err
 
 
-def _sweep(out, cache, *extra):
-    env = {**os.environ, "DBENCH_CACHE": str(cache)}
-    cmd = [sys.executable, "-m", "dbench.cli", "sweep", "--methods", "noisy,jbf", "--scenes",
-           "cornell", "--res", "16", "--ref-spp", "64", "--repeats", "1", "--out", str(out),
-           "--quiet", *extra]
-    return subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=300)
+def _sweep(capsys, out, *extra):
+    """``dbench sweep`` in this process (a subprocess per call cost seconds of start-up each;
+    the identities it checks are read back from the folder either way): (exit code, stderr)."""
+    code = cli.main(["sweep", "--methods", "noisy,jbf", "--scenes", "cornell", "--res", "16",
+                     "--ref-spp", "64", "--repeats", "1", "--out", str(out), "--quiet", *extra])
+    return code, capsys.readouterr().err
 
 
 @pytest.mark.mitsuba
-def test_changed_parameters_make_a_second_labelled_series(renderer, tmp_path):
-    out, cache = tmp_path / "S", tmp_path / "cache"
-    first = _sweep(out, cache, "--spp", "4")
-    assert first.returncode == 0, first.stderr
-    second = _sweep(out, cache, "--spp", "4,16", "--param", "jbf.radius=3")
-    assert second.returncode == 0, second.stderr
+def test_changed_parameters_make_a_second_labelled_series(renderer, tmp_path, monkeypatch,
+                                                          capsys):
+    out = tmp_path / "S"
+    monkeypatch.setenv("DBENCH_CACHE", str(tmp_path / "cache"))
+    code, err = _sweep(capsys, out, "--spp", "4")
+    assert code == 0, err
+    code, err = _sweep(capsys, out, "--spp", "4,16", "--param", "jbf.radius=3")
+    assert code == 0, err
     cells = sweep.load_cells(out)
     series = {(c["method"], c["spp"]): c for c in cells}
     assert set(series) == {("noisy", 4), ("noisy", 16), ("jbf", 4), ("jbf[radius=3]", 4),
@@ -194,15 +193,14 @@ def test_changed_parameters_make_a_second_labelled_series(renderer, tmp_path):
     stored = sweep.read_cell(out / "sweep.json")["config"]
     assert {"jbf", "jbf[radius=3]"} <= set(stored["labels"])
     # another reference spp under the same labels is refused before rendering, with exit 2
-    third = _sweep(out, cache, "--spp", "4").returncode
+    third, _ = _sweep(capsys, out, "--spp", "4")
     assert third == 0
-    env_changed = subprocess.run(
-        [sys.executable, "-m", "dbench.cli", "sweep", "--methods", "noisy", "--scenes",
-         "cornell", "--res", "16", "--repeats", "1", "--spp", "4", "--out", str(out),
-         "--quiet"], env={**os.environ, "DBENCH_CACHE": str(cache), "DBENCH_REF_SPP": "128"},
-        capture_output=True, text=True, timeout=300)
-    assert env_changed.returncode == 2 and "ref_spp" in env_changed.stderr
-    assert "Traceback" not in env_changed.stderr
+    monkeypatch.setenv("DBENCH_REF_SPP", "128")
+    code = cli.main(["sweep", "--methods", "noisy", "--scenes", "cornell", "--res", "16",
+                     "--repeats", "1", "--spp", "4", "--out", str(out), "--quiet"])
+    err = capsys.readouterr().err
+    assert code == 2 and "ref_spp" in err
+    assert "Traceback" not in err
 
 
 @pytest.mark.mitsuba
