@@ -273,9 +273,13 @@ def test_speed_benchmark_runs_small():
 # -- quality on rendered sequences -------------------------------------------------------------------
 
 def _quality(scene, res, frames, cache):
-    seq = datasets.load(scene, spp=1, res=res, frames=frames, ref_spp=256, cache=cache,
-                        progress=False)
     from dbench import registry
+    from dbench.datasets.sequence.scene import SEQUENCE_BUFFERS
+
+    # all buffers but the per-frame sample statistics, which no method here reads; colour and
+    # G-buffers do not change (test_sequence_frames_carry_the_statistics_of_their_own_samples)
+    seq = datasets.load(scene, spp=1, res=res, frames=frames, ref_spp=256, cache=cache,
+                        needs=SEQUENCE_BUFFERS - {"stats"}, progress=False)
     # BS.compare without ColorVideoVDP (seconds per method): the checks read the RMSE only,
     # and the video metric has its own tests (tests/metrics/test_video_quality.py)
     res_ = {n: BS.run_sequence(registry.get(n), seq, keep_outputs=False, cvvdp=False)
