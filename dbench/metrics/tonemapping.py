@@ -24,14 +24,23 @@ def _as_float64(name: str, x: Any) -> np.ndarray:
     return arr.astype(np.float64, copy=False)
 
 
+#: The exposures (stops) whose scale 2^EV is a finite, non-zero float64: above, Python's power
+#: overflows (an internal error after every method ran); below, it rounds to 0 and every
+#: tone-mapped pixel is black, so the LDR metrics of every method read as perfect.
+EV_RANGE = (-1074, 1023)
+
+
 def check_ev(ev: Any) -> float:
-    """Return ``ev`` as a float; DbenchInputError unless it is a finite real number."""
+    """Return ``ev`` as a float; DbenchInputError unless it is a real number in
+    :data:`EV_RANGE` (so finite)."""
+    valid = (f"ev: expected a finite number (exposure in stops) in [{EV_RANGE[0]}, "
+             f"{EV_RANGE[1]}], got {ev!r}")
     try:
         value = float(ev)
-    except (TypeError, ValueError):
-        raise DbenchInputError(f"ev: expected a finite number (exposure in stops), got {ev!r}") from None
-    if not math.isfinite(value):
-        raise DbenchInputError(f"ev: expected a finite number (exposure in stops), got {ev!r}")
+    except (TypeError, ValueError, OverflowError):
+        raise DbenchInputError(valid) from None
+    if not (math.isfinite(value) and EV_RANGE[0] <= value <= EV_RANGE[1]):
+        raise DbenchInputError(valid)
     return value
 
 

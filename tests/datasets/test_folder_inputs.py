@@ -207,3 +207,22 @@ def test_a_sweep_refuses_more_frames_than_a_folder_numbers_before_anything_rende
         f"dbench: --frames: {folder}/v holds 3 numbered frames (0-2); expected an integer in "
         "[1, 3], got 5"]
     assert not (tmp_path / "x").exists() and not cache.exists()
+
+
+@pytest.mark.parametrize("ev", ["NaN", "Infinity", "1e6", "-2000"])
+def test_a_dataset_json_exposure_the_tone_map_cannot_use_is_refused_before_any_method(
+        tmp_path, capsys, ev):
+    """JSON's NaN and Infinity passed the type check and failed in the metrics after every
+    method ran (the line not naming dataset.json); 1e6 ended in an internal OverflowError
+    (exit 1) and -2000 scaled every tone-mapped pixel to black (2^ev rounds to 0)."""
+    folder = _series(tmp_path / "renders")
+    (folder / "dataset.json").write_text(f'{{"ev": {ev}}}')
+    with pytest.raises(DbenchInputError, match=r"dataset\.json: ev: expected a finite number"):
+        scan_folder(folder)
+    out = tmp_path / "run"
+    assert main(["run", "--method", "noisy", "--scene", str(folder), "--spp", "16",
+                 "--repeats", "1", "--out", str(out)]) == 2
+    captured = capsys.readouterr()
+    err = captured.err.strip().splitlines()
+    assert len(err) == 1 and "dataset.json: ev:" in err[0] and "[-1074, 1023]" in err[0], err
+    assert "running" not in captured.out + captured.err and not out.exists()

@@ -29,6 +29,7 @@ TRANSIENT = 'kind = "transient"\nwindow_start = 1.0\nwindow_end = 9.0\n'
 BAD = {"ev-text": ('ev = "bright"\n', "ev is 'bright'"),
        "ev-none": ("ev = None\n", "ev is None"),
        "ev-nan": ('ev = float("nan")\n', "ev is nan"),
+       "ev-huge": ("ev = 1e6\n", "ev is 1000000.0; give a number of stops in [-1074, 1023]"),
        "kind": ('kind = "video"\n', "kind is 'video'; give one of steady, sequence"),
        "depth": ("max_depth = 2.5\n", "max_depth is 2.5; give an integer"),
        "frames-text": ('kind = "sequence"\nframes = "many"\n', "frames is 'many'"),

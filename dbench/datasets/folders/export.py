@@ -45,6 +45,7 @@ import numpy as np
 from ...data import Frame, SampleStats, check_count
 from ...errors import DbenchInputError
 from ...io import atomic_path, write_exr, write_json
+from ...metrics.tonemapping import check_ev
 from .exr_layers import write_channels
 
 #: Frame buffer → file tag.
@@ -211,6 +212,12 @@ def read_dataset_json(folder: Path) -> dict:
                                f"normals {data['normals']!r} disagree; expected one")
     if data.get("ref_spp") is not None and data["ref_spp"] < 1:
         raise DbenchInputError(f"{path}: ref_spp {data['ref_spp']}; expected an integer >= 1")
+    if data.get("ev") is not None:
+        # JSON's NaN, Infinity or 1e6 failed only in the metrics, after every method ran
+        try:
+            check_ev(data["ev"])
+        except DbenchInputError as exc:
+            raise DbenchInputError(f"{path}: {exc}") from None
     return data
 
 
