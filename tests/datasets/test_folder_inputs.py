@@ -226,3 +226,18 @@ def test_a_dataset_json_exposure_the_tone_map_cannot_use_is_refused_before_any_m
     err = captured.err.strip().splitlines()
     assert len(err) == 1 and "dataset.json: ev:" in err[0] and "[-1074, 1023]" in err[0], err
     assert "running" not in captured.out + captured.err and not out.exists()
+
+
+def test_a_file_named_with_0_spp_is_refused_naming_it(tmp_path, capsys):
+    """``v_0000.hdr.exr`` was read as a render of 0 spp: it entered the noisy series and the
+    reference's error estimated from it ("noisy series (0, 16 spp)"), and a refusal of another
+    --spp offered 0, which --spp itself refuses."""
+    folder = _series(tmp_path / "renders")
+    (folder / "v_0004.hdr.exr").rename(folder / "v_0000.hdr.exr")
+    with pytest.raises(DbenchInputError, match=r"v_0000\.hdr\.exr: spp 0 in its name; expected "
+                                               r"a sample count in \[1, 2147483647\]"):
+        scan_folder(folder)
+    assert main(["run", "--method", "noisy", "--scene", str(folder), "--spp", "16",
+                 "--repeats", "1", "--out", str(tmp_path / "run")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "v_0000.hdr.exr: spp 0" in err[0], err

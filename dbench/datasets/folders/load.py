@@ -4,9 +4,9 @@ A folder holds one or more *views*; every file name starts with the view name (d
 §1-2):
 
 ``<view>_<spp>.<tag>.exr``
-    One buffer per file (OIDN layout). ``<spp>`` is digits, zero padding allowed, optionally
-    followed by ``spp``; ``ref``, ``reference``, ``gt`` or ``target`` instead names the
-    reference. Tags: ``hdr`` colour, ``alb`` albedo, ``nrm`` normal (OIDN's), and dbench's
+    One buffer per file (OIDN layout). ``<spp>`` is digits (a count in [1, 2³¹ − 1]), zero
+    padding allowed, optionally followed by ``spp``; ``ref``, ``reference``, ``gt`` or
+    ``target`` instead names the reference. Tags: ``hdr`` colour, ``alb`` albedo, ``nrm`` normal (OIDN's), and dbench's
     ``depth`` (1 channel), ``pos`` position, ``emitter`` (1 channel, in [0, 1]), ``var`` the
     variance σ² of ONE sample of the colour (pbrt-v4's ``Variance`` convention; the variance
     of the mean is σ²/spp), ``mv`` motion (2 channels). ``ldr`` and ``sh1x/y/z`` files are
@@ -45,9 +45,8 @@ says which spp lack which buffer (:mod:`dbench.datasets.folders.features`). Norm
 n·0.5 + 0.5 are detected at scan time on the first normal image
 (:mod:`dbench.datasets.folders.normals`) and decoded to [-1, 1] for the whole view;
 ``dataset.json`` "normal_encoding" overrides the detection, and ``dbench run
---normal-encoding`` (:func:`with_normal_encoding`) overrides
-both. ``meta["layers_read"]`` and ``meta["layers_ignored"]`` list the files and channels a load
-read and those it left.
+--normal-encoding`` (:func:`with_normal_encoding`) overrides both. ``meta["layers_read"]``
+and ``meta["layers_ignored"]`` list the files and channels read and left.
 
 A folder with several views is selected by ``DIR/NAME`` (a path whose parent is the folder and
 whose last part is the view name).
@@ -70,7 +69,7 @@ from typing import Iterable
 
 import numpy as np
 
-from ...data import Frame, SampleStats
+from ...data import MAX_COUNT, Frame, SampleStats
 from ...errors import DbenchInputError
 from ...resolution import Res
 from . import exr_layers as xl
@@ -236,8 +235,11 @@ def _build_plan(folder: Path, files: list[str]):
             continue
         key = m["key"].lower()
         key = "ref" if key in REF_KEYS else int(key.removesuffix("spp"))
-        slot = plan.setdefault((None if m["frame"] is None else int(m["frame"]), key), {})
         path = folder / name
+        if key != "ref" and not 1 <= key <= MAX_COUNT:  # (a 0-spp file skewed the series)
+            raise DbenchInputError(f"{path}: spp {key} in its name; expected a sample count in "
+                                   f"[1, {MAX_COUNT}] (<name>_<spp>.<tag>.exr)")
+        slot = plan.setdefault((None if m["frame"] is None else int(m["frame"]), key), {})
         if tag == "stats":
             _add(slot, "stats", path, folder)
             continue
