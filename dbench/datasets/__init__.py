@@ -203,7 +203,7 @@ def load(scene: str | Scene, spp: int, res, needs: Iterable[str] | None = None,
                   **getattr(sc, "frame_meta", {})}
     if "scene_file" in meta:  # its settings in words, the film as rendered at this size
         from .scene_files.fidelity import report_lines
-        meta["scene_file_settings"] = report_lines(meta["scene_file"], res)
+        meta["scene_file_settings"] = report_lines(meta["scene_file"], res, spp, seed)
 
     # (NONFINITE_VERSION: entries made before the counts were kept are not read as new)
     noisy_desc = {**base, "what": "noisy", "spp": int(spp), "seed": int(seed),

@@ -206,3 +206,42 @@ def test_a_python_dictionary_value_that_is_not_finite_is_refused(renderer, tmp_p
     py.write_text(NO_LIGHT_PY % ', "sky": {"type": "constant", "radiance": {"type": "rgb", '
                                 '"value": [1, 0.5, 1]}}')
     resolve(py)
+
+
+def test_a_files_sample_count_and_seed_are_stated_where_the_run_differs(renderer, tmp_path,
+                                                                        capsys):
+    """dbench renders ``--spp`` samples with its own seeds: a sampler's ``sample_count`` of 64
+    rendered at 2 spp, and its ``seed``, were left unread without a word ("independent (as
+    in the file)"), where the film's size, replaced the same way, is stated."""
+    from dbench import datasets
+    from dbench.datasets.scene_files.fidelity import report_lines
+    from dbench.datasets.scene_files.load import resolve
+    sampler = ('<sampler type="independent"><integer name="sample_count" value="64"/>'
+               '<integer name="seed" value="7"/></sampler>')
+    path = _xml(tmp_path, "sampled.xml", '<emitter type="constant"/>')
+    path.write_text(path.read_text().replace("<film ", sampler + "<film "))
+    sc = resolve(path)
+    rec = sc.frame_meta["scene_file"]
+    assert rec["file_sampler_settings"] == {"sample_count": 64, "seed": 7}
+    frame = datasets.load(sc, spp=2, res=8, needs={"color"}, progress=False, seed=3,
+                          cache=datasets.Cache(tmp_path / "c"))
+    assert frame.meta["scene_file_settings"]["sampler"] == (
+        "independent, 2 spp, dbench's seeds from --seed 3 (file: independent, sample_count 64, "
+        "seed 7) — the run's --spp sets the samples per pixel; dbench's seeds")
+    # the file's own count, and no seed: as in the file
+    same = _xml(tmp_path, "same.xml", '<emitter type="constant"/>')
+    same.write_text(same.read_text().replace("<film ", sampler.replace(
+        '<integer name="seed" value="7"/>', "").replace("64", "2") + "<film "))
+    assert report_lines(resolve(same).frame_meta["scene_file"], 8, 2, 0)["sampler"] == \
+        "independent (as in the file)"
+    # a Python scene's dictionary sampler alike
+    py = tmp_path / "sampled.py"
+    py.write_text((NO_LIGHT_PY % ', "sky": {"type": "constant"}').replace(
+        '"type": "perspective",',
+        '"type": "perspective", "sampler": {"type": "independent", "sample_count": 64},'))
+    line = report_lines(resolve(py).frame_meta["scene_file"], 8, 16, 0)["sampler"]
+    assert line.startswith("independent, 16 spp (file: independent, sample_count 64)"), line
+    rc = main(["run", "--method", "noisy", "--scene", str(path), "--res", "8", "--spp", "2",
+               "--ref-spp", "8", "--out", str(tmp_path / "out"), "--cache", str(tmp_path / "c")])
+    out = " ".join(capsys.readouterr().out.split())
+    assert rc == 0 and "scene file changed: sampler independent, 2 spp" in out, out

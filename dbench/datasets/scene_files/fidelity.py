@@ -9,8 +9,10 @@ dbench uses and the file's, the camera kind, and the conversions to the RGB vari
 ({label: text}, for the run's report).
 
 The film's filter is always a box: each 1-spp pass must keep each sample in its own pixel, as
-the per-sample statistics need. The sampler is always ``independent`` with dbench's seeds. The
-film covers the whole view: a crop window of the file's film (``crop_offset_x``,
+the per-sample statistics need. The sampler is always ``independent`` with dbench's seeds, at
+the spp of the run (``--spp``): a ``sample_count`` or ``seed`` the file's sampler sets is
+recorded (``file_sampler_settings``) and, where the run's spp or seeds differ, the sampler line
+says so. The film covers the whole view: a crop window of the file's film (``crop_offset_x``,
 ``crop_offset_y``, ``crop_width``, ``crop_height``) is not applied, and the film line says so.
 
 A Python scene file's dictionary (and a plugin's build function's) gets the same record from
@@ -51,6 +53,37 @@ def film_settings(state) -> tuple[str, str]:
     filters = children(state, films[0][1], mi.ObjectType.ReconstructionFilter) if films else []
     return (filters[0][1].props.plugin_name() if filters else FILE_DEFAULT_FILTER,
             samplers[0][1].props.plugin_name() if samplers else FILE_DEFAULT_SAMPLER)
+
+
+def sampler_settings(state) -> dict[str, int]:
+    """{"sample_count": n, "seed": s}, those of the two that the file's first sensor's sampler
+    sets itself (Mitsuba's defaults are not the file's word); ``state`` as for
+    :func:`film_settings`."""
+    if isinstance(state, dict):
+        sensor = state.get("sensor") if isinstance(state.get("sensor"), dict) else {}
+        sampler = sensor.get("sampler")
+        props = sampler if isinstance(sampler, dict) else {}
+        get = props.get
+    else:
+        mi = mitsuba()
+        sensors = children(state, state.root, mi.ObjectType.Sensor)
+        samplers = children(state, sensors[0][1], mi.ObjectType.Sampler) if sensors else []
+        if not samplers:
+            return {}
+        props = samplers[0][1].props
+        keys = set(props.keys())
+
+        def get(k):
+            return props.get(k) if k in keys else None
+    out = {}
+    for key in ("sample_count", "seed"):
+        try:
+            value = int(get(key)) if get(key) is not None else None
+        except (TypeError, ValueError):
+            value = None  # (Mitsuba refuses it when it loads the file)
+        if value is not None:
+            out[key] = value
+    return out
 
 
 def _name(obj, default: str) -> str:
@@ -105,15 +138,18 @@ def record(plan: IntegratorPlan, state, sensor: str, conversions: tuple[str, ...
             "max_depth": plan.max_depth, "rr_depth": plan.rr_depth,
             "hide_emitters": plan.hide_emitters, "replaced": plan.replaced,
             "integrator_notes": list(plan.notes), "filter": FILTER, "file_filter": file_filter,
-            "sampler": SAMPLER, "file_sampler": file_sampler, "sensor": sensor,
+            "sampler": SAMPLER, "file_sampler": file_sampler,
+            "file_sampler_settings": sampler_settings(state), "sensor": sensor,
             "conversions": list(conversions), "sensors": int(sensors),
             "file_film": list(film) if film else None, "file_crop": crop}
 
 
-def report_lines(rec: dict, res=None) -> dict[str, str]:
+def report_lines(rec: dict, res=None, spp: int | None = None,
+                 seed: int | None = None) -> dict[str, str]:
     """{label: text} of a :func:`record` for a report's settings, e.g. ``"integrator": "path
     (file: direct) — replaced because …"``; with ``res``, the size rendered, the film as
-    rendered against the file's (:func:`film_text`)."""
+    rendered against the file's (:func:`film_text`); with ``spp`` and ``seed``, those of the
+    render against the file's sampler's (:func:`sampler_text`)."""
     name, file = rec["integrator"], rec["file_integrator"]
     if rec["replaced"]:
         integrator = f"{name} (file: {file}) — replaced because {rec['replaced']}"
@@ -135,7 +171,7 @@ def report_lines(rec: dict, res=None) -> dict[str, str]:
              "filter": _kept_or(rec["filter"], rec["file_filter"],
                                 "each 1-spp pass keeps its samples in their own pixels, as the "
                                 "per-sample statistics need"),
-             "sampler": _kept_or(rec["sampler"], rec["file_sampler"], "dbench's seeds"),
+             "sampler": sampler_text(rec, spp, seed),
              "sensor": rec.get("sensor_text") or (
                  f"{rec['sensor']} (the file's pose, clip planes and field of view"
                  + (f"; the first of its {rec['sensors']} sensors, as Mitsuba renders"
@@ -182,9 +218,28 @@ def film_text(file_film, res=None, crop: dict | None = None) -> str:
             + (f"; {cropped}" if crop else ""))
 
 
+def sampler_text(rec: dict, spp: int | None = None, seed: int | None = None) -> str:
+    """The sampler: ``independent (as in the file)``, or the change in the report's form, where
+    the file names another sampler, its sampler sets a ``sample_count`` other than ``spp`` (the
+    run's ``--spp``), or sets a ``seed`` (dbench seeds every pass itself, from ``seed``, the
+    run's ``--seed``)."""
+    used, file = [rec["sampler"]], [rec["file_sampler"]]
+    own = rec.get("file_sampler_settings") or {}
+    why = []
+    if spp is not None and own.get("sample_count", spp) != spp:
+        used.append(f"{spp} spp")
+        file.append(f"sample_count {own['sample_count']}")
+        why.append("the run's --spp sets the samples per pixel")
+    if "seed" in own:
+        used.append("dbench's seeds" + (f" from --seed {seed}" if seed is not None else ""))
+        file.append(f"seed {own['seed']}")
+    why.append("dbench's seeds")
+    return _kept_or(", ".join(used), ", ".join(file), "; ".join(why))
+
+
 def _kept_or(used: str, file: str, why: str) -> str:
     return f"{used} (as in the file)" if used == file else f"{used} (file: {file}) — {why}"
 
 
 __all__ = ["record", "dict_record", "file_crop", "report_lines", "film_settings",
-           "film_text", "CROP_KEYS", "FILTER", "SAMPLER"]
+           "sampler_settings", "sampler_text", "film_text", "CROP_KEYS", "FILTER", "SAMPLER"]
