@@ -132,8 +132,8 @@ def _export(args: argparse.Namespace, caught: list[str]) -> int:
     # nothing)
     if scene.kind == "steady":
         check_plugin_scene(scene)
-    datasets.scene_fingerprint(scene, res)
-    check_export_folder(out, scene=scene.name, ev=scene.ev,
+    fingerprint = datasets.scene_fingerprint(scene, res)
+    check_export_folder(out, scene=scene.name, ev=scene.ev, fingerprint=fingerprint,
                         ref_spp=(int(args.ref_spp or reference_spp())
                                  if "reference" in scene.provides else None))
     cache = _writable_cache(args)
@@ -160,7 +160,8 @@ def _export(args: argparse.Namespace, caught: list[str]) -> int:
             remove_empty(created)
         raise
     written.append(write_dataset_json(out, ref_spp=ref_spp, ev=scene.ev,
-                                      description=scene.description, scene=scene.name))
+                                      description=scene.description, scene=scene.name,
+                                      fingerprint=fingerprint))
     print(f"exported {scene.name} at {res.text} px, spp {', '.join(map(str, spps))}, "
           f"reference {ref_spp} spp: {len(written)} files in {out}")
     if caught:

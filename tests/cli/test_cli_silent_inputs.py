@@ -255,3 +255,26 @@ def test_report_refuses_a_damaged_sweep_json(tmp_path, capsys, text):
                    f"{sweep / 'sweep.json'}: ")
     assert "repair it or move it away" in err
     assert not (tmp_path / "res" / "README.md").exists()
+
+
+def test_export_adds_spp_only_to_an_export_of_the_same_render(renderer, tmp_path, capsys):
+    """The folder's scene was judged by its name alone: the same file with another
+    --scene-param, an edit, or another --res added spp beside renders of another scene and
+    overwrote their reference (a --res 16 export beside 8×8 files, or light=20's spp beside
+    light=8's reference)."""
+    scene = tmp_path / "room.xml"
+    scene.write_text(XML)
+    out = tmp_path / "exp"
+    argv = ["export", str(scene), "--out", str(out), "--ref-spp", "8", "--quiet",
+            "--cache", str(tmp_path / "cache")]
+    assert cli.main(argv + ["--spp", "2", "--res", "8"]) == 0
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    _refused(capsys, argv + ["--spp", "4", "--res", "8", "--scene-param", "light=20"],
+             "holds an export of room.xml with fingerprint")
+    _refused(capsys, argv + ["--spp", "4", "--res", "16"], "--res")
+    scene.write_text(XML.replace('value="0.5"', 'value="0.6"'))
+    _refused(capsys, argv + ["--spp", "4", "--res", "8"], "other content")
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+    scene.write_text(XML)  # the same scene again: more spp are added
+    assert cli.main(argv + ["--spp", "4", "--res", "8", "--scene-param", "light=8"]) == 0
+    assert (out / "room.xml_0004.hdr.exr").is_file()

@@ -173,14 +173,18 @@ def export_frame(frame: Frame, out_dir: str | os.PathLike, name: str, spp: int, 
 
 
 def write_dataset_json(out_dir: str | os.PathLike, *, ref_spp: int | None, ev: float,
-                       description: str = "", scene: str = "") -> Path:
+                       description: str = "", scene: str = "",
+                       fingerprint: str | None = None) -> Path:
     """Write ``out_dir/dataset.json`` (ref_spp, ev, ``normal_encoding`` "signed" as README.md
-    documents it, description, scene)."""
+    documents it, description, scene, and the exported scene's ``fingerprint`` where given:
+    :func:`dbench.datasets.scene_fingerprint` at the exported size, which
+    :func:`check_export_folder` compares before more spp are added)."""
     if ref_spp is not None:
         ref_spp = check_count("ref_spp", ref_spp)
     path = Path(out_dir) / "dataset.json"
     write_json(path, {"ref_spp": ref_spp, "ev": float(ev), "normal_encoding": "signed",
-                      "description": str(description), "scene": str(scene)})
+                      "description": str(description), "scene": str(scene),
+                      **({"fingerprint": str(fingerprint)} if fingerprint else {})})
     return path
 
 
@@ -195,7 +199,7 @@ def read_dataset_json(folder: Path) -> dict:
     except (OSError, ValueError) as exc:
         raise DbenchInputError(f"{path}: not readable JSON ({exc})") from None
     kinds = {"ref_spp": int, "ev": (int, float), "normal_encoding": str, "normals": str,
-             "description": str, "scene": str}
+             "description": str, "scene": str, "fingerprint": str}
     if not isinstance(data, dict):
         raise DbenchInputError(f"{path}: expected a JSON object with keys {sorted(kinds)}")
     for key, value in data.items():
@@ -221,11 +225,15 @@ def read_dataset_json(folder: Path) -> dict:
     return data
 
 
-def check_export_folder(out: Path, *, scene: str, ref_spp: int | None, ev: float) -> None:
+def check_export_folder(out: Path, *, scene: str, ref_spp: int | None, ev: float,
+                        fingerprint: str | None = None) -> None:
     """Refuse an ``out`` that holds other files than an export of ``scene`` with the same
-    reference spp (None: no reference) and exposure: its ``dataset.json`` (one per folder)
-    would be rewritten for this scene, mis-describing the renders already there, and files of
-    other tools would mix with these."""
+    reference spp (None: no reference), exposure and ``fingerprint`` (the scene's content,
+    parameters, size and renderer; :func:`write_dataset_json`): its ``dataset.json`` (one per
+    folder) would be rewritten for this scene, mis-describing the renders already there, and
+    files of other tools would mix with these. The name alone let an edited scene file, other
+    ``--scene-param`` values or another ``--res`` add spp beside renders of another scene, and
+    overwrite their reference."""
     out = Path(out)
     if not out.is_dir() or not any(out.iterdir()):
         return
@@ -239,3 +247,10 @@ def check_export_folder(out: Path, *, scene: str, ref_spp: int | None, ev: float
             raise DbenchInputError(f"--out {out}: holds an export with {key} {old.get(key)!r}, "
                                    f"not {value!r}; export into a new or empty folder (one "
                                    f"dataset.json describes the whole folder)")
+    if fingerprint is not None and old.get("fingerprint") != fingerprint:
+        # (an export without one, an older dbench's, cannot be shown to be the same scene)
+        held = repr(old["fingerprint"]) if old.get("fingerprint") else "none recorded"
+        raise DbenchInputError(f"--out {out}: holds an export of {scene} with fingerprint "
+                               f"{held}, not {fingerprint!r} (other content, --scene-param "
+                               f"values, --res or renderer); export into a new or empty "
+                               f"folder (one dataset.json describes the whole folder)")
