@@ -239,3 +239,32 @@ def test_the_terminal_says_what_the_render_changed_and_the_parameters(renderer, 
     report = (tmp_path / "w" / "report.md").read_text()
     assert "the first of its 2 sensors" in report and "film: 8×6 (file: 16×16) — the requested " \
         "size" in report
+
+
+def test_a_max_depth_of_0_is_refused_before_anything_renders(renderer, tmp_path, capsys):
+    """max_depth 0 gathers no light at all: the reference was rendered, found black and
+    refused afterwards, blaming the lights ("no light of its emitters reaches the camera")."""
+    from dbench.datasets.scene_files.load import resolve
+    path = _scene(tmp_path, "dark.xml", '<integrator type="path">'
+                                        '<integer name="max_depth" value="0"/></integrator>')
+    with pytest.raises(DbenchInputError, match=r"dark\.xml: max_depth 0 \(path\) gathers no "
+                                               r"light.*give max_depth -1 \(unlimited\) or 1"):
+        resolve(path)
+    # through a <default> and a wrapper alike, and a Python file's module max_depth
+    wrapped = _scene(tmp_path, "wrapped.xml", '<default name="d" value="0"/><integrator '
+                     'type="aov"><string name="aovs" value="dd.y:depth"/><integrator '
+                     'type="volpath"><integer name="max_depth" value="$d"/></integrator>'
+                     '</integrator>')
+    with pytest.raises(DbenchInputError, match=r"max_depth 0 \(volpath\)"):
+        resolve(wrapped)
+    py = tmp_path / "dark.py"
+    py.write_text("max_depth = 0\n\ndef build(mi, width, height):\n    d = mi.cornell_box()\n"
+                  "    d['sensor']['film'].update(width=width, height=height)\n    return d\n")
+    with pytest.raises(DbenchInputError, match=r"dark\.py: max_depth 0 \(path\)"):
+        resolve(py)
+    rc = main(["run", "--method", "noisy", "--scene", str(path), "--res", "8", "--spp", "1",
+               "--ref-spp", "8", "--out", str(tmp_path / "out"),
+               "--cache", str(tmp_path / "cache")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1 and "max_depth 0" in err[-1], err
+    assert not (tmp_path / "out").exists() and not (tmp_path / "cache").exists()

@@ -251,9 +251,17 @@ def _finish(path: str, render: dict, file_integrator: str | None, replaced: str 
     """The plan, with the depths read back from the integrator Mitsuba builds of ``render``."""
     text = str(_instantiate(render, path))
     hide = settings.get("hide_emitters")
+    depth = _depth(text, "max_depth")
+    if depth == 0:
+        # refused before the reference renders, where check_reference_lit would refuse the
+        # black reference afterwards, blaming the lights
+        raise DbenchInputError(f"--scene {path}: max_depth 0 ({render['type']}) gathers no "
+                               f"light, not even a light seen directly, so every image is "
+                               f"black and every method would score perfectly; give max_depth "
+                               f"-1 (unlimited) or 1 or more")
     return IntegratorPlan(render=render, integrator=render["type"],
                           file_integrator=file_integrator,
-                          max_depth=_depth(text, "max_depth"), rr_depth=_depth(text, "rr_depth"),
+                          max_depth=depth, rr_depth=_depth(text, "rr_depth"),
                           hide_emitters=None if hide is None else bool(hide),
                           replaced=replaced, notes=notes)
 
