@@ -245,3 +245,33 @@ def test_a_files_sample_count_and_seed_are_stated_where_the_run_differs(renderer
                "--ref-spp", "8", "--out", str(tmp_path / "out"), "--cache", str(tmp_path / "c")])
     out = " ".join(capsys.readouterr().out.split())
     assert rc == 0 and "scene file changed: sampler independent, 2 spp" in out, out
+
+
+def test_a_scene_whose_every_light_has_zero_area_exits_2_before_rendering(renderer, tmp_path,
+                                                                          capsys):
+    """An area light on a sphere of radius 0 or a rectangle scaled to a line emits nothing:
+    the whole reference was rendered before its black image was refused, and the refusal
+    blamed the camera's view."""
+    from dbench.datasets.scene_files.load import resolve
+    flat = ('<shape type="sphere"><float name="radius" value="0"/><point name="center" x="0" '
+            'y="3" z="0"/><emitter type="area"/></shape><shape type="rectangle" id="strip">'
+            '<transform name="to_world"><scale x="0" y="1" z="1"/><translate y="2"/>'
+            '</transform><emitter type="area"/></shape>')
+    dark = _xml(tmp_path, "flat.xml", flat)
+    with pytest.raises(DbenchInputError, match=r"flat\.xml: every emitter is an area light on "
+                                               r"a shape of zero surface area \(sphere, "
+                                               r"rectangle 'strip'\)"):
+        resolve(dark)
+    rc = main(["run", "--method", "noisy", "--scene", str(dark), "--res", "8", "--spp", "1",
+               "--ref-spp", "8", "--out", str(tmp_path / "out"),
+               "--cache", str(tmp_path / "cache")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and "zero surface area" in err[-1], err
+    assert not (tmp_path / "out").exists() and not (tmp_path / "cache").exists()
+    # one light with an area is enough; a Python file's dictionary is read alike
+    resolve(_xml(tmp_path, "lit.xml", flat + '<emitter type="constant"/>'))
+    py = tmp_path / "flat.py"
+    py.write_text(NO_LIGHT_PY % ', "lamp": {"type": "sphere", "radius": 0.0, "center": '
+                                '[0, 3, 0], "emitter": {"type": "area"}}')
+    with pytest.raises(DbenchInputError, match=r"flat\.py: every emitter is an area light"):
+        resolve(py)

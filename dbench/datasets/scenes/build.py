@@ -224,11 +224,34 @@ def check_box_filter(mi, d: dict, what: str) -> None:
 
 def check_lit(loaded, what: str) -> None:
     """Refuse the loaded scene ``loaded`` when it has no emitter (area lights are their shapes'
-    and count, as do environment maps and constant emitters): every image of it is black, and
-    every method would score perfectly on it."""
-    if not len(loaded.emitters()):
+    and count, as do environment maps and constant emitters), or when every emitter is an area
+    light on a shape of zero surface area (a sphere of radius 0, a rectangle scaled to a line),
+    which emits nothing: every image of it is black, and every method would score perfectly on
+    it. Such a scene used to render its whole reference before the black image was refused,
+    blaming the camera's view."""
+    emitters = list(loaded.emitters())
+    if not emitters:
         raise DbenchInputError(f"{what}: the scene has no emitter, so every image is black and "
                                f"every method would score perfectly; add a light")
+    flat = [e.get_shape() for e in emitters if _zero_area(e.get_shape())]
+    if len(flat) == len(emitters):
+        names = ", ".join(dict.fromkeys(f"{s.class_name().lower()} {s.id()!r}".replace(" ''", "")
+                                        for s in flat))
+        raise DbenchInputError(f"{what}: every emitter is an area light on a shape of zero "
+                               f"surface area ({names}), which emits nothing, so every image "
+                               f"is black and every method would score perfectly; give a "
+                               f"light's shape some area")
+
+
+def _zero_area(shape) -> bool:
+    """Whether ``shape`` (an area light's, None for other emitters) has no surface."""
+    if shape is None:
+        return False
+    try:
+        import drjit as dr
+        return float(dr.max(dr.ravel(shape.surface_area()))[0]) <= 0.0
+    except Exception:  # a shape that does not compute its area: assume it emits
+        return False
 
 
 def dictionary_plan(scene: Any):
