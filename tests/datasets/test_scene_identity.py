@@ -230,3 +230,50 @@ def test_a_scene_parameter_equal_to_the_files_default_is_the_same_scene(renderer
 @pytest.fixture(autouse=True)
 def _own_dir(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
+
+
+RANDOM = '''
+import random
+
+def build(mi, width, height):
+    T = mi.ScalarTransform4f
+    return {"type": "scene",
+            "sensor": {"type": "perspective", "fov": 45,
+                       "to_world": T().look_at(origin=[0, 2, 3], target=[0, 0, 0], up=[0, 1, 0])},
+            "ball": {"type": "sphere", "center": [random.uniform(-1, 1), 0, 0],
+                     "bsdf": {"type": "diffuse"}},
+            "sky": {"type": "constant"}}
+'''
+
+
+def test_a_build_that_returns_another_scene_at_each_call_is_refused(renderer, tmp_path,
+                                                                    capsys):
+    """build() is called for each render: with an unseeded random position the noisy image,
+    the features and the reference showed three different scenes, each cached under its own
+    key, and were scored against one another without a word."""
+    from dbench.cli import main
+    from dbench.datasets.scenes.build import check_plugin_scene
+    from dbench.datasets.scenes.record import Scene
+    path = tmp_path / "scatter.py"
+    with pytest.raises(DbenchInputError, match=r"scatter\.py: build\(mi, 8, 8\) returned another "
+                                               r"dictionary when called again \(at "
+                                               r"'ball\.center\[0\]'\).*seed its random numbers"):
+        _scene(path, RANDOM)
+    rc = main(["run", "--method", "noisy", "--scene", str(path), "--res", "8", "--spp", "1",
+               "--ref-spp", "8", "--out", str(tmp_path / "out"),
+               "--cache", str(tmp_path / "cache")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1 and "returned another dictionary" in err[0], err
+    assert not (tmp_path / "out").exists() and not (tmp_path / "cache").exists()
+    # seeded, the same file is one scene
+    _scene(tmp_path / "seeded.py", RANDOM.replace("import random\n",
+                                                  "import random\nrandom.seed(1)\n"
+                                                  "X = random.uniform(-1, 1)\n")
+           .replace("random.uniform(-1, 1), 0, 0", "X, 0, 0"))
+    # a plugin's Scene alike
+    namespace: dict = {}
+    exec(RANDOM, namespace)
+    with pytest.raises(DbenchInputError, match=r"scene scatter-plugin .*build returned another "
+                                               r"dictionary"):
+        check_plugin_scene(Scene(name="scatter-plugin", kind="steady", description="",
+                                 build=lambda mi, res: namespace["build"](mi, res, res)))

@@ -96,8 +96,8 @@ from ...errors import DbenchInputError
 from ...resolution import Res, parse_res
 from ..mitsuba_env import mitsuba
 from ..scenes.record import STEADY_BUFFERS, Scene
-from ..scenes.build import (call_build, check_lit, exit_message, integrator_settings,
-                            keeps_variant, probe_load)
+from ..scenes.build import (call_build, check_lit, check_same_build, exit_message,
+                            integrator_settings, keeps_variant, probe_load)
 from ..scenes.build import own_camera as _own_camera
 from .assets import asset_hashes as _sources, scene_walk
 from .attributes import sequence_fov, sequence_functions, settings
@@ -388,6 +388,7 @@ def _python_scene(path: str, files: tuple, digest: str) -> Scene:
     attrs = settings(module, path)
     kind, depth = attrs["kind"], attrs["max_depth"]
     probe = _built(module, path, mi, 8)
+    check_same_build(probe, _built(module, path, mi, 8), f"--scene {path}", "build(mi, 8, 8)")
     check_dictionary(probe, path)  # a NaN would render as 0 in dbench's sums (finite.py)
     loaded = probe_load(mi, probe, f"--scene {path}", "build()'s dictionary")
     common = dict(name=Path(path).name, kind=kind,

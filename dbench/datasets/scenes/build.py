@@ -243,6 +243,35 @@ def check_lit(loaded, what: str) -> None:
                                f"light's shape some area")
 
 
+def check_same_build(first: dict, again: dict, what: str, call: str) -> None:
+    """Refuse a build function whose two calls ``first`` and ``again`` (the same size) gave
+    different dictionaries (random numbers without a seed, the time): dbench calls it for
+    each render, so the noisy images, the features and the reference would show different
+    scenes, each cached under its own key, and be scored against one another without a word."""
+    from ..cache import canonical
+
+    where = _first_difference(canonical(first), canonical(again))
+    if where is not None:
+        raise DbenchInputError(f"{what}: {call} returned another dictionary when called again "
+                               f"(at {where}); dbench calls it for every render, so every call "
+                               f"must describe the same scene: seed its random numbers or draw "
+                               f"them once, at module level")
+
+
+def _first_difference(a: Any, b: Any, at: str = "the top") -> str | None:
+    """Where two :func:`~dbench.datasets.cache.canonical` descriptions first differ."""
+    if isinstance(a, dict) and isinstance(b, dict) and a.keys() == b.keys():
+        for k in a:
+            found = _first_difference(a[k], b[k], k if at == "the top" else f"{at}.{k}")
+            if found:
+                return found
+        return None
+    if isinstance(a, list) and isinstance(b, list) and len(a) == len(b):
+        return next((f for i, (x, y) in enumerate(zip(a, b))
+                     if (f := _first_difference(x, y, f"{at}[{i}]"))), None)
+    return None if a == b else repr(at) if at != "the top" else at
+
+
 def _zero_area(shape) -> bool:
     """Whether ``shape`` (an area light's, None for other emitters) has no surface."""
     if shape is None:
@@ -301,6 +330,8 @@ def check_plugin_scene(scene: Any) -> None:
     if not isinstance(d, dict) or not isinstance(d.get("sensor"), dict):
         raise DbenchInputError(f"scene {scene.name}: build must return a mi.load_dict "
                                f"dictionary with a 'sensor' dictionary")
+    check_same_build(d, call_build(scene.build, mi, 8, f"scene {scene.name}"),
+                     f"scene {scene.name} ({source_of(scene.build)})", "build")
     check_lit(probe_load(mi, d, f"scene {scene.name}"), f"scene {scene.name}")
     check_box_filter(mi, d, f"scene {scene.name} ({source_of(scene.build)})")
     if dictionary_plan(scene) is not None:  # a plugin's bare build function
@@ -343,6 +374,6 @@ def check_own_integrator(scene: Any, integrator: Any) -> None:
             f"{scene.max_depth} (file: {depth}) — the Scene's max_depth renders")
 
 
-__all__ = ["call_build", "check_box_filter", "check_film", "check_lit", "check_own_integrator",
-           "check_plugin_scene", "dictionary_plan", "exit_message", "integrator_settings",
+__all__ = ["call_build", "check_box_filter", "check_film", "check_lit", "check_same_build",
+           "check_own_integrator", "check_plugin_scene", "dictionary_plan", "exit_message", "integrator_settings",
            "own_camera", "plugin_build", "probe_load", "source_of", "takes_width_height"]
