@@ -112,6 +112,14 @@ FUNCTIONS = {
                     "_build = build\ndef build(mi, width, height):\n"
                     "    d = _build(mi, width, height)\n    del d['lamp']['emitter']\n"
                     "    return d\n", "no frame has an emitter"),
+    # called for every render of a frame: unseeded random numbers gave the noisy images and
+    # the reference of one frame different scenes
+    "camera-random": ("import random\ndef camera(i):\n"
+                      "    return [random.uniform(-1, 1), 1, 4], [0, 0, 0]\n",
+                      "camera(0) returned another value when called again"),
+    "lights-random": ("import random\ndef lights(i):\n"
+                      "    return {'lamp': (random.random() + 1, 1, 1)}\n",
+                      "lights(0) returned another value when called again"),
 }
 
 
