@@ -241,3 +241,20 @@ def test_a_file_named_with_0_spp_is_refused_naming_it(tmp_path, capsys):
                  "--repeats", "1", "--out", str(tmp_path / "run")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "v_0000.hdr.exr: spp 0" in err[0], err
+
+
+def test_a_view_that_a_folder_does_not_hold_is_refused_naming_its_views(tmp_path, capsys):
+    """DIR/NAME beside renders, NAME a typo or one of the files, was refused as an unknown
+    catalogue scene, listing the catalogue's scenes instead of the folder's views."""
+    folder = _series(tmp_path / "renders", view="kitchen")
+    for name in ("kitchn", "kitchen_0004.hdr.exr"):
+        assert main(["run", "--method", "noisy", "--scene", str(folder / name), "--spp", "4",
+                     "--out", str(tmp_path / "run")]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and f"no files of view {name!r}" in err[0] \
+            and "(views: kitchen)" in err[0], err
+    # a bare name is still a catalogue name, and a path elsewhere an unknown scene
+    for name in ("cornel", str(tmp_path / "elsewhere" / "x")):
+        assert main(["run", "--method", "noisy", "--scene", name, "--spp", "4",
+                     "--out", str(tmp_path / "run")]) == 2
+        assert "unknown scene" in capsys.readouterr().err

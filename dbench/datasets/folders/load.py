@@ -396,17 +396,17 @@ def with_normal_encoding(info: FolderInfo, encoding: str) -> FolderInfo:
                           "normal_warning": found.warning})
 
 
-def is_folder_scene(text: str) -> bool:
+def is_folder_scene(text: str, any_view: bool = False) -> bool:
     """True when ``text`` names an existing folder, or DIR/NAME where DIR holds files of view
-    NAME in a known layout. Never raises."""
+    NAME (``any_view``: of any view) in a known layout. Never raises."""
     try:
         p = Path(text)
         if text and p.is_dir():
             return True
         if not p.name or not p.parent.is_dir():
             return False
-        return bool(text) and any((m := _parse(n)) is not None and m["view"] == p.name
-                   for n in _listing(p.parent))
+        return bool(text) and any((m := _parse(n)) is not None and (any_view or m["view"] ==
+                                  p.name) for n in _listing(p.parent))
     except (OSError, ValueError):
         return False
 

@@ -15,6 +15,7 @@ harness uses that to skip methods that cannot run and to render only what is nee
 """
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from functools import lru_cache
 from typing import Any, Callable
@@ -62,6 +63,11 @@ def get(name: str | Scene, params: dict[str, str] | None = None) -> Scene:
     why = not_loaded(name)
     if why:  # a scene entry point that failed to load: its failure, not an unknown name
         raise DbenchInputError(f"scene {name!r}: {why}")
+    if any(sep in name for sep in "/" + os.sep) and folder.is_folder_scene(name, any_view=True):
+        # DIR/NAME beside renders with NAME no view of them (a typo, one of the files): the
+        # folder's reading refuses it naming its views, where the catalogue's would list
+        # scenes the user did not mean
+        return folder_scene(name)
     raise UnknownNameError(
         f"unknown scene {name!r}; available scenes: {', '.join(available())}; or a Mitsuba "
         f"scene file (.xml), a Python scene file (.py) or a folder of EXR renders") from None
