@@ -302,3 +302,35 @@ def test_a_plugin_scene_naming_an_unknown_mitsuba_type_is_refused_before_renderi
     assert "\n" not in message and message.startswith("scene blob-room: ")
     assert '"spherez"' in message and '"blob"' in message
     assert not any(p.is_dir() for p in (tmp_path / "cache").glob("*/*"))
+
+
+PLUGIN_RECORD = '''
+from dbench.datasets.scenes.record import Scene, register_scene
+
+def build(mi, res):
+    d = mi.cornell_box()
+    d["sensor"]["film"].update(width=res.width, height=res.height, rfilter={"type": "box"})
+    return d
+
+register_scene(Scene(name="%s", kind="steady", description="x", build=build, %s))
+'''
+
+
+@pytest.mark.parametrize("field, said", [
+    ('ev=float("inf")', "Scene ev: expected a finite number"),
+    ("ev=1e6", "in [-1074, 1023], got 1000000.0"),
+    ("max_depth=0", "Scene max_depth 0; give -1 (unlimited) or an integer of 1 or more")])
+def test_a_plugin_scene_records_exposure_and_depth_are_checked_before_rendering(
+        isolated, renderer, tmp_path, capsys, field, said):
+    """A plugin's Scene(ev=inf) or ev=1e6 failed in the metrics after every method ran (1e6:
+    an internal OverflowError), and max_depth=0 rendered a black reference, refused only
+    afterwards as unlit."""
+    from dbench.cli import main
+    plugin = tmp_path / "record_plugin.py"
+    plugin.write_text(PLUGIN_RECORD % ("odd-box", field))
+    rc = main(["--plugin", str(plugin), "run", "--method", "noisy", "--scene", "odd-box",
+               "--res", "8", "--spp", "1", "--ref-spp", "8", "--out", str(tmp_path / "out"),
+               "--cache", str(tmp_path / "cache")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1 and "scene odd-box (" in err[0] and said in err[0], err
+    assert not (tmp_path / "out").exists() and not (tmp_path / "cache").exists()

@@ -243,6 +243,24 @@ def check_lit(loaded, what: str) -> None:
                                f"light's shape some area")
 
 
+def _check_record(scene: Any) -> None:
+    """A plugin's ``Scene(ev=..., max_depth=...)``, checked before anything renders: an ``ev``
+    the tone map cannot use failed in the metrics after every method ran, and a max_depth of 0
+    (no light gathered) rendered a black reference refused only afterwards."""
+    from ...metrics.tonemapping import check_ev
+
+    what = f"scene {scene.name} ({source_of(scene.build)})"
+    try:
+        check_ev(scene.ev)
+    except DbenchInputError as exc:
+        raise DbenchInputError(f"{what}: Scene {exc}") from None
+    depth = scene.max_depth
+    if scene.integrator_plan is None and (isinstance(depth, bool) or not isinstance(depth, int)
+                                          or not (depth == -1 or depth >= 1)):
+        raise DbenchInputError(f"{what}: Scene max_depth {depth!r}; give -1 (unlimited) or an "
+                               f"integer of 1 or more (0 gathers no light)")
+
+
 def check_same_build(first: dict, again: dict, what: str, call: str) -> None:
     """Refuse a build function whose two calls ``first`` and ``again`` (the same size) gave
     different dictionaries (random numbers without a seed, the time): dbench calls it for
@@ -322,6 +340,7 @@ def check_plugin_scene(scene: Any) -> None:
     fn = getattr(scene.build, "wrapped", scene.build)
     if str(getattr(fn, "__module__", "")).startswith("dbench."):
         return
+    _check_record(scene)
     mi = mitsuba()
     key = (id(scene), mi.variant())
     if key in _PROBED:
@@ -375,5 +394,5 @@ def check_own_integrator(scene: Any, integrator: Any) -> None:
 
 
 __all__ = ["call_build", "check_box_filter", "check_film", "check_lit", "check_same_build",
-           "check_own_integrator", "check_plugin_scene", "dictionary_plan", "exit_message", "integrator_settings",
-           "own_camera", "plugin_build", "probe_load", "source_of", "takes_width_height"]
+           "check_own_integrator", "check_plugin_scene", "dictionary_plan", "exit_message",
+           "integrator_settings", "own_camera", "plugin_build", "probe_load", "source_of", "takes_width_height"]
