@@ -59,6 +59,7 @@ def cmd_render(args: argparse.Namespace) -> int:
     """Render (or find cached) every buffer of the given scenes, e.g. to warm the cache."""
     from .. import datasets
     from ..datasets.scenes import catalogue as scenes, scoped
+    from ..datasets.scenes.build import check_plugin_scene
     from ..resolution import parse_res
 
     listed = scene_names(args.scene or ["all"], "--scene")
@@ -70,9 +71,22 @@ def cmd_render(args: argparse.Namespace) -> int:
     sizes = [parse_res(args.res, "--res") if args.res is not None else datasets.default_res(sc)
              for sc in chosen]
     cache = _writable_cache(args)  # --cache naming what cannot be written: exit 2
-    for name, sc, res in zip(names, chosen, sizes):
-        frame = datasets.load(sc, spp=args.spp, res=res, seed=args.seed,
-                              ref_spp=args.ref_spp, cache=cache)
+
+    def load(sc, res):
+        return datasets.load(sc, spp=args.spp, res=res, seed=args.seed, ref_spp=args.ref_spp,
+                             cache=cache)
+
+    # what a later scene's turn would refuse is refused before the first render (README.md,
+    # "Usage"): a folder of renders is only read (its --spp, --ref-spp, --seed), a plugin's
+    # steady scene probed
+    read = {}
+    for k, (sc, res) in enumerate(zip(chosen, sizes)):
+        if not sc.renders:
+            read[k] = load(sc, res)
+        elif sc.kind == "steady":
+            check_plugin_scene(sc)
+    for k, (name, sc, res) in enumerate(zip(names, chosen, sizes)):
+        frame = read[k] if k in read else load(sc, res)
         print(f"{name}: rendered {frame.meta['rendered'] or 'nothing'}, "
               f"cached {frame.meta['cache_hits'] or 'nothing'}")
     return 0

@@ -278,3 +278,19 @@ def test_export_adds_spp_only_to_an_export_of_the_same_render(renderer, tmp_path
     scene.write_text(XML)  # the same scene again: more spp are added
     assert cli.main(argv + ["--spp", "4", "--res", "8", "--scene-param", "light=8"]) == 0
     assert (out / "room.xml_0004.hdr.exr").is_file()
+
+
+def test_render_refuses_a_folders_settings_before_rendering_the_scenes_before_it(
+        renderer, tmp_path, capsys):
+    """dbench render took its scenes in turn: a folder of renders whose reference spp is not
+    --ref-spp was refused only after the scene file listed before it had rendered."""
+    scene = tmp_path / "room.xml"
+    scene.write_text(XML)
+    folder = tmp_path / "exp"
+    assert cli.main(["export", "cornell", "--out", str(folder), "--res", "8", "--spp", "2",
+                     "--ref-spp", "16", "--quiet", "--cache", str(tmp_path / "c0")]) == 0
+    capsys.readouterr()
+    cache = tmp_path / "cache"
+    _refused(capsys, ["render", "--scene", f"{scene},{folder}", "--spp", "2", "--res", "8",
+                      "--ref-spp", "8", "--cache", str(cache)], "--ref-spp", "16 spp")
+    assert not cache.exists()
