@@ -8,6 +8,7 @@ import time
 from pathlib import Path
 
 import pytest
+from cli_args import with_options  # tests/cli_args.py
 
 from dbench import cli
 
@@ -19,9 +20,9 @@ def _run(capsys, *argv):
 
 
 def _base(tmp_path, *extra):
-    return ["run", "--method", "noisy,nca", "--scene", "cornell", "--spp", "4", "--res", "8",
-            "--ref-spp", "16", "--cache", str(tmp_path / "cache"), "--out",
-            str(tmp_path / "out"), "--quiet", *extra]
+    return with_options(["run", "--method", "noisy,nca", "--scene", "cornell", "--spp", "4",
+                         "--res", "8", "--ref-spp", "16", "--cache", str(tmp_path / "cache"),
+                         "--out", str(tmp_path / "out"), "--quiet"], *extra)
 
 
 @pytest.mark.parametrize("extra", [

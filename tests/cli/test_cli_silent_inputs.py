@@ -3,6 +3,7 @@ before anything renders or is written (README.md, "Usage")."""
 from pathlib import Path
 
 import pytest
+from cli_args import with_options  # tests/cli_args.py
 
 from dbench import cli
 
@@ -107,7 +108,7 @@ def test_export_adds_only_to_its_own_folder(renderer, tmp_path, capsys):
     # dataset.json (one per folder) would be rewritten for another scene or reference
     _refused(capsys, ["export", "caustic", "--out", str(out), "--spp", "4", "--res", "8",
                       "--ref-spp", "16", "--quiet"], "holds an export with scene 'cornell'")
-    _refused(capsys, argv[:-2] + ["--spp", "4", "--ref-spp", "32"], "ref_spp 16")
+    _refused(capsys, with_options(argv[:-2], "--spp", "4", "--ref-spp", "32"), "ref_spp 16")
     other = tmp_path / "mine"
     other.mkdir()
     (other / "notes.txt").write_text("someone's folder")

@@ -12,6 +12,7 @@ import warnings
 from pathlib import Path
 
 import pytest
+from cli_args import with_options  # tests/cli_args.py
 
 from dbench import cli, plugins
 
@@ -203,9 +204,9 @@ def test_absurd_counts_exit_2_in_one_line_before_rendering(tmp_path, capsys, mon
     def no_rendering(*a, **k):
         raise AssertionError("rendered despite a bad count")
     monkeypatch.setattr(datasets, "load", no_rendering)
-    argv = ["run", "--method", "noisy", "--scene", "cornell-transient", "--res", "16",
-            "--spp", "4", "--cache", str(tmp_path / "cache"), "--out", str(tmp_path / "out"),
-            "--quiet", *extra]
+    argv = with_options(["run", "--method", "noisy", "--scene", "cornell-transient", "--res",
+                         "16", "--spp", "4", "--cache", str(tmp_path / "cache"), "--out",
+                         str(tmp_path / "out"), "--quiet"], *extra)
     rc = cli.main(argv)
     line = _one_line(capsys.readouterr().err)
     assert rc == 2 and line.startswith(f"dbench: {option}: ") and valid in line, line

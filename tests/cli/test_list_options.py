@@ -68,7 +68,7 @@ def test_a_list_option_given_twice_adds_its_items(tmp_path, given, capsys, argv,
     (["stress", "--methods", "jbf", "--methods", "all"], "'all' stands alone"),
     (["render", "--scene", "cornell", "--scene", "cornell"], "--scene: 'cornell' is given twice"),
     (["run", "--method", "noisy", "--scene", "cornell", "--scene", "textured"],
-     "--scene: given twice ('cornell', 'textured'); dbench run takes one scene"),
+     "--scene: given twice ('cornell', 'textured'); dbench run takes one --scene"),
     (["run", "--method", "noisy", "--method", "", "--scene", "cornell"], "--method: empty ('')"),
 ])
 def test_repeated_list_options_refuse_what_one_list_refuses(tmp_path, given, capsys, argv, said):

@@ -6,6 +6,7 @@ import json
 from pathlib import Path
 
 import pytest
+from cli_args import with_options  # tests/cli_args.py
 
 from dbench import cli
 from dbench.run import identity, sweep
@@ -147,8 +148,9 @@ def test_bad_sweep_arguments_exit_2_and_write_nothing(tmp_path, capsys):
     out = tmp_path / "S"
     for bad in (["--res", "0"], ["--spp", "4,abc"], ["--spp", "0"], ["--seeds", "0"],
                 ["--res", "100000"], ["--param", "jbf.radius=" + "9" * 2000]):
-        rc = cli.main(["sweep", "--methods", "noisy,jbf", "--scenes", "cornell", "--spp", "4",
-                       "--res", "16", "--out", str(out), "--quiet"] + bad)
+        rc = cli.main(with_options(["sweep", "--methods", "noisy,jbf", "--scenes", "cornell",
+                                    "--spp", "4", "--res", "16", "--out", str(out), "--quiet"],
+                                   *bad))
         err = capsys.readouterr().err
         assert rc == 2 and err.startswith("dbench: ") and "Traceback" not in err, bad
         assert not out.exists(), bad

@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 
 from dbench import cli
+from cli_args import with_options  # tests/cli_args.py
 from plugin_scenes import PLUGIN  # tests/plugin_scenes.py
 
 pytestmark = pytest.mark.mitsuba
@@ -105,8 +106,8 @@ def test_a_sequence_or_transient_setting_is_refused_before_any_scene_renders(
         isolated, tmp_path, capsys, scene, flag, said):
     """Checked for every scene before the first renders: the sweep's cornell never renders."""
     cache = tmp_path / "cache"
-    rc = cli.main(["sweep", "--scenes", f"cornell,{scene}", *TINY, *flag, "--cache", str(cache),
-                   "--out", str(tmp_path / "x" / "sw")])
+    rc = cli.main(["sweep", "--scenes", f"cornell,{scene}", *with_options(TINY, *flag), "--cache",
+                   str(cache), "--out", str(tmp_path / "x" / "sw")])
     assert rc == 2
     assert _one_line(capsys).startswith(said)
     assert not (tmp_path / "x").exists() and not cache.exists()
