@@ -407,12 +407,9 @@ def left_out(option: str, group: str = METHOD_GROUP) -> str:
     plugin but a scene entry point; for scenes (SCENE_GROUP) the broken scene entry points,
     the scenes ``all`` never lists (a ``--plugin`` file or ``DBENCH_PLUGINS`` entry that failed
     has refused the command already, dbench.cli.main)."""
-    if group == SCENE_GROUP:
-        bad = [p for p in broken() if p.spec.startswith(f"{SCENE_GROUP}:")]
-        what = "these scene plugins"
-    else:
-        bad = [p for p in broken() if not p.spec.startswith(f"{SCENE_GROUP}:")]
-        what = "what these plugins hold"
+    scenes = group == SCENE_GROUP
+    bad = [p for p in broken() if p.spec.startswith(f"{SCENE_GROUP}:") == scenes]
+    what = "these scene plugins" if scenes else "what these plugins hold"
     if not bad:
         return ""
     return f"{option} all leaves out {what}: " + "; ".join(_failure(p) for p in bad)

@@ -58,14 +58,14 @@ class _GivenOnce(argparse.Action):
         if option_string is not None:  # a positional is filled once by argparse itself
             given = vars(namespace).setdefault(_GIVEN, {})
             first = given.get(self.dest)
+            value = self.const if self.nargs == 0 else values
             if first is not None and not (first[0] is self and self.nargs == 0):
-                value = self.const if self.nargs == 0 else values
                 if first[0] is self:
                     parser.error(f"{option_string}: given twice ({str(first[1])!r}, "
                                  f"{str(value)!r}); {parser.prog} takes one {option_string}")
                 parser.error(f"{first[0].option_strings[0]} and {option_string}: both given; "
                              f"{parser.prog} takes one of them")
-            given[self.dest] = (self, self.const if self.nargs == 0 else values)
+            given[self.dest] = (self, value)
         super().__call__(parser, namespace, values, option_string)
 
 

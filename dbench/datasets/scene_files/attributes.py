@@ -18,7 +18,7 @@ import numpy as np
 
 from ...data import MAX_COUNT
 from ...errors import DbenchInputError
-from ...metrics.tonemapping import EV_RANGE
+from ...metrics.tonemapping import EV_RANGE, check_ev
 from ...resolution import focal_fov
 from ..cache import canonical
 
@@ -42,7 +42,9 @@ def settings(module, path: str) -> dict[str, Any]:
     out: dict[str, Any] = {"kind": kind}
     ev = get("ev")
     out["ev"] = 0.0 if ev is _MISSING else _number(path, "ev", ev, "exposure in stops")
-    if not EV_RANGE[0] <= out["ev"] <= EV_RANGE[1]:  # 2^ev overflows or rounds to 0 beyond
+    try:  # the tone map's own range (2^ev overflows or rounds to 0 beyond it)
+        check_ev(out["ev"])
+    except DbenchInputError:
         _refuse(path, "ev", ev, f"a number of stops in [{EV_RANGE[0]}, {EV_RANGE[1]}]")
     depth = get("max_depth")
     if depth is not _MISSING and depth is not None:
