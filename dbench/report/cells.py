@@ -267,12 +267,10 @@ def input_warnings(cells: Sequence[dict]) -> list[str]:
         if not isinstance(c, dict):
             continue
         scene, said = str(c.get("scene")), c.get("input_warnings")
-        if isinstance(c.get("spp"), int):
-            spps.setdefault(scene, set()).add(c["spp"])
+        spp = {c["spp"]} if isinstance(c.get("spp"), int) else set()
+        spps.setdefault(scene, set()).update(spp)
         for text in said if isinstance(said, list) else []:
-            spp = found.setdefault((scene, str(text)), set())
-            if isinstance(c.get("spp"), int):
-                spp.add(c["spp"])
+            found.setdefault((scene, str(text)), set()).update(spp)
 
     def at(scene: str, spp: set[int]) -> str:
         some = spp and spp != spps.get(scene, set())
