@@ -293,7 +293,7 @@ def _scene_of(args: argparse.Namespace):
     from ..datasets.scenes import catalogue as scenes, scoped
 
     every, own = scoped.split(args.scene_param, [args.scene], "--scene")
-    scene = scenes.get(args.scene, scoped.values_for(every, own, args.scene) or None)
+    scene = scoped.scene_of(args.scene, every, own)
     return scenes.with_normal_encoding(scene, getattr(args, "normal_encoding", None), args.scene)
 
 

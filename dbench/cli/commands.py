@@ -58,14 +58,14 @@ def cmd_list(args: argparse.Namespace) -> int:
 def cmd_render(args: argparse.Namespace) -> int:
     """Render (or find cached) every buffer of the given scenes, e.g. to warm the cache."""
     from .. import datasets
-    from ..datasets.scenes import catalogue as scenes, scoped
+    from ..datasets.scenes import scoped
     from ..datasets.scenes.build import check_plugin_scene
     from ..resolution import parse_res
 
     listed = scene_names(args.scene or ["all"], "--scene")
     names = listed or datasets.available_scenes()
     every, own = scoped.split(args.scene_param, names, "--scene")
-    chosen = [scenes.get(n, scoped.values_for(every, own, n) or None) for n in names]
+    chosen = [scoped.scene_of(n, every, own) for n in names]
     if listed is None:  # "all" says which scene plugins it leaves out
         warn_left_out("--scene", scenes=True)
     sizes = [parse_res(args.res, "--res") if args.res is not None else datasets.default_res(sc)
@@ -216,8 +216,7 @@ def _sweep(args: argparse.Namespace, caught: list[str]) -> int:
             raise
         raise DbenchInputError(f"{exc}; --scene-param SCENE:NAME=VALUE gives a value to one "
                                f"scene only") from None
-    scene_objs = [catalogue.get(n, scoped.values_for(scene_params, by_scene, n) or None)
-                  for n in scenes_]
+    scene_objs = [scoped.scene_of(n, scene_params, by_scene) for n in scenes_]
     check_kind_options(args, scene_objs, scenes_)
     res_given = args.res
     args.res = args.res or "128"  # checked here; the sweep's own default is per scene

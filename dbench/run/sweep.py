@@ -118,9 +118,9 @@ class SweepConfig:
     def scene(self, name: str):
         """The Scene of a catalogue name, scene file or folder (with its :meth:`params_of`; a
         folder's normals read as ``normal_encoding``)."""
-        from ..datasets.scenes import catalogue
+        from ..datasets.scenes import catalogue, scoped
 
-        scene = catalogue.get(name, self.params_of(name) or None)
+        scene = scoped.scene_of(name, self.scene_params, self.scene_params_by_scene)
         return scene if scene.renders else \
             catalogue.with_normal_encoding(scene, self.normal_encoding, name)
 
@@ -158,7 +158,7 @@ def resolve_names(methods: str | Sequence[str], scenes: str | Sequence[str],
     scene with ``scene_params`` and its own ``by_scene`` values (SweepConfig.params_of)."""
     from .. import registry
     from ..datasets.scenes import catalogue
-    from ..datasets.scenes.scoped import values_for
+    from ..datasets.scenes.scoped import scene_of
 
     def split(v):
         return [s.strip() for s in v.split(",") if s.strip()] if isinstance(v, str) else list(v)
@@ -169,7 +169,7 @@ def resolve_names(methods: str | Sequence[str], scenes: str | Sequence[str],
     for name in m:
         registry.method_class(name)
     for name in s:
-        catalogue.get(name, values_for(scene_params or {}, by_scene or {}, name) or None)
+        scene_of(name, scene_params or {}, by_scene or {})
     if "noisy" not in m:
         m = ["noisy"] + m
     return m, s

@@ -116,6 +116,14 @@ def values_for(every: Mapping[str, str], own: Mapping[str, Mapping[str, str]],
     return {**every, **mine}
 
 
+def scene_of(name: str, every: Mapping[str, str], own: Mapping[str, Mapping[str, str]]):
+    """The Scene ``name`` (as written: a catalogue name, scene file or folder) with the values
+    it gets (:func:`values_for`), from the catalogue."""
+    from .catalogue import get
+
+    return get(name, values_for(every, own, name) or None)
+
+
 def check_scopes(own: Mapping[str, Mapping[str, str]], scenes: Sequence[str],
                  option: str) -> None:
     """Refuse a scope that is none of ``scenes`` (a configuration built in Python, whose
@@ -135,4 +143,5 @@ def check_config(every: Mapping[str, str], own: Mapping[str, Mapping[str, str]],
         values_for(every, own, scene)
 
 
-__all__ = ["check_config", "check_scopes", "not_a_scene", "readings", "split", "values_for"]
+__all__ = ["check_config", "check_scopes", "not_a_scene", "readings", "scene_of", "split",
+           "values_for"]
