@@ -20,7 +20,7 @@ from ...data import MAX_COUNT
 from ...errors import DbenchInputError
 from ...metrics.tonemapping import EV_RANGE, check_ev
 from ...resolution import focal_fov
-from ..cache import canonical
+from ..scenes.build import check_same_build
 
 KINDS = ("steady", "sequence", "transient")
 #: mitransient's integrators a transient scene file may name
@@ -127,11 +127,8 @@ def sequence_functions(module, path: str, frames: int, shapes: dict, emitters: i
         for name, fn in (("camera", camera), ("lights", lights)):
             # called again for each render of the frame: another answer (an unseeded random
             # number) gives its noisy images and reference different scenes
-            if canonical(fn(i)) != canonical(fn(i)):
-                raise DbenchInputError(f"--scene {path}: {name}({i}) returned another value "
-                                       f"when called again; dbench calls it for every render "
-                                       f"of the frame, so it must give the same: seed its "
-                                       f"random numbers or draw them once, at module level")
+            check_same_build(fn(i), fn(i), f"--scene {path}", f"{name}({i})", "value",
+                             "every render of the frame")
     if not lit[0]:
         raise DbenchInputError(f"--scene {path}: no frame has an emitter (build()'s dictionary "
                                f"holds none and lights(i) gives no radiance above 0), so every "

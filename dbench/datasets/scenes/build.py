@@ -261,17 +261,20 @@ def _check_record(scene: Any) -> None:
                                f"integer of 1 or more (0 gathers no light)")
 
 
-def check_same_build(first: dict, again: dict, what: str, call: str) -> None:
-    """Refuse a build function whose two calls ``first`` and ``again`` (the same size) gave
-    different dictionaries (random numbers without a seed, the time): dbench calls it for
-    each render, so the noisy images, the features and the reference would show different
-    scenes, each cached under its own key, and be scored against one another without a word."""
+def check_same_build(first: Any, again: Any, what: str, call: str, returned: str = "dictionary",
+                     renders: str = "every render") -> None:
+    """Refuse a scene function whose two calls ``first`` and ``again`` (the same arguments)
+    gave different answers (random numbers without a seed, the time): a build function's
+    dictionary, or a sequence file's ``camera(i)`` / ``lights(i)`` (``returned="value"``,
+    ``renders="every render of the frame"``). dbench calls it for each render, so the noisy
+    images, the features and the reference would show different scenes, each cached under its
+    own key, and be scored against one another without a word."""
     from ..cache import canonical
 
     where = _first_difference(canonical(first), canonical(again))
     if where is not None:
-        raise DbenchInputError(f"{what}: {call} returned another dictionary when called again "
-                               f"(at {where}); dbench calls it for every render, so every call "
+        raise DbenchInputError(f"{what}: {call} returned another {returned} when called again "
+                               f"(at {where}); dbench calls it for {renders}, so every call "
                                f"must describe the same scene: seed its random numbers or draw "
                                f"them once, at module level")
 
