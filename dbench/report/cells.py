@@ -11,6 +11,7 @@ again.
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 from typing import Any, Callable, Sequence
 
@@ -260,7 +261,9 @@ def input_warnings(cells: Sequence[dict]) -> list[str]:
     (``input_warnings``, what ``dbench run`` prints: a folder's doubtful reference or normals,
     NaN or ±Inf samples; dbench/run/inputs.py), once per scene and warning however many spp
     and labels carry it; ``scene at 4, 16 spp: warning`` where it holds at some of the scene's
-    spp only (README.md, "How renders work"). Cells older than the record say nothing."""
+    spp only (README.md, "How renders work"); texts that differ only in their numbers (each
+    spp's NaN count) as one, ``scene at 4, 16 spp, respectively: ... (12, 48 in the noisy
+    image ...)``. Cells older than the record say nothing."""
     found: dict[tuple[str, str], set[int]] = {}
     spps: dict[str, set[int]] = {}
     for c in cells:
@@ -275,8 +278,42 @@ def input_warnings(cells: Sequence[dict]) -> list[str]:
     def at(scene: str, spp: set[int]) -> str:
         some = spp and spp != spps.get(scene, set())
         return f" at {', '.join(map(str, sorted(spp)))} spp" if some else ""
-    return [f"{scene}{at(scene, spp)}: {text}" for (scene, text), spp in sorted(
-        found.items(), key=lambda kv: (kv[0][0], min(kv[1], default=0), kv[0][1]))]
+    return [f"{scene}{at(scene, spp) if respectively is None else respectively}: {text}"
+            for (scene, text), (spp, respectively) in sorted(
+                _by_counts(found).items(),
+                key=lambda kv: (kv[0][0], min(kv[1][0], default=0), kv[0][1]))]
+
+
+#: a number in a warning's text (a count of samples, spp, a percentage)
+_NUMBER = re.compile(r"\d+(?:\.\d+)?")
+
+
+def _by_counts(found: dict[tuple[str, str], set[int]]
+               ) -> dict[tuple[str, str], tuple[set[int], str | None]]:
+    """``found`` ((scene, text) → spp) with the texts of one scene that differ only in their
+    numbers (the NaN counts of each spp's render) joined into one text whose differing numbers
+    are listed in spp order, ``{scene} at 4, 16 spp, respectively`` (the second item; None
+    where a text stays alone). Not joined where one spp has two such texts (the spp would not
+    say which number is whose)."""
+    groups: dict[tuple[str, tuple[str, ...]], list[tuple[str, set[int]]]] = {}
+    for (scene, text), spp in found.items():
+        groups.setdefault((scene, tuple(_NUMBER.split(text))), []).append((text, spp))
+    out: dict[tuple[str, str], tuple[set[int], str | None]] = {}
+    for (scene, parts), texts in groups.items():
+        every = sorted(set().union(*(spp for _, spp in texts)))
+        if len(texts) < 2 or not every or sum(len(spp) for _, spp in texts) != len(every):
+            out.update({(scene, text): (spp, None) for text, spp in texts})
+            continue
+        numbers = {n: _NUMBER.findall(text) for text, spp in texts for n in spp}
+        slots = [list(dict.fromkeys(numbers[n][i] for n in every)) for i in
+                 range(len(parts) - 1)]
+        listed = [slot[0] if len(slot) == 1 else ", ".join(numbers[n][i] for n in every)
+                  for i, slot in enumerate(slots)]
+        text = "".join(part + (listed[i] if i < len(listed) else "")
+                       for i, part in enumerate(parts))
+        out[(scene, text)] = (set(every),
+                              f" at {', '.join(map(str, every))} spp, respectively")
+    return out
 
 
 #: What the "Input warnings" of the README and of the results page say above their lines;

@@ -79,3 +79,37 @@ def test_a_sweep_whose_inputs_said_nothing_has_no_such_section(tmp_path):
         del c["input_warnings"]
     readme, page = _publish(tmp_path, cells)
     assert "Input warnings" not in readme and "Input warnings" not in page
+
+
+def _nan(noisy: int, reference: int) -> str:
+    from dbench.datasets.nonfinite import nonfinite_text
+
+    return nonfinite_text(noisy, reference)
+
+
+def test_warnings_that_differ_only_in_their_counts_are_one_line():
+    from dbench.report.cells import input_warnings
+
+    # each spp's render has its own NaN count; the reference (one render) the same count
+    counts = {4: 12, 16: 48, 64: 190}
+    cells = [dict(ok_cell("cornell", spp, m), input_warnings=[_nan(n, 3)])
+             for spp, n in counts.items() for m in ("noisy", "jbf")]
+    said = input_warnings(cells)
+    assert said == ["cornell at 4, 16, 64 spp, respectively: " + _nan(1, 3).replace(
+        "(1 in the noisy image", "(12, 48, 190 in the noisy image")], said
+
+
+def test_counts_are_not_joined_where_the_spp_would_not_say_whose_they_are():
+    from dbench.report.cells import input_warnings
+
+    # two counts at one spp (two labels disagree): each text keeps its own line
+    cells = [dict(ok_cell("cornell", 4, "noisy"), input_warnings=[_nan(12, 3)]),
+             dict(ok_cell("cornell", 4, "jbf"), input_warnings=[_nan(13, 3)]),
+             dict(ok_cell("cornell", 16, "noisy"), input_warnings=[_nan(48, 3)])]
+    assert input_warnings(cells) == ["cornell at 4 spp: " + _nan(12, 3),
+                                     "cornell at 4 spp: " + _nan(13, 3),
+                                     "cornell at 16 spp: " + _nan(48, 3)]
+    # the same text at every spp, and texts of other forms, are as before
+    cells = [dict(ok_cell("cornell", spp, "noisy"), input_warnings=[_nan(5, 0), SOME])
+             for spp in (4, 16)]
+    assert input_warnings(cells) == sorted(["cornell: " + _nan(5, 0), "cornell: " + SOME])
