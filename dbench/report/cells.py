@@ -259,11 +259,12 @@ def variants_text(cells: list[dict]) -> list[str]:
 def input_warnings(cells: Sequence[dict]) -> list[str]:
     """``scene: warning`` for each warning the cells recorded of their inputs
     (``input_warnings``, what ``dbench run`` prints: a folder's doubtful reference or normals,
-    NaN or ±Inf samples; dbench/run/inputs.py), once per scene and warning however many spp
-    and labels carry it; ``scene at 4, 16 spp: warning`` where it holds at some of the scene's
-    spp only (README.md, "How renders work"); texts that differ only in their numbers (each
-    spp's NaN count) as one, ``scene at 4, 16 spp, respectively: ... (12, 48 in the noisy
-    image ...)``. Cells older than the record say nothing."""
+    NaN or ±Inf samples, a noisy image with nothing to denoise; dbench/run/inputs.py), once
+    per scene and warning however many spp and labels carry it; ``scene at 4, 16 spp:
+    warning`` where it holds at some of the scene's spp only (README.md, "How renders work");
+    texts that differ only in their numbers (each spp's NaN count) as one, ``scene at 4, 16
+    spp, respectively: ... (12, 48 in the noisy image ...)``. Cells older than the record say
+    nothing."""
     found: dict[tuple[str, str], set[int]] = {}
     spps: dict[str, set[int]] = {}
     for c in cells:

@@ -173,6 +173,7 @@ def load_seeds(scene, seed: int, n_seeds: int, **load_kwargs) -> list:
     frames = [datasets.load(scene, seed=seed + k, ref_seed=seed, **load_kwargs)
               for k in range(n_seeds)]
     check_reference_lit(frames[0], getattr(scene, "name", scene))
+    note_noise_free(frames)
     return frames
 
 
@@ -196,12 +197,65 @@ def check_reference_lit(data: Any, scene_name: str) -> None:
             f"error; give a light some radiance or point the camera at what it lights")
 
 
+def _frame_noise_free(frame: Any) -> bool:
+    """Whether one rendered Frame or TransientFrame has nothing to denoise: its noisy image
+    equals its reference exactly (independent renders, with other seeds) and every variance it
+    holds of its samples is 0 (:func:`noise_free`)."""
+    ref = getattr(frame, "reference", None)
+    if ref is None or not np.array_equal(frame.color, ref):
+        return False
+    stats = getattr(frame, "stats", None)
+    held = (getattr(frame, "reference_var", None), getattr(frame, "total_var", None),
+            None if stats is None else stats.var_mean)
+    return not any(v is not None and np.any(v) for v in held)
+
+
+def noise_free(data: Any) -> bool:
+    """Whether the rendered input ``data`` (a Frame, TransientFrame or Sequence) has no sample
+    variance at all: at every pixel (of every frame, in every time bin) its noisy image equals
+    the reference exactly, and every per-pixel variance dbench holds of the scene's samples is
+    0 there: the reference's chunk spread (``reference_var``), the noisy samples' statistics
+    where they were gathered (``stats.var_mean``, docs/methods/statistical.md §4.1: σ² is 0
+    where the samples are all one value), a transient video's totals (``total_var``). The two
+    renders use other seeds, so they agree bit for bit only where every sample of a pixel is
+    the same value (a constant environment seen directly, an emitter filling the view).
+    A pixel or frame with any noise makes it False: most pixels noise-free is normal (README.md,
+    "How renders work"). A folder of renders is never judged here: its reference has no
+    samples of dbench's, and one equal to a noisy image is already said
+    (``reference_warning``, dbench/datasets/folders/reference.py)."""
+    frames = data.frames if getattr(data, "kind", "") == "sequence" else [data]
+    if not frames or any(f.meta.get("source") == "folder" for f in frames):
+        return False
+    return all(_frame_noise_free(f) for f in frames)
+
+
+def noise_free_text(data: Any) -> str:
+    """The warning of an input with nothing to denoise (:func:`noise_free`), one line."""
+    kind = getattr(data, "kind", "")
+    where = (" in every frame" if kind == "sequence" else " and time bin"
+             if kind == "transient" else "")
+    return (f"the noisy image has no sample variance (it equals its expected value, the "
+            f"reference, at every pixel{where}): there is nothing to denoise, the noisy input "
+            f"scores 0 error and a method's error is only what it changes of an exact image; "
+            f"rankings at this spp carry no information")
+
+
+def note_noise_free(frames: list) -> None:
+    """Adds ``noise_free_warning`` (one of :data:`INPUT_WARNINGS`) to the meta of every loaded
+    seed of ``frames`` (a sequence's own meta) when each has nothing to denoise
+    (:func:`noise_free`): ``dbench run`` prints it and a sweep records it in its cells, as
+    every warning of the input."""
+    if frames and all(noise_free(d) for d in frames):
+        for d in frames:
+            d.meta["noise_free_warning"] = noise_free_text(d)
+
+
 #: input facts a folder load reports (dbench/datasets/folders/load.py): {meta key: settings label}
 INPUT_FACTS = {"ref_noise_source": "reference noise from", "surface_pixels": "surface pixels",
                 "normal_encoding": "normal encoding", "layers_read": "layers read",
                 "layers_ignored": "layers ignored"}
 #: doubts about the input: printed at once and listed in the report's notes
-INPUT_WARNINGS = ("reference_warning", "normal_warning", "feature_warning",
+INPUT_WARNINGS = ("noise_free_warning", "reference_warning", "normal_warning", "feature_warning",
                   "nonfinite_warning")
 
 
@@ -273,6 +327,7 @@ def frames_text(ks: list[int]) -> str:
 
 
 __all__ = ["MethodError", "check_output", "method_failure", "load_seeds", "check_reference_lit",
+           "noise_free", "noise_free_text", "note_noise_free",
            "check_unchanged", "first_changed", "input_guard", "is_write_to_input", "private_copy",
            "INPUT_FACTS", "INPUT_WARNINGS", "input_metas", "input_notes", "input_warnings",
            "warning_lines", "frames_text"]
