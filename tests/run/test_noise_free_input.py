@@ -101,3 +101,38 @@ def test_a_scene_with_noise_says_nothing_of_it(renderer, tmp_path, capsys):
                      str(tmp_path / "cache"), "--out", str(tmp_path / "run")]) == 0
     assert SAID not in capsys.readouterr().err
     assert SAID not in (tmp_path / "run" / "report.md").read_text(encoding="utf-8")
+
+
+SKY_SEQUENCE = '''kind = "sequence"
+frames = 2
+def camera(i):
+    return ([0, 0, 4 + 0.1 * i], [0, 0, 0])
+def build(mi, width, height):
+    return {"type": "scene", "sensor": {"type": "perspective", "fov": 45},
+            "sky": {"type": "constant", "radiance": {"type": "rgb", "value": [0.3, 0.3, 0.3]}}}
+'''
+#: a uniform emitting wall filling a narrow view: every path has one length (one time bin)
+WALL_VIDEO = '''kind = "transient"
+window_start = 3.0
+window_end = 6.0
+bins = 20
+def build(mi, width, height):
+    T = mi.ScalarTransform4f
+    return {"type": "scene", "sensor": {"type": "perspective", "fov": 10,
+            "to_world": T().look_at(origin=[0, 0, 4], target=[0, 0, 0], up=[0, 1, 0])},
+            "wall": {"type": "rectangle", "to_world": T().scale(10),
+                     "emitter": {"type": "area", "radiance": {"type": "rgb", "value": [1, 1, 1]}}}}
+'''
+
+
+@pytest.mark.mitsuba
+@pytest.mark.parametrize("text, where", [(SKY_SEQUENCE, "at every pixel in every frame"),
+                                         (WALL_VIDEO, "at every pixel and time bin")])
+def test_a_noise_free_sequence_or_video_is_said_by_run(tr, tmp_path, capsys, text, where):
+    scene = tmp_path / "scene.py"
+    scene.write_text(text)
+    assert cli.main(["run", "--method", "noisy", "--scene", str(scene), "--spp", "2", "--res",
+                     "4", "--ref-spp", "16", "--quiet", "--cache", str(tmp_path / "cache"),
+                     "--out", str(tmp_path / "run")]) == 0
+    err = capsys.readouterr().err
+    assert f"warning: {SAID} (it equals its expected value, the reference, {where})" in err, err
