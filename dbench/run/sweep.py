@@ -4,7 +4,8 @@ Each cell's result is its own JSON file, written atomically:
 ``<out>/cells/<scene>/<spp:05d>spp/<method>.json`` with ``status`` ``ok``, ``skipped`` (with the
 reason) or ``error`` (with the message), and ``input_warnings`` where the cell's input doubts
 itself (:func:`dbench.run.inputs.input_warnings`: a folder's reference or normals, NaN or ±Inf
-samples, nothing to denoise), the lines ``dbench run`` prints, which ``dbench report`` says.
+samples, nothing to denoise), the lines ``dbench run`` prints, which the sweep's summary and
+``dbench report`` say.
 A sweep run again reads the finished cells and computes only the missing ones, so a killed
 sweep loses at most the cells in flight.
 
