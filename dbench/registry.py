@@ -17,6 +17,7 @@ Example:
 """
 from __future__ import annotations
 
+import re
 from typing import Any
 
 import numpy as np
@@ -90,9 +91,19 @@ def get(name: str, **params: Any) -> Denoiser:
     A plugin's method that raises while it is built (its weights file is missing, its library
     is not installed) is a :class:`~dbench.plugins.PluginError` naming it and the reason, as a
     plugin that fails to load is (exit 2 before anything renders, README.md "Add your own
-    denoiser"), not an internal error of dbench; dbench's own methods' errors pass unchanged."""
+    denoiser"), not an internal error of dbench; dbench's own methods' errors pass unchanged.
+    A parameter the method's constructor refuses (a :class:`~dbench.errors.DbenchInputError`,
+    built-in method or plugin) is refused naming the method: ``jbf: sigma: expected 8 numbers
+    ...``, so that a sweep over several methods says which one refused (README.md, "Usage")."""
     cls = method_class(name)
-    method = _plugin_call(cls, "could not be built", lambda: cls(**params))
+
+    def build():
+        try:
+            return cls(**params)
+        except DbenchInputError as exc:
+            raise _named(cls.name, exc) from None
+
+    method = _plugin_call(cls, "could not be built", build)
     try:  # needs, kinds and version set in __init__ escape register()'s check of the class
         check_needs(cls.name, method.needs, method.optional_needs)
         check_kinds(cls.name, method.kinds)
@@ -145,6 +156,19 @@ def wants(method: Denoiser, available: set[str] | frozenset[str]) -> set[str]:
             f"method {cls.name} ({defined_in(cls)}): wants() returned "
             f"{' '.join(repr(answer).split())[:80]}; expected a set of buffer names")
     return set(answer)
+
+
+def _named(name: str, exc: DbenchInputError) -> DbenchInputError:
+    """``exc``, its message led by the method's ``name`` (``jbf: sigma: ...``) unless it
+    already starts with it (``nca.weights: ...``, ``statistical: ...``); of its own type where
+    its message is its one argument, else a :class:`~dbench.errors.DbenchInputError`."""
+    text = str(exc)
+    if re.match(rf"{re.escape(name)}(?![\w+-])", text):
+        return exc
+    if exc.args == (text,):
+        exc.args = (f"{name}: {text}",)
+        return exc
+    return DbenchInputError(f"{name}: {text}")
 
 
 def _own(cls: type) -> bool:

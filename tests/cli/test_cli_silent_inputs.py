@@ -218,7 +218,7 @@ def test_lam_is_taken_where_one_of_the_scenes_reads_it():
 ])
 def test_a_method_parameter_of_the_wrong_kind_is_refused_before_rendering(
         tmp_path, capsys, method, param, said):
-    _refused(capsys, _run(tmp_path, "--method", method, "--param", param), said)
+    _refused(capsys, _run(tmp_path, "--method", method, "--param", param), f"{method}: {said}")
     assert not (tmp_path / "cache").exists() and not (tmp_path / "out").exists()
 
 
@@ -233,7 +233,8 @@ def test_a_method_parameter_of_the_wrong_kind_is_refused_before_rendering(
 def test_a_temporal_parameter_out_of_range_is_refused_before_rendering(
         tmp_path, capsys, method, param, said):
     argv = [a if a != "cornell" else "flicker" for a in _run(tmp_path)]
-    _refused(capsys, argv + ["--frames", "2", "--method", method, "--param", param], said)
+    _refused(capsys, argv + ["--frames", "2", "--method", method, "--param", param],
+             f"{method}: {said}")
     assert not (tmp_path / "cache").exists() and not (tmp_path / "out").exists()
 
 
