@@ -97,6 +97,8 @@ def _main(argv: Sequence[str] | None) -> int:
     parser.add_argument("--plugin", action="append", metavar="MODULE_OR_FILE.py",
                         help=PLUGIN_HELP)
     argv = list(sys.argv[1:] if argv is None else argv)
+    # --debug is a flag that stands anywhere (taken out here, as --plugin is): given twice it
+    # asks for the same thing again, as every flag of the parser (dbench.cli.parser._GivenOnce)
     debug = "--debug" in argv
     argv = [a for a in argv if a != "--debug"]
     try:
@@ -105,6 +107,9 @@ def _main(argv: Sequence[str] | None) -> int:
         print(f"dbench: {exc}", file=sys.stderr)
         return 2
     args = parser.parse_args(argv)
+    # before the command the parser reads it too, abbreviated (--deb) as argparse takes any
+    # option: accepted, it must not be ignored
+    debug = debug or args.debug
     # --device cpu|cuda also chooses where Mitsuba renders (the variant, part of every render's
     # cache key: dbench/datasets/mitsuba_env.py); sweep workers inherit it from the environment
     render_device = getattr(args, "device", None)

@@ -135,3 +135,23 @@ def test_two_options_writing_one_value_are_refused_together(capsys):
     assert exc.value.code == 2
     assert capsys.readouterr().err == ("dbench: --color and --no-color: both given; dbench x "
                                        "takes one of them\n")
+
+
+@pytest.mark.parametrize("argv", [["--debug", "--debug", "list"], ["list", "--debug", "--debug"],
+                                  ["--deb", "list"], ["--deb", "--debug", "list"]])
+def test_debug_is_a_flag_like_the_others(monkeypatch, capsys, argv):
+    """``--debug`` is taken out of argv wherever it stands (dbench.cli.main), not by the
+    subcommand's parser: given twice it is let through as every flag is, and abbreviated before
+    the command (``--deb``, which argparse takes for it) it shows the traceback: it was
+    accepted and then ignored."""
+    from dbench.cli import parser
+
+    def failing(func):
+        def stand_in(args):
+            raise RuntimeError("an internal error")
+        return stand_in
+    monkeypatch.setattr(parser, "command", failing)
+    with pytest.raises(RuntimeError, match="an internal error"):  # --debug: the traceback
+        cli.main(argv)
+    assert cli.main([a for a in argv if not a.startswith("--deb")]) == 1  # one line without
+    assert "internal error" in capsys.readouterr().err
