@@ -26,7 +26,7 @@ def test_no_import_cycles():
 #: its own room and the rooms below its layer, never a room above it or beside it.
 LAYERS = (("__main__",), ("cli",), ("studies",), ("speed", "stress", "learn"), ("run",), ("report",),
           ("registry",), ("plugins",), ("synthetic", "datasets"), ("methods", "metrics"),
-          ("denoiser", "device", "data", "io", "memory", "resolution", "errors"))
+          ("denoiser", "device", "data", "io", "memory", "options", "resolution", "errors"))
 
 
 def room_shapes(module: str) -> str:

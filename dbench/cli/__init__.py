@@ -98,7 +98,7 @@ def _main(argv: Sequence[str] | None) -> int:
                         help=PLUGIN_HELP)
     argv = list(sys.argv[1:] if argv is None else argv)
     # --debug is a flag that stands anywhere (taken out here, as --plugin is): given twice it
-    # asks for the same thing again, as every flag of the parser (dbench.cli.parser._GivenOnce)
+    # asks for the same thing again, as every flag of the parser (dbench.options._GivenOnce)
     debug = "--debug" in argv
     argv = [a for a in argv if a != "--debug"]
     try:

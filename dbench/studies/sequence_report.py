@@ -6,6 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..data import Sequence
+from ..options import Parser
 from ..report.sequence_figures import plot_errors, strip
 from ..run.sequence_run import (
     TEMPORAL_METHODS,
@@ -28,13 +29,9 @@ def quality_run(scene: str, res: int = 64, frames: int | None = None, spp: int =
     return seq, compare(seq, method_names)
 
 
-def main(argv: list[str] | None = None) -> int:
-    """``python -m dbench.run.sequence_run [--res 64] [--frames 48] [--ref-spp 1024] [--out DIR]
-    [--speed]``: quality figures (tables, error plots, strips) for orbit, flicker and mirror-pan,
-    and optionally the 720p speed benchmark; writes JSON + PNG under ``--out``."""
-    import argparse
-
-    ap = argparse.ArgumentParser(prog="python -m dbench.run.sequence_run")
+def build_parser() -> Parser:
+    """The options of :func:`main` (each single-valued one given at most once)."""
+    ap = Parser(prog="python -m dbench.studies.sequence_report")
     ap.add_argument("--scenes", default="orbit,flicker,mirror-pan")
     ap.add_argument("--res", type=int, default=64)
     ap.add_argument("--frames", type=int, default=None)
@@ -44,7 +41,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-quality", action="store_true")
     ap.add_argument("--repeats", type=int, default=6)
     ap.add_argument("--threads", default="2,1", help="Numba thread counts to time, e.g. 2,1")
-    a = ap.parse_args(argv)
+    return ap
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m dbench.studies.sequence_report [--res 64] [--frames 48] [--ref-spp 1024]
+    [--out DIR] [--speed]``: quality figures (tables, error plots, strips) for orbit, flicker and
+    mirror-pan, and optionally the 720p speed benchmark; writes JSON + PNG under ``--out``."""
+    a = build_parser().parse_args(argv)
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
     rows = []

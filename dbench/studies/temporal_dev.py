@@ -22,7 +22,6 @@ defaults alone on the next 8 usable sequences, which chose nothing (``heldout.js
 """
 from __future__ import annotations
 
-import argparse
 import math
 from pathlib import Path
 from typing import Any
@@ -31,6 +30,7 @@ import numpy as np
 
 from ..methods.bmfr.params import ALBEDO_FLOOR_BMFR
 from ..methods.svgf.params import ALBEDO_FLOOR
+from ..options import Parser
 
 FRAMES, REF_SPP, RES = 24, 256, 64
 FLOORS = (0.02, 0.05, 0.1, 0.2, 0.3, 0.5, 1.0)
@@ -150,15 +150,21 @@ def table(rows: list[dict[str, Any]]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def build_parser() -> Parser:
+    """The options of :func:`main` (each single-valued one given at most once)."""
+    ap = Parser(prog="python -m dbench.studies.temporal_dev",
+                description=__doc__.splitlines()[0])
     ap.add_argument("--out", default="results/temporal_study")
     ap.add_argument("--scenes", type=int, default=8, help="how many training sequences")
     ap.add_argument("--seeds", default="0,1")
     ap.add_argument("--held-out", action="store_true",
                     help="the defaults only, on the next --scenes sequences after the ones "
                          "that chose them (written to heldout.json / heldout.md)")
-    args = ap.parse_args(argv)
+    return ap
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
     from ..io import write_json, write_text
 
     out = Path(args.out)

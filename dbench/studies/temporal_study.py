@@ -16,12 +16,13 @@ writes ``study.json`` (every seed's numbers) and ``study.md`` (the tables).
 """
 from __future__ import annotations
 
-import argparse
 import math
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from ..options import Parser
 
 #: scene: (frames, reference spp) — orbit as issue 16 measured it, the others as the sweep
 SCENES = {"orbit": (48, 4096), "flicker": (24, 256), "mirror-pan": (24, 256)}
@@ -182,13 +183,19 @@ def tables(rows: list[dict[str, Any]], res: int) -> str:
     return "\n".join(out)
 
 
-def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def build_parser() -> Parser:
+    """The options of :func:`main` (each single-valued one given at most once)."""
+    ap = Parser(prog="python -m dbench.studies.temporal_study",
+                description=__doc__.splitlines()[0])
     ap.add_argument("--out", default="results/temporal_study")
     ap.add_argument("--res", type=int, default=64)
     ap.add_argument("--seeds", default="0,1,2")
     ap.add_argument("--scenes", default=",".join(SCENES))
-    args = ap.parse_args(argv)
+    return ap
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
     from ..io import write_json, write_text
 
     out = Path(args.out)

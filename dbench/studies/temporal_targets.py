@@ -28,11 +28,11 @@ writes ``targets.json`` (every seed's numbers) and ``targets.md`` (the tables).
 """
 from __future__ import annotations
 
-import argparse
 import math
 from pathlib import Path
 from typing import Any
 
+from ..options import Parser
 from .temporal_study import SCENES as STUDY_SCENES
 from .temporal_study import paired_text, paired_word
 from .temporal_study import run as study_run
@@ -130,12 +130,19 @@ def tables(rows: list[dict[str, Any]]) -> str:
     return "\n".join(out)
 
 
-def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def build_parser() -> Parser:
+    """The options of :func:`main` (each single-valued one given at most once)."""
+    ap = Parser(prog="python -m dbench.studies.temporal_targets",
+                description=__doc__.splitlines()[0])
     ap.add_argument("--out", default="results/temporal_targets")
     ap.add_argument("--seeds", type=int, default=10, help="seeds 0 … N−1 (at least 3)")
     ap.add_argument("--settings", default=",".join(SETTINGS),
                     help=f"comma-separated, of {', '.join(SETTINGS)}")
+    return ap
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = build_parser()
     args = ap.parse_args(argv)
     from ..io import write_json, write_text
 

@@ -19,7 +19,6 @@ The machine these run on may be shared; every ratio is measured within one run, 
 """
 from __future__ import annotations
 
-import argparse
 import os
 import statistics
 import time
@@ -31,6 +30,7 @@ import pandas as pd
 
 from .. import io, metrics
 from ..data import TransientFrame
+from ..options import Parser
 from ..report.transient_figures import write_figures
 from ..run import fpenv
 from ..speed.transient_collectors import bench_collectors, state_bytes_vs_spp
@@ -259,8 +259,10 @@ def run_report(out_dir: str | Path = "results", scenes: Sequence[str] = (
     return text
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def build_parser() -> Parser:
+    """The options of :func:`main` (each single-valued one given at most once)."""
+    ap = Parser(prog="python -m dbench.studies.transient_report",
+                description=__doc__.splitlines()[0])
     ap.add_argument("--out", default="results")
     ap.add_argument("--res", type=int, default=64)
     ap.add_argument("--spp", type=int, default=32)
@@ -275,7 +277,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--media-bins", type=int, default=100)
     ap.add_argument("--collectors-only", action="store_true",
                     help="print the collector benchmark only (results/transient.md untouched)")
-    a = ap.parse_args(argv)
+    return ap
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    a = build_parser().parse_args(argv)
     scenes = [s for s in a.scenes.split(",") if s]
     if a.collectors_only:
         print(f"load average {os.getloadavg()[0]:.2f} at the start")

@@ -25,7 +25,6 @@ Reproduce::
 """
 from __future__ import annotations
 
-import argparse
 import time
 from pathlib import Path
 from typing import Any, Sequence
@@ -33,6 +32,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from .. import io
+from ..options import Parser
 from ..run import fpenv
 from ..report.plots import save
 
@@ -340,8 +340,10 @@ TITLES = {
 }
 
 
-def main(argv: list[str] | None = None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+def build_parser() -> Parser:
+    """The options of :func:`main` (each single-valued one given at most once)."""
+    parser = Parser(prog="python -m dbench.studies.transient_studies",
+                    description=__doc__.split("\n")[0])
     parser.add_argument("study", choices=sorted(COLUMNS))
     parser.add_argument("--out", default="results/transient_studies")
     parser.add_argument("--res", type=int, default=64)
@@ -349,7 +351,11 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--ref-spp", type=int, default=None,
                         help="default 16384 (fig5.4, fig5.6) or 4096 (fig5.5)")
     parser.add_argument("--scenes", default=",".join(SCENES))
-    args = parser.parse_args(argv)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> None:
+    args = build_parser().parse_args(argv)
     out = Path(args.out)
     io.ensure_writable_dir(out, "--out")
     scenes = [s for s in args.scenes.split(",") if s]

@@ -1,6 +1,6 @@
 """A list option given more than once adds each list's items, as ``sweep --scenes`` does, and
 ``run --scene`` (one scene a run) given twice is refused in one line (dbench.cli.args.list_items,
-dbench.cli.parser.Once; README.md, "Usage"): ``run --method noisy --method jbf`` ran jbf alone,
+dbench.options.Once; README.md, "Usage"): ``run --method noisy --method jbf`` ran jbf alone,
 ``sweep --methods``, ``stress --methods`` and ``render --scene`` kept their last list and
 ``run --scene cornell --scene textured`` ran textured, each without a word.
 

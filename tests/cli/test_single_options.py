@@ -1,5 +1,5 @@
 """A single-valued option given twice is refused in one line, exit 2, before the command does
-anything (dbench.cli.parser.Once; README.md, "Usage"): ``run --res 8 --res 16`` rendered at 16,
+anything (dbench.options.Once; README.md, "Usage"): ``run --res 8 --res 16`` rendered at 16,
 ``--out a --out b`` wrote b, ``--device cpu --device cuda`` ran on cuda, each without a word.
 A flag given twice asks for the same thing again and is let through; a list option (and
 ``--param``, ``--scene-param``, ``--plugin``) still adds each occurrence.
@@ -12,7 +12,8 @@ import argparse
 import pytest
 
 from dbench import cli
-from dbench.cli.parser import Parser, build_parser
+from dbench.cli.parser import build_parser
+from dbench.options import Parser
 
 #: What each command needs besides the option tested (its positionals, its required options).
 REQUIRED = {"run": ["--method", "noisy", "--scene", "cornell"], "export": ["cornell", "--out", "o"],
