@@ -9,6 +9,7 @@ a check that lets an argument through never starts the work here."""
 from __future__ import annotations
 
 import pytest
+from cli_args import refused  # tests/cli_args.py
 
 from dbench import cli
 
@@ -36,16 +37,6 @@ def no_work(monkeypatch, tmp_path):
     return tmp_path
 
 
-def _refused(capsys, argv, *words):
-    rc = cli.main(list(argv))
-    out, err = capsys.readouterr()
-    assert rc == 2 and err.startswith("dbench: ") and err.count("\n") == 1, (rc, out, err)
-    assert "Traceback" not in err
-    for w in words:
-        assert w in err, err
-    return err
-
-
 @pytest.mark.parametrize("argv, words", [
     (["run", "--method", "jbf,jbf", "--scene", "cornell"], ["--method", "'jbf' is given twice"]),
     (["run", "--method", "statistical-gate,statistical+gate", "--scene", "cornell"],
@@ -64,8 +55,8 @@ def _refused(capsys, argv, *words):
 def test_a_repeated_item_of_a_comma_list_is_refused(no_work, capsys, argv, words):
     out = no_work / "out"
     argv = [str(out) if a == "OUT" else a for a in argv]
-    _refused(capsys, [*argv, "--out", str(out)] if argv[0] in ("run", "sweep", "stress")
-             else argv, *words)
+    refused(capsys, [*argv, "--out", str(out)] if argv[0] in ("run", "sweep", "stress")
+            else argv, *words)
     assert not out.exists()
 
 
@@ -98,7 +89,7 @@ def test_a_repeated_item_of_a_comma_list_is_refused(no_work, capsys, argv, words
 ])
 def test_bench_refuses_an_option_its_benchmark_does_not_read(no_work, capsys, what, extra,
                                                              words):
-    _refused(capsys, ["bench", what, *extra], *words)
+    refused(capsys, ["bench", what, *extra], *words)
 
 
 def test_bench_device_cuda_is_refused_as_run_refuses_it_without_a_gpu(no_work, capsys):
@@ -106,8 +97,8 @@ def test_bench_device_cuda_is_refused_as_run_refuses_it_without_a_gpu(no_work, c
 
     if cuda_usable():
         pytest.skip("checks the refusal on a machine without a GPU")
-    _refused(capsys, ["bench", "jbf", "--device", "cuda"], "no usable CUDA GPU")
-    _refused(capsys, ["bench", "render", "--device", "cuda"], "no usable CUDA GPU")
+    refused(capsys, ["bench", "jbf", "--device", "cuda"], "no usable CUDA GPU")
+    refused(capsys, ["bench", "render", "--device", "cuda"], "no usable CUDA GPU")
 
 
 def test_bench_options_that_apply_reach_the_benchmark(no_work, capsys, monkeypatch):
@@ -136,12 +127,12 @@ def test_cache_with_no_cache_is_refused(no_work, capsys):
                  ["export", "cornell", "--out", str(no_work / "out")],
                  ["sweep", "--methods", "jbf", "--scenes", "cornell", "--out",
                   str(no_work / "out")]):
-        _refused(capsys, [*argv, "--cache", str(cache), "--no-cache"], "--cache", "--no-cache")
+        refused(capsys, [*argv, "--cache", str(cache), "--no-cache"], "--cache", "--no-cache")
     assert not cache.exists() and not (no_work / "out").exists()
 
 
 def test_sweep_workers_with_the_ray_executor_is_refused(no_work, capsys):
-    _refused(capsys, ["sweep", "--methods", "jbf", "--scenes", "cornell", "--spp", "4",
-                      "--executor", "ray", "--workers", "7", "--out", str(no_work / "out")],
-             "--workers 7", "ray")
+    refused(capsys, ["sweep", "--methods", "jbf", "--scenes", "cornell", "--spp", "4",
+                     "--executor", "ray", "--workers", "7", "--out", str(no_work / "out")],
+            "--workers 7", "ray")
     assert not (no_work / "out").exists()

@@ -7,38 +7,18 @@ from __future__ import annotations
 import json
 
 import pytest
+from cli_args import lamp_scene, refused  # tests/cli_args.py
 
 from dbench import cli
 from dbench.datasets.scenes import scoped
 from dbench.errors import DbenchInputError
 from dbench.run import sweep
 
-#: a scene file that needs ``light`` (no <default>): refused without a value
-LAMP = """<scene version="3.0.0">
-  <sensor type="perspective"><float name="fov" value="50"/>
-    <transform name="to_world"><lookat origin="0,1,4" target="0,0.3,0" up="0,1,0"/></transform>
-    <film type="hdrfilm"><integer name="width" value="16"/><integer name="height" value="16"/>
-    </film></sensor>
-  <shape type="sphere"><float name="radius" value="0.5"/></shape>
-  <shape type="rectangle"><transform name="to_world"><translate y="2"/></transform>
-    <emitter type="area"><rgb name="radiance" value="$light"/></emitter></shape>
-</scene>
-"""
-
-
-def _refused(capsys, argv, *words):
-    assert cli.main(list(argv)) == 2
-    err = capsys.readouterr().err
-    assert err.startswith("dbench: ") and err.count("\n") == 1, err
-    for w in words:
-        assert w in err, err
-    return err
-
 
 @pytest.fixture
 def lamp(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    (tmp_path / "lamp.xml").write_text(LAMP)
+    (tmp_path / "lamp.xml").write_text(lamp_scene())
     return "lamp.xml"
 
 
@@ -84,20 +64,20 @@ def test_an_item_that_reads_two_ways_or_names_no_scene_is_refused(items, scenes,
 
 def test_a_sweep_refuses_a_scope_before_anything_renders(lamp, tmp_path, capsys):
     # today's refusal stays: a value for every scene goes to cornell too, which has none
-    said = _refused(capsys, _sweep(tmp_path, "--scene-param", "light=5"),
-                    "--scene-param: cornell is a catalogue scene without parameters")
+    said = refused(capsys, _sweep(tmp_path, "--scene-param", "light=5"),
+                   "--scene-param: cornell is a catalogue scene without parameters")
     assert said.endswith("; --scene-param SCENE:NAME=VALUE gives a value to one scene only\n")
-    _refused(capsys, _sweep(tmp_path, "--scene-param", "textured:light=5"),
-             "'textured' is not a scene of --scenes (cornell, lamp.xml)")
+    refused(capsys, _sweep(tmp_path, "--scene-param", "textured:light=5"),
+            "'textured' is not a scene of --scenes (cornell, lamp.xml)")
     # a scope names the scene as written: ./lamp.xml is another spelling
-    _refused(capsys, _sweep(tmp_path, "--scene-param", "./lamp.xml:light=5"),
-             "'./lamp.xml' is not a scene of --scenes")
+    refused(capsys, _sweep(tmp_path, "--scene-param", "./lamp.xml:light=5"),
+            "'./lamp.xml' is not a scene of --scenes")
     # the refusals of a scene's parameters name the scene and its valid ones, scoped too
-    _refused(capsys, _sweep(tmp_path, "--scene-param", "fog-transient:nope=1",
-                            scenes="cornell,fog-transient"),
-             "--scene-param nope: fog-transient has no parameter 'nope'; valid: ", "sigma_s")
-    _refused(capsys, _sweep(tmp_path, "--scene-param", "cornell:light=5"),
-             "--scene-param: cornell is a catalogue scene without parameters")
+    refused(capsys, _sweep(tmp_path, "--scene-param", "fog-transient:nope=1",
+                           scenes="cornell,fog-transient"),
+            "--scene-param nope: fog-transient has no parameter 'nope'; valid: ", "sigma_s")
+    refused(capsys, _sweep(tmp_path, "--scene-param", "cornell:light=5"),
+            "--scene-param: cornell is a catalogue scene without parameters")
     assert not (tmp_path / "S").exists() and not (tmp_path / "cache").exists()
 
 
@@ -129,9 +109,9 @@ def test_a_scene_file_is_swept_beside_cornell_with_its_own_value(renderer, lamp,
     assert {s: c["status"] for s, c in cells.items()} == {"cornell": "ok", "lamp.xml": "ok"}
     # another value for that scene is another scene: a resume with it is refused, as a value
     # given for every scene is, before anything renders
-    _refused(capsys, _sweep(tmp_path, "--scene-param", "lamp.xml:light=6"),
-             "1 finished cell(s) under the same label were computed with other settings or "
-             "code: cells/lamp.xml/00002spp/noisy.json (differs in scene_fingerprint)")
+    refused(capsys, _sweep(tmp_path, "--scene-param", "lamp.xml:light=6"),
+            "1 finished cell(s) under the same label were computed with other settings or "
+            "code: cells/lamp.xml/00002spp/noisy.json (differs in scene_fingerprint)")
     # the same value given for every scene of a sweep of the file alone is the same cell
     assert cli.main(_sweep(tmp_path, "--scene-param", "light=5", scenes="lamp.xml")) == 0
     assert "sweep S: 0 cells computed, 0 not applicable, 1 already finished" in \
@@ -144,8 +124,8 @@ def test_a_scene_file_is_swept_beside_cornell_with_its_own_value(renderer, lamp,
 def test_run_takes_the_scoped_form_naming_its_one_scene(renderer, lamp, tmp_path, capsys):
     run = ["run", "--method", "noisy", "--scene", lamp, "--spp", "2", "--res", "8", "--ref-spp",
            "16", "--repeats", "1", "--quiet", "--cache", str(tmp_path / "cache"), "--out"]
-    _refused(capsys, run + [str(tmp_path / "R0"), "--scene-param", "cornell:light=5"],
-             "--scene-param cornell:light=5: 'cornell' is not a scene of --scene (lamp.xml)")
+    refused(capsys, run + [str(tmp_path / "R0"), "--scene-param", "cornell:light=5"],
+            "--scene-param cornell:light=5: 'cornell' is not a scene of --scene (lamp.xml)")
     assert not (tmp_path / "R0").exists()
     assert cli.main(run + [str(tmp_path / "R"), "--scene-param", "lamp.xml:light=5"]) == 0
     assert "- scene parameters: light=5" in (tmp_path / "R" / "report.md").read_text()
@@ -153,6 +133,6 @@ def test_run_takes_the_scoped_form_naming_its_one_scene(renderer, lamp, tmp_path
 
 def test_a_missing_value_names_the_scoped_form_too(tmp_path, lamp, capsys):
     # beside cornell, the unscoped form alone would be refused by cornell: the line says both
-    _refused(capsys, _sweep(tmp_path), "lamp.xml: undefined parameter $light",
-             "--scene-param light=VALUE (SCENE:light=VALUE for this scene alone")
+    refused(capsys, _sweep(tmp_path), "lamp.xml: undefined parameter $light",
+            "--scene-param light=VALUE (SCENE:light=VALUE for this scene alone")
     assert not (tmp_path / "S").exists()
