@@ -117,5 +117,5 @@ def test_bad_inputs_name_the_buffer():
     ("foo", "got 'foo'"), (("xy", "position"), "got 'position'")])  # no position buffer
 def test_features_are_checked_when_built(features, said):
     """docs/methods/jbf-bins.md: every value is checked at construction, before rendering."""
-    with pytest.raises(DbenchInputError, match=rf"^features: .*{re.escape(said)}"):
+    with pytest.raises(DbenchInputError, match=rf"^jbf-bins: features: .*{re.escape(said)}"):
         registry.get("jbf-bins", features=features)
