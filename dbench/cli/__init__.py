@@ -91,11 +91,19 @@ def main(argv: Sequence[str] | None = None) -> int:
     return code or 2
 
 
-def _main(argv: Sequence[str] | None) -> int:
+def command_parser() -> argparse.ArgumentParser:
+    """The parser :func:`main` reads a command line with: every command's (:func:`build_parser`)
+    and the options that stand before the command, ``--debug`` and ``--plugin`` (taken out of
+    argv by main wherever they stand). Building it runs nothing and imports no plugin."""
     parser = build_parser()
     parser.add_argument("--debug", action="store_true", help="show tracebacks (for bug reports)")
     parser.add_argument("--plugin", action="append", metavar="MODULE_OR_FILE.py",
                         help=PLUGIN_HELP)
+    return parser
+
+
+def _main(argv: Sequence[str] | None) -> int:
+    parser = command_parser()
     argv = list(sys.argv[1:] if argv is None else argv)
     # --debug is a flag that stands anywhere (taken out here, as --plugin is): given twice it
     # asks for the same thing again, as every flag of the parser (dbench.options._GivenOnce)
@@ -184,4 +192,4 @@ def _error_code(exc: Exception, debug: bool) -> int:
     return 1
 
 
-__all__ = ["build_parser", "main", "parse_params", "split_plugin_args"]
+__all__ = ["build_parser", "command_parser", "main", "parse_params", "split_plugin_args"]

@@ -52,13 +52,19 @@ def check_exclusive(args: argparse.Namespace) -> None:
                                f"and reads no cache; give one of them")
 
 
+def check_args(args: argparse.Namespace) -> None:
+    """The checks of the module docstring that every command makes on its parsed arguments
+    before it does anything (a DbenchInputError naming the first one that fails)."""
+    check_empty(args)
+    check_counts(args)
+    check_exclusive(args)
+
+
 def command(func: Callable[[argparse.Namespace], int]) -> Callable[[argparse.Namespace], int]:
     """``func`` (a command) with the module docstring's checks."""
     @functools.wraps(func)
     def run(args: argparse.Namespace) -> int:
-        check_empty(args)
-        check_counts(args)
-        check_exclusive(args)
+        check_args(args)
         try:
             return func(args)
         except SystemExit as exc:
@@ -71,4 +77,4 @@ def command(func: Callable[[argparse.Namespace], int]) -> Callable[[argparse.Nam
     return run
 
 
-__all__ = ["command", "check_empty", "check_exclusive"]
+__all__ = ["command", "check_args", "check_empty", "check_exclusive"]
