@@ -159,8 +159,65 @@ def verdict_words(d: pd.DataFrame, columns: Sequence[str], rank_by: str) -> dict
         if math.isfinite(nonfinite) and nonfinite > 0:
             n = int(nonfinite)
             words.append(f"{n} non-finite output value{'s' if n != 1 else ''}")
+        apart = num(r["nondeterministic_abs"]) if "nondeterministic_abs" in d.columns else \
+            float("nan")
+        if not math.isnan(apart):  # its calls on one input differed: one call's numbers
+            words.append("not reproducible: calls on one input gave different outputs ("
+                         + difference_text(apart, num(r["nondeterministic_rel"])) + ")")
         out[lab] = "; ".join(w for w in words if w)
     return out
+
+
+def difference_text(max_abs: float, max_rel: float) -> str:
+    """``largest difference 3.1e-05, 0.002 % of the output's largest value``: how far apart
+    two outputs of one input are (dbench.run.inputs.output_difference)."""
+    if not math.isfinite(max_abs):
+        return "a value finite in one output is not in the other, or their shapes differ"
+    text = f"largest difference {max_abs:.2g}"
+    return text + (f", {max_rel * 100:.2g} % of the output's largest value"
+                   if math.isfinite(max_rel) else "")
+
+
+def nondeterminism_text(label: str, nd: Mapping[str, Any]) -> str:
+    """The line ``dbench run`` prints, and its report's notes hold, for a method whose calls
+    on one input gave different outputs (a cell's ``nondeterministic``,
+    dbench/run/harness.py; README.md "Usage")."""
+    seeds = nd.get("seeds") or []
+    where = "; " + ", ".join(p for p in (
+        f"seed{'s' if len(seeds) != 1 else ''} {', '.join(map(str, seeds))}" if seeds else "",
+        str(nd.get("calls") or "")) if p)
+    return (f"{label}: two calls on the same input gave different outputs ("
+            f"{difference_text(num(nd.get('max_abs_diff')), num(nd.get('max_rel_diff')))}"
+            f"{where if where != '; ' else ''}): its numbers are those of "
+            f"{nd.get('scored') or 'the last call'} and are not reproducible")
+
+
+#: What the sweep's README and page say above :func:`nondeterministic_lines`.
+NONDETERMINISTIC_INTRO = ("Cells whose method gave different outputs in two calls on the same "
+                          "input (compared exactly, NaN in the same places equal; README.md, "
+                          "\"Usage\"), as {run} prints it:")
+
+
+def nondeterministic_lines(cells: Sequence[dict]) -> list[str]:
+    """``scene at 4, 16 spp: label: two calls on the same input gave different outputs …``
+    (:func:`nondeterminism_text`) for each scene and method label whose finished cells record
+    ``nondeterministic``, at any spp (a headline's verdicts stand at one spp only), with the
+    largest differences over them; [] where no cell does (older cells record nothing)."""
+    found: dict[tuple[str, str], tuple[list[int], dict[str, Any]]] = {}
+    for c in cells:
+        nd = c.get("nondeterministic") if isinstance(c, dict) and c.get("status") == "ok" \
+            else None
+        if not isinstance(nd, dict):
+            continue
+        spp, merged = found.setdefault((str(c.get("scene")), str(c.get("method"))), ([], {}))
+        spp += [c["spp"]] if isinstance(c.get("spp"), int) else []
+        for key in ("max_abs_diff", "max_rel_diff"):
+            merged[key] = max(num(merged.get(key, 0.0)), num(nd.get(key)))
+        seeds = merged.setdefault("seeds", [])
+        seeds += [s for s in nd.get("seeds") or [] if s not in seeds]
+        merged.update({k: nd[k] for k in ("calls", "scored") if nd.get(k)})
+    return [f"{scene} at {', '.join(map(str, sorted(set(spp))))} spp: "
+            + nondeterminism_text(label, nd) for (scene, label), (spp, nd) in sorted(found.items())]
 
 
 def ranked_labels(d: pd.DataFrame, rank_by: str) -> list[tuple[int | None, str]]:
@@ -241,5 +298,7 @@ def headline_md(df: pd.DataFrame, spp: int | None, rank_by: str = "relmse",
     return parts
 
 
-__all__ = ["VERDICT_NOTE", "timing_words", "flag_metrics", "loss_size", "worse_than_noisy", "verdict_words",
-           "ranked_labels", "scene_table", "scene_block_md", "headline_md"]
+__all__ = ["VERDICT_NOTE", "NONDETERMINISTIC_INTRO", "difference_text", "nondeterminism_text",
+           "nondeterministic_lines", "timing_words", "flag_metrics", "loss_size",
+           "worse_than_noisy", "verdict_words", "ranked_labels", "scene_table", "scene_block_md",
+           "headline_md"]

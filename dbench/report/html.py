@@ -282,6 +282,18 @@ def input_warnings_html(cells: Sequence[dict]) -> list[str]:
             f"<li>{html.escape(line)}</li>" for line in said) + "</ul>"]
 
 
+def nondeterministic_html(cells: Sequence[dict]) -> list[str]:
+    """The sweep's "Not reproducible" cells as its README states them
+    (:func:`dbench.report.headline.nondeterministic_lines`), as HTML; nothing where none."""
+    said = headline.nondeterministic_lines(cells)
+    if not said:
+        return []
+    return ["<h3>Not reproducible</h3>", '<p class="note">'
+            + headline.NONDETERMINISTIC_INTRO.format(run="<code>dbench run</code>") + "</p>",
+            '<ul class="note">' + "".join(f"<li>{html.escape(line)}</li>" for line in said)
+            + "</ul>"]
+
+
 def sweep_page(results: str | Path, sweeps: Sequence[tuple], rank_by: str = "relmse") -> Path:
     """``results/index.html``: for every sweep, given as (folder, its cells) or (folder, its
     cells, its settings line as the README gives it: reference spp and error, variant,
@@ -310,7 +322,7 @@ def sweep_page(results: str | Path, sweeps: Sequence[tuple], rank_by: str = "rel
         head = verdicts.headline_spp(df.spp.unique())
         sections += [f"<h2>Sweep {html.escape(rel)}</h2>"]
         sections += [f'<p class="note">{html.escape(str(line))}</p>' for line in summary]
-        sections += input_warnings_html(cells)
+        sections += input_warnings_html(cells) + nondeterministic_html(cells)
         sections += [f'<p class="note">{html.escape(metric)}: mean ± 95 % half-width, rows '
                      f"scene/method, columns spp; a row in red is worse than the noisy input "
                      f"on {html.escape(metric)} at {head} spp (the README's headline "
@@ -327,4 +339,4 @@ def sweep_page(results: str | Path, sweeps: Sequence[tuple], rank_by: str = "rel
 
 
 __all__ = ["encode_half", "decode_half", "image_entry", "metrics_table", "run_page", "write_page",
-           "grid_table", "input_warnings_html", "sweep_page"]
+           "grid_table", "input_warnings_html", "nondeterministic_html", "sweep_page"]

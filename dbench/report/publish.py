@@ -95,6 +95,14 @@ def input_warnings_md(cells: list[dict], title: str) -> list[str]:
         f"- {markdown_text(line)}" for line in said] + [""] if said else []
 
 
+def nondeterministic_md(cells: list[dict], title: str) -> list[str]:
+    """A section ``title`` listing the cells whose method's calls on one input differed
+    (:func:`dbench.report.headline.nondeterministic_lines`), or nothing where none did."""
+    said = headline.nondeterministic_lines(cells)
+    return [title, "", headline.NONDETERMINISTIC_INTRO.format(run="`dbench run`"), ""] + [
+        f"- {markdown_text(line)}" for line in said] + [""] if said else []
+
+
 def build_readme(results: Path, sweep_dir: Path, headline_spp: int = 64,
                  rank_by: str = "relmse") -> str:
     results, sweep_dir = Path(results), Path(sweep_dir)
@@ -139,6 +147,7 @@ def build_readme(results: Path, sweep_dir: Path, headline_spp: int = 64,
                                                             cells)
 
     parts += input_warnings_md(cells, "## Input warnings")
+    parts += nondeterministic_md(cells, "## Not reproducible")
     lines = problems_md(cells, problems, status["missing"])
     if lines:
         parts += ["## Skipped and failed cells", ""] + lines + [""]
@@ -282,6 +291,7 @@ def other_sweep_md(results: Path, sweep_dir: Path, rank_by: str = "relmse") -> l
     lines = [ln for ln in problems_md(cells, problems, status["missing"])
              if not ln.startswith("- skipped ")]
     parts += lines + ([""] if lines else []) + input_warnings_md(cells, "### Input warnings")
+    parts += nondeterministic_md(cells, "### Not reproducible")
     if status["mixed"]:
         parts += ["Mixed settings (cells computed with different settings or code, side by side "
                   "in the tables below):", ""] + mixed_md(status["mixed"]) + [""]

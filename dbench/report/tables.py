@@ -81,6 +81,10 @@ def _row(c: dict) -> dict | None:
     # per frame: rendering A-SVGF's re-shaded samples for a method that uses them
     row["gradient_s"] = gradient if np.isfinite(gradient) else 0.0
     row["n_nonfinite"] = num(c.get("n_nonfinite"))
+    # calls on one input that gave different outputs (dbench/run/harness.py): NaN where none did
+    nd = c.get("nondeterministic") if isinstance(c.get("nondeterministic"), dict) else {}
+    row["nondeterministic_abs"] = num(nd.get("max_abs_diff"))
+    row["nondeterministic_rel"] = num(nd.get("max_rel_diff"))
     row["per_seed"] = seed_values(c.get("per_seed"))
     return row
 
@@ -132,7 +136,7 @@ def cells_frame(cells: list[dict]) -> pd.DataFrame:
     did: :func:`unshown_md` tells them apart)."""
     ok = [c for c in cells if isinstance(c, dict) and c.get("status") == "ok"]
     cols = ID_COLUMNS + [k for m in COLUMNS for k in (m, m + "_ci")] + TIME_COLUMNS + [
-        "n_nonfinite"]
+        "n_nonfinite", "nondeterministic_abs", "nondeterministic_rel"]
     rows = [r for c in ok if (r := _row(c)) is not None]
     df = pd.DataFrame(rows, columns=cols + ["render_plain_s", "stats_s", "render_measured_s",
                                             "per_seed"])

@@ -225,7 +225,8 @@ def sweep_summary(cells: Sequence[dict], rank_by: str = "relmse",
     and the verdicts, a warning where cells computed with different settings stand side by side
     among ``beside`` (default ``cells``: the folder's cells of the same labels and scenes, at
     any spp; :func:`dbench.report.cells.mixed_settings`), a warning for each doubt the cells
-    recorded of their inputs (:func:`dbench.report.cells.input_warnings`), then (``skips``)
+    recorded of their inputs (:func:`dbench.report.cells.input_warnings`) and of their methods'
+    calls (:func:`dbench.report.headline.nondeterministic_lines`), then (``skips``)
     the skipped methods grouped by reason kind, one line."""
     from .tables import cells_frame
 
@@ -246,6 +247,9 @@ def sweep_summary(cells: Sequence[dict], rank_by: str = "relmse",
     lines += _wrap("warning: " + mixed.removeprefix("⚠ ")) if mixed else []
     # what the inputs said of themselves, as `dbench run` prints it (dbench/run/inputs.py)
     for said in input_warnings(cells):
+        lines += _wrap(f"warning: {said}")
+    # calls on one input that differed, at any spp, as `dbench run` prints it (harness.py)
+    for said in headline.nondeterministic_lines(cells):
         lines += _wrap(f"warning: {said}")
     skipped = [(str(c.get("method")), str(c.get("reason", "")))
                for c in cells if isinstance(c, dict) and c.get("status") == "skipped"]

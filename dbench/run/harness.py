@@ -8,6 +8,11 @@ with the device synchronised before and after each call, and its output is broug
 the copies are timed apart (``transfer_s``) and never counted as the method's time. A method
 without a device path runs on the host and its cell says so (``device="cpu"``), so CPU and GPU
 figures are never mixed under one label (docs/gpu.md §3).
+
+The last call is scored. The first call's output (warm-up included) is kept and compared with
+it: where they differ (``np.array_equal``, NaN in the same places equal; no tolerance), the
+cell records ``nondeterministic`` and ``dbench run`` and the reports say its numbers are those
+of one call and not reproducible (README.md, "Usage").
 """
 from __future__ import annotations
 
@@ -23,7 +28,8 @@ from ..registry import Denoiser, applies
 from ..device import device_name, download, timed, upload
 from . import fpenv
 from .machine import machine_label
-from .inputs import check_output, check_unchanged, input_guard, private_copy
+from .inputs import (check_output, check_unchanged, input_guard, output_copy,
+                     output_difference, private_copy)
 from .scoring import DEFAULT_METRICS, judge_frame
 from .sequence_run import WARMUP, after_warmup, run_sequence
 
@@ -57,6 +63,9 @@ class CellResult:
     backend: str = ""
     #: seconds of host→device upload plus device→host download per seed (device cells only)
     transfer_s: list[float] = field(default_factory=list)
+    #: where calls on one input gave different outputs: the seeds, ``max_abs_diff``,
+    #: ``max_rel_diff`` (:func:`output_difference`) and the calls compared; {} where none did
+    nondeterministic: dict[str, Any] = field(default_factory=dict)
 
     @property
     def time_s(self) -> float:
@@ -105,14 +114,44 @@ def time_call(fn, repeats: int = 5, warmup: int = 1, device: str = "cpu"
               ) -> tuple[Any, list[float]]:
     """Call ``fn()`` ``warmup`` times, then ``repeats`` times; return the last result and times
     (each call timed with ``device`` synchronised before and after it)."""
-    result = None
+    result, times, _ = timed_calls(fn, repeats, warmup, device)
+    return result, times
+
+
+def timed_calls(fn, repeats: int = 5, warmup: int = 1, device: str = "cpu", keep=None
+                ) -> tuple[Any, list[float], Any]:
+    """:func:`time_call`, and ``keep(first result)`` (None without ``keep``, or with one
+    call): a copy of the first call's output, made untimed, that a later call cannot
+    overwrite, to compare with the last (:func:`output_difference`)."""
+    first = result = None
+    calls = 0
     for _ in range(warmup):
         result = fn()
+        calls += 1
+        if calls == 1 and keep is not None:
+            first = keep(result)
     times = []
     for _ in range(max(1, repeats)):
         result, dt = timed(fn, device)
         times.append(dt)
-    return result, times
+        calls += 1
+        if calls == 1 and keep is not None:
+            first = keep(result)
+    return result, times, (first if calls > 1 else None)
+
+
+def note_difference(result: CellResult, seed: Any, diff: dict[str, float] | None,
+                    calls: str, scored: str = "the last call") -> None:
+    """Adds one seed's :func:`output_difference` to ``result.nondeterministic``: the seeds
+    whose calls differed, the largest differences over them, which calls were compared and
+    which were ``scored``."""
+    if diff is None:
+        return
+    nd = result.nondeterministic
+    nd.setdefault("seeds", []).append(seed.item() if isinstance(seed, np.generic) else seed)
+    for key, value in diff.items():
+        nd[key] = max(nd.get(key, 0.0), value)
+    nd.update(calls=calls, scored=scored)
 
 
 def method_backend(method: Denoiser, on_device: bool) -> str:
@@ -195,7 +234,8 @@ def run_cell(method: Denoiser, frame, metric_names=DEFAULT_METRICS, repeats: int
     skip with a reason when it does not apply.
 
     Each seed is timed alone (``warmup`` calls, then ``repeats``); ``times_s`` pools the timed
-    calls of every seed. Metrics: see :class:`CellResult`.
+    calls of every seed. Metrics: see :class:`CellResult`; they score the last call, and where
+    the first call's output differs from it, ``nondeterministic`` says so.
     """
     frames = _as_list(frame)
     check_cell_args(method, frames, metric_names, repeats, warmup)
@@ -227,12 +267,16 @@ def run_cell(method: Denoiser, frame, metric_names=DEFAULT_METRICS, repeats: int
             return fpenv.denoise(method, spare)
 
         with input_guard(method.name, None if on_device else f, rerun):
-            output, times = time_call(call, repeats=repeats, warmup=warmup, device=where)
+            output, times, first = timed_calls(call, repeats, warmup, where, keep=output_copy)
         check_unchanged(method.name, mine, f)
         if on_device:
             output, down_s = timed(lambda out=output: download(out), where)
             result.transfer_s.append(up_s + down_s)
+            first = None if first is None else download(first)
         output = check_output(method.name, output, f.color.shape)
+        if first is not None:  # the first call (warm-up included) against the scored last
+            note_difference(result, f.meta.get("seed", i), output_difference(first, output),
+                            f"first and last of {warmup + max(1, repeats)} calls")
         result.times_s += times
         result.n_nonfinite += int((~np.isfinite(output)).sum())
         if result.output is None:
@@ -262,6 +306,8 @@ def run_sequence_cell(method: Denoiser, seq, metric_names=DEFAULT_METRICS,
     :func:`dbench.metrics.video_quality.use_cvvdp`); intervals as in :func:`run_cell` (the
     bootstrap resamples the same pixel blocks in every frame; ``cvvdp``, like the temporal
     figures, gets one only over seeds). ``output`` is the last frame's output of the first seed.
+    Where the untimed warm-up ran (a sequence no longer than the warm-up), its outputs of frames
+    0-1 are compared with the run's: ``nondeterministic`` where they differ.
     """
     from ..data import BUFFER_NAMES
 
@@ -282,6 +328,13 @@ def run_sequence_cell(method: Denoiser, seq, metric_names=DEFAULT_METRICS,
         run = run_sequence(method, s, metric_names=names, warmup=warmup, keep_outputs=True,
                            device=where, cvvdp=cvvdp)
         result.transfer_s.append(run.summary.get("transfer_s", 0.0))
+        nd = run.nondeterministic  # the untimed warm-up's frames 0-1 against the run's
+        if nd:
+            frames = ", ".join(map(str, nd["frames"]))
+            note_difference(result, s.meta.get("seed", i),
+                            {k: nd[k] for k in ("max_abs_diff", "max_rel_diff")},
+                            f"frame{'s' if len(nd['frames']) > 1 else ''} {frames} in the "
+                            "untimed warm-up and in the run", "the run's calls")
         after = after_warmup(run.per_frame, warmup)
         result.times_s += [r["time_s"] for r in after]
         result.n_nonfinite += int(sum((~np.isfinite(o)).sum() for o in run.outputs))
@@ -328,6 +381,8 @@ def cell_record(res, frames: list, needs: set[str]) -> dict[str, Any]:
         record["transfer_s"] = float(statistics.median(res.transfer_s))
     if res.settings:
         record["settings"] = res.settings       # what the method resolved (first seed)
+    if res.nondeterministic:  # calls on one input differed: the scores are one call's
+        record["nondeterministic"] = dict(res.nondeterministic)
     if first.kind == "sequence":
         record.update(frames=len(first), warmup=res.sequence.summary["warmup"])
     return record

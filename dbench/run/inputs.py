@@ -9,6 +9,10 @@ from the array with ``torch.from_numpy``, is caught there). Either way the metho
 :class:`MethodError` naming it and the buffer, and the other methods still receive the pristine
 frame. The copy is made outside the timed calls.
 
+What it gives back: :func:`check_output` refuses what is no radiance of the input's shape;
+:func:`output_difference` compares two outputs of one input (the harness's first and last
+call, a sequence's warm-up and first frames), which a deterministic method gives equal.
+
 :func:`load_seeds` gives the frames themselves: one per seed of a cell, for ``run``, ``sweep``
 and the sweep's checks before it writes anything; :func:`input_notes` what the loaded input
 says of itself (a folder's facts, the doubts of :data:`INPUT_WARNINGS`).
@@ -66,6 +70,43 @@ def check_output(method_name: str, output: Any, shape: tuple) -> np.ndarray:
         raise DbenchInputError(f"{method_name} output: expected floating-point radiance "
                                f"(float32), got dtype {out.dtype}")
     return out
+
+
+def output_copy(output: Any) -> Any:
+    """A copy of a method's output that later calls cannot change: a tensor's on its device,
+    else a NumPy array (None where the output is no array: the last call's is checked)."""
+    if hasattr(output, "detach") and hasattr(output, "clone"):
+        return output.detach().clone()
+    try:
+        return np.array(output, copy=True)
+    except (TypeError, ValueError):
+        return None
+
+
+def output_difference(first: Any, last: Any) -> dict[str, float] | None:
+    """None where two outputs of one input are equal (``np.array_equal``; NaN in the same
+    places counts as equal), else the largest absolute difference ``max_abs_diff`` and that
+    over the largest |value| of ``last``, ``max_rel_diff`` (README.md, "Usage": a method
+    whose calls differ is flagged, never passed over). A value finite in one output and not
+    in the other, or outputs of different shapes, differ by ``inf``."""
+    a, b = np.asarray(first), np.asarray(last)
+    numeric = a.dtype.kind in "biuf" and b.dtype.kind in "biuf"
+    if a.shape == b.shape and numeric and np.array_equal(
+            a, b, equal_nan=a.dtype.kind == "f" or b.dtype.kind == "f"):
+        return None
+    if a.shape != b.shape or not numeric:
+        return {"max_abs_diff": float("inf"), "max_rel_diff": float("inf")}
+    a64, b64 = a.astype(np.float64), b.astype(np.float64)
+    both = np.isfinite(a64) & np.isfinite(b64)
+    same_nan = np.isnan(a64) & np.isnan(b64)
+    with np.errstate(invalid="ignore", over="ignore"):
+        diff = np.where(both, np.abs(a64 - b64), 0.0)
+        # ±inf against a number, NaN against a number or +inf against -inf
+        apart = ~both & ~same_nan & ~(a64 == b64)
+    largest = float("inf") if apart.any() else float(diff.max())
+    scale = float(np.abs(b64[np.isfinite(b64)]).max()) if np.isfinite(b64).any() else 0.0
+    return {"max_abs_diff": largest,
+            "max_rel_diff": largest / scale if scale > 0 else float("inf")}
 
 
 def _arrays(obj: Any) -> dict[str, np.ndarray]:
@@ -326,7 +367,8 @@ def frames_text(ks: list[int]) -> str:
     return "frames " + ", ".join(map(str, ks))
 
 
-__all__ = ["MethodError", "check_output", "method_failure", "load_seeds", "check_reference_lit",
+__all__ = ["MethodError", "check_output", "output_copy", "output_difference", "method_failure",
+           "load_seeds", "check_reference_lit",
            "noise_free", "noise_free_text", "note_noise_free",
            "check_unchanged", "first_changed", "input_guard", "is_write_to_input", "private_copy",
            "INPUT_FACTS", "INPUT_WARNINGS", "input_metas", "input_notes", "input_warnings",

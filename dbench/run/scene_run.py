@@ -50,7 +50,8 @@ def run_scene(out: Path, req: RunRequest, scene, instances, labels, runnable,
     from . import harness, identity
     from .. import registry
     from ..report import run_report as report
-    from ..report.formats import counted, write_csv
+    from ..report.headline import nondeterminism_text
+    from ..report.formats import counted, markdown_text, write_csv
     from .machine import machine_info
     from .inputs import load_seeds
     from .harness import cell_record
@@ -68,7 +69,7 @@ def run_scene(out: Path, req: RunRequest, scene, instances, labels, runnable,
     frame = frames[0]
     is_sequence = frame.kind == "sequence"
 
-    rows, per_seed, outputs = [], [], []
+    rows, per_seed, outputs, apart = [], [], [], []
     failed: dict[str, str] = {}
     for n in runnable:
         if not req.quiet:
@@ -88,6 +89,9 @@ def run_scene(out: Path, req: RunRequest, scene, instances, labels, runnable,
             skipped[n] = res.skipped
             continue
         record = cell_record(res, frames, registry.wants(instances[n], scene.provides))
+        if res.nondeterministic:  # said now, where the user looks, and in the report's notes
+            apart.append(nondeterminism_text(labels[n], res.nondeterministic))
+            print(f"warning: {apart[-1]}", file=sys.stderr)
         rows.append({"scene": scene.name, "method": labels[n], "base_method": n,
                      "spp": req.spp, "res": req.res.key, **record,
                      "params": json.dumps(res.params, sort_keys=True, default=str)})
@@ -99,8 +103,8 @@ def run_scene(out: Path, req: RunRequest, scene, instances, labels, runnable,
     write_exr(out / "images" / "reference.exr", {"color": last.reference})
 
     table = pd.DataFrame(rows)
-    csv_table = table.drop(columns=[c for c in ("seeds", "times_s", "per_seed", "settings")
-                                    if c in table.columns])
+    csv_table = table.drop(columns=[c for c in ("seeds", "times_s", "per_seed", "settings",
+                                                "nondeterministic") if c in table.columns])
     if failed:  # each failed method is a row of its own, with its error and no figures
         base = {lab: n for n, lab in labels.items()}
         csv_table = pd.concat([csv_table.assign(status="ok"), pd.DataFrame(
@@ -163,7 +167,9 @@ def run_scene(out: Path, req: RunRequest, scene, instances, labels, runnable,
                     + (f", copies {r['transfer_s'] * 1e3:.2f} ms timed apart"
                        if r.get("transfer_s") else "") + ")" for r in rows)}
     metas, whole = input_metas(frame)
-    notes = list(req.notes) + input_notes(metas, settings, whole)
+    # a plugin's label is any name: escaped as report.md escapes names
+    notes = list(req.notes) + input_notes(metas, settings, whole) + [
+        markdown_text(a) for a in apart]
     resolved = {r["method"]: r["settings"] for r in rows if r.get("settings")}
     if resolved:
         # what the methods resolved from "auto"/None defaults on this frame (first seed)

@@ -3,7 +3,9 @@ warm-up, temporal stability, plots, strip comparisons and the 720p speed benchma
 
 * :func:`run_sequence` — ``reset()`` then ``denoise(frame)`` for every frame in order; per-frame
   time (``time.perf_counter`` around each call; rendering excluded) and metrics against the
-  frame's reference.
+  frame's reference. Where the untimed warm-up ran (below), its outputs of frames 0-1 are
+  compared with the run's after ``reset()``: a difference is
+  :attr:`SequenceResult.nondeterministic`.
 * Summary (:class:`SequenceResult.summary`): mean of every metric over frames ≥ ``warmup``
   (default 8, the history-filling "slow start" of docs/methods/svgf.md §8 is excluded), median time per
   frame after the warm-up, and temporal stability (:func:`temporal_stability`).
@@ -41,7 +43,8 @@ from ..device import download, timed, upload
 from ..errors import DbenchInputError
 from ..metrics import video_quality
 from . import fpenv
-from .inputs import check_output, check_unchanged, input_guard, private_copy
+from .inputs import (check_output, check_unchanged, input_guard, output_copy,
+                     output_difference, private_copy)
 
 WARMUP = 8
 SEQUENCE_METRICS = ("rmse", "ssim")
@@ -77,6 +80,9 @@ class SequenceResult:
     outputs: list[np.ndarray] | None = None
     #: the judgements of the frames after the warm-up (intervals resample their pixel blocks)
     judgements: list[Any] = field(default_factory=list)
+    #: where the untimed warm-up's outputs differ from those of the same frames in the run
+    #: (:func:`warm_up_difference`); None where they are equal or there was no warm-up
+    nondeterministic: dict[str, Any] | None = None
 
     def series(self, metric: str) -> np.ndarray:
         return np.array([r.get(metric, np.nan) for r in self.per_frame], np.float64)
@@ -90,21 +96,41 @@ def _method(method) -> Any:
 
 
 def _warm_up(m, seq: Sequence, mine: Sequence, stateless: bool, on_device: bool, device: str,
-             available: set) -> None:
+             available: set) -> list:
     """Run ``m`` untimed over the first :data:`COMPILING_FRAMES` frames of ``mine`` and reset
     it: its first calls compile (Numba, Triton) or load its kernels and models, seconds per
     frame against milliseconds after, and a sequence no longer than the warm-up would
-    otherwise time them (README.md, "Usage": one warm-up call before timing)."""
+    otherwise time them (README.md, "Usage": one warm-up call before timing). Returns copies
+    of their outputs: the same frames after the reset must give the same ones."""
+    outs = []
     for i in range(min(COMPILING_FRAMES, len(seq))):
         if stateless:
             m.reset()
         with input_guard(m.name, None if on_device else seq[i],
                          lambda spare: fpenv.denoise(m, spare)):
             if on_device:
-                download(fpenv.denoise_device(m, upload(mine[i], device, m.wants(available))))
+                outs.append(download(fpenv.denoise_device(
+                    m, upload(mine[i], device, m.wants(available)))))
             else:
-                fpenv.denoise(m, mine[i])
+                outs.append(output_copy(fpenv.denoise(m, mine[i])))
     m.reset()  # the history of the warm-up frames is not the sequence's (README: reset())
+    return outs
+
+
+def warm_up_difference(warm: list, outs: list) -> dict[str, Any] | None:
+    """The largest :func:`~dbench.run.inputs.output_difference` between the warm-up's outputs
+    and those of the same frames in the run (after ``reset()``), with the frames that differ;
+    None where every one is equal (or there was no warm-up)."""
+    found: dict[str, Any] = {}
+    for i, (before, after) in enumerate(zip(warm, outs)):
+        before = np.asarray(before)  # as the run keeps its outputs: float32
+        diff = output_difference(before.astype(np.float32) if before.dtype.kind == "f"
+                                 else before, after)
+        if diff is not None:
+            found.setdefault("frames", []).append(i)
+            for key, value in diff.items():
+                found[key] = max(found.get(key, 0.0), value)
+    return found or None
 
 
 def temporal_stability(outputs: list[np.ndarray], references: list[np.ndarray],
@@ -175,8 +201,9 @@ def run_sequence(method, seq: Sequence, metric_names: Iterable[str] = SEQUENCE_M
     on_device = device != "cpu" and m.runs_on_device()
     transfers = []
     mine = private_copy(seq)  # read-only; compared with seq after the run (run/inputs.py)
+    warm = []
     if after_warmup(list(range(len(seq))), warmup)[0] < COMPILING_FRAMES:
-        _warm_up(m, seq, mine, stateless, on_device, device, available)
+        warm = _warm_up(m, seq, mine, stateless, on_device, device, available)
     for i, frame in enumerate(seq):
         given = mine[i]
         if stateless:
@@ -202,7 +229,8 @@ def run_sequence(method, seq: Sequence, metric_names: Iterable[str] = SEQUENCE_M
         outs.append(out.astype(np.float32))
     check_unchanged(m.name, mine, seq)
     res = SequenceResult(m.name, dict(m.params), rows, outputs=outs if keep_outputs else None,
-                         judgements=after_warmup(judgements, warmup))
+                         judgements=after_warmup(judgements, warmup),
+                         nondeterministic=warm_up_difference(warm, outs))
     after = after_warmup(rows, warmup)
     summary: dict[str, float] = {"warmup": int(warmup), "frames": len(rows)}
     scored = [k for k in (rows[0] if rows else {}) if k not in ("frame", "time_s")]
