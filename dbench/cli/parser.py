@@ -15,6 +15,9 @@ from .train import cmd_train
 #: The first line of ``dbench --help`` (the first line of the package's docstring).
 DESCRIPTION = ("Command line: ``dbench run | sweep | stress | report | list | render | export | "
                "bench | train``.")
+#: run's and sweep's --param (dbench.cli.args.parse_params).
+PARAM_HELP = ("KEY=VALUE: a parameter of every method that has KEY; METHOD.KEY=VALUE: of that "
+              "method, over KEY=VALUE (repeatable)")
 PLUGIN_HELP = ("import a module or .py file that registers methods or scenes (repeatable; "
                "also $DBENCH_PLUGINS, os.pathsep-separated; installed entry points are found "
                "without it)")
@@ -24,16 +27,24 @@ def build_parser() -> argparse.ArgumentParser:
     p = Parser(prog="dbench", description=DESCRIPTION)
     sub = p.add_subparsers(dest="command", required=True, parser_class=Parser)
 
-    def common(sp: argparse.ArgumentParser, scene_params: bool = True) -> None:
+    def common(sp: argparse.ArgumentParser, train: bool = False) -> None:
         sp.add_argument("--cache", default=None, help="cache folder (default $DBENCH_CACHE or "
                         "~/.cache/dbench)")
         sp.add_argument("--no-cache", action="store_true", help="render everything afresh")
+        if train:  # its renders have fixed seeds and a reference spp of their own
+            # (dbench.cli.train: args.ref_spp or 2048); its procedural scenes take no
+            # --scene-param
+            sp.add_argument("--seed", type=seed_arg, default=0, help="seed of the training "
+                            "(nca; the autoencoder's stage 1), in [0, 4294967295]; the "
+                            "training renders' seeds are fixed")
+            sp.add_argument("--ref-spp", type=ref_count, default=None,
+                            help="reference spp of the training scenes (default 2048; "
+                            "$DBENCH_REF_SPP does not apply)")
+            return
         sp.add_argument("--seed", type=seed_arg, default=0, help="base seed of the noisy "
                         "renders and of the reference, in [0, 4294967295]")
         sp.add_argument("--ref-spp", type=ref_count, default=None,
                         help="reference spp (default $DBENCH_REF_SPP or 4096)")
-        if not scene_params:  # train: its procedural scenes take none
-            return
         sp.add_argument("--scene-param", action="append", metavar="[SCENE:]NAME=VALUE",
                         help="a $parameter of a Mitsuba scene file, or a parameter a "
                         "catalogue scene declares (dbench list shows them; e.g. g=0.5, "
@@ -63,8 +74,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--out", default=None, help="output folder (default results/runs/<new>); "
                    "written whole or not at all, and a folder that is not an earlier run's is "
                    "refused")
-    r.add_argument("--param", action="append", metavar="[METHOD.]KEY=VALUE")
-    r.add_argument("--repeats", type=count, default=5, help="timed calls after one warm-up")
+    r.add_argument("--param", action="append", metavar="[METHOD.]KEY=VALUE", help=PARAM_HELP)
+    r.add_argument("--repeats", type=count, default=5, help="timed calls of each method after "
+                   "one warm-up")
     r.add_argument("--transform", default=None, help="sample transform of the statistics "
                    "(default: box-cox for steady scenes, identity for transient ones)")
     r.add_argument("--lam", type=number, default=None, help="λ of box-cox and yeo-johnson "
@@ -74,21 +86,25 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--bins", type=count, default=None, help="transient scenes: time bins "
                    "(default the scene's)")
     _normal_encoding_argument(r)
-    r.add_argument("--quiet", action="store_true")
+    r.add_argument("--quiet", action="store_true", help="print the headline alone: no progress "
+                   "bars, per-method lines, skipped line or library warnings (the warnings are "
+                   "kept in run.log all the same)")
     _device_argument(r)
     common(r)
     judged(r)
     r.set_defaults(func=cmd_run)
 
     lp = sub.add_parser("list", help="list scenes and methods")
-    lp.add_argument("--methods-only", action="store_true", help="method names, one a line")
+    lp.add_argument("--methods-only", action="store_true", help="print the method names "
+                    "alone, one a line (no scenes, kinds or needs)")
     lp.set_defaults(func=cmd_list)
 
     rp = sub.add_parser("render", help="render or find cached buffers of scenes")
     rp.add_argument("--scene", action="append", default=None, metavar="all|NAME[,NAME...]",
                     help="all (default), or NAME[,NAME...] as sweep --scenes takes them; "
                     "repeatable, each list adding its scenes")
-    rp.add_argument("--spp", type=count, default=16)
+    rp.add_argument("--spp", type=count, default=16, help="samples per pixel of the noisy "
+                    "renders")
     rp.add_argument("--res", default=None, help="image size: N (N×N) or WIDTHxHEIGHT "
                     "(default: as for run)")
     common(rp)
@@ -102,16 +118,22 @@ def build_parser() -> argparse.ArgumentParser:
                     help="all (default), or catalogue names, scene files (.xml, .py) and "
                     "folders of renders; repeatable, each list adding its scenes; a path that "
                     "exists is one scene even when its name holds a comma")
-    sw.add_argument("--spp", default="4,16,64,256,1024")
+    sw.add_argument("--spp", default="4,16,64,256,1024", help="comma list of samples per "
+                    "pixel, each a column of the grid")
     sw.add_argument("--res", default=None, help="image size: N (N×N) or WIDTHxHEIGHT "
                     "(default: each scene's, as for run)")
     sw.add_argument("--out", default="results/sweep", help="the sweep's folder: its cells "
                     "are reused where their identity matches; one sweep at a time holds it")
-    sw.add_argument("--executor", choices=("local", "ray"), default="local")
+    sw.add_argument("--executor", choices=("local", "ray"), default="local",
+                    help="where the cells run: local (a process pool, --workers) or ray (Ray "
+                    "tasks on the Ray cluster)")
     sw.add_argument("--workers", type=integer, default=None, help="local process-pool size "
                     "(default 1; --executor ray runs the cells on the cluster's workers)")
-    sw.add_argument("--repeats", type=count, default=5)
-    sw.add_argument("--param", action="append", metavar="[METHOD.]KEY=VALUE")
+    sw.add_argument("--repeats", type=count, default=5, help="timed calls of each method "
+                    "after one warm-up, in every cell")
+    sw.add_argument("--param", action="append", metavar="[METHOD.]KEY=VALUE",
+                    help=PARAM_HELP + "; a method given other values than its defaults is its "
+                    "own series, labelled with them (jbf[radius=3])")
     sw.add_argument("--transform", default=None, help="sample transform of the statistics "
                     "(default: box-cox for steady scenes, identity for transient ones)")
     sw.add_argument("--lam", type=number, default=None, help="λ of box-cox and yeo-johnson "
@@ -121,7 +143,9 @@ def build_parser() -> argparse.ArgumentParser:
     sw.add_argument("--bins", type=count, default=None, help="transient scenes: time bins "
                     "(default the scene's)")
     _normal_encoding_argument(sw, "the sweep's folders of renders")
-    sw.add_argument("--quiet", action="store_true")
+    sw.add_argument("--quiet", action="store_true", help="no progress bars, skipped lines or "
+                    "library warnings on the terminal (the warnings are kept in sweep.log all "
+                    "the same)")
     _device_argument(sw)
     sw.add_argument("--rerun", action="store_true", help="recompute finished cells whose "
                     "identity (settings, parameters, code, reference) changed instead of "
@@ -134,13 +158,18 @@ def build_parser() -> argparse.ArgumentParser:
     st.add_argument("--methods", action="append", default=None, metavar="all|NAME[,NAME...]",
                     help="all (default) or NAME[,NAME...]; repeatable, each list adding its "
                     "methods")
-    st.add_argument("--out", default="results/stress.md")
-    st.add_argument("--quiet", action="store_true")
+    st.add_argument("--out", default="results/stress.md", help="the Markdown file the "
+                    "matrix is written to (a folder, or a path ending in /: stress.md in it)")
+    st.add_argument("--quiet", action="store_true", help="no progress lines; the warnings the "
+                    "hostile inputs raise go to stress.log beside the matrix, counted in one "
+                    "line")
     st.set_defaults(func=cmd_stress)
 
     rp2 = sub.add_parser("report", help="rebuild results/README.md from result files")
-    rp2.add_argument("--results", default="results")
-    rp2.add_argument("--sweep", default=None, help="sweep folder (default results/sweep)")
+    rp2.add_argument("--results", default="results", help="the results folder: its result "
+                     "files are read and its README.md (and the pages beside it) written")
+    rp2.add_argument("--sweep", default=None, help="the sweep folder of the report's tables, "
+                     "inside --results (default: --results's sweep folder)")
     rp2.add_argument("--rank-by", default="relmse", help="metric that ranks the methods")
     rp2.set_defaults(func=cmd_report)
 
@@ -148,15 +177,19 @@ def build_parser() -> argparse.ArgumentParser:
                         "statistics, reference) as a folder of EXR files in OIDN's layout, "
                         "readable by --scene DIR")
     ex.add_argument("scene", help="catalogue name or scene file")
-    ex.add_argument("--out", required=True)
+    ex.add_argument("--out", required=True, help="the folder written: new, empty, or an "
+                    "earlier export of the same scene at the same settings (other spp are "
+                    "added beside it)")
     ex.add_argument("--spp", default="4,16,64", help="comma list of spp")
     ex.add_argument("--res", default=None, help="image size: N or WIDTHxHEIGHT (default: as "
                     "for run)")
     ex.add_argument("--name", default=None, help="file name prefix (default: the scene's "
-                    "name)")
+                    "name, characters other than letters, digits, . and - made -)")
     ex.add_argument("--frames", type=count, default=None, help="sequence scenes: frames from "
                     "the start (default all)")
-    ex.add_argument("--quiet", action="store_true")
+    ex.add_argument("--quiet", action="store_true", help="no progress bars; the libraries' "
+                    "warnings (Mitsuba's on a scene file) go to export.log in --out, counted in "
+                    "one line")
     common(ex)
     ex.set_defaults(func=cmd_export)
 
@@ -182,9 +215,9 @@ def build_parser() -> argparse.ArgumentParser:
     bp.add_argument("--param", action="append", metavar="KEY=VALUE",
                     help="a parameter of the method timed (repeatable)")
     bp.add_argument("--height", type=integer, default=None, help="methods, metrics, "
-                    "video-metrics, gpu: image height (default 720)")
+                    "video-metrics, gpu: image height (default 720; not with --res)")
     bp.add_argument("--width", type=integer, default=None, help="methods, metrics, "
-                    "video-metrics, gpu: image width (default 1280)")
+                    "video-metrics, gpu: image width (default 1280; not with --res)")
     bp.add_argument("--repeats", type=count, default=None, help="timed rounds (default 3)")
     bp.add_argument("--arch", type=count, default=None, help="kernels: the CUDA compute "
                     "capability to compile for, e.g. 90 (default: the GPU here, else 90)")
@@ -196,18 +229,20 @@ def build_parser() -> argparse.ArgumentParser:
 
     tp = sub.add_parser("train", help="train nca or autoencoder on procedural training scenes "
                         "rendered here; writes <name>.onnx and <name>.json")
-    tp.add_argument("method", choices=["nca", "autoencoder"])
+    tp.add_argument("method", choices=["nca", "autoencoder"], help="the model trained")
+    # the defaults of --steps and --width-scale are NCAConfig's and AEConfig's
+    # (dbench/learn/configs.py; tests/cli/test_help_texts.py holds them equal)
     tp.add_argument("--steps", type=integer, default=None, help="optimiser steps, >= 1 "
-                    "(default: config; the autoencoder's stage 1)")
-    tp.add_argument("--minutes", type=number, default=None, help="stop after this wall time, "
-                    "> 0 (the autoencoder's stage 1)")
+                    "(default: nca 2000, autoencoder 6000; the autoencoder's stage 1)")
+    tp.add_argument("--minutes", type=number, default=None, help="stop after this many "
+                    "minutes of wall time, > 0 (default: no limit; the autoencoder's stage 1)")
     tp.add_argument("--scenes", type=integer, default=48,
                     help="training scenes (nca holds 4 out, autoencoder 2; at least one more)")
     tp.add_argument("--res", type=integer, default=128, help="side of the square training "
                     "images, at least the crops trained on: nca 64, autoencoder 96 "
                     "(default 128)")
-    tp.add_argument("--width-scale", type=number, default=None, help="autoencoder widths "
-                    "factor, > 0")
+    tp.add_argument("--width-scale", type=number, default=None, help="autoencoder: factor "
+                    "on its encoder and decoder widths (channels), > 0 (default 0.5)")
     tp.add_argument("--sequences", type=integer, default=None,
                     help="autoencoder: training sequences for the recurrent stage, 2 held out "
                     "(default 16; 0: single frames only)")
@@ -216,7 +251,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "run only the consistency stage (stage 3)")
     tp.add_argument("--out", default=None, help="output folder (default: the method's package "
                     "folder, replacing the shipped weights)")
-    common(tp, scene_params=False)
+    common(tp, train=True)
     tp.set_defaults(func=cmd_train)
     for sp in sub.choices.values():
         # counts checked first; no sys.exit of a plugin ends the command (dbench.cli.guard)
