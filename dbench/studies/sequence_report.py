@@ -31,15 +31,23 @@ def quality_run(scene: str, res: int = 64, frames: int | None = None, spp: int =
 
 def build_parser() -> Parser:
     """The options of :func:`main` (each single-valued one given at most once)."""
-    ap = Parser(prog="python -m dbench.studies.sequence_report")
-    ap.add_argument("--scenes", default="orbit,flicker,mirror-pan")
-    ap.add_argument("--res", type=int, default=64)
-    ap.add_argument("--frames", type=int, default=None)
-    ap.add_argument("--ref-spp", type=int, default=1024)
-    ap.add_argument("--out", default="results/temporal")
-    ap.add_argument("--speed", action="store_true")
-    ap.add_argument("--no-quality", action="store_true")
-    ap.add_argument("--repeats", type=int, default=6)
+    ap = Parser(prog="python -m dbench.studies.sequence_report",
+                description="The temporal methods on the sequence catalogue (per-frame "
+                "errors, strips, the summary table) and their 720p speed: results/temporal.")
+    ap.add_argument("--scenes", default="orbit,flicker,mirror-pan",
+                    help="comma list of sequence scenes (1 spp each)")
+    ap.add_argument("--res", type=int, default=64, help="side of the square frames")
+    ap.add_argument("--frames", type=int, default=None, help="frames from the start (default "
+                    "all)")
+    ap.add_argument("--ref-spp", type=int, default=1024, help="reference spp")
+    ap.add_argument("--out", default="results/temporal", help="folder of quality.json, "
+                    "speed.json and the figures")
+    ap.add_argument("--speed", action="store_true", help="also time the methods per frame at "
+                    "1280x720 (speed.json)")
+    ap.add_argument("--no-quality", action="store_true", help="leave out the quality run and "
+                    "its figures")
+    ap.add_argument("--repeats", type=int, default=6, help="--speed: timed frames per method "
+                    "after two warm-up frames")
     ap.add_argument("--threads", default="2,1", help="Numba thread counts to time, e.g. 2,1")
     return ap
 

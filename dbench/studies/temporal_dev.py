@@ -154,9 +154,10 @@ def build_parser() -> Parser:
     """The options of :func:`main` (each single-valued one given at most once)."""
     ap = Parser(prog="python -m dbench.studies.temporal_dev",
                 description=__doc__.splitlines()[0])
-    ap.add_argument("--out", default="results/temporal_study")
+    ap.add_argument("--out", default="results/temporal_study", help="folder of dev.json and "
+                    "dev.md (heldout.json and heldout.md with --held-out)")
     ap.add_argument("--scenes", type=int, default=8, help="how many training sequences")
-    ap.add_argument("--seeds", default="0,1")
+    ap.add_argument("--seeds", default="0,1", help="comma list of the noisy renders' seeds")
     ap.add_argument("--held-out", action="store_true",
                     help="the defaults only, on the next --scenes sequences after the ones "
                          "that chose them (written to heldout.json / heldout.md)")

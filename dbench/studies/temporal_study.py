@@ -187,10 +187,12 @@ def build_parser() -> Parser:
     """The options of :func:`main` (each single-valued one given at most once)."""
     ap = Parser(prog="python -m dbench.studies.temporal_study",
                 description=__doc__.splitlines()[0])
-    ap.add_argument("--out", default="results/temporal_study")
-    ap.add_argument("--res", type=int, default=64)
-    ap.add_argument("--seeds", default="0,1,2")
-    ap.add_argument("--scenes", default=",".join(SCENES))
+    ap.add_argument("--out", default="results/temporal_study", help="folder of study.json and "
+                    "study.md")
+    ap.add_argument("--res", type=int, default=64, help="side of the square frames")
+    ap.add_argument("--seeds", default="0,1,2", help="comma list of the noisy renders' seeds")
+    ap.add_argument("--scenes", default=",".join(SCENES), help="comma list of sequence scenes, "
+                    f"of {', '.join(SCENES)} (their frames and reference spp are the study's)")
     return ap
 
 

@@ -134,7 +134,8 @@ def build_parser() -> Parser:
     """The options of :func:`main` (each single-valued one given at most once)."""
     ap = Parser(prog="python -m dbench.studies.temporal_targets",
                 description=__doc__.splitlines()[0])
-    ap.add_argument("--out", default="results/temporal_targets")
+    ap.add_argument("--out", default="results/temporal_targets", help="folder of "
+                    "targets.json and targets.md")
     ap.add_argument("--seeds", type=int, default=10, help="seeds 0 … N−1 (at least 3)")
     ap.add_argument("--settings", default=",".join(SETTINGS),
                     help=f"comma-separated, of {', '.join(SETTINGS)}")

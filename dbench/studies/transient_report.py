@@ -263,18 +263,26 @@ def build_parser() -> Parser:
     """The options of :func:`main` (each single-valued one given at most once)."""
     ap = Parser(prog="python -m dbench.studies.transient_report",
                 description=__doc__.splitlines()[0])
-    ap.add_argument("--out", default="results")
-    ap.add_argument("--res", type=int, default=64)
-    ap.add_argument("--spp", type=int, default=32)
-    ap.add_argument("--bins", type=int, default=200)
-    ap.add_argument("--ref-spp", type=int, default=2048)
-    ap.add_argument("--bench-res", type=int, default=64)
-    ap.add_argument("--bench-spp", type=int, default=64)
-    ap.add_argument("--repeats", type=int, default=5)
-    ap.add_argument("--scenes", default="cornell-transient,caustic-transient,fog-transient")
-    ap.add_argument("--methods", default=",".join(DEFAULT_METHODS))
-    ap.add_argument("--media-res", type=int, default=48)
-    ap.add_argument("--media-bins", type=int, default=100)
+    ap.add_argument("--out", default="results", help="folder of transient.md (figures in its "
+                    "transient/)")
+    ap.add_argument("--res", type=int, default=64, help="baselines: side of the square renders")
+    ap.add_argument("--spp", type=int, default=32, help="baselines: spp of the noisy input")
+    ap.add_argument("--bins", type=int, default=200, help="time bins (baselines and the "
+                    "collector benchmark's surface scenes)")
+    ap.add_argument("--ref-spp", type=int, default=2048, help="baselines: reference spp")
+    ap.add_argument("--bench-res", type=int, default=64, help="collector benchmark: side of "
+                    "the square renders")
+    ap.add_argument("--bench-spp", type=int, default=64, help="collector benchmark: spp")
+    ap.add_argument("--repeats", type=int, default=5, help="collector benchmark: timed "
+                    "repeats after a warm-up (median)")
+    ap.add_argument("--scenes", default="cornell-transient,caustic-transient,fog-transient",
+                    help="comma list of transient scenes")
+    ap.add_argument("--methods", default=",".join(DEFAULT_METHODS), help="baselines: comma "
+                    "list of methods")
+    ap.add_argument("--media-res", type=int, default=48, help="collector benchmark: side on "
+                    "participating-media scenes (a media path costs about 10x a surface path)")
+    ap.add_argument("--media-bins", type=int, default=100, help="collector benchmark: time "
+                    "bins on participating-media scenes")
     ap.add_argument("--collectors-only", action="store_true",
                     help="print the collector benchmark only (results/transient.md untouched)")
     return ap

@@ -344,13 +344,20 @@ def build_parser() -> Parser:
     """The options of :func:`main` (each single-valued one given at most once)."""
     parser = Parser(prog="python -m dbench.studies.transient_studies",
                     description=__doc__.split("\n")[0])
-    parser.add_argument("study", choices=sorted(COLUMNS))
-    parser.add_argument("--out", default="results/transient_studies")
-    parser.add_argument("--res", type=int, default=64)
-    parser.add_argument("--spp", type=int, default=256, help="fig5.4 / fig5.5")
+    parser.add_argument("study", choices=sorted(COLUMNS), help="fig5.4 (sample transform × "
+                        "λ × γ), fig5.5 (temporal radius × bin width), fig5.6 (error against "
+                        "spp, a sweep) or ablation (the statistical denoiser's rules one at a "
+                        "time)")
+    parser.add_argument("--out", default="results/transient_studies", help="folder of "
+                        "<study>.json, <study>.md and <study>.png")
+    parser.add_argument("--res", type=int, default=64, help="side of the square renders")
+    parser.add_argument("--spp", type=int, default=256, help="spp of the noisy input of fig5.4 "
+                        "and fig5.5 (fig5.6 and ablation run 16 ... 2048)")
     parser.add_argument("--ref-spp", type=int, default=None,
-                        help="default 16384 (fig5.4, fig5.6) or 4096 (fig5.5)")
-    parser.add_argument("--scenes", default=",".join(SCENES))
+                        help="default 16384 (fig5.4, fig5.6) or 4096 (fig5.5); "
+                        "ablation sets its own")
+    parser.add_argument("--scenes", default=",".join(SCENES), help="comma list of transient "
+                        "scenes (fig5.5: the first)")
     return parser
 
 

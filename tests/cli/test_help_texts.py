@@ -1,17 +1,24 @@
-"""Every option of every command says what it does (``--help`` shows these
-texts), and the defaults a help text names are the ones the command uses."""
+"""Every option of every command and study script says what it does (``--help`` and
+docs/cli.md show these texts), and the defaults a help text names are the ones the command
+uses."""
 from __future__ import annotations
 
 import argparse
+import importlib
+import pkgutil
 import re
 
+import dbench.studies
 from dbench import cli
 
 
 def _parsers() -> dict[str, argparse.ArgumentParser]:
     parser = cli.command_parser()
     sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
-    return {"dbench": parser, **{f"dbench {n}": p for n, p in sub.choices.items()}}
+    studies = sorted(m.name for m in pkgutil.iter_modules(dbench.studies.__path__))
+    return {"dbench": parser, **{f"dbench {n}": p for n, p in sub.choices.items()},
+            **{n: importlib.import_module(f"dbench.studies.{n}").build_parser()
+               for n in studies}}
 
 
 def _help(command: str, option: str) -> str:
