@@ -413,7 +413,8 @@ def run_sweep(config: SweepConfig, out: str | Path, executor: str = "local", wor
         before = sweep_history.snapshot(group_cells(config, out, groups))
         warned = warnings_out if warnings_out is not None else []
         try:
-            _execute(config, out, groups, executor, workers, progress, warned)
+            sweep_pool.execute(groups, (config, str(out)), executor, workers, progress, warned,
+                               run_group_captured, run_group_with_plugins)
         except BaseException as exc:
             try:
                 run.end("interrupted" if isinstance(exc, KeyboardInterrupt) else "failed",
@@ -448,43 +449,6 @@ def group_cells(config: SweepConfig, out: Path, groups: list) -> list[Path]:
     scene_label = scene_labels(config, out)
     return [cell_path(out, scene_label[s], spp, labels[m]) for s, spp, ms, *_ in groups
             for m in ms]
-
-
-def _execute(config: SweepConfig, out: Path, groups: list, executor: str, workers: int,
-             progress: bool, warned: list[str]) -> None:
-    """Run the groups (their references rendered already); ``warned`` gathers the groups'
-    library warnings, from every worker."""
-    from tqdm.auto import tqdm
-
-    from .. import plugins
-
-    if not groups:
-        return
-    bar = tqdm(total=sum(len(g[2]) for g in groups), desc="sweep", unit="cell",
-               disable=not progress)
-
-    def done(result: dict[str, list[str]]) -> None:
-        warned.extend(result["warnings"])
-        bar.update(len(result["written"]))
-
-    plugin_specs = plugins.requested()  # workers load the same plugins as this process
-    if executor == "ray":
-        import ray
-
-        if not ray.is_initialized():
-            ray.init(ignore_reinit_error=True, include_dashboard=False, log_to_driver=False)
-        remote = ray.remote(run_group_with_plugins)
-        pending = [remote.remote(plugin_specs, config, str(out), *g) for g in groups]
-        while pending:
-            ready, pending = ray.wait(pending, num_returns=1)
-            done(ray.get(ready[0]))
-    elif workers > 1:
-        sweep_pool.run_groups(run_group_captured, (config, str(out)), groups, workers,
-                              plugin_specs, done)
-    else:
-        for g in groups:
-            done(run_group_captured(config, str(out), *g))
-    bar.close()
 
 
 def error_cells(config: SweepConfig, out: Path) -> list[str]:

@@ -1,4 +1,5 @@
-"""``dbench sweep --workers N``: the sweep's groups on a local process pool, and how it stops.
+"""How ``dbench sweep`` runs its groups: in its own process, on a local process pool
+(``--workers N``) or as Ray tasks (:func:`execute`), and how a pool stops.
 
 Ctrl-C (SIGINT to the terminal's process group) reaches the sweep and its workers alike. The
 workers ignore it, so that none of them reports the interrupt as its group's result and goes on
@@ -98,4 +99,42 @@ def run_groups(fn: Callable, args: Sequence, groups: Sequence[tuple], workers: i
     pool.shutdown(wait=True)
 
 
-__all__ = ["STOP_GRACE_S", "check_executor", "run_groups", "stop", "worker_start"]
+def execute(groups: Sequence[tuple], args: tuple, executor: str, workers: int, progress: bool,
+            warned: list[str], local: Callable, remote_fn: Callable) -> None:
+    """Run the groups of :func:`dbench.run.sweep.plan` (their references rendered already):
+    ``local(*args, *group)`` here or on the pool, ``remote_fn(plugin specs, *args, *group)``
+    as Ray tasks; each returns ``{"written": [...], "warnings": [...]}``, and ``warned``
+    gathers the groups' library warnings, from every worker."""
+    from tqdm.auto import tqdm
+
+    from .. import plugins
+
+    if not groups:
+        return
+    bar = tqdm(total=sum(len(g[2]) for g in groups), desc="sweep", unit="cell",
+               disable=not progress)
+
+    def done(result: dict[str, list[str]]) -> None:
+        warned.extend(result["warnings"])
+        bar.update(len(result["written"]))
+
+    plugin_specs = plugins.requested()  # workers load the same plugins as this process
+    if executor == "ray":
+        import ray
+
+        if not ray.is_initialized():
+            ray.init(ignore_reinit_error=True, include_dashboard=False, log_to_driver=False)
+        remote = ray.remote(remote_fn)
+        pending = [remote.remote(plugin_specs, *args, *g) for g in groups]
+        while pending:
+            ready, pending = ray.wait(pending, num_returns=1)
+            done(ray.get(ready[0]))
+    elif workers > 1:
+        run_groups(local, args, groups, workers, plugin_specs, done)
+    else:
+        for g in groups:
+            done(local(*args, *g))
+    bar.close()
+
+
+__all__ = ["STOP_GRACE_S", "check_executor", "execute", "run_groups", "stop", "worker_start"]
