@@ -128,7 +128,9 @@ def build_parser() -> argparse.ArgumentParser:
                     help="where the cells run: local (a process pool, --workers) or ray (Ray "
                     "tasks on the Ray cluster)")
     sw.add_argument("--workers", type=integer, default=None, help="local process-pool size "
-                    "(default 1; --executor ray runs the cells on the cluster's workers)")
+                    "(default 1; with more, cells are timed side by side and their time_s "
+                    "includes the contention, which the cells record and the reports say; "
+                    "--executor ray runs the cells on the cluster's workers)")
     sw.add_argument("--repeats", type=count, default=5, help="timed calls of each method "
                     "after one warm-up, in every cell")
     sw.add_argument("--param", action="append", metavar="[METHOD.]KEY=VALUE",

@@ -245,6 +245,41 @@ def machines_text(cells: list[dict]) -> list[str]:
                           "compare**)")
 
 
+def _timed_how(cell: dict) -> str:
+    """How a finished cell's method was timed: ``with 2 workers side by side on 2 cores``
+    (``timed_beside`` above 0; the cores from its ``machine``), ``alone``, or "" for a cell
+    that does not record it (older, or from ``dbench run``)."""
+    beside = cell.get("timed_beside")
+    if isinstance(beside, bool) or not isinstance(beside, int):
+        return ""
+    if beside <= 0:
+        return "alone"
+    cores = re.search(r"(\d+) cores$", str(cell.get("machine", "")))
+    return f"with {beside + 1} workers side by side" + (f" on {cores[1]} cores" if cores else "")
+
+
+def side_by_side_text(cells: Sequence[dict], strong: Callable[[str], str] = str) -> list[str]:
+    """Where cells were timed while other cells of their sweep ran on the same machine
+    (``dbench sweep --workers N`` or Ray: their ``timed_beside``), that their ``time_s``
+    includes the contention, and, where others were timed alone (or do not record how), that
+    the times do not compare (``strong`` marks that warning: ``**...**`` in Markdown); nothing
+    where no cell was timed side by side (README.md, the ``dbench sweep`` paragraph)."""
+    counts: dict[str, int] = {}
+    for c in cells:
+        if isinstance(c, dict) and c.get("status") == "ok":
+            how = _timed_how(c) or "not recorded"
+            counts[how] = counts.get(how, 0) + 1
+    if not any(how.startswith("with") for how in counts):
+        return []
+    if len(counts) == 1:
+        return [f"timed {next(iter(counts))}: time_s includes contention"]
+    return ["timed " + "; ".join(f"{how} ({counted(n, 'cell')})" for how, n in
+                                 sorted(counts.items(), key=lambda kv: (
+                                     kv[0] != "alone", kv[0] == "not recorded", kv[0])))
+            + " (" + strong("times measured side by side and alone do not compare: time_s "
+                            "includes contention where timed side by side") + ")"]
+
+
 def variants_text(cells: list[dict]) -> list[str]:
     """What rendered the cells' inputs and references: each cell's ``render_variant``, the
     Mitsuba variant (``llvm_ad_rgb``, ``cuda_ad_rgb``; ``files`` for a folder of renders),
@@ -418,6 +453,7 @@ def wall_text(info: dict, cells: list[dict] | None = None) -> str:
         parts.append(f"{counted(len(refs), 'reference')} rendered in "
                      f"{sum(refs.values()):.0f} s in all")
     return ", ".join(parts + machines_text(cells or []) + devices_text(cells or [])
+                     + side_by_side_text(cells or [], lambda s: f"**{s}**")
                      + variants_text(cells or []))
 
 
@@ -443,6 +479,6 @@ def run_notes_md(info: dict) -> list[str]:
 __all__ = ["NUMERIC_KEYS", "cell_problem", "load_cells", "load_cells_checked", "read_cell",
            "expected_grid", "cell_key", "grid_status", "grid_status_text", "missing_md",
            "problems_md", "PER_CELL", "METHOD_KEYS", "mixed_settings", "mixed_text", "mixed_md",
-           "device_label", "devices_text", "machines_text", "variants_text",
+           "device_label", "devices_text", "machines_text", "side_by_side_text", "variants_text",
            "input_warnings", "INPUT_WARNINGS_INTRO", "load_sweep", "run_notes",
            "run_notes_md", "wall_text"]

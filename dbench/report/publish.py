@@ -20,7 +20,8 @@ from ..resolution import size_text
 from . import headline, plots, tables, verdicts
 # load_sweep and wall_text are imported for this module's callers too, as before
 from .cells import (INPUT_WARNINGS_INTRO, input_warnings, load_sweep,  # noqa: F401
-                    mixed_md, problems_md, run_notes, run_notes_md, wall_text)
+                    mixed_md, problems_md, run_notes, run_notes_md, side_by_side_text,
+                    wall_text)
 from .formats import counted, markdown_code, markdown_table, markdown_text
 from .html import sweep_page
 from .run_report import machine_md, metric_definitions_md
@@ -456,8 +457,10 @@ def publish(results: str | Path = "results", sweep_dir: str | Path | None = None
     for d in [sweep_dir, *extra_sweeps(results, sweep_dir)]:
         info, cells, _ = load_sweep(d)
         df, config = tables.cells_frame(cells), _config(info)
+        # how the cells were timed stands on the results page too (side by side: contention)
         sweeps.append((d, cells, settings_line(config, df, verdicts.grid_status(config, cells),
-                                               d.relative_to(results).as_posix(), name=str)
+                                               d.relative_to(results).as_posix(),
+                                               side_by_side_text(cells), name=str)
                        if len(df) else "", *run_notes(info)))
     sweep_page(results, sweeps, rank_by=rank_by)  # last: it shows the figures just drawn
     return out

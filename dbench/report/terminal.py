@@ -241,10 +241,13 @@ def sweep_summary(cells: Sequence[dict], rank_by: str = "relmse",
                        f"ranking by {ranking_line(at, rank, rank_by)}")
         lines += verdict_lines(at, cols, rank) + ref_warning_lines(at, "  ")
     # a --rerun over part of the grid leaves the rest as it was: never a silent mix
-    from .cells import input_warnings, mixed_settings, mixed_text
+    from .cells import input_warnings, mixed_settings, mixed_text, side_by_side_text
     mixed = mixed_text(mixed_settings(cells if beside is None else beside),
                        'dbench report lists them under "Mixed settings"', name=str)
     lines += _wrap("warning: " + mixed.removeprefix("⚠ ")) if mixed else []
+    # times measured beside other cells (dbench sweep --workers N, Ray) include contention
+    for said in side_by_side_text(cells):
+        lines += _wrap(f"warning: {said}")
     # what the inputs said of themselves, as `dbench run` prints it (dbench/run/inputs.py)
     for said in input_warnings(cells):
         lines += _wrap(f"warning: {said}")

@@ -282,11 +282,14 @@ def plan(config: SweepConfig, out: Path
 
 
 def run_group(config: SweepConfig, out: str, scene_name: str, spp: int,
-              method_names: list[str], planned: dict[str, dict] | None = None) -> list[str]:
+              method_names: list[str], planned: dict[str, dict] | None = None,
+              beside: int = 0) -> list[str]:
     """Load one frame per seed and run the given methods on them, writing one cell file each.
     ``planned``: each method's cell identity as :func:`plan` found it; a cell whose identity
     differs here (its code edited since, read by this worker) is an error cell, not scored
-    (:func:`dbench.run.identity.changed_during_sweep`)."""
+    (:func:`dbench.run.identity.changed_during_sweep`). ``beside``: how many other groups may
+    run on this machine while these methods are timed, recorded as each cell's
+    ``timed_beside`` (:func:`dbench.run.sweep_pool.execute`; not part of its identity)."""
     from .. import datasets, registry
     from .harness import cell_record, run_cell, run_sequence_cell
 
@@ -329,7 +332,7 @@ def run_group(config: SweepConfig, out: str, scene_name: str, spp: int,
             if result.skipped:
                 cell = {**base, "status": "skipped", "reason": result.skipped}
             else:
-                cell = {**base, "status": "ok",
+                cell = {**base, "status": "ok", "timed_beside": beside,
                         **cell_record(result, frames, registry.wants(inst, scene.provides))}
                 if frames[0].kind == "sequence":
                     cell["sequence_mode"] = ("frame by frame" if inst.per_frame("sequence")
@@ -344,26 +347,30 @@ def run_group(config: SweepConfig, out: str, scene_name: str, spp: int,
 
 
 def run_group_captured(config: SweepConfig, out: str, scene_name: str, spp: int,
-                       method_names: list[str], planned: dict[str, dict] | None = None
-                       ) -> dict[str, list[str]]:
+                       method_names: list[str], planned: dict[str, dict] | None = None,
+                       beside: int = 0) -> dict[str, list[str]]:
     """:func:`run_group` with the library warnings raised meanwhile kept as lines
     (:mod:`.capture`), so that a worker process's warnings reach the sweep's ``sweep.log``
     instead of the terminal: ``{"written": cell paths, "warnings": lines}``."""
     from .capture import library_warnings
 
     with library_warnings() as caught:
-        written = run_group(config, out, scene_name, spp, method_names, planned)
+        written = run_group(config, out, scene_name, spp, method_names, planned, beside)
     return {"written": written, "warnings": list(caught)}
 
 
 def run_group_with_plugins(plugin_specs: Sequence[str], config: SweepConfig, out: str,
                            scene_name: str, spp: int, method_names: list[str],
-                           planned: dict[str, dict] | None = None) -> dict[str, list[str]]:
-    """:func:`run_group_captured` after loading the parent's plugins (a Ray task's start-up)."""
+                           planned: dict[str, dict] | None = None, most_beside: int = 0
+                           ) -> dict[str, list[str]]:
+    """:func:`run_group_captured` after loading the parent's plugins (a Ray task's start-up);
+    its cells record how many tasks may run beside it on its node, at most ``most_beside``
+    (:func:`dbench.run.sweep_pool.ray_beside`)."""
     from .. import plugins, registry  # noqa: F401 - the built-in methods before the plugins
 
     plugins.worker_init(plugin_specs)
-    return run_group_captured(config, out, scene_name, spp, method_names, planned)
+    return run_group_captured(config, out, scene_name, spp, method_names, planned,
+                              sweep_pool.ray_beside(most_beside))
 
 
 def remove_interrupted_writes(out: Path) -> int:

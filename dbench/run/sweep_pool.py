@@ -14,6 +14,7 @@ paragraph). A worker also dies with the sweep process (Linux ``PR_SET_PDEATHSIG`
 from __future__ import annotations
 
 import signal
+import sys
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from typing import Callable, Sequence
 
@@ -102,9 +103,17 @@ def run_groups(fn: Callable, args: Sequence, groups: Sequence[tuple], workers: i
 def execute(groups: Sequence[tuple], args: tuple, executor: str, workers: int, progress: bool,
             warned: list[str], local: Callable, remote_fn: Callable) -> None:
     """Run the groups of :func:`dbench.run.sweep.plan` (their references rendered already):
-    ``local(*args, *group)`` here or on the pool, ``remote_fn(plugin specs, *args, *group)``
-    as Ray tasks; each returns ``{"written": [...], "warnings": [...]}``, and ``warned``
-    gathers the groups' library warnings, from every worker."""
+    ``local(*args, *group, beside=...)`` here or on the pool, ``remote_fn(plugin specs, *args,
+    *group, most_beside=...)`` as Ray tasks; each returns ``{"written": [...], "warnings":
+    [...]}``, and ``warned`` gathers the groups' library warnings, from every worker.
+
+    Groups run side by side render, judge and time at once on the same cores, so a cell's
+    time then includes that contention: each cell records how many other groups could run
+    beside it (``timed_beside``: the pool's other workers, or the other Ray tasks its node
+    runs at once; 0 in one process), and the reports say so (README.md, the ``dbench sweep``
+    paragraph)."""
+    from functools import partial
+
     from tqdm.auto import tqdm
 
     from .. import plugins
@@ -119,22 +128,60 @@ def execute(groups: Sequence[tuple], args: tuple, executor: str, workers: int, p
         bar.update(len(result["written"]))
 
     plugin_specs = plugins.requested()  # workers load the same plugins as this process
+    said = side_by_side_line(executor, workers, len(groups))
+    if said:  # once nothing refused the sweep: a refusal stays one line
+        print(f"dbench: warning: {said}", file=sys.stderr)
     if executor == "ray":
         import ray
 
         if not ray.is_initialized():
             ray.init(ignore_reinit_error=True, include_dashboard=False, log_to_driver=False)
         remote = ray.remote(remote_fn)
-        pending = [remote.remote(plugin_specs, *args, *g) for g in groups]
+        pending = [remote.remote(plugin_specs, *args, *g, most_beside=len(groups) - 1)
+                   for g in groups]
         while pending:
             ready, pending = ray.wait(pending, num_returns=1)
             done(ray.get(ready[0]))
-    elif workers > 1:
-        run_groups(local, args, groups, workers, plugin_specs, done)
+    elif workers > 1:  # a group alone on the pool is timed alone
+        run_groups(partial(local, beside=min(workers, len(groups)) - 1), args, groups,
+                   workers, plugin_specs, done)
     else:
         for g in groups:
             done(local(*args, *g))
     bar.close()
 
 
-__all__ = ["STOP_GRACE_S", "check_executor", "execute", "run_groups", "stop", "worker_start"]
+def ray_beside(most: int) -> int:
+    """In a Ray task: how many other tasks its node may run at once, at most ``most`` (the
+    sweep's other groups). Ray gives a task one CPU and a node as many task slots as it has
+    CPUs (its ``CPU`` resource), so a node of 4 CPUs times a cell beside up to 3 others."""
+    import ray
+
+    try:
+        node = ray.get_runtime_context().get_node_id()
+        cpus = next(n.get("Resources", {}).get("CPU", 1) for n in ray.nodes()
+                    if n.get("NodeID") == node)
+    except Exception:  # noqa: BLE001 - no node table: Ray's default, one slot per core
+        import os
+        cpus = os.cpu_count() or 1
+    return max(0, min(int(cpus) - 1, int(most)))
+
+
+def side_by_side_line(executor: str, workers: int, groups: int) -> str:
+    """What ``dbench sweep`` says before its ``groups`` run where it times cells side by side
+    (``--workers`` above 1 and several groups, or Ray), '' where it times them alone."""
+    import os
+
+    if groups <= 1 or (executor != "ray" and workers <= 1):
+        return ""
+    if executor == "ray":
+        return ("--executor ray: a node runs as many cells at once as it has CPUs, so the "
+                "cells are timed side by side; their time_s includes that contention and does "
+                "not compare with a sweep's with --workers 1")
+    return (f"--workers {workers}: up to {min(workers, groups)} cells are timed side by side "
+            f"on {os.cpu_count()} cores; their time_s includes that contention and does not "
+            "compare with a sweep's with --workers 1")
+
+
+__all__ = ["STOP_GRACE_S", "check_executor", "execute", "ray_beside", "run_groups",
+           "side_by_side_line", "stop", "worker_start"]
