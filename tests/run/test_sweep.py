@@ -128,6 +128,8 @@ def test_ray_executor_on_a_local_instance(renderer, tmp_path):
         ray.shutdown()
     assert counts["computed"] == 4 and counts["errors"] == 0
     assert len(sweep.load_cells(out)) == 4
+    # two groups, a node of 2 CPUs: each cell was timed beside the other group's task
+    assert {c.get("timed_beside") for c in sweep.load_cells(out)} == {1}
 
 
 def test_report_is_reproducible_byte_for_byte(renderer, tmp_path):
