@@ -85,6 +85,8 @@ def _row(c: dict) -> dict | None:
     nd = c.get("nondeterministic") if isinstance(c.get("nondeterministic"), dict) else {}
     row["nondeterministic_abs"] = num(nd.get("max_abs_diff"))
     row["nondeterministic_rel"] = num(nd.get("max_rel_diff"))
+    # other groups that could run while it was timed (dbench sweep --workers N; NaN: older)
+    row["timed_beside"] = num(c.get("timed_beside"))
     row["per_seed"] = seed_values(c.get("per_seed"))
     return row
 
@@ -136,7 +138,7 @@ def cells_frame(cells: list[dict]) -> pd.DataFrame:
     did: :func:`unshown_md` tells them apart)."""
     ok = [c for c in cells if isinstance(c, dict) and c.get("status") == "ok"]
     cols = ID_COLUMNS + [k for m in COLUMNS for k in (m, m + "_ci")] + TIME_COLUMNS + [
-        "n_nonfinite", "nondeterministic_abs", "nondeterministic_rel"]
+        "n_nonfinite", "nondeterministic_abs", "nondeterministic_rel", "timed_beside"]
     rows = [r for c in ok if (r := _row(c)) is not None]
     df = pd.DataFrame(rows, columns=cols + ["render_plain_s", "stats_s", "render_measured_s",
                                             "per_seed"])

@@ -45,6 +45,10 @@ def test_a_pool_sweep_records_and_says_its_cells_were_timed_side_by_side(rendere
     settings = next(line for line in readme.splitlines() if line.startswith("Sweep `sweep`"))
     assert said in settings
     assert said in (results / "index.html").read_text(encoding="utf-8")
+    import pandas as pd
+
+    table = pd.read_csv(results / "sweep" / "tables" / "cells.csv")
+    assert set(table["timed_beside"]) == {1}
 
 
 @pytest.mark.mitsuba
