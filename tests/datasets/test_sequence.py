@@ -274,16 +274,16 @@ def test_speed_benchmark_runs_small():
 
 def _quality(scene, res, frames, cache):
     from dbench import registry
-    from dbench.datasets.sequence.scene import SEQUENCE_BUFFERS
-
-    # all buffers but the per-frame sample statistics, which no method here reads; colour and
-    # G-buffers do not change (test_sequence_frames_carry_the_statistics_of_their_own_samples)
+    methods = ("noisy", "accumulate", "svgf", "asvgf", "bmfr")
+    # the buffers these methods read and the reference: the same pixels as a load of every
+    # buffer (emitter, emission and statistics are renders of their own), fewer renders
+    needs = set().union(*(registry.get(n).needs for n in methods)) | {"reference"}
     seq = datasets.load(scene, spp=1, res=res, frames=frames, ref_spp=256, cache=cache,
-                        needs=SEQUENCE_BUFFERS - {"stats"}, progress=False)
+                        needs=needs, progress=False)
     # BS.compare without ColorVideoVDP (seconds per method): the checks read the RMSE only,
     # and the video metric has its own tests (tests/metrics/test_video_quality.py)
     res_ = {n: BS.run_sequence(registry.get(n), seq, keep_outputs=False, cvvdp=False)
-            for n in ("noisy", "accumulate", "svgf", "asvgf", "bmfr")}
+            for n in methods}
     return res_, {n: r.summary["mean_rmse"] for n, r in res_.items()}
 
 
