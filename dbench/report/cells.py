@@ -254,7 +254,7 @@ def _timed_how(cell: dict) -> str:
         return ""
     if beside <= 0:
         return "alone"
-    cores = re.search(r"(\d+) cores$", str(cell.get("machine", "")))
+    cores = re.search(r"(\d+)(?: of \d+)? cores$", str(cell.get("machine", "")))
     return f"with {beside + 1} workers side by side" + (f" on {cores[1]} cores" if cores else "")
 
 

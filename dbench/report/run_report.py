@@ -32,7 +32,11 @@ def metric_definitions_md() -> str:
 def machine_md(info: dict[str, Any]) -> str:
     pk = ", ".join(f"{k} {v}" for k, v in info["packages"].items())
     memory = f"\n- Memory: {info['memory']}" if info.get("memory") else ""
-    return (f"- CPU: {info['cpu']} ({info['cores']} cores); GPU: {info['gpu']}\n"
+    usable = info.get("usable_cores")  # taskset, a container's cpuset or CPU quota
+    cores = (f"{usable} of {info['cores']} cores usable" if isinstance(usable, int)
+             and isinstance(info["cores"], int) and usable < info["cores"]
+             else f"{info['cores']} cores")
+    return (f"- CPU: {info['cpu']} ({cores}); GPU: {info['gpu']}\n"
             f"- Python {info['python']} on {info['platform']}\n- Packages: {pk}{memory}")
 
 

@@ -115,7 +115,8 @@ _CONFIG = {
     "scene_labels": _each_value(_NAME, "an object ({scene: label})"),
 }
 #: what :func:`dbench.run.machine.machine_info` records
-_MACHINE = {"cpu": _TEXT, "cores": _INT_OR_NULL, "python": _TEXT, "platform": _TEXT,
+_MACHINE = {"cpu": _TEXT, "cores": _INT_OR_NULL, "usable_cores": _INT_OR_NULL,
+            "python": _TEXT, "platform": _TEXT,
             "gpu": _TEXT, "packages": _each_value(_TEXT, "an object ({package: version})"),
             "memory": _TEXT}
 #: the statuses a run's entry can have (module docstring)

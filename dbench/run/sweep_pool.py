@@ -162,15 +162,15 @@ def ray_beside(most: int) -> int:
         cpus = next(n.get("Resources", {}).get("CPU", 1) for n in ray.nodes()
                     if n.get("NodeID") == node)
     except Exception:  # noqa: BLE001 - no node table: Ray's default, one slot per core
-        import os
-        cpus = os.cpu_count() or 1
+        from .machine import usable_cores
+        cpus = usable_cores()
     return max(0, min(int(cpus) - 1, int(most)))
 
 
 def side_by_side_line(executor: str, workers: int, groups: int) -> str:
     """What ``dbench sweep`` says before its ``groups`` run where it times cells side by side
     (``--workers`` above 1 and several groups, or Ray), '' where it times them alone."""
-    import os
+    from .machine import cores_text
 
     if groups <= 1 or (executor != "ray" and workers <= 1):
         return ""
@@ -179,7 +179,7 @@ def side_by_side_line(executor: str, workers: int, groups: int) -> str:
                 "cells are timed side by side; their time_s includes that contention and does "
                 "not compare with a sweep's with --workers 1")
     return (f"--workers {workers}: up to {min(workers, groups)} cells are timed side by side "
-            f"on {os.cpu_count()} cores; their time_s includes that contention and does not "
+            f"on {cores_text()}; their time_s includes that contention and does not "
             "compare with a sweep's with --workers 1")
 
 

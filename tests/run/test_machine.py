@@ -52,3 +52,45 @@ def test_small_pages_inside_the_block_only_and_never_over_the_users_word(monkeyp
                                         "sets it, throughout")
     finally:
         multiarray._set_madvise_hugepage(before)
+
+
+def _cgroup(monkeypatch, files: dict[str, str]) -> None:
+    """The cgroup files ``machine`` reads: ``files`` (path -> text), every other one absent."""
+    monkeypatch.setattr(machine, "_read", lambda path: files.get(path, ""))
+
+
+def test_the_cores_a_process_may_use_are_recorded_not_only_the_machines(monkeypatch):
+    monkeypatch.setattr(machine.os, "cpu_count", lambda: 16)
+    monkeypatch.setattr(machine.os, "sched_getaffinity", lambda pid: {0, 1, 2, 3})
+    _cgroup(monkeypatch, {})
+    assert machine.usable_cores() == 4  # taskset / a cpuset: 4 of the 16
+    assert machine.machine_label().endswith(", 4 of 16 cores")
+    # a CPU quota (docker --cpus 2.5) allows 3 cores' time, rounded up; v2 and v1 forms
+    _cgroup(monkeypatch, {machine._CPU_MAX: "250000 100000"})
+    assert machine.usable_cores() == 3
+    _cgroup(monkeypatch, {machine._CFS[0]: "150000", machine._CFS[1]: "100000"})
+    assert machine.usable_cores() == 2
+    for no_quota in ({machine._CPU_MAX: "max 100000"},
+                     {machine._CFS[0]: "-1", machine._CFS[1]: "100000"}):
+        _cgroup(monkeypatch, no_quota)
+        assert machine.usable_cores() == 4
+    info = {**machine.machine_info(), "cores": 16, "usable_cores": 4}
+    assert "(4 of 16 cores usable)" in machine_md(info)
+    # all of them: the label and the report as before
+    monkeypatch.setattr(machine.os, "sched_getaffinity", lambda pid: set(range(16)))
+    _cgroup(monkeypatch, {})
+    assert machine.machine_label().endswith(", 16 cores")
+    assert "(16 cores)" in machine_md({**info, "usable_cores": 16})
+
+
+def test_side_by_side_timing_names_the_usable_cores(monkeypatch):
+    from dbench.report.cells import side_by_side_text
+    from dbench.run.sweep_pool import side_by_side_line
+
+    monkeypatch.setattr(machine.os, "cpu_count", lambda: 16)
+    monkeypatch.setattr(machine.os, "sched_getaffinity", lambda pid: {0, 1})
+    _cgroup(monkeypatch, {})
+    assert "on 2 of 16 cores" in side_by_side_line("local", 2, 3)
+    cell = {"status": "ok", "timed_beside": 1, "machine": machine.machine_label()}
+    assert side_by_side_text([cell]) == ["timed with 2 workers side by side on 2 cores: "
+                                         "time_s includes contention"]
