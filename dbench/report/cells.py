@@ -341,10 +341,9 @@ def _by_counts(found: dict[tuple[str, str], set[int]]
             out.update({(scene, text): (spp, None) for text, spp in texts})
             continue
         numbers = {n: _NUMBER.findall(text) for text, spp in texts for n in spp}
-        slots = [list(dict.fromkeys(numbers[n][i] for n in every)) for i in
-                 range(len(parts) - 1)]
-        listed = [slot[0] if len(slot) == 1 else ", ".join(numbers[n][i] for n in every)
-                  for i, slot in enumerate(slots)]
+        listed = []  # each number of the text: once where every spp has it, else each spp's
+        for slot in zip(*(numbers[n] for n in every)):
+            listed.append(slot[0] if len(set(slot)) == 1 else ", ".join(slot))
         text = "".join(part + (listed[i] if i < len(listed) else "")
                        for i, part in enumerate(parts))
         out[(scene, text)] = (set(every),

@@ -274,24 +274,24 @@ def input_warnings_html(cells: Sequence[dict]) -> list[str]:
     (:func:`dbench.report.cells.input_warnings`: once per scene and warning, with the spp where
     it holds at some only), as HTML text: a scene is named as its file is, a warning quotes
     file names; nothing where the inputs said nothing."""
-    said = input_warnings(cells)
-    if not said:
-        return []
-    return ["<h3>Input warnings</h3>", '<p class="note">' + INPUT_WARNINGS_INTRO.format(
-        run="<code>dbench run</code>") + "</p>", '<ul class="note">' + "".join(
-            f"<li>{html.escape(line)}</li>" for line in said) + "</ul>"]
+    return _listed_html("Input warnings", INPUT_WARNINGS_INTRO, input_warnings(cells))
 
 
 def nondeterministic_html(cells: Sequence[dict]) -> list[str]:
     """The sweep's "Not reproducible" cells as its README states them
     (:func:`dbench.report.headline.nondeterministic_lines`), as HTML; nothing where none."""
-    said = headline.nondeterministic_lines(cells)
+    return _listed_html("Not reproducible", headline.NONDETERMINISTIC_INTRO,
+                        headline.nondeterministic_lines(cells))
+
+
+def _listed_html(title: str, intro: str, said: list[str]) -> list[str]:
+    """An ``<h3>`` ``title``, ``intro`` (with ``{run}``, the command as code) and ``said`` as a
+    list, each line escaped; nothing where ``said`` is empty."""
     if not said:
         return []
-    return ["<h3>Not reproducible</h3>", '<p class="note">'
-            + headline.NONDETERMINISTIC_INTRO.format(run="<code>dbench run</code>") + "</p>",
-            '<ul class="note">' + "".join(f"<li>{html.escape(line)}</li>" for line in said)
-            + "</ul>"]
+    return [f"<h3>{title}</h3>", '<p class="note">' + intro.format(
+        run="<code>dbench run</code>") + "</p>", '<ul class="note">' + "".join(
+            f"<li>{html.escape(line)}</li>" for line in said) + "</ul>"]
 
 
 def sweep_page(results: str | Path, sweeps: Sequence[tuple], rank_by: str = "relmse") -> Path:

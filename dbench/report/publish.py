@@ -88,20 +88,24 @@ def reference_md(df, rel_csv: str | None = None, cells: list | None = None) -> l
             + [""] + ([f"Every flagged cell: [{rel_csv}]({rel_csv}).", ""] if rel_csv else []))
 
 
+def _listed_md(title: str, intro: str, said: list[str]) -> list[str]:
+    """A section ``title``: ``intro`` (with ``{run}``, the command as code), then ``said`` as
+    a list; nothing where ``said`` is empty."""
+    return [title, "", intro.format(run="`dbench run`"), ""] + [
+        f"- {markdown_text(line)}" for line in said] + [""] if said else []
+
+
 def input_warnings_md(cells: list[dict], title: str) -> list[str]:
     """A section ``title`` listing what the cells' inputs said of themselves
     (:func:`dbench.report.cells.input_warnings`), or nothing where they said nothing."""
-    said = input_warnings(cells)
-    return [title, "", INPUT_WARNINGS_INTRO.format(run="`dbench run`"), ""] + [
-        f"- {markdown_text(line)}" for line in said] + [""] if said else []
+    return _listed_md(title, INPUT_WARNINGS_INTRO, input_warnings(cells))
 
 
 def nondeterministic_md(cells: list[dict], title: str) -> list[str]:
     """A section ``title`` listing the cells whose method's calls on one input differed
     (:func:`dbench.report.headline.nondeterministic_lines`), or nothing where none did."""
-    said = headline.nondeterministic_lines(cells)
-    return [title, "", headline.NONDETERMINISTIC_INTRO.format(run="`dbench run`"), ""] + [
-        f"- {markdown_text(line)}" for line in said] + [""] if said else []
+    return _listed_md(title, headline.NONDETERMINISTIC_INTRO,
+                      headline.nondeterministic_lines(cells))
 
 
 def build_readme(results: Path, sweep_dir: Path, headline_spp: int = 64,

@@ -78,11 +78,11 @@ def sampler_settings(state) -> dict[str, int]:
     out = {}
     for key in ("sample_count", "seed"):
         try:
-            value = int(get(key)) if get(key) is not None else None
+            value = get(key)
+            if value is not None:
+                out[key] = int(value)
         except (TypeError, ValueError):
-            value = None  # (Mitsuba refuses it when it loads the file)
-        if value is not None:
-            out[key] = value
+            pass  # (Mitsuba refuses it when it loads the file)
     return out
 
 

@@ -398,4 +398,5 @@ def check_own_integrator(scene: Any, integrator: Any) -> None:
 
 __all__ = ["call_build", "check_box_filter", "check_film", "check_lit", "check_same_build",
            "check_own_integrator", "check_plugin_scene", "dictionary_plan", "exit_message",
-           "integrator_settings", "own_camera", "plugin_build", "probe_load", "source_of", "takes_width_height"]
+           "integrator_settings", "own_camera", "plugin_build", "probe_load", "source_of",
+           "takes_width_height"]
