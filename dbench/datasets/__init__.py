@@ -30,7 +30,7 @@ from .scenes import catalogue as _scenes
 from .sequence import load as _sequence  # registers the sequence scenes
 from .transient import load as _transient  # registers the transient scenes
 from .cache import Cache, make_key
-from .mitsuba_env import mitsuba, versions
+from .mitsuba_env import focus, mitsuba, versions
 from .nonfinite import NONFINITE_VERSION, note_nonfinite
 from .references import check_ref_seed, check_render_args, reference_meta, reference_spp
 from .scenes.catalogue import Scene
@@ -159,6 +159,8 @@ def load(scene: str | Scene, spp: int, res, needs: Iterable[str] | None = None,
     if cache is not None and not isinstance(cache, Cache):
         raise DbenchInputError(f"cache: expected a dbench.datasets.Cache, got {cache!r}")
     sc = scene if isinstance(scene, Scene) else _scenes.get(os.fspath(scene))
+    # another scene's loaded objects would slow every render of this one (mitsuba_env.focus)
+    focus(sc)
     if not sc.renders:
         return _load_folder_scene(sc, spp, res, needs, seed, ref_spp, frames, transform, lam)
     transform = transform or default_transform(sc.kind)

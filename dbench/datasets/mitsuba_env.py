@@ -18,6 +18,7 @@ host round trips.
 from __future__ import annotations
 
 import functools
+import gc
 import hashlib
 import json
 import os
@@ -146,6 +147,42 @@ def _probe(name: str, code: str, key: str, describe, timeout: float = 300
     except OSError:
         pass
     return ok, reason
+
+
+#: Loaded Mitsuba scenes each loader keeps (:func:`scene_cache`). Every object a live scene
+#: holds stays in Dr.Jit's registry, and each virtual call a render traces (a BSDF, emitter or
+#: shape lookup) is traced for every registered object of its kind, live scene or not: with 15
+#: other scenes kept alive a 64² 16-spp cornell load took 4× as long (docs/mitsuba.md §3). Two
+#: covers a load (a medium scene beside its ``minus`` scene, one resolution beside another).
+LIVE_SCENES = 2
+
+#: the loaders :func:`scene_cache` made, emptied by :func:`focus`
+_SCENE_CACHES: list = []
+#: the scene of the last :func:`focus`
+_focused: list = [None]
+
+
+def scene_cache(maxsize: int = LIVE_SCENES):
+    """``functools.lru_cache(maxsize)`` for a function that returns loaded Mitsuba objects (a
+    scene, its batch or transient form, a scene file's objects, a collector holding one),
+    registered so that :func:`focus` drops them."""
+    def wrap(fn):
+        cached = lru_cache(maxsize=maxsize)(fn)
+        _SCENE_CACHES.append(cached)
+        return cached
+    return wrap
+
+
+def focus(scene) -> None:
+    """Say that renders of ``scene`` (a hashable identity: the Scene a load renders) come next:
+    where it differs from the last one, the loaded objects of every :func:`scene_cache` are
+    dropped, so that the next renders trace their virtual calls over this scene's objects alone
+    (:data:`LIVE_SCENES`)."""
+    if _focused[0] is not None and _focused[0] != scene:
+        for cached in _SCENE_CACHES:
+            cached.cache_clear()
+        gc.collect()
+    _focused[0] = scene
 
 
 def _llvm_failure(code: int | None, last: str) -> str:

@@ -23,11 +23,10 @@ from __future__ import annotations
 
 import hashlib
 import time
-from functools import lru_cache
 
 import numpy as np
 
-from .mitsuba_env import mitsuba
+from .mitsuba_env import mitsuba, scene_cache
 from .nonfinite import zeroed
 from .scenes.record import Scene
 from .render_moments import batch_sums, jit_variant
@@ -74,7 +73,7 @@ def pass_seed(stream: str, seed: int, index: int) -> int:
     return int.from_bytes(digest[:4], "little") & 0x7FFFFFFF
 
 
-@lru_cache(maxsize=16)
+@scene_cache()
 def loaded_scene(scene: Scene, res: Res):
     mi = mitsuba()
     return mi.load_dict(scene.scene_dict(mi, res))
@@ -97,7 +96,7 @@ def batch_size(res, spp: int) -> int:
     return max(d for d in range(1, min(spp, cap) + 1) if spp % d == 0)
 
 
-@lru_cache(maxsize=16)
+@scene_cache()
 def loaded_batch_scene(scene: Scene, res: Res, copies: int):
     """The scene seen through a ``batch`` sensor of ``copies`` identical cameras.
 

@@ -94,7 +94,7 @@ import numpy as np
 
 from ...errors import DbenchInputError
 from ...resolution import Res, parse_res
-from ..mitsuba_env import mitsuba
+from ..mitsuba_env import mitsuba, scene_cache
 from ..scenes.record import STEADY_BUFFERS, Scene
 from ..scenes.build import (call_build, check_lit, check_same_build, exit_message,
                             integrator_settings, keeps_variant, probe_load)
@@ -277,7 +277,7 @@ def _no_build(mi, res):  # pragma: no cover - XmlScene overrides scene_dict
     raise NotImplementedError
 
 
-@lru_cache(maxsize=8)
+@scene_cache()
 def _loaded_xml(path: str, params: tuple, variant: str, digest: str):
     """The file's objects, loaded as ``mi.load_file`` loads them but for its integrator
     (dbench.datasets.scene_files.xml; ``digest`` keys the cache on its content). Mitsuba puts the

@@ -49,7 +49,6 @@ Example:
 from __future__ import annotations
 
 import time
-from functools import lru_cache
 from typing import Any, Callable, Iterable
 
 import numpy as np
@@ -60,7 +59,7 @@ from ...resolution import parse_res
 from .. import render as _render
 from ..scenes import catalogue as _scenes
 from ..cache import Cache
-from ..mitsuba_env import mitsuba, versions
+from ..mitsuba_env import mitsuba, scene_cache, versions
 from ..nonfinite import NONFINITE_VERSION, note_nonfinite
 from ..references import check_ref_seed, check_render_args, reference_meta
 from ..references import reference_spp as default_ref
@@ -191,7 +190,9 @@ def collect_in_integrator(scene: TransientScene, res, spp: int, seed: int = 0,
 IN_INTEGRATOR = ("transient_path", "transient_prbvolpath")
 
 
-@lru_cache(maxsize=4)
+# one collector: it holds its loaded scene and state arrays of the size of the video's
+# statistics (docs/transient.md); seeds and repeated loads of one scene reuse it
+@scene_cache(maxsize=1)
 def _collector(sc, integrator, transform, lam, max_depth, rr_depth, unwarp, slots):
     if integrator == "transient_prbvolpath":
         from .collector_media import MediaStatsCollector as cls

@@ -4,13 +4,12 @@ with its per-bin variance."""
 from __future__ import annotations
 
 import time
-from functools import lru_cache
 
 import numpy as np
 
 from ...resolution import parse_res
 from .. import render as _render
-from ..mitsuba_env import mitsuba, require_llvm
+from ..mitsuba_env import mitsuba, require_llvm, scene_cache
 from ..nonfinite import zeroed
 from .scene import TransientScene, Window
 
@@ -28,7 +27,7 @@ def _mitransient():
     return mi
 
 
-@lru_cache(maxsize=16)
+@scene_cache()
 def loaded_transient(scene: TransientScene, res, window: Window, copies: int = 1):
     """The transient scene; with ``copies`` > 1 seen through a ``batch`` sensor of that many
     identical cameras (film (H, copies·W, T, 3)), as in :func:`render.loaded_batch_scene`."""
