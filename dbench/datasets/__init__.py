@@ -160,7 +160,7 @@ def load(scene: str | Scene, spp: int, res, needs: Iterable[str] | None = None,
         raise DbenchInputError(f"cache: expected a dbench.datasets.Cache, got {cache!r}")
     sc = scene if isinstance(scene, Scene) else _scenes.get(os.fspath(scene))
     # another scene's loaded objects would slow every render of this one (mitsuba_env.focus)
-    focus(sc)
+    focus(sc.objects_key())
     if not sc.renders:
         return _load_folder_scene(sc, spp, res, needs, seed, ref_spp, frames, transform, lam)
     transform = transform or default_transform(sc.kind)

@@ -2,9 +2,12 @@
 each live scene's objects make every later render trace its virtual calls over them too)."""
 import pytest
 
+from cli_args import lamp_scene
+
 from dbench import datasets
 from dbench.datasets import Cache, mitsuba_env
 from dbench.datasets import render as R
+from dbench.datasets.scene_files import load as file_load
 from dbench.datasets.scenes import catalogue
 from dbench.datasets.transient import load as transient_load
 from dbench.datasets.transient import render as transient_render
@@ -18,7 +21,8 @@ def _load(name, tmp_path, **kw):
 
 
 def _kept(cached, *args) -> bool:
-    """Whether ``cached(*args)`` is answered from its cache (calling it, which loads it if not)."""
+    """Whether ``cached(*args)`` is answered from its cache (calling it, which loads it if not;
+    a cleared cache counts from 0 again)."""
     hits = cached.cache_info().hits
     cached(*args)
     return cached.cache_info().hits == hits + 1
@@ -48,3 +52,18 @@ def test_each_loader_keeps_at_most_live_scenes(renderer):
     for name in ("cornell", "caustic", "textured", "mirrors"):
         R.loaded_scene(catalogue.get(name), res)
     assert R.loaded_scene.cache_info().currsize == mitsuba_env.LIVE_SCENES
+
+
+def test_a_scene_file_is_loaded_once_though_another_scene_came_before(renderer, tmp_path,
+                                                                     monkeypatch):
+    """Its objects are loaded where the file is read (they are checked by rendering) and kept
+    for its renders: loading the file again would cost as much and repeat its warnings."""
+    loads = []
+    real = file_load._load_xml
+    monkeypatch.setattr(file_load, "_load_xml", lambda *a: loads.append(a) or real(*a))
+    _load("cornell", tmp_path)
+    path = tmp_path / "lamp.xml"
+    path.write_text(lamp_scene("5"))
+    _load(str(path), tmp_path)
+    _load(str(path), tmp_path / "again", seed=1)
+    assert len(loads) == 1

@@ -94,7 +94,7 @@ import numpy as np
 
 from ...errors import DbenchInputError
 from ...resolution import Res, parse_res
-from ..mitsuba_env import mitsuba, scene_cache
+from ..mitsuba_env import focus, mitsuba, scene_cache
 from ..scenes.record import STEADY_BUFFERS, Scene
 from ..scenes.build import (call_build, check_lit, check_same_build, exit_message,
                             integrator_settings, keeps_variant, probe_load)
@@ -201,6 +201,11 @@ class XmlScene(Scene):
     # integrator_plan (dbench.datasets.scene_files.integrator) and frame_meta
     # (dbench.datasets.scene_files.fidelity) are Scene's, always set for a file
 
+    def objects_key(self) -> tuple:
+        # the key _xml_scene focused on before loading the file's objects: a load of this
+        # scene keeps them instead of loading the file again
+        return _file_key(self.path, self.file_params, self.params["sha256"])
+
     def key_dict(self, mi, res) -> dict:
         # neither the file's path nor its name: the sources hold every file's bytes, so the
         # same scene tree anywhere on disk, under any name, is the same scene
@@ -228,6 +233,11 @@ class XmlScene(Scene):
         return d
 
 
+def _file_key(path: str, params: tuple, digest: str) -> tuple:
+    """The scene file's identity for :func:`dbench.datasets.mitsuba_env.focus`."""
+    return ("scene file", path, params, digest)
+
+
 @lru_cache(maxsize=32)
 def _xml_scene(path: str, params: tuple, digest: str) -> XmlScene:
     mi = mitsuba()
@@ -237,6 +247,7 @@ def _xml_scene(path: str, params: tuple, digest: str) -> XmlScene:
     conversions = rgb_notes(state, path)
     integrator = _integrator_plan(state, path)
     _check_camera(mi, state, path)  # before the load: a large scene takes minutes to load
+    focus(_file_key(path, params, digest))  # its objects are checked by rendering (check_lit)
     loaded = _loaded_xml(path, params, mi.variant(), digest)
     sensor = _sensor_dict(mi, loaded, parse_res(8), path)  # refuses unsupported cameras
     check_lit(loaded, f"--scene {path}")  # a black image every method would match

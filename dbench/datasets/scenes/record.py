@@ -69,6 +69,11 @@ class Scene:
     #: whether the scene is rendered (False: read from files, dbench.datasets.folders.load)
     renders = True
 
+    def objects_key(self) -> Any:
+        """What :func:`dbench.datasets.mitsuba_env.focus` is told before this scene renders:
+        the scene itself (a scene file's own loaded objects say their file instead)."""
+        return self
+
     def key_dict(self, mi, res) -> dict:
         """What names this scene's content at ``res`` in cache keys: its dictionary (scene
         files whose dictionaries hold loaded objects describe themselves instead)."""
