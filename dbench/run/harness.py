@@ -28,8 +28,8 @@ from ..registry import Denoiser, applies
 from ..device import device_name, download, timed, upload
 from . import fpenv
 from .machine import machine_label
-from .inputs import (check_output, check_unchanged, input_guard, output_copy,
-                     output_difference, private_copy)
+from .inputs import (check_output, check_unchanged, input_guard, merge_difference,
+                     output_copy, output_difference, private_copy)
 from .scoring import DEFAULT_METRICS, judge_frame
 from .sequence_run import WARMUP, after_warmup, run_sequence
 
@@ -149,9 +149,7 @@ def note_difference(result: CellResult, seed: Any, diff: dict[str, float] | None
         return
     nd = result.nondeterministic
     nd.setdefault("seeds", []).append(seed.item() if isinstance(seed, np.generic) else seed)
-    for key, value in diff.items():
-        nd[key] = max(nd.get(key, 0.0), value)
-    nd.update(calls=calls, scored=scored)
+    nd.update(merge_difference(nd, diff), calls=calls, scored=scored)
 
 
 def method_backend(method: Denoiser, on_device: bool) -> str:

@@ -109,6 +109,21 @@ def output_difference(first: Any, last: Any) -> dict[str, float] | None:
             "max_rel_diff": largest / scale if scale > 0 else float("inf")}
 
 
+#: The keys of an :func:`output_difference` that :func:`merge_difference` keeps the largest of.
+DIFFERENCE_KEYS = ("max_abs_diff", "max_rel_diff")
+
+
+def merge_difference(found: dict[str, Any], diff: dict[str, Any] | None) -> dict[str, Any]:
+    """``found`` (a dict, left unchanged) with the larger of its and ``diff``'s
+    ``max_abs_diff`` and ``max_rel_diff`` (:func:`output_difference`; a key ``found`` lacks
+    counts as 0): the largest difference over several compared outputs (calls, seeds,
+    frames). Its other keys are kept; ``diff`` None (equal outputs) changes nothing."""
+    if diff is None:
+        return dict(found)
+    return {**found, **{k: max(found.get(k, 0.0), diff[k]) for k in DIFFERENCE_KEYS
+                        if k in diff}}
+
+
 def _arrays(obj: Any) -> dict[str, np.ndarray]:
     return {k: v for k, v in vars(obj).items() if isinstance(v, np.ndarray) and k not in _SKIP}
 
@@ -368,6 +383,7 @@ def frames_text(ks: list[int]) -> str:
 
 
 __all__ = ["MethodError", "check_output", "output_copy", "output_difference", "method_failure",
+           "DIFFERENCE_KEYS", "merge_difference",
            "load_seeds", "check_reference_lit",
            "noise_free", "noise_free_text", "note_noise_free",
            "check_unchanged", "first_changed", "input_guard", "is_write_to_input", "private_copy",

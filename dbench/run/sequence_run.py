@@ -43,8 +43,8 @@ from ..device import download, timed, upload
 from ..errors import DbenchInputError
 from ..metrics import video_quality
 from . import fpenv
-from .inputs import (check_output, check_unchanged, input_guard, output_copy,
-                     output_difference, private_copy)
+from .inputs import (check_output, check_unchanged, input_guard, merge_difference,
+                     output_copy, output_difference, private_copy)
 
 WARMUP = 8
 SEQUENCE_METRICS = ("rmse", "ssim")
@@ -128,8 +128,7 @@ def warm_up_difference(warm: list, outs: list) -> dict[str, Any] | None:
                                  else before, after)
         if diff is not None:
             found.setdefault("frames", []).append(i)
-            for key, value in diff.items():
-                found[key] = max(found.get(key, 0.0), value)
+            found = merge_difference(found, diff)
     return found or None
 
 

@@ -17,7 +17,7 @@ from dbench.report.formats import markdown_text
 from dbench.report.headline import verdict_words
 from dbench.report.tables import cells_frame
 from dbench.run import harness
-from dbench.run.inputs import output_difference
+from dbench.run.inputs import merge_difference, output_difference
 from dbench.run.sequence_run import run_sequence
 from dbench.synthetic import synthetic_sequence
 from exr_files import write_rgb  # tests/exr_files.py
@@ -146,6 +146,16 @@ def test_output_difference():
     assert output_difference(a, a[:, :2])["max_abs_diff"] == float("inf")
     z = np.zeros((2, 2), np.float32)
     assert output_difference(z, z + 1)["max_rel_diff"] == 1.0
+
+
+def test_merge_difference_keeps_the_largest_of_each_and_the_other_keys():
+    found = {"seeds": [0], "max_abs_diff": 0.5, "max_rel_diff": 0.01}
+    merged = merge_difference(found, {"max_abs_diff": 0.25, "max_rel_diff": 0.02})
+    assert merged == {"seeds": [0], "max_abs_diff": 0.5, "max_rel_diff": 0.02}
+    assert found["max_rel_diff"] == 0.01  # left unchanged
+    assert merge_difference({}, {"max_abs_diff": float("inf"), "max_rel_diff": 1.0}) == {
+        "max_abs_diff": float("inf"), "max_rel_diff": 1.0}
+    assert merge_difference(found, None) == found
 
 
 class Recurrent(Denoiser):
