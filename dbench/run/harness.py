@@ -9,10 +9,11 @@ the copies are timed apart (``transfer_s``) and never counted as the method's ti
 without a device path runs on the host and its cell says so (``device="cpu"``), so CPU and GPU
 figures are never mixed under one label (docs/gpu.md §3).
 
-The last call is scored. The first call's output (warm-up included) is kept and compared with
-it: where they differ (``np.array_equal``, NaN in the same places equal; no tolerance), the
-cell records ``nondeterministic`` and ``dbench run`` and the reports say its numbers are those
-of one call and not reproducible (README.md, "Usage").
+The last call is scored. A copy of the first call's output (the warm-up's) is kept, and every
+later call's output is compared with it, untimed: where any differs (``np.array_equal``, NaN in
+the same places equal; no tolerance), the cell records ``nondeterministic`` (the largest
+difference, and which calls differed) and ``dbench run`` and the reports say its numbers are
+those of one call and not reproducible (README.md, "Usage").
 """
 from __future__ import annotations
 
@@ -28,8 +29,8 @@ from ..registry import Denoiser, applies
 from ..device import device_name, download, timed, upload
 from . import fpenv
 from .machine import machine_label
-from .inputs import (check_output, check_unchanged, input_guard, merge_difference,
-                     output_copy, output_difference, private_copy)
+from .inputs import (check_output, check_unchanged, frames_text, input_guard,
+                     merge_difference, output_copy, output_difference, private_copy)
 from .scoring import DEFAULT_METRICS, judge_frame
 from .sequence_run import WARMUP, after_warmup, run_sequence
 
@@ -63,8 +64,9 @@ class CellResult:
     backend: str = ""
     #: seconds of host→device upload plus device→host download per seed (device cells only)
     transfer_s: list[float] = field(default_factory=list)
-    #: where calls on one input gave different outputs: the seeds, ``max_abs_diff``,
-    #: ``max_rel_diff`` (:func:`output_difference`) and the calls compared; {} where none did
+    #: where calls on one input gave different outputs: the seeds, the largest ``max_abs_diff``
+    #: and ``max_rel_diff`` (:func:`output_difference`) and the calls that differed from the
+    #: first, as text; {} where none did
     nondeterministic: dict[str, Any] = field(default_factory=dict)
 
     @property
@@ -118,33 +120,47 @@ def time_call(fn, repeats: int = 5, warmup: int = 1, device: str = "cpu"
     return result, times
 
 
-def timed_calls(fn, repeats: int = 5, warmup: int = 1, device: str = "cpu", keep=None
-                ) -> tuple[Any, list[float], Any]:
-    """:func:`time_call`, and ``keep(first result)`` (None without ``keep``, or with one
-    call): a copy of the first call's output, made untimed, that a later call cannot
-    overwrite, to compare with the last (:func:`output_difference`)."""
+def timed_calls(fn, repeats: int = 5, warmup: int = 1, device: str = "cpu", keep=None,
+                differ=output_difference) -> tuple[Any, list[float], dict[str, Any]]:
+    """:func:`time_call`, and with ``keep`` every call's output compared with the first's:
+    ``keep(first result)`` is a copy of it that later calls cannot overwrite (None: nothing to
+    compare), and ``differ(copy, result)`` (:func:`output_difference`) compares each later
+    call's result with it. Both run outside the timed interval, and only that one copy and the
+    running largest difference are kept, never every output (a method whose calls alternate
+    A, B, A is caught, which comparing only the first and the last would pass over).
+
+    Returns (the last result, the times, what differed): {} where every call gave the first's
+    output (or with one call, or without ``keep``), else the largest ``max_abs_diff`` and
+    ``max_rel_diff`` over the calls (:func:`merge_difference`), ``calls``, the numbers of the
+    calls that differed (1 is the first, the warm-up counted), and ``of``, how many ran."""
     first = result = None
-    calls = 0
-    for _ in range(warmup):
-        result = fn()
-        calls += 1
-        if calls == 1 and keep is not None:
+    found: dict[str, Any] = {}
+    times: list[float] = []
+    total = warmup + max(1, repeats)
+    for call in range(1, total + 1):
+        if call <= warmup:
+            result = fn()
+        else:
+            result, dt = timed(fn, device)
+            times.append(dt)
+        if keep is None:
+            continue
+        if call == 1:
             first = keep(result)
-    times = []
-    for _ in range(max(1, repeats)):
-        result, dt = timed(fn, device)
-        times.append(dt)
-        calls += 1
-        if calls == 1 and keep is not None:
-            first = keep(result)
-    return result, times, (first if calls > 1 else None)
+        elif first is not None:
+            diff = differ(first, result)
+            if diff is not None:
+                found = merge_difference(found, diff)
+                found.setdefault("calls", []).append(call)
+    return result, times, ({**found, "of": total} if found else {})
 
 
 def note_difference(result: CellResult, seed: Any, diff: dict[str, float] | None,
                     calls: str, scored: str = "the last call") -> None:
-    """Adds one seed's :func:`output_difference` to ``result.nondeterministic``: the seeds
-    whose calls differed, the largest differences over them, which calls were compared and
-    which were ``scored``."""
+    """Adds one seed's :func:`output_difference` (or the largest over its calls) to
+    ``result.nondeterministic``: the seeds whose calls differed, the largest differences over
+    them (:func:`merge_difference`), which calls differed (``calls``, text) and which were
+    ``scored``."""
     if diff is None:
         return
     nd = result.nondeterministic
@@ -233,7 +249,8 @@ def run_cell(method: Denoiser, frame, metric_names=DEFAULT_METRICS, repeats: int
 
     Each seed is timed alone (``warmup`` calls, then ``repeats``); ``times_s`` pools the timed
     calls of every seed. Metrics: see :class:`CellResult`; they score the last call, and where
-    the first call's output differs from it, ``nondeterministic`` says so.
+    any call's output differs from the first's (:func:`timed_calls`), ``nondeterministic``
+    says so.
     """
     frames = _as_list(frame)
     check_cell_args(method, frames, metric_names, repeats, warmup)
@@ -247,6 +264,7 @@ def run_cell(method: Denoiser, frame, metric_names=DEFAULT_METRICS, repeats: int
     result = CellResult(method.name, dict(method.params), None, device=where,
                         device_name=device_name(where))
     judgements = []
+    differed: set[int] = set()  # the calls whose output differed from the first's, any seed
     for i, f in enumerate(frames):
         mine = private_copy(f)  # read-only; compared with f after the calls (run/inputs.py)
         if on_device:
@@ -265,16 +283,22 @@ def run_cell(method: Denoiser, frame, metric_names=DEFAULT_METRICS, repeats: int
             return fpenv.denoise(method, spare)
 
         with input_guard(method.name, None if on_device else f, rerun):
-            output, times, first = timed_calls(call, repeats, warmup, where, keep=output_copy)
+            # every call after the first (the warm-up) against it, on the host
+            output, times, apart = timed_calls(
+                call, repeats, warmup, where,
+                keep=(lambda out: output_copy(download(out))) if on_device else output_copy,
+                differ=(lambda kept, out: output_difference(kept, download(out)))
+                if on_device else output_difference)
         check_unchanged(method.name, mine, f)
         if on_device:
             output, down_s = timed(lambda out=output: download(out), where)
             result.transfer_s.append(up_s + down_s)
-            first = None if first is None else download(first)
         output = check_output(method.name, output, f.color.shape)
-        if first is not None:  # the first call (warm-up included) against the scored last
-            note_difference(result, f.meta.get("seed", i), output_difference(first, output),
-                            f"first and last of {warmup + max(1, repeats)} calls")
+        if apart:
+            differed.update(apart["calls"])  # over the seeds so far
+            note_difference(result, f.meta.get("seed", i), apart,
+                            f"{frames_text(sorted(differed), 'call')} of {apart['of']} "
+                            "differed from the first")
         result.times_s += times
         result.n_nonfinite += int((~np.isfinite(output)).sum())
         if result.output is None:

@@ -10,8 +10,9 @@ from the array with ``torch.from_numpy``, is caught there). Either way the metho
 frame. The copy is made outside the timed calls.
 
 What it gives back: :func:`check_output` refuses what is no radiance of the input's shape;
-:func:`output_difference` compares two outputs of one input (the harness's first and last
-call, a sequence's warm-up and first frames), which a deterministic method gives equal.
+:func:`output_difference` compares two outputs of one input (the harness's first call and
+each later one, a sequence's warm-up and first frames), which a deterministic method gives
+equal; :func:`merge_difference` keeps the largest of several.
 
 :func:`load_seeds` gives the frames themselves: one per seed of a cell, for ``run``, ``sweep``
 and the sweep's checks before it writes anything; :func:`input_notes` what the loaded input
@@ -373,13 +374,13 @@ def input_notes(metas: list[dict], settings: dict, whole: dict | None = None) ->
     return notes
 
 
-def frames_text(ks: list[int]) -> str:
-    """``frame 4``, ``frames 0-3``, ``frames 0, 2, 5``."""
+def frames_text(ks: list[int], word: str = "frame") -> str:
+    """``frame 4``, ``frames 0-3``, ``frames 0, 2, 5`` (``word``: ``call 2``, ``calls 2-3``)."""
     if len(ks) == 1:
-        return f"frame {ks[0]}"
+        return f"{word} {ks[0]}"
     if ks == list(range(ks[0], ks[-1] + 1)):
-        return f"frames {ks[0]}-{ks[-1]}"
-    return "frames " + ", ".join(map(str, ks))
+        return f"{word}s {ks[0]}-{ks[-1]}"
+    return f"{word}s " + ", ".join(map(str, ks))
 
 
 __all__ = ["MethodError", "check_output", "output_copy", "output_difference", "method_failure",

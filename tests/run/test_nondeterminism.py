@@ -1,8 +1,8 @@
 """A method whose calls on one input give different outputs (an unseeded random number, a
-``reset()`` that leaves state behind) is flagged: the harness compares the first call's output
-(the warm-up) with the scored last one, exactly, NaN in the same places equal, and the cell, the
-run's output and the reports say its numbers are not reproducible (dbench/run/harness.py;
-README.md, "Usage")."""
+``reset()`` that leaves state behind, an output that alternates between two values) is flagged:
+the harness compares every call's output with the first's (the warm-up), exactly, NaN in the
+same places equal, and the cell, the run's output and the reports say its numbers are not
+reproducible and which calls differed (dbench/run/harness.py; README.md, "Usage")."""
 from __future__ import annotations
 
 import json
@@ -63,6 +63,20 @@ class Steady(_Steady):
         return out
 
 
+class Alternates(_Steady):
+    """Two outputs in turn (A, B, A, …): over an odd number of calls the first and the last
+    are equal, and only the calls between them show it."""
+    name = "alternates"
+
+    def __init__(self):
+        super().__init__()
+        self.calls = 0
+
+    def denoise(self, data):
+        self.calls += 1
+        return data.color * np.float32(1.0 if self.calls % 2 else 0.5)
+
+
 class Reuses(_Steady):
     """Writes every call into one buffer that it returns: the first output must be copied."""
     name = "reuses"
@@ -94,7 +108,7 @@ def _cell(method, frames=None, **kw):
 def test_an_unseeded_random_output_is_flagged_in_the_cell_record():
     res, record = _cell(Unseeded(), repeats=2)
     nd = record["nondeterministic"]
-    assert nd["seeds"] == [0] and nd["calls"] == "first and last of 3 calls"
+    assert nd["seeds"] == [0] and nd["calls"] == "calls 2-3 of 3 differed from the first"
     assert 0 < nd["max_abs_diff"] < 0.02 and 0 < nd["max_rel_diff"] < 0.02
     json.dumps(record)  # a sweep writes it as it is
 
@@ -108,6 +122,74 @@ def test_a_reset_that_leaves_a_call_counter_behind_is_flagged():
     peak = float(_frame().color.max())
     assert nd["max_abs_diff"] == pytest.approx(3e-4 * peak, rel=1e-2)
     assert nd["max_rel_diff"] == pytest.approx(3e-4 / 1.0004, rel=1e-2)
+
+
+def test_an_output_alternating_between_two_values_is_flagged_and_its_calls_named():
+    m = Alternates()
+    res, record = _cell(m, repeats=2, warmup=1)  # A, B, A: the first and the last are equal
+    assert m.calls == 3  # no call was added for the comparison
+    nd = record["nondeterministic"]
+    assert nd["seeds"] == [0] and nd["calls"] == "call 2 of 3 differed from the first"
+    peak = float(_frame().color.max())
+    assert nd["max_abs_diff"] == pytest.approx(0.5 * peak)
+    assert nd["max_rel_diff"] == pytest.approx(1.0)  # over the largest value of call 2's
+    # the scored output is still the last call's (A)
+    np.testing.assert_array_equal(res.output, _frame().color)
+    m = Alternates()
+    res, record = _cell(m, repeats=4, warmup=1)  # A, B, A, B, A
+    assert record["nondeterministic"]["calls"] == "calls 2, 4 of 5 differed from the first"
+
+
+def test_the_calls_named_are_those_of_every_seed():
+    frames = [_frame(0), _frame(1)]
+    frames[1].reference = frames[0].reference
+    m = Alternates()  # seed 0: A, B, A; seed 1: B, A, B (its count goes on)
+    res, record = _cell(m, frames, repeats=2, warmup=1)
+    nd = record["nondeterministic"]
+    assert nd["seeds"] == [0, 1] and nd["calls"] == "call 2 of 3 differed from the first"
+    np.testing.assert_array_equal(res.output, frames[0].color)
+
+
+class DeviceAlternates(Alternates):
+    """The same on the device route, writing every call into one output tensor."""
+    name = "device-alternates"
+
+    def denoise_device(self, data):
+        self.calls += 1
+        if getattr(self, "buffer", None) is None:
+            self.buffer = data.color.clone()
+        self.buffer.copy_(data.color * (1.0 if self.calls % 2 else 0.5))
+        return self.buffer
+
+
+def test_the_device_route_compares_every_call_too(monkeypatch):
+    pytest.importorskip("torch")
+    # CPU tensors stand in for a GPU (as in tests/run/test_device.py): the same code
+    monkeypatch.setattr(harness, "placement",
+                        lambda m, d: (d != "cpu" and m.runs_on_device(), "cpu"))
+    res = harness.run_cell(DeviceAlternates(), _frame(), metric_names=["rmse"], repeats=2,
+                           device="cuda")
+    assert res.transfer_s and res.nondeterministic["calls"] == ("call 2 of 3 differed from "
+                                                                "the first")
+    np.testing.assert_array_equal(res.output, _frame().color)
+
+
+def test_timed_calls_keeps_one_copy_and_compares_every_later_call_untimed():
+    outputs = iter([np.zeros(3), np.ones(3), np.zeros(3), np.full(3, 2.0)])
+    kept = []
+
+    def keep(out):
+        kept.append(out.copy())
+        return kept[-1]
+
+    last, times, apart = harness.timed_calls(lambda: next(outputs), repeats=3, warmup=1,
+                                             keep=keep)
+    assert len(kept) == 1 and len(times) == 3  # one copy, of the first call; three timed
+    np.testing.assert_array_equal(last, np.full(3, 2.0))  # the last call's, as before
+    assert apart == {"max_abs_diff": 2.0, "max_rel_diff": 1.0, "calls": [2, 4], "of": 4}
+    same = harness.timed_calls(lambda: np.ones(3), repeats=2, warmup=1, keep=np.copy)
+    assert same[2] == {}
+    assert harness.timed_calls(lambda: np.ones(3), repeats=2, warmup=1)[2] == {}  # no keep
 
 
 def test_a_deterministic_method_with_nan_in_the_same_place_is_not_flagged():
@@ -237,7 +319,8 @@ def test_run_and_sweep_say_it(tmp_path, capsys, isolated):
     assert len(said) == 1 and said[0].startswith(
         "warning: test-unseeded: two calls on the same input gave different outputs (largest "
         "difference ") and said[0].endswith(
-        "; seed 0, first and last of 2 calls): its numbers are those of the last call and are "
+        "; seed 0, call 2 of 2 differed from the first): its numbers are those of the last "
+        "call and are "
         "not reproducible"), printed.err
     assert "noisy:" not in printed.err
     report = (tmp_path / "run" / "report.md").read_text(encoding="utf-8")
