@@ -1,0 +1,40 @@
+"""Collector (b)'s stored rows (docs/transient.md §6): the per-value flags it takes in the
+moments' own kernel and reduces per (pixel, bin) row keep exactly the rows a host scan of the
+bit patterns keeps (datasets/sparse_rows.py), -0.0, NaN and subnormals in any one channel
+included."""
+from __future__ import annotations
+
+import numpy as np
+
+
+def test_device_rows_equal_the_host_scan_of_the_bits(tr):
+    import drjit as dr
+    from dbench.datasets import sparse_rows
+    from dbench.datasets.mitsuba_env import mitsuba
+    from dbench.datasets.transient.collector import StatsCollector
+
+    mi = mitsuba()
+    col = StatsCollector.__new__(StatsCollector)  # the row logic needs no scene
+    col.mi, col.dr = mi, dr
+    col.height, col.width, col.bins = 2, 3, 5
+    shape = (2, 3, 5, 3)
+    mean, var_mean, m3 = (np.zeros(shape) for _ in range(3))
+    non_zero, color = np.zeros(shape, np.int32), np.zeros(shape, np.float32)
+    mean[0, 0, 0, 2] = -0.0           # the last channel only, a zero that is not +0.0
+    var_mean[0, 1, 3, 1] = 5e-324     # a subnormal
+    m3[1, 0, 4, 0] = np.nan
+    non_zero[1, 2, 2, 1] = 1          # a count alone
+    mean[1, 1, 1] = (0.5, 0.25, 0.0)  # an ordinary row
+    color[0, 2, 4, 2] = -0.0
+    color[1, 1, 1] = (0.5, 0.25, 0.0)
+    F = mi.Float64
+    flags = col._flags(F(mean.ravel()), F(var_mean.ravel()), F(m3.ravel()),
+                       mi.Int32(non_zero.ravel()), mi.Float32(color.ravel()))
+    dr.eval(*flags)
+    stat, colour = col._rows(*flags)
+    for found, arrays in ((stat, {"mean": mean, "var_mean": var_mean, "m3": m3,
+                                  "non_zero": non_zero}), (colour, {"color": color})):
+        host = np.unpackbits(sparse_rows.layout(arrays, list(arrays))[sparse_rows.MASK],
+                             count=30).astype(bool)
+        assert np.array_equal(np.array(found, dtype=bool), host)
+        assert 0 < host.sum() < 30
