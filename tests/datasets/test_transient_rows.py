@@ -1,7 +1,7 @@
-"""Collector (b)'s stored rows (docs/transient.md §6): the per-value flags it takes in the
-moments' own kernel and reduces per (pixel, bin) row keep exactly the rows a host scan of the
-bit patterns keeps (datasets/sparse_rows.py), -0.0, NaN and subnormals in any one channel
-included."""
+"""Collector (b) on the device: the state its moments read (VoxelSums.gather), and the rows
+the cache stores (docs/transient.md §6): the per-value flags it takes in the moments' own
+kernel and reduces per (pixel, bin) row keep exactly the rows a host scan of the bit patterns
+keeps (datasets/sparse_rows.py), -0.0, NaN and subnormals in any one channel included."""
 from __future__ import annotations
 
 import numpy as np
@@ -38,3 +38,23 @@ def test_device_rows_equal_the_host_scan_of_the_bits(tr):
                              count=30).astype(bool)
         assert np.array_equal(np.array(found, dtype=bool), host)
         assert 0 < host.sum() < 30
+
+
+def test_state_gather_gives_each_entrys_sums_and_count(tr):
+    """VoxelSums.gather (the moments' input) reads S1, S2, S3 and the count of each entry from
+    the layout add() writes: one packet per entry, as host() sees it."""
+    import drjit as dr
+    from dbench.datasets.mitsuba_env import mitsuba
+    from dbench.datasets.transient.voxel_sums import VoxelSums
+
+    mi = mitsuba()
+    state = VoxelSums(6)
+    assert state.packets
+    state.sums = mi.Float64(np.arange(24.0) * 1.5)
+    idx = [5, 0, 3, 3]
+    got = state.gather(mi.UInt32(idx))
+    dr.eval(*got)
+    flat, counts = state.host()
+    for k in range(3):
+        assert np.array_equal(np.array(got[k]), flat[idx, k])
+    assert np.array(got[3]).dtype == np.int32 and np.array_equal(np.array(got[3]), counts[idx])

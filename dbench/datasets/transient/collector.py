@@ -406,7 +406,7 @@ class StatsCollector:
         the device from the power sums; with ``rows``, ``rows`` and ``color_rows`` ((H, W, T)
         bool) too: the rows of the statistics and of the colour the cache stores (:meth:`_rows`).
         ``stats=False`` gives the colour (and ``color_rows``) alone, for a caller that asked for
-        no statistics: 11 ms instead of 28 at 128² × 100 bins (2-core CPU, LLVM).
+        no statistics: 6 ms instead of 10 at 128² × 100 bins (2-core CPU, LLVM).
 
         The arithmetic is that of :func:`dbench.datasets.stats.stats_from_sums` operation
         for operation (docs/methods/statistical.md §4.1), so the results are bit-identical to it (tested):

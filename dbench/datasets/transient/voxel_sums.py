@@ -79,9 +79,13 @@ class VoxelSums:
     def gather(self, idx):
         """Device (S1, S2, S3 (Float64), non_zero (Int32)) of the entries ``idx`` (UInt32)."""
         F, st = type(self.sums), self.stride
-        s1, s2, s3 = (dr.gather(F, self.sums, st * idx + k) for k in range(3))
         if self.packets:
-            return s1, s2, s3, mi.Int32(dr.gather(F, self.sums, 4 * idx + 3))
+            # one packet gather of the entry's four neighbouring float64 (the layout add()
+            # writes): the moments' kernel from 19.5 to about 8 ms at 128² × 100 bins (2-core
+            # CPU), where four strided gathers loaded the same cache line four times
+            s1, s2, s3, nz = dr.gather(dr.llvm.ad.Array4f64, self.sums, idx)
+            return s1, s2, s3, mi.Int32(nz)
+        s1, s2, s3 = (dr.gather(F, self.sums, st * idx + k) for k in range(3))
         packed = dr.gather(type(self.nz), self.nz, idx // 3)
         shift = mi.UInt64(idx % 3) * NZ_BITS
         return s1, s2, s3, mi.Int32((packed >> shift) & MAX_SAMPLES)
