@@ -34,17 +34,18 @@ _MAGIC = b"\x93NUMPY\x01\x00"
 
 
 def write(folder: Path, arrays: Mapping[str, np.ndarray], names: Sequence[str],
-          wrap: Callable[[Any], Any], keep: np.ndarray | None = None) -> dict[str, Any]:
-    """Write ``arrays`` (those in ``names`` packed, :func:`.sparse_rows.layout` with ``keep``)
-    into the new folder ``folder``, one file each, through ``wrap(file)`` (a writer with
-    ``write`` and ``record``, e.g. the cache's checksum); return {file name: its writer's
-    ``record()``}."""
+          wrap: Callable[[Any], Any], keep: np.ndarray | None = None,
+          kept: Mapping[str, np.ndarray] | None = None) -> dict[str, Any]:
+    """Write ``arrays`` (those in ``names`` packed, :func:`.sparse_rows.layout` with ``keep``
+    and ``kept``) into the new folder ``folder``, one file each, through ``wrap(file)`` (a
+    writer with ``write`` and ``record``, e.g. the cache's checksum); return {file name: its
+    writer's ``record()``}."""
     bad = [n for n in arrays if not n or n != Path(n).name or n.startswith(".")]
     if bad:  # each array is a file of the folder
         raise ValueError(f"{FOLDER}/: array names must be plain file names, got {bad}")
     folder.mkdir()
     records = {}
-    for name, dtype, shape, chunks in sparse_rows.members(arrays, names, keep):
+    for name, dtype, shape, chunks in sparse_rows.members(arrays, names, keep, kept):
         with open(folder / (name + SUFFIX), "wb") as fh:
             writer = wrap(fh)
             sparse_rows.write_npy(writer, dtype, shape, chunks)

@@ -340,7 +340,8 @@ class Cache:
             arrays: dict[str, np.ndarray] | None = None, meta: dict | None = None,
             compress: bool = False, sparse: tuple[str, ...] = (),
             rows: np.ndarray | None = None, compress_images: bool = True,
-            raw_images: tuple[str, ...] = ()) -> Entry:
+            raw_images: tuple[str, ...] = (), kept: dict[str, np.ndarray] | None = None
+            ) -> Entry:
         """Store an entry atomically. The arrays are written uncompressed, one ``.npy`` file
         each in ``arrays/`` (:mod:`.array_files`): float64 statistics deflate to about 2/3 of
         their size at 15-25× the write time, and float32 transient references to 93 % at 25×
@@ -349,7 +350,9 @@ class Cache:
         that share every axis but the last and are stored by their non-zero rows
         (:mod:`.sparse_rows`; :meth:`Entry.arrays` gives them back bit for bit); ``rows``, where
         the caller found them, are those rows (bool, the arrays' shape but the last axis;
-        :func:`.sparse_rows.layout`), and every row it leaves out must be zero.
+        :func:`.sparse_rows.layout`), and every row it leaves out must be zero; ``kept``,
+        where the caller gathered them, those rows of some of the ``sparse`` arrays
+        ({name: (kept rows, channels)}, in order: the transient collector's, from the device).
         ``compress_images=False`` writes ``buffers.exr`` uncompressed, and ``raw_images`` names
         images written uncompressed in a part of their own beside the others
         (:func:`dbench.io.write_exr`: a sequence frame's noisy colour beside its G-buffer).
@@ -372,8 +375,8 @@ class Cache:
                 self._cleaned = True
                 self.clean(older_than_s=STALE_TMP_S)
             tmp.mkdir()
-            self._write(tmp, final, description, meta, images, arrays, compress, sparse, rows,
-                        {"compress": compress_images, "raw": tuple(raw_images)})
+            self._write(tmp, final, description, meta, images, arrays, compress, sparse,
+                        (rows, kept), {"compress": compress_images, "raw": tuple(raw_images)})
         except (OSError, OutputError) as exc:
             # the renders are in memory and right; only the time a later hit would save is lost
             self._unwritable(exc)
@@ -397,22 +400,24 @@ class Cache:
 
     def _write(self, tmp: Path, final: Path, description: dict, meta: dict,
                images: dict[str, np.ndarray] | None, arrays: dict[str, np.ndarray] | None,
-               compress: bool, sparse: tuple[str, ...], rows: np.ndarray | None,
-               exr: dict) -> None:
-        """Fill the temporary folder ``tmp`` and rename it to ``final`` (:meth:`put`); ``exr``:
+               compress: bool, sparse: tuple[str, ...], kept_rows: tuple, exr: dict) -> None:
+        """Fill the temporary folder ``tmp`` and rename it to ``final`` (:meth:`put`);
+        ``kept_rows``: :meth:`put`'s (``rows``, ``kept``); ``exr``:
         :func:`dbench.io.write_exr`'s options."""
         key = meta["key"]
+        rows, kept = kept_rows
         if images:
             io.write_exr(tmp / "buffers.exr", images, **exr)
         records = {}
         if arrays and not compress:
             records = {f"{array_files.FOLDER}/{n}": r for n, r in array_files.write(
-                tmp / array_files.FOLDER, arrays, sparse, DigestingWriter, rows).items()}
+                tmp / array_files.FOLDER, arrays, sparse, DigestingWriter, rows, kept).items()}
         elif arrays:
             with io.atomic_path(tmp / "arrays.npz", suffix=".tmp.npz") as t:
                 with open(t, "wb") as fh:
                     writer = DigestingWriter(fh)
-                    sparse_rows.save(writer, arrays, sparse, compress=compress, keep=rows)
+                    sparse_rows.save(writer, arrays, sparse, compress=compress, keep=rows,
+                                     kept=kept)
             records["arrays.npz"] = writer.record()
         meta["files"] = {**records, **{n: records.get(n) or file_record(tmp / n)
                                        for n in DATA_FILES if (tmp / n).is_file()}}

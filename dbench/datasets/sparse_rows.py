@@ -55,30 +55,42 @@ def _bits(a: np.ndarray) -> np.ndarray:
 
 
 class Rows:
-    """The kept rows of one array, not yet copied: ``(len(index), channels)`` of ``dtype``."""
+    """The kept rows of one array, not yet copied: ``(len(index), channels)`` of ``dtype``.
+    ``kept``: those rows already gathered (in their own dtype), where the caller has them."""
 
-    def __init__(self, array: np.ndarray, index: np.ndarray):
+    def __init__(self, array: np.ndarray, index: np.ndarray, kept: np.ndarray | None = None):
         a = np.ascontiguousarray(array)
         self.source = a.reshape(-1, a.shape[-1])
         self.index = index
         self.dtype = narrowest(a)
         self.shape = (index.size, self.source.shape[1])
+        if kept is not None and (np.shape(kept) != self.shape or kept.dtype != a.dtype):
+            raise ValueError(f"sparse rows: the kept rows must be {a.dtype} {self.shape}, got "
+                             f"{np.asarray(kept).dtype} {np.shape(kept)}")
+        self.kept = None if kept is None else np.ascontiguousarray(kept)
 
     def chunks(self, rows: int | None = None) -> Iterator[np.ndarray]:
         """The rows in order, ``rows`` (default :data:`CHUNK_ROWS`) at a time, in one reused
         buffer (each valid until the next)."""
         rows = max(1, rows or CHUNK_ROWS)
-        take = np.empty((min(rows, self.shape[0]), self.shape[1]), self.source.dtype)
-        cast = take if self.dtype == self.source.dtype else np.empty(take.shape, self.dtype)
+        shape = (min(rows, self.shape[0]), self.shape[1])
+        take = np.empty(shape, self.source.dtype) if self.kept is None else None
+        cast = None if self.dtype == self.source.dtype else np.empty(shape, self.dtype)
         for start in range(0, self.shape[0], rows):
-            part = self.index[start:start + rows]
-            np.take(self.source, part, axis=0, out=take[:part.size])
-            if cast is not take:
-                cast[:part.size] = take[:part.size]
-            yield cast[:part.size]
+            if take is None:  # gathered already: slices of them
+                got = self.kept[start:start + rows]
+            else:
+                part = self.index[start:start + rows]
+                got = take[:part.size]
+                np.take(self.source, part, axis=0, out=got)
+            if cast is not None:
+                cast[:len(got)] = got
+                got = cast[:len(got)]
+            yield got
 
     def array(self) -> np.ndarray:
-        return self.source.take(self.index, axis=0).astype(self.dtype, copy=False)
+        rows = self.source.take(self.index, axis=0) if self.kept is None else self.kept
+        return rows.astype(self.dtype, copy=False)
 
 
 def narrowest(a: np.ndarray) -> np.dtype:
@@ -97,13 +109,20 @@ def narrowest(a: np.ndarray) -> np.dtype:
 
 
 def layout(arrays: Mapping[str, np.ndarray], names: Sequence[str],
-           keep: np.ndarray | None = None) -> dict:
+           keep: np.ndarray | None = None,
+           kept: Mapping[str, np.ndarray] | None = None) -> dict:
     """What :func:`pack` stores, with each packed array's rows left as a :class:`Rows` (no
     copy yet): the form :func:`save` streams. ``keep``: the rows to keep (bool, the shape of
     the arrays but the last axis) where the caller already knows them, e.g. the transient
     collector, which finds them on the device; every row it leaves out must be zero, or its
-    values are lost. None: the rows where any of the arrays has a non-zero bit pattern."""
+    values are lost. None: the rows where any of the arrays has a non-zero bit pattern.
+    ``kept``: {name: (kept rows, channels)}, the rows ``keep`` keeps of some of the arrays,
+    already gathered in order (the transient collector gathers them on the device, in two
+    threads, faster than a host gather of them; needs ``keep``)."""
     names = [n for n in names if n in arrays]
+    if kept and (keep is None or set(kept) - set(names)):
+        raise ValueError(f"sparse rows: gathered rows {sorted(kept)} need the rows kept and "
+                         f"packed arrays of those names ({sorted(names)})")
     if not names:
         return dict(arrays)
     shapes = {n: np.shape(arrays[n]) for n in names}
@@ -128,7 +147,7 @@ def layout(arrays: Mapping[str, np.ndarray], names: Sequence[str],
     out[SHAPE] = np.asarray(rows_shape, np.int64)
     for n in names:
         a = np.asarray(arrays[n])
-        out[PREFIX + n] = rows = Rows(a, index)
+        out[PREFIX + n] = rows = Rows(a, index, (kept or {}).get(n))
         if rows.dtype != a.dtype:
             out[DTYPE + n] = np.asarray(a.dtype.str)
     return out
@@ -149,12 +168,13 @@ def pack(arrays: Mapping[str, np.ndarray], names: Sequence[str]) -> dict[str, np
 
 
 def members(arrays: Mapping[str, np.ndarray], names: Sequence[str] = (),
-            keep: np.ndarray | None = None) -> Iterator[tuple[str, np.dtype, tuple, Iterator]]:
+            keep: np.ndarray | None = None, kept: Mapping[str, np.ndarray] | None = None
+            ) -> Iterator[tuple[str, np.dtype, tuple, Iterator]]:
     """(stored name, dtype, shape, chunks of its bytes in C order) of each array an entry
     stores (:func:`layout`): packed rows a chunk at a time, other arrays as slices of
     themselves, not NumPy's 16 MB copies of them. Each chunk is valid until the next.
-    ``keep``: as for :func:`layout`."""
-    for name, value in layout(arrays, names, keep).items():
+    ``keep``, ``kept``: as for :func:`layout`."""
+    for name, value in layout(arrays, names, keep, kept).items():
         if isinstance(value, Rows):
             yield name, value.dtype, value.shape, value.chunks()
             continue
@@ -176,13 +196,14 @@ def write_npy(fh: BinaryIO, dtype: np.dtype, shape: tuple, chunks: Iterator) -> 
 
 
 def save(fh: BinaryIO, arrays: Mapping[str, np.ndarray], names: Sequence[str] = (),
-         compress: bool = False, keep: np.ndarray | None = None) -> None:
-    """Write ``arrays`` (those in ``names`` packed, :func:`layout` with ``keep``) to ``fh`` as
-    an ``.npz`` archive that ``np.load`` reads (what ``np.savez`` / ``np.savez_compressed``
-    write), the packed rows a chunk at a time."""
+         compress: bool = False, keep: np.ndarray | None = None,
+         kept: Mapping[str, np.ndarray] | None = None) -> None:
+    """Write ``arrays`` (those in ``names`` packed, :func:`layout` with ``keep`` and ``kept``)
+    to ``fh`` as an ``.npz`` archive that ``np.load`` reads (what ``np.savez`` /
+    ``np.savez_compressed`` write), the packed rows a chunk at a time."""
     method = zipfile.ZIP_DEFLATED if compress else zipfile.ZIP_STORED
     with zipfile.ZipFile(fh, "w", compression=method, allowZip64=True) as zf:
-        for name, dtype, shape, chunks in members(arrays, names, keep):
+        for name, dtype, shape, chunks in members(arrays, names, keep, kept):
             with zf.open(name + ".npy", "w", force_zip64=True) as member:
                 write_npy(member, dtype, shape, chunks)
 

@@ -113,6 +113,37 @@ def test_rows_given_by_the_caller_are_the_rows_stored(tmp_path):
             sparse_rows.layout(arrays, ("mean",), keep=bad)
 
 
+@pytest.mark.parametrize("compress", [False, True])
+def test_rows_gathered_by_the_caller_are_stored_as_the_host_gathers_them(tmp_path, monkeypatch,
+                                                                         compress):
+    # the transient collector gathers the kept rows on the device (cache.put's kept): the
+    # entry's files are byte for byte those of the host's gather, a narrowed integer array
+    # included, over several chunks
+    monkeypatch.setattr(sparse_rows, "CHUNK_ROWS", 7)
+    rng = np.random.default_rng(6)
+    arrays = {**_hostile(rng), "total_var": rng.random((5, 6, 3))}
+    names = ("mean", "color", "non_zero")
+    keep = np.unpackbits(sparse_rows.pack(arrays, names)[sparse_rows.MASK],
+                         count=5 * 6 * 40).astype(bool).reshape(5, 6, 40)
+    kept = {n: arrays[n].reshape(-1, 3)[keep.reshape(-1)] for n in names}
+    entries = [Cache(tmp_path / d).put("k", {"a": 1}, arrays=arrays, compress=compress,
+                                       sparse=names, rows=keep, kept=k)
+               for d, k in (("host", None), ("given", kept))]
+    assert entries[0].meta["files"] == entries[1].meta["files"]
+    got = Cache(tmp_path / "given").get("k", {"a": 1}).arrays()
+    assert all(_same_bits(got[n], arrays[n]) for n in arrays)
+    # what the caller gathered is what is stored (its rows are the caller's to get right)
+    other = {"mean": np.ones_like(kept["mean"])}
+    layout = sparse_rows.layout(arrays, names, keep=keep, kept=other)
+    assert np.array_equal(layout["rows~mean"].array(), other["mean"])
+    for bad in ({"mean": kept["mean"][:-1]}, {"non_zero": kept["non_zero"].astype(np.uint8)}):
+        with pytest.raises(ValueError, match="kept rows must be"):
+            sparse_rows.layout(arrays, names, keep=keep, kept=bad)
+    for keep_, bad in ((None, kept), (keep, {"total_var": kept["mean"]})):
+        with pytest.raises(ValueError, match="gathered rows"):
+            sparse_rows.layout(arrays, names, keep=keep_, kept=bad)
+
+
 @pytest.mark.parametrize("values, stored", [
     ((0, 64), np.uint8), ((-3, 100), np.int8), ((0, 300), np.uint16), ((-1, 40000), np.int32),
     ((0, 2 ** 31 - 1), np.int32)])

@@ -11,12 +11,9 @@ def test_device_rows_equal_the_host_scan_of_the_bits(tr):
     import drjit as dr
     from dbench.datasets import sparse_rows
     from dbench.datasets.mitsuba_env import mitsuba
-    from dbench.datasets.transient.collector import StatsCollector
+    from dbench.datasets.transient import stored_rows
 
     mi = mitsuba()
-    col = StatsCollector.__new__(StatsCollector)  # the row logic needs no scene
-    col.mi, col.dr = mi, dr
-    col.height, col.width, col.bins = 2, 3, 5
     shape = (2, 3, 5, 3)
     mean, var_mean, m3 = (np.zeros(shape) for _ in range(3))
     non_zero, color = np.zeros(shape, np.int32), np.zeros(shape, np.float32)
@@ -28,16 +25,24 @@ def test_device_rows_equal_the_host_scan_of_the_bits(tr):
     color[0, 2, 4, 2] = -0.0
     color[1, 1, 1] = (0.5, 0.25, 0.0)
     F = mi.Float64
-    flags = col._flags(F(mean.ravel()), F(var_mean.ravel()), F(m3.ravel()),
-                       mi.Int32(non_zero.ravel()), mi.Float32(color.ravel()))
+    device = {"mean": F(mean.ravel()), "var_mean": F(var_mean.ravel()), "m3": F(m3.ravel()),
+              "non_zero": mi.Int32(non_zero.ravel()), "color": mi.Float32(color.ravel())}
+    flags = stored_rows.value_flags(*device.values())
     dr.eval(*flags)
-    stat, colour = col._rows(*flags)
+    stat, colour = stored_rows.row_masks(*flags)
     for found, arrays in ((stat, {"mean": mean, "var_mean": var_mean, "m3": m3,
                                   "non_zero": non_zero}), (colour, {"color": color})):
-        host = np.unpackbits(sparse_rows.layout(arrays, list(arrays))[sparse_rows.MASK],
-                             count=30).astype(bool)
+        packed = sparse_rows.pack(arrays, list(arrays))
+        host = np.unpackbits(packed[sparse_rows.MASK], count=30).astype(bool)
         assert np.array_equal(np.array(found, dtype=bool), host)
         assert 0 < host.sum() < 30
+        # the kept rows gathered on the device are the host's, bit for bit, in their own dtype
+        kept = stored_rows.kept(found, **{n: device[n] for n in arrays})
+        for n, a in arrays.items():
+            rows = a.reshape(-1, 3)[host]
+            assert kept[n].dtype == a.dtype and kept[n].tobytes() == rows.tobytes(), n
+    nothing = stored_rows.kept(mi.Bool(np.zeros(30, bool)), color=device["color"])
+    assert nothing["color"].shape == (0, 3) and nothing["color"].dtype == np.float32
 
 
 def test_state_gather_gives_each_entrys_sums_and_count(tr):

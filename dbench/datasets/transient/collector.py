@@ -61,6 +61,7 @@ from ..mitsuba_env import mitsuba, require_llvm
 from ...data import TRANSFORMS, check_transform
 from ..stats import stats_from_power_sums, transform_of_zero, variance_of_mean
 from .slots import with_slots
+from . import stored_rows
 from .voxel_sums import VoxelSums, dr_nbytes, host_array as _host
 
 PLUGIN = "transient_path_stats"
@@ -404,7 +405,9 @@ class StatsCollector:
         """Mean, variance of the mean and third central moment (float64), the mean colour
         (float32), each (H, W, T, 3), and the unpacked ``non_zero`` counts (int32), computed on
         the device from the power sums; with ``rows``, ``rows`` and ``color_rows`` ((H, W, T)
-        bool) too: the rows of the statistics and of the colour the cache stores (:meth:`_rows`).
+        bool) too: the rows of the statistics and of the colour the cache stores, and
+        ``kept_stats``, ``kept_color``: {name: (kept rows, 3)} those rows of each array, gathered
+        on the device (:mod:`.stored_rows`).
         ``stats=False`` gives the colour (and ``color_rows``) alone, for a caller that asked for
         no statistics: 6 ms instead of 10 at 128² × 100 bins (2-core CPU, LLVM).
 
@@ -426,12 +429,13 @@ class StatsCollector:
         s1, s2, s3, non_zero = self.state.gather(dr.arange(mi.UInt32, self.size))
         if not stats:  # (s2, s3 and the counts are then never evaluated)
             color = mi.Float32((self.plain if self.plain is not None else s1) / count)
-            flag = self._nonzero_bits(color) if rows else None
+            flag = stored_rows.colour_flags(color) if rows else None
             dr.eval(color, flag)
-            col = self._any_in_row(flag) if rows else None
-            dr.eval(col)
-            return {"color": _host(color).reshape(shape),
-                    **({"color_rows": _host(col).reshape(shape[:-1])} if rows else {})}
+            if not rows:
+                return {"color": _host(color).reshape(shape)}
+            (col,) = stored_rows.row_masks(flag)
+            return {"color": _host(color).reshape(shape), "color_rows": _host(col).reshape(
+                shape[:-1]), "kept_color": stored_rows.kept(col, color=color)}
         safe_n = dr.opaque(F, max(n, 1.0))
         denom = dr.opaque(F, max(n - 1.0, 1.0))
         a = s1 / safe_n
@@ -444,43 +448,19 @@ class StatsCollector:
         var_mean = sigma2 / safe_n
         mean = a + dr.opaque(F, float(self.k))
         color = mi.Float32((self.plain if self.plain is not None else s1) / count)
-        flags = self._flags(mean, var_mean, m3, non_zero, color) if rows else ()
+        flags = stored_rows.value_flags(mean, var_mean, m3, non_zero, color) if rows else ()
         dr.eval(mean, var_mean, m3, color, non_zero, *flags)
-        found = self._rows(*flags) if rows else ()
+        found = stored_rows.row_masks(*flags)
         out = {name: _host(value).reshape(shape) for name, value in
                (("mean", mean), ("var_mean", var_mean), ("m3", m3), ("color", color),
                 ("non_zero", non_zero))}
         out.update({name: _host(value).reshape(shape[:-1]) for name, value in
                     zip(("rows", "color_rows"), found)})
+        if rows:
+            out["kept_stats"] = stored_rows.kept(found[0], mean=mean, var_mean=var_mean, m3=m3,
+                                                 non_zero=non_zero)
+            out["kept_color"] = stored_rows.kept(found[1], color=color)
         return out
-
-    def _flags(self, mean, var_mean, m3, non_zero, color):
-        """Per (voxel, channel) (Bool, lazy): whether any of the statistics, and whether the
-        colour, holds a non-zero bit pattern (-0.0 and NaN count), for :meth:`_rows`; evaluated
-        in the moments' own kernel, from values still in registers."""
-        dr, mi = self.dr, self.mi
-        bits = mi.UInt64(0)
-        for a in (mean, var_mean, m3):
-            bits |= dr.reinterpret_array(mi.UInt64, a)
-        return (bits != 0) | (non_zero != 0), self._nonzero_bits(color)
-
-    def _nonzero_bits(self, color):
-        return self.dr.reinterpret_array(self.mi.UInt32, color) != 0
-
-    def _rows(self, stat, col):
-        """The (pixel, bin) rows of the statistics and of the colour the cache stores
-        (datasets/sparse_rows.py), from the evaluated flags of :meth:`_flags`: no host pass over
-        the values, nor a second read of them on the device (9.6 ms at 128² × 100 bins)."""
-        stat, col = self._any_in_row(stat), self._any_in_row(col)
-        self.dr.eval(stat, col)
-        return stat, col
-
-    def _any_in_row(self, flag):
-        """Whether any of the 3 channels of each (pixel, bin) row of ``flag`` is set (lazy)."""
-        mi, dr = self.mi, self.dr
-        row = dr.arange(mi.UInt32, self.size // 3) * 3
-        return dr.gather(mi.Bool, flag, row) | dr.gather(mi.Bool, flag, row + 1) | \
-            dr.gather(mi.Bool, flag, row + 2)
 
     def diagnostics(self) -> dict[str, int]:
         c = np.array(self.counters, dtype=np.int64)

@@ -176,6 +176,7 @@ def collect_in_integrator(scene: TransientScene, res, spp: int, seed: int = 0,
     return TransientRender(color=color, steady=steady, stats=stats, non_zero=non_zero,
                            total_var=total_var, rows={"stats": mom.get("rows"),
                                                       "color": mom.get("color_rows")},
+                           kept={"stats": mom.get("kept_stats"), "color": mom.get("kept_color")},
                            sums=sums and {"s1": sums["s1"], "s2": sums["s2"],
                                           "s3": sums["s3"], "n": col.n},
                            timing={"render_s": col.render_s,
@@ -316,7 +317,7 @@ def load_transient(scene: str | TransientScene, spp: int, res,
             out = collect_passes(sc, res, spp, seed, bins,
                                  (transform, lam) if "stats" in wanted else None,
                                  copies=copies, progress=progress)
-        color, steady, rows = out.color, out.steady, out.rows or {}
+        color, steady, rows, kept = out.color, out.steady, out.rows or {}, out.kept or {}
         meta.update(render_s=out.timing["render_s"],
                     nonfinite_samples=out.timing["nonfinite_samples"])
         meta["rendered"].append("color")
@@ -324,7 +325,8 @@ def load_transient(scene: str | TransientScene, spp: int, res,
             cache.put("transient-noisy", noisy_desc, arrays={"color": color, "steady": steady},
                       meta={"render_s": out.timing["render_s"], "timing": dict(out.timing),
                             "nonfinite_samples": out.timing["nonfinite_samples"]},
-                      compress=False, sparse=("color",), rows=rows.get("color"))
+                      compress=False, sparse=("color",), rows=rows.get("color"),
+                      kept=kept.get("color"))
         if out.stats is not None and "stats" in wanted:
             stats, non_zero, total_var = out.stats, out.non_zero, out.total_var
             meta.update(stats_s=out.timing["stats_s"])
@@ -338,7 +340,7 @@ def load_transient(scene: str | TransientScene, spp: int, res,
                       # deflating took 12-25x the write time for half the size; the empty
                       # (pixel, bin) rows are left out instead (datasets/sparse_rows.py)
                       compress=False, sparse=("mean", "var_mean", "m3", "non_zero"),
-                      rows=rows.get("stats"))
+                      rows=rows.get("stats"), kept=kept.get("stats"))
     if stats is not None:
         meta["stats_diagnostics"] = dict(stats.diagnostics)
     meta["energy_fraction"] = energy_fraction(color, steady, sc.emission)

@@ -34,6 +34,9 @@ class TransientRender:
     #: (H, W, 3) float64 variance of the mean of the per-path sums over the window's bins
     total_var: np.ndarray | None = None
     rows: dict | None = None  # {"stats", "color"}: (H, W, T) bool, rows the cache stores
+    #: {"stats", "color"}: {array name: (kept rows, 3)}, those rows already gathered (collector
+    #: (b): Cache.put's ``kept``)
+    kept: dict | None = None
 
     @property
     def energy_fraction(self) -> float:
