@@ -456,10 +456,13 @@ class StatsCollector:
                 ("non_zero", non_zero))}
         out.update({name: _host(value).reshape(shape[:-1]) for name, value in
                     zip(("rows", "color_rows"), found)})
-        if rows:
+        if rows:  # (one gather of them all where the colour keeps the statistics' rows)
+            same = np.array_equal(out["rows"], out["color_rows"])
             out["kept_stats"] = stored_rows.kept(found[0], mean=mean, var_mean=var_mean, m3=m3,
-                                                 non_zero=non_zero)
-            out["kept_color"] = stored_rows.kept(found[1], color=color)
+                                                 non_zero=non_zero, **({"color": color} if same
+                                                                       else {}))
+            out["kept_color"] = {"color": out["kept_stats"].pop("color")} if same else \
+                stored_rows.kept(found[1], color=color)
         return out
 
     def diagnostics(self) -> dict[str, int]:
