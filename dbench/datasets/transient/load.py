@@ -139,7 +139,7 @@ def collect_in_integrator(scene: TransientScene, res, spp: int, seed: int = 0,
             with ``copies=1``); default: one call of ``spp`` samples (seed
             ``pass_seed("transient-b", seed, 0)``).
         slots: per-path slots (0 = 2·max_depth, exact).
-        rows: find the rows the cache stores (``TransientRender.rows``).
+        rows: find the rows the cache stores and gather them (``TransientRender.rows``, ``kept``).
         stats: compute the moments (without: colour only; ``stats``, ``non_zero``, ``sums`` None).
     """
     if scene.integrator not in IN_INTEGRATOR:
