@@ -350,13 +350,13 @@ def run_sequence_cell(method: Denoiser, seq, metric_names=DEFAULT_METRICS,
         run = run_sequence(method, s, metric_names=names, warmup=warmup, keep_outputs=True,
                            device=where, cvvdp=cvvdp)
         result.transfer_s.append(run.summary.get("transfer_s", 0.0))
-        nd = run.nondeterministic  # the untimed warm-up's frames 0-1 against the run's
+        nd = run.nondeterministic  # frames 0-1 of an untimed pass against the run's
         if nd:
             frames = ", ".join(map(str, nd["frames"]))
             note_difference(result, s.meta.get("seed", i),
                             {k: nd[k] for k in ("max_abs_diff", "max_rel_diff")},
-                            f"frame{'s' if len(nd['frames']) > 1 else ''} {frames} in the "
-                            "untimed warm-up and in the run", "the run's calls")
+                            f"frame{'s' if len(nd['frames']) > 1 else ''} {frames} in "
+                            f"{nd['pass']} and in the run", "the run's calls")
         after = after_warmup(run.per_frame, warmup)
         result.times_s += [r["time_s"] for r in after]
         result.n_nonfinite += int(sum((~np.isfinite(o)).sum() for o in run.outputs))

@@ -3,8 +3,9 @@ warm-up, temporal stability, plots, strip comparisons and the 720p speed benchma
 
 * :func:`run_sequence` — ``reset()`` then ``denoise(frame)`` for every frame in order; per-frame
   time (``time.perf_counter`` around each call; rendering excluded) and metrics against the
-  frame's reference. Where the untimed warm-up ran (below), its outputs of frames 0-1 are
-  compared with the run's after ``reset()``: a difference is
+  frame's reference. Frames 0-1 are run twice, untimed once: before the run where the
+  untimed warm-up runs (below), else again after the run, each time after ``reset()``; their
+  outputs are compared with the run's, and a difference is
   :attr:`SequenceResult.nondeterministic`.
 * Summary (:class:`SequenceResult.summary`): mean of every metric over frames ≥ ``warmup``
   (default 8, the history-filling "slow start" of docs/methods/svgf.md §8 is excluded), median time per
@@ -80,8 +81,9 @@ class SequenceResult:
     outputs: list[np.ndarray] | None = None
     #: the judgements of the frames after the warm-up (intervals resample their pixel blocks)
     judgements: list[Any] = field(default_factory=list)
-    #: where the untimed warm-up's outputs differ from those of the same frames in the run
-    #: (:func:`warm_up_difference`); None where they are equal or there was no warm-up
+    #: where frames 0-1 of the untimed pass (the warm-up, or a second pass after the run)
+    #: differ from the run's (:func:`warm_up_difference`, and ``pass``: which); None where
+    #: they are equal
     nondeterministic: dict[str, Any] | None = None
 
     def series(self, metric: str) -> np.ndarray:
@@ -226,10 +228,19 @@ def run_sequence(method, seq: Sequence, metric_names: Iterable[str] = SEQUENCE_M
             judgements.append(j)
         rows.append(row)
         outs.append(out.astype(np.float32))
-    check_unchanged(m.name, mine, seq)
+    if not warm:
+        # a sequence longer than the warm-up had no untimed pass before it: frames 0-1 again,
+        # untimed, after a reset, so that its calls are compared too (README.md, "Usage")
+        m.reset()
+        again = _warm_up(m, seq, mine, stateless, on_device, device, available)
+    check_unchanged(m.name, mine, seq)  # (the second pass read the frames too)
+    differed = warm_up_difference(warm or again, outs)
+    if differed:
+        differed["pass"] = ("the untimed warm-up" if warm
+                            else "an untimed second pass after the run")
     res = SequenceResult(m.name, dict(m.params), rows, outputs=outs if keep_outputs else None,
                          judgements=after_warmup(judgements, warmup),
-                         nondeterministic=warm_up_difference(warm, outs))
+                         nondeterministic=differed)
     after = after_warmup(rows, warmup)
     summary: dict[str, float] = {"warmup": int(warmup), "frames": len(rows)}
     scored = [k for k in (rows[0] if rows else {}) if k not in ("frame", "time_s")]

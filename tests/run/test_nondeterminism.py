@@ -272,6 +272,28 @@ def test_a_sequence_whose_warm_up_frames_come_out_otherwise_after_reset_is_flagg
                                              "run")
 
 
+def test_a_sequence_longer_than_its_warm_up_has_frames_0_1_run_again_after_the_run():
+    """No untimed pass runs before a sequence longer than the warm-up (its first frames are
+    the warm-up): frames 0-1 are run again after it, untimed, and compared."""
+    seq = synthetic_sequence(8, 8, frames=12)
+    calls = []
+
+    class Counting(Recurrent):
+        def denoise(self, data):
+            calls.append(1)
+            return super().denoise(data)
+
+    run = run_sequence(Counting(), seq, warmup=8)
+    assert len(calls) == 14 and run.nondeterministic["frames"] == [0, 1]
+    assert run.nondeterministic["pass"] == "an untimed second pass after the run"
+    assert len(run.per_frame) == 12  # the second pass is neither timed nor scored
+    assert run_sequence(Recurrent(clears=True), seq, warmup=8).nondeterministic is None
+    res = harness.run_sequence_cell(Recurrent(), seq, metric_names=["rmse"], warmup=8,
+                                    cvvdp=False)
+    assert res.nondeterministic["calls"] == ("frames 0, 1 in an untimed second pass after the "
+                                             "run and in the run")
+
+
 def test_the_verdict_says_not_reproducible():
     flagged = ok_cell("box", 4, "unseeded")
     flagged["nondeterministic"] = {"seeds": [0], "max_abs_diff": 3.1e-5, "max_rel_diff": 2e-5}
