@@ -298,12 +298,19 @@ def run_group(config: SweepConfig, out: str, scene_name: str, spp: int,
     scene = config.scene(scene_name)
     res = config.res_for(scene)
     fingerprint = datasets.scene_fingerprint(scene, res)
-    labels = config.labels()
     scene_label = scene_labels(config, out_path)[scene_name]
     needs = {"reference"} | ({"emitter"} & set(scene.provides))
-    instances = {m: registry.get(m, **config.params.get(m, {})) for m in method_names}
+    instances, unbuilt = {}, {}
+    for m in method_names:  # a worker starts afresh: a plugin file removed since is not there
+        try:
+            instances[m] = registry.get(m, **config.params.get(m, {}))
+        except (Exception, SystemExit) as exc:  # noqa: BLE001 - that method's cells only
+            unbuilt[m] = _unbuilt(m, exc)
     for inst in instances.values():
         needs |= registry.wants(inst, scene.provides)
+    # (an unbuilt method is filed under its name: its defaults, which a label reads, are unknown)
+    labels = {m: identity.label(m, config.params.get(m)) if m in instances else m
+              for m in method_names}
     frames = load_seeds(scene, config.seed, config.seeds, spp=spp, res=res,
                         needs=needs, transform=config.transform, lam=config.lam,
                         ref_spp=folder_ref_spp(config, scene), cache=cache, progress=False,
@@ -312,17 +319,21 @@ def run_group(config: SweepConfig, out: str, scene_name: str, spp: int,
     # every cell of the group records it, and the sweep's summary and report say it
     said = input_warnings(frames[0])
     written = []
-    for m, inst in instances.items():
+    for m in method_names:
+        inst = instances.get(m)
         # this process's hash of the code (a pool worker's own: sweep_pool.worker_start)
-        ident = cell_identity(config, scene, spp, m, fingerprint, scene_label)
-        changed = identity.changed_during_sweep(m, (planned or {}).get(m), ident)
+        # (an unbuilt method's cell keeps the identity the sweep planned for it)
+        ident = ((planned or {}).get(m) or {"params": config.params.get(m, {})} if m in unbuilt
+                 else cell_identity(config, scene, spp, m, fingerprint, scene_label))
+        changed = "" if m in unbuilt else identity.changed_during_sweep(
+            m, (planned or {}).get(m), ident)
         base = {"scene": scene_label, "method": labels[m], "base_method": m, "spp": spp,
                 "res": res.key, "params": ident["params"], "identity": ident,
                 "identity_hash": identity.digest(ident),
                 **({"input_warnings": said} if said else {})}
         try:
-            if changed:
-                raise MethodError(changed)
+            if m in unbuilt or changed:
+                raise MethodError(unbuilt.get(m) or changed)
             if frames[0].kind == "sequence":
                 result = run_sequence_cell(inst, frames, metric_names=config.metrics,
                                            device=config.device)
@@ -344,6 +355,18 @@ def run_group(config: SweepConfig, out: str, scene_name: str, spp: int,
         io.write_json(cell_path(out_path, scene_label, spp, labels[m]), cell)
         written.append(m)
     return written
+
+
+def _unbuilt(method: str, exc: BaseException) -> str:
+    """The line of a cell whose method this process could not build: a pool worker or Ray task
+    loads the sweep's plugins afresh (dbench/run/sweep_pool.py), so a plugin file removed or
+    broken since the sweep started is refused here, as an edited one is."""
+    from .. import plugins
+
+    # an unknown name: the plugins this worker could not load say why
+    why = plugins.broken_reason(method) or "; ".join(
+        plugins.broken_reason(p.spec) for p in plugins.broken()) or method_failure(exc)
+    return f"{method}: not built in this sweep's worker ({why}); not scored: run the sweep again"
 
 
 def run_group_captured(config: SweepConfig, out: str, scene_name: str, spp: int,

@@ -83,13 +83,25 @@ def stop(pool: ProcessPoolExecutor) -> None:
             p.join(1.0)
 
 
+def _start_method():
+    """The workers' start method: started afresh, never forked from the sweep process. A fork
+    copies a process whose thread pools (PyTorch's OpenMP, after any tensor operation) cannot
+    run in the copy: its first such operation waited forever, so a sweep started where PyTorch
+    had already run (a notebook, a script, the test suite) hung. ``forkserver`` (Python 3.14's
+    default on Linux) forks from a clean server; ``spawn`` elsewhere."""
+    import multiprocessing
+
+    methods = multiprocessing.get_all_start_methods()
+    return multiprocessing.get_context("forkserver" if "forkserver" in methods else "spawn")
+
+
 def run_groups(fn: Callable, args: Sequence, groups: Sequence[tuple], workers: int,
                plugin_specs: Sequence[str], done: Callable[[list], None]) -> None:
     """Run ``fn(*args, *group)`` for every group on ``workers`` processes, calling ``done``
     with each group's result as it finishes; any exception or interrupt stops the pool
     before it propagates."""
     pool = ProcessPoolExecutor(max_workers=workers, initializer=worker_start,
-                               initargs=(tuple(plugin_specs),))
+                               initargs=(tuple(plugin_specs),), mp_context=_start_method())
     try:
         futures = [pool.submit(fn, *args, *g) for g in groups]
         for f in as_completed(futures):
