@@ -16,6 +16,22 @@ def counted(n: int, noun: str, plural: str | None = None) -> str:
     return f"{n} {noun if n == 1 else plural or noun + 's'}"
 
 
+def cores_text(usable: Any, present: Any) -> str:
+    """``2 cores``, or ``2 of 16 cores`` where a process may use fewer cores (``usable``: its
+    affinity mask, cgroup quota) than the machine has (``present``); where one count is no
+    integer (a record made before ``usable_cores`` was kept) the other alone. The one wording
+    of a live process (:func:`dbench.run.machine.cores_text`, ``machine_label``, which a cell
+    records and :mod:`dbench.report.cells` reads back) and of a run's recorded machine
+    (:func:`dbench.report.run_report.machine_md`)."""
+    def count(n: Any) -> bool:
+        return isinstance(n, int) and not isinstance(n, bool)
+
+    if count(usable) and count(present) and usable < present:
+        return f"{usable} of {present} cores"
+    n = present if count(present) else usable if count(usable) else None
+    return f"{n} cores" if n is not None else "cores unknown"  # "1 cores": as recorded
+
+
 def write_csv(path: str | Path, table: pd.DataFrame) -> None:
     with io.atomic_path(path, suffix=".tmp.csv") as tmp:
         table.to_csv(tmp, index=False, float_format="%.6g", encoding="utf-8")

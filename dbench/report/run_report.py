@@ -14,7 +14,7 @@ import pandas as pd
 from .. import io, metrics
 from ..resolution import size_text
 from . import headline, verdicts
-from .formats import markdown_text
+from .formats import cores_text, markdown_text
 from .tables import cells_frame
 
 #: Headline columns of a sequence run (steady and transient runs: verdicts.HEADLINE).
@@ -32,10 +32,8 @@ def metric_definitions_md() -> str:
 def machine_md(info: dict[str, Any]) -> str:
     pk = ", ".join(f"{k} {v}" for k, v in info["packages"].items())
     memory = f"\n- Memory: {info['memory']}" if info.get("memory") else ""
-    usable = info.get("usable_cores")  # taskset, a container's cpuset or CPU quota
-    cores = (f"{usable} of {info['cores']} cores usable" if isinstance(usable, int)
-             and isinstance(info["cores"], int) and usable < info["cores"]
-             else f"{info['cores']} cores")
+    # usable: taskset, a container's cpuset or CPU quota (older records lack it)
+    cores = cores_text(info.get("usable_cores"), info.get("cores"))
     return (f"- CPU: {info['cpu']} ({cores}); GPU: {info['gpu']}\n"
             f"- Python {info['python']} on {info['platform']}\n- Packages: {pk}{memory}")
 

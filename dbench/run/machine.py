@@ -61,9 +61,11 @@ def usable_cores() -> int:
 
 def cores_text() -> str:
     """``2 cores``, or ``2 of 16 cores`` where the process may use fewer than the machine has
-    (:func:`usable_cores`)."""
-    usable, present = usable_cores(), os.cpu_count() or 1
-    return f"{usable} of {present} cores" if usable < present else f"{usable} cores"
+    (:func:`usable_cores`), worded as a run's report words its recorded machine
+    (:func:`dbench.report.formats.cores_text`)."""
+    from ..report.formats import cores_text as worded  # loads pandas: only when called
+
+    return worded(usable_cores(), os.cpu_count())
 
 
 def machine_label() -> str:

@@ -6,6 +6,7 @@ from numpy._core import multiarray
 from dbench import memory
 from dbench.datasets.cache import Cache
 from dbench.metrics.judge import judge
+from dbench.report.formats import cores_text
 from dbench.report.run_report import machine_md
 from dbench.run import machine
 
@@ -75,7 +76,7 @@ def test_the_cores_a_process_may_use_are_recorded_not_only_the_machines(monkeypa
         _cgroup(monkeypatch, no_quota)
         assert machine.usable_cores() == 4
     info = {**machine.machine_info(), "cores": 16, "usable_cores": 4}
-    assert "(4 of 16 cores usable)" in machine_md(info)
+    assert "(4 of 16 cores)" in machine_md(info)  # worded as the label
     # all of them: the label and the report as before
     monkeypatch.setattr(machine.os, "sched_getaffinity", lambda pid: set(range(16)))
     _cgroup(monkeypatch, {})
@@ -94,3 +95,17 @@ def test_side_by_side_timing_names_the_usable_cores(monkeypatch):
     cell = {"status": "ok", "timed_beside": 1, "machine": machine.machine_label()}
     assert side_by_side_text([cell]) == ["timed with 2 workers side by side on 2 cores: "
                                          "time_s includes contention"]
+
+
+def test_the_live_label_and_a_recorded_machine_word_the_cores_alike(monkeypatch):
+    monkeypatch.setattr(machine.os, "cpu_count", lambda: 16)
+    monkeypatch.setattr(machine.os, "sched_getaffinity", lambda pid: {0, 1, 2, 3})
+    _cgroup(monkeypatch, {})
+    live = machine.cores_text()
+    assert live == cores_text(4, 16) == "4 of 16 cores"
+    info = {**machine.machine_info(), "cores": 16, "usable_cores": 4}
+    assert f"({live});" in machine_md(info)
+    # a record made before usable_cores was kept, or without a count: what it has
+    assert cores_text(None, 16) == cores_text(16, 16) == "16 cores"
+    assert cores_text(2, None) == "2 cores" and cores_text(None, None) == "cores unknown"
+    assert cores_text(True, 16) == "16 cores"  # a flag is no count
