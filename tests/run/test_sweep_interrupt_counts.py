@@ -30,6 +30,12 @@ def _stand_ins(monkeypatch, fail_spp: int, interrupt_spp: int) -> None:
         return harness.CellResult(method.name, dict(method.params), None, skipped="stand-in")
 
     monkeypatch.setattr(sweep, "load_seeds", load_seeds)
+    # the stand-ins reach the pool's workers only in a fork (they start afresh otherwise:
+    # tests/run/test_sweep_pool_start.py); what is tested here is the counting
+    import multiprocessing
+
+    from dbench.run import sweep_pool
+    monkeypatch.setattr(sweep_pool, "_start_method", lambda: multiprocessing.get_context("fork"))
     monkeypatch.setattr(sweep, "render_references", lambda *a, **k: 0.0)
     monkeypatch.setattr(harness, "run_cell", run_cell)
 
