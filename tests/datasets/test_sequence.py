@@ -347,8 +347,7 @@ def test_steady_methods_run_on_sequences_frame_by_frame():
     assert m.applies_to("sequence", {"color"}) == (True, "")
     assert m.per_frame("sequence") and not m.per_frame("steady")
     run_sequence(m, seq, warmup=2)
-    # reset before every frame: no history (frames 0-1 run again after the run, untimed)
-    assert m.seen == [1] * 8
+    assert m.seen == [1] * 8  # reset before every frame (and the untimed rerun of frames 0-1)
     jbf = registry.get("jbf")
     ok, why = jbf.applies_to("sequence", {"color", "albedo", "normal", "depth"})
     assert ok, why
