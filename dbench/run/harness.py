@@ -353,8 +353,7 @@ def run_sequence_cell(method: Denoiser, seq, metric_names=DEFAULT_METRICS,
         nd = run.nondeterministic  # frames 0-1 of an untimed pass against the run's
         if nd:
             frames = ", ".join(map(str, nd["frames"]))
-            note_difference(result, s.meta.get("seed", i),
-                            {k: nd[k] for k in ("max_abs_diff", "max_rel_diff")},
+            note_difference(result, s.meta.get("seed", i), nd,  # (its differences only)
                             f"frame{'s' if len(nd['frames']) > 1 else ''} {frames} in "
                             f"{nd['pass']} and in the run", "the run's calls")
         after = after_warmup(run.per_frame, warmup)

@@ -325,15 +325,15 @@ def run_group(config: SweepConfig, out: str, scene_name: str, spp: int,
         # (an unbuilt method's cell keeps the identity the sweep planned for it)
         ident = ((planned or {}).get(m) or {"params": config.params.get(m, {})} if m in unbuilt
                  else cell_identity(config, scene, spp, m, fingerprint, scene_label))
-        changed = "" if m in unbuilt else identity.changed_during_sweep(
+        changed = unbuilt.get(m) or identity.changed_during_sweep(
             m, (planned or {}).get(m), ident)
         base = {"scene": scene_label, "method": labels[m], "base_method": m, "spp": spp,
                 "res": res.key, "params": ident["params"], "identity": ident,
                 "identity_hash": identity.digest(ident),
                 **({"input_warnings": said} if said else {})}
         try:
-            if m in unbuilt or changed:
-                raise MethodError(unbuilt.get(m) or changed)
+            if changed:
+                raise MethodError(changed)
             if frames[0].kind == "sequence":
                 result = run_sequence_cell(inst, frames, metric_names=config.metrics,
                                            device=config.device)
