@@ -305,9 +305,12 @@ def variance_of_mean(n: int, s1: np.ndarray, s2: np.ndarray) -> np.ndarray | Non
     """Var of the mean of ``n`` plain (identity) samples from their float64 sums Σx and Σx², with
     the rules of :func:`stats_from_sums` (docs/methods/statistical.md §4.1: zero-variance tolerance, the
     n/(n−1) factor), or None below 2 samples (the spread is unknown, not zero). Used for the
-    transient noisy totals (``TransientFrame.total_var``) of both collectors."""
+    transient noisy totals (``TransientFrame.total_var``) of both collectors, (H, W, 3) in and
+    out: NumPy's form of the rules, because the fused :func:`stats_from_sums` would load Numba's
+    compiled code (about 0.5 s, the first time in a process) for a per-pixel image."""
     if n < 2:
         return None
     s1 = np.asarray(s1, np.float64)
-    return np.asarray(stats_from_sums(n, s1, s2, np.zeros_like(s1), "identity", 0.5).var_mean,
-                      np.float64)
+    stats = stats_from_power_sums(n, s1, np.asarray(s2, np.float64), np.zeros_like(s1), 0.0,
+                                  "identity", 0.5)
+    return np.asarray(stats.var_mean, np.float64)

@@ -135,6 +135,20 @@ def test_variance_of_mean_from_plain_sums():
     assert variance_of_mean(1, x[0], x[0] ** 2) is None
 
 
+def test_variance_of_mean_needs_no_compiled_code(monkeypatch):
+    """A per-pixel image's variance is NumPy's work: the fused kernel's first call in a process
+    loads Numba's compiled code (about 0.5 s), which a transient load would then pay."""
+    from dbench.datasets import stats
+
+    def compiled(*args):
+        raise AssertionError("the fused kernel was called")
+
+    monkeypatch.setattr(stats, "_moments", compiled)
+    x = np.random.default_rng(6).exponential(2.0, size=(8, 4, 3))
+    got = variance_of_mean(8, x.sum(0), (x * x).sum(0))
+    np.testing.assert_allclose(got, x.var(0, ddof=1) / 8, rtol=1e-10, atol=1e-15)
+
+
 def test_one_count_for_every_pixel_stays_one_number():
     """SampleStats given n as one number keeps it as a read-only broadcast (dbench/data.py):
     the count reads as the (H, W, T, C) array, costs 8 bytes, not 8 a value, and cannot be
