@@ -58,6 +58,45 @@ def interleaved_times(fns: list[Callable[[], Any]], repeats: int) -> list[list[f
     return times
 
 
+#: what a fresh process runs (:func:`first_call_times`): ``target`` ("module:function") builds
+#: the call of ``way`` from the keyword arguments, untimed; only the call itself is timed
+_FIRST_CALL_CHILD = (
+    "import importlib, json, sys, time\n"
+    "module, name = sys.argv[1].split(':')\n"
+    "call = getattr(importlib.import_module(module), name)(sys.argv[2], **json.loads(sys.argv[3]))\n"
+    "t0 = time.perf_counter()\n"
+    "call()\n"
+    "print(json.dumps(time.perf_counter() - t0))\n")
+
+
+def first_call_times(target: str, ways: list[str], kwargs: dict[str, Any], rounds: int,
+                     env: dict[str, str] | None = None) -> dict[str, list[float]]:
+    """Wall seconds of the first call of each of ``ways`` in a fresh Python process, ``rounds``
+    processes each, the order reversed every other round (as :func:`interleaved_times`).
+    What the warm rounds leave out and a one-off ``dbench run`` pays: the first trace of each
+    kernel in a process, memory touched for the first time, code loaded on first use. Imports
+    and building the call are not timed; compiled kernels come from the disk caches the warm
+    rounds filled. ``target(way, **kwargs)`` returns the call (its module's docstring says
+    what each way is); ``env`` is added to this process's environment."""
+    import os
+    import subprocess
+    import sys
+
+    times: dict[str, list[float]] = {w: [] for w in ways}
+    for r in range(rounds):
+        for way in (ways if r % 2 == 0 else ways[::-1]):
+            done = subprocess.run(
+                [sys.executable, "-c", _FIRST_CALL_CHILD, target, way, json.dumps(kwargs)],
+                capture_output=True, text=True, env={**os.environ, **(env or {})})
+            lines = done.stdout.strip().splitlines()
+            if done.returncode != 0 or not lines:
+                said = (done.stderr.strip().splitlines() or ["no output"])[-1]
+                raise RuntimeError(f"first call of {way!r} in a fresh process failed "
+                                   f"(exit {done.returncode}): {said}")
+            times[way].append(float(json.loads(lines[-1])))
+    return times
+
+
 def round_medians(times: dict[str, list[float]], ratios: dict[str, str],
                   base: str = "plain") -> dict[str, Any]:
     """``<name>_s``: the median of each timing's rounds (:func:`interleaved_times`), and for each

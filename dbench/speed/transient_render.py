@@ -16,7 +16,10 @@ work"; docs/architecture.md):
 * ``color_stats_cached``: the same from a cache that holds them (a second run): reading,
   checking and unpacking the entries, against rendering them again.
 
-The ratios are medians of the per-round ratios to ``plain``.
+The ratios are medians of the per-round ratios to ``plain``. After the warm rounds, ``plain``
+and ``color_stats`` are timed once more each as the first call of a fresh process
+(:func:`dbench.speed.timing.first_call_times`, :func:`first_call`): what a one-off ``dbench
+run`` waits for, beside the warm figures of a long sweep.
 """
 from __future__ import annotations
 
@@ -26,7 +29,7 @@ from pathlib import Path
 from typing import Any
 
 
-from .timing import interleaved_times, round_medians
+from .timing import first_call_times, interleaved_times, round_medians
 from ..memory import advice_text
 from ..resolution import parse_res, size_text
 
@@ -34,6 +37,30 @@ from ..resolution import parse_res, size_text
 RATIOS = {"color": "ratio_color_vs_plain", "color_stats": "ratio_stats_vs_plain",
           "color_stats_nocache": "ratio_stats_nocache_vs_plain",
           "color_stats_cached": "ratio_stats_cached_vs_plain"}
+#: fresh processes per way, at most, for the first-call figures (each imports Mitsuba: seconds)
+FIRST_ROUNDS = 3
+
+
+def first_call(way: str, scene: str, res: int | str, spp: int, bins: int, transform: str,
+               lam: float, cache_root: str):
+    """The call a fresh process times for :func:`bench_render_transient`'s first-call figures:
+    ``"plain"`` renders as mitransient alone, ``"color_stats"`` loads colour and statistics
+    into a new empty cache folder under ``cache_root``. The catalogue scene is looked up here,
+    untimed; loading it into Mitsuba is part of either call."""
+    from ..datasets.cache import Cache
+    from ..datasets.scenes import catalogue as scenes
+    from ..datasets.transient import load as tr
+    from ..datasets.transient.render import render_signal
+
+    sc = scenes.get(scene)
+    window = sc.window(bins)
+    tr._mitransient()
+    if way == "plain":
+        return lambda: render_signal(sc, parse_res(res), window, 1, spp, 0)
+    cache = Cache(Path(tempfile.mkdtemp(dir=cache_root)))
+    return lambda: tr.load_transient(sc, spp, parse_res(res), needs={"color", "stats"},
+                                     transform=transform, lam=lam, bins=window.bins,
+                                     cache=cache, progress=False)
 
 
 def is_transient(scene: str) -> bool:
@@ -86,6 +113,11 @@ def bench_render_transient(scene: str = "fog-transient", res=48, spp: int = 64,
         frame = load({"color", "stats"}, Cache(enabled=False))
         # what the cached way read (both entries, or it timed a render)
         hits = list(load({"color", "stats"}, filled).meta["cache_hits"])
+        first = first_call_times(
+            f"{__name__}:first_call", ["plain", "color_stats"],
+            dict(scene=scene, res=res.key, spp=int(spp), bins=window.bins,
+                 transform=transform, lam=float(lam), cache_root=str(root)),
+            min(repeats, FIRST_ROUNDS), env={"DBENCH_VARIANT": variant})
     finally:
         shutil.rmtree(root, ignore_errors=True)
     out: dict[str, Any] = {"benchmark": "render-transient", "scene": scene, "res": res.key,
@@ -94,6 +126,9 @@ def bench_render_transient(scene: str = "fog-transient", res=48, spp: int = 64,
                            "transform": transform, "variant": variant, "rounds": repeats,
                            "cached_hits": hits, "memory": advice_text()}
     out.update(round_medians(times, RATIOS))
+    out.update(round_medians({f"first_{k}": t for k, t in first.items()},
+                             {"first_color_stats": "ratio_first_stats_vs_plain"},
+                             base="first_plain"), first_rounds=len(first["plain"]))
     return out
 
 
@@ -112,4 +147,8 @@ def format_result(result: dict[str, Any]) -> str:
         f"({r['ratio_stats_nocache_vs_plain']:.2f}x plain)"]
         + ([f"  colour + statistics, cached      {r['color_stats_cached_s']:.3f} s "
             f"({r['ratio_stats_cached_vs_plain']:.2f}x plain)"]
-           if "color_stats_cached_s" in r else []))
+           if "color_stats_cached_s" in r else [])
+        + ([f"  first call in a fresh process ({r['first_rounds']} each): plain "
+            f"{r['first_plain_s']:.3f} s, colour + statistics (load) "
+            f"{r['first_color_stats_s']:.3f} s ({r['ratio_first_stats_vs_plain']:.2f}x plain)"]
+           if "first_plain_s" in r else []))

@@ -20,7 +20,11 @@ def test_bench_render_transient_shape(tr, tmp_path, monkeypatch):
     for name, ratio in RATIOS.items():
         assert r[f"{name}_s"] > 0 and r[ratio] > 0
     assert r["plain_s"] > 0
+    # the first call of a fresh process, once each (rounds ≤ repeats)
+    assert r["first_rounds"] == 1 and r["first_plain_s"] > 0 and r["first_color_stats_s"] > 0
+    assert r["ratio_first_stats_vs_plain"] == r["first_color_stats_s"] / r["first_plain_s"]
     assert "x plain" in format_result(r) and "statistics, cached" in format_result(r)
+    assert "first call in a fresh process (1 each)" in format_result(r)
     assert r["cached_hits"] == ["color", "stats"]  # the cached way reads, never renders
     assert r["memory"].startswith("NumPy")  # how the process asked for memory (dbench/memory.py)
     assert list(tmp_path.iterdir()) == []  # the fresh caches are removed afterwards
