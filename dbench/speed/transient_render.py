@@ -74,10 +74,12 @@ def is_transient(scene: str) -> bool:
 
 def bench_render_transient(scene: str = "fog-transient", res=48, spp: int = 64,
                            bins: int | None = 100, repeats: int = 3,
-                           transform: str = "identity", lam: float = 0.5) -> dict[str, Any]:
+                           transform: str = "identity", lam: float = 0.5,
+                           first_rounds: int = FIRST_ROUNDS) -> dict[str, Any]:
     """Per-bin statistics cost of the transient scene ``scene`` against a plain mitransient
     render of the same spp, size and bins, all timed in interleaved rounds after one warm-up
-    round (JIT compilation and scene loading are not part of the figures)."""
+    round (JIT compilation and scene loading are not part of the figures), then the first call
+    of a fresh process, ``min(repeats, first_rounds)`` processes each (0: none)."""
     from ..datasets.scenes import catalogue as scenes
     from ..datasets.transient import load as tr
     from ..datasets.cache import Cache
@@ -117,7 +119,7 @@ def bench_render_transient(scene: str = "fog-transient", res=48, spp: int = 64,
             f"{__name__}:first_call", ["plain", "color_stats"],
             dict(scene=scene, res=res.key, spp=int(spp), bins=window.bins,
                  transform=transform, lam=float(lam), cache_root=str(root)),
-            min(repeats, FIRST_ROUNDS), env={"DBENCH_VARIANT": variant})
+            min(repeats, first_rounds), env={"DBENCH_VARIANT": variant})
     finally:
         shutil.rmtree(root, ignore_errors=True)
     out: dict[str, Any] = {"benchmark": "render-transient", "scene": scene, "res": res.key,
@@ -126,9 +128,10 @@ def bench_render_transient(scene: str = "fog-transient", res=48, spp: int = 64,
                            "transform": transform, "variant": variant, "rounds": repeats,
                            "cached_hits": hits, "memory": advice_text()}
     out.update(round_medians(times, RATIOS))
-    out.update(round_medians({f"first_{k}": t for k, t in first.items()},
-                             {"first_color_stats": "ratio_first_stats_vs_plain"},
-                             base="first_plain"), first_rounds=len(first["plain"]))
+    if first["plain"]:
+        out.update(round_medians({f"first_{k}": t for k, t in first.items()},
+                                 {"first_color_stats": "ratio_first_stats_vs_plain"},
+                                 base="first_plain"), first_rounds=len(first["plain"]))
     return out
 
 

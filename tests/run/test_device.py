@@ -102,9 +102,11 @@ def test_bench_gpu_dry_run_on_cpu_tensors():
     assert "error" not in ok, ok
     assert ok["res"] == 8 and ok["bins"] == 100 and ok["target_ratio"] == 1.2
     assert ok["ratio_stats_vs_plain"] > 0 and ok["ratio_stats_nocache_vs_plain"] > 0
+    assert ok["first_rounds"] == 1 and ok["ratio_first_stats_vs_plain"] > 0  # a fresh process
     assert bad["scene"] == "no-such-scene" and "error" in bad
     text = gpu.markdown(r)
     assert "Transient per-bin statistics, cornell-transient 8² × 100 bins" in text
+    assert "as the first call of a fresh process" in text
     assert "no-such-scene 8²: failed" in text
 
 
