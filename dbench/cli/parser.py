@@ -100,7 +100,8 @@ def build_parser() -> argparse.ArgumentParser:
     lp.set_defaults(func=cmd_list)
 
     rp = sub.add_parser("render", help="render or find cached buffers of scenes")
-    rp.add_argument("--scene", action="append", default=None, metavar="all|NAME[,NAME...]",
+    rp.add_argument("--scene", "--scenes", action="append", default=None,
+                    metavar="all|NAME[,NAME...]",
                     help="all (default), or NAME[,NAME...] as sweep --scenes takes them; "
                     "repeatable, each list adding its scenes")
     rp.add_argument("--spp", type=count, default=16, help="samples per pixel of the noisy "
@@ -111,10 +112,12 @@ def build_parser() -> argparse.ArgumentParser:
     rp.set_defaults(func=cmd_render)
 
     sw = sub.add_parser("sweep", help="the benchmark grid, resumable")
-    sw.add_argument("--methods", action="append", default=None, metavar="all|NAME[,NAME...]",
-                    help="all (default) or NAME[,NAME...]; repeatable, each list adding its "
-                    "methods")
-    sw.add_argument("--scenes", action="append", default=None, metavar="all|NAME[,NAME...]",
+    # --method and --scene as run and render spell them: the same options
+    sw.add_argument("--methods", "--method", action="append", default=None,
+                    metavar="all|NAME[,NAME...]", help="all (default) or NAME[,NAME...]; "
+                    "repeatable, each list adding its methods")
+    sw.add_argument("--scenes", "--scene", action="append", default=None,
+                    metavar="all|NAME[,NAME...]",
                     help="all (default), or catalogue names, scene files (.xml, .py) and "
                     "folders of renders; repeatable, each list adding its scenes; a path that "
                     "exists is one scene even when its name holds a comma")

@@ -152,3 +152,15 @@ def test_a_scene_refused_in_a_sweep_names_the_scenes_option(files, capsys, name,
     assert err.startswith("dbench: --scenes ") and f"{name}: {said}" in err \
         and err.count("\n") == 1, err
     assert not (files / "out").exists()
+
+
+def test_sweep_and_render_take_the_spellings_of_each_other_and_of_run():
+    """``sweep --scene`` was refused as ambiguous (``--scenes`` or ``--scene-param``), though
+    ``run`` and ``render`` spell it so; each spelling is the same list option."""
+    from dbench.cli.parser import build_parser
+
+    parse = build_parser().parse_args
+    sw = parse(["sweep", "--scene", "cornell", "--scenes", "textured", "--method", "jbf"])
+    assert sw.scenes == ["cornell", "textured"] and sw.methods == ["jbf"]
+    rp = parse(["render", "--scenes", "cornell", "--scene", "textured"])
+    assert rp.scene == ["cornell", "textured"]
