@@ -125,6 +125,7 @@ def bench_render_transient(scene: str = "fog-transient", res=48, spp: int = 64,
     out: dict[str, Any] = {"benchmark": "render-transient", "scene": scene, "res": res.key,
                            "spp": int(spp), "bins": window.bins,
                            "integrator": sc.integrator, "collector": frame.meta["collector"],
+                           "sums_layout": frame.meta.get("sums_layout"),
                            "transform": transform, "variant": variant, "rounds": repeats,
                            "cached_hits": hits, "memory": advice_text()}
     out.update(round_medians(times, RATIOS))
@@ -139,7 +140,9 @@ def format_result(result: dict[str, Any]) -> str:
     r = result
     return "\n".join([
         f"transient render benchmark: {r['scene']} {size_text(r['res'])} × {r['bins']} bins at "
-        f"{r['spp']} spp, {r['integrator']}, collector {r['collector']}, {r['variant']} "
+        f"{r['spp']} spp, {r['integrator']}, collector {r['collector']}"
+        + (f" ({r['sums_layout']} layout)" if r.get("sums_layout") else "")
+        + f", {r['variant']} "
         f"(ratios: medians over {r['rounds']} interleaved rounds)",
         f"  plain mitransient render         {r['plain_s']:.3f} s",
         f"  colour (load, fresh cache)       {r['color_s']:.3f} s "

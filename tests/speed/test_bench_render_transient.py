@@ -17,6 +17,8 @@ def test_bench_render_transient_shape(tr, tmp_path, monkeypatch):
     assert r["benchmark"] == "render-transient" and r["scene"] == "cornell-transient"
     assert (r["res"], r["spp"], r["bins"], r["rounds"]) == (8, 4, 10, 1)
     assert r["integrator"] == "transient_path" and r["collector"] == "b"
+    assert r["sums_layout"] == "packets"  # an 8² video's copies fit on any machine
+    assert "collector b (packets layout)" in format_result(r)
     for name, ratio in RATIOS.items():
         assert r[f"{name}_s"] > 0 and r[ratio] > 0
     assert r["plain_s"] > 0

@@ -330,6 +330,8 @@ def load_transient(scene: str | TransientScene, spp: int, res,
         if out.stats is not None and "stats" in wanted:
             stats, non_zero, total_var = out.stats, out.non_zero, out.total_var
             meta.update(stats_s=out.timing["stats_s"])
+            if "sums_layout" in out.timing:  # collector (b): packets or compact (voxel_sums.py)
+                meta["sums_layout"] = out.timing["sums_layout"]
             meta["rendered"].append("stats")
             totals = {} if total_var is None else {"total_var": total_var}
             cache.put("transient-stats", stats_desc,
