@@ -124,7 +124,7 @@ def _main(argv: Sequence[str] | None) -> int:
     # the renderer probes keep their verdict in the command's cache folder, and nowhere under
     # --no-cache (dbench/datasets/mitsuba_env.py); sweep workers inherit both
     from ..datasets.mitsuba_env import PROBE_STORE_ENV
-    from ..datasets.mitsuba_log import QUIET_ENV
+    from ..datasets.mitsuba_log import QUIET_ENV, follow_quiet
 
     probe_store = ("none" if getattr(args, "no_cache", False) else getattr(args, "cache", None))
     saved = {k: os.environ.get(k) for k in ("DBENCH_RENDER_DEVICE", PROBE_STORE_ENV, QUIET_ENV)}
@@ -132,13 +132,14 @@ def _main(argv: Sequence[str] | None) -> int:
         os.environ["DBENCH_RENDER_DEVICE"] = render_device
     if probe_store:
         os.environ[PROBE_STORE_ENV] = str(probe_store)
-    # --quiet: Mitsuba's own log lines are kept in the command's log beside its output (run.log,
-    # sweep.log, export.log, stress.log), not shown (sweep workers inherit it:
-    # dbench/datasets/mitsuba_log.py)
+    # --quiet: Mitsuba's own log lines and Dr.Jit's start-up lines are kept in the command's log
+    # beside its output (run.log, sweep.log, export.log, stress.log), not shown, and Dr.Jit
+    # prints its errors alone (sweep workers inherit it: dbench/datasets/mitsuba_log.py)
     if getattr(args, "quiet", False) and args.command in LOGGED:
         os.environ[QUIET_ENV] = "1"
     else:
         os.environ.pop(QUIET_ENV, None)
+    follow_quiet()
     from ..datasets.mitsuba_env import forget_probes, probe_folder
     from ..io import missing_folders
 
@@ -169,6 +170,7 @@ def _main(argv: Sequence[str] | None) -> int:
                 os.environ.pop(key, None)
             else:
                 os.environ[key] = value
+        follow_quiet()
 
 
 def _error_code(exc: Exception, debug: bool) -> int:

@@ -302,8 +302,12 @@ def deferred_interrupts():
 def mitsuba():
     """Import Mitsuba with the chosen variant set (once per process) and return the module.
     An interrupt during the import waits until it is done (:func:`deferred_interrupts`)."""
+    from .mitsuba_log import drjit_start, follow_quiet, route
+
     variant = current_variant()  # its probes run in child processes: interruptible
-    with deferred_interrupts():
+    # Dr.Jit's start-up warnings (an unusable kernel cache) go to the run's files as Mitsuba's
+    # do, shown unless --quiet
+    with deferred_interrupts(), drjit_start():
         try:
             import drjit as dr
             import mitsuba as mi
@@ -315,8 +319,7 @@ def mitsuba():
             except Exception as exc:  # noqa: BLE001
                 raise RendererUnavailableError(
                     f"cannot set Mitsuba variant {variant}: {exc}") from exc
-        from .mitsuba_log import route
-
+        follow_quiet()  # Dr.Jit's later lines: errors alone under --quiet
         route(mi)  # Mitsuba's warnings: kept in the run's files, shown unless --quiet
         threads = os.environ.get("DBENCH_RENDER_THREADS")
         if threads:

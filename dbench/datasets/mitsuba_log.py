@@ -10,42 +10,100 @@ with the other libraries' warnings in ``run.log`` / ``sweep.log`` (under ``--qui
 and it is shown on standard error as Mitsuba showed it, unless the command runs under
 ``--quiet`` (README.md, "Usage"): the command line sets :data:`QUIET_ENV` for the command's
 duration, and a sweep's worker processes inherit it.
+
+Dr.Jit writes its own warnings from C++ to standard error, past Mitsuba's logger: at its import
+("jit_init(): the HOME environment variable is not set, disabling the kernel cache", "could not
+use ... as the kernel cache directory": renders then compile every kernel anew) and, rarely,
+later (its memory cache flushed). No Dr.Jit call can come before its import, so
+:func:`drjit_start` keeps standard error aside while Dr.Jit and Mitsuba start and hands those
+lines to the Python logger ``drjit``, kept and shown as Mitsuba's are (as Dr.Jit words them);
+after the import :func:`follow_quiet` sets Dr.Jit's own level (``dr.set_log_level``) to errors
+alone under ``--quiet``.
 """
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
 import sys
+import tempfile
+from typing import Iterator
 
 #: Set (to "1") by the command line for a command run with ``--quiet``: Mitsuba's lines are
 #: then kept (run.log, sweep.log, export.log, stress.log) and not shown.
 QUIET_ENV = "DBENCH_QUIET"
 #: The Python logger Mitsuba's lines go to.
 LOGGER = "mitsuba"
+#: The Python logger Dr.Jit's lines at its import go to.
+DRJIT_LOGGER = "drjit"
 
 #: The appender installed in this process (kept referenced: Mitsuba holds the C++ side only).
 _installed: list = []
 
 
 class _Terminal(logging.Handler):
-    """Shows the ``mitsuba`` logger's lines on standard error unless :data:`QUIET_ENV` is set;
-    being a handler, it also keeps Python's last-resort handler from printing them twice."""
+    """Shows a renderer logger's lines on standard error unless :data:`QUIET_ENV` is set
+    (Mitsuba's after "mitsuba warning: ", Dr.Jit's as it printed them); being a handler, it
+    also keeps Python's last-resort handler from printing them twice."""
 
     def emit(self, record: logging.LogRecord) -> None:
         if os.environ.get(QUIET_ENV):
             return
+        text = record.getMessage()
+        if record.name == LOGGER:
+            text = f"mitsuba {record.levelname.lower()}: {text}"
         try:
-            print(f"mitsuba {record.levelname.lower()}: {record.getMessage()}", file=sys.stderr,
-                  flush=True)
+            print(text, file=sys.stderr, flush=True)
         except Exception:  # noqa: BLE001 - a log line never ends the command
             pass
 
 
-def _logger() -> logging.Logger:
-    log = logging.getLogger(LOGGER)
+def _logger(name: str = LOGGER) -> logging.Logger:
+    log = logging.getLogger(name)
     if not any(isinstance(h, _Terminal) for h in log.handlers):
         log.addHandler(_Terminal(logging.WARNING))
     return log
+
+
+@contextlib.contextmanager
+def drjit_start() -> Iterator[None]:
+    """Around the first import of Dr.Jit and Mitsuba and the choice of the variant (which waits
+    for Dr.Jit's start): what is written to standard error meanwhile (Dr.Jit's start-up
+    warnings) goes to the ``drjit`` logger, one record a line, once the block ends. Where Dr.Jit
+    is already imported, nothing is kept aside."""
+    if "drjit" in sys.modules:
+        yield
+        return
+    sys.stderr.flush()
+    with tempfile.TemporaryFile() as kept:
+        saved = os.dup(2)
+        os.dup2(kept.fileno(), 2)
+        try:
+            yield
+        finally:
+            try:
+                sys.stderr.flush()
+                dr = sys.modules.get("drjit")
+                if dr is not None:  # Dr.Jit starts beside its import: wait for its lines
+                    dr.has_backend(dr.JitBackend.LLVM)
+            finally:
+                os.dup2(saved, 2)
+                os.close(saved)
+            kept.seek(0)
+            text = kept.read().decode("utf-8", errors="replace")
+            for line in text.splitlines():
+                if line.strip():
+                    _logger(DRJIT_LOGGER).warning("%s", line.rstrip())
+
+
+def follow_quiet() -> None:
+    """Dr.Jit's own level for what it prints after its import: errors alone while
+    :data:`QUIET_ENV` is set, else warnings (its default); nothing where Dr.Jit is not imported
+    (:func:`drjit_start` then covers its start)."""
+    dr = sys.modules.get("drjit")
+    if dr is None or not hasattr(dr, "set_log_level"):
+        return
+    dr.set_log_level(dr.LogLevel.Error if os.environ.get(QUIET_ENV) else dr.LogLevel.Warn)
 
 
 def forward(mi, level, text: str) -> None:
@@ -81,4 +139,5 @@ def route(mi) -> None:
     _logger()
 
 
-__all__ = ["LOGGER", "QUIET_ENV", "forward", "route"]
+__all__ = ["DRJIT_LOGGER", "LOGGER", "QUIET_ENV", "drjit_start", "follow_quiet", "forward",
+           "route"]

@@ -125,3 +125,57 @@ def test_a_quiet_stress_keeps_the_mitsuba_warnings_in_stress_log(renderer, isola
     assert n >= 1 and log.splitlines()[0].endswith(("library warning", "library warnings"))
     assert f"on the hostile inputs: {log.splitlines()[0]}, see {tmp_path / 'stress.log'}" \
         in cap.out
+
+
+#: Dr.Jit's start-up warning where its kernel cache folder cannot be made (a file stands in its
+#: path), printed by Dr.Jit from C++ while it is imported.
+JIT_WARNED = "jit_init(): could not use"
+
+
+@pytest.mark.mitsuba
+@pytest.mark.parametrize("quiet", [True, False])
+def test_dr_jits_start_up_warning_is_kept_and_shown_only_without_quiet(renderer, tmp_path, quiet):
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    scene = tmp_path / "warns.xml"
+    scene.write_text(XML)
+    (tmp_path / "a-file").write_text("")
+    env = {**os.environ, "DRJIT_CACHE_DIR": str(tmp_path / "a-file" / "kernels")}
+    out = tmp_path / "run"
+    r = subprocess.run([sys.executable, "-m", "dbench", "run", "--scene", str(scene), "--method",
+                        "noisy", *TINY, "--cache", str(tmp_path / "cache"), "--out", str(out)]
+                       + (["--quiet"] if quiet else []), env=env, capture_output=True, text=True,
+                       timeout=600, cwd=Path(__file__).resolve().parents[2])
+    assert r.returncode == 0, r.stderr
+    shown = [ln for ln in (r.stdout + r.stderr).splitlines() if JIT_WARNED in ln]
+    assert len(shown) == (0 if quiet else 1), r.stderr
+    assert all(ln.startswith(JIT_WARNED) for ln in shown)  # as Dr.Jit words it
+    log = (out / "run.log").read_text(encoding="utf-8").splitlines()
+    kept = [ln for ln in log if JIT_WARNED in ln]
+    assert len(kept) == 1 and kept[0].startswith(f"WARNING drjit: {JIT_WARNED}"), log
+
+
+@pytest.mark.mitsuba
+@pytest.mark.parametrize("quiet", [True, False])
+def test_a_quiet_command_has_dr_jit_print_its_errors_alone(renderer, tmp_path, monkeypatch,
+                                                           quiet):
+    """Dr.Jit's warnings after its import (its memory cache flushed) reach no terminal under
+    --quiet: its own level is errors alone while the command runs, its default after it."""
+    import drjit as dr
+
+    from dbench.methods.noisy import Noisy
+
+    levels = []
+    denoise = Noisy.denoise
+    monkeypatch.setattr(Noisy, "denoise",
+                        lambda self, data: levels.append(dr.log_level()) or denoise(self, data))
+    scene = tmp_path / "warns.xml"
+    scene.write_text(XML)
+    assert main(["run", "--scene", str(scene), "--method", "noisy", *TINY,
+                 "--cache", str(tmp_path / "cache"), "--out", str(tmp_path / "run")]
+                + (["--quiet"] if quiet else [])) == 0
+    assert levels and set(levels) == {dr.LogLevel.Error if quiet else dr.LogLevel.Warn}
+    assert dr.log_level() == dr.LogLevel.Warn
