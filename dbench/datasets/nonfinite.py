@@ -48,28 +48,39 @@ def total(counts: Iterable[int | None]) -> int | None:
     return sum(known) if known else None
 
 
-def nonfinite_text(noisy: int | None, reference: int | None) -> str:
+#: How a transient video's noisy count from collector (a) is made (:func:`nonfinite_text`).
+PER_PATH = ("; the noisy video's once per path over its whole length, not per bin: collector "
+            "(a)'s film does not keep them bin by bin")
+
+
+def nonfinite_text(noisy: int | None, reference: int | None, per_path: bool = False) -> str:
     """What a render's NaN or ±Inf sample values (one per channel; a transient video's over
     all its bins; None: not counted, where no reference was loaded) mean for its
     numbers, or '' where there were none: they are counted as 0 (README.md, "How renders
     work") where Mitsuba's film would hold NaN, so the images are not the scene's as Mitsuba
-    renders it."""
+    renders it. ``per_path``: the noisy count is a transient video's from collector (a), made
+    in its steady image (one per path and channel, whichever bins the path's values reached,
+    in the window or not) where collector (b) counts one per bin (:data:`PER_PATH`)."""
     parts = [f"{n} in the {what}" for n, what in ((noisy, "noisy image"),
                                                   (reference, "reference")) if n]
     if not parts:
         return ""
+    how = PER_PATH if per_path and noisy else ""
     return (f"the renderer gave NaN or ±Inf sample values ({' and '.join(parts)}; one per "
-            f"channel), counted as 0 where Mitsuba's own film would hold NaN: the scene holds a "
-            f"non-finite value (a texture's pixel, a parameter), which its numbers leave out")
+            f"channel{how}), counted as 0 where Mitsuba's own film would hold NaN: the scene "
+            f"holds a non-finite value (a texture's pixel, a parameter), which its numbers "
+            f"leave out")
 
 
-def note_nonfinite(meta: dict) -> dict:
+def note_nonfinite(meta: dict, per_path: bool = False) -> dict:
     """``meta`` (a frame's or a sequence's) with ``nonfinite_warning`` added where its
-    ``nonfinite_samples`` or ``ref_nonfinite_samples`` is above 0 (:func:`nonfinite_text`)."""
-    said = nonfinite_text(meta.get("nonfinite_samples"), meta.get("ref_nonfinite_samples"))
+    ``nonfinite_samples`` or ``ref_nonfinite_samples`` is above 0 (:func:`nonfinite_text`;
+    ``per_path`` for a transient video's from collector (a))."""
+    said = nonfinite_text(meta.get("nonfinite_samples"), meta.get("ref_nonfinite_samples"),
+                          per_path)
     if said:
         meta["nonfinite_warning"] = said
     return meta
 
 
-__all__ = ["NONFINITE_VERSION", "nonfinite_text", "note_nonfinite", "total", "zeroed"]
+__all__ = ["NONFINITE_VERSION", "PER_PATH", "nonfinite_text", "note_nonfinite", "total", "zeroed"]

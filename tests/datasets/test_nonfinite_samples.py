@@ -265,3 +265,56 @@ def test_entries_cached_before_the_counts_are_not_read_as_new(renderer, tmp_path
                 assert m["nonfinite_samples"] > 0 and m["ref_nonfinite_samples"] > 0, (name, k)
             for f in metas:
                 assert np.isfinite(f.reference).all(), (name, k)
+
+
+#: A room whose back wall's texture holds NaN texels, seen from the camera and lit by bounces:
+#: a path that carries such a value reaches several bins of a fine window.
+ROOM = '''
+def build(mi, width, height):
+    T = mi.ScalarTransform4f
+    wall = {{"type": "diffuse", "reflectance": {{"type": "rgb", "value": 0.7}}}}
+    return {{"type": "scene",
+            "sensor": {{"type": "perspective", "fov": 60,
+                        "to_world": T().look_at(origin=[0, 0, 3], target=[0, 0, 0],
+                                                up=[0, 1, 0])}},
+            "back": {{"type": "rectangle", "bsdf": {{"type": "diffuse", "reflectance": {{
+                "type": "bitmap", "filename": "{tex}", "filter_type": "nearest"}}}}}},
+            "floor": {{"type": "rectangle", "bsdf": wall,
+                       "to_world": T().translate([0, -1, 1]).rotate([1, 0, 0], -90)}},
+            "left": {{"type": "rectangle", "bsdf": wall,
+                      "to_world": T().translate([-1, 0, 1]).rotate([0, 1, 0], 90)}},
+            "lamp": {{"type": "sphere", "center": [0.0, 0.8, 1.0], "radius": 0.15,
+                      "emitter": {{"type": "area", "radiance": {{"type": "rgb", "value": 20}}}}}}}}
+
+kind = "transient"
+window_start = {start}
+window_end = {end}
+bins = 40
+max_depth = 5
+'''
+
+
+def test_a_videos_count_from_collector_a_says_how_it_was_made(renderer, tmp_path):
+    """Collector (b) counts a NaN or ±Inf value once per bin a path reaches; collector (a)'s
+    1-spp film drops such a value where it lands in an empty bin, so (a) counts them once per
+    path in its steady image: fewer than (b) over a wide window (a path's values in several
+    bins), more over a narrow one (values outside it). Same scene and seed; (a)'s warning says
+    how its count was made, (b)'s does not (README.md, "How renders work")."""
+    from dbench import datasets
+
+    _scene(tmp_path, True)
+    tex = (tmp_path / "tex.exr").as_posix()
+    counts = {}
+    for name, start, end in (("wide", 2.0, 14.0), ("narrow", 4.0, 4.6)):
+        path = tmp_path / f"{name}.py"
+        path.write_text(ROOM.format(tex=tex, start=start, end=end))
+        for collector in ("a", "b"):
+            video = datasets.load(str(path), spp=4, res=16, collector=collector,
+                                  needs={"color"}, progress=False,
+                                  cache=datasets.Cache(tmp_path / "c"))
+            said = video.meta["nonfinite_warning"]
+            per_path = "once per path over its whole length, not per bin" in said
+            assert per_path == (collector == "a"), (name, collector, said)
+            counts[name, collector] = video.meta["nonfinite_samples"]
+    assert 0 < counts["wide", "a"] < counts["wide", "b"], counts
+    assert counts["narrow", "a"] > counts["narrow", "b"] > 0, counts

@@ -37,8 +37,9 @@ reference mean per bin from the chunk spread, docs/judging.md §2). ``meta`` hol
 for a catalogue scene as it is), integrator settings and timings, and ``nonfinite_samples``
 and ``ref_nonfinite_samples``: the noisy video's and the reference's NaN or ±Inf sample values
 over all bins, counted as 0 (collector (b) counts them per path and bin; (a) and the
-reference as their renders hold them, :func:`collect_passes`), with ``nonfinite_warning``
-where either is above 0 (:mod:`dbench.datasets.nonfinite`).
+reference as their renders hold them, :func:`collect_passes`: (a) once per path in its steady
+image, which :func:`~dbench.datasets.nonfinite.nonfinite_text` says), with
+``nonfinite_warning`` where either is above 0 (:mod:`dbench.datasets.nonfinite`).
 
 Example:
     >>> from dbench import datasets
@@ -391,7 +392,7 @@ def load_transient(scene: str | TransientScene, spp: int, res,
 
     return TransientFrame(color=color, stats=stats, steady=steady,
                           non_zero=None if non_zero is None else non_zero,
-                          meta=note_nonfinite(meta),
+                          meta=note_nonfinite(meta, per_path=which == "a"),
                           total_var=total_var, **buffers)
 
 

@@ -88,7 +88,10 @@ def collect_passes(scene: TransientScene, res, spp: int, seed: int = 0,
         (host-side accumulation) and ``nonfinite_samples``: the passes' NaN or ±Inf values
         (one per channel), each counted as 0 (:mod:`dbench.datasets.nonfinite`), over all
         bins of the video and in the steady image: mitransient's film gives a 1-spp pass's
-        non-finite bin values as 0, so its steady image is where they show.
+        non-finite value as 0 where it lands in an empty bin (its scatter-add keeps it only
+        where the bin already holds a value), so its steady image is where they show, once
+        per path and channel, in the window or not; collector (b) counts one per bin
+        (README.md, "How renders work"; the warning says which).
     """
     check_count("spp", spp)
     res = parse_res(res)
