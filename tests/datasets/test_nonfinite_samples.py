@@ -156,6 +156,9 @@ def test_sequences_and_videos_count_them_in_every_frame_and_bin(renderer, tmp_pa
                               cache=datasets.Cache(tmp_path / "c"))
         assert video.meta["nonfinite_samples"] > 0 and video.meta["ref_nonfinite_samples"] > 0
         assert np.isfinite(video.color).all() and np.isfinite(video.reference).all()
+        # (b)'s steady image, one render of all spp, held NaN (and so its energy fraction)
+        assert np.isfinite(video.steady).all(), collector
+        assert np.isfinite(video.meta["energy_fraction"]), collector
         assert "in the noisy image and" in video.meta["nonfinite_warning"], collector
 
 

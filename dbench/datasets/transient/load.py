@@ -61,7 +61,7 @@ from .. import render as _render
 from ..scenes import catalogue as _scenes
 from ..cache import Cache
 from ..mitsuba_env import mitsuba, scene_cache, versions
-from ..nonfinite import NONFINITE_VERSION, note_nonfinite
+from ..nonfinite import NONFINITE_VERSION, note_nonfinite, zeroed
 from ..references import check_ref_seed, check_render_args, reference_meta
 from ..references import reference_spp as default_ref
 from ..scenes.record import Scene, register_scene
@@ -346,6 +346,9 @@ def load_transient(scene: str | TransientScene, spp: int, res,
                       rows=rows.get("stats"), kept=kept.get("stats"))
     if stats is not None:
         meta["stats_diagnostics"] = dict(stats.diagnostics)
+    # collector (b)'s steady image is one mi.render of all spp: a pixel a NaN or ±Inf sample
+    # reached is NaN, which counts as 0 as a whole (a cached entry's too); its count is (b)'s
+    steady = zeroed(steady)[0]
     meta["energy_fraction"] = energy_fraction(color, steady, sc.emission)
     meta["window_covers_all"] = bool(meta["energy_fraction"] >= COVERS_ALL)
 
