@@ -139,7 +139,7 @@ def _main(argv: Sequence[str] | None) -> int:
         os.environ[QUIET_ENV] = "1"
     else:
         os.environ.pop(QUIET_ENV, None)
-    follow_quiet()
+    level = follow_quiet()  # the level a notebook had set is given back at the end
     from ..datasets.mitsuba_env import forget_probes, probe_folder
     from ..io import missing_folders
 
@@ -170,7 +170,7 @@ def _main(argv: Sequence[str] | None) -> int:
                 os.environ.pop(key, None)
             else:
                 os.environ[key] = value
-        follow_quiet()
+        follow_quiet(level)
 
 
 def _error_code(exc: Exception, debug: bool) -> int:

@@ -96,14 +96,19 @@ def drjit_start() -> Iterator[None]:
                     _logger(DRJIT_LOGGER).warning("%s", line.rstrip())
 
 
-def follow_quiet() -> None:
-    """Dr.Jit's own level for what it prints after its import: errors alone while
-    :data:`QUIET_ENV` is set, else warnings (its default); nothing where Dr.Jit is not imported
-    (:func:`drjit_start` then covers its start)."""
+def follow_quiet(level=None):
+    """Dr.Jit's own level for what it prints after its import: ``level`` where given (the one
+    a command found, given back when it ends), else errors alone while :data:`QUIET_ENV` is
+    set, else warnings (its default); nothing where Dr.Jit is not imported (:func:`drjit_start`
+    then covers its start). Returns the level it replaced (None: not imported)."""
     dr = sys.modules.get("drjit")
     if dr is None or not hasattr(dr, "set_log_level"):
-        return
-    dr.set_log_level(dr.LogLevel.Error if os.environ.get(QUIET_ENV) else dr.LogLevel.Warn)
+        return None
+    before = dr.log_level()
+    if level is None:
+        level = dr.LogLevel.Error if os.environ.get(QUIET_ENV) else dr.LogLevel.Warn
+    dr.set_log_level(level)
+    return before
 
 
 def forward(mi, level, text: str) -> None:
