@@ -140,6 +140,9 @@ def _main(argv: Sequence[str] | None) -> int:
     else:
         os.environ.pop(QUIET_ENV, None)
     level = follow_quiet()  # the level a notebook had set is given back at the end
+    from ..datasets.mitsuba_env import forget_loads
+
+    forget_loads()  # a scene file's warnings in this command's log, though loaded before
     from ..datasets.mitsuba_env import forget_probes, probe_folder
     from ..io import missing_folders
 

@@ -33,6 +33,7 @@ from functools import lru_cache
 from pathlib import Path
 
 from ..errors import DbenchInputError, RendererUnavailableError
+from .mitsuba_log import loading
 
 LLVM_VARIANT = "llvm_ad_rgb"
 CUDA_VARIANT = "cuda_ad_rgb"
@@ -160,17 +161,47 @@ LIVE_SCENES = 2
 _SCENE_CACHES: list = []
 #: the scene of the last :func:`focus`
 _focused: list = [None]
+#: the arguments of the loads each :func:`scene_cache` loader made (:func:`forget_loads`)
+_LOADS_MADE: list[set] = []
 
 
-def scene_cache(maxsize: int = LIVE_SCENES):
+def scene_cache(maxsize: int = LIVE_SCENES, loads: bool = True):
     """``functools.lru_cache(maxsize)`` for a function that returns loaded Mitsuba objects (a
     scene, its batch or transient form, a scene file's objects, a collector holding one),
-    registered so that :func:`focus` drops them."""
+    registered so that :func:`focus` drops them. A load with arguments it was called with
+    before (its objects dropped meanwhile) runs without Mitsuba's warnings, which the first
+    load showed and kept (:func:`dbench.datasets.mitsuba_log.loading`): a sweep reads a scene
+    file when it checks its scenes and again for its renders, after other scenes' (README.md,
+    "Usage"). ``loads=False``: a function of objects loaded already (a collector of a loaded
+    scene), whose arguments a record of calls would keep alive past :func:`focus`."""
     def wrap(fn):
-        cached = lru_cache(maxsize=maxsize)(fn)
+        # the arguments of every load made (descriptions: scenes, sizes, paths)
+        loaded_before: set = set()
+        _LOADS_MADE.append(loaded_before)
+
+        @functools.wraps(fn)
+        def load(*args, **kwargs):
+            key = (args, tuple(sorted(kwargs.items())))
+            with loading(key in loaded_before):
+                out = fn(*args, **kwargs)
+            loaded_before.add(key)
+            return out
+
+        cached = lru_cache(maxsize=maxsize)(load if loads else fn)
         _SCENE_CACHES.append(cached)
         return cached
     return wrap
+
+
+def forget_loads() -> None:
+    """A command starts: its loads are first loads again, whose warnings are forwarded and kept
+    in its own log (:func:`scene_cache`), and its sweep's workers inherit its own lines alone
+    (:func:`dbench.datasets.mitsuba_log.forget`)."""
+    from . import mitsuba_log
+
+    for made in _LOADS_MADE:
+        made.clear()
+    mitsuba_log.forget()
 
 
 def focus(scene) -> None:

@@ -19,6 +19,15 @@ later (its memory cache flushed). No Dr.Jit call can come before its import, so
 lines to the Python logger ``drjit``, kept and shown as Mitsuba's are (as Dr.Jit words them);
 after the import :func:`follow_quiet` sets Dr.Jit's own level (``dr.set_log_level``) to errors
 alone under ``--quiet``.
+
+Scenes are loaded inside :func:`loading` (:func:`dbench.datasets.mitsuba_env.scene_cache`). A
+load that repeats one this process made before (the same loader and arguments, its objects
+dropped meanwhile by :func:`dbench.datasets.mitsuba_env.focus`: a scene file read when a sweep
+checks its scenes and loaded again for its renders after other scenes') gives the first load's
+warnings, shown and kept then, so they are not forwarded again; nor are, in a sweep's pool
+worker or Ray task, the warnings the sweep process forwarded from its own loads
+(:func:`load_lines`, :func:`inherit`), which the worker's loads of the same scenes repeat
+(docs/mitsuba.md §3).
 """
 from __future__ import annotations
 
@@ -39,6 +48,14 @@ DRJIT_LOGGER = "drjit"
 
 #: The appender installed in this process (kept referenced: Mitsuba holds the C++ side only).
 _installed: list = []
+#: One entry per :func:`loading` block open, innermost last: whether its load repeats one made
+#: before (a module-wide stack, not a thread's: Mitsuba loads a file's objects on its own
+#: threads, which log from there).
+_loading: list[bool] = []
+#: The warnings forwarded while this process loaded scenes for the first time, in order.
+_load_lines: list[str] = []
+#: In a sweep's pool worker or Ray task: the sweep process's :data:`_load_lines` (:func:`inherit`).
+_inherited: set[str] = set()
 
 
 class _Terminal(logging.Handler):
@@ -116,7 +133,42 @@ def forward(mi, level, text: str) -> None:
     formatter without date and level, "[HDRFilm] ...") to the ``mitsuba`` logger."""
     py_level = logging.ERROR if level >= mi.LogLevel.Error else (
         logging.WARNING if level >= mi.LogLevel.Warn else logging.INFO)
-    _logger().log(py_level, "%s", text.rstrip())
+    text = text.rstrip()
+    if _loading and py_level < logging.ERROR:
+        if _loading[-1] or text in _inherited:  # forwarded by the first load already
+            return
+        _load_lines.append(text)
+    _logger().log(py_level, "%s", text)
+
+
+@contextlib.contextmanager
+def loading(again: bool = False):
+    """Inside the block a scene is loaded; ``again``: the load repeats one this process made
+    before, and Mitsuba's warnings are dropped (module docstring). Errors are always
+    forwarded."""
+    _loading.append(bool(again))
+    try:
+        yield
+    finally:
+        _loading.pop()
+
+
+def load_lines() -> tuple[str, ...]:
+    """The warnings this process's first loads of scenes forwarded (for :func:`inherit`)."""
+    return tuple(dict.fromkeys(_load_lines))
+
+
+def forget() -> None:
+    """Forget the lines earlier loads forwarded or a sweep process handed on (a new command:
+    :func:`dbench.datasets.mitsuba_env.forget_loads`)."""
+    _load_lines.clear()
+    _inherited.clear()
+
+
+def inherit(lines) -> None:
+    """In a sweep's pool worker or Ray task: the sweep process's :func:`load_lines`, kept there,
+    are not forwarded again when the worker's loads of the same scenes repeat them."""
+    _inherited.update(str(line) for line in lines)
 
 
 def route(mi) -> None:
@@ -144,5 +196,5 @@ def route(mi) -> None:
     _logger()
 
 
-__all__ = ["DRJIT_LOGGER", "LOGGER", "QUIET_ENV", "drjit_start", "follow_quiet", "forward",
-           "route"]
+__all__ = ["DRJIT_LOGGER", "LOGGER", "QUIET_ENV", "drjit_start", "follow_quiet", "forget",
+           "forward", "inherit", "load_lines", "loading", "route"]

@@ -384,14 +384,17 @@ def run_group_captured(config: SweepConfig, out: str, scene_name: str, spp: int,
 
 def run_group_with_plugins(plugin_specs: Sequence[str], config: SweepConfig, out: str,
                            scene_name: str, spp: int, method_names: list[str],
-                           planned: dict[str, dict] | None = None, most_beside: int = 0
-                           ) -> dict[str, list[str]]:
+                           planned: dict[str, dict] | None = None, most_beside: int = 0,
+                           load_lines: Sequence[str] = ()) -> dict[str, list[str]]:
     """:func:`run_group_captured` after loading the parent's plugins (a Ray task's start-up);
     its cells record how many tasks may run beside it on its node, at most ``most_beside``
-    (:func:`dbench.run.sweep_pool.ray_beside`)."""
+    (:func:`dbench.run.sweep_pool.ray_beside`). ``load_lines``: as a pool worker's
+    (:func:`dbench.run.sweep_pool.worker_start`)."""
     from .. import plugins, registry  # noqa: F401 - the built-in methods before the plugins
+    from ..datasets import mitsuba_log
 
     plugins.worker_init(plugin_specs)
+    mitsuba_log.inherit(load_lines)
     return run_group_captured(config, out, scene_name, spp, method_names, planned,
                               sweep_pool.ray_beside(most_beside))
 
@@ -433,7 +436,11 @@ def run_sweep(config: SweepConfig, out: str | Path, executor: str = "local", wor
         groups, done, skips = plan(config, out)
         if groups and not config.no_cache:  # created only once nothing refused the sweep
             check_cache(config)
-        t_refs = render_references(config, sorted({g[0] for g in groups}), progress)
+        # the last scene checked first, the first group's scene last: a scene file's objects,
+        # loaded when it was checked or its reference rendered, then serve its next renders
+        # too wherever no other scene's load comes between (mitsuba_env.focus drops them)
+        order = list(reversed(dict.fromkeys(g[0] for g in groups)))
+        t_refs = render_references(config, order, progress)
         for path, cell in skips:
             io.write_json(path, cell)
         skipped = len(skips)

@@ -50,12 +50,17 @@ def _die_with_parent() -> None:
         pass
 
 
-def worker_start(plugin_specs: Sequence[str] = ()) -> None:
+def worker_start(plugin_specs: Sequence[str] = (), load_lines: Sequence[str] = ()) -> None:
     """Process-pool initializer: ignore Ctrl-C (the sweep process stops the pool), end at once
     on the SIGTERM with which :func:`stop` ends it, die with the parent, then load the parent's
     plugins (entry points, $DBENCH_PLUGINS and every --plugin), so the worker can build plugin
-    methods, and hash every method's code afresh."""
+    methods, and hash every method's code afresh. ``load_lines``: the Mitsuba warnings the
+    sweep process's loads of its scenes gave, kept in sweep.log once, which the worker's loads
+    of the same scenes do not repeat (:func:`dbench.datasets.mitsuba_log.inherit`)."""
     from .. import plugins, registry  # noqa: F401 - the built-in methods before the plugins
+    from ..datasets import mitsuba_log
+
+    mitsuba_log.inherit(load_lines)
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     # the sweep process's SIGTERM handler, forked into the worker, raised its interrupt there:
@@ -100,8 +105,11 @@ def run_groups(fn: Callable, args: Sequence, groups: Sequence[tuple], workers: i
     """Run ``fn(*args, *group)`` for every group on ``workers`` processes, calling ``done``
     with each group's result as it finishes; any exception or interrupt stops the pool
     before it propagates."""
+    from ..datasets.mitsuba_log import load_lines
+
     pool = ProcessPoolExecutor(max_workers=workers, initializer=worker_start,
-                               initargs=(tuple(plugin_specs),), mp_context=_start_method())
+                               initargs=(tuple(plugin_specs), load_lines()),
+                               mp_context=_start_method())
     try:
         futures = [pool.submit(fn, *args, *g) for g in groups]
         for f in as_completed(futures):
@@ -149,8 +157,11 @@ def execute(groups: Sequence[tuple], args: tuple, executor: str, workers: int, p
         if not ray.is_initialized():
             ray.init(ignore_reinit_error=True, include_dashboard=False, log_to_driver=False)
         remote = ray.remote(remote_fn)
-        pending = [remote.remote(plugin_specs, *args, *g, most_beside=len(groups) - 1)
-                   for g in groups]
+        from ..datasets.mitsuba_log import load_lines
+
+        lines = load_lines()  # as the pool's workers get them (worker_start)
+        pending = [remote.remote(plugin_specs, *args, *g, most_beside=len(groups) - 1,
+                                 load_lines=lines) for g in groups]
         while pending:
             ready, pending = ray.wait(pending, num_returns=1)
             done(ray.get(ready[0]))

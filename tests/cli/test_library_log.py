@@ -60,6 +60,84 @@ def test_a_quiet_sweep_keeps_the_mitsuba_warning_in_its_log_once(renderer, tmp_p
     assert log.count(WARNED) == 1, log
 
 
+@pytest.mark.mitsuba
+@pytest.mark.parametrize("workers", ["1", "2"])
+def test_a_scene_file_swept_beside_another_scene_warns_once(renderer, tmp_path, capfd,
+                                                             workers):
+    """The file is read when the sweep checks its scenes, then cornell's reference drops its
+    objects (mitsuba_env.focus) and its renders load it again, in the sweep's process or in a
+    pool worker: the same warnings, kept and shown once (mitsuba_log.loading)."""
+    scene = tmp_path / "warns.xml"
+    scene.write_text(XML)
+    assert main(["sweep", "--scenes", f"cornell,{scene}", "--methods", "noisy", *TINY,
+                 "--workers", workers, "--cache", str(tmp_path / "cache"),
+                 "--out", str(tmp_path / "S")]) == 0
+    cap = capfd.readouterr()
+    assert (cap.out + cap.err).count(WARNED) == 1
+    log = (tmp_path / "S" / "sweep.log").read_text(encoding="utf-8")
+    assert log.count(WARNED) == 1 and log.startswith("1 library warning\n"), log
+
+
+@pytest.mark.mitsuba
+def test_a_scene_file_swept_on_ray_warns_once(renderer, tmp_path):
+    """A Ray task loads the file again, as a pool worker does (sweep_pool.execute)."""
+    ray = pytest.importorskip("ray")
+    scene = tmp_path / "warns.xml"
+    scene.write_text(XML)
+    try:
+        ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+        assert main(["sweep", "--scenes", f"cornell,{scene}", "--methods", "noisy", *TINY,
+                     "--executor", "ray", "--quiet", "--cache", str(tmp_path / "cache"),
+                     "--out", str(tmp_path / "S")]) == 0
+    finally:
+        ray.shutdown()
+    log = (tmp_path / "S" / "sweep.log").read_text(encoding="utf-8")
+    assert log.count(WARNED) == 1, log
+
+
+@pytest.mark.mitsuba
+def test_each_command_keeps_the_warnings_of_its_own_loads(renderer, tmp_path):
+    """Commands in one process (a notebook): the file loaded again by a later command, after
+    another scene's dropped its objects, still has its warnings in that command's log."""
+    scene = tmp_path / "warns.xml"
+    scene.write_text(XML)
+    common = ["--method", "noisy", *TINY, "--quiet", "--no-cache"]  # each renders
+    for k, name in enumerate([str(scene), "cornell", str(scene)]):
+        assert main(["run", "--scene", name, *common, "--out", str(tmp_path / f"r{k}")]) == 0
+    for k in (0, 2):
+        log = (tmp_path / f"r{k}" / "run.log").read_text(encoding="utf-8")
+        assert log.count(WARNED) == 1, (k, log)
+
+
+def test_a_repeated_or_inherited_load_drops_its_warnings_and_keeps_its_errors(monkeypatch):
+    """dbench/datasets/mitsuba_log.py: the innermost load decides; an error always passes; a
+    pool worker drops, in its loads only, the lines the sweep process's loads forwarded."""
+    from types import SimpleNamespace
+
+    from dbench.datasets import mitsuba_log as ml
+
+    mi = SimpleNamespace(LogLevel=SimpleNamespace(Warn=3, Error=4))
+    monkeypatch.setattr(ml, "_load_lines", [])
+    monkeypatch.setattr(ml, "_inherited", set())
+    with library_warnings() as caught:
+        with ml.loading():
+            ml.forward(mi, 3, "first")
+            with ml.loading(again=True):
+                ml.forward(mi, 3, "first")  # a repeat inside a first load: dropped
+                ml.forward(mi, 4, "broken")
+            ml.forward(mi, 3, "outer")
+        with ml.loading(again=True):
+            with ml.loading():  # a first load inside a repeated one: its own lines pass
+                ml.forward(mi, 3, "new")
+        assert ml.load_lines() == ("first", "outer", "new")
+        ml.inherit(["outer"])
+        with ml.loading():
+            ml.forward(mi, 3, "outer")
+        ml.forward(mi, 3, "outer")  # outside a load (a render's warning): forwarded
+    assert caught == ["WARNING mitsuba: first", "ERROR mitsuba: broken",
+                      "WARNING mitsuba: outer", "WARNING mitsuba: new", "WARNING mitsuba: outer"]
+
+
 def test_one_warning_is_one_warning_in_the_log_and_the_count():
     assert log_text(["x"]).splitlines()[0] == "1 library warning"
     assert log_text(["x", "y"]).splitlines()[0] == "2 library warnings"

@@ -67,3 +67,37 @@ def test_a_scene_file_is_loaded_once_though_another_scene_came_before(renderer, 
     _load(str(path), tmp_path)
     _load(str(path), tmp_path / "again", seed=1)
     assert len(loads) == 1
+
+
+def test_the_record_of_loads_keeps_no_loaded_scene_alive(renderer):
+    """A collector's argument is a loaded scene: the record by which a repeated load's warnings
+    are dropped (mitsuba_env.scene_cache) must not keep it, or the scene would outlive focus."""
+    import sys
+
+    scene, res = catalogue.get("cornell-transient"), R.parse_res(8)
+    mitsuba_env.focus(("a test's scene",))
+    sc = transient_render.loaded_transient(scene, res, scene.window(8), 1)
+    transient_load._collector(sc, scene.integrator, "identity", 0.5, scene.max_depth,
+                              scene.rr_depth, scene.camera_unwarp, 1)
+    mitsuba_env.focus(("another scene",))
+    assert sys.getrefcount(sc) == 2  # ``sc`` and the call's argument
+
+
+@pytest.mark.parametrize("first", [True, False])
+def test_a_sweep_loads_a_scene_file_beside_cornell_twice_at_most(renderer, tmp_path,
+                                                                 monkeypatch, first):
+    """Checked with the scenes, then its reference and its group: the references are rendered
+    so that the file's objects serve the next of them in either order of --scenes (the third
+    load came when the references went in the order of the names)."""
+    from dbench.cli import main
+
+    loads = []
+    real = file_load._load_xml
+    monkeypatch.setattr(file_load, "_load_xml", lambda *a: loads.append(a) or real(*a))
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "lamp.xml").write_text(lamp_scene("5"))
+    scenes = "lamp.xml,cornell" if first else "cornell,lamp.xml"
+    assert main(["sweep", "--scenes", scenes, "--methods", "noisy", "--spp", "2", "--res", "8",
+                 "--ref-spp", "16", "--repeats", "1", "--quiet", "--cache",
+                 str(tmp_path / "cache"), "--out", str(tmp_path / "S")]) == 0
+    assert len(loads) == 2

@@ -194,7 +194,7 @@ IN_INTEGRATOR = ("transient_path", "transient_prbvolpath")
 
 # one collector: it holds its loaded scene and state arrays of the size of the video's
 # statistics (docs/transient.md); seeds and repeated loads of one scene reuse it
-@scene_cache(maxsize=1)
+@scene_cache(maxsize=1, loads=False)  # its argument is a loaded scene, kept by no record
 def _collector(sc, integrator, transform, lam, max_depth, rr_depth, unwarp, slots):
     if integrator == "transient_prbvolpath":
         from .collector_media import MediaStatsCollector as cls
