@@ -123,7 +123,7 @@ def _main(argv: Sequence[str] | None) -> int:
     render_device = getattr(args, "device", None)
     # the renderer probes keep their verdict in the command's cache folder, and nowhere under
     # --no-cache (dbench/datasets/mitsuba_env.py); sweep workers inherit both
-    from ..datasets.mitsuba_env import PROBE_STORE_ENV
+    from ..datasets.mitsuba_env import PROBE_STORE_ENV, forget_loads, forget_probes, probe_folder
     from ..datasets.mitsuba_log import QUIET_ENV, follow_quiet
 
     probe_store = ("none" if getattr(args, "no_cache", False) else getattr(args, "cache", None))
@@ -140,10 +140,7 @@ def _main(argv: Sequence[str] | None) -> int:
     else:
         os.environ.pop(QUIET_ENV, None)
     level = follow_quiet()  # the level a notebook had set is given back at the end
-    from ..datasets.mitsuba_env import forget_loads
-
     forget_loads()  # a scene file's warnings in this command's log, though loaded before
-    from ..datasets.mitsuba_env import forget_probes, probe_folder
     from ..io import missing_folders
 
     store = probe_folder()

@@ -33,7 +33,7 @@ from functools import lru_cache
 from pathlib import Path
 
 from ..errors import DbenchInputError, RendererUnavailableError
-from .mitsuba_log import loading
+from .mitsuba_log import drjit_start, follow_quiet, forget, loading, route
 
 LLVM_VARIANT = "llvm_ad_rgb"
 CUDA_VARIANT = "cuda_ad_rgb"
@@ -197,11 +197,9 @@ def forget_loads() -> None:
     """A command starts: its loads are first loads again, whose warnings are forwarded and kept
     in its own log (:func:`scene_cache`), and its sweep's workers inherit its own lines alone
     (:func:`dbench.datasets.mitsuba_log.forget`)."""
-    from . import mitsuba_log
-
     for made in _LOADS_MADE:
         made.clear()
-    mitsuba_log.forget()
+    forget()
 
 
 def focus(scene) -> None:
@@ -333,8 +331,6 @@ def deferred_interrupts():
 def mitsuba():
     """Import Mitsuba with the chosen variant set (once per process) and return the module.
     An interrupt during the import waits until it is done (:func:`deferred_interrupts`)."""
-    from .mitsuba_log import drjit_start, follow_quiet, route
-
     variant = current_variant()  # its probes run in child processes: interruptible
     # Dr.Jit's start-up warnings (an unusable kernel cache) go to the run's files as Mitsuba's
     # do, shown unless --quiet
